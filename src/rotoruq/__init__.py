@@ -1,0 +1,62 @@
+"""rotoruq: verification, validation and calibration under uncertainty of helicopter rotor models.
+
+The public API is re-exported here; see README.md for a tour.
+"""
+
+from __future__ import annotations
+
+from . import errors
+from ._rng import as_generator
+from .errors import EvaluationError, InputFileError, ParameterError, RotoruqError
+from .evaluation import EvalBatch, FunctionModel, Model, evaluate
+from .params import (
+    Beta,
+    Exponential,
+    Gamma,
+    Gumbel,
+    LogNormal,
+    LogUniform,
+    Normal,
+    ParameterSpace,
+    Triangular,
+    TruncatedNormal,
+    Uniform,
+    Weibull,
+    make_distribution,
+)
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "__version__",
+    "errors",
+    "as_generator",
+    "EvaluationError",
+    "InputFileError",
+    "ParameterError",
+    "RotoruqError",
+    "EvalBatch",
+    "FunctionModel",
+    "Model",
+    "evaluate",
+    "Beta",
+    "Exponential",
+    "Gamma",
+    "Gumbel",
+    "LogNormal",
+    "LogUniform",
+    "Normal",
+    "ParameterSpace",
+    "Triangular",
+    "TruncatedNormal",
+    "Uniform",
+    "Weibull",
+    "make_distribution",
+]
+
+# --- rotor (issue 2) ---
+# --- methods: forward UQ and sensitivity (issue 3) ---
+# --- methods: surrogates and Bayes (issue 4) ---
+# --- methods: least squares and CUU (issue 5) ---
+# --- evaluation layer (issue 6) ---
+# --- study and report (issue 7) ---

@@ -1,0 +1,1 @@
+"""rotoruq.methods.mcmc."""

@@ -7,7 +7,15 @@ mapping name -> distribution. Points are arrays of shape ``(n, d)`` in the order
 ``space.names``.
 
 Standard normal space ("u-space") is reached through the marginal CDFs:
-``u = Phi^-1(F_i(x_i))`` for independent variables.
+``z = Phi^-1(F_i(x_i))``; for independent variables ``u = z``. With a correlation matrix the
+Nataf transformation is used: the correlation ``R`` given in x-space is mapped to the
+equivalent correlation ``R0`` of the normal scores ``z`` (solved per pair by Gauss-Hermite
+quadrature), and ``u = L^-1 z`` with ``L L^T = R0``.
+
+Epistemic variables are :class:`Interval` objects: one or more intervals with basic probability
+assignments (BPAs). Methods that need a density treat them as the BPA-weighted mixture of
+uniform densities over their intervals (Dakota does the same when it samples them); the
+evidence method (:mod:`rotoruq.methods.evidence`) uses the intervals themselves.
 """
 
 from __future__ import annotations
@@ -36,7 +44,9 @@ __all__ = [
     "Gumbel",
     "Weibull",
     "Triangular",
+    "Interval",
     "ParameterSpace",
+    "nataf_correlation",
     "make_distribution",
     "DISTRIBUTIONS",
 ]
@@ -288,6 +298,114 @@ class Triangular(Distribution):
         _freeze(self, stats.triang((self.mode - lo) / (hi - lo), loc=lo, scale=hi - lo))
 
 
+@dataclass(frozen=True)
+class Interval(Distribution):
+    """Epistemic variable: intervals ``[(lo_1, hi_1), ...]`` with basic probability assignments.
+
+    Parameters
+    ----------
+    intervals : sequence of (lower, upper) pairs; they may overlap or nest.
+    bpa : sequence of weights (one per interval), each > 0, summing to 1 (within 1e-8).
+        Default: one interval with BPA 1.
+
+    As a density (for sampling, u-space transforms, moments) the variable is the BPA-weighted
+    mixture of uniform densities over the intervals.
+    """
+
+    intervals: tuple
+    bpa: tuple | None = None
+
+    def __post_init__(self):
+        try:
+            iv = np.array(self.intervals, dtype=float).reshape(-1, 2)
+        except (TypeError, ValueError):
+            raise ParameterError(
+                f"Interval: intervals must be (lower, upper) pairs, got {self.intervals!r}"
+            ) from None
+        if iv.shape[0] == 0:
+            raise ParameterError("Interval: at least one interval is needed")
+        for lo, hi in iv:
+            _finite("lower", lo, "Interval")
+            _finite("upper", hi, "Interval")
+            _ordered(lo, hi, "Interval")
+        if self.bpa is None:
+            w = np.full(iv.shape[0], 1.0 / iv.shape[0])
+        else:
+            w = np.array(self.bpa, dtype=float).ravel()
+            if w.shape[0] != iv.shape[0]:
+                raise ParameterError(
+                    f"Interval: {iv.shape[0]} intervals but {w.shape[0]} BPA values"
+                )
+            if np.any(~np.isfinite(w)) or np.any(w <= 0):
+                raise ParameterError(f"Interval: BPA values must be > 0, got {w.tolist()}")
+            if abs(w.sum() - 1.0) > 1e-8:
+                raise ParameterError(f"Interval: BPA values must sum to 1, got {w.sum()!r}")
+        object.__setattr__(self, "intervals", tuple(map(tuple, iv.tolist())))
+        object.__setattr__(self, "bpa", tuple(w.tolist()))
+        # piecewise-linear mixture CDF on the sorted breakpoints
+        knots = np.unique(iv.ravel())
+        dens = np.zeros(knots.size - 1)
+        for (lo, hi), wk in zip(iv, w, strict=True):
+            inside = (knots[:-1] >= lo) & (knots[1:] <= hi)
+            dens[inside] += wk / (hi - lo)
+        cdf = np.concatenate([[0.0], np.cumsum(dens * np.diff(knots))])
+        cdf /= cdf[-1]
+        _freeze(self, None)
+        object.__setattr__(self, "_knots", knots)
+        object.__setattr__(self, "_dens", dens)
+        object.__setattr__(self, "_cdfk", cdf)
+
+    @property
+    def dist(self):
+        return self
+
+    @property
+    def kind(self) -> str:
+        return "interval"
+
+    @property
+    def bounds(self) -> tuple[float, float]:
+        return float(self._knots[0]), float(self._knots[-1])
+
+    @property
+    def mean(self) -> float:
+        iv = np.array(self.intervals)
+        return float(np.dot(self.bpa, iv.mean(axis=1)))
+
+    @property
+    def std(self) -> float:
+        iv = np.array(self.intervals)
+        m2 = np.dot(self.bpa, (iv[:, 0] ** 2 + iv[:, 0] * iv[:, 1] + iv[:, 1] ** 2) / 3.0)
+        return float(np.sqrt(max(m2 - self.mean**2, 0.0)))
+
+    def cdf(self, x):
+        return np.interp(x, self._knots, self._cdfk, left=0.0, right=1.0)
+
+    def ppf(self, q):
+        q = np.asarray(q, dtype=float)
+        c, t = self._cdfk, self._knots
+        # segment k with c[k] < q <= c[k+1]: flat pieces (gaps between intervals) are skipped
+        k = np.clip(np.searchsorted(c, q, side="left") - 1, 0, c.size - 2)
+        out = t[k] + (q - c[k]) / (c[k + 1] - c[k]) * (t[k + 1] - t[k])
+        return np.where((q < 0) | (q > 1), np.nan, out)
+
+    def pdf(self, x):
+        x = np.asarray(x, dtype=float)
+        k = np.clip(np.searchsorted(self._knots, x, side="right") - 1, 0, self._dens.size - 1)
+        inside = (x >= self._knots[0]) & (x <= self._knots[-1])
+        return np.where(inside, self._dens[k], 0.0)
+
+    def logpdf(self, x):
+        with np.errstate(divide="ignore"):
+            return np.log(self.pdf(x))
+
+    def rvs(self, size, seed: SeedLike = None):
+        return self.ppf(as_generator(seed).random(size))
+
+    def describe(self) -> dict:
+        return {"kind": "interval", "intervals": list(self.intervals), "bpa": list(self.bpa)}
+
+
 DISTRIBUTIONS: dict[str, type[Distribution]] = {
     "normal": Normal,
     "gaussian": Normal,
@@ -301,6 +419,7 @@ DISTRIBUTIONS: dict[str, type[Distribution]] = {
     "gumbel": Gumbel,
     "weibull": Weibull,
     "triangular": Triangular,
+    "interval": Interval,
 }
 
 _ALIASES = {
@@ -340,18 +459,75 @@ def make_distribution(kind: str, **params) -> Distribution:
         ) from exc
 
 
+def _bivariate_corr(d1: Distribution, d2: Distribution, rho0: float, z, w) -> float:
+    """Correlation of (F1^-1(Phi(z1)), F2^-1(Phi(z2))) when corr(z1, z2) = rho0."""
+    z1 = z[:, 0]
+    z2 = rho0 * z[:, 0] + math.sqrt(max(1.0 - rho0 * rho0, 0.0)) * z[:, 1]
+    x1 = d1.ppf(np.clip(stats.norm.cdf(z1), 1e-15, 1 - 1e-15))
+    x2 = d2.ppf(np.clip(stats.norm.cdf(z2), 1e-15, 1 - 1e-15))
+    return float(np.sum(w * (x1 - d1.mean) * (x2 - d2.mean)) / (d1.std * d2.std))
+
+
+def nataf_correlation(distributions, correlation, n_quad: int = 32) -> np.ndarray:
+    """Correlation matrix of the normal scores (Nataf) equivalent to an x-space correlation.
+
+    For every pair the equation ``corr(x_i, x_j) = R_ij`` is solved for the normal-score
+    correlation by Gauss-Hermite quadrature (``n_quad`` points per axis) and root finding.
+    Pairs of normals keep ``R_ij``. Raises :class:`ParameterError` when a requested
+    correlation cannot be reached with these marginals.
+    """
+    from scipy.optimize import brentq
+
+    r = np.array(correlation, dtype=float)
+    t, wt = np.polynomial.hermite_e.hermegauss(n_quad)
+    wt = wt / wt.sum()
+    z = np.array(np.meshgrid(t, t, indexing="ij")).reshape(2, -1).T
+    w = np.outer(wt, wt).ravel()
+    r0 = np.eye(r.shape[0])
+    dists = list(distributions)
+    for i in range(r.shape[0]):
+        for j in range(i + 1, r.shape[0]):
+            rij = r[i, j]
+            if rij == 0.0:
+                continue
+            di, dj = dists[i], dists[j]
+            if isinstance(di, Normal) and isinstance(dj, Normal):
+                r0[i, j] = r0[j, i] = rij
+                continue
+            lo = _bivariate_corr(di, dj, -0.9999, z, w)
+            hi = _bivariate_corr(di, dj, 0.9999, z, w)
+            if not (lo <= rij <= hi):
+                raise ParameterError(
+                    f"correlation {rij} between parameters {i} and {j} is not reachable with "
+                    f"their marginals (range [{lo:.4f}, {hi:.4f}])"
+                )
+            val = brentq(
+                lambda q, a=di, b=dj, t=rij: _bivariate_corr(a, b, q, z, w) - t,
+                -0.9999,
+                0.9999,
+                xtol=1e-12,
+            )
+            r0[i, j] = r0[j, i] = val
+    return r0
+
+
 @dataclass(frozen=True)
 class ParameterSpace:
-    """An ordered set of named, independent uncertain parameters.
+    """An ordered set of named uncertain parameters, independent or correlated.
 
     Parameters
     ----------
     parameters : mapping name -> Distribution, or iterable of (name, Distribution)
+    correlation : array (d, d), optional
+        Correlation matrix of the parameters themselves (x-space, Pearson), symmetric, unit
+        diagonal, positive definite. Sampling and the u-space transforms use the Nataf model
+        (Gaussian copula) with the equivalent normal-score correlation :attr:`nataf`.
 
     Points are arrays of shape ``(n, d)`` with columns in the order of :attr:`names`.
     """
 
     parameters: Mapping[str, Distribution] | Iterable[tuple[str, Distribution]]
+    correlation: np.ndarray | None = field(default=None, compare=False)
     _items: tuple[tuple[str, Distribution], ...] = field(init=False, repr=False)
 
     def __post_init__(self):
@@ -375,6 +551,35 @@ class ParameterSpace:
             raise ParameterError("a ParameterSpace needs at least one parameter")
         object.__setattr__(self, "_items", tuple(items))
         object.__setattr__(self, "parameters", dict(items))
+        chol = None
+        r0 = None
+        if self.correlation is not None:
+            d = len(items)
+            r = np.array(self.correlation, dtype=float)
+            if r.shape != (d, d):
+                raise ParameterError(f"correlation must have shape ({d}, {d}), got {r.shape}")
+            if not np.all(np.isfinite(r)) or not np.allclose(r, r.T, atol=1e-12):
+                raise ParameterError("correlation matrix must be finite and symmetric")
+            if not np.allclose(np.diag(r), 1.0) or np.any(np.abs(r) > 1.0):
+                raise ParameterError("correlation matrix needs a unit diagonal and |r_ij| <= 1")
+            if np.allclose(r, np.eye(d)):
+                r = None
+            else:
+                try:
+                    np.linalg.cholesky(r)
+                except np.linalg.LinAlgError:
+                    raise ParameterError("correlation matrix is not positive definite") from None
+                r0 = nataf_correlation([dd for _, dd in items], r)
+                try:
+                    chol = np.linalg.cholesky(r0)
+                except np.linalg.LinAlgError:
+                    raise ParameterError(
+                        "the Nataf normal-score correlation is not positive definite for these "
+                        "marginals; reduce the correlations"
+                    ) from None
+            object.__setattr__(self, "correlation", r)
+        object.__setattr__(self, "_nataf", r0)
+        object.__setattr__(self, "_chol", chol)
 
     # --- description -----------------------------------------------------------------------
     @property
@@ -423,14 +628,46 @@ class ParameterSpace:
         """Support bounds, shape (d, 2) (may contain +-inf)."""
         return np.array([d.bounds for d in self.distributions])
 
+    @property
+    def correlated(self) -> bool:
+        return self.correlation is not None
+
+    @property
+    def correlation_matrix(self) -> np.ndarray:
+        """x-space correlation, shape (d, d) (identity when independent)."""
+        return np.eye(self.dim) if self.correlation is None else np.array(self.correlation)
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """x-space covariance diag(std) R diag(std), shape (d, d)."""
+        s = self.std
+        return self.correlation_matrix * np.outer(s, s)
+
+    @property
+    def nataf(self) -> np.ndarray:
+        """Normal-score correlation R0 of the Nataf model, shape (d, d)."""
+        return np.eye(self.dim) if self._nataf is None else np.array(self._nataf)
+
+    @property
+    def epistemic(self) -> tuple[str, ...]:
+        """Names of the :class:`Interval` (epistemic) parameters."""
+        return tuple(n for n, d in self._items if isinstance(d, Interval))
+
     def replace(self, **dists: Distribution) -> ParameterSpace:
-        """A new space with some distributions replaced (names must exist)."""
+        """A new space with some distributions replaced (names must exist; correlation kept)."""
         for name in dists:
             self.index(name)
-        return ParameterSpace([(n, dists.get(n, d)) for n, d in self._items])
+        return ParameterSpace(
+            [(n, dists.get(n, d)) for n, d in self._items], correlation=self.correlation
+        )
 
     def subset(self, names: Iterable[str]) -> ParameterSpace:
-        return ParameterSpace([(n, self[n]) for n in names])
+        names = list(names)
+        corr = None
+        if self.correlation is not None:
+            idx = [self.index(n) for n in names]
+            corr = self.correlation[np.ix_(idx, idx)]
+        return ParameterSpace([(n, self[n]) for n in names], correlation=corr)
 
     # --- transforms ------------------------------------------------------------------------
     def _check(self, x) -> np.ndarray:
@@ -454,22 +691,52 @@ class ParameterSpace:
         x = self._check(x)
         return np.column_stack([d.cdf(x[:, j]) for j, d in enumerate(self.distributions)])
 
-    def to_u(self, x) -> np.ndarray:
-        """Transform to independent standard normal space, u = Phi^-1(F(x)), shape (n, d)."""
+    def to_z(self, x) -> np.ndarray:
+        """Marginal normal scores z = Phi^-1(F_i(x_i)), shape (n, d) (correlated if the space
+        is)."""
         q = np.clip(self.to_unit(x), 1e-300, 1 - 1e-16)
         return stats.norm.ppf(q)
+
+    def from_z(self, z) -> np.ndarray:
+        """Inverse of :meth:`to_z`."""
+        z = self._check(z)
+        return self.from_unit(stats.norm.cdf(z))
+
+    def to_u(self, x) -> np.ndarray:
+        """Transform to independent standard normal space, shape (n, d).
+
+        Independent: u = Phi^-1(F(x)). Correlated: Nataf, u = L^-1 z with L L^T = R0.
+        """
+        z = self.to_z(x)
+        if self._chol is None:
+            return z
+        from scipy.linalg import solve_triangular
+
+        return solve_triangular(self._chol, z.T, lower=True).T
 
     def from_u(self, u) -> np.ndarray:
         """Inverse of :meth:`to_u`."""
         u = self._check(u)
+        if self._chol is not None:
+            u = u @ self._chol.T
         return self.from_unit(stats.norm.cdf(u))
 
     def logpdf(self, x) -> np.ndarray:
-        """Joint log density of independent marginals, shape (n,); -inf outside the support."""
+        """Joint log density, shape (n,); -inf outside the support.
+
+        Sum of the marginal log densities, plus the Gaussian-copula term when correlated.
+        """
         x = self._check(x)
         out = np.zeros(x.shape[0])
         for j, d in enumerate(self.distributions):
             out += d.logpdf(x[:, j])
+        if self._chol is not None:
+            with np.errstate(invalid="ignore"):
+                z = self.to_z(x)
+                r0inv = np.linalg.inv(self._nataf)
+                quad = np.einsum("ni,ij,nj->n", z, r0inv - np.eye(self.dim), z)
+                logdet = 2.0 * np.sum(np.log(np.diag(self._chol)))
+                out = out - 0.5 * quad - 0.5 * logdet
         return np.where(np.isnan(out), -np.inf, out)
 
     def contains(self, x) -> np.ndarray:
@@ -483,13 +750,18 @@ class ParameterSpace:
         """Draw ``n`` points, shape (n, d).
 
         method : "lhs" (Latin hypercube, scipy.stats.qmc), "mc" / "random" (plain Monte Carlo),
-            "sobol" or "halton" (scrambled low-discrepancy sequences).
+            "sobol" or "halton" (scrambled low-discrepancy sequences). With correlations the
+            design's normal scores are correlated through the Nataf factor, so an LHS design
+            is stratified in u-space rather than in each marginal.
         """
         n = int(n)
         if n < 1:
             raise ParameterError(f"number of samples must be >= 1, got {n}")
         rng = as_generator(seed)
         q = unit_design(n, self.dim, rng, method)
+        if self._chol is not None:
+            # correlate the normal scores of the design (Nataf); marginals keep their law
+            return self.from_u(stats.norm.ppf(np.clip(q, 1e-16, 1 - 1e-16)))
         return self.from_unit(q)
 
 

@@ -56,6 +56,14 @@ __all__ = [
 
 # --- rotor (issue 2) ---
 # --- methods: forward UQ and sensitivity (issue 3) ---
+from .methods.reliability import (  # noqa: E402
+    MeanValueResult,
+    mean_value,
+    mean_value_from_gradient,
+)
+from .params import Interval  # noqa: E402
+
+__all__ += ["Interval", "MeanValueResult", "mean_value", "mean_value_from_gradient"]
 # --- methods: surrogates and Bayes (issue 4) ---
 # --- methods: least squares and CUU (issue 5) ---
 # --- evaluation layer (issue 6) ---

@@ -1,0 +1,418 @@
+"""Sampling-based forward propagation: Monte Carlo, Latin hypercube and quasi-Monte Carlo
+designs, response statistics, empirical CDF/PDF and incremental growth.
+
+Moment conventions (Dakota's): ``std`` is the sample standard deviation (ddof = 1);
+``skewness`` is the bias-corrected sample skewness G1 and ``kurtosis`` the bias-corrected
+**excess** kurtosis G2 (0 for a normal response), i.e. ``scipy.stats.skew(bias=False)`` and
+``scipy.stats.kurtosis(fisher=True, bias=False)``.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+from scipy.stats import qmc
+
+from .._rng import SeedLike, as_generator
+from ..errors import ParameterError
+from ..params import ParameterSpace
+from ._common import eval_space, levels_per_response, nan_rows_warning
+
+__all__ = [
+    "ResponseStatistics",
+    "SamplingResult",
+    "response_statistics",
+    "sample",
+    "refine",
+    "unit_to_space",
+]
+
+DEFAULT_PERCENTILES = (1.0, 5.0, 10.0, 25.0, 50.0, 75.0, 90.0, 95.0, 99.0)
+_METHODS = ("lhs", "mc", "sobol", "halton")
+
+
+@dataclass(frozen=True)
+class ResponseStatistics:
+    """Statistics of m responses from n samples (non-finite values left out per response).
+
+    Attributes
+    ----------
+    names : (m,) response names.
+    n_valid : (m,) number of finite values used per response.
+    n_dropped : (m,) number of values left out (failed or NaN) per response.
+    mean, std, skewness, kurtosis : (m,) sample moments (std ddof=1; skewness G1 and excess
+        kurtosis G2, both bias-corrected; normal -> 0).
+    mean_ci, std_ci : (m, 2) confidence intervals at level ``confidence`` (Student t for the
+        mean, chi-square for the std, as Dakota).
+    percentile_levels : (k,) percentiles in percent; percentiles : (m, k) values.
+    response_levels, cdf_probability, ccdf_probability : dict name -> arrays: empirical
+        P(y <= z) and P(y > z) at the levels z.
+    probability_levels, probability_response : dict name -> arrays: empirical quantiles.
+    """
+
+    names: tuple[str, ...]
+    n_valid: np.ndarray
+    n_dropped: np.ndarray
+    mean: np.ndarray
+    std: np.ndarray
+    skewness: np.ndarray
+    kurtosis: np.ndarray
+    mean_ci: np.ndarray
+    std_ci: np.ndarray
+    confidence: float
+    percentile_levels: np.ndarray
+    percentiles: np.ndarray
+    response_levels: dict = field(default_factory=dict)
+    cdf_probability: dict = field(default_factory=dict)
+    ccdf_probability: dict = field(default_factory=dict)
+    probability_levels: dict = field(default_factory=dict)
+    probability_response: dict = field(default_factory=dict)
+
+    def table(self) -> list[dict]:
+        """One dict per response (name, mean, std, skewness, kurtosis, n_valid)."""
+        return [
+            {
+                "response": n,
+                "mean": float(self.mean[k]),
+                "std": float(self.std[k]),
+                "skewness": float(self.skewness[k]),
+                "kurtosis": float(self.kurtosis[k]),
+                "n_valid": int(self.n_valid[k]),
+            }
+            for k, n in enumerate(self.names)
+        ]
+
+
+def response_statistics(
+    values,
+    names=None,
+    *,
+    response_levels=None,
+    probability_levels=None,
+    percentiles=DEFAULT_PERCENTILES,
+    confidence: float = 0.95,
+    warn: bool = True,
+) -> ResponseStatistics:
+    """Statistics of a sample of responses ``values`` (n, m); NaN/inf entries are dropped per
+    response, with a RuntimeWarning saying how many (``warn=False`` silences it)."""
+    y = np.asarray(values, dtype=float)
+    if y.ndim == 1:
+        y = y[:, None]
+    n, m = y.shape
+    names = tuple(names) if names is not None else tuple(f"y{k}" for k in range(m))
+    if not 0 < confidence < 1:
+        raise ParameterError(f"confidence must lie in (0, 1), got {confidence}")
+    finite = np.isfinite(y)
+    n_valid = finite.sum(axis=0)
+    n_bad_rows = int(np.sum(~finite.all(axis=1)))
+    if warn:
+        nan_rows_warning(n_bad_rows, n, "response statistics")
+    pct = np.asarray(percentiles, dtype=float)
+    out = {k: np.full(m, np.nan) for k in ("mean", "std", "skew", "kurt")}
+    mean_ci = np.full((m, 2), np.nan)
+    std_ci = np.full((m, 2), np.nan)
+    perc = np.full((m, pct.size), np.nan)
+    rl = levels_per_response(response_levels, names, "response_levels")
+    pl = levels_per_response(probability_levels, names, "probability_levels")
+    cdf_p, ccdf_p, p_resp = {}, {}, {}
+    a = 1.0 - confidence
+    for k, name in enumerate(names):
+        v = y[finite[:, k], k]
+        nk = v.size
+        if nk >= 1:
+            out["mean"][k] = v.mean()
+            perc[k] = np.percentile(v, pct)
+        if nk >= 2:
+            s = v.std(ddof=1)
+            out["std"][k] = s
+            t = stats.t.ppf(1 - a / 2, nk - 1)
+            mean_ci[k] = v.mean() + np.array([-1, 1]) * t * s / np.sqrt(nk)
+            std_ci[k] = np.sqrt((nk - 1) * s**2 / stats.chi2.ppf([1 - a / 2, a / 2], nk - 1))
+            if s > 0:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", RuntimeWarning)
+                    if nk >= 3:
+                        out["skew"][k] = stats.skew(v, bias=False)
+                    if nk >= 4:
+                        out["kurt"][k] = stats.kurtosis(v, fisher=True, bias=False)
+        z = rl[name]
+        cdf_p[name] = (v[None, :] <= z[:, None]).mean(axis=1) if nk else np.full(z.size, np.nan)
+        ccdf_p[name] = 1.0 - cdf_p[name]
+        p = pl[name]
+        if np.any((p < 0) | (p > 1)):
+            raise ParameterError(f"probability_levels for {name!r} must lie in [0, 1]")
+        p_resp[name] = np.quantile(v, p) if nk else np.full(p.size, np.nan)
+    return ResponseStatistics(
+        names=names,
+        n_valid=n_valid,
+        n_dropped=n - n_valid,
+        mean=out["mean"],
+        std=out["std"],
+        skewness=out["skew"],
+        kurtosis=out["kurt"],
+        mean_ci=mean_ci,
+        std_ci=std_ci,
+        confidence=float(confidence),
+        percentile_levels=pct,
+        percentiles=perc,
+        response_levels=rl,
+        cdf_probability=cdf_p,
+        ccdf_probability=ccdf_p,
+        probability_levels=pl,
+        probability_response=p_resp,
+    )
+
+
+@dataclass(frozen=True)
+class SamplingResult:
+    """Result of :func:`sample`.
+
+    Attributes
+    ----------
+    names_in, names_out : input (d) and response (m) names.
+    inputs : (n, d) sample points (columns in ``names_in`` order).
+    outputs : (n, m) responses (NaN rows for failed points).
+    failures : dict row -> reason for failed points.
+    statistics : ResponseStatistics of the finite responses.
+    method : design ("lhs", "mc", "sobol", "halton").
+    unit : (n, d) the design in (0, 1)^d (used by :func:`refine`).
+    n_evaluations : model evaluations made (all rows, failed ones included).
+    """
+
+    names_in: tuple[str, ...]
+    names_out: tuple[str, ...]
+    inputs: np.ndarray
+    outputs: np.ndarray
+    failures: dict
+    statistics: ResponseStatistics
+    method: str
+    unit: np.ndarray = field(repr=False)
+    n_evaluations: int = 0
+    model: object = field(default=None, repr=False, compare=False)
+    space: ParameterSpace | None = field(default=None, repr=False, compare=False)
+    options: dict = field(default_factory=dict, repr=False, compare=False)
+
+    # convenience accessors
+    @property
+    def n(self) -> int:
+        return self.inputs.shape[0]
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self.statistics.mean
+
+    @property
+    def std(self) -> np.ndarray:
+        return self.statistics.std
+
+    @property
+    def skewness(self) -> np.ndarray:
+        return self.statistics.skewness
+
+    @property
+    def kurtosis(self) -> np.ndarray:
+        return self.statistics.kurtosis
+
+    def _column(self, name: str) -> np.ndarray:
+        if name not in self.names_out:
+            raise ParameterError(f"unknown response {name!r}; valid: {list(self.names_out)}")
+        v = self.outputs[:, self.names_out.index(name)]
+        return v[np.isfinite(v)]
+
+    def ecdf(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Empirical CDF of response ``name``: sorted values (k,) and P(Y <= value) (k,)."""
+        v = np.sort(self._column(name))
+        return v, np.arange(1, v.size + 1) / v.size
+
+    def histogram_pdf(self, name: str, bins="auto") -> tuple[np.ndarray, np.ndarray]:
+        """Histogram density: bin edges (b+1,) and densities (b,) (integrates to 1)."""
+        dens, edges = np.histogram(self._column(name), bins=bins, density=True)
+        return edges, dens
+
+    def kde_pdf(self, name: str, grid=None, bw_method=None) -> tuple[np.ndarray, np.ndarray]:
+        """Gaussian kernel density (scipy.stats.gaussian_kde) on ``grid`` (default 200 points
+        spanning the sample +- 3 bandwidths): returns (grid, density)."""
+        v = self._column(name)
+        kde = stats.gaussian_kde(v, bw_method=bw_method)
+        if grid is None:
+            bw = np.sqrt(kde.covariance[0, 0])
+            grid = np.linspace(v.min() - 3 * bw, v.max() + 3 * bw, 200)
+        grid = np.asarray(grid, dtype=float)
+        return grid, kde(grid)
+
+
+def unit_to_space(space: ParameterSpace, q: np.ndarray) -> np.ndarray:
+    """Map a design in (0, 1)^d to parameter values (Nataf-correlated when the space is)."""
+    if space.correlation is None:
+        return space.from_unit(q)
+    return space.from_u(stats.norm.ppf(np.clip(q, 1e-16, 1 - 1e-16)))
+
+
+def _qmc_engine(method: str, d: int, engine_seed: int):
+    if method == "sobol":
+        return qmc.Sobol(d=d, scramble=True, seed=engine_seed)
+    return qmc.Halton(d=d, scramble=True, seed=engine_seed)
+
+
+def _design(method: str, n: int, d: int, rng: np.random.Generator, engine_seed: int):
+    if method == "mc":
+        return rng.random((n, d))
+    if method == "lhs":
+        return qmc.LatinHypercube(d=d, seed=rng).random(n)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # Sobol balance for n not a power of 2
+        return _qmc_engine(method, d, engine_seed).random(n)
+
+
+def _check_method(method: str) -> str:
+    m = method.lower()
+    m = {"random": "mc", "monte_carlo": "mc", "latin": "lhs"}.get(m, m)
+    if m not in _METHODS:
+        raise ParameterError(f"unknown sampling method {method!r}; valid: {', '.join(_METHODS)}")
+    return m
+
+
+def _finish(model, space, q, method, options, failures_offset=None, previous=None):
+    x = unit_to_space(space, q)
+    batch = eval_space(model, space, x)
+    y, failures = batch.values, dict(batch.failures)
+    if previous is not None:
+        off = previous.inputs.shape[0]
+        failures = {**previous.failures, **{i + off: r for i, r in failures.items()}}
+        x = np.vstack([previous.inputs, x])
+        y = np.vstack([previous.outputs, y])
+        q = np.vstack([previous.unit, q])
+    names_out = tuple(model.names_out)
+    st = response_statistics(
+        y,
+        names_out,
+        response_levels=options["response_levels"],
+        probability_levels=options["probability_levels"],
+        percentiles=options["percentiles"],
+        confidence=options["confidence"],
+        warn=False,
+    )
+    n_bad = int(np.sum(~np.all(np.isfinite(y), axis=1)))
+    nan_rows_warning(n_bad, y.shape[0], f"sample ({method})")
+    return SamplingResult(
+        names_in=space.names,
+        names_out=names_out,
+        inputs=x,
+        outputs=y,
+        failures=failures,
+        statistics=st,
+        method=method,
+        unit=q,
+        n_evaluations=y.shape[0],
+        model=model,
+        space=space,
+        options=options,
+    )
+
+
+def sample(
+    model,
+    space: ParameterSpace,
+    n: int,
+    *,
+    method: str = "lhs",
+    seed: SeedLike = None,
+    response_levels=None,
+    probability_levels=None,
+    percentiles=DEFAULT_PERCENTILES,
+    confidence: float = 0.95,
+) -> SamplingResult:
+    """Propagate ``space`` through ``model`` with ``n`` samples in ONE batched model call.
+
+    Parameters
+    ----------
+    model : Model; inputs matched to ``space.names`` by name.
+    space : ParameterSpace (correlations honoured through the Nataf model).
+    n : number of samples (>= 2).
+    method : "lhs" (Latin hypercube), "mc" (plain Monte Carlo), "sobol" or "halton"
+        (scrambled, scipy.stats.qmc).
+    seed : int or numpy Generator.
+    response_levels : levels z for the empirical P(y <= z) / P(y > z) (same for all responses,
+        a mapping name -> levels, or one sequence per response).
+    probability_levels : probabilities mapped to empirical quantiles.
+    percentiles : percentiles (percent) to report.
+    confidence : level of the mean / std confidence intervals.
+
+    Failed rows stay in ``outputs`` as NaN (reason in ``failures``) and are left out of the
+    statistics with a RuntimeWarning giving the count.
+    """
+    n = int(n)
+    if n < 2:
+        raise ParameterError(f"number of samples must be >= 2, got {n}")
+    method = _check_method(method)
+    rng = as_generator(seed)
+    engine_seed = int(rng.integers(2**62))
+    q = _design(method, n, space.dim, rng, engine_seed)
+    options = {
+        "response_levels": response_levels,
+        "probability_levels": probability_levels,
+        "percentiles": tuple(percentiles),
+        "confidence": confidence,
+        "engine_seed": engine_seed,
+        "rng": rng,
+    }
+    return _finish(model, space, q, method, options)
+
+
+def _lhs_extension(u_old: np.ndarray, n_more: int, rng: np.random.Generator) -> np.ndarray:
+    """New points that fill the empty strata of an (n + n_more)-stratum grid per dimension.
+
+    When ``u_old`` is an LHS of n points and ``n_more == n`` exactly n strata are empty in
+    every dimension and the union is an LHS of 2n points (incremental LHS, as Dakota's
+    ``refinement_samples``). Otherwise the union is LHS-like: new points go to empty strata
+    first (randomly chosen), then to random strata.
+    """
+    n_old, d = u_old.shape
+    N = n_old + n_more
+    out = np.empty((n_more, d))
+    for j in range(d):
+        occupied = np.zeros(N, dtype=bool)
+        occupied[np.minimum((u_old[:, j] * N).astype(int), N - 1)] = True
+        empty = np.flatnonzero(~occupied)
+        if empty.size >= n_more:
+            strata = rng.choice(empty, size=n_more, replace=False)
+        else:
+            extra = rng.choice(np.flatnonzero(occupied), size=n_more - empty.size, replace=False)
+            strata = np.concatenate([empty, extra])
+        out[:, j] = (rng.permutation(strata) + rng.random(n_more)) / N
+    return out
+
+
+def refine(result: SamplingResult, n_more: int, *, seed: SeedLike = None) -> SamplingResult:
+    """Grow a sample by ``n_more`` points (one model call for the new points only).
+
+    * "lhs": new points fill the empty strata of the finer grid (exact LHS of 2n points when
+      ``n_more == n``; LHS-like otherwise);
+    * "sobol" / "halton": the same scrambled sequence is continued;
+    * "mc": independent new points (plain Monte Carlo extension).
+
+    ``seed`` defaults to the generator the original sample was drawn with (continued), so a
+    refined run is reproducible from the original seed.
+    """
+    n_more = int(n_more)
+    if n_more < 1:
+        raise ParameterError(f"n_more must be >= 1, got {n_more}")
+    if result.model is None or result.space is None:
+        raise ParameterError("this SamplingResult does not carry its model and space")
+    opts = dict(result.options)
+    rng = as_generator(seed) if seed is not None else opts["rng"]
+    d = result.space.dim
+    if result.method == "lhs":
+        q = _lhs_extension(result.unit, n_more, rng)
+    elif result.method == "mc":
+        q = rng.random((n_more, d))
+    else:
+        eng = _qmc_engine(result.method, d, opts["engine_seed"])
+        eng.fast_forward(result.n)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            q = eng.random(n_more)
+    return _finish(result.model, result.space, q, result.method, opts, previous=result)

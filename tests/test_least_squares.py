@@ -1,0 +1,240 @@
+"""NL2SOL-style least squares on the Moré-Garbow-Hillstrom problems (ACM TOMS 7(1), 1981) and
+deterministic calibration of a Model. Minima: f = sum r^2 as published in MGH."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from rotoruq.errors import EvaluationError, ModelShapeError, ParameterError
+from rotoruq.evaluation.model import FunctionModel
+from rotoruq.methods.least_squares import calibrate, least_squares
+from rotoruq.params import Normal, ParameterSpace, Uniform
+
+
+def rosenbrock(X):
+    return np.column_stack([10 * (X[:, 1] - X[:, 0] ** 2), 1 - X[:, 0]])
+
+
+def freudenstein_roth(X):
+    x1, x2 = X[:, 0], X[:, 1]
+    return np.column_stack(
+        [-13 + x1 + ((5 - x2) * x2 - 2) * x2, -29 + x1 + ((x2 + 1) * x2 - 14) * x2]
+    )
+
+
+BARD_Y = np.array(
+    [0.14, 0.18, 0.22, 0.25, 0.29, 0.32, 0.35, 0.39, 0.37, 0.58, 0.73, 0.96, 1.34, 2.10, 4.39]
+)
+
+
+def bard(X):
+    i = np.arange(1, 16)
+    v = 16 - i
+    w = np.minimum(i, v)
+    return BARD_Y - (X[:, :1] + i / (v * X[:, 1:2] + w * X[:, 2:3]))
+
+
+def box3d(X):
+    t = 0.1 * np.arange(1, 11)
+    x1, x2, x3 = X[:, :1], X[:, 1:2], X[:, 2:3]
+    return np.exp(-t * x1) - np.exp(-t * x2) - x3 * (np.exp(-t) - np.exp(-10 * t))
+
+
+def jennrich_sampson(X):
+    i = np.arange(1, 11)
+    return 2 + 2 * i - (np.exp(i * X[:, :1]) + np.exp(i * X[:, 1:2]))
+
+
+def brown_dennis(X):
+    t = np.arange(1, 21) / 5
+    a = X[:, :1] + t * X[:, 1:2] - np.exp(t)
+    b = X[:, 2:3] + X[:, 3:4] * np.sin(t) - np.cos(t)
+    return a**2 + b**2
+
+
+# name: (residual, x0, published f = sum r^2, published x or None)
+PROBLEMS = {
+    "rosenbrock": (rosenbrock, [-1.2, 1.0], 0.0, [1.0, 1.0]),
+    "freudenstein_roth": (freudenstein_roth, [0.5, -2.0], 48.9842, [11.4128, -0.896805]),
+    "bard": (bard, [1.0, 1.0, 1.0], 8.21487e-3, None),
+    "box3d": (box3d, [0.0, 10.0, 20.0], 0.0, [1.0, 10.0, 1.0]),
+    "jennrich_sampson": (jennrich_sampson, [0.3, 0.4], 124.362, [0.2578, 0.2578]),
+    "brown_dennis": (brown_dennis, [25.0, 5.0, -5.0, -1.0], 85822.2, None),
+}
+
+
+@pytest.mark.parametrize("name", list(PROBLEMS))
+def test_mgh_problems_reach_published_minimum(name):
+    fun, x0, fstar, xstar = PROBLEMS[name]
+    res = least_squares(fun, x0, convergence_tolerance=1e-10)
+    assert res.success, res.message
+    sumsq = 2 * res.cost
+    if fstar == 0.0:
+        assert sumsq < 1e-12
+    else:
+        assert sumsq == pytest.approx(fstar, rel=1e-5)
+    if xstar is not None:
+        # Box 3-D also has the solutions x1 = x2, x3 = 0; from the standard start it finds (1,10,1)
+        np.testing.assert_allclose(res.x, xstar, rtol=2e-4, atol=1e-6)
+    assert res.n_evaluations < 1000
+    assert len(res.models) == res.iterations
+    assert set(res.models) <= {"gn", "augmented"}
+
+
+def test_bard_minimizer_matches_scipy_trf_and_fd_counts():
+    res = least_squares(bard, [1, 1, 1], convergence_tolerance=1e-12)
+    ref = least_squares(bard, [1, 1, 1], method="trf", convergence_tolerance=1e-14)
+    np.testing.assert_allclose(res.x, ref.x, rtol=1e-5)
+    assert ref.method == "trf" and ref.n_evaluations > 0
+    # a finite-difference Jacobian costs p points in one call: calls << points
+    assert res.n_calls < res.n_evaluations
+
+
+def test_large_residual_problem_uses_augmented_model():
+    res = least_squares(brown_dennis, [25.0, 5.0, -5.0, -1.0], convergence_tolerance=1e-10)
+    assert "augmented" in res.models
+
+
+def test_analytic_jacobian_accepted_and_counted():
+    def jac(X):
+        x1 = X[:, 0]
+        J = np.zeros((X.shape[0], 2, 2))
+        J[:, 0, 0] = -20 * x1
+        J[:, 0, 1] = 10
+        J[:, 1, 0] = -1
+        return J
+
+    res = least_squares(rosenbrock, [-1.2, 1.0], jacobian=jac)
+    np.testing.assert_allclose(res.x, [1, 1], atol=1e-8)
+    assert res.n_jacobian_evaluations > 0
+    assert res.n_evaluations == res.n_calls  # no finite-difference points
+
+
+def test_bounds_active_at_solution():
+    # unconstrained minimum at (1, 1); with x1 <= 0.5 the bound is active
+    res = least_squares(rosenbrock, [-1.2, 1.0], bounds=([-2, -2], [0.5, 2]),
+                        convergence_tolerance=1e-12)
+    assert res.success
+    assert res.x[0] == pytest.approx(0.5, abs=1e-12)
+    assert res.x[1] == pytest.approx(0.25, abs=1e-6)  # x2 = x1^2 minimizes the first residual
+    res_trf = least_squares(rosenbrock, [-1.2, 1.0], bounds=([-2, -2], [0.5, 2]), method="trf")
+    np.testing.assert_allclose(res.x, res_trf.x, atol=1e-6)
+
+
+def test_linear_regression_covariance_and_confidence_intervals():
+    rng = np.random.default_rng(3)
+    t = np.linspace(0, 1, 30)
+    A = np.column_stack([np.ones_like(t), t])
+    y = A @ [1.0, 2.0] + 0.1 * rng.standard_normal(t.size)
+
+    res = least_squares(lambda X: X @ A.T - y, [0.0, 0.0], convergence_tolerance=1e-12)
+    beta, *_ = np.linalg.lstsq(A, y, rcond=None)
+    np.testing.assert_allclose(res.x, beta, rtol=1e-7)
+    s2 = np.sum((A @ beta - y) ** 2) / (t.size - 2)
+    cov = s2 * np.linalg.inv(A.T @ A)
+    np.testing.assert_allclose(res.covariance, cov, rtol=1e-5)
+    q = stats.t.ppf(0.975, t.size - 2)
+    np.testing.assert_allclose(res.confidence_intervals[:, 1] - res.x, q * np.sqrt(np.diag(cov)),
+                               rtol=1e-5)
+    # with known data variances the covariance is (A^T W A)^-1
+    resw = least_squares(lambda X: X @ A.T - y, [0.0, 0.0], weights=np.full(t.size, 100.0),
+                         convergence_tolerance=1e-12)
+    np.testing.assert_allclose(resw.covariance, np.linalg.inv(100 * A.T @ A), rtol=1e-5)
+
+
+def test_nan_residual_shrinks_the_trust_region():
+    # arctan is flat far from its root: the Gauss-Newton step from x = -5 jumps to x ~ 56, where
+    # the residual is undefined (NaN for x > 3). The step is rejected, the radius shrinks and
+    # the solver still reaches the root x = 1.5.
+    calls = []
+
+    def fun(X):
+        calls.append(X.copy())
+        r = np.arctan(X - 1.5)
+        r[X[:, 0] > 3] = np.nan
+        return r
+
+    res = least_squares(fun, [-5.0], convergence_tolerance=1e-12)
+    assert res.success, res.message
+    assert res.x[0] == pytest.approx(1.5, abs=1e-7)
+    tried = np.concatenate(calls)[:, 0]
+    assert np.sum(tried > 3) >= 1  # failed trials happened and were survived
+    assert np.all(np.diff(res.history) <= 0)
+
+
+def test_bad_inputs():
+    with pytest.raises(ParameterError, match="unknown least-squares method"):
+        least_squares(rosenbrock, [0, 0], method="bfgs")
+    with pytest.raises(ParameterError, match="does not take bounds"):
+        least_squares(rosenbrock, [0, 0], method="lm", bounds=([-1, -1], [1, 1]))
+    with pytest.raises(EvaluationError, match="starting point"):
+        least_squares(lambda X: np.full((X.shape[0], 2), np.nan), [0, 0])
+    with pytest.raises(ModelShapeError, match="batched"):
+        least_squares(lambda X: np.zeros((3, 2)), [0, 0])
+    with pytest.raises(ParameterError, match="lower < upper"):
+        least_squares(rosenbrock, [0, 0], bounds=([1, 1], [0, 0]))
+
+
+def test_max_function_evaluations_respected():
+    res = least_squares(brown_dennis, [25.0, 5.0, -5.0, -1.0], max_function_evaluations=20)
+    assert not res.success
+    assert res.status == "max_function_evaluations"
+    assert res.n_evaluations <= 20
+
+
+# --- calibrate --------------------------------------------------------------------------------
+
+
+def _decay_model():
+    # y_j = a * exp(-b * t_j) at three times, inputs (b, a, t_shift) in a permuted order
+    t = np.array([0.5, 1.0, 2.0])
+
+    def f(x):
+        b, a, c = x[:, 0], x[:, 1], x[:, 2]
+        return a[:, None] * np.exp(-b[:, None] * (t + c[:, None]))
+
+    return FunctionModel(f, ["b", "a", "c"], ["y05", "y1", "y2"]), t
+
+
+def test_calibrate_recovers_parameters_from_several_experiments():
+    model, t = _decay_model()
+    truth = {"a": 3.0, "b": 0.7}
+    rng = np.random.default_rng(0)
+    clean = truth["a"] * np.exp(-truth["b"] * t)
+    data = clean + 0.01 * rng.standard_normal((5, 3))
+    res = calibrate(model, data, ["a", "b"], x0=[1.0, 0.1], fixed={"c": 0.0},
+                    data_variance=1e-4, convergence_tolerance=1e-12)
+    assert res.names == ("a", "b")
+    np.testing.assert_allclose(res.x, [3.0, 0.7], rtol=0.02)
+    assert res.residuals.shape == (5, 3)
+    assert res.n_evaluations == 5 * res.least_squares.n_evaluations  # 5 experiments per point
+    # the intervals from known variances cover the truth
+    lo, hi = res.least_squares.confidence_intervals.T
+    assert np.all((lo < [3.0, 0.7]) & ([3.0, 0.7] < hi))
+    assert res.parameters == {"a": pytest.approx(res.x[0]), "b": pytest.approx(res.x[1])}
+
+
+def test_calibrate_with_parameter_space_and_per_experiment_conditions():
+    model, t = _decay_model()
+    shifts = np.array([0.0, 0.5, 1.0])
+    data = 2.0 * np.exp(-0.4 * (t[None, :] + shifts[:, None]))
+    space = ParameterSpace({"a": Uniform(1.0, 5.0), "b": Normal(0.3, 0.1)})
+    res = calibrate(model, data, space, fixed={"c": shifts}, convergence_tolerance=1e-12)
+    np.testing.assert_allclose(res.x, [2.0, 0.4], rtol=1e-6)
+    assert res.cost < 1e-14
+
+
+def test_calibrate_bad_inputs():
+    model, _ = _decay_model()
+    with pytest.raises(ParameterError, match="no value"):
+        calibrate(model, np.ones(3), ["a", "b"], x0=[1, 1])
+    with pytest.raises(ParameterError, match="not inputs of the model"):
+        calibrate(model, np.ones(3), ["a", "zz"], x0=[1, 1], fixed={"c": 0})
+    with pytest.raises(ParameterError, match="columns"):
+        calibrate(model, np.ones(4), ["a", "b"], x0=[1, 1], fixed={"c": 0})
+    with pytest.raises(ParameterError, match="x0"):
+        calibrate(model, np.ones(3), ["a", "b"], fixed={"c": 0})
+    with pytest.raises(ParameterError, match="variance"):
+        calibrate(model, np.ones(3), ["a", "b"], x0=[1, 1], fixed={"c": 0}, data_variance=-1)

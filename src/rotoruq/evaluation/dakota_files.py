@@ -1,0 +1,565 @@
+"""Dakota parameters and results files (the fork/system interface contract).
+
+Dakota runs an analysis driver as ``driver params.in results.out``. Before the run it writes the
+parameters file; the driver writes the results file. Both formats are documented in the Dakota
+User's Manual ("Dakota Parameters File Data Format", "Dakota Results File Data Format").
+
+Parameters file, standard format (one ``value tag`` pair per line)::
+
+                          2 variables
+     5.4000000000000004e+00 collective_deg
+     1.5000000000000000e+01 k_pitch_link
+                          2 functions
+                          1 ASV_1:thrust
+                          1 ASV_2:torque
+                          2 derivative_variables
+                          1 DVV_1:collective_deg
+                          2 DVV_2:k_pitch_link
+                          0 analysis_components
+                          1 eval_id
+                          0 metadata
+
+and the aprepro format, the same data as ``{ tag = value }``::
+
+                    { DAKOTA_VARS     =                         2 }
+                    { collective_deg  =    5.4000000000000004e+00 }
+                    ...
+                    { DAKOTA_EVAL_ID  =                         1 }
+
+Values are written as ``%24.16e`` (17 significant digits), so a float64 survives the round trip
+exactly. The trailing ``metadata`` block of recent Dakota versions is optional on reading and
+written only when asked for.
+
+Results file: one value per line with an optional label, then one gradient per requested
+response in single brackets ``[ g_1 ... g_p ]``, then Hessians in double brackets
+``[[ h_11 ... h_1p  h_21 ... h_pp ]]`` (rows may be spread over lines). A file whose first word
+is ``fail`` (any case) reports a failed evaluation. Exponents must be ``e`` or ``E``; Fortran's
+``D`` is rejected with a message saying so.
+
+Every parse error is an :class:`~rotoruq.errors.InputFileError` naming the file and line.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputFileError
+
+__all__ = [
+    "ParametersFile",
+    "ResultsFile",
+    "format_parameters",
+    "parse_parameters",
+    "read_parameters",
+    "write_parameters",
+    "format_results",
+    "parse_results",
+    "read_results",
+    "write_results",
+    "FAIL_TEXT",
+]
+
+FAIL_TEXT = "FAIL\n"
+
+_INT = re.compile(r"^[+-]?\d+$")
+_FORTRAN = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)[dD][+-]?\d+$")
+_WIDTH = 24
+
+
+@dataclass(frozen=True)
+class ParametersFile:
+    """Content of a Dakota parameters file.
+
+    variables : mapping label -> value (float, int or str), in file order.
+    asv : mapping response label -> active set code (bit 1 value, 2 gradient, 4 Hessian).
+    dvv : labels of the derivative variables (the variables gradients are taken with respect to).
+    analysis_components : tuple of (component, driver name) pairs.
+    eval_id : evaluation id as written ("12" or hierarchical "1:4:2").
+    metadata : labels of the metadata block (empty when the file has none or an empty block).
+    format : "standard" or "aprepro".
+    """
+
+    variables: dict[str, float | int | str]
+    asv: dict[str, int] = field(default_factory=dict)
+    dvv: tuple[str, ...] = ()
+    analysis_components: tuple[tuple[str, str], ...] = ()
+    eval_id: str = "1"
+    metadata: tuple[str, ...] = ()
+    format: str = "standard"
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(self.variables)
+
+    @property
+    def responses(self) -> tuple[str, ...]:
+        return tuple(self.asv)
+
+    def values(self) -> np.ndarray:
+        """Numeric variable values as a float array (d,); string variables raise."""
+        out = []
+        for k, v in self.variables.items():
+            if isinstance(v, str):
+                raise ValueError(f"variable {k!r} is a string ({v!r}), not a number")
+            out.append(float(v))
+        return np.array(out, dtype=float)
+
+
+@dataclass(frozen=True)
+class ResultsFile:
+    """Content of a Dakota results file.
+
+    values : (k,) function values in file order (k = number of values present).
+    labels : label of each value, or None where the value had none.
+    gradients : (g, p) array, one row per gradient block, or None.
+    hessians : (h, p, p) array, or None.
+    failed : True when the file reports a failed evaluation (``fail``).
+    """
+
+    values: np.ndarray
+    labels: tuple[str | None, ...] = ()
+    gradients: np.ndarray | None = None
+    hessians: np.ndarray | None = None
+    failed: bool = False
+
+
+# ---------------------------------------------------------------------------------------------
+# parameters
+
+
+def _fmt_value(v) -> str:
+    if isinstance(v, bool):
+        raise TypeError("boolean variable values are not supported")
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, str):
+        if not v or any(c.isspace() for c in v):
+            # Dakota string variables may not contain white space in the standard format
+            raise ValueError(f"string variable value {v!r} must be non-empty without spaces")
+        return v
+    return f"{float(v):.16e}"
+
+
+def format_parameters(
+    variables: Mapping[str, float | int | str],
+    responses: Sequence[str] | Mapping[str, int],
+    *,
+    asv: int | Sequence[int] = 1,
+    dvv: Sequence[str] | None = None,
+    analysis_components: Sequence[tuple[str, str]] = (),
+    eval_id: str | int = 1,
+    metadata: Sequence[str] | None = None,
+    format: str = "standard",
+) -> str:
+    """Text of a parameters file.
+
+    Parameters
+    ----------
+    variables : mapping label -> value (floats written with 17 significant digits).
+    responses : response labels, or a mapping label -> ASV code (then ``asv`` is ignored).
+    asv : one code for every response, or one per response.
+    dvv : derivative variable labels (default: every float-valued variable).
+    analysis_components : (component, driver) pairs.
+    eval_id : evaluation id.
+    metadata : metadata labels; None omits the block (older Dakota versions).
+    format : "standard" or "aprepro".
+    """
+    if format not in ("standard", "aprepro"):
+        raise ValueError(f"format must be 'standard' or 'aprepro', got {format!r}")
+    if isinstance(responses, Mapping):
+        codes = {str(k): int(v) for k, v in responses.items()}
+    else:
+        names = [str(r) for r in responses]
+        asv_list = [int(asv)] * len(names) if np.isscalar(asv) else [int(a) for a in asv]
+        if len(asv_list) != len(names):
+            raise ValueError(f"{len(asv_list)} ASV codes for {len(names)} responses")
+        codes = dict(zip(names, asv_list, strict=True))
+    for k, c in codes.items():
+        if not 0 <= c <= 7:
+            raise ValueError(f"ASV code of {k!r} must be in 0..7, got {c}")
+    labels = list(variables)
+    if dvv is None:
+        # derivatives exist only for continuous variables
+        dvv = [k for k, v in variables.items() if not isinstance(v, (str, int, np.integer))]
+    for k in dvv:
+        if k not in variables:
+            raise ValueError(f"derivative variable {k!r} is not among the variables {labels}")
+    lines: list[tuple[str, str]] = []  # (value, tag)
+    lines.append((str(len(labels)), "variables"))
+    lines += [(_fmt_value(v), k) for k, v in variables.items()]
+    lines.append((str(len(codes)), "functions"))
+    lines += [(str(c), f"ASV_{i}:{k}") for i, (k, c) in enumerate(codes.items(), 1)]
+    lines.append((str(len(dvv)), "derivative_variables"))
+    lines += [(str(labels.index(k) + 1), f"DVV_{i}:{k}") for i, k in enumerate(dvv, 1)]
+    lines.append((str(len(analysis_components)), "analysis_components"))
+    lines += [(c, f"AC_{i}:{d}") for i, (c, d) in enumerate(analysis_components, 1)]
+    lines.append((str(eval_id), "eval_id"))
+    if metadata is not None:
+        lines.append((str(len(metadata)), "metadata"))
+        lines += [(f"MD_{i}", str(m)) for i, m in enumerate(metadata, 1)]
+    if format == "standard":
+        return "".join(f"{v:>{_WIDTH}} {t}\n" for v, t in lines)
+    header = {
+        "variables": "DAKOTA_VARS",
+        "functions": "DAKOTA_FNS",
+        "derivative_variables": "DAKOTA_DER_VARS",
+        "analysis_components": "DAKOTA_AN_COMPS",
+        "eval_id": "DAKOTA_EVAL_ID",
+        "metadata": "DAKOTA_METADATA",
+    }
+    out = []
+    for v, t in lines:
+        if t.startswith("AC_"):
+            v = f'"{v}"'
+        if v.startswith("MD_"):  # metadata: { MD_i = "label" }
+            t, v = v, f'"{t}"'
+        out.append(f"{'':20}{{ {header.get(t, t):<15} = {v:>{_WIDTH}} }}\n")
+    return "".join(out)
+
+
+def write_parameters(path: str | os.PathLike, variables, responses, **kwargs) -> Path:
+    """Write a parameters file (see :func:`format_parameters`); returns the path."""
+    path = Path(path)
+    path.write_text(format_parameters(variables, responses, **kwargs))
+    return path
+
+
+_APREPRO = re.compile(r"^\s*\{\s*(\S+?)\s*=\s*(.*?)\s*\}\s*$")
+
+
+def _pairs(text: str, path) -> tuple[str, list[tuple[int, str, str]]]:
+    """Split a parameters file into (line number, value, tag); detect the format."""
+    rows = []
+    fmt = None
+    for lineno, raw in enumerate(text.splitlines(), 1):
+        line = raw.strip()
+        if not line:
+            continue
+        m = _APREPRO.match(line)
+        if m and (fmt in (None, "aprepro")):
+            fmt = "aprepro"
+            tag, value = m.group(1), m.group(2)
+            if len(value) >= 2 and value[0] == value[-1] == '"':
+                value = value[1:-1]
+            rows.append((lineno, value, tag))
+            continue
+        if fmt == "aprepro":
+            raise InputFileError(path, lineno, "an aprepro '{ tag = value }' line", raw)
+        fmt = "standard"
+        parts = line.split()
+        if len(parts) != 2:
+            raise InputFileError(path, lineno, "a 'value tag' pair", raw)
+        rows.append((lineno, parts[0], parts[1]))
+    if fmt is None:
+        raise InputFileError(path, None, "a Dakota parameters file", "an empty file")
+    return fmt, rows
+
+
+_APREPRO_HEAD = {
+    "DAKOTA_VARS": "variables",
+    "DAKOTA_FNS": "functions",
+    "DAKOTA_DER_VARS": "derivative_variables",
+    "DAKOTA_AN_COMPS": "analysis_components",
+    "DAKOTA_EVAL_ID": "eval_id",
+    "DAKOTA_METADATA": "metadata",
+}
+
+
+def _number(value: str, path, lineno: int, what: str) -> float | int:
+    if _FORTRAN.match(value):
+        raise InputFileError(
+            path, lineno, f"{what} with an 'e' or 'E' exponent (Fortran-style 'D' exponents "
+            "are not read; replace D by E)", value)
+    if _INT.match(value):
+        return int(value)
+    try:
+        return float(value)
+    except ValueError:
+        raise InputFileError(path, lineno, what, value) from None
+
+
+def parse_parameters(text: str, path: str | os.PathLike | None = None) -> ParametersFile:
+    """Parse the text of a parameters file (standard or aprepro format, detected)."""
+    fmt, rows = _pairs(text, path)
+    if fmt == "aprepro":
+        # rename the block headers; metadata items { MD_i = "label" } become (MD_i, label)
+        rows = [
+            (ln, t, v) if t.startswith("MD_") else (ln, v, _APREPRO_HEAD.get(t, t))
+            for ln, v, t in rows
+        ]
+    pos = 0
+
+    def block(tag: str, expected_item: str) -> list[tuple[int, str, str]]:
+        nonlocal pos
+        if pos >= len(rows):
+            raise InputFileError(path, None, f"a '<n> {tag}' line", "end of file")
+        ln, v, t = rows[pos]
+        if t != tag or not _INT.match(v) or int(v) < 0:
+            raise InputFileError(path, ln, f"'<n> {tag}'", f"{v} {t}")
+        n = int(v)
+        items = rows[pos + 1 : pos + 1 + n]
+        if len(items) < n:
+            raise InputFileError(path, None, f"{n} {expected_item} lines", f"{len(items)}")
+        pos += 1 + n
+        return items
+
+    variables: dict[str, float | int | str] = {}
+    for ln, v, t in block("variables", "variable"):
+        if t in variables:
+            raise InputFileError(path, ln, f"a new variable label (duplicate {t!r})", t)
+        if _FORTRAN.match(v):
+            _number(v, path, ln, "a variable value")
+        try:
+            variables[t] = _number(v, path, ln, "a number")
+        except InputFileError:
+            variables[t] = v  # string variable
+    asv: dict[str, int] = {}
+    for ln, v, t in block("functions", "ASV"):
+        m = re.match(r"^ASV_\d+:(\S+)$", t)
+        if not m or not _INT.match(v) or not 0 <= int(v) <= 7:
+            raise InputFileError(path, ln, "'<code 0-7> ASV_i:label'", f"{v} {t}")
+        asv[m.group(1)] = int(v)
+    dvv = []
+    names = list(variables)
+    for ln, v, t in block("derivative_variables", "DVV"):
+        m = re.match(r"^DVV_\d+:(\S+)$", t)
+        if not m or not _INT.match(v):
+            raise InputFileError(path, ln, "'<variable id> DVV_i:label'", f"{v} {t}")
+        label = m.group(1)
+        if label not in variables:
+            idx = int(v) - 1
+            if not 0 <= idx < len(names):
+                raise InputFileError(path, ln, "a derivative variable among the variables", t)
+            label = names[idx]
+        dvv.append(label)
+    comps = []
+    for ln, v, t in block("analysis_components", "AC"):
+        m = re.match(r"^AC_\d+:(.+)$", t)
+        if not m:
+            raise InputFileError(path, ln, "'<component> AC_i:driver'", f"{v} {t}")
+        comps.append((v, m.group(1)))
+    if pos >= len(rows) or rows[pos][2] != "eval_id":
+        found = "end of file" if pos >= len(rows) else f"{rows[pos][1]} {rows[pos][2]}"
+        raise InputFileError(path, rows[pos][0] if pos < len(rows) else None,
+                             "'<id> eval_id'", found)
+    ln, eval_id, _ = rows[pos]
+    if not re.match(r"^\d+(:\d+)*$", eval_id):
+        raise InputFileError(path, ln, "an evaluation id like 12 or 1:4:2", eval_id)
+    pos += 1
+    metadata: tuple[str, ...] = ()
+    if pos < len(rows) and rows[pos][2] == "metadata":
+        metadata = tuple(t for _, _, t in block("metadata", "MD"))
+    if pos < len(rows):
+        ln, v, t = rows[pos]
+        raise InputFileError(path, ln, "end of file after eval_id (and metadata)", f"{v} {t}")
+    return ParametersFile(variables, asv, tuple(dvv), tuple(comps), eval_id, metadata, fmt)
+
+
+def read_parameters(path: str | os.PathLike) -> ParametersFile:
+    """Read and parse a parameters file."""
+    return parse_parameters(Path(path).read_text(), path)
+
+
+# ---------------------------------------------------------------------------------------------
+# results
+
+
+def format_results(
+    values: Sequence[float] | np.ndarray,
+    labels: Sequence[str] | None = None,
+    *,
+    gradients: np.ndarray | None = None,
+    hessians: np.ndarray | None = None,
+) -> str:
+    """Text of a results file: values (with labels), then gradients, then Hessians.
+
+    gradients : (g, p) array or None; hessians : (h, p, p) array or None.
+    """
+    values = np.atleast_1d(np.asarray(values, dtype=float))
+    if labels is not None and len(labels) != len(values):
+        raise ValueError(f"{len(labels)} labels for {len(values)} values")
+    out = []
+    for i, v in enumerate(values):
+        lab = f" {labels[i]}" if labels is not None else ""
+        out.append(f"{v:{_WIDTH}.16e}{lab}\n")
+    if gradients is not None:
+        for g in np.atleast_2d(np.asarray(gradients, dtype=float)):
+            out.append("[ " + " ".join(f"{e:.16e}" for e in g) + " ]\n")
+    if hessians is not None:
+        h = np.asarray(hessians, dtype=float)
+        if h.ndim == 2:
+            h = h[None]
+        for m in h:
+            rows = ["  ".join(f"{e:.16e}" for e in r) for r in m]
+            out.append("[[ " + "\n   ".join(rows) + " ]]\n")
+    return "".join(out)
+
+
+def write_results(
+    path: str | os.PathLike, values=None, labels=None, *, gradients=None, hessians=None,
+    failed: bool = False,
+) -> Path:
+    """Write a results file; ``failed=True`` writes the ``FAIL`` marker only.
+
+    The file is written to a temporary name and renamed, so a reader never sees half a file.
+    """
+    path = Path(path)
+    text = FAIL_TEXT if failed else format_results(values, labels, gradients=gradients,
+                                                   hessians=hessians)
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+    return path
+
+
+def _tokens(text: str) -> list[tuple[int, str]]:
+    """Words with their line numbers; brackets are split off as their own tokens."""
+    out = []
+    for lineno, line in enumerate(text.splitlines(), 1):
+        line = line.replace("[[", " [[ ").replace("]]", " ]] ")
+        # single brackets that are not part of a double one
+        line = re.sub(r"(?<!\[)\[(?!\[)", " [ ", line)
+        line = re.sub(r"(?<!\])\](?!\])", " ] ", line)
+        out += [(lineno, w) for w in line.split()]
+    return out
+
+
+def _is_number(word: str) -> bool:
+    try:
+        float(word)
+    except ValueError:
+        return False
+    return True
+
+
+def parse_results(
+    text: str,
+    path: str | os.PathLike | None = None,
+    *,
+    names: Sequence[str] | None = None,
+    asv: Sequence[int] | None = None,
+    n_dvv: int | None = None,
+) -> ResultsFile:
+    """Parse the text of a results file.
+
+    Parameters
+    ----------
+    names : expected response labels, in order. When given, the number of values is checked
+        and labels, where present, must match (a file whose labels are a permutation of
+        ``names`` is reordered).
+    asv : active set codes per response (default: values only, i.e. all 1). Used to check
+        how many values, gradients and Hessians the file must hold.
+    n_dvv : number of derivative variables (length of each gradient).
+    """
+    toks = _tokens(text)
+    if toks and toks[0][1].lower() == "fail":
+        return ResultsFile(np.zeros(0), (), None, None, True)
+    if names is not None and asv is None:
+        asv = [1] * len(names)
+    values: list[float] = []
+    labels: list[str | None] = []
+    i = 0
+    while i < len(toks) and toks[i][1] not in ("[", "[["):
+        ln, w = toks[i]
+        if _FORTRAN.match(w):
+            raise InputFileError(
+                path, ln, "a response value with an 'e' or 'E' exponent (Fortran-style 'D' "
+                "exponents are not read; replace D by E)", w)
+        if not _is_number(w):
+            raise InputFileError(path, ln, "a numeric response value", w)
+        values.append(float(w))
+        lab = None
+        if i + 1 < len(toks) and toks[i + 1][1] not in ("[", "[[") and not _is_number(
+            toks[i + 1][1]
+        ) and not _FORTRAN.match(toks[i + 1][1]):
+            lab = toks[i + 1][1]
+            i += 1
+        labels.append(lab)
+        i += 1
+
+    def bracket(open_: str, close: str, what: str) -> list[tuple[int, list[float]]]:
+        nonlocal i
+        blocks = []
+        while i < len(toks) and toks[i][1] == open_:
+            start = toks[i][0]
+            i += 1
+            nums = []
+            while i < len(toks) and toks[i][1] != close:
+                ln, w = toks[i]
+                if w in ("[", "[[", "]", "]]"):
+                    raise InputFileError(path, ln, f"a number or '{close}' inside a {what}", w)
+                if _FORTRAN.match(w):
+                    raise InputFileError(
+                        path, ln, f"a {what} entry with an 'e' or 'E' exponent (Fortran-style "
+                        "'D' exponents are not read; replace D by E)", w)
+                if not _is_number(w):
+                    raise InputFileError(path, ln, f"a numeric {what} entry", w)
+                nums.append(float(w))
+                i += 1
+            if i >= len(toks):
+                raise InputFileError(path, start, f"a closing '{close}' for this {what}", "EOF")
+            i += 1
+            blocks.append((start, nums))
+        return blocks
+
+    grads = bracket("[", "]", "gradient")
+    hess = bracket("[[", "]]", "Hessian")
+    if i < len(toks):
+        ln, w = toks[i]
+        raise InputFileError(path, ln, "values, then '[ gradients ]', then '[[ Hessians ]]'", w)
+
+    def widths_ok(blocks, size_of, what):
+        sizes = {len(b) for _, b in blocks}
+        if len(sizes) > 1:
+            ln = next(s for s, b in blocks if len(b) != len(blocks[0][1]))
+            raise InputFileError(path, ln, f"every {what} of the same length", str(sorted(sizes)))
+        if blocks and n_dvv is not None and len(blocks[0][1]) != size_of(n_dvv):
+            raise InputFileError(path, blocks[0][0], f"{size_of(n_dvv)} entries per {what}",
+                                 str(len(blocks[0][1])))
+
+    widths_ok(grads, lambda p: p, "gradient")
+    widths_ok(hess, lambda p: p * p, "Hessian")
+    g = np.array([b for _, b in grads], dtype=float) if grads else None
+    h = None
+    if hess:
+        size = len(hess[0][1])
+        p = int(round(np.sqrt(size)))
+        if p * p != size:
+            raise InputFileError(path, hess[0][0], "a square Hessian (p*p entries)", str(size))
+        h = np.array([b for _, b in hess], dtype=float).reshape(len(hess), p, p)
+    vals = np.array(values, dtype=float)
+    labs = tuple(labels)
+    if asv is not None:
+        n_val = sum(1 for a in asv if a & 1)
+        n_grad = sum(1 for a in asv if a & 2)
+        n_hess = sum(1 for a in asv if a & 4)
+        for what, have, want in (("response values", len(values), n_val),
+                                 ("gradients", len(grads), n_grad),
+                                 ("Hessians", len(hess), n_hess)):
+            if have != want:
+                last = toks[-1][0] if toks else None
+                raise InputFileError(path, last, f"{want} {what}", f"{have}")
+    if names is not None and any(lab is not None for lab in labs):
+        wanted = [n for n, a in zip(names, asv, strict=True) if a & 1]
+        if list(labs) != wanted:
+            if sorted(lab or "" for lab in labs) == sorted(wanted) and None not in labs:
+                order = [labs.index(n) for n in wanted]
+                vals, labs = vals[order], tuple(wanted)
+            else:
+                ln = toks[0][0]
+                raise InputFileError(path, ln, f"response labels {wanted}", str(list(labs)))
+    return ResultsFile(vals, labs, g, h, False)
+
+
+def read_results(path: str | os.PathLike, **kwargs) -> ResultsFile:
+    """Read and parse a results file (see :func:`parse_results` for the checks)."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputFileError(path, None, "a results file written by the driver", "no file")
+    return parse_results(path.read_text(), path, **kwargs)

@@ -1,0 +1,323 @@
+"""The Evaluator: one gate through which every method evaluates a model.
+
+``Evaluator(model, store=..., executor=...)`` is itself a Model (``names_in``, ``names_out``,
+``__call__``, ``evaluate`` -> :class:`~rotoruq.evaluation.model.EvalBatch`), so any method can
+be handed an Evaluator instead of the raw model. For a batch it
+
+1. looks every row up in the store (exact match on the float64 bytes of the point, or within
+   ``tolerance``) and reuses what is there;
+2. evaluates only the missing rows (each distinct point once) through the executor:
+   vectorized internal models in chunks (several per worker, so progress and crash safety
+   have a fine grain), external models (:class:`~rotoruq.evaluation.external.ExternalModel`)
+   one task per evaluation;
+3. commits each result to the store as soon as its task finishes;
+4. returns the whole batch, in order, with failures reported per row.
+
+A study killed at any point and run again therefore resumes: finished evaluations are read
+back, never repeated.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import uuid
+import weakref
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import EvaluationError, ModelShapeError
+from .executors import Executor, make_executor
+from .external import RunResult, _abort_message
+from .model import EvalBatch, evaluate
+from .progress import Progress
+from .store import NewRecord, Store, canonical_keys, open_store
+
+__all__ = ["Evaluator", "EvalStats", "model_identity"]
+
+
+@dataclass(frozen=True)
+class EvalStats:
+    """What the last :meth:`Evaluator.evaluate` call did.
+
+    n : rows asked for; reused : rows found in the store; evaluated : distinct points run;
+    duplicates : rows that repeated another row of the batch; failed : rows that failed;
+    wall_time : seconds.
+    """
+
+    n: int
+    reused: int
+    evaluated: int
+    duplicates: int
+    failed: int
+    wall_time: float
+
+
+def model_identity(model) -> str:
+    """Text that tells models apart in the store: the model's ``identity`` attribute when it
+    has one, else its class, plus the input and response names."""
+    ident = getattr(model, "identity", None)
+    if not isinstance(ident, str):
+        t = type(model)
+        ident = f"{t.__module__}.{t.__qualname__}"
+    return f"{ident}|{','.join(model.names_in)}->{','.join(model.names_out)}"
+
+
+class _ChunkTask:
+    """Evaluate a chunk of rows of a vectorized model (runs in a worker)."""
+
+    def __init__(self, model):
+        self.model = model
+
+    def __call__(self, x: np.ndarray) -> EvalBatch:
+        return evaluate(self.model, x)
+
+
+class _ExternalTask:
+    """Run one external evaluation (runs in a worker)."""
+
+    def __init__(self, model):
+        self.model = model
+
+    def __call__(self, task) -> RunResult:
+        x, eval_id = task
+        return self.model.run_one(x, eval_id)
+
+
+class Evaluator:
+    """Store-backed, parallel evaluation of a model; itself a Model.
+
+    Parameters
+    ----------
+    model : any Model (``names_in``, ``names_out``, ``__call__``); an object with
+        ``run_one(x, eval_id)`` (an ExternalModel) is run one evaluation per task.
+    store : a :class:`~rotoruq.evaluation.store.Store`, a path to its SQLite file, or None.
+    executor : "serial", "processes" (all cores), "processes:N", "dask", "dask:ADDRESS", or an
+        :class:`~rotoruq.evaluation.executors.Executor`.
+    study : name that groups the evaluations in the store (reuse happens within a study).
+    run_id : label of this run in the store (default: a random id).
+    tolerance : reuse stored points within ``|x - x_s| <= tolerance * max(1, |x_s|)``;
+        None reuses exact matches only.
+    chunk_size : rows per task for vectorized models (default: about four chunks per worker).
+    progress : None (a bar on a terminal for runs longer than 2 s), True or False.
+    model_id : override the text identifying the model in the store.
+    reuse_failed : also reuse stored failures (default: failed points are run again).
+    """
+
+    def __init__(
+        self,
+        model,
+        *,
+        store: Store | str | None = None,
+        executor: str | Executor = "serial",
+        study: str = "default",
+        run_id: str | None = None,
+        tolerance: float | None = None,
+        chunk_size: int | None = None,
+        progress: bool | None = None,
+        model_id: str | None = None,
+        reuse_failed: bool = False,
+    ):
+        self.model = model
+        self.names_in = tuple(model.names_in)
+        self.names_out = tuple(model.names_out)
+        self.store = open_store(store)
+        self._owns_executor = not isinstance(executor, Executor)
+        self.executor = make_executor(executor)
+        if self._owns_executor:
+            self._finalizer = weakref.finalize(self, self.executor.close)
+        self.study = str(study)
+        self.run_id = run_id or uuid.uuid4().hex[:12]
+        if tolerance is not None and not tolerance >= 0:
+            raise ValueError(f"tolerance must be >= 0, got {tolerance}")
+        self.tolerance = tolerance
+        if chunk_size is not None and chunk_size < 1:
+            raise ValueError(f"chunk_size must be >= 1, got {chunk_size}")
+        self.chunk_size = chunk_size
+        self.progress = progress
+        self.model_id = model_id or model_identity(model)
+        self.reuse_failed = bool(reuse_failed)
+        self.external = callable(getattr(model, "run_one", None))
+        self.last_stats: EvalStats | None = None
+        self._next_eval = 1
+
+    def __repr__(self) -> str:
+        return (f"Evaluator({self.model!r}, store={self.store!r}, executor={self.executor!r}, "
+                f"study={self.study!r})")
+
+    def __getattr__(self, name):
+        # forward an analytic gradient (not stored) so has_gradient(evaluator) is truthful
+        if name == "gradient":
+            grad = getattr(self.__dict__.get("model"), "gradient", None)
+            if callable(grad):
+                return grad
+        raise AttributeError(name)
+
+    def close(self) -> None:
+        """Shut down the executor if this Evaluator created it, and close the store."""
+        if self._owns_executor:
+            self.executor.close()
+        if self.store is not None:
+            self.store.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        return self.evaluate(x).values
+
+    # -------------------------------------------------------------------------------------------
+
+    def _eval_ids(self, k: int) -> list[str]:
+        start = self._next_eval
+        if self.store is not None:
+            start = max(start, self.store.max_id() + 1)
+        self._next_eval = start + k
+        return [str(start + j) for j in range(k)]
+
+    def evaluate(self, x: np.ndarray) -> EvalBatch:
+        """Evaluate a batch ``x`` (n, d); returns values (n, m) and per-row failures."""
+        t0 = time.perf_counter()
+        x = np.atleast_2d(np.asarray(x, dtype=float))
+        d, m = len(self.names_in), len(self.names_out)
+        if x.ndim != 2 or x.shape[1] != d:
+            raise ModelShapeError(f"expected points of shape (n, {d}) for inputs "
+                                  f"{self.names_in}, got {x.shape}")
+        n = x.shape[0]
+        values = np.full((n, m), np.nan)
+        failures: dict[int, str] = {}
+        done = np.zeros(n, dtype=bool)
+        reused = 0
+        if self.store is not None and n:
+            statuses = ("ok", "recovered", "failed") if self.reuse_failed else ("ok", "recovered")
+            found = self.store.lookup(x, study=self.study, model=self.model_id,
+                                      tolerance=self.tolerance, statuses=statuses)
+            for i, rec in enumerate(found):
+                if rec is None:
+                    continue
+                if rec.outputs is not None and rec.outputs.shape == (m,):
+                    values[i] = rec.outputs
+                if rec.status == "failed":
+                    failures[i] = f"(stored) {rec.error}"
+                done[i] = True
+                reused += 1
+        # distinct missing points, each with the rows that share it
+        keys = canonical_keys(x) if n else []
+        groups: dict[str, list[int]] = {}
+        for i in np.flatnonzero(~done):
+            groups.setdefault(keys[i], []).append(int(i))
+        firsts = [rows[0] for rows in groups.values()]
+        row_groups = list(groups.values())
+        if firsts:
+            self._run(x, firsts, row_groups, values, failures)
+        for i in range(n):  # non-finite values without a reason (stored NaN outputs)
+            if i not in failures and not np.all(np.isfinite(values[i])):
+                failures[i] = "non-finite response"
+        self.last_stats = EvalStats(n, reused, len(firsts), int((~done).sum()) - len(firsts),
+                                    len(failures), time.perf_counter() - t0)
+        return EvalBatch(values, failures)
+
+    def _run(self, x, firsts, row_groups, values, failures) -> int:
+        pts = x[firsts]
+        if self.external:
+            ids = self._eval_ids(len(firsts))
+            tasks = [(pts[j], ids[j]) for j in range(len(firsts))]
+            spans = [[j] for j in range(len(firsts))]
+            fn = _ExternalTask(self.model)
+            policy = getattr(self.model, "failure_policy", None)
+            abort = getattr(policy, "kind", policy) == "abort"
+        else:
+            size = self.chunk_size or max(1, math.ceil(len(firsts) /
+                                                       (4 * max(1, self.executor.n_workers))))
+            spans = [list(range(s, min(s + size, len(firsts))))
+                     for s in range(0, len(firsts), size)]
+            tasks = [pts[s[0] : s[-1] + 1] for s in spans]
+            fn = _ChunkTask(self.model)
+            abort = False
+        bar = Progress(len(firsts), enabled=self.progress if self.progress is not None else None)
+        if self.progress is True:
+            bar.enabled = True
+        n_failed = 0
+        outcomes = self.executor.run(fn, tasks)
+        try:
+            for out in outcomes:
+                span = spans[out.index]
+                recs, fails = self._records(out, pts, span)
+                if self.store is not None:
+                    self.store.add(recs, study=self.study, model=self.model_id,
+                                   names_in=self.names_in, names_out=self.names_out,
+                                   run_id=self.run_id)
+                for j, rec in zip(span, recs, strict=True):
+                    for i in row_groups[j]:
+                        if rec.outputs is not None:
+                            values[i] = rec.outputs
+                        if j in fails:
+                            failures[i] = fails[j]
+                n_failed += len(fails)
+                bar.update(len(span))
+                if abort and fails:
+                    j = next(iter(fails))
+                    r = out.value if isinstance(out.value, RunResult) else None
+                    if r is None:
+                        raise EvaluationError(f"evaluation failed: {fails[j]}; "
+                                              "failure_policy='abort'")
+                    raise EvaluationError(_abort_message(r, self.names_in, pts[j]))
+        finally:
+            outcomes.close()  # cancels tasks not yet started
+            bar.close()
+        return n_failed
+
+    def _records(self, out, pts, span) -> tuple[list[NewRecord], dict[int, str]]:
+        """Store records and failure reasons (by position in ``pts``) of one task outcome."""
+        m = len(self.names_out)
+        fails: dict[int, str] = {}
+        recs: list[NewRecord] = []
+        if self.external:
+            j = span[0]
+            r = out.value
+            if out.error is not None or not isinstance(r, RunResult):
+                fails[j] = f"task error: {out.error}"
+                recs.append(NewRecord(pts[j], None, "failed", fails[j], wall_time=out.wall_time))
+                return recs, fails
+            if r.status == "failed":
+                fails[j] = r.error or "failed"
+            ok = r.status == "ok"
+            recs.append(NewRecord(pts[j], None if r.status == "failed" else r.values, r.status,
+                                  r.error, None if ok else r.stdout, None if ok else r.stderr,
+                                  r.wall_time, r.started, r.eval_id, r.attempts))
+            return recs, fails
+        started = time.time() - out.wall_time
+        per_row = out.wall_time / max(1, len(span))
+        if out.error is not None:
+            for j in span:
+                fails[j] = f"model raised: {out.error.splitlines()[0]}"
+                recs.append(NewRecord(pts[j], None, "failed", out.error, wall_time=per_row,
+                                      started=started))
+            return recs, fails
+        batch: EvalBatch = out.value
+        vals = np.asarray(batch.values, dtype=float).reshape(len(span), m)
+        for k, j in enumerate(span):
+            reason = batch.failures.get(k)
+            if reason is None and not np.all(np.isfinite(vals[k])):
+                reason = "non-finite response"
+            if reason is not None:
+                fails[j] = reason
+                recs.append(NewRecord(pts[j], vals[k], "failed", reason, wall_time=per_row,
+                                      started=started))
+            else:
+                recs.append(NewRecord(pts[j], vals[k], "ok", wall_time=per_row,
+                                      started=started))
+        return recs, fails
+
+
+def as_evaluator(model, **kwargs) -> Evaluator:
+    """``model`` itself if it is already an Evaluator, else ``Evaluator(model, **kwargs)``."""
+    return model if isinstance(model, Evaluator) else Evaluator(model, **kwargs)
+
+
+__all__.append("as_evaluator")
+

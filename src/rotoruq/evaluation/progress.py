@@ -1,0 +1,93 @@
+"""A small progress bar on stderr: count, percentage, rate and ETA.
+
+It stays silent when the stream is not a terminal, and appears only once a run has lasted
+``delay`` seconds (2 s by default), so short batches and logs/CI output stay clean.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from typing import TextIO
+
+__all__ = ["Progress", "format_duration"]
+
+
+def format_duration(seconds: float) -> str:
+    """``h:mm:ss`` (or ``m:ss`` under an hour)."""
+    if seconds != seconds or seconds == float("inf"):
+        return "?"
+    s = int(round(seconds))
+    h, rem = divmod(s, 3600)
+    m, s = divmod(rem, 60)
+    return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
+
+
+class Progress:
+    """Progress of ``total`` tasks.
+
+    Parameters
+    ----------
+    total : number of tasks.
+    label : text in front of the bar.
+    stream : where to draw (default stderr).
+    enabled : True/False to force; None draws only when ``stream.isatty()``.
+    delay : seconds before the bar first appears.
+    interval : minimum seconds between redraws.
+    """
+
+    def __init__(
+        self, total: int, *, label: str = "evaluations", stream: TextIO | None = None,
+        enabled: bool | None = None, delay: float = 2.0, interval: float = 0.2,
+    ):
+        self.total = int(total)
+        self.label = label
+        self.stream = stream if stream is not None else sys.stderr
+        if enabled is None:
+            isatty = getattr(self.stream, "isatty", None)
+            enabled = bool(isatty and isatty())
+        self.enabled = enabled
+        self.delay = delay
+        self.interval = interval
+        self.done = 0
+        self.start = time.perf_counter()
+        self._last = -float("inf")
+        self._drawn = False
+
+    def line(self) -> str:
+        """The current progress text (without carriage return)."""
+        elapsed = time.perf_counter() - self.start
+        rate = self.done / elapsed if elapsed > 0 else 0.0
+        frac = self.done / self.total if self.total else 1.0
+        width = 24
+        fill = int(round(frac * width))
+        eta = (self.total - self.done) / rate if rate > 0 else float("nan")
+        return (f"{self.label} [{'#' * fill}{'.' * (width - fill)}] {self.done}/{self.total} "
+                f"{100 * frac:3.0f}% {rate:.3g}/s elapsed {format_duration(elapsed)} "
+                f"ETA {format_duration(eta)}")
+
+    def update(self, n: int = 1) -> None:
+        """Record ``n`` more finished tasks and redraw if due."""
+        self.done += n
+        if not self.enabled:
+            return
+        now = time.perf_counter()
+        if now - self.start < self.delay or now - self._last < self.interval:
+            return
+        self._last = now
+        self.stream.write("\r" + self.line() + "\033[K")
+        self.stream.flush()
+        self._drawn = True
+
+    def close(self) -> None:
+        """Finish the line if anything was drawn."""
+        if self._drawn:
+            self.stream.write("\r" + self.line() + "\033[K\n")
+            self.stream.flush()
+            self._drawn = False
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()

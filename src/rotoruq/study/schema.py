@@ -113,7 +113,8 @@ def is_rotor_input(name: str) -> bool:
 # ---------------------------------------------------------------------------------------------
 _HEADER_ARRAY = re.compile(r"^\s*\[\[\s*([^\]]+?)\s*\]\]")
 _HEADER_TABLE = re.compile(r"^\s*\[\s*([^\]]+?)\s*\]")
-_KEY = re.compile(r"""^\s*((?:[A-Za-z0-9_\-]+|"[^"]*"|'[^']*')(?:\s*\.\s*(?:[A-Za-z0-9_\-]+|"[^"]*"|'[^']*'))*)\s*=""")
+_BARE = r"""(?:[A-Za-z0-9_\-]+|"[^"]*"|'[^']*')"""
+_KEY = re.compile(rf"^\s*({_BARE}(?:\s*\.\s*{_BARE})*)\s*=")
 _INLINE_KEY = re.compile(r"""[{,]\s*([A-Za-z0-9_\-]+|"[^"]*")\s*=""")
 
 
@@ -384,9 +385,15 @@ def _table(v):
     return dict(v)
 
 
+def _table_or_str(v):
+    if isinstance(v, str):
+        return v
+    return _table(v)
+
+
 def _num_or_table(v):
     if isinstance(v, dict):
-        for k, x in v.items():
+        for x in v.values():
             _num(positive=True)(x)
         return {k: float(x) for k, x in v.items()}
     return _num(positive=True)(v)
@@ -459,7 +466,7 @@ STEP_TYPES: dict[str, dict[str, tuple]] = {
         "noise_std": (_num_or_table, None),
     },
     "cuu": {
-        "targets": (_table, _REQUIRED),
+        "targets": (_table_or_str, _REQUIRED),
         "calibrate": (_str(("std", "mean", "mean_std")), "std"),
         "inner": (_str(("mean_value", "sampling")), "mean_value"),
         "max_iterations": (_int(1), 100),
@@ -873,7 +880,10 @@ def _parse_steps(ck, doc, model: ModelSpec, params, data) -> tuple[StepSpec, ...
             ck.fail(w + ("burn_in",), "burn_in < chain_samples "
                     f"({opts['chain_samples']})", str(opts["burn_in"]))
         if typ == "cuu":
-            _check_targets(ck, opts["targets"], w + ("targets",), model, sel_r)
+            if isinstance(opts["targets"], str):
+                _check_ref(ck, raw, names, i, opts["targets"], "targets", ("samples",))
+            else:
+                _check_targets(ck, opts["targets"], w + ("targets",), model, sel_r)
         if typ == "forward_check":
             _check_sweep(ck, opts, w, model)
         if typ == "evidence":

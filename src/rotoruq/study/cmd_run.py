@@ -1,0 +1,29 @@
+"""``rotoruq run STUDY``: run a study file and write its results and report."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+HELP = "run a study file (TOML) and write its results and HTML report"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("study", help="study file (TOML)")
+    parser.add_argument("--out", help="output directory (default: [study] output)")
+    parser.add_argument("--quick", action="store_true", help="small samples (a fast check)")
+    parser.add_argument("--only", nargs="+", metavar="STEP",
+                        help="run only these steps (earlier results are reused)")
+    parser.add_argument("--no-report", action="store_true", help="do not write the report")
+
+
+def run(args) -> int:
+    from .runner import run_study
+
+    result = run_study(args.study, out=args.out, quick=args.quick, only=args.only)
+    print(f"results: {result.out}")
+    if not args.no_report:
+        from ..report.html import write_report
+
+        index = write_report([result.out], Path(result.out) / "report")
+        print(f"report: {index}")
+    return 0

@@ -1,0 +1,158 @@
+"""The saved form of a step's outcome, shared by the runner (writes) and the report (reads).
+
+A :class:`StepResult` is method-agnostic: flat named scalars (``"mean/thrust"``,
+``"S/thrust/cla_m03"``, ``"nstd/power@2"``), named arrays (samples, chains), the distributions
+the step hands to later steps (posterior / calibrated) and JSON metadata. On disk::
+
+    <out>/steps/<name>/result.json     name, type, fingerprint, scalars, distributions, meta
+    <out>/steps/<name>/scalars.csv     key,value
+    <out>/steps/<name>/<array>.npy     every array, plus <array>.csv when it has named columns
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..params import Distribution, make_distribution
+
+__all__ = ["StepResult", "save_step", "load_step", "load_results", "dist_to_dict",
+           "dict_to_dist"]
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """Outcome of one study step.
+
+    scalars : flat mapping key -> float. Key forms: ``stat/name`` (e.g. ``mean/thrust``),
+        ``index/response/input`` (``S/thrust/cla_m03``) and ``...@label`` for a sweep point.
+    arrays : name -> ndarray (e.g. ``inputs`` (n, d), ``outputs`` (n, m), ``chain`` (N, d)).
+    distributions : parameter name -> distribution description (``{"kind": "normal",
+        "mu": ..., "sigma": ...}``) offered to later steps as ``posterior``/``calibrated``.
+    meta : JSON-serialisable details: ``columns`` (array name -> column names), names,
+        number of evaluations, wall time, failures, notes.
+    """
+
+    name: str
+    type: str
+    scalars: Mapping[str, float] = field(default_factory=dict)
+    arrays: Mapping[str, np.ndarray] = field(default_factory=dict)
+    distributions: Mapping[str, dict] = field(default_factory=dict)
+    meta: Mapping[str, Any] = field(default_factory=dict)
+    fingerprint: str = ""
+
+    def get(self, key: str, default: float = math.nan) -> float:
+        return float(self.scalars.get(key, default))
+
+    def columns(self, array: str) -> list[str]:
+        return list(self.meta.get("columns", {}).get(array, []))
+
+    def column(self, array: str, name: str) -> np.ndarray:
+        """One named column of a 2-D array."""
+        cols = self.columns(array)
+        return np.asarray(self.arrays[array])[:, cols.index(name)]
+
+    def distribution_objects(self) -> dict[str, Distribution]:
+        return {k: dict_to_dist(v) for k, v in self.distributions.items()}
+
+
+def dist_to_dict(dist: Distribution) -> dict:
+    d = dist.describe()
+    return {k: (float(v) if isinstance(v, int | float) else v) for k, v in d.items()}
+
+
+def dict_to_dist(d: Mapping) -> Distribution:
+    params = {k: v for k, v in d.items() if k != "kind"}
+    return make_distribution(d["kind"], **params)
+
+
+def _jsonable(obj):
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    if isinstance(obj, np.generic):
+        return _jsonable(obj.item())
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None if math.isnan(obj) else ("inf" if obj > 0 else "-inf")
+    if isinstance(obj, Path):
+        return str(obj)
+    return obj
+
+
+def _unjson_scalar(v) -> float:
+    if v is None:
+        return math.nan
+    if v == "inf":
+        return math.inf
+    if v == "-inf":
+        return -math.inf
+    return float(v)
+
+
+def save_step(result: StepResult, directory: str | Path) -> Path:
+    """Write ``result`` under ``directory/steps/<name>/``; returns that folder."""
+    folder = Path(directory) / "steps" / result.name
+    folder.mkdir(parents=True, exist_ok=True)
+    for old in folder.glob("*.npy"):
+        old.unlink()
+    doc = {
+        "name": result.name,
+        "type": result.type,
+        "fingerprint": result.fingerprint,
+        "scalars": _jsonable(dict(result.scalars)),
+        "distributions": _jsonable(dict(result.distributions)),
+        "meta": _jsonable(dict(result.meta)),
+        "arrays": sorted(result.arrays),
+    }
+    (folder / "result.json").write_text(json.dumps(doc, indent=1))
+    with (folder / "scalars.csv").open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["key", "value"])
+        for k, v in result.scalars.items():
+            w.writerow([k, repr(float(v))])
+    for name, arr in result.arrays.items():
+        arr = np.asarray(arr)
+        np.save(folder / f"{name}.npy", arr)
+        cols = result.columns(name)
+        if arr.ndim == 2 and len(cols) == arr.shape[1]:
+            np.savetxt(folder / f"{name}.csv", arr, delimiter=",", header=",".join(cols),
+                       comments="")
+    return folder
+
+
+def load_step(folder: str | Path) -> StepResult:
+    folder = Path(folder)
+    doc = json.loads((folder / "result.json").read_text())
+    arrays = {n: np.load(folder / f"{n}.npy") for n in doc.get("arrays", [])
+              if (folder / f"{n}.npy").is_file()}
+    return StepResult(
+        name=doc["name"],
+        type=doc["type"],
+        scalars={k: _unjson_scalar(v) for k, v in doc["scalars"].items()},
+        arrays=arrays,
+        distributions=doc.get("distributions", {}),
+        meta=doc.get("meta", {}),
+        fingerprint=doc.get("fingerprint", ""),
+    )
+
+
+def load_results(directory: str | Path) -> dict[str, StepResult]:
+    """All saved steps of one study output directory, in the order they were run."""
+    directory = Path(directory)
+    order = []
+    info = directory / "study.json"
+    if info.is_file():
+        order = json.loads(info.read_text()).get("steps", [])
+    found = {p.parent.name: p.parent for p in (directory / "steps").glob("*/result.json")}
+    names = [n for n in order if n in found] + sorted(set(found) - set(order))
+    return {n: load_step(found[n]) for n in names}

@@ -1,0 +1,314 @@
+"""Run a study: steps in order, results written as they finish, unchanged steps reused.
+
+>>> results = run_study("studies/quick.toml")                 # doctest: +SKIP
+>>> results["forward"].get("mean/thrust")                     # doctest: +SKIP
+
+Output directory (``[study] output``, or ``out=``)::
+
+    study.toml  study.json  evaluations.sqlite  steps/<name>/...   (see rotoruq.study.results)
+
+Re-running: each step's fingerprint hashes its spec, the model, its distributions, data and
+seed, and the fingerprints of the steps it takes from. A step whose fingerprint matches the
+saved one is loaded, not recomputed; model evaluations go through the evaluation store when
+the evaluation layer provides one, so a changed step still reuses identical evaluations.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import shutil
+import sys
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ParameterError
+from ..params import ParameterSpace
+from .results import StepResult, dict_to_dist, load_step, save_step
+from .schema import StepSpec, Study, load_study
+from .steps import QUICK, StepContext, run_adapter
+
+__all__ = ["run_study", "StudyRun", "build_model_factory", "step_options"]
+
+ModelFactory = Callable[[Sequence[str], Sequence[str], Mapping[str, float]], object]
+
+
+@dataclass(frozen=True)
+class StudyRun:
+    """Outcome of :func:`run_study`: the results by step name, the output directory and which
+    steps were reused from a previous run."""
+
+    study: Study
+    out: Path
+    results: Mapping[str, StepResult]
+    reused: tuple[str, ...] = ()
+    seconds: Mapping[str, float] = field(default_factory=dict)
+
+    def __getitem__(self, name: str) -> StepResult:
+        return self.results[name]
+
+
+def build_model_factory(study: Study, store_path: Path | None = None) -> ModelFactory:
+    """Model builder for the study's ``[model]``: a rotor preset or an external driver, wrapped
+    in the evaluation layer's store-backed Evaluator when it is available."""
+    spec = study.model
+
+    def base(inputs, responses, fixed):
+        if spec.kind == "preset":
+            from ..rotor.model import RotorModel
+            from ..rotor.presets import get_preset
+
+            preset = get_preset(spec.preset, **dict(spec.preset_options))
+            return RotorModel(preset, inputs=list(inputs), responses=list(responses),
+                              fixed=dict(fixed))
+        from ..evaluation.external import ExternalModel
+
+        ext = spec.external
+        return ExternalModel(
+            list(ext.command), names_in=list(inputs), names_out=list(responses),
+            fixed=dict(fixed), files=list(ext.files), templates=list(ext.templates),
+            parameters_format=ext.parameters_format, timeout=ext.timeout,
+            failure=ext.failure, retries=ext.retries, recover=ext.recover,
+            workdir=ext.workdir, base_dir=study.path.parent,
+        )
+
+    return _with_store(base, study, store_path)
+
+
+def _with_store(factory: ModelFactory, study: Study, store_path: Path | None) -> ModelFactory:
+    if store_path is None or not study.store.enabled:
+        return factory
+    try:
+        from ..evaluation.evaluator import Evaluator
+    except ImportError:
+        return factory
+
+    def wrapped(inputs, responses, fixed):
+        return Evaluator(factory(inputs, responses, fixed), store=store_path)
+
+    return wrapped
+
+
+def step_options(step: StepSpec, quick: bool) -> dict:
+    """The step's options, reduced for ``quick`` runs (QUICK defaults, then ``quick = {...}``
+    from the study file)."""
+    opts = dict(step.options)
+    if quick:
+        for k, v in QUICK.get(step.type, {}).items():
+            if opts.get(k) is not None:
+                opts[k] = min(opts[k], v)
+        opts.update(step.quick)
+    return opts
+
+
+def _step_space(study: Study, step: StepSpec, previous: Mapping[str, StepResult]
+                ) -> tuple[ParameterSpace, dict[str, float]]:
+    """Uncertain inputs of a step and the inputs it fixes.
+
+    The step's parameters (all of the study's when not listed) take their distributions from
+    ``from`` where it provides them, else from ``[parameters]``. Parameters of the study or
+    of the ``from`` step that the step does not use are fixed at their means.
+    """
+    source = {}
+    if step.source is not None:
+        source = previous[step.source[0]].distribution_objects()
+    names = list(step.parameters) if step.parameters is not None else list(
+        study.parameter_names)
+    if step.parameters is None:
+        names += [n for n in source if n not in names]
+    dists = []
+    for n in names:
+        if n in source:
+            dists.append((n, source[n]))
+        else:
+            dists.append((n, study.parameter(n).distribution))
+    fixed = dict(study.model.fixed)
+    for p in study.parameters:
+        if p.name not in names:
+            fixed[p.name] = p.distribution.mean
+    for n, d in source.items():
+        if n not in names:
+            fixed[n] = d.mean
+    fixed.update(step.fixed)
+    for n in names:
+        fixed.pop(n, None)
+    return ParameterSpace(dists), fixed
+
+
+def _step_data(study: Study, step: StepSpec, responses, previous):
+    """(observations (k, m) or None, all columns of the data set)."""
+    if step.data is None:
+        return None, {}
+    if "." in step.data:
+        src = previous[step.data.split(".")[0]]
+        cols = {c: src.column("outputs", c) for c in src.columns("outputs")}
+    else:
+        cols = dict(study.data[step.data].columns)
+    if step.type == "forward_check":
+        return None, cols
+    missing = [r for r in responses if r not in cols]
+    if missing:
+        raise ParameterError(
+            f"step {step.name!r}: data {step.data!r} has no column for {missing}; it has "
+            f"{list(cols)}")
+    return np.column_stack([cols[r] for r in responses]), cols
+
+
+def _step_targets(step: StepSpec, options, previous) -> dict[str, tuple[float, float]]:
+    t = options.get("targets")
+    if t is None:
+        return {}
+    if isinstance(t, str):
+        src = previous[t.split(".")[0]]
+        out = {}
+        for c in src.columns("outputs"):
+            v = src.column("outputs", c)
+            v = v[np.isfinite(v)]
+            out[c] = (float(np.mean(v)), float(np.std(v, ddof=1)))
+        return out
+    return {r: (float(v[0]), float(v[1])) for r, v in t.items()}
+
+
+def _fingerprint(study: Study, step: StepSpec, space: ParameterSpace, fixed, options, data,
+                 previous, quick: bool) -> str:
+    def default(o):
+        if isinstance(o, np.ndarray):
+            return o.tolist()
+        if isinstance(o, Path):
+            return str(o)
+        if isinstance(o, float) and not math.isfinite(o):
+            return repr(o)
+        return repr(o)
+
+    upstream = []
+    refs = [step.source[0]] if step.source else []
+    for ref in (step.data, options.get("targets")):
+        if isinstance(ref, str) and "." in ref:
+            refs.append(ref.split(".")[0])
+    for r in refs:
+        upstream.append(previous[r].fingerprint)
+    doc = {
+        "step": {k: v for k, v in asdict(step).items() if k not in ("line", "index")},
+        "options": options,
+        "model": asdict(study.model),
+        "space": [(n, d.describe()) for n, d in zip(space.names, space.distributions,
+                                                     strict=True)],
+        "fixed": dict(sorted(fixed.items())),
+        "data": None if data is None else np.asarray(data).tolist(),
+        "seed": study.info.seed,
+        "index": step.index,
+        "quick": quick,
+        "upstream": upstream,
+    }
+    text = json.dumps(doc, sort_keys=True, default=default)
+    return hashlib.sha256(text.encode()).hexdigest()[:20]
+
+
+def _seed(study: Study, step: StepSpec, options) -> np.random.Generator:
+    if options.get("seed") is not None:
+        return np.random.default_rng(options["seed"])
+    return np.random.default_rng(np.random.SeedSequence([study.info.seed, step.index]))
+
+
+def _log(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+def run_study(
+    study: Study | str | Path,
+    *,
+    out: str | Path | None = None,
+    quick: bool = False,
+    model_factory: ModelFactory | None = None,
+    only: Sequence[str] | None = None,
+    log: Callable[[str], None] | None = _log,
+) -> StudyRun:
+    """Run the steps of ``study`` in order and write their results.
+
+    Parameters
+    ----------
+    study : Study, or path of a study file.
+    out : output directory (default: the study's ``[study] output``).
+    quick : reduce sample sizes (see ``steps.QUICK`` and each step's ``quick = {...}``).
+    model_factory : ``f(inputs, responses, fixed) -> Model`` replacing the ``[model]`` table
+        (for Python models; tests).
+    only : run only these steps (and load the ones they depend on from earlier runs).
+    log : progress messages (None: silent).
+    """
+    if not isinstance(study, Study):
+        study = load_study(study)
+    out = Path(out) if out is not None else study.info.output
+    out.mkdir(parents=True, exist_ok=True)
+    log = log or (lambda _m: None)
+    if study.path.is_file():
+        shutil.copyfile(study.path, out / "study.toml")
+    store_path = out / study.store.path if study.store.enabled else None
+    factory = model_factory or build_model_factory(study, store_path)
+    _write_study_json(study, out, quick)
+
+    results: dict[str, StepResult] = {}
+    reused, seconds = [], {}
+    for step in study.steps:
+        options = step_options(step, quick)
+        space, fixed = _step_space(study, step, results)
+        responses = step.responses or study.model.responses
+        data, columns = _step_data(study, step, responses, results)
+        fp = _fingerprint(study, step, space, fixed, options, data, results, quick)
+        folder = out / "steps" / step.name
+        if (folder / "result.json").is_file():
+            saved = load_step(folder)
+            if saved.fingerprint == fp or (only is not None and step.name not in only):
+                results[step.name] = saved
+                reused.append(step.name)
+                log(f"[{study.info.name}] {step.name}: reused ({step.type})")
+                continue
+        if only is not None and step.name not in only:
+            raise ParameterError(f"step {step.name!r} has no saved result to reuse; run it")
+        ctx = StepContext(
+            name=step.name, type=step.type, options=options, space=space,
+            responses=tuple(responses), fixed=fixed, make_model=factory,
+            rng=_seed(study, step, options), data=data, data_columns=columns,
+            targets=_step_targets(step, options, results),
+        )
+        log(f"[{study.info.name}] {step.name}: running {step.type} "
+            f"({', '.join(space.names)} -> {', '.join(responses)})")
+        res, dt = run_adapter(ctx)
+        meta = dict(res.meta)
+        meta.update(seconds=dt, title=step.title, parameters=list(space.names),
+                    responses=list(responses), fixed=fixed, options=options,
+                    source=".".join(step.source) if step.source else None,
+                    input_distributions={n: d.describe() for n, d in
+                                         zip(space.names, space.distributions, strict=True)})
+        res = StepResult(res.name, res.type, res.scalars, res.arrays, res.distributions, meta,
+                         fingerprint=fp)
+        save_step(res, out)
+        results[step.name] = res
+        seconds[step.name] = dt
+        log(f"[{study.info.name}] {step.name}: done in {dt:.1f} s")
+    return StudyRun(study, out, results, tuple(reused), seconds)
+
+
+def _write_study_json(study: Study, out: Path, quick: bool) -> None:
+    doc = {
+        "name": study.info.name,
+        "description": study.info.description,
+        "seed": study.info.seed,
+        "quick": quick,
+        "model": {"kind": study.model.kind, "preset": study.model.preset,
+                  "responses": list(study.model.responses), "fixed": dict(study.model.fixed)},
+        "parameters": {p.name: {"kind": p.kind, **p.params, "label": p.label, "unit": p.unit}
+                       for p in study.parameters},
+        "steps": [s.name for s in study.steps],
+        "step_types": {s.name: s.type for s in study.steps},
+        "titles": {s.name: s.title for s in study.steps},
+    }
+    (out / "study.json").write_text(json.dumps(doc, indent=1, default=str))
+
+
+def distributions_of(result: StepResult) -> dict:
+    """Distribution objects a step hands on (posterior / calibrated)."""
+    return {k: dict_to_dist(v) for k, v in result.distributions.items()}

@@ -1,0 +1,396 @@
+"""Step adapters: one small function per step type, ``run_<type>(ctx) -> StepResult``.
+
+Each adapter calls one method of :mod:`rotoruq.methods` and flattens its result into a
+:class:`~rotoruq.study.results.StepResult` (scalars, arrays, distributions). The runner
+prepares the :class:`StepContext`; the adapters hold no study logic of their own.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from ..errors import ParameterError
+from ..params import Normal, ParameterSpace
+from .results import StepResult, dist_to_dict
+
+__all__ = ["StepContext", "ADAPTERS", "QUICK"]
+
+
+@dataclass
+class StepContext:
+    """Everything a step needs.
+
+    space : the uncertain inputs of the step (priors / input distributions), shape d.
+    responses : the step's response names (m).
+    fixed : the other model inputs and their values.
+    make_model(inputs, responses, fixed) -> Model : builds (store-backed) models, e.g. for
+        sweeps over fixed inputs.
+    data : (k, m) observations of ``responses`` (None when the step has no data).
+    data_columns : every column of the data set (for sweeps and normalisation).
+    targets : response -> (mean, std) (CUU).
+    rng : numpy Generator for this step.
+    """
+
+    name: str
+    type: str
+    options: Mapping[str, Any]
+    space: ParameterSpace
+    responses: tuple[str, ...]
+    fixed: Mapping[str, float]
+    make_model: Callable[..., Any]
+    rng: np.random.Generator
+    data: np.ndarray | None = None
+    data_columns: Mapping[str, np.ndarray] = field(default_factory=dict)
+    targets: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+
+    def model(self, fixed: Mapping[str, float] | None = None):
+        f = dict(self.fixed)
+        f.update(fixed or {})
+        return self.make_model(self.space.names, self.responses, f)
+
+
+# Sample sizes for `--quick` (a reduced run: same steps, small samples).
+QUICK: dict[str, dict[str, int]] = {
+    "sampling": {"n": 40},
+    "sensitivity": {"n": 32},
+    "forward_check": {"n": 40},
+    "pce": {"n": 40},
+    "evidence": {"n": 200},
+    "bayes_calibration": {"chain_samples": 2000, "burn_in": 200, "build_samples": 60},
+    "cuu": {"verify_samples": 40},
+}
+
+
+def _stats_scalars(prefix_names: Sequence[str], values: np.ndarray, suffix: str = "") -> dict:
+    """mean/std/skewness/kurtosis of each column (ddof=1, bias-corrected, excess kurtosis)."""
+    out = {}
+    for j, name in enumerate(prefix_names):
+        v = values[:, j]
+        v = v[np.isfinite(v)]
+        if v.size < 2:
+            continue
+        out[f"mean/{name}{suffix}"] = float(np.mean(v))
+        out[f"std/{name}{suffix}"] = float(np.std(v, ddof=1))
+        if v.size > 3 and np.std(v) > 0:
+            out[f"skewness/{name}{suffix}"] = float(stats.skew(v, bias=False))
+            out[f"kurtosis/{name}{suffix}"] = float(stats.kurtosis(v, bias=False))
+    return out
+
+
+def _input_scalars(space: ParameterSpace) -> dict:
+    out = {}
+    for name, d in zip(space.names, space.distributions, strict=True):
+        out[f"input_mean/{name}"] = d.mean
+        out[f"input_std/{name}"] = d.std
+        lo, hi = d.bounds
+        if np.isfinite(lo) and np.isfinite(hi):
+            out[f"input_lower/{name}"] = lo
+            out[f"input_upper/{name}"] = hi
+    return out
+
+
+def _noise(ctx: StepContext, noise, shape) -> np.ndarray:
+    if not noise:
+        return np.zeros(shape)
+    if isinstance(noise, Mapping):
+        sd = np.array([float(noise.get(r, 0.0)) for r in ctx.responses])
+    else:
+        sd = np.full(shape[1], float(noise))
+    return ctx.rng.normal(size=shape) * sd
+
+
+# ---------------------------------------------------------------------------------------------
+def run_sampling(ctx: StepContext) -> StepResult:
+    from ..methods.sampling import sample
+
+    o = ctx.options
+    res = sample(ctx.model(), ctx.space, o["n"], method=o["method"], seed=ctx.rng)
+    clean = np.asarray(res.outputs)
+    noisy = clean + _noise(ctx, o.get("noise_std"), clean.shape)
+    scalars = _stats_scalars(ctx.responses, clean)
+    scalars.update(_stats_scalars([f"noisy_{r}" for r in ctx.responses], noisy))
+    scalars.update(_input_scalars(ctx.space))
+    arrays = {"inputs": np.asarray(res.inputs), "outputs": noisy}
+    columns = {"inputs": list(ctx.space.names), "outputs": list(ctx.responses)}
+    if o.get("noise_std"):
+        arrays["outputs_clean"] = clean
+        columns["outputs_clean"] = list(ctx.responses)
+    return StepResult(ctx.name, ctx.type, scalars, arrays, meta={
+        "columns": columns, "n_evaluations": int(res.n_evaluations),
+        "failures": len(res.failures)})
+
+
+def run_forward_check(ctx: StepContext) -> StepResult:
+    """LHS propagation at one or several operating points (``sweep``) compared with data:
+    mean, std, the measured value and the number of standard deviations between them."""
+    from ..methods.sampling import sample
+
+    o = ctx.options
+    sweep = {k: list(v) for k, v in (o.get("sweep") or {}).items()}
+    n_points = len(next(iter(sweep.values()))) if sweep else 1
+    match = o.get("match") or (next(iter(sweep)) if sweep else None)
+    cols = ctx.data_columns
+    norm_row = None
+    if o.get("normalize_by"):
+        (key, value), = o["normalize_by"].items()
+        rows = np.flatnonzero(np.isclose(cols[key], value))
+        if rows.size == 0:
+            raise ParameterError(f"step {ctx.name!r}: no data row with {key} = {value}")
+        norm_row = int(rows[0])
+    scalars, arrays, columns, n_eval = {}, {}, {}, 0
+    labels = []
+    for j in range(n_points):
+        point = {k: float(v[j]) for k, v in sweep.items()}
+        label = f"@{point[match]:g}" if sweep and match in point else ""
+        labels.append(label)
+        res = sample(ctx.model(point), ctx.space, o["n"], method=o["method"], seed=ctx.rng)
+        out = np.asarray(res.outputs, dtype=float)
+        n_eval += int(res.n_evaluations)
+        row = None
+        if cols and match is not None and match in cols and match in point:
+            rows = np.flatnonzero(np.isclose(cols[match], point[match]))
+            row = int(rows[0]) if rows.size else None
+        elif cols and not sweep:
+            row = 0
+        for k, r in enumerate(ctx.responses):
+            scale = 1.0
+            if norm_row is not None and r in cols:
+                scale = float(cols[r][norm_row])
+            out[:, k] = out[:, k] / scale
+            if row is not None and r in cols:
+                measured = float(cols[r][row]) / scale
+                v = out[:, k][np.isfinite(out[:, k])]
+                mean, std = float(np.mean(v)), float(np.std(v, ddof=1))
+                scalars[f"data/{r}{label}"] = measured
+                scalars[f"nstd/{r}{label}"] = abs(measured - mean) / std if std > 0 else np.inf
+        scalars.update(_stats_scalars(ctx.responses, out, label))
+        arrays[f"outputs{label}"] = out
+        columns[f"outputs{label}"] = list(ctx.responses)
+    scalars.update(_input_scalars(ctx.space))
+    return StepResult(ctx.name, ctx.type, scalars, arrays, meta={
+        "columns": columns, "n_evaluations": n_eval, "labels": labels,
+        "sweep": sweep, "normalized": norm_row is not None})
+
+
+def run_sensitivity(ctx: StepContext) -> StepResult:
+    from ..methods.sensitivity import sobol_indices
+
+    o = ctx.options
+    res = sobol_indices(ctx.model(), ctx.space, n=o["n"], seed=ctx.rng)
+    main, total = np.asarray(res.main), np.asarray(res.total)
+    scalars = {}
+    for k, r in enumerate(ctx.responses):
+        for j, p in enumerate(ctx.space.names):
+            scalars[f"S/{r}/{p}"] = float(main[k, j])
+            scalars[f"T/{r}/{p}"] = float(total[k, j])
+    scalars.update(_input_scalars(ctx.space))
+    return StepResult(ctx.name, ctx.type, scalars, {"main": main, "total": total}, meta={
+        "inputs": list(ctx.space.names), "responses": list(ctx.responses),
+        "n_evaluations": int(getattr(res, "n_evaluations", 0))})
+
+
+def run_mean_value(ctx: StepContext) -> StepResult:
+    from ..methods.reliability import mean_value
+
+    o = ctx.options
+    res = mean_value(ctx.model(), ctx.space, response_levels=o.get("response_levels"),
+                     probability_levels=o.get("probability_levels"))
+    scalars = {}
+    for k, r in enumerate(ctx.responses):
+        scalars[f"mean/{r}"] = float(res.mean[k])
+        scalars[f"std/{r}"] = float(res.std[k])
+        for j, p in enumerate(ctx.space.names):
+            scalars[f"importance/{r}/{p}"] = float(res.importance[k, j])
+    scalars.update(_input_scalars(ctx.space))
+    return StepResult(ctx.name, ctx.type, scalars, {"gradient": np.asarray(res.gradient)},
+                      meta={"n_evaluations": int(res.n_evaluations)})
+
+
+def run_reliability(ctx: StepContext) -> StepResult:
+    from ..methods import reliability
+
+    o = ctx.options
+    fn = getattr(reliability, o["integration"])  # form / sorm
+    res = fn(ctx.model(), ctx.space, response_levels=o.get("response_levels"),
+             probability_levels=o.get("probability_levels"), mpp=o["mpp"], seed=ctx.rng)
+    scalars = {}
+    for r in ctx.responses:
+        for what in ("cdf_probability", "cdf_reliability", "probability_response"):
+            vals = getattr(res, what, {}).get(r)
+            if vals is not None:
+                for i, v in enumerate(np.atleast_1d(vals)):
+                    scalars[f"{what}/{r}/{i}"] = float(v)
+    return StepResult(ctx.name, ctx.type, scalars, meta={
+        "n_evaluations": int(getattr(res, "n_evaluations", 0))})
+
+
+def run_pce(ctx: StepContext) -> StepResult:
+    from ..methods import pce
+
+    o = ctx.options
+    res = pce.polynomial_chaos(ctx.model(), ctx.space, order=o["order"], n=o.get("n"),
+                               seed=ctx.rng)
+    scalars = {}
+    for k, r in enumerate(ctx.responses):
+        scalars[f"mean/{r}"] = float(res.mean[k])
+        scalars[f"std/{r}"] = float(res.std[k])
+        for j, p in enumerate(ctx.space.names):
+            scalars[f"S/{r}/{p}"] = float(res.main[k, j])
+            scalars[f"T/{r}/{p}"] = float(res.total[k, j])
+    return StepResult(ctx.name, ctx.type, scalars, meta={
+        "n_evaluations": int(getattr(res, "n_evaluations", 0))})
+
+
+def run_evidence(ctx: StepContext) -> StepResult:
+    from ..methods import evidence
+
+    o = ctx.options
+    res = evidence.evidence(ctx.model(), o["intervals"], n=o["n"], seed=ctx.rng)
+    scalars = {}
+    for k, r in enumerate(ctx.responses):
+        for what in ("belief_lower", "plausibility_upper"):
+            v = getattr(res, what, None)
+            if v is not None:
+                scalars[f"{what}/{r}"] = float(np.asarray(v)[k])
+    return StepResult(ctx.name, ctx.type, scalars)
+
+
+def run_bayes_calibration(ctx: StepContext) -> StepResult:
+    """Bayes calibration (DRAM on a GP emulator by default); the posterior handed on is the
+    normal distribution with the chain's mean and std, as the reference study does."""
+    from ..methods.mcmc import calibrate_bayes
+
+    o = ctx.options
+    emulator = None
+    if o["emulator"] == "gp":
+        from ..methods.surrogate import GaussianProcess
+
+        emulator = GaussianProcess(trend=o["trend"])
+    res = calibrate_bayes(
+        ctx.model(), ctx.data, prior=ctx.space, method=o["sampler"], emulator=emulator,
+        build_samples=o["build_samples"], chain_samples=o["chain_samples"],
+        burn_in=o["burn_in"], noise_std=_per_response(o.get("noise_std"), ctx.responses),
+        seed=ctx.rng,
+    )
+    chain = np.asarray(res.chain)
+    scalars = _stats_scalars(ctx.space.names, chain)
+    scalars.update(_input_scalars(ctx.space))
+    for key in ("acceptance_rate", "acceptance"):
+        if hasattr(res, key):
+            scalars["acceptance"] = float(getattr(res, key))
+            break
+    for key in ("ess", "rhat"):
+        v = getattr(res, key, None)
+        if v is not None:
+            for j, p in enumerate(ctx.space.names):
+                scalars[f"{key}/{p}"] = float(np.atleast_1d(v)[j])
+    posterior = {p: dist_to_dict(Normal(scalars[f"mean/{p}"], scalars[f"std/{p}"]))
+                 for p in ctx.space.names}
+    arrays = {"chain": chain}
+    columns = {"chain": list(ctx.space.names)}
+    if ctx.data is not None:
+        arrays["data"] = np.asarray(ctx.data)
+        columns["data"] = list(ctx.responses)
+    return StepResult(ctx.name, ctx.type, scalars, arrays, posterior, meta={
+        "columns": columns, "n_evaluations": int(getattr(res, "n_evaluations", 0)),
+        "prior": {p: dist_to_dict(d) for p, d in zip(ctx.space.names, ctx.space.distributions,
+                                                      strict=True)}})
+
+
+def _per_response(value, responses):
+    if value is None or not isinstance(value, Mapping):
+        return value
+    return np.array([float(value[r]) for r in responses])
+
+
+def run_least_squares(ctx: StepContext) -> StepResult:
+    from ..methods.least_squares import calibrate
+
+    o = ctx.options
+    sd = _per_response(o.get("noise_std"), ctx.responses)
+    res = calibrate(
+        ctx.model(), ctx.data, ctx.space, data_variance=None if sd is None else np.square(sd),
+        max_iterations=o["max_iterations"],
+        max_function_evaluations=o["max_function_evaluations"],
+        convergence_tolerance=o["convergence_tolerance"],
+    )
+    scalars = {}
+    calibrated = {}
+    for j, p in enumerate(res.names):
+        scalars[f"value/{p}"] = float(res.x[j])
+        s = float(res.std[j])
+        scalars[f"std/{p}"] = s
+        sd_p = s if np.isfinite(s) and s > 0 else ctx.space[p].std
+        calibrated[p] = dist_to_dict(Normal(float(res.x[j]), sd_p))
+    scalars["cost"] = float(res.cost)
+    return StepResult(ctx.name, ctx.type, scalars, {"residuals": np.asarray(res.residuals)},
+                      calibrated, meta={"n_evaluations": int(res.n_evaluations),
+                                        "success": bool(res.success), "message": res.message})
+
+
+def run_cuu(ctx: StepContext) -> StepResult:
+    """Calibration under uncertainty (nested: inner mean value, outer least squares), then
+    LHS checks of the response statistics with the initial and the calibrated inputs."""
+    from ..methods.cuu import calibrate_under_uncertainty
+    from ..methods.sampling import sample
+
+    o = ctx.options
+    model = ctx.model()
+    targets = {r: ctx.targets[r] for r in ctx.responses if r in ctx.targets}
+    res = calibrate_under_uncertainty(
+        model, ctx.space, targets, calibrate=o["calibrate"], inner=o["inner"],
+        max_iterations=o["max_iterations"], convergence_tolerance=o["convergence_tolerance"],
+    )
+    cal_space: ParameterSpace = res.space
+    scalars = {}
+    for p in ctx.space.names:
+        scalars[f"initial_mean/{p}"] = ctx.space[p].mean
+        scalars[f"initial_std/{p}"] = ctx.space[p].std
+        scalars[f"mean/{p}"] = cal_space[p].mean
+        scalars[f"std/{p}"] = cal_space[p].std
+    for r, (m, s) in targets.items():
+        scalars[f"target_mean/{r}"] = float(m)
+        scalars[f"target_std/{r}"] = float(s)
+    arrays, columns = {}, {}
+    n = o.get("verify_samples", 0)
+    if n:
+        for tag, space in (("initial", ctx.space), ("calibrated", cal_space)):
+            s = sample(model, space, n, method=o["method"], seed=ctx.rng)
+            out = np.asarray(s.outputs)
+            for k, r in enumerate(ctx.responses):
+                v = out[:, k][np.isfinite(out[:, k])]
+                scalars[f"{tag}_out_mean/{r}"] = float(np.mean(v))
+                scalars[f"{tag}_out_std/{r}"] = float(np.std(v, ddof=1))
+            arrays[f"outputs_{tag}"] = out
+            columns[f"outputs_{tag}"] = list(ctx.responses)
+    calibrated = {p: dist_to_dict(d) for p, d in zip(cal_space.names, cal_space.distributions,
+                                                      strict=True)}
+    return StepResult(ctx.name, ctx.type, scalars, arrays, calibrated, meta={
+        "columns": columns, "n_evaluations": int(getattr(res, "n_evaluations", 0))})
+
+
+ADAPTERS: dict[str, Callable[[StepContext], StepResult]] = {
+    "sampling": run_sampling,
+    "sensitivity": run_sensitivity,
+    "mean_value": run_mean_value,
+    "reliability": run_reliability,
+    "pce": run_pce,
+    "evidence": run_evidence,
+    "bayes_calibration": run_bayes_calibration,
+    "least_squares": run_least_squares,
+    "cuu": run_cuu,
+    "forward_check": run_forward_check,
+}
+
+
+def run_adapter(ctx: StepContext) -> tuple[StepResult, float]:
+    """Run the adapter of ``ctx.type``; returns the result and the wall time in s."""
+    t0 = time.perf_counter()
+    res = ADAPTERS[ctx.type](ctx)
+    return res, time.perf_counter() - t0

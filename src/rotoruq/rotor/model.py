@@ -1,0 +1,228 @@
+"""The hover rotor as a Model: named, batchable inputs in, hub loads out.
+
+>>> import rotoruq as rq
+>>> model = rq.RotorModel("gvpm", inputs=["collective_deg", "k_pitch_link"],
+...                       responses=["thrust", "power"])
+>>> y = model([[5.4, 15.0], [5.0, 12.0]])          # (2, 2): thrust [N], power [W]
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ParameterError
+from ..evaluation.model import EvalBatch
+from .geometry import blade_grid
+from .ground_effect import MIN_HEIGHT_OVER_RADIUS
+from .hover import HoverSolution, solve_hover
+from .presets import RotorPreset, get_preset
+
+__all__ = ["RotorModel", "ROTOR_INPUTS", "RESPONSES", "load_airfoil"]
+
+#: Rotor inputs every preset accepts (angles in deg, SI otherwise).
+ROTOR_INPUTS = (
+    "collective_deg",
+    "lateral_deg",
+    "longitudinal_deg",
+    "omega",
+    "rho",
+    "height_over_radius",
+    "k_flap",
+    "c_flap",
+    "k_lag",
+    "c_lag",
+    "k_pitch_link",
+    "c_pitch_link",
+    "ei_flap",
+)
+#: Responses: thrust [N], torque [N m], roll [N m], pitch [N m], power [W], ct, cq [-].
+RESPONSES = ("thrust", "torque", "roll", "pitch", "power", "ct", "cq")
+
+_NONNEGATIVE = ("k_flap", "c_flap", "k_lag", "c_lag", "k_pitch_link", "c_pitch_link", "ei_flap")
+_POSITIVE = ("omega", "rho")
+
+
+def load_airfoil(preset: RotorPreset):
+    """The preset's airfoil: a bundled table name or a path to a c81 file."""
+    from .airfoil import Airfoil
+
+    fit = preset.airfoil_fit_machs or None
+    if Path(preset.airfoil).suffix.lower() == ".c81":
+        return Airfoil.from_c81(preset.airfoil, fit_machs=fit)
+    return Airfoil.bundled(preset.airfoil, fit_machs=fit)
+
+
+class RotorModel:
+    """Hover rotor model following the Model protocol.
+
+    Parameters
+    ----------
+    preset : str or RotorPreset
+        ``"bo105"``, ``"gvpm"`` or a :class:`RotorPreset`.
+    inputs : sequence of str
+        Names of the batch columns: any of :data:`ROTOR_INPUTS` and the airfoil's coefficient
+        names (``cla_m03``, ``cl0_m03``, ``cd0_m03``, ...). Default: the three commands.
+    responses : sequence of str
+        Any of :data:`RESPONSES`. Default: thrust, torque.
+    fixed : mapping name -> value
+        Inputs held fixed at a value other than the preset's.
+    airfoil : object with ``coefficients(alpha_deg, mach, overrides)``, optional
+        Replaces the preset's airfoil table.
+    n_stations, n_azimuth, n_harmonics : discretization (Gauss stations per blade, azimuth
+        steps per revolution, harmonics of the blade motion).
+    tol, max_iter : convergence of the periodic solution (max change of the blade motion
+        harmonics [rad] and of the inflow ratio between iterations).
+    """
+
+    def __init__(
+        self,
+        preset: str | RotorPreset = "gvpm",
+        inputs: Sequence[str] | None = None,
+        responses: Sequence[str] | None = None,
+        fixed: Mapping[str, float] | None = None,
+        airfoil=None,
+        n_stations: int = 10,
+        n_azimuth: int = 36,
+        n_harmonics: int = 2,
+        tol: float = 1e-8,
+        max_iter: int = 80,
+    ):
+        self.preset = get_preset(preset)
+        self.airfoil = airfoil if airfoil is not None else load_airfoil(self.preset)
+        self.grid = blade_grid(self.preset, n_stations, n_azimuth)
+        self.n_harmonics = int(n_harmonics)
+        self.tol, self.max_iter = float(tol), int(max_iter)
+        self._airfoil_names = tuple(getattr(self.airfoil, "parameter_names", ()))
+        valid = ROTOR_INPUTS + self._airfoil_names
+        inputs = ("collective_deg", "lateral_deg", "longitudinal_deg") if inputs is None else inputs
+        responses = ("thrust", "torque") if responses is None else responses
+        for name in list(inputs) + list(fixed or {}):
+            self._check_name(name, valid)
+        if self.preset.flap_model == "elastic" and "k_flap" in list(inputs) + list(fixed or {}):
+            raise ParameterError(
+                f"preset {self.preset.name!r} has elastic blades: its flap stiffness comes from "
+                "'ei_flap' (EI_y), not 'k_flap'"
+            )
+        if self.preset.flap_model == "hinge" and "ei_flap" in list(inputs) + list(fixed or {}):
+            raise ParameterError(
+                f"preset {self.preset.name!r} has rigid hinged blades: use 'k_flap', not 'ei_flap'"
+            )
+        for name in responses:
+            if name not in RESPONSES:
+                raise ParameterError(f"unknown response {name!r}; valid: {', '.join(RESPONSES)}")
+        if len(set(inputs)) != len(tuple(inputs)):
+            raise ParameterError(f"duplicate input names in {list(inputs)}")
+        self.names_in = tuple(inputs)
+        self.names_out = tuple(responses)
+        self.fixed = {k: float(v) for k, v in (fixed or {}).items()}
+        self.last_solution: HoverSolution | None = None
+
+    @staticmethod
+    def _check_name(name, valid):
+        if name not in valid:
+            import difflib
+
+            close = difflib.get_close_matches(name, valid, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise ParameterError(
+                f"unknown rotor input {name!r}{hint}; valid: {', '.join(valid)}"
+            )
+
+    def __repr__(self) -> str:
+        return f"RotorModel({self.preset.name!r}, inputs={self.names_in}, responses={self.names_out})"
+
+    def defaults(self) -> dict[str, float]:
+        """Value of every rotor input when not given in the batch (preset, then ``fixed``)."""
+        p = self.preset
+        d = {name: float(getattr(p, name)) for name in ROTOR_INPUTS}
+        d.update(self.fixed)
+        return d
+
+    def __call__(self, x) -> np.ndarray:
+        return self.evaluate(x).values
+
+    def evaluate(self, x) -> EvalBatch:
+        """Evaluate a batch x of shape (n, len(names_in)); failed rows are NaN with a reason."""
+        x = np.atleast_2d(np.asarray(x, dtype=float))
+        if x.ndim != 2 or x.shape[1] != len(self.names_in):
+            raise ParameterError(
+                f"RotorModel expects points of shape (n, {len(self.names_in)}) for inputs "
+                f"{self.names_in}, got {x.shape}"
+            )
+        n = x.shape[0]
+        cols = {name: x[:, j] for j, name in enumerate(self.names_in)}
+        params, overrides = {}, {}
+        for name, val in self.defaults().items():
+            params[name] = cols.get(name, np.full(n, val))
+        for name in self._airfoil_names:
+            if name in cols:
+                overrides[name] = cols[name]
+            elif name in self.fixed:
+                overrides[name] = np.full(n, self.fixed[name])
+        failures = self._validate(params, overrides, n)
+        ok = np.array([i not in failures for i in range(n)])
+        out = np.full((n, len(self.names_out)), np.nan)
+        if ok.any():
+            sol = solve_hover(
+                self.preset,
+                self.airfoil,
+                self.grid,
+                {k: v[ok] for k, v in params.items()},
+                {k: v[ok] for k, v in overrides.items()},
+                n_harmonics=self.n_harmonics,
+                tol=self.tol,
+                max_iter=self.max_iter,
+            )
+            self.last_solution = sol
+            vals = np.column_stack([sol.response(r) for r in self.names_out])
+            idx = np.flatnonzero(ok)
+            bad = ~sol.converged | ~np.all(np.isfinite(vals), axis=1)
+            for j in np.flatnonzero(bad):
+                failures[int(idx[j])] = (
+                    f"periodic solution did not converge in {sol.iterations} iterations "
+                    f"(residual {sol.residual[j]:.2e})"
+                )
+            vals[bad] = np.nan
+            out[idx] = vals
+        return EvalBatch(out, failures)
+
+    def solve(self, x) -> HoverSolution:
+        """Full hover solution (loads, coning, pitch, inflow, harmonics) of a valid batch."""
+        batch = self.evaluate(x)
+        if batch.failures:
+            raise ParameterError(f"invalid points: {batch.failures}")
+        assert self.last_solution is not None
+        return self.last_solution
+
+    def _validate(self, params, overrides, n) -> dict[int, str]:
+        failures: dict[int, str] = {}
+
+        def fail(mask, reason):
+            for i in np.flatnonzero(mask):
+                failures.setdefault(int(i), reason(i))
+
+        for name, v in list(params.items()) + list(overrides.items()):
+            if name == "height_over_radius":
+                fail(np.isnan(v), lambda i, name=name: f"{name} is NaN")
+            else:
+                fail(~np.isfinite(v), lambda i, name=name, v=v: f"{name} is {v[i]}")
+        for name in _NONNEGATIVE:
+            if name == "ei_flap" and self.preset.flap_model != "elastic":
+                continue
+            if name == "k_flap" and self.preset.flap_model == "elastic":
+                continue
+            v = params[name]
+            fail(v < 0, lambda i, name=name, v=v: f"{name} must be >= 0, got {v[i]:g}")
+        for name in _POSITIVE:
+            v = params[name]
+            fail(v <= 0, lambda i, name=name, v=v: f"{name} must be > 0, got {v[i]:g}")
+        h = params["height_over_radius"]
+        fail(h < MIN_HEIGHT_OVER_RADIUS,
+             lambda i: f"height_over_radius {h[i]:g} is below R/4, outside every ground-effect "
+             "model's validity")
+        return failures
+
+

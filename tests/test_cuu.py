@@ -1,0 +1,220 @@
+"""Calibration under uncertainty (nested mean-value / LHS inner, NL2SOL outer)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rotoruq.errors import ParameterError
+from rotoruq.evaluation.model import FunctionModel
+from rotoruq.methods.cuu import calibrate_under_uncertainty, check_cuu
+from rotoruq.params import Exponential, Normal, ParameterSpace, Uniform
+
+A = np.array([[2.0, 1.0], [0.5, 3.0]])  # y = A x
+
+
+def _linear(with_gradient=True):
+    grad = (lambda x: np.broadcast_to(A, (x.shape[0], 2, 2))) if with_gradient else None
+    return FunctionModel(lambda x: x @ A.T, ["x1", "x2"], ["y1", "y2"], gradient=grad)
+
+
+@pytest.mark.parametrize("with_gradient", [True, False])
+def test_linear_model_input_stds_recovered_in_closed_form(with_gradient):
+    # std_y^2 = (A^2) sigma^2 exactly for a linear model: the true sigma follows in closed form
+    sigma_true = np.array([0.3, 0.2])
+    target = np.sqrt((A**2) @ sigma_true**2)
+    space = ParameterSpace({"x1": Normal(1.0, 0.1), "x2": Normal(-2.0, 0.5)})
+    res = calibrate_under_uncertainty(
+        _linear(with_gradient), space, calibrate={"x1": "std", "x2": "std"},
+        targets={"y1": {"std": target[0]}, "y2": {"std": target[1]}},
+    )
+    assert res.success, res.message
+    np.testing.assert_allclose(res.x, sigma_true, rtol=1e-6)
+    assert res.calibrated["x1"] == {"mean": 1.0, "std": pytest.approx(0.3, rel=1e-6)}
+    assert res.space["x2"].std == pytest.approx(0.2, rel=1e-6)
+    assert res.statistics_after["y2"]["std"] == pytest.approx(target[1], rel=1e-6)
+    assert res.statistics_before["y1"]["std"] == pytest.approx(np.hypot(0.2, 0.5))
+    assert res.identifiable
+    # stds only: the model is evaluated once (gradient reused by every outer iteration)
+    assert res.n_model_evaluations == (1 if with_gradient else 5)
+
+
+def test_linear_model_means_and_stds_together():
+    sigma_true, mu_true = np.array([0.3, 0.2]), np.array([1.5, -1.0])
+    t_mean, t_std = A @ mu_true, np.sqrt((A**2) @ sigma_true**2)
+    space = ParameterSpace({"x2": Normal(0.0, 0.5), "x1": Normal(1.0, 0.1)})  # permuted names
+    res = calibrate_under_uncertainty(
+        _linear(False), space, calibrate={"x1": ["mean", "std"], "x2": ["mean", "std"]},
+        targets={"y1": {"mean": t_mean[0], "std": t_std[0]},
+                 "y2": {"mean": t_mean[1], "std": t_std[1]}},
+        convergence_tolerance=1e-10,
+    )
+    assert res.labels == ("x1.mean", "x1.std", "x2.mean", "x2.std")  # order of `calibrate`
+    np.testing.assert_allclose(res.x, [1.5, 0.3, -1.0, 0.2], rtol=1e-6)
+
+
+def test_uniform_std_scales_half_width_about_midpoint():
+    model = FunctionModel(lambda x: 3 * x, ["u"], ["y"])
+    space = ParameterSpace({"u": Uniform(0.0, 2.0)})
+    res = calibrate_under_uncertainty(model, space, calibrate={"u": "std"},
+                                      targets={"y": {"std": 0.9}})
+    new = res.space["u"]
+    assert isinstance(new, Uniform)
+    assert new.std == pytest.approx(0.3, rel=1e-6)
+    assert 0.5 * (new.lower + new.upper) == pytest.approx(1.0)
+    assert new.upper - new.lower == pytest.approx(2 * np.sqrt(3) * 0.3, rel=1e-6)
+
+
+def _three_input():
+    def f(x):
+        x1, x2, x3 = x[:, 0], x[:, 1], x[:, 2]
+        return np.column_stack([
+            x1 + 0.5 * x2 + 0.2 * x3 + 0.1 * x1 * x2,
+            0.2 * x1 + x2 - 0.5 * x3 + 0.1 * x3**2,
+            -0.5 * x1 + 0.2 * x2 + x3 + 0.1 * x2 * x3,
+        ])
+
+    return FunctionModel(f, ["x1", "x2", "x3"], ["y1", "y2", "y3"])
+
+
+def test_nonlinear_equal_sensitivities_recovered_and_confirmed_by_lhs():
+    model = _three_input()
+    truth = ParameterSpace({"x1": Normal(1, 0.05), "x2": Normal(1, 0.08), "x3": Normal(1, 0.06)})
+    y = model(truth.sample(20000, seed=5, method="lhs"))
+    targets = {n: {"std": float(s)} for n, s in zip(model.names_out, y.std(axis=0, ddof=1),
+                                                   strict=True)}
+    start = ParameterSpace({"x1": Normal(1, 0.1), "x2": Normal(1, 0.1), "x3": Normal(1, 0.1)})
+    res = calibrate_under_uncertainty(model, start, calibrate={n: "std" for n in start.names},
+                                      targets=targets)
+    assert res.success and res.identifiable
+    # the mean value method drops the 0.1 x_i x_j terms: under 1 % of error here
+    np.testing.assert_allclose(res.x, [0.05, 0.08, 0.06], rtol=0.01)
+    # forward LHS with the calibrated distributions; 2000 samples: the std's sampling error is
+    # ~1/sqrt(2n) = 1.6 %, so 5 % is three standard errors
+    check = check_cuu(res, model, n=2000, seed=2)
+    for name in model.names_out:
+        assert abs(check.relative_error[name]["std"]) < 0.05
+    assert check.sampling.inputs.shape == (2000, 3)
+
+
+def test_lhs_inner_with_common_random_numbers():
+    model = _three_input()
+    truth = ParameterSpace({"x1": Normal(1, 0.05), "x2": Normal(1, 0.08), "x3": Normal(1, 0.06)})
+    y = model(truth.sample(20000, seed=5, method="lhs"))
+    targets = {n: {"std": float(s)} for n, s in zip(model.names_out, y.std(axis=0, ddof=1),
+                                                   strict=True)}
+    start = ParameterSpace({"x1": Normal(1, 0.1), "x2": Normal(1, 0.1), "x3": Normal(1, 0.1)})
+    res = calibrate_under_uncertainty(model, start, calibrate={n: "std" for n in start.names},
+                                      targets=targets, inner="lhs", inner_options={"n": 2000},
+                                      seed=1)
+    assert res.success, res.message
+    assert res.inner == "lhs"
+    # the inner LHS statistics match the targets at the solution
+    for name in model.names_out:
+        assert res.statistics_after[name]["std"] == pytest.approx(targets[name]["std"], rel=1e-4)
+    # the inner sample's own error (~1.6 % per std, n = 2000) propagates to the inputs
+    np.testing.assert_allclose(res.x, [0.05, 0.08, 0.06], rtol=0.03)
+
+
+def test_identifiability_flags_dominant_and_negligible_variable():
+    model = FunctionModel(lambda x: np.column_stack([10 * x[:, 0] + 1e-3 * x[:, 1],
+                                                     x[:, 0] + 2e-4 * x[:, 1]]),
+                          ["big", "tiny"], ["y1", "y2"])
+    space = ParameterSpace({"big": Normal(0, 0.2), "tiny": Normal(0, 0.2)})
+    res = calibrate_under_uncertainty(model, space, calibrate={"big": "std", "tiny": "std"},
+                                      targets={"y1": {"std": 1.0}, "y2": {"std": 0.1}})
+    assert not res.identifiable
+    assert "unidentifiable" in res.diagnostic and "tiny.std" in res.diagnostic
+    assert res.condition_number > 1e3
+    # positive control: comparable sensitivities are identifiable
+    ok = calibrate_under_uncertainty(_linear(), ParameterSpace({"x1": Normal(0, 0.2),
+                                                                "x2": Normal(0, 0.2)}),
+                                     calibrate={"x1": "std", "x2": "std"},
+                                     targets={"y1": {"std": 1.0}, "y2": {"std": 1.0}})
+    assert ok.identifiable and ok.condition_number < 100
+
+
+def test_more_statistics_than_targets_is_flagged():
+    res = calibrate_under_uncertainty(_linear(), ParameterSpace({"x1": Normal(0, 0.2),
+                                                                 "x2": Normal(0, 0.2)}),
+                                      calibrate={"x1": "std", "x2": "std"},
+                                      targets={"y1": {"std": 1.0}})
+    assert not res.identifiable
+    assert "only 1 targets" in res.diagnostic
+    assert res.statistics_after["y1"]["std"] == pytest.approx(1.0, rel=1e-4)
+
+
+def test_bad_inputs():
+    space = ParameterSpace({"x1": Normal(0, 0.2), "x2": Normal(0, 0.2)})
+    kw = dict(calibrate={"x1": "std"}, targets={"y1": {"std": 1.0}})
+    with pytest.raises(ParameterError, match="unknown response 'thrust'"):
+        calibrate_under_uncertainty(_linear(), space, calibrate={"x1": "std"},
+                                    targets={"thrust": {"std": 1.0}})
+    with pytest.raises(ParameterError, match="must be > 0"):
+        calibrate_under_uncertainty(_linear(), space, calibrate={"x1": "std"},
+                                    targets={"y1": {"std": -2.0}})
+    with pytest.raises(ParameterError, match=r"Exponential is parameterized by \(beta=0.5\)"):
+        calibrate_under_uncertainty(
+            _linear(), ParameterSpace({"x1": Exponential(0.5), "x2": Normal(0, 1)}), **kw)
+    model3 = FunctionModel(lambda x: x[:, :2] @ A.T + x[:, 2:], ["x1", "x2", "k"], ["y1", "y2"])
+    with pytest.raises(ParameterError, match="held fixed"):
+        calibrate_under_uncertainty(model3, space, calibrate={"k": "std"},
+                                    targets={"y1": {"std": 1.0}}, fixed={"k": 3.0})
+    with pytest.raises(ParameterError, match="unknown statistic 'var'"):
+        calibrate_under_uncertainty(_linear(), space, calibrate={"x1": "std"},
+                                    targets={"y1": {"var": 1.0}})
+    with pytest.raises(ParameterError, match="unknown inner"):
+        calibrate_under_uncertainty(_linear(), space, inner="form", **kw)
+
+
+def test_fixed_inputs_are_held():
+    model3 = FunctionModel(lambda x: x[:, :2] @ A.T + x[:, 2:], ["x1", "k", "x2"], ["y1", "y2"])
+    model3 = FunctionModel(lambda x: np.column_stack([2 * x[:, 0] + x[:, 2] + x[:, 1],
+                                                      0.5 * x[:, 0] + 3 * x[:, 2]]),
+                           ["x1", "k", "x2"], ["y1", "y2"])
+    space = ParameterSpace({"x1": Normal(0, 0.1), "x2": Normal(0, 0.5)})
+    res = calibrate_under_uncertainty(model3, space, calibrate={"x1": "mean"},
+                                      targets={"y1": {"mean": 5.0}}, fixed={"k": 1.0})
+    assert res.x[0] == pytest.approx(2.0, rel=1e-6)
+    assert res.fixed == {"k": 1.0}
+
+
+def test_nan_from_inner_method_shortens_the_outer_step():
+    # the mean-value mean is arctan(mu - 1.5): flat far away, so the first Gauss-Newton step
+    # from mu = -5 jumps beyond mu = 3 where the model fails (NaN). The outer trust region
+    # shrinks and the calibration still reaches mu = 1.5.
+    seen = []
+
+    def f(x):
+        seen.append(x[:, 0].copy())
+        y = np.arctan(x[:, 0] - 1.5)
+        return np.where(x[:, 0] > 3, np.nan, y)
+
+    model = FunctionModel(f, ["x"], ["y"])
+    space = ParameterSpace({"x": Normal(-5.0, 0.1)})
+    res = calibrate_under_uncertainty(model, space, calibrate={"x": "mean"},
+                                      targets={"y": {"mean": 0.0}}, convergence_tolerance=1e-10)
+    assert res.success, res.message
+    assert res.x[0] == pytest.approx(1.5, abs=1e-6)
+    assert np.any(np.concatenate(seen) > 3)
+    assert np.all(np.diff(res.least_squares.history) <= 0)
+
+
+def test_nan_from_callable_inner_is_survived():
+    calls = []
+
+    def inner(model, space):
+        s = space["x1"].std
+        calls.append(s)
+        std = np.sqrt((A**2) @ np.array([s, 0.2]) ** 2)
+        if s > 0.5:
+            std = np.full(2, np.nan)
+        return type("R", (), {"mean": np.zeros(2), "std": std})()
+
+    space = ParameterSpace({"x1": Normal(0, 0.01), "x2": Normal(0, 0.2)})
+    target = np.sqrt((A**2) @ np.array([0.3, 0.2]) ** 2)
+    res = calibrate_under_uncertainty(_linear(), space, calibrate={"x1": "std"},
+                                      targets={"y1": {"std": target[0]}}, inner=inner,
+                                      initial_radius=1e3, convergence_tolerance=1e-10)
+    assert res.x[0] == pytest.approx(0.3, rel=1e-5)
+    assert max(calls) > 0.5

@@ -458,7 +458,7 @@ def parse_results(
     n_dvv : number of derivative variables (length of each gradient).
     """
     toks = _tokens(text)
-    if toks and toks[0][1].lower() == "fail":
+    if toks and toks[0][1].lower().startswith("fail"):
         return ResultsFile(np.zeros(0), (), None, None, True)
     if names is not None and asv is None:
         asv = [1] * len(names)

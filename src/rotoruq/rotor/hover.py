@@ -199,7 +199,7 @@ def solve_hover(
         Q = Q + dQ
         # inflow
         if bemt:
-            dT_r = Nb * dFz.mean(axis=1)                     # (n, Nr) per unit span
+            dT_r = Nb * np.mean(dFz * np.cos(beta)[:, :, None], axis=1)  # (n, Nr) per span
             F = (prandtl_loss(r[None, :], R, preset.root_cutout, Nb, v_r, Om[:, None])
                  if preset.tip_loss else 1.0)
             v_new = annulus_update(v_r, dT_r, rho[:, None], kappa[:, None], F, c, Nb,
@@ -208,7 +208,7 @@ def solve_hover(
             v_r = v_new
             v0 = np.sum(v_r * w * r, axis=1) / np.sum(w * r)
         else:
-            T_be = Nb * np.einsum("npr,r->n", dFz, w) / grid.psi.size
+            T_be = Nb * np.einsum("npr,np,r->n", dFz, np.cos(beta), w) / grid.psi.size
             v_new = uniform_update(v0, T_be, rho, area, kappa, c, Nb, Om, r, w)
             dv = np.abs(v_new - v0) / (Om * R)
             v0 = v_new

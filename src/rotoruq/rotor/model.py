@@ -132,7 +132,8 @@ class RotorModel:
             )
 
     def __repr__(self) -> str:
-        return f"RotorModel({self.preset.name!r}, inputs={self.names_in}, responses={self.names_out})"
+        return (f"RotorModel({self.preset.name!r}, inputs={self.names_in}, "
+                f"responses={self.names_out})")
 
     def defaults(self) -> dict[str, float]:
         """Value of every rotor input when not given in the batch (preset, then ``fixed``)."""

@@ -66,5 +66,23 @@ from .params import Interval  # noqa: E402
 __all__ += ["Interval", "MeanValueResult", "mean_value", "mean_value_from_gradient"]
 # --- methods: surrogates and Bayes (issue 4) ---
 # --- methods: least squares and CUU (issue 5) ---
+from .methods.cuu import CUUCheck, CUUResult, calibrate_under_uncertainty, check_cuu  # noqa: E402
+from .methods.least_squares import (  # noqa: E402
+    CalibrationResult,
+    LeastSquaresResult,
+    calibrate,
+    least_squares,
+)
+
+__all__ += [
+    "CUUCheck",
+    "CUUResult",
+    "CalibrationResult",
+    "LeastSquaresResult",
+    "calibrate",
+    "calibrate_under_uncertainty",
+    "check_cuu",
+    "least_squares",
+]
 # --- evaluation layer (issue 6) ---
 # --- study and report (issue 7) ---

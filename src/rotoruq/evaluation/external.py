@@ -361,7 +361,7 @@ class ExternalModel:
 
 
 def _abort_message(r: RunResult, names_in, x) -> str:
-    point = ", ".join(f"{n}={v!r}" for n, v in zip(names_in, np.ravel(x), strict=True))
+    point = ", ".join(f"{n}={float(v)!r}" for n, v in zip(names_in, np.ravel(x), strict=True))
     msg = f"evaluation {r.eval_id} failed at ({point}): {r.error}; failure_policy='abort'"
     if r.stderr:
         msg += "\n--- stderr (tail) ---\n" + r.stderr[-2000:]

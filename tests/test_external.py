@@ -1,0 +1,224 @@
+"""External drivers through the full path: work directories, files, templates, failures."""
+
+from __future__ import annotations
+
+import random
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from rotoruq.errors import EvaluationError, ParameterError
+from rotoruq.evaluation import evaluate
+from rotoruq.evaluation.evaluator import Evaluator
+from rotoruq.evaluation.external import ExternalModel
+from rotoruq.evaluation.store import Store
+
+# A driver using only the standard library (fast start-up). It reads either parameters
+# format, misbehaves on demand through the variable "kind", and writes f = 2 a + kind + c,
+# where c comes from the filled template "solver.inp" (if present).
+DRIVER = r'''
+import os, random, re, sys, time
+params, results = sys.argv[1], sys.argv[2]
+x = {}
+text = open(params).read()
+if text.lstrip().startswith("{"):
+    for tag, val in re.findall(r"\{\s*(\S+)\s*=\s*(\S+)\s*\}", text):
+        x[tag] = val
+else:
+    lines = text.splitlines()
+    n = int(lines[0].split()[0])
+    for line in lines[1 : 1 + n]:
+        val, tag = line.split()
+        x[tag] = val
+kind, a = int(float(x["kind"])), float(x["a"])
+side = os.environ.get("SIDE_FILE")
+attempt = 0
+if side:
+    with open(side, "a") as f:
+        f.write(f"{x['a']}\n")
+    attempt = sum(1 for s in open(side).read().split() if s == x["a"])
+c = 0.0
+if os.path.exists("solver.inp"):
+    c = float(open("solver.inp").read().split("=")[1])
+for name in os.environ.get("NEED_FILES", "").split():
+    if not os.path.exists(name):
+        sys.exit(f"missing {name}")
+if kind == 1:
+    sys.stderr.write("segmentation fault (simulated)\n")
+    sys.exit(3)
+if kind == 2:
+    sys.stderr.write("hanging...\n"); sys.stderr.flush()
+    time.sleep(60)
+if kind == 3:
+    open(results, "w").write("FAIL\n")
+    sys.exit(0)
+if kind == 4:
+    open(results, "w").write("thrust = lots\n")
+    sys.exit(0)
+if kind == 5 and random.Random(f"{x['a']}-{attempt}").random() < 0.1:
+    sys.stderr.write(f"random failure at attempt {attempt}\n")
+    sys.exit(1)
+open(results, "w").write(f"{2 * a + kind + c!r} f\n")
+'''
+
+
+def random_fails(a_text: str, attempt: int) -> bool:
+    return random.Random(f"{a_text}-{attempt}").random() < 0.1
+
+
+@pytest.fixture
+def driver(tmp_path):
+    p = tmp_path / "driver.py"
+    p.write_text(DRIVER)
+    return p
+
+
+def model(driver, tmp_path, **kw):
+    kw.setdefault("workdir", tmp_path / "work")
+    return ExternalModel([sys.executable, "-S", str(driver)], ["kind", "a"], ["f"], **kw)
+
+
+@pytest.mark.parametrize("fmt", ["standard", "aprepro"])
+def test_full_path_with_templates_copies_links_and_store(driver, tmp_path, monkeypatch, fmt):
+    tpl = tmp_path / "solver.inp"
+    tpl.write_text("c = {a:.17g}\n")
+    cp = tmp_path / "table.c81"
+    cp.write_text("table\n")
+    ln = tmp_path / "mesh"
+    ln.mkdir()
+    monkeypatch.setenv("NEED_FILES", "table.c81 mesh solver.inp")
+    m = model(driver, tmp_path, template_files=[tpl], copy_files=[cp], link_files=[ln],
+              parameters_format=fmt)
+    x = np.c_[np.zeros(4), [0.1, -2.5, 1e-7, 3.0]]
+    with Evaluator(m, store=tmp_path / "s.db", study="ext") as ev:
+        out = ev.evaluate(x)
+    assert out.failures == {}
+    np.testing.assert_array_equal(out.values[:, 0], 3 * x[:, 1])  # 2a + c with c = a
+    recs = Store(tmp_path / "s.db").records(study="ext")
+    assert [r.status for r in recs] == ["ok"] * 4
+    assert all(r.stderr is None for r in recs)
+    assert sorted(float(r.inputs[1]) for r in recs) == sorted(x[:, 1])
+    assert list((tmp_path / "work").iterdir()) == []  # successful work dirs removed
+
+
+def test_model_protocol_direct_call(driver, tmp_path):
+    m = model(driver, tmp_path, keep_workdirs=True, name="run")
+    b = evaluate(m, np.array([[0.0, 1.0], [0.0, 2.0]]))
+    np.testing.assert_array_equal(b.values[:, 0], [2.0, 4.0])
+    names = sorted(p.name for p in (tmp_path / "work").iterdir())
+    assert names == ["run.1", "run.2"]
+    assert (tmp_path / "work" / "run.1" / "params.in").read_text().split()[:2] == ["2",
+                                                                                   "variables"]
+
+
+def test_every_failure_kind_is_recorded_and_good_ones_kept(driver, tmp_path):
+    m = model(driver, tmp_path, timeout=1.0)
+    x = np.array([[0, 1.0], [1, 2.0], [2, 3.0], [3, 4.0], [4, 5.0], [0, 6.0]])
+    t0 = time.perf_counter()
+    with Evaluator(m, store=tmp_path / "s.db", executor="processes:2") as ev:
+        out = ev.evaluate(x)
+    assert time.perf_counter() - t0 < 20  # the hanging driver was killed after 1 s
+    np.testing.assert_array_equal(out.values[[0, 5], 0], [2.0, 12.0])
+    assert set(out.failures) == {1, 2, 3, 4}
+    assert np.isnan(out.values[1:5]).all()
+    assert "status 3" in out.failures[1] and "segmentation fault" in out.failures[1]
+    assert "timed out after 1 s" in out.failures[2]
+    assert "fail marker" in out.failures[3]
+    assert "bad results file" in out.failures[4] and "numeric response value" in out.failures[4]
+    recs = {float(r.inputs[1]): r for r in Store(tmp_path / "s.db").records()}
+    assert recs[2.0].status == "failed" and "segmentation fault" in recs[2.0].stderr
+    assert "hanging" in recs[3.0].stderr
+    assert recs[1.0].status == recs[6.0].status == "ok"
+    # failed work directories are kept for inspection, with their files
+    kept = [p for p in (tmp_path / "work").iterdir()]
+    assert len(kept) == 4 and all((p / "params.in").exists() for p in kept)
+
+
+def test_abort_policy_stops_and_keeps_finished(driver, tmp_path):
+    m = model(driver, tmp_path, failure_policy="abort")
+    x = np.array([[0, 1.0], [0, 2.0], [1, 3.0], [0, 4.0], [0, 5.0]])
+    ev = Evaluator(m, store=tmp_path / "s.db")
+    with pytest.raises(EvaluationError) as err:
+        ev.evaluate(x)
+    assert "a=3.0" in str(err.value) and "segmentation fault" in str(err.value)
+    recs = Store(tmp_path / "s.db").records()
+    assert [(float(r.inputs[1]), r.status) for r in recs] == [(1.0, "ok"), (2.0, "ok"),
+                                                              (3.0, "failed")]
+    with pytest.raises(EvaluationError):
+        m(x[2:3])  # direct call aborts too
+
+
+def test_recover_policy(driver, tmp_path):
+    m = model(driver, tmp_path, failure_policy={"recover": [-1.0]}, keep_workdirs=False)
+    ev = Evaluator(m, store=tmp_path / "s.db")
+    out = ev.evaluate(np.array([[0, 1.0], [3, 2.0]]))
+    np.testing.assert_array_equal(out.values[:, 0], [2.0, -1.0])
+    assert out.failures == {}
+    rec = Store(tmp_path / "s.db").records()[1]
+    assert rec.status == "recovered" and "fail marker" in rec.error
+    assert not (tmp_path / "work").exists() or not list((tmp_path / "work").iterdir())
+
+
+def test_random_ten_percent_failures_with_retry_and_continue(driver, tmp_path, monkeypatch):
+    a = [f"{v:.16e}" for v in np.linspace(0.5, 30.5, 30)]
+    x = np.c_[np.full(30, 5.0), [float(s) for s in a]]
+    # which evaluations fail on their first attempt (deterministic pseudo-random, ~10%)
+    first = {i for i, s in enumerate(a) if random_fails(s, 1)}
+    assert 0 < len(first) < 10
+    # continue: exactly those fail, the others are exact
+    monkeypatch.setenv("SIDE_FILE", str(tmp_path / "side1"))
+    ev = Evaluator(model(driver, tmp_path), store=tmp_path / "s.db", study="cont",
+                   executor="processes:2")
+    out = ev.evaluate(x)
+    ev.close()
+    assert set(out.failures) == first
+    ok = sorted(set(range(30)) - first)
+    np.testing.assert_array_equal(out.values[ok, 0], 2 * x[ok, 1] + 5)
+    recs = Store(tmp_path / "s.db").records(study="cont", status="failed")
+    assert len(recs) == len(first)
+    assert all("random failure at attempt 1" in r.stderr for r in recs)
+    # retry:3: every evaluation succeeds, with the expected number of attempts
+    monkeypatch.setenv("SIDE_FILE", str(tmp_path / "side2"))
+    ev = Evaluator(model(driver, tmp_path, failure_policy="retry:3"), store=tmp_path / "s.db",
+                   study="retry")
+    out = ev.evaluate(x)
+    assert out.failures == {}
+    np.testing.assert_array_equal(out.values[:, 0], 2 * x[:, 1] + 5)
+    attempts = {float(r.inputs[1]): r.attempts for r in Store(tmp_path / "s.db").records(
+        study="retry")}
+    for i, s in enumerate(a):
+        k = 1
+        while random_fails(s, k):
+            k += 1
+        assert attempts[x[i, 1]] == k
+
+
+def test_values_and_arguments_never_pass_through_a_shell(driver, tmp_path):
+    marker = tmp_path / "pwned"
+    echo = tmp_path / "echo.py"
+    echo.write_text("import sys\nopen(sys.argv[2], 'w').write(repr(len(sys.argv[3])) + '\\n')\n")
+    evil = f"$(touch {marker}); touch {marker}"
+    m = ExternalModel([sys.executable, "-S", str(echo), "{params}", "{results}", evil], ["a"],
+                      ["n"], workdir=tmp_path / "w w")  # a space in the directory, too
+    out = m(np.array([[1.0]]))
+    assert out[0, 0] == len(evil)
+    assert not marker.exists()
+
+
+def test_string_command_and_configuration_errors(driver, tmp_path):
+    m = ExternalModel(f"{sys.executable} -S {driver}", ["kind", "a"], ["f"],
+                      workdir=tmp_path / "w", tag=False)
+    np.testing.assert_array_equal(m(np.array([[0.0, 1.5], [0.0, 2.5]]))[:, 0], [3.0, 5.0])
+    with pytest.raises(ParameterError, match="retry"):
+        model(driver, tmp_path, failure_policy="retry:x")
+    with pytest.raises(ParameterError, match="recover needs 1"):
+        model(driver, tmp_path, failure_policy={"recover": [1, 2]})
+    with pytest.raises(ParameterError, match="unknown failure policy"):
+        model(driver, tmp_path, failure_policy="ignore")
+    with pytest.raises(ParameterError, match="does not exist"):
+        model(driver, tmp_path, copy_files=[tmp_path / "nope"])
+    missing = ExternalModel(["/nonexistent/solver"], ["a"], ["f"], workdir=tmp_path / "w2")
+    b = missing.evaluate(np.array([[1.0]]))
+    assert "could not start" in b.failures[0]

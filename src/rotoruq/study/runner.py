@@ -109,20 +109,28 @@ def _step_space(study: Study, step: StepSpec, previous: Mapping[str, StepResult]
                 ) -> tuple[ParameterSpace, dict[str, float]]:
     """Uncertain inputs of a step and the inputs it fixes.
 
-    The step's parameters (all of the study's when not listed) take their distributions from
-    ``from`` where it provides them, else from ``[parameters]``. Parameters of the study or
+    The step's parameters (when not listed: those of the ``from`` step, else all of the
+    study's, plus the step's own ``distributions``) take their distributions from
+    ``from`` where it provides them, else from ``[parameters]``; the step's own
+    ``distributions`` take precedence over both. Parameters of the study or
     of the ``from`` step that the step does not use are fixed at their means.
     """
     source = {}
     if step.source is not None:
         source = previous[step.source[0]].distribution_objects()
-    names = list(step.parameters) if step.parameters is not None else list(
-        study.parameter_names)
-    if step.parameters is None:
-        names += [n for n in source if n not in names]
+    own = {p.name: p.distribution for p in step.distributions}
+    if step.parameters is not None:
+        names = list(step.parameters)
+    elif source:
+        names = list(source) + [n for n in own if n not in source]
+    else:
+        names = list(study.parameter_names) + [n for n in own if n not in
+                                               study.parameter_names]
     dists = []
     for n in names:
-        if n in source:
+        if n in own:
+            dists.append((n, own[n]))
+        elif n in source:
             dists.append((n, source[n]))
         else:
             dists.append((n, study.parameter(n).distribution))

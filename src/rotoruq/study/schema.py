@@ -96,7 +96,7 @@ def rotor_input_names() -> tuple[str, ...]:
     try:  # the rotor module is the authority when it publishes its vocabulary
         from ..rotor import model as rotor_model
 
-        names = getattr(rotor_model, "INPUT_NAMES", None)
+        names = getattr(rotor_model, "ROTOR_INPUTS", None)
         if names:
             return tuple(names)
     except ImportError:
@@ -146,7 +146,7 @@ class Locator:
             line = raw.split("#", 1)[0] if '"' not in raw and "'" not in raw else raw
             m = _HEADER_ARRAY.match(line)
             if m:
-                base = _split_key(m.group(1))
+                base = self._in_array(_split_key(m.group(1)), counts)
                 idx = counts.get(base, 0)
                 counts[base] = idx + 1
                 current = base + (idx,)
@@ -154,7 +154,7 @@ class Locator:
                 continue
             m = _HEADER_TABLE.match(line)
             if m:
-                current = _split_key(m.group(1))
+                current = self._in_array(_split_key(m.group(1)), counts)
                 self.lines.setdefault(current, no)
                 continue
             m = _KEY.match(line)
@@ -165,6 +165,15 @@ class Locator:
                 if "{" in rest:
                     for k in _INLINE_KEY.findall(rest[rest.index("{"):]):
                         self.lines.setdefault(key + (k.strip("\"'"),), no)
+
+    @staticmethod
+    def _in_array(parts: tuple, counts: dict) -> tuple:
+        """``[steps.x]`` after ``[[steps]]`` belongs to the last ``steps`` entry."""
+        for k in range(len(parts) - 1, 0, -1):
+            head = parts[:k]
+            if head in counts:
+                return head + (counts[head] - 1,) + parts[k:]
+        return parts
 
     def line(self, *path) -> int | None:
         path = tuple(path)
@@ -272,7 +281,8 @@ class StepSpec:
     """One ``[[steps]]`` entry.
 
     ``source`` is the ``from`` reference as ``(step, attribute)``; ``parameters`` /
-    ``responses`` restrict the study's sets (None: all); ``fixed`` adds fixed model inputs
+    ``responses`` restrict the study's sets (None: all); ``distributions`` replaces (or adds)
+    the distributions of some inputs for this step only; ``fixed`` adds fixed model inputs
     for this step; ``options`` holds the type-specific options with defaults filled in.
     """
 
@@ -288,6 +298,7 @@ class StepSpec:
     title: str = ""
     quick: Mapping[str, Any] = field(default_factory=dict)
     line: int | None = None
+    distributions: tuple[ParameterSpec, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -418,6 +429,7 @@ _COMMON_STEP_KEYS = {
     "title": (_str(), ""),
     "seed": (_int(), None),
     "quick": (_table, None),
+    "distributions": (_table, None),
 }
 
 STEP_TYPES: dict[str, dict[str, tuple]] = {
@@ -654,15 +666,17 @@ def _unknown_input(ck: _Checker, where: tuple, name: str):
             + ", cla_mNN, cl0_mNN, cd0_mNN" + hint, name)
 
 
-def _parse_parameters(ck: _Checker, doc: dict, model: ModelSpec) -> tuple[ParameterSpec, ...]:
-    t = ck.table(doc.get("parameters", {}), ("parameters",), "[parameters]")
+def _parse_parameters(ck: _Checker, doc: dict, model: ModelSpec,
+                      where: tuple = ("parameters",)) -> tuple[ParameterSpec, ...]:
+    t = doc.get("parameters", {}) if where == ("parameters",) else doc
+    t = ck.table(t, where, "[parameters]")
     out = []
     for name, spec in t.items():
-        w = ("parameters", name)
+        w = where + (name,)
         spec = ck.table(spec, w, f"[parameters.{name}]")
         if model.kind == "preset" and not is_rotor_input(name):
             _unknown_input(ck, w, name)
-        if name in model.fixed:
+        if name in model.fixed and where == ("parameters",):
             ck.fail(w, f"{name!r} either fixed in [model] or uncertain in [parameters], not both")
         if "distribution" not in spec:
             ck.fail(w, f"distribution = \"normal\" | \"uniform\" | ... in [parameters.{name}]")
@@ -858,19 +872,24 @@ def _parse_steps(ck, doc, model: ModelSpec, params, data) -> tuple[StepSpec, ...
             else:
                 ck.fail(w, f"data = \"NAME\" in {what} (data sets: {', '.join(data) or 'none'})")
         sel_p = common["parameters"]
+        known = pnames + [n for st in raw if isinstance(st.get("distributions"), dict)
+                          for n in st["distributions"] if n not in pnames]
         if sel_p is not None:
             for p in sel_p:
-                if p not in pnames:
-                    close = difflib.get_close_matches(p, pnames, n=1)
+                if p not in known:
+                    close = difflib.get_close_matches(p, known, n=1)
                     hint = f" (did you mean {close[0]!r}?)" if close else ""
-                    ck.fail(w + ("parameters",), f"names from [parameters] ({', '.join(pnames)})"
+                    ck.fail(w + ("parameters",), f"names from [parameters] ({', '.join(known)})"
                             f"{hint}", p)
         sel_r = common["responses"]
         if sel_r is not None:
+            valid_r = ROTOR_RESPONSES if model.kind == "preset" else model.responses
             for r in sel_r:
-                if r not in model.responses:
-                    ck.fail(w + ("responses",), f"responses of [model] "
-                            f"({', '.join(model.responses)})", r)
+                if r not in valid_r:
+                    close = difflib.get_close_matches(r, valid_r, n=1)
+                    hint = f" (did you mean {close[0]!r}?)" if close else ""
+                    ck.fail(w + ("responses",), f"responses of the model "
+                            f"({', '.join(valid_r)}){hint}", r)
         fixed = _numbers(ck, common["fixed"] or {}, w + ("fixed",), f"{what} fixed")
         if model.kind == "preset":
             for k in fixed:
@@ -890,8 +909,12 @@ def _parse_steps(ck, doc, model: ModelSpec, params, data) -> tuple[StepSpec, ...
             for p in opts["intervals"]:
                 if p not in pnames:
                     ck.fail(w + ("intervals", p), "intervals keyed by names from [parameters]", p)
+        dists = ()
+        if common["distributions"] is not None:
+            dists = _parse_parameters(ck, common["distributions"], model, w + ("distributions",))
         steps.append(StepSpec(
             name=name, type=typ, index=i, options=opts, source=source, parameters=sel_p,
+            distributions=dists,
             responses=sel_r, fixed=fixed, data=data_ref, title=common["title"],
             quick=common["quick"] or {}, line=ck.loc.line(*w),
         ))

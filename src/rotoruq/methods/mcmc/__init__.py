@@ -1,1 +1,20 @@
-"""rotoruq.methods.mcmc."""
+"""Markov chain Monte Carlo Bayesian calibration: Gaussian likelihood, MH / DR / AM / DRAM
+samplers advancing several chains in one batched step, diagnostics (ESS, split R-hat, KL)."""
+
+from .bayes import BayesResult, calibrate_bayes, continue_chain
+from .diagnostics import effective_sample_size, split_rhat
+from .likelihood import GaussianLikelihood
+from .samplers import METHODS, SamplerConfig, SamplerState, run_chains
+
+__all__ = [
+    "BayesResult",
+    "calibrate_bayes",
+    "continue_chain",
+    "effective_sample_size",
+    "split_rhat",
+    "GaussianLikelihood",
+    "METHODS",
+    "SamplerConfig",
+    "SamplerState",
+    "run_chains",
+]

@@ -1,0 +1,543 @@
+"""Bayesian calibration with Markov chains, thesis sections 2.4.1-2.4.2 and the appendix.
+
+:func:`calibrate_bayes` samples ``p(theta | d) ~ pi(theta) L(theta)`` with a Gaussian likelihood
+(eqs. 2.22-2.24), priors from a :class:`~rotoruq.params.ParameterSpace`, a MAP pre-solve as the
+chain start, an initial proposal covariance from the Gauss-Newton Hessian of the misfit plus the
+prior (eqs. 2.25-2.27) and the MH / DR / AM / DRAM samplers of :mod:`.samplers`. With
+``emulator=GaussianProcess(...)`` the model is replaced by a Kriging surrogate fitted on an LHS
+design drawn from the prior (the reference study's workflow: 500 rotor runs, 100,000 samples).
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+import time
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy import optimize
+
+from ..._rng import SeedLike, as_generator
+from ...errors import EvaluationError, ModelShapeError, ParameterError
+from ...evaluation.model import align_inputs, evaluate, has_gradient
+from ...params import ParameterSpace
+from ..surrogate import ExtrapolationWarning, GaussianProcess, LeaveOneOut
+from . import diagnostics as dg
+from .likelihood import GaussianLikelihood
+from .proposals import LogPrior, hessian_covariance, prior_scales
+from .samplers import SamplerConfig, SamplerState, run_chains
+
+__all__ = ["calibrate_bayes", "continue_chain", "BayesResult"]
+
+log = logging.getLogger(__name__)
+
+
+class _Posterior:
+    """Batched log posterior in scaled coordinates, counting what it evaluates."""
+
+    def __init__(self, forward, loglik: GaussianLikelihood, logprior: LogPrior,
+                 center: np.ndarray, scale: np.ndarray, gp: GaussianProcess | None):
+        self.forward, self.loglik, self.logprior = forward, loglik, logprior
+        self.center, self.scale, self.gp = center, scale, gp
+        self.n_evals = 0
+        self.n_nan = 0
+        self.n_outside = 0
+        self.n_extrapolated = 0
+        self.max_extrapolation = 0.0
+        if gp is not None:
+            box = gp.bounds
+            w = box[:, 1] - box[:, 0]
+            self._far_lo, self._far_hi = box[:, 0] - 0.1 * w, box[:, 1] + 0.1 * w
+
+    def theta(self, z: np.ndarray) -> np.ndarray:
+        return self.center + self.scale * z
+
+    def __call__(self, z: np.ndarray) -> np.ndarray:
+        theta = self.center + self.scale * z
+        lp = self.logprior(theta)
+        ok = lp > -np.inf
+        nok = int(ok.sum())
+        self.n_outside += lp.size - nok
+        if nok:
+            full = nok == lp.size
+            th = theta if full else theta[ok]
+            if self.gp is not None and ((th < self._far_lo) | (th > self._far_hi)).any():
+                dist = self.gp.extrapolation_distance(th)
+                self.n_extrapolated += int((dist > 0.1).sum())
+                self.max_extrapolation = max(self.max_extrapolation, float(dist.max()))
+            ll = self.loglik(self.forward(th))
+            bad = ~np.isfinite(ll)
+            self.n_evals += nok
+            if bad.any():
+                self.n_nan += int(bad.sum())
+                ll[bad] = -np.inf
+            if full:
+                lp += ll
+            else:
+                lp[ok] += ll
+        return lp
+
+
+@dataclass(frozen=True)
+class BayesResult:
+    """Posterior samples and their summary.
+
+    chains : (n_chains, n_kept, d) kept samples (after burn-in and thinning), parameter units.
+    names : parameter names (columns of ``chains``).
+    mean, std, skewness, kurtosis (excess, 0 for a normal), ess, rhat : (d,) each.
+    correlation : (d, d). credible_interval_95 : (d, 2) equal-tailed 2.5 % / 97.5 % quantiles.
+    acceptance_rate : fraction of steps that moved. acceptance_per_stage : (stage 1, stage 2)
+        acceptance of each delayed-rejection stage among the proposals made at that stage.
+    kl_divergence : KL(posterior || prior) in nats, posterior entropy by the Kozachenko-Leonenko
+        kNN estimator; kl_divergence_gaussian : the same with a Gaussian posterior entropy.
+    map_point : (d,) chain start from the MAP pre-solve. proposal_covariance : (d, d) initial
+        stage-1 proposal covariance, parameter units.
+    n_likelihood_evals : likelihood evaluations (points) by the chains; n_model_evals : true
+        model evaluations (emulator build, MAP and gradients without emulator, predictive).
+    n_nan_likelihood : proposals rejected because the likelihood was NaN/inf (failed model).
+    n_out_of_support : proposals rejected outside the prior support (not evaluated).
+    emulator, emulator_loo : the fitted GP and its leave-one-out quality (None without one).
+    predictive_inputs, predictive : posterior predictive draws pushed through the true model,
+        (k, d) and (k, m) (None unless ``posterior_predictive`` > 0); predictive_names.
+    """
+
+    names: tuple[str, ...]
+    chains: np.ndarray
+    log_posterior: np.ndarray
+    mean: np.ndarray
+    std: np.ndarray
+    skewness: np.ndarray
+    kurtosis: np.ndarray
+    correlation: np.ndarray
+    credible_interval_95: np.ndarray
+    ess: np.ndarray
+    rhat: np.ndarray
+    acceptance_rate: float
+    acceptance_per_stage: tuple[float, ...]
+    kl_divergence: float
+    kl_divergence_gaussian: float
+    map_point: np.ndarray
+    proposal_covariance: np.ndarray
+    method: str
+    burn_in: int
+    thin: int
+    n_likelihood_evals: int
+    n_model_evals: int
+    n_nan_likelihood: int
+    n_out_of_support: int
+    sampling_seconds: float
+    emulator: GaussianProcess | None = None
+    emulator_loo: LeaveOneOut | None = None
+    predictive_inputs: np.ndarray | None = None
+    predictive: np.ndarray | None = None
+    predictive_names: tuple[str, ...] = ()
+    _state: object = field(default=None, repr=False, compare=False)
+
+    @property
+    def samples(self) -> np.ndarray:
+        """All kept samples pooled over chains, (n_chains * n_kept, d)."""
+        return self.chains.reshape(-1, self.chains.shape[-1])
+
+    @property
+    def ess_per_second(self) -> np.ndarray:
+        return self.ess / max(self.sampling_seconds, 1e-12)
+
+    def credible_interval(self, level: float = 0.95) -> np.ndarray:
+        """Equal-tailed credible interval (d, 2) at ``level``."""
+        if not 0 < level < 1:
+            raise ParameterError(f"level must be in (0, 1), got {level}")
+        a = 0.5 * (1.0 - level)
+        return np.quantile(self.samples, [a, 1.0 - a], axis=0).T
+
+    def summary(self) -> str:
+        """A plain-text table of the posterior moments and diagnostics."""
+        head = f"{'parameter':<16}{'mean':>12}{'std':>12}{'skew':>10}{'kurt':>10}{'ess':>10}" \
+               f"{'rhat':>8}"
+        rows = [head]
+        for j, n in enumerate(self.names):
+            rows.append(f"{n:<16}{self.mean[j]:>12.5g}{self.std[j]:>12.4g}"
+                        f"{self.skewness[j]:>10.3g}{self.kurtosis[j]:>10.3g}{self.ess[j]:>10.0f}"
+                        f"{self.rhat[j]:>8.3f}")
+        stages = ", ".join(f"{a:.3f}" for a in self.acceptance_per_stage)
+        rows.append(f"method {self.method}, acceptance {self.acceptance_rate:.3f} (stages: "
+                    f"{stages}), KL(prior->post) {self.kl_divergence:.3f} nats, "
+                    f"{self.n_nan_likelihood} NaN likelihoods")
+        return "\n".join(rows)
+
+    def save(self, path) -> Path:
+        """Write the chains: ``*.csv`` as a table (chain, step, parameters, log posterior),
+        anything else as a NumPy ``.npz`` archive with the chains and the summary arrays."""
+        path = Path(path)
+        if path.suffix.lower() == ".csv":
+            c, n, d = self.chains.shape
+            with open(path, "w", newline="") as fh:
+                w = csv.writer(fh)
+                w.writerow(["chain", "step", *self.names, "log_posterior"])
+                for k in range(c):
+                    for i in range(n):
+                        w.writerow([k, i, *(f"{v:.17g}" for v in self.chains[k, i]),
+                                    f"{self.log_posterior[k, i]:.17g}"])
+            return path
+        if path.suffix.lower() != ".npz":
+            path = path.with_suffix(".npz")
+        arrays = {k: getattr(self, k) for k in (
+            "chains", "log_posterior", "mean", "std", "skewness", "kurtosis", "correlation",
+            "credible_interval_95", "ess", "rhat", "map_point", "proposal_covariance")}
+        np.savez(path, names=np.array(self.names), method=self.method,
+                 acceptance_rate=self.acceptance_rate, kl_divergence=self.kl_divergence,
+                 **arrays)
+        return path
+
+
+def _summarize(names, chains_z, lp, post: _Posterior, state: SamplerState, base: dict,
+               seed) -> BayesResult:
+    theta = post.center + post.scale * chains_z  # (c, n, d)
+    flat = theta.reshape(-1, theta.shape[-1])
+    if flat.shape[0] < 2:
+        raise ParameterError("no samples kept: chain_samples must exceed burn_in")
+    mean, std, skew, kurt = dg.moments(flat)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = np.atleast_2d(np.corrcoef(flat, rowvar=False))
+    ess = dg.effective_sample_size(chains_z)
+    rhat = dg.split_rhat(chains_z)
+    # entropy on a near-independent subsample (spacing ~ integrated autocorrelation time)
+    rng = as_generator(seed)
+    n_sub = int(min(4000, max(50, np.min(ess)), flat.shape[0]))
+    idx = rng.choice(flat.shape[0], n_sub, replace=False)
+    z_sub = chains_z.reshape(-1, theta.shape[-1])[idx]
+    e_logprior = float(np.mean(post.logprior(flat[:: max(1, flat.shape[0] // 20000)])))
+    log_jac = float(np.log(post.scale).sum())
+    kl_knn = -(dg.entropy_knn(z_sub) + log_jac) - e_logprior
+    kl_gauss = -(dg.entropy_gaussian(chains_z.reshape(-1, theta.shape[-1])) + log_jac) \
+        - e_logprior
+    cnt = state.counts
+    steps = cnt["prop1"]
+    acc = cnt["acc1"] + cnt["acc2"]
+    stages = (cnt["acc1"] / max(steps, 1),)
+    if cnt["prop2"]:
+        stages = stages + (cnt["acc2"] / cnt["prop2"],)
+    return BayesResult(
+        names=tuple(names), chains=theta, log_posterior=lp, mean=mean, std=std, skewness=skew,
+        kurtosis=kurt, correlation=corr, credible_interval_95=np.quantile(flat, [0.025, 0.975],
+                                                                          axis=0).T,
+        ess=ess, rhat=rhat, acceptance_rate=acc / max(steps, 1), acceptance_per_stage=stages,
+        kl_divergence=float(kl_knn), kl_divergence_gaussian=float(kl_gauss), **base)
+
+
+def _batched_fd_grad(post: _Posterior, z: np.ndarray, hi: np.ndarray, h: float = 1e-6):
+    """Gradient of the log posterior at z (d,) from one batch of d+1 evaluations."""
+    steps = np.where(z + h <= hi, h, -h)
+    pts = np.vstack([z, z + np.diag(steps)])
+    lp = post(pts)
+    return lp[0], (lp[1:] - lp[0]) / steps
+
+
+def _map(post: _Posterior, z0: np.ndarray, zlo: np.ndarray, zhi: np.ndarray) -> np.ndarray:
+    big = 1e30
+
+    def fun(z):
+        f, g = _batched_fd_grad(post, z, zhi)
+        if not np.isfinite(f) or not np.all(np.isfinite(g)):
+            return big, np.zeros_like(z)
+        return -f, -g
+
+    bounds = [(None if not np.isfinite(a) else a, None if not np.isfinite(b) else b)
+              for a, b in zip(zlo, zhi, strict=True)]
+    res = optimize.minimize(fun, z0, jac=True, method="L-BFGS-B", bounds=bounds,
+                            options={"maxiter": 500})
+    return res.x
+
+
+def calibrate_bayes(
+    model,
+    data,
+    prior: ParameterSpace,
+    *,
+    method: str = "dram",
+    chain_samples: int = 100_000,
+    burn_in: int | None = None,
+    thin: int = 1,
+    n_chains: int = 1,
+    emulator: GaussianProcess | None = None,
+    build_samples: int = 500,
+    data_covariance=1.0,
+    responses: Sequence[str] | None = None,
+    proposal_covariance="hessian",
+    map_start: bool = True,
+    start=None,
+    posterior_predictive: int = 0,
+    dr_scale: float = 5.0,
+    adapt_start: int = 100,
+    adapt_interval: int = 100,
+    pooled_adaptation: bool = True,
+    seed: SeedLike = None,
+) -> BayesResult:
+    """Bayesian calibration of the parameters ``prior`` of ``model`` to ``data``.
+
+    Parameters
+    ----------
+    model : Model (names_in, names_out, batched __call__, optional gradient).
+    data : (n_exp, m) observations of the m calibrated responses (one row per experiment), or
+        (m,) for one experiment.
+    prior : ParameterSpace of the calibrated parameters (names matched to ``model.names_in``);
+        its joint density is the prior and its support bounds the chains.
+    method : "dram" (default), "am", "dr" or "mh".
+    chain_samples : steps per chain, burn-in included (Dakota's ``chain_samples``).
+    burn_in : steps dropped at the start of each chain (default chain_samples // 20, the
+        reference study's 5,000 of 100,000). thin : keep every ``thin``-th step after that.
+    n_chains : chains advanced together; every step evaluates the likelihood of all of them in
+        one batched call.
+    emulator : an unfitted GaussianProcess (fitted here on ``build_samples`` LHS points from the
+        prior, evaluated through :func:`rotoruq.evaluation.model.evaluate`) or a fitted one
+        (inputs in ``prior.names`` order, outputs the calibrated responses). None: the chains
+        call the model itself.
+    data_covariance : scalar, (m,), (m, m), (n_exp, m) or (n_exp, m, m); see
+        :class:`GaussianLikelihood`. Default 1 (Dakota's unit variance when none is given).
+    responses : names of the model responses that ``data`` observes (default all, in order).
+    proposal_covariance : "hessian" (inverse Gauss-Newton Hessian of the negative log posterior
+        at the start, eqs. 2.25-2.27, times 2.38^2/d), "prior" (prior variances times 2.38^2/d)
+        or a (d, d) array in parameter units used as given.
+    map_start : start the chains at the maximum a posteriori point (L-BFGS-B from ``start``, or
+        from the best build sample / the prior mean).
+    start : (d,) start point (parameter units).
+    posterior_predictive : number of posterior draws pushed through the true model.
+    dr_scale, adapt_start, adapt_interval : Dakota DRAM defaults 5, 100, 100.
+    pooled_adaptation : AM covariance from the pooled history of all chains (inter-chain
+        adaptation) instead of each chain's own.
+    seed : int or Generator.
+
+    Returns
+    -------
+    BayesResult
+    """
+    t_start = time.perf_counter()
+    rng = as_generator(seed)
+    if not isinstance(prior, ParameterSpace):
+        raise ParameterError(f"prior must be a ParameterSpace, got {type(prior).__name__}")
+    perm = align_inputs(model, prior.names)
+    names_out = tuple(model.names_out)
+    if responses is None:
+        resp_idx = np.arange(len(names_out))
+        cal_names = names_out
+    else:
+        missing = [r for r in responses if r not in names_out]
+        if missing:
+            raise ParameterError(f"responses {missing} are not outputs of the model "
+                                 f"{list(names_out)}")
+        cal_names = tuple(responses)
+        resp_idx = np.array([names_out.index(r) for r in responses])
+    lik = GaussianLikelihood(data, data_covariance, cal_names)
+    d = prior.dim
+    chain_samples, thin, n_chains = int(chain_samples), int(thin), int(n_chains)
+    burn_in = chain_samples // 20 if burn_in is None else int(burn_in)
+    if chain_samples < 1 or thin < 1 or n_chains < 1 or not 0 <= burn_in < chain_samples:
+        raise ParameterError(f"need chain_samples >= 1, 0 <= burn_in < chain_samples, thin >= 1 "
+                             f"and n_chains >= 1; got {chain_samples}, {burn_in}, {thin}, "
+                             f"{n_chains}")
+    cfg = SamplerConfig(method=method, dr_scale=dr_scale, adapt_start=adapt_start,
+                        adapt_interval=adapt_interval, pooled=pooled_adaptation)
+    logprior = LogPrior(prior)
+    center, scale = prior_scales(prior)
+    zlo, zhi = (logprior.lo - center) / scale, (logprior.hi - center) / scale
+    n_model = 0
+
+    def model_x(theta):
+        return theta if perm is None else theta[:, perm]
+
+    def truth(theta):
+        nonlocal n_model
+        n_model += theta.shape[0]
+        return evaluate(model, model_x(theta)).values
+
+    # --- emulator -------------------------------------------------------------------------
+    gp, loo, best_build = None, None, None
+    if emulator is not None:
+        if not isinstance(emulator, GaussianProcess):
+            raise ParameterError("emulator must be a rotoruq GaussianProcess")
+        gp = emulator
+        if gp._fits:
+            if gp.n_inputs != d or gp.n_outputs != len(cal_names):
+                raise ModelShapeError(f"fitted emulator has {gp.n_inputs} inputs and "
+                                      f"{gp.n_outputs} outputs; need {d} and {len(cal_names)}")
+        else:
+            Xb = prior.sample(int(build_samples), seed=rng, method="lhs")
+            Yb = truth(Xb)[:, resp_idx]
+            ok = np.all(np.isfinite(Yb), 1)
+            if ok.sum() < d + 2:
+                raise EvaluationError(f"only {int(ok.sum())} of {len(Xb)} emulator build "
+                                      "evaluations succeeded")
+            gp.fit(Xb[ok], Yb[ok])
+            lp_build = logprior(Xb[ok]) + lik(Yb[ok])
+            best_build = Xb[ok][int(np.argmax(lp_build))]
+        loo = gp.loo()
+        log.info("emulator LOO: RMSE %s, Q2 %s", np.array2string(loo.rmse, precision=4),
+                 np.array2string(loo.q2, precision=4))
+        if np.any(loo.q2 < 0.9):
+            warnings.warn(f"emulator leave-one-out Q2 = {np.round(loo.q2, 3)} for responses "
+                          f"{cal_names}: below 0.9, the posterior may be wrong", RuntimeWarning,
+                          stacklevel=2)
+        forward = gp._mean_fast
+    else:
+        def forward(theta):
+            return truth(theta)[:, resp_idx]
+
+    post = _Posterior(forward, lik, logprior, center, scale, gp)
+
+    # --- start point ----------------------------------------------------------------------
+    if start is not None:
+        s = np.asarray(start, dtype=float).reshape(-1)
+        if s.size != d:
+            raise ParameterError(f"start must have {d} values for {prior.names}, got {s.size}")
+        z0 = (s - center) / scale
+        if not np.isfinite(post(z0[None])[0]):
+            raise ParameterError(f"start point {s} has zero posterior density (outside the prior "
+                                 "support or the model fails there)")
+    else:
+        th0 = best_build if best_build is not None else center
+        z0 = (th0 - center) / scale
+    lp0 = post(z0[None])[0]
+    if not np.isfinite(lp0):
+        unbounded = [n for n, lo, hi in zip(prior.names, logprior.lo, logprior.hi, strict=True)
+                     if not (np.isfinite(lo) and np.isfinite(hi))]
+        if unbounded:
+            raise ParameterError(
+                "no start point: the log posterior is not finite at the prior mean "
+                f"{center} (the model fails or the likelihood is NaN there) and parameters "
+                f"{unbounded} have infinite prior support, so there is no bounded box to search; "
+                "pass start=[...] with a point where the model works")
+        cand = prior.sample(max(16, 8 * d), seed=rng, method="lhs")
+        lpc = post((cand - center) / scale)
+        if not np.any(np.isfinite(lpc)):
+            raise EvaluationError("no start point: the log posterior is NaN or -inf at the prior "
+                                  f"mean and at {len(cand)} LHS points of the prior")
+        z0 = (cand[int(np.argmax(lpc))] - center) / scale
+        lp0 = float(lpc.max())
+    if map_start:
+        zm = _map(post, z0, zlo, zhi)
+        lpm = post(zm[None])[0]
+        if np.isfinite(lpm) and lpm >= lp0:
+            z0, lp0 = zm, lpm
+    theta0 = center + scale * z0
+
+    # --- initial proposal covariance ------------------------------------------------------
+    sd = 2.38**2 / d
+    if isinstance(proposal_covariance, str):
+        if proposal_covariance == "hessian":
+            jac = _jacobian(model, gp, perm, theta0, forward, resp_idx, logprior.hi)
+            pv = scale**2
+            cov_z = sd * hessian_covariance(jac, lik.precision, pv, scale)
+        elif proposal_covariance == "prior":
+            cov_z = sd * np.eye(d)
+        else:
+            raise ParameterError(f"proposal_covariance must be 'hessian', 'prior' or a (d, d) "
+                                 f"array, got {proposal_covariance!r}")
+    else:
+        cov = np.asarray(proposal_covariance, dtype=float)
+        if cov.shape != (d, d):
+            raise ModelShapeError(f"proposal_covariance must be ({d}, {d}), got {cov.shape}")
+        try:
+            np.linalg.cholesky(cov)
+        except np.linalg.LinAlgError:
+            raise ParameterError("proposal_covariance is not positive definite") from None
+        cov_z = cov / np.outer(scale, scale)
+    L0 = np.linalg.cholesky(cov_z + 1e-14 * np.eye(d))
+
+    # --- chain starts: the MAP, others drawn around it from the Laplace approximation ----
+    x = np.repeat(z0[None], n_chains, axis=0)
+    lp = np.full(n_chains, lp0)
+    if n_chains > 1:
+        cand = z0 + rng.standard_normal((n_chains - 1, d)) @ L0.T / np.sqrt(sd)
+        lpc = post(cand)
+        good = np.isfinite(lpc)
+        x[1:][good], lp[1:][good] = cand[good], lpc[good]
+    state = SamplerState(x=x, lp=lp, chol=np.repeat(L0[None], n_chains, axis=0),
+                         rng=np.random.default_rng(rng.integers(2**63)))
+    n_pre = post.n_evals
+    post.n_evals = post.n_nan = post.n_outside = 0
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExtrapolationWarning)
+        kept, kept_lp = run_chains(post, state, cfg, chain_samples, burn_in, thin)
+    t_sampling = time.perf_counter() - t0
+    if post.n_extrapolated:
+        warnings.warn(f"emulator extrapolated for {post.n_extrapolated} proposals, up to "
+                      f"{post.max_extrapolation:.3g} box-widths outside its training box",
+                      ExtrapolationWarning, stacklevel=2)
+
+    pred_in = pred = None
+    if posterior_predictive:
+        flat = center + scale * kept.reshape(-1, d)
+        pick = rng.choice(flat.shape[0], int(posterior_predictive), replace=True)
+        pred_in = flat[pick]
+        pred = truth(pred_in)
+    base = dict(
+        map_point=theta0, proposal_covariance=cov_z * np.outer(scale, scale), method=method,
+        burn_in=burn_in, thin=thin, n_likelihood_evals=post.n_evals,
+        n_model_evals=n_model,
+        n_nan_likelihood=post.n_nan, n_out_of_support=post.n_outside,
+        sampling_seconds=t_sampling, emulator=gp, emulator_loo=loo, predictive_inputs=pred_in,
+        predictive=pred, predictive_names=names_out if pred is not None else (),
+        _state=(post, state, cfg, n_pre),
+    )
+    res = _summarize(prior.names, kept.transpose(1, 0, 2), kept_lp.T, post, state, base, rng)
+    log.info("calibrate_bayes: %d chains x %d steps in %.2f s (total %.2f s)", n_chains,
+             chain_samples, t_sampling, time.perf_counter() - t_start)
+    return res
+
+
+def _jacobian(model, gp, perm, theta0, forward, resp_idx, hi) -> np.ndarray:
+    """d q / d theta at theta0, (m, d) in prior order: emulator, model gradient, or batched FD."""
+    if gp is not None:
+        return gp.predict(theta0[None], return_var=False, return_grad=True,
+                          warn_distance=None)[1][0]
+    if has_gradient(model):
+        try:
+            xm = theta0[None] if perm is None else theta0[None][:, perm]
+            g = np.asarray(model.gradient(xm), dtype=float)[0][resp_idx]
+            out = np.empty_like(g)
+            if perm is None:
+                out = g
+            else:
+                out[:, perm] = g
+            if np.all(np.isfinite(out)):
+                return out
+        except NotImplementedError:
+            pass
+    h = 1e-6 * np.maximum(np.abs(theta0), 1e-3)
+    h = np.where(theta0 + h <= hi, h, -h)
+    pts = np.vstack([theta0, theta0 + np.diag(h)])
+    q = forward(pts)
+    J = ((q[1:] - q[0]) / h[:, None]).T
+    return np.where(np.isfinite(J), J, 0.0)
+
+
+def continue_chain(result: BayesResult, n_steps: int, seed: SeedLike = None) -> BayesResult:
+    """Run ``n_steps`` more steps per chain from the final state of ``result`` (same proposal
+    and adaptation history, same thinning, no burn-in) and return the combined result."""
+    if result._state is None:
+        raise ParameterError("this BayesResult carries no sampler state to continue from")
+    post, state, cfg, n_pre = result._state
+    state = state.copy()
+    if seed is not None:
+        state.rng = as_generator(seed)
+    ev0, nan0, out0 = post.n_evals, post.n_nan, post.n_outside
+    t0 = time.perf_counter()
+    kept, kept_lp = run_chains(post, state, cfg, int(n_steps), 0, result.thin)
+    dt = time.perf_counter() - t0
+    z_old = (result.chains - post.center) / post.scale
+    chains_z = np.concatenate([z_old, kept.transpose(1, 0, 2)], axis=1)
+    lp = np.concatenate([result.log_posterior, kept_lp.T], axis=1)
+    base = {k: getattr(result, k) for k in (
+        "map_point", "proposal_covariance", "method", "burn_in", "thin", "emulator",
+        "emulator_loo", "predictive_inputs", "predictive", "predictive_names")}
+    base.update(
+        n_likelihood_evals=result.n_likelihood_evals + post.n_evals - ev0,
+        n_model_evals=result.n_model_evals + (post.n_evals - ev0 if post.gp is None else 0),
+        n_nan_likelihood=result.n_nan_likelihood + post.n_nan - nan0,
+        n_out_of_support=result.n_out_of_support + post.n_outside - out0,
+        sampling_seconds=result.sampling_seconds + dt, _state=(post, state, cfg, n_pre))
+    return _summarize(result.names, chains_z, lp, post, state, base, seed)

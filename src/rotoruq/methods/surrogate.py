@@ -1,0 +1,540 @@
+"""Gaussian-process (Kriging) surrogates, thesis section 2.5.
+
+``f(x) ~ g(x)^T beta + eps(x)`` with ``Cov(eps(x), eps(x')) = sigma^2 r(x, x') + Delta^2 delta``
+(eqs. 2.37-2.39). Simple Kriging (known constant trend), ordinary Kriging (constant trend) and
+universal Kriging (linear, reduced quadratic = main effects only, full quadratic) with
+anisotropic squared-exponential or Matern 3/2, 5/2 correlations.
+
+Inputs are scaled to the unit box of the training points and each response is standardized.
+Hyperparameters (log length-scales, and the nugget when estimated) maximize the likelihood
+concentrated over ``beta`` (generalized least squares) and ``sigma^2``; the gradient is analytic
+and the optimizer is L-BFGS-B from several starts. One GP is fitted per response.
+
+Example
+-------
+>>> gp = GaussianProcess(trend="reduced_quadratic", kernel="sqexp", seed=0).fit(X, Y)
+>>> mean, var = gp.predict(Xnew)                      # (n, m), (n, m)
+>>> mean, var, grad = gp.predict(Xnew, return_grad=True)   # grad (n, m, d)
+>>> gp.loo().rmse                                      # leave-one-out RMSE per response
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import linalg, optimize
+from scipy.linalg import lapack
+from scipy.spatial import cKDTree
+
+from .._rng import SeedLike, as_generator
+from ..errors import ModelShapeError, ParameterError
+
+__all__ = ["GaussianProcess", "LeaveOneOut", "GPModel", "ExtrapolationWarning"]
+
+TRENDS = ("constant", "linear", "reduced_quadratic", "quadratic", None)
+KERNELS = ("sqexp", "matern32", "matern52")
+_LOG_ELL_BOUNDS = (np.log(1e-3), np.log(1e2))
+_LOG_ETA_BOUNDS = (np.log(1e-10), np.log(1.0))
+_BASE_JITTER = 1e-10
+_MAX_JITTER = 1e-4
+
+
+class ExtrapolationWarning(UserWarning):
+    """A GP was asked to predict far outside the box of its training points."""
+
+
+# --- correlation functions -------------------------------------------------------------------
+def _corr(h: np.ndarray, kernel: str) -> tuple[np.ndarray, np.ndarray]:
+    """Correlation R(h) and G(h) with dR/dlog(ell_k) = G * r_k^2 and dR/dx_k = -G * dx_k/ell_k^2.
+
+    ``h`` is the scaled distance sqrt(sum_k (dx_k / ell_k)^2).
+    """
+    if kernel == "sqexp":
+        r = np.exp(-0.5 * h * h)
+        return r, r
+    if kernel == "matern32":
+        s = np.sqrt(3.0) * h
+        e = np.exp(-s)
+        return (1.0 + s) * e, 3.0 * e
+    s = np.sqrt(5.0) * h
+    e = np.exp(-s)
+    return (1.0 + s + s * s / 3.0) * e, (5.0 / 3.0) * (1.0 + s) * e
+
+
+def _scaled_sqdist(a: np.ndarray, b: np.ndarray, inv_ell: np.ndarray) -> np.ndarray:
+    a = a * inv_ell
+    b = b * inv_ell
+    d2 = (a * a).sum(1)[:, None] + (b * b).sum(1)[None, :] - 2.0 * a @ b.T
+    return np.maximum(d2, 0.0)
+
+
+# --- trend bases -----------------------------------------------------------------------------
+def _basis(z: np.ndarray, trend: str | None) -> np.ndarray:
+    n, d = z.shape
+    if trend is None:
+        return np.zeros((n, 0))
+    cols = [np.ones((n, 1))]
+    if trend in ("linear", "reduced_quadratic", "quadratic"):
+        cols.append(z)
+    if trend == "reduced_quadratic":
+        cols.append(z * z)
+    if trend == "quadratic":
+        i, j = np.triu_indices(d)
+        cols.append(z[:, i] * z[:, j])
+    return np.hstack(cols)
+
+
+def _basis_grad(z: np.ndarray, trend: str | None) -> np.ndarray:
+    """Derivative of the basis w.r.t. z, shape (n, p, d)."""
+    n, d = z.shape
+    p = _basis(z[:1], trend).shape[1]
+    g = np.zeros((n, p, d))
+    if trend in (None, "constant"):
+        return g
+    eye = np.arange(d)
+    g[:, 1 + eye, eye] = 1.0
+    if trend == "reduced_quadratic":
+        g[:, 1 + d + eye, eye] = 2.0 * z
+    if trend == "quadratic":
+        i, j = np.triu_indices(d)
+        for c, (a, b) in enumerate(zip(i, j, strict=True)):
+            g[:, 1 + d + c, a] += z[:, b]
+            g[:, 1 + d + c, b] += z[:, a]
+    return g
+
+
+def _robust_cholesky(a: np.ndarray, jitter: float) -> tuple[np.ndarray, float]:
+    """Lower Cholesky factor of ``a + jitter I``, raising the jitter x100 until it succeeds."""
+    n = a.shape[0]
+    while True:
+        c, info = lapack.dpotrf(a + jitter * np.eye(n), lower=1, clean=1)
+        if info == 0:
+            return c, jitter
+        if jitter >= _MAX_JITTER:
+            raise np.linalg.LinAlgError(
+                f"correlation matrix not positive definite even with jitter {jitter:.1e}"
+            )
+        jitter *= 100.0
+
+
+@dataclass(frozen=True)
+class LeaveOneOut:
+    """Closed-form leave-one-out cross-validation (Dubrule 1983).
+
+    errors : (n, m) ``y_i - yhat_{-i}(x_i)`` in response units.
+    rmse : (m,) root mean square LOO error.
+    nrmse : (m,) rmse divided by the std of the training responses.
+    q2 : (m,) ``1 - sum(e^2) / sum((y - mean y)^2)`` (1 = perfect).
+    """
+
+    errors: np.ndarray
+    rmse: np.ndarray
+    nrmse: np.ndarray
+    q2: np.ndarray
+
+
+@dataclass
+class _Fit:
+    """Hyperparameters and solved systems of one response (standardized units)."""
+
+    inv_ell: np.ndarray  # (d,)
+    eta: float  # nugget ratio added to R (concentrated) or 0
+    sigma2: float  # process variance (standardized units)
+    noise: float  # Delta^2 in standardized units when the nugget is fixed, else 0
+    concentrated: bool
+    chol: np.ndarray  # lower factor of M
+    beta: np.ndarray  # (p,)
+    alpha: np.ndarray  # M^-1 (y - F beta)  (n,)
+    ft_minv_f_chol: np.ndarray | None  # Cholesky of F^T M^-1 F
+    minv_f: np.ndarray  # M^-1 F  (n, p)
+    jitter: float
+    loglik: float
+
+
+class GaussianProcess:
+    """Kriging surrogate with maximum-likelihood hyperparameters.
+
+    Parameters
+    ----------
+    trend : "constant" (ordinary Kriging), "linear", "reduced_quadratic" (main effects, no
+        cross terms), "quadratic", or None (simple Kriging with known mean ``mean``).
+    kernel : "sqexp", "matern32" or "matern52" (anisotropic, one length-scale per input).
+    nugget : None (interpolation, with the smallest jitter that keeps the Cholesky stable),
+        a float or (m,) array = measurement-error variance Delta^2 in response units
+        (thesis eq. 2.39), or "estimate" (noise-to-signal ratio fitted by maximum likelihood).
+    n_restarts : number of random starts of L-BFGS-B in addition to the default start.
+    mean : known mean of the responses for simple Kriging (scalar or (m,)); trend=None only.
+    seed : int or Generator for the random starts.
+    """
+
+    def __init__(
+        self,
+        trend: str | None = "constant",
+        kernel: str = "sqexp",
+        nugget: None | float | str | Sequence[float] = None,
+        n_restarts: int = 2,
+        mean: float | Sequence[float] = 0.0,
+        seed: SeedLike = None,
+    ):
+        if trend not in TRENDS:
+            raise ParameterError(f"unknown trend {trend!r}; valid: {TRENDS}")
+        if kernel not in KERNELS:
+            raise ParameterError(f"unknown kernel {kernel!r}; valid: {KERNELS}")
+        if isinstance(nugget, str) and nugget != "estimate":
+            raise ParameterError(f"nugget must be None, a variance or 'estimate', got {nugget!r}")
+        if nugget is not None and not isinstance(nugget, str):
+            arr = np.asarray(nugget, dtype=float)
+            if np.any(~np.isfinite(arr)) or np.any(arr < 0):
+                raise ParameterError(f"nugget variance must be finite and >= 0, got {nugget!r}")
+        if int(n_restarts) < 0:
+            raise ParameterError(f"n_restarts must be >= 0, got {n_restarts}")
+        self.trend = trend
+        self.kernel = kernel
+        self.nugget = nugget
+        self.n_restarts = int(n_restarts)
+        self.mean = mean
+        self.seed = seed
+        self._fits: list[_Fit] = []
+
+    # --- fitting ---------------------------------------------------------------------------
+    def fit(self, X, Y) -> GaussianProcess:
+        """Fit one GP per response column.
+
+        X : (n, d) training inputs. Y : (n,) or (n, m) responses. Rows with non-finite values
+        are dropped with a warning. Returns self.
+        """
+        X = np.asarray(X, dtype=float)
+        Y = np.asarray(Y, dtype=float)
+        if X.ndim == 1:
+            X = X[:, None]
+        if Y.ndim == 1:
+            Y = Y[:, None]
+        if X.ndim != 2 or Y.ndim != 2 or X.shape[0] != Y.shape[0]:
+            raise ModelShapeError(f"X must be (n, d) and Y (n, m) with the same n; got "
+                                  f"{X.shape} and {Y.shape}")
+        ok = np.all(np.isfinite(X), 1) & np.all(np.isfinite(Y), 1)
+        if not np.all(ok):
+            warnings.warn(f"GaussianProcess.fit: dropping {int((~ok).sum())} rows with non-finite "
+                          "inputs or responses", RuntimeWarning, stacklevel=2)
+            X, Y = X[ok], Y[ok]
+        n, d = X.shape
+        m = Y.shape[1]
+        p = _basis(np.zeros((1, d)), self.trend).shape[1]
+        if n < max(2, p + 1):
+            raise ParameterError(f"GaussianProcess needs at least {max(2, p + 1)} points for "
+                                 f"trend {self.trend!r} in {d}-D, got {n}")
+        self._lo = X.min(0)
+        span = X.max(0) - self._lo
+        self._span = np.where(span > 0, span, 1.0)
+        self._X = X
+        self._Y = Y
+        self._Xs = (X - self._lo) / self._span
+        self._y_mean = Y.mean(0) if self.trend is not None else np.zeros(m)
+        ystd = Y.std(0)
+        self._y_std = np.where(ystd > 0, ystd, 1.0)
+        self._F = _basis(self._Xs - 0.5, self.trend)
+        self._warn_duplicates()
+        rng = as_generator(self.seed)
+        if self.trend is None:
+            mu = np.broadcast_to(np.asarray(self.mean, dtype=float), (m,))
+            self._y_mean = mu.copy()
+        noise = None
+        if self.nugget is not None and not isinstance(self.nugget, str):
+            noise = np.broadcast_to(np.asarray(self.nugget, dtype=float), (m,)) / self._y_std**2
+        self._fits = []
+        for j in range(m):
+            ys = (Y[:, j] - self._y_mean[j]) / self._y_std[j]
+            self._fits.append(self._fit_one(ys, None if noise is None else float(noise[j]), rng))
+        worst = max(f.jitter for f in self._fits)
+        if worst > _BASE_JITTER * 1.01 and self.nugget is None:
+            warnings.warn(f"GaussianProcess: correlation matrix was ill-conditioned; a jitter of "
+                          f"{worst:.1e} was added to its diagonal", RuntimeWarning, stacklevel=2)
+        return self
+
+    def _warn_duplicates(self) -> None:
+        pairs = cKDTree(self._Xs).query_pairs(r=1e-6 * np.sqrt(self._Xs.shape[1]),
+                                              output_type="ndarray")
+        if len(pairs):
+            i, j = pairs[0]
+            warnings.warn(f"GaussianProcess: {len(pairs)} pair(s) of near-duplicate training "
+                          f"points (e.g. rows {i} and {j}); the Cholesky factorization will "
+                          "add jitter, consider nugget='estimate'", RuntimeWarning, stacklevel=3)
+
+    def _unpack(self, theta: np.ndarray, noise: float | None):
+        d = self._Xs.shape[1]
+        inv_ell = np.exp(-theta[:d])
+        if noise is not None:  # fixed Delta^2: sigma^2 is a free parameter, not concentrated
+            return inv_ell, 0.0, float(np.exp(theta[d])), noise, False
+        eta = float(np.exp(theta[d])) if self.nugget == "estimate" else 0.0
+        return inv_ell, eta, 1.0, 0.0, True
+
+    def _solve(self, ys: np.ndarray, theta: np.ndarray, noise: float | None, want_grad: bool):
+        """Log-likelihood (concentrated when possible), its gradient and the solved systems."""
+        Xs, F = self._Xs, self._F
+        n, d = Xs.shape
+        inv_ell, eta, s2, dn, conc = self._unpack(theta, noise)
+        h = np.sqrt(_scaled_sqdist(Xs, Xs, inv_ell))
+        R, G = _corr(h, self.kernel)
+        M = s2 * R
+        M[np.diag_indices(n)] += eta + dn
+        L, jitter = _robust_cholesky(M, _BASE_JITTER * s2)
+        Lf = linalg.solve_triangular(L, F, lower=True, check_finite=False)
+        Ly = linalg.solve_triangular(L, ys, lower=True, check_finite=False)
+        if F.shape[1]:
+            beta, *_ = np.linalg.lstsq(Lf, Ly, rcond=None)
+            rt = Ly - Lf @ beta
+        else:
+            beta = np.zeros(0)
+            rt = Ly
+        q = float(rt @ rt)
+        logdet = 2.0 * np.log(np.diag(L)).sum()
+        if conc:
+            sig2 = max(q / n, 1e-300)
+            ll = -0.5 * n * np.log(sig2) - 0.5 * logdet
+            scale = 1.0 / sig2
+        else:
+            sig2 = s2
+            ll = -0.5 * q - 0.5 * logdet
+            scale = 1.0
+        alpha = linalg.solve_triangular(L, rt, lower=True, trans=1, check_finite=False)
+        out = dict(L=L, beta=beta, alpha=alpha, sig2=sig2, jitter=jitter, Lf=Lf, ll=ll,
+                   inv_ell=inv_ell, eta=eta, s2=s2, dn=dn, conc=conc)
+        if not want_grad:
+            return ll, None, out
+        Minv, info = lapack.dpotri(L, lower=1)
+        Minv = np.tril(Minv) + np.tril(Minv, -1).T
+        W = scale * np.outer(alpha, alpha) - Minv
+        P = W * G * s2
+        rows = P.sum(1)
+        g = np.empty_like(theta)
+        Xe = Xs * inv_ell
+        g[:d] = 0.5 * (2.0 * (Xe * Xe * rows[:, None]).sum(0) - 2.0 * (Xe * (P @ Xe)).sum(0))
+        if not conc:
+            g[d] = 0.5 * s2 * float((W * R).sum())
+        elif self.nugget == "estimate":
+            g[d] = 0.5 * eta * float(np.trace(W))
+        return ll, g, out
+
+    def _fit_one(self, ys: np.ndarray, noise: float | None, rng) -> _Fit:
+        d = self._Xs.shape[1]
+        extra = noise is not None or self.nugget == "estimate"
+        bounds = [_LOG_ELL_BOUNDS] * d
+        if noise is not None:
+            bounds.append((np.log(1e-6), np.log(1e3)))
+        elif self.nugget == "estimate":
+            bounds.append(_LOG_ETA_BOUNDS)
+        starts = [np.full(d, np.log(0.5))]
+        lo_s, hi_s = np.log(0.05), np.log(3.0)
+        for _ in range(self.n_restarts):
+            starts.append(lo_s + (hi_s - lo_s) * rng.random(d))
+        if extra:
+            x0 = 0.0 if noise is not None else np.log(1e-4)
+            starts = [np.append(s, x0 + (0.0 if k == 0 else rng.normal(0.0, 1.0)))
+                      for k, s in enumerate(starts)]
+
+        def objective(theta):
+            try:
+                ll, g, _ = self._solve(ys, theta, noise, True)
+            except np.linalg.LinAlgError:
+                return 1e30, np.zeros_like(theta)
+            return -ll, -g
+
+        best = None
+        for s in starts:
+            s = np.clip(s, [b[0] for b in bounds], [b[1] for b in bounds])
+            res = optimize.minimize(objective, s, jac=True, method="L-BFGS-B", bounds=bounds,
+                                    options={"maxiter": 200})
+            if best is None or res.fun < best.fun:
+                best = res
+        _, _, o = self._solve(ys, best.x, noise, False)
+        L, Lf = o["L"], o["Lf"]
+        minv_f = linalg.solve_triangular(L, Lf, lower=True, trans=1, check_finite=False)
+        ftf = None
+        if Lf.shape[1]:
+            ftf = linalg.cholesky(Lf.T @ Lf + 1e-12 * np.eye(Lf.shape[1]), lower=True)
+        return _Fit(inv_ell=o["inv_ell"], eta=o["eta"], sigma2=o["sig2"], noise=o["dn"],
+                    concentrated=o["conc"], chol=L, beta=o["beta"], alpha=o["alpha"],
+                    ft_minv_f_chol=ftf, minv_f=minv_f, jitter=o["jitter"], loglik=o["ll"])
+
+    # --- description -----------------------------------------------------------------------
+    def _check_fitted(self):
+        if not self._fits:
+            raise ParameterError("GaussianProcess is not fitted; call fit(X, Y) first")
+
+    @property
+    def n_inputs(self) -> int:
+        self._check_fitted()
+        return self._X.shape[1]
+
+    @property
+    def n_outputs(self) -> int:
+        self._check_fitted()
+        return len(self._fits)
+
+    @property
+    def length_scales(self) -> np.ndarray:
+        """Length-scales in input units, shape (m, d)."""
+        self._check_fitted()
+        return np.array([self._span / f.inv_ell for f in self._fits])
+
+    @property
+    def process_variance(self) -> np.ndarray:
+        """sigma^2 per response in response units squared, shape (m,)."""
+        self._check_fitted()
+        return np.array([f.sigma2 for f in self._fits]) * self._y_std**2
+
+    @property
+    def nugget_variance(self) -> np.ndarray:
+        """Delta^2 per response in response units squared, shape (m,) (0 for interpolation)."""
+        self._check_fitted()
+        v = [f.noise if not f.concentrated else f.eta * f.sigma2 for f in self._fits]
+        return np.array(v) * self._y_std**2
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """Training box, shape (d, 2)."""
+        self._check_fitted()
+        return np.column_stack([self._lo, self._lo + self._span])
+
+    def __repr__(self) -> str:
+        state = f"fitted n={self._X.shape[0]}, d={self.n_inputs}, m={self.n_outputs}" \
+            if self._fits else "not fitted"
+        return f"GaussianProcess(trend={self.trend!r}, kernel={self.kernel!r}, {state})"
+
+    # --- prediction ------------------------------------------------------------------------
+    def extrapolation_distance(self, X) -> np.ndarray:
+        """Euclidean distance (n,) of points outside the training box, in box-widths."""
+        self._check_fitted()
+        xs = (np.atleast_2d(np.asarray(X, dtype=float)) - self._lo) / self._span
+        out = np.maximum(0.0, -xs) + np.maximum(0.0, xs - 1.0)
+        return np.sqrt((out * out).sum(1))
+
+    def predict(self, X, return_var: bool = True, return_grad: bool = False,
+                warn_distance: float = 0.1):
+        """Predict the latent function at a batch of points.
+
+        X : (n, d). Returns ``mean`` (n, m), then ``var`` (n, m) if ``return_var`` (the
+        Kriging variance including the trend uncertainty, without the measurement noise), then
+        ``grad`` (n, m, d) (d mean / d x, analytic) if ``return_grad``.
+        Warns :class:`ExtrapolationWarning` when a point lies farther than ``warn_distance``
+        box-widths outside the training box.
+        """
+        self._check_fitted()
+        X = np.atleast_2d(np.asarray(X, dtype=float))
+        d = self._X.shape[1]
+        if X.shape[1] != d:
+            raise ModelShapeError(f"GP trained on {d} inputs, got points of shape {X.shape}")
+        if warn_distance is not None:
+            dist = self.extrapolation_distance(X)
+            if dist.size and dist.max() > warn_distance:
+                i = int(dist.argmax())
+                nfar = int((dist > warn_distance).sum())
+                warnings.warn(f"GaussianProcess asked to extrapolate: {nfar} "
+                              f"point(s) outside the training box, the farthest (row {i}) at "
+                              f"{dist[i]:.3g} box-widths", ExtrapolationWarning, stacklevel=2)
+        xs = (X - self._lo) / self._span
+        n, m = X.shape[0], len(self._fits)
+        f = _basis(xs - 0.5, self.trend)
+        mean = np.empty((n, m))
+        var = np.empty((n, m)) if return_var else None
+        grad = np.empty((n, m, d)) if return_grad else None
+        fg = _basis_grad(xs - 0.5, self.trend) if return_grad else None
+        for j, fit in enumerate(self._fits):
+            h = np.sqrt(_scaled_sqdist(xs, self._Xs, fit.inv_ell))
+            r, G = _corr(h, self.kernel)
+            s_cross = 1.0 if fit.concentrated else fit.sigma2
+            k = s_cross * r
+            mu = k @ fit.alpha + (f @ fit.beta if f.shape[1] else 0.0)
+            mean[:, j] = self._y_mean[j] + self._y_std[j] * mu
+            if return_var:
+                v = linalg.solve_triangular(fit.chol, k.T, lower=True, check_finite=False)
+                v0 = 1.0 if fit.concentrated else fit.sigma2
+                s = v0 - (v * v).sum(0)
+                if f.shape[1]:
+                    u = (k @ fit.minv_f - f).T
+                    w = linalg.solve_triangular(fit.ft_minv_f_chol, u, lower=True,
+                                                check_finite=False)
+                    s = s + (w * w).sum(0)
+                scale = fit.sigma2 if fit.concentrated else 1.0
+                var[:, j] = np.maximum(s, 0.0) * scale * self._y_std[j] ** 2
+            if return_grad:
+                ie2 = fit.inv_ell**2
+                wv = (s_cross * G) * fit.alpha[None, :]  # (n, ntrain)
+                # d k/dx_k = -G dx_k / ell_k^2
+                g = -(xs * wv.sum(1)[:, None] - wv @ self._Xs) * ie2
+                if f.shape[1]:
+                    g = g + np.einsum("npd,p->nd", fg, fit.beta)
+                grad[:, j, :] = g * (self._y_std[j] / self._span)
+        out = [mean]
+        if return_var:
+            out.append(var)
+        if return_grad:
+            out.append(grad)
+        return out[0] if len(out) == 1 else tuple(out)
+
+    def _mean_fast(self, X: np.ndarray) -> np.ndarray:
+        """Mean only, no checks (used inside Markov chains), shape (n, m)."""
+        xs = (X - self._lo) / self._span
+        f = _basis(xs - 0.5, self.trend) if self.trend is not None else None
+        out = np.empty((X.shape[0], len(self._fits)))
+        for j, fit in enumerate(self._fits):
+            r, _ = _corr(np.sqrt(_scaled_sqdist(xs, self._Xs, fit.inv_ell)), self.kernel)
+            mu = (r @ fit.alpha) * (1.0 if fit.concentrated else fit.sigma2)
+            if f is not None:
+                mu = mu + f @ fit.beta
+            out[:, j] = self._y_mean[j] + self._y_std[j] * mu
+        return out
+
+    # --- cross-validation ------------------------------------------------------------------
+    def loo(self) -> LeaveOneOut:
+        """Leave-one-out errors in closed form, with the hyperparameters kept fixed."""
+        self._check_fitted()
+        n = self._X.shape[0]
+        errs = np.empty((n, len(self._fits)))
+        for j, fit in enumerate(self._fits):
+            Minv, _ = lapack.dpotri(fit.chol, lower=1)
+            Minv = np.tril(Minv) + np.tril(Minv, -1).T
+            Q = Minv
+            if self._F.shape[1]:
+                w = linalg.solve_triangular(fit.ft_minv_f_chol, fit.minv_f.T, lower=True,
+                                            check_finite=False)
+                Q = Minv - w.T @ w
+            ys = (self._Y[:, j] - self._y_mean[j]) / self._y_std[j]
+            errs[:, j] = (Q @ ys) / np.diag(Q) * self._y_std[j]
+        rmse = np.sqrt((errs**2).mean(0))
+        ystd = self._Y.std(0)
+        ystd = np.where(ystd > 0, ystd, 1.0)
+        q2 = 1.0 - (errs**2).sum(0) / ((self._Y - self._Y.mean(0)) ** 2).sum(0).clip(1e-300)
+        return LeaveOneOut(errors=errs, rmse=rmse, nrmse=rmse / ystd, q2=q2)
+
+    def as_model(self, names_in: Sequence[str], names_out: Sequence[str] | None = None) -> GPModel:
+        """This GP as a :class:`~rotoruq.evaluation.model.Model` (mean and analytic gradient)."""
+        self._check_fitted()
+        names_in = tuple(names_in)
+        names_out = tuple(names_out) if names_out is not None else tuple(
+            f"y{j}" for j in range(self.n_outputs))
+        if len(names_in) != self.n_inputs or len(names_out) != self.n_outputs:
+            raise ModelShapeError(f"GP has {self.n_inputs} inputs and {self.n_outputs} outputs; "
+                                  f"got names {names_in} and {names_out}")
+        return GPModel(self, names_in, names_out)
+
+
+class GPModel:
+    """A fitted :class:`GaussianProcess` seen through the Model protocol."""
+
+    def __init__(self, gp: GaussianProcess, names_in: tuple[str, ...], names_out: tuple[str, ...]):
+        self.gp = gp
+        self.names_in = names_in
+        self.names_out = names_out
+
+    def __call__(self, x) -> np.ndarray:
+        return self.gp.predict(x, return_var=False)
+
+    def gradient(self, x) -> np.ndarray:
+        return self.gp.predict(x, return_var=False, return_grad=True)[1]
+
+    def __repr__(self) -> str:
+        return f"GPModel({self.gp!r}, in={self.names_in}, out={self.names_out})"

@@ -12,7 +12,7 @@ revolutions, as the reference study did in MBDyn, without the transient.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -56,6 +56,15 @@ class HoverSolution:
 
     def response(self, name: str) -> np.ndarray:
         return getattr(self, name)
+
+    @staticmethod
+    def concatenate(parts: list[HoverSolution]) -> HoverSolution:
+        """Join solutions of consecutive chunks along the sample axis."""
+        if len(parts) == 1:
+            return parts[0]
+        kw = {f.name: np.concatenate([getattr(p, f.name) for p in parts])
+              for f in fields(HoverSolution) if f.name != "iterations"}
+        return HoverSolution(iterations=max(p.iterations for p in parts), **kw)
 
 
 def _col(p, name, n):

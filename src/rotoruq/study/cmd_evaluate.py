@@ -1,0 +1,74 @@
+"""``rotoruq evaluate``: print the hub loads of one or a few rotor points."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from ..errors import ParameterError
+
+HELP = "evaluate the rotor model at one or a few points and print the loads"
+
+
+def add_arguments(p):
+    p.add_argument("--preset", default="gvpm", help="rotor preset (bo105, gvpm)")
+    p.add_argument(
+        "--set",
+        nargs="*",
+        default=[],
+        metavar="NAME=VALUE[,VALUE...]",
+        help="inputs, e.g. collective_deg=5.4 k_pitch_link=15; comma lists give several points",
+    )
+    p.add_argument(
+        "--responses",
+        nargs="*",
+        default=["thrust", "torque", "roll", "pitch", "power", "ct", "cq"],
+    )
+    p.add_argument("--json", action="store_true", help="print JSON instead of a table")
+
+
+def parse_assignments(items: list[str]) -> tuple[list[str], np.ndarray]:
+    """``["a=1,2", "b=3"]`` -> names, points (n, d) with scalars broadcast."""
+    names, cols = [], []
+    for item in items:
+        if "=" not in item:
+            raise ParameterError(f"--set expects NAME=VALUE, got {item!r}")
+        name, _, value = item.partition("=")
+        try:
+            vals = [float(v) for v in value.split(",")]
+        except ValueError:
+            raise ParameterError(f"--set {name}: expected numbers, got {value!r}") from None
+        names.append(name.strip())
+        cols.append(vals)
+    n = max((len(c) for c in cols), default=1)
+    for name, c in zip(names, cols, strict=True):
+        if len(c) not in (1, n):
+            raise ParameterError(f"--set {name}: {len(c)} values but other inputs have {n}")
+    x = np.array([c * n if len(c) == 1 else c for c in cols], dtype=float).T.reshape(n, -1)
+    return names, x
+
+
+def run(args) -> int:
+    from ..rotor.model import RotorModel
+
+    names, x = parse_assignments(args.set)
+    model = RotorModel(args.preset, inputs=names, responses=args.responses)
+    out = model.evaluate(x)
+    rows = []
+    for i in range(x.shape[0]):
+        row = {k: float(v) for k, v in zip(names, x[i], strict=True)}
+        row.update({k: float(v) for k, v in zip(model.names_out, out.values[i], strict=True)})
+        if i in out.failures:
+            row["failure"] = out.failures[i]
+        rows.append(row)
+    if args.json:
+        print(json.dumps(rows, indent=2))
+        return 0
+    header = list(names) + list(model.names_out)
+    print("  ".join(f"{h:>14s}" for h in header))
+    for i, row in enumerate(rows):
+        print("  ".join(f"{row[h]:14.6g}" for h in header))
+        if "failure" in row:
+            print(f"    point {i} failed: {row['failure']}")
+    return 1 if out.failures else 0

@@ -238,3 +238,20 @@ def test_calibrate_bad_inputs():
         calibrate(model, np.ones(3), ["a", "b"], fixed={"c": 0})
     with pytest.raises(ParameterError, match="variance"):
         calibrate(model, np.ones(3), ["a", "b"], x0=[1, 1], fixed={"c": 0}, data_variance=-1)
+
+
+def test_scipy_lm_through_same_interface_and_batched_fd_calls():
+    sizes = []
+
+    def fun(X):
+        sizes.append(X.shape[0])
+        return jennrich_sampson(X)
+
+    res = least_squares(fun, [0.3, 0.4], method="lm", convergence_tolerance=1e-10)
+    assert res.method == "lm" and res.success
+    assert 2 * res.cost == pytest.approx(124.362, rel=1e-5)
+    assert res.n_evaluations == sum(sizes)
+    sizes.clear()
+    ours = least_squares(fun, [0.3, 0.4])
+    assert set(sizes) == {1, 2}  # trial points alone, Jacobians as one batch of p = 2 points
+    assert ours.n_evaluations == sum(sizes)

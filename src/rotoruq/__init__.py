@@ -55,6 +55,13 @@ __all__ = [
 ]
 
 # --- rotor (issue 2) ---
+from .rotor import presets
+from .rotor.aero import LinearAirfoil
+from .rotor.model import RESPONSES, ROTOR_INPUTS, RotorModel
+from .rotor.presets import RotorPreset, get_preset
+
+__all__ += ["presets", "LinearAirfoil", "RESPONSES", "ROTOR_INPUTS", "RotorModel",
+            "RotorPreset", "get_preset"]
 # --- methods: forward UQ and sensitivity (issue 3) ---
 from .methods.reliability import (  # noqa: E402
     MeanValueResult,

@@ -30,7 +30,7 @@ import numpy as np
 from ..errors import EvaluationError, ModelShapeError
 from .executors import Executor, make_executor
 from .external import RunResult, _abort_message
-from .model import EvalBatch, evaluate
+from .model import EvalBatch, evaluate, has_gradient
 from .progress import Progress
 from .store import NewRecord, Store, canonical_keys, open_store
 
@@ -148,10 +148,9 @@ class Evaluator:
 
     def __getattr__(self, name):
         # forward an analytic gradient (not stored) so has_gradient(evaluator) is truthful
-        if name == "gradient":
-            grad = getattr(self.__dict__.get("model"), "gradient", None)
-            if callable(grad):
-                return grad
+        model = self.__dict__.get("model")
+        if name == "gradient" and model is not None and has_gradient(model):
+            return model.gradient
         raise AttributeError(name)
 
     def close(self) -> None:

@@ -111,4 +111,9 @@ def main() -> dict:
 
 
 if __name__ == "__main__":
-    print(json.dumps(main(), indent=1))
+    result = main()
+    # one line per problem keeps the output readable while staying valid JSON
+    lines = [f" {json.dumps(k)}: {json.dumps(v)}" for k, v in result["problems"].items()]
+    rest = {k: v for k, v in result.items() if k != "problems"}
+    print("{\n \"problems\": {\n" + ",\n".join(lines) + "\n },")
+    print(",\n".join(f" {json.dumps(k)}: {json.dumps(v)}" for k, v in rest.items()) + "\n}")

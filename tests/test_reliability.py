@@ -95,3 +95,54 @@ def test_mean_value_bad_inputs():
         mean_value(linear_model(), space, probability_levels=[1.5])
     with pytest.raises(ParameterError, match="inputs"):
         mean_value(rq.FunctionModel(lambda x: x[:, 0], ["y"], ["g"]), space)
+
+
+def test_form_linear_correlated_coincides_with_mean_value_and_exact():
+    from rotoruq.methods.reliability import mpp_search
+
+    mu, sd = exact_linear()
+    levels = [mu - 2 * sd, mu + sd]
+    mv = mean_value(
+        linear_model(),
+        linear_space(),
+        response_levels=levels,
+        probability_levels=[0.1],
+        reliability_levels=[-1.5],
+    )
+    for integration in ("first_order", "second_order"):
+        r = mpp_search(
+            linear_model(),
+            linear_space(),
+            response_levels=levels,
+            probability_levels=[0.1],
+            reliability_levels=[-1.5],
+            integration=integration,
+        )
+        assert r.converged
+        np.testing.assert_allclose(r.cdf_probability["g"], stats.norm.cdf([-2, 1]), rtol=1e-6)
+        np.testing.assert_allclose(r.cdf_probability["g"], mv.cdf_probability["g"], rtol=1e-6)
+        np.testing.assert_allclose(r.cdf_reliability["g"], [2.0, -1.0], atol=1e-6)
+        np.testing.assert_allclose(
+            r.probability_response["g"], stats.norm.ppf(0.1, mu, sd), rtol=1e-6
+        )
+        np.testing.assert_allclose(r.reliability_response["g"], mu + 1.5 * sd, rtol=1e-6)
+        # the MPP lies on the limit state
+        np.testing.assert_allclose(C0 + r.mpp_x["g"] @ A, levels, rtol=1e-6)
+
+
+@pytest.mark.parametrize("sorm, rtol", [("breitung", 0.06), ("hohenbichler", 0.03)])
+def test_sorm_on_a_paraboloid(sorm, rtol):
+    from rotoruq.methods.reliability import mpp_search
+
+    k, beta = 0.3, 2.5
+    space = rq.ParameterSpace({"a": rq.Normal(0, 1), "b": rq.Normal(0, 1)})
+    model = rq.FunctionModel(lambda x: -x[:, 0] + 0.5 * k * x[:, 1] ** 2, ["a", "b"], ["g"])
+    r = mpp_search(model, space, response_levels=[-beta], integration="second_order", sorm=sorm)
+    assert r.curvatures["g"][0, 0] == pytest.approx(k, rel=1e-3)
+    assert r.cdf_reliability["g"][0] == pytest.approx(beta, rel=1e-6)
+    # exact: P(-u1 + k u2^2 / 2 <= -beta) = E[Phi(-beta - k u2^2 / 2)], Gauss-Hermite
+    t, w = np.polynomial.hermite_e.hermegauss(80)
+    exact = np.sum(w * stats.norm.cdf(-beta - 0.5 * k * t**2)) / np.sum(w)
+    form = stats.norm.cdf(-beta)
+    assert r.cdf_probability["g"][0] == pytest.approx(exact, rel=rtol)
+    assert abs(r.cdf_probability["g"][0] - exact) < abs(form - exact) / 3

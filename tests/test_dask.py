@@ -1,0 +1,75 @@
+"""External evaluations through a real Dask scheduler and two worker processes on loopback."""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pytest
+
+from rotoruq.evaluation.evaluator import Evaluator
+from rotoruq.evaluation.executors import DaskExecutor
+from rotoruq.evaluation.external import ExternalModel
+from rotoruq.evaluation.model import FunctionModel
+from rotoruq.evaluation.store import Store
+
+distributed = pytest.importorskip("distributed")
+
+# Writes f = 3 a and records the pid of the process that ran it (the Dask worker).
+DRIVER = r'''
+import os, sys, time
+params, results = sys.argv[1], sys.argv[2]
+lines = open(params).read().splitlines()
+a = float(lines[1].split()[0])
+time.sleep(0.15)
+if a == 5.0:
+    sys.stderr.write("solver diverged\n")
+    sys.exit(2)
+open(results, "w").write(f"{3 * a!r} f\n{os.getppid()} worker_pid\n")
+'''
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    cl = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address=None)
+    yield cl
+    cl.close()
+
+
+def test_external_batch_on_two_workers(cluster, tmp_path):
+    assert cluster.scheduler_address.startswith("tcp://127.0.0.1:")
+    driver = tmp_path / "driver.py"
+    driver.write_text(DRIVER)
+    m = ExternalModel([sys.executable, "-S", str(driver)], ["a"], ["f", "worker_pid"],
+                      workdir=tmp_path / "work")
+    ex = DaskExecutor(cluster.scheduler_address)
+    try:
+        assert ex.n_workers == 2
+        x = np.arange(1.0, 11.0)[:, None]
+        with Evaluator(m, store=tmp_path / "d.db", executor=ex, study="dask") as ev:
+            out = ev.evaluate(x)
+        ok = np.flatnonzero(x[:, 0] != 5.0)
+        np.testing.assert_array_equal(out.values[ok, 0], 3 * x[ok, 0])
+        assert set(out.failures) == {4} and "solver diverged" in out.failures[4]
+        worker_pids = {int(p) for p in out.values[ok, 1]}
+        assert len(worker_pids) == 2  # both workers ran evaluations
+        recs = Store(tmp_path / "d.db").records(study="dask")
+        assert len(recs) == 10
+        failed = [r for r in recs if r.status == "failed"]
+        assert len(failed) == 1 and "solver diverged" in failed[0].stderr
+        # a second pass through Dask reuses everything that succeeded
+        with Evaluator(m, store=tmp_path / "d.db", executor=ex, study="dask") as ev:
+            again = ev.evaluate(x)
+            assert ev.last_stats.reused == 9 and ev.last_stats.evaluated == 1
+        np.testing.assert_array_equal(again.values[ok], out.values[ok])
+    finally:
+        ex.close()
+
+
+def test_vectorized_model_chunks_on_dask(cluster):
+    m = FunctionModel(lambda x: np.c_[x[:, 0] ** 2, x.sum(axis=1)], ["a", "b"], ["f", "g"])
+    x = np.random.default_rng(2).normal(size=(50, 2))
+    with DaskExecutor(cluster.scheduler_address) as ex:
+        out = Evaluator(m, executor=ex, chunk_size=8).evaluate(x)
+    np.testing.assert_array_equal(out.values, m(x))

@@ -1,0 +1,47 @@
+import numpy as np
+import pytest
+
+import rotoruq as rq
+from rotoruq.errors import ParameterError
+from rotoruq.methods.evidence import evidence
+
+
+def space():
+    return rq.ParameterSpace(
+        {
+            "a": rq.Interval([(0.0, 1.0), (1.0, 3.0)], [0.4, 0.6]),
+            "b": rq.Interval([(-1.0, 1.0), (0.5, 2.0)], [0.5, 0.5]),
+        }
+    )
+
+
+def test_monotone_model_belief_and_plausibility_are_exact():
+    # g = a + b is monotone: cell ranges are [lo_a + lo_b, hi_a + hi_b], found at corners
+    model = rq.FunctionModel(lambda x: x[:, 0] + x[:, 1], ["a", "b"], ["g"])
+    res = evidence(model, space(), response_levels=[0.0, 1.5, 2.5, 5.0], n_samples=20, seed=1)
+    np.testing.assert_allclose(np.sort(res.cell_min[:, 0]), [-1.0, 0.0, 0.5, 1.5])
+    np.testing.assert_allclose(np.sort(res.cell_max[:, 0]), [2.0, 3.0, 4.0, 5.0])
+    # cells: (a1,b1) [-1,2] .2, (a1,b2) [.5,3] .2, (a2,b1) [0,4] .3, (a2,b2) [1.5,5] .3
+    np.testing.assert_allclose(res.cpf["g"], [0.5, 1.0, 1.0, 1.0])
+    np.testing.assert_allclose(res.cbf["g"], [0.0, 0.0, 0.2, 1.0])
+    assert np.all(res.cbf["g"] <= res.cpf["g"])
+    np.testing.assert_allclose(res.ccbf["g"] + res.cpf["g"], 1.0)
+    assert res.cell_bpa.sum() == pytest.approx(1.0)
+
+
+def test_interior_extremum_found_by_optimization():
+    # minimum of (a - 0.37)^2 inside the first a-interval; sampling alone misses exact 0
+    model = rq.FunctionModel(lambda x: (x[:, 0] - 0.37) ** 2 + 0 * x[:, 1], ["a", "b"], ["g"])
+    res = evidence(model, space(), n_samples=5, optimize=True, seed=2)
+    assert res.cell_min[:, 0].min() == pytest.approx(0.0, abs=1e-8)
+    assert res.cell_max[:, 0].max() == pytest.approx((3 - 0.37) ** 2)
+
+
+def test_bad_input():
+    model = rq.FunctionModel(lambda x: x[:, 0], ["a"], ["g"])
+    with pytest.raises(ParameterError, match="Interval inputs"):
+        evidence(model, rq.ParameterSpace({"a": rq.Normal(0, 1)}))
+    with pytest.raises(ParameterError, match="sum to 1"):
+        rq.Interval([(0, 1), (1, 2)], [0.5, 0.6])
+    with pytest.raises(ParameterError, match="lower < upper"):
+        rq.Interval([(1, 0)])

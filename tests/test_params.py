@@ -47,3 +47,37 @@ def test_unknown_parameter_name():
     space = rq.ParameterSpace({"a": rq.Normal(0, 1)})
     with pytest.raises(ParameterError, match="unknown parameter 'b'"):
         space["b"]
+
+
+def test_interval_mixture_and_correlated_nataf_space():
+    iv = rq.Interval([(0.0, 1.0), (2.0, 3.0)], [0.3, 0.7])
+    assert iv.mean == pytest.approx(0.3 * 0.5 + 0.7 * 2.5)
+    assert iv.bounds == (0.0, 3.0)
+    np.testing.assert_allclose(iv.ppf(iv.cdf([0.2, 2.5, 3.0])), [0.2, 2.5, 3.0])
+    r = np.array([[1.0, 0.5], [0.5, 1.0]])
+    space = rq.ParameterSpace({"a": rq.LogNormal(1.0, 0.3), "b": rq.Uniform(0, 1)}, correlation=r)
+    assert space.nataf[0, 1] > 0.5  # Nataf inflates the normal-score correlation here
+    x = space.sample(100000, seed=1, method="mc")
+    assert np.corrcoef(x.T)[0, 1] == pytest.approx(0.5, abs=0.01)
+    np.testing.assert_allclose(space.from_u(space.to_u(x[:50])), x[:50], rtol=1e-9)
+    np.testing.assert_allclose(space.covariance[0, 1], 0.5 * 0.3 * (1 / np.sqrt(12)))
+    # correlated normals: the joint log density is the bivariate normal one
+    from scipy import stats
+
+    sn = rq.ParameterSpace({"a": rq.Normal(0, 1), "b": rq.Normal(1, 2)}, correlation=r)
+    pts = np.array([[0.3, -0.5], [1.0, 2.0]])
+    exact = stats.multivariate_normal([0, 1], sn.covariance).logpdf(pts)
+    np.testing.assert_allclose(sn.logpdf(pts), exact, rtol=1e-10)
+
+
+@pytest.mark.parametrize(
+    "corr, match",
+    [
+        ([[1, 2], [2, 1]], "unit diagonal"),
+        ([[1, 0.5], [0.4, 1]], "symmetric"),
+        ([[1, 0], [0, 1], [0, 0]], "shape"),
+    ],
+)
+def test_bad_correlation(corr, match):
+    with pytest.raises(ParameterError, match=match):
+        rq.ParameterSpace({"a": rq.Normal(0, 1), "b": rq.Normal(0, 1)}, correlation=corr)

@@ -63,14 +63,44 @@ from .rotor.presets import RotorPreset, get_preset
 __all__ += ["presets", "LinearAirfoil", "RESPONSES", "ROTOR_INPUTS", "RotorModel",
             "RotorPreset", "get_preset"]
 # --- methods: forward UQ and sensitivity (issue 3) ---
+from .methods.evidence import EvidenceResult, evidence  # noqa: E402
+from .methods.pce import PCEResult, polynomial_chaos  # noqa: E402
 from .methods.reliability import (  # noqa: E402
     MeanValueResult,
+    MPPResult,
     mean_value,
     mean_value_from_gradient,
+    mpp_search,
 )
+from .methods.sampling import (  # noqa: E402
+    ResponseStatistics,
+    SamplingResult,
+    refine,
+    response_statistics,
+    sample,
+)
+from .methods.sensitivity import SobolResult, sobol_indices  # noqa: E402
 from .params import Interval  # noqa: E402
 
-__all__ += ["Interval", "MeanValueResult", "mean_value", "mean_value_from_gradient"]
+__all__ += [
+    "Interval",
+    "MeanValueResult",
+    "mean_value",
+    "mean_value_from_gradient",
+    "MPPResult",
+    "mpp_search",
+    "SamplingResult",
+    "ResponseStatistics",
+    "sample",
+    "refine",
+    "response_statistics",
+    "SobolResult",
+    "sobol_indices",
+    "PCEResult",
+    "polynomial_chaos",
+    "EvidenceResult",
+    "evidence",
+]
 # --- methods: surrogates and Bayes (issue 4) ---
 # --- methods: least squares and CUU (issue 5) ---
 from .methods.cuu import CUUCheck, CUUResult, calibrate_under_uncertainty, check_cuu  # noqa: E402

@@ -122,4 +122,31 @@ __all__ += [
     "least_squares",
 ]
 # --- evaluation layer (issue 6) ---
+from .evaluation import (  # noqa: E402
+    DaskExecutor,
+    Evaluator,
+    ExternalModel,
+    ProcessExecutor,
+    SerialExecutor,
+    Store,
+    fill_template,
+    read_parameters,
+    read_results,
+    write_parameters,
+    write_results,
+)
+
+__all__ += [
+    "DaskExecutor",
+    "Evaluator",
+    "ExternalModel",
+    "ProcessExecutor",
+    "SerialExecutor",
+    "Store",
+    "fill_template",
+    "read_parameters",
+    "read_results",
+    "write_parameters",
+    "write_results",
+]
 # --- study and report (issue 7) ---

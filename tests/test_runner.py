@@ -160,3 +160,102 @@ def test_cli_run_reports_study_errors(tmp_path, capsys):
     assert main(["run", str(bad)]) == 1
     err = capsys.readouterr().err
     assert f"{bad}, line 2: expected 'name' of [study] to be a string" in err
+
+
+METHODS = """\
+[study]
+name = "methods"
+seed = 3
+
+[model]
+command = ["unused"]
+responses = ["y1", "y2"]
+
+[parameters.a]
+distribution = "normal"
+mean = 1.0
+std = 0.1
+
+[parameters.b]
+distribution = "normal"
+mean = 2.0
+std = 0.2
+
+[data.obs]
+y2 = [-1.0, -1.0]
+
+[[steps]]
+name = "sobol"
+type = "sensitivity"
+responses = ["y1"]
+n = 4000
+
+[[steps]]
+name = "pce"
+type = "pce"
+order = 1
+
+[[steps]]
+name = "form"
+type = "reliability"
+responses = ["y1"]
+response_levels = { y1 = [8.0, 8.6324555320336759] }
+
+[[steps]]
+name = "bayes"
+type = "bayes_calibration"
+parameters = ["a"]
+responses = ["y2"]
+emulator = "none"
+noise_std = 0.1
+chain_samples = 6000
+burn_in = 500
+
+[steps.distributions.a]
+distribution = "uniform"
+lower = 0.0
+upper = 2.0
+
+[[steps]]
+name = "cuu"
+type = "cuu"
+from = "bayes.posterior"
+parameters = ["a"]
+responses = ["y2"]
+targets = { y2 = [-1.0, 0.3] }
+
+[[steps]]
+name = "ds"
+type = "evidence"
+responses = ["y2"]
+intervals = { a = [[0.0, 1.0, 0.5], [1.0, 2.0, 0.5]] }
+response_levels = { y2 = [-1.5] }
+n = 10
+"""
+
+
+def test_every_method_step_on_a_linear_model(tmp_path):
+    p = tmp_path / "methods.toml"
+    p.write_text(METHODS)
+    run = run_study(p, model_factory=linear_factory(), log=None)
+    # y1 = 2a + 3b + 0: Var = 0.04 + 0.36; S_a = 0.1, S_b = 0.9 (additive: S = T)
+    s = run["sobol"]
+    assert s.get("S/y1/a") == pytest.approx(0.1, abs=0.05)
+    assert s.get("T/y1/b") == pytest.approx(0.9, abs=0.05)
+    pce = run["pce"]  # order 1 on a linear model: exact
+    assert pce.get("mean/y1") == pytest.approx(8.0, rel=1e-10)
+    assert pce.get("std/y1") == pytest.approx(np.sqrt(0.4), rel=1e-8)
+    assert pce.get("S/y1/a") == pytest.approx(0.1, rel=1e-8)
+    form = run["form"]  # linear-normal: FORM exact, P(y1 <= mean) = 0.5, mean + std -> Phi(1)
+    assert form.get("cdf_probability/y1/0") == pytest.approx(0.5, abs=1e-6)
+    assert form.get("cdf_probability/y1/1") == pytest.approx(0.841344746, abs=1e-5)
+    bayes = run["bayes"]  # y2 = a - 2 observed twice at -1 with sigma 0.1: N(1, 0.1/sqrt 2)
+    assert bayes.get("mean/a") == pytest.approx(1.0, abs=0.02)
+    assert bayes.get("std/a") == pytest.approx(0.1 / np.sqrt(2), rel=0.25)
+    assert bayes.distributions["a"]["kind"] == "normal"
+    cuu = run["cuu"]  # std(y2) = std(a) -> 0.3
+    assert cuu.get("std/a") == pytest.approx(0.3, rel=1e-3)
+    assert cuu.get("initial_std/a") == pytest.approx(bayes.get("std/a"))
+    ds = run["ds"]  # cell [0, 1] gives y2 in [-2, -1]: Bel(y2 <= -1.5) = 0, Pl = 0.5
+    assert ds.get("cbf/y2/0") == pytest.approx(0.0)
+    assert ds.get("cpf/y2/0") == pytest.approx(0.5)

@@ -448,7 +448,6 @@ STEP_TYPES: dict[str, dict[str, tuple]] = {
     },
     "reliability": {
         "integration": (_str(("form", "sorm")), "form"),
-        "mpp": (_str(("ria", "pma")), "ria"),
         "response_levels": (_table, None),
         "probability_levels": (_table, None),
     },
@@ -458,7 +457,8 @@ STEP_TYPES: dict[str, dict[str, tuple]] = {
     },
     "evidence": {
         "intervals": (_table, _REQUIRED),
-        "n": (_int(1), 1000),
+        "n": (_int(1), 100),
+        "response_levels": (_table, None),
     },
     "bayes_calibration": {
         "sampler": (_str(("dram", "mh", "dr", "am")), "dram"),

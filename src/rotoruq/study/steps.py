@@ -61,7 +61,7 @@ QUICK: dict[str, dict[str, int]] = {
     "sensitivity": {"n": 32},
     "forward_check": {"n": 40},
     "pce": {"n": 40},
-    "evidence": {"n": 200},
+    "evidence": {"n": 20},
     "bayes_calibration": {"chain_samples": 2000, "burn_in": 200, "build_samples": 60},
     "cuu": {"verify_samples": 40},
 }
@@ -213,15 +213,18 @@ def run_mean_value(ctx: StepContext) -> StepResult:
 
 
 def run_reliability(ctx: StepContext) -> StepResult:
-    from ..methods import reliability
+    """MPP search (RIA for response levels, PMA for probability levels) with FORM/SORM."""
+    from ..methods.reliability import mpp_search
 
     o = ctx.options
-    fn = getattr(reliability, o["integration"])  # form / sorm
-    res = fn(ctx.model(), ctx.space, response_levels=o.get("response_levels"),
-             probability_levels=o.get("probability_levels"), mpp=o["mpp"], seed=ctx.rng)
+    res = mpp_search(ctx.model(), ctx.space, response_levels=o.get("response_levels"),
+                     probability_levels=o.get("probability_levels"),
+                     integration="second_order" if o["integration"] == "sorm" else
+                     "first_order")
     scalars = {}
     for r in ctx.responses:
-        for what in ("cdf_probability", "cdf_reliability", "probability_response"):
+        for what in ("response_levels", "cdf_probability", "cdf_reliability",
+                     "generalized_reliability", "probability_levels", "probability_response"):
             vals = getattr(res, what, {}).get(r)
             if vals is not None:
                 for i, v in enumerate(np.atleast_1d(vals)):
@@ -231,11 +234,15 @@ def run_reliability(ctx: StepContext) -> StepResult:
 
 
 def run_pce(ctx: StepContext) -> StepResult:
-    from ..methods import pce
+    """Polynomial chaos: quadrature by default, regression on ``n`` LHS points when given."""
+    from ..methods.pce import polynomial_chaos
 
     o = ctx.options
-    res = pce.polynomial_chaos(ctx.model(), ctx.space, order=o["order"], n=o.get("n"),
-                               seed=ctx.rng)
+    if o.get("n"):
+        res = polynomial_chaos(ctx.model(), ctx.space, o["order"], method="regression",
+                               n_samples=o["n"], seed=ctx.rng)
+    else:
+        res = polynomial_chaos(ctx.model(), ctx.space, o["order"], seed=ctx.rng)
     scalars = {}
     for k, r in enumerate(ctx.responses):
         scalars[f"mean/{r}"] = float(res.mean[k])
@@ -243,22 +250,34 @@ def run_pce(ctx: StepContext) -> StepResult:
         for j, p in enumerate(ctx.space.names):
             scalars[f"S/{r}/{p}"] = float(res.main[k, j])
             scalars[f"T/{r}/{p}"] = float(res.total[k, j])
-    return StepResult(ctx.name, ctx.type, scalars, meta={
-        "n_evaluations": int(getattr(res, "n_evaluations", 0))})
+    scalars.update(_input_scalars(ctx.space))
+    return StepResult(ctx.name, ctx.type, scalars, {"main": np.asarray(res.main),
+                                                    "total": np.asarray(res.total)}, meta={
+        "inputs": list(ctx.space.names), "responses": list(ctx.responses),
+        "n_evaluations": int(res.n_evaluations)})
 
 
 def run_evidence(ctx: StepContext) -> StepResult:
-    from ..methods import evidence
+    """Dempster-Shafer evidence: ``intervals = {x = [[lo, hi, bpa], ...]}`` per input."""
+    from ..methods.evidence import evidence
+    from ..params import Interval
 
     o = ctx.options
-    res = evidence.evidence(ctx.model(), o["intervals"], n=o["n"], seed=ctx.rng)
+    space = ParameterSpace([
+        (p, Interval([(float(lo), float(hi)) for lo, hi, _ in cells],
+                     [float(w) for _, _, w in cells]))
+        for p, cells in o["intervals"].items()])
+    fixed = dict(ctx.fixed)
+    fixed.update({p: d.mean for p, d in zip(ctx.space.names, ctx.space.distributions,
+                                             strict=True) if p not in space.names})
+    res = evidence(ctx.make_model(space.names, ctx.responses, fixed), space,
+                   response_levels=o.get("response_levels"), n_samples=o["n"], seed=ctx.rng)
     scalars = {}
-    for k, r in enumerate(ctx.responses):
-        for what in ("belief_lower", "plausibility_upper"):
-            v = getattr(res, what, None)
-            if v is not None:
-                scalars[f"{what}/{r}"] = float(np.asarray(v)[k])
-    return StepResult(ctx.name, ctx.type, scalars)
+    for r in ctx.responses:
+        for what in ("response_levels", "cbf", "cpf"):
+            for i, v in enumerate(np.atleast_1d(getattr(res, what).get(r, []))):
+                scalars[f"{what}/{r}/{i}"] = float(v)
+    return StepResult(ctx.name, ctx.type, scalars, meta={"n_evaluations": int(res.n_evaluations)})
 
 
 def run_bayes_calibration(ctx: StepContext) -> StepResult:
@@ -272,33 +291,29 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
         from ..methods.surrogate import GaussianProcess
 
         emulator = GaussianProcess(trend=o["trend"])
+    sd = _per_response(o.get("noise_std"), ctx.responses)
     res = calibrate_bayes(
-        ctx.model(), ctx.data, prior=ctx.space, method=o["sampler"], emulator=emulator,
+        ctx.model(), ctx.data, ctx.space, method=o["sampler"], emulator=emulator,
         build_samples=o["build_samples"], chain_samples=o["chain_samples"],
-        burn_in=o["burn_in"], noise_std=_per_response(o.get("noise_std"), ctx.responses),
-        seed=ctx.rng,
+        burn_in=o["burn_in"], data_covariance=1.0 if sd is None else np.square(sd),
+        proposal_covariance=o["proposal"], seed=ctx.rng,
     )
-    chain = np.asarray(res.chain)
-    scalars = _stats_scalars(ctx.space.names, chain)
-    scalars.update(_input_scalars(ctx.space))
-    for key in ("acceptance_rate", "acceptance"):
-        if hasattr(res, key):
-            scalars["acceptance"] = float(getattr(res, key))
-            break
-    for key in ("ess", "rhat"):
-        v = getattr(res, key, None)
-        if v is not None:
-            for j, p in enumerate(ctx.space.names):
-                scalars[f"{key}/{p}"] = float(np.atleast_1d(v)[j])
+    chain = np.asarray(res.chains).reshape(-1, ctx.space.dim)
+    scalars = _input_scalars(ctx.space)
+    for j, p in enumerate(res.names):
+        for what in ("mean", "std", "skewness", "kurtosis", "ess", "rhat"):
+            scalars[f"{what}/{p}"] = float(np.asarray(getattr(res, what))[j])
+        scalars[f"map/{p}"] = float(res.map_point[j])
+    scalars["acceptance"] = float(res.acceptance_rate)
+    scalars["kl_divergence"] = float(res.kl_divergence)
     posterior = {p: dist_to_dict(Normal(scalars[f"mean/{p}"], scalars[f"std/{p}"]))
-                 for p in ctx.space.names}
-    arrays = {"chain": chain}
-    columns = {"chain": list(ctx.space.names)}
-    if ctx.data is not None:
-        arrays["data"] = np.asarray(ctx.data)
-        columns["data"] = list(ctx.responses)
+                 for p in res.names}
+    arrays = {"chain": chain, "data": np.asarray(ctx.data)}
+    columns = {"chain": list(res.names), "data": list(ctx.responses)}
+    loo = getattr(res, "emulator_loo", None)
     return StepResult(ctx.name, ctx.type, scalars, arrays, posterior, meta={
-        "columns": columns, "n_evaluations": int(getattr(res, "n_evaluations", 0)),
+        "columns": columns, "n_evaluations": int(res.n_model_evals),
+        "emulator_loo": None if loo is None else repr(loo),
         "prior": {p: dist_to_dict(d) for p, d in zip(ctx.space.names, ctx.space.distributions,
                                                       strict=True)}})
 
@@ -343,9 +358,15 @@ def run_cuu(ctx: StepContext) -> StepResult:
     o = ctx.options
     model = ctx.model()
     targets = {r: ctx.targets[r] for r in ctx.responses if r in ctx.targets}
+    stats_ = ["std"] if o["calibrate"] == "std" else (
+        ["mean"] if o["calibrate"] == "mean" else ["mean", "std"])
     res = calibrate_under_uncertainty(
-        model, ctx.space, targets, calibrate=o["calibrate"], inner=o["inner"],
+        model, ctx.space, calibrate={p: stats_ for p in ctx.space.names},
+        targets={r: {"mean": m, "std": s} if "mean" in stats_ else {"std": s}
+                 for r, (m, s) in targets.items()},
+        inner="lhs" if o["inner"] == "sampling" else o["inner"],
         max_iterations=o["max_iterations"], convergence_tolerance=o["convergence_tolerance"],
+        seed=ctx.rng,
     )
     cal_space: ParameterSpace = res.space
     scalars = {}
@@ -372,7 +393,9 @@ def run_cuu(ctx: StepContext) -> StepResult:
     calibrated = {p: dist_to_dict(d) for p, d in zip(cal_space.names, cal_space.distributions,
                                                       strict=True)}
     return StepResult(ctx.name, ctx.type, scalars, arrays, calibrated, meta={
-        "columns": columns, "n_evaluations": int(getattr(res, "n_evaluations", 0))})
+        "columns": columns, "n_evaluations": int(res.n_model_evaluations),
+        "identifiable": bool(res.identifiable), "diagnostic": res.diagnostic,
+        "condition_number": float(res.condition_number), "message": res.message})
 
 
 ADAPTERS: dict[str, Callable[[StepContext], StepResult]] = {

@@ -1,0 +1,26 @@
+"""``rotoruq report RESULTS``: rebuild the HTML report from saved results."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+HELP = "rebuild the HTML report from saved study results"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("results", nargs="+",
+                        help="study output folder(s), or a folder holding several")
+    parser.add_argument("--out", help="report folder (default: <first RESULTS>/report)")
+
+
+def run(args) -> int:
+    from ..errors import InputFileError
+    from ..report.html import find_study_dirs, write_report
+
+    if not any(find_study_dirs(r) for r in args.results):
+        raise InputFileError(args.results[0], None,
+                             "a study output folder (with study.json) or a folder of them")
+    out = Path(args.out) if args.out else Path(args.results[0]) / "report"
+    index = write_report(args.results, out)
+    print(f"report: {index}")
+    return 0

@@ -1,0 +1,58 @@
+"""``rotoruq reproduce [validation|experiment|all]``: run the bundled reference study and
+write ``<out>/report/index.html``."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+HELP = "reproduce the reference study (thesis chapters 3 and 4) and write the report"
+
+CHAPTERS = {"validation": "validation.toml", "experiment": "experiment.toml"}
+
+
+def studies_dir() -> Path:
+    """The bundled study files: ``studies/`` of the source tree."""
+    here = Path(__file__).resolve()
+    for cand in (here.parents[3] / "studies", here.parents[1] / "studies"):
+        if (cand / "validation.toml").is_file():
+            return cand
+    raise FileNotFoundError("the bundled studies/ folder was not found next to the package")
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("which", nargs="?", default="all",
+                        choices=["validation", "experiment", "all"],
+                        help="chapter 3 (validation), chapter 4 (experiment) or both")
+    parser.add_argument("--quick", action="store_true",
+                        help="small samples: a check that runs in about a minute")
+    parser.add_argument("--out", default="rotoruq-results", help="output folder")
+
+
+def reproduce(which: str = "all", out: str | Path = "rotoruq-results", quick: bool = False,
+              log=None) -> dict:
+    """Run the chapters, write the report; returns ``{"report": path, "seconds": {...}}``."""
+    from ..report.html import write_report
+    from .runner import _log, run_study
+
+    out = Path(out)
+    names = list(CHAPTERS) if which == "all" else [which]
+    seconds = {}
+    for name in names:
+        t0 = time.perf_counter()
+        run_study(studies_dir() / CHAPTERS[name], out=out / name, quick=quick,
+                  log=_log if log is None else log)
+        seconds[name] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    index = write_report([out / n for n in CHAPTERS if (out / n / "study.json").is_file()],
+                         out / "report")
+    seconds["report"] = time.perf_counter() - t0
+    return {"report": str(index), "seconds": seconds}
+
+
+def run(args) -> int:
+    result = reproduce(args.which, args.out, args.quick)
+    print(json.dumps(result["seconds"], indent=1))
+    print(f"report: {result['report']}")
+    return 0

@@ -237,7 +237,7 @@ class DaskExecutor(Executor):
         from distributed import as_completed
 
         client = self.client
-        payload = client.scatter(_dumps(fn), broadcast=True)
+        payload = client.scatter(_dumps(fn), broadcast=True, hash=False)
         futures = {client.submit(_call, payload, t, pure=False): i for i, t in enumerate(tasks)}
         try:
             for fut in as_completed(list(futures)):

@@ -134,12 +134,15 @@ class AirfoilFit:
         head = f"{'Mach':>6} {'CL_alpha':>10} {'CL0':>10} {'CD_alpha2':>11} {'CD_alpha':>11} " \
                f"{'CD0':>9}"
         rows = [head, "-" * len(head)]
+        def fmt(v, spec):
+            text = format(0.0 if abs(v) < 1e-12 else v, spec)
+            return text.replace("-", " ", 1) if float(text) == 0.0 and "-" in text else text
+
         for k, m in enumerate(self.machs):
-            vals = [0.0 if abs(getattr(self, c)[k]) < 1e-12 else getattr(self, c)[k]
-                    for c in FIT_COEFFICIENTS]
+            v = [getattr(self, c)[k] for c in FIT_COEFFICIENTS]
             rows.append(
-                f"{m:6.3g} {vals[0]:10.4f} {vals[1]:10.4f} {vals[2]:11.4e} {vals[3]:11.3e} "
-                f"{vals[4]:9.4f}"
+                f"{m:6.3g} {fmt(v[0], '10.4f')} {fmt(v[1], '10.4f')} {fmt(v[2], '11.4e')} "
+                f"{fmt(v[3], '11.3e')} {fmt(v[4], '9.4f')}"
             )
         rows.append(f"(alpha in deg, fitted over {self.alpha_range[0]:g}..{self.alpha_range[1]:g}"
                     f" deg on the table's own alpha points)")

@@ -62,6 +62,12 @@ from .rotor.presets import RotorPreset, get_preset
 
 __all__ += ["presets", "LinearAirfoil", "RESPONSES", "ROTOR_INPUTS", "RotorModel",
             "RotorPreset", "get_preset"]
+
+from .rotor.airfoil import Airfoil, AirfoilFit, fit_airfoil, write_perturbed_c81  # noqa: E402
+from .rotor.c81 import C81Block, C81Table, read_c81, write_c81  # noqa: E402
+
+__all__ += ["Airfoil", "AirfoilFit", "fit_airfoil", "write_perturbed_c81", "C81Block",
+            "C81Table", "read_c81", "write_c81"]
 # --- methods: forward UQ and sensitivity (issue 3) ---
 from .methods.evidence import EvidenceResult, evidence  # noqa: E402
 from .methods.pce import PCEResult, polynomial_chaos  # noqa: E402

@@ -80,15 +80,24 @@ def build_model_factory(study: Study, store_path: Path | None = None) -> ModelFa
 
 
 def _with_store(factory: ModelFactory, study: Study, store_path: Path | None) -> ModelFactory:
-    if store_path is None or not study.store.enabled:
+    """Evaluate through the evaluation layer: the SQLite store (reuse on re-run) and the
+    ``[executor]`` (serial, processes, dask)."""
+    ex = study.executor
+    if (store_path is None or not study.store.enabled) and ex.kind == "serial":
         return factory
-    try:
-        from ..evaluation.evaluator import Evaluator
-    except ImportError:
-        return factory
+    from ..evaluation.evaluator import Evaluator
+    from ..evaluation.executors import make_executor
+
+    if ex.kind == "processes":
+        executor = make_executor("processes", max_workers=ex.workers)
+    elif ex.kind == "dask":
+        executor = make_executor("dask", address=ex.scheduler)
+    else:
+        executor = make_executor("serial")
 
     def wrapped(inputs, responses, fixed):
-        return Evaluator(factory(inputs, responses, fixed), store=store_path)
+        return Evaluator(factory(inputs, responses, fixed), store=store_path,
+                         executor=executor, study=study.info.name)
 
     return wrapped
 

@@ -40,6 +40,7 @@ _LOG_ELL_BOUNDS = (np.log(1e-3), np.log(1e2))
 _LOG_ETA_BOUNDS = (np.log(1e-10), np.log(1.0))
 _BASE_JITTER = 1e-10
 _MAX_JITTER = 1e-4
+_SCREEN_POINTS = 150
 
 
 class ExtrapolationWarning(UserWarning):
@@ -107,10 +108,14 @@ def _basis_grad(z: np.ndarray, trend: str | None) -> np.ndarray:
 
 
 def _robust_cholesky(a: np.ndarray, jitter: float) -> tuple[np.ndarray, float]:
-    """Lower Cholesky factor of ``a + jitter I``, raising the jitter x100 until it succeeds."""
-    n = a.shape[0]
+    """Lower Cholesky factor of ``a + jitter I``, raising the jitter x100 until it succeeds.
+    ``a`` is modified in place (its diagonal)."""
+    diag = np.diag_indices(a.shape[0])
+    added = 0.0
     while True:
-        c, info = lapack.dpotrf(a + jitter * np.eye(n), lower=1, clean=1)
+        a[diag] += jitter - added
+        added = jitter
+        c, info = lapack.dpotrf(a, lower=1, clean=1, overwrite_a=0)
         if info == 0:
             return c, jitter
         if jitter >= _MAX_JITTER:
@@ -248,6 +253,7 @@ class GaussianProcess:
         for j in range(m):
             ys = (Y[:, j] - self._y_mean[j]) / self._y_std[j]
             self._fits.append(self._fit_one(ys, None if noise is None else float(noise[j]), rng))
+        self._build_fast()
         worst = max(f.jitter for f in self._fits)
         if worst > _BASE_JITTER * 1.01 and self.nugget is None:
             warnings.warn(f"GaussianProcess: correlation matrix was ill-conditioned; a jitter of "
@@ -271,14 +277,16 @@ class GaussianProcess:
         eta = float(np.exp(theta[d])) if self.nugget == "estimate" else 0.0
         return inv_ell, eta, 1.0, 0.0, True
 
-    def _solve(self, ys: np.ndarray, theta: np.ndarray, noise: float | None, want_grad: bool):
+    def _solve(self, ys: np.ndarray, theta: np.ndarray, noise: float | None, want_grad: bool,
+               Xs: np.ndarray | None = None, F: np.ndarray | None = None):
         """Log-likelihood (concentrated when possible), its gradient and the solved systems."""
-        Xs, F = self._Xs, self._F
+        if Xs is None:
+            Xs, F = self._Xs, self._F
         n, d = Xs.shape
         inv_ell, eta, s2, dn, conc = self._unpack(theta, noise)
         h = np.sqrt(_scaled_sqdist(Xs, Xs, inv_ell))
         R, G = _corr(h, self.kernel)
-        M = s2 * R
+        M = s2 * R if s2 != 1.0 else R.copy()
         M[np.diag_indices(n)] += eta + dn
         L, jitter = _robust_cholesky(M, _BASE_JITTER * s2)
         Lf = linalg.solve_triangular(L, F, lower=True, check_finite=False)
@@ -305,13 +313,18 @@ class GaussianProcess:
         if not want_grad:
             return ll, None, out
         Minv, info = lapack.dpotri(L, lower=1)
-        Minv = np.tril(Minv) + np.tril(Minv, -1).T
-        W = scale * np.outer(alpha, alpha) - Minv
-        P = W * G * s2
+        Minv = np.tril(Minv)
+        Minv += np.tril(Minv, -1).T
+        # W = scale * alpha alpha^T - M^-1, formed in place
+        W = np.multiply.outer(alpha * scale, alpha, out=np.empty((n, n)))
+        W -= Minv
+        P = W * G
+        if s2 != 1.0:
+            P *= s2
         rows = P.sum(1)
         g = np.empty_like(theta)
         Xe = Xs * inv_ell
-        g[:d] = 0.5 * (2.0 * (Xe * Xe * rows[:, None]).sum(0) - 2.0 * (Xe * (P @ Xe)).sum(0))
+        g[:d] = (Xe * Xe * rows[:, None]).sum(0) - (Xe * (P @ Xe)).sum(0)
         if not conc:
             g[d] = 0.5 * s2 * float((W * R).sum())
         elif self.nugget == "estimate":
@@ -319,13 +332,14 @@ class GaussianProcess:
         return ll, g, out
 
     def _fit_one(self, ys: np.ndarray, noise: float | None, rng) -> _Fit:
-        d = self._Xs.shape[1]
+        n, d = self._Xs.shape
         extra = noise is not None or self.nugget == "estimate"
         bounds = [_LOG_ELL_BOUNDS] * d
         if noise is not None:
             bounds.append((np.log(1e-6), np.log(1e3)))
         elif self.nugget == "estimate":
             bounds.append(_LOG_ETA_BOUNDS)
+        lb, ub = np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds])
         starts = [np.full(d, np.log(0.5))]
         lo_s, hi_s = np.log(0.05), np.log(3.0)
         for _ in range(self.n_restarts):
@@ -335,18 +349,29 @@ class GaussianProcess:
             starts = [np.append(s, x0 + (0.0 if k == 0 else rng.normal(0.0, 1.0)))
                       for k, s in enumerate(starts)]
 
-        def objective(theta):
-            try:
-                ll, g, _ = self._solve(ys, theta, noise, True)
-            except np.linalg.LinAlgError:
-                return 1e30, np.zeros_like(theta)
-            return -ll, -g
+        def make_objective(Xs, F, yv):
+            def objective(theta):
+                try:
+                    ll, g, _ = self._solve(yv, theta, noise, True, Xs, F)
+                except np.linalg.LinAlgError:
+                    return 1e30, np.zeros_like(theta)
+                return -ll, -g
+            return objective
 
+        def run(obj, s, maxiter):
+            return optimize.minimize(obj, np.clip(s, lb, ub), jac=True, method="L-BFGS-B",
+                                     bounds=bounds, options={"maxiter": maxiter})
+
+        if len(starts) > 1 and n > 2 * _SCREEN_POINTS:
+            # multi-start on a random subset (cheap), then one polish on all points
+            sub = rng.choice(n, _SCREEN_POINTS, replace=False)
+            obj_sub = make_objective(self._Xs[sub], self._F[sub], ys[sub])
+            screened = [run(obj_sub, s, 100) for s in starts]
+            starts = [min(screened, key=lambda r: r.fun).x]
+        obj = make_objective(self._Xs, self._F, ys)
         best = None
         for s in starts:
-            s = np.clip(s, [b[0] for b in bounds], [b[1] for b in bounds])
-            res = optimize.minimize(objective, s, jac=True, method="L-BFGS-B", bounds=bounds,
-                                    options={"maxiter": 200})
+            res = run(obj, s, 200)
             if best is None or res.fun < best.fun:
                 best = res
         _, _, o = self._solve(ys, best.x, noise, False)
@@ -475,18 +500,28 @@ class GaussianProcess:
             out.append(grad)
         return out[0] if len(out) == 1 else tuple(out)
 
+    def _build_fast(self) -> None:
+        """Stack every response's scaled training points for one batched mean evaluation."""
+        ie = np.array([f.inv_ell for f in self._fits])  # (m, d)
+        xe = self._Xs[None] * ie[:, None, :]  # (m, n, d)
+        self._fast = dict(
+            inv_ell=ie, xeT=np.ascontiguousarray(xe.transpose(0, 2, 1)), nrm=(xe * xe).sum(-1),
+            alpha=np.array([f.alpha * (1.0 if f.concentrated else f.sigma2)
+                            for f in self._fits])[:, :, None],
+            beta=np.array([f.beta for f in self._fits]).T)
+
     def _mean_fast(self, X: np.ndarray) -> np.ndarray:
         """Mean only, no checks (used inside Markov chains), shape (n, m)."""
+        fd = self._fast
         xs = (X - self._lo) / self._span
-        f = _basis(xs - 0.5, self.trend) if self.trend is not None else None
-        out = np.empty((X.shape[0], len(self._fits)))
-        for j, fit in enumerate(self._fits):
-            r, _ = _corr(np.sqrt(_scaled_sqdist(xs, self._Xs, fit.inv_ell)), self.kernel)
-            mu = (r @ fit.alpha) * (1.0 if fit.concentrated else fit.sigma2)
-            if f is not None:
-                mu = mu + f @ fit.beta
-            out[:, j] = self._y_mean[j] + self._y_std[j] * mu
-        return out
+        xe = xs[None] * fd["inv_ell"][:, None, :]  # (m, k, d)
+        d2 = (xe * xe).sum(-1)[:, :, None] + fd["nrm"][:, None, :] - 2.0 * (xe @ fd["xeT"])
+        np.maximum(d2, 0.0, out=d2)
+        r, _ = _corr(np.sqrt(d2), self.kernel)
+        mu = (r @ fd["alpha"])[:, :, 0].T  # (k, m)
+        if self.trend is not None:
+            mu = mu + _basis(xs - 0.5, self.trend) @ fd["beta"]
+        return self._y_mean + self._y_std * mu
 
     # --- cross-validation ------------------------------------------------------------------
     def loo(self) -> LeaveOneOut:

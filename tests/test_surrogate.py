@@ -1,0 +1,189 @@
+"""Kriging surrogate: interpolation, leave-one-out, gradients, nugget, warnings, Model use."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from scipy.optimize import approx_fprime
+from scipy.stats import qmc
+
+from rotoruq.errors import ModelShapeError, ParameterError
+from rotoruq.evaluation.model import evaluate
+from rotoruq.methods.surrogate import ExtrapolationWarning, GaussianProcess
+
+
+def smooth(x: np.ndarray) -> np.ndarray:
+    """Two smooth responses on [0, 1]^3, shape (n, 2)."""
+    return np.column_stack([
+        np.sin(2.0 * x[:, 0]) + x[:, 1] ** 2 + 0.3 * x[:, 2],
+        np.exp(-x[:, 0]) * np.cos(1.5 * x[:, 1]) + 0.5 * x[:, 2] ** 2,
+    ])
+
+
+@pytest.fixture(scope="module")
+def design():
+    x = qmc.LatinHypercube(d=3, seed=1).random(40)
+    return x, smooth(x)
+
+
+@pytest.mark.parametrize("trend", ["constant", "linear", "reduced_quadratic", "quadratic", None])
+@pytest.mark.parametrize("kernel", ["sqexp", "matern32", "matern52"])
+def test_interpolates_training_points(design, trend, kernel):
+    x, y = design
+    gp = GaussianProcess(trend=trend, kernel=kernel, n_restarts=0, seed=0).fit(x, y)
+    mean, var = gp.predict(x)
+    # interpolation up to the (>= 1e-10) jitter on the correlation diagonal
+    assert np.max(np.abs(mean - y)) < 1e-4
+    assert np.all(var >= 0) and np.max(var) < 1e-5 * y.var(0).max()
+    # away from the data the variance is positive
+    _, v = gp.predict(np.array([[0.5, 0.5, 0.5], [0.02, 0.97, 0.5]]))
+    assert np.all(v > 0)
+
+
+def test_loo_error_on_smooth_function_below_bound():
+    x = qmc.LatinHypercube(d=3, seed=2).random(60)
+    y = smooth(x)
+    gp = GaussianProcess(trend="reduced_quadratic", kernel="sqexp", seed=0).fit(x, y)
+    loo = gp.loo()
+    assert loo.errors.shape == (60, 2)
+    # stated bound: LOO RMSE below 1 % of the response std on these smooth functions
+    assert np.all(loo.nrmse < 1e-2), loo.nrmse
+    assert np.all(loo.q2 > 0.999)
+    # and the holdout error agrees in magnitude
+    xt = np.random.default_rng(3).random((200, 3))
+    err = np.sqrt(((gp.predict(xt, return_var=False) - smooth(xt)) ** 2).mean(0))
+    assert np.all(err < 3e-2 * y.std(0))
+
+
+def _matern52(d2):
+    s = np.sqrt(5.0 * d2)
+    return (1.0 + s + s * s / 3.0) * np.exp(-s)
+
+
+def _brute_loo(x, y, ell, nugget=1e-10):
+    """Leave-one-out by refitting (fixed length-scales, ordinary Kriging, Matern 5/2)."""
+    n = len(x)
+    e = np.empty(n)
+    for i in range(n):
+        keep = np.arange(n) != i
+        xa, ya = x[keep], y[keep]
+        d2 = (((xa[:, None, :] - xa[None, :, :]) / ell) ** 2).sum(-1)
+        R = _matern52(d2) + nugget * np.eye(n - 1)
+        Ri = np.linalg.inv(R)
+        one = np.ones(n - 1)
+        beta = one @ Ri @ ya / (one @ Ri @ one)
+        r = _matern52((((xa - x[i]) / ell) ** 2).sum(-1))
+        e[i] = y[i] - (beta + r @ Ri @ (ya - beta))
+    return e
+
+
+def test_loo_closed_form_matches_refitting():
+    x = qmc.LatinHypercube(d=2, seed=4).random(25)
+    y = np.sin(9 * x[:, 0]) + np.cos(7 * x[:, 1])
+    gp = GaussianProcess(trend="constant", kernel="matern52", n_restarts=0, seed=0).fit(x, y)
+    ell_unit = gp.length_scales[0] / (x.max(0) - x.min(0))
+    xs = (x - x.min(0)) / (x.max(0) - x.min(0))
+    brute = _brute_loo(xs, y, ell_unit)
+    np.testing.assert_allclose(gp.loo().errors[:, 0], brute, rtol=1e-4, atol=1e-8)
+
+
+@pytest.mark.parametrize("kernel", ["sqexp", "matern32", "matern52"])
+@pytest.mark.parametrize("trend", ["linear", "quadratic"])
+def test_gradient_matches_finite_differences(design, kernel, trend):
+    x, y = design
+    gp = GaussianProcess(trend=trend, kernel=kernel, n_restarts=0, seed=0).fit(x * 4 - 1, y)
+    pts = np.random.default_rng(5).uniform(-0.8, 2.8, (6, 3))
+    _, _, g = gp.predict(pts, return_grad=True)
+    h = 1e-4  # central differences; smaller steps drown in the round-off of r @ alpha
+    fd = np.stack([(gp.predict(pts + h * e, return_var=False)
+                    - gp.predict(pts - h * e, return_var=False)) / (2 * h) for e in np.eye(3)],
+                  axis=-1)
+    np.testing.assert_allclose(g, fd, rtol=1e-5, atol=1e-5 * np.abs(fd).max())
+
+
+@pytest.mark.parametrize("nugget", [None, "estimate", 1e-3])
+def test_likelihood_gradient_is_analytic_and_right(design, nugget):
+    x, y = design
+    gp = GaussianProcess(trend="linear", kernel="matern52", nugget=nugget, n_restarts=0).fit(x, y)
+    ys = (y[:, 0] - gp._y_mean[0]) / gp._y_std[0]
+    noise = nugget / gp._y_std[0] ** 2 if isinstance(nugget, float) else None
+    theta = np.log([0.3, 0.6, 1.2])
+    if nugget is not None:
+        theta = np.append(theta, np.log(0.01) if nugget == "estimate" else 0.2)
+    _, g, _ = gp._solve(ys, theta, noise, True)
+    fd = approx_fprime(theta, lambda t: gp._solve(ys, t, noise, False)[0], 1e-7)
+    np.testing.assert_allclose(g, fd, rtol=1e-4, atol=1e-4)
+
+
+def test_estimated_nugget_recovers_noise_variance():
+    rng = np.random.default_rng(6)
+    x = rng.random((150, 2))
+    y = np.sin(3 * x[:, 0]) + np.cos(2 * x[:, 1]) + rng.normal(0, 0.05, 150)
+    gp = GaussianProcess(trend="constant", kernel="matern52", nugget="estimate", seed=0).fit(x, y)
+    assert 0.5 * 0.05**2 < gp.nugget_variance[0] < 2.0 * 0.05**2
+    # a fixed measurement-error variance (eq. 2.39) smooths instead of interpolating
+    gp2 = GaussianProcess(trend="constant", kernel="matern52", nugget=0.05**2, seed=0).fit(x, y)
+    resid = gp2.predict(x, return_var=False)[:, 0] - y
+    assert 0.02 < resid.std() < 0.06
+    np.testing.assert_allclose(gp2.nugget_variance, [0.05**2])
+
+
+def test_simple_kriging_reverts_to_known_mean():
+    x = np.linspace(0, 1, 12)[:, None]
+    y = np.sin(6 * x[:, 0])
+    gp = GaussianProcess(trend=None, mean=0.7, kernel="sqexp", seed=0).fit(x, y)
+    np.testing.assert_allclose(gp.predict(x, return_var=False)[:, 0], y, atol=1e-5)
+    with pytest.warns(ExtrapolationWarning):
+        far = gp.predict(np.array([[40.0]]), return_var=False)
+    np.testing.assert_allclose(far, [[0.7]], atol=1e-9)
+
+
+def test_near_duplicate_points_warn_and_still_fit():
+    x = qmc.LatinHypercube(d=2, seed=7).random(20)
+    x = np.vstack([x, x[3] + 1e-12])
+    y = np.sin(4 * x[:, 0]) + x[:, 1]
+    with pytest.warns(RuntimeWarning, match="near-duplicate"):
+        gp = GaussianProcess(trend="constant", seed=0).fit(x, y)
+    assert np.all(np.isfinite(gp.predict(x)[0]))
+
+
+def test_extrapolation_warning_states_the_distance(design):
+    x, y = design
+    gp = GaussianProcess(n_restarts=0, seed=0).fit(x, y)
+    lo, hi = x[:, 2].min(), x[:, 2].max()
+    expected = (3.0 - hi) / (hi - lo)  # distance beyond the upper face, in box-widths
+    with pytest.warns(ExtrapolationWarning, match=f"{expected:.3g} box-widths"):
+        gp.predict(np.array([[0.5, 0.5, 3.0]]))
+    np.testing.assert_allclose(gp.extrapolation_distance([[0.5, 0.5, 3.0]]), [expected])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        gp.predict(np.array([[0.5, 0.5, hi + 0.05 * (hi - lo)]]))  # within tolerance: silent
+
+
+def test_as_model_follows_the_protocol(design):
+    x, y = design
+    gp = GaussianProcess(trend="linear", n_restarts=0, seed=0).fit(x, y)
+    model = gp.as_model(["a", "b", "c"], ["f", "g"])
+    batch = evaluate(model, x[:5])
+    np.testing.assert_allclose(batch.values, y[:5], atol=1e-4)
+    assert model.gradient(x[:5]).shape == (5, 2, 3)
+    with pytest.raises(ModelShapeError):
+        gp.as_model(["a", "b"])
+
+
+def test_bad_input():
+    with pytest.raises(ParameterError, match="trend"):
+        GaussianProcess(trend="cubic")
+    with pytest.raises(ParameterError, match="kernel"):
+        GaussianProcess(kernel="rbf")
+    with pytest.raises(ParameterError, match="nugget"):
+        GaussianProcess(nugget=-1.0)
+    with pytest.raises(ParameterError, match="not fitted"):
+        GaussianProcess().predict(np.zeros((1, 2)))
+    gp = GaussianProcess(n_restarts=0).fit(np.random.default_rng(0).random((10, 2)), np.arange(10.))
+    with pytest.raises(ModelShapeError):
+        gp.predict(np.zeros((1, 3)))
+    with pytest.raises(ModelShapeError):
+        GaussianProcess().fit(np.zeros((5, 2)), np.zeros(4))

@@ -18,7 +18,6 @@ from pathlib import Path
 
 from ..study.results import StepResult, load_results
 from .compare import Claim, claims, compare_tables
-from .plots import Figure, figures_for_study, plt
 from .tables import fmt, table_html, write_csv
 
 __all__ = ["write_report", "find_study_dirs"]
@@ -84,6 +83,8 @@ def _steps_summary(name: str, steps: dict[str, StepResult]) -> str:
 def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
                  title: str = "rotoruq: reproduction of the reference study") -> Path:
     """Write the report of the given study output folders; returns ``index.html``."""
+    from .plots import figures_for_study
+
     report_dir = Path(report_dir)
     fig_dir, tab_dir = report_dir / "figures", report_dir / "tables"
     fig_dir.mkdir(parents=True, exist_ok=True)
@@ -122,14 +123,13 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
             parts.append(f"<h4 id='table-{t.ref.number}'>Table {t.ref.number}: "
                          f"{html.escape(t.ref.caption)}</h4>")
             parts.append(table_html(t))
-        figs: list[Figure] = figures_for_study(name, steps, _labels(info))
+        figs = figures_for_study(name, steps, _labels(info))
         if figs:
             parts.append("<h3>Figures</h3>")
         for f in figs:
             png = _png(f.figure)
             (fig_dir / f"{f.name}.png").write_bytes(png)
             f.figure.savefig(fig_dir / f"{f.name}.svg", format="svg")
-            plt.close(f.figure)
             b64 = base64.b64encode(png).decode()
             parts.append(f"<figure><img alt='{html.escape(f.caption)}' "
                          f"src='data:image/png;base64,{b64}'>"

@@ -1,4 +1,5 @@
-"""Figures of the report, drawn from saved step results with matplotlib (Agg backend).
+"""Figures of the report, drawn from saved step results with matplotlib's object API (no
+pyplot, so a notebook's backend is left alone; files are written through Agg).
 
 Every function returns a list of :class:`Figure` (name, caption, matplotlib figure); the
 report writes each as PNG and SVG and embeds the PNG.
@@ -9,15 +10,12 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-import matplotlib
+import numpy as np
+from matplotlib.figure import Figure as _MplFigure
+from scipy import stats
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from scipy import stats  # noqa: E402
-
-from ..study.results import StepResult, dict_to_dist  # noqa: E402
-from .reference import TABLES  # noqa: E402
+from ..study.results import StepResult, dict_to_dist
+from .reference import TABLES
 
 __all__ = ["Figure", "figures_for_study", "tornado", "prior_posterior", "chain_traces",
            "pair_plot", "load_distributions", "cuu_comparison", "ground_effect_curves"]
@@ -30,6 +28,12 @@ class Figure:
     figure: object  # matplotlib.figure.Figure
 
 
+def _subplots(*args, figsize=None, **kwargs):
+    """Figure and axes without pyplot: no global backend switch, nothing to close."""
+    fig = _MplFigure(figsize=figsize)
+    return fig, fig.subplots(*args, **kwargs)
+
+
 def _label(name: str, labels: Mapping[str, str]) -> str:
     return labels.get(name) or name
 
@@ -40,7 +44,7 @@ def tornado(res: StepResult, labels: Mapping[str, str], thesis: dict | None = No
     ours when a thesis table maps this step."""
     inputs, responses = res.meta["inputs"], res.meta["responses"]
     k = len(responses)
-    fig, axes = plt.subplots(1, k, figsize=(3.2 * k + 1.5, 0.45 * len(inputs) + 1.6),
+    fig, axes = _subplots(1, k, figsize=(3.2 * k + 1.5, 0.45 * len(inputs) + 1.6),
                              sharey=True, squeeze=False)
     y = np.arange(len(inputs))
     for a, r in enumerate(responses):
@@ -71,7 +75,7 @@ def prior_posterior(res: StepResult, labels, truth: Mapping[str, object] | None 
     prior = {k: dict_to_dist(v) for k, v in res.meta.get("prior", {}).items()}
     cols = min(3, len(names))
     rows = int(np.ceil(len(names) / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 2.6 * rows), squeeze=False)
+    fig, axes = _subplots(rows, cols, figsize=(3.6 * cols, 2.6 * rows), squeeze=False)
     for j, p in enumerate(names):
         ax = axes.flat[j]
         x = chain[:, j]
@@ -100,7 +104,7 @@ def prior_posterior(res: StepResult, labels, truth: Mapping[str, object] | None 
 def chain_traces(res: StepResult, labels) -> list[Figure]:
     names = res.columns("chain")
     chain = np.asarray(res.arrays["chain"])
-    fig, axes = plt.subplots(len(names), 1, figsize=(8, 1.1 * len(names) + 0.8), sharex=True,
+    fig, axes = _subplots(len(names), 1, figsize=(8, 1.1 * len(names) + 0.8), sharex=True,
                              squeeze=False)
     step = max(1, chain.shape[0] // 4000)
     for j, p in enumerate(names):
@@ -118,7 +122,7 @@ def pair_plot(res: StepResult, labels) -> list[Figure]:
     chain = np.asarray(res.arrays["chain"])
     d = len(names)
     idx = np.linspace(0, chain.shape[0] - 1, min(chain.shape[0], 2000)).astype(int)
-    fig, axes = plt.subplots(d, d, figsize=(1.5 * d + 1, 1.5 * d + 1), squeeze=False)
+    fig, axes = _subplots(d, d, figsize=(1.5 * d + 1, 1.5 * d + 1), squeeze=False)
     for i in range(d):
         for j in range(d):
             ax = axes[i, j]
@@ -146,7 +150,7 @@ def load_distributions(res: StepResult) -> list[Figure]:
         if arr not in res.arrays:
             continue
         resp = res.columns(arr)
-        fig, axes = plt.subplots(2, len(resp), figsize=(3.2 * len(resp), 5), squeeze=False)
+        fig, axes = _subplots(2, len(resp), figsize=(3.2 * len(resp), 5), squeeze=False)
         for k, r in enumerate(resp):
             v = np.asarray(res.arrays[arr])[:, k]
             v = v[np.isfinite(v)]
@@ -183,7 +187,7 @@ def cuu_comparison(res: StepResult, labels, reference_outputs: np.ndarray | None
     params = res.meta.get("parameters", [])
     resp = res.columns("outputs_calibrated") or res.meta.get("responses", [])
     n = 1 + len(resp)
-    fig, axes = plt.subplots(1, n, figsize=(3.3 * n, 3.0), squeeze=False)
+    fig, axes = _subplots(1, n, figsize=(3.3 * n, 3.0), squeeze=False)
     ax = axes[0, 0]
     x = np.arange(len(params))
     init = [res.get(f"initial_std/{p}") / abs(res.get(f"mean/{p}") or 1) for p in params]
@@ -228,7 +232,7 @@ def ground_effect_curves(res: StepResult) -> list[Figure]:
         mean = np.array([res.get(f"mean/{r}{lab}") for lab in labels])
         std = np.array([res.get(f"std/{r}{lab}") for lab in labels])
         data = np.array([res.get(f"data/{r}{lab}") for lab in labels])
-        fig, ax = plt.subplots(figsize=(5.5, 4))
+        fig, ax = _subplots(figsize=(5.5, 4))
         ax.errorbar(heights, mean, yerr=3 * std, fmt="-s", color="C0", capsize=4,
                     label="model (mean +- 3 std)")
         ax.plot(heights, data, "o", color="k", label="experiment")
@@ -302,7 +306,7 @@ def figures_for_study(study: str, steps: Mapping[str, StepResult], labels: Mappi
             elif res.type == "cuu":
                 figs += cuu_comparison(res, labels)
         except (KeyError, ValueError, IndexError) as exc:  # a figure never fails the report
-            fig, ax = plt.subplots(figsize=(5, 1))
+            fig, ax = _subplots(figsize=(5, 1))
             ax.axis("off")
             ax.text(0.0, 0.5, f"{res.name}: figure not drawn ({exc})", fontsize=8)
             figs.append(Figure(f"{res.name}_missing", f"{res.name}: no figure", fig))

@@ -182,3 +182,26 @@ def test_bo105_preset_geometry():
     p = bo105()
     assert p.radius - p.root_cutout == pytest.approx(3.812)
     assert p.blade_mass_per_length * (p.radius**3 - p.hinge_offset**3) / 3 == pytest.approx(140.001)
+
+
+def test_cl_only_replacement_keeps_table_drag():
+    """Bo105 rewrites CL only (thesis 3.1.1): drag names are not parameters, drag is the table."""
+    from rotoruq.rotor.airfoil import Airfoil
+
+    both = Airfoil.bundled("naca23012", fit_machs=(0.3,))
+    cl_only = Airfoil.bundled("naca23012", fit_machs=(0.3,), replace=("cl",))
+    raw = Airfoil.bundled("naca23012", fit_mode=False)
+    assert "cd0_m03" in both.parameter_names and "cd0_m03" not in cl_only.parameter_names
+    a, m = np.array([0.0, 3.0]), np.array([0.3, 0.3])
+    np.testing.assert_allclose(cl_only.coefficients(a, m)[1], raw.coefficients(a, m)[1])
+    np.testing.assert_allclose(cl_only.coefficients(a, m)[0], both.coefficients(a, m)[0])
+    with pytest.raises(ParameterError, match="unknown airfoil parameter"):
+        cl_only.coefficients(a[None], m[None], {"cd0_m03": np.array([0.01])})
+
+
+def test_presets_with_bundled_tables_converge():
+    y = RotorModel("gvpm", responses=["thrust", "torque", "roll", "pitch"])(
+        [[5.4, 0.17, -0.3], [5.0, -1.0, -1.0], [8.0, 2.0, 2.0]])
+    assert np.all(np.isfinite(y)) and np.all(y[:, 0] > 10)
+    t = RotorModel("bo105", responses=["thrust"])([[6.0, 0.0, -2.0]])[0, 0]
+    assert 1000 < t < 10000

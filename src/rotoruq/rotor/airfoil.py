@@ -220,6 +220,10 @@ class Airfoil:
     alpha_window : float
         Half-width W of the window |alpha| <= W (deg) where the fits replace the table; the
         fits are made over [-W, W] as well.
+    replace : ("cl", "cd") or ("cl",)
+        Which coefficients the fits replace. The thesis's Bo105 study rewrote CL only (its
+        parameters are CL slopes); the GVPM study rewrote CL and CD. With ("cl",) the drag
+        names ``cda2_mXX``, ``cda_mXX``, ``cd0_mXX`` are not parameters.
     fit_mode : bool
         True (default): rows at ``fit_machs`` are replaced by the fits (the nominal model is the
         rewritten table of the reference study). False: the raw table, MBDyn semantics, no
@@ -235,7 +239,7 @@ class Airfoil:
     """
 
     def __init__(self, table: C81Table, fit_machs=None, alpha_window: float = 10.0,
-                 fit_mode: bool = True):
+                 fit_mode: bool = True, replace: tuple[str, ...] = ("cl", "cd")):
         if not isinstance(table, C81Table):
             raise ParameterError(f"table must be a C81Table, got {type(table).__name__}")
         w = float(alpha_window)
@@ -256,25 +260,32 @@ class Airfoil:
         else:
             self._nominal = None
         self._fit_machs = machs
-        self._names = [parameter_name(c, m) for m in machs for c in FIT_COEFFICIENTS]
-        self._name_index = {n: (j // 5, j % 5) for j, n in enumerate(self._names)}
+        bad = sorted(set(replace) - {"cl", "cd"})
+        if bad or "cl" not in replace:
+            raise ParameterError(f"replace must be ('cl',) or ('cl', 'cd'), got {replace!r}")
+        self._replace_cd = "cd" in replace
+        names = [parameter_name(c, m) for m in machs for c in FIT_COEFFICIENTS]
+        self._name_index = {n: (j // 5, j % 5) for j, n in enumerate(names)
+                            if self._replace_cd or j % 5 < 2}
+        self._names = list(self._name_index)
         self._build_grid()
 
     # ---- construction helpers
 
     @classmethod
     def from_c81(cls, path_or_table, fit_machs=None, alpha_window: float = 10.0,
-                 fit_mode: bool = True) -> Airfoil:
+                 fit_mode: bool = True, replace: tuple[str, ...] = ("cl", "cd")) -> Airfoil:
         """Airfoil from a C81 file path or a :class:`C81Table`."""
         table = path_or_table if isinstance(path_or_table, C81Table) else read_c81(path_or_table)
-        return cls(table, fit_machs=fit_machs, alpha_window=alpha_window, fit_mode=fit_mode)
+        return cls(table, fit_machs=fit_machs, alpha_window=alpha_window, fit_mode=fit_mode,
+                   replace=replace)
 
     @classmethod
     def bundled(cls, name: str, fit_machs=None, alpha_window: float = 10.0,
-                fit_mode: bool = True) -> Airfoil:
+                fit_mode: bool = True, replace: tuple[str, ...] = ("cl", "cd")) -> Airfoil:
         """Airfoil from a table shipped with rotoruq: ``"naca0012"`` or ``"naca23012"``."""
         return cls(read_bundled(name), fit_machs=fit_machs, alpha_window=alpha_window,
-                   fit_mode=fit_mode)
+                   fit_mode=fit_mode, replace=replace)
 
     def _build_grid(self):
         t, w = self._table, self._window
@@ -304,7 +315,7 @@ class Airfoil:
         self._fitcol = fitcol
         mod = raw.copy()
         for j in np.flatnonzero(fitcol >= 0):
-            mod[inwin, j, :2] = 0.0
+            mod[inwin, j, : 2 if self._replace_cd else 1] = 0.0
         self._raw_cols = [np.ascontiguousarray(raw[..., c].ravel()) for c in range(3)]
         self._mod_cols = [np.ascontiguousarray(mod[..., c].ravel()) for c in range(3)]
         self._coef_cols = self._coef_table(None)
@@ -483,6 +494,8 @@ class Airfoil:
         poly += c[1]
         poly *= h
         out[0] += poly
+        if not self._replace_cd:
+            return
         np.multiply(c[2], ac, out=poly)
         poly += c[3]
         poly *= ac

@@ -150,6 +150,7 @@ def solve_hover(
     a_sound = preset.speed_of_sound
     ov = overrides or {}
     resid = np.full(n, np.inf)
+    relax = np.ones(n)
     converged = np.zeros(n, dtype=bool)
     it = 0
 
@@ -169,7 +170,8 @@ def solve_hover(
         cphi, sphi = np.cos(phi), np.sin(phi)
         dFz = qc * (cl * cphi - cd * sphi)
         dFx = qc * (cl * sphi + cd * cphi)
-        dMp = qc * (c * cm - preset.aero_center_offset * cl)
+        cm_term = c * cm if preset.pitching_moment else 0.0
+        dMp = qc * (cm_term - preset.aero_center_offset * cl)
         return beta, dFz, dFx, dMp
 
     def inflow_field(v_r, v0, vc, vs):
@@ -200,11 +202,12 @@ def solve_hover(
             J1[:, 3, 3] = 1.0 - G * dMz_dV
             d1 = np.linalg.solve(J1, rhs[..., None])[..., 0]
             dQ[:, :, 1] = d1[:, :3]
-            V1 = V1 + d1[:, 3]
+            V1 = V1 + relax * d1[:, 3]
             vc, vs = V1.real, -V1.imag
             dv1 = np.abs(d1[:, 3]) / (Om * R)
         else:
             dv1 = 0.0
+        dQ *= relax[:, None, None]
         Q = Q + dQ
         # inflow
         if bemt:
@@ -213,16 +216,24 @@ def solve_hover(
                  if preset.tip_loss else 1.0)
             v_new = annulus_update(v_r, dT_r, rho[:, None], kappa[:, None], F, c, Nb,
                                    Om[:, None], r[None, :])
+            v_new = v_r + relax[:, None] * (v_new - v_r)
             dv = np.max(np.abs(v_new - v_r), axis=1) / (Om * R)
             v_r = v_new
             v0 = np.sum(v_r * w * r, axis=1) / np.sum(w * r)
         else:
             T_be = Nb * np.einsum("npr,np,r->n", dFz, np.cos(beta), w) / grid.psi.size
             v_new = uniform_update(v0, T_be, rho, area, kappa, c, Nb, Om, r, w)
+            v_new = v0 + relax * (v_new - v0)
             dv = np.abs(v_new - v0) / (Om * R)
             v0 = v_new
         dv = np.maximum(dv, dv1)
-        resid = np.maximum(np.max(np.abs(dQ), axis=(1, 2)), dv)
+        new = np.maximum(np.max(np.abs(dQ), axis=(1, 2)), dv) / relax
+        # Per-sample step control: halve the step of a sample whose update grew (stall and
+        # strong aerodynamic pitching moments make the fixed point oscillate), regrow it when
+        # the update shrinks again.
+        relax = np.where(new > resid, np.maximum(0.5 * relax, 0.05),
+                         np.minimum(1.5 * relax, 1.0))
+        resid = new
         converged = resid < tol
         if np.all(converged | ~np.isfinite(resid)):
             break

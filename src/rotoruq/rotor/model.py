@@ -50,9 +50,10 @@ def load_airfoil(preset: RotorPreset):
     from .airfoil import Airfoil
 
     fit = preset.airfoil_fit_machs or None
+    kw = {"fit_machs": fit, "replace": tuple(preset.airfoil_replace)}
     if Path(preset.airfoil).suffix.lower() == ".c81":
-        return Airfoil.from_c81(preset.airfoil, fit_machs=fit)
-    return Airfoil.bundled(preset.airfoil, fit_machs=fit)
+        return Airfoil.from_c81(preset.airfoil, **kw)
+    return Airfoil.bundled(preset.airfoil, **kw)
 
 
 class RotorModel:

@@ -33,6 +33,7 @@ class RotorPreset:
     blade_mass_per_length: float       # m' over [e, R]
     pitch_inertia: float               # I_p about the feathering axis
     airfoil_fit_machs: tuple = ()      # Mach rows whose CL/CD fits are uncertain parameters
+    airfoil_replace: tuple = ("cl", "cd")  # coefficients the fits replace (thesis: Bo105 CL only)
     # flap: "hinge" (rigid blade, spring k_flap) or "elastic" (equivalent first mode from EI)
     flap_model: str = "hinge"
     k_flap: float = 0.0
@@ -45,6 +46,7 @@ class RotorPreset:
     pitch_horn_arm: float = 0.1        # l_h: torsional stiffness = k_pitch_link * l_h^2
     delta3_deg: float = 0.0            # kinematic pitch-flap coupling: dtheta = -tan(d3) beta
     aero_center_offset: float = 0.0    # aerodynamic centre aft of the feathering axis [m]
+    pitching_moment: bool = True       # apply the airfoil CM about the feathering axis
     # operating point
     omega: float = 1.0
     rho: float = 1.225
@@ -109,6 +111,7 @@ def bo105(**overrides) -> RotorPreset:
         twist_deg=-6.2,
         airfoil="naca23012",
         airfoil_fit_machs=(0.1, 0.2, 0.3, 0.4, 0.5, 0.6),
+        airfoil_replace=("cl",),
         blade_mass_per_length=m_per_l,
         pitch_inertia=0.257,
         flap_model="hinge",

@@ -14,7 +14,6 @@ from rotoruq.report.reference import TABLES, table
 from rotoruq.study.cli import main
 from rotoruq.study.results import StepResult
 from rotoruq.study.runner import run_study
-
 from test_runner import STUDY, linear_factory
 
 

@@ -11,7 +11,6 @@ import pytest
 
 from rotoruq.report.html import write_report
 from rotoruq.study.runner import run_study
-
 from test_runner import STUDY, linear_factory
 
 pytestmark = pytest.mark.browser

@@ -233,7 +233,8 @@ def _batched_fd_grad(post: _Posterior, z: np.ndarray, hi: np.ndarray, h: float =
     steps = np.where(z + h <= hi, h, -h)
     pts = np.vstack([z, z + np.diag(steps)])
     lp = post(pts)
-    return lp[0], (lp[1:] - lp[0]) / steps
+    with np.errstate(invalid="ignore"):
+        return lp[0], (lp[1:] - lp[0]) / steps
 
 
 def _map(post: _Posterior, z0: np.ndarray, zlo: np.ndarray, zhi: np.ndarray) -> np.ndarray:

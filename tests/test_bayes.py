@@ -1,0 +1,243 @@
+"""calibrate_bayes against closed-form posteriors, the emulator workflow and bad input."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+import rotoruq as rq
+from rotoruq.errors import ModelShapeError, ParameterError
+from rotoruq.methods.mcmc import calibrate_bayes, continue_chain
+from rotoruq.methods.surrogate import ExtrapolationWarning, GaussianProcess
+
+# --- linear-Gaussian: posterior in closed form ----------------------------------------------
+
+RNG = np.random.default_rng(0)
+A = RNG.normal(size=(4, 3))
+MU0 = np.array([1.0, -1.0, 0.5])
+S0 = np.array([1.0, 2.0, 0.5])
+NOISE = 0.3
+DATA = np.array([0.5, 0.0, 1.0]) @ A.T + RNG.normal(0, NOISE, size=(5, 4))
+
+
+def linear_problem(with_gradient=True, permute=False):
+    names = ["t0", "t1", "t2"]
+    space = rq.ParameterSpace({n: rq.Normal(MU0[i], S0[i]) for i, n in enumerate(names)})
+    order = [2, 0, 1] if permute else [0, 1, 2]
+    names_in = [names[i] for i in order]
+
+    def f(x):  # x columns in names_in order
+        theta = np.empty_like(x)
+        theta[:, order] = x
+        return theta @ A.T
+
+    def g(x):
+        return np.broadcast_to(A[:, order], (x.shape[0], 4, 3))
+
+    model = rq.FunctionModel(f, names_in, ["y0", "y1", "y2", "y3"],
+                             gradient=g if with_gradient else None)
+    prec = np.diag(1 / S0**2) + DATA.shape[0] * A.T @ A / NOISE**2
+    cov = np.linalg.inv(prec)
+    mean = cov @ (MU0 / S0**2 + A.T @ DATA.sum(0) / NOISE**2)
+    return model, space, mean, cov
+
+
+@pytest.mark.parametrize("method", ["dram", "mh"])
+def test_linear_gaussian_posterior_matches_closed_form(method):
+    model, space, mean, cov = linear_problem()
+    res = calibrate_bayes(model, DATA, space, method=method, chain_samples=5000, burn_in=500,
+                          n_chains=4, data_covariance=NOISE**2, seed=1)
+    assert res.chains.shape == (4, 4500, 3)
+    sd = np.sqrt(np.diag(cov))
+    assert np.all(np.abs(res.mean - mean) < 4.5 * sd / np.sqrt(res.ess))
+    # std within MC error of a variance estimate (4.5 sigma of sqrt(2/ESS))
+    assert np.all(np.abs(res.std / sd - 1) < 4.5 * np.sqrt(0.5 / res.ess))
+    corr = cov / np.outer(sd, sd)
+    np.testing.assert_allclose(res.correlation, corr, atol=4.5 / np.sqrt(res.ess.min()))
+    # MAP pre-solve lands on the posterior mode (= mean for a Gaussian)
+    np.testing.assert_allclose(res.map_point, mean, atol=1e-3 * sd.max())
+    # the Gauss-Newton Hessian proposal is exact here: 2.38^2/d * posterior covariance
+    np.testing.assert_allclose(res.proposal_covariance, 2.38**2 / 3 * cov, rtol=1e-6)
+    assert np.all(res.rhat < 1.02)
+    assert abs(res.skewness).max() < 0.15 and abs(res.kurtosis).max() < 0.3
+    # KL(post || prior) of two Gaussians in closed form
+    S = np.diag(S0**2)
+    kl = 0.5 * (np.trace(np.linalg.solve(S, cov)) + (MU0 - mean) @ np.linalg.solve(S, MU0 - mean)
+                - 3 + np.linalg.slogdet(S)[1] - np.linalg.slogdet(cov)[1])
+    assert abs(res.kl_divergence_gaussian - kl) < 0.1
+    assert abs(res.kl_divergence - kl) < 0.25
+    ci = res.credible_interval(0.95)
+    np.testing.assert_allclose(ci, res.credible_interval_95)
+    np.testing.assert_allclose(ci[:, 0], mean - 1.96 * sd, atol=0.1 * sd.max())
+    if method == "dram":
+        assert len(res.acceptance_per_stage) == 2 and 0 < res.acceptance_per_stage[1] < 1
+    else:
+        assert len(res.acceptance_per_stage) == 1
+
+
+def test_finite_difference_jacobian_and_permuted_inputs_agree():
+    model, space, mean, cov = linear_problem(with_gradient=False, permute=True)
+    res = calibrate_bayes(model, DATA, space, chain_samples=3000, n_chains=4,
+                          data_covariance=NOISE**2, seed=2)
+    np.testing.assert_allclose(res.proposal_covariance, 2.38**2 / 3 * cov, rtol=1e-3)
+    assert np.all(np.abs(res.mean - mean) < 4.5 * np.sqrt(np.diag(cov) / res.ess))
+
+
+def test_same_seed_same_chains():
+    model, space, *_ = linear_problem()
+    a = calibrate_bayes(model, DATA, space, chain_samples=500, n_chains=2,
+                        data_covariance=NOISE**2, seed=7)
+    b = calibrate_bayes(model, DATA, space, chain_samples=500, n_chains=2,
+                        data_covariance=NOISE**2, seed=7)
+    np.testing.assert_array_equal(a.chains, b.chains)
+
+
+# --- banana (Rosenbrock-type) posterior -----------------------------------------------------
+
+
+def test_banana_posterior_moments():
+    """q = (a, c + a^2), data (0, 0), variances (1, 0.5^2), wide uniform prior:
+    a ~ N(0, 1), c | a ~ N(-a^2, 0.25), so E[c] = -1, Var[c] = 0.25 + 2."""
+    space = rq.ParameterSpace({"a": rq.Uniform(-6, 6), "c": rq.Uniform(-40, 10)})
+    model = rq.FunctionModel(lambda x: np.column_stack([x[:, 0], x[:, 1] + x[:, 0] ** 2]),
+                             ["a", "c"], ["q1", "q2"])
+    res = calibrate_bayes(model, [0.0, 0.0], space, data_covariance=[1.0, 0.25],
+                          chain_samples=20000, burn_in=1000, n_chains=8, seed=3)
+    se = res.std / np.sqrt(res.ess)
+    assert abs(res.mean[0]) < 4.5 * se[0]
+    assert abs(res.mean[1] + 1.0) < 4.5 * se[1]
+    # variance estimates: Var(s^2) ~ (mu4 - sigma^4) / ESS; mu4 - sigma^4 = 2 for a, 56 for c
+    assert abs(res.std[0] ** 2 - 1.0) < 4.5 * np.sqrt(2.0 / res.ess[0])
+    assert abs(res.std[1] ** 2 - 2.25) < 4.5 * np.sqrt(58.0 / res.ess[1])
+    assert res.correlation[0, 1] == pytest.approx(0.0, abs=0.1)  # uncorrelated yet dependent
+    assert res.n_out_of_support == 0 or res.n_out_of_support < 0.01 * 8 * 20000
+
+
+# --- emulator workflow ----------------------------------------------------------------------
+
+
+def smooth_model():
+    def f(x):
+        return np.column_stack([2.0 * x[:, 0] + np.sin(x[:, 1]), x[:, 0] * x[:, 1] + x[:, 1]])
+
+    return rq.FunctionModel(f, ["k", "c"], ["T", "Q"])
+
+
+def test_emulator_workflow_matches_the_true_model():
+    model = smooth_model()
+    space = rq.ParameterSpace({"k": rq.Uniform(0.0, 2.0), "c": rq.Uniform(0.0, 2.0)})
+    truth = np.array([[1.2, 0.7]])
+    data = model(truth) + np.random.default_rng(4).normal(0, 0.1, (20, 2))
+    kw = dict(data_covariance=0.01, chain_samples=4000, n_chains=4, seed=5)
+    direct = calibrate_bayes(model, data, space, **kw)
+    emu = calibrate_bayes(model, data, space, emulator=GaussianProcess(
+        trend="reduced_quadratic", seed=0), build_samples=60, posterior_predictive=50, **kw)
+    assert emu.emulator is not None and emu.emulator_loo.q2.min() > 0.999
+    se = np.sqrt(direct.std**2 / direct.ess + emu.std**2 / emu.ess)
+    assert np.all(np.abs(emu.mean - direct.mean) < 4.5 * se)
+    np.testing.assert_allclose(emu.std, direct.std, rtol=0.15)
+    # model evaluations: 60 build + 50 predictive; the chains only call the emulator
+    assert emu.n_model_evals == 110
+    assert direct.n_model_evals >= direct.n_likelihood_evals
+    assert emu.predictive.shape == (50, 2) and emu.predictive_names == ("T", "Q")
+    np.testing.assert_allclose(emu.predictive, model(emu.predictive_inputs))
+    # predictive draws cover the data mean
+    assert np.all(np.abs(emu.predictive.mean(0) - data.mean(0)) < 3 * emu.predictive.std(0))
+
+
+def test_emulator_extrapolation_is_warned_with_distance():
+    model = smooth_model()
+    narrow = rq.ParameterSpace({"k": rq.Uniform(0.9, 1.1), "c": rq.Uniform(0.6, 0.8)})
+    X = narrow.sample(30, seed=0)
+    gp = GaussianProcess(trend="linear", seed=0).fit(X, model(X))
+    wide = rq.ParameterSpace({"k": rq.Normal(1.0, 1.0), "c": rq.Normal(0.7, 1.0)})
+    with pytest.warns(ExtrapolationWarning, match=r"box-widths outside its training box"):
+        calibrate_bayes(model, [2.0, 1.0], wide, emulator=gp, data_covariance=4.0,
+                        chain_samples=600, seed=1)
+
+
+def test_nan_likelihoods_are_rejected_and_counted():
+    def f(x):
+        y = np.column_stack([x[:, 0] + x[:, 1], x[:, 0] - x[:, 1]])
+        y[x[:, 0] > 0.6] = np.nan  # the solver "fails" there
+        return y
+
+    model = rq.FunctionModel(f, ["a", "b"], ["s", "d"])
+    space = rq.ParameterSpace({"a": rq.Uniform(0, 1), "b": rq.Uniform(0, 1)})
+    res = calibrate_bayes(model, [1.0, 0.1], space, data_covariance=0.3, chain_samples=2000,
+                          n_chains=2, seed=2)
+    assert res.n_nan_likelihood > 0
+    assert np.all(res.chains[..., 0] <= 0.6)
+
+
+def test_continue_chain_and_export(tmp_path):
+    model, space, mean, cov = linear_problem()
+    res = calibrate_bayes(model, DATA, space, chain_samples=1200, burn_in=200, n_chains=2,
+                          data_covariance=NOISE**2, seed=3)
+    more = continue_chain(res, 1000)
+    assert more.chains.shape == (2, 2000, 3)
+    np.testing.assert_array_equal(more.chains[:, :1000], res.chains)
+    assert more.n_likelihood_evals > res.n_likelihood_evals
+    assert more.sampling_seconds > res.sampling_seconds
+    # continuing does not consume the original state: same continuation twice
+    np.testing.assert_array_equal(continue_chain(res, 1000).chains, more.chains)
+    p = more.save(tmp_path / "post.npz")
+    with np.load(p) as z:
+        np.testing.assert_array_equal(z["chains"], more.chains)
+        assert tuple(z["names"]) == space.names
+    c = more.save(tmp_path / "post.csv")
+    table = np.loadtxt(c, delimiter=",", skiprows=1)
+    assert table.shape == (4000, 6)
+    np.testing.assert_allclose(table[:2000, 2:5], more.chains[0])
+    assert "t0" in more.summary()
+
+
+# --- bad input ------------------------------------------------------------------------------
+
+
+def test_data_with_wrong_number_of_responses():
+    model, space, *_ = linear_problem()
+    with pytest.raises(ModelShapeError, match=r"data has 3 column\(s\) but 4 response"):
+        calibrate_bayes(model, np.zeros((5, 3)), space, chain_samples=10)
+    with pytest.raises(ParameterError, match="not outputs of the model"):
+        calibrate_bayes(model, np.zeros((5, 1)), space, responses=["thrust"], chain_samples=10)
+
+
+def test_non_positive_definite_covariance():
+    model, space, *_ = linear_problem()
+    bad = np.eye(4)
+    bad[0, 1] = bad[1, 0] = 2.0
+    with pytest.raises(ParameterError, match="not positive definite"):
+        calibrate_bayes(model, DATA, space, data_covariance=bad, chain_samples=10)
+    with pytest.raises(ParameterError, match="proposal_covariance is not positive definite"):
+        calibrate_bayes(model, DATA, space, proposal_covariance=-np.eye(3), chain_samples=10)
+
+
+def test_infinite_support_prior_without_start_point():
+    def f(x):
+        y = x.copy()
+        y[x[:, 0] < 5.0] = np.nan  # only works far from the prior mean
+        return y
+
+    model = rq.FunctionModel(f, ["kp"], ["m"])
+    space = rq.ParameterSpace({"kp": rq.Normal(0.0, 1.0)})
+    with pytest.raises(ParameterError, match=r"\['kp'\] have infinite prior support.*start="):
+        calibrate_bayes(model, [6.0], space, chain_samples=100)
+    res = calibrate_bayes(model, [6.0], space, start=[6.0], chain_samples=300, seed=0)
+    assert np.all(res.chains >= 5.0)
+    with pytest.raises(ParameterError, match="zero posterior density"):
+        calibrate_bayes(model, [6.0], space, start=[1.0], chain_samples=100)
+
+
+def test_bad_sampler_arguments():
+    model, space, *_ = linear_problem()
+    with pytest.raises(ParameterError, match="unknown MCMC method"):
+        calibrate_bayes(model, DATA, space, method="nuts", chain_samples=10)
+    with pytest.raises(ParameterError, match="burn_in"):
+        calibrate_bayes(model, DATA, space, chain_samples=10, burn_in=20)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ParameterError, match="ParameterSpace"):
+            calibrate_bayes(model, DATA, {"t0": rq.Normal(0, 1)}, chain_samples=10)

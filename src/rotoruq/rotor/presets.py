@@ -164,6 +164,11 @@ def gvpm(**overrides) -> RotorPreset:
       k_flap = 4.12 EI_y / L; the same for lag from EI_z (stiff in plane).
     - an effective pitch-horn arm of 0.167 m (tuned, see ``_GVPM_ARM``) and no pitch-flap
       coupling (delta3 = 0).
+    - no airfoil pitching moment on the feathering axis (``pitching_moment=False``): MBDyn's
+      NACA 0012 table that the thesis used has CM = 0 for |alpha| <= 10 deg, while the bundled
+      low-Re table's CM there is non-monotonic (-0.03..0, NeuralFoil confidence 0.83 at
+      Re 5e4); on the soft pitch link it would dominate the blade pitch and slow the periodic
+      solution several-fold. ``gvpm(pitching_moment=True)`` restores it.
     """
     m_per_l = 0.025 / 0.425
     p = RotorPreset(
@@ -193,6 +198,7 @@ def gvpm(**overrides) -> RotorPreset:
         height_over_radius=4.0,
         inflow="uniform",
         harmonic_inflow=True,
+        pitching_moment=False,
         notes="thesis table 4.2; mass, pitch horn and feathering inertia chosen (see docstring)",
     )
     return p.replace(**overrides) if overrides else p

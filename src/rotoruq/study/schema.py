@@ -52,6 +52,7 @@ import numpy as np
 
 from ..errors import InputFileError, ParameterError
 from ..params import DISTRIBUTIONS, Distribution, ParameterSpace, make_distribution
+from ..rotor.model import RESPONSES, ROTOR_INPUTS
 
 __all__ = [
     "STEP_TYPES",
@@ -71,22 +72,8 @@ __all__ = [
     "is_rotor_input",
 ]
 
-ROTOR_RESPONSES = ("thrust", "torque", "roll", "pitch", "power", "ct", "cq")
-_ROTOR_INPUTS = (
-    "collective_deg",
-    "lateral_deg",
-    "longitudinal_deg",
-    "omega",
-    "rho",
-    "height_over_radius",
-    "k_flap",
-    "c_flap",
-    "k_lag",
-    "c_lag",
-    "k_pitch_link",
-    "c_pitch_link",
-    "ei_flap",
-)
+ROTOR_RESPONSES = RESPONSES
+_ROTOR_INPUTS = ROTOR_INPUTS
 # Airfoil perturbations exist at every Mach row of the table: cla_m03, cl0_m00, cd0_m04 ...
 _AIRFOIL_INPUT = re.compile(r"^(cla|cl0|cd0|cda|cda2)_m\d\d$")
 

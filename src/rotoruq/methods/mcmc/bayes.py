@@ -398,30 +398,39 @@ def calibrate_bayes(
             raise ParameterError(f"start point {s} has zero posterior density (outside the prior "
                                  "support or the model fails there)")
     else:
-        th0 = best_build if best_build is not None else center
-        z0 = (th0 - center) / scale
-    lp0 = post(z0[None])[0]
-    if not np.isfinite(lp0):
-        unbounded = [n for n, lo, hi in zip(prior.names, logprior.lo, logprior.hi, strict=True)
-                     if not (np.isfinite(lo) and np.isfinite(hi))]
-        if unbounded:
-            raise ParameterError(
-                "no start point: the log posterior is not finite at the prior mean "
-                f"{center} (the model fails or the likelihood is NaN there) and parameters "
-                f"{unbounded} have infinite prior support, so there is no bounded box to search; "
-                "pass start=[...] with a point where the model works")
-        cand = prior.sample(max(16, 8 * d), seed=rng, method="lhs")
-        lpc = post((cand - center) / scale)
+        # candidates: the prior mean, the best emulator build point, and (for the MAP search) an
+        # LHS batch of the prior evaluated in one call; the best few seed L-BFGS-B
+        cands = [center] + ([best_build] if best_build is not None else [])
+        if map_start:
+            cands.extend(prior.sample(max(16, 8 * d), seed=rng, method="lhs"))
+        zc = (np.array(cands) - center) / scale
+        lpc = post(zc)
         if not np.any(np.isfinite(lpc)):
-            raise EvaluationError("no start point: the log posterior is NaN or -inf at the prior "
-                                  f"mean and at {len(cand)} LHS points of the prior")
-        z0 = (cand[int(np.argmax(lpc))] - center) / scale
-        lp0 = float(lpc.max())
+            unbounded = [n for n, lo, hi in zip(prior.names, logprior.lo, logprior.hi,
+                                                strict=True)
+                         if not (np.isfinite(lo) and np.isfinite(hi))]
+            where = f"the prior mean {center}"
+            if len(cands) > 1:
+                where += f" and {len(cands) - 1} other points drawn from the prior"
+            if unbounded:
+                raise ParameterError(
+                    f"no start point: the log posterior is not finite at {where} (the model fails "
+                    f"or the likelihood is NaN there) and parameters {unbounded} have infinite "
+                    "prior support, so there is no bounded box to search; pass start=[...] with "
+                    "a point where the model works")
+            raise EvaluationError(f"no start point: the log posterior is NaN or -inf at {where}")
+        order = np.argsort(-np.where(np.isfinite(lpc), lpc, -np.inf))
+        z0, lp0 = zc[order[0]], float(lpc[order[0]])
+        map_seeds = [zc[i] for i in order[:3] if np.isfinite(lpc[i])]
+    if start is not None:
+        lp0 = post(z0[None])[0]
+        map_seeds = [z0]
     if map_start:
-        zm = _map(post, z0, zlo, zhi)
-        lpm = post(zm[None])[0]
-        if np.isfinite(lpm) and lpm >= lp0:
-            z0, lp0 = zm, lpm
+        for zs in map_seeds:
+            zm = _map(post, zs, zlo, zhi)
+            lpm = post(zm[None])[0]
+            if np.isfinite(lpm) and lpm >= lp0:
+                z0, lp0 = zm, lpm
     theta0 = center + scale * z0
 
     # --- initial proposal covariance ------------------------------------------------------

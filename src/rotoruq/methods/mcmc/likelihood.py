@@ -105,12 +105,17 @@ class GaussianLikelihood:
         self.b = b
         self._c0 = c0
         self._const = -0.5 * (n_exp * m * np.log(2.0 * np.pi) + logdet)
+        # diagonal precision (independent errors, the usual case): O(m) per evaluation
+        self._pdiag = np.diag(P).copy() if np.count_nonzero(P - np.diag(np.diag(P))) == 0 \
+            else None
 
     def misfit(self, q: np.ndarray) -> np.ndarray:
         """Misfit ``1/2 sum_e r_e^T Gamma_e^-1 r_e`` (eq. 2.24) for responses q (k, m) -> (k,)."""
         if q.ndim == 1:
             q = q[None, :]
-        return 0.5 * (((q @ self.precision) * q).sum(1) - 2.0 * (q @ self.b) + self._c0)
+        quad = (q * q) @ self._pdiag if self._pdiag is not None else \
+            ((q @ self.precision) * q).sum(1)
+        return 0.5 * (quad - 2.0 * (q @ self.b) + self._c0)
 
     def __call__(self, q: np.ndarray) -> np.ndarray:
         """Log-likelihood (eq. 2.23, normalized) for responses q (k, m) -> (k,)."""

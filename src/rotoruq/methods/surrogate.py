@@ -358,20 +358,22 @@ class GaussianProcess:
                 return -ll, -g
             return objective
 
-        def run(obj, s, maxiter):
+        def run(obj, s, maxfun):
+            # the likelihood is numerically rough where R is near singular (long sqexp
+            # length-scales): cap the evaluations instead of letting line searches thrash
             return optimize.minimize(obj, np.clip(s, lb, ub), jac=True, method="L-BFGS-B",
-                                     bounds=bounds, options={"maxiter": maxiter})
+                                     bounds=bounds, options={"maxfun": maxfun, "ftol": 1e-8})
 
         if len(starts) > 1 and n > 2 * _SCREEN_POINTS:
             # multi-start on a random subset (cheap), then one polish on all points
             sub = rng.choice(n, _SCREEN_POINTS, replace=False)
             obj_sub = make_objective(self._Xs[sub], self._F[sub], ys[sub])
-            screened = [run(obj_sub, s, 100) for s in starts]
+            screened = [run(obj_sub, s, 150) for s in starts]
             starts = [min(screened, key=lambda r: r.fun).x]
         obj = make_objective(self._Xs, self._F, ys)
         best = None
         for s in starts:
-            res = run(obj, s, 200)
+            res = run(obj, s, 60 if len(starts) == 1 else 150)
             if best is None or res.fun < best.fun:
                 best = res
         _, _, o = self._solve(ys, best.x, noise, False)

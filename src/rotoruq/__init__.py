@@ -108,6 +108,10 @@ __all__ += [
     "evidence",
 ]
 # --- methods: surrogates and Bayes (issue 4) ---
+from .methods.mcmc import BayesResult, calibrate_bayes, continue_chain  # noqa: E402
+from .methods.surrogate import GaussianProcess, LeaveOneOut  # noqa: E402
+
+__all__ += ["BayesResult", "calibrate_bayes", "continue_chain", "GaussianProcess", "LeaveOneOut"]
 # --- methods: least squares and CUU (issue 5) ---
 from .methods.cuu import CUUCheck, CUUResult, calibrate_under_uncertainty, check_cuu  # noqa: E402
 from .methods.least_squares import (  # noqa: E402

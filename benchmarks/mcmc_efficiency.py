@@ -167,7 +167,7 @@ def emulator_chain(seed):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--budget", type=int, default=100_000, help="posterior samples per sampler")
-    ap.add_argument("--chains", type=int, default=16, help="rotoruq chains advanced together")
+    ap.add_argument("--chains", type=int, default=32, help="rotoruq chains advanced together")
     ap.add_argument("--seed", type=int, default=1)
     args = ap.parse_args()
     model, space, data = make_problem(0)

@@ -46,6 +46,28 @@ def fd_steps(x0: np.ndarray, scale: np.ndarray, fd_step: float) -> np.ndarray:
     return np.where(h > 0, h, fd_step)
 
 
+def forward_jacobian(f, x, fx=None, *, rel_step, scale, upper=np.inf) -> np.ndarray:
+    """Forward-difference Jacobian (m, p) of a batched ``f: (k, p) -> (k, m)`` at ``x`` (p,).
+
+    Steps ``rel_step * max(|x|, scale)``, taken backward where the forward point would pass
+    ``upper``; all columns in ONE call of ``f`` (with ``x`` itself first when ``fx`` is None).
+    The representable step (x + h) - x is used in the quotient.
+    """
+    x = np.asarray(x, dtype=float)
+    p = x.size
+    h = rel_step * np.maximum(np.abs(x), scale)
+    h = np.where(x + h > upper, -h, h)
+    X = np.repeat(x[None, :], p, axis=0)
+    X[np.arange(p), np.arange(p)] += h
+    h = X[np.arange(p), np.arange(p)] - x
+    if fx is None:
+        F = f(np.vstack([x[None, :], X]))
+        fx, F = F[0], F[1:]
+    else:
+        F = f(X)
+    return ((F - fx[None, :]) / h[:, None]).T
+
+
 def gradient_at(
     model,
     space,

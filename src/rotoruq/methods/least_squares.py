@@ -45,6 +45,7 @@ from scipy import optimize, stats
 
 from ..errors import EvaluationError, ModelShapeError, ParameterError
 from ..evaluation.model import evaluate
+from ._common import forward_jacobian
 
 __all__ = ["LeastSquaresResult", "least_squares", "CalibrationResult", "calibrate"]
 
@@ -166,14 +167,7 @@ def _fd_jacobian(
     typical: np.ndarray,
 ) -> np.ndarray:
     """Forward differences, all ``p`` columns in one batched call; backward next to a bound."""
-    p = x.size
-    h = rel_step * np.maximum(np.abs(x), typical)
-    h = np.where(x + h > upper, -h, h)
-    X = np.repeat(x[None, :], p, axis=0)
-    X[np.arange(p), np.arange(p)] += h
-    h = X[np.arange(p), np.arange(p)] - x  # the step actually representable
-    R = res(X)
-    return ((R - r[None, :]) / h[:, None]).T
+    return forward_jacobian(res, x, r, rel_step=rel_step, scale=typical, upper=upper)
 
 
 def _tr_step(

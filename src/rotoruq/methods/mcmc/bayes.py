@@ -25,6 +25,7 @@ from ..._rng import SeedLike, as_generator
 from ...errors import EvaluationError, ModelShapeError, ParameterError
 from ...evaluation.model import align_inputs, evaluate, has_gradient
 from ...params import ParameterSpace
+from .._common import forward_jacobian
 from ..surrogate import ExtrapolationWarning, GaussianProcess, LeaveOneOut
 from . import diagnostics as dg
 from .likelihood import GaussianLikelihood
@@ -517,11 +518,7 @@ def _jacobian(model, gp, perm, theta0, forward, resp_idx, hi) -> np.ndarray:
                 return out
         except NotImplementedError:
             pass
-    h = 1e-6 * np.maximum(np.abs(theta0), 1e-3)
-    h = np.where(theta0 + h <= hi, h, -h)
-    pts = np.vstack([theta0, theta0 + np.diag(h)])
-    q = forward(pts)
-    J = ((q[1:] - q[0]) / h[:, None]).T
+    J = forward_jacobian(forward, theta0, rel_step=1e-6, scale=1e-3, upper=hi)
     return np.where(np.isfinite(J), J, 0.0)
 
 

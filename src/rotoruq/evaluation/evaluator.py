@@ -30,6 +30,7 @@ import numpy as np
 from ..errors import EvaluationError, ModelShapeError
 from .executors import Executor, make_executor
 from .external import RunResult, _abort_message
+from .identity import model_identity
 from .model import EvalBatch, evaluate, has_gradient
 from .progress import Progress
 from .store import NewRecord, Store, canonical_keys, open_store
@@ -52,16 +53,6 @@ class EvalStats:
     duplicates: int
     failed: int
     wall_time: float
-
-
-def model_identity(model) -> str:
-    """Text that tells models apart in the store: the model's ``identity`` attribute when it
-    has one, else its class, plus the input and response names."""
-    ident = getattr(model, "identity", None)
-    if not isinstance(ident, str):
-        t = type(model)
-        ident = f"{t.__module__}.{t.__qualname__}"
-    return f"{ident}|{','.join(model.names_in)}->{','.join(model.names_out)}"
 
 
 class _ChunkTask:

@@ -32,11 +32,19 @@ def add_arguments(parser) -> None:
 
 def reproduce(which: str = "all", out: str | Path = "rotoruq-results", quick: bool = False,
               log=None) -> dict:
-    """Run the chapters, write the report; returns ``{"report": path, "seconds": {...}}``."""
+    """Run the chapters, write the report; returns ``{"report": path, "seconds": {...}}``.
+    Holds ``out`` (and so each chapter's folder in it) for the whole run."""
+    from .lock import results_lock
+
+    out = Path(out)
+    with results_lock(out, "reproduce"):
+        return _reproduce(which, out, quick, log)
+
+
+def _reproduce(which, out: Path, quick: bool, log) -> dict:
     from ..report.html import write_report
     from .runner import _log, run_study
 
-    out = Path(out)
     names = list(CHAPTERS) if which == "all" else [which]
     seconds = {}
     for name in names:

@@ -17,13 +17,18 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    from .lock import results_lock
     from .runner import run_study
+    from .schema import load_study
 
-    result = run_study(args.study, out=args.out, quick=args.quick, only=args.only)
-    print(f"results: {result.out}")
-    if not args.no_report:
-        from ..report.html import write_report
+    study = load_study(args.study)
+    out = Path(args.out) if args.out else study.info.output
+    with results_lock(out, "run"):  # the run and its report, one at a time per folder
+        result = run_study(study, out=out, quick=args.quick, only=args.only)
+        print(f"results: {result.out}")
+        if not args.no_report:
+            from ..report.html import write_report
 
-        index = write_report([result.out], Path(result.out) / "report")
-        print(f"report: {index}")
+            index = write_report([result.out], Path(result.out) / "report")
+            print(f"report: {index}")
     return 0

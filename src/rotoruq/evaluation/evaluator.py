@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import EvaluationError, ModelShapeError
+from ..errors import EvaluationError, ModelShapeError, ParameterError
 from .executors import Executor, make_executor
 from .external import RunResult, _abort_message
 from .identity import model_identity
@@ -121,10 +121,10 @@ class Evaluator:
         self.study = str(study)
         self.run_id = run_id or uuid.uuid4().hex[:12]
         if tolerance is not None and not tolerance >= 0:
-            raise ValueError(f"tolerance must be >= 0, got {tolerance}")
+            raise ParameterError(f"tolerance must be >= 0, got {tolerance}")
         self.tolerance = tolerance
         if chunk_size is not None and chunk_size < 1:
-            raise ValueError(f"chunk_size must be >= 1, got {chunk_size}")
+            raise ParameterError(f"chunk_size must be >= 1, got {chunk_size}")
         self.chunk_size = chunk_size
         self.progress = progress
         self.model_id = model_id or model_identity(model)

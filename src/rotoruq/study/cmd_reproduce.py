@@ -7,18 +7,20 @@ import json
 import time
 from pathlib import Path
 
+from ..errors import InputFileError
+
 HELP = "reproduce the reference study (thesis chapters 3 and 4) and write the report"
 
 CHAPTERS = {"validation": "validation.toml", "experiment": "experiment.toml"}
 
 
 def studies_dir() -> Path:
-    """The bundled study files: ``studies/`` of the source tree."""
-    here = Path(__file__).resolve()
-    for cand in (here.parents[3] / "studies", here.parents[1] / "studies"):
-        if (cand / "validation.toml").is_file():
-            return cand
-    raise FileNotFoundError("the bundled studies/ folder was not found next to the package")
+    """The study files shipped with the package (``rotoruq/studies/``)."""
+    path = Path(__file__).resolve().parents[1] / "studies"
+    if not (path / "validation.toml").is_file():
+        raise InputFileError(path, None, "the bundled study files (validation.toml, ...)",
+                             "an incomplete installation of rotoruq")
+    return path
 
 
 def add_arguments(parser) -> None:

@@ -1,6 +1,6 @@
 """Run a study: steps in order, results written as they finish, unchanged steps reused.
 
->>> results = run_study("studies/quick.toml")                 # doctest: +SKIP
+>>> results = run_study("src/rotoruq/studies/quick.toml")                 # doctest: +SKIP
 >>> results["forward"].get("mean/thrust")                     # doctest: +SKIP
 
 Output directory (``[study] output``, or ``out=``)::

@@ -332,7 +332,9 @@ _REQUIRED = object()
 
 def _int(minimum: int = 0, maximum: int = 2**63 - 1):
     def check(v):
-        if isinstance(v, bool) or not isinstance(v, int) or not minimum <= v <= maximum:
+        if isinstance(v, bool) or not isinstance(v, int) or v < minimum:
+            raise TypeError(f"an integer >= {minimum}")
+        if v > maximum:
             raise TypeError(f"an integer from {minimum} to {maximum}")
         return v
 

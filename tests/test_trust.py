@@ -303,3 +303,31 @@ def test_sigkill_at_random_moments_resumes_bitwise(tmp_path):
     assert len(runs) == n  # none lost
     workers = os.cpu_count() or 1
     assert sum(runs.values()) - n <= kills * workers
+
+
+@pytest.mark.slow
+def test_rotor_study_killed_and_resumed_is_bitwise_equal(tmp_path):
+    """Resumed rotor evaluations run in other batch compositions than an uninterrupted run:
+    the rotor's answers must not depend on which points share a batch."""
+    path = tmp_path / "study.toml"
+    path.write_text(ROTOR_STUDY.format(preset="gvpm", collective=5.4, h=3.0, options="")
+                    .replace("n = 6", "n = 2000")
+                    .replace("[[steps]]", '[parameters.cla_m03]\ndistribution = "normal"\n'
+                             'mean = 0.108\nstd = 0.005\n\n[[steps]]'))
+    cli("run", path, "--out", tmp_path / "ref", "--no-report")
+    reference = outputs(tmp_path / "ref")
+    out = tmp_path / "out"
+    rng = random.Random(3)
+    kills = 0
+    for _ in range(4):
+        proc = subprocess.Popen([*CLI, "run", str(path), "--out", str(out), "--no-report"],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                start_new_session=True)
+        time.sleep(rng.uniform(1.2, 2.5))
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            kills += 1
+        proc.wait()
+    cli("run", path, "--out", out, "--no-report")
+    assert kills >= 1
+    np.testing.assert_array_equal(outputs(out), reference)

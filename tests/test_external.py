@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import random
 import sys
 import time
@@ -108,9 +109,10 @@ def test_model_protocol_direct_call(driver, tmp_path):
     b = evaluate(m, np.array([[0.0, 1.0], [0.0, 2.0]]))
     np.testing.assert_array_equal(b.values[:, 0], [2.0, 4.0])
     names = sorted(p.name for p in (tmp_path / "work").iterdir())
-    assert names == ["run.1", "run.2"]
-    assert (tmp_path / "work" / "run.1" / "params.in").read_text().split()[:2] == ["2",
-                                                                                   "variables"]
+    prefix = f"run.{os.getpid()}.{m._token}"  # <name>.<pid>.<run token>.<eval_id>
+    assert names == [f"{prefix}.1", f"{prefix}.2"]
+    assert (tmp_path / "work" / f"{prefix}.1" / "params.in").read_text().split()[:2] == [
+        "2", "variables"]
 
 
 def test_every_failure_kind_is_recorded_and_good_ones_kept(driver, tmp_path):

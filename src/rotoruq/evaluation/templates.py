@@ -26,7 +26,7 @@ import numpy as np
 from ..errors import InputFileError
 from .dakota_files import _to_int, read_text
 
-__all__ = ["fill_template", "fill_template_file", "template_fields"]
+__all__ = ["fill_template", "fill_template_file", "template_fields", "check_template"]
 
 def _scan(text: str, path):
     """Yield ('text', str) and ('field', body, line) pieces."""
@@ -123,6 +123,18 @@ def template_fields(text: str, path: str | os.PathLike | None = None) -> list[st
             if name not in out:
                 out.append(name)
     return out
+
+
+def check_template(text: str, labels, path: str | os.PathLike | None = None) -> None:
+    """Check that every field of a template parses and has a value: a label among ``labels``
+    or a default. Raises :class:`~rotoruq.errors.InputFileError` naming the line otherwise."""
+    known = set(labels)
+    for piece in _scan(text, path):
+        if piece[0] == "field":
+            name, default, _ = _parse_field(piece[1], path, piece[2])
+            if default is None and name not in known:
+                raise InputFileError(path, piece[2], f"a value for template field {name!r} "
+                                     f"(known labels: {sorted(known)})", "{" + piece[1] + "}")
 
 
 def _format(value, spec: str | None, path, line, name) -> str:

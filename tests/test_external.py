@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import os
 import random
+import signal
+import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -34,6 +37,9 @@ else:
         val, tag = line.split()
         x[tag] = val
 kind, a = int(float(x["kind"])), float(x["a"])
+GRANDCHILD = ("import os, sys, time; os.setsid(); t = sys.argv[1]; "
+              "open(t + '.tmp', 'w').write(str(os.getpid())); os.rename(t + '.tmp', t + '.gc'); "
+              "time.sleep(60)")
 side = os.environ.get("SIDE_FILE")
 attempt = 0
 if side:
@@ -58,6 +64,23 @@ if kind == 3:
 if kind == 4:
     open(results, "w").write("thrust = lots\n")
     sys.exit(0)
+if kind == 6:
+    open(results, "w").write("nan f\n")
+    sys.exit(0)
+if kind == 7:
+    open(results, "w").write("1e999 f\n")  # overflows to inf
+    sys.exit(0)
+if kind == 8:
+    open(results, "wb").write(b"1.0 f\xff\xfe\n")  # not UTF-8
+    sys.exit(0)
+if kind in (9, 10):  # a grandchild that leaves the process group (setsid) and hangs
+    import subprocess
+    tag = os.path.join(os.environ["PID_DIR"], f"{x['a']}-{attempt}-{os.getpid()}")
+    subprocess.Popen([sys.executable, "-S", "-c", GRANDCHILD, tag])
+    while not os.path.exists(tag + ".gc"):
+        time.sleep(0.005)
+    if kind == 9:
+        time.sleep(60)  # and the driver hangs too
 if kind == 5 and random.Random(f"{x['a']}-{attempt}").random() < 0.1:
     sys.stderr.write(f"random failure at attempt {attempt}\n")
     sys.exit(1)
@@ -292,3 +315,156 @@ def test_rotoruq_driver_command_with_the_rotor_model(tmp_path):
     np.testing.assert_allclose(out.values[ok], expected.values[ok], rtol=1e-12)
     for i in expected.failures:
         assert "fail marker" in out.failures[i]
+
+
+# --- failures at the seams: non-finite and undecodable results, escaping process trees --------
+
+
+def alive(pid: int) -> bool:
+    """True while the process exists and is not a zombie."""
+    try:
+        stat = open(f"/proc/{pid}/stat").read()
+    except FileNotFoundError:
+        return False
+    return stat[stat.rfind(")") + 2] not in "ZX"
+
+
+def run_pids(pid_dir) -> list[int]:
+    """Pids of the drivers (from the file names) and their grandchildren (from the files)."""
+    out = []
+    for p in pid_dir.iterdir():
+        if p.suffix == ".gc":
+            out += [int(p.stem.rsplit("-", 1)[1]), int(p.read_text())]
+    return out
+
+
+def runs_of(side, a: float) -> int:
+    """How many times the driver ran at ``a`` (it logs its input to the side file)."""
+    return [float(v) for v in side.read_text().split()].count(a)
+
+
+BAD = {6: "non-finite response in results file: f=nan",
+       7: "non-finite response in results file: f=inf",
+       8: "UTF-8",
+       9: "timed out after 0.5 s"}
+
+
+@pytest.mark.parametrize("kind", sorted(BAD))
+@pytest.mark.parametrize("policy", ["continue", "abort", "retry:2", "recover"])
+def test_bad_results_and_hangs_go_through_every_policy(driver, tmp_path, monkeypatch, kind,
+                                                       policy):
+    side, pid_dir = tmp_path / "side", tmp_path / "pids"
+    pid_dir.mkdir()
+    monkeypatch.setenv("SIDE_FILE", str(side))
+    monkeypatch.setenv("PID_DIR", str(pid_dir))
+    fp = {"recover": [-7.0]} if policy == "recover" else policy
+    m = model(driver, tmp_path, failure_policy=fp, timeout=0.5)
+    x = np.array([[0, 1.0], [kind, 2.0], [0, 3.0]])
+    ev = Evaluator(m, store=tmp_path / "s.db")
+    t0 = time.perf_counter()
+    if policy == "abort":
+        with pytest.raises(EvaluationError, match=BAD[kind]):
+            ev.evaluate(x)
+        recs = Store(tmp_path / "s.db").records()
+        assert [(float(r.inputs[1]), r.status) for r in recs] == [(1.0, "ok"), (2.0, "failed")]
+    else:
+        out = ev.evaluate(x)
+        np.testing.assert_array_equal(out.values[[0, 2], 0], [2.0, 6.0])
+        rec = {float(r.inputs[1]): r for r in Store(tmp_path / "s.db").records()}[2.0]
+        assert BAD[kind] in rec.error
+        if policy == "recover":
+            assert out.failures == {} and out.values[1, 0] == -7.0
+            assert rec.status == "recovered"
+        else:
+            assert BAD[kind] in out.failures[1] and np.isnan(out.values[1, 0])
+            assert rec.status == "failed"
+        want = 3 if policy == "retry:2" else 1
+        assert rec.attempts == want
+        assert runs_of(side, 2.0) == want  # the driver really ran again
+        if policy == "continue":  # a failed point is run again by the next evaluation
+            ev.evaluate(x)
+            assert ev.last_stats.reused == 2 and ev.last_stats.evaluated == 1
+    ev.close()
+    if kind == 9:  # each attempt was stopped at the timeout, driver and grandchild killed
+        pids = run_pids(pid_dir)
+        assert len(pids) == 2 * runs_of(side, 2.0) > 0
+        assert not [p for p in pids if alive(p)]
+        assert time.perf_counter() - t0 < 0.5 * len(pids) + 3
+
+
+def test_timeout_kills_a_grandchild_that_left_the_group(driver, tmp_path, monkeypatch):
+    pid_dir = tmp_path / "pids"
+    pid_dir.mkdir()
+    monkeypatch.setenv("PID_DIR", str(pid_dir))
+    m = model(driver, tmp_path, timeout=1)
+    t0 = time.perf_counter()
+    r = m.run_one(np.array([9.0, 1.0]))
+    elapsed = time.perf_counter() - t0
+    assert r.status == "failed" and "timed out after 1 s" in r.error
+    assert "1 other processes killed" in r.error
+    assert 1.0 <= elapsed < 2.5
+    driver_pid, gc_pid = run_pids(pid_dir)
+    assert not alive(driver_pid) and not alive(gc_pid)
+
+
+def test_grandchild_left_behind_by_a_successful_driver_is_killed(driver, tmp_path,
+                                                                 monkeypatch):
+    pid_dir = tmp_path / "pids"
+    pid_dir.mkdir()
+    monkeypatch.setenv("PID_DIR", str(pid_dir))
+    r = model(driver, tmp_path).run_one(np.array([10.0, 1.0]))
+    assert r.status == "ok" and r.values[0] == 12.0
+    assert not [p for p in run_pids(pid_dir) if alive(p)]
+
+
+INTERRUPTED = r'''
+import sys
+import numpy as np
+from rotoruq.evaluation.external import ExternalModel
+m = ExternalModel([sys.executable, "-S", sys.argv[1]], ["kind", "a"], ["f"], workdir=sys.argv[2])
+m.run_one(np.array([9.0, 1.0]))
+'''
+
+
+def test_interrupted_evaluation_kills_the_driver_tree(driver, tmp_path):
+    pid_dir = tmp_path / "pids"
+    pid_dir.mkdir()
+    (tmp_path / "study.py").write_text(INTERRUPTED)
+    proc = subprocess.Popen([sys.executable, str(tmp_path / "study.py"), str(driver),
+                             str(tmp_path / "work")], env={**os.environ, "PID_DIR": str(pid_dir)},
+                            stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 30
+    while not list(pid_dir.glob("*.gc")) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    pids = run_pids(pid_dir)
+    assert len(pids) == 2 and all(alive(p) for p in pids)
+    proc.send_signal(signal.SIGINT)  # Ctrl-C: KeyboardInterrupt in the waiting thread
+    _, err = proc.communicate(timeout=10)
+    assert proc.returncode != 0 and b"KeyboardInterrupt" in err
+    assert not [p for p in pids if alive(p)]
+
+
+def test_output_goes_to_capped_files_not_memory(tmp_path):
+    chatty = tmp_path / "chatty.py"
+    chatty.write_text("import sys\nline = b'x' * 1023 + b'\\n'\n"
+                      "for _ in range(200 * 1024):\n    sys.stdout.buffer.write(line)\n"
+                      "sys.stdout.buffer.write(b'LAST LINE\\n')\nsys.exit(2)\n")
+
+    def hwm_kib() -> int:
+        line = next(s for s in open("/proc/self/status") if s.startswith("VmHWM"))
+        return int(line.split()[1])
+
+    m = ExternalModel([sys.executable, "-S", str(chatty)], ["a"], ["f"],
+                      workdir=tmp_path / "w", output_cap=2**20)
+    before = hwm_kib()
+    r = m.run_one(np.array([1.0]))
+    grown = hwm_kib() - before
+    assert r.status == "failed" and "status 2" in r.error
+    assert r.stdout.endswith("LAST LINE\n") and len(r.stdout) <= 8200
+    assert grown < 50 * 1024, f"peak memory grew by {grown} KiB for 200 MiB of output"
+    out = Path(r.workdir) / "rotoruq.stdout"
+    assert 2**20 < out.stat().st_size < 2**20 + 70 * 1024
+    text = out.read_bytes()
+    assert text.startswith(b"x" * 1023 + b"\n") and text.endswith(b"LAST LINE\n")
+    omitted = 200 * 2**20 + 10 - 2**20 - 64 * 1024
+    assert f"[rotoruq: {omitted} bytes omitted]".encode() in text

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 import random
 import signal
@@ -13,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rotoruq.errors import EvaluationError, ParameterError
+from rotoruq.errors import EvaluationError, InputFileError, ParameterError
 from rotoruq.evaluation import evaluate
 from rotoruq.evaluation.evaluator import Evaluator
 from rotoruq.evaluation.external import ExternalModel
@@ -468,3 +470,160 @@ def test_output_goes_to_capped_files_not_memory(tmp_path):
     assert text.startswith(b"x" * 1023 + b"\n") and text.endswith(b"LAST LINE\n")
     omitted = 200 * 2**20 + 10 - 2**20 - 64 * 1024
     assert f"[rotoruq: {omitted} bytes omitted]".encode() in text
+
+
+# --- names, work directories, identity ------------------------------------------------------
+
+
+@pytest.mark.parametrize("bad", ["", "..", "a\nb", "a/b", "a\\b", "../x", "a b", "x..y", "{a}",
+                                 "a=b", "tab\t"])
+def test_names_are_validated(driver, tmp_path, bad):
+    for kw in ({"names_in": [bad, "a"]}, {"names_out": [bad]}, {"fixed": {bad: 1.0}},
+               {"name": bad}, {"parameters_file": bad}, {"results_file": bad}):
+        args = {"names_in": ["kind", "a"], "names_out": ["f"], **kw}
+        with pytest.raises(ParameterError):
+            ExternalModel([sys.executable, str(driver)], args.pop("names_in"),
+                          args.pop("names_out"), workdir=tmp_path / "w", **args)
+    with pytest.raises(ParameterError):
+        model(driver, tmp_path).run_one(np.array([0.0, 1.0]), eval_id=bad or "..")
+
+
+def test_model_named_dotdot_never_deletes_outside_its_work_directory(driver, tmp_path):
+    base = tmp_path / "project"
+    (base / "work").mkdir(parents=True)
+    precious = base / "thesis.tex"
+    precious.write_text("years of work\n")
+    with pytest.raises(ParameterError, match="'..'"):
+        ExternalModel([sys.executable, str(driver)], ["kind", "a"], ["f"],
+                      workdir=base / "work", name="..", tag=False)
+    assert precious.read_text() == "years of work\n"
+
+
+def test_untagged_work_directory_is_emptied_only_if_rotoruq_made_it(driver, tmp_path):
+    mine = tmp_path / "work" / "solver"
+    mine.mkdir(parents=True)
+    (mine / "notes.txt").write_text("the user's own folder\n")
+    m = model(driver, tmp_path, name="solver", tag=False, keep_workdirs=True)
+    with pytest.raises(ParameterError, match="not made by rotoruq"):
+        m.run_one(np.array([0.0, 1.0]))
+    assert (mine / "notes.txt").read_text() == "the user's own folder\n"
+    (mine / "notes.txt").unlink()
+    mine.rmdir()
+    for a in (1.0, 2.0):  # rotoruq's own directory is reused run after run
+        r = m.run_one(np.array([0.0, a]))
+        assert r.values[0] == 2 * a and r.workdir == str(mine)
+        assert (mine / ".rotoruq-workdir").exists()
+
+
+def test_parameters_file_cannot_be_forged_through_a_label(tmp_path):
+    from rotoruq.evaluation.dakota_files import format_parameters
+
+    with pytest.raises(ParameterError, match="white space"):
+        format_parameters({"a\n1 functions": 1.0}, ["f"])
+    with pytest.raises(ParameterError):
+        format_parameters({"a": 1.0}, ["f\n0 eval_id"])
+
+
+CONCURRENT = r'''
+import os, sys
+import numpy as np
+from rotoruq.evaluation.external import ExternalModel
+driver, work, who = sys.argv[1:4]
+m = ExternalModel([sys.executable, "-S", driver], ["a"], ["f"], workdir=work,
+                  keep_workdirs=sys.argv[4] == "keep")
+a = np.arange(12.0) + (100.0 if who == "B" else 0.0)
+b = m.evaluate(a[:, None])
+assert not b.failures, b.failures
+assert np.array_equal(b.values[:, 0], 2 * a), b.values
+print(os.getpid())
+'''
+
+# The driver checks its work directory stays its own while it runs: the parameters file is
+# still there and still holds its input, and no foreign file appeared.
+SLOW_DRIVER = r'''
+import os, sys, time
+params, results = sys.argv[1], sys.argv[2]
+text = open(params).read()
+mine = set(os.listdir("."))
+time.sleep(0.05)
+if open(params).read() != text or set(os.listdir(".")) != mine:
+    sys.exit("work directory changed under me")
+a = float(text.splitlines()[1].split()[0])
+open(results, "w").write(f"{2 * a!r} f\n")
+'''
+
+
+@pytest.mark.parametrize("keep", ["keep", "remove"])
+def test_two_processes_share_a_base_folder_without_collisions(tmp_path, keep):
+    (tmp_path / "driver.py").write_text(SLOW_DRIVER)
+    (tmp_path / "run.py").write_text(CONCURRENT)
+    work = tmp_path / "work"
+    procs = [subprocess.Popen([sys.executable, str(tmp_path / "run.py"),
+                               str(tmp_path / "driver.py"), str(work), who, keep],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+             for who in "AB"]
+    outs = [p.communicate(timeout=120) for p in procs]
+    for p, (_, err) in zip(procs, outs, strict=True):
+        assert p.returncode == 0, err.decode()
+    dirs = sorted(d.name for d in work.iterdir())
+    if keep == "keep":
+        assert len(dirs) == 24  # one per evaluation, none reused
+        pids = {out.decode().strip() for out, _ in outs}
+        assert {d.split(".")[1] for d in dirs} == pids
+    else:
+        assert dirs == []
+
+
+def test_identity_covers_what_changes_answers(driver, tmp_path):
+    tpl = tmp_path / "solver.inp"
+    tpl.write_text("c = {a}\n")
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "table.c81").write_text("v1\n")
+
+    def make(**kw):
+        return model(driver, tmp_path, template_files=[tpl], copy_files=[data], **kw)
+
+    ident = make().identity()
+    json.dumps(ident)
+    assert make().identity() == ident  # a model made the same way has the same identity
+    word = ident["command"][2]
+    assert word["path"] == str(driver) and word["sha256"] == hashlib.sha256(
+        driver.read_bytes()).hexdigest()
+    assert ident["command"][0]["sha256"]  # the interpreter itself
+    changed = {
+        "fixed": make(fixed={"c0": 1.0}),
+        "failure_policy": make(failure_policy="retry:2"),
+        "env": make(env={"OMP_NUM_THREADS": "1"}),
+        "parameters_format": make(parameters_format="aprepro"),
+        "asv": make(asv=3),
+    }
+    for key, other in changed.items():
+        assert other.identity()[key] != ident[key], key
+    # timeouts and work directories do not change an answer
+    assert make(timeout=5, workdir=tmp_path / "elsewhere", keep_workdirs=True).identity() == ident
+    # edits to files: the driver script, a template, a file inside a copied directory
+    m = make()
+    m.identity()
+    driver.write_text(driver.read_text() + "\n# edited\n")
+    assert m.identity() == ident  # hashed once per model, not per evaluation
+    assert make().identity()["command"] != ident["command"]
+    tpl.write_text("c = {a:.3f}\n")
+    assert make().identity()["templates"] != ident["templates"]
+    (data / "table.c81").write_text("v2\n")
+    assert make().identity()["copy_files"] != ident["copy_files"]
+
+
+def test_template_fields_are_checked_when_the_model_is_made(driver, tmp_path):
+    tpl = tmp_path / "solver.inp"
+    tpl.write_text("c = {a}\nd = {unknown}\n")
+    with pytest.raises(InputFileError, match="unknown") as err:
+        model(driver, tmp_path, template_files=[tpl])
+    assert err.value.line == 2
+    tpl.write_text("c = {a}\nd = {c0}\ne = {h = 2}\n")
+    m = model(driver, tmp_path, template_files=[tpl], fixed={"c0": 0.25}, keep_workdirs=True)
+    r = m.run_one(np.array([0.0, 1.5]))
+    assert (Path(r.workdir) / "solver.inp").read_text() == "c = 1.5\nd = 0.25\ne = 2\n"
+    tpl.write_bytes(b"c = {a}\n\xff\n")
+    with pytest.raises(InputFileError, match="UTF-8"):
+        model(driver, tmp_path, template_files=[tpl])

@@ -30,6 +30,7 @@ import numpy as np
 
 from rotoruq.evaluation.dakota_files import format_results, parse_results, write_parameters
 from rotoruq.evaluation.external import ExternalModel
+from rotoruq.evaluation.process_tree import is_running
 
 DRIVER = r'''
 import os, subprocess, sys, time
@@ -47,14 +48,6 @@ if mode == 2.0:  # flood stdout
         sys.stdout.buffer.write(block)
 open(results, "w").write(f"{mode!r} f\n")
 '''
-
-
-def alive(pid: int) -> bool:
-    try:
-        stat = open(f"/proc/{pid}/stat").read()
-    except FileNotFoundError:
-        return False
-    return stat[stat.rfind(")") + 2] not in "ZX"
 
 
 def hwm_kib() -> int:
@@ -92,7 +85,7 @@ def main() -> None:
         wall = time.perf_counter() - t0
         pids = [int((tmp / "gc.pid").read_text())]
         out["timeout"] = {"timeout_s": 1.0, "return_over_timeout": round(wall / m.timeout, 3),
-                          "status": r.status, "processes_left": sum(alive(p) for p in pids)}
+                          "status": r.status, "processes_left": sum(is_running(p) for p in pids)}
 
         before = hwm_kib()
         r = m.run_one(np.array([2.0]))

@@ -19,6 +19,7 @@ from rotoruq.errors import EvaluationError, InputFileError, ParameterError
 from rotoruq.evaluation import evaluate
 from rotoruq.evaluation.evaluator import Evaluator
 from rotoruq.evaluation.external import ExternalModel
+from rotoruq.evaluation.process_tree import is_running as alive
 from rotoruq.evaluation.store import Store
 
 # A driver using only the standard library (fast start-up). It reads either parameters
@@ -322,15 +323,6 @@ def test_rotoruq_driver_command_with_the_rotor_model(tmp_path):
 # --- failures at the seams: non-finite and undecodable results, escaping process trees --------
 
 
-def alive(pid: int) -> bool:
-    """True while the process exists and is not a zombie."""
-    try:
-        stat = open(f"/proc/{pid}/stat").read()
-    except FileNotFoundError:
-        return False
-    return stat[stat.rfind(")") + 2] not in "ZX"
-
-
 def run_pids(pid_dir) -> list[int]:
     """Pids of the drivers (from the file names) and their grandchildren (from the files)."""
     out = []
@@ -423,6 +415,7 @@ INTERRUPTED = r'''
 import sys
 import numpy as np
 from rotoruq.evaluation.external import ExternalModel
+from rotoruq.evaluation.process_tree import is_running as alive
 m = ExternalModel([sys.executable, "-S", sys.argv[1]], ["kind", "a"], ["f"], workdir=sys.argv[2])
 m.run_one(np.array([9.0, 1.0]))
 '''
@@ -528,6 +521,7 @@ CONCURRENT = r'''
 import os, sys
 import numpy as np
 from rotoruq.evaluation.external import ExternalModel
+from rotoruq.evaluation.process_tree import is_running as alive
 driver, work, who = sys.argv[1:4]
 m = ExternalModel([sys.executable, "-S", driver], ["a"], ["f"], workdir=work,
                   keep_workdirs=sys.argv[4] == "keep")

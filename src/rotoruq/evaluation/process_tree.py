@@ -33,7 +33,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["DriverRun", "run_process_tree", "TOKEN_VAR", "FILE_TAIL"]
+__all__ = ["DriverRun", "run_process_tree", "is_running", "TOKEN_VAR", "FILE_TAIL"]
 
 TOKEN_VAR = "ROTORUQ_DRIVER_TOKEN"
 FILE_TAIL = 64 * 1024  # bytes of the end of each stream kept (file and memory)
@@ -133,6 +133,12 @@ def _stat(pid: int) -> tuple[str, int, int, int, int] | None:
         return f[0].decode(), int(f[1]), int(f[2]), int(f[3]), int(f[19])
     except (IndexError, ValueError):
         return None
+
+
+def is_running(pid: int) -> bool:
+    """True while process ``pid`` exists and is not a zombie (Linux ``/proc``)."""
+    st = _stat(pid)
+    return st is not None and st[0] not in ("Z", "X")
 
 
 def _pids() -> list[int]:

@@ -41,6 +41,9 @@ for line in open("input.txt"):
     k, v = line.split("=")
     vals[k.strip()] = float(v)
 time.sleep(float(os.environ.get("DRIVER_SLEEP", "0")))
+gate = os.environ.get("DRIVER_GATE")
+while gate and not os.path.exists(gate):
+    time.sleep(0.02)
 a, b, c = vals["a"], vals["b"], vals["c"]
 if a > float(os.environ.get("DRIVER_FAIL_ABOVE", "inf")):
     sys.exit(3)
@@ -231,22 +234,28 @@ def test_rotor_changes_are_never_served_stale(tmp_path, what):
 
 def test_second_run_on_one_folder_refuses(tmp_path):
     study = external_study(tmp_path / "s", n=6)
-    log = tmp_path / "driver.log"
-    env = {**os.environ, "DRIVER_SLEEP": "0.4", "DRIVER_LOG": str(log)}
+    log, gate = tmp_path / "driver.log", tmp_path / "gate"
+    # the first run's driver waits at the gate: the first run holds the folder meanwhile
+    env = {**os.environ, "DRIVER_GATE": str(gate), "DRIVER_LOG": str(log)}
     out = tmp_path / "out"
     first = subprocess.Popen([*CLI, "run", str(study), "--out", str(out), "--no-report"],
                              env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        deadline = time.time() + 60
-        while not (log.is_file() and log.read_text()) and time.time() < deadline:
+        lock = out / ".rotoruq.lock"
+        deadline = time.time() + 120
+        while time.time() < deadline:
+            text = lock.read_text() if lock.is_file() else ""
+            if text and json.loads(text).get("pid") == first.pid:
+                break
             time.sleep(0.05)
         second = cli("run", study, "--out", out, "--no-report", env=env, check=False)
-        assert second.returncode == 1
+        assert second.returncode == 1, second.stderr
         assert "in use by another rotoruq run" in second.stderr
         assert f"PID {first.pid}" in second.stderr
         assert "Traceback" not in second.stderr
     finally:
-        _, err = first.communicate(timeout=120)
+        gate.touch()
+        _, err = first.communicate(timeout=300)
     assert first.returncode == 0, err
     runs = Counter(log.read_text().split())
     assert len(runs) == 6 and max(runs.values()) == 1

@@ -496,16 +496,20 @@ def test_untagged_work_directory_is_emptied_only_if_rotoruq_made_it(driver, tmp_
     mine = tmp_path / "work" / "solver"
     mine.mkdir(parents=True)
     (mine / "notes.txt").write_text("the user's own folder\n")
-    m = model(driver, tmp_path, name="solver", tag=False, keep_workdirs=True)
+    m = model(driver, tmp_path, name="solver", tag=False, keep_workdirs=True,
+              failure_policy="retry:1")
     with pytest.raises(ParameterError, match="not made by rotoruq"):
         m.run_one(np.array([0.0, 1.0]))
     assert (mine / "notes.txt").read_text() == "the user's own folder\n"
     (mine / "notes.txt").unlink()
     mine.rmdir()
+    r = m.run_one(np.array([3.0, 0.5]))  # fails twice (fail marker): the retry re-made it
+    assert r.status == "failed" and r.attempts == 2
     for a in (1.0, 2.0):  # rotoruq's own directory is reused run after run
         r = m.run_one(np.array([0.0, a]))
         assert r.values[0] == 2 * a and r.workdir == str(mine)
         assert (mine / ".rotoruq-workdir").exists()
+    assert sorted(p.name for p in (tmp_path / "work").iterdir()) == ["solver"]
 
 
 def test_parameters_file_cannot_be_forged_through_a_label(tmp_path):
@@ -585,6 +589,11 @@ def test_identity_covers_what_changes_answers(driver, tmp_path):
     assert word["path"] == str(driver) and word["sha256"] == hashlib.sha256(
         driver.read_bytes()).hexdigest()
     assert ident["command"][0]["sha256"]  # the interpreter itself
+    with pytest.raises(ParameterError, match="number or a string"):
+        make(fixed={"c0": True})
+    # an int is written "3", a float "3.0000000000000000e+00": the identities differ as JSON
+    assert (json.dumps(make(fixed={"c0": 3}).identity())
+            != json.dumps(make(fixed={"c0": 3.0}).identity()))
     changed = {
         "fixed": make(fixed={"c0": 1.0}),
         "failure_policy": make(failure_policy="retry:2"),

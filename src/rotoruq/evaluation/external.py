@@ -69,6 +69,7 @@ __all__ = ["ExternalModel", "RunResult", "FailurePolicy", "parse_failure_policy"
 _TAIL = 8192  # bytes of stdout/stderr kept with a failed evaluation
 STDOUT_FILE, STDERR_FILE = "rotoruq.stdout", "rotoruq.stderr"
 MARKER = ".rotoruq-workdir"  # in a tag=False work directory: rotoruq made it, may empty it
+MAX_RESULTS_BYTES = 256 * 2**20  # a results file larger than this is a failure, not read
 
 
 @dataclass(frozen=True)
@@ -164,6 +165,15 @@ def _content(path: Path) -> dict:
     return {"name": path.name, "sha256": digest, "files": len(lines)}
 
 
+def _fixed_value(name: str, v) -> float | int | str:
+    """A fixed value as written to the parameters file: float, int (kept as int) or str."""
+    if isinstance(v, np.generic):
+        v = v.item()
+    if isinstance(v, bool) or not isinstance(v, (float, int, str)):
+        raise ParameterError(f"fixed input {name!r} must be a number or a string, got {v!r}")
+    return v
+
+
 def _file_name(name, what: str) -> str:
     check_label(name, what)
     if name in (".", ".."):
@@ -240,7 +250,8 @@ class ExternalModel:
                         for c in command]
         self.names_in = tuple(check_label(n, "input name") for n in names_in)
         self.names_out = tuple(check_label(n, "response name") for n in names_out)
-        self.fixed = {check_label(k, "fixed input name"): v for k, v in (fixed or {}).items()}
+        self.fixed = {check_label(k, "fixed input name"): _fixed_value(k, v)
+                      for k, v in (fixed or {}).items()}
         labels = list(self.names_in) + list(self.fixed)
         if len(set(labels)) != len(labels):
             raise ParameterError(f"duplicate input names among the inputs {self.names_in} and "
@@ -330,8 +341,7 @@ class ExternalModel:
                 "command": command,
                 "names_in": list(self.names_in),
                 "names_out": list(self.names_out),
-                "fixed": {k: (v if isinstance(v, str) else float(v))
-                          for k, v in self.fixed.items()},
+                "fixed": dict(self.fixed),
                 "templates": [{"name": q.name,
                                "sha256": hashlib.sha256(t.encode("utf-8")).hexdigest()}
                               for q, t in self._templates],
@@ -383,13 +393,12 @@ class ExternalModel:
         return argv
 
     def _make_workdir(self, eval_id: str, previous: Path | None) -> Path:
-        """A fresh, empty work directory made by this call (or the one of the previous
-        attempt of this evaluation, emptied). Never removes a directory rotoruq did not make."""
+        """A fresh, empty work directory made by this call; ``previous`` (the directory of
+        the previous attempt of this evaluation, made by this model) is removed first.
+        Never removes a directory rotoruq did not make."""
         self.workdir.mkdir(parents=True, exist_ok=True)
         if previous is not None:
             shutil.rmtree(previous, ignore_errors=True)
-            previous.mkdir()
-            return previous
         if not self.tag:
             wd = self.workdir / self.name
             if wd.is_symlink() or (wd.exists() and not (wd / MARKER).is_file()):
@@ -452,6 +461,13 @@ class ExternalModel:
             why = f": {last[0][:200]}" if last else ""
             return None, f"driver exited with status {rc}{sig}{why}", out_s, err_s
         try:
+            size = (wd / self.results_file).stat().st_size
+        except OSError:
+            size = 0  # missing: read_results says so
+        if size > MAX_RESULTS_BYTES:
+            return (None, f"bad results file: {size} bytes (more than {MAX_RESULTS_BYTES}; "
+                    "not read)", out_s, err_s)
+        try:
             res = read_results(wd / self.results_file, names=self.names_out,
                                asv=[1] * len(self.names_out))
         except InputFileError as exc:
@@ -486,13 +502,19 @@ class ExternalModel:
         wd = None
         while True:
             attempts += 1
-            wd = self._make_workdir(eval_id, wd)
-            vals, error, out, err = self._run_once(x, eval_id, wd)
+            try:
+                wd = self._make_workdir(eval_id, wd)
+            except OSError as exc:  # disk full, no permission: a failure like any other
+                vals, error, out, err = None, f"could not make a work directory: {exc}", "", ""
+                wd = None
+            else:
+                vals, error, out, err = self._run_once(x, eval_id, wd)
             if error is None or attempts >= tries:
                 break
         wall = time.perf_counter() - t0
-        keep = self.keep_workdirs is True or (self.keep_workdirs == "failed" and error)
-        if not keep:
+        keep = wd is not None and (self.keep_workdirs is True or
+                                   (self.keep_workdirs == "failed" and error is not None))
+        if not keep and wd is not None:
             shutil.rmtree(wd, ignore_errors=True)
         m = len(self.names_out)
         if error is None:

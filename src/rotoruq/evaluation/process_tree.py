@@ -67,9 +67,9 @@ class DriverRun:
 class _Capture:
     """Drain one pipe into a file: the first ``cap`` bytes, then the last ``FILE_TAIL``."""
 
-    def __init__(self, fd: int, path: Path, cap: int):
+    def __init__(self, fd: int, file, cap: int):
         self.fd = fd
-        self.file = open(path, "wb")  # noqa: SIM115 (closed in finish)
+        self.file = file
         self.cap = cap
         self.written = 0  # bytes of the head written to the file
         self.total = 0
@@ -266,20 +266,23 @@ def run_process_tree(
     # an enclosing run (a rotoruq study run as a driver)
     env = {TOKEN_VAR: token, **{k: v for k, v in (os.environ if env is None else env).items()
                                 if k != TOKEN_VAR}}
-    pipes = [os.pipe(), os.pipe()]
-    try:
+    files = []
+    pipes = []
+    try:  # everything that can fail is done before the driver starts
+        files = [open(stdout_path, "wb"), open(stderr_path, "wb")]  # noqa: SIM115
+        pipes = [os.pipe(), os.pipe()]
         proc = subprocess.Popen(list(argv), cwd=cwd, env=env, stdin=subprocess.DEVNULL,
                                 stdout=pipes[0][1], stderr=pipes[1][1], shell=False,
                                 close_fds=True, start_new_session=True)
     except BaseException:
-        for r, w in pipes:
-            os.close(r)
-            os.close(w)
+        for fd in (fd for pair in pipes for fd in pair):
+            os.close(fd)
+        for f in files:
+            f.close()
         raise
     for _, w in pipes:
         os.close(w)
-    caps = [_Capture(pipes[0][0], Path(stdout_path), cap),
-            _Capture(pipes[1][0], Path(stderr_path), cap)]
+    caps = [_Capture(pipes[0][0], files[0], cap), _Capture(pipes[1][0], files[1], cap)]
     tree = _Tree(proc.pid, token)
     sel = selectors.DefaultSelector()
     for c in caps:

@@ -529,7 +529,7 @@ from rotoruq.evaluation.process_tree import is_running as alive
 driver, work, who = sys.argv[1:4]
 m = ExternalModel([sys.executable, "-S", driver], ["a"], ["f"], workdir=work,
                   keep_workdirs=sys.argv[4] == "keep")
-a = np.arange(12.0) + (100.0 if who == "B" else 0.0)
+a = np.arange(8.0) + (100.0 if who == "B" else 0.0)
 b = m.evaluate(a[:, None])
 assert not b.failures, b.failures
 assert np.array_equal(b.values[:, 0], 2 * a), b.values
@@ -565,7 +565,7 @@ def test_two_processes_share_a_base_folder_without_collisions(tmp_path, keep):
         assert p.returncode == 0, err.decode()
     dirs = sorted(d.name for d in work.iterdir())
     if keep == "keep":
-        assert len(dirs) == 24  # one per evaluation, none reused
+        assert len(dirs) == 16  # one per evaluation, none reused
         pids = {out.decode().strip() for out, _ in outs}
         assert {d.split(".")[1] for d in dirs} == pids
     else:

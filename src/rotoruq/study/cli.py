@@ -22,6 +22,8 @@ def build_parser() -> argparse.ArgumentParser:
         prog="rotoruq",
         description="Verification, validation and calibration under uncertainty of rotor models.",
     )
+    parser.add_argument("--debug", action="store_true",
+                        help="show the full traceback of an error")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
         try:
@@ -44,9 +46,22 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         return int(args._run(args) or 0)
-    except RotoruqError as exc:
+    except KeyboardInterrupt:
+        print(f"rotoruq {args.command}: interrupted (finished evaluations and steps are saved; "
+              "run the same command again to resume)", file=sys.stderr)
+        return 130
+    except (RotoruqError, OSError) as exc:
+        if args.debug:
+            raise
         print(f"rotoruq {args.command}: error: {exc}", file=sys.stderr)
         return 1
+    except Exception as exc:  # a bug, not bad input: say so, keep the terminal readable
+        if args.debug:
+            raise
+        print(f"rotoruq {args.command}: internal error: {type(exc).__name__}: {exc}\n"
+              f"(run 'rotoruq --debug {args.command} ...' for the traceback, and please report "
+              "it)", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -84,6 +84,19 @@ if kind in (9, 10):  # a grandchild that leaves the process group (setsid) and h
         time.sleep(0.005)
     if kind == 9:
         time.sleep(60)  # and the driver hangs too
+if kind == 11:  # a daemon: double fork, the middle process exits at once, setsid
+    tag = os.path.join(os.environ["PID_DIR"], f"{x['a']}-{attempt}-{os.getpid()}")
+    if os.fork() == 0:
+        if os.fork() != 0:
+            os._exit(0)
+        os.setsid()
+        open(tag + ".tmp", "w").write(str(os.getpid()))
+        os.rename(tag + ".tmp", tag + ".gc")
+        time.sleep(60)
+        os._exit(0)
+    while not os.path.exists(tag + ".gc"):
+        time.sleep(0.005)
+    time.sleep(60)
 if kind == 5 and random.Random(f"{x['a']}-{attempt}").random() < 0.1:
     sys.stderr.write(f"random failure at attempt {attempt}\n")
     sys.exit(1)
@@ -399,6 +412,18 @@ def test_timeout_kills_a_grandchild_that_left_the_group(driver, tmp_path, monkey
     assert 1.0 <= elapsed < 2.5
     driver_pid, gc_pid = run_pids(pid_dir)
     assert not alive(driver_pid) and not alive(gc_pid)
+
+
+def test_timeout_kills_a_daemonized_grandchild(driver, tmp_path, monkeypatch):
+    """The grandchild's parent exits at once, so it is never seen as a descendant: it is found
+    by the run's token in its environment."""
+    pid_dir = tmp_path / "pids"
+    pid_dir.mkdir()
+    monkeypatch.setenv("PID_DIR", str(pid_dir))
+    r = model(driver, tmp_path, timeout=0.5).run_one(np.array([11.0, 1.0]))
+    assert r.status == "failed" and "timed out" in r.error
+    pids = run_pids(pid_dir)
+    assert len(pids) == 2 and not [p for p in pids if alive(p)]
 
 
 def test_grandchild_left_behind_by_a_successful_driver_is_killed(driver, tmp_path,

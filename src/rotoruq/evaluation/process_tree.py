@@ -7,7 +7,7 @@ time limit. It is the one place where rotoruq runs a solver, and it guarantees:
   (``KeyboardInterrupt``, a cancelled task) and after a normal exit, every process the driver
   left behind is killed with SIGKILL: its process group (= its session, since it starts one),
   every descendant recorded while it ran (``/proc/<pid>/stat`` parent links, scanned at growing
-  intervals: 10 ms up to 0.5 s), and every process whose environment carries the run's
+  intervals: 10 ms doubling up to 2 s), and every process whose environment carries the run's
   random token (``ROTORUQ_DRIVER_TOKEN``), which catches a grandchild that called
   ``setsid()`` and whose parent already exited. Processes are identified by (pid, start time),
   so a recycled pid is never signalled, and the driver itself is reaped only after its group
@@ -305,7 +305,7 @@ def run_process_tree(
                 break
             if now >= next_scan:
                 tree.record()
-                interval = min(2 * interval, 0.5)
+                interval = min(2 * interval, 2.0)
                 next_scan = now + interval
             wait = next_scan - now
             if deadline is not None:

@@ -43,10 +43,12 @@ class RotorPreset:
     c_lag: float = 0.0
     k_pitch_link: float = 1e9
     c_pitch_link: float = 0.0
-    pitch_horn_arm: float = 0.1        # l_h: torsional stiffness = k_pitch_link * l_h^2
+    pitch_horn_arm: float = 0.1        # l_h [m]
+    pitch_link_length: float = 1.0     # l0 [m]: the link's law is per unit strain (see below)
     delta3_deg: float = 0.0            # kinematic pitch-flap coupling: dtheta = -tan(d3) beta
     aero_center_offset: float = 0.0    # aerodynamic centre aft of the feathering axis [m]
     pitching_moment: bool = True       # apply the airfoil CM about the feathering axis
+    cm0: float = 0.0                   # section pitching moment added to the table's CM [-]
     # operating point
     omega: float = 1.0
     rho: float = 1.225
@@ -69,6 +71,15 @@ class RotorPreset:
         if bad:
             raise ParameterError(f"unknown rotor properties {bad}; valid: {sorted(valid)}")
         return replace(self, **changes)
+
+    def feathering_stiffness(self, k_pitch_link):
+        """Feathering stiffness [N m/rad] (or damping [N m s/rad]) from the pitch link's.
+
+        The reference study's multibody pitch link is a rod whose constitutive law is written
+        per unit strain, so ``k_pitch_link`` [N] acts as an axial stiffness EA and the link's
+        spring rate is K_p / l0; at the pitch-horn arm l_h it gives k_theta = (K_p / l0) l_h^2.
+        """
+        return k_pitch_link / self.pitch_link_length * self.pitch_horn_arm**2
 
     @property
     def area(self) -> float:

@@ -241,13 +241,14 @@ class _Rotor:
                             Om[:, None], derivative=True)
 
     def uniform_tip_loss(self, v0, Om):
-        """Prandtl loss for the uniform inflow: the thrust-weighted mean of F over the span
-        (the induced velocity of the loaded annuli rises as 1/F); 1 without tip loss."""
+        """Prandtl loss for the uniform inflow: annulus momentum 4 pi rho F r v^2 dr with one
+        v over the span gives T = 2 rho A v^2 F_mean, F_mean the area (r dr) mean of F over the
+        blade span; 1 without tip loss."""
         if not self.p.tip_loss:
             return np.ones_like(v0)
-        F, _ = prandtl_loss(self.r[None, :], self.p.radius, self.p.root_cutout,
-                            self.p.n_blades, v0[:, None], Om[:, None], derivative=True)
-        wr = self.w * self.r**2
+        F = prandtl_loss(self.r[None, :], self.p.radius, self.p.root_cutout,
+                         self.p.n_blades, v0[:, None], Om[:, None])
+        wr = self.w * self.r
         return fixed_sum(F, wr) / float(np.sum(wr))
 
     def step(self, S, C, ov):
@@ -400,7 +401,7 @@ def solve_hover(
     n_harmonics: int = 2,
     tol: float = 1e-9,
     max_iter: int = 200,
-    check_tol: float = 1e-6,
+    check_tol: float | None = None,
 ) -> HoverSolution:
     """Solve the periodic hover state for n samples.
 
@@ -411,7 +412,7 @@ def solve_hover(
         of the inflow ratio). max_iter : iterations per sample. check_tol : the equations
         re-evaluated at the returned state (structural residual / its k = 0 stiffness [rad],
         momentum residual as a Newton step of the inflow ratio, harmonic inflow [-]) must be
-        below it.
+        below it (default max(1e-6, 100 tol)).
     A sample that fails any check has ``converged`` False and its reason in ``failure``.
     """
     n = np.broadcast(*[np.asarray(v) for v in params.values()]).shape[0]
@@ -419,6 +420,8 @@ def solve_hover(
     for name in ("cm0", "aero_center_offset"):
         P.setdefault(name, np.full(n, float(getattr(preset, name))))
     ov = {k: _col(overrides, k, n) for k in (overrides or {})}
+    if check_tol is None:
+        check_tol = max(1e-6, 100.0 * tol)
     with np.errstate(all="ignore"):
         return _solve(preset, airfoil, grid, P, ov, n, n_harmonics, tol, max_iter, check_tol)
 

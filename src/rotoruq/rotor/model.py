@@ -84,7 +84,9 @@ class RotorModel:
     n_stations, n_azimuth, n_harmonics : discretization (Gauss stations per blade, azimuth
         steps per revolution, harmonics of the blade motion).
     tol, max_iter : convergence of the periodic solution (max change of the blade motion
-        harmonics [rad] and of the inflow ratio between iterations).
+        harmonics [rad] and of the inflow ratio between iterations), iterations per sample.
+    check_tol : the equations re-evaluated at each returned state must leave a residual below
+        it (default max(1e-6, 100 tol); see :func:`rotoruq.rotor.hover.solve_hover`).
     chunk_size : samples solved together (working arrays stay in cache; a throughput knob).
     """
 
@@ -100,6 +102,7 @@ class RotorModel:
         n_harmonics: int = 2,
         tol: float = 1e-8,
         max_iter: int = 200,
+        check_tol: float | None = None,
         chunk_size: int = 128,
     ):
         self.preset = get_preset(preset)
@@ -107,6 +110,7 @@ class RotorModel:
         self.grid = blade_grid(self.preset, n_stations, n_azimuth)
         self.n_harmonics = int(n_harmonics)
         self.tol, self.max_iter = float(tol), int(max_iter)
+        self.check_tol = max(1e-6, 100.0 * self.tol) if check_tol is None else float(check_tol)
         self.chunk_size = int(chunk_size)
         self._airfoil_names = tuple(getattr(self.airfoil, "parameter_names", ()))
         valid = ROTOR_INPUTS + self._airfoil_names
@@ -203,6 +207,7 @@ class RotorModel:
                 n_harmonics=self.n_harmonics,
                 tol=self.tol,
                 max_iter=self.max_iter,
+                check_tol=self.check_tol,
             )
             sols.append(sol)
             vals = np.column_stack([sol.response(r) for r in self.names_out])

@@ -402,6 +402,7 @@ def solve_hover(
     tol: float = 1e-9,
     max_iter: int = 200,
     check_tol: float | None = None,
+    freeze: bool = True,
 ) -> HoverSolution:
     """Solve the periodic hover state for n samples.
 
@@ -413,6 +414,8 @@ def solve_hover(
         re-evaluated at the returned state (structural residual / its k = 0 stiffness [rad],
         momentum residual as a Newton step of the inflow ratio, harmonic inflow [-]) must be
         below it (default max(1e-6, 100 tol)).
+    freeze : True (default): a converged sample leaves the iteration, which makes results
+        independent of the batch; False only serves as a timing baseline.
     A sample that fails any check has ``converged`` False and its reason in ``failure``.
     """
     n = np.broadcast(*[np.asarray(v) for v in params.values()]).shape[0]
@@ -423,10 +426,11 @@ def solve_hover(
     if check_tol is None:
         check_tol = max(1e-6, 100.0 * tol)
     with np.errstate(all="ignore"):
-        return _solve(preset, airfoil, grid, P, ov, n, n_harmonics, tol, max_iter, check_tol)
+        return _solve(preset, airfoil, grid, P, ov, n, n_harmonics, tol, max_iter, check_tol,
+                      freeze)
 
 
-def _solve(preset, airfoil, grid, P, ov, n, n_harmonics, tol, max_iter, check_tol):
+def _solve(preset, airfoil, grid, P, ov, n, n_harmonics, tol, max_iter, check_tol, freeze):
     rot = _Rotor(preset, airfoil, grid, P, ov, n_harmonics)
     C = rot.C
     R, r = preset.radius, rot.r
@@ -451,9 +455,11 @@ def _solve(preset, airfoil, grid, P, ov, n, n_harmonics, tol, max_iter, check_to
     done = np.zeros(n, dtype=bool)
     failure = np.array([""] * n, dtype=object)
     for _ in range(max_iter):
-        act = np.flatnonzero(~done)
-        if act.size == 0:
+        if done.all():
             break
+        # a converged sample leaves the iteration (``freeze=False``, the lock-step baseline of
+        # benchmarks/rotor_throughput.py, iterates every sample until all have converged)
+        act = np.flatnonzero(~done) if freeze else np.arange(n)
         idx = None if act.size == n else act
         s = S if idx is None else {k: v[act] for k, v in S.items()}
         c, o = rot.sub(idx)
@@ -468,7 +474,7 @@ def _solve(preset, airfoil, grid, P, ov, n, n_harmonics, tol, max_iter, check_to
             why = ("the section flow became non-finite" if bad[j] or not np.isfinite(size[j])
                    else "the blade motion exceeded 2 pi rad")
             failure[i] = f"iteration diverged after {iters[i]} iterations ({why})"
-        done[act] = diverged | (size < tol)
+        done[act] |= diverged | (size < tol)
     for i in np.flatnonzero(~done):
         failure[i] = (f"periodic solution did not converge in {iters[i]} iterations "
                       f"(last step {S['resid'][i]:.2e})")

@@ -546,6 +546,11 @@ def _judge(preset, rot, S, C, P, out, live, bad, failure, check_tol):
             else:
                 msg += f", {cmd:.1f} deg commanded"
             failure[i] = msg + ")"
+        elif np.sign(th_cmd := np.rad2deg(C["th_cmd0"][i])) * (
+                dth := np.rad2deg(S["Q"][i, 2, 0].real) - th_cmd) > max(2.0, abs(th_cmd)):
+            failure[i] = (f"physically invalid regime: torsional divergence (the aerodynamic "
+                          f"pitching moment drove the mean blade pitch {dth:+.1f} deg past the "
+                          f"{th_cmd:.1f} deg commanded)")
         elif out["cd_min"][i] < 0:
             power = out["torque"][i] * C["Om"][i]
             failure[i] = (f"physically invalid regime: negative section drag coefficient "

@@ -146,11 +146,38 @@ class _Rotor:
         J[..., 0, 2] -= k_abt[:, None]
         J[..., 1, 1] += 1j * wk * (0.5 * rho * c * Om * 0.02 * float(np.sum(w * r * rr**2))
                                    )[:, None]
+        # Linear-theory derivatives of the feathering moment of the lift acting x_ac aft of the
+        # feathering axis: d/dtheta = -x_ac q_tt, d/dbeta_k = i k x_ac q_tb.
+        x_ac = P["aero_center_offset"]
+        q_tt = 0.5 * rho * c * A0 * Om**2 * float(np.sum(w * r**2))
+        q_tb = 0.5 * rho * c * A0 * Om**2 * float(np.sum(w * r * rr))
+        # The mean lift's pitch derivative is reduced by the inflow's response to it (BEMT:
+        # by m / (m + k_v), m = 4 rho A v / kappa^2, k_v = dT_BE/dv), at the linear-theory
+        # inflow of the initial state; the uniform inflow is solved jointly instead (J0).
+        sigma = preset.solidity
+        th75 = np.deg2rad(P["collective_deg"]) + np.deg2rad(preset.twist_deg) * (
+            0.75 * R - preset.root_cutout) / (R - preset.root_cutout)
+        lam = sigma * A0 / 16 * (np.sqrt(1 + 32 / (sigma * A0) * np.abs(th75) * 0.75) - 1)
+        v_init = np.maximum(lam, 1e-3) * Om * R * np.sqrt(np.maximum(kappa, 0.1))
+        m_mom = 4 * rho * preset.area * v_init / np.maximum(kappa, 0.1) ** 2
+        k_v = preset.n_blades * 0.5 * rho * c * A0 * Om * float(np.sum(w * r))
+        fb = np.ones((Om.size, kvec.size))
+        if self.bemt:
+            fb[:, 0] = m_mom / (m_mom + k_v)
+        J[..., 2, 2] += (x_ac * q_tt)[:, None] * fb
+        J[..., 2, 0] -= 1j * kvec[None, :] * (x_ac * q_tb)[:, None]
         qa = 0.5 * rho * c * A0 * Om
         theta_cmd = swashplate_harmonics(P["collective_deg"], P["lateral_deg"],
                                          P["longitudinal_deg"], n_harmonics)
         F_cmd = np.zeros((Om.size, 3, kvec.size), dtype=complex)
         F_cmd[:, 2, :] = (K_p[:, None] + 1j * wk * C_p[:, None]) * theta_cmd
+        # mean motion + uniform inflow: columns/rows 0-2 the blade, 3 the inflow v0; J0[3, 3]
+        # (momentum) is set per iteration
+        J0 = np.zeros((Om.size, 4, 4), dtype=complex)
+        J0[:, :3, :3] = J[:, 0]
+        J0[:, 0, 3] = 0.5 * rho * c * A0 * Om * float(np.sum(w * r * rr))
+        J0[:, 2, 3] = -x_ac * 0.5 * rho * c * A0 * Om * float(np.sum(w * r))
+        J0[:, 3, 2] = -preset.n_blades * 0.5 * rho * c * A0 * Om**2 * float(np.sum(w * r**2))
         J1 = np.zeros((Om.size, 4, 4), dtype=complex)
         J1[:, :3, :3] = J[:, 1]
         J1[:, 0, 3] = qa * float(np.sum(w * r * rr * r)) / R
@@ -158,7 +185,8 @@ class _Rotor:
             "Om": Om, "rho": rho, "kappa": kappa, "K_b": K_b, "c_flap": P["c_flap"],
             "K_p": K_p, "C_p": C_p, "Z": Z, "Jinv": np.linalg.inv(J), "J1": J1,
             "F_cmd": F_cmd, "th_cmd0": theta_cmd[:, 0].real, "qa": qa,
-            "cm0": P["cm0"], "x_ac": P["aero_center_offset"],
+            "cm0": P["cm0"], "x_ac": P["aero_center_offset"], "v_init": v_init,
+            "J0": J0, "k_v": k_v,
         }
 
     def sub(self, idx):
@@ -282,9 +310,22 @@ class _Rotor:
             dv1 = np.abs(d1[:, 3]) / (Om * R)
         else:
             dv1 = np.zeros_like(Om)
+        dT_r = self.blade_thrust(A)
+        if not self.bemt:
+            # Mean blade motion and the uniform inflow solved together (a soft feathering
+            # restraint couples the blade pitch to the lift, and the lift to the inflow).
+            v = S["v0"]
+            F = self.uniform_tip_loss(v, Om)
+            mom = 2 * C["rho"] * p.area * F / C["kappa"] ** 2
+            J0 = C["J0"].copy()
+            J0[:, 3, 3] = C["k_v"] + 2 * mom * np.abs(v)
+            rhs = np.concatenate([R_dyn[:, :, 0], (fixed_sum(dT_r, self.w) - mom * v * np.abs(v)
+                                                   )[:, None]], axis=1)
+            d0 = np.linalg.solve(J0, rhs[..., None])[..., 0]
+            dQ[:, :, 0] = d0[:, :3]
+            dv_step = d0[:, 3].real
         dQ = dQ * relax[:, None, None]
         new["Q"] = S["Q"] + dQ
-        dT_r = self.blade_thrust(A)
         if self.bemt:
             v_r = S["v_r"]
             F, dF = self.tip_loss(v_r, Om)
@@ -305,13 +346,8 @@ class _Rotor:
             new["v_r"] = v_new
             new["v0"] = fixed_sum(v_new, self.w * self.r) / float(np.sum(self.w * self.r))
         else:
-            T_be = fixed_sum(dT_r, self.w)
-            F = self.uniform_tip_loss(S["v0"], Om)
-            v_new = uniform_update(S["v0"], T_be, C["rho"], p.area, C["kappa"] * F ** -0.5,
-                                   p.chord, Nb, Om, self.r, self.w)
-            v_new = S["v0"] + relax * (v_new - S["v0"])
-            dv = np.abs(v_new - S["v0"]) / (Om * R)
-            new["v0"] = v_new
+            new["v0"] = S["v0"] + relax * dv_step
+            dv = np.abs(relax * dv_step) / (Om * R)
         dv = np.maximum(dv, dv1)
         size = np.maximum(np.max(np.abs(dQ).reshape(dQ.shape[0], -1), axis=1), dv) / relax
         # Per-sample step control: halve the step of a sample whose update grew (stall and
@@ -440,11 +476,7 @@ def _solve(preset, airfoil, grid, P, ov, n, n_harmonics, tol, max_iter, check_to
     # of linear theory at 0.75 R.
     Q = np.zeros((n, 3, K), dtype=complex)
     Q[:, 2, :] = C["F_cmd"][:, 2, :] / C["Z"][:, :, 2, 2]
-    sigma = preset.solidity
-    th75 = C["th_cmd0"] + np.deg2rad(preset.twist_deg) * (0.75 * R - preset.root_cutout) / (
-        R - preset.root_cutout)
-    lam = sigma * A0 / 16 * (np.sqrt(1 + 32 / (sigma * A0) * np.abs(th75) * 0.75) - 1)
-    v0 = np.maximum(lam, 1e-3) * Om * R * np.sqrt(np.maximum(C["kappa"], 0.1))
+    v0 = C["v_init"]
     S = {"Q": Q, "v0": v0, "vc": np.zeros(n), "vs": np.zeros(n), "relax": np.ones(n),
          "resid": np.full(n, np.inf)}
     if rot.bemt:
@@ -465,14 +497,18 @@ def _solve(preset, airfoil, grid, P, ov, n, n_harmonics, tol, max_iter, check_to
         c, o = rot.sub(idx)
         s, size, bad = rot.step(s, c, o)
         iters[act] += 1
-        big = np.max(np.abs(s["Q"]).reshape(act.size, -1), axis=1) > MAX_BLADE_MOTION
+        amp = np.max(np.abs(s["Q"]), axis=2)                     # (n_act, 3) per DOF
+        big = np.max(amp, axis=1) > MAX_BLADE_MOTION
         diverged = bad | ~np.isfinite(size) | big
         for k in S:
             S[k][act] = s[k]
         for j in np.flatnonzero(diverged):
             i = act[j]
+            dof = ("flap", "lag", "pitch")[int(np.argmax(amp[j]))]
             why = ("the section flow became non-finite" if bad[j] or not np.isfinite(size[j])
-                   else "the blade motion exceeded 2 pi rad")
+                   else f"the blade {dof} exceeded 2 pi rad")
+            if dof == "pitch" and not bad[j]:
+                why += ": torsional divergence"
             failure[i] = f"iteration diverged after {iters[i]} iterations ({why})"
         done[act] |= diverged | (size < tol)
     for i in np.flatnonzero(~done):

@@ -9,6 +9,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
@@ -87,7 +88,11 @@ class RotorModel:
         harmonics [rad] and of the inflow ratio between iterations), iterations per sample.
     check_tol : the equations re-evaluated at each returned state must leave a residual below
         it (default max(1e-6, 100 tol); see :func:`rotoruq.rotor.hover.solve_hover`).
-    chunk_size : samples solved together (working arrays stay in cache; a throughput knob).
+    chunk_size : samples solved together (working arrays stay in cache; a throughput knob;
+        results do not depend on it, bitwise).
+
+    After ``evaluate``, ``last_solution`` holds the full :class:`HoverSolution`, one row per
+    input row (``failure`` gives each failed row's reason, "" for a valid row).
     """
 
     def __init__(
@@ -142,6 +147,7 @@ class RotorModel:
         self.names_out = tuple(responses)
         self.fixed = {k: float(v) for k, v in (fixed or {}).items()}
         self.last_solution: HoverSolution | None = None
+        self._freeze = True  # False: lock-step timing baseline (benchmarks/rotor_throughput.py)
 
     @staticmethod
     def _check_name(name, valid):
@@ -208,6 +214,7 @@ class RotorModel:
                 tol=self.tol,
                 max_iter=self.max_iter,
                 check_tol=self.check_tol,
+                freeze=self._freeze,
             )
             sols.append(sol)
             vals = np.column_stack([sol.response(r) for r in self.names_out])
@@ -216,7 +223,7 @@ class RotorModel:
                 failures[int(rows[j])] = sol.failure[j] or "non-finite response"
             vals[bad] = np.nan
             out[rows] = vals
-        self.last_solution = HoverSolution.concatenate(sols) if sols else None
+        self.last_solution = _full_solution(n, idx, sols, failures)
         return EvalBatch(out, failures)
 
     def solve(self, x) -> HoverSolution:
@@ -269,3 +276,22 @@ class RotorModel:
         return failures
 
 
+def _full_solution(n, rows, sols, failures) -> HoverSolution | None:
+    """One solution row per input row: the solved rows in place, rows rejected before the
+    solve NaN (False, 0) with their reason in ``failure``."""
+    if not sols:
+        return None
+    part = HoverSolution.concatenate(sols)
+    kw = {}
+    for f in fields(HoverSolution):
+        a = getattr(part, f.name)
+        if f.name == "failure":
+            full = np.array([failures.get(i, "") for i in range(n)], dtype=object)
+            full[rows] = a
+            kw[f.name] = full.astype(str)
+            continue
+        fill = {"b": False, "i": 0}.get(a.dtype.kind, np.nan)
+        full = np.full((n,) + a.shape[1:], fill, dtype=a.dtype)
+        full[rows] = a
+        kw[f.name] = full
+    return HoverSolution(**kw)

@@ -3,6 +3,7 @@
     python scripts/rotor_fidelity.py            # about a minute on 2 cores
 
 Sections:
+- mbdyn_checks: the model configured like the reference study's multibody runs.
 - control_chain: the GVPM pitch link read as an axial stiffness over its length (k_theta =
   (K_p / l0) l_h^2), the thrust over the thesis's K_p range, and which feathering terms carry
   K_p's effect (each switched off or varied in turn).
@@ -147,6 +148,23 @@ def cyclic_response(n: int = 256) -> dict:
             "roll_pitch_at_posterior_commands": _r(at_post[0, 1:3]),
         }
     out["measured_roll_pitch_4R"] = [-0.0388, -0.2371]
+    # the flap's natural frequency and Lock number, and the lag without the a.c. offset over
+    # blade mass and EI_y (uniform inflow)
+    p = gvpm()
+    grid = rq.RotorModel(p).grid
+    om = fixed["omega"]
+    i_b, s_b = grid.I_flap, grid.S_flap
+    k_b = 1.8751040687**4 / 3.0 * fixed["ei_flap"] / grid.blade_length
+    out["first_flap_frequency_per_rev"] = float(np.sqrt(
+        (k_b + om**2 * (i_b + p.hinge_offset * s_b)) / (i_b * om**2)))
+    out["lock_number"] = float(p.rho * 5.73 * p.chord * p.radius**4 / i_b)
+    lags = {}
+    for mass in (0.1, 0.25, 1.0, 4.0):
+        for ei in (7.0, 10.0):
+            q = gvpm(aero_center_offset=0.0, blade_mass_per_length=mass * p.blade_mass_per_length)
+            lags[f"mass_x{mass}_ei_{ei}"] = _flap_lag_deg(
+                q, {**fixed, "ei_flap": ei, "collective_deg": 5.0})
+    out["no_ac_offset_flap_lag_deg"] = lags
     return out
 
 
@@ -189,8 +207,32 @@ def ground_effect() -> dict:
     return out
 
 
+def mbdyn_checks() -> dict:
+    """The model configured like the reference multibody runs (DESIGN.md hints a and b):
+    MBDyn's NACA 0012 table (from ../shared, not shipped), uniform inflow, no tip loss, no
+    feathering coupling, rigid link."""
+    from pathlib import Path
+
+    from rotoruq.rotor.airfoil import Airfoil
+
+    path = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "airfoils"
+    path = path / "naca0012.c81"
+    if not path.exists():
+        return {"skipped": f"{path} not found"}
+    af = Airfoil.from_c81(path, fit_mode=False)
+    common = {"tip_loss": False, "harmonic_inflow": False, "aero_center_offset": 0.0,
+              "k_pitch_link": 1e12, "lateral_deg": 0.0, "longitudinal_deg": 0.0}
+    g = rq.RotorModel(gvpm(**common, height_over_radius=np.inf), airfoil=af,
+                      responses=["thrust", "torque"])([[5.4, 0.0, 0.0]])[0]
+    b = rq.RotorModel(bo105(twist_deg=-6.2), airfoil=af, responses=["thrust", "torque"])(
+        [[6.0, 0.0, -2.0]])[0]
+    return {"gvpm_rigid_5.4deg": {"rotoruq": _r(g), "mbdyn": [38.7, 1.42]},
+            "bo105_6deg_whole_span_-6.2": {"rotoruq": _r(b), "mbdyn": [2214.0, 1734.0]}}
+
+
 def main() -> None:
     out = {
+        "mbdyn_checks": mbdyn_checks(),
         "control_chain": control_chain(),
         "chosen_properties": chosen_properties(),
         "cyclic_response": cyclic_response(),

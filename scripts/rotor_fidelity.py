@@ -84,6 +84,14 @@ def control_chain() -> dict:
                        "change_10_to_20_percent": float(100 * (y[2, 0] - y[0, 0]) / y[1, 0]),
                        "failures": len(f)}
     out["kp_effect_by_term"] = terms
+    # collective that gives the measured 4R thrust (25.68 N, table 4.1) at the other posterior
+    # means: where a calibration of the preset puts it (the thesis: 5.41 deg)
+    m = rq.RotorModel(p, inputs=["collective_deg"], responses=["thrust"],
+                      fixed={k: v for k, v in {**POST, "k_pitch_link": 15.024}.items()
+                             if k != "collective_deg"})
+    c = np.linspace(3.0, 6.0, 61)
+    t = m(c[:, None])[:, 0]
+    out["collective_for_measured_thrust_deg"] = float(np.interp(25.6849, t, c))
     return out
 
 

@@ -233,7 +233,7 @@ class RotorModel:
             vals = np.column_stack([sol.response(r) for r in self.names_out])
             bad = ~sol.converged | ~np.all(np.isfinite(vals), axis=1)
             for j in np.flatnonzero(bad):
-                failures[int(rows[j])] = sol.failure[j] or "non-finite response"
+                failures[int(rows[j])] = str(sol.failure[j]) or "non-finite response"
             vals[bad] = np.nan
             out[rows] = vals
         self.last_solution = _full_solution(n, idx, sols, failures)

@@ -203,9 +203,11 @@ class _Rotor:
                                          + S["vs"][:, None, None] * np.sin(psi)[None, :, None])
         return base + harm
 
-    def aero(self, S, C, ov):
+    def aero(self, S, C, ov, full=False):
         """Section loads over (n, Npsi, Nr) at the state S; ``bad`` (n,) marks samples whose
-        section flow is not finite (their loads are computed at a neutral flow, not used)."""
+        section flow is not finite (their loads are computed at a neutral flow, not used).
+        ``full`` also returns the section flow and coefficients (the iteration keeps only the
+        loads: fewer live arrays, fewer cache misses)."""
         p, grid, basis, r, rr = self.p, self.grid, self.basis, self.r, self.rr
         Om, rho = C["Om"], C["rho"]
         Q = S["Q"]
@@ -219,6 +221,9 @@ class _Rotor:
         phi = np.arctan2(UP, UT)
         alpha = np.rad2deg(theta[:, :, None] + grid.twist - phi)
         U2 = UT**2 + UP**2
+        del UT, UP, vfield
+        cphi, sphi = np.cos(phi), np.sin(phi)
+        del phi
         mach = np.sqrt(U2) / p.speed_of_sound
         ok = np.isfinite(alpha) & np.isfinite(U2)
         bad = ~ok.reshape(ok.shape[0], -1).all(axis=1)
@@ -231,13 +236,14 @@ class _Rotor:
             mach = np.clip(mach, lo, hi)
         cl, cd, cm = self.airfoil.coefficients(alpha, mach, ov)
         qc = 0.5 * rho[:, None, None] * U2 * p.chord
-        cphi, sphi = np.cos(phi), np.sin(phi)
         dFz = qc * (cl * cphi - cd * sphi)
         dFx = qc * (cl * sphi + cd * cphi)
         cm_sec = (cm if p.pitching_moment else 0.0) + C["cm0"][:, None, None]
         dMp = qc * (p.chord * cm_sec - C["x_ac"][:, None, None] * cl)
-        return {"beta": beta, "dFz": dFz, "dFx": dFx, "dMp": dMp, "alpha": alpha,
-                "mach": mach, "cl": cl, "cd": cd, "cm": cm, "qc": qc, "bad": bad}
+        out = {"beta": beta, "dFz": dFz, "dFx": dFx, "dMp": dMp, "bad": bad}
+        if full:
+            out.update(alpha=alpha, mach=mach, cl=cl, cd=cd, cm=cm, qc=qc)
+        return out
 
     def residuals(self, S, C, A):
         """Structural residual harmonics (n, 3, K) and the blade-root load harmonics."""
@@ -363,7 +369,7 @@ class _Rotor:
         p, grid, basis = self.p, self.grid, self.basis
         Om, rho = C["Om"], C["rho"]
         R, Nb = p.radius, p.n_blades
-        A = self.aero(S, C, ov)
+        A = self.aero(S, C, ov, full=True)
         R_dyn, Mz1 = self.residuals(S, C, A)
         scale = np.abs(np.diagonal(C["Z"][:, 0], axis1=1, axis2=2))      # (n, 3)
         e_dyn = np.max(np.abs(R_dyn).max(axis=2) / scale, axis=1)

@@ -140,8 +140,13 @@ def _same(a, b):
     np.testing.assert_array_equal(a, b)  # NaN == NaN here, every other bit must match
 
 
-@pytest.mark.parametrize("preset,names,nom", [("gvpm", GVPM_IN, GVPM_NOM),
-                                              ("bo105", BO_IN, BO_NOM)])
+@pytest.mark.parametrize("preset,names,nom", [
+    ("gvpm", GVPM_IN, GVPM_NOM),
+    ("bo105", BO_IN, BO_NOM),
+    # the other solver paths: BEMT stations, first-harmonic inflow
+    (gvpm(inflow="bemt", harmonic_inflow=True), GVPM_IN, GVPM_NOM),
+    (gvpm(harmonic_inflow=True, aero_center_offset=0.0), GVPM_IN, GVPM_NOM),
+])
 def test_results_bitwise_independent_of_batch(preset, names, nom):
     rng = np.random.default_rng(3)
     x = np.asarray(nom) * rng.uniform(0.8, 1.2, (24, len(nom)))

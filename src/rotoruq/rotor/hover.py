@@ -506,8 +506,11 @@ def _solve(preset, airfoil, grid, P, ov, n, n_harmonics, tol, max_iter, check_to
         amp = np.max(np.abs(s["Q"]), axis=2)                     # (n_act, 3) per DOF
         big = np.max(amp, axis=1) > MAX_BLADE_MOTION
         diverged = bad | ~np.isfinite(size) | big
-        for k in S:
-            S[k][act] = s[k]
+        if idx is None:
+            S.update(s)   # new arrays: s may hold old ones of S (v_prev), never written into
+        else:
+            for k in S:
+                S[k][act] = s[k]
         for j in np.flatnonzero(diverged):
             i = act[j]
             dof = ("flap", "lag", "pitch")[int(np.argmax(amp[j]))]

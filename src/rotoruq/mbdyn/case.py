@@ -82,7 +82,12 @@ def template_values(preset, inputs: Mapping[str, float], settings: CaseSettings)
     base = RotorModel(preset, inputs=[]).defaults()
     unknown = sorted(k for k in inputs if k not in base)
     if unknown:
-        raise ParameterError(f"{unknown} are not rotor inputs of preset {preset.name!r}")
+        import difflib
+
+        hints = [f"{k!r} (did you mean {c[0]!r}?)" if (c := difflib.get_close_matches(k, base, 1))
+                 else repr(k) for k in unknown]
+        raise ParameterError(f"{', '.join(hints)}: not rotor inputs of preset {preset.name!r}; "
+                             f"valid: {', '.join(base)}")
     vals = {**base, **{k: float(v) for k, v in inputs.items()}}
     vals.update({k: float(getattr(preset, k)) for k in GEOMETRY_FIELDS})
     h = vals["height_over_radius"]
@@ -117,13 +122,13 @@ def run_case(workdir: str | os.PathLike, preset, inputs: Mapping[str, float],
     overrides = {k: float(v) for k, v in inputs.items() if k in coef_names}
     rotor_inputs = {k: v for k, v in inputs.items() if k not in coef_names}
     text, tpath = template_text(template)
+    values = template_values(preset, rotor_inputs, settings)
     used = set(template_fields(text, tpath))
     used |= {src for f in list(used) for src in DERIVED_FROM.get(f, ())}
     unused = sorted(k for k in rotor_inputs if k not in used)
     if unused:
         raise ParameterError(f"MBDyn template {tpath.name} does not use the inputs {unused}; "
                              f"it uses {sorted(used)}")
-    values = template_values(preset, rotor_inputs, settings)
     wd = Path(workdir).absolute()
     wd.mkdir(parents=True, exist_ok=True)
     write_perturbed_c81(airfoil, overrides, wd / AIRFOIL_FILE, free_format=True)

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rotoruq.errors import ParameterError, RotoruqError
+from rotoruq.errors import ParameterError
 from rotoruq.evaluation.dakota_files import read_results, write_parameters
 from rotoruq.evaluation.external import ExternalModel
 from rotoruq.evaluation.templates import fill_template, template_fields

@@ -75,11 +75,12 @@ def env_with_mbdyn(**extra) -> dict[str, str]:
 
 
 def write_rot(path: Path, n: int, fx=0.0, fy=0.0, fz=10.0, mx=0.0, my=0.0, mz=-1.0,
-              conv=1, drift=0.0) -> Path:
-    """A ``.rot`` file of n steps in MBDyn's column layout; ``drift`` adds a linear trend."""
+              conv=1, drift=0.0, flip=0.0) -> Path:
+    """A ``.rot`` file of n steps in MBDyn's column layout; ``drift`` adds a linear trend,
+    ``flip`` a relative step-to-step alternation."""
     rows = []
     for i in range(n):
-        k = 1.0 + drift * i / n
+        k = 1.0 + drift * i / n + flip * (-1) ** i
         rows.append([100, fx, fy, fz * k, mx, my, mz * k, 2.0, 0, 0, 0, 0.01, 0, 0, conv, 2])
     path.write_text("".join(" ".join(repr(float(v)) for v in r) + "\n" for r in rows))
     return path
@@ -108,6 +109,8 @@ def test_extractor_failures_name_the_cause(tmp_path):
         hub_loads(write_rot(tmp_path / "short.rot", 55), **kw)
     with pytest.raises(MBDynError, match="periodic steady state"):
         hub_loads(write_rot(tmp_path / "drift.rot", 80, drift=0.5), **kw)
+    with pytest.raises(MBDynError, match="alternate between time steps"):
+        hub_loads(write_rot(tmp_path / "flip.rot", 80, flip=0.3), **kw)
     with pytest.raises(MBDynError, match="induced velocity iteration did not converge"):
         hub_loads(write_rot(tmp_path / "noconv.rot", 80, conv=0), **kw)
     bad = write_rot(tmp_path / "bad.rot", 80)

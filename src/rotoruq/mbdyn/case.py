@@ -21,7 +21,7 @@ from .extract import HubLoads, hub_loads
 from .solver import run_mbdyn
 
 __all__ = ["TEMPLATES", "CaseSettings", "template_text", "template_values", "run_case",
-           "rigid_equivalent", "GEOMETRY_FIELDS", "OGE_DISTANCE"]
+           "rigid_equivalent", "sample_table", "GEOMETRY_FIELDS", "OGE_DISTANCE"]
 
 #: Bundled templates, by name.
 TEMPLATES = ("rigid",)
@@ -109,11 +109,11 @@ def run_case(workdir: str | os.PathLike, preset, inputs: Mapping[str, float],
 
     ``inputs`` holds rotor inputs (``collective_deg``, ``height_over_radius``, ...) and airfoil
     coefficients of the preset's fit rows (``cla_m03``, ...), which rewrite the c81 table
-    (:func:`rotoruq.rotor.airfoil.write_perturbed_c81`). An input the template does not use is
+    (:func:`sample_table`). An input the template does not use is
     an error (it would silently do nothing). Raises :class:`~rotoruq.mbdyn.solver.MBDynError`
     when MBDyn fails, stops early or does not reach a periodic state.
     """
-    from ..rotor.airfoil import write_perturbed_c81
+    from ..rotor.c81 import write_c81
     from ..rotor.model import load_airfoil
 
     settings = settings or CaseSettings()
@@ -131,7 +131,7 @@ def run_case(workdir: str | os.PathLike, preset, inputs: Mapping[str, float],
                              f"it uses {sorted(used)}")
     wd = Path(workdir).absolute()
     wd.mkdir(parents=True, exist_ok=True)
-    write_perturbed_c81(airfoil, overrides, wd / AIRFOIL_FILE, free_format=True)
+    write_c81(sample_table(airfoil, overrides), wd / AIRFOIL_FILE, free_format=True)
     mbd = wd / "rotor.mbd"
     mbd.write_text(fill_template(text, values, path=tpath))
     run = run_mbdyn(mbd, wd / "rotor", mbdyn=mbdyn, timeout=settings.timeout)
@@ -139,6 +139,20 @@ def run_case(workdir: str | os.PathLike, preset, inputs: Mapping[str, float],
                      radius=preset.radius, steps_per_rev=settings.steps_per_rev,
                      revolutions=settings.revolutions, average=settings.average,
                      tol=settings.tol)
+
+
+def sample_table(airfoil, overrides: Mapping[str, float]):
+    """The c81 table of one sample, as the built-in model sees it: the airfoil's
+    :meth:`~rotoruq.rotor.airfoil.Airfoil.perturbed_table` (fits at the fit rows), except that
+    an airfoil whose fits replace CL only (Bo105, ``airfoil_replace=("cl",)``) keeps the
+    table's own CD block: ``perturbed_table`` rewrites CD at the fit rows either way, which
+    the built-in model does not (torque +10 to +60 % on the Bo105 otherwise)."""
+    from ..rotor.c81 import C81Table
+
+    table = airfoil.perturbed_table(dict(overrides))
+    if not any(n.startswith("cd") for n in airfoil.parameter_names):
+        table = C81Table(table.title, table.cl, airfoil.table.cd, table.cm)
+    return table
 
 
 def rigid_equivalent(preset):

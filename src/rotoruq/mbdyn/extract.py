@@ -14,7 +14,9 @@ rotor turning counter-clockwise seen from above, so README's conventions are
 
 Loads are averaged over the last ``average`` revolutions; the run must have reached its final
 step and be periodic: the mean thrust and torque over the last ``average`` revolutions must
-differ from those over the ``average`` revolutions before by less than ``tol`` (relative).
+differ from those over the ``average`` revolutions before by less than ``tol`` (relative),
+and must not alternate from one time step to the next (a numerical limit cycle of the
+inflow update, whose mean is not the steady state).
 """
 
 from __future__ import annotations
@@ -119,6 +121,15 @@ def hub_loads(path: str | os.PathLike, *, omega: float, rho: float, radius: floa
             f"MBDyn's run in {path} did not reach a periodic steady state: mean thrust/torque "
             f"changed by {periodicity:.2%} between the last two {average}-revolution windows "
             f"(tolerance {tol:.2%}); simulate more revolutions")
+    # A mean over a window can hide a numerical limit cycle: loads that flip between two
+    # values every time step (an undamped quasi-steady inflow update) average to a wrong value.
+    sign = np.where(np.arange(n_avg) % 2, -1.0, 1.0)
+    alternating = float(np.max(np.abs(sign @ last[:, [3, 6]]) / n_avg / scale))
+    if alternating > tol:
+        raise MBDynError(
+            f"MBDyn's loads in {path} alternate between time steps (amplitude {alternating:.2%} "
+            "of the mean): a numerical oscillation, not a steady state; damp the inflow update "
+            "(a larger 'delay' of the induced velocity element) or shorten the time step")
     if np.any(last[:, 14] == 0):
         raise MBDynError(f"MBDyn's induced velocity iteration did not converge in the last "
                          f"{average} revolutions ({path}, column 15)")

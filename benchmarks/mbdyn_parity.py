@@ -118,8 +118,8 @@ def main() -> None:
              for k in ("thrust_diff_pct", "torque_diff_pct")]
     res = {
         "parity": par,
-        "max_abs_diff_pct": max(diffs),
-        "within_1_pct": max(diffs) < 1.0,
+        "max_abs_diff_pct": float(max(diffs)),
+        "within_1_pct": bool(max(diffs) < 1.0),
         "speed": {"mbdyn_s_per_eval": s_per_eval, "revolutions": settings.revolutions,
                   "steps_per_rev": settings.steps_per_rev, "builtin_evals_per_s": rate,
                   "speedup": rate * s_per_eval},

@@ -98,6 +98,23 @@ def test_extractor_sign_conventions_and_coefficients(tmp_path):
     assert h.periodicity == 0.0 and h.steps == 80
 
 
+def test_extractor_reads_hub_joint_reaction(tmp_path):
+    """With the airframe-hub joint's output, loads are minus its reaction (blade inertia
+    included); the rotor file still supplies the inflow convergence flag."""
+    rot = write_rot(tmp_path / "a.rot", 80, fz=50.0, mz=-1.5, mx=9.0, my=9.0)
+    jnt = tmp_path / "a.jnt"
+    jnt.write_text("".join("3 0. 0. -49.0 -2.5 4.0 1.4 0. 0. -49.0 -2.5 4.0 1.4\n"
+                           for _ in range(80)))
+    h = hub_loads(rot, omega=200.0, rho=1.2, radius=0.5, steps_per_rev=10, revolutions=8,
+                  joint=jnt)
+    np.testing.assert_allclose([h.thrust, h.torque, h.roll, h.pitch], [49.0, 1.4, -2.5, -4.0],
+                               rtol=1e-14)
+    jnt.write_text(jnt.read_text() * 2)
+    with pytest.raises(MBDynError, match="expected the airframe-hub joint alone"):
+        hub_loads(rot, omega=200.0, rho=1.2, radius=0.5, steps_per_rev=10, revolutions=8,
+                  joint=jnt)
+
+
 def test_extractor_failures_name_the_cause(tmp_path):
     kw = dict(omega=200.0, rho=1.2, radius=0.5, steps_per_rev=10, revolutions=8)
     with pytest.raises(MBDynError, match="wrote no rotor output"):

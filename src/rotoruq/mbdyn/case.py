@@ -24,9 +24,11 @@ __all__ = ["TEMPLATES", "CaseSettings", "template_text", "template_values", "run
            "rigid_equivalent", "sample_table", "GEOMETRY_FIELDS", "OGE_DISTANCE"]
 
 #: Bundled templates, by name.
-TEMPLATES = ("rigid",)
-#: Preset properties every template may use (lengths m, angles deg, speed of sound m/s).
-GEOMETRY_FIELDS = ("radius", "root_cutout", "chord", "twist_deg", "speed_of_sound")
+TEMPLATES = ("rigid", "elastic")
+#: Preset properties every template may use (lengths m, angles deg, speed of sound m/s,
+#: mass per length kg/m).
+GEOMETRY_FIELDS = ("radius", "root_cutout", "chord", "twist_deg", "speed_of_sound",
+                   "blade_mass_per_length")
 #: Out of ground effect the ground node is put this many radii below the hub (MBDyn's
 #: Cheeseman-Bennett factor is then 1 - 6e-14).
 OGE_DISTANCE = 1.0e6
@@ -135,10 +137,11 @@ def run_case(workdir: str | os.PathLike, preset, inputs: Mapping[str, float],
     mbd = wd / "rotor.mbd"
     mbd.write_text(fill_template(text, values, path=tpath))
     run = run_mbdyn(mbd, wd / "rotor", mbdyn=mbdyn, timeout=settings.timeout)
+    jnt = run.prefix.with_suffix(".jnt")
     return hub_loads(run.prefix.with_suffix(".rot"), omega=values["omega"], rho=values["rho"],
                      radius=preset.radius, steps_per_rev=settings.steps_per_rev,
                      revolutions=settings.revolutions, average=settings.average,
-                     tol=settings.tol)
+                     tol=settings.tol, joint=jnt if jnt.exists() else None)
 
 
 def sample_table(airfoil, overrides: Mapping[str, float]):

@@ -12,6 +12,11 @@ rotor turning counter-clockwise seen from above, so README's conventions are
 - ``roll`` = -M_x [N m] (right side down: x points aft), ``pitch`` = M_y [N m] (nose up);
 - ``power`` = torque * Omega [W], ``ct`` = T / (rho A V_tip^2), ``cq`` = Q / (rho A R V_tip^2).
 
+Templates that also write the reaction of the airframe-hub joint (``output, yes`` on it: the
+``elastic`` template) get their loads from that joint instead: minus its reaction is the load
+the rotor puts on the airframe, blade inertia included, what a balance under the hub
+measures; with cyclic flapping the mean roll and pitch differ from the aerodynamic moments.
+
 Loads are averaged over the last ``average`` revolutions; the run must have reached its final
 step and be periodic: the mean thrust and torque over the last ``average`` revolutions must
 differ from those over the ``average`` revolutions before by less than ``tol`` (relative),
@@ -30,7 +35,7 @@ import numpy as np
 
 from .solver import MBDynError
 
-__all__ = ["HubLoads", "read_rotor_output", "hub_loads", "RESPONSES"]
+__all__ = ["HubLoads", "read_rotor_output", "read_joint_output", "hub_loads", "RESPONSES"]
 
 #: Responses the extractor provides (README names and units).
 RESPONSES = ("thrust", "torque", "roll", "pitch", "power", "ct", "cq")
@@ -62,13 +67,9 @@ class HubLoads:
         return float(getattr(self, name))
 
 
-def read_rotor_output(path: str | os.PathLike) -> np.ndarray:
-    """Rows of a ``.rot`` file as an array (n_steps, n_columns); :class:`MBDynError` when the
-    file is missing, empty or malformed."""
-    path = Path(path)
+def _read_table(path: Path, what: str, min_cols: int, missing: str) -> np.ndarray:
     if not path.is_file():
-        raise MBDynError(f"MBDyn wrote no rotor output: {path} does not exist (did the run start? "
-                         "does the model enable output of its induced velocity element?)")
+        raise MBDynError(f"MBDyn wrote no {what}: {path} does not exist ({missing})")
     rows = []
     with path.open() as f:
         for lineno, line in enumerate(f, 1):
@@ -77,19 +78,32 @@ def read_rotor_output(path: str | os.PathLike) -> np.ndarray:
             try:
                 rows.append([float(v) for v in line.split()])
             except ValueError:
-                raise MBDynError(f"{path}, line {lineno}: expected numbers in MBDyn's rotor "
-                                 f"output, found {line.strip()[:80]!r}") from None
-            if len(rows[-1]) < 16 or len(rows[-1]) != len(rows[0]):
-                raise MBDynError(f"{path}, line {lineno}: expected {max(16, len(rows[0]))} "
-                                 f"columns of rotor output, found {len(rows[-1])}")
+                raise MBDynError(f"{path}, line {lineno}: expected numbers in MBDyn's {what}, "
+                                 f"found {line.strip()[:80]!r}") from None
+            if len(rows[-1]) < min_cols or len(rows[-1]) != len(rows[0]):
+                raise MBDynError(f"{path}, line {lineno}: expected {max(min_cols, len(rows[0]))} "
+                                 f"columns of {what}, found {len(rows[-1])}")
     if not rows:
-        raise MBDynError(f"MBDyn wrote an empty rotor output file {path}")
+        raise MBDynError(f"MBDyn wrote an empty {what} file {path}")
     return np.asarray(rows)
+
+
+def read_rotor_output(path: str | os.PathLike) -> np.ndarray:
+    """Rows of a ``.rot`` file as an array (n_steps, n_columns); :class:`MBDynError` when the
+    file is missing, empty or malformed."""
+    return _read_table(Path(path), "rotor output", 16, "did the run start? does the model "
+                       "enable output of its induced velocity element?")
+
+
+def read_joint_output(path: str | os.PathLike) -> np.ndarray:
+    """Rows of a ``.jnt`` file holding one joint (reaction force and moment in columns 2-7)."""
+    return _read_table(Path(path), "joint output", 7, "does the model enable output of its "
+                       "airframe-hub joint?")
 
 
 def hub_loads(path: str | os.PathLike, *, omega: float, rho: float, radius: float,
               steps_per_rev: int, revolutions: int, average: int = 2,
-              tol: float = 2e-3) -> HubLoads:
+              tol: float = 2e-3, joint: str | os.PathLike | None = None) -> HubLoads:
     """Mean hub loads over the last ``average`` revolutions of a ``.rot`` file.
 
     Parameters
@@ -98,8 +112,20 @@ def hub_loads(path: str | os.PathLike, *, omega: float, rho: float, radius: floa
         coefficients. steps_per_rev, revolutions : the run's time steps per revolution and
         simulated revolutions (the file must hold at least revolutions * steps_per_rev rows).
     average : revolutions averaged. tol : periodicity tolerance (relative).
+    joint : optional ``.jnt`` file of the airframe-hub joint alone. Its reaction (columns
+        2-7, airframe frame) is minus the load the rotor puts on the airframe, blade inertia
+        included: what a balance under the hub measures. With it, the loads come from the
+        joint (the aerodynamic ones of the ``.rot`` file differ when blades flap cyclically);
+        the ``.rot`` file still gives the inflow and its convergence flag.
     """
     rows = read_rotor_output(path)
+    if joint is not None:
+        jrows = read_joint_output(joint)
+        if jrows.shape[0] != rows.shape[0]:
+            raise MBDynError(f"{joint} holds {jrows.shape[0]} time steps but {path} "
+                             f"{rows.shape[0]}: expected the airframe-hub joint alone")
+        rows = rows.copy()
+        rows[:, 1:7] = -jrows[:, 1:7]
     n_avg = average * steps_per_rev
     if 2 * n_avg > revolutions * steps_per_rev:
         raise MBDynError(f"{revolutions} revolutions are too few to average the last {average} "

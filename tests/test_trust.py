@@ -41,6 +41,9 @@ for line in open("input.txt"):
     k, v = line.split("=")
     vals[k.strip()] = float(v)
 time.sleep(float(os.environ.get("DRIVER_SLEEP", "0")))
+gate = os.environ.get("DRIVER_GATE")
+while gate and not os.path.exists(gate):
+    time.sleep(0.02)
 a, b, c = vals["a"], vals["b"], vals["c"]
 if a > float(os.environ.get("DRIVER_FAIL_ABOVE", "inf")):
     sys.exit(3)
@@ -231,22 +234,28 @@ def test_rotor_changes_are_never_served_stale(tmp_path, what):
 
 def test_second_run_on_one_folder_refuses(tmp_path):
     study = external_study(tmp_path / "s", n=6)
-    log = tmp_path / "driver.log"
-    env = {**os.environ, "DRIVER_SLEEP": "0.4", "DRIVER_LOG": str(log)}
+    log, gate = tmp_path / "driver.log", tmp_path / "gate"
+    # the first run's driver waits at the gate: the first run holds the folder meanwhile
+    env = {**os.environ, "DRIVER_GATE": str(gate), "DRIVER_LOG": str(log)}
     out = tmp_path / "out"
     first = subprocess.Popen([*CLI, "run", str(study), "--out", str(out), "--no-report"],
                              env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        deadline = time.time() + 60
-        while not (log.is_file() and log.read_text()) and time.time() < deadline:
+        lock = out / ".rotoruq.lock"
+        deadline = time.time() + 120
+        while time.time() < deadline:
+            text = lock.read_text() if lock.is_file() else ""
+            if text and json.loads(text).get("pid") == first.pid:
+                break
             time.sleep(0.05)
         second = cli("run", study, "--out", out, "--no-report", env=env, check=False)
-        assert second.returncode == 1
+        assert second.returncode == 1, second.stderr
         assert "in use by another rotoruq run" in second.stderr
         assert f"PID {first.pid}" in second.stderr
         assert "Traceback" not in second.stderr
     finally:
-        _, err = first.communicate(timeout=120)
+        gate.touch()
+        _, err = first.communicate(timeout=300)
     assert first.returncode == 0, err
     runs = Counter(log.read_text().split())
     assert len(runs) == 6 and max(runs.values()) == 1
@@ -303,3 +312,31 @@ def test_sigkill_at_random_moments_resumes_bitwise(tmp_path):
     assert len(runs) == n  # none lost
     workers = os.cpu_count() or 1
     assert sum(runs.values()) - n <= kills * workers
+
+
+@pytest.mark.slow
+def test_rotor_study_killed_and_resumed_is_bitwise_equal(tmp_path):
+    """Resumed rotor evaluations run in other batch compositions than an uninterrupted run:
+    the rotor's answers must not depend on which points share a batch."""
+    path = tmp_path / "study.toml"
+    path.write_text(ROTOR_STUDY.format(preset="gvpm", collective=5.4, h=3.0, options="")
+                    .replace("n = 6", "n = 2000")
+                    .replace("[[steps]]", '[parameters.cla_m03]\ndistribution = "normal"\n'
+                             'mean = 0.108\nstd = 0.005\n\n[[steps]]'))
+    cli("run", path, "--out", tmp_path / "ref", "--no-report")
+    reference = outputs(tmp_path / "ref")
+    out = tmp_path / "out"
+    rng = random.Random(3)
+    kills = 0
+    for _ in range(4):
+        proc = subprocess.Popen([*CLI, "run", str(path), "--out", str(out), "--no-report"],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                start_new_session=True)
+        time.sleep(rng.uniform(1.2, 2.5))
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            kills += 1
+        proc.wait()
+    cli("run", path, "--out", out, "--no-report")
+    assert kills >= 1
+    np.testing.assert_array_equal(outputs(out), reference)

@@ -103,7 +103,8 @@ def test_extractor_reads_hub_joint_reaction(tmp_path):
     included); the rotor file still supplies the inflow convergence flag."""
     rot = write_rot(tmp_path / "a.rot", 80, fz=50.0, mz=-1.5, mx=9.0, my=9.0)
     jnt = tmp_path / "a.jnt"
-    jnt.write_text("".join("3 0. 0. -49.0 -2.5 4.0 1.4 0. 0. -49.0 -2.5 4.0 1.4\n"
+    # local frame (turning with the hub) first, then the airframe frame the loads come from
+    jnt.write_text("".join("3 7. 7. -7. 7. 7. 7. 0. 0. -49.0 -2.5 4.0 1.4 3.\n"
                            for _ in range(80)))
     h = hub_loads(rot, omega=200.0, rho=1.2, radius=0.5, steps_per_rev=10, revolutions=8,
                   joint=jnt)

@@ -96,8 +96,9 @@ def read_rotor_output(path: str | os.PathLike) -> np.ndarray:
 
 
 def read_joint_output(path: str | os.PathLike) -> np.ndarray:
-    """Rows of a ``.jnt`` file holding one joint (reaction force and moment in columns 2-7)."""
-    return _read_table(Path(path), "joint output", 7, "does the model enable output of its "
+    """Rows of a ``.jnt`` file holding one joint: reaction force and moment in the joint's
+    local frame (columns 2-7) and in the global frame (8-13)."""
+    return _read_table(Path(path), "joint output", 13, "does the model enable output of its "
                        "airframe-hub joint?")
 
 
@@ -112,8 +113,8 @@ def hub_loads(path: str | os.PathLike, *, omega: float, rho: float, radius: floa
         coefficients. steps_per_rev, revolutions : the run's time steps per revolution and
         simulated revolutions (the file must hold at least revolutions * steps_per_rev rows).
     average : revolutions averaged. tol : periodicity tolerance (relative).
-    joint : optional ``.jnt`` file of the airframe-hub joint alone. Its reaction (columns
-        2-7, airframe frame) is minus the load the rotor puts on the airframe, blade inertia
+    joint : optional ``.jnt`` file of the airframe-hub joint alone. Its reaction in the global
+        frame (columns 8-13; the airframe's, the local one turns with the hub) is minus the load the rotor puts on the airframe, blade inertia
         included: what a balance under the hub measures. With it, the loads come from the
         joint (the aerodynamic ones of the ``.rot`` file differ when blades flap cyclically);
         the ``.rot`` file still gives the inflow and its convergence flag.
@@ -125,7 +126,7 @@ def hub_loads(path: str | os.PathLike, *, omega: float, rho: float, radius: floa
             raise MBDynError(f"{joint} holds {jrows.shape[0]} time steps but {path} "
                              f"{rows.shape[0]}: expected the airframe-hub joint alone")
         rows = rows.copy()
-        rows[:, 1:7] = -jrows[:, 1:7]
+        rows[:, 1:7] = -jrows[:, 7:13]
     n_avg = average * steps_per_rev
     if 2 * n_avg > revolutions * steps_per_rev:
         raise MBDynError(f"{revolutions} revolutions are too few to average the last {average} "

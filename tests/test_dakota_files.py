@@ -246,12 +246,15 @@ LONG = "1" * 20_000
 )
 def test_parsers_take_linear_time_on_long_tokens(kind, text):
     parse = parse_results if kind == "results" else parse_parameters
-    t0 = time.perf_counter()
-    try:
-        parse(text, "hostile")
-    except InputFileError:
-        pass
-    assert time.perf_counter() - t0 < 0.1  # the regex parser took 20 s on such tokens
+    best = float("inf")
+    for _ in range(3):  # the best of three: a busy machine does not make it fail
+        t0 = time.perf_counter()
+        try:
+            parse(text, "hostile")
+        except InputFileError:
+            pass
+        best = min(best, time.perf_counter() - t0)
+    assert best < 0.1  # milliseconds; the regex parser took 20 s on such tokens
 
 
 def test_huge_integer_parses_as_a_number_not_an_error():

@@ -84,6 +84,19 @@ if kind in (9, 10):  # a grandchild that leaves the process group (setsid) and h
         time.sleep(0.005)
     if kind == 9:
         time.sleep(60)  # and the driver hangs too
+if kind == 11:  # a daemon: double fork, the middle process exits at once, setsid
+    tag = os.path.join(os.environ["PID_DIR"], f"{x['a']}-{attempt}-{os.getpid()}")
+    if os.fork() == 0:
+        if os.fork() != 0:
+            os._exit(0)
+        os.setsid()
+        open(tag + ".tmp", "w").write(str(os.getpid()))
+        os.rename(tag + ".tmp", tag + ".gc")
+        time.sleep(60)
+        os._exit(0)
+    while not os.path.exists(tag + ".gc"):
+        time.sleep(0.005)
+    time.sleep(60)
 if kind == 5 and random.Random(f"{x['a']}-{attempt}").random() < 0.1:
     sys.stderr.write(f"random failure at attempt {attempt}\n")
     sys.exit(1)
@@ -401,6 +414,18 @@ def test_timeout_kills_a_grandchild_that_left_the_group(driver, tmp_path, monkey
     assert not alive(driver_pid) and not alive(gc_pid)
 
 
+def test_timeout_kills_a_daemonized_grandchild(driver, tmp_path, monkeypatch):
+    """The grandchild's parent exits at once, so it is never seen as a descendant: it is found
+    by the run's token in its environment."""
+    pid_dir = tmp_path / "pids"
+    pid_dir.mkdir()
+    monkeypatch.setenv("PID_DIR", str(pid_dir))
+    r = model(driver, tmp_path, timeout=0.5).run_one(np.array([11.0, 1.0]))
+    assert r.status == "failed" and "timed out" in r.error
+    pids = run_pids(pid_dir)
+    assert len(pids) == 2 and not [p for p in pids if alive(p)]
+
+
 def test_grandchild_left_behind_by_a_successful_driver_is_killed(driver, tmp_path,
                                                                  monkeypatch):
     pid_dir = tmp_path / "pids"
@@ -471,8 +496,8 @@ def test_output_goes_to_capped_files_not_memory(tmp_path):
 @pytest.mark.parametrize("bad", ["", "..", "a\nb", "a/b", "a\\b", "../x", "a b", "x..y", "{a}",
                                  "a=b", "tab\t"])
 def test_names_are_validated(driver, tmp_path, bad):
-    for kw in ({"names_in": [bad, "a"]}, {"names_out": [bad]}, {"fixed": {bad: 1.0}},
-               {"name": bad}, {"parameters_file": bad}, {"results_file": bad}):
+    for kw in ({"names_in": [bad, "a"]}, {"names_out": [bad]}, {"name": bad},
+               {"parameters_file": bad}, {"results_file": bad}):
         args = {"names_in": ["kind", "a"], "names_out": ["f"], **kw}
         with pytest.raises(ParameterError):
             ExternalModel([sys.executable, str(driver)], args.pop("names_in"),
@@ -496,16 +521,20 @@ def test_untagged_work_directory_is_emptied_only_if_rotoruq_made_it(driver, tmp_
     mine = tmp_path / "work" / "solver"
     mine.mkdir(parents=True)
     (mine / "notes.txt").write_text("the user's own folder\n")
-    m = model(driver, tmp_path, name="solver", tag=False, keep_workdirs=True)
+    m = model(driver, tmp_path, name="solver", tag=False, keep_workdirs=True,
+              failure_policy="retry:1")
     with pytest.raises(ParameterError, match="not made by rotoruq"):
         m.run_one(np.array([0.0, 1.0]))
     assert (mine / "notes.txt").read_text() == "the user's own folder\n"
     (mine / "notes.txt").unlink()
     mine.rmdir()
+    r = m.run_one(np.array([3.0, 0.5]))  # fails twice (fail marker): the retry re-made it
+    assert r.status == "failed" and r.attempts == 2
     for a in (1.0, 2.0):  # rotoruq's own directory is reused run after run
         r = m.run_one(np.array([0.0, a]))
         assert r.values[0] == 2 * a and r.workdir == str(mine)
         assert (mine / ".rotoruq-workdir").exists()
+    assert sorted(p.name for p in (tmp_path / "work").iterdir()) == ["solver"]
 
 
 def test_parameters_file_cannot_be_forged_through_a_label(tmp_path):
@@ -525,7 +554,7 @@ from rotoruq.evaluation.process_tree import is_running as alive
 driver, work, who = sys.argv[1:4]
 m = ExternalModel([sys.executable, "-S", driver], ["a"], ["f"], workdir=work,
                   keep_workdirs=sys.argv[4] == "keep")
-a = np.arange(12.0) + (100.0 if who == "B" else 0.0)
+a = np.arange(8.0) + (100.0 if who == "B" else 0.0)
 b = m.evaluate(a[:, None])
 assert not b.failures, b.failures
 assert np.array_equal(b.values[:, 0], 2 * a), b.values
@@ -561,7 +590,7 @@ def test_two_processes_share_a_base_folder_without_collisions(tmp_path, keep):
         assert p.returncode == 0, err.decode()
     dirs = sorted(d.name for d in work.iterdir())
     if keep == "keep":
-        assert len(dirs) == 24  # one per evaluation, none reused
+        assert len(dirs) == 16  # one per evaluation, none reused
         pids = {out.decode().strip() for out, _ in outs}
         assert {d.split(".")[1] for d in dirs} == pids
     else:
@@ -586,7 +615,8 @@ def test_identity_covers_what_changes_answers(driver, tmp_path):
         driver.read_bytes()).hexdigest()
     assert ident["command"][0]["sha256"]  # the interpreter itself
     changed = {
-        "fixed": make(fixed={"c0": 1.0}),
+        "names_in": ExternalModel([sys.executable, "-S", str(driver)], ["kind", "b"], ["f"],
+                                  workdir=tmp_path / "work", copy_files=[data]),
         "failure_policy": make(failure_policy="retry:2"),
         "env": make(env={"OMP_NUM_THREADS": "1"}),
         "parameters_format": make(parameters_format="aprepro"),
@@ -615,8 +645,9 @@ def test_template_fields_are_checked_when_the_model_is_made(driver, tmp_path):
         model(driver, tmp_path, template_files=[tpl])
     assert err.value.line == 2
     tpl.write_text("c = {a}\nd = {c0}\ne = {h = 2}\n")
-    m = model(driver, tmp_path, template_files=[tpl], fixed={"c0": 0.25}, keep_workdirs=True)
-    r = m.run_one(np.array([0.0, 1.5]))
+    m = ExternalModel([sys.executable, "-S", str(driver)], ["kind", "a", "c0"], ["f"],
+                      workdir=tmp_path / "work", template_files=[tpl], keep_workdirs=True)
+    r = m.run_one(np.array([0.0, 1.5, 0.25]))
     assert (Path(r.workdir) / "solver.inp").read_text() == "c = 1.5\nd = 0.25\ne = 2\n"
     tpl.write_bytes(b"c = {a}\n\xff\n")
     with pytest.raises(InputFileError, match="UTF-8"):

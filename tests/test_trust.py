@@ -340,3 +340,34 @@ def test_rotor_study_killed_and_resumed_is_bitwise_equal(tmp_path):
     cli("run", path, "--out", out, "--no-report")
     assert kills >= 1
     np.testing.assert_array_equal(outputs(out), reference)
+
+
+def test_sigterm_ends_the_run_and_its_drivers(tmp_path):
+    """SIGTERM to `rotoruq run` (a scheduler's time limit): a clean exit, no driver left."""
+    study = external_study(tmp_path / "s", n=4)
+    gate = tmp_path / "never"  # the drivers wait here until ended
+    out = tmp_path / "out"
+    env = {**os.environ, "DRIVER_GATE": str(gate)}
+    proc = subprocess.Popen([*CLI, "run", str(study), "--out", str(out), "--no-report"],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    drivers: list[int] = []
+    while time.time() < deadline and not drivers:
+        drivers = [int(p.name) for p in Path("/proc").iterdir() if p.name.isdigit()
+                   and _cmdline(p).endswith("driver.py params.in results.out")]
+        time.sleep(0.05)
+    assert drivers, "no driver started"
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, err
+    assert "terminated" in err and "Traceback" not in err
+    time.sleep(0.2)
+    assert not [d for d in drivers if Path(f"/proc/{d}").exists()
+                and "Z" not in Path(f"/proc/{d}/stat").read_text().split()[2]]
+
+
+def _cmdline(p: Path) -> str:
+    try:
+        return (p / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace").strip()
+    except OSError:
+        return ""

@@ -527,29 +527,17 @@ def write_results(
     return path
 
 
-def _tokens(text: str) -> list[tuple[int, str]]:
+def _tokens(text: str, path=None) -> list[tuple[int, str]]:
     """Words with their line numbers; ``[``, ``]``, ``[[`` and ``]]`` are tokens of their own
-    (a run of three brackets is a double one then a single one)."""
+    (a run of three brackets is a double one then a single one). Only ``str.replace`` and
+    ``str.split``: linear time."""
     out = []
     for lineno, line in enumerate(text.splitlines(), 1):
-        pieces = []
-        i = 0
-        n = len(line)
-        nxt = {"[": -1, "]": -1}  # next position of each bracket at or after i (n: none)
-        while True:
-            for b, k in nxt.items():  # each find resumes where the last stopped: linear
-                if k < i:
-                    k = line.find(b, i)
-                    nxt[b] = n if k < 0 else k
-            j = min(nxt.values())
-            pieces.append(line[i:j])
-            if j == n:
-                break
-            b = line[j]
-            k = 2 if line.startswith(b + b, j) else 1
-            pieces.append(f" {b * k} ")
-            i = j + k
-        out += [(lineno, w) for w in "".join(pieces).split()]
+        if "\x01" in line or "\x02" in line:  # the placeholders of double brackets below
+            raise InputFileError(path, lineno, "text without control characters", line)
+        line = line.replace("[[", " \x01 ").replace("]]", " \x02 ")
+        line = line.replace("[", " [ ").replace("]", " ] ")
+        out += [(lineno, w.replace("\x01", "[[").replace("\x02", "]]")) for w in line.split()]
     return out
 
 
@@ -580,7 +568,7 @@ def parse_results(
         how many values, gradients and Hessians the file must hold.
     n_dvv : number of derivative variables (length of each gradient).
     """
-    toks = _tokens(text)
+    toks = _tokens(text, path)
     if toks and toks[0][1].lower().startswith("fail"):
         return ResultsFile(np.zeros(0), (), None, None, True)
     if names is not None and asv is None:

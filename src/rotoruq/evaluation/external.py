@@ -6,8 +6,7 @@ For each input point, :class:`ExternalModel`
    process running the evaluation, ``token`` random per model, so that evaluations, worker
    processes and concurrent runs over one base folder never share a directory), copies or
    links the listed files into it and fills the templates;
-2. writes the Dakota parameters file (standard or aprepro format) there: the inputs, then
-   the ``fixed`` values;
+2. writes the Dakota parameters file (standard or aprepro format) there;
 3. runs the command with the work directory as current directory, **without a shell**
    (argument list), in a session of its own; ``driver`` becomes
    ``driver params.in results.out``, and a list command may place ``{params}``,
@@ -32,7 +31,7 @@ Failure policies (``failure_policy``):
 - ``{"recover": [v1, ..., vm]}``: return these values for a failed evaluation (stored with
   status ``recovered`` and the error text).
 
-Names: input, response and fixed labels, the model ``name`` and the file names must be
+Names: input and response labels, the model ``name`` and the file names must be
 non-empty, without white space, control characters, path separators, ``..``, braces, ``=``
 or quotes (:func:`~rotoruq.evaluation.dakota_files.check_label`). rotoruq deletes only work
 directories it made: per-evaluation directories it created itself, and with ``tag=False`` a
@@ -69,6 +68,7 @@ __all__ = ["ExternalModel", "RunResult", "FailurePolicy", "parse_failure_policy"
 _TAIL = 8192  # bytes of stdout/stderr kept with a failed evaluation
 STDOUT_FILE, STDERR_FILE = "rotoruq.stdout", "rotoruq.stderr"
 MARKER = ".rotoruq-workdir"  # in a tag=False work directory: rotoruq made it, may empty it
+MAX_RESULTS_BYTES = 256 * 2**20  # a results file larger than this is a failure, not read
 
 
 @dataclass(frozen=True)
@@ -192,8 +192,6 @@ class ExternalModel:
         into the work directory (same base name). Read, checked and hashed once, when the
         model is made.
     copy_files, link_files : files or directories copied / symlinked into the work directory.
-    fixed : label -> value (float, int or str) written to the parameters file after the
-        inputs and available to the templates; values that are not model inputs.
     parameters_format : "standard" or "aprepro".
     parameters_file, results_file : file names inside the work directory.
     timeout : seconds per run (None: no limit).
@@ -218,7 +216,6 @@ class ExternalModel:
         template_files: Sequence[str | os.PathLike] = (),
         copy_files: Sequence[str | os.PathLike] = (),
         link_files: Sequence[str | os.PathLike] = (),
-        fixed: Mapping[str, float | int | str] | None = None,
         parameters_format: str = "standard",
         parameters_file: str = "params.in",
         results_file: str = "results.out",
@@ -240,11 +237,8 @@ class ExternalModel:
                         for c in command]
         self.names_in = tuple(check_label(n, "input name") for n in names_in)
         self.names_out = tuple(check_label(n, "response name") for n in names_out)
-        self.fixed = {check_label(k, "fixed input name"): v for k, v in (fixed or {}).items()}
-        labels = list(self.names_in) + list(self.fixed)
-        if len(set(labels)) != len(labels):
-            raise ParameterError(f"duplicate input names among the inputs {self.names_in} and "
-                                 f"the fixed inputs {tuple(self.fixed)}")
+        if len(set(self.names_in)) != len(self.names_in):
+            raise ParameterError(f"duplicate input names in {self.names_in}")
         if len(set(self.names_out)) != len(self.names_out):
             raise ParameterError(f"duplicate response names in {self.names_out}")
         self.workdir = Path(workdir).absolute()
@@ -275,7 +269,7 @@ class ExternalModel:
         self._templates = []
         for p in self.template_files:
             text = read_text(p, "template file")
-            check_template(text, labels, p)
+            check_template(text, self.names_in, p)
             self._templates.append((p, text))
         self.timeout = None if timeout is None else float(timeout)
         if self.timeout is not None and not self.timeout > 0:
@@ -307,10 +301,10 @@ class ExternalModel:
         The command (a word naming an existing file, and the program found on ``PATH`` for
         the first word, becomes ``{"path", "sha256"}`` of its bytes, so editing the driver
         script changes the identity), the sha256 of every template, copied and linked file
-        (directories: of all files inside, by relative path), the names, fixed values,
-        parameters format, file names, analysis components, ASV, extra environment and
-        failure policy. Not included: the timeout, work directories and output cap (they do
-        not change a successful answer). Files are hashed on the first call only.
+        (directories: of all files inside, by relative path), the names, parameters format,
+        file names, analysis components, ASV, extra environment and failure policy. Not
+        included: the timeout, work directories and output cap (they do not change a
+        successful answer). Files are hashed on the first call only.
         """
         if self._identity is None:
             command = []
@@ -330,8 +324,6 @@ class ExternalModel:
                 "command": command,
                 "names_in": list(self.names_in),
                 "names_out": list(self.names_out),
-                "fixed": {k: (v if isinstance(v, str) else float(v))
-                          for k, v in self.fixed.items()},
                 "templates": [{"name": q.name,
                                "sha256": hashlib.sha256(t.encode("utf-8")).hexdigest()}
                               for q, t in self._templates],
@@ -383,13 +375,12 @@ class ExternalModel:
         return argv
 
     def _make_workdir(self, eval_id: str, previous: Path | None) -> Path:
-        """A fresh, empty work directory made by this call (or the one of the previous
-        attempt of this evaluation, emptied). Never removes a directory rotoruq did not make."""
+        """A fresh, empty work directory made by this call; ``previous`` (the directory of
+        the previous attempt of this evaluation, made by this model) is removed first.
+        Never removes a directory rotoruq did not make."""
         self.workdir.mkdir(parents=True, exist_ok=True)
         if previous is not None:
             shutil.rmtree(previous, ignore_errors=True)
-            previous.mkdir()
-            return previous
         if not self.tag:
             wd = self.workdir / self.name
             if wd.is_symlink() or (wd.exists() and not (wd / MARKER).is_file()):
@@ -423,7 +414,7 @@ class ExternalModel:
     def _run_once(self, x: np.ndarray, eval_id: str, wd: Path
                   ) -> tuple[np.ndarray | None, str | None, str, str]:
         """One attempt in the (empty) work directory ``wd``: (values, error, stdout, stderr)."""
-        values = {**dict(zip(self.names_in, (float(v) for v in x), strict=True)), **self.fixed}
+        values = dict(zip(self.names_in, (float(v) for v in x), strict=True))
         try:
             self._prepare(wd, values)
             write_parameters(wd / self.parameters_file, values, list(self.names_out),
@@ -451,6 +442,13 @@ class ExternalModel:
             last = err_s.strip().splitlines()[-1:] if err_s.strip() else []
             why = f": {last[0][:200]}" if last else ""
             return None, f"driver exited with status {rc}{sig}{why}", out_s, err_s
+        try:
+            size = (wd / self.results_file).stat().st_size
+        except OSError:
+            size = 0  # missing: read_results says so
+        if size > MAX_RESULTS_BYTES:
+            return (None, f"bad results file: {size} bytes (more than {MAX_RESULTS_BYTES}; "
+                    "not read)", out_s, err_s)
         try:
             res = read_results(wd / self.results_file, names=self.names_out,
                                asv=[1] * len(self.names_out))
@@ -486,13 +484,19 @@ class ExternalModel:
         wd = None
         while True:
             attempts += 1
-            wd = self._make_workdir(eval_id, wd)
-            vals, error, out, err = self._run_once(x, eval_id, wd)
+            try:
+                wd = self._make_workdir(eval_id, wd)
+            except OSError as exc:  # disk full, no permission: a failure like any other
+                vals, error, out, err = None, f"could not make a work directory: {exc}", "", ""
+                wd = None
+            else:
+                vals, error, out, err = self._run_once(x, eval_id, wd)
             if error is None or attempts >= tries:
                 break
         wall = time.perf_counter() - t0
-        keep = self.keep_workdirs is True or (self.keep_workdirs == "failed" and error)
-        if not keep:
+        keep = wd is not None and (self.keep_workdirs is True or
+                                   (self.keep_workdirs == "failed" and error is not None))
+        if not keep and wd is not None:
             shutil.rmtree(wd, ignore_errors=True)
         m = len(self.names_out)
         if error is None:

@@ -7,7 +7,7 @@ time limit. It is the one place where rotoruq runs a solver, and it guarantees:
   (``KeyboardInterrupt``, a cancelled task) and after a normal exit, every process the driver
   left behind is killed with SIGKILL: its process group (= its session, since it starts one),
   every descendant recorded while it ran (``/proc/<pid>/stat`` parent links, scanned at growing
-  intervals: 10 ms up to 0.5 s), and every process whose environment carries the run's
+  intervals: 10 ms doubling up to 2 s), and every process whose environment carries the run's
   random token (``ROTORUQ_DRIVER_TOKEN``), which catches a grandchild that called
   ``setsid()`` and whose parent already exited. Processes are identified by (pid, start time),
   so a recycled pid is never signalled, and the driver itself is reaped only after its group
@@ -67,9 +67,9 @@ class DriverRun:
 class _Capture:
     """Drain one pipe into a file: the first ``cap`` bytes, then the last ``FILE_TAIL``."""
 
-    def __init__(self, fd: int, path: Path, cap: int):
+    def __init__(self, fd: int, file, cap: int):
         self.fd = fd
-        self.file = open(path, "wb")  # noqa: SIM115 (closed in finish)
+        self.file = file
         self.cap = cap
         self.written = 0  # bytes of the head written to the file
         self.total = 0
@@ -266,20 +266,23 @@ def run_process_tree(
     # an enclosing run (a rotoruq study run as a driver)
     env = {TOKEN_VAR: token, **{k: v for k, v in (os.environ if env is None else env).items()
                                 if k != TOKEN_VAR}}
-    pipes = [os.pipe(), os.pipe()]
-    try:
+    files = []
+    pipes = []
+    try:  # everything that can fail is done before the driver starts
+        files = [open(stdout_path, "wb"), open(stderr_path, "wb")]  # noqa: SIM115
+        pipes = [os.pipe(), os.pipe()]
         proc = subprocess.Popen(list(argv), cwd=cwd, env=env, stdin=subprocess.DEVNULL,
                                 stdout=pipes[0][1], stderr=pipes[1][1], shell=False,
                                 close_fds=True, start_new_session=True)
     except BaseException:
-        for r, w in pipes:
-            os.close(r)
-            os.close(w)
+        for fd in (fd for pair in pipes for fd in pair):
+            os.close(fd)
+        for f in files:
+            f.close()
         raise
     for _, w in pipes:
         os.close(w)
-    caps = [_Capture(pipes[0][0], Path(stdout_path), cap),
-            _Capture(pipes[1][0], Path(stderr_path), cap)]
+    caps = [_Capture(pipes[0][0], files[0], cap), _Capture(pipes[1][0], files[1], cap)]
     tree = _Tree(proc.pid, token)
     sel = selectors.DefaultSelector()
     for c in caps:
@@ -302,7 +305,7 @@ def run_process_tree(
                 break
             if now >= next_scan:
                 tree.record()
-                interval = min(2 * interval, 0.5)
+                interval = min(2 * interval, 2.0)
                 next_scan = now + interval
             wait = next_scan - now
             if deadline is not None:

@@ -65,8 +65,8 @@ def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
                 fixed: Mapping[str, float], out: Path | None = None):
     """The study's ``[model]`` for one step, without the evaluation store: a
     :class:`~rotoruq.rotor.model.RotorModel`, or an
-    :class:`~rotoruq.evaluation.external.ExternalModel` over ``inputs`` with the fixed inputs
-    written into every parameters file and template.
+    :class:`~rotoruq.evaluation.external.ExternalModel` over ``inputs`` plus the fixed inputs
+    (written into every parameters file), wrapped so that its inputs are ``inputs``.
 
     Paths in an external ``[model]`` (words of ``command`` that name files, ``templates``,
     ``files``) are relative to the study file's folder; ``workdir`` is relative to the results
@@ -81,6 +81,7 @@ def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
         return RotorModel(preset, inputs=list(inputs), responses=list(responses),
                           fixed=dict(fixed))
     from ..evaluation.external import ExternalModel
+    from ..evaluation.model import FixedInputs
 
     ext = spec.external
     base = study.path.parent if study.path is not None else Path.cwd()
@@ -104,13 +105,15 @@ def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
     workdir = Path(ext.workdir) if ext.workdir else Path("work")
     if not workdir.is_absolute():
         workdir = out / workdir
-    return ExternalModel(
-        [near_study(w) for w in ext.command], list(inputs), list(responses),
-        fixed={k: v for k, v in fixed.items() if k not in inputs}, workdir=workdir,
-        template_files=[base / t for t in ext.templates],
+    names_in = list(inputs) + [n for n in fixed if n not in inputs]
+    model = ExternalModel(
+        [near_study(w) for w in ext.command], names_in, list(responses),
+        workdir=workdir, template_files=[base / t for t in ext.templates],
         copy_files=[base / f for f in ext.files], parameters_format=ext.parameters_format,
         timeout=ext.timeout, failure_policy=policy,
     )
+    fixed_here = {k: v for k, v in fixed.items() if k not in inputs}
+    return FixedInputs(model, fixed_here) if fixed_here else model
 
 
 def build_model_factory(study: Study, store_path: Path | None = None,

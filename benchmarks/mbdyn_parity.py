@@ -7,8 +7,10 @@ wall seconds per evaluation (template filled, c81 written, MBDyn run for the stu
 revolutions at 72 steps per revolution, loads extracted; no interpreter start-up) against the
 built-in model's evaluations per second on a batch of 1000 points, in the same run.
 
-Needs MBDyn ($MBDYN, PATH, or ~/.cache/mbdyn/bin/mbdyn). Prints JSON;
-``--markdown`` prints README's parity table instead.
+Needs MBDyn ($MBDYN, PATH, or ~/.cache/mbdyn/bin/mbdyn). Prints JSON; ``--markdown`` prints
+README's tables instead (``--from-json run.json`` renders a saved run). ``--elastic`` adds the
+elastic GVPM comparison: the nominal point, hub moments under 1 deg of lateral and longitudinal
+cyclic (and the azimuth of the moment change), thrust sensitivity to K_p, ground-effect ratios.
 """
 
 from __future__ import annotations
@@ -185,7 +187,12 @@ def main() -> None:
     ap.add_argument("--elastic", action="store_true",
                     help="also compare the elastic GVPM (7 MBDyn runs of the elastic template)")
     ap.add_argument("--elastic-revolutions", type=int, default=12)
+    ap.add_argument("--from-json", type=Path, default=None,
+                    help="print the markdown of a saved JSON run instead of running")
     args = ap.parse_args()
+    if args.from_json:
+        print(markdown(json.loads(args.from_json.read_text())))
+        return
     settings = CaseSettings(revolutions=args.revolutions)
     mbdyn = locate_mbdyn()
     par, walls = parity(mbdyn, settings)

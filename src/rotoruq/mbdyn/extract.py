@@ -114,10 +114,11 @@ def hub_loads(path: str | os.PathLike, *, omega: float, rho: float, radius: floa
         simulated revolutions (the file must hold at least revolutions * steps_per_rev rows).
     average : revolutions averaged. tol : periodicity tolerance (relative).
     joint : optional ``.jnt`` file of the airframe-hub joint alone. Its reaction in the global
-        frame (columns 8-13; the airframe's, the local one turns with the hub) is minus the load the rotor puts on the airframe, blade inertia
-        included: what a balance under the hub measures. With it, the loads come from the
-        joint (the aerodynamic ones of the ``.rot`` file differ when blades flap cyclically);
-        the ``.rot`` file still gives the inflow and its convergence flag.
+        frame (columns 8-13: the airframe's; the local one turns with the hub) is minus the
+        load the rotor puts on the airframe, blade inertia included: what a balance under the
+        hub measures. With it, the loads come from the joint (the aerodynamic ones of the
+        ``.rot`` file differ when blades flap cyclically); the ``.rot`` file still gives the
+        inflow and its convergence flag.
     """
     rows = read_rotor_output(path)
     if joint is not None:

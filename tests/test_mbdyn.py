@@ -305,3 +305,32 @@ def test_study_through_cli_killed_and_resumed(tmp_path):
     assert res.returncode == 0, res.stderr
     np.testing.assert_array_equal(load_step(out / "steps" / "lhs").arrays["outputs"], reference)
     assert stored(out) == n  # every evaluation stored once: none lost, none repeated
+
+
+@pytest.mark.slow
+@needs_mbdyn
+def test_study_runs_on_dask_by_changing_only_the_executor(tmp_path, monkeypatch):
+    """The MBDyn study on a real Dask scheduler with two worker processes on loopback (only
+    [executor] changes): the same numbers as with local processes."""
+    distributed = pytest.importorskip("distributed")
+    env = env_with_mbdyn()
+    for key in ("MBDYN", "PATH"):  # the workers' environment, as a user's cluster would have
+        monkeypatch.setenv(key, env[key])
+    study = small_study(tmp_path / "s", 4)
+    procs = subprocess.run([*CLI, "run", str(study), "--out", str(tmp_path / "p"),
+                            "--no-report"], env=env, capture_output=True, text=True, timeout=600)
+    assert procs.returncode == 0, procs.stderr
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address=None) as cluster:
+        text = study.read_text().replace(
+            'kind = "processes"', f'kind = "dask"\nscheduler = "{cluster.scheduler_address}"')
+        dask_study = tmp_path / "s" / "dask.toml"
+        dask_study.write_text(text)
+        res = subprocess.run([*CLI, "run", str(dask_study), "--out", str(tmp_path / "d"),
+                              "--no-report"], env=env, capture_output=True, text=True,
+                             timeout=600)
+    assert res.returncode == 0, res.stderr
+    expected = load_step(tmp_path / "p" / "steps" / "lhs").arrays["outputs"]
+    assert expected.shape == (4, 3) and np.all(np.isfinite(expected))
+    np.testing.assert_array_equal(load_step(tmp_path / "d" / "steps" / "lhs").arrays["outputs"],
+                                  expected)

@@ -146,16 +146,8 @@ def run_case(workdir: str | os.PathLike, preset, inputs: Mapping[str, float],
 
 def sample_table(airfoil, overrides: Mapping[str, float]):
     """The c81 table of one sample, as the built-in model sees it: the airfoil's
-    :meth:`~rotoruq.rotor.airfoil.Airfoil.perturbed_table` (fits at the fit rows), except that
-    an airfoil whose fits replace CL only (Bo105, ``airfoil_replace=("cl",)``) keeps the
-    table's own CD block: ``perturbed_table`` rewrites CD at the fit rows either way, which
-    the built-in model does not (torque +10 to +60 % on the Bo105 otherwise)."""
-    from ..rotor.c81 import C81Table
-
-    table = airfoil.perturbed_table(dict(overrides))
-    if not any(n.startswith("cd") for n in airfoil.parameter_names):
-        table = C81Table(table.title, table.cl, airfoil.table.cd, table.cm)
-    return table
+    :meth:`~rotoruq.rotor.airfoil.Airfoil.perturbed_table` (fits at the fit rows)."""
+    return airfoil.perturbed_table(dict(overrides))
 
 
 def rigid_equivalent(preset):

@@ -541,16 +541,19 @@ class Airfoil:
         Fit Mach numbers that are not rows of the CL/CD blocks are inserted, and the angles
         -W and +W are inserted if missing, so that an external solver interpolating the file
         (MBDyn semantics) sees the same CL as :meth:`coefficients`, and the same CD at the
-        table's angles (between them a solver sees CD's quadratic as a polygon).
+        table's angles (between them a solver sees CD's quadratic as a polygon). An airfoil
+        whose fits replace CL only (``replace=("cl",)``) keeps the table's CD block.
         """
         if self._nominal is None:
             raise ParameterError("this Airfoil has no fit Mach rows (fit_mode=False or empty)")
         vals = self._override_values(dict(overrides or {}), 1)[0] if overrides \
             else self._nominal.coefficients()
         w = self._window
-        new = {}
-        for name, block, sl in (("cl", self._table.cl, slice(0, 2)),
-                                ("cd", self._table.cd, slice(2, 5))):
+        new = {"cd": self._table.cd}  # kept as tabulated unless the fits replace CD too
+        blocks = [("cl", self._table.cl, slice(0, 2))]
+        if self._replace_cd:
+            blocks.append(("cd", self._table.cd, slice(2, 5)))
+        for name, block, sl in blocks:
             ga = _union(np.concatenate([block.alpha, [-w, w]]))
             gm = _union(np.concatenate([block.mach, self._fit_machs]))
             A, M = np.meshgrid(ga, gm, indexing="ij")

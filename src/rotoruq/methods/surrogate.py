@@ -171,8 +171,21 @@ class GaussianProcess:
         a float or (m,) array = measurement-error variance Delta^2 in response units
         (thesis eq. 2.39), or "estimate" (noise-to-signal ratio fitted by maximum likelihood).
     n_restarts : number of random starts of L-BFGS-B in addition to the default start.
-    mean : known mean of the responses for simple Kriging (scalar or (m,)); trend=None only.
+    mean : known mean of the responses for simple Kriging (scalar or (m,), response units);
+        only with ``trend=None`` (default 0), a :class:`ParameterError` otherwise (with a
+        trend the mean is estimated).
+    length_scales : (d,) or (m, d) length-scales in input units. With ``optimize=False``
+        they are used as given; with ``optimize=True`` they replace the default first start.
+    variance : process variance sigma^2 (scalar or (m,), response units squared); only with
+        ``optimize=False``. None: its closed-form maximum-likelihood value given the
+        length-scales (needs an interpolating GP, ``nugget=None``).
+    optimize : False to build the GP from the given hyperparameters without any likelihood
+        optimization (to reuse a fit or compare with another library); needs
+        ``length_scales`` and a nugget that is None or a fixed variance.
     seed : int or Generator for the random starts.
+
+    The jitter actually added to the covariance diagonal (response units squared, per
+    response) is :attr:`jitter`.
     """
 
     def __init__(
@@ -181,8 +194,12 @@ class GaussianProcess:
         kernel: str = "sqexp",
         nugget: None | float | str | Sequence[float] = None,
         n_restarts: int = 2,
-        mean: float | Sequence[float] = 0.0,
+        mean: float | Sequence[float] | None = None,
         seed: SeedLike = None,
+        *,
+        length_scales: Sequence[float] | np.ndarray | None = None,
+        variance: float | Sequence[float] | None = None,
+        optimize: bool = True,
     ):
         if trend not in TRENDS:
             raise ParameterError(f"unknown trend {trend!r}; valid: {TRENDS}")
@@ -196,12 +213,47 @@ class GaussianProcess:
                 raise ParameterError(f"nugget variance must be finite and >= 0, got {nugget!r}")
         if int(n_restarts) < 0:
             raise ParameterError(f"n_restarts must be >= 0, got {n_restarts}")
+        if mean is not None and trend is not None:
+            raise ParameterError(
+                f"mean= is the known mean of simple Kriging (trend=None); with trend={trend!r} "
+                "the mean is estimated from the data: drop mean= or set trend=None"
+            )
+        if mean is not None and not np.all(np.isfinite(np.asarray(mean, dtype=float))):
+            raise ParameterError(f"mean must be finite, got {mean!r}")
+        if length_scales is not None:
+            ls = np.asarray(length_scales, dtype=float)
+            if ls.ndim not in (1, 2) or np.any(~np.isfinite(ls)) or np.any(ls <= 0):
+                raise ParameterError(
+                    f"length_scales must be a (d,) or (m, d) array of finite values > 0, got "
+                    f"{length_scales!r}"
+                )
+        if variance is not None:
+            if optimize:
+                raise ParameterError("variance= fixes the process variance: use it with "
+                                     "optimize=False (with optimization it is estimated)")
+            v = np.asarray(variance, dtype=float)
+            if np.any(~np.isfinite(v)) or np.any(v <= 0):
+                raise ParameterError(f"variance must be finite and > 0, got {variance!r}")
+        if not optimize:
+            if length_scales is None:
+                raise ParameterError("optimize=False needs length_scales= (and optionally "
+                                     "variance=): there is nothing to fit them with")
+            if nugget == "estimate":
+                raise ParameterError("nugget='estimate' needs optimize=True; with fixed "
+                                     "hyperparameters give the nugget as a variance")
+            if nugget is not None and variance is None:
+                raise ParameterError("with a fixed nugget variance and optimize=False, give "
+                                     "variance= too (it is no longer in closed form)")
         self.trend = trend
         self.kernel = kernel
         self.nugget = nugget
         self.n_restarts = int(n_restarts)
-        self.mean = mean
+        self.mean = 0.0 if mean is None else mean
         self.seed = seed
+        self.length_scales_init = None if length_scales is None else np.asarray(
+            length_scales, dtype=float)
+        self.variance_init = None if variance is None else np.asarray(variance, dtype=float)
+        self.optimize = bool(optimize)
         self._fits: list[_Fit] = []
 
     # --- fitting ---------------------------------------------------------------------------
@@ -249,12 +301,35 @@ class GaussianProcess:
         noise = None
         if self.nugget is not None and not isinstance(self.nugget, str):
             noise = np.broadcast_to(np.asarray(self.nugget, dtype=float), (m,)) / self._y_std**2
+        log_ell0 = None
+        if self.length_scales_init is not None:
+            ls = self.length_scales_init
+            if ls.shape not in ((d,), (m, d)):
+                raise ParameterError(f"length_scales must have shape ({d},) or ({m}, {d}) for "
+                                     f"{d} inputs and {m} responses, got {ls.shape}")
+            log_ell0 = np.log(np.broadcast_to(ls, (m, d)) / self._span)
+        s2_fixed = None
+        if self.variance_init is not None:
+            v = self.variance_init
+            if v.shape not in ((), (1,), (m,)):
+                raise ParameterError(f"variance must be a scalar or ({m},), got {v.shape}")
+            s2_fixed = np.broadcast_to(v.reshape(-1) if v.ndim else v, (m,)) / self._y_std**2
+            if noise is None:
+                noise = np.zeros(m)  # a fixed sigma^2: the non-concentrated likelihood path
         self._fits = []
         for j in range(m):
             ys = (Y[:, j] - self._y_mean[j]) / self._y_std[j]
-            self._fits.append(self._fit_one(ys, None if noise is None else float(noise[j]), rng))
+            nj = None if noise is None else float(noise[j])
+            if not self.optimize:
+                theta = log_ell0[j]
+                if nj is not None:
+                    theta = np.append(theta, np.log(s2_fixed[j]))
+                self._fits.append(self._fit_at(ys, theta, nj))
+            else:
+                self._fits.append(self._fit_one(ys, nj, rng,
+                                                None if log_ell0 is None else log_ell0[j]))
         self._build_fast()
-        worst = max(f.jitter for f in self._fits)
+        worst = max(f.jitter if f.concentrated else f.jitter / f.sigma2 for f in self._fits)
         if worst > _BASE_JITTER * 1.01 and self.nugget is None:
             warnings.warn(f"GaussianProcess: correlation matrix was ill-conditioned; a jitter of "
                           f"{worst:.1e} was added to its diagonal", RuntimeWarning, stacklevel=2)
@@ -331,7 +406,7 @@ class GaussianProcess:
             g[d] = 0.5 * eta * float(np.trace(W))
         return ll, g, out
 
-    def _fit_one(self, ys: np.ndarray, noise: float | None, rng) -> _Fit:
+    def _fit_one(self, ys: np.ndarray, noise: float | None, rng, log_ell0=None) -> _Fit:
         n, d = self._Xs.shape
         extra = noise is not None or self.nugget == "estimate"
         bounds = [_LOG_ELL_BOUNDS] * d
@@ -340,7 +415,7 @@ class GaussianProcess:
         elif self.nugget == "estimate":
             bounds.append(_LOG_ETA_BOUNDS)
         lb, ub = np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds])
-        starts = [np.full(d, np.log(0.5))]
+        starts = [np.full(d, np.log(0.5)) if log_ell0 is None else np.asarray(log_ell0)]
         lo_s, hi_s = np.log(0.05), np.log(3.0)
         for _ in range(self.n_restarts):
             starts.append(lo_s + (hi_s - lo_s) * rng.random(d))
@@ -376,7 +451,11 @@ class GaussianProcess:
             res = run(obj, s, 60 if len(starts) == 1 else 150)
             if best is None or res.fun < best.fun:
                 best = res
-        _, _, o = self._solve(ys, best.x, noise, False)
+        return self._fit_at(ys, best.x, noise)
+
+    def _fit_at(self, ys: np.ndarray, theta: np.ndarray, noise: float | None) -> _Fit:
+        """The solved systems of one response at hyperparameters ``theta``."""
+        _, _, o = self._solve(ys, theta, noise, False)
         L, Lf = o["L"], o["Lf"]
         minv_f = linalg.solve_triangular(L, Lf, lower=True, trans=1, check_finite=False)
         ftf = None
@@ -419,6 +498,15 @@ class GaussianProcess:
         self._check_fitted()
         v = [f.noise if not f.concentrated else f.eta * f.sigma2 for f in self._fits]
         return np.array(v) * self._y_std**2
+
+    @property
+    def jitter(self) -> np.ndarray:
+        """Variance added to the covariance diagonal for a stable Cholesky factorization, per
+        response, in response units squared, shape (m,). It starts at 1e-10 sigma^2 and is
+        raised x100 while the factorization fails (a warning says so above 1e-10)."""
+        self._check_fitted()
+        return np.array([f.jitter * f.sigma2 if f.concentrated else f.jitter
+                         for f in self._fits]) * self._y_std**2
 
     @property
     def bounds(self) -> np.ndarray:

@@ -103,10 +103,12 @@ def test_gradient_matches_finite_differences(design, kernel, trend):
     np.testing.assert_allclose(g, fd, rtol=1e-5, atol=1e-5 * np.abs(fd).max())
 
 
+@pytest.mark.parametrize("likelihood", ["ml", "reml"])
 @pytest.mark.parametrize("nugget", [None, "estimate", 1e-3])
-def test_likelihood_gradient_is_analytic_and_right(design, nugget):
+def test_likelihood_gradient_is_analytic_and_right(design, nugget, likelihood):
     x, y = design
-    gp = GaussianProcess(trend="linear", kernel="matern52", nugget=nugget, n_restarts=0).fit(x, y)
+    gp = GaussianProcess(trend="linear", kernel="matern52", nugget=nugget, n_restarts=0,
+                         likelihood=likelihood).fit(x, y)
     ys = (y[:, 0] - gp._y_mean[0]) / gp._y_std[0]
     noise = nugget / gp._y_std[0] ** 2 if isinstance(nugget, float) else None
     theta = np.log([0.3, 0.6, 1.2])

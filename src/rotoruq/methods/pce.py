@@ -27,7 +27,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import special, stats
+from scipy import special
 
 from .._rng import SeedLike, as_generator
 from ..errors import ParameterError
@@ -56,7 +56,7 @@ class Germ:
     def to_x(self, xi):
         d, f = self.dist, self.family
         if f == "hermite":
-            return d.mean + d.std * xi if isinstance(d, Normal) else d.ppf(stats.norm.cdf(xi))
+            return d.mean + d.std * xi if isinstance(d, Normal) else d.from_z(xi)
         if f in ("legendre", "jacobi"):
             lo, hi = d.bounds
             return lo + (xi + 1) * (hi - lo) / 2
@@ -67,7 +67,7 @@ class Germ:
         if f == "hermite":
             if isinstance(d, Normal):
                 return (x - d.mean) / d.std
-            return stats.norm.ppf(np.clip(d.cdf(x), 1e-300, 1 - 1e-16))
+            return d.to_z(x)
         if f in ("legendre", "jacobi"):
             lo, hi = d.bounds
             return 2 * (x - lo) / (hi - lo) - 1

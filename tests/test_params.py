@@ -160,3 +160,18 @@ def test_truncated_normal_matches_scipy_in_the_body():
     q = np.linspace(0.01, 0.99, 25)
     np.testing.assert_allclose(d.ppf(q), ref.ppf(q), atol=1e-12)
     np.testing.assert_allclose(d.isf(q), ref.isf(q), atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "build, match",
+    [
+        (lambda: rq.Normal("ten", 1.0), "Normal: mean must be a number, got 'ten'"),
+        (lambda: rq.Uniform(0.0, None), "Uniform: upper must be a number"),
+        (lambda: rq.Triangular("a", 0.0, 1.0), "Triangular: mode must be a number"),
+        (lambda: rq.ParameterSpace({"a": rq.Normal(0, 1), "b": rq.Normal(0, 1)},
+                                   correlation=[[1, "x"], ["x", 1]]), "matrix of numbers"),
+    ],
+)
+def test_non_numeric_parameters_are_parameter_errors(build, match):
+    with pytest.raises(ParameterError, match=match):
+        build()

@@ -52,22 +52,29 @@ __all__ = [
 ]
 
 
+def _number(name: str, value, what: str) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{what}: {name} must be a number, got {value!r}") from None
+
+
 def _positive(name: str, value: float, what: str) -> float:
-    value = float(value)
+    value = _number(name, value, what)
     if not np.isfinite(value) or value <= 0:
         raise ParameterError(f"{what}: {name} must be a finite number > 0, got {value!r}")
     return value
 
 
 def _finite(name: str, value: float, what: str) -> float:
-    value = float(value)
+    value = _number(name, value, what)
     if not np.isfinite(value):
         raise ParameterError(f"{what}: {name} must be finite, got {value!r}")
     return value
 
 
 def _ordered(lower: float, upper: float, what: str) -> tuple[float, float]:
-    lower, upper = float(lower), float(upper)
+    lower, upper = _number("lower", lower, what), _number("upper", upper, what)
     if not (lower < upper):
         raise ParameterError(
             f"{what}: bounds must satisfy lower < upper, got lower={lower!r}, upper={upper!r}"
@@ -429,7 +436,8 @@ class Triangular(Distribution):
 
     def __post_init__(self):
         lo, hi = _ordered(self.lower, self.upper, "Triangular")
-        if not (lo <= self.mode <= hi):
+        _finite("mode", self.mode, "Triangular")
+        if not (lo <= float(self.mode) <= hi):
             raise ParameterError(
                 f"Triangular: mode must lie in [lower, upper], got mode={self.mode!r}, "
                 f"lower={lo!r}, upper={hi!r}"
@@ -720,7 +728,12 @@ class ParameterSpace:
         r0 = None
         if self.correlation is not None:
             d = len(items)
-            r = np.array(self.correlation, dtype=float)
+            try:
+                r = np.array(self.correlation, dtype=float)
+            except (TypeError, ValueError):
+                raise ParameterError(
+                    f"correlation must be a ({d}, {d}) matrix of numbers, got "
+                    f"{self.correlation!r}") from None
             if r.shape != (d, d):
                 raise ParameterError(f"correlation must have shape ({d}, {d}), got {r.shape}")
             if not np.all(np.isfinite(r)) or not np.allclose(r, r.T, atol=1e-12):

@@ -148,3 +148,16 @@ def test_g_function_indices_and_inert_inputs():
     assert np.all(res.main_ci[0, :, 0] <= res.main_ci[0, :, 1])
     same = sobol_indices(model, space, 2048, seed=7)
     np.testing.assert_array_equal(res.main_ci, same.main_ci)  # seeded bootstrap
+
+
+def test_constant_response_warns_instead_of_silent_nan():
+    space, _, _ = ishigami_setup()
+    model = rq.FunctionModel(lambda x: np.column_stack([ishigami(x), 0 * x[:, 0] + 2.0]),
+                             space.names, ["y", "flat"])
+    with pytest.warns(RuntimeWarning, match="'flat' is constant over the design"):
+        res = sobol_indices(model, space, 256, seed=1)
+    assert np.all(np.isnan(res.main[1])) and res.variance[1] == 0.0
+    assert np.all(np.isfinite(res.main[0]))
+    with pytest.warns(RuntimeWarning, match=r"\['flat'\] have zero variance"):
+        pce = rq.polynomial_chaos(model, space, order=2)
+    assert np.all(np.isnan(pce.main[1])) and np.all(np.isfinite(pce.main[0]))

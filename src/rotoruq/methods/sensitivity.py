@@ -203,6 +203,10 @@ def _indices(means, n, d, estimator):
     return main, total, var_ab
 
 
+def _name(names_out, k: int) -> str:
+    return names_out[k] if names_out is not None else f"y{k}"
+
+
 def _bootstrap_counts(rng, b: int, n: int) -> np.ndarray:
     """(b, n) multiplicities of the rows in b resamples with replacement of n rows."""
     idx = rng.integers(0, n, size=(b, n)) + (n * np.arange(b))[:, None]
@@ -260,6 +264,15 @@ def sobol_from_design(
             continue
         b = blocks[:, rows, k]
         mean[k] = b[:2].mean()
+        if np.ptp(b) == 0.0:
+            warnings.warn(
+                f"sobol_indices: response {_name(names_out, k)!r} is constant over the design "
+                f"(= {b.flat[0]:.6g}): it has no variance to apportion, its indices are NaN",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+            var[k] = 0.0
+            continue
         c = b.mean()  # the estimators are shift invariant; centring avoids cancellation
         terms = _row_terms(b[0] - c, b[1] - c, b[2:] - c)
         with np.errstate(divide="ignore", invalid="ignore"):

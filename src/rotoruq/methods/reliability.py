@@ -257,7 +257,9 @@ class MPPResult:
     (differs from beta_cdf with SORM); ``mpp_u`` / ``mpp_x`` (k, d) most probable points;
     ``curvatures`` (k, d-1) principal curvatures (SORM only, else NaN).
     Inverse (PMA) mapping: ``probability_response`` / ``reliability_response`` response
-    levels for ``probability_levels`` / ``reliability_levels`` (CDF sense, FORM).
+    levels for ``probability_levels`` / ``reliability_levels`` (CDF sense; first-order, or
+    second-order levels with ``integration="second_order"``); ``pma_mpp_x`` their MPPs.
+    ``converged``: every RIA and PMA search met the MPP (KKT) conditions.
     """
 
     names_in: tuple[str, ...]

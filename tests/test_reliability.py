@@ -341,3 +341,14 @@ def test_sorm_undefined_warns_with_its_reason():
     assert p == pytest.approx(stats.norm.cdf(-3.0))
     with pytest.warns(SORMWarning, match="undefined"):
         sorm_probability(3.0, [-0.4], "breitung")
+
+
+def test_unreachable_level_warns_and_reports_not_converged():
+    # g = a^2 + b >= 0 everywhere: the level -1 has no limit state
+    from rotoruq.methods.reliability import mpp_search
+
+    space = rq.ParameterSpace({"a": rq.Normal(1, 1), "b": rq.Uniform(0, 1)})
+    model = rq.FunctionModel(lambda x: x[:, 0] ** 2 + x[:, 1], ["a", "b"], ["g"])
+    with pytest.warns(RuntimeWarning, match="RIA.*level -1 did not meet the MPP conditions"):
+        r = mpp_search(model, space, response_levels=[-1.0], max_iter=30)
+    assert not r.converged

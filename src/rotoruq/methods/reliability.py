@@ -684,6 +684,8 @@ def mpp_search(
         for j, z in enumerate(zs):
             u, conv, gmean = _ria(um, k, z, tol, max_iter, name)
             ok &= conv
+            if not conv:
+                _not_converged("RIA", name, f"response level {z:.6g}", um, u, k, z)
             beta = float(np.linalg.norm(u))
             s = 1.0 if gmean > z else -1.0
             b_cdf[j] = s * beta
@@ -705,6 +707,8 @@ def mpp_search(
             for j, beta in enumerate(betas):
                 u, conv = _pma_level(um, k, float(beta), second, sorm, tol, max_iter, name)
                 ok &= conv
+                if not conv:
+                    _not_converged("PMA", name, f"reliability index {beta:.6g}", um, u, k)
                 zz[j] = um.value_grad(u)[0][k]
                 pmx.append(u)
             out[key][name] = zz
@@ -728,6 +732,21 @@ def mpp_search(
         pma_mpp_x=out["pmx"],
         n_evaluations=um.n_eval,
         converged=bool(ok),
+    )
+
+
+def _not_converged(kind, name, level, um, u, k, z=None):
+    g, grad = um.value_grad(u)
+    detail = f"|u| = {np.linalg.norm(u):.6g}"
+    if z is not None:
+        gn = np.linalg.norm(grad[k])
+        detail += ", distance to the limit state |G - z| / |grad G| = " + (
+            f"{abs(g[k] - z) / gn:.3g}" if gn > 0 else "inf (flat response)")
+    warnings.warn(
+        f"MPP search ({kind}) for {name!r} at {level} did not meet the MPP conditions within "
+        f"max_iter ({detail}): its result is not reliable (the level may be unreachable)",
+        RuntimeWarning,
+        stacklevel=3,
     )
 
 

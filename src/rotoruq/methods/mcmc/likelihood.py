@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...errors import ModelShapeError, ParameterError
+from ._kernels import misfit_rows
 
 __all__ = ["GaussianLikelihood"]
 
@@ -106,16 +107,15 @@ class GaussianLikelihood:
         self._c0 = c0
         self._const = -0.5 * (n_exp * m * np.log(2.0 * np.pi) + logdet)
         # diagonal precision (independent errors, the usual case): O(m) per evaluation
-        self._pdiag = np.diag(P).copy() if np.count_nonzero(P - np.diag(np.diag(P))) == 0 \
-            else None
+        diag = bool(np.count_nonzero(P - np.diag(np.diag(P))) == 0)
+        self.pack = (np.ascontiguousarray(P), b, float(c0), float(self._const), diag)
 
     def misfit(self, q: np.ndarray) -> np.ndarray:
         """Misfit ``1/2 sum_e r_e^T Gamma_e^-1 r_e`` (eq. 2.24) for responses q (k, m) -> (k,)."""
-        if q.ndim == 1:
-            q = q[None, :]
-        quad = (q * q) @ self._pdiag if self._pdiag is not None else \
-            ((q @ self.precision) * q).sum(1)
-        return 0.5 * (quad - 2.0 * (q @ self.b) + self._c0)
+        q = np.ascontiguousarray(np.atleast_2d(q), dtype=float)
+        out = np.empty(q.shape[0])
+        misfit_rows(q, self.pack, out)
+        return out
 
     def __call__(self, q: np.ndarray) -> np.ndarray:
         """Log-likelihood (eq. 2.23, normalized) for responses q (k, m) -> (k,)."""

@@ -69,23 +69,41 @@ def _log1mexp(a: float) -> float:
 
 
 @_jit
-def propose(x, L, Z1, Z2, t, K, inv_s, Y) -> None:
-    """Y[j, 0, k] = x[k] + L[k] Z1[t + j, k] and, when Y has two stages,
-    Y[j, 1, k] = x[k] + L[k] Z2[t + j, k] / dr_scale, for j < K. Y : (K_max, S, c, d)."""
-    c, d = x.shape
+def _propose_node(centre, L, Z1, Z2, tt, inv_s, Y, node, k) -> None:
+    """Y[node, 0, k] = centre + L[k] Z1[tt, k]; Y[node, 1, k] = centre + L[k] Z2[tt, k] / s."""
+    d = centre.shape[0]
     two = Y.shape[1] == 2
+    for a in range(d):
+        s1 = 0.0
+        s2 = 0.0
+        for b in range(a + 1):
+            s1 += L[k, a, b] * Z1[tt, k, b]
+            if two:
+                s2 += L[k, a, b] * Z2[tt, k, b]
+        Y[node, 0, k, a] = centre[a] + s1
+        if two:
+            Y[node, 1, k, a] = centre[a] + s2 * inv_s
+
+
+@_jit
+def propose(x, L, Z1, Z2, t, K, inv_s, Y) -> None:
+    """Proposals of steps t .. t+K-1 all centred on the current points: Y[j, 0, k] =
+    x[k] + L[k] Z1[t + j, k] and (two stages) Y[j, 1, k] = x[k] + L[k] Z2[t + j, k] / dr_scale.
+    Y : (K_max, S, c, d)."""
     for j in range(K):
-        for k in range(c):
-            for a in range(d):
-                s1 = 0.0
-                s2 = 0.0
-                for b in range(a + 1):
-                    s1 += L[k, a, b] * Z1[t + j, k, b]
-                    if two:
-                        s2 += L[k, a, b] * Z2[t + j, k, b]
-                Y[j, 0, k, a] = x[k, a] + s1
-                if two:
-                    Y[j, 1, k, a] = x[k, a] + s2 * inv_s
+        for k in range(x.shape[0]):
+            _propose_node(x[k], L, Z1, Z2, t + j, inv_s, Y, j, k)
+
+
+@_jit
+def propose_tree(x, L, Z1, Z2, t, inv_s, Y) -> None:
+    """Proposals of steps t and t+1 for every outcome of step t (one chain): node 0 from x at
+    step t, then step t+1 from x (node 1), from the stage-1 point (node 2) and from the
+    stage-2 point (node 3, with delayed rejection)."""
+    _propose_node(x[0], L, Z1, Z2, t, inv_s, Y, 0, 0)
+    _propose_node(x[0], L, Z1, Z2, t + 1, inv_s, Y, 1, 0)
+    for stage in range(Y.shape[1]):
+        _propose_node(Y[0, stage, 0], L, Z1, Z2, t + 1, inv_s, Y, 2 + stage, 0)
 
 
 @_jit
@@ -144,48 +162,65 @@ def _after_step(x, lp, L, mean, m2, st, fpar, ipar, out, out_lp, delta) -> None:
 
 
 @_jit
-def advance(x, lp, L, Y, LPY, Z1, Z2, LU1, LU2, t, K, mean, m2, st, fpar, ipar, out,
-            out_lp) -> int:
-    """Take up to K steps from the evaluated proposals Y (K_max, S, c, d) with log posteriors
-    LPY (K_max, S, c); returns the number of steps taken (it stops after the first step in
-    which a chain moved). Stage-2 entries of LPY are read only for chains whose stage 1 was
-    rejected; -inf there rejects."""
+def _step(x, lp, Y, LPY, node, Z1, Z2, LU1, LU2, tt, st, inv_s) -> int:
+    """One step of every chain from the evaluated proposals Y[node] (S, c, d) with log
+    posteriors LPY[node] (S, c). Stage-2 entries are read only for chains whose stage 1 was
+    rejected; -inf there rejects. Returns the outcome of the last chain: 0 stayed, 1 moved to
+    the stage-1 point, 2 to the stage-2 point."""
     c, d = x.shape
     two = Y.shape[1] == 2
+    outcome = 0
+    for k in range(c):
+        outcome = 0
+        st[PROP1] += 1
+        lp1 = LPY[node, 0, k]
+        if LU1[tt, k] < lp1 - lp[k]:
+            x[k] = Y[node, 0, k]
+            lp[k] = lp1
+            st[ACC1] += 1
+            outcome = 1
+            continue
+        if not two:
+            continue
+        st[PROP2] += 1
+        lp2 = LPY[node, 1, k]
+        if not lp2 > NEG_INF:
+            continue
+        dz2 = 0.0
+        z12 = 0.0
+        for a in range(d):
+            z1 = Z1[tt, k, a]
+            dz = z1 - Z2[tt, k, a] * inv_s
+            dz2 += dz * dz
+            z12 += z1 * z1
+        num = lp2 - 0.5 * dz2 + _log1mexp(min(lp1 - lp2, 0.0))
+        den = lp[k] - 0.5 * z12 + _log1mexp(min(lp1 - lp[k], 0.0))
+        if LU2[tt, k] < num - den:
+            x[k] = Y[node, 1, k]
+            lp[k] = lp2
+            st[ACC2] += 1
+            outcome = 2
+    return outcome
+
+
+@_jit
+def advance(x, lp, L, Y, LPY, Z1, Z2, LU1, LU2, t, K, tree, mean, m2, st, fpar, ipar, out,
+            out_lp) -> int:
+    """Take up to K steps from the proposals of :func:`propose` (stopping after the first
+    step that moves a chain: the later proposals were centred on the point it left) or, with
+    ``tree``, K (1 or 2) steps from those of :func:`propose_tree`. Returns the steps taken."""
+    delta = np.empty(x.shape[1])
     inv_s = fpar[0]
-    delta = np.empty(d)
+    if tree:
+        o = _step(x, lp, Y, LPY, 0, Z1, Z2, LU1, LU2, t, st, inv_s)
+        _after_step(x, lp, L, mean, m2, st, fpar, ipar, out, out_lp, delta)
+        if K == 1:
+            return 1
+        _step(x, lp, Y, LPY, 1 + o, Z1, Z2, LU1, LU2, t + 1, st, inv_s)
+        _after_step(x, lp, L, mean, m2, st, fpar, ipar, out, out_lp, delta)
+        return 2
     for j in range(K):
-        tt = t + j
-        moved = False
-        for k in range(c):
-            st[PROP1] += 1
-            lp1 = LPY[j, 0, k]
-            if LU1[tt, k] < lp1 - lp[k]:
-                x[k] = Y[j, 0, k]
-                lp[k] = lp1
-                st[ACC1] += 1
-                moved = True
-                continue
-            if not two:
-                continue
-            st[PROP2] += 1
-            lp2 = LPY[j, 1, k]
-            if not lp2 > NEG_INF:
-                continue
-            dz2 = 0.0
-            z12 = 0.0
-            for a in range(d):
-                z1 = Z1[tt, k, a]
-                dz = z1 - Z2[tt, k, a] * inv_s
-                dz2 += dz * dz
-                z12 += z1 * z1
-            num = lp2 - 0.5 * dz2 + _log1mexp(min(lp1 - lp2, 0.0))
-            den = lp[k] - 0.5 * z12 + _log1mexp(min(lp1 - lp[k], 0.0))
-            if LU2[tt, k] < num - den:
-                x[k] = Y[j, 1, k]
-                lp[k] = lp2
-                st[ACC2] += 1
-                moved = True
+        moved = _step(x, lp, Y, LPY, j, Z1, Z2, LU1, LU2, t + j, st, inv_s)
         _after_step(x, lp, L, mean, m2, st, fpar, ipar, out, out_lp, delta)
         if moved:
             return j + 1
@@ -240,6 +275,41 @@ def misfit_rows(Q, lik, out) -> None:
         out[k] = misfit_point(Q[k], lik)
 
 
+@_jit
+def _with_loglik(lpr, q, lik, cnt) -> float:
+    """Log prior lpr plus the log-likelihood of responses q (m,); -inf (counted) when the
+    likelihood is not finite."""
+    cnt[N_EVALS] += 1.0
+    ll = lik[3] - misfit_point(q, lik)
+    if not math.isfinite(ll):
+        cnt[N_NAN] += 1.0
+        return NEG_INF
+    return lpr + ll
+
+
+@_jit
+def scaled_logprior_rows(Z, center, scale, prior, theta, lp) -> None:
+    """theta = center + scale Z (k, d) and its compiled log prior lp (k,)."""
+    for k in range(Z.shape[0]):
+        for a in range(Z.shape[1]):
+            theta[k, a] = center[a] + scale[a] * Z[k, a]
+        lp[k] = logprior_point(theta[k], prior)
+
+
+@_jit
+def add_loglik_rows(Q, lik, lp, cnt) -> None:
+    """lp[k] += log-likelihood of the next row of Q for every k with lp[k] > -inf (Q holds the
+    responses of those rows, in order); counts the rows outside the support and the
+    non-finite likelihoods."""
+    r = 0
+    for k in range(lp.shape[0]):
+        if lp[k] == NEG_INF:
+            cnt[N_OUTSIDE] += 1.0
+            continue
+        lp[k] = _with_loglik(lp[k], Q[r], lik, cnt)
+        r += 1
+
+
 # --- the log posterior on an emulator, and a chain block that never leaves compiled code -----
 
 @_jit
@@ -261,7 +331,6 @@ def emulator_logpost(z, post, work, cnt) -> float:
     xs = work[1, :d]
     q = work[3, :m]
     gp_mean_into(theta, gp, xs, work[2, :d], q)
-    cnt[N_EVALS] += 1.0
     e2 = 0.0
     for a in range(d):
         e = max(0.0, -xs[a]) + max(0.0, xs[a] - 1.0)
@@ -269,11 +338,7 @@ def emulator_logpost(z, post, work, cnt) -> float:
     if e2 > 0.01:
         cnt[N_EXTRAP] += 1.0
         cnt[MAX_EXTRAP] = max(cnt[MAX_EXTRAP], math.sqrt(e2))
-    ll = lik[3] - misfit_point(q, lik)
-    if not math.isfinite(ll):
-        cnt[N_NAN] += 1.0
-        return NEG_INF
-    return lpr + ll
+    return _with_loglik(lpr, q, lik, cnt)
 
 
 @_jit
@@ -300,5 +365,5 @@ def run_block_emulator(x, lp, L, Z1, Z2, LU1, LU2, nb_steps, Y, LPY, mean, m2, s
                 LPY[0, 1, k] = NEG_INF
                 if not LU1[t, k] < LPY[0, 0, k] - lp[k]:
                     LPY[0, 1, k] = emulator_logpost(Y[0, 1, k], post, work, cnt)
-        advance(x, lp, L, Y, LPY, Z1, Z2, LU1, LU2, t, 1, mean, m2, st, fpar, ipar, out,
+        advance(x, lp, L, Y, LPY, Z1, Z2, LU1, LU2, t, 1, False, mean, m2, st, fpar, ipar, out,
                 out_lp)

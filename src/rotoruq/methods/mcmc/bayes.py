@@ -28,7 +28,7 @@ from ...params import ParameterSpace
 from .._common import forward_jacobian
 from ..surrogate import ExtrapolationWarning, GaussianProcess, LeaveOneOut
 from . import diagnostics as dg
-from ._kernels import emulator_logpost_rows
+from ._kernels import add_loglik_rows, emulator_logpost_rows, scaled_logprior_rows
 from .likelihood import GaussianLikelihood
 from .proposals import LogPrior, hessian_covariance, prior_scales
 from .samplers import SamplerConfig, SamplerState, run_chains
@@ -81,28 +81,23 @@ class _Posterior:
             out = np.empty(z.shape[0])
             emulator_logpost_rows(z, self.compiled[0], self.cnt, out)
             return out
-        theta = self.center + self.scale * z
-        lp = self.logprior(theta)
+        n = z.shape[0]
+        theta = np.empty_like(z)
+        lp = np.empty(n)
+        scaled_logprior_rows(z, self.center, self.scale, self.logprior.pack, theta, lp)
+        if not self.logprior.compiled:
+            lp = self.logprior(theta)
         ok = lp > -np.inf
-        nok = int(ok.sum())
-        self.cnt[1] += lp.size - nok
+        nok = int(np.count_nonzero(ok))
+        q = np.empty((0, 0))
         if nok:
-            full = nok == lp.size
-            th = theta if full else theta[ok]
+            th = theta if nok == n else theta[ok]
             if self.gp is not None and ((th < self._far_lo) | (th > self._far_hi)).any():
                 dist = self.gp.extrapolation_distance(th)
                 self.cnt[3] += int((dist > 0.1).sum())
                 self.cnt[4] = max(self.cnt[4], float(dist.max()))
-            ll = self.loglik(self.forward(th))
-            bad = ~np.isfinite(ll)
-            self.cnt[0] += nok
-            if bad.any():
-                self.cnt[2] += int(bad.sum())
-                ll[bad] = -np.inf
-            if full:
-                lp += ll
-            else:
-                lp[ok] += ll
+            q = np.ascontiguousarray(self.forward(th), dtype=float)
+        add_loglik_rows(q, self.loglik.pack, lp, self.cnt)
         return lp
 
 
@@ -424,6 +419,8 @@ def calibrate_bayes(
                           f"{cal_names}: below 0.9, the posterior may be wrong", RuntimeWarning,
                           stacklevel=2)
         forward = gp._mean_fast
+    elif np.array_equal(resp_idx, np.arange(n_out)):
+        forward = truth
     else:
         def forward(theta):
             return truth(theta)[:, resp_idx]

@@ -168,7 +168,7 @@ def run_chains(logpost: Callable[[np.ndarray], np.ndarray], state: SamplerState,
     compiled = getattr(logpost, "compiled", None)
     speculative = cfg.evaluations == "speculative" and compiled is None
     k_max = int(cfg.max_lookahead) if speculative and c == 1 else 1
-    Y = np.empty((k_max, 2 if dr else 1, c, d))
+    Y = np.empty((max(k_max, 4 if k_max > 1 else 1), 2 if dr else 1, c, d))
     LPY = np.full(Y.shape[:3], -np.inf)
     g1, u1, g2, u2 = state.streams
     no_z2 = np.zeros((1, 1, 1))
@@ -197,31 +197,39 @@ def run_chains(logpost: Callable[[np.ndarray], np.ndarray], state: SamplerState,
     return out[:kept], out_lp[:kept]
 
 
-def _lookahead(state: SamplerState, k_max: int) -> int:
-    """Steps to evaluate ahead: about the expected number of steps to the next move."""
+def _plan(state: SamplerState, k_max: int) -> tuple[bool, int]:
+    """Speculative schedule of one chain from its move rate p: the two-step tree (every
+    outcome of the next step, 2 steps per call) when p >= 0.4, else the next K steps from the
+    current point with K about 1/p, the expected number of steps to the next move."""
     prop = state.st[kn.PROP1]
-    if k_max == 1 or prop < 50:
-        return min(k_max, 2)
-    rate = (state.st[kn.ACC1] + state.st[kn.ACC2]) / prop
-    return int(min(k_max, max(1.0, np.ceil(1.0 / max(rate, 1e-3)))))
+    rate = (state.st[kn.ACC1] + state.st[kn.ACC2]) / prop if prop >= 50 else 0.5
+    if k_max >= 4 and rate >= 0.4:
+        return True, 2
+    return False, int(min(k_max, max(1.0, np.ceil(1.0 / max(rate, 1e-3)))))
 
 
 def _block_speculative(logpost, state, cfg, args, nb, k_max, Y, LPY, fpar, ipar, out, out_lp):
     x, lp, L, st = state.x, state.lp, state.chol, state.st
-    c, d = x.shape
+    d = x.shape[1]
+    n_nodes = 4 if Y.shape[1] == 2 else 3
     interval = cfg.adapt_interval if cfg.adaptive else nb
     Z1, Z2 = args[0], args[1]
     t = 0
-    K = _lookahead(state, k_max)
+    tree, K = _plan(state, k_max) if x.shape[0] == 1 else (False, 1)
     while t < nb:
         # proposals after an adaptation would use the new covariance: stop at the boundary
         k = min(K, nb - t, interval - int(st[kn.STEPS]) % interval)
-        kn.propose(x, L, Z1, Z2, t, k, fpar[0], Y)
-        LPY[:k] = logpost(Y[:k].reshape(-1, d)).reshape(LPY[:k].shape)
-        t += kn.advance(x, lp, L, Y, LPY, *args, t, k, state.mean, state.m2, st, fpar, ipar,
-                        out, out_lp)
-        if st[kn.PROP1] % 64 < k:
-            K = _lookahead(state, k_max)
+        if tree and k == 2:
+            kn.propose_tree(x, L, Z1, Z2, t, fpar[0], Y)
+            rows = n_nodes
+        else:
+            kn.propose(x, L, Z1, Z2, t, k, fpar[0], Y)
+            rows = k
+        LPY[:rows] = logpost(Y[:rows].reshape(-1, d)).reshape(LPY[:rows].shape)
+        t += kn.advance(x, lp, L, Y, LPY, *args, t, k, tree and k == 2, state.mean, state.m2,
+                        st, fpar, ipar, out, out_lp)
+        if k_max > 1 and st[kn.PROP1] % 64 < k:
+            tree, K = _plan(state, k_max)
 
 
 def _block_minimal(logpost, state, args, nb, Y, LPY, fpar, ipar, out, out_lp):
@@ -236,5 +244,5 @@ def _block_minimal(logpost, state, args, nb, Y, LPY, fpar, ipar, out, out_lp):
             LPY[0, 1] = -np.inf
             if rej.any():
                 LPY[0, 1, rej] = logpost(Y[0, 1, rej])
-        kn.advance(x, lp, L, Y, LPY, *args, t, 1, state.mean, state.m2, st, fpar, ipar, out,
-                   out_lp)
+        kn.advance(x, lp, L, Y, LPY, *args, t, 1, False, state.mean, state.m2, st, fpar, ipar,
+                   out, out_lp)

@@ -203,7 +203,7 @@ def _plan(state: SamplerState, k_max: int) -> tuple[bool, int]:
     current point with K about 1/p, the expected number of steps to the next move."""
     prop = state.st[kn.PROP1]
     rate = (state.st[kn.ACC1] + state.st[kn.ACC2]) / prop if prop >= 50 else 0.5
-    if k_max >= 4 and rate >= 0.4:
+    if k_max >= 2 and rate >= 0.4:
         return True, 2
     return False, int(min(k_max, max(1.0, np.ceil(1.0 / max(rate, 1e-3)))))
 

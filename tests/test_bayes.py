@@ -92,6 +92,14 @@ def test_same_seed_same_chains():
     b = calibrate_bayes(model, DATA, space, chain_samples=500, n_chains=2,
                         data_covariance=NOISE**2, seed=7)
     np.testing.assert_array_equal(a.chains, b.chains)
+    # one chain: the evaluation schedule changes the number of model runs, not the chain
+    one = [calibrate_bayes(model, DATA, space, chain_samples=800, data_covariance=NOISE**2,
+                           seed=8, evaluations=ev) for ev in ("speculative", "minimal")]
+    np.testing.assert_array_equal(one[0].chains, one[1].chains)
+    assert one[0].acceptance_rate == one[1].acceptance_rate
+    assert one[1].n_likelihood_evals < one[0].n_likelihood_evals
+    with pytest.raises(ParameterError, match="unknown evaluations schedule"):
+        calibrate_bayes(model, DATA, space, chain_samples=10, evaluations="all")
 
 
 # --- banana (Rosenbrock-type) posterior -----------------------------------------------------

@@ -120,6 +120,8 @@ class BayesResult:
         model evaluations (emulator build, MAP and gradients without emulator, predictive).
     n_nan_likelihood : proposals rejected because the likelihood was NaN/inf (failed model).
     n_out_of_support : proposals rejected outside the prior support (not evaluated).
+    sampling_seconds, sampling_cpu_seconds : wall and CPU time of the chains (the CPU time is
+        what the chains cost on a machine shared with other jobs).
     emulator, emulator_loo : the fitted GP and its leave-one-out quality (None without one).
     predictive_inputs, predictive : posterior predictive draws pushed through the true model,
         (k, d) and (k, m) (None unless ``posterior_predictive`` > 0); predictive_names.
@@ -151,6 +153,7 @@ class BayesResult:
     n_out_of_support: int
     sampling_seconds: float
     emulator: GaussianProcess | None = None
+    sampling_cpu_seconds: float = 0.0
     emulator_loo: LeaveOneOut | None = None
     predictive_inputs: np.ndarray | None = None
     predictive: np.ndarray | None = None
@@ -507,11 +510,11 @@ def calibrate_bayes(
                          rng=np.random.default_rng(rng.integers(2**63)))
     n_pre = post.n_evals
     post.reset_counts()
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ExtrapolationWarning)
         kept, kept_lp = run_chains(post, state, cfg, chain_samples, burn_in, thin)
-    t_sampling = time.perf_counter() - t0
+    t_sampling, cpu_sampling = time.perf_counter() - t0, time.process_time() - c0
     if post.n_extrapolated:
         warnings.warn(f"emulator extrapolated for {post.n_extrapolated} proposals, up to "
                       f"{post.max_extrapolation:.3g} box-widths outside its training box",
@@ -528,7 +531,8 @@ def calibrate_bayes(
         burn_in=burn_in, thin=thin, n_likelihood_evals=post.n_evals,
         n_model_evals=n_model,
         n_nan_likelihood=post.n_nan, n_out_of_support=post.n_outside,
-        sampling_seconds=t_sampling, emulator=gp, emulator_loo=loo, predictive_inputs=pred_in,
+        sampling_seconds=t_sampling, sampling_cpu_seconds=cpu_sampling, emulator=gp,
+        emulator_loo=loo, predictive_inputs=pred_in,
         predictive=pred, predictive_names=names_out if pred is not None else (),
         _state=(post, state, cfg, n_pre),
     )
@@ -570,9 +574,9 @@ def continue_chain(result: BayesResult, n_steps: int, seed: SeedLike = None) -> 
     if seed is not None:
         state.reseed(as_generator(seed))
     ev0, nan0, out0 = post.n_evals, post.n_nan, post.n_outside
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     kept, kept_lp = run_chains(post, state, cfg, int(n_steps), 0, result.thin)
-    dt = time.perf_counter() - t0
+    dt, dcpu = time.perf_counter() - t0, time.process_time() - c0
     z_old = (result.chains - post.center) / post.scale
     chains_z = np.concatenate([z_old, kept.transpose(1, 0, 2)], axis=1)
     lp = np.concatenate([result.log_posterior, kept_lp.T], axis=1)
@@ -584,5 +588,6 @@ def continue_chain(result: BayesResult, n_steps: int, seed: SeedLike = None) -> 
         n_model_evals=result.n_model_evals + (post.n_evals - ev0 if post.gp is None else 0),
         n_nan_likelihood=result.n_nan_likelihood + post.n_nan - nan0,
         n_out_of_support=result.n_out_of_support + post.n_outside - out0,
-        sampling_seconds=result.sampling_seconds + dt, _state=(post, state, cfg, n_pre))
+        sampling_seconds=result.sampling_seconds + dt,
+        sampling_cpu_seconds=result.sampling_cpu_seconds + dcpu, _state=(post, state, cfg, n_pre))
     return _summarize(result.names, chains_z, lp, post, state, base, seed)

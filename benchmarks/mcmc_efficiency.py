@@ -261,6 +261,27 @@ def emulator(seed, repeats, steps=100_000, burn=5000):
     return out
 
 
+def summary(out: dict) -> str:
+    """The README's sentence for this benchmark, from its JSON (``--summary FILE``)."""
+    o, m, e = out["one_chain"], out["many_chains"], out["emulator"]
+
+    def r(x):
+        return f"{x['median']:.1f}x ({x['min']:.1f}-{x['max']:.1f})"
+
+    return (
+        f"Medians of {out['repeats']} interleaved runs (range in brackets). One DRAM chain vs "
+        f"pymcmcstat DRAM: {r(o['ratio_ess_per_s'])} ESS per second of chain, "
+        f"{r(o['ratio_ess_per_cpu_s'])} per CPU-second, {r(o['ratio_ess_per_s_with_our_presolve'])}"
+        f" with our MAP pre-solve counted (target 3x). {m['last_run']['rotoruq_dram']['n_chains']}"
+        f" chains vs emcee with as many walkers: {r(m['ratio_ess_per_s_vs_emcee'])} ESS/s, "
+        f"{r(m['ratio_ess_per_cpu_s_vs_emcee'])} per CPU-second. 100,000 DRAM steps on a "
+        f"500-point GP emulator, one chain: {e['one_chain_s']['median']:.2f} s "
+        f"({e['one_chain_s']['min']:.2f}-{e['one_chain_s']['max']:.2f}; CPU "
+        f"{e['one_chain_cpu_s']['median']:.2f} s; target < 3 s), "
+        f"{r(e['ratio_ess_per_s_vs_pymcmcstat'])} pymcmcstat's ESS/s on the same GP; 4 chains "
+        f"{e['four_chains_s']:.2f} s.")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--budget", type=int, default=100_000, help="posterior samples per sampler")
@@ -269,7 +290,12 @@ def main():
     ap.add_argument("--emulator-steps", type=int, default=100_000)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--out", help="also write the JSON here")
+    ap.add_argument("--summary", metavar="JSON", help="print the README sentence of a saved run")
     args = ap.parse_args()
+    if args.summary:
+        with open(args.summary) as fh:
+            print(summary(json.load(fh)))
+        return
     model, space, data = make_problem(0)
     warnings.simplefilter("ignore")
     calibrate_bayes(model, data, space, chain_samples=300, seed=0)  # load compiled kernels

@@ -1,7 +1,8 @@
 """Per-evaluation overhead of the store and of each executor; process-pool throughput.
 
-Prints JSON. Targets: store overhead < 1 ms per evaluation; process-pool throughput on a
-CPU-bound model near (number of cores) x serial.
+Prints JSON. Targets: store overhead < 1 ms per evaluation; keying an evaluation by its full
+identity well under 0.1 ms per evaluation; process-pool throughput on a CPU-bound model near
+(number of cores) x serial.
 
     python benchmarks/evaluation_overhead.py [--quick]
 """
@@ -56,6 +57,41 @@ def per_eval(fn, n: int, repeat: int = 3) -> float:
     return best / n
 
 
+def identity_cost(tmp: Path, x: np.ndarray) -> dict:
+    """What keying evaluations by everything that changes their answer costs.
+
+    Once per model object: the model's identity (configuration digest, airfoil table and files
+    by content, code version); once per evaluation: the canonical key of the input vector.
+    """
+    from rotoruq.evaluation.identity import code_version, model_identity
+    from rotoruq.evaluation.store import canonical_keys
+    from rotoruq.rotor.model import RotorModel
+
+    t0 = time.perf_counter()
+    code_version.cache_clear()
+    code_version()
+    code = time.perf_counter() - t0
+    rotor = RotorModel("gvpm", inputs=["collective_deg", "k_pitch_link"], responses=["thrust"])
+    drv = tmp / "id_driver.py"
+    drv.write_text(DRIVER)
+    ext = ExternalModel([sys.executable, "-S", str(drv)], ["a", "b", "c", "d"], ["f"],
+                        workdir=tmp / "id_work")
+    res = {"code_version_ms_once_per_process": 1e3 * code}
+    for name, m in (("rotor_gvpm", rotor), ("external", ext)):
+        res[f"{name}_identity_ms_once_per_model"] = 1e3 * per_eval(lambda m=m: model_identity(m),
+                                                                   1, repeat=5)
+    key = per_eval(lambda: canonical_keys(x), len(x), repeat=5)
+    res["key_us_per_eval"] = 1e6 * key
+    # an Evaluator computes the identity once; a study's step makes one Evaluator and
+    # evaluates through it (1,000 to 100,000 points), a single point pays it in full
+    worst_once = max(v for k, v in res.items() if k.endswith("once_per_model"))
+    res["per_eval_us_1000_evals_per_model"] = 1e6 * key + 1e3 * worst_once / 1000
+    res["per_eval_us_1_eval_per_model"] = 1e6 * key + 1e3 * worst_once
+    res["target_us_per_eval"] = 100.0
+    res["meets_target"] = bool(res["per_eval_us_1000_evals_per_model"] < 100.0)
+    return res
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--quick", action="store_true")
@@ -80,6 +116,7 @@ def main() -> None:
         lookup = (time.perf_counter() - t0) / n_store
         out["store"] = {"commit_ms_per_eval": 1e3 * commit, "lookup_ms_per_eval": 1e3 * lookup,
                         "target_ms": 1.0, "meets_target": bool(commit + lookup < 1e-3)}
+        out["identity"] = identity_cost(tmp, x)
 
         # -- Evaluator overhead on a trivial vectorized model, per executor
         model = FunctionModel(trivial, ["a", "b", "c", "d"], ["f"])

@@ -73,3 +73,65 @@ def test_vectorized_model_chunks_on_dask(cluster):
     with DaskExecutor(cluster.scheduler_address) as ex:
         out = Evaluator(m, executor=ex, chunk_size=8).evaluate(x)
     np.testing.assert_array_equal(out.values, m(x))
+
+
+def test_study_file_runs_on_dask_by_changing_only_the_executor(cluster, tmp_path):
+    """A user's path: the same study file through `rotoruq run`, serial, with processes and on
+    the Dask scheduler (the [executor] table is all that changes): bitwise equal results, for
+    an external solver and for the rotor model."""
+    import subprocess
+
+    from test_trust import CLI, external_study, outputs
+
+    rotor = """
+[study]
+name = "rotor"
+seed = 2
+
+[model]
+preset = "gvpm"
+responses = ["thrust", "torque"]
+fixed = { height_over_radius = 2.0 }
+
+[parameters.k_pitch_link]
+distribution = "uniform"
+lower = 10.0
+upper = 20.0
+
+[parameters.collective_deg]
+distribution = "normal"
+mean = 5.4
+std = 0.3
+
+{executor}
+
+[[steps]]
+name = "lhs"
+type = "sampling"
+n = 40
+"""
+    executors = {
+        "serial": '[executor]\nkind = "serial"',
+        "processes": '[executor]\nkind = "processes"\nworkers = 2',
+        "dask": f'[executor]\nkind = "dask"\nscheduler = "{cluster.scheduler_address}"',
+    }
+    results: dict[str, dict[str, np.ndarray]] = {"ext": {}, "rotor": {}}
+    for name, table in executors.items():
+        folder = tmp_path / name
+        ext = external_study(folder, n=10, executor=name)
+        text = ext.read_text()
+        if name == "dask":
+            text = text.replace('kind = "dask"',
+                                f'kind = "dask"\nscheduler = "{cluster.scheduler_address}"')
+        ext.write_text(text)
+        (folder / "rotor.toml").write_text(rotor.replace("{executor}", table))
+        for kind, study in (("ext", ext), ("rotor", folder / "rotor.toml")):
+            out = folder / f"out_{kind}"
+            proc = subprocess.run([*CLI, "run", str(study), "--out", str(out), "--no-report"],
+                                  capture_output=True, text=True, timeout=300)
+            assert proc.returncode == 0, proc.stderr
+            results[kind][name] = outputs(out)
+    for kind, by_exec in results.items():
+        assert np.isfinite(by_exec["serial"]).all(), kind
+        for name in ("processes", "dask"):
+            np.testing.assert_array_equal(by_exec[name], by_exec["serial"], err_msg=kind)

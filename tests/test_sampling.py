@@ -129,3 +129,18 @@ def test_bad_inputs():
         sample(model, space, 1)
     with pytest.raises(ParameterError, match="confidence"):
         response_statistics(np.ones((5, 1)), confidence=1.5)
+
+
+@pytest.mark.parametrize("method", ["lhs", "mc", "sobol"])
+def test_refine_twice_gives_the_same_points(method):
+    space = rq.ParameterSpace({"a": rq.Normal(0, 1), "b": rq.Uniform(0, 1)})
+    model = rq.FunctionModel(lambda x: x.sum(axis=1), space.names, ["f"])
+    gen = np.random.default_rng(4)
+    base = sample(model, space, 16, method=method, seed=gen)
+    gen.random(100)  # the caller's generator moves on: refine must not depend on it
+    r1, r2 = refine(base, 16), refine(base, 16)
+    np.testing.assert_array_equal(r1.inputs, r2.inputs)
+    again = refine(sample(model, space, 16, method=method, seed=np.random.default_rng(4)), 16)
+    np.testing.assert_array_equal(r1.inputs, again.inputs)
+    # refining the refined result continues: new points differ from the first extension
+    assert not np.array_equal(refine(r1, 16).inputs[32:], r1.inputs[16:])

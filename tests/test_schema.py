@@ -234,7 +234,9 @@ def test_locator_paths():
 
 
 def test_bundled_studies_load():
-    root = Path(__file__).resolve().parents[1] / "studies"
+    from rotoruq.study.cmd_reproduce import studies_dir
+
+    root = studies_dir()
     files = sorted(root.glob("*.toml"))
     assert {f.name for f in files} >= {"validation.toml", "experiment.toml", "quick.toml"}
     for f in files:

@@ -27,9 +27,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import EvaluationError, ModelShapeError
+from ..errors import EvaluationError, ModelShapeError, ParameterError
 from .executors import Executor, make_executor
 from .external import RunResult, _abort_message
+from .identity import model_identity
 from .model import EvalBatch, evaluate, has_gradient
 from .progress import Progress
 from .store import NewRecord, Store, canonical_keys, open_store
@@ -52,16 +53,6 @@ class EvalStats:
     duplicates: int
     failed: int
     wall_time: float
-
-
-def model_identity(model) -> str:
-    """Text that tells models apart in the store: the model's ``identity`` attribute when it
-    has one, else its class, plus the input and response names."""
-    ident = getattr(model, "identity", None)
-    if not isinstance(ident, str):
-        t = type(model)
-        ident = f"{t.__module__}.{t.__qualname__}"
-    return f"{ident}|{','.join(model.names_in)}->{','.join(model.names_out)}"
 
 
 class _ChunkTask:
@@ -130,10 +121,10 @@ class Evaluator:
         self.study = str(study)
         self.run_id = run_id or uuid.uuid4().hex[:12]
         if tolerance is not None and not tolerance >= 0:
-            raise ValueError(f"tolerance must be >= 0, got {tolerance}")
+            raise ParameterError(f"tolerance must be >= 0, got {tolerance}")
         self.tolerance = tolerance
         if chunk_size is not None and chunk_size < 1:
-            raise ValueError(f"chunk_size must be >= 1, got {chunk_size}")
+            raise ParameterError(f"chunk_size must be >= 1, got {chunk_size}")
         self.chunk_size = chunk_size
         self.progress = progress
         self.model_id = model_id or model_identity(model)

@@ -31,6 +31,8 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from ..errors import ParameterError
+
 __all__ = [
     "TaskOutcome",
     "Executor",
@@ -140,7 +142,7 @@ class ProcessExecutor(Executor):
     def __init__(self, max_workers: int | None = None, *, mp_context: str | None = None):
         self.n_workers = int(max_workers or os.cpu_count() or 1)
         if self.n_workers < 1:
-            raise ValueError(f"max_workers must be >= 1, got {max_workers}")
+            raise ParameterError(f"max_workers must be >= 1, got {max_workers}")
         self.mp_context = mp_context
         self._pool: cf.ProcessPoolExecutor | None = None
 
@@ -272,11 +274,11 @@ def make_executor(spec: str | Executor | None, **kwargs) -> Executor:
     if spec is None or spec == "serial":
         return SerialExecutor()
     if not isinstance(spec, str):
-        raise TypeError(f"executor must be a name or an Executor, got {spec!r}")
+        raise ParameterError(f"executor must be a name or an Executor, got {spec!r}")
     name, _, arg = spec.partition(":")
     if name == "processes":
         return ProcessExecutor(int(arg) if arg else kwargs.get("max_workers"))
     if name == "dask":
         return DaskExecutor(arg or kwargs.get("address"))
-    raise ValueError(f"unknown executor {spec!r}; use 'serial', 'processes[:N]', "
+    raise ParameterError(f"unknown executor {spec!r}; use 'serial', 'processes[:N]', "
                      "'dask[:tcp://host:port]' or an Executor instance")

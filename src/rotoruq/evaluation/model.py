@@ -15,7 +15,7 @@ required members and checks the shape of what comes back.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
@@ -23,7 +23,8 @@ import numpy as np
 
 from ..errors import ModelShapeError, ParameterError
 
-__all__ = ["Model", "EvalBatch", "FunctionModel", "evaluate", "align_inputs", "has_gradient"]
+__all__ = ["Model", "EvalBatch", "FunctionModel", "FixedInputs", "evaluate", "align_inputs",
+           "has_gradient"]
 
 
 @runtime_checkable
@@ -97,8 +98,99 @@ class FunctionModel:
     def __getstate__(self):
         return self.__dict__
 
+    def identity(self) -> dict:
+        """The function's code (bytecode, constants, defaults, captured values) and names.
+
+        Editing the function's body changes it, so stored results of the old function are not
+        reused. Numbers, strings, tuples and arrays the function captures are covered; globals
+        it reads and lists or dicts it captures are not: pass configuration as defaults or
+        captured constants.
+        """
+        return {"func": _callable_identity(self.func),
+                "gradient": None if self._gradient is None else _callable_identity(self._gradient)}
+
     def __repr__(self) -> str:
         return f"FunctionModel({getattr(self.func, '__name__', 'f')}, in={self.names_in})"
+
+
+def _callable_identity(f) -> dict:
+    code = getattr(f, "__code__", None)
+    if code is None:
+        ident = getattr(f, "identity", None)
+        return {"object": ident() if callable(ident) else repr(f)}
+    cells = []
+    for c in getattr(f, "__closure__", None) or ():
+        try:
+            v = c.cell_contents
+        except ValueError:  # an empty cell
+            continue
+        if isinstance(v, (list, dict, set)):
+            continue  # mutable bookkeeping (call logs, caches), not configuration
+        cells.append(_callable_identity(v) if callable(v) and hasattr(v, "__code__") else v)
+    return {"name": f"{getattr(f, '__module__', '')}.{getattr(f, '__qualname__', '')}",
+            "code": code.co_code.hex(), "consts": repr(code.co_consts), "names": code.co_names,
+            "defaults": getattr(f, "__defaults__", None), "closure": cells}
+
+
+class FixedInputs:
+    """A model with some inputs held at fixed values: ``names_in`` are the others.
+
+    ``FixedInputs(model, {"omega": 110.0})`` evaluates ``model`` with a column of 110.0 inserted
+    for ``omega``. Analytic gradients drop the fixed columns; an external model's one-point
+    runs (``run_one``), failure policy and identity are passed through, the fixed values joining
+    the identity.
+    """
+
+    def __init__(self, model, fixed: Mapping[str, float]):
+        self.model = model
+        self.fixed = {str(k): float(v) for k, v in fixed.items()}
+        unknown = [k for k in self.fixed if k not in model.names_in]
+        if unknown:
+            raise ParameterError(f"fixed inputs {unknown} are not inputs of {model!r}; its "
+                                 f"inputs are {list(model.names_in)}")
+        inner = tuple(model.names_in)
+        self.names_in = tuple(n for n in inner if n not in self.fixed)
+        self.names_out = tuple(model.names_out)
+        self._free = np.array([inner.index(n) for n in self.names_in], dtype=int)
+        self._fixed_cols = np.array([inner.index(n) for n in self.fixed], dtype=int)
+        self._fixed_vals = np.array(list(self.fixed.values()), dtype=float)
+        if callable(getattr(model, "run_one", None)):
+            self.run_one = self._run_one
+        if has_gradient(model):
+            self.gradient = self._gradient
+
+    def full(self, x: np.ndarray) -> np.ndarray:
+        """Points (n, len(names_in)) -> the wrapped model's points with the fixed columns."""
+        x = np.atleast_2d(np.asarray(x, dtype=float))
+        out = np.empty((x.shape[0], len(self.model.names_in)))
+        out[:, self._free] = x
+        out[:, self._fixed_cols] = self._fixed_vals
+        return out
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        return self.evaluate(x).values
+
+    def evaluate(self, x: np.ndarray) -> EvalBatch:
+        return evaluate(self.model, self.full(x))
+
+    def _run_one(self, x: np.ndarray, eval_id: str):
+        return self.model.run_one(self.full(x)[0], eval_id)
+
+    def _gradient(self, x: np.ndarray) -> np.ndarray:
+        return np.asarray(self.model.gradient(self.full(x)))[:, :, self._free]
+
+    @property
+    def failure_policy(self):
+        return getattr(self.model, "failure_policy", None)
+
+    def identity(self) -> dict:
+        ident = getattr(self.model, "identity", None)
+        return {"model": type(self.model).__qualname__,
+                "config": ident() if callable(ident) else repr(self.model),
+                "fixed": dict(sorted(self.fixed.items()))}
+
+    def __repr__(self) -> str:
+        return f"FixedInputs({self.model!r}, fixed={self.fixed})"
 
 
 def has_gradient(model) -> bool:

@@ -30,6 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import ParameterError
+
 __all__ = ["Store", "EvalRecord", "NewRecord", "canonical_key", "open_store"]
 
 _SCHEMA = """
@@ -233,7 +235,7 @@ class Store:
         rows = []
         for r in records:
             if r.status not in STATUSES:
-                raise ValueError(f"status must be one of {STATUSES}, got {r.status!r}")
+                raise ParameterError(f"status must be one of {STATUSES}, got {r.status!r}")
             x = np.asarray(r.inputs, dtype=float)
             rows.append((study, run_id, model, canonical_key(x), nin, nout, _dumps(x),
                          _dumps(r.outputs), r.status, r.error, r.stdout, r.stderr, r.wall_time,
@@ -351,11 +353,11 @@ class Store:
             recs = [r for r in recs if r.outputs is not None and r.status != "failed"]
         path = Path(path)
         if not recs:
-            raise ValueError("no evaluations to export" + (f" for study {study!r}" if study
+            raise ParameterError("no evaluations to export" + (f" for study {study!r}" if study
                                                              else ""))
         heads = {(r.names_in, r.names_out) for r in recs}
         if len(heads) > 1:
-            raise ValueError("the selected evaluations come from models with different "
+            raise ParameterError("the selected evaluations come from models with different "
                              "variables/responses; pass study= or model= to pick one")
         names_in, names_out = heads.pop()
         cols = ["%eval_id", "interface", *names_in, *names_out]

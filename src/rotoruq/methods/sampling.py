@@ -357,7 +357,9 @@ def sample(
         "percentiles": tuple(percentiles),
         "confidence": confidence,
         "engine_seed": engine_seed,
-        "rng": rng,
+        # a snapshot, not the generator: refine() restarts from it, so refining one result
+        # twice gives the same points whatever else drew from the caller's generator
+        "rng_state": rng.bit_generator.state,
     }
     return _finish(model, space, q, method, options)
 
@@ -394,8 +396,9 @@ def refine(result: SamplingResult, n_more: int, *, seed: SeedLike = None) -> Sam
     * "sobol" / "halton": the same scrambled sequence is continued;
     * "mc": independent new points (plain Monte Carlo extension).
 
-    ``seed`` defaults to the generator the original sample was drawn with (continued), so a
-    refined run is reproducible from the original seed.
+    ``seed`` defaults to the state the original sample's generator was left in (continued),
+    so a refined run is reproducible from the original seed, and refining one result twice
+    gives the same points.
     """
     n_more = int(n_more)
     if n_more < 1:
@@ -403,7 +406,12 @@ def refine(result: SamplingResult, n_more: int, *, seed: SeedLike = None) -> Sam
     if result.model is None or result.space is None:
         raise ParameterError("this SamplingResult does not carry its model and space")
     opts = dict(result.options)
-    rng = as_generator(seed) if seed is not None else opts["rng"]
+    if seed is not None:
+        rng = as_generator(seed)
+    else:
+        state = opts["rng_state"]
+        rng = np.random.Generator(getattr(np.random, state["bit_generator"])())
+        rng.bit_generator.state = state
     d = result.space.dim
     if result.method == "lhs":
         q = _lhs_extension(result.unit, n_more, rng)
@@ -415,4 +423,5 @@ def refine(result: SamplingResult, n_more: int, *, seed: SeedLike = None) -> Sam
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)
             q = eng.random(n_more)
+    opts["rng_state"] = rng.bit_generator.state
     return _finish(result.model, result.space, q, result.method, opts, previous=result)

@@ -270,6 +270,14 @@ class Airfoil:
         self._names = list(self._name_index)
         self._build_grid()
 
+    def identity(self) -> dict:
+        """Everything that sets the coefficients: the table's numbers and the fit settings."""
+        t = self._table
+        return {"cl": [t.cl.alpha, t.cl.mach, t.cl.values], "cd": [t.cd.alpha, t.cd.mach,
+                t.cd.values], "cm": [t.cm.alpha, t.cm.mach, t.cm.values],
+                "window": self._window, "fit_mode": self._fit_mode,
+                "fit_machs": self._fit_machs, "replace_cd": self._replace_cd}
+
     # ---- construction helpers
 
     @classmethod

@@ -139,6 +139,19 @@ class RotorModel:
         return (f"RotorModel({self.preset.name!r}, inputs={self.names_in}, "
                 f"responses={self.names_out})")
 
+    def identity(self) -> dict:
+        """Everything that can change an answer: the preset's every field, the airfoil
+        table's numbers and fit settings, the fixed inputs and the solver options."""
+        from dataclasses import asdict
+
+        ident = getattr(self.airfoil, "identity", None)
+        solver = {k: v for k, v in vars(self).items()
+                  if isinstance(v, (int, float, str, bool)) and k != "chunk_size"}
+        return {"preset": asdict(self.preset),
+                "airfoil": ident() if callable(ident) else repr(self.airfoil),
+                "grid": vars(self.grid) if hasattr(self.grid, "__dict__") else repr(self.grid),
+                "fixed": dict(sorted(self.fixed.items())), "solver": solver}
+
     def defaults(self) -> dict[str, float]:
         """Value of every rotor input when not given in the batch (preset, then ``fixed``)."""
         p = self.preset

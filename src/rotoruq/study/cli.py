@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
+import threading
 
 from ..errors import RotoruqError
 
@@ -22,6 +24,8 @@ def build_parser() -> argparse.ArgumentParser:
         prog="rotoruq",
         description="Verification, validation and calibration under uncertainty of rotor models.",
     )
+    parser.add_argument("--debug", action="store_true",
+                        help="show the full traceback of an error")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
         try:
@@ -36,7 +40,25 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, handled like Ctrl-C: running drivers' process trees are ended on the way out."""
+
+
+def _on_sigterm(signum, frame):
+    raise _Terminated()
+
+
 def main(argv: list[str] | None = None) -> int:
+    if threading.current_thread() is not threading.main_thread():
+        return _main(argv)
+    previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    try:
+        return _main(argv)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if not getattr(args, "_run", None):
@@ -44,9 +66,23 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         return int(args._run(args) or 0)
-    except RotoruqError as exc:
+    except KeyboardInterrupt as exc:
+        how = "terminated" if isinstance(exc, _Terminated) else "interrupted"
+        print(f"rotoruq {args.command}: {how} (finished evaluations and steps are saved; "
+              "run the same command again to resume)", file=sys.stderr)
+        return 143 if isinstance(exc, _Terminated) else 130
+    except (RotoruqError, OSError) as exc:
+        if args.debug:
+            raise
         print(f"rotoruq {args.command}: error: {exc}", file=sys.stderr)
         return 1
+    except Exception as exc:  # a bug, not bad input: say so, keep the terminal readable
+        if args.debug:
+            raise
+        print(f"rotoruq {args.command}: internal error: {type(exc).__name__}: {exc}\n"
+              f"(run 'rotoruq --debug {args.command} ...' for the traceback, and please report "
+              "it)", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":  # pragma: no cover

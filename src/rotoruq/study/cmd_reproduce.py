@@ -7,18 +7,20 @@ import json
 import time
 from pathlib import Path
 
+from ..errors import InputFileError
+
 HELP = "reproduce the reference study (thesis chapters 3 and 4) and write the report"
 
 CHAPTERS = {"validation": "validation.toml", "experiment": "experiment.toml"}
 
 
 def studies_dir() -> Path:
-    """The bundled study files: ``studies/`` of the source tree."""
-    here = Path(__file__).resolve()
-    for cand in (here.parents[3] / "studies", here.parents[1] / "studies"):
-        if (cand / "validation.toml").is_file():
-            return cand
-    raise FileNotFoundError("the bundled studies/ folder was not found next to the package")
+    """The study files shipped with the package (``rotoruq/studies/``)."""
+    path = Path(__file__).resolve().parents[1] / "studies"
+    if not (path / "validation.toml").is_file():
+        raise InputFileError(path, None, "the bundled study files (validation.toml, ...)",
+                             "an incomplete installation of rotoruq")
+    return path
 
 
 def add_arguments(parser) -> None:
@@ -32,11 +34,19 @@ def add_arguments(parser) -> None:
 
 def reproduce(which: str = "all", out: str | Path = "rotoruq-results", quick: bool = False,
               log=None) -> dict:
-    """Run the chapters, write the report; returns ``{"report": path, "seconds": {...}}``."""
+    """Run the chapters, write the report; returns ``{"report": path, "seconds": {...}}``.
+    Holds ``out`` (and so each chapter's folder in it) for the whole run."""
+    from .lock import results_lock
+
+    out = Path(out)
+    with results_lock(out, "reproduce"):
+        return _reproduce(which, out, quick, log)
+
+
+def _reproduce(which, out: Path, quick: bool, log) -> dict:
     from ..report.html import write_report
     from .runner import _log, run_study
 
-    out = Path(out)
     names = list(CHAPTERS) if which == "all" else [which]
     seconds = {}
     for name in names:

@@ -8,7 +8,8 @@ HELP = "run a study file (TOML) and write its results and HTML report"
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("study", help="study file (TOML)")
+    parser.add_argument("study", help="study file (TOML), or the name of a study shipped "
+                        "with rotoruq (quick, validation, experiment)")
     parser.add_argument("--out", help="output directory (default: [study] output)")
     parser.add_argument("--quick", action="store_true", help="small samples (a fast check)")
     parser.add_argument("--only", nargs="+", metavar="STEP",
@@ -16,14 +17,32 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-report", action="store_true", help="do not write the report")
 
 
+def resolve_study(name: str) -> tuple[Path, bool]:
+    """A study file path, or a bundled study's name (``quick``); returns (path, bundled)."""
+    path = Path(name)
+    if path.exists() or path.suffix or "/" in name:
+        return path, False
+    from .cmd_reproduce import studies_dir
+
+    cand = studies_dir() / f"{name}.toml"
+    return (cand, True) if cand.is_file() else (path, False)
+
+
 def run(args) -> int:
+    from .lock import results_lock
     from .runner import run_study
+    from .schema import load_study
 
-    result = run_study(args.study, out=args.out, quick=args.quick, only=args.only)
-    print(f"results: {result.out}")
-    if not args.no_report:
-        from ..report.html import write_report
+    path, bundled = resolve_study(args.study)
+    study = load_study(path)
+    out = Path(args.out) if args.out else (
+        Path("rotoruq-results") / study.info.name if bundled else study.info.output)
+    with results_lock(out, "run"):  # the run and its report, one at a time per folder
+        result = run_study(study, out=out, quick=args.quick, only=args.only)
+        print(f"results: {result.out}")
+        if not args.no_report:
+            from ..report.html import write_report
 
-        index = write_report([result.out], Path(result.out) / "report")
-        print(f"report: {index}")
+            index = write_report([result.out], Path(result.out) / "report")
+            print(f"report: {index}")
     return 0

@@ -7,13 +7,22 @@ the step hands to later steps (posterior / calibrated) and JSON metadata. On dis
     <out>/steps/<name>/result.json     name, type, fingerprint, scalars, distributions, meta
     <out>/steps/<name>/scalars.csv     key,value
     <out>/steps/<name>/<array>.npy     every array, plus <array>.csv when it has named columns
+
+Saves are atomic (see :func:`save_step`) and loads check every file against the sha256 that
+``result.json`` records, so a half-saved step is never trusted.
 """
 
 from __future__ import annotations
 
 import csv
+import hashlib
+import io
 import json
 import math
+import os
+import shutil
+import tempfile
+import uuid
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,10 +30,12 @@ from typing import Any
 
 import numpy as np
 
+from ..atomic import atomic_write, fsync_dir, write_text
+from ..errors import RotoruqError
 from ..params import Distribution, make_distribution
 
 __all__ = ["StepResult", "save_step", "load_step", "load_results", "dist_to_dict",
-           "dict_to_dist"]
+           "dict_to_dist", "IncompleteStepError", "clean_partial_saves"]
 
 
 @dataclass(frozen=True)
@@ -99,42 +110,110 @@ def _unjson_scalar(v) -> float:
     return float(v)
 
 
+class IncompleteStepError(RotoruqError):
+    """A saved step is missing files or they do not match what its ``result.json`` records
+    (a save interrupted before the atomic rename, or files changed by hand)."""
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with path.open("rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
 def save_step(result: StepResult, directory: str | Path) -> Path:
-    """Write ``result`` under ``directory/steps/<name>/``; returns that folder."""
-    folder = Path(directory) / "steps" / result.name
-    folder.mkdir(parents=True, exist_ok=True)
-    for old in folder.glob("*.npy"):
-        old.unlink()
-    doc = {
-        "name": result.name,
-        "type": result.type,
-        "fingerprint": result.fingerprint,
-        "scalars": _jsonable(dict(result.scalars)),
-        "distributions": _jsonable(dict(result.distributions)),
-        "meta": _jsonable(dict(result.meta)),
-        "arrays": sorted(result.arrays),
-    }
-    (folder / "result.json").write_text(json.dumps(doc, indent=1))
-    with (folder / "scalars.csv").open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["key", "value"])
-        for k, v in result.scalars.items():
-            w.writerow([k, repr(float(v))])
-    for name, arr in result.arrays.items():
-        arr = np.asarray(arr)
-        np.save(folder / f"{name}.npy", arr)
-        cols = result.columns(name)
-        if arr.ndim == 2 and len(cols) == arr.shape[1]:
-            np.savetxt(folder / f"{name}.csv", arr, delimiter=",", header=",".join(cols),
-                       comments="")
+    """Write ``result`` under ``directory/steps/<name>/``; returns that folder.
+
+    The step is written whole into a temporary folder (every file flushed to disk, then
+    ``result.json`` with the sha256 of every other file), which then replaces the old folder
+    by rename. A reader finds the old step, the new step or none: never a mix.
+    """
+    steps = Path(directory) / "steps"
+    steps.mkdir(parents=True, exist_ok=True)
+    folder = steps / result.name
+    tmp = Path(tempfile.mkdtemp(prefix=f".tmp-{result.name}.", dir=steps))
+    try:
+        files: dict[str, str] = {}
+
+        def put(name: str, write) -> None:
+            atomic_write(tmp / name, write)
+            files[name] = _sha256(tmp / name)
+
+        def put_csv(fh):
+            text = io.StringIO(newline="")
+            w = csv.writer(text)
+            w.writerow(["key", "value"])
+            for k, v in result.scalars.items():
+                w.writerow([k, repr(float(v))])
+            fh.write(text.getvalue().encode())
+
+        put("scalars.csv", put_csv)
+        for name, arr in result.arrays.items():
+            arr = np.asarray(arr)
+            put(f"{name}.npy", lambda fh, arr=arr: np.save(fh, arr))
+            cols = result.columns(name)
+            if arr.ndim == 2 and len(cols) == arr.shape[1]:
+                put(f"{name}.csv", lambda fh, arr=arr, cols=cols: np.savetxt(
+                    fh, arr, delimiter=",", header=",".join(cols), comments=""))
+        doc = {
+            "name": result.name,
+            "type": result.type,
+            "fingerprint": result.fingerprint,
+            "scalars": _jsonable(dict(result.scalars)),
+            "distributions": _jsonable(dict(result.distributions)),
+            "meta": _jsonable(dict(result.meta)),
+            "arrays": sorted(result.arrays),
+            "files": files,
+        }
+        write_text(tmp / "result.json", json.dumps(doc, indent=1))
+        old = None
+        if folder.exists():
+            old = steps / f".old-{result.name}.{uuid.uuid4().hex[:8]}"
+            os.replace(folder, old)
+        os.replace(tmp, folder)
+        fsync_dir(steps)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
     return folder
 
 
+def clean_partial_saves(directory: str | Path) -> list[Path]:
+    """Remove temporary folders left by saves that were interrupted; returns what was removed.
+    Call it only while holding the results folder's lock."""
+    steps = Path(directory) / "steps"
+    removed = []
+    for p in sorted(steps.glob(".tmp-*")) + sorted(steps.glob(".old-*")):
+        shutil.rmtree(p, ignore_errors=True)
+        removed.append(p)
+    return removed
+
+
 def load_step(folder: str | Path) -> StepResult:
+    """Read a saved step; raises :class:`IncompleteStepError` when it is not whole."""
     folder = Path(folder)
-    doc = json.loads((folder / "result.json").read_text())
-    arrays = {n: np.load(folder / f"{n}.npy") for n in doc.get("arrays", [])
-              if (folder / f"{n}.npy").is_file()}
+    where = folder / "result.json"
+    try:
+        doc = json.loads(where.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise IncompleteStepError(f"{where}: missing") from None
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise IncompleteStepError(f"{where}: not a complete JSON document ({exc})") from None
+    if not isinstance(doc, dict) or not {"name", "type", "scalars"} <= set(doc):
+        raise IncompleteStepError(f"{where}: expected a step result with name, type, scalars")
+    files = doc.get("files")
+    if files is None:
+        raise IncompleteStepError(f"{where}: saved without file checksums (an older or "
+                                  "interrupted save)")
+    for name, sha in files.items():
+        p = folder / name
+        if not p.is_file() or _sha256(p) != sha:
+            raise IncompleteStepError(f"{p}: missing or changed since the step was saved")
+    arrays = {n: np.load(folder / f"{n}.npy") for n in doc.get("arrays", [])}
     return StepResult(
         name=doc["name"],
         type=doc["type"],

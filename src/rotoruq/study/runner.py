@@ -1,6 +1,6 @@
 """Run a study: steps in order, results written as they finish, unchanged steps reused.
 
->>> results = run_study("studies/quick.toml")                 # doctest: +SKIP
+>>> results = run_study("src/rotoruq/studies/quick.toml")                 # doctest: +SKIP
 >>> results["forward"].get("mean/thrust")                     # doctest: +SKIP
 
 Output directory (``[study] output``, or ``out=``)::
@@ -18,7 +18,6 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import shutil
 import sys
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
@@ -26,13 +25,23 @@ from pathlib import Path
 
 import numpy as np
 
+from ..atomic import write_bytes, write_text
 from ..errors import ParameterError
+from ..evaluation.identity import code_version, model_identity
 from ..params import ParameterSpace
-from .results import StepResult, dict_to_dist, load_step, save_step
+from .lock import results_lock
+from .results import (
+    IncompleteStepError,
+    StepResult,
+    clean_partial_saves,
+    dict_to_dist,
+    load_step,
+    save_step,
+)
 from .schema import StepSpec, Study, load_study
 from .steps import QUICK, StepContext, run_adapter
 
-__all__ = ["run_study", "StudyRun", "build_model_factory", "step_options"]
+__all__ = ["run_study", "StudyRun", "build_model", "build_model_factory", "step_options"]
 
 ModelFactory = Callable[[Sequence[str], Sequence[str], Mapping[str, float]], object]
 
@@ -52,29 +61,68 @@ class StudyRun:
         return self.results[name]
 
 
-def build_model_factory(study: Study, store_path: Path | None = None) -> ModelFactory:
-    """Model builder for the study's ``[model]``: a rotor preset or an external driver, wrapped
-    in the evaluation layer's store-backed Evaluator when it is available."""
+def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
+                fixed: Mapping[str, float], out: Path | None = None):
+    """The study's ``[model]`` for one step, without the evaluation store: a
+    :class:`~rotoruq.rotor.model.RotorModel`, or an
+    :class:`~rotoruq.evaluation.external.ExternalModel` over ``inputs`` plus the fixed inputs
+    (written into every parameters file), wrapped so that its inputs are ``inputs``.
+
+    Paths in an external ``[model]`` (words of ``command`` that name files, ``templates``,
+    ``files``) are relative to the study file's folder; ``workdir`` is relative to the results
+    folder ``out`` (default ``out/work``).
+    """
     spec = study.model
+    if spec.kind == "preset":
+        from ..rotor.model import RotorModel
+        from ..rotor.presets import get_preset
+
+        preset = get_preset(spec.preset, **dict(spec.preset_options))
+        return RotorModel(preset, inputs=list(inputs), responses=list(responses),
+                          fixed=dict(fixed))
+    from ..evaluation.external import ExternalModel
+    from ..evaluation.model import FixedInputs
+
+    ext = spec.external
+    base = study.path.parent if study.path is not None else Path.cwd()
+    out = Path(out) if out is not None else study.info.output
+
+    def near_study(word: str) -> str:
+        p = Path(word)
+        if "{" in word or p.is_absolute() or not (base / p).exists():
+            return word
+        return str((base / p).absolute())
+
+    if ext.failure == "retry":
+        policy = f"retry:{max(1, ext.retries)}"
+    elif ext.failure == "recover":
+        if ext.recover is None:
+            raise ParameterError(f"{study.path}: [model] failure = \"recover\" needs "
+                                 "recover = [one value per response]")
+        policy = {"recover": list(ext.recover)}
+    else:
+        policy = ext.failure
+    workdir = Path(ext.workdir) if ext.workdir else Path("work")
+    if not workdir.is_absolute():
+        workdir = out / workdir
+    names_in = list(inputs) + [n for n in fixed if n not in inputs]
+    model = ExternalModel(
+        [near_study(w) for w in ext.command], names_in, list(responses),
+        workdir=workdir, template_files=[base / t for t in ext.templates],
+        copy_files=[base / f for f in ext.files], parameters_format=ext.parameters_format,
+        timeout=ext.timeout, failure_policy=policy,
+    )
+    fixed_here = {k: v for k, v in fixed.items() if k not in inputs}
+    return FixedInputs(model, fixed_here) if fixed_here else model
+
+
+def build_model_factory(study: Study, store_path: Path | None = None,
+                        out: Path | None = None) -> ModelFactory:
+    """Model builder for the study's ``[model]`` (see :func:`build_model`), wrapped in the
+    evaluation layer's store-backed Evaluator when a store or a parallel executor is set."""
 
     def base(inputs, responses, fixed):
-        if spec.kind == "preset":
-            from ..rotor.model import RotorModel
-            from ..rotor.presets import get_preset
-
-            preset = get_preset(spec.preset, **dict(spec.preset_options))
-            return RotorModel(preset, inputs=list(inputs), responses=list(responses),
-                              fixed=dict(fixed))
-        from ..evaluation.external import ExternalModel
-
-        ext = spec.external
-        return ExternalModel(
-            list(ext.command), names_in=list(inputs), names_out=list(responses),
-            fixed=dict(fixed), files=list(ext.files), templates=list(ext.templates),
-            parameters_format=ext.parameters_format, timeout=ext.timeout,
-            failure=ext.failure, retries=ext.retries, recover=ext.recover,
-            workdir=ext.workdir, base_dir=study.path.parent,
-        )
+        return build_model(study, inputs, responses, fixed, out)
 
     return _with_store(base, study, store_path)
 
@@ -191,7 +239,7 @@ def _step_targets(step: StepSpec, options, previous) -> dict[str, tuple[float, f
 
 
 def _fingerprint(study: Study, step: StepSpec, space: ParameterSpace, fixed, options, data,
-                 previous, quick: bool) -> str:
+                 previous, quick: bool, model_id: str) -> str:
     def default(o):
         if isinstance(o, np.ndarray):
             return o.tolist()
@@ -212,6 +260,8 @@ def _fingerprint(study: Study, step: StepSpec, space: ParameterSpace, fixed, opt
         "step": {k: v for k, v in asdict(step).items() if k not in ("line", "index")},
         "options": options,
         "model": asdict(study.model),
+        "model_identity": model_id,
+        "code": code_version(),
         "space": [(n, d.describe()) for n, d in zip(space.names, space.distributions,
                                                      strict=True)],
         "fixed": dict(sorted(fixed.items())),
@@ -259,26 +309,51 @@ def run_study(
     if not isinstance(study, Study):
         study = load_study(study)
     out = Path(out) if out is not None else study.info.output
-    out.mkdir(parents=True, exist_ok=True)
     log = log or (lambda _m: None)
+    with results_lock(out, "run") as lock:
+        if lock.taken_over and lock.taken_over.get("pid"):
+            log(f"[{study.info.name}] taking over {out} from a run that stopped (PID "
+                f"{lock.taken_over.get('pid')} on {lock.taken_over.get('host', '?')})")
+        clean_partial_saves(out)
+        return _run_locked(study, out, quick, model_factory, only, log)
+
+
+def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactory | None,
+                only: Sequence[str] | None, log: Callable[[str], None]) -> StudyRun:
     if study.path.is_file():
-        shutil.copyfile(study.path, out / "study.toml")
+        write_bytes(out / "study.toml", study.path.read_bytes())
     store_path = out / study.store.path if study.store.enabled else None
-    factory = model_factory or build_model_factory(study, store_path)
+    factory = model_factory or build_model_factory(study, store_path, out)
     _write_study_json(study, out, quick)
 
     results: dict[str, StepResult] = {}
     reused, seconds = [], {}
+    identities: dict = {}
     for step in study.steps:
         options = step_options(step, quick)
         space, fixed = _step_space(study, step, results)
         responses = step.responses or study.model.responses
         data, columns = _step_data(study, step, responses, results)
-        fp = _fingerprint(study, step, space, fixed, options, data, results, quick)
+        key = (tuple(space.names), tuple(responses), tuple(sorted(fixed.items())))
+        if key not in identities:
+            probe = (model_factory or (lambda i, r, f: build_model(study, i, r, f, out)))(
+                list(space.names), list(responses), dict(fixed))
+            identities[key] = model_identity(probe)
+            close = getattr(probe, "close", None)
+            if callable(close):
+                close()
+        fp = _fingerprint(study, step, space, fixed, options, data, results, quick,
+                          identities[key])
         folder = out / "steps" / step.name
         if (folder / "result.json").is_file():
-            saved = load_step(folder)
-            if saved.fingerprint == fp or (only is not None and step.name not in only):
+            try:
+                saved = load_step(folder)
+            except IncompleteStepError as exc:
+                log(f"[{study.info.name}] {step.name}: saved result is incomplete ({exc}); "
+                    "running it again")
+                saved = None
+            if saved is not None and (saved.fingerprint == fp
+                                      or (only is not None and step.name not in only)):
                 results[step.name] = saved
                 reused.append(step.name)
                 log(f"[{study.info.name}] {step.name}: reused ({step.type})")
@@ -298,6 +373,7 @@ def run_study(
         meta.update(seconds=dt, title=step.title, parameters=list(space.names),
                     responses=list(responses), fixed=fixed, options=options,
                     source=".".join(step.source) if step.source else None,
+                    model_identity=identities[key], code_version=code_version(),
                     input_distributions={n: d.describe() for n, d in
                                          zip(space.names, space.distributions, strict=True)})
         res = StepResult(res.name, res.type, res.scalars, res.arrays, res.distributions, meta,
@@ -323,7 +399,7 @@ def _write_study_json(study: Study, out: Path, quick: bool) -> None:
         "step_types": {s.name: s.type for s in study.steps},
         "titles": {s.name: s.title for s in study.steps},
     }
-    (out / "study.json").write_text(json.dumps(doc, indent=1, default=str))
+    write_text(out / "study.json", json.dumps(doc, indent=1, default=str))
 
 
 def distributions_of(result: StepResult) -> dict:

@@ -330,10 +330,12 @@ class Study:
 _REQUIRED = object()
 
 
-def _int(minimum: int = 0):
+def _int(minimum: int = 0, maximum: int = 2**63 - 1):
     def check(v):
         if isinstance(v, bool) or not isinstance(v, int) or v < minimum:
             raise TypeError(f"an integer >= {minimum}")
+        if v > maximum:
+            raise TypeError(f"an integer from {minimum} to {maximum}")
         return v
 
     return check
@@ -544,9 +546,17 @@ def load_study(path: str | Path) -> Study:
     """Read and validate a study file. Raises :class:`InputFileError` (file, line, expected)."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        raw = path.read_bytes()
     except FileNotFoundError:
         raise InputFileError(path, None, "an existing study file", "no such file") from None
+    except IsADirectoryError:
+        raise InputFileError(path, None, "a study file", "a directory") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw[: exc.start].count(b"\n") + 1
+        raise InputFileError(path, line, "UTF-8 text",
+                             f"byte 0x{raw[exc.start]:02x} that is not UTF-8") from None
     return parse_study(text, path)
 
 
@@ -555,6 +565,9 @@ def parse_study(text: str, path: str | Path = "<study>") -> Study:
     path = Path(path)
     try:
         doc = tomllib.loads(text)
+    except RecursionError:
+        raise InputFileError(path, None, "TOML nested at most a few hundred levels deep",
+                             "deeper nesting") from None
     except tomllib.TOMLDecodeError as exc:
         m = re.search(r"line (\d+)", str(exc))
         line = int(m.group(1)) if m else None

@@ -31,6 +31,7 @@ from scipy.spatial import cKDTree
 
 from .._rng import SeedLike, as_generator
 from ..errors import ModelShapeError, ParameterError
+from ._gp_mean import gp_mean_batch, gp_pack
 
 __all__ = ["GaussianProcess", "LeaveOneOut", "GPModel", "ExtrapolationWarning"]
 
@@ -642,27 +643,16 @@ class GaussianProcess:
         return out[0] if len(out) == 1 else tuple(out)
 
     def _build_fast(self) -> None:
-        """Stack every response's scaled training points for one batched mean evaluation."""
-        ie = np.array([f.inv_ell for f in self._fits])  # (m, d)
-        xe = self._Xs[None] * ie[:, None, :]  # (m, n, d)
-        self._fast = dict(
-            inv_ell=ie, xeT=np.ascontiguousarray(xe.transpose(0, 2, 1)), nrm=(xe * xe).sum(-1),
-            alpha=np.array([f.alpha * (1.0 if f.concentrated else f.sigma2)
-                            for f in self._fits])[:, :, None],
-            beta=np.array([f.beta for f in self._fits]).T)
+        """Pack every response's training points and weights for the compiled mean."""
+        self._fast = gp_pack(
+            self._lo, self._span, self._Xs, np.array([f.inv_ell for f in self._fits]),
+            np.array([f.alpha * (1.0 if f.concentrated else f.sigma2) for f in self._fits]),
+            np.array([f.beta for f in self._fits]), self.trend, self.kernel, self._y_mean,
+            self._y_std)
 
     def _mean_fast(self, X: np.ndarray) -> np.ndarray:
-        """Mean only, no checks (used inside Markov chains), shape (n, m)."""
-        fd = self._fast
-        xs = (X - self._lo) / self._span
-        xe = xs[None] * fd["inv_ell"][:, None, :]  # (m, k, d)
-        d2 = (xe * xe).sum(-1)[:, :, None] + fd["nrm"][:, None, :] - 2.0 * (xe @ fd["xeT"])
-        np.maximum(d2, 0.0, out=d2)
-        r, _ = _corr(np.sqrt(d2), self.kernel)
-        mu = (r @ fd["alpha"])[:, :, 0].T  # (k, m)
-        if self.trend is not None:
-            mu = mu + _basis(xs - 0.5, self.trend) @ fd["beta"]
-        return self._y_mean + self._y_std * mu
+        """Mean only, no checks (used inside Markov chains), X (k, d) -> (k, m)."""
+        return gp_mean_batch(X, self._fast)
 
     # --- cross-validation ------------------------------------------------------------------
     def loo(self) -> LeaveOneOut:

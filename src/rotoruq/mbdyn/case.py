@@ -28,7 +28,7 @@ TEMPLATES = ("rigid", "elastic")
 #: Preset properties every template may use (lengths m, angles deg, speed of sound m/s,
 #: mass per length kg/m).
 GEOMETRY_FIELDS = ("radius", "root_cutout", "chord", "twist_deg", "speed_of_sound",
-                   "blade_mass_per_length", "pitch_horn_arm")
+                   "blade_mass_per_length", "pitch_horn_arm", "pitch_link_length")
 #: Out of ground effect the ground node is put this many radii below the hub (MBDyn's
 #: Cheeseman-Bennett factor is then 1 - 6e-14).
 OGE_DISTANCE = 1.0e6

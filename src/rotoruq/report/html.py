@@ -262,7 +262,7 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
 
     nav = "".join(
         f"<li style='margin-left:{(lvl - 2) * 1.2}em'><a href='#{a}'>{html.escape(txt)}</a>"
-        "</li>" for lvl, a, txt in toc if lvl <= 3 or a.startswith(("table-",)))
+        "</li>" for lvl, a, txt in toc)
     head = [f"<h1>{html.escape(title)}</h1>",
             f"<p class=note>Generated {_dt.datetime.now().isoformat(timespec='seconds')} from "
             f"{', '.join(html.escape(str(p)) for p in results_dirs)}.</p>",

@@ -156,7 +156,8 @@ def test_both_propagations_are_claimed_with_their_numbers():
     assert joint.propagation == JOINT and joint.status == "does not hold"
     assert joint.value == 2.5 and joint.thesis_value is None
     assert any("2.50 std devs" in r for r in joint.reasons)
-    assert any("0.62 (independent normals: 3.8)" in r for r in joint.reasons)
+    assert any("0.62 (independent normals: 3.8)" in d for d in joint.details)
+    assert ind.details == joint.details
 
 
 def test_non_holding_claims_carry_diagnostic_reasons():

@@ -317,15 +317,17 @@ def _forward_claims(key, text, steps, step, label, rows, resp, limit, thesis_val
                     f"{res.get(f'{prefix}std/{r}{label}'):.3g})")
         if reasons:
             reasons += _bayes_reasons(steps, "bayes", labels, correlations=not prefix)
-            if prefix and res is not None:
-                reasons.append(_spread_contrast(res, resp, label))
+        details = ()
+        if res is not None and any(f"pp_std/{r}{label}" in res.scalars for r in resp):
+            details = (_spread_contrast(res, resp, label),)
         thesis = thesis_vals if not prefix else [None] * len(resp)
         out.append(Claim(
             f"{key}_{tag}", text, "largest |measured - mean| / std over the loads", "<=",
             limit, _worst(vals), _worst(thesis), _kofn(vals, lambda v: v <= limit),
             _kofn(thesis, lambda v: v <= limit), propagation=prop,
             reasons=tuple(r for r in reasons if r),
-            warnings=_warnings(steps, ["bayes_moments", "bayes"], labels)))
+            warnings=_warnings(steps, ["bayes_moments", "bayes"], labels),
+            details=tuple(d for d in details if d)))
     return out
 
 
@@ -338,8 +340,9 @@ def _spread_contrast(res: StepResult, resp, label) -> str:
             parts.append(f"{r} {b:.3g} (independent normals: {a:.3g})")
     if not parts:
         return ""
-    return ("the joint predictive is narrower where the posterior is correlated; model std "
-            "under the joint posterior: " + ", ".join(parts))
+    return ("why the propagations differ: independent normals drop the posterior's "
+            "correlations (and its non-normal shape); model std under the joint posterior: "
+            + ", ".join(parts))
 
 
 def _ground_claims(num, name, resp, t: ComparedTable, exp, labels) -> list[Claim]:

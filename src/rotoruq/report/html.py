@@ -88,6 +88,7 @@ def _claim_row(c: Claim) -> str:
               ("holds" if c.thesis_passes else "does not hold"))
     why = "".join(f"<li>{e(r)}</li>" for r in c.reasons)
     why += "".join(f"<li>warning: {e(w)}</li>" for w in c.warnings)
+    why += "".join(f"<li>note: {e(d)}</li>" for d in c.details)
     prop = {INDEPENDENT: "independent normals", JOINT: "joint posterior predictive"}.get(
         c.propagation or "", "")
     return (f"<tr data-claim='{e(c.key)}' data-status='{e(status)}'>"

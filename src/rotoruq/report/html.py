@@ -244,7 +244,11 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
             body.append("<p class=note>Differences: in the thesis's standard deviations "
                         "(\u03c3) for means with a printed std; absolute for indices, "
                         "std-dev counts and shape moments or where the thesis value is near "
-                        "zero; relative (%) otherwise.</p>")
+                        "zero; relative (%) otherwise. Colour of our value: "
+                        "<span style='background:#e5f5e0'>&nbsp;agrees&nbsp;</span> (within "
+                        "10 %, 1 σ or 0.05 absolute), "
+                        "<span style='background:#fee8c8'>&nbsp;differs&nbsp;</span>, "
+                        "uncoloured: nothing to compare.</p>")
             for t in mine:
                 write_csv(t, tab_dir)
                 heading(4, f"Table {t.ref.number}: {t.ref.caption}", f"table-{t.ref.number}")

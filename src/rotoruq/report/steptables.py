@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from ..study.results import StepResult
 from .diagnostics import step_warnings
 
-__all__ = ["StepTable", "step_tables", "table_text", "table_csv"]
+__all__ = ["StepTable", "step_tables", "table_text", "table_csv", "fmt_cell"]
 
 Cell = float | str | None
 
@@ -279,7 +279,7 @@ def step_tables(res: StepResult, labels: Mapping[str, str] | None = None) -> lis
     return tables
 
 
-def _fmt(v: Cell) -> str:
+def fmt_cell(v: Cell) -> str:
     from .tables import fmt
 
     if v is None:
@@ -293,7 +293,7 @@ def _fmt(v: Cell) -> str:
 
 def table_text(t: StepTable) -> str:
     """A plain-text table for a terminal."""
-    cells = [list(t.columns)] + [[_fmt(v) for v in r] for r in t.rows]
+    cells = [list(t.columns)] + [[fmt_cell(v) for v in r] for r in t.rows]
     widths = [max(len(row[j]) for row in cells) for j in range(len(t.columns))]
     lines = [t.title, "  ".join(c.ljust(w) for c, w in zip(cells[0], widths, strict=True))]
     lines.append("  ".join("-" * w for w in widths))

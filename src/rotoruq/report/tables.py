@@ -76,14 +76,14 @@ def table_html(t: ComparedTable) -> str:
 
 def step_table_html(t) -> str:
     """A :class:`rotoruq.report.steptables.StepTable` as an HTML table."""
-    from .steptables import _fmt
+    from .steptables import fmt_cell
 
     e = html.escape
     head = "".join(f"<th{' class=l' if j == 0 else ''}>{e(c)}</th>"
                    for j, c in enumerate(t.columns))
     rows = "".join(
         "<tr>" + "".join(f"<td{' class=l' if j == 0 or isinstance(v, str) else ''}>"
-                         f"{e(_fmt(v))}</td>" for j, v in enumerate(r)) + "</tr>"
+                         f"{e(fmt_cell(v))}</td>" for j, v in enumerate(r)) + "</tr>"
         for r in t.rows)
     note = f"<p class=note>{e(t.note)}</p>" if t.note else ""
     return (f"<p><b>{e(t.title)}</b></p><table class=step><thead><tr>{head}</tr></thead>"

@@ -129,9 +129,9 @@ def test_warnings_turn_holds_into_holds_with_a_warning():
     c = _claim(claims(compare_tables(_exp(scalars, ok)), _exp(scalars, ok)),
                "gvpm_within_1std_4R_independent")
     assert c.status == "holds" and not c.warnings
-    for bad, words in (({"rhat/k_pitch_link": 1.05}, "R-hat 1.050"),
-                       ({"ess/k_pitch_link": 50.0}, "ESS 50"),
-                       ({"loo_q2/thrust": 0.5}, "leave-one-out Q2 0.500"),
+    for bad, words in (({"rhat/k_pitch_link": 1.05}, "R-hat above 1.01): k_pitch_link (1.050)"),
+                       ({"ess/k_pitch_link": 50.0}, "(below 200): k_pitch_link (50)"),
+                       ({"loo_q2/thrust": 0.5}, "Q2 below 0.9): thrust (0.500)"),
                        ({"pileup_hi/cd0_m02": 0.4}, "upper bound"),
                        ({"std_ratio/ei_flap": 0.97}, "not identifiable")):
         res = _exp(scalars, ok | bad)

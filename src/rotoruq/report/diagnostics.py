@@ -68,32 +68,28 @@ def step_warnings(res: StepResult, labels: Mapping[str, str] | None = None) -> l
     w: list[str] = []
     name = res.name
     if res.type == "bayes_calibration":
-        for p, ess in _keys(res, "ess/").items():
-            if ess < ESS_MIN:
-                w.append(f"{name}: low effective sample size for {_lab(p, labels)} "
-                         f"(ESS {ess:.0f} < {ESS_MIN:.0f})")
-        for p, rhat in _keys(res, "rhat/").items():
-            if rhat > RHAT_MAX:
-                w.append(f"{name}: chain not mixed for {_lab(p, labels)} "
-                         f"(R-hat {rhat:.3f} > {RHAT_MAX})")
-        for r, q2 in _keys(res, "loo_q2/").items():
-            if q2 < LOO_Q2_MIN:
-                w.append(f"{name}: poor emulator for {r} (leave-one-out Q2 {q2:.3f} < "
-                         f"{LOO_Q2_MIN})")
+        def listed(prefix, bad, fmt):
+            hits = [(p, v) for p, v in _keys(res, prefix).items() if bad(v)]
+            return ", ".join(f"{_lab(p, labels)} ({fmt(v)})" for p, v in hits)
+
+        if low := listed("ess/", lambda v: v < ESS_MIN, lambda v: f"{v:.0f}"):
+            w.append(f"{name}: low effective sample size (below {ESS_MIN:.0f}): {low}")
+        if high := listed("rhat/", lambda v: v > RHAT_MAX, lambda v: f"{v:.3f}"):
+            w.append(f"{name}: chain not mixed (R-hat above {RHAT_MAX}): {high}")
+        if poor := listed("loo_q2/", lambda v: v < LOO_Q2_MIN, lambda v: f"{v:.3f}"):
+            w.append(f"{name}: poor emulator (leave-one-out Q2 below {LOO_Q2_MIN}): {poor}")
         for side, word in (("lo", "lower"), ("hi", "upper")):
             for p, f in _keys(res, f"pileup_{side}/").items():
                 if f > PILEUP_MAX:
                     w.append(f"{name}: {_lab(p, labels)} piles up against its prior's {word} "
                              f"bound ({100 * f:.0f} % of the chain in the outer 5 % of the "
                              "range)")
-        for p, ratio in _keys(res, "std_ratio/").items():
-            if ratio > STD_RATIO_MAX:
-                w.append(f"{name}: not identifiable from these data: {_lab(p, labels)} "
-                         f"(posterior std {ratio:.2f} x the prior's)")
-        for p, z in _keys(res, "prior_z/").items():
-            if abs(z) > PRIOR_Z_MAX:
-                w.append(f"{name}: the posterior of {_lab(p, labels)} left the prior's bulk "
-                         f"({z:+.1f} prior std devs from the prior mean)")
+        if weak := listed("std_ratio/", lambda v: v > STD_RATIO_MAX, lambda v: f"{v:.2f}"):
+            w.append(f"{name}: not identifiable from these data (posterior std / prior std "
+                     f"above {STD_RATIO_MAX}): {weak}")
+        if far := listed("prior_z/", lambda v: abs(v) > PRIOR_Z_MAX, lambda v: f"{v:+.1f}"):
+            w.append(f"{name}: the posterior left the prior's bulk (prior std devs from the "
+                     f"prior mean): {far}")
         for msg in res.meta.get("warnings", []) or []:
             w.append(f"{name}: {msg}")
         if str(res.meta.get("noise_model", "")).startswith("unit"):

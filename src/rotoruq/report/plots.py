@@ -184,23 +184,30 @@ def chain_traces(res: StepResult, labels, units=None) -> list[Figure]:
 
 def pair_plot(res: StepResult, labels, units=None) -> list[Figure]:
     """Lower triangle: joint samples (1,000 spread over the chain, rasterized); diagonal:
-    marginal histograms; the posterior correlation in each panel's corner."""
+    marginal histograms; the posterior correlation in each panel's corner (red beyond
+    |0.7|). Laid out by hand: constrained layout costs seconds on d^2 axes."""
     names = res.columns("chain")
     chain = np.asarray(res.arrays["chain"])
     d = len(names)
     idx = np.linspace(0, chain.shape[0] - 1, min(chain.shape[0], 1000)).astype(int)
     corr = np.corrcoef(chain, rowvar=False) if d > 1 else np.ones((1, 1))
     size = 1.6 * d + 1.4
-    fig, axes = _subplots(d, d, figsize=(size, size), squeeze=False)
+    fig = _MplFigure(figsize=(size, size))
+    axes = fig.subplots(d, d, squeeze=False)
+    margin = 1.3 / size
+    fig.subplots_adjust(left=margin, bottom=margin, right=0.99, top=0.99, wspace=0.08,
+                        hspace=0.08)
     for i in range(d):
         for j in range(d):
             ax = axes[i, j]
-            ax.tick_params(labelsize=7, labelrotation=45)
             if j > i:
-                ax.axis("off")
+                ax.set_visible(False)
                 continue
+            ax.tick_params(labelsize=7, labelrotation=45, labelbottom=i == d - 1,
+                           labelleft=j == 0 and i > 0)
             if i == j:
-                ax.hist(chain[:, i], bins=30, color="#6baed6", rasterized=True)
+                counts, edges = np.histogram(chain[:, i], bins=30)
+                ax.stairs(counts, edges, fill=True, color="#6baed6")
                 ax.set_yticks([])
             else:
                 ax.plot(chain[idx, j], chain[idx, i], ".", ms=1.2, alpha=0.4, color="C0",
@@ -209,14 +216,9 @@ def pair_plot(res: StepResult, labels, units=None) -> list[Figure]:
                         va="top", color="C3" if abs(corr[i, j]) > 0.7 else "k")
             if i == d - 1:
                 ax.set_xlabel(axis_label(names[j], labels, units), fontsize=8)
-            else:
-                ax.set_xticklabels([])
             if j == 0 and i > 0:
                 ax.set_ylabel(axis_label(names[i], labels, units), fontsize=8)
-            elif j > 0:
-                ax.set_yticklabels([])
-    if d > 1:
-        axes[0, 0].set_ylabel("count [-]", fontsize=8)
+    axes[0, 0].set_ylabel("count [-]", fontsize=8)
     return [Figure(f"{res.name}_pairs", f"Posterior pair plot, correlation in each panel "
                    f"({res.name})", fig)]
 

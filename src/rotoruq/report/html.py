@@ -41,6 +41,7 @@ figcaption{font-size:12px;color:#444}
 .st-fails{color:#b42318;font-weight:bold} .st-na{color:#777}
 ul.why{margin:0;padding-left:1.2em;font-size:11px;text-align:left}
 nav.toc{font-size:13px;column-width:18em}
+details{font-size:11px;text-align:left}
 """
 
 _STATUS_CLASS = {"holds": "st-holds", "holds, with a warning": "st-warn",
@@ -87,8 +88,12 @@ def _claim_row(c: Claim) -> str:
     thesis = ("-" if c.thesis_passes is None else
               ("holds" if c.thesis_passes else "does not hold"))
     why = "".join(f"<li>{e(r)}</li>" for r in c.reasons)
-    why += "".join(f"<li>warning: {e(w)}</li>" for w in c.warnings)
     why += "".join(f"<li>note: {e(d)}</li>" for d in c.details)
+    why = f"<ul class=why>{why}</ul>" if why else ""
+    if c.warnings:
+        why += (f"<details><summary>{len(c.warnings)} warning(s) from the steps it rests on"
+                "</summary><ul class=why>"
+                + "".join(f"<li>{e(w)}</li>" for w in c.warnings) + "</ul></details>")
     prop = {INDEPENDENT: "independent normals", JOINT: "joint posterior predictive"}.get(
         c.propagation or "", "")
     return (f"<tr data-claim='{e(c.key)}' data-status='{e(status)}'>"
@@ -96,7 +101,7 @@ def _claim_row(c: Claim) -> str:
             f"<td><span class={_STATUS_CLASS[status]}>{e(status)}</span></td>"
             f"<td>{num(c.value)}</td><td>{e(c.op)} {c.threshold:g}</td><td>{kofn(c.ours)}</td>"
             f"<td>{num(c.thesis_value)}</td><td>{thesis}</td>"
-            f"<td class=l>{f'<ul class=why>{why}</ul>' if why else ''}</td></tr>")
+            f"<td class=l>{why}</td></tr>")
 
 
 def _claims_section(claim_list: list[Claim]) -> str:

@@ -245,3 +245,22 @@ def test_block_validation():
         C81Block([0.0, 0.5], [-180.0, 180.0], np.zeros((2, 3)))
     with pytest.raises(ParameterError, match="increasing"):
         C81Block([0.5, 0.0], [-180.0, 180.0], np.zeros((2, 2)))
+
+
+@pytest.mark.parametrize(
+    "text, line, words",
+    [
+        ("# FREE FORMAT\n", 2, "free-format header"),
+        ("# FREE FORMAT", 2, "free-format header"),
+        ("# FREE FORMAT\nT; 1 1 1 1 1 1\n0.3\n0.0 nan\n", 4, "finite number"),
+        ("# FREE FORMAT\nT; 1 1 1 1 1 1\n0.3\n0.0 1e999\n", 4, "finite number"),
+        ("T".ljust(30) + " 1 1 1 1 1 1\n" + " " * 7 + "nan\n", 2, "finite number"),
+    ],
+)
+def test_malformed_files_name_file_and_line(tmp_path, text, line, words):
+    p = tmp_path / "bad.c81"
+    p.write_text(text)
+    with pytest.raises(InputFileError) as err:
+        read_c81(p)
+    assert err.value.path == str(p) and err.value.line == line
+    assert words in str(err.value)

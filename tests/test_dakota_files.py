@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -215,3 +217,57 @@ def test_write_failed_and_format_checks(tmp_path):
         format_parameters({"a": 1.0}, {"f": 9})
     with pytest.raises(ValueError, match="without spaces"):
         format_parameters({"a": "two words"}, ["f"])
+
+
+# --- hostile input: linear time, undecodable bytes -------------------------------------------
+
+LONG = "1" * 20_000
+
+
+@pytest.mark.parametrize(
+    "kind, text",
+    [
+        ("results", f"{LONG} f\n"),  # a huge but valid number
+        ("results", f"{LONG}x f\n"),  # almost a number
+        ("results", f"{LONG}D f\n"),  # almost a Fortran number
+        ("results", f"1.0 f\n[ {LONG}.{LONG}d ]\n"),
+        ("results", "[" * 20_000 + "\n"),
+        ("results", "1.0 " + "[[ ]" * 5_000 + "\n"),
+        ("params", f"1 variables\n{LONG} a\n1 functions\n1 ASV_1:f\n0 derivative_variables\n"
+                   "0 analysis_components\n1 eval_id\n"),
+        ("params", f"{LONG} variables\n"),
+        ("params", f"1 variables\n1.0 a\n1 functions\n{LONG} ASV_1:f\n"),
+        ("params", "{ DAKOTA_VARS = " + " " * 20_000 + "1 \n"),
+        ("params", "{ a = " + " " * 20_000 + "x" + " " * 20_000),
+        ("params", "1 variables\n1.0 a\n1 functions\n1 ASV_" + LONG + ":f\n"),
+        ("params", f"1 variables\n1.0 a\n0 functions\n0 derivative_variables\n"
+                   f"0 analysis_components\n{':'.join([LONG] * 3)}x eval_id\n"),
+    ],
+)
+def test_parsers_take_linear_time_on_long_tokens(kind, text):
+    parse = parse_results if kind == "results" else parse_parameters
+    best = float("inf")
+    for _ in range(3):  # the best of three: a busy machine does not make it fail
+        t0 = time.perf_counter()
+        try:
+            parse(text, "hostile")
+        except InputFileError:
+            pass
+        best = min(best, time.perf_counter() - t0)
+    assert best < 0.1  # milliseconds; the regex parser took 20 s on such tokens
+
+
+def test_huge_integer_parses_as_a_number_not_an_error():
+    v = parse_parameters(f"1 variables\n{LONG} a\n0 functions\n0 derivative_variables\n"
+                         "0 analysis_components\n1 eval_id\n").variables["a"]
+    assert v == float("inf") or v == int(LONG)
+    assert parse_results(f"{LONG}e-19999 f\n").values[0] == pytest.approx(1.1111111111111111)
+
+
+@pytest.mark.parametrize("read", [read_parameters, read_results])
+def test_undecodable_files_name_file_and_line(tmp_path, read):
+    p = tmp_path / "bad"
+    p.write_bytes(b"1 variables\n\xff\xfe a\n")
+    with pytest.raises(InputFileError) as err:
+        read(p)
+    assert err.value.path == str(p) and err.value.line == 2 and "UTF-8" in str(err.value)

@@ -2,17 +2,24 @@
 
 from __future__ import annotations
 
+import hashlib
+import json
+import os
 import random
+import signal
+import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from rotoruq.errors import EvaluationError, ParameterError
+from rotoruq.errors import EvaluationError, InputFileError, ParameterError
 from rotoruq.evaluation import evaluate
 from rotoruq.evaluation.evaluator import Evaluator
 from rotoruq.evaluation.external import ExternalModel
+from rotoruq.evaluation.process_tree import is_running as alive
 from rotoruq.evaluation.store import Store
 
 # A driver using only the standard library (fast start-up). It reads either parameters
@@ -33,6 +40,9 @@ else:
         val, tag = line.split()
         x[tag] = val
 kind, a = int(float(x["kind"])), float(x["a"])
+GRANDCHILD = ("import os, sys, time; os.setsid(); t = sys.argv[1]; "
+              "open(t + '.tmp', 'w').write(str(os.getpid())); os.rename(t + '.tmp', t + '.gc'); "
+              "time.sleep(60)")
 side = os.environ.get("SIDE_FILE")
 attempt = 0
 if side:
@@ -57,6 +67,36 @@ if kind == 3:
 if kind == 4:
     open(results, "w").write("thrust = lots\n")
     sys.exit(0)
+if kind == 6:
+    open(results, "w").write("nan f\n")
+    sys.exit(0)
+if kind == 7:
+    open(results, "w").write("1e999 f\n")  # overflows to inf
+    sys.exit(0)
+if kind == 8:
+    open(results, "wb").write(b"1.0 f\xff\xfe\n")  # not UTF-8
+    sys.exit(0)
+if kind in (9, 10):  # a grandchild that leaves the process group (setsid) and hangs
+    import subprocess
+    tag = os.path.join(os.environ["PID_DIR"], f"{x['a']}-{attempt}-{os.getpid()}")
+    subprocess.Popen([sys.executable, "-S", "-c", GRANDCHILD, tag])
+    while not os.path.exists(tag + ".gc"):
+        time.sleep(0.005)
+    if kind == 9:
+        time.sleep(60)  # and the driver hangs too
+if kind == 11:  # a daemon: double fork, the middle process exits at once, setsid
+    tag = os.path.join(os.environ["PID_DIR"], f"{x['a']}-{attempt}-{os.getpid()}")
+    if os.fork() == 0:
+        if os.fork() != 0:
+            os._exit(0)
+        os.setsid()
+        open(tag + ".tmp", "w").write(str(os.getpid()))
+        os.rename(tag + ".tmp", tag + ".gc")
+        time.sleep(60)
+        os._exit(0)
+    while not os.path.exists(tag + ".gc"):
+        time.sleep(0.005)
+    time.sleep(60)
 if kind == 5 and random.Random(f"{x['a']}-{attempt}").random() < 0.1:
     sys.stderr.write(f"random failure at attempt {attempt}\n")
     sys.exit(1)
@@ -108,9 +148,10 @@ def test_model_protocol_direct_call(driver, tmp_path):
     b = evaluate(m, np.array([[0.0, 1.0], [0.0, 2.0]]))
     np.testing.assert_array_equal(b.values[:, 0], [2.0, 4.0])
     names = sorted(p.name for p in (tmp_path / "work").iterdir())
-    assert names == ["run.1", "run.2"]
-    assert (tmp_path / "work" / "run.1" / "params.in").read_text().split()[:2] == ["2",
-                                                                                   "variables"]
+    prefix = f"run.{os.getpid()}.{m._token}"  # <name>.<pid>.<run token>.<eval_id>
+    assert names == [f"{prefix}.1", f"{prefix}.2"]
+    assert (tmp_path / "work" / f"{prefix}.1" / "params.in").read_text().split()[:2] == [
+        "2", "variables"]
 
 
 def test_every_failure_kind_is_recorded_and_good_ones_kept(driver, tmp_path):
@@ -290,3 +331,324 @@ def test_rotoruq_driver_command_with_the_rotor_model(tmp_path):
     np.testing.assert_allclose(out.values[ok], expected.values[ok], rtol=1e-12)
     for i in expected.failures:
         assert "fail marker" in out.failures[i]
+
+
+# --- failures at the seams: non-finite and undecodable results, escaping process trees --------
+
+
+def run_pids(pid_dir) -> list[int]:
+    """Pids of the drivers (from the file names) and their grandchildren (from the files)."""
+    out = []
+    for p in pid_dir.iterdir():
+        if p.suffix == ".gc":
+            out += [int(p.stem.rsplit("-", 1)[1]), int(p.read_text())]
+    return out
+
+
+def runs_of(side, a: float) -> int:
+    """How many times the driver ran at ``a`` (it logs its input to the side file)."""
+    return [float(v) for v in side.read_text().split()].count(a)
+
+
+BAD = {6: "non-finite response in results file: f=nan",
+       7: "non-finite response in results file: f=inf",
+       8: "UTF-8",
+       9: "timed out after 0.5 s"}
+
+
+@pytest.mark.parametrize("kind", sorted(BAD))
+@pytest.mark.parametrize("policy", ["continue", "abort", "retry:2", "recover"])
+def test_bad_results_and_hangs_go_through_every_policy(driver, tmp_path, monkeypatch, kind,
+                                                       policy):
+    side, pid_dir = tmp_path / "side", tmp_path / "pids"
+    pid_dir.mkdir()
+    monkeypatch.setenv("SIDE_FILE", str(side))
+    monkeypatch.setenv("PID_DIR", str(pid_dir))
+    fp = {"recover": [-7.0]} if policy == "recover" else policy
+    m = model(driver, tmp_path, failure_policy=fp, timeout=0.5)
+    x = np.array([[0, 1.0], [kind, 2.0], [0, 3.0]])
+    ev = Evaluator(m, store=tmp_path / "s.db")
+    t0 = time.perf_counter()
+    if policy == "abort":
+        with pytest.raises(EvaluationError, match=BAD[kind]):
+            ev.evaluate(x)
+        recs = Store(tmp_path / "s.db").records()
+        assert [(float(r.inputs[1]), r.status) for r in recs] == [(1.0, "ok"), (2.0, "failed")]
+    else:
+        out = ev.evaluate(x)
+        np.testing.assert_array_equal(out.values[[0, 2], 0], [2.0, 6.0])
+        rec = {float(r.inputs[1]): r for r in Store(tmp_path / "s.db").records()}[2.0]
+        assert BAD[kind] in rec.error
+        if policy == "recover":
+            assert out.failures == {} and out.values[1, 0] == -7.0
+            assert rec.status == "recovered"
+        else:
+            assert BAD[kind] in out.failures[1] and np.isnan(out.values[1, 0])
+            assert rec.status == "failed"
+        want = 3 if policy == "retry:2" else 1
+        assert rec.attempts == want
+        assert runs_of(side, 2.0) == want  # the driver really ran again
+        if policy == "continue":  # a failed point is run again by the next evaluation
+            ev.evaluate(x)
+            assert ev.last_stats.reused == 2 and ev.last_stats.evaluated == 1
+    ev.close()
+    if kind == 9:  # each attempt was stopped at the timeout, driver and grandchild killed
+        pids = run_pids(pid_dir)
+        assert len(pids) == 2 * runs_of(side, 2.0) > 0
+        assert not [p for p in pids if alive(p)]
+        assert time.perf_counter() - t0 < 0.5 * len(pids) + 3
+
+
+def test_timeout_kills_a_grandchild_that_left_the_group(driver, tmp_path, monkeypatch):
+    pid_dir = tmp_path / "pids"
+    pid_dir.mkdir()
+    monkeypatch.setenv("PID_DIR", str(pid_dir))
+    m = model(driver, tmp_path, timeout=1)
+    t0 = time.perf_counter()
+    r = m.run_one(np.array([9.0, 1.0]))
+    elapsed = time.perf_counter() - t0
+    assert r.status == "failed" and "timed out after 1 s" in r.error
+    assert "1 other processes killed" in r.error
+    assert 1.0 <= elapsed < 2.5
+    driver_pid, gc_pid = run_pids(pid_dir)
+    assert not alive(driver_pid) and not alive(gc_pid)
+
+
+def test_timeout_kills_a_daemonized_grandchild(driver, tmp_path, monkeypatch):
+    """The grandchild's parent exits at once, so it is never seen as a descendant: it is found
+    by the run's token in its environment."""
+    pid_dir = tmp_path / "pids"
+    pid_dir.mkdir()
+    monkeypatch.setenv("PID_DIR", str(pid_dir))
+    r = model(driver, tmp_path, timeout=0.5).run_one(np.array([11.0, 1.0]))
+    assert r.status == "failed" and "timed out" in r.error
+    pids = run_pids(pid_dir)
+    assert len(pids) == 2 and not [p for p in pids if alive(p)]
+
+
+def test_grandchild_left_behind_by_a_successful_driver_is_killed(driver, tmp_path,
+                                                                 monkeypatch):
+    pid_dir = tmp_path / "pids"
+    pid_dir.mkdir()
+    monkeypatch.setenv("PID_DIR", str(pid_dir))
+    r = model(driver, tmp_path).run_one(np.array([10.0, 1.0]))
+    assert r.status == "ok" and r.values[0] == 12.0
+    assert not [p for p in run_pids(pid_dir) if alive(p)]
+
+
+INTERRUPTED = r'''
+import sys
+import numpy as np
+from rotoruq.evaluation.external import ExternalModel
+from rotoruq.evaluation.process_tree import is_running as alive
+m = ExternalModel([sys.executable, "-S", sys.argv[1]], ["kind", "a"], ["f"], workdir=sys.argv[2])
+m.run_one(np.array([9.0, 1.0]))
+'''
+
+
+def test_interrupted_evaluation_kills_the_driver_tree(driver, tmp_path):
+    pid_dir = tmp_path / "pids"
+    pid_dir.mkdir()
+    (tmp_path / "study.py").write_text(INTERRUPTED)
+    proc = subprocess.Popen([sys.executable, str(tmp_path / "study.py"), str(driver),
+                             str(tmp_path / "work")], env={**os.environ, "PID_DIR": str(pid_dir)},
+                            stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 30
+    while not list(pid_dir.glob("*.gc")) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    pids = run_pids(pid_dir)
+    assert len(pids) == 2 and all(alive(p) for p in pids)
+    proc.send_signal(signal.SIGINT)  # Ctrl-C: KeyboardInterrupt in the waiting thread
+    _, err = proc.communicate(timeout=10)
+    assert proc.returncode != 0 and b"KeyboardInterrupt" in err
+    assert not [p for p in pids if alive(p)]
+
+
+def test_output_goes_to_capped_files_not_memory(tmp_path):
+    chatty = tmp_path / "chatty.py"
+    chatty.write_text("import sys\nline = b'x' * 1023 + b'\\n'\n"
+                      "for _ in range(200 * 1024):\n    sys.stdout.buffer.write(line)\n"
+                      "sys.stdout.buffer.write(b'LAST LINE\\n')\nsys.exit(2)\n")
+
+    def hwm_kib() -> int:
+        line = next(s for s in open("/proc/self/status") if s.startswith("VmHWM"))
+        return int(line.split()[1])
+
+    m = ExternalModel([sys.executable, "-S", str(chatty)], ["a"], ["f"],
+                      workdir=tmp_path / "w", output_cap=2**20)
+    before = hwm_kib()
+    r = m.run_one(np.array([1.0]))
+    grown = hwm_kib() - before
+    assert r.status == "failed" and "status 2" in r.error
+    assert r.stdout.endswith("LAST LINE\n") and len(r.stdout) <= 8200
+    assert grown < 50 * 1024, f"peak memory grew by {grown} KiB for 200 MiB of output"
+    out = Path(r.workdir) / "rotoruq.stdout"
+    assert 2**20 < out.stat().st_size < 2**20 + 70 * 1024
+    text = out.read_bytes()
+    assert text.startswith(b"x" * 1023 + b"\n") and text.endswith(b"LAST LINE\n")
+    omitted = 200 * 2**20 + 10 - 2**20 - 64 * 1024
+    assert f"[rotoruq: {omitted} bytes omitted]".encode() in text
+
+
+# --- names, work directories, identity ------------------------------------------------------
+
+
+@pytest.mark.parametrize("bad", ["", "..", "a\nb", "a/b", "a\\b", "../x", "a b", "x..y", "{a}",
+                                 "a=b", "tab\t"])
+def test_names_are_validated(driver, tmp_path, bad):
+    for kw in ({"names_in": [bad, "a"]}, {"names_out": [bad]}, {"name": bad},
+               {"parameters_file": bad}, {"results_file": bad}):
+        args = {"names_in": ["kind", "a"], "names_out": ["f"], **kw}
+        with pytest.raises(ParameterError):
+            ExternalModel([sys.executable, str(driver)], args.pop("names_in"),
+                          args.pop("names_out"), workdir=tmp_path / "w", **args)
+    with pytest.raises(ParameterError):
+        model(driver, tmp_path).run_one(np.array([0.0, 1.0]), eval_id=bad or "..")
+
+
+def test_model_named_dotdot_never_deletes_outside_its_work_directory(driver, tmp_path):
+    base = tmp_path / "project"
+    (base / "work").mkdir(parents=True)
+    precious = base / "thesis.tex"
+    precious.write_text("years of work\n")
+    with pytest.raises(ParameterError, match="'..'"):
+        ExternalModel([sys.executable, str(driver)], ["kind", "a"], ["f"],
+                      workdir=base / "work", name="..", tag=False)
+    assert precious.read_text() == "years of work\n"
+
+
+def test_untagged_work_directory_is_emptied_only_if_rotoruq_made_it(driver, tmp_path):
+    mine = tmp_path / "work" / "solver"
+    mine.mkdir(parents=True)
+    (mine / "notes.txt").write_text("the user's own folder\n")
+    m = model(driver, tmp_path, name="solver", tag=False, keep_workdirs=True,
+              failure_policy="retry:1")
+    with pytest.raises(ParameterError, match="not made by rotoruq"):
+        m.run_one(np.array([0.0, 1.0]))
+    assert (mine / "notes.txt").read_text() == "the user's own folder\n"
+    (mine / "notes.txt").unlink()
+    mine.rmdir()
+    r = m.run_one(np.array([3.0, 0.5]))  # fails twice (fail marker): the retry re-made it
+    assert r.status == "failed" and r.attempts == 2
+    for a in (1.0, 2.0):  # rotoruq's own directory is reused run after run
+        r = m.run_one(np.array([0.0, a]))
+        assert r.values[0] == 2 * a and r.workdir == str(mine)
+        assert (mine / ".rotoruq-workdir").exists()
+    assert sorted(p.name for p in (tmp_path / "work").iterdir()) == ["solver"]
+
+
+def test_parameters_file_cannot_be_forged_through_a_label(tmp_path):
+    from rotoruq.evaluation.dakota_files import format_parameters
+
+    with pytest.raises(ParameterError, match="white space"):
+        format_parameters({"a\n1 functions": 1.0}, ["f"])
+    with pytest.raises(ParameterError):
+        format_parameters({"a": 1.0}, ["f\n0 eval_id"])
+
+
+CONCURRENT = r'''
+import os, sys
+import numpy as np
+from rotoruq.evaluation.external import ExternalModel
+from rotoruq.evaluation.process_tree import is_running as alive
+driver, work, who = sys.argv[1:4]
+m = ExternalModel([sys.executable, "-S", driver], ["a"], ["f"], workdir=work,
+                  keep_workdirs=sys.argv[4] == "keep")
+a = np.arange(8.0) + (100.0 if who == "B" else 0.0)
+b = m.evaluate(a[:, None])
+assert not b.failures, b.failures
+assert np.array_equal(b.values[:, 0], 2 * a), b.values
+print(os.getpid())
+'''
+
+# The driver checks its work directory stays its own while it runs: the parameters file is
+# still there and still holds its input, and no foreign file appeared.
+SLOW_DRIVER = r'''
+import os, sys, time
+params, results = sys.argv[1], sys.argv[2]
+text = open(params).read()
+mine = set(os.listdir("."))
+time.sleep(0.05)
+if open(params).read() != text or set(os.listdir(".")) != mine:
+    sys.exit("work directory changed under me")
+a = float(text.splitlines()[1].split()[0])
+open(results, "w").write(f"{2 * a!r} f\n")
+'''
+
+
+@pytest.mark.parametrize("keep", ["keep", "remove"])
+def test_two_processes_share_a_base_folder_without_collisions(tmp_path, keep):
+    (tmp_path / "driver.py").write_text(SLOW_DRIVER)
+    (tmp_path / "run.py").write_text(CONCURRENT)
+    work = tmp_path / "work"
+    procs = [subprocess.Popen([sys.executable, str(tmp_path / "run.py"),
+                               str(tmp_path / "driver.py"), str(work), who, keep],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+             for who in "AB"]
+    outs = [p.communicate(timeout=120) for p in procs]
+    for p, (_, err) in zip(procs, outs, strict=True):
+        assert p.returncode == 0, err.decode()
+    dirs = sorted(d.name for d in work.iterdir())
+    if keep == "keep":
+        assert len(dirs) == 16  # one per evaluation, none reused
+        pids = {out.decode().strip() for out, _ in outs}
+        assert {d.split(".")[1] for d in dirs} == pids
+    else:
+        assert dirs == []
+
+
+def test_identity_covers_what_changes_answers(driver, tmp_path):
+    tpl = tmp_path / "solver.inp"
+    tpl.write_text("c = {a}\n")
+    data = tmp_path / "data"
+    data.mkdir()
+    (data / "table.c81").write_text("v1\n")
+
+    def make(**kw):
+        return model(driver, tmp_path, template_files=[tpl], copy_files=[data], **kw)
+
+    ident = make().identity()
+    json.dumps(ident)
+    assert make().identity() == ident  # a model made the same way has the same identity
+    word = ident["command"][2]
+    assert word["path"] == str(driver) and word["sha256"] == hashlib.sha256(
+        driver.read_bytes()).hexdigest()
+    assert ident["command"][0]["sha256"]  # the interpreter itself
+    changed = {
+        "names_in": ExternalModel([sys.executable, "-S", str(driver)], ["kind", "b"], ["f"],
+                                  workdir=tmp_path / "work", copy_files=[data]),
+        "failure_policy": make(failure_policy="retry:2"),
+        "env": make(env={"OMP_NUM_THREADS": "1"}),
+        "parameters_format": make(parameters_format="aprepro"),
+        "asv": make(asv=3),
+    }
+    for key, other in changed.items():
+        assert other.identity()[key] != ident[key], key
+    # timeouts and work directories do not change an answer
+    assert make(timeout=5, workdir=tmp_path / "elsewhere", keep_workdirs=True).identity() == ident
+    # edits to files: the driver script, a template, a file inside a copied directory
+    m = make()
+    m.identity()
+    driver.write_text(driver.read_text() + "\n# edited\n")
+    assert m.identity() == ident  # hashed once per model, not per evaluation
+    assert make().identity()["command"] != ident["command"]
+    tpl.write_text("c = {a:.3f}\n")
+    assert make().identity()["templates"] != ident["templates"]
+    (data / "table.c81").write_text("v2\n")
+    assert make().identity()["copy_files"] != ident["copy_files"]
+
+
+def test_template_fields_are_checked_when_the_model_is_made(driver, tmp_path):
+    tpl = tmp_path / "solver.inp"
+    tpl.write_text("c = {a}\nd = {unknown}\n")
+    with pytest.raises(InputFileError, match="unknown") as err:
+        model(driver, tmp_path, template_files=[tpl])
+    assert err.value.line == 2
+    tpl.write_text("c = {a}\nd = {c0}\ne = {h = 2}\n")
+    m = ExternalModel([sys.executable, "-S", str(driver)], ["kind", "a", "c0"], ["f"],
+                      workdir=tmp_path / "work", template_files=[tpl], keep_workdirs=True)
+    r = m.run_one(np.array([0.0, 1.5, 0.25]))
+    assert (Path(r.workdir) / "solver.inp").read_text() == "c = 1.5\nd = 0.25\ne = 2\n"
+    tpl.write_bytes(b"c = {a}\n\xff\n")
+    with pytest.raises(InputFileError, match="UTF-8"):
+        model(driver, tmp_path, template_files=[tpl])

@@ -41,6 +41,9 @@ for line in open("input.txt"):
     k, v = line.split("=")
     vals[k.strip()] = float(v)
 time.sleep(float(os.environ.get("DRIVER_SLEEP", "0")))
+gate = os.environ.get("DRIVER_GATE")
+while gate and not os.path.exists(gate):
+    time.sleep(0.02)
 a, b, c = vals["a"], vals["b"], vals["c"]
 if a > float(os.environ.get("DRIVER_FAIL_ABOVE", "inf")):
     sys.exit(3)
@@ -231,22 +234,28 @@ def test_rotor_changes_are_never_served_stale(tmp_path, what):
 
 def test_second_run_on_one_folder_refuses(tmp_path):
     study = external_study(tmp_path / "s", n=6)
-    log = tmp_path / "driver.log"
-    env = {**os.environ, "DRIVER_SLEEP": "0.4", "DRIVER_LOG": str(log)}
+    log, gate = tmp_path / "driver.log", tmp_path / "gate"
+    # the first run's driver waits at the gate: the first run holds the folder meanwhile
+    env = {**os.environ, "DRIVER_GATE": str(gate), "DRIVER_LOG": str(log)}
     out = tmp_path / "out"
     first = subprocess.Popen([*CLI, "run", str(study), "--out", str(out), "--no-report"],
                              env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        deadline = time.time() + 60
-        while not (log.is_file() and log.read_text()) and time.time() < deadline:
+        lock = out / ".rotoruq.lock"
+        deadline = time.time() + 120
+        while time.time() < deadline:
+            text = lock.read_text() if lock.is_file() else ""
+            if text and json.loads(text).get("pid") == first.pid:
+                break
             time.sleep(0.05)
         second = cli("run", study, "--out", out, "--no-report", env=env, check=False)
-        assert second.returncode == 1
+        assert second.returncode == 1, second.stderr
         assert "in use by another rotoruq run" in second.stderr
         assert f"PID {first.pid}" in second.stderr
         assert "Traceback" not in second.stderr
     finally:
-        _, err = first.communicate(timeout=120)
+        gate.touch()
+        _, err = first.communicate(timeout=300)
     assert first.returncode == 0, err
     runs = Counter(log.read_text().split())
     assert len(runs) == 6 and max(runs.values()) == 1
@@ -331,3 +340,34 @@ def test_rotor_study_killed_and_resumed_is_bitwise_equal(tmp_path):
     cli("run", path, "--out", out, "--no-report")
     assert kills >= 1
     np.testing.assert_array_equal(outputs(out), reference)
+
+
+def test_sigterm_ends_the_run_and_its_drivers(tmp_path):
+    """SIGTERM to `rotoruq run` (a scheduler's time limit): a clean exit, no driver left."""
+    study = external_study(tmp_path / "s", n=4)
+    gate = tmp_path / "never"  # the drivers wait here until ended
+    out = tmp_path / "out"
+    env = {**os.environ, "DRIVER_GATE": str(gate)}
+    proc = subprocess.Popen([*CLI, "run", str(study), "--out", str(out), "--no-report"],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    drivers: list[int] = []
+    while time.time() < deadline and not drivers:
+        drivers = [int(p.name) for p in Path("/proc").iterdir() if p.name.isdigit()
+                   and _cmdline(p).endswith("driver.py params.in results.out")]
+        time.sleep(0.05)
+    assert drivers, "no driver started"
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, err
+    assert "terminated" in err and "Traceback" not in err
+    time.sleep(0.2)
+    assert not [d for d in drivers if Path(f"/proc/{d}").exists()
+                and "Z" not in Path(f"/proc/{d}/stat").read_text().split()[2]]
+
+
+def _cmdline(p: Path) -> str:
+    try:
+        return (p / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace").strip()
+    except OSError:
+        return ""

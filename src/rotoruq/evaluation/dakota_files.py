@@ -36,22 +36,28 @@ response in single brackets ``[ g_1 ... g_p ]``, then Hessians in double bracket
 is ``fail`` (any case) reports a failed evaluation. Exponents must be ``e`` or ``E``; Fortran's
 ``D`` is rejected with a message saying so.
 
-Every parse error is an :class:`~rotoruq.errors.InputFileError` naming the file and line.
+Every parse error is an :class:`~rotoruq.errors.InputFileError` naming the file and line,
+undecodable (non-UTF-8) files included. The parsers run in time linear in the file size (no
+regular expression that can backtrack), so a corrupt or hostile file fails fast.
+
+Labels written to a parameters file (variables, responses, analysis components, metadata) are
+checked by :func:`check_label`: a label holding white space, a newline or a brace could forge
+lines of the file.
 """
 
 from __future__ import annotations
 
 import os
-import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputFileError
+from ..errors import InputFileError, ParameterError
 
 __all__ = [
+    "check_label",
     "ParametersFile",
     "ResultsFile",
     "format_parameters",
@@ -67,9 +73,69 @@ __all__ = [
 
 FAIL_TEXT = "FAIL\n"
 
-_INT = re.compile(r"^[+-]?\d+$")
-_FORTRAN = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)[dD][+-]?\d+$")
 _WIDTH = 24
+
+# ---------------------------------------------------------------------------------------------
+# tokens, in linear time (str methods only: no regular expression can backtrack on them)
+
+
+def _digits(s: str) -> bool:
+    """True for a non-empty run of ASCII digits (str.isdigit alone accepts '²' or '٣')."""
+    return s.isascii() and s.isdigit()
+
+
+def _is_int(s: str) -> bool:
+    return _digits(s[1:] if s[:1] in ("+", "-") and s else s)
+
+
+def _is_fortran(s: str) -> bool:
+    """A number with a Fortran 'D' exponent, like ``1.5D+03`` or ``-.2d-1``."""
+    t = s[1:] if s[:1] in ("+", "-") and s else s
+    k = max(t.find("d"), t.find("D"))
+    if k < 0:
+        return False
+    mant, exp = t[:k], t[k + 1 :]
+    if exp[:1] in ("+", "-"):
+        exp = exp[1:]
+    whole, dot, frac = mant.partition(".")
+    if not _digits(exp) or not (whole or frac):
+        return False
+    return (not whole or _digits(whole)) and (not frac or _digits(frac))
+
+
+def _to_int(s: str) -> int | None:
+    """The integer ``s`` stands for, or None (also for integers too long to convert)."""
+    if not _is_int(s):
+        return None
+    try:
+        return int(s)
+    except ValueError:  # more digits than sys.get_int_max_str_digits()
+        return None
+
+
+def _small_int(s: str) -> int | None:
+    """A count or code: an integer of at most 18 digits, else None."""
+    return _to_int(s) if len(s) <= 19 else None
+
+
+def check_label(label, what: str = "label") -> str:
+    """Check a label written to a Dakota file or used in a file name; returns it.
+
+    A label must be a non-empty string of printable characters without white space (the
+    standard format splits on it; a newline would forge a line), without path separators
+    (``/``, ``\\``), without ``..``, and without ``{``, ``}``, ``=`` or quotes (aprepro
+    syntax). Raises :class:`~rotoruq.errors.ParameterError` naming ``what`` otherwise.
+    """
+    if not isinstance(label, str) or not label:
+        raise ParameterError(f"{what} must be a non-empty string, got {label!r}")
+    bad = [c for c in label if c.isspace() or not c.isprintable() or c in '/\\{}="\'']
+    if bad:
+        raise ParameterError(f"{what} {label!r} holds {bad[0]!r}: labels may not hold white "
+                             "space, control characters, path separators, braces, '=' or "
+                             "quotes")
+    if ".." in label:
+        raise ParameterError(f"{what} {label!r} holds '..'")
+    return label
 
 
 @dataclass(frozen=True)
@@ -106,7 +172,7 @@ class ParametersFile:
         out = []
         for k, v in self.variables.items():
             if isinstance(v, str):
-                raise ValueError(f"variable {k!r} is a string ({v!r}), not a number")
+                raise ParameterError(f"variable {k!r} is a string ({v!r}), not a number")
             out.append(float(v))
         return np.array(out, dtype=float)
 
@@ -135,13 +201,14 @@ class ResultsFile:
 
 def _fmt_value(v) -> str:
     if isinstance(v, bool):
-        raise TypeError("boolean variable values are not supported")
+        raise ParameterError("boolean variable values are not supported")
     if isinstance(v, (int, np.integer)):
         return str(int(v))
     if isinstance(v, str):
-        if not v or any(c.isspace() for c in v):
+        if not v or any(c.isspace() or not c.isprintable() for c in v):
             # Dakota string variables may not contain white space in the standard format
-            raise ValueError(f"string variable value {v!r} must be non-empty without spaces")
+            raise ParameterError(f"string variable value {v!r} must be non-empty without "
+                                 "spaces or control characters")
         return v
     return f"{float(v):.16e}"
 
@@ -171,25 +238,35 @@ def format_parameters(
     format : "standard" or "aprepro".
     """
     if format not in ("standard", "aprepro"):
-        raise ValueError(f"format must be 'standard' or 'aprepro', got {format!r}")
+        raise ParameterError(f"format must be 'standard' or 'aprepro', got {format!r}")
     if isinstance(responses, Mapping):
         codes = {str(k): int(v) for k, v in responses.items()}
     else:
         names = [str(r) for r in responses]
         asv_list = [int(asv)] * len(names) if np.isscalar(asv) else [int(a) for a in asv]
         if len(asv_list) != len(names):
-            raise ValueError(f"{len(asv_list)} ASV codes for {len(names)} responses")
+            raise ParameterError(f"{len(asv_list)} ASV codes for {len(names)} responses")
         codes = dict(zip(names, asv_list, strict=True))
     for k, c in codes.items():
         if not 0 <= c <= 7:
-            raise ValueError(f"ASV code of {k!r} must be in 0..7, got {c}")
-    labels = list(variables)
+            raise ParameterError(f"ASV code of {k!r} must be in 0..7, got {c}")
+    labels = [check_label(k, "variable label") for k in variables]
+    for k in codes:
+        check_label(k, "response label")
+    for c, d in analysis_components:
+        check_label(c, "analysis component")
+        check_label(d, "analysis driver name")
+    for m in metadata or ():
+        check_label(m, "metadata label")
+    if not _is_int(str(eval_id)) and not all(_digits(p) for p in str(eval_id).split(":")):
+        raise ParameterError(f"eval_id must look like 12 or 1:4:2, got {eval_id!r}")
     if dvv is None:
         # derivatives exist only for continuous variables
         dvv = [k for k, v in variables.items() if not isinstance(v, (str, int, np.integer))]
     for k in dvv:
         if k not in variables:
-            raise ValueError(f"derivative variable {k!r} is not among the variables {labels}")
+            raise ParameterError(f"derivative variable {k!r} is not among the variables "
+                                 f"{labels}")
     lines: list[tuple[str, str]] = []  # (value, tag)
     lines.append((str(len(labels)), "variables"))
     lines += [(_fmt_value(v), k) for k, v in variables.items()]
@@ -230,7 +307,15 @@ def write_parameters(path: str | os.PathLike, variables, responses, **kwargs) ->
     return path
 
 
-_APREPRO = re.compile(r"^\s*\{\s*(\S+?)\s*=\s*(.*?)\s*\}\s*$")
+def _aprepro_line(line: str) -> tuple[str, str] | None:
+    """``(tag, value)`` of a stripped ``{ tag = value }`` line, or None."""
+    if len(line) < 2 or line[0] != "{" or line[-1] != "}":
+        return None
+    tag, eq, value = line[1:-1].partition("=")
+    tag, value = tag.strip(), value.strip()
+    if not eq or not tag or any(c.isspace() for c in tag):
+        return None
+    return tag, value
 
 
 def _pairs(text: str, path) -> tuple[str, list[tuple[int, str, str]]]:
@@ -241,10 +326,10 @@ def _pairs(text: str, path) -> tuple[str, list[tuple[int, str, str]]]:
         line = raw.strip()
         if not line:
             continue
-        m = _APREPRO.match(line)
-        if m and (fmt in (None, "aprepro")):
+        pair = _aprepro_line(line) if fmt in (None, "aprepro") else None
+        if pair is not None:
             fmt = "aprepro"
-            tag, value = m.group(1), m.group(2)
+            tag, value = pair
             if len(value) >= 2 and value[0] == value[-1] == '"':
                 value = value[1:-1]
             rows.append((lineno, value, tag))
@@ -270,18 +355,28 @@ _APREPRO_HEAD = {
     "DAKOTA_METADATA": "metadata",
 }
 
+_FORTRAN_HINT = ("with an 'e' or 'E' exponent (Fortran-style 'D' exponents are not read; "
+                 "replace D by E)")
+
 
 def _number(value: str, path, lineno: int, what: str) -> float | int:
-    if _FORTRAN.match(value):
-        raise InputFileError(
-            path, lineno, f"{what} with an 'e' or 'E' exponent (Fortran-style 'D' exponents "
-            "are not read; replace D by E)", value)
-    if _INT.match(value):
-        return int(value)
+    if _is_fortran(value):
+        raise InputFileError(path, lineno, f"{what} {_FORTRAN_HINT}", value)
+    n = _to_int(value)
+    if n is not None:
+        return n
     try:
         return float(value)
     except ValueError:
         raise InputFileError(path, lineno, what, value) from None
+
+
+def _indexed_tag(tag: str, prefix: str) -> str | None:
+    """``label`` of a tag ``<prefix>_<i>:<label>`` (like ``ASV_2:torque``), else None."""
+    head, colon, label = tag.partition(":")
+    if not colon or not label or not head.startswith(prefix + "_"):
+        return None
+    return label if _digits(head[len(prefix) + 1 :]) else None
 
 
 def parse_parameters(text: str, path: str | os.PathLike | None = None) -> ParametersFile:
@@ -300,9 +395,9 @@ def parse_parameters(text: str, path: str | os.PathLike | None = None) -> Parame
         if pos >= len(rows):
             raise InputFileError(path, None, f"a '<n> {tag}' line", "end of file")
         ln, v, t = rows[pos]
-        if t != tag or not _INT.match(v) or int(v) < 0:
+        n = _small_int(v)
+        if t != tag or n is None or n < 0:
             raise InputFileError(path, ln, f"'<n> {tag}'", f"{v} {t}")
-        n = int(v)
         items = rows[pos + 1 : pos + 1 + n]
         if len(items) < n:
             raise InputFileError(path, None, f"{n} {expected_item} lines", f"{len(items)}")
@@ -313,7 +408,7 @@ def parse_parameters(text: str, path: str | os.PathLike | None = None) -> Parame
     for ln, v, t in block("variables", "variable"):
         if t in variables:
             raise InputFileError(path, ln, f"a new variable label (duplicate {t!r})", t)
-        if _FORTRAN.match(v):
+        if _is_fortran(v):
             _number(v, path, ln, "a variable value")
         try:
             variables[t] = _number(v, path, ln, "a number")
@@ -321,35 +416,33 @@ def parse_parameters(text: str, path: str | os.PathLike | None = None) -> Parame
             variables[t] = v  # string variable
     asv: dict[str, int] = {}
     for ln, v, t in block("functions", "ASV"):
-        m = re.match(r"^ASV_\d+:(\S+)$", t)
-        if not m or not _INT.match(v) or not 0 <= int(v) <= 7:
+        label, code = _indexed_tag(t, "ASV"), _small_int(v)
+        if label is None or code is None or not 0 <= code <= 7:
             raise InputFileError(path, ln, "'<code 0-7> ASV_i:label'", f"{v} {t}")
-        asv[m.group(1)] = int(v)
+        asv[label] = code
     dvv = []
     names = list(variables)
     for ln, v, t in block("derivative_variables", "DVV"):
-        m = re.match(r"^DVV_\d+:(\S+)$", t)
-        if not m or not _INT.match(v):
+        label, idx = _indexed_tag(t, "DVV"), _small_int(v)
+        if label is None or idx is None:
             raise InputFileError(path, ln, "'<variable id> DVV_i:label'", f"{v} {t}")
-        label = m.group(1)
         if label not in variables:
-            idx = int(v) - 1
-            if not 0 <= idx < len(names):
+            if not 1 <= idx <= len(names):
                 raise InputFileError(path, ln, "a derivative variable among the variables", t)
-            label = names[idx]
+            label = names[idx - 1]
         dvv.append(label)
     comps = []
     for ln, v, t in block("analysis_components", "AC"):
-        m = re.match(r"^AC_\d+:(.+)$", t)
-        if not m:
+        label = _indexed_tag(t, "AC")
+        if label is None:
             raise InputFileError(path, ln, "'<component> AC_i:driver'", f"{v} {t}")
-        comps.append((v, m.group(1)))
+        comps.append((v, label))
     if pos >= len(rows) or rows[pos][2] != "eval_id":
         found = "end of file" if pos >= len(rows) else f"{rows[pos][1]} {rows[pos][2]}"
         raise InputFileError(path, rows[pos][0] if pos < len(rows) else None,
                              "'<id> eval_id'", found)
     ln, eval_id, _ = rows[pos]
-    if not re.match(r"^\d+(:\d+)*$", eval_id):
+    if not all(_digits(part) for part in eval_id.split(":")):
         raise InputFileError(path, ln, "an evaluation id like 12 or 1:4:2", eval_id)
     pos += 1
     metadata: tuple[str, ...] = ()
@@ -361,9 +454,25 @@ def parse_parameters(text: str, path: str | os.PathLike | None = None) -> Parame
     return ParametersFile(variables, asv, tuple(dvv), tuple(comps), eval_id, metadata, fmt)
 
 
+def read_text(path: str | os.PathLike, what: str) -> str:
+    """A file's text, decoded as UTF-8; an undecodable or unreadable file raises
+    :class:`~rotoruq.errors.InputFileError` naming the file, the line and the bad bytes."""
+    try:
+        data = Path(path).read_bytes()
+    except OSError as exc:
+        raise InputFileError(path, None, f"a readable {what}", f"{type(exc).__name__}: "
+                             f"{exc.strerror or exc}") from None
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise InputFileError(path, line, f"a {what} in UTF-8 text",
+                             repr(data[exc.start : exc.start + 8])) from None
+
+
 def read_parameters(path: str | os.PathLike) -> ParametersFile:
     """Read and parse a parameters file."""
-    return parse_parameters(Path(path).read_text(), path)
+    return parse_parameters(read_text(path, "Dakota parameters file"), path)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -383,7 +492,7 @@ def format_results(
     """
     values = np.atleast_1d(np.asarray(values, dtype=float))
     if labels is not None and len(labels) != len(values):
-        raise ValueError(f"{len(labels)} labels for {len(values)} values")
+        raise ParameterError(f"{len(labels)} labels for {len(values)} values")
     out = []
     for i, v in enumerate(values):
         lab = f" {labels[i]}" if labels is not None else ""
@@ -418,15 +527,17 @@ def write_results(
     return path
 
 
-def _tokens(text: str) -> list[tuple[int, str]]:
-    """Words with their line numbers; brackets are split off as their own tokens."""
+def _tokens(text: str, path=None) -> list[tuple[int, str]]:
+    """Words with their line numbers; ``[``, ``]``, ``[[`` and ``]]`` are tokens of their own
+    (a run of three brackets is a double one then a single one). Only ``str.replace`` and
+    ``str.split``: linear time."""
     out = []
     for lineno, line in enumerate(text.splitlines(), 1):
-        line = line.replace("[[", " [[ ").replace("]]", " ]] ")
-        # single brackets that are not part of a double one
-        line = re.sub(r"(?<!\[)\[(?!\[)", " [ ", line)
-        line = re.sub(r"(?<!\])\](?!\])", " ] ", line)
-        out += [(lineno, w) for w in line.split()]
+        if "\x01" in line or "\x02" in line:  # the placeholders of double brackets below
+            raise InputFileError(path, lineno, "text without control characters", line)
+        line = line.replace("[[", " \x01 ").replace("]]", " \x02 ")
+        line = line.replace("[", " [ ").replace("]", " ] ")
+        out += [(lineno, w.replace("\x01", "[[").replace("\x02", "]]")) for w in line.split()]
     return out
 
 
@@ -457,7 +568,7 @@ def parse_results(
         how many values, gradients and Hessians the file must hold.
     n_dvv : number of derivative variables (length of each gradient).
     """
-    toks = _tokens(text)
+    toks = _tokens(text, path)
     if toks and toks[0][1].lower().startswith("fail"):
         return ResultsFile(np.zeros(0), (), None, None, True)
     if names is not None and asv is None:
@@ -467,17 +578,15 @@ def parse_results(
     i = 0
     while i < len(toks) and toks[i][1] not in ("[", "[["):
         ln, w = toks[i]
-        if _FORTRAN.match(w):
-            raise InputFileError(
-                path, ln, "a response value with an 'e' or 'E' exponent (Fortran-style 'D' "
-                "exponents are not read; replace D by E)", w)
+        if _is_fortran(w):
+            raise InputFileError(path, ln, f"a response value {_FORTRAN_HINT}", w)
         if not _is_number(w):
             raise InputFileError(path, ln, "a numeric response value", w)
         values.append(float(w))
         lab = None
         if i + 1 < len(toks) and toks[i + 1][1] not in ("[", "[[") and not _is_number(
             toks[i + 1][1]
-        ) and not _FORTRAN.match(toks[i + 1][1]):
+        ) and not _is_fortran(toks[i + 1][1]):
             lab = toks[i + 1][1]
             i += 1
         labels.append(lab)
@@ -494,10 +603,8 @@ def parse_results(
                 ln, w = toks[i]
                 if w in ("[", "[[", "]", "]]"):
                     raise InputFileError(path, ln, f"a number or '{close}' inside a {what}", w)
-                if _FORTRAN.match(w):
-                    raise InputFileError(
-                        path, ln, f"a {what} entry with an 'e' or 'E' exponent (Fortran-style "
-                        "'D' exponents are not read; replace D by E)", w)
+                if _is_fortran(w):
+                    raise InputFileError(path, ln, f"a {what} entry {_FORTRAN_HINT}", w)
                 if not _is_number(w):
                     raise InputFileError(path, ln, f"a numeric {what} entry", w)
                 nums.append(float(w))
@@ -562,4 +669,4 @@ def read_results(path: str | os.PathLike, **kwargs) -> ResultsFile:
     path = Path(path)
     if not path.is_file():
         raise InputFileError(path, None, "a results file written by the driver", "no file")
-    return parse_results(path.read_text(), path, **kwargs)
+    return parse_results(read_text(path, "Dakota results file"), path, **kwargs)

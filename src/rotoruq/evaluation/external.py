@@ -2,16 +2,24 @@
 
 For each input point, :class:`ExternalModel`
 
-1. makes a work directory ``<workdir>/<name>.<eval_id>`` (tagged per evaluation, so runs
-   can go in parallel), copies or links the listed files into it and fills the templates;
+1. makes a work directory ``<workdir>/<name>.<pid>.<token>.<eval_id>`` (``pid`` of the
+   process running the evaluation, ``token`` random per model, so that evaluations, worker
+   processes and concurrent runs over one base folder never share a directory), copies or
+   links the listed files into it and fills the templates;
 2. writes the Dakota parameters file (standard or aprepro format) there;
 3. runs the command with the work directory as current directory, **without a shell**
-   (``subprocess`` with an argument list), so parameter values can never be interpreted by
-   one; ``driver`` becomes ``driver params.in results.out``, and a list command may place
-   ``{params}``, ``{results}``, ``{workdir}`` and ``{eval_id}`` itself;
-4. waits at most ``timeout`` seconds (then kills the whole process group);
-5. reads the results file; a missing file, a non-zero exit status, a ``fail`` marker or a
-   malformed file is a failed evaluation, whose stdout/stderr are kept.
+   (argument list), in a session of its own; ``driver`` becomes
+   ``driver params.in results.out``, and a list command may place ``{params}``,
+   ``{results}``, ``{workdir}`` and ``{eval_id}`` itself;
+4. waits at most ``timeout`` seconds; on timeout, on interruption and after the driver exits,
+   every process it left behind is killed, grandchildren that left its process group
+   included (see :mod:`rotoruq.evaluation.process_tree`). stdout and stderr go to
+   ``rotoruq.stdout`` / ``rotoruq.stderr`` in the work directory, capped at ``output_cap``
+   bytes plus the last 64 KiB; the last 8 KiB of each are kept with a failed evaluation;
+5. reads the results file. A failed evaluation is any of: the driver could not start, ran
+   past the timeout, exited with a non-zero status or a signal, wrote no results file, a
+   results file that is not UTF-8 or is malformed, a ``fail`` marker, or a non-finite value
+   (NaN, inf). Every failure goes through the failure policy.
 
 Failure policies (``failure_policy``):
 
@@ -22,32 +30,45 @@ Failure policies (``failure_policy``):
 - ``"retry:N"``: run a failed evaluation up to N more times, then continue.
 - ``{"recover": [v1, ..., vm]}``: return these values for a failed evaluation (stored with
   status ``recovered`` and the error text).
+
+Names: input and response labels, the model ``name`` and the file names must be
+non-empty, without white space, control characters, path separators, ``..``, braces, ``=``
+or quotes (:func:`~rotoruq.evaluation.dakota_files.check_label`). rotoruq deletes only work
+directories it made: per-evaluation directories it created itself, and with ``tag=False`` a
+directory holding its ``.rotoruq-workdir`` marker.
 """
 
 from __future__ import annotations
 
+import hashlib
 import itertools
+import json
 import os
 import shlex
 import shutil
 import signal
-import subprocess
+import tempfile
 import threading
 import time
+import uuid
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import EvaluationError, InputFileError, ParameterError
-from .dakota_files import read_results, write_parameters
+from ..errors import EvaluationError, InputFileError, ParameterError, RotoruqError
+from .dakota_files import check_label, read_results, read_text, write_parameters
 from .model import EvalBatch
-from .templates import fill_template_file
+from .process_tree import run_process_tree
+from .templates import check_template, fill_template
 
 __all__ = ["ExternalModel", "RunResult", "FailurePolicy", "parse_failure_policy"]
 
-_TAIL = 20_000  # characters of stdout/stderr kept per failed evaluation
+_TAIL = 8192  # bytes of stdout/stderr kept with a failed evaluation
+STDOUT_FILE, STDERR_FILE = "rotoruq.stdout", "rotoruq.stderr"
+MARKER = ".rotoruq-workdir"  # in a tag=False work directory: rotoruq made it, may empty it
+MAX_RESULTS_BYTES = 256 * 2**20  # a results file larger than this is a failure, not read
 
 
 @dataclass(frozen=True)
@@ -94,7 +115,7 @@ class RunResult:
     values : (m,) responses (NaN when failed and not recovered).
     error : failure reason, None on success.
     status : "ok", "failed" or "recovered".
-    stdout, stderr : solver output (tails), filled on failure only.
+    stdout, stderr : solver output (last 8 KiB), filled on failure only.
     """
 
     values: np.ndarray
@@ -109,11 +130,45 @@ class RunResult:
     workdir: str | None
 
 
-def _tail(b: bytes | str | None) -> str:
-    if b is None:
+def _tail(b: bytes | None) -> str:
+    if not b:
         return ""
-    s = b.decode(errors="replace") if isinstance(b, bytes) else b
-    return s if len(s) <= _TAIL else "...\n" + s[-_TAIL:]
+    s = b[-_TAIL:].decode(errors="replace")
+    return s if len(b) <= _TAIL else "...\n" + s
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        while chunk := f.read(1 << 20):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _content(path: Path) -> dict:
+    """``{"name", "sha256"}`` of a file; of a directory, the digest of its listing (relative
+    paths sorted, each with the sha256 of its bytes or its symbolic link's target)."""
+    if not path.is_dir():
+        return {"name": path.name, "sha256": _sha256(path)}
+    lines = []
+    for root, dirs, files in os.walk(path):
+        dirs.sort()
+        for f in sorted(files + [d for d in dirs if Path(root, d).is_symlink()]):
+            q = Path(root, f)
+            rel = q.relative_to(path).as_posix()
+            if q.is_symlink() and not q.is_file():
+                lines.append(f"{rel}\0link\0{os.readlink(q)}")
+            else:
+                lines.append(f"{rel}\0{_sha256(q)}")
+    digest = hashlib.sha256("\n".join(lines).encode("utf-8", "surrogateescape")).hexdigest()
+    return {"name": path.name, "sha256": digest, "files": len(lines)}
+
+
+def _file_name(name, what: str) -> str:
+    check_label(name, what)
+    if name in (".", ".."):
+        raise ParameterError(f"{what} may not be {name!r}")
+    return name
 
 
 class ExternalModel:
@@ -127,11 +182,15 @@ class ExternalModel:
         The command runs in the work directory; words that name existing files relative to
         the current directory (a driver script) are made absolute when the model is made.
     names_in, names_out : variable and response labels (the labels of the Dakota files).
-    workdir : base directory of the work directories (default ``./rotoruq_work``).
-    name : work directory name; each evaluation gets ``<name>.<eval_id>`` (tag) unless
-        ``tag=False`` (then one directory, emptied before each run: not for parallel use).
+    workdir : base directory of the work directories (default ``./rotoruq_work``); it is
+        created if missing and never deleted.
+    name : prefix of the work directories: each evaluation gets
+        ``<name>.<pid>.<token>.<eval_id>`` (tag) unless ``tag=False``: then one directory
+        ``<name>``, emptied before each run (not for parallel use), which rotoruq only
+        empties if it made it (it holds a ``.rotoruq-workdir`` marker).
     template_files : files filled with :func:`~rotoruq.evaluation.templates.fill_template`
-        into the work directory (same base name).
+        into the work directory (same base name). Read, checked and hashed once, when the
+        model is made.
     copy_files, link_files : files or directories copied / symlinked into the work directory.
     parameters_format : "standard" or "aprepro".
     parameters_file, results_file : file names inside the work directory.
@@ -141,6 +200,8 @@ class ExternalModel:
     env : extra environment variables for the command.
     analysis_components : (component, driver) pairs written to the parameters file.
     asv : active set code written for every response (1: values only).
+    output_cap : bytes of the start of stdout and of stderr kept in the work directory files
+        (the last 64 KiB are kept too); default 10 MiB.
     """
 
     def __init__(
@@ -164,6 +225,7 @@ class ExternalModel:
         env: Mapping[str, str] | None = None,
         analysis_components: Sequence[tuple[str, str]] = (),
         asv: int = 1,
+        output_cap: int = 10 * 2**20,
     ):
         command = shlex.split(command) if isinstance(command, str) else [str(c) for c in command]
         if not command:
@@ -173,12 +235,14 @@ class ExternalModel:
         self.command = [str(Path(c).absolute()) if ("{" not in c and not Path(c).is_absolute()
                                                     and Path(c).exists()) else c
                         for c in command]
-        self.names_in = tuple(names_in)
-        self.names_out = tuple(names_out)
+        self.names_in = tuple(check_label(n, "input name") for n in names_in)
+        self.names_out = tuple(check_label(n, "response name") for n in names_out)
         if len(set(self.names_in)) != len(self.names_in):
             raise ParameterError(f"duplicate input names in {self.names_in}")
+        if len(set(self.names_out)) != len(self.names_out):
+            raise ParameterError(f"duplicate response names in {self.names_out}")
         self.workdir = Path(workdir).absolute()
-        self.name = name
+        self.name = _file_name(name, "model name")
         self.tag = bool(tag)
         self.template_files = [Path(p).absolute() for p in template_files]
         self.copy_files = [Path(p).absolute() for p in copy_files]
@@ -191,24 +255,92 @@ class ExternalModel:
             raise ParameterError(f"parameters_format must be 'standard' or 'aprepro', got "
                                  f"{parameters_format!r}")
         self.parameters_format = parameters_format
-        self.parameters_file = parameters_file
-        self.results_file = results_file
+        self.parameters_file = _file_name(parameters_file, "parameters_file")
+        self.results_file = _file_name(results_file, "results_file")
+        placed = [self.parameters_file, self.results_file, STDOUT_FILE, STDERR_FILE, MARKER]
+        placed += [p.name for p in (*self.template_files, *self.copy_files, *self.link_files)]
+        clash = sorted({n for n in placed if placed.count(n) > 1})
+        if clash:
+            raise ParameterError(f"two files would have the same name {clash} in the work "
+                                 "directory (templates, copied and linked files, "
+                                 f"{self.parameters_file}, {self.results_file}, "
+                                 f"{STDOUT_FILE}, {STDERR_FILE})")
+        # templates are read once: the text filled is the text hashed in identity()
+        self._templates = []
+        for p in self.template_files:
+            text = read_text(p, "template file")
+            check_template(text, self.names_in, p)
+            self._templates.append((p, text))
         self.timeout = None if timeout is None else float(timeout)
+        if self.timeout is not None and not self.timeout > 0:
+            raise ParameterError(f"timeout must be > 0 seconds, got {timeout!r}")
         self.policy = parse_failure_policy(failure_policy, len(self.names_out))
         if keep_workdirs not in (True, False, "failed"):
             raise ParameterError(f"keep_workdirs must be True, False or 'failed', got "
                                  f"{keep_workdirs!r}")
         self.keep_workdirs = keep_workdirs
-        self.env = dict(env or {})
-        self.analysis_components = tuple(analysis_components)
+        self.env = {str(k): str(v) for k, v in (env or {}).items()}
+        self.analysis_components = tuple((str(c), str(d)) for c, d in analysis_components)
+        for c, d in self.analysis_components:
+            check_label(c, "analysis component")
+            check_label(d, "analysis driver name")
         self.asv = int(asv)
+        if not 0 <= self.asv <= 7:
+            raise ParameterError(f"asv must be in 0..7, got {asv!r}")
+        self.output_cap = int(output_cap)
+        if self.output_cap < 0:
+            raise ParameterError(f"output_cap must be >= 0 bytes, got {output_cap!r}")
+        self._token = uuid.uuid4().hex[:12]
+        self._identity: dict | None = None
         self._counter = itertools.count(1)
         self._lock = threading.Lock()
 
-    # identity used by the store to tell models apart
-    @property
-    def identity(self) -> str:
-        return "external:" + " ".join(self.command)
+    def identity(self) -> dict:
+        """Everything that can change an answer, as a JSON-serializable dict.
+
+        The command (a word naming an existing file, and the program found on ``PATH`` for
+        the first word, becomes ``{"path", "sha256"}`` of its bytes, so editing the driver
+        script changes the identity), the sha256 of every template, copied and linked file
+        (directories: of all files inside, by relative path), the names, parameters format,
+        file names, analysis components, ASV, extra environment and failure policy. Not
+        included: the timeout, work directories and output cap (they do not change a
+        successful answer). Files are hashed on the first call only.
+        """
+        if self._identity is None:
+            command = []
+            for i, word in enumerate(self.command):
+                path = Path(word) if "{" not in word else None
+                if path is not None and i == 0 and os.sep not in word:
+                    found = shutil.which(word, path=self.env.get("PATH", os.environ.get("PATH")))
+                    path = Path(found) if found else None
+                if path is not None and path.is_file():
+                    command.append({"arg": word, "path": str(path.absolute()),
+                                    "sha256": _sha256(path)})
+                else:
+                    command.append(word)
+            p = self.policy
+            ident = {
+                "class": f"{type(self).__module__}.{type(self).__qualname__}",
+                "command": command,
+                "names_in": list(self.names_in),
+                "names_out": list(self.names_out),
+                "templates": [{"name": q.name,
+                               "sha256": hashlib.sha256(t.encode("utf-8")).hexdigest()}
+                              for q, t in self._templates],
+                "copy_files": [_content(q) for q in self.copy_files],
+                "link_files": [_content(q) for q in self.link_files],
+                "parameters_format": self.parameters_format,
+                "parameters_file": self.parameters_file,
+                "results_file": self.results_file,
+                "analysis_components": [list(c) for c in self.analysis_components],
+                "asv": self.asv,
+                "env": dict(sorted(self.env.items())),
+                "failure_policy": {"kind": p.kind, "retries": p.retries,
+                                   "recover": None if p.recover is None else list(p.recover)},
+            }
+            json.dumps(ident)  # JSON-serializable by construction; fail here if not
+            self._identity = ident
+        return self._identity
 
     @property
     def failure_policy(self) -> FailurePolicy:
@@ -242,10 +374,33 @@ class ExternalModel:
             argv += [self.parameters_file, self.results_file]
         return argv
 
+    def _make_workdir(self, eval_id: str, previous: Path | None) -> Path:
+        """A fresh, empty work directory made by this call; ``previous`` (the directory of
+        the previous attempt of this evaluation, made by this model) is removed first.
+        Never removes a directory rotoruq did not make."""
+        self.workdir.mkdir(parents=True, exist_ok=True)
+        if previous is not None:
+            shutil.rmtree(previous, ignore_errors=True)
+        if not self.tag:
+            wd = self.workdir / self.name
+            if wd.is_symlink() or (wd.exists() and not (wd / MARKER).is_file()):
+                raise ParameterError(
+                    f"work directory {wd} exists and was not made by rotoruq (no {MARKER} "
+                    "marker in it): rotoruq will not empty it; remove it or choose another "
+                    "name")
+            if wd.exists():
+                shutil.rmtree(wd)
+            wd.mkdir()
+            (wd / MARKER).write_text(f"made by rotoruq for ExternalModel {self.name!r}\n")
+            return wd
+        wd = self.workdir / f"{self.name}.{os.getpid()}.{self._token}.{eval_id}"
+        try:
+            wd.mkdir()  # exclusive: fails rather than reuse a directory
+        except FileExistsError:
+            wd = Path(tempfile.mkdtemp(prefix=wd.name + ".", dir=self.workdir))
+        return wd
+
     def _prepare(self, wd: Path, values: Mapping[str, float]) -> None:
-        if wd.exists():
-            shutil.rmtree(wd)
-        wd.mkdir(parents=True)
         for p in self.copy_files:
             if p.is_dir():
                 shutil.copytree(p, wd / p.name, symlinks=True)
@@ -253,51 +408,59 @@ class ExternalModel:
                 shutil.copy2(p, wd / p.name)
         for p in self.link_files:
             (wd / p.name).symlink_to(p)
-        for p in self.template_files:
-            fill_template_file(p, wd / p.name, values)
+        for p, text in self._templates:
+            (wd / p.name).write_text(fill_template(text, values, path=p))
 
-    def _run_once(self, x: np.ndarray, eval_id: str) -> tuple[np.ndarray | None, str | None,
-                                                            str, str, Path]:
-        wd = self.workdir / (f"{self.name}.{eval_id}" if self.tag else self.name)
+    def _run_once(self, x: np.ndarray, eval_id: str, wd: Path
+                  ) -> tuple[np.ndarray | None, str | None, str, str]:
+        """One attempt in the (empty) work directory ``wd``: (values, error, stdout, stderr)."""
         values = dict(zip(self.names_in, (float(v) for v in x), strict=True))
-        self._prepare(wd, values)
-        write_parameters(wd / self.parameters_file, values, list(self.names_out), asv=self.asv,
-                         analysis_components=self.analysis_components, eval_id=eval_id,
-                         format=self.parameters_format)
+        try:
+            self._prepare(wd, values)
+            write_parameters(wd / self.parameters_file, values, list(self.names_out),
+                             asv=self.asv, analysis_components=self.analysis_components,
+                             eval_id=eval_id, format=self.parameters_format)
+        except (OSError, RotoruqError) as exc:
+            return None, f"could not prepare the work directory: {exc}", "", ""
         argv = self._argv(wd, eval_id)
-        env = {**os.environ, **self.env} if self.env else None
+        env = {**os.environ, **self.env}
         try:
-            proc = subprocess.Popen(argv, cwd=wd, stdout=subprocess.PIPE,
-                                    stderr=subprocess.PIPE, stdin=subprocess.DEVNULL, env=env,
-                                    shell=False, start_new_session=True)
+            run = run_process_tree(argv, cwd=wd, env=env, timeout=self.timeout,
+                                   stdout_path=wd / STDOUT_FILE, stderr_path=wd / STDERR_FILE,
+                                   cap=self.output_cap)
         except OSError as exc:
-            return None, f"could not start {argv[0]!r}: {exc}", "", "", wd
-        try:
-            out, err = proc.communicate(timeout=self.timeout)
-        except subprocess.TimeoutExpired:
-            _kill_group(proc)
-            out, err = proc.communicate()
-            return (None, f"timed out after {self.timeout:g} s (process group killed)",
-                    _tail(out), _tail(err), wd)
-        except BaseException:
-            _kill_group(proc)
-            raise
-        out_s, err_s = _tail(out), _tail(err)
-        if proc.returncode != 0:
-            sig = (f" (signal {signal.Signals(-proc.returncode).name})"
-                   if proc.returncode < 0 and -proc.returncode in signal.valid_signals() else "")
+            return None, f"could not start {argv[0]!r}: {exc}", "", ""
+        out_s, err_s = _tail(run.stdout), _tail(run.stderr)
+        if run.timed_out:
+            extra = f" and {run.leftovers} other processes" if run.leftovers else ""
+            return (None, f"timed out after {self.timeout:g} s (driver{extra} killed)", out_s,
+                    err_s)
+        if run.returncode != 0:
+            rc = run.returncode
+            sig = (f" (signal {signal.Signals(-rc).name})"
+                   if rc < 0 and -rc in signal.valid_signals() else "")
             last = err_s.strip().splitlines()[-1:] if err_s.strip() else []
             why = f": {last[0][:200]}" if last else ""
-            return (None, f"driver exited with status {proc.returncode}{sig}{why}", out_s, err_s,
-                    wd)
+            return None, f"driver exited with status {rc}{sig}{why}", out_s, err_s
+        try:
+            size = (wd / self.results_file).stat().st_size
+        except OSError:
+            size = 0  # missing: read_results says so
+        if size > MAX_RESULTS_BYTES:
+            return (None, f"bad results file: {size} bytes (more than {MAX_RESULTS_BYTES}; "
+                    "not read)", out_s, err_s)
         try:
             res = read_results(wd / self.results_file, names=self.names_out,
                                asv=[1] * len(self.names_out))
         except InputFileError as exc:
-            return None, f"bad results file: {exc}", out_s, err_s, wd
+            return None, f"bad results file: {exc}", out_s, err_s
         if res.failed:
-            return None, "driver reported failure (fail marker in results file)", out_s, err_s, wd
-        return res.values, None, out_s, err_s, wd
+            return None, "driver reported failure (fail marker in results file)", out_s, err_s
+        bad = [f"{n}={v!r}" for n, v in zip(self.names_out, res.values.tolist(), strict=True)
+               if not np.isfinite(v)]
+        if bad:
+            return None, f"non-finite response in results file: {', '.join(bad)}", out_s, err_s
+        return res.values, None, out_s, err_s
 
     def next_eval_id(self) -> str:
         with self._lock:
@@ -309,6 +472,7 @@ class ExternalModel:
         Never raises for a solver failure: the failure is described in the result.
         """
         eval_id = self.next_eval_id() if eval_id is None else str(eval_id)
+        check_label(eval_id, "eval_id")
         x = np.asarray(x, dtype=float).ravel()
         if x.shape != (len(self.names_in),):
             raise ParameterError(f"expected {len(self.names_in)} inputs {self.names_in}, got "
@@ -317,14 +481,22 @@ class ExternalModel:
         t0 = time.perf_counter()
         attempts = 0
         tries = 1 + (self.policy.retries if self.policy.kind == "retry" else 0)
+        wd = None
         while True:
             attempts += 1
-            vals, error, out, err, wd = self._run_once(x, eval_id)
+            try:
+                wd = self._make_workdir(eval_id, wd)
+            except OSError as exc:  # disk full, no permission: a failure like any other
+                vals, error, out, err = None, f"could not make a work directory: {exc}", "", ""
+                wd = None
+            else:
+                vals, error, out, err = self._run_once(x, eval_id, wd)
             if error is None or attempts >= tries:
                 break
         wall = time.perf_counter() - t0
-        keep = self.keep_workdirs is True or (self.keep_workdirs == "failed" and error)
-        if not keep and wd.exists():
+        keep = wd is not None and (self.keep_workdirs is True or
+                                   (self.keep_workdirs == "failed" and error is not None))
+        if not keep and wd is not None:
             shutil.rmtree(wd, ignore_errors=True)
         m = len(self.names_out)
         if error is None:
@@ -366,14 +538,3 @@ def _abort_message(r: RunResult, names_in, x) -> str:
     if r.stderr:
         msg += "\n--- stderr (tail) ---\n" + r.stderr[-2000:]
     return msg
-
-
-def _kill_group(proc: subprocess.Popen) -> None:
-    try:
-        os.killpg(proc.pid, signal.SIGKILL)
-    except (ProcessLookupError, PermissionError):
-        pass
-    try:
-        proc.kill()
-    except ProcessLookupError:
-        pass

@@ -229,7 +229,11 @@ class _Lines:
 
 
 def _to_float(text):
-    return float(text.strip().replace("D", "E").replace("d", "e"))
+    """A finite number (Fortran 'D' exponents accepted); ValueError otherwise."""
+    v = float(text.strip().replace("D", "E").replace("d", "e"))
+    if not math.isfinite(v):
+        raise ValueError(f"non-finite {text!r}")
+    return v
 
 
 def _field(path, lineno, line, k, what):
@@ -242,7 +246,8 @@ def _field(path, lineno, line, k, what):
         return _to_float(raw)
     except ValueError:
         raise InputFileError(
-            path, lineno, f"{what} in columns {start + 1}-{start + _FIELD}", raw
+            path, lineno, f"{what} (a finite number) in columns {start + 1}-{start + _FIELD}",
+            raw,
         ) from None
 
 
@@ -325,6 +330,9 @@ def _parse_free_counts(header):
 
 
 def _read_free(path, lines, start):
+    if start >= len(lines):
+        raise InputFileError(path, start + 1, "a free-format header 'title; ML NL MD ND MM NM' "
+                             "after '# FREE FORMAT'", "end of file")
     header = lines[start]
     parsed = _parse_free_counts(header)
     if parsed is None:
@@ -339,7 +347,7 @@ def _read_free(path, lines, start):
             try:
                 tokens.append((_to_float(tok), j + 1))
             except ValueError:
-                raise InputFileError(path, j + 1, "a number", tok) from None
+                raise InputFileError(path, j + 1, "a finite number", tok) from None
     pos = 0
 
     def take(n, what):

@@ -1,0 +1,346 @@
+"""Run an external driver so that it can always be stopped, whole, and never floods memory.
+
+:func:`run_process_tree` starts a command in a session of its own and waits for it with a
+time limit. It is the one place where rotoruq runs a solver, and it guarantees:
+
+- **The whole process tree ends.** On timeout, on an exception in the waiting thread
+  (``KeyboardInterrupt``, a cancelled task) and after a normal exit, every process the driver
+  left behind is killed with SIGKILL: its process group (= its session, since it starts one),
+  every descendant recorded while it ran (``/proc/<pid>/stat`` parent links, scanned at growing
+  intervals: 10 ms doubling up to 2 s), and every process whose environment carries the run's
+  random token (``ROTORUQ_DRIVER_TOKEN``), which catches a grandchild that called
+  ``setsid()`` and whose parent already exited. Processes are identified by (pid, start time),
+  so a recycled pid is never signalled, and the driver itself is reaped only after its group
+  has been killed, so its pid (the group id) cannot be reused in between. No cgroups or
+  privileges are needed; Linux only (elsewhere the process group alone is killed).
+- **Bounded output.** stdout and stderr go through pipes drained by the waiting thread into
+  two files: the first ``cap`` bytes, then a ``[rotoruq: N bytes omitted]`` line and the last
+  ``FILE_TAIL`` bytes. Memory held per stream is the last ``FILE_TAIL`` bytes, whatever the
+  driver writes.
+- **No busy waiting.** The thread sleeps in ``select`` on the output pipes and a pidfd of the
+  driver (Linux >= 5.3), so a fast driver is seen to exit at once.
+"""
+
+from __future__ import annotations
+
+import os
+import selectors
+import signal
+import subprocess
+import time
+import uuid
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+__all__ = ["DriverRun", "run_process_tree", "is_running", "TOKEN_VAR", "FILE_TAIL"]
+
+TOKEN_VAR = "ROTORUQ_DRIVER_TOKEN"
+FILE_TAIL = 64 * 1024  # bytes of the end of each stream kept (file and memory)
+_CHUNK = 64 * 1024
+_PROC = Path("/proc")
+
+
+@dataclass(frozen=True)
+class DriverRun:
+    """What happened to one driver process.
+
+    returncode : exit status (negative: killed by that signal).
+    timed_out : the time limit was reached and the tree was killed.
+    stdout, stderr : the last bytes written to each stream (at most ``FILE_TAIL``).
+    stdout_bytes, stderr_bytes : bytes written in total to each stream.
+    leftovers : processes other than the driver that were still alive when it ended and were
+        killed (descendants, escaped grandchildren).
+    wall_time : seconds from start to the end of the cleanup.
+    """
+
+    returncode: int
+    timed_out: bool
+    stdout: bytes
+    stderr: bytes
+    stdout_bytes: int
+    stderr_bytes: int
+    leftovers: int
+    wall_time: float
+
+
+class _Capture:
+    """Drain one pipe into a file: the first ``cap`` bytes, then the last ``FILE_TAIL``."""
+
+    def __init__(self, fd: int, file, cap: int):
+        self.fd = fd
+        self.file = file
+        self.cap = cap
+        self.written = 0  # bytes of the head written to the file
+        self.total = 0
+        self.tail = bytearray()
+        self.open = True
+
+    def read(self) -> bool:
+        """Read what the pipe holds; False at end of file."""
+        data = os.read(self.fd, _CHUNK)
+        if not data:
+            return False
+        self.total += len(data)
+        room = self.cap - self.written
+        if room > 0:
+            self.file.write(data[:room])
+            self.written += min(room, len(data))
+        self.tail += data
+        if len(self.tail) > FILE_TAIL:
+            del self.tail[: len(self.tail) - FILE_TAIL]
+        return True
+
+    def close_pipe(self) -> None:
+        if self.open:
+            os.close(self.fd)
+            self.open = False
+
+    def finish(self) -> bytes:
+        """Close the pipe, complete the file (omission line and tail); returns the tail."""
+        self.close_pipe()
+        start = self.total - len(self.tail)  # stream offset of the tail's first byte
+        if self.total > self.written:
+            skip = max(0, self.written - start)  # tail bytes already in the head
+            omitted = start + skip - self.written
+            if omitted:
+                self.file.write(f"\n[rotoruq: {omitted} bytes omitted]\n".encode())
+            self.file.write(self.tail[skip:])
+        self.file.close()
+        return bytes(self.tail)
+
+
+def _read(path: str, size: int = 4096) -> bytes | None:
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return None
+    try:
+        return os.read(fd, size)
+    except OSError:
+        return None
+    finally:
+        os.close(fd)
+
+
+def _stat(pid: int) -> tuple[str, int, int, int, int] | None:
+    """(state, ppid, pgid, session, start time) of a process, None if gone."""
+    data = _read(f"/proc/{pid}/stat")
+    if data is None:
+        return None
+    f = data[data.rfind(b")") + 2 :].split()
+    try:
+        return f[0].decode(), int(f[1]), int(f[2]), int(f[3]), int(f[19])
+    except (IndexError, ValueError):
+        return None
+
+
+def is_running(pid: int) -> bool:
+    """True while process ``pid`` exists and is not a zombie (Linux ``/proc``)."""
+    st = _stat(pid)
+    return st is not None and st[0] not in ("Z", "X")
+
+
+def _pids() -> list[int]:
+    try:
+        return [int(d) for d in os.listdir(_PROC) if d.isdigit()]
+    except OSError:
+        return []
+
+
+class _Tree:
+    """The processes of one driver run, recorded as (pid -> start time)."""
+
+    def __init__(self, root: int, token: str):
+        self.root = root
+        self.needle = f"{TOKEN_VAR}={token}".encode()
+        self.known: dict[int, int] = {}
+        self.me = os.getpid()
+
+    def _scan(self, with_env: bool) -> dict[int, int]:
+        """Live processes of the run: descendants of the driver, members of its session or
+        group, and (``with_env``) holders of the token."""
+        table = {}
+        for pid in _pids():
+            st = _stat(pid)
+            if st is not None and st[0] not in ("Z", "X"):
+                table[pid] = st
+        children: dict[int, list[int]] = {}
+        for pid, st in table.items():
+            children.setdefault(st[1], []).append(pid)
+        found = {}
+        todo = [self.root]
+        while todo:
+            p = todo.pop()
+            for c in children.get(p, ()):
+                if c not in found:
+                    found[c] = table[c][4]
+                    todo.append(c)
+        for pid, st in table.items():
+            if st[2] == self.root or st[3] == self.root:
+                found[pid] = st[4]
+            elif with_env and pid not in found:
+                env = _read(f"/proc/{pid}/environ", 1 << 21)
+                if env is not None and self.needle in env:
+                    found[pid] = st[4]
+        if self.root in table:
+            found[self.root] = table[self.root][4]
+        found.pop(self.me, None)
+        return found
+
+    def record(self) -> None:
+        self.known.update(self._scan(with_env=False))
+
+    def kill_all(self) -> int:
+        """SIGKILL the driver's group and every process of the run (several rounds, so that
+        children forked meanwhile are caught too); returns how many processes other than the
+        driver were killed."""
+        killed: set[int] = set()
+        for rnd in range(50):
+            try:
+                os.killpg(self.root, signal.SIGKILL)
+            except (ProcessLookupError, PermissionError):
+                pass
+            targets = self._scan(with_env=True) if _PROC.is_dir() else {}
+            for pid, start in self.known.items():
+                st = _stat(pid)
+                if st is not None and st[4] == start and st[0] not in ("Z", "X"):
+                    targets[pid] = start
+            targets.pop(self.me, None)
+            if not targets:
+                break
+            for pid, start in targets.items():
+                st = _stat(pid)
+                if st is None or st[4] != start:  # gone, or the pid was recycled
+                    continue
+                try:
+                    os.kill(pid, signal.SIGKILL)
+                    killed.add(pid)
+                except (ProcessLookupError, PermissionError):
+                    pass
+            time.sleep(0.002 * (rnd + 1))
+        killed.discard(self.root)
+        return len(killed)
+
+
+def _exited(pid: int) -> bool:
+    """True once the child has exited; it stays a zombie (not reaped) so its pid, which is
+    also its process group id, cannot be reused before the group is killed."""
+    try:
+        return os.waitid(os.P_PID, pid, os.WEXITED | os.WNOHANG | os.WNOWAIT) is not None
+    except ChildProcessError:
+        return True
+
+
+def run_process_tree(
+    argv: Sequence[str],
+    *,
+    cwd: str | os.PathLike,
+    env: Mapping[str, str] | None = None,
+    timeout: float | None = None,
+    stdout_path: str | os.PathLike,
+    stderr_path: str | os.PathLike,
+    cap: int = 10 * 2**20,
+) -> DriverRun:
+    """Run ``argv`` (no shell) in ``cwd`` in a new session; wait at most ``timeout`` seconds.
+
+    Parameters
+    ----------
+    argv : the command and its arguments.
+    cwd : working directory.
+    env : the environment (default: this process's), to which ``ROTORUQ_DRIVER_TOKEN`` is
+        added.
+    timeout : seconds, or None for no limit.
+    stdout_path, stderr_path : files receiving the first ``cap`` bytes and the last
+        ``FILE_TAIL`` bytes of each stream.
+    cap : bytes of the head of each stream written to its file.
+
+    Raises
+    ------
+    OSError
+        When the command cannot be started (no such file, not executable).
+    """
+    t0 = time.perf_counter()
+    token = uuid.uuid4().hex
+    # the token goes first: found early in /proc/<pid>/environ, and it replaces the token of
+    # an enclosing run (a rotoruq study run as a driver)
+    env = {TOKEN_VAR: token, **{k: v for k, v in (os.environ if env is None else env).items()
+                                if k != TOKEN_VAR}}
+    files = []
+    pipes = []
+    try:  # everything that can fail is done before the driver starts
+        files = [open(stdout_path, "wb"), open(stderr_path, "wb")]  # noqa: SIM115
+        pipes = [os.pipe(), os.pipe()]
+        proc = subprocess.Popen(list(argv), cwd=cwd, env=env, stdin=subprocess.DEVNULL,
+                                stdout=pipes[0][1], stderr=pipes[1][1], shell=False,
+                                close_fds=True, start_new_session=True)
+    except BaseException:
+        for fd in (fd for pair in pipes for fd in pair):
+            os.close(fd)
+        for f in files:
+            f.close()
+        raise
+    for _, w in pipes:
+        os.close(w)
+    caps = [_Capture(pipes[0][0], files[0], cap), _Capture(pipes[1][0], files[1], cap)]
+    tree = _Tree(proc.pid, token)
+    sel = selectors.DefaultSelector()
+    for c in caps:
+        sel.register(c.fd, selectors.EVENT_READ, c)
+    try:
+        pidfd = os.pidfd_open(proc.pid)
+        sel.register(pidfd, selectors.EVENT_READ, None)
+    except (AttributeError, OSError):
+        pidfd = None
+    deadline = None if timeout is None else time.monotonic() + timeout
+    timed_out = False
+    leftovers = 0
+    try:
+        interval = 0.01
+        next_scan = time.monotonic() + interval
+        while not _exited(proc.pid):
+            now = time.monotonic()
+            if deadline is not None and now >= deadline:
+                timed_out = True
+                break
+            if now >= next_scan:
+                tree.record()
+                interval = min(2 * interval, 2.0)
+                next_scan = now + interval
+            wait = next_scan - now
+            if deadline is not None:
+                wait = min(wait, deadline - now)
+            if pidfd is None:
+                wait = min(wait, 0.05)
+            _pump(sel, max(wait, 0.0))
+    finally:
+        # also on KeyboardInterrupt or a cancelled task: nothing of the run survives it
+        try:
+            if pidfd is not None:
+                sel.unregister(pidfd)
+            leftovers = tree.kill_all()
+            proc.wait()
+            end = time.monotonic() + 2.0
+            while any(c.open for c in caps) and time.monotonic() < end:
+                _pump(sel, 0.05)
+        finally:
+            sel.close()
+            if pidfd is not None:
+                os.close(pidfd)
+            tails = [c.finish() for c in caps]
+    return DriverRun(proc.returncode, timed_out, tails[0], tails[1], caps[0].total,
+                     caps[1].total, leftovers, time.perf_counter() - t0)
+
+
+def _pump(sel: selectors.BaseSelector, wait: float) -> None:
+    """Wait up to ``wait`` seconds for output or the driver's exit; drain what is readable."""
+    if not sel.get_map():
+        time.sleep(wait)
+        return
+    for key, _ in sel.select(wait):
+        cap = key.data
+        if cap is None:  # the pidfd: the driver exited
+            continue
+        if not cap.read():
+            sel.unregister(key.fd)
+            cap.close_pipe()

@@ -279,7 +279,9 @@ def test_report_claims_cannot_lie(tmp_path):
     assert first[7] == "thesis std devs"
     assert "Table 4.12" in page and "Table 3.6" in page
     # a table of contents whose links all resolve
-    ids = set(re.findall(r"id='([^']+)'", page))
+    all_ids = re.findall(r"id='([^']+)'", page)
+    assert len(all_ids) == len(set(all_ids))
+    ids = set(all_ids)
     links = re.findall(r"<a href='#([^']+)'>", page)
     assert links and set(links) <= ids
 
@@ -352,4 +354,11 @@ def test_reproduce_quick(tmp_path):
             <= keys
     assert {"ge_within_3std_ct_joint", "ge_within_3std_ct_independent"} <= keys
     assert (tmp_path / "experiment" / "steps" / "bayes" / "chain.npy").is_file()
-    assert (tmp_path / "report" / "figures" / "ground_effect_ct_vs_height.png").is_file()
+    assert (tmp_path / "report" / "figures" / "experiment_ground_effect_ct_vs_height.png"
+            ).is_file()
+    # one file per figure of each study (both studies have a step "bayes")
+    page_figs = re.findall(r"<figure id='fig-([^']+)'", page)
+    assert len(page_figs) == len(set(page_figs))
+    assert sorted(f"{k}.png" for k in page_figs) == sorted(
+        p.name for p in (tmp_path / "report" / "figures").glob("*.png"))
+    assert "validation_bayes_pairs" in page_figs and "experiment_bayes_pairs" in page_figs

@@ -2,10 +2,11 @@
 a PNG file, every table as CSV and the claims as JSON.
 
 ``write_report([results_dir, ...], report_dir)`` reads saved study outputs (see
-:mod:`rotoruq.study.results`) and writes ``report_dir/index.html``, ``figures/``, ``tables/``
-and ``claims.json``. It only reads results: ``rotoruq report RESULTS`` rebuilds it at any
-time. A reference study (``validation`` on the bo105 preset, ``experiment`` on gvpm) gets the
-thesis's tables beside ours and the claims; every study gets a table per step.
+:mod:`rotoruq.study.results`) and writes ``report_dir/index.html``,
+``figures/<study>_<figure>.png``, ``tables/`` and ``claims.json``. It only reads results:
+``rotoruq report RESULTS`` rebuilds it at any time. A reference study (``validation`` on the
+bo105 preset, ``experiment`` on gvpm) gets the thesis's tables beside ours and the claims;
+every study gets a table per step.
 """
 
 from __future__ import annotations
@@ -111,7 +112,7 @@ def _claims_section(claim_list: list[Claim]) -> str:
     data = json.dumps(claims_json(claim_list)).replace("</", "<\\/")
     t = THRESHOLDS
     return (
-        "<table id='claims'>" + head + "".join(_claim_row(c) for c in claim_list)
+        "<table id='claims-table'>" + head + "".join(_claim_row(c) for c in claim_list)
         + "</table>"
         "<p class=note>A claim reads <i>holds</i> only when its value passes its threshold; "
         "<i>holds, with a warning</i> when it passes but a step it rests on has a diagnostic "
@@ -157,7 +158,7 @@ def _noise_note(steps: dict[str, StepResult]) -> str:
             "units): " + "; ".join(parts) + ".</p>")
 
 
-def _figure_html(f, png: bytes) -> str:
+def _figure_html(f, png: bytes, key: str) -> str:
     xl, yl = [], []
     for ax in f.figure.axes:
         if not ax.axison:
@@ -168,7 +169,7 @@ def _figure_html(f, png: bytes) -> str:
             yl.append(ax.get_ylabel())
     e = html.escape
     b64 = base64.b64encode(png).decode()
-    return (f"<figure id='fig-{e(f.name)}' data-xlabels='{e(json.dumps(sorted(set(xl))))}' "
+    return (f"<figure id='fig-{e(key)}' data-xlabels='{e(json.dumps(sorted(set(xl))))}' "
             f"data-ylabels='{e(json.dumps(sorted(set(yl))))}'><img alt='{e(f.caption)}' "
             f"src='data:image/png;base64,{b64}'><figcaption>{e(f.caption)}</figcaption>"
             "</figure>")
@@ -265,9 +266,10 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
             heading(3, "Figures", _anchor(sid, "figures"))
         for f in figs:
             png = _png(f.figure)
-            (fig_dir / f"{f.name}.png").write_bytes(png)
-            toc.append((4, f"fig-{f.name}", f.caption))
-            body.append(_figure_html(f, png))
+            key = f"{name}_{f.name}"  # two studies may both have a step "bayes"
+            (fig_dir / f"{key}.png").write_bytes(png)
+            toc.append((4, f"fig-{key}", f.caption))
+            body.append(_figure_html(f, png, key))
         log(f"report: {name}: {len(figs)} figures in {time.perf_counter() - t0:.1f} s")
 
     nav = "".join(

@@ -256,3 +256,17 @@ def test_cli_fit_table_and_write(tmp_path, capsys):
     assert fit.cla[1] == pytest.approx(0.11, abs=1e-4)
     assert fit.cd0[0] == pytest.approx(0.009, abs=1e-4)
     assert main(["airfoil", "write", "naca23012", "--set", "clx_m03=1", "-o", str(out)]) == 1
+
+
+def test_perturbed_table_keeps_tabulated_cd_when_fits_replace_cl_only():
+    """The Bo105 study rewrote CL only: an external solver must see the table's own CD, as the
+    built-in model does (CD rewritten at the fit rows moved MBDyn's Bo105 torque by 10-60 %)."""
+    t = analytic_table()
+    af = Airfoil(t, fit_machs=[0.2, 0.3], alpha_window=10.0, replace=("cl",))
+    pt = af.perturbed_table({"cla_m03": 0.13})
+    assert pt.cd is t.cd
+    raw = Airfoil(pt, fit_mode=False)
+    rng = np.random.default_rng(6)
+    a, m = rng.uniform(-180, 180, 2000), rng.uniform(0, 0.7, 2000)
+    np.testing.assert_allclose(raw.coefficients(a, m)[:2], af.coefficients(
+        a, m, {"cla_m03": np.full(2000, 0.13)})[:2], atol=1e-12)

@@ -16,23 +16,25 @@ ROOT = Path(__file__).resolve().parents[1]
 
 @pytest.mark.slow
 def test_wheel_installs_and_reproduces_from_an_empty_folder(tmp_path):
+    # nothing of this source tree may leak into the fresh environment
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
     dist = tmp_path / "dist"
     subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(dist),
-                    str(ROOT)], check=True, timeout=600)
+                    str(ROOT)], check=True, timeout=600, env=env)
     wheels = list(dist.glob("rotoruq-*.whl"))
     assert len(wheels) == 1
     env_dir = tmp_path / "venv"
     venv.create(env_dir, with_pip=True)
     py = env_dir / "bin" / "python"
     subprocess.run([str(py), "-m", "pip", "install", "-q", str(wheels[0])], check=True,
-                   timeout=900)
+                   timeout=900, env=env, cwd=tmp_path)
     empty = tmp_path / "empty"
     empty.mkdir()
-    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
     env["PATH"] = f"{env_dir / 'bin'}{os.pathsep}{env['PATH']}"
     # the package imports from site-packages, not from this source tree
     where = subprocess.run([str(py), "-c", "import rotoruq; print(rotoruq.__file__)"],
-                           cwd=empty, env=env, capture_output=True, text=True, check=True)
+                           cwd=empty, env=env, capture_output=True, text=True)
+    assert where.returncode == 0, where.stderr
     assert str(env_dir) in where.stdout
     proc = subprocess.run([str(env_dir / "bin" / "rotoruq"), "reproduce", "--quick"], cwd=empty,
                           env=env, capture_output=True, text=True, timeout=900)

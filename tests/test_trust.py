@@ -354,7 +354,7 @@ def test_sigterm_ends_the_run_and_its_drivers(tmp_path):
     drivers: list[int] = []
     while time.time() < deadline and not drivers:
         drivers = [int(p.name) for p in Path("/proc").iterdir() if p.name.isdigit()
-                   and _cmdline(p).endswith("driver.py params.in results.out")]
+                   and _cmdline(p).endswith(f"{tmp_path}/s/driver.py params.in results.out")]
         time.sleep(0.05)
     assert drivers, "no driver started"
     proc.send_signal(signal.SIGTERM)

@@ -372,6 +372,27 @@ class Airfoil:
         """Every name accepted in ``overrides``: 5 per fit Mach row."""
         return list(self._names)
 
+    @property
+    def mach_range(self) -> tuple[float, float]:
+        """Smallest and largest Mach number of the table (coefficients are clamped outside)."""
+        return float(self._gm[0]), float(self._gm[-1])
+
+    def stall_angles(self, mach):
+        """Positive and negative stall angles [deg] at ``mach`` (any shape): the angles of
+        the largest and smallest CL of the nominal airfoil within +-30 deg, linear in Mach
+        between the table's rows."""
+        if not hasattr(self, "_stall"):
+            ga = self._ga
+            A, M = np.meshgrid(ga, self._gm, indexing="ij")
+            cl = self.coefficients(A, M)[0]
+            pos = np.where((ga >= 0) & (ga <= 30.0))[0]
+            neg = np.where((ga <= 0) & (ga >= -30.0))[0]
+            a_pos = ga[pos][np.argmax(cl[pos], axis=0)]
+            a_neg = ga[neg][np.argmin(cl[neg], axis=0)]
+            self._stall = (a_pos, a_neg)
+        m = np.asarray(mach, dtype=float)
+        return (np.interp(m, self._gm, self._stall[0]), np.interp(m, self._gm, self._stall[1]))
+
     def nominal_values(self) -> dict[str, float]:
         """Parameter name -> nominal (fitted) value."""
         return {} if self._nominal is None else self._nominal.as_dict()
@@ -520,16 +541,19 @@ class Airfoil:
         Fit Mach numbers that are not rows of the CL/CD blocks are inserted, and the angles
         -W and +W are inserted if missing, so that an external solver interpolating the file
         (MBDyn semantics) sees the same CL as :meth:`coefficients`, and the same CD at the
-        table's angles (between them a solver sees CD's quadratic as a polygon).
+        table's angles (between them a solver sees CD's quadratic as a polygon). An airfoil
+        whose fits replace CL only (``replace=("cl",)``) keeps the table's CD block.
         """
         if self._nominal is None:
             raise ParameterError("this Airfoil has no fit Mach rows (fit_mode=False or empty)")
         vals = self._override_values(dict(overrides or {}), 1)[0] if overrides \
             else self._nominal.coefficients()
         w = self._window
-        new = {}
-        for name, block, sl in (("cl", self._table.cl, slice(0, 2)),
-                                ("cd", self._table.cd, slice(2, 5))):
+        new = {"cd": self._table.cd}  # kept as tabulated unless the fits replace CD too
+        blocks = [("cl", self._table.cl, slice(0, 2))]
+        if self._replace_cd:
+            blocks.append(("cd", self._table.cd, slice(2, 5)))
+        for name, block, sl in blocks:
             ga = _union(np.concatenate([block.alpha, [-w, w]]))
             gm = _union(np.concatenate([block.mach, self._fit_machs]))
             A, M = np.meshgrid(ga, gm, indexing="ij")

@@ -17,34 +17,73 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["HarmonicBasis", "structural_operator"]
+__all__ = ["HarmonicBasis", "structural_operator", "fixed_sum", "apply_blocks"]
 
 
 class HarmonicBasis:
-    """Synthesis and analysis matrices between harmonics k = 0..H and an azimuth grid."""
+    """Synthesis and analysis between harmonics k = 0..H and an azimuth grid.
+
+    No matrix product: BLAS kernels block differently for different batch sizes and change
+    the last bits, so sums are elementwise terms or per-row reductions (see fixed_sum).
+    """
 
     def __init__(self, psi: np.ndarray, n_harmonics: int):
         self.psi = psi
         self.k = np.arange(n_harmonics + 1)
-        self.E = np.exp(1j * np.outer(self.k, psi))          # (K, Npsi) synthesis
+        kp = np.outer(self.k, psi)
+        self.cos, self.sin = np.cos(kp), np.sin(kp)               # (K, Npsi)
         scale = np.full(self.k.shape, 2.0 / psi.size)
         scale[0] = 1.0 / psi.size
-        self.A = (np.conj(self.E) * scale[:, None]).T         # (Npsi, K) analysis
+        # analysis weights: Q_k = sum_j f_j (W[k, j] + i W[K + k, j])
+        self._W = np.concatenate([self.cos * scale[:, None], -self.sin * scale[:, None]])
 
     def synth(self, Q):
-        """(..., K) complex -> (..., Npsi) real."""
-        return (Q @ self.E).real
+        """(..., K) complex -> (..., Npsi) real: sum_k Re(Q_k) cos k psi - Im(Q_k) sin k psi."""
+        out = Q[..., 0].real[..., None] * self.cos[0]
+        for k in range(1, self.k.size):
+            out = out + (Q[..., k].real[..., None] * self.cos[k]
+                         - Q[..., k].imag[..., None] * self.sin[k])
+        return out
 
     def synth_d(self, Q):
         """d/dpsi of the series, (..., K) -> (..., Npsi)."""
-        return ((1j * self.k * Q) @ self.E).real
-
-    def synth_dd(self, Q):
-        return ((-(self.k**2) * Q) @ self.E).real
+        out = np.zeros(Q.shape[:-1] + (self.psi.size,))
+        for k in range(1, self.k.size):
+            out = out - k * (Q[..., k].real[..., None] * self.sin[k]
+                             + Q[..., k].imag[..., None] * self.cos[k])
+        return out
 
     def analyse(self, f):
-        """(..., Npsi) real -> (..., K) complex."""
-        return f @ self.A
+        """(..., Npsi) real -> (..., K) complex: one per-row reduction over azimuth."""
+        K = self.k.size
+        prod = np.multiply(f[..., None, :], self._W,
+                           out=np.empty(f.shape[:-1] + (2 * K, self.psi.size)))
+        s = np.add.reduce(prod, axis=-1)
+        return s[..., :K] + 1j * s[..., K:]
+
+
+def fixed_sum(x, w=None):
+    """sum_j x[..., j] (* w[j]) as one reduction over the last axis of a C-contiguous array.
+
+    The reduction runs row by row along contiguous memory, so its order (numpy's pairwise
+    summation) is the same for a sample whatever the other samples or the batch size; a
+    matrix product (BLAS) or a reduction over a strided axis may change the last bits.
+    """
+    out = np.empty(x.shape)
+    if w is None:
+        out[...] = x
+    else:
+        np.multiply(x, w, out=out)
+    return np.add.reduce(out, axis=-1)
+
+
+def apply_blocks(A, q):
+    """y[:, i, k] = sum_j A[:, k, i, j] q[:, j, k] for A (n, K, 3, 3), q (n, 3, K)."""
+    At = np.moveaxis(A, 1, -1)                                  # (n, i, j, K)
+    y = At[:, :, 0, :] * q[:, None, 0, :]
+    for j in range(1, q.shape[1]):
+        y = y + At[:, :, j, :] * q[:, None, j, :]
+    return y
 
 
 def structural_operator(k, omega, I_b, S, e, I_l, I_p, K_b, C_b, K_l, C_l, K_p, C_p, tan_d3):

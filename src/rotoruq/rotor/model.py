@@ -9,6 +9,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +17,7 @@ import numpy as np
 from ..errors import ParameterError
 from ..evaluation.model import EvalBatch
 from .geometry import blade_grid
-from .ground_effect import MIN_HEIGHT_OVER_RADIUS
+from .ground_effect import MIN_HEIGHT_OVER_RADIUS, min_height_over_radius
 from .hover import HoverSolution, solve_hover
 from .presets import RotorPreset, get_preset
 
@@ -37,11 +38,20 @@ ROTOR_INPUTS = (
     "k_pitch_link",
     "c_pitch_link",
     "ei_flap",
+    "k_feather",
+    "cm0",
+    "aero_center_offset",
 )
+#: Inputs with no preset value: given only in the batch or in ``fixed``.
+OPTIONAL_INPUTS = ("k_feather",)
 #: Responses: thrust [N], torque [N m], roll [N m], pitch [N m], power [W], ct, cq [-].
 RESPONSES = ("thrust", "torque", "roll", "pitch", "power", "ct", "cq")
 
-_NONNEGATIVE = ("k_flap", "c_flap", "k_lag", "c_lag", "k_pitch_link", "c_pitch_link", "ei_flap")
+_NONNEGATIVE = ("k_flap", "c_flap", "k_lag", "c_lag", "k_pitch_link", "c_pitch_link", "ei_flap",
+                "k_feather")
+#: Largest |collective| + |cyclic| amplitude accepted [deg]: a blade pitch beyond it is no
+#: rotor operating state (the blade would face backwards).
+MAX_PITCH_DEG = 90.0
 _POSITIVE = ("omega", "rho")
 
 
@@ -75,8 +85,14 @@ class RotorModel:
     n_stations, n_azimuth, n_harmonics : discretization (Gauss stations per blade, azimuth
         steps per revolution, harmonics of the blade motion).
     tol, max_iter : convergence of the periodic solution (max change of the blade motion
-        harmonics [rad] and of the inflow ratio between iterations).
-    chunk_size : samples solved together (working arrays stay in cache; a throughput knob).
+        harmonics [rad] and of the inflow ratio between iterations), iterations per sample.
+    check_tol : the equations re-evaluated at each returned state must leave a residual below
+        it (default max(1e-6, 100 tol); see :func:`rotoruq.rotor.hover.solve_hover`).
+    chunk_size : samples solved together (working arrays stay in cache; a throughput knob;
+        results do not depend on it, bitwise).
+
+    After ``evaluate``, ``last_solution`` holds the full :class:`HoverSolution`, one row per
+    input row (``failure`` gives each failed row's reason, "" for a valid row).
     """
 
     def __init__(
@@ -90,7 +106,8 @@ class RotorModel:
         n_azimuth: int = 36,
         n_harmonics: int = 2,
         tol: float = 1e-8,
-        max_iter: int = 80,
+        max_iter: int = 200,
+        check_tol: float | None = None,
         chunk_size: int = 128,
     ):
         self.preset = get_preset(preset)
@@ -98,6 +115,7 @@ class RotorModel:
         self.grid = blade_grid(self.preset, n_stations, n_azimuth)
         self.n_harmonics = int(n_harmonics)
         self.tol, self.max_iter = float(tol), int(max_iter)
+        self.check_tol = max(1e-6, 100.0 * self.tol) if check_tol is None else float(check_tol)
         self.chunk_size = int(chunk_size)
         self._airfoil_names = tuple(getattr(self.airfoil, "parameter_names", ()))
         valid = ROTOR_INPUTS + self._airfoil_names
@@ -114,6 +132,12 @@ class RotorModel:
             raise ParameterError(
                 f"preset {self.preset.name!r} has rigid hinged blades: use 'k_flap', not 'ei_flap'"
             )
+        given = set(inputs) | set(fixed or {})
+        if "k_feather" in given and given & {"k_pitch_link"}:
+            raise ParameterError(
+                "give either 'k_feather' (the feathering stiffness itself, N m/rad) or "
+                "'k_pitch_link' (N, acting through the link length and horn arm), not both"
+            )
         for name in responses:
             if name not in RESPONSES:
                 raise ParameterError(f"unknown response {name!r}; valid: {', '.join(RESPONSES)}")
@@ -123,6 +147,7 @@ class RotorModel:
         self.names_out = tuple(responses)
         self.fixed = {k: float(v) for k, v in (fixed or {}).items()}
         self.last_solution: HoverSolution | None = None
+        self._freeze = True  # False: lock-step timing baseline (benchmarks/rotor_throughput.py)
 
     @staticmethod
     def _check_name(name, valid):
@@ -156,7 +181,8 @@ class RotorModel:
         """Value of every rotor input when not given in the batch (preset, then ``fixed``)."""
         p = self.preset
         unused = "ei_flap" if p.flap_model == "hinge" else "k_flap"
-        d = {name: float(getattr(p, name)) for name in ROTOR_INPUTS if name != unused}
+        d = {name: float(getattr(p, name)) for name in ROTOR_INPUTS
+             if name != unused and name not in OPTIONAL_INPUTS}
         d.update(self.fixed)
         return d
 
@@ -176,6 +202,9 @@ class RotorModel:
         params, overrides = {}, {}
         for name, val in self.defaults().items():
             params[name] = cols.get(name, np.full(n, val))
+        for name in OPTIONAL_INPUTS:
+            if name in cols:
+                params[name] = cols[name]
         for name in self._airfoil_names:
             if name in cols:
                 overrides[name] = cols[name]
@@ -197,18 +226,17 @@ class RotorModel:
                 n_harmonics=self.n_harmonics,
                 tol=self.tol,
                 max_iter=self.max_iter,
+                check_tol=self.check_tol,
+                freeze=self._freeze,
             )
             sols.append(sol)
             vals = np.column_stack([sol.response(r) for r in self.names_out])
             bad = ~sol.converged | ~np.all(np.isfinite(vals), axis=1)
             for j in np.flatnonzero(bad):
-                failures[int(rows[j])] = (
-                    f"periodic solution did not converge in {sol.iterations} iterations "
-                    f"(residual {sol.residual[j]:.2e})"
-                )
+                failures[int(rows[j])] = str(sol.failure[j]) or "non-finite response"
             vals[bad] = np.nan
             out[rows] = vals
-        self.last_solution = HoverSolution.concatenate(sols) if sols else None
+        self.last_solution = _full_solution(n, idx, sols, failures)
         return EvalBatch(out, failures)
 
     def solve(self, x) -> HoverSolution:
@@ -240,9 +268,43 @@ class RotorModel:
             v = params[name]
             fail(v <= 0, lambda i, name=name, v=v: f"{name} must be > 0, got {v[i]:g}")
         h = params["height_over_radius"]
-        fail(h < MIN_HEIGHT_OVER_RADIUS,
-             lambda i: f"height_over_radius {h[i]:g} is below R/4, outside every ground-effect "
-             "model's validity")
+        h_min = min_height_over_radius(self.preset.ground_effect)
+        if h_min <= MIN_HEIGHT_OVER_RADIUS:
+            why = ("is at or below R/4, outside every ground-effect model's validity "
+                   "(Cheeseman-Bennett is singular at R/4)")
+        else:
+            why = (f"is below {h_min:g} R, the lowest height of the "
+                   f"{self.preset.ground_effect!r} ground-effect data")
+        fail((h <= MIN_HEIGHT_OVER_RADIUS) | (h < h_min),
+             lambda i: f"height_over_radius {h[i]:g} {why}")
+        amp = (np.abs(params["collective_deg"]) + np.abs(params["lateral_deg"])
+               + np.abs(params["longitudinal_deg"]))
+        fail(amp > MAX_PITCH_DEG,
+             lambda i: f"blade pitch command |collective| + |lateral| + |longitudinal| = "
+             f"{amp[i]:.3g} deg exceeds {MAX_PITCH_DEG:g} deg: no rotor operating state")
+        tip_mach = params["omega"] * self.preset.radius / self.preset.speed_of_sound
+        fail(tip_mach >= 1.0,
+             lambda i: f"tip Mach number {tip_mach[i]:.3g} (omega {params['omega'][i]:g} rad/s) "
+             "is supersonic: outside the blade-element model")
         return failures
 
 
+def _full_solution(n, rows, sols, failures) -> HoverSolution | None:
+    """One solution row per input row: the solved rows in place, rows rejected before the
+    solve NaN (False, 0) with their reason in ``failure``."""
+    if not sols:
+        return None
+    part = HoverSolution.concatenate(sols)
+    kw = {}
+    for f in fields(HoverSolution):
+        a = getattr(part, f.name)
+        if f.name == "failure":
+            full = np.array([failures.get(i, "") for i in range(n)], dtype=object)
+            full[rows] = a
+            kw[f.name] = full.astype(str)
+            continue
+        fill = {"b": False, "i": 0}.get(a.dtype.kind, np.nan)
+        full = np.full((n,) + a.shape[1:], fill, dtype=a.dtype)
+        full[rows] = a
+        kw[f.name] = full
+    return HoverSolution(**kw)

@@ -11,7 +11,8 @@ from dataclasses import dataclass, field, fields, replace
 
 from ..errors import ParameterError
 
-__all__ = ["RotorPreset", "bo105", "gvpm", "get_preset", "PRESETS", "GVPM_OMEGA"]
+__all__ = ["RotorPreset", "bo105", "gvpm", "get_preset", "PRESETS", "GVPM_OMEGA",
+           "GVPM_PITCH_LINK_LENGTH", "GVPM_PITCH_HORN_ARM"]
 
 
 @dataclass(frozen=True)
@@ -43,10 +44,12 @@ class RotorPreset:
     c_lag: float = 0.0
     k_pitch_link: float = 1e9
     c_pitch_link: float = 0.0
-    pitch_horn_arm: float = 0.1        # l_h: torsional stiffness = k_pitch_link * l_h^2
+    pitch_horn_arm: float = 0.1        # l_h [m]
+    pitch_link_length: float = 0.2     # l0 [m]: the link's law is per unit strain (see below)
     delta3_deg: float = 0.0            # kinematic pitch-flap coupling: dtheta = -tan(d3) beta
     aero_center_offset: float = 0.0    # aerodynamic centre aft of the feathering axis [m]
     pitching_moment: bool = True       # apply the airfoil CM about the feathering axis
+    cm0: float = 0.0                   # section pitching moment added to the table's CM [-]
     # operating point
     omega: float = 1.0
     rho: float = 1.225
@@ -70,6 +73,15 @@ class RotorPreset:
             raise ParameterError(f"unknown rotor properties {bad}; valid: {sorted(valid)}")
         return replace(self, **changes)
 
+    def feathering_stiffness(self, k_pitch_link):
+        """Feathering stiffness [N m/rad] (or damping [N m s/rad]) from the pitch link's.
+
+        The reference study's multibody pitch link is a rod whose constitutive law is written
+        per unit strain, so ``k_pitch_link`` [N] acts as an axial stiffness EA and the link's
+        spring rate is K_p / l0; at the pitch-horn arm l_h it gives k_theta = (K_p / l0) l_h^2.
+        """
+        return k_pitch_link / self.pitch_link_length * self.pitch_horn_arm**2
+
     @property
     def area(self) -> float:
         return math.pi * self.radius**2
@@ -89,14 +101,19 @@ def bo105(**overrides) -> RotorPreset:
     inflow, collective 6 deg, longitudinal -2 deg.
 
     Chosen:
-    - twist: the thesis prints -6.2 deg per metre, which gives negative thrust at every
-      collective from 4 to 10 deg (in MBDyn and in plain BEMT). Read as -6.2 deg over the whole
-      blade span (zero at the blade root r = R - b, where the collective is applied), MBDyn gives
-      2214 N at 6 deg, close to the thesis's 2009 N; the real Bo105 twist is about -8 deg.
+    - twist: linear, -8 deg from the blade root (r = R - b, where the collective is applied)
+      to the tip, the published Bo105 blade twist. The thesis prints -6.2 deg per metre, which
+      gives negative thrust at every collective from 4 to 10 deg (in MBDyn and in plain BEMT).
+      Read as -6.2 deg over the whole span it gives 5216 N at the nominal inputs with the
+      thesis's own NACA 23012 lift fits (table 3.2), 2.6 x the thesis's 2009 N (table 3.11);
+      -8 deg gives 2111 N (+5 %). The evidence (the published twist, and the thesis's thrust
+      with its own fits) decides for -8 deg. What still differs: the torque (1417 N m against
+      2361 N m): no twist reproduces it, the thesis's drag table is not published
+      (``scripts/rotor_fidelity.py`` regenerates these numbers).
     - blade mass per length 3.56 kg/m, uniform from the hinge to the tip, so that the flap
       inertia about the hub equals I_f = 140.0 kg m^2.
-    - pitch-horn arm 0.2 m (the pitch-link length of table 3.1); with K_p = 1e9 N/m the link
-      is rigid whatever the arm.
+    - pitch link: length l0 = L_p = 0.2 m (table 3.1), horn arm 0.24 m (10 x the GVPM's, the
+      GVPM being a 1:10 model); with K_p = 1e9 N the link is rigid whatever the arm.
     - speed of sound 340.3 m/s, rho 1.225 kg/m^3 (sea level).
     """
     R, e = 4.912, 0.746
@@ -108,7 +125,7 @@ def bo105(**overrides) -> RotorPreset:
         root_cutout=R - 3.812,
         hinge_offset=e,
         chord=0.270,
-        twist_deg=-6.2,
+        twist_deg=-8.0,
         airfoil="naca23012",
         airfoil_fit_machs=(0.1, 0.2, 0.3, 0.4, 0.5, 0.6),
         airfoil_replace=("cl",),
@@ -121,27 +138,27 @@ def bo105(**overrides) -> RotorPreset:
         c_lag=4093.662,
         k_pitch_link=1.0e9,
         c_pitch_link=100.0,
-        pitch_horn_arm=0.2,
+        pitch_horn_arm=0.24,
+        pitch_link_length=0.2,
         omega=44.4,
         collective_deg=6.0,
         lateral_deg=0.0,
         longitudinal_deg=-2.0,
         inflow="uniform",
         harmonic_inflow=False,
-        notes="thesis table 3.1; twist read as -6.2 deg over the span (see docstring)",
+        notes="thesis table 3.1; linear twist -8 deg over the span (see docstring)",
     )
     return p.replace(**overrides) if overrides else p
 
 
-# GVPM effective pitch-horn arm [m]. The feathering axis of a thin blade sees the propeller
-# (tennis-racket) moment I_p Omega^2 theta ~ 0.14 N m/rad, far above what a 10-15 N/m link on a
-# ~2 cm horn resists (~0.005 N m/rad): such a rotor would produce no thrust. The arm is
-# therefore an *effective* one, chosen (tuned, not measured) so that at the thesis's calibrated
-# K_p = 15 N/m the link stiffness k_p l^2 is 3 x I_p Omega^2, i.e. the blade keeps 3/4 of the
-# commanded pitch. This is the one property tuned to the reference study's behaviour (the
-# rigid rotor over-predicts the measured thrust by half, DESIGN.md section 3 hint b).
+# GVPM feathering inertia [kg m^2]: m' L (c/4)^2 (chosen: chordwise radius of gyration c/4).
 _GVPM_I_P = (0.025 / 0.425) * 0.425 * (0.25 * 0.042) ** 2
-_GVPM_ARM = (3.0 * _GVPM_I_P * (108.9 / 0.485) ** 2 / 15.0) ** 0.5
+# GVPM pitch link [m]: the link length at 1:10 of the Bo105's L_p = 0.2 m (thesis table 3.1;
+# the GVPM fuselage is a 1:10 Bo105) and a horn arm of 24 mm (0.57 chord, chosen). With the
+# per-unit-strain law the feathering stiffness is (K_p / l0) l_h^2 = 0.432 N m/rad at
+# K_p = 15, about three times the propeller moment I_p Omega^2 = 0.139 N m/rad.
+GVPM_PITCH_LINK_LENGTH = 0.02
+GVPM_PITCH_HORN_ARM = 0.024
 
 # Rotor speed of the GVPM experiment: v_tip = 108.9 m/s at H = 4R (thesis section 4.2.1).
 GVPM_OMEGA = 108.9 / 0.485
@@ -162,13 +179,24 @@ def gvpm(**overrides) -> RotorPreset:
     - elastic flap: an equivalent hinge at the hub radius with the spring that gives the
       non-rotating first cantilever frequency (1.875^2 sqrt(EI / (m' L^4))), i.e.
       k_flap = 4.12 EI_y / L; the same for lag from EI_z (stiff in plane).
-    - an effective pitch-horn arm of 0.167 m (tuned, see ``_GVPM_ARM``) and no pitch-flap
-      coupling (delta3 = 0).
-    - no airfoil pitching moment on the feathering axis (``pitching_moment=False``): MBDyn's
-      NACA 0012 table that the thesis used has CM = 0 for |alpha| <= 10 deg, while the bundled
-      low-Re table's CM there is non-monotonic (-0.03..0, NeuralFoil confidence 0.83 at
-      Re 5e4); on the soft pitch link it would dominate the blade pitch and slow the periodic
-      solution several-fold. ``gvpm(pitching_moment=True)`` restores it.
+    - pitch link: K_p acts as an axial stiffness EA (the multibody link's law is per unit
+      strain), link length l0 = 20 mm (1:10 of the Bo105's 0.2 m), horn arm l_h = 24 mm:
+      k_theta = (K_p / l0) l_h^2 = 0.432 N m/rad at K_p = 15 N (``k_feather`` sets it
+      directly). No kinematic pitch-flap coupling (delta3 = 0).
+    - inflow: uniform momentum with Prandtl tip and root loss (``tip_loss=True``), no
+      first-harmonic inflow (``harmonic_inflow=False``): the thesis's MBDyn model uses
+      Glauert's linear inflow, which is uniform in hover.
+    - aerodynamic centre 1 mm ahead of the feathering axis (``aero_center_offset=-0.001``,
+      2.4 % chord): the one property set to reproduce the reference study's behaviour. It is
+      the feathering coupling that makes lateral cyclic drive roll and longitudinal drive
+      pitch (thesis table 4.6) and K_p act on the hub moments (table 4.9); without it the
+      flap response lags the cyclic by about 40 deg and the axes are rotated. It is consistent
+      with the bundled low-Re table, whose CM slope between 4 and 10 deg puts the aerodynamic
+      centre about 2 mm ahead of the quarter chord. README "Rotor model" gives its effect.
+    - no airfoil table pitching moment (``pitching_moment=False``): MBDyn's NACA 0012 table
+      that the thesis used has CM = 0 for |alpha| <= 10 deg, while the bundled low-Re table's
+      CM there is non-monotonic (-0.03..0.03, NeuralFoil confidence 0.83 at Re 5e4); ``cm0``
+      adds a constant section moment (an uncertain input).
     """
     m_per_l = 0.025 / 0.425
     p = RotorPreset(
@@ -190,16 +218,20 @@ def gvpm(**overrides) -> RotorPreset:
         c_lag=0.0,
         k_pitch_link=10.0,
         c_pitch_link=0.05,
-        pitch_horn_arm=_GVPM_ARM,
+        pitch_horn_arm=GVPM_PITCH_HORN_ARM,
+        pitch_link_length=GVPM_PITCH_LINK_LENGTH,
         omega=GVPM_OMEGA,
         collective_deg=5.0,
         lateral_deg=-1.0,
         longitudinal_deg=-1.0,
         height_over_radius=4.0,
         inflow="uniform",
-        harmonic_inflow=True,
+        harmonic_inflow=False,
+        tip_loss=True,
+        aero_center_offset=-0.001,
         pitching_moment=False,
-        notes="thesis table 4.2; mass, pitch horn and feathering inertia chosen (see docstring)",
+        notes="thesis table 4.2; mass, pitch link, feathering inertia and aerodynamic-centre "
+              "offset chosen (see docstring)",
     )
     return p.replace(**overrides) if overrides else p
 

@@ -1,0 +1,162 @@
+"""One MBDyn hover case: fill a template, write the sample's c81 table, run, extract loads.
+
+Templates are MBDyn input files with rotoruq's ``{label}`` fields
+(:mod:`rotoruq.evaluation.templates`). The bundled ones live in ``rotoruq/mbdyn/templates``
+(``rigid``); any other path is a user template. :func:`template_values` documents every field
+rotoruq fills.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+from ..errors import ParameterError
+from ..evaluation.templates import fill_template, template_fields
+from .extract import HubLoads, hub_loads
+from .solver import run_mbdyn
+
+__all__ = ["TEMPLATES", "CaseSettings", "template_text", "template_values", "run_case",
+           "rigid_equivalent", "sample_table", "GEOMETRY_FIELDS", "OGE_DISTANCE"]
+
+#: Bundled templates, by name.
+TEMPLATES = ("rigid", "elastic")
+#: Preset properties every template may use (lengths m, angles deg, speed of sound m/s,
+#: mass per length kg/m).
+GEOMETRY_FIELDS = ("radius", "root_cutout", "chord", "twist_deg", "speed_of_sound",
+                   "blade_mass_per_length", "pitch_horn_arm")
+#: Out of ground effect the ground node is put this many radii below the hub (MBDyn's
+#: Cheeseman-Bennett factor is then 1 - 6e-14).
+OGE_DISTANCE = 1.0e6
+AIRFOIL_FILE = "airfoil.c81"
+#: Fields rotoruq derives from rotor inputs: a template using the field uses the inputs.
+DERIVED_FROM = {"ground_distance": ("height_over_radius",), "final_time": ("omega",),
+                "time_step": ("omega",)}
+
+
+@dataclass(frozen=True)
+class CaseSettings:
+    """Time integration of a case: ``revolutions`` simulated, ``steps_per_rev`` time steps per
+    revolution, loads averaged over the last ``average`` revolutions (the ``average`` before
+    them must agree within ``tol``, relative), ``timeout`` [s] for MBDyn."""
+
+    revolutions: int = 12
+    steps_per_rev: int = 72
+    average: int = 2
+    tol: float = 2e-3
+    timeout: float | None = 600.0
+
+    def __post_init__(self):
+        if self.steps_per_rev < 8 or self.average < 1 or self.revolutions < 2 * self.average:
+            raise ParameterError(f"need steps_per_rev >= 8, average >= 1 and revolutions >= "
+                                 f"2 * average, got {self}")
+
+
+def template_text(template: str | os.PathLike) -> tuple[str, Path]:
+    """Text and path of a template: a bundled name (:data:`TEMPLATES`) or a file path."""
+    if str(template) in TEMPLATES:
+        ref = resources.files("rotoruq") / "mbdyn" / "templates" / f"{template}.mbd"
+        return ref.read_text(), Path(str(ref))
+    p = Path(template)
+    if not p.is_file():
+        raise ParameterError(f"MBDyn template {str(template)!r} is neither a bundled template "
+                             f"({', '.join(TEMPLATES)}) nor an existing file")
+    return p.read_text(), p
+
+
+def template_values(preset, inputs: Mapping[str, float], settings: CaseSettings) -> dict:
+    """Every value a template can use.
+
+    - the rotor inputs (:data:`rotoruq.rotor.model.ROTOR_INPUTS`, deg and SI): the preset's
+      values, overridden by ``inputs``;
+    - the preset's geometry (:data:`GEOMETRY_FIELDS`);
+    - ``ground_distance`` [m]: hub height above the ground, height_over_radius * R
+      (``OGE_DISTANCE`` * R when height_over_radius is inf);
+    - ``airfoil_file``: the sample's c81 table (free format), written next to the input;
+    - ``final_time``, ``time_step`` [s] from ``settings`` and omega.
+    """
+    from ..rotor.model import RotorModel
+
+    base = RotorModel(preset, inputs=[]).defaults()
+    unknown = sorted(k for k in inputs if k not in base)
+    if unknown:
+        import difflib
+
+        hints = [f"{k!r} (did you mean {c[0]!r}?)" if (c := difflib.get_close_matches(k, base, 1))
+                 else repr(k) for k in unknown]
+        raise ParameterError(f"{', '.join(hints)}: not rotor inputs of preset {preset.name!r}; "
+                             f"valid: {', '.join(base)}")
+    vals = {**base, **{k: float(v) for k, v in inputs.items()}}
+    vals.update({k: float(getattr(preset, k)) for k in GEOMETRY_FIELDS})
+    h = vals["height_over_radius"]
+    if not h > 0.25:
+        raise ParameterError(f"height_over_radius must be > 0.25 (MBDyn clamps the ground "
+                             f"effect below R/4), got {h}")
+    vals["ground_distance"] = (OGE_DISTANCE if math.isinf(h) else h) * preset.radius
+    period = 2 * math.pi / vals["omega"]
+    vals["final_time"] = settings.revolutions * period
+    vals["time_step"] = period / settings.steps_per_rev
+    vals["airfoil_file"] = AIRFOIL_FILE
+    return vals
+
+
+def run_case(workdir: str | os.PathLike, preset, inputs: Mapping[str, float],
+             template: str | os.PathLike = "rigid", settings: CaseSettings | None = None,
+             mbdyn: str | os.PathLike | None = None, airfoil=None) -> HubLoads:
+    """Run one hover case in ``workdir`` and return its mean :class:`HubLoads`.
+
+    ``inputs`` holds rotor inputs (``collective_deg``, ``height_over_radius``, ...) and airfoil
+    coefficients of the preset's fit rows (``cla_m03``, ...), which rewrite the c81 table
+    (:func:`sample_table`). An input the template does not use is
+    an error (it would silently do nothing). Raises :class:`~rotoruq.mbdyn.solver.MBDynError`
+    when MBDyn fails, stops early or does not reach a periodic state.
+    """
+    from ..rotor.c81 import write_c81
+    from ..rotor.model import load_airfoil
+
+    settings = settings or CaseSettings()
+    airfoil = airfoil if airfoil is not None else load_airfoil(preset)
+    coef_names = set(getattr(airfoil, "parameter_names", ()))
+    overrides = {k: float(v) for k, v in inputs.items() if k in coef_names}
+    rotor_inputs = {k: v for k, v in inputs.items() if k not in coef_names}
+    text, tpath = template_text(template)
+    values = template_values(preset, rotor_inputs, settings)
+    used = set(template_fields(text, tpath))
+    used |= {src for f in list(used) for src in DERIVED_FROM.get(f, ())}
+    unused = sorted(k for k in rotor_inputs if k not in used)
+    if unused:
+        raise ParameterError(f"MBDyn template {tpath.name} does not use the inputs {unused}; "
+                             f"it uses {sorted(used)}")
+    wd = Path(workdir).absolute()
+    wd.mkdir(parents=True, exist_ok=True)
+    write_c81(sample_table(airfoil, overrides), wd / AIRFOIL_FILE, free_format=True)
+    mbd = wd / "rotor.mbd"
+    mbd.write_text(fill_template(text, values, path=tpath))
+    run = run_mbdyn(mbd, wd / "rotor", mbdyn=mbdyn, timeout=settings.timeout)
+    jnt = run.prefix.with_suffix(".jnt")
+    return hub_loads(run.prefix.with_suffix(".rot"), omega=values["omega"], rho=values["rho"],
+                     radius=preset.radius, steps_per_rev=settings.steps_per_rev,
+                     revolutions=settings.revolutions, average=settings.average,
+                     tol=settings.tol, joint=jnt if jnt.exists() else None)
+
+
+def sample_table(airfoil, overrides: Mapping[str, float]):
+    """The c81 table of one sample, as the built-in model sees it: the airfoil's
+    :meth:`~rotoruq.rotor.airfoil.Airfoil.perturbed_table` (fits at the fit rows)."""
+    return airfoil.perturbed_table(dict(overrides))
+
+
+def rigid_equivalent(preset):
+    """The built-in model of the rigid template's physics: blades clamped at the collective
+    (flap, lag and pitch-link springs effectively rigid), uniform momentum inflow without the
+    first-harmonic part, no tip loss, no induced-power factor, Cheeseman-Bennett ground effect.
+    Used to check the built-in rotor against MBDyn on identical physics."""
+    return preset.replace(flap_model="hinge", k_flap=1e9, c_flap=0.0, k_lag=1e9, c_lag=0.0,
+                          k_pitch_link=1e12, c_pitch_link=0.0, delta3_deg=0.0,
+                          inflow="uniform", harmonic_inflow=False, tip_loss=False,
+                          induced_power_factor=1.0, ground_effect="cheeseman_bennett",
+                          lateral_deg=0.0, longitudinal_deg=0.0, ei_flap=math.nan)

@@ -1,0 +1,84 @@
+"""Find and run the MBDyn executable.
+
+rotoruq does not ship or depend on MBDyn: users install it and point rotoruq at it, by order
+of precedence with an explicit path (the driver's ``--mbdyn`` option, i.e. a word of the study's
+``[model] command``), the ``MBDYN`` environment variable, or ``mbdyn`` on ``PATH``.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import EvaluationError, RotoruqError
+
+__all__ = ["MBDynError", "MBDynNotFoundError", "MBDynRun", "find_mbdyn", "run_mbdyn"]
+
+_TAIL = 4000  # characters of MBDyn's output kept in error messages
+
+
+class MBDynNotFoundError(RotoruqError, FileNotFoundError):
+    """No MBDyn executable was given or found."""
+
+
+class MBDynError(EvaluationError):
+    """MBDyn failed, did not converge, or wrote output rotoruq cannot use."""
+
+
+@dataclass(frozen=True)
+class MBDynRun:
+    """A finished MBDyn run: the output prefix (``<prefix>.rot``, ``.out``, ...), wall time [s]
+    and the tail of its combined stdout/stderr."""
+
+    prefix: Path
+    wall_time: float
+    output: str
+
+
+def find_mbdyn(explicit: str | os.PathLike | None = None) -> Path:
+    """The MBDyn executable: ``explicit``, else ``$MBDYN``, else ``mbdyn`` on ``PATH``.
+
+    Raises :class:`MBDynNotFoundError` naming what was tried.
+    """
+    tried = []
+    for source, cand in (("--mbdyn", explicit), ("MBDYN", os.environ.get("MBDYN"))):
+        if not cand:
+            continue
+        p = Path(cand).expanduser()
+        if p.is_file() and os.access(p, os.X_OK):
+            return p.absolute()
+        tried.append(f"{source}={str(cand)!r} (not an executable file)")
+    on_path = shutil.which("mbdyn")
+    if on_path:
+        return Path(on_path)
+    tried.append("'mbdyn' on PATH (not found)")
+    raise MBDynNotFoundError(
+        "MBDyn executable not found; tried " + ", ".join(tried) + ". Install MBDyn and set the "
+        "MBDYN environment variable, pass --mbdyn PATH to the driver, or put mbdyn on PATH")
+
+
+def run_mbdyn(input_file: str | os.PathLike, prefix: str | os.PathLike,
+              mbdyn: str | os.PathLike | None = None, timeout: float | None = None) -> MBDynRun:
+    """Run ``mbdyn -f input_file -o prefix`` (absolute prefix, so output never lands next to
+    the input) in the input file's folder; raise :class:`MBDynError` with the tail of MBDyn's
+    output when it exits with a non-zero status or times out."""
+    exe = find_mbdyn(mbdyn)
+    input_file, prefix = Path(input_file).absolute(), Path(prefix).absolute()
+    t0 = time.perf_counter()
+    try:
+        proc = subprocess.run([str(exe), "-f", str(input_file), "-o", str(prefix)],
+                              cwd=input_file.parent, stdin=subprocess.DEVNULL,
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        raise MBDynError(f"MBDyn did not finish {input_file.name} within {timeout:g} s") from None
+    wall = time.perf_counter() - t0
+    out = proc.stdout.decode(errors="replace")[-_TAIL:]
+    if proc.returncode != 0:
+        last = [ln for ln in out.strip().splitlines() if ln.strip()][-3:]
+        raise MBDynError(f"MBDyn exited with status {proc.returncode} on {input_file.name}"
+                         + (": " + " | ".join(s.strip() for s in last) if last else ""))
+    return MBDynRun(prefix, wall, out)

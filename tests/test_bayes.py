@@ -92,6 +92,14 @@ def test_same_seed_same_chains():
     b = calibrate_bayes(model, DATA, space, chain_samples=500, n_chains=2,
                         data_covariance=NOISE**2, seed=7)
     np.testing.assert_array_equal(a.chains, b.chains)
+    # one chain: the evaluation schedule changes the number of model runs, not the chain
+    one = [calibrate_bayes(model, DATA, space, chain_samples=800, data_covariance=NOISE**2,
+                           seed=8, evaluations=ev) for ev in ("speculative", "minimal")]
+    np.testing.assert_array_equal(one[0].chains, one[1].chains)
+    assert one[0].acceptance_rate == one[1].acceptance_rate
+    assert one[1].n_likelihood_evals < one[0].n_likelihood_evals
+    with pytest.raises(ParameterError, match="unknown evaluations schedule"):
+        calibrate_bayes(model, DATA, space, chain_samples=10, evaluations="all")
 
 
 # --- banana (Rosenbrock-type) posterior -----------------------------------------------------
@@ -145,6 +153,76 @@ def test_emulator_workflow_matches_the_true_model():
     np.testing.assert_allclose(emu.predictive, model(emu.predictive_inputs))
     # predictive draws cover the data mean
     assert np.all(np.abs(emu.predictive.mean(0) - data.mean(0)) < 3 * emu.predictive.std(0))
+
+
+@pytest.mark.parametrize("trend", ["constant", "linear", "reduced_quadratic", "quadratic", None])
+@pytest.mark.parametrize("kernel", ["sqexp", "matern32", "matern52"])
+def test_compiled_emulator_mean_equals_predict(trend, kernel):
+    """The chains' GP mean (compiled, one point at a time) equals GaussianProcess.predict,
+    inside and outside the training box, and does not depend on the batch."""
+    rng = np.random.default_rng(0)
+    X = rng.random((40, 3))
+    Y = np.column_stack([np.sin(3 * X[:, 0]) + X[:, 1] ** 2, X[:, 2] * X[:, 0]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        gp = GaussianProcess(trend=trend, kernel=kernel, n_restarts=0, seed=0).fit(X, Y)
+    Xt = rng.random((25, 3)) * 1.6 - 0.3
+    ref = gp.predict(Xt, return_var=False, warn_distance=None)
+    fast = gp._mean_fast(Xt)
+    # predict forms distances as |a|^2 + |b|^2 - 2 a.b; a rounding error there is multiplied
+    # by the kriging weights, which are large for a near-interpolating GP: bound eps sum|w|
+    alpha, y_std = gp._fast[4], gp._fast[10]
+    tol = 1e-14 * np.abs(alpha).sum(1) * y_std + 1e-12 * np.abs(ref).max(0)
+    assert np.all(np.abs(fast - ref) <= tol), (np.abs(fast - ref).max(0), tol)
+    np.testing.assert_array_equal(np.vstack([gp._mean_fast(x[None]) for x in Xt]), fast)
+
+
+def _emulator_result(prior=None, **kw):
+    model = smooth_model()
+    space = prior or rq.ParameterSpace({"k": rq.Uniform(0.0, 2.0), "c": rq.Uniform(0.0, 2.0)})
+    data = model(np.array([[1.2, 0.7]])) + np.random.default_rng(4).normal(0, 0.1, (20, 2))
+    return calibrate_bayes(model, data, space, emulator=GaussianProcess(trend="linear", seed=0),
+                           build_samples=40, data_covariance=0.01, seed=6, **kw)
+
+
+def test_compiled_emulator_posterior_equals_the_python_one():
+    """With uniform/normal priors the emulator posterior runs compiled; it gives the same
+    numbers and counts as the general route (prior, GP mean, likelihood called separately),
+    and the compiled chain driver takes the same steps as the Python drivers."""
+    from rotoruq.methods.mcmc.samplers import SamplerConfig, run_chains
+
+    res = _emulator_result(chain_samples=1000)
+    post, state, cfg, _ = res._state
+    assert post.compiled is not None
+    z = np.random.default_rng(1).normal(0, 1.2, (300, 2))  # some outside the support
+    cnt0 = post.cnt.copy()
+    a = post(z)
+    cnt_a = post.cnt - cnt0
+    compiled, post.compiled = post.compiled, None
+    try:
+        b = post(z)
+    finally:
+        post.compiled = compiled
+    np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(post.cnt - cnt0 - cnt_a, cnt_a)
+    assert 0 < cnt_a[1] < 300 and cnt_a[0] == 300 - cnt_a[1]  # outside / evaluated
+
+    runs = []
+    for target, ev in ((post, "minimal"), (lambda q: post(q), "minimal"),
+                       (lambda q: post(q), "speculative")):
+        st = state.copy()
+        runs.append(run_chains(target, st, SamplerConfig(evaluations=ev), 700, burn_in=100)[0])
+        assert st.steps == state.steps + 700
+    np.testing.assert_array_equal(runs[1], runs[0])
+    np.testing.assert_array_equal(runs[2], runs[0])
+
+
+def test_emulator_with_other_priors_takes_the_general_route():
+    prior = rq.ParameterSpace({"k": rq.LogNormal(0.2, 0.3), "c": rq.Uniform(0.0, 2.0)})
+    res = _emulator_result(prior, chain_samples=2000, n_chains=2)
+    assert res._state[0].compiled is None
+    assert np.all(res.chains[..., 0] > 0) and np.isfinite(res.mean).all()
+    assert res.n_likelihood_evals > 0 and res.n_model_evals == 40
 
 
 def test_emulator_extrapolation_is_warned_with_distance():

@@ -218,3 +218,39 @@ def test_nan_from_callable_inner_is_survived():
                                       initial_radius=1e3, convergence_tolerance=1e-10)
     assert res.x[0] == pytest.approx(0.3, rel=1e-5)
     assert max(calls) > 0.5
+
+
+def test_pce_inner_is_exact_on_a_quadratic_response():
+    # g = a + b^2, a ~ N(mu_a, s_a), b ~ N(1, 0.5): a second-order PCE is exact, so
+    # mean = mu_a + 1 + 0.25 and var = s_a^2 + 4 * 1 * 0.25 + 2 * 0.5^4
+    model = FunctionModel(lambda x: x[:, 0] + x[:, 1] ** 2, ["a", "b"], ["g"])
+    space = ParameterSpace({"a": Normal(0.0, 0.3), "b": Normal(1.0, 0.5)})
+    mu_a, s_a = 2.0, 0.4
+    t_mean = mu_a + 1.25
+    t_std = np.sqrt(s_a**2 + 1.0 + 2 * 0.5**4)
+    res = calibrate_under_uncertainty(
+        model, space, calibrate={"a": ["mean", "std"]},
+        targets={"g": {"mean": t_mean, "std": t_std}}, inner="pce",
+        inner_options={"order": 2}, convergence_tolerance=1e-10,
+    )
+    assert res.success, res.message
+    np.testing.assert_allclose(res.x, [mu_a, s_a], rtol=1e-7)
+    # the mean-value inner misses the b^2 contributions and lands elsewhere
+    mv = calibrate_under_uncertainty(
+        model, space, calibrate={"a": ["mean", "std"]},
+        targets={"g": {"mean": t_mean, "std": t_std}}, convergence_tolerance=1e-10,
+    )
+    assert abs(mv.x[0] - mu_a) > 0.2
+
+
+def test_pce_inner_options_checked():
+    model = FunctionModel(lambda x: x[:, 0], ["a"], ["g"])
+    space = ParameterSpace({"a": Normal(0.0, 0.3)})
+    with pytest.raises(ParameterError, match="unknown pce inner options"):
+        calibrate_under_uncertainty(model, space, calibrate={"a": "std"},
+                                    targets={"g": {"std": 1.0}}, inner="pce",
+                                    inner_options={"n": 3})
+    with pytest.raises(ParameterError, match="not 'regression'"):
+        calibrate_under_uncertainty(model, space, calibrate={"a": "std"},
+                                    targets={"g": {"std": 1.0}}, inner="pce",
+                                    inner_options={"method": "regression"})

@@ -204,6 +204,12 @@ def test_calibrate_bad_inputs():
         calibrate(model, np.ones(3), ["a", "b"], fixed={"c": 0})
     with pytest.raises(ParameterError, match="variance"):
         calibrate(model, np.ones(3), ["a", "b"], x0=[1, 1], fixed={"c": 0}, data_variance=-1)
+    # no data: an error, not the start point reported as a successful fit
+    with pytest.raises(ParameterError, match="needs data: got no observations"):
+        calibrate(model, np.empty((0, 3)), ["a", "b"], x0=[1, 1], fixed={"c": 0})
+    one = FunctionModel(lambda x: x[:, 0] * x[:, 1], ["a", "b"], ["y"])
+    with pytest.raises(ParameterError, match="underdetermined"):
+        calibrate(one, [2.0], ["a", "b"], x0=[1, 1])
 
 
 def test_scipy_lm_through_same_interface_and_batched_fd_calls():

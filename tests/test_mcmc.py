@@ -205,6 +205,80 @@ def test_continuing_reproduces_one_long_run():
     np.testing.assert_allclose(np.concatenate([a, b]), long)
 
 
+def _chain(method, evaluations, n_chains=1, proposal_std=1.0, max_lookahead=8, splits=(1500,),
+           block=4096):
+    rng = np.random.default_rng(21)
+    x = rng.standard_normal((n_chains, 2))
+    calls = []
+
+    def target(z):
+        calls.append(z.shape[0])
+        return _gauss_logpost(z)
+
+    state = SamplerState(x=x, lp=_gauss_logpost(x),
+                         chol=np.repeat(np.eye(2)[None] * proposal_std, n_chains, 0), rng=rng)
+    cfg = SamplerConfig(method, evaluations=evaluations, max_lookahead=max_lookahead)
+    parts = [run_chains(target, state, cfg, n, block=block)[0] for n in splits]
+    return np.concatenate(parts), state, calls
+
+
+@pytest.mark.parametrize("method", ["dram", "am", "dr", "mh"])
+@pytest.mark.parametrize("proposal_std", [0.3, 15.0])  # high move rate (tree), low (ahead)
+def test_evaluation_schedule_does_not_change_the_chain(method, proposal_std):
+    """Speculative evaluation (two-step tree or K steps ahead) takes exactly the steps that
+    the minimal schedule (stage 1, then stage 2 if rejected) takes, bit for bit."""
+    ref, st_ref, calls_ref = _chain(method, "minimal", proposal_std=proposal_std)
+    for kw in ({"max_lookahead": 8}, {"max_lookahead": 3}, {"max_lookahead": 1}):
+        got, st, calls = _chain(method, "speculative", proposal_std=proposal_std, **kw)
+        np.testing.assert_array_equal(got, ref)
+        assert st.counts == st_ref.counts
+        np.testing.assert_array_equal(st.chol, st_ref.chol)
+        if kw["max_lookahead"] > 1:  # fewer, larger calls
+            assert len(calls) < 0.8 * len(calls_ref), (len(calls), len(calls_ref))
+        if kw["max_lookahead"] == 8:  # both speculative plans are exercised
+            tree_rows = 8 if method in ("dr", "dram") else 3
+            if proposal_std < 1:
+                assert set(calls) == {tree_rows}, set(calls)
+            else:
+                assert set(calls) - {tree_rows}, set(calls)
+    # several chains: one step per call, stage 2 evaluated with stage 1
+    many, _, _ = _chain(method, "minimal", n_chains=3, proposal_std=proposal_std)
+    fused, _, calls = _chain(method, "speculative", n_chains=3, proposal_std=proposal_std)
+    np.testing.assert_array_equal(fused, many)
+    assert len(calls) == 1500
+
+
+def test_chain_does_not_depend_on_how_the_run_is_split():
+    """Random numbers come from per-kind streams: any split into calls and any block size
+    give the same chain (so continuing a chain is the same as running it longer)."""
+    ref, st_ref, _ = _chain("dram", "speculative", splits=(1500,))
+    got, st, _ = _chain("dram", "speculative", splits=(333, 1, 666, 500), block=97)
+    np.testing.assert_array_equal(got, ref)
+    np.testing.assert_array_equal(st.x, st_ref.x)
+    assert st.steps == st_ref.steps == 1500
+
+
+def test_adaptation_uses_the_exact_history_covariance():
+    """After an adaptation step the proposal factor is chol(2.38^2/d (cov + eps I)) of every
+    state visited so far (all chains pooled)."""
+    rng = np.random.default_rng(3)
+    x = rng.standard_normal((4, 2))
+    state = SamplerState(x=x, lp=_gauss_logpost(x), chol=np.repeat(np.eye(2)[None], 4, 0),
+                         rng=rng)
+    kept, _ = run_chains(_gauss_logpost, state, SamplerConfig("am", adapt_interval=50), 300)
+    hist = kept.reshape(-1, 2)  # burn_in 0, thin 1: every visited state
+    C = 2.38**2 / 2 * (np.cov(hist, rowvar=False) + 1e-8 * np.eye(2))
+    np.testing.assert_allclose(state.chol[0], np.linalg.cholesky(C), rtol=1e-10)
+    np.testing.assert_allclose(state.mean.mean(0), hist.mean(0), rtol=1e-12, atol=1e-14)
+
+
 def test_bad_config():
     with pytest.raises(ParameterError, match="unknown MCMC method"):
         SamplerConfig("hmc")
+    with pytest.raises(ParameterError, match="unknown evaluations schedule 'lazy'"):
+        SamplerConfig(evaluations="lazy")
+    with pytest.raises(ParameterError, match="max_lookahead must be >= 1"):
+        SamplerConfig(max_lookahead=0)
+    with pytest.raises(ParameterError, match=r"needs lp \(3,\) and chol"):
+        SamplerState(x=np.zeros((3, 2)), lp=np.zeros(2), chol=np.zeros((3, 2, 2)),
+                     rng=np.random.default_rng(0))

@@ -81,3 +81,97 @@ def test_interval_mixture_and_correlated_nataf_space():
 def test_bad_correlation(corr, match):
     with pytest.raises(ParameterError, match=match):
         rq.ParameterSpace({"a": rq.Normal(0, 1), "b": rq.Normal(0, 1)}, correlation=corr)
+
+
+# Tail transforms. A tail that ends at a finite bound b != 0 cannot be resolved in double
+# precision beyond |u| ~ 8 (b + tiny == b), so every bounded family is tested with one instance
+# whose lower bound is 0 (lower tail) and one whose upper bound is 0 (upper tail).
+U_TAIL = np.array([-37.0, -30.0, -20.0, -12.0, -8.5, -3.0, -1e-6, 0.0, 1e-6, 3.0, 8.5, 12.0,
+                   20.0, 30.0, 37.0])
+TAIL_CASES = {
+    "normal": (rq.Normal(10.0, 5.0), U_TAIL),
+    "lognormal": (rq.LogNormal(2.0, 0.5), U_TAIL),
+    "gamma": (rq.Gamma(2.0, 1.5), U_TAIL),
+    "exponential": (rq.Exponential(2.0), U_TAIL),
+    "gumbel": (rq.Gumbel(0.5, 3.0), U_TAIL),
+    "weibull": (rq.Weibull(1.5, 2.0), U_TAIL),
+    "truncated_normal_lower": (rq.TruncatedNormal(1.0, 2.0, lower=0.0), U_TAIL),
+    "truncated_normal_upper": (rq.TruncatedNormal(-1.0, 2.0, upper=0.0), U_TAIL),
+    "truncated_normal_both_lower": (rq.TruncatedNormal(1.0, 2.0, 0.0, 4.0), U_TAIL[U_TAIL < 8]),
+    "truncated_normal_both_upper": (rq.TruncatedNormal(1.0, 2.0, -3.0, 0.0),
+                                    U_TAIL[U_TAIL > -8]),
+    "uniform_lower": (rq.Uniform(0.0, 3.0), U_TAIL[U_TAIL < 8]),
+    "uniform_upper": (rq.Uniform(-3.0, 0.0), U_TAIL[U_TAIL > -8]),
+    "beta_lower": (rq.Beta(2.0, 3.0, 0.0, 2.0), U_TAIL[U_TAIL < 8]),
+    "beta_upper": (rq.Beta(2.0, 3.0, -2.0, 0.0), U_TAIL[U_TAIL > -8]),
+    "triangular_lower": (rq.Triangular(1.0, 0.0, 3.0), U_TAIL[U_TAIL < 8]),
+    "triangular_upper": (rq.Triangular(-1.0, -3.0, 0.0), U_TAIL[U_TAIL > -8]),
+    "interval_lower": (rq.Interval([(0.0, 1.0), (2.0, 4.0)], [0.3, 0.7]), U_TAIL[U_TAIL < 8]),
+    "interval_upper": (rq.Interval([(-4.0, -2.0), (-1.0, 0.0)], [0.3, 0.7]),
+                       U_TAIL[U_TAIL > -8]),
+    # both bounds > 0: resolvable only to |u| ~ 8 in either tail (see above)
+    "loguniform": (rq.LogUniform(0.1, 10.0), U_TAIL[np.abs(U_TAIL) < 8]),
+}
+
+
+@pytest.mark.parametrize("name", sorted(TAIL_CASES))
+def test_u_x_u_round_trip_in_the_tails(name):
+    dist, u = TAIL_CASES[name]
+    space = rq.ParameterSpace({"a": dist})
+    x = space.from_u(u[:, None])
+    lo, hi = dist.bounds
+    assert np.all(np.isfinite(x)) and np.all((x >= lo) & (x <= hi))
+    assert np.all(np.diff(x[:, 0]) >= 0)
+    np.testing.assert_allclose(space.to_u(x)[:, 0], u, rtol=1e-9, atol=1e-9)
+
+
+def test_normal_tail_values_are_exact():
+    # x = mu + sigma u exactly; the old CDF-then-inverse path was off by 0.04 at u = 8
+    space = rq.ParameterSpace({"a": rq.Normal(10.0, 5.0)})
+    u = np.array([[-37.0], [-8.0], [8.0], [8.3], [37.0]])
+    np.testing.assert_allclose(space.from_u(u), 10.0 + 5.0 * u, rtol=1e-14)
+
+
+@pytest.mark.parametrize("name", ["uniform_lower", "beta_upper", "loguniform", "triangular_lower"])
+def test_bounded_tails_saturate_finitely(name):
+    # beyond the representable tail, x sits on its bound and u saturates (never inf or NaN)
+    space = rq.ParameterSpace({"a": TAIL_CASES[name][0]})
+    x = space.from_u(np.array([[-37.0], [37.0]]))
+    assert np.all(np.isfinite(x))
+    u = space.to_u(np.vstack([x, np.array(TAIL_CASES[name][0].bounds)[:, None]]))
+    assert np.all(np.isfinite(u)) and np.all(np.abs(u) <= 37.6)
+
+
+def test_correlated_round_trip_far_in_the_tails():
+    r = np.array([[1.0, 0.4], [0.4, 1.0]])
+    space = rq.ParameterSpace({"a": rq.Normal(10.0, 5.0), "b": rq.Gumbel(0.5, 3.0)}, correlation=r)
+    u = np.array([[30.0, -20.0], [-25.0, 25.0], [9.0, 9.0]])
+    np.testing.assert_allclose(space.to_u(space.from_u(u)), u, rtol=1e-9, atol=1e-9)
+
+
+def test_truncated_normal_matches_scipy_in_the_body():
+    from scipy import stats
+
+    d = rq.TruncatedNormal(1.0, 2.0, -1.0, 4.0)
+    ref = stats.truncnorm(-1.0, 1.5, loc=1.0, scale=2.0)
+    x = np.linspace(-2.0, 5.0, 29)
+    np.testing.assert_allclose(d.cdf(x), ref.cdf(x), atol=1e-14)
+    np.testing.assert_allclose(d.sf(x), ref.sf(x), atol=1e-14)
+    q = np.linspace(0.01, 0.99, 25)
+    np.testing.assert_allclose(d.ppf(q), ref.ppf(q), atol=1e-12)
+    np.testing.assert_allclose(d.isf(q), ref.isf(q), atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "build, match",
+    [
+        (lambda: rq.Normal("ten", 1.0), "Normal: mean must be a number, got 'ten'"),
+        (lambda: rq.Uniform(0.0, None), "Uniform: upper must be a number"),
+        (lambda: rq.Triangular("a", 0.0, 1.0), "Triangular: mode must be a number"),
+        (lambda: rq.ParameterSpace({"a": rq.Normal(0, 1), "b": rq.Normal(0, 1)},
+                                   correlation=[[1, "x"], ["x", 1]]), "matrix of numbers"),
+    ],
+)
+def test_non_numeric_parameters_are_parameter_errors(build, match):
+    with pytest.raises(ParameterError, match=match):
+        build()

@@ -1,6 +1,6 @@
 import numpy as np
 import pytest
-from scipy import stats
+from scipy import integrate, optimize, stats
 
 import rotoruq as rq
 from rotoruq.errors import EvaluationError, ModelShapeError, ParameterError
@@ -146,3 +146,209 @@ def test_sorm_on_a_paraboloid(sorm, rtol):
     form = stats.norm.cdf(-beta)
     assert r.cdf_probability["g"][0] == pytest.approx(exact, rel=rtol)
     assert abs(r.cdf_probability["g"][0] - exact) < abs(form - exact) / 3
+
+
+# --- MPP searches against independently computed references --------------------------------
+# Each case: a 2-D limit state g(x) <= z whose MPP distance is found by a 1-D bounded
+# minimization along a parametrization of the limit state, and whose exact probability is a
+# 1-D integral (quadrature), so neither reference goes through the HL-RF/AMV+ searches.
+def _cubic():
+    space = rq.ParameterSpace({"a": rq.Normal(10, 5), "b": rq.Normal(10, 5)})
+    model = rq.FunctionModel(lambda x: x[:, 0] ** 3 + x[:, 1] ** 3 - 18, ["a", "b"], ["g"])
+
+    def beta2(x1):
+        return ((x1 - 10) / 5) ** 2 + ((np.cbrt(18 - x1**3) - 10) / 5) ** 2
+
+    ref = optimize.minimize_scalar(beta2, bounds=(-5, 10), method="bounded",
+                                   options={"xatol": 1e-12})
+    p = integrate.quad(lambda t: stats.norm.pdf(t, 10, 5) * stats.norm.cdf(np.cbrt(18 - t**3),
+                       10, 5), -np.inf, np.inf, epsabs=0, epsrel=1e-12, limit=500)[0]
+    # kappa beta = 7.6: far outside the asymptotic range of SORM (Breitung is 22 % off)
+    return space, model, np.sqrt(ref.fun), p, False
+
+
+def _lognormal_gumbel():
+    alpha = np.pi / (0.6 * np.sqrt(6))
+    r, s = rq.LogNormal(5.0, 0.5), rq.Gumbel(alpha, 3 - 0.5772156649015329 / alpha)
+    space = rq.ParameterSpace({"r": r, "s": s})
+    model = rq.FunctionModel(lambda x: x[:, 0] - x[:, 1], ["r", "s"], ["g"])
+    ref = optimize.minimize_scalar(
+        lambda t: float(r.to_z(np.array([t]))[0] ** 2 + s.to_z(np.array([t]))[0] ** 2),
+        bounds=(2, 6), method="bounded", options={"xatol": 1e-12})
+    p = integrate.quad(lambda t: s.pdf(t) * r.cdf(t), 0, 20, epsabs=0, epsrel=1e-12,
+                       limit=500)[0]
+    return space, model, np.sqrt(ref.fun), p, True
+
+
+def _correlated_parabola(a=6.0, c=0.05, rho=0.5):
+    # s = x1 + x2 and t = x1 - x2 are independent normals; g <= 0 <=> s >= a + c t^2
+    space = rq.ParameterSpace({"a": rq.Normal(0, 1), "b": rq.Normal(0, 1)},
+                              correlation=[[1, rho], [rho, 1]])
+    model = rq.FunctionModel(lambda x: a - x[:, 0] - x[:, 1] + c * (x[:, 0] - x[:, 1]) ** 2,
+                             ["a", "b"], ["g"])
+    cinv = np.linalg.inv(np.array([[1, rho], [rho, 1]]))
+
+    def beta2(t):
+        s = a + c * t * t
+        x = np.array([(s + t) / 2, (s - t) / 2])
+        return x @ cinv @ x
+
+    ref = optimize.minimize_scalar(beta2, bounds=(-5, 5), method="bounded",
+                                   options={"xatol": 1e-12})
+    t, w = np.polynomial.hermite_e.hermegauss(120)
+    p = np.sum(w * stats.norm.sf((a + c * (np.sqrt(2 * (1 - rho)) * t) ** 2)
+                                 / np.sqrt(2 * (1 + rho)))) / np.sum(w)
+    return space, model, np.sqrt(ref.fun), p, True
+
+
+def _paraboloid(k=0.05, beta=3.0):
+    space = rq.ParameterSpace({"a": rq.Normal(0, 1), "b": rq.Normal(0, 1)})
+    model = rq.FunctionModel(lambda x: -x[:, 0] + 0.5 * k * x[:, 1] ** 2, ["a", "b"], ["g"])
+    t, w = np.polynomial.hermite_e.hermegauss(120)
+    p = np.sum(w * stats.norm.cdf(-beta - 0.5 * k * t**2)) / np.sum(w)
+    return space, model, beta, p, True
+
+
+LIMIT_STATES = {"cubic": (_cubic, 0.0), "lognormal_gumbel": (_lognormal_gumbel, 0.0),
+                "correlated": (_correlated_parabola, 0.0), "paraboloid": (_paraboloid, -3.0)}
+
+
+def _pma_reference(space, model, beta):
+    """min (beta > 0) / max of g on the circle |u| = |beta|: dense angles, then Brent."""
+    sign = 1.0 if beta > 0 else -1.0
+
+    def g(theta):
+        u = abs(beta) * np.column_stack([np.cos(theta), np.sin(theta)])
+        return sign * model(space.from_u(u))[:, 0]
+
+    th = np.linspace(0, 2 * np.pi, 20001)
+    i = int(np.argmin(g(th)))
+    r = optimize.minimize_scalar(lambda t: g(np.array([t]))[0], bounds=(th[i] - 1e-3,
+                                 th[i] + 1e-3), method="bounded", options={"xatol": 1e-12})
+    return sign * r.fun
+
+
+@pytest.mark.parametrize("case", sorted(LIMIT_STATES))
+@pytest.mark.parametrize("integration, sorm", [("first_order", "breitung"),
+                                               ("second_order", "breitung"),
+                                               ("second_order", "hohenbichler")])
+def test_ria_against_independent_references(case, integration, sorm):
+    from rotoruq.methods.reliability import mpp_search
+
+    build, z = LIMIT_STATES[case]
+    space, model, beta_ref, p_exact, sorm_applies = build()
+    r = mpp_search(model, space, response_levels=[z], integration=integration, sorm=sorm)
+    assert r.converged
+    assert r.cdf_reliability["g"][0] == pytest.approx(beta_ref, abs=1e-6)
+    np.testing.assert_allclose(model(r.mpp_x["g"]), z, atol=1e-8 * max(1.0, abs(z)) + 1e-7)
+    if integration == "first_order":
+        assert r.cdf_probability["g"][0] == pytest.approx(stats.norm.cdf(-beta_ref), rel=1e-5)
+    elif sorm_applies:
+        # second order within 1 % of the exact probability (Breitung's own asymptotic error
+        # is 0.7 % on the two parabolas, Hohenbichler-Rackwitz's < 0.1 %)
+        assert r.cdf_probability["g"][0] == pytest.approx(p_exact, rel=0.01)
+
+
+@pytest.mark.parametrize("case", sorted(LIMIT_STATES))
+def test_pma_first_order_against_circle_search(case):
+    from rotoruq.methods.reliability import mpp_search
+
+    build, _ = LIMIT_STATES[case]
+    space, model, *_ = build()
+    betas = [2.0, -1.0, 3.5]
+    r = mpp_search(model, space, reliability_levels=betas, probability_levels=[0.02])
+    assert r.converged
+    refs = [_pma_reference(space, model, b) for b in betas]
+    np.testing.assert_allclose(r.reliability_response["g"], refs, rtol=1e-8, atol=1e-8)
+    ref_p = _pma_reference(space, model, -stats.norm.ppf(0.02))
+    assert r.probability_response["g"][0] == pytest.approx(ref_p, rel=1e-8, abs=1e-8)
+    # the PMA points lie on their beta-spheres
+    u = space.to_u(r.pma_mpp_x["g"])
+    np.testing.assert_allclose(np.linalg.norm(u, axis=1),
+                               np.abs([-stats.norm.ppf(0.02), *betas]), rtol=1e-9)
+
+
+@pytest.mark.parametrize("case", ["lognormal_gumbel", "correlated", "paraboloid", "cubic"])
+@pytest.mark.parametrize("sorm", ["breitung", "hohenbichler"])
+def test_pma_second_order_inverts_ria_second_order(case, sorm):
+    # Dakota's PMA SORM: the level z whose second-order probability is the target; RIA SORM
+    # at that z must give the target back
+    from rotoruq.methods.reliability import mpp_search
+
+    build, _ = LIMIT_STATES[case]
+    space, model, _, _, _ = build()
+    p = [0.01, 0.2]
+    r = mpp_search(model, space, probability_levels=p, integration="second_order", sorm=sorm)
+    assert r.converged
+    back = mpp_search(model, space, response_levels=r.probability_response["g"],
+                      integration="second_order", sorm=sorm)
+    np.testing.assert_allclose(back.cdf_probability["g"], p, rtol=1e-6)
+
+
+def test_cubic_pma_stays_on_the_sphere_and_counts_are_modest():
+    # the case that used to leave the beta-sphere (|u| of 30-500) and crash
+    from rotoruq.methods.reliability import mpp_search
+
+    space, model, beta_ref, *_ = _cubic()
+    r = mpp_search(model, space, response_levels=[0.0], reliability_levels=[1.0, 2.0, 3.0])
+    assert r.converged and r.n_evaluations < 400
+    assert r.cdf_reliability["g"][0] == pytest.approx(beta_ref, abs=1e-6)
+
+
+def test_failed_evaluations_shorten_the_step():
+    # NaN beyond x1 > 14: a full HL-RF step from the origin lands there; the search must back
+    # off instead of propagating the failure
+    from rotoruq.methods.reliability import mpp_search
+
+    def f(x):
+        g = 20.0 - x[:, 0] - 0.2 * x[:, 1] ** 2
+        return np.where(x[:, 0] > 14.0, np.nan, g)
+
+    space = rq.ParameterSpace({"a": rq.Normal(0, 1), "b": rq.Normal(0, 1)})
+    model = rq.FunctionModel(f, ["a", "b"], ["g"])
+    r = mpp_search(model, space, response_levels=[8.0])
+    assert r.converged
+    # exact MPP: min a^2 + b^2 on a = 12 - 0.2 b^2 -> b = 0 (kappa 0.4 < 1 / 12)
+    assert r.cdf_reliability["g"][0] == pytest.approx(12.0, abs=1e-6)
+
+
+def test_constant_response_is_an_error_not_p_half():
+    from rotoruq.methods.reliability import DegenerateResponseError, mpp_search
+
+    space = rq.ParameterSpace({"a": rq.Normal(0, 1), "b": rq.Normal(0, 1)})
+    model = rq.FunctionModel(lambda x: 0 * x[:, 0] + 3.0, ["a", "b"], ["g"])
+    with pytest.raises(DegenerateResponseError, match="constant"):
+        mpp_search(model, space, response_levels=[1.0, 4.0])
+    with pytest.raises(DegenerateResponseError, match="constant"):
+        mpp_search(model, space, probability_levels=[0.1])
+
+
+def test_flat_at_the_mean_but_not_constant_still_searches():
+    from rotoruq.methods.reliability import mpp_search
+
+    space = rq.ParameterSpace({"a": rq.Normal(0, 1), "b": rq.Normal(0, 1)})
+    model = rq.FunctionModel(lambda x: x[:, 0] ** 2 + 2 * x[:, 1] ** 2, ["a", "b"], ["g"])
+    r = mpp_search(model, space, response_levels=[4.0])
+    assert r.converged
+    assert abs(r.cdf_reliability["g"][0]) == pytest.approx(np.sqrt(2.0), abs=1e-6)
+
+
+def test_sorm_undefined_warns_with_its_reason():
+    from rotoruq.methods.reliability import SORMWarning, sorm_probability
+
+    with pytest.warns(SORMWarning, match="undefined.*kappa = -0.5"):
+        p = sorm_probability(3.0, [-0.5, 0.1], "hohenbichler")
+    assert p == pytest.approx(stats.norm.cdf(-3.0))
+    with pytest.warns(SORMWarning, match="undefined"):
+        sorm_probability(3.0, [-0.4], "breitung")
+
+
+def test_unreachable_level_warns_and_reports_not_converged():
+    # g = a^2 + b >= 0 everywhere: the level -1 has no limit state
+    from rotoruq.methods.reliability import mpp_search
+
+    space = rq.ParameterSpace({"a": rq.Normal(1, 1), "b": rq.Uniform(0, 1)})
+    model = rq.FunctionModel(lambda x: x[:, 0] ** 2 + x[:, 1], ["a", "b"], ["g"])
+    with pytest.warns(RuntimeWarning, match="RIA.*level -1 did not meet the MPP conditions"):
+        r = mpp_search(model, space, response_levels=[-1.0], max_iter=30)
+    assert not r.converged

@@ -76,3 +76,88 @@ def test_failed_rows_dropped_and_bad_input():
     bad = rq.FunctionModel(lambda x: np.ones((3, 1)), space.names, ["y"])
     with pytest.raises(ModelShapeError):
         sobol_indices(bad, space, 64)
+
+
+def _blocks_from_terms_reference(y, d, counts, estimator):
+    """The estimators written row by row on an explicitly resampled design (the oracle for
+    the moment-based bootstrap)."""
+    n = y.shape[0] // (d + 2)
+    b = y.reshape(d + 2, n)
+    idx = np.repeat(np.arange(n), counts.astype(int))
+    fa, fb, fi = b[0, idx], b[1, idx], b[2:, idx]
+    both = np.concatenate([fa, fb])
+    f0, var = both.mean(), both.var(ddof=1)
+    v_all = np.concatenate([both, fi.ravel()]).var(ddof=1)
+    tot_num = 0.5 * ((fa - fi) ** 2).mean(1)
+    salt_num = ((fb - f0) * (fi - fa)).mean(1)
+
+    def janon(x):
+        mid = 0.5 * (x + fi).mean(1)
+        return ((x * fi).mean(1) - mid**2) / (0.5 * (x**2 + fi**2).mean(1) - mid**2)
+
+    if estimator == "saltelli2010":
+        return salt_num / var, tot_num / var
+    if estimator == "jansen":
+        return (var - 0.5 * ((fb - fi) ** 2).mean(1)) / var, tot_num / var
+    if estimator == "janon":
+        return janon(fb), 1.0 - janon(fa)
+    total = tot_num / v_all
+    return np.where(total < 0.1, salt_num / v_all, 0.5 * (salt_num / v_all + janon(fb))), total
+
+
+@pytest.mark.parametrize("estimator", ESTIMATORS)
+def test_moment_form_and_bootstrap_match_row_by_row_estimators(estimator):
+    from rotoruq.methods.sensitivity import (
+        _bootstrap_counts,
+        _indices,
+        _row_terms,
+        pick_freeze_design,
+    )
+
+    d, n = 4, 300
+    space = rq.ParameterSpace({f"x{i}": rq.Uniform(0, 1) for i in range(d)})
+    design = pick_freeze_design(space, n, seed=3)
+    # an offset of 50 (cancellation) and one nearly inert input (the small-total branch)
+    y = 50.0 + ishigami(design[:, :3] * 6 - 3) + 0.01 * design[:, 3]
+    b = y.reshape(d + 2, n)
+    c = b.mean()
+    terms = _row_terms(b[0] - c, b[1] - c, b[2:] - c)
+    counts = _bootstrap_counts(np.random.default_rng(0), 3, n)
+    assert np.all(counts.sum(1) == n)
+    for w in [np.ones(n), *counts]:
+        main, total, _ = _indices(w @ terms / n, n, d, estimator)
+        ref_main, ref_total = _blocks_from_terms_reference(y, d, w, estimator)
+        np.testing.assert_allclose(main, ref_main, rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(total, ref_total, rtol=1e-9, atol=1e-12)
+
+
+def test_g_function_indices_and_inert_inputs():
+    # 8-D Sobol' G function, exact indices in closed form; the last four inputs are nearly
+    # inert (total ~ 1e-4): the default estimator takes Saltelli's estimate alone there
+    a = np.array([0, 1, 4.5, 9, 99, 99, 99, 99.0])
+    vi = 1 / (3 * (1 + a) ** 2)
+    v = np.prod(1 + vi) - 1
+    s_ex, st_ex = vi / v, vi * np.prod(1 + vi) / (1 + vi) / v
+    space = rq.ParameterSpace({f"x{i}": rq.Uniform(0, 1) for i in range(8)})
+    model = rq.FunctionModel(lambda x: np.prod((np.abs(4 * x - 2) + a) / (1 + a), axis=1),
+                             space.names, ["g"])
+    res = sobol_indices(model, space, 2048, seed=7)
+    np.testing.assert_allclose(res.main[0], s_ex, atol=0.02)
+    np.testing.assert_allclose(res.total[0], st_ex, atol=0.02)
+    np.testing.assert_allclose(res.main[0, 4:], s_ex[4:], atol=2e-4)
+    assert np.all(res.main_ci[0, :, 0] <= res.main_ci[0, :, 1])
+    same = sobol_indices(model, space, 2048, seed=7)
+    np.testing.assert_array_equal(res.main_ci, same.main_ci)  # seeded bootstrap
+
+
+def test_constant_response_warns_instead_of_silent_nan():
+    space, _, _ = ishigami_setup()
+    model = rq.FunctionModel(lambda x: np.column_stack([ishigami(x), 0 * x[:, 0] + 2.0]),
+                             space.names, ["y", "flat"])
+    with pytest.warns(RuntimeWarning, match="'flat' is constant over the design"):
+        res = sobol_indices(model, space, 256, seed=1)
+    assert np.all(np.isnan(res.main[1])) and res.variance[1] == 0.0
+    assert np.all(np.isfinite(res.main[0]))
+    with pytest.warns(RuntimeWarning, match=r"\['flat'\] have zero variance"):
+        pce = rq.polynomial_chaos(model, space, order=2)
+    assert np.all(np.isnan(pce.main[1])) and np.all(np.isfinite(pce.main[0]))

@@ -103,10 +103,12 @@ def test_gradient_matches_finite_differences(design, kernel, trend):
     np.testing.assert_allclose(g, fd, rtol=1e-5, atol=1e-5 * np.abs(fd).max())
 
 
+@pytest.mark.parametrize("likelihood", ["ml", "reml"])
 @pytest.mark.parametrize("nugget", [None, "estimate", 1e-3])
-def test_likelihood_gradient_is_analytic_and_right(design, nugget):
+def test_likelihood_gradient_is_analytic_and_right(design, nugget, likelihood):
     x, y = design
-    gp = GaussianProcess(trend="linear", kernel="matern52", nugget=nugget, n_restarts=0).fit(x, y)
+    gp = GaussianProcess(trend="linear", kernel="matern52", nugget=nugget, n_restarts=0,
+                         likelihood=likelihood).fit(x, y)
     ys = (y[:, 0] - gp._y_mean[0]) / gp._y_std[0]
     noise = nugget / gp._y_std[0] ** 2 if isinstance(nugget, float) else None
     theta = np.log([0.3, 0.6, 1.2])
@@ -187,3 +189,66 @@ def test_bad_input():
         gp.predict(np.zeros((1, 3)))
     with pytest.raises(ModelShapeError):
         GaussianProcess().fit(np.zeros((5, 2)), np.zeros(4))
+
+
+def _shared_case():
+    rng = np.random.default_rng(11)
+    x = qmc.LatinHypercube(d=3, seed=rng).random(40) * [2.0, 1.0, 5.0] - [1.0, 0.0, 2.0]
+    y = np.sin(2 * x[:, 0]) + x[:, 1] ** 2 - 0.1 * x[:, 2] * x[:, 0]
+    xt = rng.random((30, 3)) * [2.0, 1.0, 5.0] - [1.0, 0.0, 2.0]
+    return x, y, xt
+
+
+@pytest.mark.parametrize("kernel", ["sqexp", "matern52"])
+def test_fixed_hyperparameters_match_scikit_learn(kernel):
+    sk = pytest.importorskip("sklearn.gaussian_process")
+    from sklearn.gaussian_process.kernels import RBF, Matern
+    from sklearn.gaussian_process.kernels import ConstantKernel as C
+
+    x, y, xt = _shared_case()
+    ell = np.array([0.7, 0.5, 2.5])
+    var = 1.3
+    gp = GaussianProcess(trend=None, kernel=kernel, length_scales=ell, variance=var,
+                         optimize=False).fit(x, y)
+    np.testing.assert_allclose(gp.length_scales, [ell], rtol=1e-12)
+    np.testing.assert_allclose(gp.process_variance, [var], rtol=1e-12)
+    assert gp.jitter.shape == (1,) and gp.jitter[0] == pytest.approx(1e-10 * var)
+    base = RBF(ell) if kernel == "sqexp" else Matern(ell, nu=2.5)
+    ref = sk.GaussianProcessRegressor(C(var) * base, alpha=gp.jitter[0], optimizer=None,
+                                      normalize_y=False).fit(x, y)
+    mean, var_ours = gp.predict(xt, warn_distance=None)
+    m_ref, s_ref = ref.predict(xt, return_std=True)
+    np.testing.assert_allclose(mean[:, 0], m_ref, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(var_ours[:, 0], s_ref**2, rtol=0, atol=1e-8)
+
+
+def test_fixed_length_scales_with_closed_form_variance_reuse_a_fit(design):
+    x, y = design
+    gp = GaussianProcess(trend="linear", n_restarts=1, seed=0).fit(x, y)
+    again = GaussianProcess(trend="linear", length_scales=gp.length_scales,
+                            optimize=False).fit(x, y)
+    np.testing.assert_allclose(again.process_variance, gp.process_variance, rtol=1e-10)
+    xt = np.random.default_rng(1).random((20, x.shape[1])) * 0.8 + 0.1
+    np.testing.assert_allclose(again.predict(xt)[0], gp.predict(xt)[0], rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(trend="constant", mean=0.5), "mean= is the known mean of simple Kriging"),
+        (dict(optimize=False), "needs length_scales"),
+        (dict(variance=1.0), "use it with optimize=False"),
+        (dict(length_scales=[0.1, -1.0]), "finite values > 0"),
+        (dict(length_scales=[1.0], optimize=False, nugget="estimate"), "needs optimize=True"),
+        (dict(length_scales=[1.0], optimize=False, nugget=0.1), "give variance="),
+    ],
+)
+def test_inconsistent_hyperparameter_options_are_rejected(kwargs, match):
+    with pytest.raises(ParameterError, match=match):
+        GaussianProcess(**kwargs)
+
+
+def test_length_scale_shape_checked_at_fit(design):
+    x, y = design
+    with pytest.raises(ParameterError, match="length_scales must have shape"):
+        GaussianProcess(length_scales=[1.0, 2.0], optimize=False).fit(x, y)

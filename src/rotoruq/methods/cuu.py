@@ -23,6 +23,10 @@ design in (0, 1)^d is drawn once from ``seed`` and mapped through the current di
 the statistics are smooth in ``theta`` and finite differences are meaningful. All points of a
 Jacobian (``(p + 1) * n`` rows) go to the model in one batch.
 
+``"pce"``: mean and standard deviation from the coefficients of a polynomial chaos expansion
+(:func:`rotoruq.methods.pce.polynomial_chaos`, quadrature by default, ``order`` 2): exact for
+responses that are polynomials of that order in the germs, deterministic in ``theta``.
+
 A callable ``inner(model, space) -> object with .mean and .std (m,)`` is also accepted (e.g. a
 user's own UQ method); it is called once per outer point.
 
@@ -253,6 +257,9 @@ def _parse_targets(targets, names_out: Sequence[str]) -> list[tuple[int, str, fl
     return out
 
 
+_PCE_OPTIONS = {"order", "method", "quadrature_points", "basis"}
+
+
 class _Problem:
     """Maps outer variables theta (K, p) to input moments and response statistics."""
 
@@ -282,6 +289,15 @@ class _Problem:
             unknown = set(self.opts) - {"gradient", "fd_step"}
             if unknown:
                 raise ParameterError(f"unknown mean_value inner options {sorted(unknown)}")
+        elif inner == "pce":
+            unknown = set(self.opts) - _PCE_OPTIONS
+            if unknown:
+                raise ParameterError(f"unknown pce inner options {sorted(unknown)}; valid: "
+                                     f"{sorted(_PCE_OPTIONS)}")
+            if str(self.opts.get("method", "quadrature")) == "regression":
+                raise ParameterError("inner 'pce' takes method 'quadrature' or 'sparse_grid' "
+                                     "(deterministic in theta, so the outer finite differences "
+                                     "are meaningful), not 'regression'")
 
     def moments(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         k = theta.shape[0]
@@ -306,6 +322,8 @@ class _Problem:
             return self._mean_value(mu, sd)
         if self.inner == "lhs":
             return self._lhs(mu, sd)
+        if self.inner == "pce":
+            return self._pce(mu, sd)
         return self._callable(mu, sd)
 
     def _gradients(self, mus: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -377,6 +395,21 @@ class _Problem:
             if ok[k].sum() >= 2:
                 mean[k] = Y[k, ok[k]].mean(axis=0)
                 std[k] = Y[k, ok[k]].std(axis=0, ddof=1)
+        return mean, std
+
+    def _pce(self, mu, sd):
+        """Mean and std from the coefficients of a polynomial chaos expansion (quadrature or
+        sparse grid, eqs. 2.18-2.19), one expansion per outer point."""
+        from .pce import polynomial_chaos
+
+        opts = dict(self.opts)
+        order = int(opts.pop("order", 2))
+        mean = np.empty((len(mu), self.m))
+        std = np.empty((len(mu), self.m))
+        for k in range(len(mu)):
+            res = polynomial_chaos(self.model, self.space_at(mu[k], sd[k]), order, **opts)
+            mean[k], std[k] = res.mean, res.std
+            self.n_eval += int(res.n_evaluations)
         return mean, std
 
     def _callable(self, mu, sd):
@@ -494,11 +527,13 @@ def calibrate_under_uncertainty(
         ``{"cla_m03": "std", "coll": ["mean", "std"]}``.
     targets : mapping response -> {"mean": value, "std": value}, e.g.
         ``{"thrust": {"std": 11.45}, "torque": {"mean": -2360.9, "std": 2.1}}``.
-    inner : "mean_value" (default), "lhs", or a callable ``inner(model, space)`` returning an
+    inner : "mean_value" (default), "lhs", "pce", or a callable ``inner(model, space)`` returning an
         object with ``.mean`` and ``.std`` arrays (m,) (or ``.statistics.mean/std``).
     inner_options : for "mean_value": ``gradient`` ("auto", "analytic", "fd") and ``fd_step``
         (relative central-difference step, default 1e-6); for "lhs": ``n`` (samples per outer
-        point, default 200).
+        point, default 200); for "pce": ``order`` (default 2), ``method`` ("quadrature",
+        default, or "sparse_grid"), ``quadrature_points`` and ``basis`` of
+        :func:`rotoruq.methods.pce.polynomial_chaos`.
     fixed : deterministic inputs not in the space, held at the given values.
     bounds : mapping ``"input.stat"`` (or ``(input, stat)``) -> (lower, upper) for calibrated
         statistics. Defaults: stds in ``[1e-6 std0, inf)``; means of lognormals ``> 0``.
@@ -531,14 +566,10 @@ def calibrate_under_uncertainty(
         inner_name = getattr(inner, "__name__", "callable")
     else:
         inner_name = str(inner).lower()
-        if inner_name == "pce":
+        if inner_name not in ("mean_value", "lhs", "pce"):
             raise ParameterError(
-                "inner 'pce' is not available: rotoruq.methods.pce is not part of this build; "
-                "use 'mean_value', 'lhs' or a callable inner"
-            )
-        if inner_name not in ("mean_value", "lhs"):
-            raise ParameterError(
-                f"unknown inner method {inner!r}; valid: 'mean_value', 'lhs' or a callable"
+                f"unknown inner method {inner!r}; valid: 'mean_value', 'lhs', 'pce' or a "
+                "callable"
             )
         inner = inner_name
     prob = _Problem(view, space, calibrated, tgt, inner, inner_options, seed)

@@ -3,7 +3,8 @@
 Every input has intervals with basic probability assignments (BPAs). A *cell* is one choice
 of interval per input (cartesian product); its BPA is the product of the inputs' BPAs. On
 each cell the response range [min, max] is estimated by sampling (all cells in ONE batched
-model call) and optionally refined by local optimization (L-BFGS-B from the best sample).
+model call) and then refined by bound-constrained local optimization (L-BFGS-B from the best
+sample, by default), so that interior extrema of non-monotone responses are found.
 
 Cumulative belief and plausibility of a response level z (thesis section 2.3.4):
 
@@ -26,6 +27,63 @@ from ..params import Interval, ParameterSpace
 from ._common import eval_space, levels_per_response
 
 __all__ = ["EvidenceResult", "evidence"]
+
+
+def _starts(x, v, width, n):
+    """Up to n start points: the best samples by v, each at least a quarter of the cell's
+    (scaled) diagonal away from the previous ones, so the starts cover distinct basins."""
+    order = [i for i in np.argsort(np.where(np.isfinite(v), v, np.inf)) if np.isfinite(v[i])]
+    xn = x / width
+    chosen: list[int] = []
+    for i in order:
+        if all(np.linalg.norm(xn[i] - xn[j]) > 0.25 * np.sqrt(x.shape[1]) for j in chosen):
+            chosen.append(i)
+            if len(chosen) == n:
+                break
+    return x[chosen]
+
+
+def _refine(model, space, xs, y, lo, hi, cmin, cmax, n_starts, rel_step=1e-7):
+    """Local min and max of every response in every cell by L-BFGS-B from the best samples.
+
+    xs : (c, per, d) sampled points; y : (c, per, m) their responses; lo, hi : (c, d).
+    Each objective call evaluates the point and its d forward-difference neighbours (steps
+    taken inward at the cell's upper bound) in one batch. Returns (cmin, cmax, evaluations).
+    """
+    from scipy.optimize import minimize
+
+    n_cells, _, d = xs.shape
+    m = y.shape[2]
+    cmin, cmax = cmin.copy(), cmax.copy()
+    count = [0]
+
+    def fg(xx, k, sign, c):
+        h = rel_step * np.maximum(np.abs(xx), hi[c] - lo[c])
+        h = np.where(xx + h > hi[c], -h, h)
+        pts = np.repeat(xx[None, :], d + 1, axis=0)
+        pts[1 + np.arange(d), np.arange(d)] += h
+        v = eval_space(model, space, pts).values[:, k]
+        count[0] += d + 1
+        if not np.all(np.isfinite(v)):
+            return np.inf, np.zeros(d)
+        return sign * v[0], sign * (v[1:] - v[0]) / h
+
+    for c in range(n_cells):
+        bounds = list(zip(lo[c], hi[c], strict=True))
+        for k in range(m):
+            for sign in (1.0, -1.0):
+                yk = sign * y[c, :, k]
+                if not np.any(np.isfinite(yk)):
+                    continue
+                for start in _starts(xs[c], yk, (hi[c] - lo[c]), n_starts):
+                    r = minimize(fg, start, args=(k, sign, c), jac=True, method="L-BFGS-B",
+                                 bounds=bounds)
+                    if np.isfinite(r.fun):
+                        if sign > 0:
+                            cmin[c, k] = min(cmin[c, k], r.fun)
+                        else:
+                            cmax[c, k] = max(cmax[c, k], -r.fun)
+    return cmin, cmax, count[0]
 
 
 @dataclass(frozen=True)
@@ -68,7 +126,8 @@ def evidence(
     *,
     response_levels=None,
     n_samples: int = 100,
-    optimize: bool = False,
+    optimize: bool = True,
+    n_starts: int = 3,
     seed: SeedLike = None,
 ) -> EvidenceResult:
     """Dempster-Shafer belief/plausibility of response levels.
@@ -80,8 +139,15 @@ def evidence(
     response_levels : levels z (same for every response, mapping, or one sequence each).
     n_samples : LHS points per cell (the cell's corners are added); all cells go to the model
         in one batch of c * (n_samples + 2^d) points (corners only up to d = 10).
-    optimize : refine each cell's min and max with L-BFGS-B from the best sample (extra,
-        sequential model calls).
+    optimize : refine each cell's min and max with L-BFGS-B from the best sample (default;
+        each function value and its forward-difference gradient is one batched model call of
+        d + 1 points). Without it the range is that of the samples and corners only, which
+        misses interior extrema of non-monotone responses (no error bound): use
+        ``optimize=False`` only for responses known to be monotone in every cell.
+    n_starts : local searches per cell, response and direction, started from the best
+        samples that lie in different parts of the cell (multimodal responses). Local
+        optimization finds the global extremum of a cell only when one start lies in its
+        basin: more samples and starts raise that chance, no setting guarantees it.
     seed : int or Generator.
     """
     from scipy.stats import qmc
@@ -95,6 +161,8 @@ def evidence(
         raise ParameterError(f"evidence needs Interval inputs; not intervals: {bad}")
     if space.correlation is not None:
         raise ParameterError("evidence does not take correlated inputs")
+    if int(n_samples) < 1 or (optimize and int(n_starts) < 1):
+        raise ParameterError(f"n_samples and n_starts must be >= 1, got {n_samples}, {n_starts}")
     d = space.dim
     rng = as_generator(seed)
     ivs = [np.array(dd.intervals) for dd in space.distributions]
@@ -111,37 +179,14 @@ def evidence(
     x = (lo[:, None, :] + unit[None, :, :] * (hi - lo)[:, None, :]).reshape(-1, d)
     batch = eval_space(model, space, x)
     y = batch.values.reshape(n_cells, per, -1)
-    m = y.shape[2]
     with np.errstate(invalid="ignore"):
         cmin = np.nanmin(np.where(np.isfinite(y), y, np.nan), axis=1)
         cmax = np.nanmax(np.where(np.isfinite(y), y, np.nan), axis=1)
     n_eval = x.shape[0]
     if optimize:
-        from scipy.optimize import minimize
-
-        counter = [0]
-
-        def f(xx, k, sign):
-            counter[0] += 1
-            v = eval_space(model, space, xx[None, :]).values[0, k]
-            return sign * v if np.isfinite(v) else np.inf
-
-        xs = x.reshape(n_cells, per, d)
-        for c in range(n_cells):
-            bounds = list(zip(lo[c], hi[c], strict=True))
-            for k in range(m):
-                for sign in (1.0, -1.0):
-                    yk = sign * y[c, :, k]
-                    if not np.any(np.isfinite(yk)):
-                        continue
-                    start = xs[c, int(np.nanargmin(yk))]
-                    r = minimize(f, start, args=(k, sign), method="L-BFGS-B", bounds=bounds)
-                    if np.isfinite(r.fun):
-                        if sign > 0:
-                            cmin[c, k] = min(cmin[c, k], r.fun)
-                        else:
-                            cmax[c, k] = max(cmax[c, k], -r.fun)
-        n_eval += counter[0]
+        cmin, cmax, extra = _refine(model, space, x.reshape(n_cells, per, d), y, lo, hi,
+                                    cmin, cmax, int(n_starts))
+        n_eval += extra
     names_out = tuple(model.names_out)
     rl = levels_per_response(response_levels, names_out, "response_levels")
     cbf, cpf, ccbf, ccpf = {}, {}, {}, {}

@@ -607,6 +607,11 @@ def calibrate(
     if not np.all(np.isfinite(data)):
         raise ParameterError("data contain NaN or infinite values")
     n_exp = data.shape[0]
+    if n_exp == 0:
+        raise ParameterError(
+            f"calibrate needs data: got no observations (shape {data.shape}); give at least "
+            f"one row of the {m} responses {names_out}"
+        )
 
     if isinstance(parameters, ParameterSpace):
         names = parameters.names
@@ -620,6 +625,11 @@ def calibrate(
     p = len(names)
     if p == 0 or len(set(names)) != p:
         raise ParameterError(f"parameters must be distinct input names, got {names}")
+    if n_exp * m < p:
+        raise ParameterError(
+            f"{p} parameters {names} cannot be calibrated on {n_exp * m} observations: "
+            "the least-squares problem is underdetermined; add data or fix parameters"
+        )
     if start is None:
         raise ParameterError("x0 is required when parameters is a list of names")
     start = np.asarray(start, dtype=float).ravel()

@@ -27,7 +27,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import special, stats
+from scipy import special
 
 from .._rng import SeedLike, as_generator
 from ..errors import ParameterError
@@ -56,7 +56,7 @@ class Germ:
     def to_x(self, xi):
         d, f = self.dist, self.family
         if f == "hermite":
-            return d.mean + d.std * xi if isinstance(d, Normal) else d.ppf(stats.norm.cdf(xi))
+            return d.mean + d.std * xi if isinstance(d, Normal) else d.from_z(xi)
         if f in ("legendre", "jacobi"):
             lo, hi = d.bounds
             return lo + (xi + 1) * (hi - lo) / 2
@@ -67,7 +67,7 @@ class Germ:
         if f == "hermite":
             if isinstance(d, Normal):
                 return (x - d.mean) / d.std
-            return stats.norm.ppf(np.clip(d.cdf(x), 1e-300, 1 - 1e-16))
+            return d.to_z(x)
         if f in ("legendre", "jacobi"):
             lo, hi = d.bounds
             return 2 * (x - lo) / (hi - lo) - 1
@@ -304,9 +304,24 @@ def polynomial_chaos(
     var = c2.sum(axis=0)
     a = alpha[1:]
     only = [(a[:, i] > 0) & (a.sum(axis=1) == a[:, i]) for i in range(d)]
+    # zero up to the round-off of the projection
+    flat = [name for name, v, c0 in zip(model.names_out, var, coef[0], strict=True)
+            if v <= (1e-13 * max(abs(c0), 1e-300)) ** 2]
+    if flat:
+        import warnings
+
+        warnings.warn(
+            f"polynomial_chaos: responses {flat} have zero variance in the expansion (up to "
+            "round-off): their Sobol' indices are undefined",
+            RuntimeWarning,
+            stacklevel=2,
+        )
     with np.errstate(invalid="ignore", divide="ignore"):
         main = np.array([c2[o].sum(axis=0) for o in only]).T / var[:, None]
         total = np.array([c2[a[:, i] > 0].sum(axis=0) for i in range(d)]).T / var[:, None]
+    for name in flat:
+        k = tuple(model.names_out).index(name)
+        main[k] = total[k] = np.nan
     return PCEResult(
         names_in=space.names,
         names_out=tuple(model.names_out),

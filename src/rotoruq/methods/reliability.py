@@ -12,12 +12,13 @@ P(g > z) = 1 - Phi((z - mu)/sigma).)
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
 
-from ..errors import ParameterError
+from ..errors import EvaluationError, ParameterError, RotoruqError
 from ._common import gradient_at, levels_per_response
 
 __all__ = [
@@ -27,6 +28,8 @@ __all__ = [
     "MPPResult",
     "mpp_search",
     "sorm_probability",
+    "DegenerateResponseError",
+    "SORMWarning",
 ]
 
 
@@ -254,7 +257,9 @@ class MPPResult:
     (differs from beta_cdf with SORM); ``mpp_u`` / ``mpp_x`` (k, d) most probable points;
     ``curvatures`` (k, d-1) principal curvatures (SORM only, else NaN).
     Inverse (PMA) mapping: ``probability_response`` / ``reliability_response`` response
-    levels for ``probability_levels`` / ``reliability_levels`` (CDF sense, FORM).
+    levels for ``probability_levels`` / ``reliability_levels`` (CDF sense; first-order, or
+    second-order levels with ``integration="second_order"``); ``pma_mpp_x`` their MPPs.
+    ``converged``: every RIA and PMA search met the MPP (KKT) conditions.
     """
 
     names_in: tuple[str, ...]
@@ -277,8 +282,21 @@ class MPPResult:
     converged: bool
 
 
+class DegenerateResponseError(RotoruqError, ValueError):
+    """The response does not vary around the search point (constant response): no MPP."""
+
+
+class SORMWarning(RuntimeWarning):
+    """A second-order formula does not apply; the first-order probability is reported."""
+
+
 class _UModel:
-    """Response k of the model as a function of u, with batched FD gradients/Hessians."""
+    """The model as a function of u, with batched FD gradients/Hessians.
+
+    Points whose evaluation fails (or whose transform leaves the support) come back as NaN from
+    :meth:`trial`, so that a search can shorten its step; :meth:`value_grad` needs every point
+    of its stencil and raises :class:`EvaluationError` otherwise.
+    """
 
     def __init__(self, model, space, fd_step):
         from ._common import eval_space
@@ -290,13 +308,19 @@ class _UModel:
 
     def values(self, u):
         u = np.atleast_2d(u)
-        b = self._eval(self.model, self.space, self.space.from_u(u))
-        self.n_eval += u.shape[0]
-        if b.failures:
-            from ..errors import EvaluationError
+        x = self.space.from_u(u)
+        ok = np.all(np.isfinite(x), axis=1)
+        out = np.full((u.shape[0], len(self.model.names_out)), np.nan)
+        if np.any(ok):
+            b = self._eval(self.model, self.space, x[ok])
+            self.n_eval += int(ok.sum())
+            out[ok] = b.values
+        return out
 
-            raise EvaluationError(f"MPP search: evaluation failed at u = {u[min(b.failures)]}")
-        return b.values
+    def trial(self, u, k) -> float:
+        """Response k at one point, NaN when the evaluation fails."""
+        v = float(self.values(u[None, :])[0, k])
+        return v if np.isfinite(v) else np.nan
 
     def value_grad(self, u):
         key = u.tobytes()
@@ -308,11 +332,25 @@ class _UModel:
             pts[1 + i, i] += h
             pts[1 + d + i, i] -= h
             v = self.values(pts)
-            self._cache = {key: (v[0], (v[1 : d + 1] - v[d + 1 :]).T / (2 * h))}
-        return self._cache[key]
+            if not np.all(np.isfinite(v)):
+                raise EvaluationError(
+                    f"MPP search: finite-difference stencil at u = {u} (x = "
+                    f"{self.space.from_u(u)[0]}) has failed or non-finite evaluations"
+                )
+            if len(self._cache) > 64:
+                self._cache.clear()
+            self._cache[key] = (v[0], (v[1 : d + 1] - v[d + 1 :]).T / (2 * h), h)
+        g, grad, _ = self._cache[key]
+        return g, grad
+
+    def flat(self, u, k) -> bool:
+        """True when the FD differences of response k at u are at round-off level."""
+        g, grad = self.value_grad(u)
+        h = self._cache[u.tobytes()][2]
+        return bool(np.all(np.abs(grad[k]) * h <= 8 * np.finfo(float).eps * max(abs(g[k]), 1e-300)))
 
     def hessian(self, u, k):
-        """Central-difference Hessian of response k in u-space, one batch of 2d^2+1 points."""
+        """Central-difference Hessian of response k in u-space, one batch of 4d^2+1 points."""
         d = u.size
         h = 1e3 * self.h * np.maximum(1.0, np.abs(u))  # larger step: second differences
         e = np.eye(d) * h
@@ -321,8 +359,11 @@ class _UModel:
             for j in range(d):
                 pts += [u + e[i] + e[j], u + e[i] - e[j], u - e[i] + e[j], u - e[i] - e[j]]
         v = self.values(np.array(pts))[:, k]
+        if not np.all(np.isfinite(v)):
+            raise EvaluationError(f"SORM: Hessian stencil at u = {u} has failed evaluations")
         f = v[1:].reshape(d, d, 4)
-        return (f[..., 0] - f[..., 1] - f[..., 2] + f[..., 3]) / (4 * np.outer(h, h))
+        hm = (f[..., 0] - f[..., 1] - f[..., 2] + f[..., 3]) / (4 * np.outer(h, h))
+        return 0.5 * (hm + hm.T)
 
 
 def _tangent_basis(alpha):
@@ -332,67 +373,246 @@ def _tangent_basis(alpha):
     return q[:, 1:d].T
 
 
-def _ria(um, k, z, tol, max_iter):
-    from scipy.optimize import minimize
-
+def _probe_start(um, k, name, score):
+    """Start point when the response is flat at the origin: the best of the 2d points
+    u = +-e_i by ``score(value)``; raises DegenerateResponseError when all are equal."""
     d = um.space.dim
-    g0, grad0 = um.value_grad(np.zeros(d))
-    # start on the linearized limit state
-    gk = grad0[k]
-    u_start = (z - g0[k]) * gk / max(gk @ gk, 1e-300)
-    cons = {
-        "type": "eq",
-        "fun": lambda u: um.value_grad(u)[0][k] - z,
-        "jac": lambda u: um.value_grad(u)[1][k],
-    }
-    res = minimize(
-        lambda u: u @ u,
-        u_start,
-        jac=lambda u: 2 * u,
-        constraints=[cons],
-        method="SLSQP",
-        options={"maxiter": max_iter, "ftol": tol},
-    )
-    return res.x, bool(res.success), g0[k]
+    pts = np.vstack([np.eye(d), -np.eye(d)])
+    v = um.values(pts)[:, k]
+    g0 = um.value_grad(np.zeros(d))[0][k]
+    if np.all(np.isfinite(v)) and np.all(np.abs(v - g0) <= 8 * np.finfo(float).eps * abs(g0)):
+        raise DegenerateResponseError(
+            f"response {name!r} is constant (= {g0:.6g} at the input means and one standard "
+            "deviation away along every input): it has no most probable point; P(g <= z) "
+            "is 1 for z >= that value and 0 below"
+        )
+    ok = np.flatnonzero(np.isfinite(v))
+    if ok.size == 0:
+        raise EvaluationError(f"MPP search for {name!r}: every probe point around u = 0 failed")
+    return pts[ok[np.argmin([score(v[i]) for i in ok])]]
 
 
-def _pma(um, k, beta, tol, max_iter):
-    from scipy.optimize import minimize
+def _ria(um, k, z, tol, max_iter, name):
+    """min |u| subject to G(u) = z by the improved HL-RF iteration (Zhang and Der Kiureghian
+    1995): the HL-RF direction, a step chosen by Armijo backtracking on the merit function
+    0.5 |u|^2 + c |G - z| (c > |u| / |grad G|), non-finite trial points rejected (the step is
+    halved). Converged when the MPP (KKT) conditions hold: the point is on the limit state
+    (|G - z| / |grad G| <= tol max(1, |u|)) and u is parallel to grad G (the component of u
+    orthogonal to grad G <= sqrt(tol) max(1, |u|)).
 
+    Returns (u, converged, G(0)).
+    """
     d = um.space.dim
-    g0, grad0 = um.value_grad(np.zeros(d))
-    gk = grad0[k]
-    sign = 1.0 if beta >= 0 else -1.0  # beta_cdf > 0: lower tail (minimize g)
-    nrm = np.linalg.norm(gk)
-    u_start = -sign * abs(beta) * gk / nrm if nrm > 0 else np.full(d, abs(beta) / np.sqrt(d))
-    cons = {"type": "eq", "fun": lambda u: u @ u - beta**2, "jac": lambda u: 2 * u}
-    res = minimize(
-        lambda u: sign * um.value_grad(u)[0][k],
-        u_start,
-        jac=lambda u: sign * um.value_grad(u)[1][k],
-        constraints=[cons],
-        method="SLSQP",
-        options={"maxiter": max_iter, "ftol": tol},
-    )
-    return res.x, bool(res.success)
+    u = np.zeros(d)
+    g0 = um.value_grad(u)[0][k]
+    if g0 == z:
+        return u, True, g0
+    if um.flat(u, k):
+        u = _probe_start(um, k, name, lambda v: abs(v - z))
+    for _ in range(max_iter):
+        G, grad = um.value_grad(u)
+        g, gv = G[k] - z, grad[k]
+        gn = float(np.linalg.norm(gv))
+        if gn == 0.0 or not np.isfinite(gn):
+            return u, False, g0
+        scale = max(1.0, float(np.linalg.norm(u)))
+        perp = u - (u @ gv) / gn**2 * gv
+        if abs(g) / gn <= tol * scale and np.linalg.norm(perp) <= np.sqrt(tol) * scale:
+            return u, True, g0
+        u_hl = ((gv @ u - g) / gn**2) * gv
+        step = u_hl - u
+        c = 2.0 * max(np.linalg.norm(u) / gn, 0.5 * (u_hl @ u_hl) / max(abs(g), 1e-300))
+        merit = 0.5 * (u @ u) + c * abs(g)
+        slope = u @ step - c * abs(g)  # directional derivative of the merit along step
+        lam, accepted = 1.0, False
+        for _ in range(40):
+            ut = u + lam * step
+            gt = um.trial(ut, k)
+            if np.isfinite(gt) and 0.5 * (ut @ ut) + c * abs(gt - z) <= merit + 1e-4 * lam * min(
+                slope, 0.0
+            ):
+                accepted = True
+                break
+            lam *= 0.5
+        if not accepted:
+            return u, False, g0
+        u = ut
+    G, grad = um.value_grad(u)
+    gv = grad[k]
+    gn = float(np.linalg.norm(gv))
+    scale = max(1.0, float(np.linalg.norm(u)))
+    ok = gn > 0 and abs(G[k] - z) / gn <= tol * scale
+    ok = ok and np.linalg.norm(u - (u @ gv) / gn**2 * gv) <= np.sqrt(tol) * scale
+    return u, bool(ok), g0
+
+
+def _pma(um, k, beta, tol, max_iter, name):
+    """min G(u) (beta > 0) or max G(u) (beta < 0) on the sphere |u| = |beta|.
+
+    Advanced-mean-value iteration (AMV+, the step Dakota's PMA takes: the next point is
+    -sign |beta| grad G / |grad G|) made robust: the move follows the great circle towards
+    that point and is shortened by Armijo backtracking until the response decreases, so the
+    iterate never leaves the sphere and non-finite points are rejected. Converged when u is
+    (anti)parallel to grad G: | u / |beta| + sign grad G / |grad G| | <= sqrt(tol), and no
+    point 0.05 rad away on the sphere is better (a saddle or maximum of G on the sphere, where
+    symmetric responses start, is left through the best such probe).
+
+    Returns (u, converged).
+    """
+    d = um.space.dim
+    b = abs(beta)
+    sign = 1.0 if beta >= 0 else -1.0
+    u0 = np.zeros(d)
+    if um.flat(u0, k):
+        u = _probe_start(um, k, name, lambda v: sign * v)
+    else:
+        u = -sign * um.value_grad(u0)[1][k]
+    u = b * u / np.linalg.norm(u)
+    probes, lam_prev = 3, 1.0
+    for _ in range(max_iter):
+        G, grad = um.value_grad(u)
+        gv = grad[k]
+        gn = float(np.linalg.norm(gv))
+        if gn == 0.0:
+            return u, False
+        n = -sign * gv / gn
+        if np.linalg.norm(u / b - n) <= np.sqrt(tol):
+            better = _escape_saddle(um, k, u, b, sign, sign * G[k]) if probes > 0 else None
+            if better is None:
+                return u, True
+            probes -= 1
+            u = better
+            continue
+        t = n - (n @ u) / b**2 * u  # tangent component of the target direction
+        tn = float(np.linalg.norm(t))
+        if tn == 0.0:  # at the maximum instead of the minimum: any tangent direction
+            t = _tangent_basis(u / b)[0]
+            tn = 1.0
+        t /= tn
+        theta = float(np.arccos(np.clip(n @ u / b, -1.0, 1.0)))
+        f0 = sign * G[k]
+        slope = sign * b * (gv @ t)  # d f / d theta at 0 (< 0)
+        lam, accepted = min(1.0, 2.0 * lam_prev), False
+        for _ in range(40):
+            th = lam * theta
+            ut = np.cos(th) * u + np.sin(th) * b * t
+            gt = um.trial(ut, k)
+            if np.isfinite(gt) and sign * gt <= f0 + 1e-4 * th * min(slope, 0.0):
+                accepted = True
+                break
+            # backtrack to the minimum of the parabola through f0, slope and f(th),
+            # safeguarded to [0.1, 0.5] of the step (halving for non-finite points)
+            curv = sign * gt - f0 - slope * th if np.isfinite(gt) else 0.0
+            q = -slope * th * th / (2.0 * curv) / theta if curv > 0 else 0.5 * lam
+            lam = min(0.5 * lam, max(0.1 * lam, q))
+        if not accepted:
+            return u, False
+        lam_prev = lam
+        u = b * ut / np.linalg.norm(ut)
+    G, grad = um.value_grad(u)
+    gn = float(np.linalg.norm(grad[k]))
+    return u, bool(gn > 0 and np.linalg.norm(u / b + sign * grad[k] / gn) <= np.sqrt(tol))
+
+
+def _escape_saddle(um, k, u, b, sign, f0, angle=0.05):
+    """A stationary point of G on the sphere may be a saddle or a maximum (symmetric
+    responses put the AMV start exactly there): probe +-``angle`` radians along each tangent
+    direction (2(d-1) evaluations, one batch) and return the best probe if it is lower."""
+    d = u.size
+    if d < 2:
+        return None
+    t = _tangent_basis(u / b)
+    pts = np.vstack([np.cos(angle) * u + np.sin(angle) * b * t,
+                     np.cos(angle) * u - np.sin(angle) * b * t])
+    f = sign * um.values(pts)[:, k]
+    f = np.where(np.isfinite(f), f, np.inf)
+    i = int(np.argmin(f))
+    if f[i] < f0 - 1e-9 * max(1.0, abs(f0)):
+        return b * pts[i] / np.linalg.norm(pts[i])
+    return None
+
+
+def _curvatures(um, u, k, s):
+    """Principal curvatures (d-1,) of the limit state through u, positive when it curves away
+    from the origin; s = +1 when the origin lies on the G > z side, -1 otherwise."""
+    _, grad = um.value_grad(u)
+    gh = s * grad[k]  # h = s (G - z): origin on the h > 0 side
+    nrm = np.linalg.norm(gh)
+    basis = _tangent_basis(-gh / nrm)
+    hess = s * um.hessian(u, k)
+    return np.linalg.eigvalsh(basis @ hess @ basis.T / nrm)
 
 
 def sorm_probability(beta: float, kappa, method: str = "breitung") -> float:
     """Second-order probability of the region beyond a limit state at distance beta > 0
     with principal curvatures ``kappa`` (positive: curving away from the origin), eq. 2.13
-    (Breitung) or Hohenbichler-Rackwitz (beta replaced by phi(beta)/Phi(-beta))."""
+    (Breitung) or Hohenbichler-Rackwitz (beta replaced by phi(beta)/Phi(-beta)).
+
+    Where the asymptotic formula is undefined (a factor ``1 + c kappa_i <= 0``: the limit
+    state curves towards the origin more tightly than the sphere through the MPP) a
+    :class:`SORMWarning` names the curvature and the first-order probability Phi(-beta) is
+    returned.
+    """
     kappa = np.asarray(kappa, dtype=float)
     pf = stats.norm.cdf(-beta)
     if method == "breitung":
         c = beta
     elif method in ("hohenbichler", "hohenbichler_rackwitz"):
-        c = stats.norm.pdf(beta) / stats.norm.cdf(-beta)
+        c = stats.norm.pdf(beta) / pf if pf > 0 else beta
     else:
         raise ParameterError(f"SORM method must be 'breitung' or 'hohenbichler', got {method!r}")
     fac = 1.0 + c * kappa
-    if np.any(fac <= 0):
-        return float("nan")  # the asymptotic formula does not apply
+    if np.any(fac <= 0) or not np.all(np.isfinite(fac)):
+        i = int(np.argmin(np.where(np.isfinite(fac), fac, -np.inf)))
+        warnings.warn(
+            f"SORM ({method}) is undefined at beta = {beta:.6g}: 1 + c kappa = {fac[i]:.3g} "
+            f"<= 0 for the curvature kappa = {kappa[i]:.6g} (c = {c:.6g}; the limit state is "
+            "more concave than the beta-sphere); the first-order probability is reported",
+            SORMWarning,
+            stacklevel=2,
+        )
+        return float(pf)
     return float(pf / np.sqrt(np.prod(fac)))
+
+
+def _sorm_log_probability(beta, kappa, method: str) -> np.ndarray:
+    """log of the SORM probability at distances ``beta`` (any shape), -inf where a factor
+    1 + c kappa_i is <= 0."""
+    beta = np.asarray(beta, dtype=float)
+    if method == "breitung":
+        c = beta
+    else:
+        c = np.exp(stats.norm.logpdf(beta) - stats.norm.logsf(beta))
+    fac = 1.0 + c[..., None] * np.asarray(kappa, dtype=float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        logfac = np.where(fac > 0, np.log(np.where(fac > 0, fac, 1.0)), np.inf)
+    return stats.norm.logsf(beta) - 0.5 * np.sum(logfac, axis=-1)
+
+
+def _sorm_beta(p_region: float, kappa, method: str, beta_form: float) -> float:
+    """Smallest FORM distance beta whose SORM probability with curvatures ``kappa`` is
+    ``p_region`` (bracketed on a grid of beta in (0, 37], then Brent); ``beta_form`` with a
+    :class:`SORMWarning` when no beta reaches it (strongly concave limit states)."""
+    from scipy.optimize import brentq
+
+    target = float(np.log(p_region))
+
+    def f(b):
+        return float(_sorm_log_probability(b, kappa, method)) - target
+
+    grid = np.linspace(1e-6, 37.0, 741)
+    vals = _sorm_log_probability(grid, kappa, method) - target
+    cross = np.flatnonzero((vals[:-1] > 0) & (vals[1:] <= 0) & np.isfinite(vals[1:]))
+    if cross.size == 0:
+        warnings.warn(
+            f"SORM ({method}): no reliability index gives probability {p_region:.6g} with "
+            f"curvatures {np.asarray(kappa)}; the first-order level is reported",
+            SORMWarning,
+            stacklevel=3,
+        )
+        return beta_form
+    i = int(cross[0])
+    return float(brentq(f, grid[i], grid[i + 1], xtol=1e-14, rtol=1e-14))
 
 
 def mpp_search(
@@ -406,23 +626,33 @@ def mpp_search(
     sorm: str = "breitung",
     fd_step: float = 1e-5,
     tol: float = 1e-10,
-    max_iter: int = 100,
+    max_iter: int = 200,
     seed=None,
 ) -> MPPResult:
     """Most probable point searches in u-space (Nataf) with FORM or SORM integration.
 
-    RIA (eq. 2.10): for each response level z, ``min u^T u`` subject to ``G(u) = z``;
-    ``beta_cdf = +|u*|`` when g(mean point) > z (the region g <= z excludes the origin), else
-    ``-|u*|``; FORM ``P(g <= z) = Phi(-beta_cdf)`` (2.12); SORM (2.13, Breitung or
-    Hohenbichler-Rackwitz) with the principal curvatures of the limit state at the MPP from a
-    finite-difference Hessian in u-space.
+    RIA (eq. 2.10): for each response level z, ``min u^T u`` subject to ``G(u) = z`` by the
+    improved HL-RF iteration (merit-function line search); ``beta_cdf = +|u*|`` when
+    g(mean point) > z (the region g <= z excludes the origin), else ``-|u*|``; FORM
+    ``P(g <= z) = Phi(-beta_cdf)`` (2.12); SORM (2.13, Breitung or Hohenbichler-Rackwitz) with
+    the principal curvatures of the limit state at the MPP from a finite-difference Hessian
+    in u-space.
 
     PMA (eq. 2.11): for each reliability level beta (CDF sense; probability levels are turned
     into ``beta = -Phi^-1(p)``), ``min G(u)`` (beta > 0) or ``max G(u)`` (beta < 0) on the
-    sphere ``u^T u = beta^2``; the optimum is the response level (FORM).
+    sphere ``u^T u = beta^2`` by AMV+ steps along great circles with backtracking; the optimum
+    is the response level. With ``integration="second_order"`` the levels are second-order
+    (as Dakota's PMA SORM): the radius is iterated until the SORM probability of the region
+    beyond the MPP equals the target ``Phi(-|beta|)`` (reliability levels are then read as
+    generalized reliability indices).
 
-    Optimizer: scipy SLSQP. Gradients: central finite differences in u-space, each gradient
-    one batched model call of 2d + 1 points (step ``fd_step * max(1, |u_i|)``).
+    Convergence is judged on the MPP conditions (see ``_ria``/``_pma``): ``tol`` bounds the
+    relative constraint residual and ``sqrt(tol)`` the misalignment of u and grad G.
+    ``converged`` is False when any level misses them within ``max_iter`` iterations.
+
+    Gradients: central finite differences in u-space, each gradient one batched model call
+    of 2d + 1 points (step ``fd_step * max(1, |u_i|)``). Raises
+    :class:`DegenerateResponseError` for a response that is constant around the means.
     """
     del seed
     integration = integration.lower()
@@ -430,6 +660,10 @@ def mpp_search(
         raise ParameterError(
             f"integration must be 'first_order' or 'second_order', got {integration!r}"
         )
+    if sorm not in ("breitung", "hohenbichler", "hohenbichler_rackwitz"):
+        raise ParameterError(f"SORM method must be 'breitung' or 'hohenbichler', got {sorm!r}")
+    if not (tol > 0 and int(max_iter) >= 1):
+        raise ParameterError(f"tol must be > 0 and max_iter >= 1, got {tol!r}, {max_iter!r}")
     second = integration in ("second_order", "sorm")
     names_out = tuple(model.names_out)
     d = space.dim
@@ -437,6 +671,9 @@ def mpp_search(
     rl = levels_per_response(response_levels, names_out, "response_levels")
     pl = levels_per_response(probability_levels, names_out, "probability_levels")
     bl = levels_per_response(reliability_levels, names_out, "reliability_levels")
+    for name, p in pl.items():
+        if np.any((p <= 0) | (p >= 1)):
+            raise ParameterError(f"probability_levels for {name!r} must lie in (0, 1), got {p}")
     out = {k: {} for k in ("p", "pc", "b", "gb", "mu", "mx", "kap", "pr", "br", "pmx")}
     ok = True
     for k, name in enumerate(names_out):
@@ -445,20 +682,16 @@ def mpp_search(
         p_cdf, b_cdf, gbeta = np.empty(n), np.empty(n), np.empty(n)
         mu, kap = np.empty((n, d)), np.full((n, max(d - 1, 0)), np.nan)
         for j, z in enumerate(zs):
-            u, conv, gmean = _ria(um, k, z, tol, max_iter)
+            u, conv, gmean = _ria(um, k, z, tol, max_iter, name)
             ok &= conv
+            if not conv:
+                _not_converged("RIA", name, f"response level {z:.6g}", um, u, k, z)
             beta = float(np.linalg.norm(u))
             s = 1.0 if gmean > z else -1.0
             b_cdf[j] = s * beta
             p_region = stats.norm.cdf(-beta)
             if second and d > 1 and beta > 0:
-                _, grad = um.value_grad(u)
-                gh = s * grad[k]  # h = s (G - z): origin on the h > 0 side
-                nrm = np.linalg.norm(gh)
-                alpha = -gh / nrm
-                basis = _tangent_basis(alpha)
-                hess = s * um.hessian(u, k)
-                kap[j] = np.linalg.eigvalsh(basis @ hess @ basis.T / nrm)
+                kap[j] = _curvatures(um, u, k, s)
                 p_region = sorm_probability(beta, kap[j], sorm)
             p_cdf[j] = p_region if s > 0 else 1.0 - p_region
             gbeta[j] = -stats.norm.ppf(p_cdf[j])
@@ -467,20 +700,15 @@ def mpp_search(
         out["b"][name], out["gb"][name] = b_cdf, gbeta
         out["mu"][name], out["kap"][name] = mu, kap
         out["mx"][name] = space.from_u(mu) if n else np.empty((0, d))
-        p = pl[name]
-        if np.any((p <= 0) | (p >= 1)):
-            raise ParameterError(f"probability_levels for {name!r} must lie in (0, 1), got {p}")
-        levels = {"pr": -stats.norm.ppf(p), "br": bl[name]}
+        levels = {"pr": -stats.norm.ppf(pl[name]), "br": bl[name]}
         pmx = []
         for key, betas in levels.items():
             zz = np.empty(betas.size)
             for j, beta in enumerate(betas):
-                if beta == 0:
-                    u = np.zeros(d)
-                    conv = True
-                else:
-                    u, conv = _pma(um, k, float(beta), tol, max_iter)
+                u, conv = _pma_level(um, k, float(beta), second, sorm, tol, max_iter, name)
                 ok &= conv
+                if not conv:
+                    _not_converged("PMA", name, f"reliability index {beta:.6g}", um, u, k)
                 zz[j] = um.value_grad(u)[0][k]
                 pmx.append(u)
             out[key][name] = zz
@@ -505,3 +733,39 @@ def mpp_search(
         n_evaluations=um.n_eval,
         converged=bool(ok),
     )
+
+
+def _not_converged(kind, name, level, um, u, k, z=None):
+    g, grad = um.value_grad(u)
+    detail = f"|u| = {np.linalg.norm(u):.6g}"
+    if z is not None:
+        gn = np.linalg.norm(grad[k])
+        detail += ", distance to the limit state |G - z| / |grad G| = " + (
+            f"{abs(g[k] - z) / gn:.3g}" if gn > 0 else "inf (flat response)")
+    warnings.warn(
+        f"MPP search ({kind}) for {name!r} at {level} did not meet the MPP conditions within "
+        f"max_iter ({detail}): its result is not reliable (the level may be unreachable)",
+        RuntimeWarning,
+        stacklevel=3,
+    )
+
+
+def _pma_level(um, k, beta, second, sorm, tol, max_iter, name):
+    """PMA point for the (generalized, with SORM) CDF reliability index ``beta``."""
+    d = um.space.dim
+    if beta == 0:
+        return np.zeros(d), True
+    u, conv = _pma(um, k, beta, tol, max_iter, name)
+    if not (second and d > 1):
+        return u, conv
+    s = 1.0 if beta > 0 else -1.0
+    target = stats.norm.cdf(-abs(beta))  # probability of the region beyond the limit state
+    radius = abs(beta)
+    for _ in range(30):
+        kap = _curvatures(um, u, k, s)
+        new = _sorm_beta(target, kap, sorm, abs(beta))
+        if abs(new - radius) <= 1e-9 * max(1.0, radius):
+            return u, conv
+        radius = new
+        u, conv = _pma(um, k, s * radius, tol, max_iter, name)
+    return u, False

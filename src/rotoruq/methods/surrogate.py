@@ -31,6 +31,7 @@ from scipy.spatial import cKDTree
 
 from .._rng import SeedLike, as_generator
 from ..errors import ModelShapeError, ParameterError
+from ._gp_mean import gp_mean_batch, gp_pack
 
 __all__ = ["GaussianProcess", "LeaveOneOut", "GPModel", "ExtrapolationWarning"]
 
@@ -41,6 +42,7 @@ _LOG_ETA_BOUNDS = (np.log(1e-10), np.log(1.0))
 _BASE_JITTER = 1e-10
 _MAX_JITTER = 1e-4
 _SCREEN_POINTS = 150
+_ONE_THREAD_MAX = 2000
 
 
 class ExtrapolationWarning(UserWarning):
@@ -171,8 +173,30 @@ class GaussianProcess:
         a float or (m,) array = measurement-error variance Delta^2 in response units
         (thesis eq. 2.39), or "estimate" (noise-to-signal ratio fitted by maximum likelihood).
     n_restarts : number of random starts of L-BFGS-B in addition to the default start.
-    mean : known mean of the responses for simple Kriging (scalar or (m,)); trend=None only.
+    mean : known mean of the responses for simple Kriging (scalar or (m,), response units);
+        only with ``trend=None`` (default 0), a :class:`ParameterError` otherwise (with a
+        trend the mean is estimated).
+    length_scales : (d,) or (m, d) length-scales in input units. With ``optimize=False``
+        they are used as given; with ``optimize=True`` they replace the default first start.
+    variance : process variance sigma^2 (scalar or (m,), response units squared); only with
+        ``optimize=False``. None: its closed-form maximum-likelihood value given the
+        length-scales (needs an interpolating GP, ``nugget=None``).
+    optimize : False to build the GP from the given hyperparameters without any likelihood
+        optimization (to reuse a fit or compare with another library); needs
+        ``length_scales`` and a nugget that is None or a fixed variance.
+    likelihood : "ml" (maximum likelihood), "reml" (restricted maximum likelihood: the p
+        trend coefficients' degrees of freedom are taken out, sigma^2 = q / (n - p)), or
+        "auto" (default): REML for the full quadratic trend, ML otherwise. With
+        p = (d + 1)(d + 2) / 2 trend terms (55 in 9-D) ML under-estimates sigma^2 and its
+        optimum degenerates to tiny length-scales (holdout nRMSE 0.037 against 0.0007 with
+        REML on the 9-D borehole case of ``benchmarks/gp_fit.py``).
+    screen_points : with more than twice this many training points (and at least 8 per trend
+        coefficient), the starts are screened on a random subset of that size and only the
+        best is polished on all points; None runs every start on all points.
     seed : int or Generator for the random starts.
+
+    The jitter actually added to the covariance diagonal (response units squared, per
+    response) is :attr:`jitter`.
     """
 
     def __init__(
@@ -181,8 +205,14 @@ class GaussianProcess:
         kernel: str = "sqexp",
         nugget: None | float | str | Sequence[float] = None,
         n_restarts: int = 2,
-        mean: float | Sequence[float] = 0.0,
+        mean: float | Sequence[float] | None = None,
         seed: SeedLike = None,
+        *,
+        length_scales: Sequence[float] | np.ndarray | None = None,
+        variance: float | Sequence[float] | None = None,
+        optimize: bool = True,
+        likelihood: str = "auto",
+        screen_points: int | None = _SCREEN_POINTS,
     ):
         if trend not in TRENDS:
             raise ParameterError(f"unknown trend {trend!r}; valid: {TRENDS}")
@@ -196,12 +226,56 @@ class GaussianProcess:
                 raise ParameterError(f"nugget variance must be finite and >= 0, got {nugget!r}")
         if int(n_restarts) < 0:
             raise ParameterError(f"n_restarts must be >= 0, got {n_restarts}")
+        if mean is not None and trend is not None:
+            raise ParameterError(
+                f"mean= is the known mean of simple Kriging (trend=None); with trend={trend!r} "
+                "the mean is estimated from the data: drop mean= or set trend=None"
+            )
+        if mean is not None and not np.all(np.isfinite(np.asarray(mean, dtype=float))):
+            raise ParameterError(f"mean must be finite, got {mean!r}")
+        if length_scales is not None:
+            ls = np.asarray(length_scales, dtype=float)
+            if ls.ndim not in (1, 2) or np.any(~np.isfinite(ls)) or np.any(ls <= 0):
+                raise ParameterError(
+                    f"length_scales must be a (d,) or (m, d) array of finite values > 0, got "
+                    f"{length_scales!r}"
+                )
+        if variance is not None:
+            if optimize:
+                raise ParameterError("variance= fixes the process variance: use it with "
+                                     "optimize=False (with optimization it is estimated)")
+            v = np.asarray(variance, dtype=float)
+            if np.any(~np.isfinite(v)) or np.any(v <= 0):
+                raise ParameterError(f"variance must be finite and > 0, got {variance!r}")
+        if not optimize:
+            if length_scales is None:
+                raise ParameterError("optimize=False needs length_scales= (and optionally "
+                                     "variance=): there is nothing to fit them with")
+            if nugget == "estimate":
+                raise ParameterError("nugget='estimate' needs optimize=True; with fixed "
+                                     "hyperparameters give the nugget as a variance")
+            if nugget is not None and variance is None:
+                raise ParameterError("with a fixed nugget variance and optimize=False, give "
+                                     "variance= too (it is no longer in closed form)")
         self.trend = trend
         self.kernel = kernel
         self.nugget = nugget
         self.n_restarts = int(n_restarts)
-        self.mean = mean
+        self.mean = 0.0 if mean is None else mean
         self.seed = seed
+        self.length_scales_init = None if length_scales is None else np.asarray(
+            length_scales, dtype=float)
+        self.variance_init = None if variance is None else np.asarray(variance, dtype=float)
+        self.optimize = bool(optimize)
+        if likelihood not in ("auto", "ml", "reml"):
+            raise ParameterError(
+                f"likelihood must be 'auto', 'ml' or 'reml', got {likelihood!r}")
+        if likelihood == "auto":
+            likelihood = "reml" if trend == "quadratic" else "ml"
+        self.likelihood = likelihood
+        if screen_points is not None and int(screen_points) < 2:
+            raise ParameterError(f"screen_points must be None or >= 2, got {screen_points!r}")
+        self.screen_points = None if screen_points is None else int(screen_points)
         self._fits: list[_Fit] = []
 
     # --- fitting ---------------------------------------------------------------------------
@@ -210,7 +284,20 @@ class GaussianProcess:
 
         X : (n, d) training inputs. Y : (n,) or (n, m) responses. Rows with non-finite values
         are dropped with a warning. Returns self.
+
+        Up to n = 2000 the fit runs on one BLAS thread: its n x n factorizations are too small
+        to gain from threads, and on a busy machine a second thread made fits 5-14x slower
+        (issue 12). Results do not depend on the thread count.
         """
+        from threadpoolctl import threadpool_limits
+
+        n = np.shape(X)[0] if np.ndim(X) else 0
+        if n <= _ONE_THREAD_MAX:
+            with threadpool_limits(limits=1, user_api="blas"):
+                return self._fit(X, Y)
+        return self._fit(X, Y)
+
+    def _fit(self, X, Y) -> GaussianProcess:
         X = np.asarray(X, dtype=float)
         Y = np.asarray(Y, dtype=float)
         if X.ndim == 1:
@@ -223,7 +310,7 @@ class GaussianProcess:
         ok = np.all(np.isfinite(X), 1) & np.all(np.isfinite(Y), 1)
         if not np.all(ok):
             warnings.warn(f"GaussianProcess.fit: dropping {int((~ok).sum())} rows with non-finite "
-                          "inputs or responses", RuntimeWarning, stacklevel=2)
+                          "inputs or responses", RuntimeWarning, stacklevel=3)
             X, Y = X[ok], Y[ok]
         n, d = X.shape
         m = Y.shape[1]
@@ -249,15 +336,38 @@ class GaussianProcess:
         noise = None
         if self.nugget is not None and not isinstance(self.nugget, str):
             noise = np.broadcast_to(np.asarray(self.nugget, dtype=float), (m,)) / self._y_std**2
+        log_ell0 = None
+        if self.length_scales_init is not None:
+            ls = self.length_scales_init
+            if ls.shape not in ((d,), (m, d)):
+                raise ParameterError(f"length_scales must have shape ({d},) or ({m}, {d}) for "
+                                     f"{d} inputs and {m} responses, got {ls.shape}")
+            log_ell0 = np.log(np.broadcast_to(ls, (m, d)) / self._span)
+        s2_fixed = None
+        if self.variance_init is not None:
+            v = self.variance_init
+            if v.shape not in ((), (1,), (m,)):
+                raise ParameterError(f"variance must be a scalar or ({m},), got {v.shape}")
+            s2_fixed = np.broadcast_to(v.reshape(-1) if v.ndim else v, (m,)) / self._y_std**2
+            if noise is None:
+                noise = np.zeros(m)  # a fixed sigma^2: the non-concentrated likelihood path
         self._fits = []
         for j in range(m):
             ys = (Y[:, j] - self._y_mean[j]) / self._y_std[j]
-            self._fits.append(self._fit_one(ys, None if noise is None else float(noise[j]), rng))
+            nj = None if noise is None else float(noise[j])
+            if not self.optimize:
+                theta = log_ell0[j]
+                if nj is not None:
+                    theta = np.append(theta, np.log(s2_fixed[j]))
+                self._fits.append(self._fit_at(ys, theta, nj))
+            else:
+                self._fits.append(self._fit_one(ys, nj, rng,
+                                                None if log_ell0 is None else log_ell0[j]))
         self._build_fast()
-        worst = max(f.jitter for f in self._fits)
+        worst = max(f.jitter if f.concentrated else f.jitter / f.sigma2 for f in self._fits)
         if worst > _BASE_JITTER * 1.01 and self.nugget is None:
             warnings.warn(f"GaussianProcess: correlation matrix was ill-conditioned; a jitter of "
-                          f"{worst:.1e} was added to its diagonal", RuntimeWarning, stacklevel=2)
+                          f"{worst:.1e} was added to its diagonal", RuntimeWarning, stacklevel=3)
         return self
 
     def _warn_duplicates(self) -> None:
@@ -267,7 +377,7 @@ class GaussianProcess:
             i, j = pairs[0]
             warnings.warn(f"GaussianProcess: {len(pairs)} pair(s) of near-duplicate training "
                           f"points (e.g. rows {i} and {j}); the Cholesky factorization will "
-                          "add jitter, consider nugget='estimate'", RuntimeWarning, stacklevel=3)
+                          "add jitter, consider nugget='estimate'", RuntimeWarning, stacklevel=4)
 
     def _unpack(self, theta: np.ndarray, noise: float | None):
         d = self._Xs.shape[1]
@@ -299,7 +409,16 @@ class GaussianProcess:
             rt = Ly
         q = float(rt @ rt)
         logdet = 2.0 * np.log(np.diag(L)).sum()
-        if conc:
+        p = F.shape[1]
+        reml = self.likelihood == "reml" and p > 0
+        if conc and reml:
+            # restricted likelihood: the trend's p degrees of freedom are not counted as
+            # information about sigma^2 and the length-scales (Harville 1974)
+            c_f = np.linalg.cholesky(Lf.T @ Lf + 1e-12 * np.eye(p))
+            sig2 = max(q / (n - p), 1e-300)
+            ll = -0.5 * (n - p) * np.log(sig2) - 0.5 * logdet - np.log(np.diag(c_f)).sum()
+            scale = 1.0 / sig2
+        elif conc:
             sig2 = max(q / n, 1e-300)
             ll = -0.5 * n * np.log(sig2) - 0.5 * logdet
             scale = 1.0 / sig2
@@ -315,6 +434,11 @@ class GaussianProcess:
         Minv, info = lapack.dpotri(L, lower=1)
         Minv = np.tril(Minv)
         Minv += np.tril(Minv, -1).T
+        if conc and reml:  # M^-1 -> the projection M^-1 - M^-1 F (F^T M^-1 F)^-1 F^T M^-1
+            qf = linalg.solve_triangular(
+                c_f, linalg.solve_triangular(L, Lf, lower=True, trans=1, check_finite=False).T,
+                lower=True, check_finite=False)
+            Minv -= qf.T @ qf
         # W = scale * alpha alpha^T - M^-1, formed in place
         W = np.multiply.outer(alpha * scale, alpha, out=np.empty((n, n)))
         W -= Minv
@@ -331,7 +455,7 @@ class GaussianProcess:
             g[d] = 0.5 * eta * float(np.trace(W))
         return ll, g, out
 
-    def _fit_one(self, ys: np.ndarray, noise: float | None, rng) -> _Fit:
+    def _fit_one(self, ys: np.ndarray, noise: float | None, rng, log_ell0=None) -> _Fit:
         n, d = self._Xs.shape
         extra = noise is not None or self.nugget == "estimate"
         bounds = [_LOG_ELL_BOUNDS] * d
@@ -340,7 +464,7 @@ class GaussianProcess:
         elif self.nugget == "estimate":
             bounds.append(_LOG_ETA_BOUNDS)
         lb, ub = np.array([b[0] for b in bounds]), np.array([b[1] for b in bounds])
-        starts = [np.full(d, np.log(0.5))]
+        starts = [np.full(d, np.log(0.5)) if log_ell0 is None else np.asarray(log_ell0)]
         lo_s, hi_s = np.log(0.05), np.log(3.0)
         for _ in range(self.n_restarts):
             starts.append(lo_s + (hi_s - lo_s) * rng.random(d))
@@ -364,9 +488,12 @@ class GaussianProcess:
             return optimize.minimize(obj, np.clip(s, lb, ub), jac=True, method="L-BFGS-B",
                                      bounds=bounds, options={"maxfun": maxfun, "ftol": 1e-8})
 
-        if len(starts) > 1 and n > 2 * _SCREEN_POINTS:
-            # multi-start on a random subset (cheap), then one polish on all points
-            sub = rng.choice(n, _SCREEN_POINTS, replace=False)
+        p = self._F.shape[1]
+        screen = None if self.screen_points is None else max(self.screen_points, 8 * p)
+        if len(starts) > 1 and screen is not None and n > 2 * screen:
+            # multi-start on a random subset (cheap), then one polish on all points; the
+            # subset keeps >= 8 points per trend coefficient
+            sub = rng.choice(n, screen, replace=False)
             obj_sub = make_objective(self._Xs[sub], self._F[sub], ys[sub])
             screened = [run(obj_sub, s, 150) for s in starts]
             starts = [min(screened, key=lambda r: r.fun).x]
@@ -376,7 +503,11 @@ class GaussianProcess:
             res = run(obj, s, 60 if len(starts) == 1 else 150)
             if best is None or res.fun < best.fun:
                 best = res
-        _, _, o = self._solve(ys, best.x, noise, False)
+        return self._fit_at(ys, best.x, noise)
+
+    def _fit_at(self, ys: np.ndarray, theta: np.ndarray, noise: float | None) -> _Fit:
+        """The solved systems of one response at hyperparameters ``theta``."""
+        _, _, o = self._solve(ys, theta, noise, False)
         L, Lf = o["L"], o["Lf"]
         minv_f = linalg.solve_triangular(L, Lf, lower=True, trans=1, check_finite=False)
         ftf = None
@@ -419,6 +550,15 @@ class GaussianProcess:
         self._check_fitted()
         v = [f.noise if not f.concentrated else f.eta * f.sigma2 for f in self._fits]
         return np.array(v) * self._y_std**2
+
+    @property
+    def jitter(self) -> np.ndarray:
+        """Variance added to the covariance diagonal for a stable Cholesky factorization, per
+        response, in response units squared, shape (m,). It starts at 1e-10 sigma^2 and is
+        raised x100 while the factorization fails (a warning says so above 1e-10)."""
+        self._check_fitted()
+        return np.array([f.jitter * f.sigma2 if f.concentrated else f.jitter
+                         for f in self._fits]) * self._y_std**2
 
     @property
     def bounds(self) -> np.ndarray:
@@ -503,27 +643,16 @@ class GaussianProcess:
         return out[0] if len(out) == 1 else tuple(out)
 
     def _build_fast(self) -> None:
-        """Stack every response's scaled training points for one batched mean evaluation."""
-        ie = np.array([f.inv_ell for f in self._fits])  # (m, d)
-        xe = self._Xs[None] * ie[:, None, :]  # (m, n, d)
-        self._fast = dict(
-            inv_ell=ie, xeT=np.ascontiguousarray(xe.transpose(0, 2, 1)), nrm=(xe * xe).sum(-1),
-            alpha=np.array([f.alpha * (1.0 if f.concentrated else f.sigma2)
-                            for f in self._fits])[:, :, None],
-            beta=np.array([f.beta for f in self._fits]).T)
+        """Pack every response's training points and weights for the compiled mean."""
+        self._fast = gp_pack(
+            self._lo, self._span, self._Xs, np.array([f.inv_ell for f in self._fits]),
+            np.array([f.alpha * (1.0 if f.concentrated else f.sigma2) for f in self._fits]),
+            np.array([f.beta for f in self._fits]), self.trend, self.kernel, self._y_mean,
+            self._y_std)
 
     def _mean_fast(self, X: np.ndarray) -> np.ndarray:
-        """Mean only, no checks (used inside Markov chains), shape (n, m)."""
-        fd = self._fast
-        xs = (X - self._lo) / self._span
-        xe = xs[None] * fd["inv_ell"][:, None, :]  # (m, k, d)
-        d2 = (xe * xe).sum(-1)[:, :, None] + fd["nrm"][:, None, :] - 2.0 * (xe @ fd["xeT"])
-        np.maximum(d2, 0.0, out=d2)
-        r, _ = _corr(np.sqrt(d2), self.kernel)
-        mu = (r @ fd["alpha"])[:, :, 0].T  # (k, m)
-        if self.trend is not None:
-            mu = mu + _basis(xs - 0.5, self.trend) @ fd["beta"]
-        return self._y_mean + self._y_std * mu
+        """Mean only, no checks (used inside Markov chains), X (k, d) -> (k, m)."""
+        return gp_mean_batch(X, self._fast)
 
     # --- cross-validation ------------------------------------------------------------------
     def loo(self) -> LeaveOneOut:

@@ -469,7 +469,7 @@ STEP_TYPES: dict[str, dict[str, tuple]] = {
     "cuu": {
         "targets": (_table_or_str, _REQUIRED),
         "calibrate": (_str(("std", "mean", "mean_std")), "std"),
-        "inner": (_str(("mean_value", "sampling")), "mean_value"),
+        "inner": (_str(("mean_value", "sampling", "pce")), "mean_value"),
         "max_iterations": (_int(1), 100),
         "convergence_tolerance": (_num(positive=True, allow_zero=False), 1e-4),
         "verify_samples": (_int(0), 0),

@@ -28,6 +28,7 @@ from ...params import ParameterSpace
 from .._common import forward_jacobian
 from ..surrogate import ExtrapolationWarning, GaussianProcess, LeaveOneOut
 from . import diagnostics as dg
+from ._kernels import add_loglik_rows, emulator_logpost_rows, scaled_logprior_rows
 from .likelihood import GaussianLikelihood
 from .proposals import LogPrior, hessian_covariance, prior_scales
 from .samplers import SamplerConfig, SamplerState, run_chains
@@ -38,48 +39,65 @@ log = logging.getLogger(__name__)
 
 
 class _Posterior:
-    """Batched log posterior in scaled coordinates, counting what it evaluates."""
+    """Batched log posterior in scaled coordinates, counting what it evaluates.
+
+    With an emulator and a prior of uniform / normal marginals the whole log posterior is
+    compiled (:func:`._kernels.emulator_logpost`): ``compiled`` then holds its arrays and
+    counters for :func:`run_chains`, and this object evaluates through the same kernel.
+    """
 
     def __init__(self, forward, loglik: GaussianLikelihood, logprior: LogPrior,
                  center: np.ndarray, scale: np.ndarray, gp: GaussianProcess | None):
         self.forward, self.loglik, self.logprior = forward, loglik, logprior
-        self.center, self.scale, self.gp = center, scale, gp
-        self.n_evals = 0
-        self.n_nan = 0
-        self.n_outside = 0
-        self.n_extrapolated = 0
-        self.max_extrapolation = 0.0
+        self.center = np.ascontiguousarray(center, dtype=float)
+        self.scale = np.ascontiguousarray(scale, dtype=float)
+        self.gp = gp
+        # evaluations, outside the support, NaN likelihoods, extrapolations, largest extrapolation
+        self.cnt = np.zeros(5)
+        self.compiled = None
+        if gp is not None and logprior.compiled:
+            self.compiled = ((self.center, self.scale, logprior.pack, gp._fast, loglik.pack),
+                             self.cnt)
         if gp is not None:
             box = gp.bounds
             w = box[:, 1] - box[:, 0]
             self._far_lo, self._far_hi = box[:, 0] - 0.1 * w, box[:, 1] + 0.1 * w
 
+    n_evals = property(lambda self: int(self.cnt[0]))
+    n_outside = property(lambda self: int(self.cnt[1]))
+    n_nan = property(lambda self: int(self.cnt[2]))
+    n_extrapolated = property(lambda self: int(self.cnt[3]))
+    max_extrapolation = property(lambda self: float(self.cnt[4]))
+
+    def reset_counts(self) -> None:
+        self.cnt[:3] = 0.0
+
     def theta(self, z: np.ndarray) -> np.ndarray:
         return self.center + self.scale * z
 
     def __call__(self, z: np.ndarray) -> np.ndarray:
-        theta = self.center + self.scale * z
-        lp = self.logprior(theta)
+        z = np.ascontiguousarray(z, dtype=float)
+        if self.compiled is not None:
+            out = np.empty(z.shape[0])
+            emulator_logpost_rows(z, self.compiled[0], self.cnt, out)
+            return out
+        n = z.shape[0]
+        theta = np.empty_like(z)
+        lp = np.empty(n)
+        scaled_logprior_rows(z, self.center, self.scale, self.logprior.pack, theta, lp)
+        if not self.logprior.compiled:
+            lp = self.logprior(theta)
         ok = lp > -np.inf
-        nok = int(ok.sum())
-        self.n_outside += lp.size - nok
+        nok = int(np.count_nonzero(ok))
+        q = np.empty((0, 0))
         if nok:
-            full = nok == lp.size
-            th = theta if full else theta[ok]
+            th = theta if nok == n else theta[ok]
             if self.gp is not None and ((th < self._far_lo) | (th > self._far_hi)).any():
                 dist = self.gp.extrapolation_distance(th)
-                self.n_extrapolated += int((dist > 0.1).sum())
-                self.max_extrapolation = max(self.max_extrapolation, float(dist.max()))
-            ll = self.loglik(self.forward(th))
-            bad = ~np.isfinite(ll)
-            self.n_evals += nok
-            if bad.any():
-                self.n_nan += int(bad.sum())
-                ll[bad] = -np.inf
-            if full:
-                lp += ll
-            else:
-                lp[ok] += ll
+                self.cnt[3] += int((dist > 0.1).sum())
+                self.cnt[4] = max(self.cnt[4], float(dist.max()))
+            q = np.ascontiguousarray(self.forward(th), dtype=float)
+        add_loglik_rows(q, self.loglik.pack, lp, self.cnt)
         return lp
 
 
@@ -97,10 +115,13 @@ class BayesResult:
         kNN estimator; kl_divergence_gaussian : the same with a Gaussian posterior entropy.
     map_point : (d,) chain start from the MAP pre-solve. proposal_covariance : (d, d) initial
         stage-1 proposal covariance, parameter units.
-    n_likelihood_evals : likelihood evaluations (points) by the chains; n_model_evals : true
+    n_likelihood_evals : likelihood evaluations (points) by the chains, speculative ones
+        included (see ``evaluations``); n_model_evals : true
         model evaluations (emulator build, MAP and gradients without emulator, predictive).
     n_nan_likelihood : proposals rejected because the likelihood was NaN/inf (failed model).
     n_out_of_support : proposals rejected outside the prior support (not evaluated).
+    sampling_seconds, sampling_cpu_seconds : wall and CPU time of the chains (the CPU time is
+        what the chains cost on a machine shared with other jobs).
     emulator, emulator_loo : the fitted GP and its leave-one-out quality (None without one).
     predictive_inputs, predictive : posterior predictive draws pushed through the true model,
         (k, d) and (k, m) (None unless ``posterior_predictive`` > 0); predictive_names.
@@ -132,6 +153,7 @@ class BayesResult:
     n_out_of_support: int
     sampling_seconds: float
     emulator: GaussianProcess | None = None
+    sampling_cpu_seconds: float = 0.0
     emulator_loo: LeaveOneOut | None = None
     predictive_inputs: np.ndarray | None = None
     predictive: np.ndarray | None = None
@@ -276,6 +298,7 @@ def calibrate_bayes(
     adapt_start: int = 100,
     adapt_interval: int = 100,
     pooled_adaptation: bool = True,
+    evaluations: str = "speculative",
     seed: SeedLike = None,
 ) -> BayesResult:
     """Bayesian calibration of the parameters ``prior`` of ``model`` to ``data``.
@@ -310,6 +333,11 @@ def calibrate_bayes(
     dr_scale, adapt_start, adapt_interval : Dakota DRAM defaults 5, 100, 100.
     pooled_adaptation : AM covariance from the pooled history of all chains (inter-chain
         adaptation) instead of each chain's own.
+    evaluations : "speculative" (default: stage 2 and, for one chain, a few steps ahead are
+        evaluated with stage 1 in one batched call; cheap and batch-friendly models) or
+        "minimal" (only the proposals the chain needs; expensive models evaluated point by
+        point). The chain is the same either way; see :mod:`.samplers`. An emulator with
+        uniform / normal priors runs compiled with the minimal schedule.
     seed : int or Generator.
 
     Returns
@@ -341,7 +369,8 @@ def calibrate_bayes(
                              f"and n_chains >= 1; got {chain_samples}, {burn_in}, {thin}, "
                              f"{n_chains}")
     cfg = SamplerConfig(method=method, dr_scale=dr_scale, adapt_start=adapt_start,
-                        adapt_interval=adapt_interval, pooled=pooled_adaptation)
+                        adapt_interval=adapt_interval, pooled=pooled_adaptation,
+                        evaluations=evaluations)
     logprior = LogPrior(prior)
     center, scale = prior_scales(prior)
     zlo, zhi = (logprior.lo - center) / scale, (logprior.hi - center) / scale
@@ -350,10 +379,20 @@ def calibrate_bayes(
     def model_x(theta):
         return theta if perm is None else theta[:, perm]
 
+    direct = not hasattr(model, "evaluate")
+    n_out = len(names_out)
+
     def truth(theta):
         nonlocal n_model
         n_model += theta.shape[0]
-        return evaluate(model, model_x(theta)).values
+        x = model_x(theta)
+        if direct:  # a plain batched callable: skip the evaluation layer's bookkeeping
+            y = np.asarray(model(x), dtype=float)
+            if y.ndim == 1 and n_out == 1:
+                y = y[:, None]
+            if y.shape == (x.shape[0], n_out):
+                return y
+        return evaluate(model, x).values
 
     # --- emulator -------------------------------------------------------------------------
     gp, loo, best_build = None, None, None
@@ -383,6 +422,8 @@ def calibrate_bayes(
                           f"{cal_names}: below 0.9, the posterior may be wrong", RuntimeWarning,
                           stacklevel=2)
         forward = gp._mean_fast
+    elif np.array_equal(resp_idx, np.arange(n_out)):
+        forward = truth
     else:
         def forward(theta):
             return truth(theta)[:, resp_idx]
@@ -468,12 +509,12 @@ def calibrate_bayes(
     state = SamplerState(x=x, lp=lp, chol=np.repeat(L0[None], n_chains, axis=0),
                          rng=np.random.default_rng(rng.integers(2**63)))
     n_pre = post.n_evals
-    post.n_evals = post.n_nan = post.n_outside = 0
-    t0 = time.perf_counter()
+    post.reset_counts()
+    t0, c0 = time.perf_counter(), time.process_time()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ExtrapolationWarning)
         kept, kept_lp = run_chains(post, state, cfg, chain_samples, burn_in, thin)
-    t_sampling = time.perf_counter() - t0
+    t_sampling, cpu_sampling = time.perf_counter() - t0, time.process_time() - c0
     if post.n_extrapolated:
         warnings.warn(f"emulator extrapolated for {post.n_extrapolated} proposals, up to "
                       f"{post.max_extrapolation:.3g} box-widths outside its training box",
@@ -490,7 +531,8 @@ def calibrate_bayes(
         burn_in=burn_in, thin=thin, n_likelihood_evals=post.n_evals,
         n_model_evals=n_model,
         n_nan_likelihood=post.n_nan, n_out_of_support=post.n_outside,
-        sampling_seconds=t_sampling, emulator=gp, emulator_loo=loo, predictive_inputs=pred_in,
+        sampling_seconds=t_sampling, sampling_cpu_seconds=cpu_sampling, emulator=gp,
+        emulator_loo=loo, predictive_inputs=pred_in,
         predictive=pred, predictive_names=names_out if pred is not None else (),
         _state=(post, state, cfg, n_pre),
     )
@@ -530,11 +572,11 @@ def continue_chain(result: BayesResult, n_steps: int, seed: SeedLike = None) -> 
     post, state, cfg, n_pre = result._state
     state = state.copy()
     if seed is not None:
-        state.rng = as_generator(seed)
+        state.reseed(as_generator(seed))
     ev0, nan0, out0 = post.n_evals, post.n_nan, post.n_outside
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     kept, kept_lp = run_chains(post, state, cfg, int(n_steps), 0, result.thin)
-    dt = time.perf_counter() - t0
+    dt, dcpu = time.perf_counter() - t0, time.process_time() - c0
     z_old = (result.chains - post.center) / post.scale
     chains_z = np.concatenate([z_old, kept.transpose(1, 0, 2)], axis=1)
     lp = np.concatenate([result.log_posterior, kept_lp.T], axis=1)
@@ -546,5 +588,6 @@ def continue_chain(result: BayesResult, n_steps: int, seed: SeedLike = None) -> 
         n_model_evals=result.n_model_evals + (post.n_evals - ev0 if post.gp is None else 0),
         n_nan_likelihood=result.n_nan_likelihood + post.n_nan - nan0,
         n_out_of_support=result.n_out_of_support + post.n_outside - out0,
-        sampling_seconds=result.sampling_seconds + dt, _state=(post, state, cfg, n_pre))
+        sampling_seconds=result.sampling_seconds + dt,
+        sampling_cpu_seconds=result.sampling_cpu_seconds + dcpu, _state=(post, state, cfg, n_pre))
     return _summarize(result.names, chains_z, lp, post, state, base, seed)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...errors import ModelShapeError, ParameterError
+from ._kernels import misfit_rows
 
 __all__ = ["GaussianLikelihood"]
 
@@ -58,20 +59,21 @@ class GaussianLikelihood:
                 f"({', '.join(names)}); give data as (n_exp, {len(names)})"
             )
         cov = np.asarray(covariance, dtype=float)
+        var = None  # (n_exp, m) variances when the errors are independent
         if cov.ndim == 0:
             if not (np.isfinite(cov) and cov > 0):
                 raise ParameterError(f"data variance must be > 0, got {float(cov)!r}")
-            covs = np.broadcast_to(np.eye(m) * cov, (n_exp, m, m))
+            var = np.full((n_exp, m), float(cov))
         elif cov.ndim == 1 and cov.shape == (m,):
-            if np.any(~(cov > 0)):
-                raise ParameterError(f"data variances must be > 0, got {cov}")
-            covs = np.broadcast_to(np.diag(cov), (n_exp, m, m))
+            if np.any(~(cov > 0)) or not np.all(np.isfinite(cov)):
+                raise ParameterError(f"data variances must be finite and > 0, got {cov}")
+            var = np.broadcast_to(cov, (n_exp, m))
         elif cov.ndim == 2 and cov.shape == (m, m):
             covs = np.broadcast_to(cov, (n_exp, m, m))
         elif cov.ndim == 2 and cov.shape == (n_exp, m):
-            if np.any(~(cov > 0)):
-                raise ParameterError("per-experiment data variances must be > 0")
-            covs = np.einsum("ej,jk->ejk", cov, np.eye(m))
+            if np.any(~(cov > 0)) or not np.all(np.isfinite(cov)):
+                raise ParameterError("per-experiment data variances must be finite and > 0")
+            var = cov
         elif cov.ndim == 3 and cov.shape == (n_exp, m, m):
             covs = cov
         else:
@@ -79,7 +81,28 @@ class GaussianLikelihood:
                 f"data_covariance of shape {cov.shape} does not fit data of shape {data.shape}: "
                 f"use a scalar, ({m},), ({m}, {m}), ({n_exp}, {m}) or ({n_exp}, {m}, {m})"
             )
-        shared = cov.ndim <= 1 or cov.shape == (m, m)
+        if var is not None:  # no factorization needed
+            prec_d = 1.0 / var
+            P = np.diag(prec_d.sum(0))
+            b = (prec_d * data).sum(0)
+            c0 = float((prec_d * data * data).sum())
+            logdet = float(np.log(var).sum())
+        else:
+            P, b, c0, logdet = self._full(data, covs, cov.shape == (m, m))
+        self.data = data
+        self.n_exp, self.m = n_exp, m
+        self.precision = P
+        self.b = b
+        self._c0 = c0
+        self._const = -0.5 * (n_exp * m * np.log(2.0 * np.pi) + logdet)
+        # diagonal precision (independent errors, the usual case): O(m) per evaluation
+        diag = bool(np.count_nonzero(P - np.diag(np.diag(P))) == 0)
+        self.pack = (np.ascontiguousarray(P), b, float(c0), float(self._const), diag)
+
+    @staticmethod
+    def _full(data, covs, shared):
+        """Sufficient statistics for full covariance matrices (n_exp, m, m)."""
+        n_exp, m = data.shape
         P = np.zeros((m, m))
         b = np.zeros(m)
         c0 = 0.0
@@ -99,23 +122,14 @@ class GaussianLikelihood:
                 b += prec @ data[e]
                 c0 += float(data[e] @ prec @ data[e])
                 logdet += 2.0 * np.log(np.diag(L)).sum()
-        self.data = data
-        self.n_exp, self.m = n_exp, m
-        self.precision = P
-        self.b = b
-        self._c0 = c0
-        self._const = -0.5 * (n_exp * m * np.log(2.0 * np.pi) + logdet)
-        # diagonal precision (independent errors, the usual case): O(m) per evaluation
-        self._pdiag = np.diag(P).copy() if np.count_nonzero(P - np.diag(np.diag(P))) == 0 \
-            else None
+        return P, b, c0, logdet
 
     def misfit(self, q: np.ndarray) -> np.ndarray:
         """Misfit ``1/2 sum_e r_e^T Gamma_e^-1 r_e`` (eq. 2.24) for responses q (k, m) -> (k,)."""
-        if q.ndim == 1:
-            q = q[None, :]
-        quad = (q * q) @ self._pdiag if self._pdiag is not None else \
-            ((q @ self.precision) * q).sum(1)
-        return 0.5 * (quad - 2.0 * (q @ self.b) + self._c0)
+        q = np.ascontiguousarray(np.atleast_2d(q), dtype=float)
+        out = np.empty(q.shape[0])
+        misfit_rows(q, self.pack, out)
+        return out
 
     def __call__(self, q: np.ndarray) -> np.ndarray:
         """Log-likelihood (eq. 2.23, normalized) for responses q (k, m) -> (k,)."""

@@ -11,36 +11,41 @@ from __future__ import annotations
 import numpy as np
 
 from ...params import Normal, ParameterSpace, Uniform
+from ._kernels import logprior_rows
 
 __all__ = ["LogPrior", "hessian_covariance", "prior_scales"]
 
 
 class LogPrior:
-    """Joint log density of a ParameterSpace, vectorized, with closed forms for uniform and
-    normal marginals (scipy's frozen-distribution call overhead dominates a Markov chain step
-    otherwise). Points outside the support get -inf."""
+    """Joint log density of a ParameterSpace, vectorized. Uniform and normal marginals are
+    evaluated in compiled code (:func:`._kernels.logprior_point`; scipy's frozen-distribution
+    call overhead would dominate a Markov chain step), other marginals by their ``logpdf``.
+    Points outside the support get -inf.
+
+    ``pack`` holds the arrays of the compiled part; ``compiled`` is True when every marginal
+    is uniform or normal (the whole prior is then the compiled part).
+    """
 
     def __init__(self, space: ParameterSpace):
         self.space = space
         b = space.bounds
         self.lo, self.hi = b[:, 0].copy(), b[:, 1].copy()
-        self._bounded = bool(np.any(np.isfinite(self.lo)) or np.any(np.isfinite(self.hi)))
-        self._const = 0.0
-        self._norm_idx, self._norm_mu, self._norm_sig = [], [], []
+        const = 0.0
+        idx, mu, sig = [], [], []
         self._other = []
         for j, dist in enumerate(space.distributions):
             if isinstance(dist, Uniform):
-                self._const -= np.log(dist.upper - dist.lower)
+                const -= np.log(dist.upper - dist.lower)
             elif isinstance(dist, Normal):
-                self._norm_idx.append(j)
-                self._norm_mu.append(dist.mu)
-                self._norm_sig.append(dist.sigma)
-                self._const -= np.log(dist.sigma * np.sqrt(2.0 * np.pi))
+                idx.append(j)
+                mu.append(dist.mu)
+                sig.append(dist.sigma)
+                const -= np.log(dist.sigma * np.sqrt(2.0 * np.pi))
             else:
                 self._other.append((j, dist))
-        self._norm_idx = np.array(self._norm_idx, dtype=int)
-        self._norm_mu = np.array(self._norm_mu)
-        self._norm_sig = np.array(self._norm_sig)
+        self.compiled = not self._other
+        self.pack = (self.lo, self.hi, float(const), np.array(idx, dtype=np.int64),
+                     np.array(mu, dtype=float), np.array(sig, dtype=float))
 
     def inside(self, theta: np.ndarray) -> np.ndarray:
         """Boolean mask (k,) of points in the (closed) support."""
@@ -48,17 +53,14 @@ class LogPrior:
 
     def __call__(self, theta: np.ndarray) -> np.ndarray:
         """log prior (k,) of points (k, d); -inf outside the support."""
-        if theta.ndim == 1:
-            theta = theta[None, :]
-        out = np.full(theta.shape[0], self._const)
-        if self._norm_idx.size:
-            u = (theta[:, self._norm_idx] - self._norm_mu) / self._norm_sig
-            out -= 0.5 * (u * u).sum(1)
-        for j, dist in self._other:
-            out += dist.logpdf(theta[:, j])
-        if self._bounded:
-            out[~self.inside(theta)] = -np.inf
-        out[np.isnan(out)] = -np.inf
+        theta = np.ascontiguousarray(np.atleast_2d(theta), dtype=float)
+        out = np.empty(theta.shape[0])
+        logprior_rows(theta, self.pack, out)
+        if self._other:
+            with np.errstate(invalid="ignore"):
+                for j, dist in self._other:
+                    out += dist.logpdf(theta[:, j])
+            out[np.isnan(out)] = -np.inf
         return out
 
 

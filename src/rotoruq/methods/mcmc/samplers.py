@@ -1,14 +1,32 @@
 """Random-walk Metropolis samplers: MH, delayed rejection (DR), adaptive Metropolis (AM), DRAM.
 
 Appendix eqs. A.9-A.11 of the reference study, after Haario, Laine, Mira and Saksman (2006).
-Several chains advance together: each step proposes one point per chain and evaluates the log
-posterior of all of them in ONE batched call; the delayed-rejection stage does the same for the
-chains whose first proposal was rejected.
-
 Defaults follow Dakota's DRAM: one DR stage whose proposal covariance is the first stage's
 divided by ``dr_scale**2 = 25``, adaptation from sample 100 and every 100 samples, scale
 ``2.38**2 / d`` and ``eps = 1e-8`` (eq. A.10). The second stage is centred on the current point,
 so its own density cancels in the acceptance ratio and only the first stage's density appears.
+
+The step itself is compiled (:mod:`._kernels`); what this module decides is *which points are
+evaluated together*. The chain is a function of the seed alone, whatever the schedule:
+
+* ``evaluations="speculative"`` (default): each call of the log posterior evaluates, for every
+  chain, the stage-1 and stage-2 proposals of the next ``K`` steps, all centred on the current
+  point. The steps are then taken one by one up to the first one that moves a chain; the
+  proposals after it are discarded. Stage 2 is centred on the current point, not on the
+  rejected stage-1 point, which is what makes it computable before stage 1 is decided. With
+  one chain ``K`` follows the observed move rate (about the expected number of steps to the
+  next move, at most ``max_lookahead``); with several chains ``K = 1``. This trades extra
+  evaluations for far fewer calls: right for cheap models and for models whose cost per call
+  hardly grows with the batch (the rotor model, a parallel executor, an emulator).
+* ``evaluations="minimal"``: stage 1 of every chain, then stage 2 of the chains whose stage 1
+  was rejected: the fewest model runs, for expensive models evaluated one point at a time.
+* A log posterior that carries a ``compiled`` attribute (the emulator posterior of
+  :func:`~rotoruq.methods.mcmc.calibrate_bayes`) runs whole blocks of steps in compiled code
+  with the minimal schedule.
+
+Random numbers come from four streams (stage-1 normals, stage-1 uniforms, stage-2 normals,
+stage-2 uniforms) drawn in blocks; the numbers of a step do not depend on the block size nor
+on how the run is split into calls.
 """
 
 from __future__ import annotations
@@ -19,15 +37,19 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...errors import ParameterError
+from . import _kernels as kn
 
-__all__ = ["SamplerConfig", "SamplerState", "run_chains", "METHODS"]
+__all__ = ["SamplerConfig", "SamplerState", "run_chains", "METHODS", "EVALUATIONS"]
 
 METHODS = ("mh", "dr", "am", "dram")
+EVALUATIONS = ("speculative", "minimal")
 
 
 @dataclass(frozen=True)
 class SamplerConfig:
-    """method : "mh", "dr", "am" or "dram". Other fields as in Dakota (see module doc)."""
+    """method : "mh", "dr", "am" or "dram"; evaluations : "speculative" or "minimal" (module
+    doc); max_lookahead : most steps evaluated ahead in one call (speculative, one chain).
+    Other fields as in Dakota (module doc)."""
 
     method: str = "dram"
     dr_scale: float = 5.0
@@ -36,12 +58,19 @@ class SamplerConfig:
     scale: float | None = None
     eps: float = 1e-8
     pooled: bool = True
+    evaluations: str = "speculative"
+    max_lookahead: int = 8
 
     def __post_init__(self):
         if self.method not in METHODS:
             raise ParameterError(f"unknown MCMC method {self.method!r}; valid: {METHODS}")
         if self.dr_scale <= 0 or self.adapt_interval < 1 or self.adapt_start < 0:
             raise ParameterError("dr_scale must be > 0, adapt_interval >= 1, adapt_start >= 0")
+        if self.evaluations not in EVALUATIONS:
+            raise ParameterError(f"unknown evaluations schedule {self.evaluations!r}; valid: "
+                                 f"{EVALUATIONS}")
+        if int(self.max_lookahead) < 1:
+            raise ParameterError(f"max_lookahead must be >= 1, got {self.max_lookahead}")
 
     @property
     def delayed_rejection(self) -> bool:
@@ -52,140 +81,168 @@ class SamplerConfig:
         return self.method in ("am", "dram")
 
 
+_COUNTS = ("prop1", "acc1", "prop2", "acc2")
+
+
 @dataclass
 class SamplerState:
     """Everything needed to continue chains exactly where they stopped (scaled coordinates).
 
     x : (c, d) current points; lp : (c,) their log posterior; chol : (c, d, d) Cholesky factors
-    of the stage-1 proposal covariance; s1, s2, n_seen : running sums of the history for AM.
+    of the stage-1 proposal covariance; rng : seeds the four random streams of the chains.
+    mean, m2 : (c, d), (c, d, d) running mean and sum of squared deviations of each chain's
+    history (for AM); steps : steps taken so far.
     """
 
     x: np.ndarray
     lp: np.ndarray
     chol: np.ndarray
     rng: np.random.Generator
-    s1: np.ndarray = None  # type: ignore[assignment]
-    s2: np.ndarray = None  # type: ignore[assignment]
-    n_seen: int = 0
-    steps: int = 0
-    buf: np.ndarray = None  # type: ignore[assignment]
-    counts: dict = field(default_factory=lambda: {"prop1": 0, "acc1": 0, "prop2": 0, "acc2": 0})
+    mean: np.ndarray = None  # type: ignore[assignment]
+    m2: np.ndarray = None  # type: ignore[assignment]
+    streams: list = None  # type: ignore[assignment]
+    st: np.ndarray = field(default_factory=lambda: np.zeros(7, np.int64))
 
     def __post_init__(self):
+        self.x = np.array(self.x, dtype=float, order="C")
+        self.lp = np.array(self.lp, dtype=float)
+        self.chol = np.array(self.chol, dtype=float, order="C")
         c, d = self.x.shape
-        if self.s1 is None:
-            self.s1 = np.zeros((c, d))
-            self.s2 = np.zeros((c, d, d))
+        if self.lp.shape != (c,) or self.chol.shape != (c, d, d):
+            raise ParameterError(f"state of {c} chains in {d}-D needs lp ({c},) and chol "
+                                 f"({c}, {d}, {d}); got {self.lp.shape} and {self.chol.shape}")
+        if self.mean is None:
+            self.mean = np.zeros((c, d))
+            self.m2 = np.zeros((c, d, d))
+        if self.streams is None:
+            self.reseed(self.rng)
+
+    def reseed(self, rng: np.random.Generator) -> None:
+        """Draw the four random streams of the following steps from ``rng``."""
+        self.rng = rng
+        self.streams = [np.random.default_rng(int(s)) for s in rng.integers(2**63, size=4)]
+
+    @property
+    def steps(self) -> int:
+        return int(self.st[kn.STEPS])
+
+    @property
+    def counts(self) -> dict:
+        """Stage-1 and stage-2 proposals and acceptances summed over chains."""
+        return {k: int(self.st[kn.PROP1 + i]) for i, k in enumerate(_COUNTS)}
 
     def copy(self) -> SamplerState:
-        new = SamplerState(self.x.copy(), self.lp.copy(), self.chol.copy(),
-                           np.random.Generator(type(self.rng.bit_generator)()), self.s1.copy(),
-                           self.s2.copy(), self.n_seen, self.steps,
-                           None if self.buf is None else self.buf.copy(), dict(self.counts))
-        new.rng.bit_generator.state = self.rng.bit_generator.state
-        return new
+        def clone(g):
+            new = np.random.Generator(type(g.bit_generator)())
+            new.bit_generator.state = g.bit_generator.state
+            return new
 
-
-def _log1mexp(a: np.ndarray) -> np.ndarray:
-    """log(1 - exp(a)) for a <= 0 (-inf at a = 0, 0 at a = -inf)."""
-    return np.log(-np.expm1(a))
-
-
-def _adapt(state: SamplerState, cfg: SamplerConfig, d: int) -> None:
-    sd = cfg.scale if cfg.scale is not None else 2.38**2 / d
-    if cfg.pooled:
-        n = state.n_seen * state.x.shape[0]
-        mu = state.s1.sum(0) / n
-        cov = (state.s2.sum(0) - n * np.outer(mu, mu)) / (n - 1.0)
-        covs = cov[None]
-    else:
-        n = state.n_seen
-        mu = state.s1 / n
-        covs = (state.s2 - n * np.einsum("ci,cj->cij", mu, mu)) / (n - 1.0)
-    for k, cov in enumerate(covs):
-        try:
-            L = np.linalg.cholesky(sd * (cov + cfg.eps * np.eye(d)))
-        except np.linalg.LinAlgError:
-            continue
-        if cfg.pooled:
-            state.chol[:] = L
-        else:
-            state.chol[k] = L
+        return SamplerState(self.x.copy(), self.lp.copy(), self.chol.copy(), clone(self.rng),
+                            self.mean.copy(), self.m2.copy(), [clone(g) for g in self.streams],
+                            self.st.copy())
 
 
 def run_chains(logpost: Callable[[np.ndarray], np.ndarray], state: SamplerState,
                cfg: SamplerConfig, n_steps: int, burn_in: int = 0, thin: int = 1,
-               block: int = 512) -> tuple[np.ndarray, np.ndarray]:
+               block: int = 4096) -> tuple[np.ndarray, np.ndarray]:
     """Advance all chains ``n_steps`` steps in place.
 
-    logpost : batched log posterior, (k, d) -> (k,), -inf (never NaN) where impossible.
+    logpost : batched log posterior, (k, d) -> (k,), -inf (never NaN) where impossible; its
+        value at a point must not depend on the other points of the batch.
     Returns the kept samples (n_kept, c, d) and their log posterior (n_kept, c): steps
     ``burn_in, burn_in + thin, ...`` counted from the start of this call.
     """
     c, d = state.x.shape
     thin = max(int(thin), 1)
+    n_steps = int(n_steps)
     n_keep = max(0, (n_steps - burn_in + thin - 1) // thin) if n_steps > burn_in else 0
     out = np.empty((n_keep, c, d))
     out_lp = np.empty((n_keep, c))
-    if state.buf is None or state.buf.shape[0] != cfg.adapt_interval:
-        state.buf = np.empty((cfg.adapt_interval, c, d))
+    dr = cfg.delayed_rejection
+    sd = cfg.scale if cfg.scale is not None else 2.38**2 / d
+    fpar = np.array([1.0 / cfg.dr_scale, sd, cfg.eps])
+    ipar = np.array([dr, cfg.adaptive, cfg.adapt_start, cfg.adapt_interval, cfg.pooled,
+                     burn_in, thin], dtype=np.int64)
+    state.st[kn.RUN_STEP] = 0
+    state.st[kn.KEPT] = 0
+    compiled = getattr(logpost, "compiled", None)
+    speculative = cfg.evaluations == "speculative" and compiled is None
+    k_max = int(cfg.max_lookahead) if speculative and c == 1 else 1
+    Y = np.empty((max(k_max, 4 if k_max > 1 else 1), 2 if dr else 1, c, d))
+    LPY = np.full(Y.shape[:3], -np.inf)
+    g1, u1, g2, u2 = state.streams
+    no_z2 = np.zeros((1, 1, 1))
+    no_u2 = np.zeros((1, 1))
+    done = 0
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        return _loop(logpost, state, cfg, n_steps, burn_in, thin, block, out, out_lp)
-
-
-def _loop(logpost, state, cfg, n_steps, burn_in, thin, block, out, out_lp):
-    c, d = state.x.shape
-    dr, am = cfg.delayed_rejection, cfg.adaptive
-    inv_s = 1.0 / cfg.dr_scale
-    interval = cfg.adapt_interval
-    rng, counts = state.rng, state.counts
-    x, lp, L = state.x, state.lp, state.chol
-    kept = 0
-    for t0 in range(0, n_steps, block):
-        nb = min(block, n_steps - t0)
-        Z1 = rng.standard_normal((nb, c, d))
-        LU1 = np.log(rng.random((nb, c)))
-        if dr:
-            Z2 = rng.standard_normal((nb, c, d))
-            LU2 = np.log(rng.random((nb, c)))
-        for i in range(nb):
-            z1 = Z1[i]
-            y1 = x + np.einsum("cij,cj->ci", L, z1)
-            lp1 = logpost(y1)
-            acc = LU1[i] < lp1 - lp
-            counts["prop1"] += c
-            na = int(acc.sum())
-            counts["acc1"] += na
-            if na:
-                x[acc] = y1[acc]
-                lp[acc] = lp1[acc]
-            if dr and na < c:
-                r = np.flatnonzero(~acc)
-                z2 = Z2[i, r]
-                y2 = x[r] + np.einsum("cij,cj->ci", L[r], z2) * inv_s
-                lp2 = logpost(y2)
-                lpy1, lpx = lp1[r], lp[r]
-                dz = z1[r] - z2 * inv_s
-                num = lp2 - 0.5 * (dz * dz).sum(1) + _log1mexp(np.minimum(lpy1 - lp2, 0.0))
-                den = lpx - 0.5 * (z1[r] ** 2).sum(1) + _log1mexp(np.minimum(lpy1 - lpx, 0.0))
-                acc2 = (LU2[i, r] < num - den) & (lp2 > -np.inf)
-                counts["prop2"] += r.size
-                if acc2.any():
-                    rr = r[acc2]
-                    x[rr] = y2[acc2]
-                    lp[rr] = lp2[acc2]
-                    counts["acc2"] += int(acc2.sum())
-            t = t0 + i
-            state.buf[state.steps % interval] = x
-            state.steps += 1
-            if state.steps % interval == 0:
-                state.s1 += state.buf.sum(0)
-                state.s2 += np.einsum("tci,tcj->cij", state.buf, state.buf)
-                state.n_seen += interval
-                if am and state.n_seen >= max(cfg.adapt_start, 2):
-                    _adapt(state, cfg, d)
-            if t >= burn_in and (t - burn_in) % thin == 0:
-                out[kept] = x
-                out_lp[kept] = lp
-                kept += 1
+        while done < n_steps:
+            nb = min(block, n_steps - done)
+            Z1 = g1.standard_normal((nb, c, d))
+            LU1 = np.log(u1.random((nb, c)))
+            Z2 = g2.standard_normal((nb, c, d)) if dr else no_z2
+            LU2 = np.log(u2.random((nb, c))) if dr else no_u2
+            args = (Z1, Z2, LU1, LU2)
+            if compiled is not None:
+                post, cnt = compiled
+                kn.run_block_emulator(state.x, state.lp, state.chol, *args, nb, Y, LPY,
+                                      state.mean, state.m2, state.st, fpar, ipar, out, out_lp,
+                                      post, cnt)
+            elif speculative:
+                _block_speculative(logpost, state, cfg, args, nb, k_max, Y, LPY, fpar, ipar,
+                                   out, out_lp)
+            else:
+                _block_minimal(logpost, state, args, nb, Y, LPY, fpar, ipar, out, out_lp)
+            done += nb
+    kept = int(state.st[kn.KEPT])
     return out[:kept], out_lp[:kept]
+
+
+def _plan(state: SamplerState, k_max: int) -> tuple[bool, int]:
+    """Speculative schedule of one chain from its move rate p: the two-step tree (every
+    outcome of the next step, 2 steps per call) when p >= 0.4, else the next K steps from the
+    current point with K about 1/p, the expected number of steps to the next move."""
+    prop = state.st[kn.PROP1]
+    rate = (state.st[kn.ACC1] + state.st[kn.ACC2]) / prop if prop >= 50 else 0.5
+    if k_max >= 2 and rate >= 0.4:
+        return True, 2
+    return False, int(min(k_max, max(1.0, np.ceil(1.0 / max(rate, 1e-3)))))
+
+
+def _block_speculative(logpost, state, cfg, args, nb, k_max, Y, LPY, fpar, ipar, out, out_lp):
+    x, lp, L, st = state.x, state.lp, state.chol, state.st
+    d = x.shape[1]
+    n_nodes = 4 if Y.shape[1] == 2 else 3
+    interval = cfg.adapt_interval if cfg.adaptive else nb
+    Z1, Z2 = args[0], args[1]
+    t = 0
+    tree, K = _plan(state, k_max) if x.shape[0] == 1 else (False, 1)
+    while t < nb:
+        # proposals after an adaptation would use the new covariance: stop at the boundary
+        k = min(K, nb - t, interval - int(st[kn.STEPS]) % interval)
+        if tree and k == 2:
+            kn.propose_tree(x, L, Z1, Z2, t, fpar[0], Y)
+            rows = n_nodes
+        else:
+            kn.propose(x, L, Z1, Z2, t, k, fpar[0], Y)
+            rows = k
+        LPY[:rows] = logpost(Y[:rows].reshape(-1, d)).reshape(LPY[:rows].shape)
+        t += kn.advance(x, lp, L, Y, LPY, *args, t, k, tree and k == 2, state.mean, state.m2,
+                        st, fpar, ipar, out, out_lp)
+        if k_max > 1 and st[kn.PROP1] % 64 < k:
+            tree, K = _plan(state, k_max)
+
+
+def _block_minimal(logpost, state, args, nb, Y, LPY, fpar, ipar, out, out_lp):
+    x, lp, L, st = state.x, state.lp, state.chol, state.st
+    Z1, Z2, LU1 = args[0], args[1], args[2]
+    two = Y.shape[1] == 2
+    for t in range(nb):
+        kn.propose(x, L, Z1, Z2, t, 1, fpar[0], Y)
+        LPY[0, 0] = logpost(Y[0, 0])
+        if two:
+            rej = ~(LU1[t] < LPY[0, 0] - lp)
+            LPY[0, 1] = -np.inf
+            if rej.any():
+                LPY[0, 1, rej] = logpost(Y[0, 1, rej])
+        kn.advance(x, lp, L, Y, LPY, *args, t, 1, False, state.mean, state.m2, st, fpar, ipar,
+                   out, out_lp)

@@ -1,20 +1,46 @@
-"""The report: thesis tables beside ours, claims, a self-contained page with figures, CSV."""
+"""The report: thesis tables beside ours, claims that cannot say more than their numbers, a
+self-contained page with figures, CSV, per-step tables for any study."""
 
 from __future__ import annotations
 
 import base64
+import json
+import operator
 import re
 
 import numpy as np
 import pytest
 
-from rotoruq.report.compare import claims, compare_tables, resolve
+from rotoruq.params import Normal, ParameterSpace
+from rotoruq.report.claims import INDEPENDENT, JOINT, Claim, claims
+from rotoruq.report.compare import ComparedCell, compare_tables, resolve
+from rotoruq.report.diagnostics import step_warnings
 from rotoruq.report.html import write_report
 from rotoruq.report.reference import TABLES, table
 from rotoruq.study.cli import main
-from rotoruq.study.results import StepResult
+from rotoruq.study.results import StepResult, save_step
 from rotoruq.study.runner import run_study
+from rotoruq.study.steps import StepContext, run_forward_check
 from test_runner import STUDY, linear_factory
+
+OPS = {"<=": operator.le, ">=": operator.ge, ">": operator.gt}
+
+
+def assert_claims_truthful(claim_dicts) -> None:
+    """The check of issue 16: a claim reads "holds" (with or without a warning) exactly when
+    its computed value passes its threshold; a claim that does not hold gives a reason."""
+    assert claim_dicts
+    for c in claim_dicts:
+        value = c["value"]
+        if value is None:
+            assert c["status"] == "not checked", c
+            continue
+        passes = OPS[c["op"]](value, c["threshold"])
+        assert c["status"].startswith("holds") == passes, c
+        if passes:
+            assert c["status"] == ("holds, with a warning" if c["warnings"] else "holds"), c
+        else:
+            assert c["status"] == "does not hold" and c["reasons"], c
 
 
 def test_reference_tables_complete():
@@ -27,6 +53,9 @@ def test_reference_tables_complete():
     assert table("3.6").rows[0][1][0][0] == 5.424e-1
     assert table("4.12").rows[3][1][0][0] == 353.4290
     assert table("4.18").rows[3][1][3][0] == 2.2985
+    # one sign convention: the thesis's negative (MBDyn) torque means, shown as absorbed torque
+    assert table("3.11").rows[1][1][0][0] == 2360.925
+    assert table("3.11").rows[1][1][1][0] == 2.100
 
 
 def test_resolve_sources():
@@ -38,18 +67,124 @@ def test_resolve_sources():
     assert resolve(None, steps) is None
 
 
-def test_claims_count_within_one_std():
+def test_differences_in_the_unit_a_reader_needs():
+    # a mean with a printed std: in thesis std devs
+    c = ComparedCell(-0.0069, 0.05, "forward_4r:mean/roll@4", sigma=0.5604)
+    assert c.diff_kind == "sigma" and c.diff_value == pytest.approx((0.05 + 0.0069) / 0.5604)
+    assert c.diff_text() == f"{(0.05 + 0.0069) / 0.5604:+.2f} \u03c3"
+    # Sobol indices and std-dev counts: absolute, never a percent of a number near zero
+    c = ComparedCell(2.37e-7, 0.004, "sens_aero:S/thrust/cd0_m04")
+    assert c.diff_kind == "absolute" and c.diff_value == pytest.approx(0.004 - 2.37e-7)
+    # a reference well away from zero: relative
+    c = ComparedCell(15.0, 15.3, "sens_mixed:input_mean/k_pitch_link")
+    assert c.diff_kind == "relative" and c.diff_value == pytest.approx(0.02)
+    # relative differences beyond 1000 % say nothing: absolute
+    c = ComparedCell(0.008, 0.9, "model:gvpm:cl0_m03")
+    assert c.diff_kind == "absolute"
+    # the compared tables pair each mean with the std of its row
+    t = next(t for t in compare_tables({}) if t.ref.number == "4.12")
+    assert t.rows[0][1][0].sigma == 3.5505
+
+
+def _exp(scalars_fwd, bayes_scalars=None, **fwd_meta):
+    steps = {"forward_4r": StepResult("forward_4r", "forward_check", scalars_fwd,
+                                      meta=fwd_meta)}
+    if bayes_scalars is not None:
+        steps["bayes"] = StepResult("bayes", "bayes_calibration", bayes_scalars,
+                                    meta={"noise_model": "noise_std per response"})
+    return {"experiment": steps}
+
+
+def _claim(cl, key) -> Claim:
+    return next(c for c in cl if c.key == key)
+
+
+def test_claim_holds_only_when_its_value_passes():
     nstd = {"thrust": 0.4, "roll": 0.2, "pitch": 1.3, "power": 0.9}
     scalars = {f"nstd/{k}@4": v for k, v in nstd.items()}
-    results = {"experiment": {"forward_4r": StepResult("forward_4r", "forward_check", scalars)}}
+    scalars.update({f"mean/{k}@4": 1.0 for k in nstd} | {f"std/{k}@4": 1.0 for k in nstd}
+                   | {f"data/{k}@4": 2.0 for k in nstd})
+    results = _exp(scalars)
     tables = compare_tables(results)
     t412 = next(t for t in tables if t.ref.number == "4.12")
     assert [cells[3].ours for _, cells in t412.rows] == [0.4, 0.2, 1.3, 0.9]
-    assert t412.rows[0][1][3].diff == pytest.approx(0.4 - 0.12)
-    c = next(c for c in claims(tables) if "at 4R" in c.text)
-    assert c.ours == (3, 4) and c.thesis == (4, 4) and c.holds is False
-    not_run = next(c for c in claims(tables) if "at 1R" in c.text)
-    assert not_run.ours is None and not_run.holds is None and not_run.thesis == (3, 4)
+    cl = claims(tables, results)
+    c = _claim(cl, "gvpm_within_1std_4R_independent")
+    assert c.value == 1.3 and c.threshold == 1.0 and c.ours == (3, 4)
+    assert c.status == "does not hold" and c.passes is False
+    assert any("Pitch" in r and "1.30 std devs" in r for r in c.reasons)
+    assert c.thesis_value == 0.12 and c.thesis_passes is True
+    assert c.propagation == INDEPENDENT
+    # no chain: no joint claim invented
+    assert not any(c.key == "gvpm_within_1std_4R_joint" for c in cl)
+    not_run = _claim(cl, "gvpm_within_1std_1R_independent")
+    assert not_run.value is None and not_run.status == "not checked"
+    assert_claims_truthful([{**vars(c), "status": c.status} for c in cl])
+
+
+def test_warnings_turn_holds_into_holds_with_a_warning():
+    scalars = {f"{s}/{k}@4": v for k in ("thrust", "roll", "pitch", "power")
+               for s, v in (("nstd", 0.5), ("mean", 1.0), ("std", 1.0), ("data", 1.5))}
+    ok = {"ess/k_pitch_link": 5000.0, "rhat/k_pitch_link": 1.001}
+    c = _claim(claims(compare_tables(_exp(scalars, ok)), _exp(scalars, ok)),
+               "gvpm_within_1std_4R_independent")
+    assert c.status == "holds" and not c.warnings
+    for bad, words in (({"rhat/k_pitch_link": 1.05}, "R-hat above 1.01): k_pitch_link (1.050)"),
+                       ({"ess/k_pitch_link": 50.0}, "(below 200): k_pitch_link (50)"),
+                       ({"loo_q2/thrust": 0.5}, "Q2 below 0.9): thrust (0.500)"),
+                       ({"pileup_hi/cd0_m02": 0.4}, "upper bound"),
+                       ({"std_ratio/ei_flap": 0.97}, "not identifiable")):
+        res = _exp(scalars, ok | bad)
+        c = _claim(claims(compare_tables(res), res), "gvpm_within_1std_4R_independent")
+        assert c.status == "holds, with a warning", bad
+        assert any(words in w for w in c.warnings), (words, c.warnings)
+
+
+def test_both_propagations_are_claimed_with_their_numbers():
+    s = {}
+    for k in ("thrust", "roll", "pitch", "power"):
+        s.update({f"nstd/{k}@4": 0.2, f"mean/{k}@4": 26.0, f"std/{k}@4": 3.8,
+                  f"data/{k}@4": 25.7, f"pp_mean/{k}@4": 27.3, f"pp_std/{k}@4": 0.62,
+                  f"pp_noise/{k}@4": 0.0, f"pp_nstd/{k}@4": 0.3})
+    s["pp_nstd/thrust@4"] = 2.5
+    bayes = {"corr/k_pitch_link/collective_deg": -0.87, "ess/k_pitch_link": 1e4}
+    res = _exp(s, bayes)
+    cl = claims(compare_tables(res), res)
+    ind = _claim(cl, "gvpm_within_1std_4R_independent")
+    joint = _claim(cl, "gvpm_within_1std_4R_joint")
+    assert ind.status == "holds" and ind.value == 0.2
+    assert joint.propagation == JOINT and joint.status == "does not hold"
+    assert joint.value == 2.5 and joint.thesis_value is None
+    assert any("2.50 std devs" in r for r in joint.reasons)
+    assert any("0.62 (independent normals: 3.8)" in d for d in joint.details)
+    assert ind.details == joint.details
+
+
+def test_non_holding_claims_carry_diagnostic_reasons():
+    val = {
+        "sens_mixed": StepResult("sens_mixed", "sensitivity", {
+            "S/thrust/cla_m03": 0.1, "S/thrust/cla_m06": 0.8, "S/thrust/cla_m05": 0.05,
+            "S/thrust/k_flap": 0.01, "negligible/thrust": 1.0, "out_std/thrust": 0.03,
+            "out_cv/thrust": 1.5e-5}),
+        "cuu_truth_mixed": StepResult("cuu_truth_mixed", "sampling", {
+            "std/thrust": 11.4, "std/torque": 2.1}),
+        "cuu_mixed": StepResult("cuu_mixed", "cuu", {
+            "calibrated_out_std/thrust": 30.0, "calibrated_out_std/torque": 2.1,
+            "initial_std/k_flap": 1800.0, "std/k_flap": 1.8e-3},
+            meta={"identifiable": False, "diagnostic": "4 statistics, 2 targets",
+                  "condition_number": "inf"}),
+    }
+    res = {"validation": val}
+    cl = claims(compare_tables(res), res, {"validation": {"cla_m06": "C_La(0.6)",
+                                                         "k_flap": "K_f"}})
+    top = _claim(cl, "bo105_sens_top")
+    assert top.status == "does not hold"
+    assert any("C_La(0.6) dominates" in r for r in top.reasons)
+    assert any("negligible" in r for r in top.reasons)
+    cuu = _claim(cl, "bo105_cuu_mixed")
+    assert cuu.status == "does not hold"
+    assert any("not identifiable" in r for r in cuu.reasons)
+    assert any("K_f std driven from 1800 to 0.0018 (-100 %)" in r for r in cuu.reasons)
 
 
 def _run(tmp_path):
@@ -58,7 +193,7 @@ def _run(tmp_path):
     return run_study(p, model_factory=linear_factory(), log=None)
 
 
-def test_report_is_self_contained(tmp_path):
+def test_user_study_report_is_its_own(tmp_path):
     run = _run(tmp_path)
     index = write_report([run.out], tmp_path / "report")
     page = index.read_text()
@@ -66,32 +201,137 @@ def test_report_is_self_contained(tmp_path):
     assert len(imgs) >= 3  # truth loads, forward loads at two sweep points
     for b64 in imgs:
         assert base64.b64decode(b64)[:8] == b"\x89PNG\r\n\x1a\n"
-    assert "Summary: claims of the reference study" in page
+    assert "<title>rotoruq: lin</title>" in page
+    assert "reproduction of the reference study" not in page
+    assert "claims of the reference study" not in page and "Table 3.4" not in page
+    assert not (tmp_path / "report" / "claims.json").exists()
     assert "src='http" not in page and 'src="http' not in page
+    # one figure, one PNG file: drawn once, no second (SVG) rendering
     pngs = sorted((tmp_path / "report" / "figures").glob("*.png"))
-    svgs = sorted((tmp_path / "report" / "figures").glob("*.svg"))
-    assert len(pngs) == len(imgs) == len(svgs)
+    assert len(pngs) == len(imgs)
+    assert not list((tmp_path / "report" / "figures").glob("*.svg"))
+    # a table for each step, with the step's own numbers
+    for step in ("truth", "mv", "fit", "check"):
+        assert f"id='study-lin-step-{step}'" in page
+    mv = run["mv"]
+    assert f"{mv.get('mean/y1'):.4g}" in page
+    # every figure's axes are labelled with units
+    for xl, yl in re.findall(r"data-xlabels='([^']*)' data-ylabels='([^']*)'", page):
+        for lab in json.loads(xl.replace("&quot;", '"')) + json.loads(yl.replace("&quot;", '"')):
+            assert re.search(r"\[[^\]]+\]", lab), lab
 
 
-def test_report_tables_as_csv(tmp_path):
-    # a fake "experiment" output folder: saved results of one forward step
-    from rotoruq.study.results import save_step
-
-    out = tmp_path / "experiment"
-    out.mkdir()
-    (out / "study.json").write_text('{"name": "experiment", "steps": ["forward_4r"]}')
+def _fake_reference(tmp_path):
+    """Saved results of both reference studies, with values that pass, fail and warn."""
+    rng = np.random.default_rng(0)
+    exp = tmp_path / "experiment"
+    exp.mkdir()
+    (exp / "study.json").write_text(json.dumps({"name": "experiment", "steps": [
+        "bayes", "forward_4r"], "model": {"preset": "gvpm"}}))
+    names = ["k_pitch_link", "collective_deg"]
+    z = rng.normal(size=(4000, 1))
+    chain = np.hstack([15 + 2 * z, 5.4 - 0.3 * z + 0.05 * rng.normal(size=(4000, 1))])
+    bscal = {"ess/k_pitch_link": 80.0, "rhat/k_pitch_link": 1.0, "std_ratio/collective_deg":
+             0.3, "corr/k_pitch_link/collective_deg": -0.87}
+    save_step(StepResult("bayes", "bayes_calibration", bscal, {"chain": chain},
+                         meta={"columns": {"chain": names}}), exp)
     scalars = {"mean/thrust@4": 26.0, "std/thrust@4": 3.0, "data/thrust@4": 25.6849,
                "nstd/thrust@4": abs(25.6849 - 26.0) / 3.0}
-    arr = np.random.default_rng(0).normal(26.0, 3.0, (50, 1))
+    for r, (m, s, d) in {"roll": (0.0, 0.5, -0.0388), "pitch": (-0.2, 0.5, -0.2371),
+                         "power": (300.0, 20.0, 350.9062)}.items():
+        scalars.update({f"mean/{r}@4": m, f"std/{r}@4": s, f"data/{r}@4": d,
+                        f"nstd/{r}@4": abs(d - m) / s})
+    arr = rng.normal(26.0, 3.0, (50, 1))
     save_step(StepResult("forward_4r", "forward_check", scalars, {"outputs@4": arr},
-                         meta={"columns": {"outputs@4": ["thrust"]}, "labels": ["@4"]}), out)
-    assert main(["report", str(out), "--out", str(tmp_path / "rep")]) == 0
+                         meta={"columns": {"outputs@4": ["thrust"]}, "labels": ["@4"],
+                               "responses": ["thrust"]}), exp)
+    val = tmp_path / "validation"
+    val.mkdir()
+    (val / "study.json").write_text(json.dumps({"name": "validation", "steps": [
+        "sens_mixed"], "model": {"preset": "bo105"}}))
+    s = {f"S/thrust/{p}": v for p, v in (("cla_m03", 0.5), ("cla_m06", 0.3), ("cla_m05", 0.2),
+                                          ("k_flap", 0.07))}
+    save_step(StepResult("sens_mixed", "sensitivity", s, meta={
+        "inputs": ["cla_m03", "cla_m06", "cla_m05", "k_flap"], "responses": ["thrust"]}), val)
+    return exp, val
+
+
+def test_report_claims_cannot_lie(tmp_path):
+    exp, val = _fake_reference(tmp_path)
+    assert main(["report", str(tmp_path), "--out", str(tmp_path / "rep")]) == 0
+    data = json.loads((tmp_path / "rep" / "claims.json").read_text())
+    assert_claims_truthful(data)
+    by = {c["key"]: c for c in data}
+    assert by["gvpm_within_1std_4R_independent"]["status"] == "does not hold"  # power 2.5
+    assert by["bo105_sens_top"]["status"] == "holds"
+    # the page shows exactly what the data say (parsed from the rows, not from the CSS)
+    page = (tmp_path / "rep" / "index.html").read_text()
+    rows = dict(re.findall(r"<tr data-claim='([^']+)' data-status='([^']+)'>", page))
+    assert rows == {c["key"]: c["status"] for c in data}
+    embedded = re.search(r"<script type='application/json' id='claims-data'>(.*?)</script>",
+                         page, re.S).group(1)
+    assert json.loads(embedded.replace("<\\/", "</")) == data
     csv = (tmp_path / "rep" / "tables" / "table_4_12.csv").read_text().splitlines()
-    assert csv[0] == "row,column,thesis,ours,ours_minus_thesis,relative,source"
+    assert csv[0] == ("row,column,thesis,ours,ours_minus_thesis,relative,difference,"
+                      "difference_unit,source")
     first = csv[1].split(",")
     assert first[:4] == ["Thrust T [N]", "Mean", "26.1148", "26.0"]
-    page = (tmp_path / "rep" / "index.html").read_text()
-    assert "Table 4.12" in page and "Table 3.4" not in page
+    assert first[7] == "thesis std devs"
+    assert "Table 4.12" in page and "Table 3.6" in page
+    # a table of contents whose links all resolve
+    all_ids = re.findall(r"id='([^']+)'", page)
+    assert len(all_ids) == len(set(all_ids))
+    ids = set(all_ids)
+    links = re.findall(r"<a href='#([^']+)'>", page)
+    assert links and set(links) <= ids
+
+
+def test_joint_posterior_predictive_keeps_correlations():
+    """y1 = 2a + 3b + c with a chain on the line 2a + 3b = 8: the joint predictive of y1 has
+    zero spread (to rounding), independent normals of the same marginals do not."""
+    rng = np.random.default_rng(1)
+    z = rng.normal(size=20000)
+    chain = np.column_stack([1 + 0.1 * z, 2 - 0.2 / 3 * z])
+    source = StepResult("bayes", "bayes_calibration", {"noise_std/y1": 0.5},
+                        {"chain": chain}, meta={"columns": {"chain": ["a", "b"]}})
+    sa, sb = chain.std(ddof=1, axis=0)
+    space = ParameterSpace({"a": Normal(chain[:, 0].mean(), sa),
+                            "b": Normal(chain[:, 1].mean(), sb)})
+    ctx = StepContext(
+        name="check", type="forward_check", space=space, responses=("y1", "y2"),
+        options={"n": 2000, "method": "lhs", "sweep": {"c": [1.0]}}, fixed={"c": 1.0},
+        make_model=linear_factory(), rng=np.random.default_rng(2),
+        data_columns={"c": np.array([1.0]), "y1": np.array([9.5]), "y2": np.array([-1.0])},
+        source=source)
+    res = run_forward_check(ctx)
+    assert res.get("pp_mean/y1@1") == pytest.approx(9.0, abs=1e-12)
+    assert res.get("pp_std/y1@1") < 1e-12
+    # independent: Var = 4 sa^2 + 9 sb^2 = 0.04 + 0.04 (LHS, 2000 points: 3 %)
+    assert res.get("std/y1@1") == pytest.approx(np.sqrt(4 * sa**2 + 9 * sb**2), rel=0.03)
+    # predictive of a measurement: model spread (0) and the calibration's noise (0.5)
+    assert res.get("pp_noise/y1@1") == 0.5
+    assert res.get("pp_nstd/y1@1") == pytest.approx(0.5 / 0.5, rel=1e-9)
+    # y2 = a - b: joint std = 0.1 + 0.2/3 exactly (perfect correlation), no noise model
+    assert res.get("pp_std/y2@1") == pytest.approx(0.1 + 0.2 / 3, rel=0.03)
+    assert res.get("pp_noise/y2@1") == 0.0
+    assert res.arrays["pp_outputs@1"].shape == (2000, 2)
+
+
+def test_sobol_step_reports_variance_and_flags_negligible(tmp_path):
+    from test_runner import METHODS
+
+    p = tmp_path / "m.toml"
+    p.write_text(METHODS)
+    s = run_study(p, model_factory=linear_factory(), log=None, only=None)["sobol"]
+    # y1 = 2a + 3b: Var = 4 * 0.01 + 9 * 0.04 = 0.4 exactly; CV = sqrt(0.4) / 8
+    assert s.get("out_var/y1") == pytest.approx(0.4, rel=0.05)
+    assert s.get("out_cv/y1") == pytest.approx(np.sqrt(0.4) / 8, rel=0.05)
+    assert s.get("negligible/y1") == 0.0
+    assert s.get("S_lo/y1/b") <= s.get("S/y1/b") <= s.get("S_hi/y1/b")
+    assert not step_warnings(s)
+    tiny = StepResult("x", "sensitivity", {"negligible/thrust": 1.0, "out_std/thrust": 0.03,
+                                           "out_cv/thrust": 1.5e-5})
+    assert "negligible variance" in step_warnings(tiny)[0]
 
 
 def test_report_cli_rejects_empty_folder(tmp_path, capsys):
@@ -106,6 +346,19 @@ def test_reproduce_quick(tmp_path):
     page = (tmp_path / "report" / "index.html").read_text()
     for number in ("3.4", "3.9", "3.13", "4.9", "4.12", "4.14", "4.17", "4.19"):
         assert f"Table {number}:" in page
-    assert "does not hold" in page or "holds" in page
+    data = json.loads((tmp_path / "report" / "claims.json").read_text())
+    assert_claims_truthful(data)
+    keys = {c["key"] for c in data}
+    for where in ("4R", "2R", "1R"):  # the 4R and IGE claims under both propagations
+        assert {f"gvpm_within_1std_{where}_independent", f"gvpm_within_1std_{where}_joint"} \
+            <= keys
+    assert {"ge_within_3std_ct_joint", "ge_within_3std_ct_independent"} <= keys
     assert (tmp_path / "experiment" / "steps" / "bayes" / "chain.npy").is_file()
-    assert (tmp_path / "report" / "figures" / "ground_effect_ct_vs_height.png").is_file()
+    assert (tmp_path / "report" / "figures" / "experiment_ground_effect_ct_vs_height.png"
+            ).is_file()
+    # one file per figure of each study (both studies have a step "bayes")
+    page_figs = re.findall(r"<figure id='fig-([^']+)'", page)
+    assert len(page_figs) == len(set(page_figs))
+    assert sorted(f"{k}.png" for k in page_figs) == sorted(
+        p.name for p in (tmp_path / "report" / "figures").glob("*.png"))
+    assert "validation_bayes_pairs" in page_figs and "experiment_bayes_pairs" in page_figs

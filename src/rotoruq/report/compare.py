@@ -1,5 +1,6 @@
-"""Our values beside the thesis's: resolve every reference cell against saved results, and
-check the reference study's claims (which hold for us, which held for the thesis)."""
+"""Our values beside the thesis's: resolve every reference cell against saved results and
+express each difference in the unit a reader needs (see :attr:`ComparedCell.diff_kind`).
+The reference study's claims are checked in :mod:`rotoruq.report.claims`."""
 
 from __future__ import annotations
 
@@ -15,31 +16,84 @@ import numpy as np
 from ..study.results import StepResult
 from .reference import TABLES, ReferenceTable
 
-__all__ = ["ComparedCell", "ComparedTable", "Claim", "compare_tables", "claims", "resolve"]
+__all__ = ["ComparedCell", "ComparedTable", "compare_tables", "resolve", "REFERENCE_STUDIES"]
+
+# The reference studies and the preset each runs; a user's study of the same name but another
+# model gets no thesis rows.
+REFERENCE_STUDIES = {"validation": "bo105", "experiment": "gvpm"}
+
+# Statistics already dimensionless and meaningful near zero: their difference is absolute.
+_ABSOLUTE = {"S", "T", "nstd", "pp_nstd", "skewness", "kurtosis", "acceptance"}
+# Beyond this relative size a percent difference says nothing (the reference is near zero).
+_REL_MAX = 10.0
 
 Results = Mapping[str, Mapping[str, StepResult]]  # study name -> step name -> result
 
 
 @dataclass(frozen=True)
 class ComparedCell:
-    """Thesis value, ours (None when we have none) and ours - thesis, relative to |thesis|."""
+    """Thesis value, ours (None when we have none), where ours comes from, and ``sigma``: the
+    thesis's standard deviation of the same quantity when the cell is a mean (its row has a
+    matching std column)."""
 
     thesis: float | None
     ours: float | None
     source: str | None
+    sigma: float | None = None
 
     @property
     def diff(self) -> float | None:
+        """ours - thesis, in the quantity's unit."""
         if self.thesis is None or self.ours is None:
             return None
         return self.ours - self.thesis
 
     @property
     def rel(self) -> float | None:
+        """(ours - thesis) / |thesis| (None when the thesis value is 0)."""
         d = self.diff
         if d is None or self.thesis == 0:
             return None
         return d / abs(self.thesis)
+
+    @property
+    def diff_kind(self) -> str:
+        """How the difference is best read: ``"sigma"`` (a mean, in the thesis's std devs),
+        ``"absolute"`` (indices, std-dev counts, shape moments, or a reference near zero),
+        ``"relative"`` (a reference well away from zero), ``""`` (nothing to compare)."""
+        if self.diff is None:
+            return ""
+        stat = (self.source or "").split(":", 1)[-1].split("/")[0]
+        if stat in _ABSOLUTE:
+            return "absolute"
+        if self.sigma is not None and self.sigma > 0:
+            return "sigma"
+        r = self.rel
+        if r is None or abs(r) > _REL_MAX:
+            return "absolute"
+        return "relative"
+
+    @property
+    def diff_value(self) -> float | None:
+        """The difference in the unit of :attr:`diff_kind` (relative as a fraction)."""
+        k = self.diff_kind
+        if k == "sigma":
+            return self.diff / self.sigma
+        if k == "relative":
+            return self.rel
+        return self.diff
+
+    def diff_text(self) -> str:
+        from .tables import fmt
+
+        k, v = self.diff_kind, self.diff_value
+        if k == "sigma":
+            return f"{v:+.2f} σ"
+        if k == "relative":
+            return f"{100 * v:+.1f} %"
+        if k == "absolute":
+            return f"{v:+.3g}" if v != 0 else "0"
+        return fmt(None)
 
 
 @dataclass(frozen=True)
@@ -54,23 +108,6 @@ class ComparedTable:
     @property
     def n_cells(self) -> int:
         return sum(c.thesis is not None for _, cells in self.rows for c in cells)
-
-
-@dataclass(frozen=True)
-class Claim:
-    """A statement of the reference study; ``ours``/``thesis`` are k-of-n counts (None when
-    it cannot be checked: the steps did not run)."""
-
-    text: str
-    ours: tuple[int, int] | None
-    thesis: tuple[int, int] | None
-    detail: str = ""
-
-    @property
-    def holds(self) -> bool | None:
-        if self.ours is None:
-            return None
-        return self.ours[0] == self.ours[1]
 
 
 @lru_cache(maxsize=4)
@@ -122,91 +159,30 @@ def resolve(source: str | None, steps: Mapping[str, StepResult]) -> float | None
     return v if math.isfinite(v) else None
 
 
+def _sigma_columns(columns) -> dict[int, int]:
+    """Mean column -> the std column of the same quantity ("Exp. mean" -> "Exp. std")."""
+    low = [c.lower() for c in columns]
+    out = {}
+    for j, c in enumerate(low):
+        if "mean" in c:
+            twin = c.replace("mean", "std")
+            if twin in low:
+                out[j] = low.index(twin)
+    return out
+
+
 def compare_tables(results: Results) -> list[ComparedTable]:
     """Every reference table with our values from ``results`` (study -> steps)."""
     out = []
     for ref in TABLES:
         steps = results.get(ref.study, {})
-        rows = tuple((lab, tuple(ComparedCell(th, resolve(src, steps), src)
-                                 for th, src in cells)) for lab, cells in ref.rows)
-        out.append(ComparedTable(ref, rows))
-    return out
-
-
-def _count(values, pred) -> tuple[int, int] | None:
-    vals = [v for v in values if v is not None]
-    if not vals or len(vals) < len(values):
-        return None
-    return sum(bool(pred(v)) for v in vals), len(vals)
-
-
-def _col(t: ComparedTable, j: int, which: str) -> list:
-    return [getattr(cells[j], which) for _, cells in t.rows]
-
-
-def claims(tables: list[ComparedTable]) -> list[Claim]:
-    """The reference study's main claims, checked on our results and on the thesis's."""
-    by = {t.ref.number: t for t in tables}
-    out = []
-
-    t = by["3.9"]
-    def rel_err(which):
-        real, cal = _col(t, 0, which), _col(t, 2, which)
-        if any(v is None for v in real + cal):
-            return [None] * len(real)
-        return [abs(c - r) / abs(r) for r, c in zip(real, cal, strict=True)]
-    out.append(Claim("Bo105 Bayes calibration: posterior means within 2 % of the true means "
-                     "(table 3.9)", _count(rel_err("ours"), lambda e: e <= 0.02),
-                     _count(rel_err("thesis"), lambda e: e <= 0.02)))
-
-    t = by["3.6"]
-    def top(which):
-        v = _col(t, 0, which)
-        if any(x is None for x in v):
-            return None
-        return (int(np.argmax(v) == 0), 1)
-    out.append(Claim("Bo105 mixed sensitivity: C_La(0.3) has the largest main index of the "
-                     "mean thrust (table 3.6)", top("ours"), top("thesis")))
-
-    for num, what in (("3.11", "mixed"), ("3.13", "aerodynamic")):
-        t = by[num]
-        def std_err(which, t=t):
-            target = _col(t, 1, which)
-            got = _col(t, 3, which)
-            if any(v is None for v in target + got):
-                return [None] * len(target)
-            return [abs(g - s) / abs(s) for s, g in zip(target, got, strict=True)]
-        out.append(Claim(f"Bo105 CUU ({what}): load std devs reproduced within 5 % "
-                         f"(table {num})", _count(std_err("ours"), lambda e: e <= 0.05),
-                         _count(std_err("thesis"), lambda e: e <= 0.05)))
-
-    for num, where in (("4.12", "at 4R"), ("4.16", "at 2R"), ("4.17", "at 1R")):
-        t = by[num]
-        out.append(Claim(f"GVPM: measured loads within one posterior-predictive std {where} "
-                         f"(table {num})", _count(_col(t, 3, "ours"), lambda v: v <= 1.0),
-                         _count(_col(t, 3, "thesis"), lambda v: v <= 1.0)))
-
-    t = by["4.14"]
-    def cuu4(which):
-        target, got = _col(t, 1, which), _col(t, 2, which)
-        if any(v is None for v in target + got):
-            return [None] * len(target)
-        return [abs(g - s) / abs(s) for s, g in zip(target, got, strict=True)]
-    out.append(Claim("GVPM CUU on the commands: load std devs within 10 % of the targets "
-                     "(table 4.14)", _count(cuu4("ours"), lambda e: e <= 0.10),
-                     _count(cuu4("thesis"), lambda e: e <= 0.10)))
-
-    for num, name in (("4.18", "C_T"), ("4.19", "C_Q")):
-        t = by[num]
-        def monotone(which, t=t):
-            m = _col(t, 0, which)  # rows 4R, 3R, 2R, 1R
-            if any(v is None for v in m):
-                return None
-            return (int(m[3] > m[2] > m[0]), 1)
-        out.append(Claim(f"Ground effect: model {name} ratio grows from 4R to 2R to 1R "
-                         f"(table {num})", monotone("ours"), monotone("thesis")))
-        out.append(Claim(f"Ground effect: measured {name} ratio within 3 model std devs at "
-                         f"every height (table {num}, figure 4.3{5 if name == 'C_T' else 6})",
-                         _count(_col(t, 3, "ours"), lambda v: v <= 3.0),
-                         _count(_col(t, 3, "thesis"), lambda v: v <= 3.0)))
+        twins = _sigma_columns(ref.columns)
+        rows = []
+        for lab, cells in ref.rows:
+            row = []
+            for j, (th, src) in enumerate(cells):
+                sig = cells[twins[j]][0] if j in twins else None
+                row.append(ComparedCell(th, resolve(src, steps), src, sig))
+            rows.append((lab, tuple(row)))
+        out.append(ComparedTable(ref, tuple(rows)))
     return out

@@ -1,9 +1,12 @@
-"""The report: one self-contained HTML page (figures embedded as base64 PNG) plus every figure
-as PNG and SVG and every comparison table as CSV.
+"""The report: one self-contained HTML page (figures embedded as base64 PNG), every figure as
+a PNG file, every table as CSV and the claims as JSON.
 
 ``write_report([results_dir, ...], report_dir)`` reads saved study outputs (see
-:mod:`rotoruq.study.results`) and writes ``report_dir/index.html``, ``figures/`` and
-``tables/``. It only reads results: ``rotoruq report RESULTS`` rebuilds it at any time.
+:mod:`rotoruq.study.results`) and writes ``report_dir/index.html``,
+``figures/<study>_<figure>.png``, ``tables/`` and ``claims.json``. It only reads results:
+``rotoruq report RESULTS`` rebuilds it at any time. A reference study (``validation`` on the
+bo105 preset, ``experiment`` on gvpm) gets the thesis's tables beside ours and the claims;
+every study gets a table per step.
 """
 
 from __future__ import annotations
@@ -11,29 +14,39 @@ from __future__ import annotations
 import base64
 import datetime as _dt
 import html
-import io
 import json
-from collections.abc import Sequence
+import re
+import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from ..study.results import StepResult, load_results
-from .compare import Claim, claims, compare_tables
-from .tables import fmt, table_html, write_csv
+from .claims import INDEPENDENT, JOINT, Claim, claims, claims_json
+from .compare import REFERENCE_STUDIES, compare_tables
+from .diagnostics import THRESHOLDS
+from .steptables import step_tables, table_csv
+from .tables import fmt, step_table_html, table_html, write_csv
 
-__all__ = ["write_report", "find_study_dirs"]
+__all__ = ["write_report", "find_study_dirs", "is_reference"]
 
 _CSS = """
 body{font-family:system-ui,sans-serif;max-width:1200px;margin:auto;padding:1em;color:#222}
 table{border-collapse:collapse;margin:.5em 0;font-size:12px}
 td,th{border:1px solid #ccc;padding:2px 6px;text-align:right}
-th{background:#f3f3f3}
+th{background:#f3f3f3} td.l,th.l{text-align:left}
 td.ok{background:#e5f5e0} td.off{background:#fee8c8}
 .note{font-size:12px;color:#555;margin-top:0}
 figure{margin:1em 0} figure img{max-width:100%}
 figcaption{font-size:12px;color:#444}
-.holds{color:#1a7f37;font-weight:bold} .fails{color:#b42318;font-weight:bold}
-.na{color:#777}
+.st-holds{color:#1a7f37;font-weight:bold} .st-warn{color:#9a6700;font-weight:bold}
+.st-fails{color:#b42318;font-weight:bold} .st-na{color:#777}
+ul.why{margin:0;padding-left:1.2em;font-size:11px;text-align:left}
+nav.toc{font-size:13px;column-width:18em}
+details{font-size:11px;text-align:left}
 """
+
+_STATUS_CLASS = {"holds": "st-holds", "holds, with a warning": "st-warn",
+                 "does not hold": "st-fails", "not checked": "st-na"}
 
 
 def find_study_dirs(root: str | Path) -> list[Path]:
@@ -44,47 +57,135 @@ def find_study_dirs(root: str | Path) -> list[Path]:
     return sorted(p.parent for p in root.glob("*/study.json"))
 
 
+def is_reference(info: dict) -> bool:
+    """A study of the reference thesis: its name and its model preset both match."""
+    preset = (info.get("model") or {}).get("preset")
+    name = info.get("name")
+    return name in REFERENCE_STUDIES and (preset is None or REFERENCE_STUDIES[name] == preset)
+
+
 def _png(fig) -> bytes:
+    import io
+
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90)
     return buf.getvalue()
 
 
-def _claim_html(c: Claim) -> str:
+def _anchor(*parts: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_-]+", "-", "-".join(parts)).strip("-")
+
+
+def _claim_row(c: Claim) -> str:
+    e = html.escape
+
     def kofn(v):
-        return "not run" if v is None else f"{v[0]} of {v[1]}"
+        return "-" if v is None else f"{v[0]} of {v[1]}"
 
-    if c.holds is None:
-        state = "<span class=na>not checked</span>"
-    elif c.holds:
-        state = "<span class=holds>holds</span>"
-    else:
-        state = "<span class=fails>does not hold</span>"
-    return (f"<tr><td style='text-align:left'>{html.escape(c.text)}</td><td>{state}</td>"
-            f"<td>{kofn(c.ours)}</td><td>{kofn(c.thesis)}</td></tr>")
+    def num(v):
+        return "-" if v is None else fmt(v)
+
+    status = c.status
+    thesis = ("-" if c.thesis_passes is None else
+              ("holds" if c.thesis_passes else "does not hold"))
+    why = "".join(f"<li>{e(r)}</li>" for r in c.reasons)
+    why += "".join(f"<li>note: {e(d)}</li>" for d in c.details)
+    why = f"<ul class=why>{why}</ul>" if why else ""
+    if c.warnings:
+        why += (f"<details><summary>{len(c.warnings)} warning(s) from the steps it rests on"
+                "</summary><ul class=why>"
+                + "".join(f"<li>{e(w)}</li>" for w in c.warnings) + "</ul></details>")
+    prop = {INDEPENDENT: "independent normals", JOINT: "joint posterior predictive"}.get(
+        c.propagation or "", "")
+    return (f"<tr data-claim='{e(c.key)}' data-status='{e(status)}'>"
+            f"<td class=l>{e(c.text)}</td><td class=l>{e(prop)}</td>"
+            f"<td><span class={_STATUS_CLASS[status]}>{e(status)}</span></td>"
+            f"<td>{num(c.value)}</td><td>{e(c.op)} {c.threshold:g}</td><td>{kofn(c.ours)}</td>"
+            f"<td>{num(c.thesis_value)}</td><td>{thesis}</td>"
+            f"<td class=l>{why}</td></tr>")
 
 
-def _labels(info: dict) -> dict[str, str]:
-    return {k: v.get("label") or k for k, v in info.get("parameters", {}).items()}
+def _claims_section(claim_list: list[Claim]) -> str:
+    head = ("<tr><th class=l>claim</th><th class=l>propagation</th><th>ours</th>"
+            "<th>our value</th><th>threshold</th><th>ours k of n</th><th>thesis value</th>"
+            "<th>thesis</th><th class=l>why (computed from this run)</th></tr>")
+    data = json.dumps(claims_json(claim_list)).replace("</", "<\\/")
+    t = THRESHOLDS
+    return (
+        "<table id='claims-table'>" + head + "".join(_claim_row(c) for c in claim_list)
+        + "</table>"
+        "<p class=note>A claim reads <i>holds</i> only when its value passes its threshold; "
+        "<i>holds, with a warning</i> when it passes but a step it rests on has a diagnostic "
+        f"warning (ESS below {t['ess_min']:g}, R-hat above {t['rhat_max']}, emulator "
+        f"leave-one-out Q2 below {t['loo_q2_min']}, a posterior piling up against a prior "
+        f"bound (more than {100 * t['pileup_max']:g} % of the chain in its outer 5 %), a "
+        f"parameter the data do not inform (posterior std above {t['std_ratio_max']} x the "
+        "prior's), a non-identifiable CUU). Forward checks after a calibration are evaluated "
+        f"under two propagations: <b>independent normals</b> ({html.escape(INDEPENDENT)}) "
+        f"and the <b>joint posterior predictive</b> ({html.escape(JOINT)}, the measurement "
+        "compared with the model spread plus the calibration's noise). They differ when the "
+        "posterior is correlated: independent normals ignore the correlation.</p>"
+        f"<script type='application/json' id='claims-data'>{data}</script>")
 
 
-def _steps_summary(name: str, steps: dict[str, StepResult]) -> str:
+def _steps_summary(steps: dict[str, StepResult], anchors: dict[str, str]) -> str:
     rows = []
     for s in steps.values():
         rows.append(
-            f"<tr><td style='text-align:left'>{html.escape(s.name)}</td><td>{s.type}</td>"
-            f"<td style='text-align:left'>{html.escape(str(s.meta.get('title', '')))}</td>"
+            f"<tr><td class=l><a href='#{anchors[s.name]}'>{html.escape(s.name)}</a></td>"
+            f"<td>{s.type}</td>"
+            f"<td class=l>{html.escape(str(s.meta.get('title', '')))}</td>"
             f"<td>{s.meta.get('n_evaluations', '-')}</td>"
             f"<td>{fmt(s.meta.get('seconds'))}</td></tr>")
-    return ("<table><tr><th>step</th><th>type</th><th>what</th><th>evaluations</th>"
-            f"<th>seconds</th></tr>{''.join(rows)}</table>")
+    return ("<table><tr><th class=l>step</th><th>type</th><th class=l>what</th>"
+            f"<th>evaluations</th><th>seconds</th></tr>{''.join(rows)}</table>")
+
+
+def _noise_note(steps: dict[str, StepResult]) -> str:
+    parts = []
+    for s in steps.values():
+        if s.type != "bayes_calibration":
+            continue
+        noise = {k.split("/", 1)[1]: v for k, v in s.scalars.items()
+                 if k.startswith("noise_std/")}
+        if noise:
+            what = ", ".join(f"{r} {fmt(v)}" for r, v in noise.items())
+            parts.append(f"{html.escape(s.name)}: {html.escape(str(s.meta.get('noise_model')))}"
+                         f" ({what})")
+    if not parts:
+        return ""
+    return ("<p class=note><b>Noise model of the calibrations</b> (data std devs in response "
+            "units): " + "; ".join(parts) + ".</p>")
+
+
+def _figure_html(f, png: bytes, key: str) -> str:
+    xl, yl = [], []
+    for ax in f.figure.axes:
+        if not ax.axison:
+            continue
+        if ax.get_xlabel():
+            xl.append(ax.get_xlabel())
+        if ax.get_ylabel():
+            yl.append(ax.get_ylabel())
+    e = html.escape
+    b64 = base64.b64encode(png).decode()
+    return (f"<figure id='fig-{e(key)}' data-xlabels='{e(json.dumps(sorted(set(xl))))}' "
+            f"data-ylabels='{e(json.dumps(sorted(set(yl))))}'><img alt='{e(f.caption)}' "
+            f"src='data:image/png;base64,{b64}'><figcaption>{e(f.caption)}</figcaption>"
+            "</figure>")
 
 
 def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
-                 title: str = "rotoruq: reproduction of the reference study") -> Path:
-    """Write the report of the given study output folders; returns ``index.html``."""
+                 title: str | None = None, log: Callable[[str], None] | None = None) -> Path:
+    """Write the report of the given study output folders; returns ``index.html``.
+
+    title : page title (default: the reference study's when one is present, else the
+        studies' names). log : a line per study and per figure batch (None: silent).
+    """
     from .plots import figures_for_study
 
+    log = log or (lambda _m: None)
+    t_start = time.perf_counter()
     report_dir = Path(report_dir)
     fig_dir, tab_dir = report_dir / "figures", report_dir / "tables"
     fig_dir.mkdir(parents=True, exist_ok=True)
@@ -96,53 +197,92 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
             info = json.loads((folder / "study.json").read_text())
             studies[info["name"]] = load_results(folder)
             infos[info["name"]] = info
-    tables = compare_tables(studies)
-    claim_list = claims(tables)
+    labels = {n: {k: v.get("label") or k for k, v in i.get("parameters", {}).items()}
+              for n, i in infos.items()}
+    units = {n: {k: v.get("unit") for k, v in i.get("parameters", {}).items() if v.get("unit")}
+             for n, i in infos.items()}
+    reference = [n for n, i in infos.items() if is_reference(i)]
+    ref_results = {n: studies[n] for n in reference}
+    tables = compare_tables(ref_results)
+    claim_list = claims(tables, ref_results, labels) if reference else []
+    if title is None:
+        if reference:
+            title = "rotoruq: reproduction of the reference study"
+        else:
+            title = "rotoruq: " + ", ".join(
+                f"{n}" + (f" ({infos[n].get('description')})" if infos[n].get("description")
+                          else "") for n in infos)
 
-    parts = [f"<h1>{html.escape(title)}</h1>",
-             f"<p class=note>Generated {_dt.datetime.now().isoformat(timespec='seconds')} from "
-             f"{', '.join(html.escape(str(p)) for p in results_dirs)}.</p>"]
+    toc: list[tuple[int, str, str]] = []  # (level, anchor, text)
+    body: list[str] = []
+
+    def heading(level: int, text: str, anchor: str) -> None:
+        toc.append((level, anchor, text))
+        body.append(f"<h{level} id='{anchor}'>{html.escape(text)}</h{level}>")
+
     quick = [n for n, i in infos.items() if i.get("quick")]
     if quick:
-        parts.append(f"<p><b>Quick run</b> ({', '.join(quick)}): small samples; the numbers "
-                     "show the pipeline works, not the converged values.</p>")
-    parts.append("<h2>Summary: claims of the reference study</h2><table><tr><th>claim</th>"
-                 "<th>ours</th><th>ours k of n</th><th>thesis k of n</th></tr>"
-                 + "".join(_claim_html(c) for c in claim_list) + "</table>")
+        body.append(f"<p><b>Quick run</b> ({', '.join(quick)}): small samples; the numbers "
+                    "show the pipeline works, not the converged values.</p>")
+    if claim_list:
+        heading(2, "Summary: claims of the reference study", "claims")
+        body.append(_claims_section(claim_list))
+        (report_dir / "claims.json").write_text(json.dumps(claims_json(claim_list), indent=1))
 
     for name, steps in studies.items():
         info = infos[name]
-        parts.append(f"<h2>Study {html.escape(name)}: "
-                     f"{html.escape(info.get('description', ''))}</h2>")
-        parts.append(_steps_summary(name, steps))
-        mine = [t for t in tables if t.ref.study == name]
-        if mine:
-            parts.append("<h3>Tables (thesis beside ours)</h3>")
-        for t in mine:
-            write_csv(t, tab_dir)
-            parts.append(f"<h4 id='table-{t.ref.number}'>Table {t.ref.number}: "
-                         f"{html.escape(t.ref.caption)}</h4>")
-            parts.append(table_html(t))
-        figs = figures_for_study(name, steps, _labels(info))
+        log(f"report: {name} ({len(steps)} steps)")
+        sid = _anchor("study", name)
+        heading(2, f"Study {name}: {info.get('description', '')}".rstrip(": "), sid)
+        anchors = {s: _anchor(sid, "step", s) for s in steps}
+        body.append(_steps_summary(steps, anchors))
+        body.append(_noise_note(steps))
+        heading(3, "Results by step", _anchor(sid, "steps"))
+        for s in steps.values():
+            heading(4, f"{s.name} ({s.type}): {s.meta.get('title') or ''}".rstrip(": "),
+                    anchors[s.name])
+            for k, t in enumerate(step_tables(s, labels.get(name))):
+                (tab_dir / f"{name}_{s.name}_{k + 1}.csv").write_text(table_csv(t))
+                body.append(step_table_html(t))
+        if name in reference:
+            mine = [t for t in tables if t.ref.study == name]
+            heading(3, "Thesis tables beside ours", _anchor(sid, "thesis"))
+            body.append("<p class=note>Differences: in the thesis's standard deviations "
+                        "(\u03c3) for means with a printed std; absolute for indices, "
+                        "std-dev counts and shape moments or where the thesis value is near "
+                        "zero; relative (%) otherwise. Colour of our value: "
+                        "<span style='background:#e5f5e0'>&nbsp;agrees&nbsp;</span> (within "
+                        "10 %, 1 σ or 0.05 absolute), "
+                        "<span style='background:#fee8c8'>&nbsp;differs&nbsp;</span>, "
+                        "uncoloured: nothing to compare.</p>")
+            for t in mine:
+                write_csv(t, tab_dir)
+                heading(4, f"Table {t.ref.number}: {t.ref.caption}", f"table-{t.ref.number}")
+                body.append(table_html(t))
+        t0 = time.perf_counter()
+        figs = figures_for_study(name, steps, labels.get(name, {}), units.get(name, {}),
+                                 reference=name in reference)
         if figs:
-            parts.append("<h3>Figures</h3>")
+            heading(3, "Figures", _anchor(sid, "figures"))
         for f in figs:
             png = _png(f.figure)
-            (fig_dir / f"{f.name}.png").write_bytes(png)
-            f.figure.savefig(fig_dir / f"{f.name}.svg", format="svg")
-            b64 = base64.b64encode(png).decode()
-            parts.append(f"<figure><img alt='{html.escape(f.caption)}' "
-                         f"src='data:image/png;base64,{b64}'>"
-                         f"<figcaption>{html.escape(f.caption)}</figcaption></figure>")
-    done = {t.ref.study for t in tables}
-    other = [t for t in tables if t.ref.study not in studies and t.ref.study in done]
-    if other:
-        parts.append("<h2>Thesis tables without results in this report</h2><p class=note>"
-                     + ", ".join(f"{t.ref.number}" for t in other)
-                     + " (run <code>rotoruq reproduce all</code> to fill them).</p>")
+            key = f"{name}_{f.name}"  # two studies may both have a step "bayes"
+            (fig_dir / f"{key}.png").write_bytes(png)
+            toc.append((4, f"fig-{key}", f.caption))
+            body.append(_figure_html(f, png, key))
+        log(f"report: {name}: {len(figs)} figures in {time.perf_counter() - t0:.1f} s")
+
+    nav = "".join(
+        f"<li style='margin-left:{(lvl - 2) * 1.2}em'><a href='#{a}'>{html.escape(txt)}</a>"
+        "</li>" for lvl, a, txt in toc)
+    head = [f"<h1>{html.escape(title)}</h1>",
+            f"<p class=note>Generated {_dt.datetime.now().isoformat(timespec='seconds')} from "
+            f"{', '.join(html.escape(str(p)) for p in results_dirs)}.</p>",
+            f"<nav class=toc id='toc'><b>Contents</b><ul>{nav}</ul></nav>"]
     page = ("<!DOCTYPE html><html><head><meta charset='utf-8'>"
             f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>"
-            + "\n".join(parts) + "</body></html>")
+            + "\n".join(head + body) + "</body></html>")
     index = report_dir / "index.html"
     index.write_text(page, encoding="utf-8")
+    log(f"report: written in {time.perf_counter() - t_start:.1f} s")
     return index

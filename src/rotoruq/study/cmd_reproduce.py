@@ -56,7 +56,7 @@ def _reproduce(which, out: Path, quick: bool, log) -> dict:
         seconds[name] = time.perf_counter() - t0
     t0 = time.perf_counter()
     index = write_report([out / n for n in CHAPTERS if (out / n / "study.json").is_file()],
-                         out / "report")
+                         out / "report", log=_log if log is None else log)
     seconds["report"] = time.perf_counter() - t0
     return {"report": str(index), "seconds": seconds}
 

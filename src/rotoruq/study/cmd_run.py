@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 HELP = "run a study file (TOML) and write its results and HTML report"
@@ -43,6 +44,35 @@ def run(args) -> int:
         if not args.no_report:
             from ..report.html import write_report
 
-            index = write_report([result.out], Path(result.out) / "report")
+            index = write_report([result.out], Path(result.out) / "report", log=_log)
             print(f"report: {index}")
+    print(summary(result))
     return 0
+
+
+def _log(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+def summary(result) -> str:
+    """A short terminal summary of a finished run: each step's time (or that it was reused),
+    evaluations and warnings; ``rotoruq show`` prints the tables."""
+    from ..report.diagnostics import step_warnings
+
+    labels = {p.name: p.label or p.name for p in result.study.parameters}
+    lines = [f"summary of {result.study.info.name} ({len(result.results)} steps):"]
+    n_warn = 0
+    for name, res in result.results.items():
+        when = ("reused" if name in result.reused else
+                f"{result.seconds.get(name, res.meta.get('seconds', 0.0)):.1f} s")
+        warns = step_warnings(res, labels)
+        n_warn += len(warns)
+        lines.append(f"  {name:<20} {res.type:<18} {when:>9}  "
+                     f"{res.meta.get('n_evaluations', '-')!s:>7} evaluations"
+                     + (f"  {len(warns)} warning(s)" if warns else ""))
+        lines += [f"      ! {w}" for w in warns[:3]]
+        if len(warns) > 3:
+            lines.append(f"      ! ... and {len(warns) - 3} more")
+    lines.append(f"{n_warn} warning(s). Tables: rotoruq show {result.out} [STEP] "
+                 "[--csv|--json]")
+    return "\n".join(lines)

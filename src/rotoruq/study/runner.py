@@ -365,6 +365,7 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
             responses=tuple(responses), fixed=fixed, make_model=factory,
             rng=_seed(study, step, options), data=data, data_columns=columns,
             targets=_step_targets(step, options, results),
+            source=results[step.source[0]] if step.source else None, log=log,
         )
         log(f"[{study.info.name}] {step.name}: running {step.type} "
             f"({', '.join(space.names)} -> {', '.join(responses)})")

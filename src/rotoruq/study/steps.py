@@ -35,6 +35,9 @@ class StepContext:
     data_columns : every column of the data set (for sweeps and normalisation).
     targets : response -> (mean, std) (CUU).
     rng : numpy Generator for this step.
+    source : the saved result of the ``from`` step (None without one); a forward check uses
+        its chain for the joint posterior predictive.
+    log : status lines (None: silent).
     """
 
     name: str
@@ -48,6 +51,8 @@ class StepContext:
     data: np.ndarray | None = None
     data_columns: Mapping[str, np.ndarray] = field(default_factory=dict)
     targets: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    source: StepResult | None = None
+    log: Callable[[str], None] | None = None
 
     def model(self, fixed: Mapping[str, float] | None = None):
         f = dict(self.fixed)
@@ -126,9 +131,40 @@ def run_sampling(ctx: StepContext) -> StepResult:
         "failures": len(res.failures)})
 
 
+def _posterior_draws(ctx: StepContext, n: int) -> np.ndarray | None:
+    """``n`` joint draws (n, d) of the step's inputs from the ``from`` step's saved chain, in
+    ``ctx.space.names`` order (None when that step has no chain covering them)."""
+    src = ctx.source
+    if src is None or "chain" not in src.arrays:
+        return None
+    names = src.columns("chain")
+    if not set(ctx.space.names) <= set(names):
+        return None
+    chain = np.asarray(src.arrays["chain"], dtype=float)
+    pick = ctx.rng.choice(chain.shape[0], size=n, replace=n > chain.shape[0])
+    return chain[np.ix_(pick, [names.index(p) for p in ctx.space.names])]
+
+
+def _spread(out: np.ndarray) -> tuple[float, float]:
+    v = out[np.isfinite(out)]
+    return float(np.mean(v)), float(np.std(v, ddof=1)) if v.size > 1 else np.nan
+
+
 def run_forward_check(ctx: StepContext) -> StepResult:
-    """LHS propagation at one or several operating points (``sweep``) compared with data:
-    mean, std, the measured value and the number of standard deviations between them."""
+    """Propagation at one or several operating points (``sweep``) compared with data.
+
+    Two propagations when ``from`` is a Bayes step with a chain:
+
+    * independent normals (the reference study's method, its table 4.15): LHS of the normal
+      distributions built from each parameter's posterior mean and std (``mean/``, ``std/``,
+      ``nstd/`` keys);
+    * the joint posterior predictive: ``n`` draws of the chain itself (correlations kept)
+      through the true model (``pp_mean/``, ``pp_std/``). ``pp_noise/`` is the calibration's
+      noise std of that response (0 where the calibration did not observe it) and
+      ``pp_nstd/`` = |data - pp_mean| / sqrt(pp_std^2 + pp_noise^2): the distance of the
+      measurement from the predictive distribution of a measurement.
+    """
+    from ..evaluation.model import evaluate
     from ..methods.sampling import sample
 
     o = ctx.options
@@ -143,15 +179,22 @@ def run_forward_check(ctx: StepContext) -> StepResult:
         if rows.size == 0:
             raise ParameterError(f"step {ctx.name!r}: no data row with {key} = {value}")
         norm_row = int(rows[0])
+    draws = _posterior_draws(ctx, o["n"])
+    src_noise = ctx.source.scalars if ctx.source is not None else {}
     scalars, arrays, columns, n_eval = {}, {}, {}, 0
     labels = []
     for j in range(n_points):
         point = {k: float(v[j]) for k, v in sweep.items()}
         label = f"@{point[match]:g}" if sweep and match in point else ""
         labels.append(label)
-        res = sample(ctx.model(point), ctx.space, o["n"], method=o["method"], seed=ctx.rng)
+        model = ctx.model(point)
+        res = sample(model, ctx.space, o["n"], method=o["method"], seed=ctx.rng)
         out = np.asarray(res.outputs, dtype=float)
         n_eval += int(res.n_evaluations)
+        pp = None
+        if draws is not None:
+            pp = np.array(evaluate(model, draws).values, dtype=float)
+            n_eval += draws.shape[0]
         row = None
         if cols and match is not None and match in cols and match in point:
             rows = np.flatnonzero(np.isclose(cols[match], point[match]))
@@ -163,35 +206,73 @@ def run_forward_check(ctx: StepContext) -> StepResult:
             if norm_row is not None and r in cols:
                 scale = float(cols[r][norm_row])
             out[:, k] = out[:, k] / scale
+            if pp is not None:
+                pp[:, k] = pp[:, k] / scale
+                noise = float(src_noise.get(f"noise_std/{r}", 0.0)) / scale
+                pm, ps = _spread(pp[:, k])
+                scalars.update({f"pp_mean/{r}{label}": pm, f"pp_std/{r}{label}": ps,
+                                f"pp_noise/{r}{label}": noise})
             if row is not None and r in cols:
                 measured = float(cols[r][row]) / scale
-                v = out[:, k][np.isfinite(out[:, k])]
-                mean, std = float(np.mean(v)), float(np.std(v, ddof=1))
+                mean, std = _spread(out[:, k])
                 scalars[f"data/{r}{label}"] = measured
                 scalars[f"nstd/{r}{label}"] = abs(measured - mean) / std if std > 0 else np.inf
+                if pp is not None:
+                    tot = float(np.hypot(scalars[f"pp_std/{r}{label}"], noise))
+                    scalars[f"pp_nstd/{r}{label}"] = (
+                        abs(measured - scalars[f"pp_mean/{r}{label}"]) / tot if tot > 0
+                        else np.inf)
         scalars.update(_stats_scalars(ctx.responses, out, label))
         arrays[f"outputs{label}"] = out
         columns[f"outputs{label}"] = list(ctx.responses)
+        if pp is not None:
+            arrays[f"pp_outputs{label}"] = pp
+            columns[f"pp_outputs{label}"] = list(ctx.responses)
     scalars.update(_input_scalars(ctx.space))
     return StepResult(ctx.name, ctx.type, scalars, arrays, meta={
         "columns": columns, "n_evaluations": n_eval, "labels": labels,
-        "sweep": sweep, "normalized": norm_row is not None})
+        "sweep": sweep, "normalized": norm_row is not None,
+        "joint_predictive": draws is not None})
+
+
+# A response whose std is below this fraction of |mean| has negligible variance: its Sobol
+# indices split up numerical noise and mean nothing physically.
+NEGLIGIBLE_CV = 1e-4
+
+
+def output_spread_scalars(responses: Sequence[str], mean, variance) -> dict:
+    """``out_mean``, ``out_var``, ``out_std``, ``out_cv`` (std / |mean|) per response and
+    ``negligible/<r>`` = 1 when the CV is below :data:`NEGLIGIBLE_CV`."""
+    out = {}
+    for k, r in enumerate(responses):
+        m, v = float(mean[k]), float(variance[k])
+        sd = float(np.sqrt(max(v, 0.0)))
+        cv = sd / abs(m) if m != 0 else np.inf
+        out.update({f"out_mean/{r}": m, f"out_var/{r}": v, f"out_std/{r}": sd,
+                    f"out_cv/{r}": cv, f"negligible/{r}": float(cv < NEGLIGIBLE_CV)})
+    return out
 
 
 def run_sensitivity(ctx: StepContext) -> StepResult:
+    """Sobol main and total indices as estimated (negative estimates kept), their bootstrap
+    intervals, and the output mean/variance/CV that says whether they mean anything."""
     from ..methods.sensitivity import sobol_indices
 
     o = ctx.options
     res = sobol_indices(ctx.model(), ctx.space, n=o["n"], seed=ctx.rng)
     main, total = np.asarray(res.main), np.asarray(res.total)
-    scalars = {}
+    main_ci, total_ci = np.asarray(res.main_ci), np.asarray(res.total_ci)
+    scalars = output_spread_scalars(ctx.responses, res.mean, res.variance)
     for k, r in enumerate(ctx.responses):
         for j, p in enumerate(ctx.space.names):
             scalars[f"S/{r}/{p}"] = float(main[k, j])
             scalars[f"T/{r}/{p}"] = float(total[k, j])
+            scalars[f"S_lo/{r}/{p}"], scalars[f"S_hi/{r}/{p}"] = map(float, main_ci[k, j])
+            scalars[f"T_lo/{r}/{p}"], scalars[f"T_hi/{r}/{p}"] = map(float, total_ci[k, j])
     scalars.update(_input_scalars(ctx.space))
     return StepResult(ctx.name, ctx.type, scalars, {"main": main, "total": total}, meta={
         "inputs": list(ctx.space.names), "responses": list(ctx.responses),
+        "confidence": float(res.confidence),
         "n_evaluations": int(getattr(res, "n_evaluations", 0))})
 
 
@@ -280,9 +361,42 @@ def run_evidence(ctx: StepContext) -> StepResult:
     return StepResult(ctx.name, ctx.type, scalars, meta={"n_evaluations": int(res.n_evaluations)})
 
 
+def chain_diagnostic_scalars(names: Sequence[str], chain: np.ndarray,
+                             prior: ParameterSpace) -> dict:
+    """Diagnostics of a posterior sample ``chain`` (N, d) against its ``prior``:
+
+    ``std_ratio/p`` posterior std / prior std (near 1: the data do not inform p);
+    ``prior_z/p`` (posterior mean - prior mean) / prior std (beyond 3: the posterior left the
+    prior's bulk); ``pileup_lo/p``, ``pileup_hi/p`` fraction of the chain in the outer 5 % of
+    a bounded prior's range at each end (0.05 for a flat posterior; much more: the posterior
+    piles up against the bound); ``corr/p/q`` posterior correlation.
+    """
+    out = {}
+    chain = np.asarray(chain, dtype=float)
+    for j, p in enumerate(names):
+        d = prior[p]
+        x = chain[:, j]
+        out[f"std_ratio/{p}"] = float(np.std(x, ddof=1) / d.std) if d.std > 0 else np.nan
+        out[f"prior_z/{p}"] = float((np.mean(x) - d.mean) / d.std) if d.std > 0 else np.nan
+        lo, hi = d.bounds
+        if np.isfinite(lo) and np.isfinite(hi) and hi > lo:
+            band = 0.05 * (hi - lo)
+            out[f"pileup_lo/{p}"] = float(np.mean(x < lo + band))
+            out[f"pileup_hi/{p}"] = float(np.mean(x > hi - band))
+    if chain.shape[1] > 1:
+        c = np.corrcoef(chain, rowvar=False)
+        for i, p in enumerate(names):
+            for j in range(i + 1, len(names)):
+                out[f"corr/{p}/{names[j]}"] = float(c[i, j])
+    return out
+
+
 def run_bayes_calibration(ctx: StepContext) -> StepResult:
-    """Bayes calibration (DRAM on a GP emulator by default); the posterior handed on is the
-    normal distribution with the chain's mean and std, as the reference study does."""
+    """Bayes calibration (DRAM on a GP emulator by default). The chain is saved (later forward
+    checks push its joint samples through the model); the distributions handed on are the
+    normals with the chain's mean and std, as the reference study does (its table 4.15)."""
+    import warnings
+
     from ..methods.mcmc import calibrate_bayes
 
     o = ctx.options
@@ -292,12 +406,14 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
 
         emulator = GaussianProcess(trend=o["trend"])
     sd = _per_response(o.get("noise_std"), ctx.responses)
-    res = calibrate_bayes(
-        ctx.model(), ctx.data, ctx.space, method=o["sampler"], emulator=emulator,
-        build_samples=o["build_samples"], chain_samples=o["chain_samples"],
-        burn_in=o["burn_in"], data_covariance=1.0 if sd is None else np.square(sd),
-        proposal_covariance=o["proposal"], seed=ctx.rng,
-    )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = calibrate_bayes(
+            ctx.model(), ctx.data, ctx.space, method=o["sampler"], emulator=emulator,
+            build_samples=o["build_samples"], chain_samples=o["chain_samples"],
+            burn_in=o["burn_in"], data_covariance=1.0 if sd is None else np.square(sd),
+            proposal_covariance=o["proposal"], seed=ctx.rng,
+        )
     chain = np.asarray(res.chains).reshape(-1, ctx.space.dim)
     scalars = _input_scalars(ctx.space)
     for j, p in enumerate(res.names):
@@ -306,14 +422,24 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
         scalars[f"map/{p}"] = float(res.map_point[j])
     scalars["acceptance"] = float(res.acceptance_rate)
     scalars["kl_divergence"] = float(res.kl_divergence)
+    scalars.update(chain_diagnostic_scalars(res.names, chain, ctx.space))
+    loo = getattr(res, "emulator_loo", None)
+    if loo is not None:
+        for k, r in enumerate(ctx.responses):
+            scalars[f"loo_q2/{r}"] = float(np.asarray(loo.q2)[k])
+            scalars[f"loo_nrmse/{r}"] = float(np.asarray(loo.nrmse)[k])
+    noise = (np.ones(len(ctx.responses)) if sd is None else
+             np.broadcast_to(np.asarray(sd, dtype=float), (len(ctx.responses),)))
+    for r, v in zip(ctx.responses, noise, strict=True):
+        scalars[f"noise_std/{r}"] = float(v)
     posterior = {p: dist_to_dict(Normal(scalars[f"mean/{p}"], scalars[f"std/{p}"]))
                  for p in res.names}
     arrays = {"chain": chain, "data": np.asarray(ctx.data)}
     columns = {"chain": list(res.names), "data": list(ctx.responses)}
-    loo = getattr(res, "emulator_loo", None)
     return StepResult(ctx.name, ctx.type, scalars, arrays, posterior, meta={
         "columns": columns, "n_evaluations": int(res.n_model_evals),
-        "emulator_loo": None if loo is None else repr(loo),
+        "noise_model": "unit variance (none given)" if sd is None else "noise_std per response",
+        "warnings": sorted({f"{w.category.__name__}: {w.message}" for w in caught})[:10],
         "prior": {p: dist_to_dict(d) for p, d in zip(ctx.space.names, ctx.space.distributions,
                                                       strict=True)}})
 
@@ -412,8 +538,34 @@ ADAPTERS: dict[str, Callable[[StepContext], StepResult]] = {
 }
 
 
+# Seconds between status lines of a running step (a silent terminal for minutes reads as a
+# hang).
+STATUS_INTERVAL = 15.0
+
+
 def run_adapter(ctx: StepContext) -> tuple[StepResult, float]:
-    """Run the adapter of ``ctx.type``; returns the result and the wall time in s."""
+    """Run the adapter of ``ctx.type``; returns the result and the wall time in s. While it
+    runs, ``ctx.log`` gets a status line every :data:`STATUS_INTERVAL` seconds."""
+    import threading
+
+    from ..evaluation.progress import format_duration
+
     t0 = time.perf_counter()
-    res = ADAPTERS[ctx.type](ctx)
+    done = threading.Event()
+
+    def status() -> None:
+        while not done.wait(STATUS_INTERVAL):
+            ctx.log(f"  {ctx.name}: {ctx.type} running, "
+                    f"{format_duration(time.perf_counter() - t0)} elapsed")
+
+    watcher = None
+    if ctx.log is not None:
+        watcher = threading.Thread(target=status, name=f"status-{ctx.name}", daemon=True)
+        watcher.start()
+    try:
+        res = ADAPTERS[ctx.type](ctx)
+    finally:
+        done.set()
+        if watcher is not None:
+            watcher.join()
     return res, time.perf_counter() - t0

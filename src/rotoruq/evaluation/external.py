@@ -59,6 +59,7 @@ import numpy as np
 
 from ..errors import EvaluationError, InputFileError, ParameterError, RotoruqError
 from .dakota_files import check_label, read_results, read_text, write_parameters
+from .identity import file_sha256
 from .model import EvalBatch
 from .process_tree import run_process_tree
 from .templates import check_template, fill_template
@@ -137,19 +138,11 @@ def _tail(b: bytes | None) -> str:
     return s if len(b) <= _TAIL else "...\n" + s
 
 
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        while chunk := f.read(1 << 20):
-            h.update(chunk)
-    return h.hexdigest()
-
-
 def _content(path: Path) -> dict:
     """``{"name", "sha256"}`` of a file; of a directory, the digest of its listing (relative
     paths sorted, each with the sha256 of its bytes or its symbolic link's target)."""
     if not path.is_dir():
-        return {"name": path.name, "sha256": _sha256(path)}
+        return {"name": path.name, "sha256": file_sha256(path)}
     lines = []
     for root, dirs, files in os.walk(path):
         dirs.sort()
@@ -159,7 +152,7 @@ def _content(path: Path) -> dict:
             if q.is_symlink() and not q.is_file():
                 lines.append(f"{rel}\0link\0{os.readlink(q)}")
             else:
-                lines.append(f"{rel}\0{_sha256(q)}")
+                lines.append(f"{rel}\0{file_sha256(q)}")
     digest = hashlib.sha256("\n".join(lines).encode("utf-8", "surrogateescape")).hexdigest()
     return {"name": path.name, "sha256": digest, "files": len(lines)}
 
@@ -315,7 +308,7 @@ class ExternalModel:
                     path = Path(found) if found else None
                 if path is not None and path.is_file():
                     command.append({"arg": word, "path": str(path.absolute()),
-                                    "sha256": _sha256(path)})
+                                    "sha256": file_sha256(path)})
                 else:
                     command.append(word)
             p = self.policy

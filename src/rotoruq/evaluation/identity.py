@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["code_version", "digest", "file_digest", "model_identity"]
+__all__ = ["code_version", "digest", "file_sha256", "model_identity"]
 
 _PACKAGE = Path(__file__).resolve().parent.parent
 # Folders whose code cannot change a model's answer or a step's numbers.
@@ -55,19 +55,12 @@ def code_version() -> str:
     return f"{__version__}+{h.hexdigest()[:16]}"
 
 
-def file_digest(path: str | Path) -> str:
-    """sha256 of a file's bytes, or of a directory's files (relative paths and bytes, sorted)."""
-    path = Path(path)
+def file_sha256(path: str | Path) -> str:
+    """sha256 hex digest of a file's bytes, read in 1 MiB blocks."""
     h = hashlib.sha256()
-    if path.is_dir():
-        for p in sorted(path.rglob("*")):
-            if p.is_file():
-                h.update(p.relative_to(path).as_posix().encode())
-                h.update(b"\0")
-                h.update(p.read_bytes())
-                h.update(b"\0")
-    else:
-        h.update(path.read_bytes())
+    with open(path, "rb") as fh:
+        while block := fh.read(1 << 20):
+            h.update(block)
     return h.hexdigest()
 
 

@@ -15,7 +15,6 @@ Saves are atomic (see :func:`save_step`) and loads check every file against the 
 from __future__ import annotations
 
 import csv
-import hashlib
 import io
 import json
 import math
@@ -32,6 +31,7 @@ import numpy as np
 
 from ..atomic import atomic_write, fsync_dir, write_text
 from ..errors import RotoruqError
+from ..evaluation.identity import file_sha256
 from ..params import Distribution, make_distribution
 
 __all__ = ["StepResult", "save_step", "load_step", "load_results", "dist_to_dict",
@@ -115,14 +115,6 @@ class IncompleteStepError(RotoruqError):
     (a save interrupted before the atomic rename, or files changed by hand)."""
 
 
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with path.open("rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
 def save_step(result: StepResult, directory: str | Path) -> Path:
     """Write ``result`` under ``directory/steps/<name>/``; returns that folder.
 
@@ -139,7 +131,7 @@ def save_step(result: StepResult, directory: str | Path) -> Path:
 
         def put(name: str, write) -> None:
             atomic_write(tmp / name, write)
-            files[name] = _sha256(tmp / name)
+            files[name] = file_sha256(tmp / name)
 
         def put_csv(fh):
             text = io.StringIO(newline="")
@@ -211,7 +203,7 @@ def load_step(folder: str | Path) -> StepResult:
                                   "interrupted save)")
     for name, sha in files.items():
         p = folder / name
-        if not p.is_file() or _sha256(p) != sha:
+        if not p.is_file() or file_sha256(p) != sha:
             raise IncompleteStepError(f"{p}: missing or changed since the step was saved")
     arrays = {n: np.load(folder / f"{n}.npy") for n in doc.get("arrays", [])}
     return StepResult(

@@ -24,8 +24,8 @@ from rotoruq.evaluation.dakota_files import write_parameters
 from rotoruq.evaluation.evaluator import Evaluator
 from rotoruq.evaluation.executors import DaskExecutor, ProcessExecutor, SerialExecutor
 from rotoruq.evaluation.external import ExternalModel
-from rotoruq.evaluation.model import FunctionModel
 from rotoruq.evaluation.store import NewRecord, Store
+from rotoruq.model import FunctionModel
 
 DRIVER = r'''
 import sys

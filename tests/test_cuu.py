@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from rotoruq.errors import ParameterError
-from rotoruq.evaluation.model import FunctionModel
 from rotoruq.methods.cuu import calibrate_under_uncertainty, check_cuu
+from rotoruq.model import FunctionModel
 from rotoruq.params import Exponential, Normal, ParameterSpace, Uniform
 
 A = np.array([[2.0, 1.0], [0.5, 3.0]])  # y = A x

@@ -10,8 +10,8 @@ import pytest
 from rotoruq.evaluation.evaluator import Evaluator
 from rotoruq.evaluation.executors import DaskExecutor
 from rotoruq.evaluation.external import ExternalModel
-from rotoruq.evaluation.model import FunctionModel
 from rotoruq.evaluation.store import Store
+from rotoruq.model import FunctionModel
 
 distributed = pytest.importorskip("distributed")
 

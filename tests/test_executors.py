@@ -16,8 +16,8 @@ from rotoruq.evaluation.executors import (
     TaskOutcome,
     make_executor,
 )
-from rotoruq.evaluation.model import FunctionModel, evaluate, has_gradient
 from rotoruq.evaluation.progress import Progress, format_duration
+from rotoruq.model import FunctionModel, evaluate, has_gradient
 
 
 def square_or_raise(t):

@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 
 from rotoruq.errors import EvaluationError, InputFileError, ParameterError
-from rotoruq.evaluation import evaluate
 from rotoruq.evaluation.evaluator import Evaluator
 from rotoruq.evaluation.external import ExternalModel
 from rotoruq.evaluation.process_tree import is_running as alive
 from rotoruq.evaluation.store import Store
+from rotoruq.model import evaluate
 
 # A driver using only the standard library (fast start-up). It reads either parameters
 # format, misbehaves on demand through the variable "kind", and writes f = 2 a + kind + c,
@@ -269,7 +269,7 @@ def test_string_command_and_configuration_errors(driver, tmp_path):
 
 
 def _grad_model():
-    from rotoruq.evaluation.model import FunctionModel
+    from rotoruq.model import FunctionModel
 
     return FunctionModel(lambda x: np.c_[x[:, 0] * x[:, 1], x[:, 0] + 2 * x[:, 1]],
                          ["collective_deg", "k_pitch_link"], ["thrust", "torque"],
@@ -293,7 +293,7 @@ def test_run_driver_values_gradients_and_order(tmp_path):
 
 def test_run_driver_failure_writes_fail_and_errors(tmp_path):
     from rotoruq.evaluation.dakota_files import read_results, write_parameters
-    from rotoruq.evaluation.model import FunctionModel
+    from rotoruq.model import FunctionModel
     from rotoruq.study.cmd_driver import run_driver
 
     nan_model = FunctionModel(lambda x: np.full(len(x), np.nan), ["a"], ["f"])

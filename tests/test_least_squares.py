@@ -8,7 +8,6 @@ import pytest
 from scipy import stats
 
 from rotoruq.errors import EvaluationError, ModelShapeError, ParameterError
-from rotoruq.evaluation.model import FunctionModel
 from rotoruq.methods.least_squares import calibrate, least_squares
 from rotoruq.methods.mgh_problems import (
     bard,
@@ -18,6 +17,7 @@ from rotoruq.methods.mgh_problems import (
     jennrich_sampson,
     rosenbrock,
 )
+from rotoruq.model import FunctionModel
 from rotoruq.params import Normal, ParameterSpace, Uniform
 
 # name: (residual, x0, published f = sum r^2, published x or None)

@@ -3,7 +3,7 @@ import pytest
 
 import rotoruq as rq
 from rotoruq.errors import ModelShapeError, ParameterError
-from rotoruq.evaluation.model import align_inputs
+from rotoruq.model import align_inputs
 
 
 def test_function_model_batch_and_nan_rows():

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rotoruq.evaluation import FunctionModel
+from rotoruq.model import FunctionModel
 from rotoruq.study.cli import main
 from rotoruq.study.results import load_results
 from rotoruq.study.runner import run_study

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from rotoruq.evaluation.evaluator import Evaluator
-from rotoruq.evaluation.model import FunctionModel
 from rotoruq.evaluation.store import NewRecord, Store, canonical_key, canonical_keys
+from rotoruq.model import FunctionModel
 
 KW = dict(study="s", model="m", names_in=("a", "b"), names_out=("f", "g"))
 

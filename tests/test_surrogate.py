@@ -10,8 +10,8 @@ from scipy.optimize import approx_fprime
 from scipy.stats import qmc
 
 from rotoruq.errors import ModelShapeError, ParameterError
-from rotoruq.evaluation.model import evaluate
 from rotoruq.methods.surrogate import ExtrapolationWarning, GaussianProcess
+from rotoruq.model import evaluate
 
 
 def smooth(x: np.ndarray) -> np.ndarray:

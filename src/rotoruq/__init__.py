@@ -8,7 +8,7 @@ from __future__ import annotations
 from . import errors
 from ._rng import as_generator
 from .errors import EvaluationError, InputFileError, ParameterError, RotoruqError
-from .evaluation import EvalBatch, FunctionModel, Model, evaluate
+from .model import EvalBatch, FunctionModel, Model, evaluate
 from .params import (
     Beta,
     Exponential,

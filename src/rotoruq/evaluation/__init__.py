@@ -1,4 +1,5 @@
-"""Evaluation layer: the Model protocol, Dakota files, external drivers, store, executors."""
+"""Evaluation layer: Dakota files, external drivers, the store, executors (the Model protocol is
+:mod:`rotoruq.model`)."""
 
 from .dakota_files import (
     ParametersFile,
@@ -11,17 +12,10 @@ from .dakota_files import (
 from .evaluator import EvalStats, Evaluator, as_evaluator
 from .executors import DaskExecutor, Executor, ProcessExecutor, SerialExecutor, make_executor
 from .external import ExternalModel
-from .model import EvalBatch, FunctionModel, Model, align_inputs, evaluate, has_gradient
 from .store import EvalRecord, Store
 from .templates import fill_template, fill_template_file
 
 __all__ = [
-    "EvalBatch",
-    "FunctionModel",
-    "Model",
-    "align_inputs",
-    "evaluate",
-    "has_gradient",
     "ParametersFile",
     "ResultsFile",
     "read_parameters",

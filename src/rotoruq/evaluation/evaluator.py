@@ -1,7 +1,7 @@
 """The Evaluator: one gate through which every method evaluates a model.
 
 ``Evaluator(model, store=..., executor=...)`` is itself a Model (``names_in``, ``names_out``,
-``__call__``, ``evaluate`` -> :class:`~rotoruq.evaluation.model.EvalBatch`), so any method can
+``__call__``, ``evaluate`` -> :class:`~rotoruq.model.EvalBatch`), so any method can
 be handed an Evaluator instead of the raw model. For a batch it
 
 1. looks every row up in the store (exact match on the float64 bytes of the point, or within
@@ -28,10 +28,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import EvaluationError, ModelShapeError, ParameterError
+from ..model import EvalBatch, evaluate, has_gradient
 from .executors import Executor, make_executor
 from .external import RunResult, _abort_message
 from .identity import model_identity
-from .model import EvalBatch, evaluate, has_gradient
 from .progress import Progress
 from .store import NewRecord, Store, canonical_keys, open_store
 

@@ -58,9 +58,9 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import EvaluationError, InputFileError, ParameterError, RotoruqError
+from ..model import EvalBatch
 from .dakota_files import check_label, read_results, read_text, write_parameters
 from .identity import file_sha256
-from .model import EvalBatch
 from .process_tree import run_process_tree
 from .templates import check_template, fill_template
 

@@ -9,7 +9,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from ..errors import EvaluationError, ParameterError
-from ..evaluation.model import EvalBatch, align_inputs, evaluate, has_gradient
+from ..model import EvalBatch, align_inputs, evaluate, has_gradient
 
 __all__ = ["eval_space", "gradient_at", "levels_per_response", "nan_rows_warning"]
 

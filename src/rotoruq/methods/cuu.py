@@ -59,7 +59,7 @@ import numpy as np
 
 from .._rng import SeedLike, as_generator
 from ..errors import ParameterError
-from ..evaluation.model import align_inputs, evaluate, has_gradient
+from ..model import align_inputs, evaluate, has_gradient
 from ..params import LogNormal, Normal, ParameterSpace, Uniform, unit_design
 from ._common import analytic_gradient, eval_space, fd_steps
 from .least_squares import LeastSquaresResult, least_squares

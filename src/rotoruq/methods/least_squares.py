@@ -44,7 +44,7 @@ import numpy as np
 from scipy import optimize, stats
 
 from ..errors import EvaluationError, ModelShapeError, ParameterError
-from ..evaluation.model import evaluate
+from ..model import evaluate
 from ._common import forward_jacobian
 
 __all__ = ["LeastSquaresResult", "least_squares", "CalibrationResult", "calibrate"]
@@ -592,7 +592,7 @@ def calibrate(
     -------
     CalibrationResult
     """
-    from ..evaluation.model import align_inputs, has_gradient
+    from ..model import align_inputs, has_gradient
     from ..params import ParameterSpace
 
     names_out = tuple(model.names_out)

@@ -677,7 +677,7 @@ class GaussianProcess:
         return LeaveOneOut(errors=errs, rmse=rmse, nrmse=rmse / ystd, q2=q2)
 
     def as_model(self, names_in: Sequence[str], names_out: Sequence[str] | None = None) -> GPModel:
-        """This GP as a :class:`~rotoruq.evaluation.model.Model` (mean and analytic gradient)."""
+        """This GP as a :class:`~rotoruq.model.Model` (mean and analytic gradient)."""
         self._check_fitted()
         names_in = tuple(names_in)
         names_out = tuple(names_out) if names_out is not None else tuple(

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
-from ..evaluation.model import EvalBatch
+from ..model import EvalBatch
 from .geometry import blade_grid
 from .ground_effect import MIN_HEIGHT_OVER_RADIUS, min_height_over_radius
 from .hover import HoverSolution, solve_hover

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..errors import EvaluationError, ParameterError
 from ..evaluation.dakota_files import read_parameters, write_results
-from ..evaluation.model import evaluate, has_gradient
+from ..model import evaluate, has_gradient
 
 HELP = "act as a Dakota analysis driver: read a parameters file, write a results file"
 

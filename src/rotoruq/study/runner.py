@@ -81,7 +81,7 @@ def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
         return RotorModel(preset, inputs=list(inputs), responses=list(responses),
                           fixed=dict(fixed))
     from ..evaluation.external import ExternalModel
-    from ..evaluation.model import FixedInputs
+    from ..model import FixedInputs
 
     ext = spec.external
     base = study.path.parent if study.path is not None else Path.cwd()

@@ -164,8 +164,8 @@ def run_forward_check(ctx: StepContext) -> StepResult:
       ``pp_nstd/`` = |data - pp_mean| / sqrt(pp_std^2 + pp_noise^2): the distance of the
       measurement from the predictive distribution of a measurement.
     """
-    from ..evaluation.model import evaluate
     from ..methods.sampling import sample
+    from ..model import evaluate
 
     o = ctx.options
     sweep = {k: list(v) for k, v in (o.get("sweep") or {}).items()}

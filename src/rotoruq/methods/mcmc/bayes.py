@@ -23,7 +23,7 @@ from scipy import optimize
 
 from ..._rng import SeedLike, as_generator
 from ...errors import EvaluationError, ModelShapeError, ParameterError
-from ...evaluation.model import align_inputs, evaluate, has_gradient
+from ...model import align_inputs, evaluate, has_gradient
 from ...params import ParameterSpace
 from .._common import forward_jacobian
 from ..surrogate import ExtrapolationWarning, GaussianProcess, LeaveOneOut
@@ -317,7 +317,7 @@ def calibrate_bayes(
     n_chains : chains advanced together; every step evaluates the likelihood of all of them in
         one batched call.
     emulator : an unfitted GaussianProcess (fitted here on ``build_samples`` LHS points from the
-        prior, evaluated through :func:`rotoruq.evaluation.model.evaluate`) or a fitted one
+        prior, evaluated through :func:`rotoruq.model.evaluate`) or a fitted one
         (inputs in ``prior.names`` order, outputs the calibrated responses). None: the chains
         call the model itself.
     data_covariance : scalar, (m,), (m, m), (n_exp, m) or (n_exp, m, m); see

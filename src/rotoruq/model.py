@@ -21,7 +21,7 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from ..errors import ModelShapeError, ParameterError
+from .errors import ModelShapeError, ParameterError
 
 __all__ = ["Model", "EvalBatch", "FunctionModel", "FixedInputs", "evaluate", "align_inputs",
            "has_gradient"]

@@ -38,7 +38,7 @@ from rotoruq.mbdyn import (
 from rotoruq.mbdyn.case import template_text
 from rotoruq.rotor.model import RotorModel
 from rotoruq.rotor.presets import get_preset
-from rotoruq.study.results import load_step
+from rotoruq.results import load_step
 from rotoruq.study.schema import load_study
 
 CLI = [sys.executable, "-m", "rotoruq.study.cli"]

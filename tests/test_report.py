@@ -18,7 +18,7 @@ from rotoruq.report.diagnostics import step_warnings
 from rotoruq.report.html import write_report
 from rotoruq.report.reference import TABLES, table
 from rotoruq.study.cli import main
-from rotoruq.study.results import StepResult, save_step
+from rotoruq.results import StepResult, save_step
 from rotoruq.study.runner import run_study
 from rotoruq.study.steps import StepContext, run_forward_check
 from test_runner import STUDY, linear_factory
@@ -190,7 +190,7 @@ def test_non_holding_claims_carry_diagnostic_reasons():
 def _run(tmp_path):
     p = tmp_path / "lin.toml"
     p.write_text(STUDY)
-    return run_study(p, model_factory=linear_factory(), log=None)
+    return run_study(p, model_factory=linear_factory())
 
 
 def test_user_study_report_is_its_own(tmp_path):
@@ -322,7 +322,7 @@ def test_sobol_step_reports_variance_and_flags_negligible(tmp_path):
 
     p = tmp_path / "m.toml"
     p.write_text(METHODS)
-    s = run_study(p, model_factory=linear_factory(), log=None, only=None)["sobol"]
+    s = run_study(p, model_factory=linear_factory(), only=None)["sobol"]
     # y1 = 2a + 3b: Var = 4 * 0.01 + 9 * 0.04 = 0.4 exactly; CV = sqrt(0.4) / 8
     assert s.get("out_var/y1") == pytest.approx(0.4, rel=0.05)
     assert s.get("out_cv/y1") == pytest.approx(np.sqrt(0.4) / 8, rel=0.05)

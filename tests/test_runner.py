@@ -12,7 +12,7 @@ import pytest
 
 from rotoruq.model import FunctionModel
 from rotoruq.study.cli import main
-from rotoruq.study.results import load_results
+from rotoruq.results import load_results
 from rotoruq.study.runner import run_study
 
 # y1 = 2 a + 3 b + c ;  y2 = a - b     (c is a fixed input)
@@ -95,7 +95,7 @@ def write(tmp_path: Path, text: str = STUDY) -> Path:
 
 
 def test_run_linear_study(tmp_path):
-    run = run_study(write(tmp_path), model_factory=linear_factory(), log=None)
+    run = run_study(write(tmp_path), model_factory=linear_factory())
     assert run.out == tmp_path / "rotoruq-results" / "lin"
     truth = run["truth"]
     # exact: mean y1 = 2 + 6 + 1 = 9, std y1 = sqrt(0.04 + 0.36) ; LHS on 400 points
@@ -129,27 +129,27 @@ def test_run_linear_study(tmp_path):
 def test_rerun_reuses_and_redoes_what_changed(tmp_path):
     path = write(tmp_path)
     calls: list = []
-    first = run_study(path, model_factory=linear_factory(calls), log=None)
+    first = run_study(path, model_factory=linear_factory(calls))
     n_first = sum(calls)
     calls.clear()
-    again = run_study(path, model_factory=linear_factory(calls), log=None)
+    again = run_study(path, model_factory=linear_factory(calls))
     assert sum(calls) == 0 and set(again.reused) == {"truth", "mv", "fit", "check"}
     assert again["truth"].scalars == first["truth"].scalars
     # change the last step only: the others are reused
     path.write_text(STUDY.replace("n = 300", "n = 200"))
-    third = run_study(path, model_factory=linear_factory(calls), log=None)
+    third = run_study(path, model_factory=linear_factory(calls))
     assert set(third.reused) == {"truth", "mv", "fit"}
     assert 0 < sum(calls) < n_first
 
 
 def test_same_seed_same_numbers(tmp_path):
-    a = run_study(write(tmp_path), out=tmp_path / "a", model_factory=linear_factory(), log=None)
-    b = run_study(write(tmp_path), out=tmp_path / "b", model_factory=linear_factory(), log=None)
+    a = run_study(write(tmp_path), out=tmp_path / "a", model_factory=linear_factory())
+    b = run_study(write(tmp_path), out=tmp_path / "b", model_factory=linear_factory())
     assert a["truth"].scalars == b["truth"].scalars
 
 
 def test_quick_reduces_samples(tmp_path):
-    run = run_study(write(tmp_path), quick=True, model_factory=linear_factory(), log=None)
+    run = run_study(write(tmp_path), quick=True, model_factory=linear_factory())
     assert run["truth"].arrays["inputs"].shape == (40, 2)
     assert run["check"].arrays["outputs@1"].shape == (40, 2)
 
@@ -237,7 +237,7 @@ n = 10
 def test_every_method_step_on_a_linear_model(tmp_path):
     p = tmp_path / "methods.toml"
     p.write_text(METHODS)
-    run = run_study(p, model_factory=linear_factory(), log=None)
+    run = run_study(p, model_factory=linear_factory())
     # y1 = 2a + 3b + 0: Var = 0.04 + 0.36; S_a = 0.1, S_b = 0.9 (additive: S = T)
     s = run["sobol"]
     assert s.get("S/y1/a") == pytest.approx(0.1, abs=0.05)

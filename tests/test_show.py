@@ -148,7 +148,7 @@ def test_user_study_every_step_type_in_report_and_show(user_run):
             assert all(len(r) == len(t["columns"]) for r in t["rows"])
     # numbers in the tables are the saved scalars
     mv = data["steps"]["mv"]["tables"][0]
-    from rotoruq.study.results import load_step
+    from rotoruq.results import load_step
 
     saved = load_step(out / "steps" / "mv")
     assert mv["rows"][0][:3] == ["thrust", saved.get("mean/thrust"), saved.get("std/thrust")]
@@ -192,7 +192,7 @@ def test_readme_study_example_is_sensible(tmp_path):
     """The README's example: the lift slope stays in its prior's bulk and the measured 4R
     thrust lies within 3 predictive std devs under the joint posterior predictive (the
     example once ended at 4x the nominal lift slope, 357 std devs from the thrust)."""
-    from rotoruq.study.results import load_step
+    from rotoruq.results import load_step
 
     study = tmp_path / "quick.toml"
     study.write_text(_readme_study())

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rotoruq.study.results import load_step
+from rotoruq.results import load_step
 
 ROOT = Path(__file__).resolve().parents[1]
 CLI = [sys.executable, "-m", "rotoruq.study.cli"]

@@ -161,9 +161,10 @@ __all__ += [
 ]
 # --- study and report (issue 7) ---
 from .report.html import write_report  # noqa: E402
-from .study.results import StepResult, load_results  # noqa: E402
+from .results import StepResult, load_results  # noqa: E402
 from .study.runner import StudyRun, run_study  # noqa: E402
-from .study.schema import Study, load_study  # noqa: E402
+from .study.schema import load_study  # noqa: E402
+from .study.spec import Study  # noqa: E402
 
 __all__ += ["Study", "StudyRun", "StepResult", "load_study", "load_results", "run_study",
             "write_report"]

@@ -15,7 +15,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 
-from ..study.results import StepResult
+from ..results import StepResult
 from .compare import ComparedTable
 from .diagnostics import PILEUP_MAX, STD_RATIO_MAX, step_warnings, strong_correlations
 

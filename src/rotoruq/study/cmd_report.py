@@ -21,8 +21,6 @@ def run(args) -> int:
         raise InputFileError(args.results[0], None,
                              "a study output folder (with study.json) or a folder of them")
     out = Path(args.out) if args.out else Path(args.results[0]) / "report"
-    from .runner import _log
-
-    index = write_report(args.results, out, log=_log)
+    index = write_report(args.results, out)
     print(f"report: {index}")
     return 0

@@ -32,31 +32,30 @@ def add_arguments(parser) -> None:
     parser.add_argument("--out", default="rotoruq-results", help="output folder")
 
 
-def reproduce(which: str = "all", out: str | Path = "rotoruq-results", quick: bool = False,
-              log=None) -> dict:
+def reproduce(which: str = "all", out: str | Path = "rotoruq-results",
+              quick: bool = False) -> dict:
     """Run the chapters, write the report; returns ``{"report": path, "seconds": {...}}``.
     Holds ``out`` (and so each chapter's folder in it) for the whole run."""
     from .lock import results_lock
 
     out = Path(out)
     with results_lock(out, "reproduce"):
-        return _reproduce(which, out, quick, log)
+        return _reproduce(which, out, quick)
 
 
-def _reproduce(which, out: Path, quick: bool, log) -> dict:
+def _reproduce(which: str, out: Path, quick: bool) -> dict:
     from ..report.html import write_report
-    from .runner import _log, run_study
+    from .runner import run_study
 
     names = list(CHAPTERS) if which == "all" else [which]
     seconds = {}
     for name in names:
         t0 = time.perf_counter()
-        run_study(studies_dir() / CHAPTERS[name], out=out / name, quick=quick,
-                  log=_log if log is None else log)
+        run_study(studies_dir() / CHAPTERS[name], out=out / name, quick=quick)
         seconds[name] = time.perf_counter() - t0
     t0 = time.perf_counter()
     index = write_report([out / n for n in CHAPTERS if (out / n / "study.json").is_file()],
-                         out / "report", log=_log if log is None else log)
+                         out / "report")
     seconds["report"] = time.perf_counter() - t0
     return {"report": str(index), "seconds": seconds}
 

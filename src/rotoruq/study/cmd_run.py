@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 HELP = "run a study file (TOML) and write its results and HTML report"
@@ -44,14 +43,10 @@ def run(args) -> int:
         if not args.no_report:
             from ..report.html import write_report
 
-            index = write_report([result.out], Path(result.out) / "report", log=_log)
+            index = write_report([result.out], Path(result.out) / "report")
             print(f"report: {index}")
     print(summary(result))
     return 0
-
-
-def _log(msg: str) -> None:
-    print(msg, file=sys.stderr, flush=True)
 
 
 def summary(result) -> str:

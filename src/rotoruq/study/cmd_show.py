@@ -25,7 +25,7 @@ def show_data(results: str | Path, step: str | None = None) -> dict:
     from ..errors import InputFileError
     from ..report.diagnostics import step_warnings
     from ..report.steptables import step_tables
-    from .results import load_results
+    from ..results import load_results
 
     folder = Path(results)
     info_path = folder / "study.json"

@@ -29,10 +29,10 @@ from typing import Any
 
 import numpy as np
 
-from ..atomic import atomic_write, fsync_dir, write_text
-from ..errors import RotoruqError
-from ..evaluation.identity import file_sha256
-from ..params import Distribution, make_distribution
+from .atomic import atomic_write, fsync_dir, write_text
+from .errors import RotoruqError
+from .evaluation.identity import file_sha256
+from .params import Distribution, make_distribution
 
 __all__ = ["StepResult", "save_step", "load_step", "load_results", "dist_to_dict",
            "dict_to_dist", "IncompleteStepError", "clean_partial_saves"]

@@ -17,8 +17,8 @@ from rotoruq.report.compare import ComparedCell, compare_tables, resolve
 from rotoruq.report.diagnostics import step_warnings
 from rotoruq.report.html import write_report
 from rotoruq.report.reference import TABLES, table
-from rotoruq.study.cli import main
 from rotoruq.results import StepResult, save_step
+from rotoruq.study.cli import main
 from rotoruq.study.runner import run_study
 from rotoruq.study.steps import StepContext, run_forward_check
 from test_runner import STUDY, linear_factory

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from rotoruq.model import FunctionModel
-from rotoruq.study.cli import main
 from rotoruq.results import load_results
+from rotoruq.study.cli import main
 from rotoruq.study.runner import run_study
 
 # y1 = 2 a + 3 b + c ;  y2 = a - b     (c is a fixed input)
@@ -64,7 +64,7 @@ y2 = [-1.0, -1.0]
 [[steps]]
 name = "truth"
 type = "sampling"
-n = 400
+n_samples = 400
 noise_std = { y1 = 0.5 }
 
 [[steps]]
@@ -83,7 +83,7 @@ name = "check"
 type = "forward_check"
 from = "fit.calibrated"
 data = "obs"
-n = 300
+n_samples = 300
 sweep = { c = [1.0, 2.0] }
 """
 
@@ -136,7 +136,7 @@ def test_rerun_reuses_and_redoes_what_changed(tmp_path):
     assert sum(calls) == 0 and set(again.reused) == {"truth", "mv", "fit", "check"}
     assert again["truth"].scalars == first["truth"].scalars
     # change the last step only: the others are reused
-    path.write_text(STUDY.replace("n = 300", "n = 200"))
+    path.write_text(STUDY.replace("n_samples = 300", "n_samples = 200"))
     third = run_study(path, model_factory=linear_factory(calls))
     assert set(third.reused) == {"truth", "mv", "fit"}
     assert 0 < sum(calls) < n_first
@@ -188,7 +188,7 @@ y2 = [-1.0, -1.0]
 name = "sobol"
 type = "sensitivity"
 responses = ["y1"]
-n = 4000
+n_samples = 4000
 
 [[steps]]
 name = "pce"
@@ -208,7 +208,7 @@ parameters = ["a"]
 responses = ["y2"]
 emulator = "none"
 noise_std = 0.1
-chain_samples = 6000
+n_samples = 6000
 burn_in = 500
 
 [steps.distributions.a]
@@ -230,7 +230,7 @@ type = "evidence"
 responses = ["y2"]
 intervals = { a = [[0.0, 1.0, 0.5], [1.0, 2.0, 0.5]] }
 response_levels = { y2 = [-1.5] }
-n = 10
+n_samples = 10
 """
 
 

@@ -12,7 +12,8 @@ import pytest
 
 from rotoruq.errors import InputFileError
 from rotoruq.params import Normal, Uniform
-from rotoruq.study.schema import Locator, load_study
+from rotoruq.study.locator import Locator
+from rotoruq.study.schema import load_study
 
 VALID = """\
 [study]
@@ -40,7 +41,7 @@ file = "loads.csv"
 [[steps]]
 name = "bayes"
 type = "bayes_calibration"
-chain_samples = 2000
+n_samples = 2000
 burn_in = 100
 
 [[steps]]
@@ -48,7 +49,7 @@ name = "fwd"
 type = "forward_check"
 from = "bayes.posterior"
 data = "measured"
-n = 50
+n_samples = 50
 """
 
 CSV = "height_over_radius,thrust,power\n4,25.68,350.9\n2,29.0,399.4\n"
@@ -89,7 +90,7 @@ def test_valid_study_loads(tmp_path):
     np.testing.assert_allclose(study.data["measured"].columns["thrust"], [25.68, 29.0])
     bayes, fwd = study.steps
     assert bayes.data == "measured"  # the only data set is the default for calibration
-    assert bayes.options["chain_samples"] == 2000 and bayes.options["sampler"] == "dram"
+    assert bayes.options["n_samples"] == 2000 and bayes.options["sampler"] == "dram"
     assert fwd.source == ("bayes", "posterior")
     assert fwd.line == line_of(VALID, "[[steps]]") + 6
     space = study.space()
@@ -147,16 +148,16 @@ def test_negative_std(tmp_path):
 
 
 def test_circular_from(tmp_path):
-    text = VALID.replace('chain_samples = 2000', 'chain_samples = 2000\nfrom = "fwd.posterior"')
+    text = VALID.replace('n_samples = 2000', 'n_samples = 2000\nfrom = "fwd.posterior"')
     text = text.replace('type = "forward_check"', 'type = "bayes_calibration"')
-    text = text.replace("n = 50", "")
+    text = text.replace("n_samples = 50", "")
     err = error_of(tmp_path, text)
     assert err.line == line_of(text, 'from = "fwd.posterior"')
     assert "circular reference bayes -> fwd -> bayes" in str(err)
 
 
 def test_forward_reference(tmp_path):
-    text = VALID.replace('chain_samples = 2000', 'chain_samples = 2000\nfrom = "later.posterior"')
+    text = VALID.replace('n_samples = 2000', 'n_samples = 2000\nfrom = "later.posterior"')
     text += '\n[[steps]]\nname = "later"\ntype = "bayes_calibration"\n'
     err = error_of(tmp_path, text)
     assert "a reference to an earlier step; 'later' is step #3" in str(err)
@@ -170,28 +171,28 @@ def test_from_needs_a_posterior(tmp_path):
 
 
 def test_unknown_key_suggests_closest(tmp_path):
-    text = VALID.replace("chain_samples = 2000", "chain_sample = 2000")
+    text = VALID.replace("n_samples = 2000", "n_sample = 2000")
     err = error_of(tmp_path, text)
-    assert err.line == line_of(text, "chain_sample = 2000")
-    assert "did you mean 'chain_samples'?" in str(err)
-    assert err.found == "chain_sample"
+    assert err.line == line_of(text, "n_sample = 2000")
+    assert "did you mean 'n_samples'?" in str(err)
+    assert err.found == "n_sample"
     text = VALID.replace("seed = 3", "sed = 3")
     err = error_of(tmp_path, text)
     assert err.line == 3 and "did you mean 'seed'?" in str(err)
 
 
 def test_wrong_option_type(tmp_path):
-    text = VALID.replace("n = 50", 'n = "many"')
+    text = VALID.replace("n_samples = 50", 'n_samples = "many"')
     err = error_of(tmp_path, text)
-    assert err.line == line_of(text, 'n = "many"')
-    assert "'n' of step 'fwd' (forward_check) to be an integer >= 1" in str(err)
+    assert err.line == line_of(text, 'n_samples = "many"')
+    assert "'n_samples' of step 'fwd' (forward_check) to be an integer >= 1" in str(err)
 
 
 def test_burn_in_shorter_than_chain(tmp_path):
     text = VALID.replace("burn_in = 100", "burn_in = 5000")
     err = error_of(tmp_path, text)
     assert err.line == line_of(text, "burn_in = 5000")
-    assert "burn_in < chain_samples" in str(err)
+    assert "burn_in < n_samples (2000)" in str(err)
 
 
 def test_unknown_response_and_fixed_input(tmp_path):
@@ -202,7 +203,7 @@ def test_unknown_response_and_fixed_input(tmp_path):
 
 
 def test_step_parameters_must_exist(tmp_path):
-    text = VALID.replace("n = 50", 'n = 50\nparameters = ["cla_m03", "kp"]')
+    text = VALID.replace("n_samples = 50", 'n_samples = 50\nparameters = ["cla_m03", "kp"]')
     err = error_of(tmp_path, text)
     assert err.line == line_of(text, 'parameters = ["cla_m03", "kp"]')
     assert "names from [parameters] (cla_m03, k_pitch_link)" in str(err)

@@ -299,7 +299,7 @@ def test_joint_posterior_predictive_keeps_correlations():
                             "b": Normal(chain[:, 1].mean(), sb)})
     ctx = StepContext(
         name="check", type="forward_check", space=space, responses=("y1", "y2"),
-        options={"n": 2000, "method": "lhs", "sweep": {"c": [1.0]}}, fixed={"c": 1.0},
+        options={"n_samples": 2000, "design": "lhs", "sweep": {"c": [1.0]}}, fixed={"c": 1.0},
         make_model=linear_factory(), rng=np.random.default_rng(2),
         data_columns={"c": np.array([1.0]), "y1": np.array([9.5]), "y2": np.array([-1.0])},
         source=source)

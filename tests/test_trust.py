@@ -88,7 +88,7 @@ def external_study(folder: Path, *, n: int = 8, executor: str = "serial", failur
         [[steps]]
         name = "lhs"
         type = "sampling"
-        n = {n}
+        n_samples = {n}
         """
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "driver.py").write_text(DRIVER)

@@ -243,3 +243,69 @@ def test_bundled_studies_load():
     for f in files:
         study = load_study(f)
         assert study.steps
+
+
+def test_airfoil_inputs_are_the_rotors(tmp_path):
+    """Airfoil coefficient names are checked by the rotor's own list: cla_m075 is valid
+    when the preset's airfoil is fitted at Mach 0.75, and rejected (file, line, the valid
+    names) when it is not; bo105's airfoil fits no drag, so cd0_m03 is not an input."""
+    fitted = VALID.replace('fixed = { collective_deg = 5.4, height_over_radius = 4.0 }',
+                           'fixed = { collective_deg = 5.4, height_over_radius = 4.0 }\n'
+                           'preset_options = { airfoil_fit_machs = [0.3, 0.75] }')
+    fitted = fitted.replace("[parameters.k_pitch_link]", "[parameters.cla_m075]")
+    fitted = fitted.replace("lower = 10\nupper = 20", "lower = 0.1\nupper = 0.12")
+    study = load_study(write(tmp_path, fitted))
+    assert study.parameter_names == ("cla_m03", "cla_m075")
+    text = VALID.replace("[parameters.k_pitch_link]", "[parameters.cla_m075]")
+    err = error_of(tmp_path, text)
+    assert err.line == line_of(text, "[parameters.cla_m075]")
+    assert "an input of the rotor model 'gvpm'" in str(err) and "cla_m04" in str(err)
+    text = VALID.replace('preset = "gvpm"', 'preset = "bo105"')
+    text = text.replace("[parameters.k_pitch_link]", "[parameters.cd0_m03]")
+    err = error_of(tmp_path, text)
+    assert err.found == "cd0_m03" and "cl0_m03" in str(err)
+
+
+def test_option_defaults_are_the_methods(tmp_path):
+    """A key a study file leaves out takes the default of the method's own parameter (its
+    signature), so a study and a Python call agree; every such parameter exists."""
+    import inspect
+
+    from rotoruq.study.options import REQUIRED, SIGNATURE, signature_default
+    from rotoruq.study.steptypes import STEP_TYPES
+
+    for st in STEP_TYPES.values():
+        for key, opt in st.options.items():
+            if opt.default is SIGNATURE:
+                signature_default(opt.method or st.method, opt.param or key)  # no LookupError
+    from rotoruq.methods.mcmc import calibrate_bayes
+    from rotoruq.methods.sensitivity import sobol_indices
+
+    text = VALID + '\n[[steps]]\nname = "sens"\ntype = "sensitivity"\nn_samples = 64\n'
+    study = load_study(write(tmp_path, text))
+    sens = study.step("sens").options
+    sig = inspect.signature(sobol_indices).parameters
+    opts = STEP_TYPES["sensitivity"].options
+    assert sens["design"] == sig[opts["design"].param or "design"].default
+    assert sens["estimator"] == sig[opts["estimator"].param or "estimator"].default
+    bayes = study.step("bayes").options
+    sig = inspect.signature(calibrate_bayes).parameters
+    opts = STEP_TYPES["bayes_calibration"].options
+    assert bayes["burn_in"] == 100  # given in the file
+    no_burn = load_study(write(tmp_path, VALID.replace("burn_in = 100\n", "")))
+    assert no_burn.step("bayes").options["burn_in"] == sig["burn_in"].default
+    assert bayes["sampler"] == sig[opts["sampler"].param or "sampler"].default
+    # a method parameter without default is required in the study file
+    assert STEP_TYPES["pce"].default("order") is REQUIRED
+    err = error_of(tmp_path, VALID + '\n[[steps]]\nname = "pc"\ntype = "pce"\n')
+    assert "to define 'order'" in str(err)
+
+
+def test_pce_points_only_for_regression(tmp_path):
+    text = VALID + '\n[[steps]]\nname = "pc"\ntype = "pce"\norder = 2\nn_samples = 40\n'
+    err = error_of(tmp_path, text)
+    assert err.line == line_of(text, "n_samples = 40")
+    assert 'n_samples only with estimator = "regression"' in str(err)
+    study = load_study(write(tmp_path, text.replace("n_samples = 40",
+                                                    'n_samples = 40\nestimator = "regression"')))
+    assert study.step("pc").options["n_samples"] == 40

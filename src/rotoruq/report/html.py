@@ -25,6 +25,7 @@ from ..results import StepResult, load_results
 from .claims import INDEPENDENT, JOINT, Claim, claims, claims_json
 from .compare import REFERENCE_STUDIES, compare_tables
 from .diagnostics import THRESHOLDS
+from .hooks import rendering
 from .steptables import step_tables, table_csv
 from .tables import fmt, step_table_html, table_html, write_csv
 
@@ -241,6 +242,12 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
         body.append(_claims_section(claim_list))
         (report_dir / "claims.json").write_text(json.dumps(claims_json(claim_list), indent=1))
 
+    unrendered = sorted({s.type for steps in studies.values() for s in steps.values()
+                         if rendering(s.type).tables is None})
+    if unrendered:
+        log.warning("report: no renderers registered for step type(s) %s: key/value tables "
+                    "only (importing rotoruq.study registers the built-in step types)",
+                    ", ".join(unrendered))
     for name, steps in studies.items():
         info = infos[name]
         log.info("report: %s (%d steps)", name, len(steps))

@@ -38,7 +38,7 @@ __all__ = ["StepResult", "save_step", "load_step", "load_results", "dist_to_dict
            "dict_to_dist", "IncompleteStepError", "clean_partial_saves"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class StepResult:
     """Outcome of one study step.
 

@@ -52,7 +52,7 @@ class ComparedCell:
     def rel(self) -> float | None:
         """(ours - thesis) / |thesis| (None when the thesis value is 0)."""
         d = self.diff
-        if d is None or self.thesis == 0:
+        if d is None or self.thesis is None or self.thesis == 0:
             return None
         return d / abs(self.thesis)
 
@@ -77,7 +77,7 @@ class ComparedCell:
     def diff_value(self) -> float | None:
         """The difference in the unit of :attr:`diff_kind` (relative as a fraction)."""
         k = self.diff_kind
-        if k == "sigma":
+        if k == "sigma" and self.diff is not None and self.sigma:
             return self.diff / self.sigma
         if k == "relative":
             return self.rel
@@ -87,6 +87,8 @@ class ComparedCell:
         from .tables import fmt
 
         k, v = self.diff_kind, self.diff_value
+        if v is None:
+            return fmt(None)
         if k == "sigma":
             return f"{v:+.2f} σ"
         if k == "relative":

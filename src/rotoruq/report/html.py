@@ -274,10 +274,10 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
                         "10 %, 1 σ or 0.05 absolute), "
                         "<span style='background:#fee8c8'>&nbsp;differs&nbsp;</span>, "
                         "uncoloured: nothing to compare.</p>")
-            for t in mine:
-                write_csv(t, tab_dir)
-                heading(4, f"Table {t.ref.number}: {t.ref.caption}", f"table-{t.ref.number}")
-                body.append(table_html(t))
+            for ct in mine:
+                write_csv(ct, tab_dir)
+                heading(4, f"Table {ct.ref.number}: {ct.ref.caption}", f"table-{ct.ref.number}")
+                body.append(table_html(ct))
         t0 = time.perf_counter()
         figs = figures_for_study(name, steps, labels.get(name, {}), units.get(name, {}),
                                  reference=name in reference,

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
+from ..params import Distribution
 from ..results import StepResult, dict_to_dist
 from .hooks import FigureContext, rendering
 from .reference import TABLES
@@ -132,7 +133,7 @@ def tornado(res: StepResult, labels, units=None, thesis: dict | None = None) -> 
 
 
 def prior_posterior(res: StepResult, labels, units=None,
-                    truth: Mapping[str, object] | None = None) -> list[Figure]:
+                    truth: Mapping[str, Distribution] | None = None) -> list[Figure]:
     """Prior density, the chain's histogram and the normal fit handed on, per parameter."""
     names = res.columns("chain")
     chain = np.asarray(res.arrays["chain"])
@@ -230,13 +231,14 @@ def pair_plot(res: StepResult, labels, units=None) -> list[Figure]:
 
 def _thesis_prediction(step: str, label: str) -> dict[str, tuple[float, float]]:
     """response -> (mean, std) the thesis prints for this forward step and sweep point."""
-    out = {}
+    out: dict[str, tuple[float, float]] = {}
     for t in TABLES:
         for _, cells in t.rows:
             if len(cells) < 2:
                 continue
             (m, src), (s, _src2) = cells[0], cells[1]
-            if src and src.startswith(f"{step}:mean/") and src.endswith(label):
+            if (src and src.startswith(f"{step}:mean/") and src.endswith(label)
+                    and m is not None and s is not None):
                 r = src.split("/", 1)[1][: len(src.split("/", 1)[1]) - len(label)]
                 out[r] = (m, s)
     return out
@@ -268,7 +270,7 @@ def load_distributions(res: StepResult, units=None, thesis: bool = False) -> lis
                 v = v[np.isfinite(v)]
                 if v.size < 2:
                     continue
-                lo, hi = min(lo, v.min()), max(hi, v.max())
+                lo, hi = min(lo, float(v.min())), max(hi, float(v.max()))
                 ax.hist(v, bins=30, density=True, color=color, alpha=0.3, rasterized=True)
                 if np.std(v) > 0:
                     g = np.linspace(v.min(), v.max(), 200)
@@ -277,10 +279,11 @@ def load_distributions(res: StepResult, units=None, thesis: bool = False) -> lis
                 ax2.step(s, np.arange(1, s.size + 1) / s.size, where="post", color=color,
                          label=name)
             if r in th and th[r][1]:
-                m, s = th[r]
-                g = np.linspace(min(lo, m - 3 * s), max(hi, m + 3 * s), 200)
-                ax.plot(g, stats.norm.pdf(g, m, s), "k:", lw=1.2, label="thesis N(mean, std)")
-                ax2.plot(g, stats.norm.cdf(g, m, s), "k:", lw=1.2, label="thesis N(mean, std)")
+                th_mean, th_std = th[r]
+                g = np.linspace(min(lo, th_mean - 3 * th_std), max(hi, th_mean + 3 * th_std), 200)
+                for axis, law in ((ax, stats.norm.pdf), (ax2, stats.norm.cdf)):
+                    axis.plot(g, law(g, th_mean, th_std), "k:", lw=1.2,
+                              label="thesis N(mean, std)")
             measured = res.scalars.get(f"data/{r}{label}")
             if measured is not None:
                 for a in (ax, ax2):

@@ -57,7 +57,7 @@ def run(args) -> int:
     out = model.evaluate(x)
     rows = []
     for i in range(x.shape[0]):
-        row = {k: float(v) for k, v in zip(names, x[i], strict=True)}
+        row: dict[str, float | str] = {k: float(v) for k, v in zip(names, x[i], strict=True)}
         row.update({k: float(v) for k, v in zip(model.names_out, out.values[i], strict=True)})
         if i in out.failures:
             row["failure"] = out.failures[i]

@@ -53,10 +53,9 @@ def parse_data(ck: Checker, doc: dict, base: Path) -> dict[str, DataSet]:
         else:
             cols = {}
             for k, v in spec.items():
-                if isinstance(v, int | float) and not isinstance(v, bool):
-                    v = [v]
+                value = [v] if isinstance(v, int | float) and not isinstance(v, bool) else v
                 try:
-                    cols[k] = np.asarray(number_list(v))
+                    cols[k] = np.asarray(number_list(value))
                 except TypeError:
                     ck.fail(w + (k,), f"file = \"data.csv\" or inline columns (name = [numbers])"
                             f" in [data.{name}]", repr(v))

@@ -33,7 +33,6 @@ from ..results import (
     IncompleteStepError,
     StepResult,
     clean_partial_saves,
-    dict_to_dist,
     load_step,
     save_step,
 )
@@ -51,7 +50,7 @@ log = logging.getLogger(__name__)
 ModelFactory = Callable[[Sequence[str], Sequence[str], Mapping[str, float]], object]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class StudyRun:
     """Outcome of :func:`run_study`: the results by step name, the output directory and which
     steps were reused from a previous run."""
@@ -78,7 +77,7 @@ def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
     folder ``out`` (default ``out/work``).
     """
     spec = study.model
-    if spec.kind == "preset":
+    if spec.preset is not None:
         from ..rotor.model import RotorModel
         from ..rotor.presets import get_preset
 
@@ -89,6 +88,8 @@ def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
     from ..model import FixedInputs
 
     ext = spec.external
+    if ext is None:
+        raise ParameterError(f"{study.path}: [model] needs preset = ... or command = [...]")
     base = study.path.parent if study.path is not None else Path.cwd()
     out = Path(out) if out is not None else study.info.output
 
@@ -98,6 +99,7 @@ def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
             return word
         return str((base / p).absolute())
 
+    policy: str | dict[str, list[float]]
     if ext.failure == "retry":
         policy = f"retry:{max(1, ext.retries)}"
     elif ext.failure == "recover":
@@ -397,7 +399,7 @@ def model_record(study: Study) -> dict:
     the digitized Fradenburgh ground-effect thrust ratio T/T_inf on H/R in [0.8, 4.2] (200
     points). An external model records nothing.
     """
-    if study.model.kind != "preset":
+    if study.model.preset is None:
         return {}
     from ..rotor.ground_effect import fradenburgh_thrust_ratio
     from ..rotor.model import load_airfoil
@@ -430,8 +432,3 @@ def _write_study_json(study: Study, out: Path, quick: bool) -> None:
         "titles": {s.name: s.title for s in study.steps},
     }
     write_text(out / "study.json", json.dumps(doc, indent=1, default=str))
-
-
-def distributions_of(result: StepResult) -> dict:
-    """Distribution objects a step hands on (posterior / calibrated)."""
-    return {k: dict_to_dist(v) for k, v in result.distributions.items()}

@@ -48,8 +48,10 @@ import inspect
 import json
 import re
 import tomllib
+from collections.abc import Mapping
 from functools import lru_cache
 from pathlib import Path
+from typing import NoReturn
 
 from ..errors import InputFileError, ParameterError
 from ..params import DISTRIBUTIONS, make_distribution
@@ -406,15 +408,7 @@ def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
         for k in fixed:
             inputs.check(w + ("fixed", k), k)
         if st.check is not None:
-            st.check(StepCheck(
-                options=opts, model=model, responses=sel_r, parameters=tuple(pnames),
-                fail=lambda key, expected, found=None, w=w: ck.fail(w + tuple(key), expected,
-                                                                    found),
-                reference=lambda ref, key, attrs, i=i: _check_ref(ck, raw, names, i, ref, key,
-                                                                  attrs),
-                check_input=lambda key, n, w=w: inputs.check(w + tuple(key), n),
-                numbers=lambda tbl, key, text, w=w: ck.numbers(tbl, w + tuple(key), text),
-            ))
+            st.check(_step_check(ck, raw, names, i, inputs, opts, sel_r, tuple(pnames)))
         dists: tuple[ParameterSpec, ...] = ()
         if common["distributions"] is not None:
             dists = _parse_parameters(ck, common["distributions"], inputs,
@@ -428,6 +422,29 @@ def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
     if not pnames and any(s.type != "forward_check" or s.source is None for s in steps):
         ck.fail(("parameters",), "at least one [parameters.NAME] table")
     return tuple(steps)
+
+
+def _step_check(ck: Checker, raw: list, names: list[str], i: int, inputs: ModelInputs,
+                opts: dict, responses: tuple[str, ...] | None, parameters: tuple[str, ...]
+                ) -> StepCheck:
+    """The view of step ``i`` that its type's ``check`` hook gets (key paths relative to the
+    step)."""
+    w = ("steps", i)
+
+    def fail(key: tuple, expected: str, found: str | None = None) -> NoReturn:
+        ck.fail(w + tuple(key), expected, found)
+
+    def reference(ref: str, key: str, attrs: tuple[str, ...]) -> tuple[str, str]:
+        return _check_ref(ck, raw, names, i, ref, key, attrs)
+
+    def check_input(key: tuple, name: str) -> None:
+        inputs.check(w + tuple(key), name)
+
+    def numbers(tbl: Mapping, key: tuple, what: str) -> dict[str, float]:
+        return ck.numbers(tbl, w + tuple(key), what)
+
+    return StepCheck(opts, inputs.model, responses, parameters, fail, reference, check_input,
+                     numbers)
 
 
 def _check_ref(ck: Checker, raw: list, names: list[str], i: int, ref: str, key: str,

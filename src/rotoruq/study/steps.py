@@ -128,7 +128,8 @@ def _posterior_draws(ctx: StepContext, n: int) -> np.ndarray | None:
         return None
     chain = np.asarray(src.arrays["chain"], dtype=float)
     pick = ctx.rng.choice(chain.shape[0], size=n, replace=n > chain.shape[0])
-    return chain[np.ix_(pick, [names.index(p) for p in ctx.space.names])]
+    cols = np.array([names.index(p) for p in ctx.space.names], dtype=int)
+    return chain[np.ix_(pick, cols)]
 
 
 def _spread(out: np.ndarray) -> tuple[float, float]:
@@ -329,8 +330,8 @@ def run_evidence(ctx: StepContext) -> StepResult:
 
     o = ctx.options
     space = ParameterSpace([
-        (p, Interval([(float(lo), float(hi)) for lo, hi, _ in cells],
-                     [float(w) for _, _, w in cells]))
+        (p, Interval(tuple((float(lo), float(hi)) for lo, hi, _ in cells),
+                     tuple(float(w) for _, _, w in cells)))
         for p, cells in o["intervals"].items()])
     fixed = dict(ctx.fixed)
     fixed.update({p: d.mean for p, d in zip(ctx.space.names, ctx.space.distributions,
@@ -492,8 +493,8 @@ def run_cuu(ctx: StepContext) -> StepResult:
     n = o.get("verify_samples", 0)
     if n:
         for tag, space in (("initial", ctx.space), ("calibrated", cal_space)):
-            s = sample(model, space, n, method=o["design"], seed=ctx.rng)
-            out = np.asarray(s.outputs)
+            checked = sample(model, space, n, method=o["design"], seed=ctx.rng)
+            out = np.asarray(checked.outputs)
             for k, r in enumerate(ctx.responses):
                 v = out[:, k][np.isfinite(out[:, k])]
                 scalars[f"{tag}_out_mean/{r}"] = float(np.mean(v))

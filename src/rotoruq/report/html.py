@@ -21,7 +21,7 @@ import time
 from collections.abc import Sequence
 from pathlib import Path
 
-from ..results import StepResult, load_results
+from ..results import STUDY_INFO, StepResult, is_study_dir, load_results, load_study_info
 from .claims import INDEPENDENT, JOINT, Claim, claims, claims_json
 from .compare import REFERENCE_STUDIES, compare_tables
 from .diagnostics import THRESHOLDS
@@ -56,9 +56,9 @@ _STATUS_CLASS = {"holds": "st-holds", "holds, with a warning": "st-warn",
 def find_study_dirs(root: str | Path) -> list[Path]:
     """Study output folders under ``root`` (``root`` itself when it is one)."""
     root = Path(root)
-    if (root / "study.json").is_file():
+    if is_study_dir(root):
         return [root]
-    return sorted(p.parent for p in root.glob("*/study.json"))
+    return sorted(p.parent for p in root.glob(f"*/{STUDY_INFO}"))
 
 
 def is_reference(info: dict) -> bool:
@@ -207,7 +207,7 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
     infos: dict[str, dict] = {}
     for d in results_dirs:
         for folder in find_study_dirs(d):
-            info = json.loads((folder / "study.json").read_text())
+            info = load_study_info(folder)
             studies[info["name"]] = load_results(folder)
             infos[info["name"]] = info
     labels = {n: {k: v.get("label") or k for k, v in i.get("parameters", {}).items()}

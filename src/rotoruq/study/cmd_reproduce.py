@@ -45,6 +45,7 @@ def reproduce(which: str = "all", out: str | Path = "rotoruq-results",
 
 def _reproduce(which: str, out: Path, quick: bool) -> dict:
     from ..report.html import write_report
+    from ..results import is_study_dir
     from .runner import run_study
 
     names = list(CHAPTERS) if which == "all" else [which]
@@ -54,7 +55,7 @@ def _reproduce(which: str, out: Path, quick: bool) -> dict:
         run_study(studies_dir() / CHAPTERS[name], out=out / name, quick=quick)
         seconds[name] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    index = write_report([out / n for n in CHAPTERS if (out / n / "study.json").is_file()],
+    index = write_report([out / n for n in CHAPTERS if is_study_dir(out / n)],
                          out / "report")
     seconds["report"] = time.perf_counter() - t0
     return {"report": str(index), "seconds": seconds}

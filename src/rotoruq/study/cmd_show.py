@@ -25,13 +25,12 @@ def show_data(results: str | Path, step: str | None = None) -> dict:
     from ..errors import InputFileError
     from ..report.diagnostics import step_warnings
     from ..report.steptables import step_tables
-    from ..results import load_results
+    from ..results import is_study_dir, load_results, load_study_info
 
     folder = Path(results)
-    info_path = folder / "study.json"
-    if not info_path.is_file():
+    if not is_study_dir(folder):
         raise InputFileError(folder, None, "a study output folder (with study.json)")
-    info = json.loads(info_path.read_text())
+    info = load_study_info(folder)
     steps = load_results(folder)
     if step is not None and step not in steps:
         raise InputFileError(folder, None, f"a saved step named {step!r}; saved steps: "

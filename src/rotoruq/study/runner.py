@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..atomic import write_bytes, write_text
+from ..atomic import write_bytes
 from ..errors import ParameterError
 from ..evaluation.identity import code_version, model_identity
 from ..params import ParameterSpace
@@ -35,6 +35,7 @@ from ..results import (
     clean_partial_saves,
     load_step,
     save_step,
+    save_study_info,
 )
 from .lock import results_lock
 from .schema import load_study
@@ -431,4 +432,4 @@ def _write_study_json(study: Study, out: Path, quick: bool) -> None:
         "step_types": {s.name: s.type for s in study.steps},
         "titles": {s.name: s.title for s in study.steps},
     }
-    write_text(out / "study.json", json.dumps(doc, indent=1, default=str))
+    save_study_info(out, doc)

@@ -3,6 +3,7 @@ write ``<out>/report/index.html``."""
 
 from __future__ import annotations
 
+import argparse
 import json
 import time
 from pathlib import Path
@@ -23,7 +24,7 @@ def studies_dir() -> Path:
     return path
 
 
-def add_arguments(parser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("which", nargs="?", default="all",
                         choices=["validation", "experiment", "all"],
                         help="chapter 3 (validation), chapter 4 (experiment) or both")
@@ -61,7 +62,7 @@ def _reproduce(which: str, out: Path, quick: bool) -> dict:
     return {"report": str(index), "seconds": seconds}
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     result = reproduce(args.which, args.out, args.quick)
     print(json.dumps(result["seconds"], indent=1))
     print(f"report: {result['report']}")

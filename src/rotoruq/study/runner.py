@@ -22,6 +22,7 @@ import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -67,8 +68,9 @@ class StudyRun:
 
 
 def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
-                fixed: Mapping[str, float], out: Path | None = None):
-    """The study's ``[model]`` for one step, without the evaluation store: a
+                fixed: Mapping[str, float], out: Path | None = None) -> Any:
+    """The study's ``[model]`` for one step (an object of the :class:`rotoruq.model.Model`
+    protocol), without the evaluation store: a
     :class:`~rotoruq.rotor.model.RotorModel`, or an
     :class:`~rotoruq.evaluation.external.ExternalModel` over ``inputs`` plus the fixed inputs
     (written into every parameters file), wrapped so that its inputs are ``inputs``.

@@ -309,3 +309,14 @@ def test_pce_points_only_for_regression(tmp_path):
     study = load_study(write(tmp_path, text.replace("n_samples = 40",
                                                     'n_samples = 40\nestimator = "regression"')))
     assert study.step("pc").options["n_samples"] == 40
+
+
+def test_quick_overrides_are_options_of_the_step(tmp_path):
+    text = VALID.replace("n_samples = 50", "n_samples = 50\nquick = { n = 5 }")
+    err = error_of(tmp_path, text)
+    assert err.found == "n" and "keys of quick = {...} of step 'fwd'" in str(err)
+    assert err.line == line_of(text, "quick = { n = 5 }")
+    err = error_of(tmp_path, text.replace("{ n = 5 }", "{ n_samples = 0 }"))
+    assert "to be an integer >= 1" in str(err)
+    study = load_study(write(tmp_path, text.replace("{ n = 5 }", "{ n_samples = 5 }")))
+    assert study.step("fwd").quick == {"n_samples": 5}

@@ -370,6 +370,10 @@ def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
         common = {k: ck.option(s, k, opt, w, what, opt.default)
                   for k, opt in COMMON_STEP_KEYS.items()}
         opts = _step_options(ck, s, st, w, what)
+        quick = common["quick"] or {}
+        ck.keys(quick, list(st.options), w + ("quick",), f"quick = {{...}} of {what}")
+        quick = {k: ck.option(quick, k, st.options[k], w + ("quick",),
+                              f"quick = {{...}} of {what}") for k in quick}
         if common["seed"] is not None:
             opts["seed"] = common["seed"]
         source = None
@@ -417,7 +421,7 @@ def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
             name=name, type=st.name, index=i, options=opts, source=source, parameters=sel_p,
             distributions=dists,
             responses=sel_r, fixed=fixed, data=data_ref, title=common["title"],
-            quick=common["quick"] or {}, line=ck.loc.line(*w),
+            quick=quick, line=ck.loc.line(*w),
         ))
     if not pnames and any(s.type != "forward_check" or s.source is None for s in steps):
         ck.fail(("parameters",), "at least one [parameters.NAME] table")

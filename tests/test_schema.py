@@ -320,3 +320,18 @@ def test_quick_overrides_are_options_of_the_step(tmp_path):
     assert "to be an integer >= 1" in str(err)
     study = load_study(write(tmp_path, text.replace("{ n = 5 }", "{ n_samples = 5 }")))
     assert study.step("fwd").quick == {"n_samples": 5}
+
+
+def test_cli_names_the_new_word_for_an_old_key(tmp_path):
+    """The user's path: ``rotoruq run`` on a study with a key from before the vocabulary
+    (``chain_samples``) fails with the file, the line and the key it expected."""
+    import subprocess
+    import sys
+
+    text = VALID.replace("n_samples = 2000", "chain_samples = 2000")
+    p = write(tmp_path, text)
+    proc = subprocess.run([sys.executable, "-m", "rotoruq.study.cli", "run", str(p)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 1
+    assert f"{p}, line {line_of(text, 'chain_samples')}" in proc.stderr
+    assert "n_samples" in proc.stderr and "found 'chain_samples'" in proc.stderr

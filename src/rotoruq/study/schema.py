@@ -225,7 +225,9 @@ def _parse_model(ck: Checker, doc: dict) -> ModelSpec:
     if "preset" in t and "command" in t:
         ck.fail(w + ("command",), "either preset or command in [model], not both")
     if "preset" in t:
-        preset = ck.value(t, "preset", (string(("bo105", "gvpm")), None), w, "[model]")
+        from ..rotor.presets import PRESETS
+
+        preset = ck.value(t, "preset", (string(tuple(PRESETS)), None), w, "[model]")
         for key in MODEL_KEYS[4:]:
             if key in t:
                 ck.fail(w + (key,), f"no {key!r} with a rotor preset (it is for external drivers)")

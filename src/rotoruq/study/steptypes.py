@@ -34,6 +34,7 @@ from .options import (
     choice,
     integer,
     number,
+    number_list,
     number_or_table,
     signature_default,
     string,
@@ -192,10 +193,10 @@ def _check_sweep(c: StepCheck) -> None:
     lengths = set()
     for k, v in sweep.items():
         c.check_input(("sweep", k), k)
-        if (not isinstance(v, list) or not v
-                or not all(isinstance(x, int | float) and not isinstance(x, bool) for x in v)):
+        try:
+            lengths.add(len(number_list(v)))
+        except TypeError:
             c.fail(("sweep", k), f"{k} = [numbers] in sweep", repr(v))
-        lengths.add(len(v))
     if len(lengths) != 1:
         c.fail(("sweep",), "sweep lists of equal length")
     if c.options["normalize_by"] is not None:

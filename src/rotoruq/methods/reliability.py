@@ -19,7 +19,8 @@ import numpy as np
 from scipy import stats
 
 from ..errors import EvaluationError, ParameterError, RotoruqError
-from ._common import gradient_at, levels_per_response
+from ..model import FD_STEP, finite_difference, model_gradient
+from ._common import eval_space, levels_per_response
 
 __all__ = [
     "MeanValueResult",
@@ -36,7 +37,7 @@ __all__ = [
 # ---------------------------------------------------------------------------------------------
 # Mean value method (thesis eqs. 2.4-2.9)
 # ---------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class MeanValueResult:
     """First-order second-moment statistics of the responses.
 
@@ -200,9 +201,8 @@ def mean_value(
     probability_levels=None,
     reliability_levels=None,
     distribution: str = "cdf",
-    gradient: str = "auto",
-    fd_step: float = 1e-6,
-    seed=None,
+    gradient="auto",
+    fd_step: float = FD_STEP,
 ) -> MeanValueResult:
     """Mean value method (MVFOSM, thesis eqs. 2.4-2.9).
 
@@ -217,21 +217,23 @@ def mean_value(
     reliability_levels : reliability indices mapped to response levels
         (``z = mu - sigma beta`` for "cdf", ``z = mu + sigma beta`` for "ccdf").
     gradient : "auto" (the model's analytic ``gradient`` when it has one, else central finite
-        differences on one batch of 2d+1 points), "analytic" or "fd".
+        differences on one batch of 2d+1 points), "analytic", "finite_difference" or a
+        callable ``g(x: (n, d)) -> (n, m, d)`` (columns in ``space.names`` order).
     fd_step : relative finite-difference step; the step of input i is
-        ``fd_step * max(|mu_i|, sigma_i)``.
-    seed : unused (deterministic method); accepted for a uniform method signature.
+        ``fd_step * max(|mu_i|, sigma_i)`` (default :data:`rotoruq.model.FD_STEP`).
 
     Returns
     -------
     MeanValueResult
     """
-    del seed
     x0 = space.mean
-    g0, grad, n_eval = gradient_at(model, space, x0, gradient=gradient, fd_step=fd_step)
+    at = model_gradient(model, x0, gradient=gradient, fd_step=fd_step, scale=space.std,
+                        names_in=space.names)
+    if at.failures:
+        raise EvaluationError(f"mean value method: {at.failures[0]}")
     return mean_value_from_gradient(
-        g0,
-        grad,
+        at.values[0],
+        at.gradient[0],
         space.std,
         space.correlation_matrix,
         response_levels=response_levels,
@@ -240,14 +242,14 @@ def mean_value(
         distribution=distribution,
         names_in=space.names,
         names_out=tuple(model.names_out),
-        n_evaluations=n_eval,
+        n_evaluations=at.n_evaluations,
     )
 
 
 # ---------------------------------------------------------------------------------------------
 # MPP search: RIA (eq. 2.10) and PMA (eq. 2.11) with FORM (2.12) / SORM (2.13)
 # ---------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class MPPResult:
     """Result of :func:`mpp_search` (all dicts keyed by response name).
 
@@ -299,8 +301,6 @@ class _UModel:
     """
 
     def __init__(self, model, space, fd_step):
-        from ._common import eval_space
-
         self._eval = eval_space
         self.model, self.space, self.h = model, space, fd_step
         self.n_eval = 0
@@ -325,21 +325,15 @@ class _UModel:
     def value_grad(self, u):
         key = u.tobytes()
         if key not in self._cache:
-            d = u.size
-            h = self.h * np.maximum(1.0, np.abs(u))
-            pts = np.repeat(u[None, :], 2 * d + 1, axis=0)
-            i = np.arange(d)
-            pts[1 + i, i] += h
-            pts[1 + d + i, i] -= h
-            v = self.values(pts)
-            if not np.all(np.isfinite(v)):
+            fd = finite_difference(self.values, u, fd_step=self.h, scale=1.0)
+            if fd.failures:
                 raise EvaluationError(
                     f"MPP search: finite-difference stencil at u = {u} (x = "
                     f"{self.space.from_u(u)[0]}) has failed or non-finite evaluations"
                 )
             if len(self._cache) > 64:
                 self._cache.clear()
-            self._cache[key] = (v[0], (v[1 : d + 1] - v[d + 1 :]).T / (2 * h), h)
+            self._cache[key] = (fd.values[0], fd.gradient[0], fd.steps[0])
         g, grad, _ = self._cache[key]
         return g, grad
 
@@ -543,7 +537,7 @@ def _curvatures(um, u, k, s):
     return np.linalg.eigvalsh(basis @ hess @ basis.T / nrm)
 
 
-def sorm_probability(beta: float, kappa, method: str = "breitung") -> float:
+def sorm_probability(beta: float, kappa, sorm: str = "breitung") -> float:
     """Second-order probability of the region beyond a limit state at distance beta > 0
     with principal curvatures ``kappa`` (positive: curving away from the origin), eq. 2.13
     (Breitung) or Hohenbichler-Rackwitz (beta replaced by phi(beta)/Phi(-beta)).
@@ -555,17 +549,17 @@ def sorm_probability(beta: float, kappa, method: str = "breitung") -> float:
     """
     kappa = np.asarray(kappa, dtype=float)
     pf = stats.norm.cdf(-beta)
-    if method == "breitung":
+    if sorm == "breitung":
         c = beta
-    elif method in ("hohenbichler", "hohenbichler_rackwitz"):
+    elif sorm in ("hohenbichler", "hohenbichler_rackwitz"):
         c = stats.norm.pdf(beta) / pf if pf > 0 else beta
     else:
-        raise ParameterError(f"SORM method must be 'breitung' or 'hohenbichler', got {method!r}")
+        raise ParameterError(f"SORM formula must be 'breitung' or 'hohenbichler', got {sorm!r}")
     fac = 1.0 + c * kappa
     if np.any(fac <= 0) or not np.all(np.isfinite(fac)):
         i = int(np.argmin(np.where(np.isfinite(fac), fac, -np.inf)))
         warnings.warn(
-            f"SORM ({method}) is undefined at beta = {beta:.6g}: 1 + c kappa = {fac[i]:.3g} "
+            f"SORM ({sorm}) is undefined at beta = {beta:.6g}: 1 + c kappa = {fac[i]:.3g} "
             f"<= 0 for the curvature kappa = {kappa[i]:.6g} (c = {c:.6g}; the limit state is "
             "more concave than the beta-sphere); the first-order probability is reported",
             SORMWarning,
@@ -624,10 +618,9 @@ def mpp_search(
     reliability_levels=None,
     integration: str = "first_order",
     sorm: str = "breitung",
-    fd_step: float = 1e-5,
-    tol: float = 1e-10,
-    max_iter: int = 200,
-    seed=None,
+    fd_step: float = FD_STEP,
+    tolerance: float = 1e-10,
+    max_iterations: int = 200,
 ) -> MPPResult:
     """Most probable point searches in u-space (Nataf) with FORM or SORM integration.
 
@@ -646,24 +639,26 @@ def mpp_search(
     beyond the MPP equals the target ``Phi(-|beta|)`` (reliability levels are then read as
     generalized reliability indices).
 
-    Convergence is judged on the MPP conditions (see ``_ria``/``_pma``): ``tol`` bounds the
-    relative constraint residual and ``sqrt(tol)`` the misalignment of u and grad G.
-    ``converged`` is False when any level misses them within ``max_iter`` iterations.
+    Convergence is judged on the MPP conditions (see ``_ria``/``_pma``): ``tolerance`` bounds
+    the relative constraint residual and ``sqrt(tolerance)`` the misalignment of u and grad G.
+    ``converged`` is False when any level misses them within ``max_iterations`` iterations.
 
     Gradients: central finite differences in u-space, each gradient one batched model call
-    of 2d + 1 points (step ``fd_step * max(1, |u_i|)``). Raises
+    of 2d + 1 points (step ``fd_step * max(1, |u_i|)``, default
+    :data:`rotoruq.model.FD_STEP`; the SORM Hessian steps 1000 times further). Raises
     :class:`DegenerateResponseError` for a response that is constant around the means.
     """
-    del seed
+    tol, max_iter = tolerance, max_iterations
     integration = integration.lower()
     if integration not in ("first_order", "second_order", "form", "sorm"):
         raise ParameterError(
             f"integration must be 'first_order' or 'second_order', got {integration!r}"
         )
     if sorm not in ("breitung", "hohenbichler", "hohenbichler_rackwitz"):
-        raise ParameterError(f"SORM method must be 'breitung' or 'hohenbichler', got {sorm!r}")
+        raise ParameterError(f"SORM formula must be 'breitung' or 'hohenbichler', got {sorm!r}")
     if not (tol > 0 and int(max_iter) >= 1):
-        raise ParameterError(f"tol must be > 0 and max_iter >= 1, got {tol!r}, {max_iter!r}")
+        raise ParameterError(f"tolerance must be > 0 and max_iterations >= 1, got {tol!r}, "
+                             f"{max_iter!r}")
     second = integration in ("second_order", "sorm")
     names_out = tuple(model.names_out)
     d = space.dim
@@ -744,7 +739,7 @@ def _not_converged(kind, name, level, um, u, k, z=None):
             f"{abs(g[k] - z) / gn:.3g}" if gn > 0 else "inf (flat response)")
     warnings.warn(
         f"MPP search ({kind}) for {name!r} at {level} did not meet the MPP conditions within "
-        f"max_iter ({detail}): its result is not reliable (the level may be unreachable)",
+        f"max_iterations ({detail}): its result is not reliable (the level may be unreachable)",
         RuntimeWarning,
         stacklevel=3,
     )

@@ -23,9 +23,8 @@ from scipy import optimize
 
 from ..._rng import SeedLike, as_generator
 from ...errors import EvaluationError, ModelShapeError, ParameterError
-from ...model import align_inputs, evaluate, has_gradient
+from ...model import FD_STEP, align_inputs, evaluate, finite_difference, has_gradient
 from ...params import ParameterSpace
-from .._common import forward_jacobian
 from ..surrogate import ExtrapolationWarning, GaussianProcess, LeaveOneOut
 from . import diagnostics as dg
 from ._kernels import add_loglik_rows, emulator_logpost_rows, scaled_logprior_rows
@@ -251,13 +250,12 @@ def _summarize(names, chains_z, lp, post: _Posterior, state: SamplerState, base:
         kl_divergence=float(kl_knn), kl_divergence_gaussian=float(kl_gauss), **base)
 
 
-def _batched_fd_grad(post: _Posterior, z: np.ndarray, hi: np.ndarray, h: float = 1e-6):
-    """Gradient of the log posterior at z (d,) from one batch of d+1 evaluations."""
-    steps = np.where(z + h <= hi, h, -h)
-    pts = np.vstack([z, z + np.diag(steps)])
-    lp = post(pts)
+def _batched_fd_grad(post: _Posterior, z: np.ndarray, hi: np.ndarray):
+    """Log posterior and its gradient at z (d,), forward differences on one batch of d+1
+    points (z is scaled: unit prior scale, hence ``scale=1``)."""
     with np.errstate(invalid="ignore"):
-        return lp[0], (lp[1:] - lp[0]) / steps
+        fd = finite_difference(post, z, scale=1.0, central=False, upper=hi)
+    return fd.values[0, 0], fd.gradient[0, 0]
 
 
 def _map(post: _Posterior, z0: np.ndarray, zlo: np.ndarray, zhi: np.ndarray) -> np.ndarray:
@@ -560,7 +558,8 @@ def _jacobian(model, gp, perm, theta0, forward, resp_idx, hi) -> np.ndarray:
                 return out
         except NotImplementedError:
             pass
-    J = forward_jacobian(forward, theta0, rel_step=1e-6, scale=1e-3, upper=hi)
+    J = finite_difference(forward, theta0, fd_step=FD_STEP, scale=1e-3, central=False,
+                          upper=hi).gradient[0]
     return np.where(np.isfinite(J), J, 0.0)
 
 

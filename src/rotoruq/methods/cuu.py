@@ -60,6 +60,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -437,7 +438,7 @@ class PCEInner(CallableInner):
                                  "(deterministic in theta, so the outer finite differences "
                                  "are meaningful), not 'regression'")
         self.order = int(order)
-        self.options = {"method": estimator, "quadrature_points": quadrature_points,
+        self.options: dict[str, Any] = {"method": estimator, "quadrature_points": quadrature_points,
                         "basis": basis}
 
     def run(self, space: ParameterSpace):

@@ -189,8 +189,8 @@ def nl2sol(
         raise EvaluationError(f"the Jacobian is not finite at the starting point x0 = {x0}")
     g = J.T @ r
     S = np.zeros((p, p))
-    d = np.maximum(np.linalg.norm(J, axis=0), 1e-8 * max(np.linalg.norm(J), 1.0))
-    xs = np.linalg.norm(d * x)
+    d = np.maximum(np.linalg.norm(J, axis=0), 1e-8 * max(float(np.linalg.norm(J)), 1.0))
+    xs = float(np.linalg.norm(d * x))
     radius = float(o.initial_radius) if o.initial_radius else (100.0 * xs if xs > 0 else 100.0)
     model = "gn"
     models: list[str] = []
@@ -258,7 +258,7 @@ def nl2sol(
         S = _secant_update(S, s, J, Jt, g, gt, rt)
         if alt_better:
             model = "gn" if model == "augmented" else "augmented"
-        radius = _new_radius(radius, rho, step_norm)
+        radius = _new_radius(radius, float(rho), step_norm)
         xscale = np.maximum(np.abs(x), np.abs(xt))
         rel_step = np.max(np.abs(s) * d) / max(np.max(xscale * d), _EPS)
         x, r, f, J, g = xt, rt, ft, Jt, gt

@@ -91,6 +91,17 @@ class MeanValueResult:
         return stats.norm.cdf((np.asarray(z, dtype=float) - self.mean[k]) / self.std[k])
 
 
+def _levels(response_levels, probability_levels, reliability_levels, names_out):
+    """Response, probability and reliability levels per response (probabilities checked)."""
+    rl = levels_per_response(response_levels, names_out, "response_levels")
+    pl = levels_per_response(probability_levels, names_out, "probability_levels")
+    bl = levels_per_response(reliability_levels, names_out, "reliability_levels")
+    for name, p in pl.items():
+        if np.any((p <= 0) | (p >= 1)):
+            raise ParameterError(f"probability_levels for {name!r} must lie in (0, 1), got {p}")
+    return rl, pl, bl
+
+
 def mean_value_from_gradient(
     g0,
     grad,
@@ -141,12 +152,7 @@ def mean_value_from_gradient(
 
     names_out = tuple(names_out) if names_out is not None else tuple(f"g{i}" for i in range(m))
     names_in = tuple(names_in) if names_in is not None else tuple(f"x{i}" for i in range(d))
-    rl = levels_per_response(response_levels, names_out, "response_levels")
-    pl = levels_per_response(probability_levels, names_out, "probability_levels")
-    bl = levels_per_response(reliability_levels, names_out, "reliability_levels")
-    for name, p in pl.items():
-        if np.any((p <= 0) | (p >= 1)):
-            raise ParameterError(f"probability_levels for {name!r} must lie in (0, 1), got {p}")
+    rl, pl, bl = _levels(response_levels, probability_levels, reliability_levels, names_out)
 
     cdf_p, ccdf_p, cdf_b, ccdf_b, p_resp, b_resp = {}, {}, {}, {}, {}, {}
     for k, name in enumerate(names_out):
@@ -663,13 +669,9 @@ def mpp_search(
     names_out = tuple(model.names_out)
     d = space.dim
     um = _UModel(model, space, fd_step)
-    rl = levels_per_response(response_levels, names_out, "response_levels")
-    pl = levels_per_response(probability_levels, names_out, "probability_levels")
-    bl = levels_per_response(reliability_levels, names_out, "reliability_levels")
-    for name, p in pl.items():
-        if np.any((p <= 0) | (p >= 1)):
-            raise ParameterError(f"probability_levels for {name!r} must lie in (0, 1), got {p}")
-    out = {k: {} for k in ("p", "pc", "b", "gb", "mu", "mx", "kap", "pr", "br", "pmx")}
+    rl, pl, bl = _levels(response_levels, probability_levels, reliability_levels, names_out)
+    out: dict[str, dict] = {k: {} for k in ("p", "pc", "b", "gb", "mu", "mx", "kap", "pr", "br",
+                                            "pmx")}
     ok = True
     for k, name in enumerate(names_out):
         zs = rl[name]

@@ -165,7 +165,7 @@ class BayesResult:
     predictive_inputs: np.ndarray | None = None
     predictive: np.ndarray | None = None
     names_out: tuple[str, ...] = ()
-    _state: object = field(default=None, repr=False, compare=False)
+    _state: tuple | None = field(default=None, repr=False, compare=False)
 
     @property
     def samples(self) -> np.ndarray:
@@ -247,7 +247,7 @@ def _summarize(names, chains_z, lp, post: _Posterior, state: SamplerState, base:
     cnt = state.counts
     steps = cnt["prop1"]
     acc = cnt["acc1"] + cnt["acc2"]
-    stages = (cnt["acc1"] / max(steps, 1),)
+    stages: tuple[float, ...] = (cnt["acc1"] / max(steps, 1),)
     if cnt["prop2"]:
         stages = stages + (cnt["acc2"] / cnt["prop2"],)
     return BayesResult(
@@ -338,7 +338,7 @@ def _noise_covariance(noise_std, noise_covariance, shape: tuple[int, int]):
     return var
 
 
-def _setup(model, data, prior, names_out, noise) -> _Problem:
+def _setup(model, data, prior, names_out, noise_std, noise_covariance) -> _Problem:
     """Stage 1: observed responses, likelihood, prior and scaled coordinates."""
     if not isinstance(prior, ParameterSpace):
         raise ParameterError(f"prior must be a ParameterSpace, got {type(prior).__name__}")
@@ -353,7 +353,7 @@ def _setup(model, data, prior, names_out, noise) -> _Problem:
         observed = tuple(names_out)
         resp_idx = np.array([model_out.index(r) for r in observed])
     shape = np.atleast_2d(np.asarray(data, dtype=float)).shape
-    lik = GaussianLikelihood(data, _noise_covariance(*noise, shape), observed)
+    lik = GaussianLikelihood(data, _noise_covariance(noise_std, noise_covariance, shape), observed)
     logprior = LogPrior(prior)
     center, scale = prior_scales(prior)
     return _Problem(observed, resp_idx, lik, logprior, center, scale,
@@ -583,7 +583,7 @@ def calibrate_bayes(
     if n_samples < 2 or thin < 1 or n_chains < 1 or burn_in < 0:
         raise ParameterError(f"need n_samples >= 2, burn_in >= 0, thin >= 1 and n_chains >= 1; "
                              f"got {n_samples}, {burn_in}, {thin}, {n_chains}")
-    pb = _setup(model, data, prior, names_out, (noise_std, noise_covariance))
+    pb = _setup(model, data, prior, names_out, noise_std, noise_covariance)
     truth = _TrueModel(model, prior)
     d = prior.dim
 

@@ -94,7 +94,8 @@ def test_same_seed_same_chains():
     np.testing.assert_array_equal(a.chains, b.chains)
     # one chain: the evaluation schedule changes the number of model runs, not the chain
     one = [calibrate_bayes(model, DATA, space, n_samples=760, burn_in=40, noise_std=NOISE,
-                           seed=8, sampler=SamplerConfig(evaluations=ev)) for ev in ("speculative", "minimal")]
+                           seed=8, sampler=SamplerConfig(evaluations=ev))
+           for ev in ("speculative", "minimal")]
     np.testing.assert_array_equal(one[0].chains, one[1].chains)
     assert one[0].acceptance_rate == one[1].acceptance_rate
     assert one[1].n_likelihood_evaluations < one[0].n_likelihood_evaluations

@@ -144,8 +144,11 @@ def test_every_method_defaults_to_the_one_step():
 
 
 def test_fixed_inputs_hold_columns_and_slice_the_gradient():
+    def grad(x):
+        return np.column_stack([x[:, 1], x[:, 0], np.ones(len(x))])
+
     model = rq.FunctionModel(lambda x: (x[:, 0] * x[:, 1] + x[:, 2]), ["a", "k", "b"], ["y"],
-                             gradient=lambda x: np.column_stack([x[:, 1], x[:, 0], np.ones(len(x))]))
+                             gradient=grad)
     view = FixedInputs(model, {"k": 3.0})
     assert view.names_in == ("a", "b")
     x = np.array([[1.0, 2.0], [0.5, -1.0]])

@@ -17,9 +17,10 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, cast, runtime_checkable
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .errors import ModelShapeError, ParameterError
 
@@ -35,11 +36,19 @@ FD_STEP: float = 1e-6
 
 GRADIENT_OPTIONS = ("auto", "analytic", "finite_difference")
 
+#: a ``gradient=`` option: one of :data:`GRADIENT_OPTIONS` or ``g(x: (n, d)) -> (n, m, d)``
+GradientOption = str | Callable[[np.ndarray], np.ndarray]
+
 
 @runtime_checkable
 class Model(Protocol):
-    names_in: Sequence[str]
-    names_out: Sequence[str]
+    """What every method calls (module doc); ``gradient`` and ``evaluate`` are optional."""
+
+    @property
+    def names_in(self) -> Sequence[str]: ...
+
+    @property
+    def names_out(self) -> Sequence[str]: ...
 
     def __call__(self, x: np.ndarray) -> np.ndarray: ...
 
@@ -150,8 +159,8 @@ class FixedInputs:
     the identity.
     """
 
-    def __init__(self, model, fixed: Mapping[str, float]):
-        self.model = model
+    def __init__(self, model: Model, fixed: Mapping[str, float]) -> None:
+        self.model: Any = model  # run_one, gradient, failure_policy: optional members
         self.fixed = {str(k): float(v) for k, v in fixed.items()}
         unknown = [k for k in self.fixed if k not in model.names_in]
         if unknown:
@@ -205,14 +214,14 @@ class FixedInputs:
         return f"FixedInputs({self.model!r}, fixed={self.fixed})"
 
 
-def has_gradient(model) -> bool:
+def has_gradient(model: Model) -> bool:
     """True when the model offers an analytic gradient."""
     if isinstance(model, FunctionModel):
         return model._gradient is not None
     return callable(getattr(model, "gradient", None))
 
 
-def evaluate(model, x: np.ndarray) -> EvalBatch:
+def evaluate(model: Model, x: ArrayLike) -> EvalBatch:
     """Evaluate ``model`` on a batch and check the result.
 
     Rows that come back non-finite without a reason get the reason "non-finite response".
@@ -239,7 +248,7 @@ def evaluate(model, x: np.ndarray) -> EvalBatch:
     return EvalBatch(values, failures)
 
 
-def align_inputs(model, names: Sequence[str]) -> np.ndarray | None:
+def align_inputs(model: Model, names: Sequence[str]) -> np.ndarray | None:
     """Column permutation that maps points ordered as ``names`` onto ``model.names_in``.
 
     Returns None when the orders already agree. Raises :class:`ParameterError` when the two
@@ -368,7 +377,8 @@ def finite_difference(
                     failures=failures)
 
 
-def check_gradient_option(gradient, model=None):
+def check_gradient_option(gradient: GradientOption, model: Model | None = None
+                          ) -> str | Callable[[np.ndarray], np.ndarray]:
     """Validate a ``gradient`` option; returns "analytic", "finite_difference" or the callable.
 
     ``"auto"`` resolves to "analytic" when ``model`` has an analytic gradient, else to
@@ -389,10 +399,10 @@ def check_gradient_option(gradient, model=None):
 
 
 def model_gradient(
-    model,
-    x: np.ndarray,
+    model: Model,
+    x: ArrayLike,
     *,
-    gradient="auto",
+    gradient: GradientOption = "auto",
     fd_step: float = FD_STEP,
     scale: float | np.ndarray = 0.0,
     names_in: Sequence[str] | None = None,
@@ -423,7 +433,8 @@ def model_gradient(
     if callable(mode):
         g = np.asarray(mode(x2), dtype=float)
     else:
-        g = np.asarray(model.gradient(x2 if perm is None else x2[:, perm]), dtype=float)
+        g = np.asarray(cast(Any, model).gradient(x2 if perm is None else x2[:, perm]),
+                       dtype=float)
     if g.ndim == 2 and m == 1:
         g = g[:, None, :]
     if g.shape != (n, m, d):

@@ -5,23 +5,28 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..errors import ParameterError
-from ..model import EvalBatch, align_inputs, evaluate
+from ..model import EvalBatch, Model, align_inputs, evaluate
+
+if TYPE_CHECKING:
+    from ..params import ParameterSpace
 
 __all__ = ["eval_space", "levels_per_response", "nan_rows_warning"]
 
 
-def eval_space(model, space, x: np.ndarray) -> EvalBatch:
+def eval_space(model: Model, space: ParameterSpace, x: ArrayLike) -> EvalBatch:
     """Evaluate ``model`` on points ordered as ``space.names`` (columns permuted as needed)."""
     perm = align_inputs(model, space.names)
     x = np.atleast_2d(np.asarray(x, dtype=float))
     return evaluate(model, x if perm is None else x[:, perm])
 
 
-def levels_per_response(levels, names_out: Sequence[str], what: str) -> dict[str, np.ndarray]:
+def levels_per_response(levels: Any, names_out: Sequence[str], what: str) -> dict[str, np.ndarray]:
     """Normalise level specifications to ``{response name: 1-D array}``.
 
     Accepts None (no levels), a scalar or 1-D sequence (same levels for every response), a

@@ -51,8 +51,8 @@ Targets only fix as many combinations of the calibrated statistics as there are 
 statistic whose effect on the targets is negligible is not determined by them (thesis table
 3.10: the flap-hinge stiffness next to the lift slopes). The result reports the singular values
 of the outer Jacobian scaled column-wise by the statistic values (rows are already relative to
-the targets) and flags the problem when the smallest is below ``identifiability_tol`` times the
-largest or when there are more calibrated statistics than targets.
+the targets) and flags the problem when the smallest is below ``identifiability_tolerance``
+times the largest or when there are more calibrated statistics than targets.
 """
 
 from __future__ import annotations
@@ -66,7 +66,15 @@ import numpy as np
 
 from .._rng import SeedLike, as_generator
 from ..errors import EvaluationError, ParameterError
-from ..model import FD_STEP, FixedInputs, align_inputs, check_gradient_option, model_gradient
+from ..model import (
+    FD_STEP,
+    FixedInputs,
+    GradientOption,
+    Model,
+    align_inputs,
+    check_gradient_option,
+    model_gradient,
+)
 from ..params import LogNormal, Normal, ParameterSpace, Uniform, unit_design
 from ._common import eval_space
 from .least_squares import LeastSquaresResult, least_squares
@@ -235,7 +243,8 @@ class _Problem:
     """Maps outer variables theta (K, p) to input moments and, through the inner method, to
     relative residuals of the targeted response statistics."""
 
-    def __init__(self, model, space: ParameterSpace, calibrated, targets):
+    def __init__(self, model: Model, space: ParameterSpace, calibrated: list[tuple[int, str]],
+                 targets: list[tuple[int, str, float]]) -> None:
         self.model = model
         self.space = space
         self.calibrated = calibrated
@@ -296,7 +305,7 @@ class MeanValueInner(InnerMethod):
 
     name = "mean_value"
 
-    def __init__(self, gradient="auto", fd_step: float = FD_STEP):
+    def __init__(self, gradient: GradientOption = "auto", fd_step: float = FD_STEP) -> None:
         self.gradient = gradient
         self.fd_step = fd_step
 
@@ -368,7 +377,7 @@ class SamplingInner(InnerMethod):
 
     name = "sampling"
 
-    def __init__(self, n_samples: int = 200, design: str = "lhs"):
+    def __init__(self, n_samples: int = 200, design: str = "lhs") -> None:
         if int(n_samples) < 2:
             raise ParameterError(f"inner sampling needs n_samples >= 2, got {n_samples}")
         self.n_samples = int(n_samples)
@@ -403,7 +412,7 @@ class CallableInner(InnerMethod):
     """A user's ``inner(model, space)`` returning ``.mean`` and ``.std`` (m,) (or
     ``.statistics.mean/std``), called once per outer point."""
 
-    def __init__(self, func: Callable):
+    def __init__(self, func: Callable) -> None:
         self.func = func
         self.name = getattr(func, "__name__", "callable")
 
@@ -419,7 +428,7 @@ class CallableInner(InnerMethod):
             pr.n_eval += int(getattr(res, "n_evaluations", 0))
         return mean, std
 
-    def run(self, space: ParameterSpace):
+    def run(self, space: ParameterSpace) -> Any:
         return self.func(self.problem.model, space)
 
 
@@ -432,7 +441,7 @@ class PCEInner(CallableInner):
     name = "pce"
 
     def __init__(self, order: int = 2, estimator: str = "quadrature",
-                 quadrature_points: int | None = None, basis: str = "askey"):
+                 quadrature_points: int | None = None, basis: str = "askey") -> None:
         if estimator == "regression":
             raise ParameterError("inner 'pce' takes estimator 'quadrature' or 'sparse_grid' "
                                  "(deterministic in theta, so the outer finite differences "
@@ -441,7 +450,7 @@ class PCEInner(CallableInner):
         self.options: dict[str, Any] = {"method": estimator, "quadrature_points": quadrature_points,
                         "basis": basis}
 
-    def run(self, space: ParameterSpace):
+    def run(self, space: ParameterSpace) -> Any:
         from .pce import polynomial_chaos
 
         return polynomial_chaos(self.problem.model, space, self.order, **self.options)
@@ -538,7 +547,7 @@ def _outer_bounds(space: ParameterSpace, calibrated, labels, x0, bounds):
 
 
 def calibrate_under_uncertainty(
-    model,
+    model: Model,
     space: ParameterSpace,
     *,
     calibrate: Mapping[str, str | Sequence[str]],
@@ -548,11 +557,11 @@ def calibrate_under_uncertainty(
     fixed: Mapping[str, float] | None = None,
     bounds: Mapping | None = None,
     optimizer: str = "nl2sol",
-    gradient="auto",
+    gradient: GradientOption = "auto",
     fd_step: float = FD_STEP,
-    identifiability_tol: float = 1e-3,
+    identifiability_tolerance: float = 1e-3,
     seed: SeedLike = None,
-    **outer_options,
+    **outer_options: Any,
 ) -> CUUResult:
     """Calibrate input statistics so that response statistics match targets (nested model).
 
@@ -580,7 +589,7 @@ def calibrate_under_uncertainty(
         :func:`rotoruq.model.model_gradient`).
     fd_step : relative finite-difference step of the inner gradient and of the outer Jacobian
         (default :data:`rotoruq.model.FD_STEP`).
-    identifiability_tol : flag when the smallest scaled singular value is below this fraction
+    identifiability_tolerance : flag when the smallest scaled singular value is below this fraction
         of the largest.
     seed : seed of the inner sampling design (common random numbers across outer iterations).
     **outer_options : passed to :func:`least_squares` (max_iterations,
@@ -620,7 +629,8 @@ def calibrate_under_uncertainty(
                        bounds=(lo, hi), optimizer=optimizer, fd_step=fd_step, **outer_options)
     mean1, std1 = statistics(ls.x[None, :])
     mu, sd = prob.moments(ls.x[None, :])
-    sv, cond, ok, diag = _identifiability(ls.jacobian, ls.x, labels, len(tgt), identifiability_tol)
+    sv, cond, ok, diag = _identifiability(ls.jacobian, ls.x, labels, len(tgt),
+                                          identifiability_tolerance)
     names_out = tuple(model.names_out)
     return CUUResult(
         names_in=labels, names_out=names_out, x=ls.x, x0=x0,
@@ -640,7 +650,7 @@ def _response_statistics(names_out, mean: np.ndarray, std: np.ndarray) -> dict:
     return {n: {"mean": float(mean[k]), "std": float(std[k])} for k, n in enumerate(names_out)}
 
 
-def check_cuu(result: CUUResult, model, n_samples: int = 300, *, design: str = "lhs",
+def check_cuu(result: CUUResult, model: Model, n_samples: int = 300, *, design: str = "lhs",
               seed: SeedLike = None) -> CUUCheck:
     """Forward-propagate the calibrated distributions with ``n_samples`` points of ``design``
     (one model batch) and compare the sampled response statistics with the CUU targets (the

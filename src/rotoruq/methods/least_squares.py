@@ -14,13 +14,18 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy import optimize, stats
 
 from ..errors import EvaluationError, ModelShapeError, ParameterError
-from ..model import FD_STEP, evaluate, finite_difference
+from ..model import FD_STEP, GradientOption, Model, evaluate, finite_difference
 from .nl2sol import CONVERGED, NL2SOLOptions, nl2sol
+
+if TYPE_CHECKING:
+    from ..params import ParameterSpace
 
 __all__ = ["LeastSquaresResult", "least_squares", "CalibrationResult", "calibrate"]
 
@@ -187,17 +192,17 @@ def _inverse_noise(noise_std) -> np.ndarray | None:
 
 def least_squares(
     residual: Callable[[np.ndarray], np.ndarray],
-    x0,
+    x0: ArrayLike,
     *,
-    gradient: Callable[[np.ndarray], np.ndarray] | str = "auto",
-    bounds=None,
+    gradient: GradientOption = "auto",
+    bounds: tuple[ArrayLike, ArrayLike] | None = None,
     optimizer: str = "nl2sol",
     max_iterations: int = 100,
     max_function_evaluations: int = 1000,
     tolerance: float = 1e-4,
     x_tolerance: float = 1.5e-8,
     absolute_tolerance: float = 1e-20,
-    noise_std=None,
+    noise_std: ArrayLike | None = None,
     fd_step: float = FD_STEP,
     initial_radius: float | None = None,
     confidence: float = 0.95,
@@ -244,23 +249,23 @@ def least_squares(
     ParameterError for bad options.
     """
     optimizer = optimizer.lower()
-    x0 = _check_solver_options(x0, optimizer, max_iterations, max_function_evaluations,
-                               tolerance, confidence)
-    p = x0.size
+    start = _check_solver_options(x0, optimizer, max_iterations, max_function_evaluations,
+                                  tolerance, confidence)
+    p = start.size
     lower, upper = _as_bounds(bounds, p)
-    x0 = np.clip(x0, lower, upper)
+    start = np.clip(start, lower, upper)
     inv_std = _inverse_noise(noise_std)
     if not callable(gradient) and gradient not in ("auto", "finite_difference"):
         raise ParameterError(f"gradient must be 'auto', 'finite_difference' or a callable "
                              f"(k, p) -> (k, n_res, p), got {gradient!r}")
     analytic = callable(gradient)
     res = _Residual(residual, gradient if analytic else None, inv_std, p)
-    r0 = res.one(x0)
+    r0 = res.one(start)
     if inv_std is not None and inv_std.size not in (1, r0.size):
         raise ParameterError(f"noise_std has {inv_std.size} entries for {r0.size} residuals")
     if not np.all(np.isfinite(r0)):
-        raise EvaluationError(f"residuals are not finite at the starting point x0 = {x0}")
-    typical = np.where(x0 != 0, np.abs(x0), 1.0)
+        raise EvaluationError(f"residuals are not finite at the starting point x0 = {start}")
+    typical = np.where(start != 0, np.abs(start), 1.0)
 
     def jac_at(x: np.ndarray, r: np.ndarray) -> np.ndarray:
         if analytic:
@@ -270,13 +275,13 @@ def least_squares(
 
     known_noise = inv_std is not None
     if optimizer in ("trf", "lm"):
-        return _scipy(res, jac_at, x0, r0, lower, upper, optimizer, max_function_evaluations,
+        return _scipy(res, jac_at, start, r0, lower, upper, optimizer, max_function_evaluations,
                       tolerance, x_tolerance, bounds is not None, known_noise, confidence)
     options = NL2SOLOptions(max_iterations=max_iterations,
                             max_function_evaluations=max_function_evaluations,
                             tolerance=tolerance, x_tolerance=x_tolerance,
                             absolute_tolerance=absolute_tolerance, initial_radius=initial_radius)
-    out = nl2sol(res.one, jac_at, x0, r0, lower, upper, options, lambda: res.n_points,
+    out = nl2sol(res.one, jac_at, start, r0, lower, upper, options, lambda: res.n_points,
                  0 if analytic else p)
     stops = {
         "max_iterations": f"maximum number of iterations ({max_iterations}) reached",
@@ -393,7 +398,7 @@ def _observations(data, names_out: tuple[str, ...]) -> np.ndarray:
     return data
 
 
-def _calibrated(parameters, x0, bounds):
+def _calibrated(parameters, x0, bounds) -> tuple[tuple[str, ...], np.ndarray, Any]:
     """Names, start point (p,) and bounds of the calibrated inputs."""
     from ..params import ParameterSpace
 
@@ -479,17 +484,17 @@ def _noise_per_observation(noise_std, shape: tuple[int, int]) -> np.ndarray | No
 
 
 def calibrate(
-    model,
-    data,
-    parameters,
+    model: Model,
+    data: ArrayLike,
+    parameters: Sequence[str] | ParameterSpace,
     *,
-    x0=None,
-    bounds=None,
-    noise_std=None,
+    x0: ArrayLike | None = None,
+    bounds: tuple[ArrayLike, ArrayLike] | Mapping[str, tuple[float, float]] | None = None,
+    noise_std: ArrayLike | None = None,
     fixed: Mapping[str, float | Sequence[float]] | None = None,
     optimizer: str = "nl2sol",
-    gradient="auto",
-    **options,
+    gradient: GradientOption = "auto",
+    **options: Any,
 ) -> CalibrationResult:
     """Fit model inputs to data by least squares on the residuals ``model - data``.
 
@@ -528,7 +533,7 @@ def calibrate(
     names_out = tuple(model.names_out)
     data = _observations(data, names_out)
     n_exp, m = data.shape
-    names, start, bounds = _calibrated(parameters, x0, bounds)
+    names, start, box = _calibrated(parameters, x0, bounds)
     p = len(names)
     if n_exp * m < p:
         raise ParameterError(
@@ -545,14 +550,14 @@ def calibrate(
     mode = check_gradient_option(gradient, model)
     jac: Callable[[np.ndarray], np.ndarray] | str = "finite_difference"
     if mode != "finite_difference":
-        model_grad = mode if callable(mode) else model.gradient
+        model_grad = mode if callable(mode) else cast(Any, model).gradient
         cols = [list(model.names_in).index(n) for n in names]
 
         def jac(X: np.ndarray) -> np.ndarray:
             G = np.asarray(model_grad(inputs(X)), dtype=float)  # (k*n_exp, m, d)
             return G.reshape(G.shape[0], m, -1)[:, :, cols].reshape(X.shape[0], n_exp * m, p)
 
-    ls = least_squares(residual, start, gradient=jac, bounds=bounds, optimizer=optimizer,
+    ls = least_squares(residual, start, gradient=jac, bounds=box, optimizer=optimizer,
                        noise_std=noise, **options)
     r = residual(ls.x[None, :])[0].reshape(n_exp, m)
     return CalibrationResult(

@@ -13,14 +13,23 @@ P(g > z) = 1 - Phi((z - mu)/sigma).)
 from __future__ import annotations
 
 import warnings
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy import stats
 
 from ..errors import EvaluationError, ParameterError, RotoruqError
-from ..model import FD_STEP, finite_difference, model_gradient
+from ..model import FD_STEP, GradientOption, Model, finite_difference, model_gradient
 from ._common import eval_space, levels_per_response
+
+if TYPE_CHECKING:
+    from ..params import ParameterSpace
+
+#: levels: None, one sequence for every response, a mapping name -> levels, or one per response
+Levels = ArrayLike | Mapping[str, ArrayLike] | None
 
 __all__ = [
     "MeanValueResult",
@@ -85,7 +94,7 @@ class MeanValueResult:
         """(m, 2) array of [mean, std] per response (the CUU inner-loop output)."""
         return np.column_stack([self.mean, self.std])
 
-    def cdf(self, name: str, z) -> np.ndarray:
+    def cdf(self, name: str, z: ArrayLike) -> np.ndarray:
         """Gaussian CDF P(g <= z) of response ``name`` implied by the two moments."""
         k = self.names_out.index(name)
         return stats.norm.cdf((np.asarray(z, dtype=float) - self.mean[k]) / self.std[k])
@@ -103,17 +112,17 @@ def _levels(response_levels, probability_levels, reliability_levels, names_out):
 
 
 def mean_value_from_gradient(
-    g0,
-    grad,
-    std,
-    correlation=None,
+    g0: ArrayLike,
+    grad: ArrayLike,
+    std: ArrayLike,
+    correlation: ArrayLike | None = None,
     *,
-    response_levels=None,
-    probability_levels=None,
-    reliability_levels=None,
+    response_levels: Levels = None,
+    probability_levels: Levels = None,
+    reliability_levels: Levels = None,
     distribution: str = "cdf",
-    names_in=None,
-    names_out=None,
+    names_in: Sequence[str] | None = None,
+    names_out: Sequence[str] | None = None,
     n_evaluations: int = 0,
 ) -> MeanValueResult:
     """Mean value statistics from a response value and gradient at the input means.
@@ -200,14 +209,14 @@ def mean_value_from_gradient(
 
 
 def mean_value(
-    model,
-    space,
+    model: Model,
+    space: ParameterSpace,
     *,
-    response_levels=None,
-    probability_levels=None,
-    reliability_levels=None,
+    response_levels: Levels = None,
+    probability_levels: Levels = None,
+    reliability_levels: Levels = None,
     distribution: str = "cdf",
-    gradient="auto",
+    gradient: GradientOption = "auto",
     fd_step: float = FD_STEP,
 ) -> MeanValueResult:
     """Mean value method (MVFOSM, thesis eqs. 2.4-2.9).
@@ -543,7 +552,7 @@ def _curvatures(um, u, k, s):
     return np.linalg.eigvalsh(basis @ hess @ basis.T / nrm)
 
 
-def sorm_probability(beta: float, kappa, sorm: str = "breitung") -> float:
+def sorm_probability(beta: float, kappa: ArrayLike, sorm: str = "breitung") -> float:
     """Second-order probability of the region beyond a limit state at distance beta > 0
     with principal curvatures ``kappa`` (positive: curving away from the origin), eq. 2.13
     (Breitung) or Hohenbichler-Rackwitz (beta replaced by phi(beta)/Phi(-beta)).
@@ -616,12 +625,12 @@ def _sorm_beta(p_region: float, kappa, method: str, beta_form: float) -> float:
 
 
 def mpp_search(
-    model,
-    space,
+    model: Model,
+    space: ParameterSpace,
     *,
-    response_levels=None,
-    probability_levels=None,
-    reliability_levels=None,
+    response_levels: Levels = None,
+    probability_levels: Levels = None,
+    reliability_levels: Levels = None,
     integration: str = "first_order",
     sorm: str = "breitung",
     fd_step: float = FD_STEP,

@@ -19,12 +19,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy import optimize
 
 from ..._rng import SeedLike, as_generator
 from ...errors import EvaluationError, ModelShapeError, ParameterError
 from ...model import (
     FD_STEP,
+    Model,
     align_inputs,
     evaluate,
     finite_difference,
@@ -198,7 +200,7 @@ class BayesResult:
                     f"{self.n_nan_likelihood} NaN likelihoods")
         return "\n".join(rows)
 
-    def save(self, path) -> Path:
+    def save(self, path: str | Path) -> Path:
         """Write the chains: ``*.csv`` as a table (chain, step, parameters, log posterior),
         anything else as a NumPy ``.npz`` archive with the chains and the summary arrays."""
         path = Path(path)
@@ -512,8 +514,8 @@ def _as_sampler(sampler) -> SamplerConfig:
 
 
 def calibrate_bayes(
-    model,
-    data,
+    model: Model,
+    data: ArrayLike,
     prior: ParameterSpace,
     *,
     sampler: str | SamplerConfig = "dram",
@@ -523,12 +525,12 @@ def calibrate_bayes(
     n_chains: int = 1,
     emulator: GaussianProcess | None = None,
     n_emulator_samples: int = 500,
-    noise_std=None,
-    noise_covariance=None,
+    noise_std: ArrayLike | None = None,
+    noise_covariance: ArrayLike | None = None,
     names_out: Sequence[str] | None = None,
-    proposal_covariance="hessian",
+    proposal_covariance: str | ArrayLike = "hessian",
     map_start: bool = True,
-    x0=None,
+    x0: ArrayLike | None = None,
     posterior_predictive: int = 0,
     seed: SeedLike = None,
 ) -> BayesResult:

@@ -9,6 +9,7 @@ costs O(m^2) whatever the number of experiments.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ...errors import ModelShapeError, ParameterError
 from ._kernels import misfit_rows
@@ -44,7 +45,8 @@ class GaussianLikelihood:
     names_out : response names, for error messages.
     """
 
-    def __init__(self, data, noise_covariance, names_out: tuple[str, ...] | None = None):
+    def __init__(self, data: ArrayLike, noise_covariance: ArrayLike,
+                 names_out: tuple[str, ...] | None = None) -> None:
         names = names_out
         covariance = noise_covariance
         data = np.asarray(data, dtype=float)

@@ -54,6 +54,7 @@ def test_bard_minimizer_matches_scipy_trf_and_fd_counts():
     ref = least_squares(bard, [1, 1, 1], optimizer="trf", tolerance=1e-14)
     np.testing.assert_allclose(res.x, ref.x, rtol=1e-5)
     assert ref.optimizer == "trf" and ref.n_evaluations > 0
+    assert res == res and res != ref  # results compare by identity (eq=False), never raise
     # a finite-difference Jacobian costs p points in one call: calls << points
     assert res.n_calls < res.n_evaluations
 

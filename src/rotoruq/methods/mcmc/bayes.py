@@ -582,8 +582,8 @@ def calibrate_bayes(
     cfg = _as_sampler(sampler)
     n_samples, thin, n_chains = int(n_samples), int(thin), int(n_chains)
     burn_in = n_samples // 19 if burn_in is None else int(burn_in)
-    if n_samples < 2 or thin < 1 or n_chains < 1 or burn_in < 0:
-        raise ParameterError(f"need n_samples >= 2, burn_in >= 0, thin >= 1 and n_chains >= 1; "
+    if n_samples < 1 or thin < 1 or n_chains < 1 or burn_in < 0:
+        raise ParameterError(f"need n_samples >= 1, burn_in >= 0, thin >= 1 and n_chains >= 1; "
                              f"got {n_samples}, {burn_in}, {thin}, {n_chains}")
     pb = _setup(model, data, prior, names_out, noise_std, noise_covariance)
     truth = _TrueModel(model, prior)

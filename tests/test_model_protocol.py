@@ -156,3 +156,48 @@ def test_fixed_inputs_hold_columns_and_slice_the_gradient():
     np.testing.assert_allclose(view.gradient(x), [[[3.0, 1.0]], [[3.0, 1.0]]])
     with pytest.raises(ParameterError, match="not inputs"):
         FixedInputs(model, {"zz": 1.0})
+
+
+# --- vocabulary (docs/vocabulary.md) of the model layer and the calibration methods -----------
+
+RETIRED = {  # old spelling -> the one name
+    "method": "sampler / optimizer / design / estimator", "jacobian": "gradient",
+    "weights": "noise_std", "data_variance": "noise_std", "data_covariance": "noise_std",
+    "start": "x0", "chain_samples": "n_samples", "build_samples": "n_emulator_samples",
+    "n_steps": "n_samples", "n": "n_samples", "n_more": "n_samples", "tol": "tolerance",
+    "max_iter": "max_iterations", "convergence_tolerance": "tolerance",
+    "identifiability_tol": "identifiability_tolerance", "responses": "names_out",
+    "names": "names_in", "labels": "names_in", "success": "converged",
+    "n_model_evals": "n_evaluations", "n_model_evaluations": "n_evaluations",
+    "n_likelihood_evals": "n_likelihood_evaluations", "predictive_names": "names_out",
+}
+
+
+def test_calibration_api_follows_the_vocabulary():
+    import dataclasses
+
+    from rotoruq import model as model_layer
+    from rotoruq.methods import cuu, least_squares, mcmc, nl2sol, reliability
+
+    checked = 0
+    for module in (model_layer, least_squares, nl2sol, cuu, reliability, mcmc):
+        for name in module.__all__:
+            obj = getattr(module, name)
+            if dataclasses.is_dataclass(obj):
+                # a result may hold the Jacobian matrix itself; "jacobian" is a retired option
+                fields = {f.name for f in dataclasses.fields(obj)} - {"jacobian"}
+                assert not fields & RETIRED.keys(), (name, fields & RETIRED.keys())
+                if name.endswith(("Result", "Check", "Outcome")) or name in ("Gradient",
+                                                                           "EvalBatch"):
+                    assert obj.__dataclass_params__.frozen and not obj.__dataclass_params__.eq
+            if callable(obj) and not isinstance(obj, type) or isinstance(obj, type) and \
+                    not dataclasses.is_dataclass(obj):
+                try:
+                    params = inspect.signature(obj).parameters
+                except (TypeError, ValueError):
+                    continue
+                assert not params.keys() & RETIRED.keys(), (name, params.keys() & RETIRED.keys())
+                if "seed" in params:
+                    assert params["seed"].kind is inspect.Parameter.KEYWORD_ONLY, name
+                checked += 1
+    assert checked >= 15

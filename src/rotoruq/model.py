@@ -248,13 +248,13 @@ def evaluate(model: Model, x: ArrayLike) -> EvalBatch:
     return EvalBatch(values, failures)
 
 
-def align_inputs(model: Model, names: Sequence[str]) -> np.ndarray | None:
-    """Column permutation that maps points ordered as ``names`` onto ``model.names_in``.
+def align_inputs(model: Model, names_in: Sequence[str]) -> np.ndarray | None:
+    """Column permutation that maps points ordered as ``names_in`` onto ``model.names_in``.
 
     Returns None when the orders already agree. Raises :class:`ParameterError` when the two
     sets of names differ, naming what is missing on each side.
     """
-    names = tuple(names)
+    names = tuple(names_in)
     model_names = tuple(model.names_in)
     if names == model_names:
         return None

@@ -162,7 +162,7 @@ def _new_radius(radius: float, rho: float, step_norm: float) -> float:
 
 def nl2sol(
     residual: Callable[[np.ndarray], np.ndarray],
-    jacobian: Callable[[np.ndarray, np.ndarray], np.ndarray],
+    gradient: Callable[[np.ndarray, np.ndarray], np.ndarray],
     x0: np.ndarray,
     r0: np.ndarray,
     lower: np.ndarray,
@@ -174,7 +174,7 @@ def nl2sol(
     """Run the NL2SOL iteration from ``x0`` (p,) with residuals ``r0`` there.
 
     residual : one point (p,) -> residuals (n_res,), non-finite where it failed.
-    jacobian : (x, r(x)) -> (n_res, p).
+    gradient : the Jacobian, (x, r(x)) -> (n_res, p).
     evaluations : residual points spent so far (for ``max_function_evaluations``).
     jacobian_cost : residual points one Jacobian costs (0 for an analytic one).
     """
@@ -182,7 +182,7 @@ def nl2sol(
     p = x0.size
     x, r = x0, r0
     f = 0.5 * float(r @ r)
-    J = jacobian(x, r)
+    J = gradient(x, r)
     if not np.all(np.isfinite(J)):
         from ..errors import EvaluationError
 
@@ -249,7 +249,7 @@ def nl2sol(
             shrink = 0.1 if not np.isfinite(ft) else max(0.1, min(0.5, 0.5 * rho))
             radius = shrink * min(radius, step_norm) if step_norm > 0 else 0.1 * radius
             continue
-        Jt = jacobian(xt, rt)
+        Jt = gradient(xt, rt)
         if not np.all(np.isfinite(Jt)):
             radius = 0.1 * min(radius, step_norm)
             continue

@@ -193,7 +193,7 @@ def test_compiled_emulator_posterior_equals_the_python_one():
     from rotoruq.methods.mcmc.samplers import SamplerConfig, run_chains
 
     res = _emulator_result(n_samples=950, burn_in=50)
-    post, state, cfg, _ = res._state
+    post, state, cfg = res._state
     assert post.compiled is not None
     z = np.random.default_rng(1).normal(0, 1.2, (300, 2))  # some outside the support
     cnt0 = post.cnt.copy()

@@ -80,9 +80,6 @@ class _Posterior:
     def reset_counts(self) -> None:
         self.cnt[:3] = 0.0
 
-    def theta(self, z: np.ndarray) -> np.ndarray:
-        return self.center + self.scale * z
-
     def __call__(self, z: np.ndarray) -> np.ndarray:
         z = np.ascontiguousarray(z, dtype=float)
         if self.compiled is not None:
@@ -607,7 +604,6 @@ def calibrate_bayes(
     L0 = np.linalg.cholesky(cov_z + 1e-14 * np.eye(d))
     state = _chain_starts(post, z0, lp0, L0, n_chains, rng)
 
-    n_pre = post.n_evals
     post.reset_counts()
     t0, c0 = time.perf_counter(), time.process_time()
     with warnings.catch_warnings():
@@ -631,7 +627,7 @@ def calibrate_bayes(
         n_out_of_support=post.n_outside, sampling_seconds=t_sampling,
         sampling_cpu_seconds=cpu_sampling, emulator=gp, emulator_loo=loo,
         predictive_inputs=pred_in, predictive=pred, names_out=truth.names_out,
-        _state=(post, state, cfg, n_pre),
+        _state=(post, state, cfg),
     )
     res = _summarize(prior.names, kept.transpose(1, 0, 2), kept_lp.T, post, state, base, rng)
     log.info("calibrate_bayes: %d chains x %d kept steps in %.2f s (total %.2f s)", n_chains,
@@ -645,7 +641,7 @@ def continue_chain(result: BayesResult, n_samples: int, *, seed: SeedLike = None
     result."""
     if result._state is None:
         raise ParameterError("this BayesResult carries no sampler state to continue from")
-    post, state, cfg, n_pre = result._state
+    post, state, cfg = result._state
     state = state.copy()
     if seed is not None:
         state.reseed(as_generator(seed))
@@ -665,5 +661,5 @@ def continue_chain(result: BayesResult, n_samples: int, *, seed: SeedLike = None
         n_nan_likelihood=result.n_nan_likelihood + post.n_nan - nan0,
         n_out_of_support=result.n_out_of_support + post.n_outside - out0,
         sampling_seconds=result.sampling_seconds + dt,
-        sampling_cpu_seconds=result.sampling_cpu_seconds + dcpu, _state=(post, state, cfg, n_pre))
+        sampling_cpu_seconds=result.sampling_cpu_seconds + dcpu, _state=(post, state, cfg))
     return _summarize(result.names_in, chains_z, lp, post, state, base, seed)

@@ -188,13 +188,6 @@ def test_wrong_option_type(tmp_path):
     assert "'n_samples' of step 'fwd' (forward_check) to be an integer >= 1" in str(err)
 
 
-def test_burn_in_shorter_than_chain(tmp_path):
-    text = VALID.replace("burn_in = 100", "burn_in = 5000")
-    err = error_of(tmp_path, text)
-    assert err.line == line_of(text, "burn_in = 5000")
-    assert "burn_in < n_samples (2000)" in str(err)
-
-
 def test_unknown_response_and_fixed_input(tmp_path):
     err = error_of(tmp_path, VALID.replace('"thrust", "power"', '"thrust", "powr"'))
     assert "did you mean 'power'?" in str(err) and err.line == 7

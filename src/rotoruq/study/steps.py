@@ -52,7 +52,13 @@ class StepContext:
     targets: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     source: StepResult | None = None
 
-    def model(self, fixed: Mapping[str, float] | None = None):
+    def observations(self) -> np.ndarray:
+        """The step's data (k, m); a step type that needs data declares ``needs_data``."""
+        if self.data is None:
+            raise ParameterError(f"step {self.name!r} ({self.type}) needs data = \"NAME\"")
+        return self.data
+
+    def model(self, fixed: Mapping[str, float] | None = None) -> Any:
         f = dict(self.fixed)
         f.update(fixed or {})
         return self.make_model(self.space.names, self.responses, f)
@@ -394,20 +400,20 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         res = calibrate_bayes(
-            ctx.model(), ctx.data, ctx.space, method=o["sampler"], emulator=emulator,
-            build_samples=o["n_emulator_samples"], chain_samples=o["n_samples"],
-            burn_in=o["burn_in"], data_covariance=1.0 if sd is None else np.square(sd),
+            ctx.model(), ctx.observations(), ctx.space, sampler=o["sampler"], emulator=emulator,
+            n_emulator_samples=o["n_emulator_samples"], n_samples=o["n_samples"],
+            burn_in=o["burn_in"], noise_std=sd,
             proposal_covariance=o["proposal"], seed=ctx.rng,
         )
     chain = np.asarray(res.chains).reshape(-1, ctx.space.dim)
     scalars = _input_scalars(ctx.space)
-    for j, p in enumerate(res.names):
+    for j, p in enumerate(res.names_in):
         for what in ("mean", "std", "skewness", "kurtosis", "ess", "rhat"):
             scalars[f"{what}/{p}"] = float(np.asarray(getattr(res, what))[j])
         scalars[f"map/{p}"] = float(res.map_point[j])
     scalars["acceptance"] = float(res.acceptance_rate)
     scalars["kl_divergence"] = float(res.kl_divergence)
-    scalars.update(chain_diagnostic_scalars(res.names, chain, ctx.space))
+    scalars.update(chain_diagnostic_scalars(res.names_in, chain, ctx.space))
     loo = getattr(res, "emulator_loo", None)
     if loo is not None:
         for k, r in enumerate(ctx.responses):
@@ -418,11 +424,11 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
     for r, v in zip(ctx.responses, noise, strict=True):
         scalars[f"noise_std/{r}"] = float(v)
     posterior = {p: dist_to_dict(Normal(scalars[f"mean/{p}"], scalars[f"std/{p}"]))
-                 for p in res.names}
+                 for p in res.names_in}
     arrays = {"chain": chain, "data": np.asarray(ctx.data)}
-    columns = {"chain": list(res.names), "data": list(ctx.responses)}
+    columns = {"chain": list(res.names_in), "data": list(ctx.responses)}
     return StepResult(ctx.name, ctx.type, scalars, arrays, posterior, meta={
-        "columns": columns, "n_evaluations": int(res.n_model_evals),
+        "columns": columns, "n_evaluations": int(res.n_evaluations),
         "noise_model": "unit variance (none given)" if sd is None else "noise_std per response",
         "warnings": sorted({f"{w.category.__name__}: {w.message}" for w in caught})[:10],
         "prior": {p: dist_to_dict(d) for p, d in zip(ctx.space.names, ctx.space.distributions,
@@ -441,14 +447,14 @@ def run_least_squares(ctx: StepContext) -> StepResult:
     o = ctx.options
     sd = _per_response(o.get("noise_std"), ctx.responses)
     res = calibrate(
-        ctx.model(), ctx.data, ctx.space, data_variance=None if sd is None else np.square(sd),
-        method=o["optimizer"], max_iterations=o["max_iterations"],
+        ctx.model(), ctx.observations(), ctx.space, noise_std=sd,
+        optimizer=o["optimizer"], max_iterations=o["max_iterations"],
         max_function_evaluations=o["max_function_evaluations"],
-        convergence_tolerance=o["tolerance"],
+        tolerance=o["tolerance"],
     )
     scalars = {}
     calibrated = {}
-    for j, p in enumerate(res.names):
+    for j, p in enumerate(res.names_in):
         scalars[f"value/{p}"] = float(res.x[j])
         s = float(res.std[j])
         scalars[f"std/{p}"] = s
@@ -457,7 +463,7 @@ def run_least_squares(ctx: StepContext) -> StepResult:
     scalars["cost"] = float(res.cost)
     return StepResult(ctx.name, ctx.type, scalars, {"residuals": np.asarray(res.residuals)},
                       calibrated, meta={"n_evaluations": int(res.n_evaluations),
-                                        "converged": bool(res.success), "message": res.message})
+                                        "converged": bool(res.converged), "message": res.message})
 
 
 def run_cuu(ctx: StepContext) -> StepResult:
@@ -475,9 +481,9 @@ def run_cuu(ctx: StepContext) -> StepResult:
         model, ctx.space, calibrate={p: stats_ for p in ctx.space.names},
         targets={r: {"mean": m, "std": s} if "mean" in stats_ else {"std": s}
                  for r, (m, s) in targets.items()},
-        inner="lhs" if o["inner"] == "sampling" else o["inner"],
-        method=o["optimizer"], max_iterations=o["max_iterations"],
-        convergence_tolerance=o["tolerance"], seed=ctx.rng,
+        inner=o["inner"],
+        optimizer=o["optimizer"], max_iterations=o["max_iterations"],
+        tolerance=o["tolerance"], seed=ctx.rng,
     )
     cal_space: ParameterSpace = res.space
     scalars = {}
@@ -504,6 +510,6 @@ def run_cuu(ctx: StepContext) -> StepResult:
     calibrated = {p: dist_to_dict(d) for p, d in zip(cal_space.names, cal_space.distributions,
                                                       strict=True)}
     return StepResult(ctx.name, ctx.type, scalars, arrays, calibrated, meta={
-        "columns": columns, "n_evaluations": int(res.n_model_evaluations),
+        "columns": columns, "n_evaluations": int(res.n_evaluations),
         "identifiable": bool(res.identifiable), "diagnostic": res.diagnostic,
         "condition_number": float(res.condition_number), "message": res.message})

@@ -165,12 +165,6 @@ def run_step(ctx: StepContext) -> tuple[StepResult, float]:
 # ---------------------------------------------------------------------------------------------
 # Checks of the built-in types
 # ---------------------------------------------------------------------------------------------
-def _check_bayes(c: StepCheck) -> None:
-    burn_in, n = c.options["burn_in"], c.options["n_samples"]
-    if burn_in is not None and burn_in >= n:
-        c.fail(("burn_in",), f"burn_in < n_samples ({n})", str(burn_in))
-
-
 def _check_targets(c: StepCheck) -> None:
     targets = c.options["targets"]
     if isinstance(targets, str):
@@ -271,28 +265,27 @@ register_step_type(StepType(
 register_step_type(StepType(
     "bayes_calibration", steps.run_bayes_calibration,
     method="rotoruq.methods.mcmc:calibrate_bayes", provides=("posterior",), needs_data=True,
-    options={"sampler": Option(choice("dram", "mh", "dr", "am"), SIGNATURE, param="method"),
-             "n_samples": Option(integer(10), SIGNATURE, param="chain_samples"),
+    options={"sampler": Option(choice("dram", "mh", "dr", "am"), SIGNATURE),
+             "n_samples": Option(integer(10), SIGNATURE),
              "burn_in": Option(integer(0), SIGNATURE),
              "emulator": Option(choice("gp", "none"), "gp"),
              "trend": Option(choice("constant", "linear", "reduced_quadratic", "quadratic"),
                              SIGNATURE, method="rotoruq.methods.surrogate:GaussianProcess"),
-             "n_emulator_samples": Option(integer(2), SIGNATURE, param="build_samples"),
+             "n_emulator_samples": Option(integer(2), SIGNATURE),
              "noise_std": Option(number_or_table, None),
              "proposal": Option(choice("hessian", "prior"), SIGNATURE,
                                 param="proposal_covariance")},
-    quick={"n_samples": 2000, "burn_in": 200, "n_emulator_samples": 60}, check=_check_bayes,
+    quick={"n_samples": 1800, "burn_in": 200, "n_emulator_samples": 60},
     tables=steptables.bayes_tables, figures=plots.bayes_figures,
     warnings=diagnostics.bayes_warnings))
 
 register_step_type(StepType(
     "least_squares", steps.run_least_squares, method=_LEAST_SQUARES,
     provides=("calibrated",), needs_data=True,
-    options={"optimizer": Option(choice("nl2sol", "trf", "lm"), SIGNATURE, param="method"),
+    options={"optimizer": Option(choice("nl2sol", "trf", "lm"), SIGNATURE),
              "max_iterations": Option(integer(1), SIGNATURE),
              "max_function_evaluations": Option(integer(1), SIGNATURE),
-             "tolerance": Option(number(positive=True, allow_zero=False), SIGNATURE,
-                                 param="convergence_tolerance"),
+             "tolerance": Option(number(positive=True, allow_zero=False), SIGNATURE),
              "noise_std": Option(number_or_table, None)},
     tables=steptables.least_squares_tables, warnings=diagnostics.least_squares_warnings))
 
@@ -302,10 +295,10 @@ register_step_type(StepType(
     options={"targets": Option(table_or_string, REQUIRED),
              "calibrate": Option(choice("std", "mean", "mean_std"), "std"),
              "inner": Option(choice("mean_value", "sampling", "pce"), SIGNATURE),
-             "optimizer": Option(choice("nl2sol", "trf", "lm"), SIGNATURE, param="method"),
+             "optimizer": Option(choice("nl2sol", "trf", "lm"), SIGNATURE),
              "max_iterations": Option(integer(1), SIGNATURE, method=_LEAST_SQUARES),
              "tolerance": Option(number(positive=True, allow_zero=False), SIGNATURE,
-                                 param="convergence_tolerance", method=_LEAST_SQUARES),
+                                 method=_LEAST_SQUARES),
              "verify_samples": Option(integer(0), 0),
              "design": Option(choice(*DESIGNS), SIGNATURE, param="method", method=_SAMPLE)},
     quick={"verify_samples": 40}, check=_check_targets,

@@ -1,27 +1,16 @@
-"""Periodic steady state of a hovering rotor, batched over samples.
+"""The numpy implementation of the hover solve: the test oracle of the compiled one.
 
-One blade is solved over one revolution: in hover at constant speed every blade follows the
-same periodic motion shifted by 2 pi / N_b, so hub loads follow from one blade's harmonics
-(mean loads = N_b x the azimuth mean; hub roll/pitch = N_b / 2 x the first harmonic of the
-blade-root flap moment). The blade motion is a Fourier series (harmonic balance) solved by a
-Newton-like iteration whose Jacobian is the structural operator plus linear aerodynamic
-flap damping and pitch-flap stiffness; the inflow is updated by Newton steps on momentum.
-This is equivalent to time-marching to periodic steady state and averaging over the last two
-revolutions, as the reference study did in MBDyn, without the transient.
-
-Samples are independent: each has its own step control and convergence test, a converged
-sample leaves the iteration (its state is frozen), and every reduction runs per sample in a
-fixed order, so a sample's result is bitwise the same whatever batch it is solved in.
-
-Every returned row is either a converged solution whose equations were re-evaluated at the
-final state (``equation_residual`` below ``check_tol``) or carries a failure reason: diverged,
-not converged, residual check failed, or a physically invalid regime (deep stall over the disk,
-torsional divergence, negative drag, negative power).
+Used only by the tests and benchmarks (``tests/test_rotor_kernel.py``,
+``benchmarks/rotor_throughput.py``), never by the model: it is the batched numpy solve that
+:mod:`rotoruq.rotor._kernel` replaced, kept to prove the compiled solve gives the same
+numbers (1e-10 relative) and to measure the speed-up against. Arrays over (sample, azimuth,
+station); a converged sample leaves the iteration (its state is frozen), every reduction runs
+per sample in a fixed order, so a sample's result is bitwise the same whatever batch it is
+solved in. ``freeze=False`` iterates every sample until the slowest has converged (the
+lock-step baseline).
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -30,63 +19,10 @@ from .dynamics import HarmonicBasis, apply_blocks, fixed_sum, structural_operato
 from .geometry import CANTILEVER_SPRING_FACTOR, BladeGrid
 from .ground_effect import ground_effect_factor
 from .inflow import A0, annulus_update, prandtl_loss, uniform_update
+from .hover import MAX_BLADE_MOTION, HoverSolution, judge
 from .presets import RotorPreset
 
-__all__ = ["HoverSolution", "solve_hover", "STALL_AREA_LIMIT", "MAX_BLADE_MOTION"]
-
-#: Fraction of the disk's blade-element area (weighted by r dr dpsi) beyond the airfoil's
-#: stall angle above which a solution is a physically invalid regime ("deep stall").
-STALL_AREA_LIMIT = 0.5
-#: Blade motion harmonics beyond this amplitude [rad] mean the iteration diverged.
-MAX_BLADE_MOTION = 2.0 * np.pi
-
-
-@dataclass(frozen=True)
-class HoverSolution:
-    """Loads and state of a batch of hover solutions (every array has leading axis n).
-
-    thrust [N], torque [N m] (positive = power absorbed), roll, pitch [N m] (hub moments in
-    the non-rotating frame: roll positive right side down, pitch positive nose up),
-    power [W], ct, cq [-]; coning_deg, theta_75_deg (mean blade pitch at 0.75 R, after the
-    pitch-link deflection), inflow_ratio (mean lambda); flap/lag/pitch harmonics (n, K) in rad;
-    residual (n,): last iteration step [rad or inflow ratio]; equation_residual (n,): the
-    equations re-evaluated at the returned state (structural residual over its k = 0
-    stiffness [rad]; momentum residual as the inflow-ratio change a Newton step would make);
-    stalled_fraction (n,): share of blade-element area beyond the stall angle;
-    iterations (n,) int; converged (n,) bool (True only for valid rows); failure (n,) str, ""
-    for a valid row, else the reason the row is NaN.
-    """
-
-    thrust: np.ndarray
-    torque: np.ndarray
-    roll: np.ndarray
-    pitch: np.ndarray
-    power: np.ndarray
-    ct: np.ndarray
-    cq: np.ndarray
-    coning_deg: np.ndarray
-    theta_75_deg: np.ndarray
-    inflow_ratio: np.ndarray
-    flap: np.ndarray
-    lag: np.ndarray
-    feather: np.ndarray
-    residual: np.ndarray
-    equation_residual: np.ndarray
-    stalled_fraction: np.ndarray
-    iterations: np.ndarray
-    converged: np.ndarray
-    failure: np.ndarray
-
-    def response(self, name: str) -> np.ndarray:
-        return getattr(self, name)
-
-    @staticmethod
-    def concatenate(parts: list[HoverSolution]) -> HoverSolution:
-        """Join solutions of consecutive chunks along the sample axis."""
-        if len(parts) == 1:
-            return parts[0]
-        return HoverSolution(**{f.name: np.concatenate([getattr(p, f.name) for p in parts])
-                                for f in fields(HoverSolution)})
+__all__ = ["solve_hover_reference"]
 
 
 def _col(p, name, n):
@@ -434,16 +370,17 @@ class _Rotor:
                 "stalled": frac, "cd_min": cd_min, "bad": A["bad"], "k_eff": k_eff}
 
 
-def solve_hover(
+def solve_hover_reference(
     preset: RotorPreset,
     airfoil,
     grid: BladeGrid,
     params: dict[str, np.ndarray],
     overrides: dict[str, np.ndarray] | None = None,
+    *,
     n_harmonics: int = 2,
-    tol: float = 1e-9,
-    max_iter: int = 200,
-    check_tol: float | None = None,
+    tolerance: float = 1e-9,
+    max_iterations: int = 200,
+    check_tolerance: float | None = None,
     freeze: bool = True,
 ) -> HoverSolution:
     """Solve the periodic hover state for n samples.
@@ -451,11 +388,7 @@ def solve_hover(
     params : every entry of :data:`rotoruq.rotor.model.ROTOR_INPUTS` except the optional
         ``k_feather`` (which, when present, replaces the pitch-link stiffness), arrays of
         shape (n,) (angles in deg). overrides : airfoil coefficient overrides, arrays (n,).
-    tol : convergence of a sample's iteration (largest step of the motion harmonics [rad] and
-        of the inflow ratio). max_iter : iterations per sample. check_tol : the equations
-        re-evaluated at the returned state (structural residual / its k = 0 stiffness [rad],
-        momentum residual as a Newton step of the inflow ratio, harmonic inflow [-]) must be
-        below it (default max(1e-6, 100 tol)).
+    tolerance, max_iterations, check_tolerance : as :func:`rotoruq.rotor.hover.solve_hover`.
     freeze : True (default): a converged sample leaves the iteration, which makes results
         independent of the batch; False only serves as a timing baseline.
     A sample that fails any check has ``converged`` False and its reason in ``failure``.
@@ -465,11 +398,11 @@ def solve_hover(
     for name in ("cm0", "aero_center_offset"):
         P.setdefault(name, np.full(n, float(getattr(preset, name))))
     ov = {k: _col(overrides, k, n) for k in (overrides or {})}
-    if check_tol is None:
-        check_tol = max(1e-6, 100.0 * tol)
+    if check_tolerance is None:
+        check_tolerance = max(1e-6, 100.0 * tolerance)
     with np.errstate(all="ignore"):
-        return _solve(preset, airfoil, grid, P, ov, n, n_harmonics, tol, max_iter, check_tol,
-                      freeze)
+        return _solve(preset, airfoil, grid, P, ov, n, n_harmonics, tolerance, max_iterations,
+                      check_tolerance, freeze)
 
 
 def _solve(preset, airfoil, grid, P, ov, n, n_harmonics, tol, max_iter, check_tol, freeze):
@@ -537,75 +470,10 @@ def _solve(preset, airfoil, grid, P, ov, n, n_harmonics, tol, max_iter, check_to
         for k in out:
             out[k][live] = chk[k]
         M_root[live] = chk["M_root"]
-        _judge(preset, rot, S, C, P, out, live, chk["bad"], failure, check_tol)
-    valid = failure == ""
-    thrust, torque = out["thrust"], out["torque"]
-    roll = 0.5 * preset.n_blades * M_root[:, 1].imag
-    pitch = -0.5 * preset.n_blades * M_root[:, 1].real
-    vt = Om * R
-    rho = C["rho"]
-    area = preset.area
-    i75 = int(np.argmin(np.abs(r - 0.75 * R)))
-    Q = S["Q"]
-    loads = {
-        "thrust": thrust, "torque": torque, "roll": roll, "pitch": pitch,
-        "power": torque * Om, "ct": thrust / (rho * area * vt**2),
-        "cq": torque / (rho * area * vt**2 * R),
-    }
-    for v in loads.values():
-        v[~valid] = np.nan
-    return HoverSolution(
-        **loads,
-        coning_deg=np.rad2deg(Q[:, 0, 0].real),
-        theta_75_deg=np.rad2deg(Q[:, 2, 0].real + grid.twist[i75]),
-        inflow_ratio=S["v0"] / vt,
-        flap=Q[:, 0],
-        lag=Q[:, 1],
-        feather=Q[:, 2],
-        residual=S["resid"],
-        equation_residual=out["eq"],
-        stalled_fraction=out["stalled"],
-        iterations=iters,
-        converged=valid,
-        failure=failure.astype(str),
-    )
-
-
-def _judge(preset, rot, S, C, P, out, live, bad, failure, check_tol):
-    """Failure reasons of the samples ``live`` from the re-evaluated state (in place)."""
-    for j, i in enumerate(live):
-        eq, frac = out["eq"][i], out["stalled"][i]
-        if bad[j] or not np.all(np.isfinite([out["thrust"][i], out["torque"][i]])):
-            failure[i] = "non-finite loads at the converged state"
-        elif not eq <= check_tol:
-            failure[i] = (f"the equations re-evaluated at the converged state leave a residual "
-                          f"{eq:.2e} above {check_tol:.0e}")
-        elif frac > STALL_AREA_LIMIT:
-            th = np.rad2deg(S["Q"][i, 2, 0].real)
-            cmd = np.rad2deg(C["th_cmd0"][i])
-            msg = (f"physically invalid regime: deep stall over {100 * frac:.0f} % of the disk "
-                   f"(mean blade pitch {th:.1f} deg")
-            if th * cmd > 0 and abs(th) > abs(cmd) + max(2.0, 0.25 * abs(cmd)):
-                msg += (f" against {cmd:.1f} deg commanded: driven into stall by torsional "
-                        "divergence through the pitch link")
-            else:
-                msg += f", {cmd:.1f} deg commanded"
-            failure[i] = msg + ")"
-        elif np.sign(th_cmd := np.rad2deg(C["th_cmd0"][i])) * (
-                dth := np.rad2deg(S["Q"][i, 2, 0].real) - th_cmd) > max(2.0, abs(th_cmd)):
-            failure[i] = (f"physically invalid regime: torsional divergence (the aerodynamic "
-                          f"pitching moment drove the mean blade pitch {dth:+.1f} deg past the "
-                          f"{th_cmd:.1f} deg commanded)")
-        elif out["cd_min"][i] < 0:
-            power = out["torque"][i] * C["Om"][i]
-            failure[i] = (f"physically invalid regime: negative section drag coefficient "
-                          f"(min cd {out['cd_min'][i]:.3g}" + (
-                              f"; negative power {power:.3g} W)" if power < 0 else ")"))
-        elif out["torque"][i] < 0:
-            failure[i] = (f"physically invalid regime: negative power in hover "
-                          f"({out['torque'][i] * C['Om'][i]:.3g} W)")
-        elif not out["k_eff"][i] > 0:
-            failure[i] = ("physically invalid regime: torsional divergence (the aerodynamic "
-                          "pitching moment's stiffness exceeds the feathering stiffness: "
-                          f"margin {out['k_eff'][i]:.3g} N m/rad)")
-
+        out["bad"] = np.zeros(n)
+        out["bad"][live] = chk["bad"]
+        judge(live, out, S["Q"][:, 2, 0].real, P["collective_deg"], Om, failure, check_tol)
+    return HoverSolution.assemble(preset, grid, Om, C["rho"], S["Q"], S["v0"],
+                                  {"thrust": out["thrust"], "torque": out["torque"],
+                                   "eq": out["eq"], "stalled": out["stalled"]}, M_root,
+                                  S["resid"], iters, failure)

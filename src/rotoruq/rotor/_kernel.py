@@ -42,6 +42,8 @@ import numba
 import numpy as np
 
 _JIT = {"cache": True, "error_model": "numpy", "nogil": True}
+# small functions called per blade element: inlined into their caller (no call overhead)
+_INLINE = {**_JIT, "inline": "always"}
 
 A0 = 5.73           # lift slope [1/rad] of the Newton preconditioner (see inflow.py)
 RAD2DEG = 180.0 / np.pi
@@ -162,7 +164,7 @@ def _psum(x, n):
     return _psum(x, half) + _psum(x[half:], n - half)
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_INLINE)
 def _nanmax(a, b):
     """np.maximum: the larger of a and b, NaN if either is NaN."""
     if a != a or b != b:
@@ -170,7 +172,7 @@ def _nanmax(a, b):
     return a if a >= b else b
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_INLINE)
 def _nanmin(a, b):
     """np.minimum: the smaller of a and b, NaN if either is NaN."""
     if a != a or b != b:
@@ -210,7 +212,7 @@ def _lu_solve(A, b):
     return x
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_INLINE)
 def _locate_lut(x, grid, lut, nxt, inv_dx, x0, inv_h, nbins):
     """Interval index and weight of x in an increasing grid, clamped (c81.Bracket.locate)."""
     if lut.size == 0:
@@ -232,7 +234,7 @@ def _locate_lut(x, grid, lut, nxt, inv_dx, x0, inv_h, nbins):
     return i, min(max(t, 0.0), 1.0)
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_INLINE)
 def _locate(x, grid, inv_dx):
     """Interval index and weight in a short grid (linear scan), clamped."""
     n = grid.size
@@ -245,48 +247,63 @@ def _locate(x, grid, inv_dx):
     return i, min(max(t, 0.0), 1.0)
 
 
+@numba.njit(**_INLINE)
+def _bilinear(v, c, idx, nm, t, s):
+    """Coefficient c between the nodes idx, idx + 1 (Mach), idx + nm (alpha) of the table."""
+    lo = v[c, idx]
+    lo = lo + (v[c, idx + nm] - lo) * t
+    hi = v[c, idx + 1]
+    hi = hi + (v[c, idx + nm + 1] - hi) * t
+    return lo + (hi - lo) * s
+
+
 @numba.njit(**_JIT)
-def _coefficients(alpha, mach, af, fit, linear):
-    """cl, cd, cm at alpha [deg, wrapped] and Mach; ``fit`` (5, n_m) the sample's fit-row
-    coefficients, ``linear`` (3,) its (cla, cl0, cd0) for a linear airfoil."""
+def _coefficients(alpha, mach, af, fit, linear, cl, cd, cm):
+    """cl, cd, cm (N_psi, N_r) at alpha [deg, wrapped] and Mach over the disk; ``fit``
+    (5, n_m) the sample's fit-row coefficients, ``linear`` (3,) its (cla, cl0, cd0) for a
+    linear airfoil. One call per pass: the table's arrays are bound once, not per element."""
+    npsi, nr = alpha.shape
     if af.kind == LINEAR:
-        return linear[0] * alpha + linear[1], linear[2] + af.cda2 * (alpha * alpha), 0.0
-    ia, t = _locate_lut(alpha, af.alpha, af.alpha_lut, af.alpha_next, af.alpha_inv_dx,
-                        af.alpha_x0, af.alpha_inv_h, af.alpha_nbins)
-    im, s = _locate(abs(mach), af.mach, af.mach_inv_dx)
-    nm = af.mach.size
-    idx = ia * nm + im
-    out0 = 0.0
-    out1 = 0.0
-    out2 = 0.0
-    for c in range(3):
-        v = af.values[c]
-        lo = v[idx]
-        lo = lo + (v[idx + nm] - lo) * t
-        hi = v[idx + 1]
-        hi = hi + (v[idx + nm + 1] - hi) * t
-        val = lo + (hi - lo) * s
-        if c == 0:
-            out0 = val
-        elif c == 1:
-            out1 = val
-        else:
-            out2 = val
-    if af.has_fits:
-        h = af.window[ia]
-        h = h + (af.window[ia + 1] - h) * t
-        ac = min(max(alpha, -af.half_width), af.half_width)
-        cc = np.empty(5)
-        for q in range(5):
-            ci = fit[q, im]
-            cc[q] = ci + (fit[q, im + 1] - ci) * s
-        out0 += (cc[0] * ac + cc[1]) * h
-        if af.replace_cd:
-            out1 += (((cc[2] * ac + cc[3]) * ac) + cc[4]) * h
-    return out0, out1, out2
+        cla, cl0, cd0, cda2 = linear[0], linear[1], linear[2], af.cda2
+        for j in range(npsi):
+            for i in range(nr):
+                a = alpha[j, i]
+                cl[j, i] = cla * a + cl0
+                cd[j, i] = cd0 + cda2 * (a * a)
+                cm[j, i] = 0.0
+        return
+    ga, gm, values, window = af.alpha, af.mach, af.values, af.window
+    lut, nxt, inv_dx, m_inv_dx = af.alpha_lut, af.alpha_next, af.alpha_inv_dx, af.mach_inv_dx
+    x0, inv_h, nbins, hw = af.alpha_x0, af.alpha_inv_h, af.alpha_nbins, af.half_width
+    has_fits, replace_cd = af.has_fits, af.replace_cd
+    nm = gm.size
+    for j in range(npsi):
+        for i in range(nr):
+            a = alpha[j, i]
+            ia, t = _locate_lut(a, ga, lut, nxt, inv_dx, x0, inv_h, nbins)
+            im, s = _locate(abs(mach[j, i]), gm, m_inv_dx)
+            idx = ia * nm + im
+            out0 = _bilinear(values, 0, idx, nm, t, s)
+            out1 = _bilinear(values, 1, idx, nm, t, s)
+            out2 = _bilinear(values, 2, idx, nm, t, s)
+            if has_fits:
+                h = window[ia]
+                h = h + (window[ia + 1] - h) * t
+                ac = min(max(a, -hw), hw)
+                cla = fit[0, im] + (fit[0, im + 1] - fit[0, im]) * s
+                cl0 = fit[1, im] + (fit[1, im + 1] - fit[1, im]) * s
+                out0 += (cla * ac + cl0) * h
+                if replace_cd:
+                    cda2 = fit[2, im] + (fit[2, im + 1] - fit[2, im]) * s
+                    cda = fit[3, im] + (fit[3, im + 1] - fit[3, im]) * s
+                    cd0 = fit[4, im] + (fit[4, im + 1] - fit[4, im]) * s
+                    out1 += (((cda2 * ac + cda) * ac) + cd0) * h
+            cl[j, i] = out0
+            cd[j, i] = out1
+            cm[j, i] = out2
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_INLINE)
 def _wrap_deg(a):
     if -180.0 <= a < 180.0:
         return a
@@ -294,7 +311,7 @@ def _wrap_deg(a):
 
 
 @numba.njit(**_JIT)
-def _prandtl(r, v, omega, rot, derivative):
+def _prandtl(r, v, omega, radius, root_cutout, n_blades, derivative):
     """Prandtl tip and root loss F(r, v) and dF/dv (inflow.prandtl_loss, one station)."""
     av = abs(v)
     ratio = av / (omega * r)
@@ -304,12 +321,12 @@ def _prandtl(r, v, omega, rot, derivative):
     dlogF = 0.0
     for part in range(2):
         if part == 0:
-            dist = rot.radius - r
+            dist = radius - r
         else:
-            if not rot.root_cutout > 0:
+            if not root_cutout > 0:
                 continue
-            dist = r - rot.root_cutout
-        f = 0.5 * rot.n_blades * dist / (r * phi)
+            dist = r - root_cutout
+        f = 0.5 * n_blades * dist / (r * phi)
         fc = min(f, 50.0)
         ex = math.exp(-fc)
         Fi = TWO_OVER_PI * math.acos(ex)
@@ -328,9 +345,10 @@ def _uniform_tip_loss(v0, omega, rot, scratch):
     """Area (r dr) mean of the Prandtl factor over the span for one v; 1 without tip loss."""
     if not rot.tip_loss:
         return 1.0
-    nr = rot.r.size
+    r_, w_r, radius, root, nb = rot.r, rot.w_r, rot.radius, rot.root_cutout, rot.n_blades
+    nr = r_.size
     for i in range(nr):
-        scratch[i] = _prandtl(rot.r[i], v0, omega, rot, False)[0] * rot.w_r[i]
+        scratch[i] = _prandtl(r_[i], v0, omega, radius, root, nb, False)[0] * w_r[i]
     return _psum(scratch, nr) / rot.sums[SUM_W_R]
 
 
@@ -409,15 +427,15 @@ def _structural_jacobian(prm, rot):
     return Z, Jinv, J0, J1, F_cmd, v_init, k_v, qa
 
 
-@numba.njit(**_JIT)
-def _synth(Q, d, rot, j):
+@numba.njit(**_INLINE)
+def _synth(Q, d, cos_k, sin_k, j):
     """q_d(psi_j) and dq_d/dpsi at psi_j."""
-    val = Q[d, 0].real * rot.cos_k[0, j]
+    val = Q[d, 0].real * cos_k[0, j]
     der = 0.0
     for k in range(1, Q.shape[1]):
         re, im = Q[d, k].real, Q[d, k].imag
-        val = val + (re * rot.cos_k[k, j] - im * rot.sin_k[k, j])
-        der = der - k * (re * rot.sin_k[k, j] + im * rot.cos_k[k, j])
+        val = val + (re * cos_k[k, j] - im * sin_k[k, j])
+        der = der - k * (re * sin_k[k, j] + im * cos_k[k, j])
     return val, der
 
 
@@ -427,44 +445,50 @@ def _aerodynamic_loads(Q, v0, vc, vs, v_r, prm, rot, af, fit, linear, ws):
     the flow (alpha, mach) and coefficients kept for the final check. Returns True when the
     section flow is not finite somewhere (the loads there are taken at a neutral flow)."""
     Om, rho = prm[OMEGA], prm[RHO]
-    R, c = rot.radius, rot.chord
+    R, c, a_sound = rot.radius, rot.chord, rot.speed_of_sound
     x_ac, cm0 = prm[X_AC], prm[CM0]
-    npsi, nr = rot.cos_psi.size, rot.r.size
+    r_, rr_, twist_ = rot.r, rot.rr, rot.twist
+    cos_psi, sin_psi, cos_k, sin_k = rot.cos_psi, rot.sin_psi, rot.cos_k, rot.sin_k
+    bemt, table, pitching_moment = rot.bemt, af.kind == TABLE, rot.pitching_moment
+    m_lo, m_hi = af.mach[0], af.mach[-1]
+    alpha_, mach_, qc_, cphi_, sphi_ = ws.alpha, ws.mach, ws.qc, ws.cphi, ws.sphi
+    npsi, nr = cos_psi.size, r_.size
     bad = False
     for j in range(npsi):
-        beta, dbeta = _synth(Q, 0, rot, j)
-        _, dzeta = _synth(Q, 1, rot, j)
-        theta, _ = _synth(Q, 2, rot, j)
+        beta, dbeta = _synth(Q, 0, cos_k, sin_k, j)
+        _, dzeta = _synth(Q, 1, cos_k, sin_k, j)
+        theta, _ = _synth(Q, 2, cos_k, sin_k, j)
         ws.beta[j] = beta
-        cs = vc * rot.cos_psi[j] + vs * rot.sin_psi[j]
+        cs = vc * cos_psi[j] + vs * sin_psi[j]
         for i in range(nr):
-            r, rr = rot.r[i], rot.rr[i]
-            base = v_r[i] if rot.bemt else v0
+            r, rr = r_[i], rr_[i]
+            base = v_r[i] if bemt else v0
             UT = Om * (r - rr * dzeta)
             UP = (base + (r / R) * cs) + (Om * rr) * dbeta
             phi = math.atan2(UP, UT)
-            alpha = (theta + rot.twist[i] - phi) * RAD2DEG
+            alpha = (theta + twist_[i] - phi) * RAD2DEG
             U2 = UT**2 + UP**2
-            cphi, sphi = math.cos(phi), math.sin(phi)
-            mach = math.sqrt(U2) / rot.speed_of_sound
+            cphi_[j, i], sphi_[j, i] = math.cos(phi), math.sin(phi)
+            mach = math.sqrt(U2) / a_sound
             if not (np.isfinite(alpha) and np.isfinite(U2)):
                 bad = True
                 alpha, mach, U2 = 0.0, 0.0, 0.0
-            alpha = _wrap_deg(alpha)
-            if af.kind == TABLE:
-                mach = min(max(mach, af.mach[0]), af.mach[-1])
-            cl, cd, cm = _coefficients(alpha, mach, af, fit, linear)
-            qc = 0.5 * rho * U2 * c
-            ws.dFz[j, i] = qc * (cl * cphi - cd * sphi)
-            ws.dFx[j, i] = qc * (cl * sphi + cd * cphi)
-            cm_sec = (cm if rot.pitching_moment else 0.0) + cm0
-            ws.dMp[j, i] = qc * (c * cm_sec - x_ac * cl)
-            ws.alpha[j, i] = alpha
-            ws.mach[j, i] = mach
-            ws.cl[j, i] = cl
-            ws.cd[j, i] = cd
-            ws.cm[j, i] = cm
-            ws.qc[j, i] = qc
+            if table:
+                mach = min(max(mach, m_lo), m_hi)
+            alpha_[j, i] = _wrap_deg(alpha)
+            mach_[j, i] = mach
+            qc_[j, i] = 0.5 * rho * U2 * c
+    _coefficients(alpha_, mach_, af, fit, linear, ws.cl, ws.cd, ws.cm)
+    cl_, cd_, cm_ = ws.cl, ws.cd, ws.cm
+    dFz, dFx, dMp = ws.dFz, ws.dFx, ws.dMp
+    for j in range(npsi):
+        for i in range(nr):
+            cl, cd, qc = cl_[j, i], cd_[j, i], qc_[j, i]
+            cphi, sphi = cphi_[j, i], sphi_[j, i]
+            dFz[j, i] = qc * (cl * cphi - cd * sphi)
+            dFx[j, i] = qc * (cl * sphi + cd * cphi)
+            cm_sec = (cm_[j, i] if pitching_moment else 0.0) + cm0
+            dMp[j, i] = qc * (c * cm_sec - x_ac * cl)
     return bad
 
 
@@ -552,7 +576,7 @@ def _inflow_update(st, dT_r, prm, rot, ws):
         r = rot.r[i]
         v = st.v_r[i]
         if rot.tip_loss:
-            F, dF = _prandtl(r, v, Om, rot, True)
+            F, dF = _prandtl(r, v, Om, R, rot.root_cutout, Nb, True)
         else:
             F, dF = 1.0, 0.0
         lin = -Nb * 0.5 * rho * c * A0 * Om * r
@@ -598,6 +622,14 @@ class Work(NamedTuple):
     cd: np.ndarray
     cm: np.ndarray
     qc: np.ndarray
+    cphi: np.ndarray
+    sphi: np.ndarray
+    shifted: np.ndarray       # alpha + the forward-difference step, its cl, cd, cm
+    cl2: np.ndarray
+    cd2: np.ndarray
+    cm2: np.ndarray
+    stall_pos: np.ndarray
+    stall_neg: np.ndarray
     psi_line: np.ndarray      # (N_psi,)
     psi_scratch: np.ndarray
     span_line: np.ndarray     # (N_r,)
@@ -716,7 +748,7 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
         for i in range(nr):
             r, v = rot.r[i], st.v_r[i]
             if rot.tip_loss:
-                F, dF = _prandtl(r, v, Om, rot, True)
+                F, dF = _prandtl(r, v, Om, R, rot.root_cutout, Nb, True)
             else:
                 F, dF = 1.0, 0.0
             d_be = -Nb * 0.5 * rho * rot.chord * A0 * Om * r
@@ -757,13 +789,14 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
     # stall: share of the disk's blade-element area (r dr dpsi) beyond the stall angle
     frac = 0.0
     if af.stall_pos.size:
+        a_pos, a_neg = ws.stall_pos, ws.stall_neg
+        a_pos.ravel()[:] = np.interp(ws.mach.ravel(), af.mach, af.stall_pos)
+        a_neg.ravel()[:] = np.interp(ws.mach.ravel(), af.mach, af.stall_neg)
+        alpha = ws.alpha
         for i in range(nr):
             for j in range(npsi):
-                m = ws.mach[j, i]
-                a_pos = np.interp(m, af.mach, af.stall_pos)
-                a_neg = np.interp(m, af.mach, af.stall_neg)
-                a = ws.alpha[j, i]
-                ws.psi_scratch[j] = 1.0 if (a > a_pos or a < a_neg) else 0.0
+                a = alpha[j, i]
+                ws.psi_scratch[j] = 1.0 if (a > a_pos[j, i] or a < a_neg[j, i]) else 0.0
             ws.span_line[i] = _psum(ws.psi_scratch, npsi) * rot.w_r[i]
         frac = _psum(ws.span_line, nr) / (npsi * rot.sums[SUM_W_R])
     cd_min = np.inf
@@ -780,10 +813,13 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
         h = STALL_STEP_DEG
         for j in range(npsi):
             for i in range(nr):
-                cl2, _, cm2 = _coefficients(_wrap_deg(ws.alpha[j, i] + h), ws.mach[j, i], af,
-                                            fit, linear)
-                cm_d = (cm2 - ws.cm[j, i]) if rot.pitching_moment else 0.0
-                ws.dFx[j, i] = ws.qc[j, i] * (rot.chord * cm_d - x_ac * (cl2 - ws.cl[j, i]))
+                ws.shifted[j, i] = _wrap_deg(ws.alpha[j, i] + h)
+        _coefficients(ws.shifted, ws.mach, af, fit, linear, ws.cl2, ws.cd2, ws.cm2)
+        for j in range(npsi):
+            for i in range(nr):
+                cm_d = (ws.cm2[j, i] - ws.cm[j, i]) if rot.pitching_moment else 0.0
+                ws.dFx[j, i] = ws.qc[j, i] * (rot.chord * cm_d
+                                              - x_ac * (ws.cl2[j, i] - ws.cl[j, i]))
         _span_sum(ws.dFx, rot.w, ws.psi_line, ws.span_line)
         dM = _psum(ws.psi_line, npsi) * (RAD2DEG / (h * npsi))
     out[0] = thrust
@@ -823,11 +859,10 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, Q_out, s
     scalars[RESID] = np.inf
     v_r = np.full(nr, v_init)
     st = State(Q, scalars, v_r, v_r.copy(), np.zeros(nr))
-    ws = Work(np.empty(npsi), np.empty((npsi, nr)), np.empty((npsi, nr)),
-              np.empty((npsi, nr)), np.empty((npsi, nr)), np.empty((npsi, nr)),
-              np.empty((npsi, nr)), np.empty((npsi, nr)), np.empty((npsi, nr)),
-              np.empty((npsi, nr)), np.empty(npsi), np.empty(npsi), np.empty(nr),
-              np.empty(nr), np.empty(nr))
+    f = np.empty((17, npsi, nr))
+    ws = Work(np.empty(npsi), f[0], f[1], f[2], f[3], f[4], f[5], f[6], f[7], f[8], f[9],
+              f[10], f[11], f[12], f[13], f[14], f[15], f[16], np.empty(npsi),
+              np.empty(npsi), np.empty(nr), np.empty(nr), np.empty(nr))
     reason, dof, bad, iterations = NOT_CONVERGED, 0, False, 0
     for _ in range(max_iterations):
         size, bad = _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws)

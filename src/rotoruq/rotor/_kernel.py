@@ -28,7 +28,8 @@ state :func:`_hub_loads` re-evaluates the equations and gives the loads.
 
 Every sample is solved on its own by :func:`_solve_sample`: its own step control and
 convergence test, no reduction across samples, sums in numpy's pairwise order; so a sample's
-result is bitwise the same in any batch, chunk or thread. No fast-math: the operation order is
+result is bitwise the same in any batch, chunk or thread. :func:`solve_samples` runs without
+the GIL, so :func:`rotoruq.rotor.hover.solve_hover` spreads a large batch over threads. No fast-math: the operation order is
 the source's. ``rotoruq.rotor._reference`` holds the numpy implementation the tests compare
 this with (1e-10 relative).
 """
@@ -468,8 +469,13 @@ def _aerodynamic_loads(Q, v0, vc, vs, v_r, prm, rot, af, fit, linear, ws):
             phi = math.atan2(UP, UT)
             alpha = (theta + twist_[i] - phi) * RAD2DEG
             U2 = UT**2 + UP**2
-            cphi_[j, i], sphi_[j, i] = math.cos(phi), math.sin(phi)
-            mach = math.sqrt(U2) / a_sound
+            U = math.sqrt(U2)
+            # cos(phi), sin(phi) without the trigonometric calls (equal to a few ulp)
+            if U > 0:
+                cphi_[j, i], sphi_[j, i] = UT / U, UP / U
+            else:
+                cphi_[j, i], sphi_[j, i] = math.cos(phi), math.sin(phi)
+            mach = U / a_sound
             if not (np.isfinite(alpha) and np.isfinite(U2)):
                 bad = True
                 alpha, mach, U2 = 0.0, 0.0, 0.0
@@ -548,10 +554,13 @@ def _blade_root_loads(Q, Z, F_cmd, rot, ws):
 def _blade_thrust(rot, ws, out):
     """Per-station thrust per unit span, azimuth mean over N_b blades (N_r,) [N/m]."""
     npsi, nr = ws.dFz.shape
+    dFz, scratch, cos_beta = ws.dFz, ws.psi_scratch, ws.psi_line
+    for j in range(npsi):
+        cos_beta[j] = math.cos(ws.beta[j])
     for i in range(nr):
         for j in range(npsi):
-            ws.psi_scratch[j] = ws.dFz[j, i] * math.cos(ws.beta[j])
-        out[i] = rot.n_blades * _psum(ws.psi_scratch, npsi) / npsi
+            scratch[j] = dFz[j, i] * cos_beta[j]
+        out[i] = rot.n_blades * _psum(scratch, npsi) / npsi
 
 
 @numba.njit(**_JIT)
@@ -628,8 +637,6 @@ class Work(NamedTuple):
     cl2: np.ndarray
     cd2: np.ndarray
     cm2: np.ndarray
-    stall_pos: np.ndarray
-    stall_neg: np.ndarray
     psi_line: np.ndarray      # (N_psi,)
     psi_scratch: np.ndarray
     span_line: np.ndarray     # (N_r,)
@@ -789,14 +796,16 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
     # stall: share of the disk's blade-element area (r dr dpsi) beyond the stall angle
     frac = 0.0
     if af.stall_pos.size:
-        a_pos, a_neg = ws.stall_pos, ws.stall_neg
-        a_pos.ravel()[:] = np.interp(ws.mach.ravel(), af.mach, af.stall_pos)
-        a_neg.ravel()[:] = np.interp(ws.mach.ravel(), af.mach, af.stall_neg)
-        alpha = ws.alpha
+        gm, m_inv_dx, pos, neg = af.mach, af.mach_inv_dx, af.stall_pos, af.stall_neg
+        alpha, mach = ws.alpha, ws.mach
         for i in range(nr):
             for j in range(npsi):
+                # stall angles linear in Mach between the rows (np.interp), clamped
+                im, s = _locate(mach[j, i], gm, m_inv_dx)
+                a_pos = pos[im] + (pos[im + 1] - pos[im]) * s
+                a_neg = neg[im] + (neg[im + 1] - neg[im]) * s
                 a = alpha[j, i]
-                ws.psi_scratch[j] = 1.0 if (a > a_pos[j, i] or a < a_neg[j, i]) else 0.0
+                ws.psi_scratch[j] = 1.0 if (a > a_pos or a < a_neg) else 0.0
             ws.span_line[i] = _psum(ws.psi_scratch, npsi) * rot.w_r[i]
         frac = _psum(ws.span_line, nr) / (npsi * rot.sums[SUM_W_R])
     cd_min = np.inf
@@ -859,9 +868,9 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, Q_out, s
     scalars[RESID] = np.inf
     v_r = np.full(nr, v_init)
     st = State(Q, scalars, v_r, v_r.copy(), np.zeros(nr))
-    f = np.empty((17, npsi, nr))
+    f = np.empty((15, npsi, nr))
     ws = Work(np.empty(npsi), f[0], f[1], f[2], f[3], f[4], f[5], f[6], f[7], f[8], f[9],
-              f[10], f[11], f[12], f[13], f[14], f[15], f[16], np.empty(npsi),
+              f[10], f[11], f[12], f[13], f[14], np.empty(npsi),
               np.empty(npsi), np.empty(nr), np.empty(nr), np.empty(nr))
     reason, dof, bad, iterations = NOT_CONVERGED, 0, False, 0
     for _ in range(max_iterations):
@@ -900,16 +909,11 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, Q_out, s
 
 
 @numba.njit(**_JIT)
-def _solve_serial(prm, rot, af, fits, linear, tolerance, max_iterations, Q, scalars, status,
+def solve_samples(prm, rot, af, fits, linear, tolerance, max_iterations, Q, scalars, status,
                   loads, M_root):
+    """Solve the samples of ``prm`` (n, N_COLUMNS) one after the other, writing row s of
+    every output array (see :func:`_solve_sample`). Releases the GIL: threads may solve
+    disjoint slices of a batch at the same time."""
     for s in range(prm.shape[0]):
-        _solve_sample(prm[s], rot, af, fits[s], linear[s], tolerance, max_iterations, Q[s],
-                      scalars[s], status[s], loads[s], M_root[s])
-
-
-@numba.njit(parallel=True, **_JIT)
-def _solve_parallel(prm, rot, af, fits, linear, tolerance, max_iterations, Q, scalars, status,
-                    loads, M_root):
-    for s in numba.prange(prm.shape[0]):
         _solve_sample(prm[s], rot, af, fits[s], linear[s], tolerance, max_iterations, Q[s],
                       scalars[s], status[s], loads[s], M_root[s])

@@ -22,11 +22,13 @@ over the disk, torsional divergence, negative drag, negative power).
 
 from __future__ import annotations
 
-import threading
+import os
 from collections.abc import Mapping
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, fields
 from typing import Any
 
+import numba
 import numpy as np
 
 from ..errors import ParameterError
@@ -45,13 +47,23 @@ __all__ = ["HoverSolution", "solve_hover", "check_airfoil", "STALL_AREA_LIMIT",
 STALL_AREA_LIMIT = 0.5
 #: Blade motion harmonics beyond this amplitude [rad] mean the iteration diverged.
 MAX_BLADE_MOTION = kern.MAX_BLADE_MOTION
-#: Batches at least this large are spread over numba's threads (smaller: one thread, no
-#: thread start-up); the results are the same either way, bitwise.
-PARALLEL_MIN_BATCH = 8
+#: Batches at least this large are spread over ``numba.get_num_threads()`` threads (smaller:
+#: the calling thread alone); the results are the same either way, bitwise.
+PARALLEL_MIN_BATCH = 16
+#: Slices per thread of a spread batch (samples differ in cost: smaller slices balance).
+SLICES_PER_THREAD = 4
 
-# numba's default threading layer (workqueue) must not be entered by two threads at once: a
-# caller that finds it busy solves its batch on its own thread instead (same numbers).
-_PARALLEL = threading.Lock()
+_POOLS: dict[tuple[int, int], ThreadPoolExecutor] = {}
+
+
+def _pool(n_threads: int) -> ThreadPoolExecutor:
+    """A thread pool of this process (a forked child makes its own) with n_threads workers."""
+    key = (os.getpid(), n_threads)
+    pool = _POOLS.get(key)
+    if pool is None:
+        _POOLS.clear()
+        pool = _POOLS[key] = ThreadPoolExecutor(n_threads, thread_name_prefix="rotoruq-rotor")
+    return pool
 
 
 @dataclass(frozen=True, eq=False)
@@ -153,7 +165,10 @@ def check_airfoil(airfoil: Any) -> None:
 
 
 def _col(p, name, n):
-    return np.ascontiguousarray(np.broadcast_to(np.asarray(p[name], dtype=float), (n,)))
+    v = p[name]
+    if isinstance(v, np.ndarray) and v.shape == (n,) and v.dtype == np.float64:
+        return v
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float), (n,)))
 
 
 def sample_inputs(preset: RotorPreset, grid: BladeGrid, params: Mapping[str, np.ndarray],
@@ -185,9 +200,24 @@ def sample_inputs(preset: RotorPreset, grid: BladeGrid, params: Mapping[str, np.
     return prm
 
 
+_CONSTANTS: dict[tuple[RotorPreset, int, int], tuple[BladeGrid, kern.Rotor]] = {}
+
+
 def rotor_constants(preset: RotorPreset, grid: BladeGrid, n_harmonics: int) -> kern.Rotor:
     """The rotor and grid constants of the compiled solve (the grid integrals summed as the
-    numpy implementation sums them)."""
+    numpy implementation sums them); the last few are kept."""
+    key = (preset, id(grid), n_harmonics)
+    hit = _CONSTANTS.get(key)
+    if hit is not None and hit[0] is grid:
+        return hit[1]
+    if len(_CONSTANTS) > 16:
+        _CONSTANTS.clear()
+    rot = _rotor_constants(preset, grid, n_harmonics)
+    _CONSTANTS[key] = (grid, rot)
+    return rot
+
+
+def _rotor_constants(preset: RotorPreset, grid: BladeGrid, n_harmonics: int) -> kern.Rotor:
     e, R = preset.hinge_offset, preset.radius
     r, w, psi = grid.r, grid.w, grid.psi
     rr = r - e
@@ -326,15 +356,8 @@ def solve_hover(
     status = np.zeros((n, 4), dtype=np.int64)
     loads = np.full((n, 7), np.nan)
     M_root = np.full((n, K), np.nan, dtype=complex)
-    args = (prm, rot, table, fits, linear, float(tolerance), int(max_iterations), Q, scalars,
-            status, loads, M_root)
-    if n >= PARALLEL_MIN_BATCH and _PARALLEL.acquire(blocking=False):
-        try:
-            kern._solve_parallel(*args)
-        finally:
-            _PARALLEL.release()
-    else:
-        kern._solve_serial(*args)
+    _solve_spread(prm, rot, table, fits, linear, float(tolerance), int(max_iterations), Q,
+                  scalars, status, loads, M_root)
     iterations = status[:, 3].copy()
     failure = np.array([""] * n, dtype=object)
     for i in np.flatnonzero(status[:, 0] != kern.OK):
@@ -350,6 +373,25 @@ def solve_hover(
     return HoverSolution.assemble(preset, grid, prm[:, kern.OMEGA], prm[:, kern.RHO], Q,
                                   scalars[:, kern.V0], checked, M_root,
                                   scalars[:, kern.RESID], iterations, failure)
+
+
+def _solve_spread(prm, rot, table, fits, linear, tolerance, max_iterations, *out) -> None:
+    """The compiled solve of every row, on numba.get_num_threads() threads for a large batch
+    (contiguous slices; each row's numbers do not depend on the slice)."""
+    n = prm.shape[0]
+    n_threads = numba.get_num_threads()
+    if n < PARALLEL_MIN_BATCH or n_threads < 2:
+        kern.solve_samples(prm, rot, table, fits, linear, tolerance, max_iterations, *out)
+        return
+    edges = np.linspace(0, n, min(n, SLICES_PER_THREAD * n_threads) + 1).astype(int)
+
+    def run(k: int) -> None:
+        rows = slice(edges[k], edges[k + 1])
+        kern.solve_samples(prm[rows], rot, table, fits[rows], linear[rows], tolerance,
+                           max_iterations, *(a[rows] for a in out))
+
+    for future in [_pool(n_threads).submit(run, k) for k in range(edges.size - 1)]:
+        future.result()
 
 
 def iteration_failure(reason: int, dof: int, bad: bool, iterations: int,

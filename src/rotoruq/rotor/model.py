@@ -254,6 +254,8 @@ class RotorModel:
         failures: dict[int, str] = {}
 
         def fail(mask, reason):
+            if not mask.any():
+                return
             for i in np.flatnonzero(mask):
                 failures.setdefault(int(i), reason(i))
 
@@ -298,6 +300,8 @@ def _full_solution(n, rows, sols, failures) -> HoverSolution | None:
     if not sols:
         return None
     part = HoverSolution.concatenate(sols)
+    if rows.size == n:
+        return part
     kw = {}
     for f in fields(HoverSolution):
         a = getattr(part, f.name)

@@ -34,7 +34,7 @@ CASES = {
 
 def frozen_vs_lockstep(rng) -> dict:
     names, mean, std = CASES["gvpm"]
-    model = RotorModel("gvpm", inputs=names, responses=["thrust", "torque", "roll", "pitch"])
+    model = RotorModel("gvpm", names_in=names, names_out=["thrust", "torque", "roll", "pitch"])
     wide = np.asarray(mean) + 3 * np.asarray(std) * rng.standard_normal((2000, len(names)))
     model.evaluate(wide)
     sol = model.last_solution
@@ -64,7 +64,7 @@ def main() -> None:
     rng = np.random.default_rng(0)
     out = {}
     for preset, (names, mean, std) in CASES.items():
-        model = RotorModel(preset, inputs=names, responses=["thrust", "torque", "roll", "pitch"])
+        model = RotorModel(preset, names_in=names, names_out=["thrust", "torque", "roll", "pitch"])
         res = {}
         for n in (1, 100, 1000):
             x = np.asarray(mean) + np.asarray(std) * rng.standard_normal((n, len(names)))

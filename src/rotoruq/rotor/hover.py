@@ -349,8 +349,14 @@ def solve_hover(
     rot = rotor_constants(preset, grid, n_harmonics)
     table = airfoil_table(airfoil)
     fits, linear = airfoil_samples(airfoil, overrides, n)
-    with np.errstate(all="ignore"):
+    with np.errstate(all="ignore"):   # absurd inputs fail per row, never for the batch
         prm = sample_inputs(preset, grid, params, n)
+        return _solve(preset, grid, prm, rot, table, fits, linear, n, K, tolerance,
+                      max_iterations, check_tolerance)
+
+
+def _solve(preset, grid, prm, rot, table, fits, linear, n, K, tolerance, max_iterations,
+           check_tolerance) -> HoverSolution:
     Q = np.zeros((n, 3, K), dtype=complex)
     scalars = np.zeros((n, kern.N_SCALARS))
     status = np.zeros((n, 4), dtype=np.int64)

@@ -18,8 +18,8 @@ from .controls import swashplate_harmonics
 from .dynamics import HarmonicBasis, apply_blocks, fixed_sum, structural_operator
 from .geometry import CANTILEVER_SPRING_FACTOR, BladeGrid
 from .ground_effect import ground_effect_factor
-from .inflow import A0, annulus_update, prandtl_loss, uniform_update
 from .hover import MAX_BLADE_MOTION, HoverSolution, judge
+from .inflow import A0, annulus_update, prandtl_loss, uniform_update
 from .presets import RotorPreset
 
 __all__ = ["solve_hover_reference"]
@@ -408,7 +408,7 @@ def solve_hover_reference(
 def _solve(preset, airfoil, grid, P, ov, n, n_harmonics, tol, max_iter, check_tol, freeze):
     rot = _Rotor(preset, airfoil, grid, P, ov, n_harmonics)
     C = rot.C
-    R, r = preset.radius, rot.r
+    r = rot.r
     K = rot.kvec.size
     Om = C["Om"]
     # Initial state: pitch from the quasi-static pitch-link balance, no flap, hover inflow

@@ -30,8 +30,8 @@ Every sample is solved on its own by :func:`_solve_sample`: its own step control
 convergence test, no reduction across samples, sums in numpy's pairwise order; so a sample's
 result is bitwise the same in any batch, chunk or thread. :func:`solve_samples` runs without
 the GIL, so :func:`rotoruq.rotor.hover.solve_hover` spreads a large batch over threads. No
-fast-math: the operation order is the source's. ``rotoruq.rotor._reference`` holds the numpy implementation the tests compare
-this with (1e-10 relative).
+fast-math: the operation order is the source's. ``rotoruq.rotor._reference`` holds the numpy
+implementation the tests compare this with (1e-10 relative).
 """
 
 from __future__ import annotations

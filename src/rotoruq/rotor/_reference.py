@@ -18,15 +18,11 @@ from .controls import swashplate_harmonics
 from .dynamics import HarmonicBasis, apply_blocks, fixed_sum, structural_operator
 from .geometry import CANTILEVER_SPRING_FACTOR, BladeGrid
 from .ground_effect import ground_effect_factor
-from .hover import MAX_BLADE_MOTION, HoverSolution, judge
+from .hover import MAX_BLADE_MOTION, HoverSolution, _col, judge
 from .inflow import A0, annulus_update, prandtl_loss, uniform_update
 from .presets import RotorPreset
 
 __all__ = ["solve_hover_reference"]
-
-
-def _col(p, name, n):
-    return np.ascontiguousarray(np.broadcast_to(np.asarray(p[name], dtype=float), (n,)))
 
 
 def _wrap_deg(a):

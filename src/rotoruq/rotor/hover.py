@@ -257,18 +257,15 @@ _EMPTY_I = np.empty(0, dtype=np.intp)
 
 
 def airfoil_table(airfoil: Airfoil | LinearAirfoil) -> kern.Table:
-    """The airfoil in the compiled solve's form (cached on the airfoil object)."""
+    """The airfoil in the compiled solve's form (kept on a table airfoil)."""
     check_airfoil(airfoil)
-    cached = getattr(airfoil, "_kernel_table", None)
-    if cached is not None:
-        return cached
     if isinstance(airfoil, LinearAirfoil):
         z = np.zeros(2)
-        table = kern.Table(kern.LINEAR, z, z, np.zeros((3, 4)), z, 0.0, False, False,
-                           _EMPTY_I, _EMPTY_F, z, 0.0, 0.0, 0, z, _EMPTY_F, _EMPTY_F,
-                           float(airfoil.cda2))
-        object.__setattr__(airfoil, "_kernel_table", table)
-        return table
+        return kern.Table(kern.LINEAR, z, z, np.zeros((3, 4)), z, 0.0, False, False,
+                          _EMPTY_I, _EMPTY_F, z, 0.0, 0.0, 0, z, _EMPTY_F, _EMPTY_F,
+                          float(airfoil.cda2))
+    if airfoil._kernel_table is not None:
+        return airfoil._kernel_table
     ba, bm = airfoil._ba, airfoil._bm
     has_fits = airfoil.nominal is not None
     values = np.stack(airfoil._mod_cols if has_fits else airfoil._raw_cols)

@@ -14,9 +14,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import ParameterError
 from ..model import EvalBatch
+from .airfoil import Airfoil
 from .geometry import blade_grid
 from .ground_effect import MIN_HEIGHT_OVER_RADIUS, min_height_over_radius
 from .hover import HoverSolution, check_airfoil, solve_hover
@@ -56,10 +58,8 @@ MAX_PITCH_DEG = 90.0
 _POSITIVE = ("omega", "rho")
 
 
-def load_airfoil(preset: RotorPreset):
+def load_airfoil(preset: RotorPreset) -> Airfoil:
     """The preset's airfoil: a bundled table name or a path to a c81 file."""
-    from .airfoil import Airfoil
-
     fit = preset.airfoil_fit_machs or None
     kw = {"fit_machs": fit, "replace": tuple(preset.airfoil_replace)}
     if Path(preset.airfoil).suffix.lower() == ".c81":
@@ -170,7 +170,7 @@ class RotorModel:
         return (f"RotorModel({self.preset.name!r}, names_in={self.names_in}, "
                 f"names_out={self.names_out})")
 
-    def identity(self) -> dict:
+    def identity(self) -> dict[str, Any]:
         """Everything that can change an answer: the preset's every field, the airfoil
         table's numbers and fit settings, the fixed inputs and the solver options."""
         from dataclasses import asdict
@@ -191,10 +191,10 @@ class RotorModel:
         d.update(self.fixed)
         return d
 
-    def __call__(self, x) -> np.ndarray:
+    def __call__(self, x: npt.ArrayLike) -> np.ndarray:
         return self.evaluate(x).values
 
-    def evaluate(self, x) -> EvalBatch:
+    def evaluate(self, x: npt.ArrayLike) -> EvalBatch:
         """Evaluate a batch x of shape (n, len(names_in)); failed rows are NaN with a reason."""
         x = np.atleast_2d(np.asarray(x, dtype=float))
         if x.ndim != 2 or x.shape[1] != len(self.names_in):
@@ -242,7 +242,7 @@ class RotorModel:
         self.last_solution = _full_solution(n, rows, sols, failures)
         return EvalBatch(out, failures)
 
-    def solve(self, x) -> HoverSolution:
+    def solve(self, x: npt.ArrayLike) -> HoverSolution:
         """Full hover solution (loads, coning, pitch, inflow, harmonics) of a valid batch."""
         batch = self.evaluate(x)
         if batch.failures:

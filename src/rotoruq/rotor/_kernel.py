@@ -50,7 +50,7 @@ A0 = 5.73           # lift slope [1/rad] of the Newton preconditioner (see inflo
 RAD2DEG = 180.0 / np.pi
 TWO_OVER_PI = 2 / np.pi
 MAX_BLADE_MOTION = 2.0 * np.pi
-STALL_STEP_DEG = 1e-3   # forward-difference step in alpha of the feathering stiffness [deg]
+PITCH_STEP_DEG = 1e-3   # forward-difference step in alpha of the feathering stiffness [deg]
 
 # Columns of the per-sample input matrix
 (OMEGA, RHO, KAPPA, K_FLAP, C_FLAP, K_LAG, C_LAG, K_FEATHER, C_FEATHER, X_AC, CM0, COLLECTIVE,
@@ -84,7 +84,6 @@ class Rotor(NamedTuple):
     harmonic_inflow: bool
     tip_loss: bool
     pitching_moment: bool
-    i75: int                  # station nearest 0.75 R
     r: np.ndarray             # (N_r,)
     w: np.ndarray
     rr: np.ndarray
@@ -819,7 +818,7 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
     dM = 0.0
     x_ac = prm[X_AC]
     if rot.pitching_moment or x_ac != 0:
-        h = STALL_STEP_DEG
+        h = PITCH_STEP_DEG
         for j in range(npsi):
             for i in range(nr):
                 ws.shifted[j, i] = _wrap_deg(ws.alpha[j, i] + h)

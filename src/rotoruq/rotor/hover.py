@@ -245,7 +245,6 @@ def _rotor_constants(preset: RotorPreset, grid: BladeGrid, n_harmonics: int) -> 
         solidity=float(preset.solidity), twist_rad=float(np.deg2rad(preset.twist_deg)),
         bemt=preset.inflow == "bemt", harmonic_inflow=bool(preset.harmonic_inflow),
         tip_loss=bool(preset.tip_loss), pitching_moment=bool(preset.pitching_moment),
-        i75=int(np.argmin(np.abs(r - 0.75 * R))),
         r=np.ascontiguousarray(r, dtype=float), w=np.ascontiguousarray(w, dtype=float),
         rr=rr, twist=np.ascontiguousarray(grid.twist, dtype=float), w_rr=w * rr, w_r=w * r,
         cos_psi=np.cos(psi), sin_psi=np.sin(psi), cos_k=cos_k, sin_k=sin_k,

@@ -257,7 +257,7 @@ def _parse_targets(targets, names_out: Sequence[str]) -> list[tuple[int, str, fl
     return out
 
 
-_PCE_OPTIONS = {"order", "method", "quadrature_points", "basis"}
+_PCE_OPTIONS = {"order", "estimator", "quadrature_points", "basis"}
 
 
 class _Problem:
@@ -294,8 +294,8 @@ class _Problem:
             if unknown:
                 raise ParameterError(f"unknown pce inner options {sorted(unknown)}; valid: "
                                      f"{sorted(_PCE_OPTIONS)}")
-            if str(self.opts.get("method", "quadrature")) == "regression":
-                raise ParameterError("inner 'pce' takes method 'quadrature' or 'sparse_grid' "
+            if str(self.opts.get("estimator", "quadrature")) == "regression":
+                raise ParameterError("inner 'pce' takes estimator 'quadrature' or 'sparse_grid' "
                                      "(deterministic in theta, so the outer finite differences "
                                      "are meaningful), not 'regression'")
 
@@ -531,7 +531,7 @@ def calibrate_under_uncertainty(
         object with ``.mean`` and ``.std`` arrays (m,) (or ``.statistics.mean/std``).
     inner_options : for "mean_value": ``gradient`` ("auto", "analytic", "fd") and ``fd_step``
         (relative central-difference step, default 1e-6); for "lhs": ``n`` (samples per outer
-        point, default 200); for "pce": ``order`` (default 2), ``method`` ("quadrature",
+        point, default 200); for "pce": ``order`` (default 2), ``estimator`` ("quadrature",
         default, or "sparse_grid"), ``quadrature_points`` and ``basis`` of
         :func:`rotoruq.methods.pce.polynomial_chaos`.
     fixed : deterministic inputs not in the space, held at the given values.
@@ -633,7 +633,7 @@ def check_cuu(result: CUUResult, model, n: int = 300, *, seed: SeedLike = None,
     from .sampling import sample
 
     view = _FixedInputs(model, result.fixed) if result.fixed else model
-    s = sample(view, result.space, n, method=method, seed=seed)
+    s = sample(view, result.space, n, design=method, seed=seed)
     names_out = tuple(model.names_out)
     achieved, rel = {}, {}
     for resp, spec in result.targets.items():

@@ -405,7 +405,7 @@ def _bool(v):
     return v
 
 
-_SAMPLING_METHODS = ("lhs", "mc", "random", "sobol", "halton")
+_SAMPLING_METHODS = ("lhs", "random", "sobol", "halton")
 
 _COMMON_STEP_KEYS = {
     "name": (_str(), None),

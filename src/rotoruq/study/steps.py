@@ -115,7 +115,7 @@ def run_sampling(ctx: StepContext) -> StepResult:
     from ..methods.sampling import sample
 
     o = ctx.options
-    res = sample(ctx.model(), ctx.space, o["n"], method=o["method"], seed=ctx.rng)
+    res = sample(ctx.model(), ctx.space, o["n"], design=o["method"], seed=ctx.rng)
     clean = np.asarray(res.outputs)
     noisy = clean + _noise(ctx, o.get("noise_std"), clean.shape)
     scalars = _stats_scalars(ctx.responses, clean)
@@ -188,7 +188,7 @@ def run_forward_check(ctx: StepContext) -> StepResult:
         label = f"@{point[match]:g}" if sweep and match in point else ""
         labels.append(label)
         model = ctx.model(point)
-        res = sample(model, ctx.space, o["n"], method=o["method"], seed=ctx.rng)
+        res = sample(model, ctx.space, o["n"], design=o["method"], seed=ctx.rng)
         out = np.asarray(res.outputs, dtype=float)
         n_eval += int(res.n_evaluations)
         pp = None
@@ -259,7 +259,7 @@ def run_sensitivity(ctx: StepContext) -> StepResult:
     from ..methods.sensitivity import sobol_indices
 
     o = ctx.options
-    res = sobol_indices(ctx.model(), ctx.space, n=o["n"], seed=ctx.rng)
+    res = sobol_indices(ctx.model(), ctx.space, o["n"], seed=ctx.rng)
     main, total = np.asarray(res.main), np.asarray(res.total)
     main_ci, total_ci = np.asarray(res.main_ci), np.asarray(res.total_ci)
     scalars = output_spread_scalars(ctx.responses, res.mean, res.variance)
@@ -320,7 +320,7 @@ def run_pce(ctx: StepContext) -> StepResult:
 
     o = ctx.options
     if o.get("n"):
-        res = polynomial_chaos(ctx.model(), ctx.space, o["order"], method="regression",
+        res = polynomial_chaos(ctx.model(), ctx.space, o["order"], estimator="regression",
                                n_samples=o["n"], seed=ctx.rng)
     else:
         res = polynomial_chaos(ctx.model(), ctx.space, o["order"], seed=ctx.rng)
@@ -508,7 +508,7 @@ def run_cuu(ctx: StepContext) -> StepResult:
     n = o.get("verify_samples", 0)
     if n:
         for tag, space in (("initial", ctx.space), ("calibrated", cal_space)):
-            s = sample(model, space, n, method=o["method"], seed=ctx.rng)
+            s = sample(model, space, n, design=o["method"], seed=ctx.rng)
             out = np.asarray(s.outputs)
             for k, r in enumerate(ctx.responses):
                 v = out[:, k][np.isfinite(out[:, k])]

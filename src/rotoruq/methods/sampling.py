@@ -336,16 +336,18 @@ def sample(
         raise ParameterError(f"n_samples must be >= 2, got {n_samples}")
     design = check_design(design)
     rng = as_generator(seed)
-    # snapshots, not the generator: refine() restarts from them, so refining one result
-    # twice gives the same points whatever else drew from the caller's generator
-    design_state = rng.bit_generator.state
-    q = unit_design(n, space.dim, rng, design)
+    # the design gets a generator of its own, rebuilt by refine() from this integer (scipy's
+    # QMC engines spawn from a generator's seed sequence, which its state does not hold);
+    # the state snapshot (not the generator) continues an LHS, so refining one result twice
+    # gives the same points whatever else drew from the caller's generator
+    design_seed = int(rng.integers(2**63))
+    q = unit_design(n, space.dim, np.random.default_rng(design_seed), design)
     options = {
         "response_levels": response_levels,
         "probability_levels": probability_levels,
         "percentiles": tuple(percentiles),
         "confidence": confidence,
-        "design_state": design_state,
+        "design_seed": design_seed,
         "rng_state": rng.bit_generator.state,
     }
     return _finish(model, space, q, design, options)
@@ -386,13 +388,12 @@ def refine(result: SamplingResult, n_samples: int, *, seed: SeedLike = None) -> 
 
     * "lhs": new points fill the empty strata of the finer grid (exact LHS of 2n points when
       ``n_samples == n``; LHS-like otherwise);
-    * "sobol" / "halton": the same scrambled sequence is continued (the points that
-      ``sample`` would have drawn with the larger count and the same seed);
-    * "random": independent new points (plain Monte Carlo extension).
+    * "sobol" / "halton" / "random": the sequence is continued (the points that ``sample``
+      would have drawn with the larger count and the same seed).
 
-    ``seed`` (lhs and random only) defaults to the state the original sample's generator was
-    left in (continued), so a refined run is reproducible from the original seed, and
-    refining one result twice gives the same points.
+    ``seed`` (lhs only) defaults to the state the original sample's generator was left in
+    (continued), so a refined run is reproducible from the original seed, and refining one
+    result twice gives the same points.
     """
     n_more = int(n_samples)
     if n_more < 1:
@@ -400,15 +401,12 @@ def refine(result: SamplingResult, n_samples: int, *, seed: SeedLike = None) -> 
     if result.model is None or result.space is None:
         raise ParameterError("this SamplingResult does not carry its model and space")
     opts = dict(result.options)
-    rng = as_generator(seed) if seed is not None else _generator_at(opts["rng_state"])
-    d = result.space.dim
     if result.design == "lhs":
+        rng = as_generator(seed) if seed is not None else _generator_at(opts["rng_state"])
         q = _lhs_extension(result.unit, n_more, rng)
-    elif result.design == "random":
-        q = unit_design(n_more, d, rng, "random")
+        opts["rng_state"] = rng.bit_generator.state
     else:
         n_old = result.n_samples
-        q = unit_design(n_old + n_more, d, _generator_at(opts["design_state"]),
-                        result.design)[n_old:]
-    opts["rng_state"] = rng.bit_generator.state
+        q = unit_design(n_old + n_more, result.space.dim,
+                        np.random.default_rng(opts["design_seed"]), result.design)[n_old:]
     return _finish(result.model, result.space, q, result.design, opts, previous=result)

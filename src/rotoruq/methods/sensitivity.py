@@ -3,8 +3,8 @@
 Design (Saltelli 2010): two independent base samples A and B of N points each and, for every
 input i, the matrix A_B^i (A with column i taken from B). The model is called ONCE on the
 stacked batch [A; B; A_B^1; ...; A_B^d] of N (d + 2) points. A and B are the two halves of one
-2d-dimensional design from :func:`rotoruq.params.unit_design` (scrambled Sobol' by default:
-the very design ``SALib.sample.sobol`` draws from the same integer seed).
+2d-dimensional design from :func:`rotoruq.params.unit_design` (scrambled Sobol' by default,
+as SALib and scipy.stats.sobol_indices draw it).
 
 Estimators (f_A, f_B, f_i = f(A_B^i); f_0 the mean over A and B; V_AB the variance over A and
 B; V_all the variance over all N (d + 2) outputs, a lower-noise estimate of the same variance

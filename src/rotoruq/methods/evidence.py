@@ -151,6 +151,7 @@ def evidence(
         basin: more samples and starts raise that chance, no setting guarantees it.
     seed : int or Generator.
     """
+    intervals = [dd for dd in space.distributions if isinstance(dd, Interval)]
     bad = [
         n
         for n, dd in zip(space.names, space.distributions, strict=True)
@@ -164,8 +165,8 @@ def evidence(
         raise ParameterError(f"n_samples and n_starts must be >= 1, got {n_samples}, {n_starts}")
     d = space.dim
     rng = as_generator(seed)
-    ivs = [np.array(dd.intervals) for dd in space.distributions]
-    bpas = [np.array(dd.bpa) for dd in space.distributions]
+    ivs = [np.array(dd.intervals) for dd in intervals]
+    bpas = [np.array(dd.bpa) for dd in intervals]
     combos = list(itertools.product(*[range(len(b)) for b in bpas]))
     lo = np.array([[ivs[j][c[j], 0] for j in range(d)] for c in combos])
     hi = np.array([[ivs[j][c[j], 1] for j in range(d)] for c in combos])

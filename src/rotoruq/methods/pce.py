@@ -188,6 +188,8 @@ class PCEResult:
 
     def predict(self, x: np.ndarray) -> np.ndarray:
         """Expansion at points x (n, d) in ``names_in`` order: (n, m)."""
+        if self.space is None:
+            raise ParameterError("this PCEResult does not carry its parameter space")
         x = self.space._check(x)
         xi = _x_to_xi(self.space, self.germs, x)
         return _design_matrix(self.germs, self.multi_indices, xi) @ self.coefficients

@@ -380,8 +380,10 @@ class GaussianProcess:
             ys = (Y[:, j] - self._y_mean[j]) / self._y_std[j]
             nj = None if noise is None else float(noise[j])
             if not self.optimize:
+                assert log_ell0 is not None  # checked in __init__
                 theta = log_ell0[j]
                 if nj is not None:
+                    assert s2_fixed is not None  # a fixed nugget needs variance= (__init__)
                     theta = np.append(theta, np.log(s2_fixed[j]))
                 self._fits.append(self._fit_at(ys, theta, nj))
             else:
@@ -414,7 +416,7 @@ class GaussianProcess:
     def _solve(self, ys: np.ndarray, theta: np.ndarray, noise: float | None, want_grad: bool,
                Xs: np.ndarray | None = None, F: np.ndarray | None = None):
         """Log-likelihood (concentrated when possible), its gradient and the solved systems."""
-        if Xs is None:
+        if Xs is None or F is None:
             Xs, F = self._Xs, self._F
         n, d = Xs.shape
         inv_ell, eta, s2, dn, conc = self._unpack(theta, noise)
@@ -527,6 +529,7 @@ class GaussianProcess:
             res = run(obj, s, 60 if len(starts) == 1 else 150)
             if best is None or res.fun < best.fun:
                 best = res
+        assert best is not None  # starts is never empty
         return self._fit_at(ys, best.x, noise)
 
     def _fit_at(self, ys: np.ndarray, theta: np.ndarray, noise: float | None) -> _Fit:
@@ -631,9 +634,9 @@ class GaussianProcess:
         n, m = X.shape[0], len(self._fits)
         f = _basis(xs - 0.5, self.trend)
         mean = np.empty((n, m))
-        var = np.empty((n, m)) if return_var else None
-        grad = np.empty((n, m, d)) if return_grad else None
-        fg = _basis_grad(xs - 0.5, self.trend) if return_grad else None
+        var = np.empty((n if return_var else 0, m))
+        grad = np.empty((n if return_grad else 0, m, d))
+        fg = _basis_grad(xs - 0.5, self.trend) if return_grad else np.empty((0, 0, d))
         for j, fit in enumerate(self._fits):
             h = np.sqrt(_scaled_sqdist(xs, self._Xs, fit.inv_ell))
             r, G = _corr(h, self.kernel)

@@ -146,3 +146,33 @@ def test_refine_twice_gives_the_same_points(design):
     np.testing.assert_array_equal(r1.inputs, again.inputs)
     # refining the refined result continues: new points differ from the first extension
     assert not np.array_equal(refine(r1, 16).inputs[32:], r1.inputs[16:])
+
+
+def test_public_signatures_and_results_follow_the_vocabulary():
+    """docs/vocabulary.md for this package's sampling-type methods: n_samples, design=,
+    estimator=, keyword-only seed, names_in/names_out, results frozen with eq=False."""
+    import dataclasses
+    import inspect
+
+    from rotoruq.methods.evidence import EvidenceResult, evidence
+    from rotoruq.methods.pce import PCEResult, polynomial_chaos
+    from rotoruq.methods.sampling import ResponseStatistics, SamplingResult
+    from rotoruq.methods.sensitivity import SobolResult, pick_freeze_design, sobol_indices
+    from rotoruq.methods.surrogate import GaussianProcess, LeaveOneOut
+
+    banned = {"n", "method", "n_more", "names", "labels", "n_model_evals", "start"}
+    for fn in (sample, refine, sobol_indices, pick_freeze_design, polynomial_chaos, evidence,
+               GaussianProcess.__init__):
+        params = inspect.signature(fn).parameters
+        assert not banned & set(params), (fn.__qualname__, banned & set(params))
+        if "seed" in params:
+            assert params["seed"].kind is inspect.Parameter.KEYWORD_ONLY, fn.__qualname__
+    assert "n_samples" in inspect.signature(sample).parameters
+    assert "design" in inspect.signature(sobol_indices).parameters
+    assert "estimator" in inspect.signature(polynomial_chaos).parameters
+    for cls in (SamplingResult, ResponseStatistics, SobolResult, PCEResult, EvidenceResult,
+                LeaveOneOut):
+        params = cls.__dataclass_params__
+        assert params.frozen and not params.eq, cls.__name__
+        fields = {f.name for f in dataclasses.fields(cls)}
+        assert not banned & fields, (cls.__name__, banned & fields)

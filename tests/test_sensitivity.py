@@ -226,3 +226,70 @@ def test_constant_response_warns_instead_of_silent_nan():
     with pytest.warns(RuntimeWarning, match=r"\['flat'\] have zero variance"):
         pce = rq.polynomial_chaos(model, space, order=2)
     assert np.all(np.isnan(pce.main[1])) and np.all(np.isfinite(pce.main[0]))
+
+
+DRIVER = r'''
+import sys
+vals = {k.strip(): float(v) for k, v in (line.split("=") for line in open("input.txt"))}
+a, b = vals["a"], vals["b"]
+open(sys.argv[2], "w").write(f"{2 * a + 3 * b!r} y\n")
+'''
+
+
+@pytest.mark.slow
+def test_sensitivity_and_random_sampling_steps_from_the_cli(tmp_path):
+    """The user's path: a study file with an external solver, ``rotoruq run`` in a subprocess.
+    y = 2 a + 3 b with a, b ~ U(0, 1): S = T = (4/13, 9/13) (additive)."""
+    import json
+    import subprocess
+    import sys
+
+    from rotoruq.study.results import load_step
+
+    (tmp_path / "driver.py").write_text(DRIVER)
+    (tmp_path / "input.txt").write_text("a = {a}\nb = {b}\n")
+    (tmp_path / "study.toml").write_text(f"""
+[study]
+name = "sens"
+seed = 5
+
+[model]
+command = [{json.dumps(sys.executable)}, "-S", "driver.py", "{{params}}", "{{results}}"]
+templates = ["input.txt"]
+responses = ["y"]
+
+[parameters.a]
+distribution = "uniform"
+lower = 0.0
+upper = 1.0
+
+[parameters.b]
+distribution = "uniform"
+lower = 0.0
+upper = 1.0
+
+[[steps]]
+name = "mc"
+type = "sampling"
+n = 6
+method = "random"
+
+[[steps]]
+name = "sobol"
+type = "sensitivity"
+n = 32
+""")
+    proc = subprocess.run([sys.executable, "-m", "rotoruq.study.cli", "run",
+                           str(tmp_path / "study.toml"), "--out", str(tmp_path / "out"),
+                           "--no-report"], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    mc = load_step(tmp_path / "out" / "steps" / "mc")
+    x = mc.arrays["inputs"]
+    np.testing.assert_allclose(mc.arrays["outputs"][:, 0], 2 * x[:, 0] + 3 * x[:, 1],
+                               rtol=1e-15)
+    s = load_step(tmp_path / "out" / "steps" / "sobol")
+    assert s.meta["n_evaluations"] == 32 * 4
+    for p, exact in (("a", 4 / 13), ("b", 9 / 13)):
+        assert s.get(f"S/y/{p}") == pytest.approx(exact, abs=0.03)
+        assert s.get(f"T/y/{p}") == pytest.approx(exact, abs=0.03)
+        assert s.get(f"S_lo/y/{p}") <= s.get(f"S/y/{p}") <= s.get(f"S_hi/y/{p}")

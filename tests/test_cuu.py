@@ -253,4 +253,4 @@ def test_pce_inner_options_checked():
     with pytest.raises(ParameterError, match="not 'regression'"):
         calibrate_under_uncertainty(model, space, calibrate={"a": "std"},
                                     targets={"g": {"std": 1.0}}, inner="pce",
-                                    inner_options={"method": "regression"})
+                                    inner_options={"estimator": "regression"})

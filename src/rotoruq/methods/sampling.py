@@ -336,12 +336,15 @@ def sample(
         raise ParameterError(f"n_samples must be >= 2, got {n_samples}")
     design = check_design(design)
     rng = as_generator(seed)
-    # the design gets a generator of its own, rebuilt by refine() from this integer (scipy's
-    # QMC engines spawn from a generator's seed sequence, which its state does not hold);
-    # the state snapshot (not the generator) continues an LHS, so refining one result twice
-    # gives the same points whatever else drew from the caller's generator
-    design_seed = int(rng.integers(2**63))
-    q = unit_design(n, space.dim, np.random.default_rng(design_seed), design)
+    # a QMC design gets a generator of its own, rebuilt by refine() from this integer (scipy's
+    # QMC engines spawn from a generator's seed sequence, which its state does not hold); LHS
+    # and random designs draw from the caller's generator, continued by refine() from the
+    # state snapshot (not the generator), so refining one result twice gives the same points
+    # whatever else drew from the caller's generator
+    design_seed = int(rng.integers(2**62))
+    qmc_design = design in ("sobol", "halton")
+    q = unit_design(n, space.dim, np.random.default_rng(design_seed) if qmc_design else rng,
+                    design)
     options = {
         "response_levels": response_levels,
         "probability_levels": probability_levels,
@@ -391,7 +394,7 @@ def refine(result: SamplingResult, n_samples: int, *, seed: SeedLike = None) -> 
     * "sobol" / "halton" / "random": the sequence is continued (the points that ``sample``
       would have drawn with the larger count and the same seed).
 
-    ``seed`` (lhs only) defaults to the state the original sample's generator was left in
+    ``seed`` (lhs and random) defaults to the state the original sample's generator was left in
     (continued), so a refined run is reproducible from the original seed, and refining one
     result twice gives the same points.
     """
@@ -401,9 +404,12 @@ def refine(result: SamplingResult, n_samples: int, *, seed: SeedLike = None) -> 
     if result.model is None or result.space is None:
         raise ParameterError("this SamplingResult does not carry its model and space")
     opts = dict(result.options)
-    if result.design == "lhs":
+    if result.design in ("lhs", "random"):
         rng = as_generator(seed) if seed is not None else _generator_at(opts["rng_state"])
-        q = _lhs_extension(result.unit, n_more, rng)
+        if result.design == "lhs":
+            q = _lhs_extension(result.unit, n_more, rng)
+        else:
+            q = unit_design(n_more, result.space.dim, rng, "random")
         opts["rng_state"] = rng.bit_generator.state
     else:
         n_old = result.n_samples

@@ -107,7 +107,7 @@ def run_sampling(ctx: StepContext) -> StepResult:
     from ..methods.sampling import sample
 
     o = ctx.options
-    res = sample(ctx.model(), ctx.space, o["n_samples"], method=o["design"], seed=ctx.rng)
+    res = sample(ctx.model(), ctx.space, o["n_samples"], design=o["design"], seed=ctx.rng)
     clean = np.asarray(res.outputs)
     noisy = clean + _noise(ctx, o.get("noise_std"), clean.shape)
     scalars = _stats_scalars(ctx.responses, clean)
@@ -181,7 +181,7 @@ def run_forward_check(ctx: StepContext) -> StepResult:
         label = f"@{point[match]:g}" if sweep and match in point else ""
         labels.append(label)
         model = ctx.model(point)
-        res = sample(model, ctx.space, o["n_samples"], method=o["design"], seed=ctx.rng)
+        res = sample(model, ctx.space, o["n_samples"], design=o["design"], seed=ctx.rng)
         out = np.asarray(res.outputs, dtype=float)
         n_eval += int(res.n_evaluations)
         pp = None
@@ -252,8 +252,8 @@ def run_sensitivity(ctx: StepContext) -> StepResult:
     from ..methods.sensitivity import sobol_indices
 
     o = ctx.options
-    res = sobol_indices(ctx.model(), ctx.space, n=o["n_samples"], estimator=o["estimator"],
-                        method=o["design"], seed=ctx.rng)
+    res = sobol_indices(ctx.model(), ctx.space, o["n_samples"], estimator=o["estimator"],
+                        design=o["design"], seed=ctx.rng)
     main, total = np.asarray(res.main), np.asarray(res.total)
     main_ci, total_ci = np.asarray(res.main_ci), np.asarray(res.total_ci)
     scalars = output_spread_scalars(ctx.responses, res.mean, res.variance)
@@ -313,7 +313,7 @@ def run_pce(ctx: StepContext) -> StepResult:
     from ..methods.pce import polynomial_chaos
 
     o = ctx.options
-    res = polynomial_chaos(ctx.model(), ctx.space, o["order"], method=o["estimator"],
+    res = polynomial_chaos(ctx.model(), ctx.space, o["order"], estimator=o["estimator"],
                            n_samples=o["n_samples"], seed=ctx.rng)
     scalars = {}
     for k, r in enumerate(ctx.responses):
@@ -499,7 +499,7 @@ def run_cuu(ctx: StepContext) -> StepResult:
     n = o.get("verify_samples", 0)
     if n:
         for tag, space in (("initial", ctx.space), ("calibrated", cal_space)):
-            checked = sample(model, space, n, method=o["design"], seed=ctx.rng)
+            checked = sample(model, space, n, design=o["design"], seed=ctx.rng)
             out = np.asarray(checked.outputs)
             for k, r in enumerate(ctx.responses):
                 v = out[:, k][np.isfinite(out[:, k])]

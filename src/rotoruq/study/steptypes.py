@@ -219,16 +219,16 @@ _LEVELS = {"response_levels": Option(table, SIGNATURE),
 
 register_step_type(StepType(
     "sampling", steps.run_sampling, method=_SAMPLE, provides=("samples",),
-    options={"n_samples": Option(integer(1), SIGNATURE, param="n"),
-             "design": Option(choice(*DESIGNS), SIGNATURE, param="method"),
+    options={"n_samples": Option(integer(1), SIGNATURE),
+             "design": Option(choice(*DESIGNS), SIGNATURE),
              "noise_std": Option(number_or_table, 0.0)},
     quick={"n_samples": 40},
     tables=steptables.sampling_tables, figures=plots.sampling_figures))
 
 register_step_type(StepType(
     "sensitivity", steps.run_sensitivity, method="rotoruq.methods.sensitivity:sobol_indices",
-    options={"n_samples": Option(integer(2), SIGNATURE, param="n"),
-             "design": Option(choice(*DESIGNS), SIGNATURE, param="method"),
+    options={"n_samples": Option(integer(2), SIGNATURE),
+             "design": Option(choice(*DESIGNS), SIGNATURE),
              "estimator": Option(choice("hybrid", "saltelli2010", "jansen", "janon"),
                                  SIGNATURE)},
     quick={"n_samples": 32},
@@ -248,8 +248,7 @@ register_step_type(StepType(
 register_step_type(StepType(
     "pce", steps.run_pce, method="rotoruq.methods.pce:polynomial_chaos",
     options={"order": Option(integer(1), SIGNATURE),
-             "estimator": Option(choice("quadrature", "sparse_grid", "regression"), SIGNATURE,
-                                 param="method"),
+             "estimator": Option(choice("quadrature", "sparse_grid", "regression"), SIGNATURE),
              "n_samples": Option(integer(1), SIGNATURE)},
     quick={"n_samples": 40}, check=_check_pce,
     tables=steptables.pce_tables, figures=plots.sensitivity_figures,
@@ -300,15 +299,15 @@ register_step_type(StepType(
              "tolerance": Option(number(positive=True, allow_zero=False), SIGNATURE,
                                  method=_LEAST_SQUARES),
              "verify_samples": Option(integer(0), 0),
-             "design": Option(choice(*DESIGNS), SIGNATURE, param="method", method=_SAMPLE)},
+             "design": Option(choice(*DESIGNS), SIGNATURE, method=_SAMPLE)},
     quick={"verify_samples": 40}, check=_check_targets,
     tables=steptables.cuu_tables, figures=plots.cuu_figures,
     warnings=diagnostics.cuu_warnings))
 
 register_step_type(StepType(
     "forward_check", steps.run_forward_check, method=_SAMPLE,
-    options={"n_samples": Option(integer(1), SIGNATURE, param="n"),
-             "design": Option(choice(*DESIGNS), SIGNATURE, param="method"),
+    options={"n_samples": Option(integer(1), SIGNATURE),
+             "design": Option(choice(*DESIGNS), SIGNATURE),
              "sweep": Option(table, None),
              "match": Option(string(), None),
              "normalize_by": Option(table, None)},

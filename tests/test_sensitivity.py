@@ -244,7 +244,7 @@ def test_sensitivity_and_random_sampling_steps_from_the_cli(tmp_path):
     import subprocess
     import sys
 
-    from rotoruq.study.results import load_step
+    from rotoruq.results import load_step
 
     (tmp_path / "driver.py").write_text(DRIVER)
     (tmp_path / "input.txt").write_text("a = {a}\nb = {b}\n")
@@ -271,13 +271,13 @@ upper = 1.0
 [[steps]]
 name = "mc"
 type = "sampling"
-n = 6
-method = "random"
+n_samples = 6
+design = "random"
 
 [[steps]]
 name = "sobol"
 type = "sensitivity"
-n = 32
+n_samples = 32
 """)
     proc = subprocess.run([sys.executable, "-m", "rotoruq.study.cli", "run",
                            str(tmp_path / "study.toml"), "--out", str(tmp_path / "out"),

@@ -20,7 +20,7 @@ def test_rosenbrock_mean_is_402(method, order):
     # exact variance: E[f^2] - 402^2 with Gaussian moments (a polynomial of degree 4)
     assert res.variance[0] == pytest.approx(1102406.0, rel=1e-9)
     assert res.n_terms == {4: 15, 5: 21}[order]  # eq. 2.16
-    x = space.sample(5, seed=3)
+    x = space.draw(5, seed=3)
     np.testing.assert_allclose(res.predict(x)[:, 0], rosenbrock(x), rtol=1e-9)
 
 

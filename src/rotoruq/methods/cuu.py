@@ -57,7 +57,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._rng import SeedLike, as_generator
+from .._rng import SeedLike
 from ..errors import ParameterError
 from ..model import align_inputs, evaluate, has_gradient
 from ..params import LogNormal, Normal, ParameterSpace, Uniform, unit_design
@@ -284,7 +284,7 @@ class _Problem:
             n = int(self.opts.get("n", 200))
             if n < 2:
                 raise ParameterError(f"inner LHS needs n >= 2 samples, got {n}")
-            self.unit = unit_design(n, space.dim, as_generator(seed), "lhs")
+            self.unit = unit_design(n, space.dim, design="lhs", seed=seed)
         elif inner == "mean_value":
             unknown = set(self.opts) - {"gradient", "fd_step"}
             if unknown:

@@ -189,9 +189,9 @@ class PCEResult:
         xi = _x_to_xi(self.space, self.germs, x)
         return _design_matrix(self.germs, self.multi_indices, xi) @ self.coefficients
 
-    def sample(self, n: int, seed: SeedLike = None, method: str = "mc") -> np.ndarray:
+    def sample(self, n: int, seed: SeedLike = None, method: str = "random") -> np.ndarray:
         """Responses of the expansion at n points drawn from the space: (n, m)."""
-        return self.predict(self.space.sample(n, seed=seed, method=method))
+        return self.predict(self.space.draw(n, design=method, seed=seed))
 
 
 def _smolyak_terms(d: int, level: int):

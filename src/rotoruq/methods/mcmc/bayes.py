@@ -405,7 +405,7 @@ def calibrate_bayes(
                 raise ModelShapeError(f"fitted emulator has {gp.n_inputs} inputs and "
                                       f"{gp.n_outputs} outputs; need {d} and {len(cal_names)}")
         else:
-            Xb = prior.sample(int(build_samples), seed=rng, method="lhs")
+            Xb = prior.draw(int(build_samples), design="lhs", seed=rng)
             Yb = truth(Xb)[:, resp_idx]
             ok = np.all(np.isfinite(Yb), 1)
             if ok.sum() < d + 2:
@@ -444,7 +444,7 @@ def calibrate_bayes(
         # LHS batch of the prior evaluated in one call; the best few seed L-BFGS-B
         cands = [center] + ([best_build] if best_build is not None else [])
         if map_start:
-            cands.extend(prior.sample(max(16, 8 * d), seed=rng, method="lhs"))
+            cands.extend(prior.draw(max(16, 8 * d), design="lhs", seed=rng))
         zc = (np.array(cands) - center) / scale
         lpc = post(zc)
         if not np.any(np.isfinite(lpc)):

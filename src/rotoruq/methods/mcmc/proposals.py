@@ -38,9 +38,9 @@ class LogPrior:
                 const -= np.log(dist.upper - dist.lower)
             elif isinstance(dist, Normal):
                 idx.append(j)
-                mu.append(dist.mu)
-                sig.append(dist.sigma)
-                const -= np.log(dist.sigma * np.sqrt(2.0 * np.pi))
+                mu.append(dist.mean)
+                sig.append(dist.std)
+                const -= np.log(dist.std * np.sqrt(2.0 * np.pi))
             else:
                 self._other.append((j, dist))
         self.compiled = not self._other

@@ -27,7 +27,7 @@ import pickle
 import time
 import traceback
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Generator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -43,7 +43,7 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class TaskOutcome:
     """Result of one task: ``value`` when it returned, ``error`` (text) when it raised."""
 
@@ -97,7 +97,7 @@ class Executor(ABC):
     n_workers: int = 1
 
     @abstractmethod
-    def run(self, fn: Callable[[Any], Any], tasks: Sequence[Any]) -> Iterator[TaskOutcome]:
+    def run(self, fn: Callable[[Any], Any], tasks: Sequence[Any]) -> Generator[TaskOutcome]:
         """Yield one outcome per task, in completion order."""
 
     def close(self) -> None:

@@ -79,7 +79,7 @@ def _parse_field(body: str, path, line):
     name, rest = s[:k], s[k:].lstrip()
     if not name or not (name[0].isalpha() or name[0] == "_"):
         raise bad
-    default = None
+    default: str | float | None = None
     if rest.startswith("="):
         rest = rest[1:].lstrip()
         if rest[:1] in ("'", '"'):

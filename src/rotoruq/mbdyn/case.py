@@ -14,6 +14,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 from ..errors import ParameterError
 from ..evaluation.templates import fill_template, template_fields
@@ -42,12 +43,12 @@ DERIVED_FROM = {"ground_distance": ("height_over_radius",), "final_time": ("omeg
 class CaseSettings:
     """Time integration of a case: ``revolutions`` simulated, ``steps_per_rev`` time steps per
     revolution, loads averaged over the last ``average`` revolutions (the ``average`` before
-    them must agree within ``tol``, relative), ``timeout`` [s] for MBDyn."""
+    them must agree within ``tolerance``, relative), ``timeout`` [s] for MBDyn."""
 
     revolutions: int = 12
     steps_per_rev: int = 72
     average: int = 2
-    tol: float = 2e-3
+    tolerance: float = 2e-3
     timeout: float | None = 600.0
 
     def __post_init__(self):
@@ -90,7 +91,7 @@ def template_values(preset, inputs: Mapping[str, float], settings: CaseSettings)
                  else repr(k) for k in unknown]
         raise ParameterError(f"{', '.join(hints)}: not rotor inputs of preset {preset.name!r}; "
                              f"valid: {', '.join(base)}")
-    vals = {**base, **{k: float(v) for k, v in inputs.items()}}
+    vals: dict[str, Any] = {**base, **{k: float(v) for k, v in inputs.items()}}
     vals.update({k: float(getattr(preset, k)) for k in GEOMETRY_FIELDS})
     h = vals["height_over_radius"]
     if not h > 0.25:
@@ -141,7 +142,7 @@ def run_case(workdir: str | os.PathLike, preset, inputs: Mapping[str, float],
     return hub_loads(run.prefix.with_suffix(".rot"), omega=values["omega"], rho=values["rho"],
                      radius=preset.radius, steps_per_rev=settings.steps_per_rev,
                      revolutions=settings.revolutions, average=settings.average,
-                     tol=settings.tol, joint=jnt if jnt.exists() else None)
+                     tolerance=settings.tolerance, joint=jnt if jnt.exists() else None)
 
 
 def sample_table(airfoil, overrides: Mapping[str, float]):

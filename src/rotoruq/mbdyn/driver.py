@@ -50,8 +50,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"time steps per revolution (default {d.steps_per_rev})")
     p.add_argument("--average", type=int, default=d.average,
                    help=f"revolutions averaged at the end (default {d.average})")
-    p.add_argument("--tol", type=float, default=d.tol,
-                   help=f"periodicity tolerance, relative (default {d.tol:g})")
+    p.add_argument("--tolerance", type=float, default=d.tolerance,
+                   help=f"periodicity tolerance, relative (default {d.tolerance:g})")
     p.add_argument("--timeout", type=float, default=d.timeout,
                    help=f"seconds MBDyn may run (default {d.timeout:g})")
     return p
@@ -63,12 +63,12 @@ def main(argv: list[str] | None = None) -> int:
         from ..rotor.presets import get_preset
 
         p = read_parameters(args.params)
-        names = list(p.responses)
+        names = list(p.names_out)
         bad = [n for n in names if n not in RESPONSES]
         if bad:
             raise RotoruqError(f"{args.params}: responses {bad} are not MBDyn hub loads; "
                                f"available: {', '.join(RESPONSES)}")
-        settings = CaseSettings(args.revolutions, args.steps_per_rev, args.average, args.tol,
+        settings = CaseSettings(args.revolutions, args.steps_per_rev, args.average, args.tolerance,
                                 args.timeout)
         loads = run_case(Path.cwd(), get_preset(args.preset),
                          {k: float(v) for k, v in p.variables.items()},

@@ -11,7 +11,7 @@ upper)``, ``Beta(alpha, beta, lower, upper)``, ``Triangular(mode, lower, upper)`
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -78,9 +78,13 @@ class Distribution:
     """
 
     if TYPE_CHECKING:
-        mean: float
-        std: float
         _frozen: Any
+
+        @property
+        def mean(self) -> float: ...
+
+        @property
+        def std(self) -> float: ...
 
     @property
     def dist(self) -> Any:
@@ -173,12 +177,12 @@ class Distribution:
 class _DerivedMoments(Distribution):
     """Distributions whose mean and std follow from their parameters."""
 
-    @property  # type: ignore[no-redef]  # declared as an attribute on the base for typing
+    @property
     def mean(self) -> float:
         """Mean of the variable."""
         return self.moments[0]
 
-    @property  # type: ignore[no-redef]
+    @property
     def std(self) -> float:
         """Standard deviation of the variable."""
         return self.moments[1]
@@ -259,6 +263,7 @@ class TruncatedNormal(Distribution):
     std: float
     lower: float = -math.inf
     upper: float = math.inf
+    _mass: float = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         _finite("mean", self.mean, "TruncatedNormal")
@@ -378,6 +383,7 @@ class Beta(_DerivedMoments):
     beta: float
     lower: float = 0.0
     upper: float = 1.0
+    _mirror: Any = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         _positive("alpha", self.alpha, "Beta")
@@ -452,6 +458,7 @@ class Triangular(_DerivedMoments):
     mode: float
     lower: float
     upper: float
+    _mirror: Any = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         lo, hi = _ordered(self.lower, self.upper, "Triangular")

@@ -8,7 +8,7 @@ over its intervals (Dakota does the same when it samples them); the evidence met
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -36,6 +36,9 @@ class Interval(_DerivedMoments):
 
     intervals: tuple[tuple[float, float], ...]
     bpa: tuple[float, ...] | None = None
+    _knots: np.ndarray = field(init=False, repr=False, compare=False)
+    _dens: np.ndarray = field(init=False, repr=False, compare=False)
+    _cdfk: np.ndarray = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         try:
@@ -99,7 +102,7 @@ class Interval(_DerivedMoments):
         return mean, float(np.sqrt(max(m2 - mean**2, 0.0)))
 
     def cdf(self, x: Any) -> np.ndarray:
-        return np.interp(x, self._knots, self._cdfk, left=0.0, right=1.0)
+        return np.asarray(np.interp(x, self._knots, self._cdfk, left=0.0, right=1.0))
 
     # the upper tail is measured from the knot above (exact near the upper bound)
     def sf(self, x: Any) -> np.ndarray:
@@ -140,4 +143,5 @@ class Interval(_DerivedMoments):
         return self.ppf(as_generator(seed).random(size))
 
     def describe(self) -> dict[str, Any]:
-        return {"kind": "interval", "intervals": list(self.intervals), "bpa": list(self.bpa)}
+        return {"kind": "interval", "intervals": list(self.intervals),
+                "bpa": list(self.bpa or ())}

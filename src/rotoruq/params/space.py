@@ -231,7 +231,7 @@ class ParameterSpace:
         if self._chol is not None:
             with np.errstate(invalid="ignore"):
                 z = self.to_z(x)
-                r0inv = np.linalg.inv(self._nataf)
+                r0inv = np.linalg.inv(self.nataf)
                 quad = np.einsum("ni,ij,nj->n", z, r0inv - np.eye(self.dim), z)
                 logdet = 2.0 * np.sum(np.log(np.diag(self._chol)))
                 out = out - 0.5 * quad - 0.5 * logdet

@@ -20,6 +20,7 @@ reports the reason.
 from __future__ import annotations
 
 import argparse
+import logging
 import sys
 from pathlib import Path
 
@@ -27,6 +28,8 @@ from ..errors import RotoruqError
 from ..evaluation.dakota_files import read_parameters, write_results
 from .case import TEMPLATES, CaseSettings, run_case
 from .extract import RESPONSES
+
+log = logging.getLogger(__name__)
 
 __all__ = ["main", "build_parser"]
 
@@ -74,7 +77,7 @@ def main(argv: list[str] | None = None) -> int:
                          {k: float(v) for k, v in p.variables.items()},
                          template=args.template, settings=settings, mbdyn=args.mbdyn)
     except (RotoruqError, OSError, ValueError) as exc:
-        print(f"rotoruq mbdyn driver: {exc}", file=sys.stderr)
+        log.error("%s", exc)
         write_results(args.results, failed=True)
         return 1
     write_results(args.results, [loads.response(n) for n in names], names)
@@ -82,4 +85,5 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":  # pragma: no cover
+    logging.basicConfig(format="rotoruq mbdyn driver: %(message)s", stream=sys.stderr)
     sys.exit(main())

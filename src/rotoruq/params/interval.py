@@ -8,6 +8,7 @@ over its intervals (Dakota does the same when it samples them); the evidence met
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -26,16 +27,17 @@ class Interval(_DerivedMoments):
 
     Parameters
     ----------
-    intervals : sequence of (lower, upper) pairs; they may overlap or nest.
+    intervals : sequence of (lower, upper) pairs; they may overlap or nest. Stored as a tuple
+        of pairs.
     bpa : sequence of weights (one per interval), each > 0, summing to 1 (within 1e-8).
-        Default: one interval with BPA 1.
+        Default: equal weights. Stored as a tuple.
 
     As a density (for sampling, u-space transforms, moments) the variable is the BPA-weighted
     mixture of uniform densities over the intervals.
     """
 
-    intervals: tuple[tuple[float, float], ...]
-    bpa: tuple[float, ...] | None = None
+    intervals: Sequence[Sequence[float]]
+    bpa: Sequence[float] | None = None
     _knots: np.ndarray = field(init=False, repr=False, compare=False)
     _dens: np.ndarray = field(init=False, repr=False, compare=False)
     _cdfk: np.ndarray = field(init=False, repr=False, compare=False)

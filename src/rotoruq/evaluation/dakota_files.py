@@ -119,7 +119,7 @@ def _small_int(s: str) -> int | None:
     return _to_int(s) if len(s) <= 19 else None
 
 
-def check_label(label, what: str = "label") -> str:
+def check_label(label: Any, what: str = "label") -> str:
     """Check a label written to a Dakota file or used in a file name; returns it.
 
     A label must be a non-empty string of printable characters without white space (the

@@ -20,15 +20,17 @@ back, never repeated.
 from __future__ import annotations
 
 import math
+import os
 import time
 import uuid
 import weakref
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from ..errors import EvaluationError, ModelShapeError, ParameterError
-from ..model import EvalBatch, evaluate, has_gradient
+from ..model import EvalBatch, Model, evaluate, has_gradient
 from .executors import Executor, make_executor
 from .external import RunResult, _abort_message
 from .identity import model_identity
@@ -98,9 +100,9 @@ class Evaluator:
 
     def __init__(
         self,
-        model,
+        model: Model,
         *,
-        store: Store | str | None = None,
+        store: Store | str | os.PathLike | None = None,
         executor: str | Executor = "serial",
         study: str = "default",
         run_id: str | None = None,
@@ -304,7 +306,7 @@ class Evaluator:
         return recs, fails
 
 
-def as_evaluator(model, **kwargs) -> Evaluator:
+def as_evaluator(model: Model, **kwargs: Any) -> Evaluator:
     """``model`` itself if it is already an Evaluator, else ``Evaluator(model, **kwargs)``."""
     return model if isinstance(model, Evaluator) else Evaluator(model, **kwargs)
 

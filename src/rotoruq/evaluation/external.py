@@ -54,6 +54,7 @@ import uuid
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -81,7 +82,8 @@ class FailurePolicy:
     recover: tuple[float, ...] | None = None
 
 
-def parse_failure_policy(policy, n_out: int) -> FailurePolicy:
+def parse_failure_policy(policy: str | Mapping[str, Any] | FailurePolicy,
+                         n_out: int) -> FailurePolicy:
     """Turn ``"abort"``, ``"continue"``, ``"retry:N"`` or ``{"recover": values}`` into a
     :class:`FailurePolicy`."""
     if isinstance(policy, FailurePolicy):
@@ -213,7 +215,7 @@ class ExternalModel:
         parameters_file: str = "params.in",
         results_file: str = "results.out",
         timeout: float | None = None,
-        failure_policy="continue",
+        failure_policy: str | Mapping[str, Any] | FailurePolicy = "continue",
         keep_workdirs: bool | str = "failed",
         env: Mapping[str, str] | None = None,
         analysis_components: Sequence[tuple[str, str]] = (),

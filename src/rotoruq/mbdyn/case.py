@@ -14,12 +14,17 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from ..errors import ParameterError
 from ..evaluation.templates import fill_template, template_fields
 from .extract import HubLoads, hub_loads
 from .solver import run_mbdyn
+
+if TYPE_CHECKING:
+    from ..rotor.airfoil import Airfoil
+    from ..rotor.c81 import C81Table
+    from ..rotor.presets import RotorPreset
 
 __all__ = ["TEMPLATES", "CaseSettings", "template_text", "template_values", "run_case",
            "rigid_equivalent", "sample_table", "GEOMETRY_FIELDS", "OGE_DISTANCE"]
@@ -69,7 +74,8 @@ def template_text(template: str | os.PathLike) -> tuple[str, Path]:
     return p.read_text(), p
 
 
-def template_values(preset, inputs: Mapping[str, float], settings: CaseSettings) -> dict:
+def template_values(preset: RotorPreset, inputs: Mapping[str, float],
+                    settings: CaseSettings) -> dict[str, Any]:
     """Every value a template can use.
 
     - the rotor inputs (:data:`rotoruq.rotor.model.ROTOR_INPUTS`, deg and SI): the preset's
@@ -105,9 +111,9 @@ def template_values(preset, inputs: Mapping[str, float], settings: CaseSettings)
     return vals
 
 
-def run_case(workdir: str | os.PathLike, preset, inputs: Mapping[str, float],
+def run_case(workdir: str | os.PathLike, preset: RotorPreset, inputs: Mapping[str, float],
              template: str | os.PathLike = "rigid", settings: CaseSettings | None = None,
-             mbdyn: str | os.PathLike | None = None, airfoil=None) -> HubLoads:
+             mbdyn: str | os.PathLike | None = None, airfoil: Airfoil | None = None) -> HubLoads:
     """Run one hover case in ``workdir`` and return its mean :class:`HubLoads`.
 
     ``inputs`` holds rotor inputs (``collective_deg``, ``height_over_radius``, ...) and airfoil
@@ -145,13 +151,13 @@ def run_case(workdir: str | os.PathLike, preset, inputs: Mapping[str, float],
                      tolerance=settings.tolerance, joint=jnt if jnt.exists() else None)
 
 
-def sample_table(airfoil, overrides: Mapping[str, float]):
+def sample_table(airfoil: Airfoil, overrides: Mapping[str, float]) -> C81Table:
     """The c81 table of one sample, as the built-in model sees it: the airfoil's
     :meth:`~rotoruq.rotor.airfoil.Airfoil.perturbed_table` (fits at the fit rows)."""
     return airfoil.perturbed_table(dict(overrides))
 
 
-def rigid_equivalent(preset):
+def rigid_equivalent(preset: RotorPreset) -> RotorPreset:
     """The built-in model of the rigid template's physics: blades clamped at the collective
     (flap, lag and pitch-link springs effectively rigid), uniform momentum inflow without the
     first-harmonic part, no tip loss, no induced-power factor, Cheeseman-Bennett ground effect.

@@ -8,36 +8,24 @@ import inspect
 from typing import Any
 
 from ..errors import ParameterError
-from .distributions import (
-    Beta,
-    Distribution,
-    Exponential,
-    Gamma,
-    Gumbel,
-    LogNormal,
-    LogUniform,
-    Normal,
-    Triangular,
-    TruncatedNormal,
-    Uniform,
-    Weibull,
-)
+from . import distributions as dist
+from .distributions import Distribution
 from .interval import Interval
 
 __all__ = ["DISTRIBUTIONS", "make_distribution"]
 
 DISTRIBUTIONS: dict[str, type[Distribution]] = {
-    "normal": Normal,
-    "truncated_normal": TruncatedNormal,
-    "lognormal": LogNormal,
-    "uniform": Uniform,
-    "loguniform": LogUniform,
-    "beta": Beta,
-    "gamma": Gamma,
-    "exponential": Exponential,
-    "gumbel": Gumbel,
-    "weibull": Weibull,
-    "triangular": Triangular,
+    "normal": dist.Normal,
+    "truncated_normal": dist.TruncatedNormal,
+    "lognormal": dist.LogNormal,
+    "uniform": dist.Uniform,
+    "loguniform": dist.LogUniform,
+    "beta": dist.Beta,
+    "gamma": dist.Gamma,
+    "exponential": dist.Exponential,
+    "gumbel": dist.Gumbel,
+    "weibull": dist.Weibull,
+    "triangular": dist.Triangular,
     "interval": Interval,
 }
 

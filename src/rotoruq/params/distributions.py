@@ -20,21 +20,6 @@ from scipy import stats
 from .._rng import SeedLike, as_generator
 from ..errors import ParameterError
 
-__all__ = [
-    "Distribution",
-    "Normal",
-    "TruncatedNormal",
-    "LogNormal",
-    "Uniform",
-    "LogUniform",
-    "Beta",
-    "Gamma",
-    "Exponential",
-    "Gumbel",
-    "Weibull",
-    "Triangular",
-]
-
 
 def _number(name: str, value: Any, what: str) -> float:
     try:

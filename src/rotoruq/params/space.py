@@ -179,26 +179,29 @@ class ParameterSpace:
             )
         return x
 
+    def _marginals(self, method: str, points: Any) -> np.ndarray:
+        """Apply each marginal's ``method`` (``"ppf"``, ``"cdf"``, ...) to its column."""
+        points = self._check(points)
+        return np.column_stack(
+            [getattr(d, method)(points[:, j]) for j, d in enumerate(self.distributions)]
+        )
+
     def from_unit(self, q: Any) -> np.ndarray:
         """Map probabilities in (0, 1)^d (shape (n, d)) to parameter values by marginal ppf."""
-        q = self._check(q)
-        return np.column_stack([d.ppf(q[:, j]) for j, d in enumerate(self.distributions)])
+        return self._marginals("ppf", q)
 
     def to_unit(self, x: Any) -> np.ndarray:
         """Map parameter values to marginal CDF values in [0, 1]^d."""
-        x = self._check(x)
-        return np.column_stack([d.cdf(x[:, j]) for j, d in enumerate(self.distributions)])
+        return self._marginals("cdf", x)
 
     def to_z(self, x: Any) -> np.ndarray:
         """Marginal normal scores z = Phi^-1(F_i(x_i)), shape (n, d) (correlated if the space
         is). Exact in both tails (see :meth:`Distribution.to_z`), |z| <= 37.5."""
-        x = self._check(x)
-        return np.column_stack([d.to_z(x[:, j]) for j, d in enumerate(self.distributions)])
+        return self._marginals("to_z", x)
 
     def from_z(self, z: Any) -> np.ndarray:
         """Inverse of :meth:`to_z`: ``x_i = F_i^-1(Phi(z_i))``, exact in both tails."""
-        z = self._check(z)
-        return np.column_stack([d.from_z(z[:, j]) for j, d in enumerate(self.distributions)])
+        return self._marginals("from_z", z)
 
     def to_u(self, x: Any) -> np.ndarray:
         """Transform to independent standard normal space, shape (n, d).

@@ -7,7 +7,7 @@ import time
 import numpy as np
 import pytest
 
-from rotoruq.errors import InputFileError
+from rotoruq.errors import InputFileError, ParameterError
 from rotoruq.evaluation.dakota_files import (
     format_parameters,
     format_results,
@@ -271,3 +271,17 @@ def test_undecodable_files_name_file_and_line(tmp_path, read):
     with pytest.raises(InputFileError) as err:
         read(p)
     assert err.value.path == str(p) and err.value.line == 2 and "UTF-8" in str(err.value)
+
+
+def test_file_contents_use_the_names_of_models_and_compare_by_identity(tmp_path):
+    p = read_parameters(write_parameters(tmp_path / "p.in", {"a": 1.0, "b": 2}, ["f", "g"]))
+    assert p.names_in == ("a", "b") and p.names_out == ("f", "g")
+    r = read_results(write_results(tmp_path / "r.out", [1.0, 2.0], ["f", "g"]),
+                     names_out=["f", "g"])
+    assert r.names_out == ("f", "g")
+    # results hold arrays: == is identity (no "truth value of an array is ambiguous")
+    again = read_results(tmp_path / "r.out")
+    assert r == r and not (r == again)
+    np.testing.assert_array_equal(r.values, again.values)
+    with pytest.raises(ParameterError, match="needs values"):
+        write_results(tmp_path / "x.out")

@@ -20,6 +20,7 @@ The package ``rotoruq/__init__.py`` re-exports the public API lazily and is exem
 from __future__ import annotations
 
 import ast
+import subprocess
 import sys
 from pathlib import Path
 
@@ -172,3 +173,33 @@ def test_type_checking_imports_are_exempt(tmp_path, monkeypatch):
                     "    from ..study.schema import Study\nfrom ..methods import pce\n")
     monkeypatch.setattr(sys.modules[__name__], "SRC", root)
     assert [t for _, t in rotoruq_imports(path)] == ["rotoruq.methods"]
+
+
+def _loaded_after(code: str) -> list[str]:
+    """rotoruq modules loaded by ``code`` in a fresh interpreter."""
+    probe = (f"{code}\nimport sys\n"
+             "print(' '.join(sorted(m for m in sys.modules if m.split('.')[0] == 'rotoruq')))")
+    out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                         check=True, timeout=120)
+    return out.stdout.split()
+
+
+def test_import_rotoruq_loads_nothing_until_a_name_is_used():
+    assert _loaded_after("import rotoruq") == ["rotoruq"]
+    # one layer alone: the rotor does not bring methods, evaluation, study or report
+    units = {_unit(m) for m in _loaded_after("import rotoruq.rotor.hover")}
+    assert units <= {"", "errors", "_rng", "model", "params", "rotor"}, units
+    # a name loads its own module (and what that imports), nothing else
+    units = {_unit(m) for m in _loaded_after("import rotoruq; rotoruq.ParameterSpace")}
+    assert units == {"", "errors", "_rng", "params"}, units
+
+
+def test_every_public_name_resolves_lazily():
+    import rotoruq
+
+    for name in rotoruq.__all__:
+        assert getattr(rotoruq, name) is not None, name
+    assert set(rotoruq.__all__) <= set(dir(rotoruq))
+    assert rotoruq.Normal is __import__("rotoruq.params", fromlist=["Normal"]).Normal
+    with pytest.raises(AttributeError, match="has no attribute 'sampel'"):
+        rotoruq.sampel  # noqa: B018

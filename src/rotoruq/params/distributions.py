@@ -312,6 +312,8 @@ class LogNormal(Distribution):
 
     mean: float
     std: float
+    _log_mean: float = field(init=False, repr=False, compare=False)
+    _log_std: float = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         m = _positive("mean", self.mean, "LogNormal")
@@ -319,10 +321,23 @@ class LogNormal(Distribution):
         zeta2 = math.log1p((s / m) ** 2)
         lam = math.log(m) - 0.5 * zeta2
         _freeze(self, stats.lognorm(s=math.sqrt(zeta2), scale=math.exp(lam)))
+        object.__setattr__(self, "_log_mean", lam)
+        object.__setattr__(self, "_log_std", math.sqrt(zeta2))
 
     @property
     def moments(self) -> tuple[float, float]:
         return float(self.mean), float(self.std)
+
+    # the upper tail through the normal of log(x): scipy < 1.12 computes lognorm.isf(q) as
+    # ppf(1 - q), which is inf below q ~ 1e-17
+    def sf(self, x: Any) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (np.log(np.maximum(x, 0.0)) - self._log_mean) / self._log_std
+        return np.where(np.isnan(x), np.nan, stats.norm.sf(t))
+
+    def isf(self, q: Any) -> np.ndarray:
+        return np.exp(self._log_mean + self._log_std * stats.norm.isf(q))
 
 
 @dataclass(frozen=True)

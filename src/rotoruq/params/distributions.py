@@ -328,7 +328,7 @@ class LogNormal(Distribution):
     def moments(self) -> tuple[float, float]:
         return float(self.mean), float(self.std)
 
-    # the upper tail through the normal of log(x): scipy < 1.12 computes lognorm.isf(q) as
+    # the upper tail through the normal of log(x): scipy 1.11 computes lognorm.isf(q) as
     # ppf(1 - q), which is inf below q ~ 1e-17
     def sf(self, x: Any) -> np.ndarray:
         x = np.asarray(x, dtype=float)

@@ -71,7 +71,7 @@ def identity_cost(tmp: Path, x: np.ndarray) -> dict:
     code_version.cache_clear()
     code_version()
     code = time.perf_counter() - t0
-    rotor = RotorModel("gvpm", inputs=["collective_deg", "k_pitch_link"], responses=["thrust"])
+    rotor = RotorModel("gvpm", names_in=["collective_deg", "k_pitch_link"], names_out=["thrust"])
     drv = tmp / "id_driver.py"
     drv.write_text(DRIVER)
     ext = ExternalModel([sys.executable, "-S", str(drv)], ["a", "b", "c", "d"], ["f"],

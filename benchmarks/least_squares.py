@@ -46,7 +46,7 @@ def scipy_run(fun, x0, method):
         return fun(np.asarray(x)[None, :])[0]
 
     sol = optimize.least_squares(f, x0, method=method, jac="2-point", max_nfev=5000)
-    return {"evaluations": count[0], "sumsq": float(2 * sol.cost), "success": bool(sol.success)}
+    return {"evaluations": count[0], "sumsq": float(2 * sol.cost), "converged": bool(sol.success)}
 
 
 def main() -> dict:
@@ -55,12 +55,12 @@ def main() -> dict:
     for name, (fun, x0, fstar, large) in PROBLEMS.items():
         row = {"published_sumsq": fstar, "large_residual": large}
         for label, tol in (("nl2sol", 1e-10), ("nl2sol_dakota_defaults", 1e-4)):
-            r = least_squares(fun, x0, convergence_tolerance=tol)
+            r = least_squares(fun, x0, tolerance=tol)
             row[label] = {
                 "evaluations": r.n_evaluations,
                 "calls": r.n_calls,
                 "sumsq": float(2 * r.cost),
-                "success": r.success,
+                "converged": r.converged,
                 "augmented_iterations": sum(m == "augmented" for m in r.models),
                 "iterations": r.iterations,
             }

@@ -52,8 +52,8 @@ def parity(mbdyn: Path, settings: CaseSettings) -> tuple[dict, list[float]]:
         for name, grid in CASES.items():
             preset = get_preset(name)
             builtin = RotorModel(rigid_equivalent(preset),
-                                 inputs=["collective_deg", "height_over_radius"],
-                                 responses=["thrust", "torque"])
+                                 names_in=["collective_deg", "height_over_radius"],
+                                 names_out=["thrust", "torque"])
             rows = []
             for col in grid["collective_deg"]:
                 for h in grid["height_over_radius"]:
@@ -97,7 +97,7 @@ def elastic(mbdyn: Path, settings: CaseSettings) -> dict:
     sensitivity to K_p, and thrust/torque ratios in ground effect."""
     names = list(ELASTIC_BASE)
     preset = get_preset("gvpm")
-    builtin = RotorModel(preset, inputs=names, responses=["thrust", "torque", "roll", "pitch"])
+    builtin = RotorModel(preset, names_in=names, names_out=["thrust", "torque", "roll", "pitch"])
     rows, walls = {}, []
     with tempfile.TemporaryDirectory() as tmp:
         for case, change in ELASTIC_CASES.items():
@@ -137,7 +137,7 @@ def elastic(mbdyn: Path, settings: CaseSettings) -> dict:
 
 def builtin_rate(n: int = 1000) -> float:
     model = RotorModel(rigid_equivalent(get_preset("gvpm")),
-                       inputs=["collective_deg", "height_over_radius"], responses=["thrust",
+                       names_in=["collective_deg", "height_over_radius"], names_out=["thrust",
                                                                                   "torque"])
     rng = np.random.default_rng(0)
     x = np.column_stack([rng.uniform(3, 8, n), rng.uniform(1, 4, n)])

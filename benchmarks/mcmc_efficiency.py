@@ -40,7 +40,7 @@ import warnings
 import numpy as np
 
 import rotoruq as rq
-from rotoruq.methods.mcmc import calibrate_bayes, effective_sample_size
+from rotoruq.methods.mcmc import SamplerConfig, calibrate_bayes, effective_sample_size
 from rotoruq.methods.surrogate import GaussianProcess
 
 T = np.linspace(0.0, 10.0, 200)
@@ -85,15 +85,15 @@ def ess_min(chains: np.ndarray, drop: float | int = 0.1) -> float:
 
 def run_ours(model, space, data, budget, n_chains, seed, **kw):
     t0 = time.perf_counter()
-    res = calibrate_bayes(model, data, space, method="dram", chain_samples=budget // n_chains,
-                          burn_in=0, n_chains=n_chains, data_covariance=SIGMA**2,
-                          dr_scale=DR_SCALE, adapt_interval=ADAPT_INTERVAL, seed=seed, **kw)
+    sampler = SamplerConfig("dram", dr_scale=DR_SCALE, adapt_interval=ADAPT_INTERVAL)
+    res = calibrate_bayes(model, data, space, sampler=sampler, n_samples=budget // n_chains,
+                          burn_in=0, n_chains=n_chains, noise_std=SIGMA, seed=seed, **kw)
     wall = time.perf_counter() - t0
     ess = ess_min(res.chains)
     return res, {"chain_s": res.sampling_seconds, "chain_cpu_s": res.sampling_cpu_seconds,
                  "wall_with_presolve_s": wall, "ess_min": ess,
                  "ess_per_s": ess / res.sampling_seconds, "likelihood_evals":
-                 res.n_likelihood_evals, "ess_per_eval": ess / res.n_likelihood_evals,
+                 res.n_likelihood_evaluations, "ess_per_eval": ess / res.n_likelihood_evaluations,
                  "acceptance": res.acceptance_rate, "n_chains": n_chains,
                  "mean": res.mean.tolist()}
 
@@ -232,18 +232,18 @@ def emulator(seed, repeats, steps=100_000, burn=5000):
            "gp_fit_s": time.perf_counter() - t0, "loo_q2": gp.loo().q2.tolist()}
     bounds = space.bounds
     # first call in a process: load (or compile) the kernels for this posterior's types
-    first = calibrate_bayes(model, data, space, emulator=gp, chain_samples=200, burn_in=0,
-                            data_covariance=0.25, seed=seed)
+    first = calibrate_bayes(model, data, space, emulator=gp, n_samples=200, burn_in=0,
+                            noise_std=0.5, seed=seed)
     out["first_call_chain_s"] = first.sampling_seconds
     ratios, ratios_cpu, ours_s, ours_cpu = [], [], [], []
     for r in range(repeats):
-        res = calibrate_bayes(model, data, space, emulator=gp, chain_samples=steps,
-                              burn_in=burn, data_covariance=0.25, seed=seed + r)
+        res = calibrate_bayes(model, data, space, emulator=gp, n_samples=steps - burn,
+                              burn_in=burn, noise_std=0.5, seed=seed + r)
         ess = float(res.ess.min())
         ours = {"chain_s": res.sampling_seconds, "chain_cpu_s": res.sampling_cpu_seconds,
                 "ess_min": ess,
                 "ess_per_s": ess / res.sampling_seconds, "acceptance": res.acceptance_rate,
-                "likelihood_evals": res.n_likelihood_evals}
+                "likelihood_evals": res.n_likelihood_evaluations}
         ours_s.append(res.sampling_seconds)
         ours_cpu.append(res.sampling_cpu_seconds)
         pym = run_pymcmcstat(lambda q: float(((gp._mean_fast(q[None])[0] - data) ** 2).sum()),
@@ -252,8 +252,8 @@ def emulator(seed, repeats, steps=100_000, burn=5000):
         ratios.append(ours["ess_per_s"] / pym["ess_per_s"])
         ratios_cpu.append(_cpu_ratio(ours, pym))
         out["last_run"] = {"rotoruq_dram": ours, "pymcmcstat_dram": pym}
-    four = calibrate_bayes(model, data, space, emulator=gp, chain_samples=steps // 4,
-                           burn_in=burn // 4, n_chains=4, data_covariance=0.25, seed=seed)
+    four = calibrate_bayes(model, data, space, emulator=gp, n_samples=steps // 4 - burn // 4,
+                           burn_in=burn // 4, n_chains=4, noise_std=0.5, seed=seed)
     out.update({"one_chain_s": _spread(ours_s), "one_chain_cpu_s": _spread(ours_cpu),
                 "ratio_ess_per_s_vs_pymcmcstat": _spread(ratios),
                 "ratio_ess_per_cpu_s_vs_pymcmcstat": _spread(ratios_cpu),
@@ -298,7 +298,7 @@ def main():
         return
     model, space, data = make_problem(0)
     warnings.simplefilter("ignore")
-    calibrate_bayes(model, data, space, chain_samples=300, seed=0)  # load compiled kernels
+    calibrate_bayes(model, data, space, n_samples=300, seed=0)  # load compiled kernels
     out = {"problem": "4 parameters, 200 observations, y = a exp(-b t) + c sin(w t)",
            "budget_samples": args.budget, "repeats": args.repeats,
            "one_chain": one_chain(model, space, data, args.budget, args.seed, args.repeats),

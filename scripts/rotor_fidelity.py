@@ -49,7 +49,7 @@ def _r(x, d=4):
 
 
 def loads(preset, fixed, rows, inputs=("k_pitch_link",)):
-    m = rq.RotorModel(preset, inputs=list(inputs), responses=RESP, fixed=fixed)
+    m = rq.RotorModel(preset, names_in=list(inputs), names_out=RESP, fixed=fixed)
     b = m.evaluate(np.atleast_2d(rows))
     return b.values, b.failures
 
@@ -86,7 +86,7 @@ def control_chain() -> dict:
     out["kp_effect_by_term"] = terms
     # collective that gives the measured 4R thrust (25.68 N, table 4.1) at the other posterior
     # means: where a calibration of the preset puts it (the thesis: 5.41 deg)
-    m = rq.RotorModel(p, inputs=["collective_deg"], responses=["thrust"],
+    m = rq.RotorModel(p, names_in=["collective_deg"], names_out=["thrust"],
                       fixed={k: v for k, v in {**POST, "k_pitch_link": 15.024}.items()
                              if k != "collective_deg"})
     c = np.linspace(3.0, 6.0, 61)
@@ -126,7 +126,7 @@ def chosen_properties() -> dict:
 
 
 def _flap_lag_deg(preset, fixed):
-    m = rq.RotorModel(preset, inputs=["lateral_deg"], responses=["thrust"], fixed=fixed)
+    m = rq.RotorModel(preset, names_in=["lateral_deg"], names_out=["thrust"], fixed=fixed)
     sol = m.solve([[1.0], [-1.0]])
     b1 = (sol.flap[0, 1] - sol.flap[1, 1]) / 2
     return float(-np.degrees(np.angle(b1)))
@@ -142,9 +142,9 @@ def cyclic_response(n: int = 256) -> dict:
                      "no_ac_offset_harmonic_inflow": {"aero_center_offset": 0.0,
                                                       "harmonic_inflow": True}}.items():
         p = gvpm(**kw)
-        m = rq.RotorModel(p, inputs=space.names, responses=RESP, fixed=fixed)
+        m = rq.RotorModel(p, names_in=space.names, names_out=RESP, fixed=fixed)
         s = rq.sobol_indices(m, space, n=n, seed=1, n_bootstrap=0)
-        g = rq.RotorModel(p, inputs=space.names, responses=["roll", "pitch"], fixed=fixed)
+        g = rq.RotorModel(p, names_in=space.names, names_out=["roll", "pitch"], fixed=fixed)
         y = g([[5, 1, 0], [5, -1, 0], [5, 0, 1], [5, 0, -1]])
         gain = np.array([(y[0] - y[1]) / 2, (y[2] - y[3]) / 2])   # rows lat, long
         at_post, _ = loads(p, {**POST, "k_pitch_link": 15.024}, [[0.0]], inputs=["cm0"])
@@ -181,7 +181,7 @@ def table_4_9(n: int = 256) -> dict:
         "cla_m02": rq.Normal(0.1055, 5.275e-3), "cla_m03": rq.Normal(0.108, 5.4e-3),
         "cd0_m02": rq.Normal(0.0079, 3.95e-4), "cd0_m03": rq.Normal(0.0077, 3.85e-4),
         "k_pitch_link": rq.Normal(15.0, 0.75), "ei_flap": rq.Normal(10.0, 0.5)})
-    m = rq.RotorModel("gvpm", inputs=space.names, responses=RESP, fixed=OP)
+    m = rq.RotorModel("gvpm", names_in=space.names, names_out=RESP, fixed=OP)
     s = rq.sobol_indices(m, space, n=n, seed=1, n_bootstrap=0)
     return {"responses": RESP, "thesis_main": THESIS_4_9,
             "main": {k: _r(s.main[:, j], 3) for j, k in enumerate(space.names)}}
@@ -195,7 +195,7 @@ def bo105_geometry() -> dict:
     out = {"thesis_table_3_11_thrust_torque": [2009.065, 2360.925]}
     for tw in (-6.2, -8.0):
         for name, fixed in (("thesis_fits", fits), ("bundled_fits", {})):
-            m = rq.RotorModel(bo105(twist_deg=tw), responses=["thrust", "torque"], fixed=fixed)
+            m = rq.RotorModel(bo105(twist_deg=tw), names_out=["thrust", "torque"], fixed=fixed)
             out[f"twist_{tw}_{name}"] = _r(m([[6.0, 0.0, -2.0]])[0], 5)
     return out
 
@@ -208,7 +208,7 @@ def ground_effect() -> dict:
     x = [[h, om] for h, om in omega.items()]
     for model in GROUND_EFFECT_MODELS:
         p = gvpm(ground_effect=model)
-        m = rq.RotorModel(p, inputs=["height_over_radius", "omega"], responses=["ct", "cq"],
+        m = rq.RotorModel(p, names_in=["height_over_radius", "omega"], names_out=["ct", "cq"],
                           fixed={k: v for k, v in POST.items() if k != "omega"})
         y = m(x)
         out[model] = {"ct_ratio": _r(y[:, 0] / y[0, 0]), "cq_ratio": _r(y[:, 1] / y[0, 1])}
@@ -231,8 +231,8 @@ def mbdyn_checks() -> dict:
     common = {"tip_loss": False, "harmonic_inflow": False, "aero_center_offset": 0.0,
               "k_pitch_link": 1e12, "lateral_deg": 0.0, "longitudinal_deg": 0.0}
     g = rq.RotorModel(gvpm(**common, height_over_radius=np.inf), airfoil=af,
-                      responses=["thrust", "torque"])([[5.4, 0.0, 0.0]])[0]
-    b = rq.RotorModel(bo105(twist_deg=-6.2), airfoil=af, responses=["thrust", "torque"])(
+                      names_out=["thrust", "torque"])([[5.4, 0.0, 0.0]])[0]
+    b = rq.RotorModel(bo105(twist_deg=-6.2), airfoil=af, names_out=["thrust", "torque"])(
         [[6.0, 0.0, -2.0]])[0]
     return {"gvpm_rigid_5.4deg": {"rotoruq": _r(g), "mbdyn": [38.7, 1.42]},
             "bo105_6deg_whole_span_-6.2": {"rotoruq": _r(b), "mbdyn": [2214.0, 1734.0]}}

@@ -9,7 +9,7 @@ import pytest
 
 import rotoruq as rq
 from rotoruq.errors import ModelShapeError, ParameterError
-from rotoruq.methods.mcmc import calibrate_bayes, continue_chain
+from rotoruq.methods.mcmc import SamplerConfig, calibrate_bayes, continue_chain
 from rotoruq.methods.surrogate import ExtrapolationWarning, GaussianProcess
 
 # --- linear-Gaussian: posterior in closed form ----------------------------------------------
@@ -47,8 +47,8 @@ def linear_problem(with_gradient=True, permute=False):
 @pytest.mark.parametrize("method", ["dram", "mh"])
 def test_linear_gaussian_posterior_matches_closed_form(method):
     model, space, mean, cov = linear_problem()
-    res = calibrate_bayes(model, DATA, space, method=method, chain_samples=5000, burn_in=500,
-                          n_chains=4, data_covariance=NOISE**2, seed=1)
+    res = calibrate_bayes(model, DATA, space, sampler=method, n_samples=4500, burn_in=500,
+                          n_chains=4, noise_std=NOISE, seed=1)
     assert res.chains.shape == (4, 4500, 3)
     sd = np.sqrt(np.diag(cov))
     assert np.all(np.abs(res.mean - mean) < 4.5 * sd / np.sqrt(res.ess))
@@ -79,27 +79,28 @@ def test_linear_gaussian_posterior_matches_closed_form(method):
 
 def test_finite_difference_jacobian_and_permuted_inputs_agree():
     model, space, mean, cov = linear_problem(with_gradient=False, permute=True)
-    res = calibrate_bayes(model, DATA, space, chain_samples=3000, n_chains=4,
-                          data_covariance=NOISE**2, seed=2)
+    res = calibrate_bayes(model, DATA, space, n_samples=2850, burn_in=150, n_chains=4,
+                          noise_std=NOISE, seed=2)
     np.testing.assert_allclose(res.proposal_covariance, 2.38**2 / 3 * cov, rtol=1e-3)
     assert np.all(np.abs(res.mean - mean) < 4.5 * np.sqrt(np.diag(cov) / res.ess))
 
 
 def test_same_seed_same_chains():
     model, space, *_ = linear_problem()
-    a = calibrate_bayes(model, DATA, space, chain_samples=500, n_chains=2,
-                        data_covariance=NOISE**2, seed=7)
-    b = calibrate_bayes(model, DATA, space, chain_samples=500, n_chains=2,
-                        data_covariance=NOISE**2, seed=7)
+    a = calibrate_bayes(model, DATA, space, n_samples=475, burn_in=25, n_chains=2,
+                        noise_std=NOISE, seed=7)
+    b = calibrate_bayes(model, DATA, space, n_samples=475, burn_in=25, n_chains=2,
+                        noise_std=NOISE, seed=7)
     np.testing.assert_array_equal(a.chains, b.chains)
     # one chain: the evaluation schedule changes the number of model runs, not the chain
-    one = [calibrate_bayes(model, DATA, space, chain_samples=800, data_covariance=NOISE**2,
-                           seed=8, evaluations=ev) for ev in ("speculative", "minimal")]
+    one = [calibrate_bayes(model, DATA, space, n_samples=760, burn_in=40, noise_std=NOISE,
+                           seed=8, sampler=SamplerConfig(evaluations=ev))
+           for ev in ("speculative", "minimal")]
     np.testing.assert_array_equal(one[0].chains, one[1].chains)
     assert one[0].acceptance_rate == one[1].acceptance_rate
-    assert one[1].n_likelihood_evals < one[0].n_likelihood_evals
+    assert one[1].n_likelihood_evaluations < one[0].n_likelihood_evaluations
     with pytest.raises(ParameterError, match="unknown evaluations schedule"):
-        calibrate_bayes(model, DATA, space, chain_samples=10, evaluations="all")
+        calibrate_bayes(model, DATA, space, n_samples=10, sampler=SamplerConfig(evaluations="all"))
 
 
 # --- banana (Rosenbrock-type) posterior -----------------------------------------------------
@@ -111,8 +112,8 @@ def test_banana_posterior_moments():
     space = rq.ParameterSpace({"a": rq.Uniform(-6, 6), "c": rq.Uniform(-40, 10)})
     model = rq.FunctionModel(lambda x: np.column_stack([x[:, 0], x[:, 1] + x[:, 0] ** 2]),
                              ["a", "c"], ["q1", "q2"])
-    res = calibrate_bayes(model, [0.0, 0.0], space, data_covariance=[1.0, 0.25],
-                          chain_samples=20000, burn_in=1000, n_chains=8, seed=3)
+    res = calibrate_bayes(model, [0.0, 0.0], space, noise_std=[1.0, 0.5],
+                          n_samples=19000, burn_in=1000, n_chains=8, seed=3)
     se = res.std / np.sqrt(res.ess)
     assert abs(res.mean[0]) < 4.5 * se[0]
     assert abs(res.mean[1] + 1.0) < 4.5 * se[1]
@@ -138,18 +139,18 @@ def test_emulator_workflow_matches_the_true_model():
     space = rq.ParameterSpace({"k": rq.Uniform(0.0, 2.0), "c": rq.Uniform(0.0, 2.0)})
     truth = np.array([[1.2, 0.7]])
     data = model(truth) + np.random.default_rng(4).normal(0, 0.1, (20, 2))
-    kw = dict(data_covariance=0.01, chain_samples=4000, n_chains=4, seed=5)
+    kw = dict(noise_std=0.1, n_samples=3800, burn_in=200, n_chains=4, seed=5)
     direct = calibrate_bayes(model, data, space, **kw)
     emu = calibrate_bayes(model, data, space, emulator=GaussianProcess(
-        trend="reduced_quadratic", seed=0), build_samples=60, posterior_predictive=50, **kw)
+        trend="reduced_quadratic", seed=0), n_emulator_samples=60, posterior_predictive=50, **kw)
     assert emu.emulator is not None and emu.emulator_loo.q2.min() > 0.999
     se = np.sqrt(direct.std**2 / direct.ess + emu.std**2 / emu.ess)
     assert np.all(np.abs(emu.mean - direct.mean) < 4.5 * se)
     np.testing.assert_allclose(emu.std, direct.std, rtol=0.15)
     # model evaluations: 60 build + 50 predictive; the chains only call the emulator
-    assert emu.n_model_evals == 110
-    assert direct.n_model_evals >= direct.n_likelihood_evals
-    assert emu.predictive.shape == (50, 2) and emu.predictive_names == ("T", "Q")
+    assert emu.n_evaluations == 110
+    assert direct.n_evaluations >= direct.n_likelihood_evaluations
+    assert emu.predictive.shape == (50, 2) and emu.names_out == ("T", "Q")
     np.testing.assert_allclose(emu.predictive, model(emu.predictive_inputs))
     # predictive draws cover the data mean
     assert np.all(np.abs(emu.predictive.mean(0) - data.mean(0)) < 3 * emu.predictive.std(0))
@@ -182,7 +183,7 @@ def _emulator_result(prior=None, **kw):
     space = prior or rq.ParameterSpace({"k": rq.Uniform(0.0, 2.0), "c": rq.Uniform(0.0, 2.0)})
     data = model(np.array([[1.2, 0.7]])) + np.random.default_rng(4).normal(0, 0.1, (20, 2))
     return calibrate_bayes(model, data, space, emulator=GaussianProcess(trend="linear", seed=0),
-                           build_samples=40, data_covariance=0.01, seed=6, **kw)
+                           n_emulator_samples=40, noise_std=0.1, seed=6, **kw)
 
 
 def test_compiled_emulator_posterior_equals_the_python_one():
@@ -191,8 +192,8 @@ def test_compiled_emulator_posterior_equals_the_python_one():
     and the compiled chain driver takes the same steps as the Python drivers."""
     from rotoruq.methods.mcmc.samplers import SamplerConfig, run_chains
 
-    res = _emulator_result(chain_samples=1000)
-    post, state, cfg, _ = res._state
+    res = _emulator_result(n_samples=950, burn_in=50)
+    post, state, cfg = res._state
     assert post.compiled is not None
     z = np.random.default_rng(1).normal(0, 1.2, (300, 2))  # some outside the support
     cnt0 = post.cnt.copy()
@@ -211,7 +212,7 @@ def test_compiled_emulator_posterior_equals_the_python_one():
     for target, ev in ((post, "minimal"), (lambda q: post(q), "minimal"),
                        (lambda q: post(q), "speculative")):
         st = state.copy()
-        runs.append(run_chains(target, st, SamplerConfig(evaluations=ev), 700, burn_in=100)[0])
+        runs.append(run_chains(target, st, SamplerConfig(evaluations=ev), 600, burn_in=100)[0])
         assert st.steps == state.steps + 700
     np.testing.assert_array_equal(runs[1], runs[0])
     np.testing.assert_array_equal(runs[2], runs[0])
@@ -219,10 +220,10 @@ def test_compiled_emulator_posterior_equals_the_python_one():
 
 def test_emulator_with_other_priors_takes_the_general_route():
     prior = rq.ParameterSpace({"k": rq.LogNormal(0.2, 0.3), "c": rq.Uniform(0.0, 2.0)})
-    res = _emulator_result(prior, chain_samples=2000, n_chains=2)
+    res = _emulator_result(prior, n_samples=1900, burn_in=100, n_chains=2)
     assert res._state[0].compiled is None
     assert np.all(res.chains[..., 0] > 0) and np.isfinite(res.mean).all()
-    assert res.n_likelihood_evals > 0 and res.n_model_evals == 40
+    assert res.n_likelihood_evaluations > 0 and res.n_evaluations == 40
 
 
 def test_emulator_extrapolation_is_warned_with_distance():
@@ -232,8 +233,8 @@ def test_emulator_extrapolation_is_warned_with_distance():
     gp = GaussianProcess(trend="linear", seed=0).fit(X, model(X))
     wide = rq.ParameterSpace({"k": rq.Normal(1.0, 1.0), "c": rq.Normal(0.7, 1.0)})
     with pytest.warns(ExtrapolationWarning, match=r"box-widths outside its training box"):
-        calibrate_bayes(model, [2.0, 1.0], wide, emulator=gp, data_covariance=4.0,
-                        chain_samples=600, seed=1)
+        calibrate_bayes(model, [2.0, 1.0], wide, emulator=gp, noise_std=2.0,
+                        n_samples=570, burn_in=30, seed=1)
 
 
 def test_nan_likelihoods_are_rejected_and_counted():
@@ -244,7 +245,8 @@ def test_nan_likelihoods_are_rejected_and_counted():
 
     model = rq.FunctionModel(f, ["a", "b"], ["s", "d"])
     space = rq.ParameterSpace({"a": rq.Uniform(0, 1), "b": rq.Uniform(0, 1)})
-    res = calibrate_bayes(model, [1.0, 0.1], space, data_covariance=0.3, chain_samples=2000,
+    res = calibrate_bayes(model, [1.0, 0.1], space, noise_std=np.sqrt(0.3),
+                          n_samples=1900, burn_in=100,
                           n_chains=2, seed=2)
     assert res.n_nan_likelihood > 0
     assert np.all(res.chains[..., 0] <= 0.6)
@@ -252,19 +254,19 @@ def test_nan_likelihoods_are_rejected_and_counted():
 
 def test_continue_chain_and_export(tmp_path):
     model, space, mean, cov = linear_problem()
-    res = calibrate_bayes(model, DATA, space, chain_samples=1200, burn_in=200, n_chains=2,
-                          data_covariance=NOISE**2, seed=3)
+    res = calibrate_bayes(model, DATA, space, n_samples=1000, burn_in=200, n_chains=2,
+                          noise_std=NOISE, seed=3)
     more = continue_chain(res, 1000)
     assert more.chains.shape == (2, 2000, 3)
     np.testing.assert_array_equal(more.chains[:, :1000], res.chains)
-    assert more.n_likelihood_evals > res.n_likelihood_evals
+    assert more.n_likelihood_evaluations > res.n_likelihood_evaluations
     assert more.sampling_seconds > res.sampling_seconds
     # continuing does not consume the original state: same continuation twice
     np.testing.assert_array_equal(continue_chain(res, 1000).chains, more.chains)
     p = more.save(tmp_path / "post.npz")
     with np.load(p) as z:
         np.testing.assert_array_equal(z["chains"], more.chains)
-        assert tuple(z["names"]) == space.names
+        assert tuple(z["names_in"]) == space.names
     c = more.save(tmp_path / "post.csv")
     table = np.loadtxt(c, delimiter=",", skiprows=1)
     assert table.shape == (4000, 6)
@@ -278,9 +280,9 @@ def test_continue_chain_and_export(tmp_path):
 def test_data_with_wrong_number_of_responses():
     model, space, *_ = linear_problem()
     with pytest.raises(ModelShapeError, match=r"data has 3 column\(s\) but 4 response"):
-        calibrate_bayes(model, np.zeros((5, 3)), space, chain_samples=10)
+        calibrate_bayes(model, np.zeros((5, 3)), space, n_samples=10)
     with pytest.raises(ParameterError, match="not outputs of the model"):
-        calibrate_bayes(model, np.zeros((5, 1)), space, responses=["thrust"], chain_samples=10)
+        calibrate_bayes(model, np.zeros((5, 1)), space, names_out=["thrust"], n_samples=10)
 
 
 def test_non_positive_definite_covariance():
@@ -288,9 +290,9 @@ def test_non_positive_definite_covariance():
     bad = np.eye(4)
     bad[0, 1] = bad[1, 0] = 2.0
     with pytest.raises(ParameterError, match="not positive definite"):
-        calibrate_bayes(model, DATA, space, data_covariance=bad, chain_samples=10)
+        calibrate_bayes(model, DATA, space, noise_covariance=bad, n_samples=10)
     with pytest.raises(ParameterError, match="proposal_covariance is not positive definite"):
-        calibrate_bayes(model, DATA, space, proposal_covariance=-np.eye(3), chain_samples=10)
+        calibrate_bayes(model, DATA, space, proposal_covariance=-np.eye(3), n_samples=10)
 
 
 def test_infinite_support_prior_without_start_point():
@@ -301,31 +303,31 @@ def test_infinite_support_prior_without_start_point():
 
     model = rq.FunctionModel(f, ["kp"], ["m"])
     space = rq.ParameterSpace({"kp": rq.Normal(0.0, 1.0)})
-    with pytest.raises(ParameterError, match=r"\['kp'\] have infinite prior support.*start="):
-        calibrate_bayes(model, [6.0], space, chain_samples=100)
-    res = calibrate_bayes(model, [6.0], space, start=[6.0], chain_samples=300, seed=0)
+    with pytest.raises(ParameterError, match=r"\['kp'\] have infinite prior support.*x0="):
+        calibrate_bayes(model, [6.0], space, n_samples=95, burn_in=5)
+    res = calibrate_bayes(model, [6.0], space, x0=[6.0], n_samples=285, burn_in=15, seed=0)
     assert np.all(res.chains >= 5.0)
     with pytest.raises(ParameterError, match="zero posterior density"):
-        calibrate_bayes(model, [6.0], space, start=[1.0], chain_samples=100)
+        calibrate_bayes(model, [6.0], space, x0=[1.0], n_samples=95, burn_in=5)
 
 
 def test_bad_sampler_arguments():
     model, space, *_ = linear_problem()
-    with pytest.raises(ParameterError, match="unknown MCMC method"):
-        calibrate_bayes(model, DATA, space, method="nuts", chain_samples=10)
+    with pytest.raises(ParameterError, match="unknown MCMC sampler"):
+        calibrate_bayes(model, DATA, space, sampler="nuts", n_samples=10)
     with pytest.raises(ParameterError, match="burn_in"):
-        calibrate_bayes(model, DATA, space, chain_samples=10, burn_in=20)
+        calibrate_bayes(model, DATA, space, n_samples=10, burn_in=-1)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         with pytest.raises(ParameterError, match="ParameterSpace"):
-            calibrate_bayes(model, DATA, {"t0": rq.Normal(0, 1)}, chain_samples=10)
+            calibrate_bayes(model, DATA, {"t0": rq.Normal(0, 1)}, n_samples=10)
 
 
 def test_non_gaussian_priors_are_sampled_exactly_when_data_say_nothing():
     """Uninformative data (huge variance): the posterior is the prior (Beta, LogNormal)."""
     space = rq.ParameterSpace({"p": rq.Beta(2.0, 3.0), "s": rq.LogNormal(2.0, 0.5)})
     model = rq.FunctionModel(lambda x: x[:, :1] + 0.0 * x[:, 1:], ["p", "s"], ["y"])
-    res = calibrate_bayes(model, [0.4], space, data_covariance=1e8, chain_samples=6000,
+    res = calibrate_bayes(model, [0.4], space, noise_std=1e4, n_samples=5700, burn_in=300,
                           n_chains=8, proposal_covariance="prior", seed=4)
     se = res.std / np.sqrt(res.ess)
     assert np.all(np.abs(res.mean - space.mean) < 4.5 * se)

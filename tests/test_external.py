@@ -315,7 +315,7 @@ def test_rotoruq_driver_command_with_the_rotor_model(tmp_path):
     try:
         from rotoruq.rotor.model import RotorModel
 
-        rotor = RotorModel("gvpm", inputs=["collective_deg"], responses=["thrust", "torque"])
+        rotor = RotorModel("gvpm", names_in=["collective_deg"], names_out=["thrust", "torque"])
     except Exception as exc:  # the rotor package is built in parallel with this layer
         pytest.skip(f"RotorModel('gvpm') is not available yet: {exc}")
     x = np.array([[5.4], [6.0]])

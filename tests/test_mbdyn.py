@@ -204,8 +204,8 @@ def test_parity_with_builtin_rotor_through_external_model(tmp_path):
     x = np.array([[5.4, 4.0, 0.108], [3.0, 1.0, 0.100], [8.0, 1e6, 0.115]])
     batch = model.evaluate(x)
     assert not batch.failures, batch.failures
-    builtin = RotorModel(rigid_equivalent(get_preset("gvpm")), inputs=names,
-                         responses=["thrust", "torque", "power"])(x)
+    builtin = RotorModel(rigid_equivalent(get_preset("gvpm")), names_in=names,
+                         names_out=["thrust", "torque", "power"])(x)
     np.testing.assert_allclose(batch.values[:, 0], builtin[:, 0], rtol=1e-4)
     np.testing.assert_allclose(batch.values[:, 1:], builtin[:, 1:], rtol=1e-2)
 

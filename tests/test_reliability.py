@@ -350,5 +350,5 @@ def test_unreachable_level_warns_and_reports_not_converged():
     space = rq.ParameterSpace({"a": rq.Normal(1, 1), "b": rq.Uniform(0, 1)})
     model = rq.FunctionModel(lambda x: x[:, 0] ** 2 + x[:, 1], ["a", "b"], ["g"])
     with pytest.warns(RuntimeWarning, match="RIA.*level -1 did not meet the MPP conditions"):
-        r = mpp_search(model, space, response_levels=[-1.0], max_iter=30)
+        r = mpp_search(model, space, response_levels=[-1.0], max_iterations=30)
     assert not r.converged

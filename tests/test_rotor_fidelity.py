@@ -44,12 +44,12 @@ def test_feathering_stiffness_from_link_geometry_is_the_documented_value():
     assert p.feathering_stiffness(15.0) / (p.pitch_inertia * 224.6375**2) == pytest.approx(
         3.1, abs=0.05)
     # the feathering stiffness as an input gives bitwise the same rotor
-    a = rq.RotorModel("gvpm", inputs=["k_pitch_link"], responses=["thrust", "roll"], fixed=OP)
-    b = rq.RotorModel("gvpm", inputs=["k_feather"], responses=["thrust", "roll"], fixed=OP)
+    a = rq.RotorModel("gvpm", names_in=["k_pitch_link"], names_out=["thrust", "roll"], fixed=OP)
+    b = rq.RotorModel("gvpm", names_in=["k_feather"], names_out=["thrust", "roll"], fixed=OP)
     np.testing.assert_array_equal(a([[15.0], [10.0]]), b([[p.feathering_stiffness(15.0)],
                                                           [p.feathering_stiffness(10.0)]]))
     with pytest.raises(rq.ParameterError, match="not both"):
-        rq.RotorModel("gvpm", inputs=["k_feather", "k_pitch_link"])
+        rq.RotorModel("gvpm", names_in=["k_feather", "k_pitch_link"])
 
 
 def test_feathering_inputs_from_the_command_line():
@@ -70,7 +70,7 @@ def test_thrust_sensitivity_to_kp_within_thesis_range():
         "cla_m02": rq.Normal(0.1055, 5.275e-3), "cla_m03": rq.Normal(0.108, 5.4e-3),
         "cd0_m02": rq.Normal(0.0079, 3.95e-4), "cd0_m03": rq.Normal(0.0077, 3.85e-4),
         "k_pitch_link": rq.Normal(15.0, 0.75), "ei_flap": rq.Normal(10.0, 0.5)})
-    m = rq.RotorModel("gvpm", inputs=space.names, responses=["thrust"], fixed=OP)
+    m = rq.RotorModel("gvpm", names_in=space.names, names_out=["thrust"], fixed=OP)
     s = rq.sobol_indices(m, space, n=128, seed=1, n_bootstrap=0)
     main = dict(zip(space.names, s.main[0], strict=True))
     assert 0.07 < main["k_pitch_link"] < 0.28
@@ -84,7 +84,7 @@ def test_propeller_moment_and_ac_offset_carry_kp_effect():
     rows = [[10.0], [20.0]]
 
     def rise(p):
-        y = rq.RotorModel(p, inputs=["k_pitch_link"], responses=["thrust"], fixed=POST)(rows)
+        y = rq.RotorModel(p, names_in=["k_pitch_link"], names_out=["thrust"], fixed=POST)(rows)
         return y[1, 0] / y[0, 0] - 1
 
     assert 0.05 < rise(gvpm()) < 0.2
@@ -104,14 +104,14 @@ def test_cyclic_axes_and_signs_of_table_4_6():
     space = rq.ParameterSpace({"collective_deg": rq.Uniform(4, 8),
                                "lateral_deg": rq.Uniform(-2, 2),
                                "longitudinal_deg": rq.Uniform(-2, 2)})
-    m = rq.RotorModel("gvpm", inputs=space.names, responses=["thrust", "roll", "pitch"],
+    m = rq.RotorModel("gvpm", names_in=space.names, names_out=["thrust", "roll", "pitch"],
                       fixed={"omega": 224.6375, "k_pitch_link": 10.0, "ei_flap": 10.0})
     s = rq.sobol_indices(m, space, n=128, seed=2, n_bootstrap=0)
     (tc, tl, tg), (rc, rl, rg), (pc, pl, pg) = s.main
     assert tc > 0.9
     assert rl > 0.6 and rl > 3 * rg
     assert pg > 0.6 and pg > 3 * pl
-    y = rq.RotorModel("gvpm", inputs=["cm0"], responses=["roll", "pitch"], fixed=POST)([[0.0]])
+    y = rq.RotorModel("gvpm", names_in=["cm0"], names_out=["roll", "pitch"], fixed=POST)([[0.0]])
     assert y[0, 0] < 0 and y[0, 1] < 0
 
 
@@ -121,7 +121,7 @@ def test_flap_lag_and_what_sets_it():
     and with the first-harmonic (Pitt-Peters) inflow that MBDyn's Glauert inflow lacks in
     hover, about 16 deg."""
     def lag(p):
-        sol = rq.RotorModel(p, inputs=["lateral_deg"], fixed={
+        sol = rq.RotorModel(p, names_in=["lateral_deg"], fixed={
             "omega": 224.6375, "k_pitch_link": 10.0, "ei_flap": 10.0,
             "collective_deg": 5.0}).solve([[1.0], [-1.0]])
         return -np.degrees(np.angle((sol.flap[0, 1] - sol.flap[1, 1]) / 2))
@@ -145,10 +145,10 @@ def test_bo105_nominal_thrust_with_the_chosen_twist():
     whole-span reading gives 2.6 x. The torque (1417 N m against 2361 N m) is not reproduced:
     the thesis's drag table is not published."""
     assert bo105().twist_deg == -8.0
-    m = rq.RotorModel("bo105", responses=["thrust", "torque"], fixed=THESIS_3_2)
+    m = rq.RotorModel("bo105", names_out=["thrust", "torque"], fixed=THESIS_3_2)
     t, q = m([[6.0, 0.0, -2.0]])[0]
     assert t == pytest.approx(2009.065, rel=0.06)
-    t62 = rq.RotorModel(bo105(twist_deg=-6.2), responses=["thrust"], fixed=THESIS_3_2)(
+    t62 = rq.RotorModel(bo105(twist_deg=-6.2), names_out=["thrust"], fixed=THESIS_3_2)(
         [[6.0, 0.0, -2.0]])[0, 0]
     assert t62 > 2.4 * 2009.065
     assert 0.5 * 2360.925 < q < 0.7 * 2360.925
@@ -167,13 +167,13 @@ def test_fradenburgh_curve_beside_cheeseman_bennett_and_hayden():
     np.testing.assert_allclose(fradenburgh_thrust_ratio(h), 1 / k)
     assert gvpm().ground_effect == "cheeseman_bennett"
     # more thrust at 1R than Cheeseman-Bennett, at fixed controls
-    t = {g: rq.RotorModel(gvpm(ground_effect=g), inputs=["height_over_radius"],
-                          responses=["thrust"], fixed=POST)([[4.0], [1.0]])[:, 0]
+    t = {g: rq.RotorModel(gvpm(ground_effect=g), names_in=["height_over_radius"],
+                          names_out=["thrust"], fixed=POST)([[4.0], [1.0]])[:, 0]
          for g in ("cheeseman_bennett", "hayden", "fradenburgh")}
     assert t["cheeseman_bennett"][1] / t["cheeseman_bennett"][0] < \
         t["fradenburgh"][1] / t["fradenburgh"][0] < 1.4148
-    m = rq.RotorModel(gvpm(ground_effect="fradenburgh"), inputs=["height_over_radius"],
-                      responses=["thrust"])
+    m = rq.RotorModel(gvpm(ground_effect="fradenburgh"), names_in=["height_over_radius"],
+                      names_out=["thrust"])
     assert "below 0.5 R" in m.evaluate([[0.4]]).failures[0]
 
 

@@ -46,7 +46,7 @@ def closed_form_uniform(p, theta_deg, cd0):
 @pytest.mark.parametrize("theta", [3.0, 6.0, 9.0])
 def test_uniform_inflow_matches_closed_form(theta):
     p = rigid_gvpm(harmonic_inflow=False)
-    m = RotorModel(p, airfoil=LIN, inputs=["collective_deg"], responses=["thrust", "torque"])
+    m = RotorModel(p, airfoil=LIN, names_in=["collective_deg"], names_out=["thrust", "torque"])
     T, Q = m([[theta]])[0]
     T0, Q0, _ = closed_form_uniform(p, theta, 0.01)
     assert T == pytest.approx(T0, rel=0.01)
@@ -57,7 +57,7 @@ def test_induced_power_at_momentum_limit():
     """With no profile drag, P = T v = T^1.5 / sqrt(2 rho A) (ideal induced power)."""
     p = rigid_gvpm(harmonic_inflow=False)
     af = LinearAirfoil(cla=A_RAD * np.pi / 180, cd0=0.0)
-    m = RotorModel(p, airfoil=af, inputs=["collective_deg"], responses=["thrust", "power"])
+    m = RotorModel(p, airfoil=af, names_in=["collective_deg"], names_out=["thrust", "power"])
     (T, P), = m([[6.0]])
     assert P == pytest.approx(T**1.5 / np.sqrt(2 * p.rho * p.area), rel=0.01)
 
@@ -65,7 +65,7 @@ def test_induced_power_at_momentum_limit():
 def test_bemt_matches_annulus_closed_form():
     """Untwisted blade, BEMT without losses: lambda(x) = s a/16 (sqrt(1 + 32 th x/(s a)) - 1)."""
     p = rigid_gvpm(harmonic_inflow=False, inflow="bemt")
-    m = RotorModel(p, airfoil=LIN, inputs=["collective_deg"], responses=["thrust"],
+    m = RotorModel(p, airfoil=LIN, names_in=["collective_deg"], names_out=["thrust"],
                    n_stations=24)
     th = np.deg2rad(7.0)
     T = m([[7.0]])[0, 0]
@@ -80,8 +80,8 @@ def test_bemt_matches_annulus_closed_form():
 
 def test_tip_loss_reduces_thrust():
     base = rigid_gvpm(harmonic_inflow=False, inflow="bemt")
-    t_plain = RotorModel(base, airfoil=LIN, responses=["thrust"])([[6, 0, 0]])[0, 0]
-    t_loss = RotorModel(base.replace(tip_loss=True), airfoil=LIN, responses=["thrust"])(
+    t_plain = RotorModel(base, airfoil=LIN, names_out=["thrust"])([[6, 0, 0]])[0, 0]
+    t_loss = RotorModel(base.replace(tip_loss=True), airfoil=LIN, names_out=["thrust"])(
         [[6, 0, 0]])[0, 0]
     assert 0.85 * t_plain < t_loss < t_plain
 
@@ -101,8 +101,8 @@ def test_ground_effect_factor_formulas(model):
 
 def test_model_inflow_follows_ground_effect_factor():
     p = rigid_gvpm(harmonic_inflow=False)
-    m = RotorModel(p, airfoil=LIN, inputs=["collective_deg", "height_over_radius"],
-                   responses=["thrust"])
+    m = RotorModel(p, airfoil=LIN, names_in=["collective_deg", "height_over_radius"],
+                   names_out=["thrust"])
     h = np.array([4.0, 3.0, 2.0, 1.0])
     x = np.column_stack([np.full(4, 6.0), h])
     sol = m.solve(x)
@@ -113,13 +113,13 @@ def test_model_inflow_follows_ground_effect_factor():
 
 
 def test_no_cyclic_gives_zero_hub_moments():
-    m = RotorModel("gvpm", airfoil=LIN, responses=["thrust", "roll", "pitch"])
+    m = RotorModel("gvpm", airfoil=LIN, names_out=["thrust", "roll", "pitch"])
     T, roll, pitch = m([[6.0, 0.0, 0.0]])[0]
     assert abs(roll) < 1e-9 * T * 0.485 and abs(pitch) < 1e-9 * T * 0.485
 
 
 def test_cyclic_produces_moments_with_sign():
-    m = RotorModel("gvpm", airfoil=LIN, responses=["roll", "pitch"])
+    m = RotorModel("gvpm", airfoil=LIN, names_out=["roll", "pitch"])
     y = m([[5.0, 1.0, 0.0], [5.0, -1.0, 0.0], [5.0, 0.0, 1.0], [5.0, 0.0, -1.0]])
     np.testing.assert_allclose(y[0], -y[1], rtol=1e-5, atol=1e-9)
     np.testing.assert_allclose(y[2], -y[3], rtol=1e-5, atol=1e-9)
@@ -127,14 +127,14 @@ def test_cyclic_produces_moments_with_sign():
 
 
 def test_thrust_rises_with_collective_and_lift_slope():
-    m = RotorModel("gvpm", airfoil=LIN, inputs=["collective_deg", "cla"], responses=["thrust"])
+    m = RotorModel("gvpm", airfoil=LIN, names_in=["collective_deg", "cla"], names_out=["thrust"])
     t = m([[4.0, 0.1], [5.0, 0.1], [6.0, 0.1], [6.0, 0.11]])[:, 0]
     assert t[0] < t[1] < t[2] < t[3]
 
 
 def test_stiffer_pitch_link_moves_toward_rigid():
-    m = RotorModel("gvpm", airfoil=LIN, inputs=["collective_deg", "k_pitch_link"],
-                   responses=["thrust", "torque"])
+    m = RotorModel("gvpm", airfoil=LIN, names_in=["collective_deg", "k_pitch_link"],
+                   names_out=["thrust", "torque"])
     y = m([[5.4, 10.0], [5.4, 15.0], [5.4, 100.0], [5.4, 1e4], [5.4, 1e9]])
     assert np.all(np.diff(y[:, 0]) > 0)
     assert abs(y[3, 0] - y[4, 0]) < 0.01 * y[4, 0]
@@ -145,10 +145,10 @@ def test_stiffer_pitch_link_moves_toward_rigid():
 def test_periodic_convergence_is_reached():
     """A step tolerance of 1e-5 rad on the blade pitch (about 0.1 deg collective) is about
     2e-4 of it: the loose solution's thrust agrees to that order (5e-4)."""
-    m = RotorModel("gvpm", airfoil=LIN, tol=1e-10)
+    m = RotorModel("gvpm", airfoil=LIN, tolerance=1e-10)
     sol = m.solve([[5.0, -1.0, -1.0], [6.0, 1.5, -0.5]])
     assert np.all(sol.converged) and np.all(sol.residual < 1e-10)
-    loose = RotorModel("gvpm", airfoil=LIN, tol=1e-5).solve([[5.0, -1.0, -1.0]])
+    loose = RotorModel("gvpm", airfoil=LIN, tolerance=1e-5).solve([[5.0, -1.0, -1.0]])
     assert loose.thrust[0] == pytest.approx(sol.thrust[0], rel=5e-4)
 
 
@@ -161,8 +161,8 @@ def test_batch_equals_one_at_a_time():
 
 
 def test_bad_inputs_give_nan_rows_with_reasons():
-    m = RotorModel("gvpm", airfoil=LIN, inputs=["collective_deg", "k_pitch_link",
-                                                "height_over_radius"], responses=["thrust"])
+    m = RotorModel("gvpm", airfoil=LIN, names_in=["collective_deg", "k_pitch_link",
+                                                "height_over_radius"], names_out=["thrust"])
     out = rq.evaluate(m, [[5, 15, 4], [5, -3, 4], [5, 15, 0.2], [np.nan, 15, 4]])
     assert np.isfinite(out.values[0, 0])
     assert "k_pitch_link must be >= 0" in out.failures[1]
@@ -173,11 +173,11 @@ def test_bad_inputs_give_nan_rows_with_reasons():
 
 def test_unknown_names_are_errors():
     with pytest.raises(ParameterError, match="did you mean 'k_pitch_link'"):
-        RotorModel("gvpm", airfoil=LIN, inputs=["k_pitchlink"])
+        RotorModel("gvpm", airfoil=LIN, names_in=["k_pitchlink"])
     with pytest.raises(ParameterError, match="unknown response"):
-        RotorModel("gvpm", airfoil=LIN, responses=["lift"])
+        RotorModel("gvpm", airfoil=LIN, names_out=["lift"])
     with pytest.raises(ParameterError, match="elastic blades"):
-        RotorModel("gvpm", airfoil=LIN, inputs=["k_flap"])
+        RotorModel("gvpm", airfoil=LIN, names_in=["k_flap"])
     with pytest.raises(ParameterError, match="unknown rotor preset"):
         RotorModel("bo106", airfoil=LIN)
 
@@ -204,8 +204,8 @@ def test_cl_only_replacement_keeps_table_drag():
 
 
 def test_presets_with_bundled_tables_converge():
-    y = RotorModel("gvpm", responses=["thrust", "torque", "roll", "pitch"])(
+    y = RotorModel("gvpm", names_out=["thrust", "torque", "roll", "pitch"])(
         [[5.4, 0.17, -0.3], [5.0, -1.0, -1.0], [8.0, 2.0, 2.0]])
     assert np.all(np.isfinite(y)) and np.all(y[:, 0] > 10)
-    t = RotorModel("bo105", responses=["thrust"])([[6.0, 0.0, -2.0]])[0, 0]
+    t = RotorModel("bo105", names_out=["thrust"])([[6.0, 0.0, -2.0]])[0, 0]
     assert 1000 < t < 10000

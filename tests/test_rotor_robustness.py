@@ -48,7 +48,7 @@ def test_ten_thousand_points_inside_and_far_outside_never_raise():
     n = 10_000
     x = _points(GVPM_NOM, n, rng, far_share=0.04)
     x[: n // 5] = np.asarray(GVPM_NOM) * rng.uniform(0.85, 1.15, (n // 5, len(GVPM_NOM)))
-    m = RotorModel("gvpm", inputs=GVPM_IN, responses=RESP, tol=1e-8)
+    m = RotorModel("gvpm", names_in=GVPM_IN, names_out=RESP, tolerance=1e-8)
     with np.errstate(all="raise"):  # no floating-point warning escapes the solver either
         batch = m.evaluate(x)
     sol = m.last_solution
@@ -67,7 +67,7 @@ def test_bo105_far_points_never_raise():
     rng = np.random.default_rng(5)
     x = _points(BO_NOM, 600, rng, far_share=0.05)
     x[:100] = np.asarray(BO_NOM) * rng.uniform(0.9, 1.1, (100, len(BO_NOM)))
-    m = RotorModel("bo105", inputs=BO_IN, responses=RESP)
+    m = RotorModel("bo105", names_in=BO_IN, names_out=RESP)
     batch = m.evaluate(x)
     ok = _assert_rows_accounted(batch, m.last_solution, len(x))
     assert ok[:100].all()
@@ -82,8 +82,8 @@ CD0 = ["cd0_m00", "cd0_m02", "cd0_m03", "cd0_m04"]
     ([5.0, -1.0, -1.0, -0.02, -0.02, -0.02, -0.02], "negative section drag"),
 ])
 def test_absurd_points_are_flagged(row, reason):
-    m = RotorModel("gvpm", inputs=["collective_deg", "lateral_deg", "longitudinal_deg", *CD0],
-                   responses=["thrust", "power"])
+    m = RotorModel("gvpm", names_in=["collective_deg", "lateral_deg", "longitudinal_deg", *CD0],
+                   names_out=["thrust", "power"])
     with np.errstate(all="raise"):
         batch = m.evaluate([row, [5.0, -1.0, -1.0, 0.0079, 0.0079, 0.0077, 0.0068]])
     assert reason in batch.failures[0] and np.all(np.isnan(batch.values[0]))
@@ -94,7 +94,7 @@ def test_negative_drag_and_power_are_flagged():
     """A negative profile drag makes the blade elements push the rotor round: hover with
     negative power is no physical state."""
     m = RotorModel(gvpm(k_pitch_link=1e9), airfoil=LinearAirfoil(),
-                   inputs=["collective_deg", "cd0"], responses=["thrust", "power"])
+                   names_in=["collective_deg", "cd0"], names_out=["thrust", "power"])
     batch = m.evaluate([[1.0, -0.05], [1.0, 0.01]])
     assert "negative section drag" in batch.failures[0]
     assert "negative power" in batch.failures[0]
@@ -105,15 +105,15 @@ def test_torsional_divergence_is_flagged():
     """Aerodynamic centre 5 mm ahead of the feathering axis on the soft GVPM link: the lift's
     nose-up moment beats the feathering stiffness (0.43 + 0.14 N m/rad against about
     dL/dtheta x 5 mm), so there is no statically stable blade pitch."""
-    m = RotorModel("gvpm", inputs=["collective_deg", "aero_center_offset"],
-                   responses=["thrust"])
+    m = RotorModel("gvpm", names_in=["collective_deg", "aero_center_offset"],
+                   names_out=["thrust"])
     batch = m.evaluate([[5.0, -0.005], [5.0, 0.0]])
     assert "divergence" in batch.failures[0] or "diverged" in batch.failures[0], batch.failures
     assert 1 not in batch.failures
 
 
 def test_height_exactly_quarter_radius_is_the_below_r4_error():
-    m = RotorModel("gvpm", inputs=["height_over_radius"], responses=["thrust"])
+    m = RotorModel("gvpm", names_in=["height_over_radius"], names_out=["thrust"])
     with np.errstate(all="raise"):
         batch = m.evaluate([[0.25], [0.2500001], [0.3]])
     assert "at or below R/4" in batch.failures[0]
@@ -125,7 +125,7 @@ def test_height_exactly_quarter_radius_is_the_below_r4_error():
 
 def test_tip_loss_bemt_converges_by_default():
     for p in (gvpm(inflow="bemt", tip_loss=True), bo105(inflow="bemt", tip_loss=True)):
-        m = RotorModel(p, responses=["thrust"])
+        m = RotorModel(p, names_out=["thrust"])
         b = m.evaluate([[p.collective_deg, p.lateral_deg, p.longitudinal_deg],
                         [p.collective_deg + 2, 1.0, 1.0]])
         assert not b.failures
@@ -152,15 +152,15 @@ def test_results_bitwise_independent_of_batch(preset, names, nom):
     x = np.asarray(nom) * rng.uniform(0.8, 1.2, (24, len(nom)))
     x[5] = _points(nom, 1, rng, 0.5)[0]             # some failing rows in the batch too
     x[17, 0] = 80.0
-    m = RotorModel(preset, inputs=names, responses=RESP)
+    m = RotorModel(preset, names_in=names, names_out=RESP)
     whole = m.evaluate(x)
     alone = [m.evaluate(row[None]) for row in x]
     _same(whole.values, np.vstack([b.values for b in alone]))
     assert whole.failures == {i: b.failures[0] for i, b in enumerate(alone) if b.failures}
     perm = rng.permutation(len(x))
     _same(m.evaluate(x[perm]).values, whole.values[perm])
-    chunked = RotorModel(preset, inputs=names, responses=RESP, chunk_size=5)
-    _same(chunked.evaluate(x).values, whole.values)
+    chunked = np.vstack([m.evaluate(x[s:s + 5]).values for s in range(0, len(x), 5)])
+    _same(chunked, whole.values)
     # embedded in a larger batch of other points (converging fast, slowly, or failing)
     others = _points(nom, 300, rng, 0.03)
     big = m.evaluate(np.vstack([others[:150], x, others[150:]]))

@@ -17,25 +17,43 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, cast, runtime_checkable
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .errors import ModelShapeError, ParameterError
 
 __all__ = ["Model", "EvalBatch", "FunctionModel", "FixedInputs", "evaluate", "align_inputs",
-           "has_gradient"]
+           "has_gradient", "FD_STEP", "Gradient", "finite_difference", "model_gradient",
+           "check_gradient_option"]
+
+#: The one default finite-difference step, relative: input i of point x moves by
+#: ``FD_STEP * max(|x_i|, scale_i)``. Central differences then err by about
+#: ``FD_STEP**2`` (truncation) plus ``eps / FD_STEP`` ~ 2e-10 (round-off), relative; forward
+#: differences by about ``FD_STEP``.
+FD_STEP: float = 1e-6
+
+GRADIENT_OPTIONS = ("auto", "analytic", "finite_difference")
+
+#: a ``gradient=`` option: one of :data:`GRADIENT_OPTIONS` or ``g(x: (n, d)) -> (n, m, d)``
+GradientOption = str | Callable[[np.ndarray], np.ndarray]
 
 
 @runtime_checkable
 class Model(Protocol):
-    names_in: Sequence[str]
-    names_out: Sequence[str]
+    """What every method calls (module doc); ``gradient`` and ``evaluate`` are optional."""
+
+    @property
+    def names_in(self) -> Sequence[str]: ...
+
+    @property
+    def names_out(self) -> Sequence[str]: ...
 
     def __call__(self, x: np.ndarray) -> np.ndarray: ...
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class EvalBatch:
     """Responses of a batch.
 
@@ -141,8 +159,8 @@ class FixedInputs:
     the identity.
     """
 
-    def __init__(self, model, fixed: Mapping[str, float]):
-        self.model = model
+    def __init__(self, model: Model, fixed: Mapping[str, float]) -> None:
+        self.model: Any = model  # run_one, gradient, failure_policy: optional members
         self.fixed = {str(k): float(v) for k, v in fixed.items()}
         unknown = [k for k in self.fixed if k not in model.names_in]
         if unknown:
@@ -177,7 +195,10 @@ class FixedInputs:
         return self.model.run_one(self.full(x)[0], eval_id)
 
     def _gradient(self, x: np.ndarray) -> np.ndarray:
-        return np.asarray(self.model.gradient(self.full(x)))[:, :, self._free]
+        g = np.asarray(self.model.gradient(self.full(x)), dtype=float)
+        if g.ndim == 2:  # one response: (n, d)
+            g = g[:, None, :]
+        return g[:, :, self._free]
 
     @property
     def failure_policy(self):
@@ -193,14 +214,14 @@ class FixedInputs:
         return f"FixedInputs({self.model!r}, fixed={self.fixed})"
 
 
-def has_gradient(model) -> bool:
+def has_gradient(model: Model) -> bool:
     """True when the model offers an analytic gradient."""
     if isinstance(model, FunctionModel):
         return model._gradient is not None
     return callable(getattr(model, "gradient", None))
 
 
-def evaluate(model, x: np.ndarray) -> EvalBatch:
+def evaluate(model: Model, x: ArrayLike) -> EvalBatch:
     """Evaluate ``model`` on a batch and check the result.
 
     Rows that come back non-finite without a reason get the reason "non-finite response".
@@ -227,13 +248,13 @@ def evaluate(model, x: np.ndarray) -> EvalBatch:
     return EvalBatch(values, failures)
 
 
-def align_inputs(model, names: Sequence[str]) -> np.ndarray | None:
-    """Column permutation that maps points ordered as ``names`` onto ``model.names_in``.
+def align_inputs(model: Model, names_in: Sequence[str]) -> np.ndarray | None:
+    """Column permutation that maps points ordered as ``names_in`` onto ``model.names_in``.
 
     Returns None when the orders already agree. Raises :class:`ParameterError` when the two
     sets of names differ, naming what is missing on each side.
     """
-    names = tuple(names)
+    names = tuple(names_in)
     model_names = tuple(model.names_in)
     if names == model_names:
         return None
@@ -250,3 +271,179 @@ def align_inputs(model, names: Sequence[str]) -> np.ndarray | None:
             f"{list(model_names)}"
         )
     return np.array([names.index(n) for n in model_names])
+
+
+@dataclass(frozen=True, eq=False)
+class Gradient:
+    """Values and first derivatives of a batched function at ``n`` points.
+
+    values : (n, m) the function at the points themselves.
+    gradient : (n, m, d) ``d values[:, j] / d x[:, i]``, in the units of values per input unit.
+    steps : (n, d) the steps actually taken (representable: ``(x + h) - x``; negative where a
+        forward step was turned back at an upper bound); zeros for an analytic gradient.
+    n_evaluations : points evaluated, the points themselves included.
+    failures : point index -> reason, for each point whose value or a stencil point failed
+        (its row of ``values`` or ``gradient`` holds NaN).
+    """
+
+    values: np.ndarray
+    gradient: np.ndarray
+    steps: np.ndarray
+    n_evaluations: int
+    failures: dict[int, str] = field(default_factory=dict)
+
+
+def _values_and_failures(out) -> tuple[np.ndarray, dict[int, str]]:
+    if isinstance(out, EvalBatch):
+        return np.asarray(out.values, dtype=float), dict(out.failures)
+    values = np.asarray(out, dtype=float)
+    return (values[:, None] if values.ndim == 1 else values), {}
+
+
+def finite_difference(
+    f: Callable[[np.ndarray], np.ndarray | EvalBatch],
+    x: np.ndarray,
+    *,
+    fd_step: float = FD_STEP,
+    scale: float | np.ndarray = 0.0,
+    central: bool = True,
+    upper: float | np.ndarray = np.inf,
+    values: np.ndarray | None = None,
+) -> Gradient:
+    """Finite-difference gradient of a batched ``f: (k, d) -> (k, m)`` at ``n`` points.
+
+    Every stencil point of every point goes to ``f`` in ONE call, point by point: the point
+    itself (unless its ``values`` are given), then ``x + h_i e_i`` for each input i, then (central)
+    ``x - h_i e_i``. ``f`` may return an array ``(k, m)`` (or ``(k,)`` for one response) or an
+    :class:`EvalBatch`; a non-finite or failed row fails its point, not the call.
+
+    Parameters
+    ----------
+    x : (n, d) or (d,) points.
+    fd_step : relative step; input i moves by ``h_i = fd_step * max(|x_i|, scale_i)`` (by
+        ``fd_step`` itself where that is 0). Default :data:`FD_STEP`.
+    scale : scalar or (d,) typical size of each input (e.g. its standard deviation), in input
+        units: the step does not shrink below ``fd_step * scale`` near 0.
+    central : central differences (2d stencil points, error ~ h^2), else forward (d points,
+        error ~ h; taken backward where ``x + h`` would pass ``upper``).
+    values : (n, m) ``f(x)`` when already known (the points themselves are then not
+        evaluated again).
+
+    Returns
+    -------
+    Gradient
+    """
+    x = np.asarray(x, dtype=float)
+    x2 = np.atleast_2d(x)
+    n, d = x2.shape
+    h = fd_step * np.maximum(np.abs(x2), np.asarray(scale, dtype=float))
+    h = np.where(h > 0, h, fd_step)
+    if not central:
+        h = np.where(x2 + h > upper, -h, h)
+    idx = np.arange(d)
+    with_center = values is None
+    blocks = [x2[:, None, :]] if with_center else []
+    plus = np.repeat(x2[:, None, :], d, axis=1)
+    plus[:, idx, idx] += h
+    blocks.append(plus)
+    if central:
+        minus = np.repeat(x2[:, None, :], d, axis=1)
+        minus[:, idx, idx] -= h
+        blocks.append(minus)
+    stencil = np.concatenate(blocks, axis=1)  # (n, s, d)
+    s = stencil.shape[1]
+    out, reasons = _values_and_failures(f(stencil.reshape(n * s, d)))
+    m = out.shape[1]
+    F = out.reshape(n, s, m)
+    f0 = F[:, 0] if with_center else np.asarray(values, dtype=float).reshape(n, m)
+    Fp = F[:, int(with_center): int(with_center) + d]
+    if central:
+        Fm = F[:, int(with_center) + d:]
+        dx = plus[:, idx, idx] - minus[:, idx, idx]
+        steps = 0.5 * dx
+    else:
+        Fm = f0[:, None, :]
+        dx = plus[:, idx, idx] - x2
+        steps = dx
+    grad = np.transpose(Fp - Fm, (0, 2, 1)) / dx[:, None, :]
+    failures: dict[int, str] = {}
+    bad = ~np.all(np.isfinite(F), axis=2)
+    for i in np.flatnonzero(bad.any(axis=1)):
+        rows = np.flatnonzero(bad[i])
+        first = reasons.get(int(i * s + rows[0]), "non-finite response")
+        failures[int(i)] = (f"finite-difference stencil at {x2[i]}: {rows.size} of {s} "
+                            f"evaluations failed (first: {first})")
+    return Gradient(values=f0, gradient=grad, steps=steps, n_evaluations=n * s,
+                    failures=failures)
+
+
+def check_gradient_option(gradient: GradientOption, model: Model | None = None
+                          ) -> str | Callable[[np.ndarray], np.ndarray]:
+    """Validate a ``gradient`` option; returns "analytic", "finite_difference" or the callable.
+
+    ``"auto"`` resolves to "analytic" when ``model`` has an analytic gradient, else to
+    "finite_difference". Raises :class:`ParameterError` for anything else, and for
+    "analytic" with a model that has no gradient.
+    """
+    if callable(gradient):
+        return gradient
+    if gradient not in GRADIENT_OPTIONS:
+        raise ParameterError(f"gradient must be 'auto', 'analytic', 'finite_difference' or a "
+                             f"callable, got {gradient!r}")
+    offered = model is not None and has_gradient(model)
+    if gradient == "analytic" and not offered:
+        raise ParameterError("gradient='analytic' but the model has no gradient method")
+    if gradient == "auto":
+        return "analytic" if offered else "finite_difference"
+    return gradient
+
+
+def model_gradient(
+    model: Model,
+    x: ArrayLike,
+    *,
+    gradient: GradientOption = "auto",
+    fd_step: float = FD_STEP,
+    scale: float | np.ndarray = 0.0,
+    names_in: Sequence[str] | None = None,
+) -> Gradient:
+    """Responses and their gradient of ``model`` at points ``x``, in one batched evaluation.
+
+    x : (n, d) or (d,) points, columns ordered as ``names_in`` (default ``model.names_in``).
+    gradient : "auto" (the model's own gradient if it has one, else finite differences),
+        "analytic", "finite_difference" (central, :func:`finite_difference`) or a callable
+        ``g(x: (n, d)) -> (n, m, d)`` in the order of ``names_in``.
+    fd_step, scale : see :func:`finite_difference`.
+
+    Returns a :class:`Gradient` with ``gradient`` (n, m, d) in the order of ``names_in``.
+    Failed points are reported in ``failures``, never raised.
+    """
+    mode = check_gradient_option(gradient, model)
+    x2 = np.atleast_2d(np.asarray(x, dtype=float))
+    perm = None if names_in is None else align_inputs(model, names_in)
+    n, d = x2.shape
+    m = len(model.names_out)
+
+    def run(X: np.ndarray) -> EvalBatch:
+        return evaluate(model, X if perm is None else X[:, perm])
+
+    if mode == "finite_difference":
+        return finite_difference(run, x2, fd_step=fd_step, scale=scale)
+    batch = run(x2)
+    if callable(mode):
+        g = np.asarray(mode(x2), dtype=float)
+    else:
+        g = np.asarray(cast(Any, model).gradient(x2 if perm is None else x2[:, perm]),
+                       dtype=float)
+    if g.ndim == 2 and m == 1:
+        g = g[:, None, :]
+    if g.shape != (n, m, d):
+        raise ModelShapeError(f"gradient of {model!r} has shape {g.shape}; expected "
+                              f"({n}, {m}, {d})")
+    if perm is not None and not callable(mode):
+        g = g[:, :, np.argsort(perm)]
+    failures = dict(batch.failures)
+    for i in np.flatnonzero(~np.all(np.isfinite(g), axis=(1, 2))):
+        failures.setdefault(int(i), "non-finite gradient")
+    return Gradient(values=batch.values, gradient=g, steps=np.zeros((n, d)), n_evaluations=n,
+                    failures=failures)

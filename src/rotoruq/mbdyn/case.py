@@ -88,7 +88,7 @@ def template_values(preset: RotorPreset, inputs: Mapping[str, float],
     """
     from ..rotor.model import RotorModel
 
-    base = RotorModel(preset, inputs=[]).defaults()
+    base = RotorModel(preset, names_in=[]).defaults()
     unknown = sorted(k for k in inputs if k not in base)
     if unknown:
         import difflib

@@ -18,10 +18,11 @@ runs on closed-form statistics with an analytic outer Jacobian. When means move,
 gradients of all points of an outer finite-difference Jacobian are evaluated in one model batch,
 and points that share their means share one gradient.
 
-``"lhs"``: Latin hypercube statistics (sample std, ddof = 1) with common random numbers: one
-design in (0, 1)^d is drawn once from ``seed`` and mapped through the current distributions, so
-the statistics are smooth in ``theta`` and finite differences are meaningful. All points of a
-Jacobian (``(p + 1) * n`` rows) go to the model in one batch.
+``"sampling"``: sample statistics (std with ddof = 1) of a Latin hypercube (``design``) with
+common random numbers: one design in (0, 1)^d is drawn once from ``seed`` and mapped through the
+current distributions, so the statistics are smooth in ``theta`` and finite differences are
+meaningful. All points of a Jacobian (``(p + 1) * n_samples`` rows) go to the model in one
+batch.
 
 ``"pce"``: mean and standard deviation from the coefficients of a polynomial chaos expansion
 (:func:`rotoruq.methods.pce.polynomial_chaos`, quadrature by default, ``order`` 2): exact for
@@ -29,6 +30,11 @@ responses that are polynomials of that order in the germs, deterministic in ``th
 
 A callable ``inner(model, space) -> object with .mean and .std (m,)`` is also accepted (e.g. a
 user's own UQ method); it is called once per outer point.
+
+Each inner method is a small class (:class:`MeanValueInner`, :class:`SamplingInner`,
+:class:`PCEInner`, :class:`CallableInner`) with one interface: ``bind`` (once per calibration),
+``statistics`` (input moments of K outer points -> response mean and std) and
+``outer_jacobian`` (a closed-form outer Jacobian, or None for finite differences).
 
 Parameterization of calibrated statistics
 -----------------------------------------
@@ -45,40 +51,50 @@ Targets only fix as many combinations of the calibrated statistics as there are 
 statistic whose effect on the targets is negligible is not determined by them (thesis table
 3.10: the flap-hinge stiffness next to the lift slopes). The result reports the singular values
 of the outer Jacobian scaled column-wise by the statistic values (rows are already relative to
-the targets) and flags the problem when the smallest is below ``identifiability_tol`` times the
-largest or when there are more calibrated statistics than targets.
+the targets) and flags the problem when the smallest is below ``identifiability_tolerance``
+times the largest or when there are more calibrated statistics than targets.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from .._rng import SeedLike
-from ..errors import ParameterError
-from ..model import align_inputs, evaluate, has_gradient
+from ..errors import EvaluationError, ParameterError
+from ..model import (
+    FD_STEP,
+    FixedInputs,
+    GradientOption,
+    Model,
+    align_inputs,
+    check_gradient_option,
+    model_gradient,
+)
 from ..params import LogNormal, Normal, ParameterSpace, Uniform, unit_design
-from ._common import analytic_gradient, eval_space, fd_steps
+from ._common import eval_space
 from .least_squares import LeastSquaresResult, least_squares
 from .reliability import mean_value_from_gradient
 
-__all__ = ["CUUResult", "CUUCheck", "calibrate_under_uncertainty", "check_cuu"]
+__all__ = ["CUUResult", "CUUCheck", "calibrate_under_uncertainty", "check_cuu", "INNERS",
+           "MeanValueInner", "SamplingInner", "PCEInner", "CallableInner"]
 
 _STATS = ("mean", "std")
 _SQRT3 = math.sqrt(3.0)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class CUUResult:
     """Outcome of :func:`calibrate_under_uncertainty`.
 
     Attributes
     ----------
-    labels : names of the calibrated statistics, ``"<input>.<mean|std>"``, in the order of
-        ``x``.
+    names_in : names of the calibrated statistics, ``"<input>.<mean|std>"``, in the order of
+        ``x``. names_out : the model's responses.
     x : (p,) calibrated statistic values; ``x0`` the starting ones.
     calibrated : mapping input -> {"mean": ..., "std": ...} of every input with a calibrated
         statistic (both moments, calibrated or not).
@@ -93,12 +109,13 @@ class CUUResult:
     condition_number : largest / smallest singular value (inf when rank deficient).
     identifiable : False when the diagnostic flags the calibration.
     diagnostic : explanation of the identifiability verdict.
-    inner : name of the inner method.
-    n_model_evaluations : model evaluations (points) of the whole nested study.
-    success, message : from the outer solver.
+    inner : name of the inner method. optimizer : the outer solver.
+    n_evaluations : model evaluations (points) of the whole nested study.
+    converged, message : from the outer solver.
     """
 
-    labels: tuple[str, ...]
+    names_in: tuple[str, ...]
+    names_out: tuple[str, ...]
     x: np.ndarray
     x0: np.ndarray
     calibrated: dict
@@ -114,13 +131,13 @@ class CUUResult:
     identifiable: bool
     diagnostic: str
     inner: str
-    n_model_evaluations: int
-    success: bool
+    optimizer: str
+    n_evaluations: int
+    converged: bool
     message: str
-    names_out: tuple[str, ...] = field(default=(), repr=False)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class CUUCheck:
     """Forward sampling check of a CUU result (:func:`check_cuu`).
 
@@ -136,41 +153,6 @@ class CUUCheck:
     achieved: dict
     targets: dict
     relative_error: dict
-
-
-class _FixedInputs:
-    """A Model view with some inputs held at fixed values (their columns are filled in)."""
-
-    def __init__(self, model, fixed: Mapping[str, float]):
-        self.model = model
-        self.fixed = {k: float(v) for k, v in fixed.items()}
-        self.names_in = tuple(n for n in model.names_in if n not in self.fixed)
-        self.names_out = tuple(model.names_out)
-        names = tuple(model.names_in)
-        self._free = np.array([names.index(n) for n in self.names_in], dtype=int)
-        self._fix = np.array([names.index(n) for n in self.fixed], dtype=int)
-        self._vals = np.array(list(self.fixed.values()))
-        if has_gradient(model):
-            self.gradient = self._gradient
-
-    def _full(self, x):
-        x = np.atleast_2d(np.asarray(x, dtype=float))
-        full = np.empty((x.shape[0], len(self.model.names_in)))
-        full[:, self._free] = x
-        full[:, self._fix] = self._vals
-        return full
-
-    def __call__(self, x):
-        return evaluate(self.model, self._full(x)).values
-
-    def evaluate(self, x):
-        return evaluate(self.model, self._full(x))
-
-    def _gradient(self, x):
-        g = np.asarray(self.model.gradient(self._full(x)), dtype=float)
-        if g.ndim == 2:
-            g = g[:, None, :]
-        return g[:, :, self._free]
 
 
 def _with_moments(dist, mean: float, std: float):
@@ -257,49 +239,28 @@ def _parse_targets(targets, names_out: Sequence[str]) -> list[tuple[int, str, fl
     return out
 
 
-_PCE_OPTIONS = {"order", "method", "quadrature_points", "basis"}
-
-
 class _Problem:
-    """Maps outer variables theta (K, p) to input moments and response statistics."""
+    """Maps outer variables theta (K, p) to input moments and, through the inner method, to
+    relative residuals of the targeted response statistics."""
 
-    def __init__(self, model, space, calibrated, targets, inner, inner_options, seed):
+    def __init__(self, model: Model, space: ParameterSpace, calibrated: list[tuple[int, str]],
+                 targets: list[tuple[int, str, float]]) -> None:
         self.model = model
         self.space = space
         self.calibrated = calibrated
         self.targets = targets
-        self.inner = inner
-        self.opts = dict(inner_options or {})
         self.mu0 = space.mean
         self.sd0 = space.std
         self.corr = space.correlation_matrix
         self.m = len(model.names_out)
         self.n_eval = 0
         self.means_move = any(s == "mean" for _, s in calibrated)
-        self._cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
         t = np.array([v for _, _, v in targets])
         self.scale = np.where(t != 0, np.abs(t), 1.0)
         self.target = t
-        if inner == "lhs":
-            n = int(self.opts.get("n", 200))
-            if n < 2:
-                raise ParameterError(f"inner LHS needs n >= 2 samples, got {n}")
-            self.unit = unit_design(n, space.dim, design="lhs", seed=seed)
-        elif inner == "mean_value":
-            unknown = set(self.opts) - {"gradient", "fd_step"}
-            if unknown:
-                raise ParameterError(f"unknown mean_value inner options {sorted(unknown)}")
-        elif inner == "pce":
-            unknown = set(self.opts) - _PCE_OPTIONS
-            if unknown:
-                raise ParameterError(f"unknown pce inner options {sorted(unknown)}; valid: "
-                                     f"{sorted(_PCE_OPTIONS)}")
-            if str(self.opts.get("method", "quadrature")) == "regression":
-                raise ParameterError("inner 'pce' takes method 'quadrature' or 'sparse_grid' "
-                                     "(deterministic in theta, so the outer finite differences "
-                                     "are meaningful), not 'regression'")
 
     def moments(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Input means and stds (K, d) at outer points theta (K, p)."""
         k = theta.shape[0]
         mu = np.repeat(self.mu0[None, :], k, axis=0)
         sd = np.repeat(self.sd0[None, :], k, axis=0)
@@ -314,149 +275,212 @@ class _Problem:
             dists[name] = _with_moments(self.space.distributions[i], mu[i], sd[i])
         return self.space.replace(**dists)
 
-    # --- inner methods: (K, p) -> mean (K, m), std (K, m) -------------------------------------
-    def statistics(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        theta = np.atleast_2d(theta)
-        mu, sd = self.moments(theta)
-        if self.inner == "mean_value":
-            return self._mean_value(mu, sd)
-        if self.inner == "lhs":
-            return self._lhs(mu, sd)
-        if self.inner == "pce":
-            return self._pce(mu, sd)
-        return self._callable(mu, sd)
 
-    def _gradients(self, mus: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+class InnerMethod:
+    """The interface of a CUU inner method (one instance per calibration).
+
+    ``bind(problem, seed)`` once before the outer loop; ``statistics(mu, sd)`` maps input
+    means and stds (K, d) to response means and stds (K, m), adding its model evaluations to
+    ``problem.n_eval`` (NaN rows where the model failed); ``outer_jacobian()`` returns a
+    closed-form outer Jacobian ``theta (K, p) -> (K, n_targets, p)`` or None.
+    """
+
+    name = "inner"
+
+    def bind(self, problem: _Problem, seed: SeedLike) -> None:
+        self.problem = problem
+
+    def statistics(self, mu: np.ndarray, sd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+    def outer_jacobian(self) -> Callable[[np.ndarray], np.ndarray] | None:
+        return None
+
+
+class MeanValueInner(InnerMethod):
+    """First-order mean value statistics (thesis eqs. 2.4-2.5) from the model's gradient at
+    the input means: ``gradient`` and ``fd_step`` as in :func:`rotoruq.model.model_gradient`.
+    Gradients are cached per mean vector; those of all points of an outer Jacobian are
+    evaluated in one model batch."""
+
+    name = "mean_value"
+
+    def __init__(self, gradient: GradientOption = "auto", fd_step: float = FD_STEP) -> None:
+        self.gradient = gradient
+        self.fd_step = fd_step
+
+    def bind(self, problem: _Problem, seed: SeedLike) -> None:
+        super().bind(problem, seed)
+        check_gradient_option(self.gradient, problem.model)
+        self._cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+
+    def _at_means(self, mus: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Values (U, m) and gradients (U, m, d) at distinct mean vectors, one model batch."""
-        out_g0 = np.empty((len(mus), self.m))
-        out_gr = np.empty((len(mus), self.m, self.space.dim))
+        pr = self.problem
         todo = [u for u, mu in enumerate(mus) if mu.tobytes() not in self._cache]
         if todo:
-            X = mus[todo]
-            mode = self.opts.get("gradient", "auto")
-            fd_step = float(self.opts.get("fd_step", 1e-6))
-            if mode not in ("auto", "analytic", "fd"):
-                raise ParameterError(f"gradient must be 'auto', 'analytic' or 'fd', got {mode!r}")
-            d = self.space.dim
-            if mode == "analytic" or (mode == "auto" and has_gradient(self.model)):
-                vals = eval_space(self.model, self.space, X).values
-                grads = analytic_gradient(self.model, self.space, X)
-                self.n_eval += len(X)
-            else:
-                idx = np.arange(d)
-                pts, hs = [], []
-                for x0 in X:
-                    h = fd_steps(x0, self.sd0, fd_step)
-                    p = np.repeat(x0[None, :], 2 * d + 1, axis=0)
-                    p[1 + idx, idx] += h
-                    p[1 + d + idx, idx] -= h
-                    pts.append(p)
-                    hs.append(h)
-                v = eval_space(self.model, self.space, np.concatenate(pts)).values
-                self.n_eval += len(X) * (2 * d + 1)
-                v = v.reshape(len(X), 2 * d + 1, self.m)
-                vals = v[:, 0]
-                grads = np.transpose(v[:, 1 : d + 1] - v[:, d + 1 :], (0, 2, 1)) / (
-                    2.0 * np.array(hs)[:, None, :]
-                )
-            for u, g0, gr in zip(todo, vals, grads, strict=True):
+            at = model_gradient(pr.model, mus[todo], gradient=self.gradient,
+                                fd_step=self.fd_step, scale=pr.sd0, names_in=pr.space.names)
+            pr.n_eval += at.n_evaluations
+            for u, g0, gr in zip(todo, at.values, at.gradient, strict=True):
                 self._cache[mus[u].tobytes()] = (g0, gr)
-        for u, mu in enumerate(mus):
-            out_g0[u], out_gr[u] = self._cache[mu.tobytes()]
-        return out_g0, out_gr
+        g0 = np.array([self._cache[mu.tobytes()][0] for mu in mus])
+        grad = np.array([self._cache[mu.tobytes()][1] for mu in mus])
+        return g0, grad
 
-    def _mean_value(self, mu, sd):
+    def statistics(self, mu: np.ndarray, sd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        pr = self.problem
         uniq, inv = np.unique(mu, axis=0, return_inverse=True)
-        g0, grad = self._gradients(uniq)
-        mean = np.empty((len(mu), self.m))
-        std = np.empty((len(mu), self.m))
+        g0, grad = self._at_means(uniq)
+        mean = np.empty((len(mu), pr.m))
+        std = np.empty((len(mu), pr.m))
         for k in range(len(mu)):
             u = inv.ravel()[k]
             if not (np.all(np.isfinite(g0[u])) and np.all(np.isfinite(grad[u]))):
                 mean[k] = std[k] = np.nan
                 continue
-            mv = mean_value_from_gradient(g0[u], grad[u], sd[k], self.corr)
+            mv = mean_value_from_gradient(g0[u], grad[u], sd[k], pr.corr)
             mean[k], std[k] = mv.mean, mv.std
         return mean, std
 
-    def _lhs(self, mu, sd):
+    def outer_jacobian(self) -> Callable[[np.ndarray], np.ndarray] | None:
+        """Closed form when only stds are calibrated (the gradient at the means is fixed)."""
+        pr = self.problem
+        if pr.means_move:
+            return None
+        grad = self._at_means(pr.mu0[None, :])[1][0]
+        sd_idx = np.array([i for i, _ in pr.calibrated])
+
+        def jac(theta: np.ndarray) -> np.ndarray:
+            theta = np.atleast_2d(theta)
+            _, sd = pr.moments(theta)
+            out = np.zeros((len(theta), len(pr.targets), len(pr.calibrated)))
+            for k in range(len(theta)):
+                sg = grad * sd[k][None, :]  # (m, d)
+                rsg = sg @ pr.corr.T
+                var = np.einsum("md,md->m", sg, rsg)
+                std = np.sqrt(np.maximum(var, 0.0))
+                # d std / d sigma_i = g_i (R s g)_i / std
+                dstd = grad * rsg / np.where(std > 0, std, np.inf)[:, None]  # (m, d)
+                for row, (r, stat, _) in enumerate(pr.targets):
+                    if stat == "std":
+                        out[k, row] = dstd[r, sd_idx] / pr.scale[row]
+            return out
+
+        return jac
+
+
+class SamplingInner(InnerMethod):
+    """Sample mean and std (ddof = 1) of ``n_samples`` points of one ``design`` in (0, 1)^d,
+    drawn once from the seed and mapped through each outer point's distributions (common
+    random numbers); all outer points of a call go to the model in one batch."""
+
+    name = "sampling"
+
+    def __init__(self, n_samples: int = 200, design: str = "lhs") -> None:
+        if int(n_samples) < 2:
+            raise ParameterError(f"inner sampling needs n_samples >= 2, got {n_samples}")
+        self.n_samples = int(n_samples)
+        self.design = design
+
+    def bind(self, problem: _Problem, seed: SeedLike) -> None:
+        super().bind(problem, seed)
+        self.unit = unit_design(self.n_samples, problem.space.dim, design=self.design,
+                                seed=seed)
+
+    def statistics(self, mu: np.ndarray, sd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         from .sampling import unit_to_space
 
-        n = self.unit.shape[0]
+        pr = self.problem
+        n = self.n_samples
         X = np.concatenate(
-            [unit_to_space(self.space_at(mu[k], sd[k]), self.unit) for k in range(len(mu))]
+            [unit_to_space(pr.space_at(mu[k], sd[k]), self.unit) for k in range(len(mu))]
         )
-        Y = eval_space(self.model, self.space, X).values.reshape(len(mu), n, self.m)
-        self.n_eval += len(X)
+        Y = eval_space(pr.model, pr.space, X).values.reshape(len(mu), n, pr.m)
+        pr.n_eval += len(X)
         ok = np.all(np.isfinite(Y), axis=2)  # (K, n)
-        mean = np.full((len(mu), self.m), np.nan)
-        std = np.full((len(mu), self.m), np.nan)
+        mean = np.full((len(mu), pr.m), np.nan)
+        std = np.full((len(mu), pr.m), np.nan)
         for k in range(len(mu)):
             if ok[k].sum() >= 2:
                 mean[k] = Y[k, ok[k]].mean(axis=0)
                 std[k] = Y[k, ok[k]].std(axis=0, ddof=1)
         return mean, std
 
-    def _pce(self, mu, sd):
-        """Mean and std from the coefficients of a polynomial chaos expansion (quadrature or
-        sparse grid, eqs. 2.18-2.19), one expansion per outer point."""
-        from .pce import polynomial_chaos
 
-        opts = dict(self.opts)
-        order = int(opts.pop("order", 2))
-        mean = np.empty((len(mu), self.m))
-        std = np.empty((len(mu), self.m))
-        for k in range(len(mu)):
-            res = polynomial_chaos(self.model, self.space_at(mu[k], sd[k]), order, **opts)
-            mean[k], std[k] = res.mean, res.std
-            self.n_eval += int(res.n_evaluations)
-        return mean, std
+class CallableInner(InnerMethod):
+    """A user's ``inner(model, space)`` returning ``.mean`` and ``.std`` (m,) (or
+    ``.statistics.mean/std``), called once per outer point."""
 
-    def _callable(self, mu, sd):
-        mean = np.empty((len(mu), self.m))
-        std = np.empty((len(mu), self.m))
+    def __init__(self, func: Callable) -> None:
+        self.func = func
+        self.name = getattr(func, "__name__", "callable")
+
+    def statistics(self, mu: np.ndarray, sd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        pr = self.problem
+        mean = np.empty((len(mu), pr.m))
+        std = np.empty((len(mu), pr.m))
         for k in range(len(mu)):
-            res = self.inner(self.model, self.space_at(mu[k], sd[k]))
+            res = self.run(pr.space_at(mu[k], sd[k]))
             src = getattr(res, "statistics", res)
             mean[k] = np.asarray(src.mean, dtype=float)
             std[k] = np.asarray(src.std, dtype=float)
-            self.n_eval += int(getattr(res, "n_evaluations", 0))
+            pr.n_eval += int(getattr(res, "n_evaluations", 0))
         return mean, std
 
-    # --- outer least squares ----------------------------------------------------------------
-    def residual(self, theta: np.ndarray) -> np.ndarray:
-        mean, std = self.statistics(theta)
-        cols = [
-            (mean if stat == "mean" else std)[:, r] for r, stat, _ in self.targets
-        ]
-        s = np.column_stack(cols)
-        return (s - self.target[None, :]) / self.scale[None, :]
+    def run(self, space: ParameterSpace) -> Any:
+        return self.func(self.problem.model, space)
 
-    def analytic_jacobian(self):
-        """Outer Jacobian for mean-value inners with fixed means (only stds calibrated)."""
-        if self.inner != "mean_value" or self.means_move:
-            return None
-        g0, grad = self._gradients(self.mu0[None, :])
-        grad = grad[0]
-        sd_idx = np.array([i for i, _ in self.calibrated])
 
-        def jac(theta):
-            theta = np.atleast_2d(theta)
-            _, sd = self.moments(theta)
-            out = np.zeros((len(theta), len(self.targets), len(self.calibrated)))
-            for k in range(len(theta)):
-                sg = grad * sd[k][None, :]  # (m, d)
-                rsg = sg @ self.corr.T
-                var = np.einsum("md,md->m", sg, rsg)
-                std = np.sqrt(np.maximum(var, 0.0))
-                # d std / d sigma_i = g_i (R s g)_i / std
-                dstd = grad * rsg / np.where(std > 0, std, np.inf)[:, None]  # (m, d)
-                for row, (r, stat, _) in enumerate(self.targets):
-                    if stat == "std":
-                        out[k, row] = dstd[r, sd_idx] / self.scale[row]
-            return out
+class PCEInner(CallableInner):
+    """Mean and std from the coefficients of a polynomial chaos expansion (eqs. 2.18-2.19) of
+    total order ``order``, one expansion per outer point: ``estimator`` "quadrature" or
+    "sparse_grid" (deterministic in theta, so the outer finite differences are meaningful);
+    ``quadrature_points`` and ``basis`` as in :func:`rotoruq.methods.pce.polynomial_chaos`."""
 
-        return jac
+    name = "pce"
+
+    def __init__(self, order: int = 2, estimator: str = "quadrature",
+                 quadrature_points: int | None = None, basis: str = "askey") -> None:
+        if estimator == "regression":
+            raise ParameterError("inner 'pce' takes estimator 'quadrature' or 'sparse_grid' "
+                                 "(deterministic in theta, so the outer finite differences "
+                                 "are meaningful), not 'regression'")
+        self.order = int(order)
+        self.options: dict[str, Any] = {"method": estimator, "quadrature_points": quadrature_points,
+                        "basis": basis}
+
+    def run(self, space: ParameterSpace) -> Any:
+        from .pce import polynomial_chaos
+
+        return polynomial_chaos(self.problem.model, space, self.order, **self.options)
+
+
+#: inner method name -> class (keyword options of the class are the ``inner_options``)
+INNERS: dict[str, type[InnerMethod]] = {
+    "mean_value": MeanValueInner, "sampling": SamplingInner, "pce": PCEInner,
+}
+
+
+def _make_inner(inner, inner_options: Mapping | None, gradient, fd_step: float) -> InnerMethod:
+    if callable(inner):
+        if inner_options:
+            raise ParameterError("inner_options apply to a named inner method, not a callable")
+        return CallableInner(inner)
+    name = str(inner).lower()
+    if name not in INNERS:
+        raise ParameterError(f"unknown inner method {inner!r}; valid: "
+                             f"{', '.join(map(repr, INNERS))} or a callable")
+    opts = dict(inner_options or {})
+    if name == "mean_value":
+        opts = {"gradient": gradient, "fd_step": fd_step, **opts}
+    import inspect
+
+    valid = [p for p in inspect.signature(INNERS[name].__init__).parameters if p != "self"]
+    unknown = sorted(set(opts) - set(valid))
+    if unknown:
+        raise ParameterError(f"unknown {name} inner options {unknown}; valid: {valid}")
+    return INNERS[name](**opts)
 
 
 def _nested_dict(pairs) -> dict:
@@ -502,80 +526,8 @@ def _identifiability(J, x, labels, n_targets, tol):
     )
 
 
-def calibrate_under_uncertainty(
-    model,
-    space: ParameterSpace,
-    *,
-    calibrate: Mapping[str, str | Sequence[str]],
-    targets: Mapping[str, Mapping[str, float]],
-    inner: str | Callable = "mean_value",
-    inner_options: Mapping | None = None,
-    fixed: Mapping[str, float] | None = None,
-    bounds: Mapping | None = None,
-    method: str = "nl2sol",
-    identifiability_tol: float = 1e-3,
-    seed: SeedLike = None,
-    **outer_options,
-) -> CUUResult:
-    """Calibrate input statistics so that response statistics match targets (nested model).
-
-    Parameters
-    ----------
-    model : Model; its inputs are the space's parameters plus the ``fixed`` inputs.
-    space : ParameterSpace with the starting distributions (their means/stds are the start).
-    calibrate : mapping input -> "mean", "std" or ["mean", "std"], e.g.
-        ``{"cla_m03": "std", "coll": ["mean", "std"]}``.
-    targets : mapping response -> {"mean": value, "std": value}, e.g.
-        ``{"thrust": {"std": 11.45}, "torque": {"mean": -2360.9, "std": 2.1}}``.
-    inner : "mean_value" (default), "lhs", "pce", or a callable ``inner(model, space)`` returning an
-        object with ``.mean`` and ``.std`` arrays (m,) (or ``.statistics.mean/std``).
-    inner_options : for "mean_value": ``gradient`` ("auto", "analytic", "fd") and ``fd_step``
-        (relative central-difference step, default 1e-6); for "lhs": ``n`` (samples per outer
-        point, default 200); for "pce": ``order`` (default 2), ``method`` ("quadrature",
-        default, or "sparse_grid"), ``quadrature_points`` and ``basis`` of
-        :func:`rotoruq.methods.pce.polynomial_chaos`.
-    fixed : deterministic inputs not in the space, held at the given values.
-    bounds : mapping ``"input.stat"`` (or ``(input, stat)``) -> (lower, upper) for calibrated
-        statistics. Defaults: stds in ``[1e-6 std0, inf)``; means of lognormals ``> 0``.
-    method : outer solver, "nl2sol" (default), "trf" or "lm".
-    identifiability_tol : flag when the smallest scaled singular value is below this fraction
-        of the largest.
-    seed : seed of the inner LHS design (common random numbers across outer iterations).
-    **outer_options : passed to :func:`least_squares` (max_iterations,
-        max_function_evaluations, convergence_tolerance (Dakota default 1e-4), fd_step
-        (default 1e-6 here), ...).
-
-    Returns
-    -------
-    CUUResult
-    """
-    fixed = dict(fixed or {})
-    if not isinstance(space, ParameterSpace):
-        raise ParameterError(f"space must be a ParameterSpace, got {type(space).__name__}")
-    view = _FixedInputs(model, fixed) if fixed else model
-    unknown_fixed = [n for n in fixed if n not in tuple(model.names_in)]
-    if unknown_fixed:
-        raise ParameterError(
-            f"fixed inputs that the model does not have: {unknown_fixed}; model inputs are "
-            f"{list(model.names_in)}"
-        )
-    align_inputs(view, space.names)  # raises a clear error when names disagree
-    calibrated = _parse_calibrate(calibrate, space, fixed)
-    tgt = _parse_targets(targets, tuple(model.names_out))
-    if callable(inner):
-        inner_name = getattr(inner, "__name__", "callable")
-    else:
-        inner_name = str(inner).lower()
-        if inner_name not in ("mean_value", "lhs", "pce"):
-            raise ParameterError(
-                f"unknown inner method {inner!r}; valid: 'mean_value', 'lhs', 'pce' or a "
-                "callable"
-            )
-        inner = inner_name
-    prob = _Problem(view, space, calibrated, tgt, inner, inner_options, seed)
-
-    labels = tuple(f"{space.names[i]}.{s}" for i, s in calibrated)
-    x0 = np.array([(space.mean if s == "mean" else space.std)[i] for i, s in calibrated])
+def _outer_bounds(space: ParameterSpace, calibrated, labels, x0, bounds):
+    """Bounds (lower, upper) of the calibrated statistics: defaults and the user's."""
     lo = np.full(len(x0), -np.inf)
     hi = np.full(len(x0), np.inf)
     for j, (i, s) in enumerate(calibrated):
@@ -591,51 +543,125 @@ def calibrate_under_uncertainty(
         lo[j], hi[j] = max(lo[j], float(b_lo)), float(b_hi)
     if np.any(x0 < lo) or np.any(x0 > hi):
         raise ParameterError(f"starting statistics {x0} lie outside the bounds {lo}, {hi}")
+    return lo, hi
 
-    mean0, std0 = prob.statistics(x0[None, :])
-    if not np.all(np.isfinite(prob.residual(x0[None, :]))):
-        from ..errors import EvaluationError
 
+def calibrate_under_uncertainty(
+    model: Model,
+    space: ParameterSpace,
+    *,
+    calibrate: Mapping[str, str | Sequence[str]],
+    targets: Mapping[str, Mapping[str, float]],
+    inner: str | Callable = "mean_value",
+    inner_options: Mapping | None = None,
+    fixed: Mapping[str, float] | None = None,
+    bounds: Mapping | None = None,
+    optimizer: str = "nl2sol",
+    gradient: GradientOption = "auto",
+    fd_step: float = FD_STEP,
+    identifiability_tolerance: float = 1e-3,
+    seed: SeedLike = None,
+    **outer_options: Any,
+) -> CUUResult:
+    """Calibrate input statistics so that response statistics match targets (nested model).
+
+    Parameters
+    ----------
+    model : Model; its inputs are the space's parameters plus the ``fixed`` inputs.
+    space : ParameterSpace with the starting distributions (their means/stds are the start).
+    calibrate : mapping input -> "mean", "std" or ["mean", "std"], e.g.
+        ``{"cla_m03": "std", "coll": ["mean", "std"]}``.
+    targets : mapping response -> {"mean": value, "std": value}, e.g.
+        ``{"thrust": {"std": 11.45}, "torque": {"mean": -2360.9, "std": 2.1}}``.
+    inner : "mean_value" (default), "sampling", "pce" (see :data:`INNERS`), or a callable
+        ``inner(model, space)`` returning an object with ``.mean`` and ``.std`` arrays (m,)
+        (or ``.statistics.mean/std``).
+    inner_options : keyword options of the named inner method: "sampling": ``n_samples``
+        (per outer point, default 200) and ``design`` ("lhs"); "pce": ``order`` (default 2),
+        ``estimator`` ("quadrature", default, or "sparse_grid"), ``quadrature_points`` and
+        ``basis`` of :func:`rotoruq.methods.pce.polynomial_chaos`.
+    fixed : deterministic inputs not in the space, held at the given values.
+    bounds : mapping ``"input.stat"`` (or ``(input, stat)``) -> (lower, upper) for calibrated
+        statistics. Defaults: stds in ``[1e-6 std0, inf)``; means of lognormals ``> 0``.
+    optimizer : outer solver, "nl2sol" (default), "trf" or "lm".
+    gradient : how the mean-value inner method gets the model's gradient: "auto",
+        "analytic", "finite_difference" or a callable (see
+        :func:`rotoruq.model.model_gradient`).
+    fd_step : relative finite-difference step of the inner gradient and of the outer Jacobian
+        (default :data:`rotoruq.model.FD_STEP`).
+    identifiability_tolerance : flag when the smallest scaled singular value is below this fraction
+        of the largest.
+    seed : seed of the inner sampling design (common random numbers across outer iterations).
+    **outer_options : passed to :func:`least_squares` (max_iterations,
+        max_function_evaluations, tolerance (Dakota default 1e-4), ...).
+
+    Returns
+    -------
+    CUUResult
+    """
+    fixed = dict(fixed or {})
+    if not isinstance(space, ParameterSpace):
+        raise ParameterError(f"space must be a ParameterSpace, got {type(space).__name__}")
+    view = FixedInputs(model, fixed) if fixed else model
+    align_inputs(view, space.names)  # raises a clear error when names disagree
+    calibrated = _parse_calibrate(calibrate, space, fixed)
+    tgt = _parse_targets(targets, tuple(model.names_out))
+    method = _make_inner(inner, inner_options, gradient, fd_step)
+    prob = _Problem(view, space, calibrated, tgt)
+    method.bind(prob, seed)
+
+    def statistics(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return method.statistics(*prob.moments(np.atleast_2d(theta)))
+
+    def residual(theta: np.ndarray) -> np.ndarray:
+        mean, std = statistics(theta)
+        s = np.column_stack([(mean if stat == "mean" else std)[:, r] for r, stat, _ in tgt])
+        return (s - prob.target[None, :]) / prob.scale[None, :]
+
+    labels = tuple(f"{space.names[i]}.{s}" for i, s in calibrated)
+    x0 = np.array([(space.mean if s == "mean" else space.std)[i] for i, s in calibrated])
+    lo, hi = _outer_bounds(space, calibrated, labels, x0, bounds)
+    mean0, std0 = statistics(x0[None, :])
+    if not np.all(np.isfinite(residual(x0[None, :]))):
         raise EvaluationError("the inner method returned NaN statistics at the starting point")
-    outer_options.setdefault("fd_step", 1e-6)
-    ls = least_squares(
-        prob.residual, x0, jacobian=prob.analytic_jacobian(), bounds=(lo, hi), method=method,
-        **outer_options,
-    )
-    mean1, std1 = prob.statistics(ls.x[None, :])
+    jac = method.outer_jacobian()
+    ls = least_squares(residual, x0, gradient=jac if jac is not None else "finite_difference",
+                       bounds=(lo, hi), optimizer=optimizer, fd_step=fd_step, **outer_options)
+    mean1, std1 = statistics(ls.x[None, :])
     mu, sd = prob.moments(ls.x[None, :])
-    new_space = prob.space_at(mu[0], sd[0])
-    sv, cond, ok, diag = _identifiability(ls.jacobian, ls.x, labels, len(tgt), identifiability_tol)
+    sv, cond, ok, diag = _identifiability(ls.jacobian, ls.x, labels, len(tgt),
+                                          identifiability_tolerance)
     names_out = tuple(model.names_out)
-    before = {n: {"mean": float(mean0[0, k]), "std": float(std0[0, k])}
-              for k, n in enumerate(names_out)}
-    after = {n: {"mean": float(mean1[0, k]), "std": float(std1[0, k])}
-             for k, n in enumerate(names_out)}
-    calibrated_stats = {
-        space.names[i]: {"mean": float(mu[0, i]), "std": float(sd[0, i])} for i, _ in calibrated
-    }
     return CUUResult(
-        labels=labels, x=ls.x, x0=x0, calibrated=calibrated_stats, space=new_space,
-        initial_space=space, fixed=fixed,
+        names_in=labels, names_out=names_out, x=ls.x, x0=x0,
+        calibrated={space.names[i]: {"mean": float(mu[0, i]), "std": float(sd[0, i])}
+                    for i, _ in calibrated},
+        space=prob.space_at(mu[0], sd[0]), initial_space=space, fixed=fixed,
         targets=_nested_dict((names_out[r], s, v) for r, s, v in tgt),
-        statistics_before=before, statistics_after=after, least_squares=ls,
-        singular_values=sv, condition_number=float(cond), identifiable=ok, diagnostic=diag,
-        inner=inner_name, n_model_evaluations=prob.n_eval, success=ls.success,
-        message=ls.message, names_out=names_out,
+        statistics_before=_response_statistics(names_out, mean0[0], std0[0]),
+        statistics_after=_response_statistics(names_out, mean1[0], std1[0]),
+        least_squares=ls, singular_values=sv, condition_number=float(cond), identifiable=ok,
+        diagnostic=diag, inner=method.name, optimizer=ls.optimizer, n_evaluations=prob.n_eval,
+        converged=ls.converged, message=ls.message,
     )
 
 
-def check_cuu(result: CUUResult, model, n: int = 300, *, seed: SeedLike = None,
-              method: str = "lhs") -> CUUCheck:
-    """Forward-propagate the calibrated distributions with ``n`` LHS samples (one model batch)
-    and compare the sampled response statistics with the CUU targets (the thesis confirms each
-    CUU with 300-500 LHS samples)."""
+def _response_statistics(names_out, mean: np.ndarray, std: np.ndarray) -> dict:
+    return {n: {"mean": float(mean[k]), "std": float(std[k])} for k, n in enumerate(names_out)}
+
+
+def check_cuu(result: CUUResult, model: Model, n_samples: int = 300, *, design: str = "lhs",
+              seed: SeedLike = None) -> CUUCheck:
+    """Forward-propagate the calibrated distributions with ``n_samples`` points of ``design``
+    (one model batch) and compare the sampled response statistics with the CUU targets (the
+    thesis confirms each CUU with 300-500 LHS samples)."""
     from .sampling import sample
 
-    view = _FixedInputs(model, result.fixed) if result.fixed else model
-    s = sample(view, result.space, n, method=method, seed=seed)
+    view = FixedInputs(model, result.fixed) if result.fixed else model
+    s = sample(view, result.space, n_samples, method=design, seed=seed)
     names_out = tuple(model.names_out)
-    achieved, rel = {}, {}
+    achieved: dict = {}
+    rel: dict = {}
     for resp, spec in result.targets.items():
         k = names_out.index(resp)
         for stat, target in spec.items():

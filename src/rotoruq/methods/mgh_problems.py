@@ -11,11 +11,11 @@ __all__ = ["rosenbrock", "freudenstein_roth", "bard", "box3d", "jennrich_sampson
            "brown_dennis"]
 
 
-def rosenbrock(X):
+def rosenbrock(X: np.ndarray) -> np.ndarray:
     return np.column_stack([10 * (X[:, 1] - X[:, 0] ** 2), 1 - X[:, 0]])
 
 
-def freudenstein_roth(X):
+def freudenstein_roth(X: np.ndarray) -> np.ndarray:
     x1, x2 = X[:, 0], X[:, 1]
     return np.column_stack(
         [-13 + x1 + ((5 - x2) * x2 - 2) * x2, -29 + x1 + ((x2 + 1) * x2 - 14) * x2]
@@ -27,25 +27,25 @@ BARD_Y = np.array(
 )
 
 
-def bard(X):
+def bard(X: np.ndarray) -> np.ndarray:
     i = np.arange(1, 16)
     v = 16 - i
     w = np.minimum(i, v)
     return BARD_Y - (X[:, :1] + i / (v * X[:, 1:2] + w * X[:, 2:3]))
 
 
-def box3d(X):
+def box3d(X: np.ndarray) -> np.ndarray:
     t = 0.1 * np.arange(1, 11)
     x1, x2, x3 = X[:, :1], X[:, 1:2], X[:, 2:3]
     return np.exp(-t * x1) - np.exp(-t * x2) - x3 * (np.exp(-t) - np.exp(-10 * t))
 
 
-def jennrich_sampson(X):
+def jennrich_sampson(X: np.ndarray) -> np.ndarray:
     i = np.arange(1, 11)
     return 2 + 2 * i - (np.exp(i * X[:, :1]) + np.exp(i * X[:, 1:2]))
 
 
-def brown_dennis(X):
+def brown_dennis(X: np.ndarray) -> np.ndarray:
     t = np.arange(1, 21) / 5
     a = X[:, :1] + t * X[:, 1:2] - np.exp(t)
     b = X[:, 2:3] + X[:, 3:4] * np.sin(t) - np.cos(t)

@@ -13,13 +13,23 @@ P(g > z) = 1 - Phi((z - mu)/sigma).)
 from __future__ import annotations
 
 import warnings
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy import stats
 
 from ..errors import EvaluationError, ParameterError, RotoruqError
-from ._common import gradient_at, levels_per_response
+from ..model import FD_STEP, GradientOption, Model, finite_difference, model_gradient
+from ._common import eval_space, levels_per_response
+
+if TYPE_CHECKING:
+    from ..params import ParameterSpace
+
+#: levels: None, one sequence for every response, a mapping name -> levels, or one per response
+Levels = ArrayLike | Mapping[str, ArrayLike] | None
 
 __all__ = [
     "MeanValueResult",
@@ -36,7 +46,7 @@ __all__ = [
 # ---------------------------------------------------------------------------------------------
 # Mean value method (thesis eqs. 2.4-2.9)
 # ---------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class MeanValueResult:
     """First-order second-moment statistics of the responses.
 
@@ -84,24 +94,35 @@ class MeanValueResult:
         """(m, 2) array of [mean, std] per response (the CUU inner-loop output)."""
         return np.column_stack([self.mean, self.std])
 
-    def cdf(self, name: str, z) -> np.ndarray:
+    def cdf(self, name: str, z: ArrayLike) -> np.ndarray:
         """Gaussian CDF P(g <= z) of response ``name`` implied by the two moments."""
         k = self.names_out.index(name)
         return stats.norm.cdf((np.asarray(z, dtype=float) - self.mean[k]) / self.std[k])
 
 
+def _levels(response_levels, probability_levels, reliability_levels, names_out):
+    """Response, probability and reliability levels per response (probabilities checked)."""
+    rl = levels_per_response(response_levels, names_out, "response_levels")
+    pl = levels_per_response(probability_levels, names_out, "probability_levels")
+    bl = levels_per_response(reliability_levels, names_out, "reliability_levels")
+    for name, p in pl.items():
+        if np.any((p <= 0) | (p >= 1)):
+            raise ParameterError(f"probability_levels for {name!r} must lie in (0, 1), got {p}")
+    return rl, pl, bl
+
+
 def mean_value_from_gradient(
-    g0,
-    grad,
-    std,
-    correlation=None,
+    g0: ArrayLike,
+    grad: ArrayLike,
+    std: ArrayLike,
+    correlation: ArrayLike | None = None,
     *,
-    response_levels=None,
-    probability_levels=None,
-    reliability_levels=None,
+    response_levels: Levels = None,
+    probability_levels: Levels = None,
+    reliability_levels: Levels = None,
     distribution: str = "cdf",
-    names_in=None,
-    names_out=None,
+    names_in: Sequence[str] | None = None,
+    names_out: Sequence[str] | None = None,
     n_evaluations: int = 0,
 ) -> MeanValueResult:
     """Mean value statistics from a response value and gradient at the input means.
@@ -140,12 +161,7 @@ def mean_value_from_gradient(
 
     names_out = tuple(names_out) if names_out is not None else tuple(f"g{i}" for i in range(m))
     names_in = tuple(names_in) if names_in is not None else tuple(f"x{i}" for i in range(d))
-    rl = levels_per_response(response_levels, names_out, "response_levels")
-    pl = levels_per_response(probability_levels, names_out, "probability_levels")
-    bl = levels_per_response(reliability_levels, names_out, "reliability_levels")
-    for name, p in pl.items():
-        if np.any((p <= 0) | (p >= 1)):
-            raise ParameterError(f"probability_levels for {name!r} must lie in (0, 1), got {p}")
+    rl, pl, bl = _levels(response_levels, probability_levels, reliability_levels, names_out)
 
     cdf_p, ccdf_p, cdf_b, ccdf_b, p_resp, b_resp = {}, {}, {}, {}, {}, {}
     for k, name in enumerate(names_out):
@@ -193,16 +209,15 @@ def mean_value_from_gradient(
 
 
 def mean_value(
-    model,
-    space,
+    model: Model,
+    space: ParameterSpace,
     *,
-    response_levels=None,
-    probability_levels=None,
-    reliability_levels=None,
+    response_levels: Levels = None,
+    probability_levels: Levels = None,
+    reliability_levels: Levels = None,
     distribution: str = "cdf",
-    gradient: str = "auto",
-    fd_step: float = 1e-6,
-    seed=None,
+    gradient: GradientOption = "auto",
+    fd_step: float = FD_STEP,
 ) -> MeanValueResult:
     """Mean value method (MVFOSM, thesis eqs. 2.4-2.9).
 
@@ -217,21 +232,23 @@ def mean_value(
     reliability_levels : reliability indices mapped to response levels
         (``z = mu - sigma beta`` for "cdf", ``z = mu + sigma beta`` for "ccdf").
     gradient : "auto" (the model's analytic ``gradient`` when it has one, else central finite
-        differences on one batch of 2d+1 points), "analytic" or "fd".
+        differences on one batch of 2d+1 points), "analytic", "finite_difference" or a
+        callable ``g(x: (n, d)) -> (n, m, d)`` (columns in ``space.names`` order).
     fd_step : relative finite-difference step; the step of input i is
-        ``fd_step * max(|mu_i|, sigma_i)``.
-    seed : unused (deterministic method); accepted for a uniform method signature.
+        ``fd_step * max(|mu_i|, sigma_i)`` (default :data:`rotoruq.model.FD_STEP`).
 
     Returns
     -------
     MeanValueResult
     """
-    del seed
     x0 = space.mean
-    g0, grad, n_eval = gradient_at(model, space, x0, gradient=gradient, fd_step=fd_step)
+    at = model_gradient(model, x0, gradient=gradient, fd_step=fd_step, scale=space.std,
+                        names_in=space.names)
+    if at.failures:
+        raise EvaluationError(f"mean value method: {at.failures[0]}")
     return mean_value_from_gradient(
-        g0,
-        grad,
+        at.values[0],
+        at.gradient[0],
         space.std,
         space.correlation_matrix,
         response_levels=response_levels,
@@ -240,14 +257,14 @@ def mean_value(
         distribution=distribution,
         names_in=space.names,
         names_out=tuple(model.names_out),
-        n_evaluations=n_eval,
+        n_evaluations=at.n_evaluations,
     )
 
 
 # ---------------------------------------------------------------------------------------------
 # MPP search: RIA (eq. 2.10) and PMA (eq. 2.11) with FORM (2.12) / SORM (2.13)
 # ---------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class MPPResult:
     """Result of :func:`mpp_search` (all dicts keyed by response name).
 
@@ -299,8 +316,6 @@ class _UModel:
     """
 
     def __init__(self, model, space, fd_step):
-        from ._common import eval_space
-
         self._eval = eval_space
         self.model, self.space, self.h = model, space, fd_step
         self.n_eval = 0
@@ -325,21 +340,15 @@ class _UModel:
     def value_grad(self, u):
         key = u.tobytes()
         if key not in self._cache:
-            d = u.size
-            h = self.h * np.maximum(1.0, np.abs(u))
-            pts = np.repeat(u[None, :], 2 * d + 1, axis=0)
-            i = np.arange(d)
-            pts[1 + i, i] += h
-            pts[1 + d + i, i] -= h
-            v = self.values(pts)
-            if not np.all(np.isfinite(v)):
+            fd = finite_difference(self.values, u, fd_step=self.h, scale=1.0)
+            if fd.failures:
                 raise EvaluationError(
                     f"MPP search: finite-difference stencil at u = {u} (x = "
                     f"{self.space.from_u(u)[0]}) has failed or non-finite evaluations"
                 )
             if len(self._cache) > 64:
                 self._cache.clear()
-            self._cache[key] = (v[0], (v[1 : d + 1] - v[d + 1 :]).T / (2 * h), h)
+            self._cache[key] = (fd.values[0], fd.gradient[0], fd.steps[0])
         g, grad, _ = self._cache[key]
         return g, grad
 
@@ -543,7 +552,7 @@ def _curvatures(um, u, k, s):
     return np.linalg.eigvalsh(basis @ hess @ basis.T / nrm)
 
 
-def sorm_probability(beta: float, kappa, method: str = "breitung") -> float:
+def sorm_probability(beta: float, kappa: ArrayLike, sorm: str = "breitung") -> float:
     """Second-order probability of the region beyond a limit state at distance beta > 0
     with principal curvatures ``kappa`` (positive: curving away from the origin), eq. 2.13
     (Breitung) or Hohenbichler-Rackwitz (beta replaced by phi(beta)/Phi(-beta)).
@@ -555,17 +564,17 @@ def sorm_probability(beta: float, kappa, method: str = "breitung") -> float:
     """
     kappa = np.asarray(kappa, dtype=float)
     pf = stats.norm.cdf(-beta)
-    if method == "breitung":
+    if sorm == "breitung":
         c = beta
-    elif method in ("hohenbichler", "hohenbichler_rackwitz"):
+    elif sorm in ("hohenbichler", "hohenbichler_rackwitz"):
         c = stats.norm.pdf(beta) / pf if pf > 0 else beta
     else:
-        raise ParameterError(f"SORM method must be 'breitung' or 'hohenbichler', got {method!r}")
+        raise ParameterError(f"SORM formula must be 'breitung' or 'hohenbichler', got {sorm!r}")
     fac = 1.0 + c * kappa
     if np.any(fac <= 0) or not np.all(np.isfinite(fac)):
         i = int(np.argmin(np.where(np.isfinite(fac), fac, -np.inf)))
         warnings.warn(
-            f"SORM ({method}) is undefined at beta = {beta:.6g}: 1 + c kappa = {fac[i]:.3g} "
+            f"SORM ({sorm}) is undefined at beta = {beta:.6g}: 1 + c kappa = {fac[i]:.3g} "
             f"<= 0 for the curvature kappa = {kappa[i]:.6g} (c = {c:.6g}; the limit state is "
             "more concave than the beta-sphere); the first-order probability is reported",
             SORMWarning,
@@ -616,18 +625,17 @@ def _sorm_beta(p_region: float, kappa, method: str, beta_form: float) -> float:
 
 
 def mpp_search(
-    model,
-    space,
+    model: Model,
+    space: ParameterSpace,
     *,
-    response_levels=None,
-    probability_levels=None,
-    reliability_levels=None,
+    response_levels: Levels = None,
+    probability_levels: Levels = None,
+    reliability_levels: Levels = None,
     integration: str = "first_order",
     sorm: str = "breitung",
-    fd_step: float = 1e-5,
-    tol: float = 1e-10,
-    max_iter: int = 200,
-    seed=None,
+    fd_step: float = FD_STEP,
+    tolerance: float = 1e-10,
+    max_iterations: int = 200,
 ) -> MPPResult:
     """Most probable point searches in u-space (Nataf) with FORM or SORM integration.
 
@@ -646,35 +654,33 @@ def mpp_search(
     beyond the MPP equals the target ``Phi(-|beta|)`` (reliability levels are then read as
     generalized reliability indices).
 
-    Convergence is judged on the MPP conditions (see ``_ria``/``_pma``): ``tol`` bounds the
-    relative constraint residual and ``sqrt(tol)`` the misalignment of u and grad G.
-    ``converged`` is False when any level misses them within ``max_iter`` iterations.
+    Convergence is judged on the MPP conditions (see ``_ria``/``_pma``): ``tolerance`` bounds
+    the relative constraint residual and ``sqrt(tolerance)`` the misalignment of u and grad G.
+    ``converged`` is False when any level misses them within ``max_iterations`` iterations.
 
     Gradients: central finite differences in u-space, each gradient one batched model call
-    of 2d + 1 points (step ``fd_step * max(1, |u_i|)``). Raises
+    of 2d + 1 points (step ``fd_step * max(1, |u_i|)``, default
+    :data:`rotoruq.model.FD_STEP`; the SORM Hessian steps 1000 times further). Raises
     :class:`DegenerateResponseError` for a response that is constant around the means.
     """
-    del seed
+    tol, max_iter = tolerance, max_iterations
     integration = integration.lower()
     if integration not in ("first_order", "second_order", "form", "sorm"):
         raise ParameterError(
             f"integration must be 'first_order' or 'second_order', got {integration!r}"
         )
     if sorm not in ("breitung", "hohenbichler", "hohenbichler_rackwitz"):
-        raise ParameterError(f"SORM method must be 'breitung' or 'hohenbichler', got {sorm!r}")
+        raise ParameterError(f"SORM formula must be 'breitung' or 'hohenbichler', got {sorm!r}")
     if not (tol > 0 and int(max_iter) >= 1):
-        raise ParameterError(f"tol must be > 0 and max_iter >= 1, got {tol!r}, {max_iter!r}")
+        raise ParameterError(f"tolerance must be > 0 and max_iterations >= 1, got {tol!r}, "
+                             f"{max_iter!r}")
     second = integration in ("second_order", "sorm")
     names_out = tuple(model.names_out)
     d = space.dim
     um = _UModel(model, space, fd_step)
-    rl = levels_per_response(response_levels, names_out, "response_levels")
-    pl = levels_per_response(probability_levels, names_out, "probability_levels")
-    bl = levels_per_response(reliability_levels, names_out, "reliability_levels")
-    for name, p in pl.items():
-        if np.any((p <= 0) | (p >= 1)):
-            raise ParameterError(f"probability_levels for {name!r} must lie in (0, 1), got {p}")
-    out = {k: {} for k in ("p", "pc", "b", "gb", "mu", "mx", "kap", "pr", "br", "pmx")}
+    rl, pl, bl = _levels(response_levels, probability_levels, reliability_levels, names_out)
+    out: dict[str, dict] = {k: {} for k in ("p", "pc", "b", "gb", "mu", "mx", "kap", "pr", "br",
+                                            "pmx")}
     ok = True
     for k, name in enumerate(names_out):
         zs = rl[name]
@@ -744,7 +750,7 @@ def _not_converged(kind, name, level, um, u, k, z=None):
             f"{abs(g[k] - z) / gn:.3g}" if gn > 0 else "inf (flat response)")
     warnings.warn(
         f"MPP search ({kind}) for {name!r} at {level} did not meet the MPP conditions within "
-        f"max_iter ({detail}): its result is not reliable (the level may be unreachable)",
+        f"max_iterations ({detail}): its result is not reliable (the level may be unreachable)",
         RuntimeWarning,
         stacklevel=3,
     )

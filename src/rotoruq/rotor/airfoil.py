@@ -22,6 +22,7 @@ import re
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -269,6 +270,7 @@ class Airfoil:
                             if self._replace_cd or j % 5 < 2}
         self._names = list(self._name_index)
         self._build_grid()
+        self._kernel_table: Any = None   # the compiled solve's form (rotor.hover.airfoil_table)
 
     def identity(self) -> dict:
         """Everything that sets the coefficients: the table's numbers and the fit settings."""

@@ -9,47 +9,72 @@ flap damping and pitch-flap stiffness; the inflow is updated by Newton steps on 
 This is equivalent to time-marching to periodic steady state and averaging over the last two
 revolutions, as the reference study did in MBDyn, without the transient.
 
-Samples are independent: each has its own step control and convergence test, a converged
-sample leaves the iteration (its state is frozen), and every reduction runs per sample in a
-fixed order, so a sample's result is bitwise the same whatever batch it is solved in.
+The solve is compiled (:mod:`rotoruq.rotor._kernel`, numba; its notation block gives the
+symbols and units): each sample iterates on its own until it converges, large batches are
+spread over the cores, and a sample's result is bitwise the same whatever batch, chunk or
+thread count it is solved with.
 
 Every returned row is either a converged solution whose equations were re-evaluated at the
-final state (``equation_residual`` below ``check_tol``) or carries a failure reason: diverged,
-not converged, residual check failed, or a physically invalid regime (deep stall over the disk,
-torsional divergence, negative drag, negative power).
+final state (``equation_residual`` below ``check_tolerance``) or carries a failure reason:
+diverged, not converged, residual check failed, or a physically invalid regime (deep stall
+over the disk, torsional divergence, negative drag, negative power).
 """
 
 from __future__ import annotations
 
+import os
+from collections.abc import Mapping
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, fields
+from typing import Any
 
+import numba
 import numpy as np
 
-from .controls import swashplate_harmonics
-from .dynamics import HarmonicBasis, apply_blocks, fixed_sum, structural_operator
+from ..errors import ParameterError
+from . import _kernel as kern
+from .aero import LinearAirfoil
+from .airfoil import Airfoil
 from .geometry import CANTILEVER_SPRING_FACTOR, BladeGrid
 from .ground_effect import ground_effect_factor
-from .inflow import A0, annulus_update, prandtl_loss, uniform_update
 from .presets import RotorPreset
 
-__all__ = ["HoverSolution", "solve_hover", "STALL_AREA_LIMIT", "MAX_BLADE_MOTION"]
+__all__ = ["HoverSolution", "solve_hover", "check_airfoil", "STALL_AREA_LIMIT",
+           "MAX_BLADE_MOTION", "PARALLEL_MIN_BATCH"]
 
 #: Fraction of the disk's blade-element area (weighted by r dr dpsi) beyond the airfoil's
 #: stall angle above which a solution is a physically invalid regime ("deep stall").
 STALL_AREA_LIMIT = 0.5
 #: Blade motion harmonics beyond this amplitude [rad] mean the iteration diverged.
-MAX_BLADE_MOTION = 2.0 * np.pi
+MAX_BLADE_MOTION = kern.MAX_BLADE_MOTION
+#: Batches at least this large are spread over ``numba.get_num_threads()`` threads (smaller:
+#: the calling thread alone); the results are the same either way, bitwise.
+PARALLEL_MIN_BATCH = 16
+#: Slices per thread of a spread batch (samples differ in cost: smaller slices balance).
+SLICES_PER_THREAD = 4
+
+_POOLS: dict[tuple[int, int], ThreadPoolExecutor] = {}
 
 
-@dataclass(frozen=True)
+def _pool(n_threads: int) -> ThreadPoolExecutor:
+    """A thread pool of this process (a forked child makes its own) with n_threads workers."""
+    key = (os.getpid(), n_threads)
+    pool = _POOLS.get(key)
+    if pool is None:
+        _POOLS.clear()
+        pool = _POOLS[key] = ThreadPoolExecutor(n_threads, thread_name_prefix="rotoruq-rotor")
+    return pool
+
+
+@dataclass(frozen=True, eq=False)
 class HoverSolution:
     """Loads and state of a batch of hover solutions (every array has leading axis n).
 
     thrust [N], torque [N m] (positive = power absorbed), roll, pitch [N m] (hub moments in
     the non-rotating frame: roll positive right side down, pitch positive nose up),
     power [W], ct, cq [-]; coning_deg, theta_75_deg (mean blade pitch at 0.75 R, after the
-    pitch-link deflection), inflow_ratio (mean lambda); flap/lag/pitch harmonics (n, K) in rad;
-    residual (n,): last iteration step [rad or inflow ratio]; equation_residual (n,): the
+    pitch-link deflection), inflow_ratio (mean lambda); flap/lag/feather harmonics (n, K) in
+    rad; residual (n,): last iteration step [rad or inflow ratio]; equation_residual (n,): the
     equations re-evaluated at the returned state (structural residual over its k = 0
     stiffness [rad]; momentum residual as the inflow-ratio change a Newton step would make);
     stalled_fraction (n,): share of blade-element area beyond the stall angle;
@@ -88,501 +113,322 @@ class HoverSolution:
         return HoverSolution(**{f.name: np.concatenate([getattr(p, f.name) for p in parts])
                                 for f in fields(HoverSolution)})
 
+    @staticmethod
+    def assemble(preset: RotorPreset, grid: BladeGrid, omega: np.ndarray, rho: np.ndarray,
+                 Q: np.ndarray, v0: np.ndarray, checked: Mapping[str, np.ndarray],
+                 M_root: np.ndarray, residual: np.ndarray, iterations: np.ndarray,
+                 failure: np.ndarray) -> HoverSolution:
+        """The solution from the final states: Q (n, 3, K) motion harmonics [rad], v0 (n,)
+        [m/s], ``checked`` thrust, torque, eq, stalled (n,) and M_root (n, K) [N m] from the
+        final check (NaN where not checked), failure (n,) "" for a valid row."""
+        valid = failure == ""
+        R = preset.radius
+        vt = omega * R
+        area = preset.area
+        thrust, torque = checked["thrust"].copy(), checked["torque"].copy()
+        loads = {
+            "thrust": thrust, "torque": torque,
+            "roll": 0.5 * preset.n_blades * M_root[:, 1].imag,
+            "pitch": -0.5 * preset.n_blades * M_root[:, 1].real,
+            "power": torque * omega, "ct": thrust / (rho * area * vt**2),
+            "cq": torque / (rho * area * vt**2 * R),
+        }
+        for v in loads.values():
+            v[~valid] = np.nan
+        i75 = int(np.argmin(np.abs(grid.r - 0.75 * R)))
+        return HoverSolution(
+            **loads,
+            coning_deg=np.rad2deg(Q[:, 0, 0].real),
+            theta_75_deg=np.rad2deg(Q[:, 2, 0].real + grid.twist[i75]),
+            inflow_ratio=v0 / vt,
+            flap=Q[:, 0],
+            lag=Q[:, 1],
+            feather=Q[:, 2],
+            residual=residual,
+            equation_residual=checked["eq"],
+            stalled_fraction=checked["stalled"],
+            iterations=iterations,
+            converged=valid,
+            failure=failure.astype(str),
+        )
+
+
+def check_airfoil(airfoil: Any) -> None:
+    """ParameterError unless the compiled solve can take ``airfoil``: an
+    :class:`~rotoruq.rotor.airfoil.Airfoil` (c81 table) or a
+    :class:`~rotoruq.rotor.aero.LinearAirfoil`."""
+    if not isinstance(airfoil, (Airfoil, LinearAirfoil)):
+        raise ParameterError(
+            f"the rotor model takes an Airfoil (a c81 table, rotoruq.rotor.airfoil.Airfoil) or a "
+            f"LinearAirfoil (rotoruq.rotor.aero), got {type(airfoil).__name__}; tabulate other "
+            "aerodynamics as a c81 file (rotoruq.rotor.c81.write_c81)")
+
 
 def _col(p, name, n):
-    return np.ascontiguousarray(np.broadcast_to(np.asarray(p[name], dtype=float), (n,)))
+    v = p[name]
+    if isinstance(v, np.ndarray) and v.shape == (n,) and v.dtype == np.float64:
+        return v
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float), (n,)))
 
 
-def _wrap_deg(a):
-    """Wrap to [-180, 180) only where needed, so in-range values keep their exact bits (a
-    table lookup that wraps a whole array when one value is out of range would otherwise
-    couple samples)."""
-    if a.size == 0 or (a.min() >= -180.0 and a.max() < 180.0):
-        return a
-    return np.where((a >= -180.0) & (a < 180.0), a, np.mod(a + 180.0, 360.0) - 180.0)
+def sample_inputs(preset: RotorPreset, grid: BladeGrid, params: Mapping[str, np.ndarray],
+                  n: int) -> np.ndarray:
+    """The per-sample input matrix of the compiled solve, (n, kern.N_COLUMNS): rotor speed,
+    density, kappa, the structural constants (K_b from EI for elastic blades, K_p and C_p
+    through the pitch link unless ``k_feather`` is given), x_ac, cm0 and the commands [deg]."""
+    P = {k: _col(params, k, n) for k in params}
+    for name in ("cm0", "aero_center_offset"):
+        P.setdefault(name, np.full(n, float(getattr(preset, name))))
+    kappa = ground_effect_factor(P["height_over_radius"], preset.ground_effect)
+    kappa = kappa * preset.induced_power_factor
+    if preset.flap_model == "elastic":
+        K_b = CANTILEVER_SPRING_FACTOR * P["ei_flap"] / grid.blade_length
+    else:
+        K_b = P["k_flap"]
+    K_p = P["k_feather"] if "k_feather" in P else preset.feathering_stiffness(P["k_pitch_link"])
+    prm = np.empty((n, kern.N_COLUMNS))
+    for col, value in ((kern.OMEGA, P["omega"]), (kern.RHO, P["rho"]), (kern.KAPPA, kappa),
+                       (kern.K_FLAP, K_b), (kern.C_FLAP, P["c_flap"]),
+                       (kern.K_LAG, P["k_lag"]), (kern.C_LAG, P["c_lag"]),
+                       (kern.K_FEATHER, K_p),
+                       (kern.C_FEATHER, preset.feathering_stiffness(P["c_pitch_link"])),
+                       (kern.X_AC, P["aero_center_offset"]), (kern.CM0, P["cm0"]),
+                       (kern.COLLECTIVE, P["collective_deg"]),
+                       (kern.LATERAL, P["lateral_deg"]),
+                       (kern.LONGITUDINAL, P["longitudinal_deg"])):
+        prm[:, col] = value
+    return prm
 
 
-class _Rotor:
-    """Per-sample constants of a batch and the per-sample evaluation of loads and residuals.
+_CONSTANTS: dict[tuple[RotorPreset, int, int], tuple[BladeGrid, kern.Rotor]] = {}
 
-    Every method works on any subset of the samples (``idx``) and gives bitwise the same
-    numbers for a sample whatever the subset.
-    """
 
-    def __init__(self, preset: RotorPreset, airfoil, grid: BladeGrid, P, ov, n_harmonics):
-        self.p, self.airfoil, self.grid = preset, airfoil, grid
-        self.basis = HarmonicBasis(grid.psi, n_harmonics)
-        self.kvec = self.basis.k
-        self.ov = ov
-        self.bemt = preset.inflow == "bemt"
-        e, c, R = preset.hinge_offset, preset.chord, preset.radius
-        r, w = grid.r, grid.w
-        self.r, self.w, self.rr = r, w, r - e
-        Om, rho = P["omega"], P["rho"]
-        kappa = ground_effect_factor(P["height_over_radius"], preset.ground_effect)
-        kappa = kappa * preset.induced_power_factor
-        if preset.flap_model == "elastic":
-            K_b = CANTILEVER_SPRING_FACTOR * P["ei_flap"] / grid.blade_length
-        else:
-            K_b = P["k_flap"]
-        if "k_feather" in P:
-            K_p = P["k_feather"]
-        else:
-            K_p = preset.feathering_stiffness(P["k_pitch_link"])
-        C_p = preset.feathering_stiffness(P["c_pitch_link"])
-        tan_d3 = np.tan(np.deg2rad(preset.delta3_deg))
-        kvec = self.kvec
-        Z = structural_operator(kvec, Om, grid.I_flap, grid.S_flap, e, grid.I_lag,
-                                preset.pitch_inertia, K_b, P["c_flap"], P["k_lag"],
-                                P["c_lag"], K_p, C_p, tan_d3)
-        rr = self.rr
-        wk = Om[:, None] * kvec[None, :]
-        # Jacobian: the structure plus linear aerodynamic flap damping and the flap moment's
-        # pitch derivative (a preconditioner: the converged state satisfies the full equations).
-        c_ab = 0.5 * rho * A0 * c * Om * float(np.sum(w * r * rr**2))
-        k_abt = 0.5 * rho * A0 * c * Om**2 * float(np.sum(w * r**2 * rr))
-        J = Z.copy()
-        J[..., 0, 0] += 1j * wk * c_ab[:, None]
-        J[..., 0, 2] -= k_abt[:, None]
-        J[..., 1, 1] += 1j * wk * (0.5 * rho * c * Om * 0.02 * float(np.sum(w * r * rr**2))
-                                   )[:, None]
-        # Linear-theory derivatives of the feathering moment of the lift acting x_ac aft of the
-        # feathering axis: d/dtheta = -x_ac q_tt, d/dbeta_k = i k x_ac q_tb.
-        x_ac = P["aero_center_offset"]
-        q_tt = 0.5 * rho * c * A0 * Om**2 * float(np.sum(w * r**2))
-        q_tb = 0.5 * rho * c * A0 * Om**2 * float(np.sum(w * r * rr))
-        # The mean lift's pitch derivative is reduced by the inflow's response to it (BEMT:
-        # by m / (m + k_v), m = 4 rho A v / kappa^2, k_v = dT_BE/dv), at the linear-theory
-        # inflow of the initial state; the uniform inflow is solved jointly instead (J0).
-        sigma = preset.solidity
-        th75 = np.deg2rad(P["collective_deg"]) + np.deg2rad(preset.twist_deg) * (
-            0.75 * R - preset.root_cutout) / (R - preset.root_cutout)
-        lam = sigma * A0 / 16 * (np.sqrt(1 + 32 / (sigma * A0) * np.abs(th75) * 0.75) - 1)
-        v_init = np.maximum(lam, 1e-3) * Om * R * np.sqrt(np.maximum(kappa, 0.1))
-        m_mom = 4 * rho * preset.area * v_init / np.maximum(kappa, 0.1) ** 2
-        k_v = preset.n_blades * 0.5 * rho * c * A0 * Om * float(np.sum(w * r))
-        fb = np.ones((Om.size, kvec.size))
-        if self.bemt:
-            fb[:, 0] = m_mom / (m_mom + k_v)
-        J[..., 2, 2] += (x_ac * q_tt)[:, None] * fb
-        J[..., 2, 0] -= 1j * kvec[None, :] * (x_ac * q_tb)[:, None]
-        qa = 0.5 * rho * c * A0 * Om
-        theta_cmd = swashplate_harmonics(P["collective_deg"], P["lateral_deg"],
-                                         P["longitudinal_deg"], n_harmonics)
-        F_cmd = np.zeros((Om.size, 3, kvec.size), dtype=complex)
-        F_cmd[:, 2, :] = (K_p[:, None] + 1j * wk * C_p[:, None]) * theta_cmd
-        # mean motion + uniform inflow: columns/rows 0-2 the blade, 3 the inflow v0; J0[3, 3]
-        # (momentum) is set per iteration
-        J0 = np.zeros((Om.size, 4, 4), dtype=complex)
-        J0[:, :3, :3] = J[:, 0]
-        J0[:, 0, 3] = 0.5 * rho * c * A0 * Om * float(np.sum(w * r * rr))
-        J0[:, 2, 3] = -x_ac * 0.5 * rho * c * A0 * Om * float(np.sum(w * r))
-        J0[:, 3, 2] = -preset.n_blades * 0.5 * rho * c * A0 * Om**2 * float(np.sum(w * r**2))
-        J1 = np.zeros((Om.size, 4, 4), dtype=complex)
-        J1[:, :3, :3] = J[:, 1]
-        J1[:, 0, 3] = qa * float(np.sum(w * r * rr * r)) / R
-        self.C = {
-            "Om": Om, "rho": rho, "kappa": kappa, "K_b": K_b, "c_flap": P["c_flap"],
-            "K_p": K_p, "C_p": C_p, "Z": Z, "Jinv": np.linalg.inv(J), "J1": J1,
-            "F_cmd": F_cmd, "th_cmd0": theta_cmd[:, 0].real, "qa": qa,
-            "cm0": P["cm0"], "x_ac": P["aero_center_offset"], "v_init": v_init,
-            "J0": J0, "k_v": k_v,
-        }
+def rotor_constants(preset: RotorPreset, grid: BladeGrid, n_harmonics: int) -> kern.Rotor:
+    """The rotor and grid constants of the compiled solve (the grid integrals summed as the
+    numpy implementation sums them); the last few are kept."""
+    key = (preset, id(grid), n_harmonics)
+    hit = _CONSTANTS.get(key)
+    if hit is not None and hit[0] is grid:
+        return hit[1]
+    if len(_CONSTANTS) > 16:
+        _CONSTANTS.clear()
+    rot = _rotor_constants(preset, grid, n_harmonics)
+    _CONSTANTS[key] = (grid, rot)
+    return rot
 
-    def sub(self, idx):
-        """Constants and airfoil overrides of the samples ``idx`` (all when None)."""
-        if idx is None:
-            return self.C, self.ov
-        return ({k: v[idx] for k, v in self.C.items()}, {k: v[idx] for k, v in self.ov.items()})
 
-    def inflow_field(self, S, C):
-        r, R = self.r, self.p.radius
-        base = S["v_r"][:, None, :] if self.bemt else S["v0"][:, None, None]
-        psi = self.grid.psi
-        harm = (r / R)[None, None, :] * (S["vc"][:, None, None] * np.cos(psi)[None, :, None]
-                                         + S["vs"][:, None, None] * np.sin(psi)[None, :, None])
-        return base + harm
+def _rotor_constants(preset: RotorPreset, grid: BladeGrid, n_harmonics: int) -> kern.Rotor:
+    e, R = preset.hinge_offset, preset.radius
+    r, w, psi = grid.r, grid.w, grid.psi
+    rr = r - e
+    k = np.arange(n_harmonics + 1)
+    kp = np.outer(k, psi)
+    cos_k, sin_k = np.cos(kp), np.sin(kp)
+    scale = np.full(k.shape, 2.0 / psi.size)
+    scale[0] = 1.0 / psi.size
+    analysis = np.concatenate([cos_k * scale[:, None], -sin_k * scale[:, None]])
+    sums = np.empty(kern.N_SUMS)
+    sums[kern.SUM_W_R_RR2] = float(np.sum(w * r * rr**2))
+    sums[kern.SUM_W_R2_RR] = float(np.sum(w * r**2 * rr))
+    sums[kern.SUM_W_R2] = float(np.sum(w * r**2))
+    sums[kern.SUM_W_R_RR] = float(np.sum(w * r * rr))
+    sums[kern.SUM_W_R] = float(np.sum(w * r))
+    sums[kern.SUM_W_R3] = float(np.sum(w * r**3))
+    sums[kern.SUM_W_R_RR_R] = float(np.sum(w * r * rr * r))
+    return kern.Rotor(
+        radius=float(R), chord=float(preset.chord), hinge_offset=float(e),
+        n_blades=int(preset.n_blades), area=float(preset.area),
+        speed_of_sound=float(preset.speed_of_sound), root_cutout=float(preset.root_cutout),
+        pitch_inertia=float(preset.pitch_inertia), I_flap=float(grid.I_flap),
+        I_lag=float(grid.I_lag), S_flap=float(grid.S_flap),
+        tan_delta3=float(np.tan(np.deg2rad(preset.delta3_deg))),
+        solidity=float(preset.solidity), twist_rad=float(np.deg2rad(preset.twist_deg)),
+        bemt=preset.inflow == "bemt", harmonic_inflow=bool(preset.harmonic_inflow),
+        tip_loss=bool(preset.tip_loss), pitching_moment=bool(preset.pitching_moment),
+        r=np.ascontiguousarray(r, dtype=float), w=np.ascontiguousarray(w, dtype=float),
+        rr=rr, twist=np.ascontiguousarray(grid.twist, dtype=float), w_rr=w * rr, w_r=w * r,
+        cos_psi=np.cos(psi), sin_psi=np.sin(psi), cos_k=cos_k, sin_k=sin_k,
+        analysis=np.ascontiguousarray(analysis), sums=sums)
 
-    def aero(self, S, C, ov, full=False):
-        """Section loads over (n, Npsi, Nr) at the state S; ``bad`` (n,) marks samples whose
-        section flow is not finite (their loads are computed at a neutral flow, not used).
-        ``full`` also returns the section flow and coefficients (the iteration keeps only the
-        loads: fewer live arrays, fewer cache misses)."""
-        p, grid, basis, r, rr = self.p, self.grid, self.basis, self.r, self.rr
-        Om, rho = C["Om"], C["rho"]
-        Q = S["Q"]
-        beta = basis.synth(Q[:, 0])
-        dbeta = basis.synth_d(Q[:, 0])
-        dzeta = basis.synth_d(Q[:, 1])
-        theta = basis.synth(Q[:, 2])
-        vfield = self.inflow_field(S, C)
-        UT = Om[:, None, None] * (r[None, None, :] - rr * dzeta[:, :, None])
-        UP = vfield + Om[:, None, None] * rr * dbeta[:, :, None]
-        phi = np.arctan2(UP, UT)
-        alpha = np.rad2deg(theta[:, :, None] + grid.twist - phi)
-        U2 = UT**2 + UP**2
-        del UT, UP, vfield
-        cphi, sphi = np.cos(phi), np.sin(phi)
-        del phi
-        mach = np.sqrt(U2) / p.speed_of_sound
-        ok = np.isfinite(alpha) & np.isfinite(U2)
-        bad = ~ok.reshape(ok.shape[0], -1).all(axis=1)
-        if bad.any():  # neutral flow for the diverged samples (flagged, never returned)
-            alpha, mach, U2 = (np.where(ok, v, 0.0) for v in (alpha, mach, U2))
-        alpha = _wrap_deg(alpha)
-        lo, hi = getattr(self.airfoil, "mach_range", (-np.inf, np.inf))
-        if mach.size and (mach.min() < lo or mach.max() > hi):
-            # the table clamps as well, but only here is it decided per element
-            mach = np.clip(mach, lo, hi)
-        cl, cd, cm = self.airfoil.coefficients(alpha, mach, ov)
-        qc = 0.5 * rho[:, None, None] * U2 * p.chord
-        dFz = qc * (cl * cphi - cd * sphi)
-        dFx = qc * (cl * sphi + cd * cphi)
-        cm_sec = (cm if p.pitching_moment else 0.0) + C["cm0"][:, None, None]
-        dMp = qc * (p.chord * cm_sec - C["x_ac"][:, None, None] * cl)
-        out = {"beta": beta, "dFz": dFz, "dFx": dFx, "dMp": dMp, "bad": bad}
-        if full:
-            out.update(alpha=alpha, mach=mach, cl=cl, cd=cd, cm=cm, qc=qc)
-        return out
 
-    def residuals(self, S, C, A):
-        """Structural residual harmonics (n, 3, K) and the blade-root load harmonics."""
-        b, w, rr, r = self.basis, self.w, self.rr, self.r
-        Mf = fixed_sum(A["dFz"], w * rr)
-        Ml = fixed_sum(A["dFx"], w * rr)
-        Mp = fixed_sum(A["dMp"], w)
-        Fgen = np.stack([b.analyse(Mf), b.analyse(Ml), b.analyse(Mp)], axis=1)
-        R_dyn = Fgen + C["F_cmd"] - apply_blocks(C["Z"], S["Q"])
-        Mz1 = b.analyse(fixed_sum(A["dFz"], w * r))[:, 1]
-        return R_dyn, Mz1
+_EMPTY_F = np.empty(0)
+_EMPTY_I = np.empty(0, dtype=np.intp)
 
-    def harmonic_gain(self, S, C):
-        p = self.p
-        R = p.radius
-        lam0 = np.maximum(np.abs(S["v0"]) / (C["Om"] * R), 1e-4)
-        return 0.5 * p.n_blades * C["kappa"] / (C["rho"] * p.area * C["Om"] * R**2 * lam0)
 
-    def blade_thrust(self, A):
-        """Per-station thrust per unit span, azimuth mean over N_b blades: (n, Nr)."""
-        dT = A["dFz"] * np.cos(A["beta"])[:, :, None]
-        return self.p.n_blades * fixed_sum(np.moveaxis(dT, 1, -1)) / self.grid.psi.size
+def airfoil_table(airfoil: Airfoil | LinearAirfoil) -> kern.Table:
+    """The airfoil in the compiled solve's form (kept on a table airfoil)."""
+    check_airfoil(airfoil)
+    if isinstance(airfoil, LinearAirfoil):
+        z = np.zeros(2)
+        return kern.Table(kern.LINEAR, z, z, np.zeros((3, 4)), z, 0.0, False, False,
+                          _EMPTY_I, _EMPTY_F, z, 0.0, 0.0, 0, z, _EMPTY_F, _EMPTY_F,
+                          float(airfoil.cda2))
+    if airfoil._kernel_table is not None:
+        return airfoil._kernel_table
+    ba, bm = airfoil._ba, airfoil._bm
+    has_fits = airfoil.nominal is not None
+    values = np.stack(airfoil._mod_cols if has_fits else airfoil._raw_cols)
+    ga, gm = airfoil._ga, airfoil._gm
+    A, M = np.meshgrid(ga, gm, indexing="ij")
+    a_pos, a_neg = airfoil.stall_angles(gm)
+    lut = ba._lut if ba._lut is not None else _EMPTY_I
+    table = kern.Table(
+        kern.TABLE, ga, gm, np.ascontiguousarray(values), np.ascontiguousarray(airfoil._h),
+        float(airfoil.alpha_window), has_fits, bool(airfoil._replace_cd),
+        np.ascontiguousarray(lut, dtype=np.intp), ba._next, ba._inv_dx,
+        float(getattr(ba, "_x0", 0.0)), float(getattr(ba, "_inv_h", 0.0)),
+        int(getattr(ba, "_nbins", 0)), bm._inv_dx,
+        np.ascontiguousarray(a_pos, dtype=float), np.ascontiguousarray(a_neg, dtype=float),
+        0.0)
+    airfoil._kernel_table = table
+    return table
 
-    def tip_loss(self, v_r, Om):
-        p = self.p
-        if not p.tip_loss:
-            return 1.0, 0.0
-        return prandtl_loss(self.r[None, :], p.radius, p.root_cutout, p.n_blades, v_r,
-                            Om[:, None], derivative=True)
 
-    def uniform_tip_loss(self, v0, Om):
-        """Prandtl loss for the uniform inflow: annulus momentum 4 pi rho F r v^2 dr with one
-        v over the span gives T = 2 rho A v^2 F_mean, F_mean the area (r dr) mean of F over the
-        blade span; 1 without tip loss."""
-        if not self.p.tip_loss:
-            return np.ones_like(v0)
-        F = prandtl_loss(self.r[None, :], self.p.radius, self.p.root_cutout,
-                         self.p.n_blades, v0[:, None], Om[:, None])
-        wr = self.w * self.r
-        return fixed_sum(F, wr) / float(np.sum(wr))
-
-    def step(self, S, C, ov):
-        """One iteration for the samples of S; returns (new state, step size, bad flow)."""
-        p, Om = self.p, C["Om"]
-        R, Nb = p.radius, p.n_blades
-        relax = S["relax"]
-        A = self.aero(S, C, ov)
-        R_dyn, Mz1 = self.residuals(S, C, A)
-        dQ = apply_blocks(C["Jinv"], R_dyn)
-        new = dict(S)
-        if p.harmonic_inflow:
-            # First harmonic: blade motion and the Pitt-Peters inflow V1 = v_c - i v_s solved
-            # together (their coupling is what makes a plain fixed point slow).
-            qa = C["qa"]
-            r, rr, w = self.r, self.rr, self.w
-            dMz_dV = -qa * float(np.sum(w * r**3)) / R
-            dMz_dB = -1j * qa * Om * float(np.sum(w * r**2 * rr))
-            dMz_dT = qa * Om * float(np.sum(w * r**3))
-            G = self.harmonic_gain(S, C)
-            V1 = S["vc"] - 1j * S["vs"]
-            rhs = np.concatenate([R_dyn[:, :, 1], (G * Mz1 - V1)[:, None]], axis=1)
-            J1 = C["J1"].copy()
-            J1[:, 3, 0] = -G * dMz_dB
-            J1[:, 3, 2] = -G * dMz_dT
-            J1[:, 3, 3] = 1.0 - G * dMz_dV
-            d1 = np.linalg.solve(J1, rhs[..., None])[..., 0]
-            dQ[:, :, 1] = d1[:, :3]
-            V1 = V1 + relax * d1[:, 3]
-            new["vc"], new["vs"] = V1.real, -V1.imag
-            dv1 = np.abs(d1[:, 3]) / (Om * R)
-        else:
-            dv1 = np.zeros_like(Om)
-        dT_r = self.blade_thrust(A)
-        if not self.bemt:
-            # Mean blade motion and the uniform inflow solved together (a soft feathering
-            # restraint couples the blade pitch to the lift, and the lift to the inflow).
-            v = S["v0"]
-            F = self.uniform_tip_loss(v, Om)
-            mom = 2 * C["rho"] * p.area * F / C["kappa"] ** 2
-            J0 = C["J0"].copy()
-            J0[:, 3, 3] = C["k_v"] + 2 * mom * np.abs(v)
-            rhs = np.concatenate([R_dyn[:, :, 0], (fixed_sum(dT_r, self.w) - mom * v * np.abs(v)
-                                                   )[:, None]], axis=1)
-            d0 = np.linalg.solve(J0, rhs[..., None])[..., 0]
-            dQ[:, :, 0] = d0[:, :3]
-            dv_step = d0[:, 3].real
-        dQ = dQ * relax[:, None, None]
-        new["Q"] = S["Q"] + dQ
-        if self.bemt:
-            v_r = S["v_r"]
-            F, dF = self.tip_loss(v_r, Om)
-            # Blade-element slope dT/dv per station: the secant of the last two iterates,
-            # bounded by 1/4..4 x linear theory (the table's lift slope at low Reynolds number
-            # can be twice the thin-airfoil one, and a Newton step with the wrong slope then
-            # oscillates for hundreds of iterations).
-            lin = -Nb * 0.5 * C["rho"][:, None] * p.chord * A0 * Om[:, None] * self.r
-            dv_prev = v_r - S["v_prev"]
-            use = np.abs(dv_prev) > 1e-12 * (Om * R)[:, None]
-            sec = (dT_r - S["dT_prev"]) / np.where(use, dv_prev, 1.0)
-            slope = np.where(use, np.clip(sec, 4.0 * lin, 0.25 * lin), lin)
-            v_new = annulus_update(v_r, dT_r, C["rho"][:, None], C["kappa"][:, None], F,
-                                   p.chord, Nb, Om[:, None], self.r[None, :], dF, slope)
-            new["v_prev"], new["dT_prev"] = v_r, dT_r
-            v_new = v_r + relax[:, None] * (v_new - v_r)
-            dv = np.max(np.abs(v_new - v_r), axis=1) / (Om * R)
-            new["v_r"] = v_new
-            new["v0"] = fixed_sum(v_new, self.w * self.r) / float(np.sum(self.w * self.r))
-        else:
-            new["v0"] = S["v0"] + relax * dv_step
-            dv = np.abs(relax * dv_step) / (Om * R)
-        dv = np.maximum(dv, dv1)
-        size = np.maximum(np.max(np.abs(dQ).reshape(dQ.shape[0], -1), axis=1), dv) / relax
-        # Per-sample step control: halve the step of a sample whose update grew (stall and
-        # strong aerodynamic pitching moments make the fixed point oscillate), regrow it when
-        # the update shrinks again.
-        new["relax"] = np.where(size > S["resid"], np.maximum(0.5 * relax, 0.05),
-                                np.minimum(1.5 * relax, 1.0))
-        new["resid"] = size
-        return new, size, A["bad"]
-
-    def check(self, S, C, ov):
-        """Loads and the equation residual re-evaluated at the final state S."""
-        p, grid, basis = self.p, self.grid, self.basis
-        Om, rho = C["Om"], C["rho"]
-        R, Nb = p.radius, p.n_blades
-        A = self.aero(S, C, ov, full=True)
-        R_dyn, Mz1 = self.residuals(S, C, A)
-        scale = np.abs(np.diagonal(C["Z"][:, 0], axis1=1, axis2=2))      # (n, 3)
-        e_dyn = np.max(np.abs(R_dyn).max(axis=2) / scale, axis=1)
-        dT_r = self.blade_thrust(A)
-        thrust = fixed_sum(dT_r, self.w)
-        # momentum residual as the inflow-ratio change the Newton step would still make
-        if self.bemt:
-            v = S["v_r"]
-            F, dF = self.tip_loss(v, Om)
-            v_new = annulus_update(v, dT_r, rho[:, None], C["kappa"][:, None], F, p.chord, Nb,
-                                   Om[:, None], self.r[None, :], dF)
-            e_mom = np.max(np.abs(v_new - v), axis=1) / (Om * R)
-        else:
-            v = S["v0"]
-            F = self.uniform_tip_loss(v, Om)
-            v_new = uniform_update(v, thrust, rho, p.area, C["kappa"] * F ** -0.5, p.chord, Nb,
-                                   Om, self.r, self.w)
-            e_mom = np.abs(v_new - v) / (Om * R)
-        if p.harmonic_inflow:
-            G = self.harmonic_gain(S, C)
-            e_h = np.abs(G * Mz1 - (S["vc"] - 1j * S["vs"])) / (Om * R)
-        else:
-            e_h = np.zeros_like(Om)
-        eq = np.maximum(np.maximum(e_dyn, e_mom), e_h)
-        eq = np.where(np.isfinite(eq), eq, np.inf)
-
-        # loads
-        npsi = grid.psi.size
-        torque = Nb * fixed_sum(np.moveaxis(fixed_sum(A["dFx"], self.w * self.r), 1, -1)
-                                ) / npsi
-        wk = Om[:, None] * self.kvec[None, :]
-        # Blade-root flap moment about the hub centre: hinge spring/damper + offset x hinge
-        # shear.
-        Fz_k = basis.analyse(fixed_sum(A["dFz"], self.w))
-        B = S["Q"][:, 0]
-        M_root = (C["K_b"][:, None] + 1j * wk * C["c_flap"][:, None]) * B + p.hinge_offset * (
-            Fz_k + grid.S_flap * wk**2 * B)
-        # stall: share of the disk's blade-element area (r dr dpsi) beyond the stall angle
-        stall = getattr(self.airfoil, "stall_angles", None)
-        if stall is not None:
-            a_pos, a_neg = stall(A["mach"])
-            a = A["alpha"]
-            beyond = ((a > a_pos) | (a < a_neg)).astype(float)
-            frac = fixed_sum(fixed_sum(np.moveaxis(beyond, 1, -1)), self.w * self.r) / (
-                npsi * float(np.sum(self.w * self.r)))
-        else:
-            frac = np.zeros_like(Om)
-        cd_min = A["cd"].reshape(A["cd"].shape[0], -1).min(axis=1)
-        # Static feathering stiffness: link + propeller moment I_p Omega^2 - d(mean aerodynamic
-        # pitching moment)/d(pitch), the section slopes by a forward difference in alpha at the
-        # converged flow. Zero (exactly) without table CM and aerodynamic-centre offset.
-        dM = np.zeros_like(Om)
-        if p.pitching_moment or np.any(C["x_ac"] != 0):
-            h = 1e-3  # deg
-            cl2, _, cm2 = self.airfoil.coefficients(_wrap_deg(A["alpha"] + h), A["mach"], ov)
-            cm_d = (cm2 - A["cm"]) if p.pitching_moment else 0.0
-            dm = A["qc"] * (p.chord * cm_d - C["x_ac"][:, None, None] * (cl2 - A["cl"]))
-            dM = fixed_sum(np.moveaxis(fixed_sum(dm, self.w), 1, -1)) * (
-                np.rad2deg(1.0) / (h * npsi))
-        k_eff = C["K_p"] + p.pitch_inertia * Om**2 - dM
-        return {"thrust": thrust, "torque": torque, "M_root": M_root, "eq": eq,
-                "stalled": frac, "cd_min": cd_min, "bad": A["bad"], "k_eff": k_eff}
+def airfoil_samples(airfoil: Airfoil | LinearAirfoil, overrides: Mapping[str, np.ndarray],
+                    n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per-sample airfoil coefficients: the fit-row coefficients (n, 5, n_m) of a table
+    airfoil and (cla, cl0, cd0) (n, 3) of a linear one (the other one is a dummy)."""
+    if isinstance(airfoil, LinearAirfoil):
+        unknown = sorted(set(overrides) - set(airfoil.parameter_names))
+        if unknown:
+            raise ParameterError(f"unknown airfoil parameter(s) {unknown}; valid names: "
+                                 f"{', '.join(airfoil.parameter_names)}")
+        linear = np.empty((n, 3))
+        for j, name in enumerate(("cla", "cl0", "cd0")):
+            linear[:, j] = _col(overrides, name, n) if name in overrides else getattr(
+                airfoil, name)
+        return np.zeros((n, 5, 2)), linear
+    nm = airfoil._gm.size
+    if airfoil.nominal is None:
+        if overrides:
+            airfoil._override_values(dict(overrides), n)   # raises: no parameters
+        return np.zeros((n, 5, nm)), np.zeros((n, 3))
+    if overrides:
+        vals = airfoil._override_values({k: _col(overrides, k, n) for k in overrides}, n)
+        vals = np.broadcast_to(vals, (n,) + vals.shape[1:])
+        coef = airfoil._coef_table(np.ascontiguousarray(vals))
+    else:
+        coef = np.tile(airfoil._coef_cols, (1, n))
+    fits = np.ascontiguousarray(np.moveaxis(coef.reshape(5, n, nm), 1, 0))
+    return fits, np.zeros((n, 3))
 
 
 def solve_hover(
     preset: RotorPreset,
-    airfoil,
+    airfoil: Airfoil | LinearAirfoil,
     grid: BladeGrid,
-    params: dict[str, np.ndarray],
-    overrides: dict[str, np.ndarray] | None = None,
+    params: Mapping[str, np.ndarray],
+    overrides: Mapping[str, np.ndarray] | None = None,
+    *,
     n_harmonics: int = 2,
-    tol: float = 1e-9,
-    max_iter: int = 200,
-    check_tol: float | None = None,
-    freeze: bool = True,
+    tolerance: float = 1e-9,
+    max_iterations: int = 200,
+    check_tolerance: float | None = None,
 ) -> HoverSolution:
     """Solve the periodic hover state for n samples.
 
     params : every entry of :data:`rotoruq.rotor.model.ROTOR_INPUTS` except the optional
         ``k_feather`` (which, when present, replaces the pitch-link stiffness), arrays of
         shape (n,) (angles in deg). overrides : airfoil coefficient overrides, arrays (n,).
-    tol : convergence of a sample's iteration (largest step of the motion harmonics [rad] and
-        of the inflow ratio). max_iter : iterations per sample. check_tol : the equations
-        re-evaluated at the returned state (structural residual / its k = 0 stiffness [rad],
-        momentum residual as a Newton step of the inflow ratio, harmonic inflow [-]) must be
-        below it (default max(1e-6, 100 tol)).
-    freeze : True (default): a converged sample leaves the iteration, which makes results
-        independent of the batch; False only serves as a timing baseline.
+    tolerance : convergence of a sample's iteration (largest step of the motion harmonics
+        [rad] and of the inflow ratio). max_iterations : iterations per sample.
+    check_tolerance : the equations re-evaluated at the returned state (structural residual /
+        its k = 0 stiffness [rad], momentum residual as a Newton step of the inflow ratio,
+        harmonic inflow [-]) must be below it (default max(1e-6, 100 tolerance)).
     A sample that fails any check has ``converged`` False and its reason in ``failure``.
     """
+    overrides = overrides or {}
     n = np.broadcast(*[np.asarray(v) for v in params.values()]).shape[0]
-    P = {k: _col(params, k, n) for k in params}
-    for name in ("cm0", "aero_center_offset"):
-        P.setdefault(name, np.full(n, float(getattr(preset, name))))
-    ov = {k: _col(overrides, k, n) for k in (overrides or {})}
-    if check_tol is None:
-        check_tol = max(1e-6, 100.0 * tol)
-    with np.errstate(all="ignore"):
-        return _solve(preset, airfoil, grid, P, ov, n, n_harmonics, tol, max_iter, check_tol,
-                      freeze)
+    if check_tolerance is None:
+        check_tolerance = max(1e-6, 100.0 * tolerance)
+    K = n_harmonics + 1
+    rot = rotor_constants(preset, grid, n_harmonics)
+    table = airfoil_table(airfoil)
+    fits, linear = airfoil_samples(airfoil, overrides, n)
+    with np.errstate(all="ignore"):   # absurd inputs fail per row, never for the batch
+        prm = sample_inputs(preset, grid, params, n)
+        return _solve(preset, grid, prm, rot, table, fits, linear, n, K, tolerance,
+                      max_iterations, check_tolerance)
 
 
-def _solve(preset, airfoil, grid, P, ov, n, n_harmonics, tol, max_iter, check_tol, freeze):
-    rot = _Rotor(preset, airfoil, grid, P, ov, n_harmonics)
-    C = rot.C
-    R, r = preset.radius, rot.r
-    K = rot.kvec.size
-    Om = C["Om"]
-    # Initial state: pitch from the quasi-static pitch-link balance, no flap, hover inflow
-    # of linear theory at 0.75 R.
+def _solve(preset, grid, prm, rot, table, fits, linear, n, K, tolerance, max_iterations,
+           check_tolerance) -> HoverSolution:
     Q = np.zeros((n, 3, K), dtype=complex)
-    Q[:, 2, :] = C["F_cmd"][:, 2, :] / C["Z"][:, :, 2, 2]
-    v0 = C["v_init"]
-    S = {"Q": Q, "v0": v0, "vc": np.zeros(n), "vs": np.zeros(n), "relax": np.ones(n),
-         "resid": np.full(n, np.inf)}
-    if rot.bemt:
-        S["v_r"] = np.repeat(v0[:, None], r.size, axis=1)
-        S["v_prev"] = S["v_r"].copy()
-        S["dT_prev"] = np.zeros_like(S["v_r"])
-    iters = np.zeros(n, dtype=np.int64)
-    done = np.zeros(n, dtype=bool)
-    failure = np.array([""] * n, dtype=object)
-    for _ in range(max_iter):
-        if done.all():
-            break
-        # a converged sample leaves the iteration (``freeze=False``, the lock-step baseline of
-        # benchmarks/rotor_throughput.py, iterates every sample until all have converged)
-        act = np.flatnonzero(~done) if freeze else np.arange(n)
-        idx = None if act.size == n else act
-        s = S if idx is None else {k: v[act] for k, v in S.items()}
-        c, o = rot.sub(idx)
-        s, size, bad = rot.step(s, c, o)
-        iters[act] += 1
-        amp = np.max(np.abs(s["Q"]), axis=2)                     # (n_act, 3) per DOF
-        big = np.max(amp, axis=1) > MAX_BLADE_MOTION
-        diverged = bad | ~np.isfinite(size) | big
-        if idx is None:
-            S.update(s)   # new arrays: s may hold old ones of S (v_prev), never written into
-        else:
-            for k in S:
-                S[k][act] = s[k]
-        for j in np.flatnonzero(diverged):
-            i = act[j]
-            dof = ("flap", "lag", "pitch")[int(np.argmax(amp[j]))]
-            why = ("the section flow became non-finite" if bad[j] or not np.isfinite(size[j])
-                   else f"the blade {dof} exceeded 2 pi rad")
-            if dof == "pitch" and not bad[j]:
-                why += ": torsional divergence"
-            failure[i] = f"iteration diverged after {iters[i]} iterations ({why})"
-        done[act] |= diverged | (size < tol)
-    for i in np.flatnonzero(~done):
-        failure[i] = (f"periodic solution did not converge in {iters[i]} iterations "
-                      f"(last step {S['resid'][i]:.2e})")
-
-    # Re-evaluate the equations and the loads at the returned state of every sample.
-    live = np.flatnonzero(failure == "")
-    out = {k: np.full(n, np.nan) for k in ("thrust", "torque", "eq", "stalled", "cd_min",
-                                               "k_eff")}
+    scalars = np.zeros((n, kern.N_SCALARS))
+    status = np.zeros((n, 4), dtype=np.int64)
+    loads = np.full((n, 7), np.nan)
     M_root = np.full((n, K), np.nan, dtype=complex)
-    if live.size:
-        idx = None if live.size == n else live
-        s = S if idx is None else {k: v[live] for k, v in S.items()}
-        c, o = rot.sub(idx)
-        chk = rot.check(s, c, o)
-        for k in out:
-            out[k][live] = chk[k]
-        M_root[live] = chk["M_root"]
-        _judge(preset, rot, S, C, P, out, live, chk["bad"], failure, check_tol)
-    valid = failure == ""
-    thrust, torque = out["thrust"], out["torque"]
-    roll = 0.5 * preset.n_blades * M_root[:, 1].imag
-    pitch = -0.5 * preset.n_blades * M_root[:, 1].real
-    vt = Om * R
-    rho = C["rho"]
-    area = preset.area
-    i75 = int(np.argmin(np.abs(r - 0.75 * R)))
-    Q = S["Q"]
-    loads = {
-        "thrust": thrust, "torque": torque, "roll": roll, "pitch": pitch,
-        "power": torque * Om, "ct": thrust / (rho * area * vt**2),
-        "cq": torque / (rho * area * vt**2 * R),
-    }
-    for v in loads.values():
-        v[~valid] = np.nan
-    return HoverSolution(
-        **loads,
-        coning_deg=np.rad2deg(Q[:, 0, 0].real),
-        theta_75_deg=np.rad2deg(Q[:, 2, 0].real + grid.twist[i75]),
-        inflow_ratio=S["v0"] / vt,
-        flap=Q[:, 0],
-        lag=Q[:, 1],
-        feather=Q[:, 2],
-        residual=S["resid"],
-        equation_residual=out["eq"],
-        stalled_fraction=out["stalled"],
-        iterations=iters,
-        converged=valid,
-        failure=failure.astype(str),
-    )
+    _solve_spread(prm, rot, table, fits, linear, float(tolerance), int(max_iterations), Q,
+                  scalars, status, loads, M_root)
+    iterations = status[:, 3].copy()
+    failure = np.array([""] * n, dtype=object)
+    for i in np.flatnonzero(status[:, 0] != kern.OK):
+        failure[i] = iteration_failure(int(status[i, 0]), int(status[i, 1]),
+                                       bool(status[i, 2]), int(iterations[i]),
+                                       float(scalars[i, kern.RESID]))
+    checked = {name: loads[:, j] for j, name in enumerate(
+        ("thrust", "torque", "eq", "stalled", "cd_min", "k_eff", "bad"))}
+    live = np.flatnonzero(failure == "")
+    mean_pitch = Q[:, 2, 0].real
+    judge(live, checked, mean_pitch, prm[:, kern.COLLECTIVE], prm[:, kern.OMEGA], failure,
+          check_tolerance)
+    return HoverSolution.assemble(preset, grid, prm[:, kern.OMEGA], prm[:, kern.RHO], Q,
+                                  scalars[:, kern.V0], checked, M_root,
+                                  scalars[:, kern.RESID], iterations, failure)
 
 
-def _judge(preset, rot, S, C, P, out, live, bad, failure, check_tol):
-    """Failure reasons of the samples ``live`` from the re-evaluated state (in place)."""
-    for j, i in enumerate(live):
-        eq, frac = out["eq"][i], out["stalled"][i]
-        if bad[j] or not np.all(np.isfinite([out["thrust"][i], out["torque"][i]])):
+def _solve_spread(prm, rot, table, fits, linear, tolerance, max_iterations, *out) -> None:
+    """The compiled solve of every row, on numba.get_num_threads() threads for a large batch
+    (contiguous slices; each row's numbers do not depend on the slice)."""
+    n = prm.shape[0]
+    n_threads = numba.get_num_threads()
+    if n < PARALLEL_MIN_BATCH or n_threads < 2:
+        kern.solve_samples(prm, rot, table, fits, linear, tolerance, max_iterations, *out)
+        return
+    edges = np.linspace(0, n, min(n, SLICES_PER_THREAD * n_threads) + 1).astype(int)
+
+    def run(k: int) -> None:
+        rows = slice(edges[k], edges[k + 1])
+        kern.solve_samples(prm[rows], rot, table, fits[rows], linear[rows], tolerance,
+                           max_iterations, *(a[rows] for a in out))
+
+    for future in [_pool(n_threads).submit(run, k) for k in range(edges.size - 1)]:
+        future.result()
+
+
+def iteration_failure(reason: int, dof: int, bad: bool, iterations: int,
+                      last_step: float) -> str:
+    """The reason text of a sample whose iteration diverged or did not converge."""
+    if reason == kern.NOT_CONVERGED:
+        return (f"periodic solution did not converge in {iterations} iterations "
+                f"(last step {last_step:.2e})")
+    name = ("flap", "lag", "pitch")[dof]
+    why = ("the section flow became non-finite" if reason == kern.NONFINITE
+           else f"the blade {name} exceeded 2 pi rad")
+    if name == "pitch" and not bad:
+        why += ": torsional divergence"
+    return f"iteration diverged after {iterations} iterations ({why})"
+
+
+def judge(live: np.ndarray, checked: Mapping[str, np.ndarray], mean_pitch: np.ndarray,
+          collective_deg: np.ndarray, omega: np.ndarray, failure: np.ndarray,
+          check_tolerance: float) -> None:
+    """Failure reasons of the samples ``live`` from the state re-evaluated at convergence
+    (in place): non-finite loads, residual check, deep stall, torsional divergence, negative
+    drag or power. mean_pitch [rad], collective_deg [deg], omega [rad/s] per sample."""
+    thrust, torque, eq = checked["thrust"], checked["torque"], checked["eq"]
+    stalled, cd_min, k_eff = checked["stalled"], checked["cd_min"], checked["k_eff"]
+    bad = checked["bad"]
+    for i in live:
+        frac = stalled[i]
+        th = float(np.rad2deg(mean_pitch[i]))
+        cmd = float(np.rad2deg(np.deg2rad(collective_deg[i])))
+        if bad[i] or not np.all(np.isfinite([thrust[i], torque[i]])):
             failure[i] = "non-finite loads at the converged state"
-        elif not eq <= check_tol:
+        elif not eq[i] <= check_tolerance:
             failure[i] = (f"the equations re-evaluated at the converged state leave a residual "
-                          f"{eq:.2e} above {check_tol:.0e}")
+                          f"{eq[i]:.2e} above {check_tolerance:.0e}")
         elif frac > STALL_AREA_LIMIT:
-            th = np.rad2deg(S["Q"][i, 2, 0].real)
-            cmd = np.rad2deg(C["th_cmd0"][i])
             msg = (f"physically invalid regime: deep stall over {100 * frac:.0f} % of the disk "
                    f"(mean blade pitch {th:.1f} deg")
             if th * cmd > 0 and abs(th) > abs(cmd) + max(2.0, 0.25 * abs(cmd)):
@@ -591,21 +437,19 @@ def _judge(preset, rot, S, C, P, out, live, bad, failure, check_tol):
             else:
                 msg += f", {cmd:.1f} deg commanded"
             failure[i] = msg + ")"
-        elif np.sign(th_cmd := np.rad2deg(C["th_cmd0"][i])) * (
-                dth := np.rad2deg(S["Q"][i, 2, 0].real) - th_cmd) > max(2.0, abs(th_cmd)):
+        elif np.sign(cmd) * (th - cmd) > max(2.0, abs(cmd)):
             failure[i] = (f"physically invalid regime: torsional divergence (the aerodynamic "
-                          f"pitching moment drove the mean blade pitch {dth:+.1f} deg past the "
-                          f"{th_cmd:.1f} deg commanded)")
-        elif out["cd_min"][i] < 0:
-            power = out["torque"][i] * C["Om"][i]
+                          f"pitching moment drove the mean blade pitch {th - cmd:+.1f} deg past "
+                          f"the {cmd:.1f} deg commanded)")
+        elif cd_min[i] < 0:
+            power = torque[i] * omega[i]
             failure[i] = (f"physically invalid regime: negative section drag coefficient "
-                          f"(min cd {out['cd_min'][i]:.3g}" + (
+                          f"(min cd {cd_min[i]:.3g}" + (
                               f"; negative power {power:.3g} W)" if power < 0 else ")"))
-        elif out["torque"][i] < 0:
+        elif torque[i] < 0:
             failure[i] = (f"physically invalid regime: negative power in hover "
-                          f"({out['torque'][i] * C['Om'][i]:.3g} W)")
-        elif not out["k_eff"][i] > 0:
+                          f"({torque[i] * omega[i]:.3g} W)")
+        elif not k_eff[i] > 0:
             failure[i] = ("physically invalid regime: torsional divergence (the aerodynamic "
                           "pitching moment's stiffness exceeds the feathering stiffness: "
-                          f"margin {out['k_eff'][i]:.3g} N m/rad)")
-
+                          f"margin {k_eff[i]:.3g} N m/rad)")

@@ -1,8 +1,8 @@
 """The hover rotor as a Model: named, batchable inputs in, hub loads out.
 
 >>> import rotoruq as rq
->>> model = rq.RotorModel("gvpm", inputs=["collective_deg", "k_pitch_link"],
-...                       responses=["thrust", "power"])
+>>> model = rq.RotorModel("gvpm", names_in=["collective_deg", "k_pitch_link"],
+...                       names_out=["thrust", "power"])
 >>> y = model([[5.4, 15.0], [5.0, 12.0]])          # (2, 2): thrust [N], power [W]
 """
 
@@ -11,14 +11,17 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import fields
 from pathlib import Path
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from ..errors import ParameterError
 from ..model import EvalBatch
+from .airfoil import Airfoil
 from .geometry import blade_grid
 from .ground_effect import MIN_HEIGHT_OVER_RADIUS, min_height_over_radius
-from .hover import HoverSolution, solve_hover
+from .hover import HoverSolution, check_airfoil, solve_hover
 from .presets import RotorPreset, get_preset
 
 __all__ = ["RotorModel", "ROTOR_INPUTS", "RESPONSES", "load_airfoil"]
@@ -55,10 +58,8 @@ MAX_PITCH_DEG = 90.0
 _POSITIVE = ("omega", "rho")
 
 
-def load_airfoil(preset: RotorPreset):
+def load_airfoil(preset: RotorPreset) -> Airfoil:
     """The preset's airfoil: a bundled table name or a path to a c81 file."""
-    from .airfoil import Airfoil
-
     fit = preset.airfoil_fit_machs or None
     kw = {"fit_machs": fit, "replace": tuple(preset.airfoil_replace)}
     if Path(preset.airfoil).suffix.lower() == ".c81":
@@ -73,23 +74,28 @@ class RotorModel:
     ----------
     preset : str or RotorPreset
         ``"bo105"``, ``"gvpm"`` or a :class:`RotorPreset`.
-    inputs : sequence of str
+    names_in : sequence of str
         Names of the batch columns: any of :data:`ROTOR_INPUTS` and the airfoil's coefficient
         names (``cla_m03``, ``cl0_m03``, ``cd0_m03``, ...). Default: the three commands.
-    responses : sequence of str
+    names_out : sequence of str
         Any of :data:`RESPONSES`. Default: thrust, torque.
     fixed : mapping name -> value
         Inputs held fixed at a value other than the preset's.
-    airfoil : object with ``coefficients(alpha_deg, mach, overrides)``, optional
+    airfoil : :class:`~rotoruq.rotor.airfoil.Airfoil` or
+        :class:`~rotoruq.rotor.aero.LinearAirfoil`, optional
         Replaces the preset's airfoil table.
     n_stations, n_azimuth, n_harmonics : discretization (Gauss stations per blade, azimuth
         steps per revolution, harmonics of the blade motion).
-    tol, max_iter : convergence of the periodic solution (max change of the blade motion
-        harmonics [rad] and of the inflow ratio between iterations), iterations per sample.
-    check_tol : the equations re-evaluated at each returned state must leave a residual below
-        it (default max(1e-6, 100 tol); see :func:`rotoruq.rotor.hover.solve_hover`).
-    chunk_size : samples solved together (working arrays stay in cache; a throughput knob;
-        results do not depend on it, bitwise).
+    tolerance, max_iterations : convergence of the periodic solution (max change of the blade
+        motion harmonics [rad] and of the inflow ratio between iterations), iterations per
+        sample.
+    check_tolerance : the equations re-evaluated at each returned state must leave a residual
+        below it (default max(1e-6, 100 tolerance); see
+        :func:`rotoruq.rotor.hover.solve_hover`).
+
+    The solve is compiled (numba) and spreads large batches over numba's threads
+    (``numba.set_num_threads``); a row's result does not depend on the batch, its order or
+    the thread count, bitwise.
 
     After ``evaluate``, ``last_solution`` holds the full :class:`HoverSolution`, one row per
     input row (``failure`` gives each failed row's reason, "" for a valid row).
@@ -98,29 +104,30 @@ class RotorModel:
     def __init__(
         self,
         preset: str | RotorPreset = "gvpm",
-        inputs: Sequence[str] | None = None,
-        responses: Sequence[str] | None = None,
+        names_in: Sequence[str] | None = None,
+        names_out: Sequence[str] | None = None,
         fixed: Mapping[str, float] | None = None,
-        airfoil=None,
+        airfoil: Any = None,
         n_stations: int = 10,
         n_azimuth: int = 36,
         n_harmonics: int = 2,
-        tol: float = 1e-8,
-        max_iter: int = 200,
-        check_tol: float | None = None,
-        chunk_size: int = 128,
-    ):
+        tolerance: float = 1e-8,
+        max_iterations: int = 200,
+        check_tolerance: float | None = None,
+    ) -> None:
         self.preset = get_preset(preset)
         self.airfoil = airfoil if airfoil is not None else load_airfoil(self.preset)
+        check_airfoil(self.airfoil)
         self.grid = blade_grid(self.preset, n_stations, n_azimuth)
         self.n_harmonics = int(n_harmonics)
-        self.tol, self.max_iter = float(tol), int(max_iter)
-        self.check_tol = max(1e-6, 100.0 * self.tol) if check_tol is None else float(check_tol)
-        self.chunk_size = int(chunk_size)
+        self.tolerance, self.max_iterations = float(tolerance), int(max_iterations)
+        self.check_tolerance = (max(1e-6, 100.0 * self.tolerance) if check_tolerance is None
+                                else float(check_tolerance))
         self._airfoil_names = tuple(getattr(self.airfoil, "parameter_names", ()))
         valid = ROTOR_INPUTS + self._airfoil_names
-        inputs = ("collective_deg", "lateral_deg", "longitudinal_deg") if inputs is None else inputs
-        responses = ("thrust", "torque") if responses is None else responses
+        inputs = (("collective_deg", "lateral_deg", "longitudinal_deg") if names_in is None
+                  else names_in)
+        responses = ("thrust", "torque") if names_out is None else names_out
         for name in list(inputs) + list(fixed or {}):
             self._check_name(name, valid)
         if self.preset.flap_model == "elastic" and "k_flap" in list(inputs) + list(fixed or {}):
@@ -147,7 +154,6 @@ class RotorModel:
         self.names_out = tuple(responses)
         self.fixed = {k: float(v) for k, v in (fixed or {}).items()}
         self.last_solution: HoverSolution | None = None
-        self._freeze = True  # False: lock-step timing baseline (benchmarks/rotor_throughput.py)
 
     @staticmethod
     def _check_name(name, valid):
@@ -161,17 +167,16 @@ class RotorModel:
             )
 
     def __repr__(self) -> str:
-        return (f"RotorModel({self.preset.name!r}, inputs={self.names_in}, "
-                f"responses={self.names_out})")
+        return (f"RotorModel({self.preset.name!r}, names_in={self.names_in}, "
+                f"names_out={self.names_out})")
 
-    def identity(self) -> dict:
+    def identity(self) -> dict[str, Any]:
         """Everything that can change an answer: the preset's every field, the airfoil
         table's numbers and fit settings, the fixed inputs and the solver options."""
         from dataclasses import asdict
 
         ident = getattr(self.airfoil, "identity", None)
-        solver = {k: v for k, v in vars(self).items()
-                  if isinstance(v, (int, float, str, bool)) and k != "chunk_size"}
+        solver = {k: v for k, v in vars(self).items() if isinstance(v, (int, float, str, bool))}
         return {"preset": asdict(self.preset),
                 "airfoil": ident() if callable(ident) else repr(self.airfoil),
                 "grid": vars(self.grid) if hasattr(self.grid, "__dict__") else repr(self.grid),
@@ -186,10 +191,10 @@ class RotorModel:
         d.update(self.fixed)
         return d
 
-    def __call__(self, x) -> np.ndarray:
+    def __call__(self, x: npt.ArrayLike) -> np.ndarray:
         return self.evaluate(x).values
 
-    def evaluate(self, x) -> EvalBatch:
+    def evaluate(self, x: npt.ArrayLike) -> EvalBatch:
         """Evaluate a batch x of shape (n, len(names_in)); failed rows are NaN with a reason."""
         x = np.atleast_2d(np.asarray(x, dtype=float))
         if x.ndim != 2 or x.shape[1] != len(self.names_in):
@@ -213,10 +218,9 @@ class RotorModel:
         failures = self._validate(params, overrides, n)
         ok = np.array([i not in failures for i in range(n)])
         out = np.full((n, len(self.names_out)), np.nan)
-        idx = np.flatnonzero(ok)
+        rows = np.flatnonzero(ok)
         sols = []
-        for start in range(0, idx.size, self.chunk_size):
-            rows = idx[start:start + self.chunk_size]
+        if rows.size:
             sol = solve_hover(
                 self.preset,
                 self.airfoil,
@@ -224,10 +228,9 @@ class RotorModel:
                 {k: v[rows] for k, v in params.items()},
                 {k: v[rows] for k, v in overrides.items()},
                 n_harmonics=self.n_harmonics,
-                tol=self.tol,
-                max_iter=self.max_iter,
-                check_tol=self.check_tol,
-                freeze=self._freeze,
+                tolerance=self.tolerance,
+                max_iterations=self.max_iterations,
+                check_tolerance=self.check_tolerance,
             )
             sols.append(sol)
             vals = np.column_stack([sol.response(r) for r in self.names_out])
@@ -236,10 +239,10 @@ class RotorModel:
                 failures[int(rows[j])] = str(sol.failure[j]) or "non-finite response"
             vals[bad] = np.nan
             out[rows] = vals
-        self.last_solution = _full_solution(n, idx, sols, failures)
+        self.last_solution = _full_solution(n, rows, sols, failures)
         return EvalBatch(out, failures)
 
-    def solve(self, x) -> HoverSolution:
+    def solve(self, x: npt.ArrayLike) -> HoverSolution:
         """Full hover solution (loads, coning, pitch, inflow, harmonics) of a valid batch."""
         batch = self.evaluate(x)
         if batch.failures:
@@ -251,6 +254,8 @@ class RotorModel:
         failures: dict[int, str] = {}
 
         def fail(mask, reason):
+            if not mask.any():
+                return
             for i in np.flatnonzero(mask):
                 failures.setdefault(int(i), reason(i))
 
@@ -295,6 +300,8 @@ def _full_solution(n, rows, sols, failures) -> HoverSolution | None:
     if not sols:
         return None
     part = HoverSolution.concatenate(sols)
+    if rows.size == n:
+        return part
     kw = {}
     for f in fields(HoverSolution):
         a = getattr(part, f.name)

@@ -107,6 +107,6 @@ def run(args) -> int:
     responses = args.responses or list(p.names_out)
     from ..rotor.model import RotorModel  # the physics is only imported when used
 
-    model = RotorModel(args.preset, inputs=list(p.variables), responses=responses,
+    model = RotorModel(args.preset, names_in=list(p.variables), names_out=responses,
                        fixed=_fixed(args.fixed))
     return run_driver(args.params, args.results, model, responses)

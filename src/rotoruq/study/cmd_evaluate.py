@@ -53,7 +53,7 @@ def run(args) -> int:
     from ..rotor.model import RotorModel
 
     names, x = parse_assignments(args.set)
-    model = RotorModel(args.preset, inputs=names, responses=args.responses)
+    model = RotorModel(args.preset, names_in=names, names_out=args.responses)
     out = model.evaluate(x)
     rows = []
     for i in range(x.shape[0]):

@@ -78,7 +78,7 @@ def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
         from ..rotor.presets import get_preset
 
         preset = get_preset(spec.preset, **dict(spec.preset_options))
-        return RotorModel(preset, inputs=list(inputs), responses=list(responses),
+        return RotorModel(preset, names_in=list(inputs), names_out=list(responses),
                           fixed=dict(fixed))
     from ..evaluation.external import ExternalModel
     from ..model import FixedInputs

@@ -409,20 +409,21 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         res = calibrate_bayes(
-            ctx.model(), ctx.data, ctx.space, method=o["sampler"], emulator=emulator,
-            build_samples=o["build_samples"], chain_samples=o["chain_samples"],
-            burn_in=o["burn_in"], data_covariance=1.0 if sd is None else np.square(sd),
+            ctx.model(), ctx.data, ctx.space, sampler=o["sampler"], emulator=emulator,
+            n_emulator_samples=o["build_samples"],
+            n_samples=o["chain_samples"] - o["burn_in"],  # kept steps (chain_samples: all)
+            burn_in=o["burn_in"], noise_std=sd,
             proposal_covariance=o["proposal"], seed=ctx.rng,
         )
     chain = np.asarray(res.chains).reshape(-1, ctx.space.dim)
     scalars = _input_scalars(ctx.space)
-    for j, p in enumerate(res.names):
+    for j, p in enumerate(res.names_in):
         for what in ("mean", "std", "skewness", "kurtosis", "ess", "rhat"):
             scalars[f"{what}/{p}"] = float(np.asarray(getattr(res, what))[j])
         scalars[f"map/{p}"] = float(res.map_point[j])
     scalars["acceptance"] = float(res.acceptance_rate)
     scalars["kl_divergence"] = float(res.kl_divergence)
-    scalars.update(chain_diagnostic_scalars(res.names, chain, ctx.space))
+    scalars.update(chain_diagnostic_scalars(res.names_in, chain, ctx.space))
     loo = getattr(res, "emulator_loo", None)
     if loo is not None:
         for k, r in enumerate(ctx.responses):
@@ -433,11 +434,11 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
     for r, v in zip(ctx.responses, noise, strict=True):
         scalars[f"noise_std/{r}"] = float(v)
     posterior = {p: dist_to_dict(Normal(scalars[f"mean/{p}"], scalars[f"std/{p}"]))
-                 for p in res.names}
+                 for p in res.names_in}
     arrays = {"chain": chain, "data": np.asarray(ctx.data)}
-    columns = {"chain": list(res.names), "data": list(ctx.responses)}
+    columns = {"chain": list(res.names_in), "data": list(ctx.responses)}
     return StepResult(ctx.name, ctx.type, scalars, arrays, posterior, meta={
-        "columns": columns, "n_evaluations": int(res.n_model_evals),
+        "columns": columns, "n_evaluations": int(res.n_evaluations),
         "noise_model": "unit variance (none given)" if sd is None else "noise_std per response",
         "warnings": sorted({f"{w.category.__name__}: {w.message}" for w in caught})[:10],
         "prior": {p: dist_to_dict(d) for p, d in zip(ctx.space.names, ctx.space.distributions,
@@ -456,14 +457,14 @@ def run_least_squares(ctx: StepContext) -> StepResult:
     o = ctx.options
     sd = _per_response(o.get("noise_std"), ctx.responses)
     res = calibrate(
-        ctx.model(), ctx.data, ctx.space, data_variance=None if sd is None else np.square(sd),
+        ctx.model(), ctx.data, ctx.space, noise_std=sd,
         max_iterations=o["max_iterations"],
         max_function_evaluations=o["max_function_evaluations"],
-        convergence_tolerance=o["convergence_tolerance"],
+        tolerance=o["convergence_tolerance"],
     )
     scalars = {}
     calibrated = {}
-    for j, p in enumerate(res.names):
+    for j, p in enumerate(res.names_in):
         scalars[f"value/{p}"] = float(res.x[j])
         s = float(res.std[j])
         scalars[f"std/{p}"] = s
@@ -472,7 +473,7 @@ def run_least_squares(ctx: StepContext) -> StepResult:
     scalars["cost"] = float(res.cost)
     return StepResult(ctx.name, ctx.type, scalars, {"residuals": np.asarray(res.residuals)},
                       calibrated, meta={"n_evaluations": int(res.n_evaluations),
-                                        "success": bool(res.success), "message": res.message})
+                                        "success": bool(res.converged), "message": res.message})
 
 
 def run_cuu(ctx: StepContext) -> StepResult:
@@ -490,8 +491,8 @@ def run_cuu(ctx: StepContext) -> StepResult:
         model, ctx.space, calibrate={p: stats_ for p in ctx.space.names},
         targets={r: {"mean": m, "std": s} if "mean" in stats_ else {"std": s}
                  for r, (m, s) in targets.items()},
-        inner="lhs" if o["inner"] == "sampling" else o["inner"],
-        max_iterations=o["max_iterations"], convergence_tolerance=o["convergence_tolerance"],
+        inner=o["inner"],
+        max_iterations=o["max_iterations"], tolerance=o["convergence_tolerance"],
         seed=ctx.rng,
     )
     cal_space: ParameterSpace = res.space
@@ -519,7 +520,7 @@ def run_cuu(ctx: StepContext) -> StepResult:
     calibrated = {p: dist_to_dict(d) for p, d in zip(cal_space.names, cal_space.distributions,
                                                       strict=True)}
     return StepResult(ctx.name, ctx.type, scalars, arrays, calibrated, meta={
-        "columns": columns, "n_evaluations": int(res.n_model_evaluations),
+        "columns": columns, "n_evaluations": int(res.n_evaluations),
         "identifiable": bool(res.identifiable), "diagnostic": res.diagnostic,
         "condition_number": float(res.condition_number), "message": res.message})
 

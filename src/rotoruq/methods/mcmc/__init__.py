@@ -4,7 +4,7 @@ samplers advancing several chains in one batched step, diagnostics (ESS, split R
 from .bayes import BayesResult, calibrate_bayes, continue_chain
 from .diagnostics import effective_sample_size, split_rhat
 from .likelihood import GaussianLikelihood
-from .samplers import METHODS, SamplerConfig, SamplerState, run_chains
+from .samplers import SAMPLERS, SamplerConfig, SamplerState, run_chains
 
 __all__ = [
     "BayesResult",
@@ -13,7 +13,7 @@ __all__ = [
     "effective_sample_size",
     "split_rhat",
     "GaussianLikelihood",
-    "METHODS",
+    "SAMPLERS",
     "SamplerConfig",
     "SamplerState",
     "run_chains",

@@ -19,13 +19,21 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy import optimize
 
 from ..._rng import SeedLike, as_generator
 from ...errors import EvaluationError, ModelShapeError, ParameterError
-from ...model import align_inputs, evaluate, has_gradient
+from ...model import (
+    FD_STEP,
+    Model,
+    align_inputs,
+    evaluate,
+    finite_difference,
+    has_gradient,
+    model_gradient,
+)
 from ...params import ParameterSpace
-from .._common import forward_jacobian
 from ..surrogate import ExtrapolationWarning, GaussianProcess, LeaveOneOut
 from . import diagnostics as dg
 from ._kernels import add_loglik_rows, emulator_logpost_rows, scaled_logprior_rows
@@ -72,9 +80,6 @@ class _Posterior:
     def reset_counts(self) -> None:
         self.cnt[:3] = 0.0
 
-    def theta(self, z: np.ndarray) -> np.ndarray:
-        return self.center + self.scale * z
-
     def __call__(self, z: np.ndarray) -> np.ndarray:
         z = np.ascontiguousarray(z, dtype=float)
         if self.compiled is not None:
@@ -101,12 +106,12 @@ class _Posterior:
         return lp
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class BayesResult:
     """Posterior samples and their summary.
 
-    chains : (n_chains, n_kept, d) kept samples (after burn-in and thinning), parameter units.
-    names : parameter names (columns of ``chains``).
+    chains : (n_chains, n_samples, d) kept samples (after burn-in and thinning), parameter
+        units. names_in : parameter names (columns of ``chains``).
     mean, std, skewness, kurtosis (excess, 0 for a normal), ess, rhat : (d,) each.
     correlation : (d, d). credible_interval_95 : (d, 2) equal-tailed 2.5 % / 97.5 % quantiles.
     acceptance_rate : fraction of steps that moved. acceptance_per_stage : (stage 1, stage 2)
@@ -114,9 +119,9 @@ class BayesResult:
     kl_divergence : KL(posterior || prior) in nats, posterior entropy by the Kozachenko-Leonenko
         kNN estimator; kl_divergence_gaussian : the same with a Gaussian posterior entropy.
     map_point : (d,) chain start from the MAP pre-solve. proposal_covariance : (d, d) initial
-        stage-1 proposal covariance, parameter units.
-    n_likelihood_evals : likelihood evaluations (points) by the chains, speculative ones
-        included (see ``evaluations``); n_model_evals : true
+        stage-1 proposal covariance, parameter units. sampler : the MCMC algorithm.
+    n_likelihood_evaluations : likelihood evaluations (points) by the chains, speculative ones
+        included (see :class:`SamplerConfig` ``evaluations``); n_evaluations : true
         model evaluations (emulator build, MAP and gradients without emulator, predictive).
     n_nan_likelihood : proposals rejected because the likelihood was NaN/inf (failed model).
     n_out_of_support : proposals rejected outside the prior support (not evaluated).
@@ -124,10 +129,11 @@ class BayesResult:
         what the chains cost on a machine shared with other jobs).
     emulator, emulator_loo : the fitted GP and its leave-one-out quality (None without one).
     predictive_inputs, predictive : posterior predictive draws pushed through the true model,
-        (k, d) and (k, m) (None unless ``posterior_predictive`` > 0); predictive_names.
+        (k, d) and (k, m) (None unless ``posterior_predictive`` > 0); names_out : the model's
+        responses (columns of ``predictive``).
     """
 
-    names: tuple[str, ...]
+    names_in: tuple[str, ...]
     chains: np.ndarray
     log_posterior: np.ndarray
     mean: np.ndarray
@@ -144,11 +150,11 @@ class BayesResult:
     kl_divergence_gaussian: float
     map_point: np.ndarray
     proposal_covariance: np.ndarray
-    method: str
+    sampler: str
     burn_in: int
     thin: int
-    n_likelihood_evals: int
-    n_model_evals: int
+    n_likelihood_evaluations: int
+    n_evaluations: int
     n_nan_likelihood: int
     n_out_of_support: int
     sampling_seconds: float
@@ -157,8 +163,8 @@ class BayesResult:
     emulator_loo: LeaveOneOut | None = None
     predictive_inputs: np.ndarray | None = None
     predictive: np.ndarray | None = None
-    predictive_names: tuple[str, ...] = ()
-    _state: object = field(default=None, repr=False, compare=False)
+    names_out: tuple[str, ...] = ()
+    _state: tuple | None = field(default=None, repr=False, compare=False)
 
     @property
     def samples(self) -> np.ndarray:
@@ -181,17 +187,17 @@ class BayesResult:
         head = f"{'parameter':<16}{'mean':>12}{'std':>12}{'skew':>10}{'kurt':>10}{'ess':>10}" \
                f"{'rhat':>8}"
         rows = [head]
-        for j, n in enumerate(self.names):
+        for j, n in enumerate(self.names_in):
             rows.append(f"{n:<16}{self.mean[j]:>12.5g}{self.std[j]:>12.4g}"
                         f"{self.skewness[j]:>10.3g}{self.kurtosis[j]:>10.3g}{self.ess[j]:>10.0f}"
                         f"{self.rhat[j]:>8.3f}")
         stages = ", ".join(f"{a:.3f}" for a in self.acceptance_per_stage)
-        rows.append(f"method {self.method}, acceptance {self.acceptance_rate:.3f} (stages: "
+        rows.append(f"sampler {self.sampler}, acceptance {self.acceptance_rate:.3f} (stages: "
                     f"{stages}), KL(prior->post) {self.kl_divergence:.3f} nats, "
                     f"{self.n_nan_likelihood} NaN likelihoods")
         return "\n".join(rows)
 
-    def save(self, path) -> Path:
+    def save(self, path: str | Path) -> Path:
         """Write the chains: ``*.csv`` as a table (chain, step, parameters, log posterior),
         anything else as a NumPy ``.npz`` archive with the chains and the summary arrays."""
         path = Path(path)
@@ -199,7 +205,7 @@ class BayesResult:
             c, n, d = self.chains.shape
             with open(path, "w", newline="") as fh:
                 w = csv.writer(fh)
-                w.writerow(["chain", "step", *self.names, "log_posterior"])
+                w.writerow(["chain", "step", *self.names_in, "log_posterior"])
                 for k in range(c):
                     for i in range(n):
                         w.writerow([k, i, *(f"{v:.17g}" for v in self.chains[k, i]),
@@ -210,7 +216,7 @@ class BayesResult:
         arrays = {k: getattr(self, k) for k in (
             "chains", "log_posterior", "mean", "std", "skewness", "kurtosis", "correlation",
             "credible_interval_95", "ess", "rhat", "map_point", "proposal_covariance")}
-        np.savez(path, names=np.array(self.names), method=self.method,
+        np.savez(path, names_in=np.array(self.names_in), sampler=self.sampler,
                  acceptance_rate=self.acceptance_rate, kl_divergence=self.kl_divergence,
                  **arrays)
         return path
@@ -221,7 +227,7 @@ def _summarize(names, chains_z, lp, post: _Posterior, state: SamplerState, base:
     theta = post.center + post.scale * chains_z  # (c, n, d)
     flat = theta.reshape(-1, theta.shape[-1])
     if flat.shape[0] < 2:
-        raise ParameterError("no samples kept: chain_samples must exceed burn_in")
+        raise ParameterError("fewer than 2 samples kept: increase n_samples")
     mean, std, skew, kurt = dg.moments(flat)
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = np.atleast_2d(np.corrcoef(flat, rowvar=False))
@@ -240,24 +246,23 @@ def _summarize(names, chains_z, lp, post: _Posterior, state: SamplerState, base:
     cnt = state.counts
     steps = cnt["prop1"]
     acc = cnt["acc1"] + cnt["acc2"]
-    stages = (cnt["acc1"] / max(steps, 1),)
+    stages: tuple[float, ...] = (cnt["acc1"] / max(steps, 1),)
     if cnt["prop2"]:
         stages = stages + (cnt["acc2"] / cnt["prop2"],)
     return BayesResult(
-        names=tuple(names), chains=theta, log_posterior=lp, mean=mean, std=std, skewness=skew,
+        names_in=tuple(names), chains=theta, log_posterior=lp, mean=mean, std=std, skewness=skew,
         kurtosis=kurt, correlation=corr, credible_interval_95=np.quantile(flat, [0.025, 0.975],
                                                                           axis=0).T,
         ess=ess, rhat=rhat, acceptance_rate=acc / max(steps, 1), acceptance_per_stage=stages,
         kl_divergence=float(kl_knn), kl_divergence_gaussian=float(kl_gauss), **base)
 
 
-def _batched_fd_grad(post: _Posterior, z: np.ndarray, hi: np.ndarray, h: float = 1e-6):
-    """Gradient of the log posterior at z (d,) from one batch of d+1 evaluations."""
-    steps = np.where(z + h <= hi, h, -h)
-    pts = np.vstack([z, z + np.diag(steps)])
-    lp = post(pts)
+def _batched_fd_grad(post: _Posterior, z: np.ndarray, hi: np.ndarray):
+    """Log posterior and its gradient at z (d,), forward differences on one batch of d+1
+    points (z is scaled: unit prior scale, hence ``scale=1``)."""
     with np.errstate(invalid="ignore"):
-        return lp[0], (lp[1:] - lp[0]) / steps
+        fd = finite_difference(post, z, scale=1.0, central=False, upper=hi)
+    return fd.values[0, 0], fd.gradient[0, 0]
 
 
 def _map(post: _Posterior, z0: np.ndarray, zlo: np.ndarray, zhi: np.ndarray) -> np.ndarray:
@@ -276,32 +281,260 @@ def _map(post: _Posterior, z0: np.ndarray, zlo: np.ndarray, zhi: np.ndarray) -> 
     return res.x
 
 
+class _TrueModel:
+    """The model on parameters in prior order, (k, d) -> (k, m), counting evaluations."""
+
+    def __init__(self, model, prior: ParameterSpace):
+        self.model = model
+        self.perm = align_inputs(model, prior.names)
+        self.names_in = prior.names
+        self.names_out = tuple(model.names_out)
+        self.n_evaluations = 0
+        self._direct = not hasattr(model, "evaluate")
+
+    def __call__(self, theta: np.ndarray) -> np.ndarray:
+        self.n_evaluations += theta.shape[0]
+        x = theta if self.perm is None else theta[:, self.perm]
+        if self._direct:  # a plain batched callable: skip the evaluation layer's bookkeeping
+            y = np.asarray(self.model(x), dtype=float)
+            if y.ndim == 1 and len(self.names_out) == 1:
+                y = y[:, None]
+            if y.shape == (x.shape[0], len(self.names_out)):
+                return y
+        return evaluate(self.model, x).values
+
+
+@dataclass(frozen=True, eq=False)
+class _Problem:
+    """Likelihood, prior and the sampler's scaled coordinates ``z = (theta - center) / scale``
+    (bounds ``zlo``, ``zhi``); ``resp_idx`` picks the observed responses of the model."""
+
+    names_out: tuple[str, ...]
+    resp_idx: np.ndarray
+    lik: GaussianLikelihood
+    logprior: LogPrior
+    center: np.ndarray
+    scale: np.ndarray
+    zlo: np.ndarray
+    zhi: np.ndarray
+
+
+def _noise_covariance(noise_std, noise_covariance, shape: tuple[int, int]):
+    """The noise as a covariance argument of :class:`GaussianLikelihood` (unit variance when
+    neither is given, Dakota's default)."""
+    if noise_std is not None and noise_covariance is not None:
+        raise ParameterError("give noise_std or noise_covariance, not both")
+    if noise_covariance is not None:
+        return noise_covariance
+    if noise_std is None:
+        return 1.0
+    sd = np.asarray(noise_std, dtype=float)
+    if np.any(~np.isfinite(sd)) or np.any(sd <= 0):
+        raise ParameterError(f"noise_std must be finite and > 0, got {sd}")
+    var = sd**2
+    if var.ndim == 2 and var.shape[0] == var.shape[1]:  # (n_exp, m), not a covariance
+        return np.einsum("ej,jk->ejk", var, np.eye(var.shape[1]))
+    return var
+
+
+def _setup(model, data, prior, names_out, noise_std, noise_covariance) -> _Problem:
+    """Stage 1: observed responses, likelihood, prior and scaled coordinates."""
+    if not isinstance(prior, ParameterSpace):
+        raise ParameterError(f"prior must be a ParameterSpace, got {type(prior).__name__}")
+    model_out = tuple(model.names_out)
+    if names_out is None:
+        resp_idx, observed = np.arange(len(model_out)), model_out
+    else:
+        missing = [r for r in names_out if r not in model_out]
+        if missing:
+            raise ParameterError(f"responses {missing} are not outputs of the model "
+                                 f"{list(model_out)}")
+        observed = tuple(names_out)
+        resp_idx = np.array([model_out.index(r) for r in observed])
+    shape = np.atleast_2d(np.asarray(data, dtype=float)).shape
+    lik = GaussianLikelihood(data, _noise_covariance(noise_std, noise_covariance, shape), observed)
+    logprior = LogPrior(prior)
+    center, scale = prior_scales(prior)
+    return _Problem(observed, resp_idx, lik, logprior, center, scale,
+                    (logprior.lo - center) / scale, (logprior.hi - center) / scale)
+
+
+def _build_emulator(emulator, prior: ParameterSpace, truth: _TrueModel, pb: _Problem,
+                    n_emulator_samples: int, rng):
+    """Stage 2: fit (or check) the GP emulator of the observed responses on an LHS design of
+    the prior; returns (gp, leave-one-out, best build point or None)."""
+    if not isinstance(emulator, GaussianProcess):
+        raise ParameterError("emulator must be a rotoruq GaussianProcess")
+    gp, best_build, d, m = emulator, None, prior.dim, len(pb.names_out)
+    if gp._fits:
+        if gp.n_inputs != d or gp.n_outputs != m:
+            raise ModelShapeError(f"fitted emulator has {gp.n_inputs} inputs and "
+                                  f"{gp.n_outputs} outputs; need {d} and {m}")
+    else:
+        Xb = prior.draw(int(n_emulator_samples), design="lhs", seed=rng)
+        Yb = truth(Xb)[:, pb.resp_idx]
+        ok = np.all(np.isfinite(Yb), 1)
+        if ok.sum() < d + 2:
+            raise EvaluationError(f"only {int(ok.sum())} of {len(Xb)} emulator build "
+                                  "evaluations succeeded")
+        gp.fit(Xb[ok], Yb[ok])
+        lp_build = pb.logprior(Xb[ok]) + pb.lik(Yb[ok])
+        best_build = Xb[ok][int(np.argmax(lp_build))]
+    loo = gp.loo()
+    log.info("emulator LOO: RMSE %s, Q2 %s", np.array2string(loo.rmse, precision=4),
+             np.array2string(loo.q2, precision=4))
+    if np.any(loo.q2 < 0.9):
+        warnings.warn(f"emulator leave-one-out Q2 = {np.round(loo.q2, 3)} for responses "
+                      f"{pb.names_out}: below 0.9, the posterior may be wrong", RuntimeWarning,
+                      stacklevel=3)
+    return gp, loo, best_build
+
+
+def _start_point(post: _Posterior, prior: ParameterSpace, pb: _Problem, x0, map_start: bool,
+                 best_build, rng) -> tuple[np.ndarray, float]:
+    """Stage 3: the chain start (scaled) and its log posterior: ``x0``, or the best of the
+    prior mean, the best build point and an LHS batch of the prior, then the MAP
+    (L-BFGS-B) from the best few when ``map_start``."""
+    d = prior.dim
+    if x0 is not None:
+        s = np.asarray(x0, dtype=float).reshape(-1)
+        if s.size != d:
+            raise ParameterError(f"x0 must have {d} values for {prior.names}, got {s.size}")
+        z0 = (s - pb.center) / pb.scale
+        lp0 = post(z0[None])[0]
+        if not np.isfinite(lp0):
+            raise ParameterError(f"start point x0 = {s} has zero posterior density (outside "
+                                 "the prior support or the model fails there)")
+        map_seeds = [z0]
+    else:
+        cands = [pb.center] + ([best_build] if best_build is not None else [])
+        if map_start:
+            cands.extend(prior.draw(max(16, 8 * d), design="lhs", seed=rng))
+        zc = (np.array(cands) - pb.center) / pb.scale
+        lpc = post(zc)
+        if not np.any(np.isfinite(lpc)):
+            _no_start(prior, pb, len(cands))
+        order = np.argsort(-np.where(np.isfinite(lpc), lpc, -np.inf))
+        z0, lp0 = zc[order[0]], float(lpc[order[0]])
+        map_seeds = [zc[i] for i in order[:3] if np.isfinite(lpc[i])]
+    if map_start:
+        for zs in map_seeds:
+            zm = _map(post, zs, pb.zlo, pb.zhi)
+            lpm = post(zm[None])[0]
+            if np.isfinite(lpm) and lpm >= lp0:
+                z0, lp0 = zm, lpm
+    return z0, lp0
+
+
+def _no_start(prior: ParameterSpace, pb: _Problem, n_candidates: int):
+    unbounded = [n for n, lo, hi in zip(prior.names, pb.logprior.lo, pb.logprior.hi,
+                                        strict=True)
+                 if not (np.isfinite(lo) and np.isfinite(hi))]
+    where = f"the prior mean {pb.center}"
+    if n_candidates > 1:
+        where += f" and {n_candidates - 1} other points drawn from the prior"
+    if unbounded:
+        raise ParameterError(
+            f"no start point: the log posterior is not finite at {where} (the model fails "
+            f"or the likelihood is NaN there) and parameters {unbounded} have infinite "
+            "prior support, so there is no bounded box to search; pass x0=[...] with "
+            "a point where the model works")
+    raise EvaluationError(f"no start point: the log posterior is NaN or -inf at {where}")
+
+
+def _initial_proposal(proposal_covariance, truth: _TrueModel, gp, forward, pb: _Problem,
+                      theta0: np.ndarray) -> np.ndarray:
+    """Stage 4: the stage-1 proposal covariance in scaled coordinates (d, d)."""
+    d = theta0.size
+    sd = 2.38**2 / d
+    if isinstance(proposal_covariance, str):
+        if proposal_covariance == "hessian":
+            jac = _jacobian(truth, gp, theta0, forward, pb)
+            return sd * hessian_covariance(jac, pb.lik.precision, pb.scale**2, pb.scale)
+        if proposal_covariance == "prior":
+            return sd * np.eye(d)
+        raise ParameterError(f"proposal_covariance must be 'hessian', 'prior' or a (d, d) "
+                             f"array, got {proposal_covariance!r}")
+    cov = np.asarray(proposal_covariance, dtype=float)
+    if cov.shape != (d, d):
+        raise ModelShapeError(f"proposal_covariance must be ({d}, {d}), got {cov.shape}")
+    try:
+        np.linalg.cholesky(cov)
+    except np.linalg.LinAlgError:
+        raise ParameterError("proposal_covariance is not positive definite") from None
+    return cov / np.outer(pb.scale, pb.scale)
+
+
+def _jacobian(truth: _TrueModel, gp, theta0, forward, pb: _Problem) -> np.ndarray:
+    """d q / d theta at theta0, (m, d) in prior order: emulator, model gradient, or batched FD."""
+    if gp is not None:
+        return gp.predict(theta0[None], return_var=False, return_grad=True,
+                          warn_distance=None)[1][0]
+    if has_gradient(truth.model):
+        try:
+            at = model_gradient(truth.model, theta0, gradient="analytic",
+                                names_in=truth.names_in)
+            truth.n_evaluations += at.n_evaluations
+            g = at.gradient[0][pb.resp_idx]
+            if np.all(np.isfinite(g)):
+                return g
+        except NotImplementedError:
+            pass
+    J = finite_difference(forward, theta0, fd_step=FD_STEP, scale=1e-3, central=False,
+                          upper=pb.logprior.hi).gradient[0]
+    return np.where(np.isfinite(J), J, 0.0)
+
+
+def _chain_starts(post: _Posterior, z0: np.ndarray, lp0: float, L0: np.ndarray,
+                  n_chains: int, rng) -> SamplerState:
+    """Stage 5: the MAP for the first chain, the others drawn around it from the Laplace
+    approximation (kept where their posterior is finite)."""
+    d = z0.size
+    x = np.repeat(z0[None], n_chains, axis=0)
+    lp = np.full(n_chains, lp0)
+    if n_chains > 1:
+        cand = z0 + rng.standard_normal((n_chains - 1, d)) @ L0.T / np.sqrt(2.38**2 / d)
+        lpc = post(cand)
+        good = np.isfinite(lpc)
+        x[1:][good], lp[1:][good] = cand[good], lpc[good]
+    return SamplerState(x=x, lp=lp, chol=np.repeat(L0[None], n_chains, axis=0),
+                        rng=np.random.default_rng(rng.integers(2**63)))
+
+
+def _as_sampler(sampler) -> SamplerConfig:
+    if isinstance(sampler, SamplerConfig):
+        return sampler
+    if not isinstance(sampler, str):
+        raise ParameterError(f"sampler must be 'mh', 'dr', 'am', 'dram' or a SamplerConfig, got "
+                             f"{sampler!r}")
+    return SamplerConfig(sampler=sampler)
+
+
 def calibrate_bayes(
-    model,
-    data,
+    model: Model,
+    data: ArrayLike,
     prior: ParameterSpace,
     *,
-    method: str = "dram",
-    chain_samples: int = 100_000,
+    sampler: str | SamplerConfig = "dram",
+    n_samples: int = 95_000,
     burn_in: int | None = None,
     thin: int = 1,
     n_chains: int = 1,
     emulator: GaussianProcess | None = None,
-    build_samples: int = 500,
-    data_covariance=1.0,
-    responses: Sequence[str] | None = None,
-    proposal_covariance="hessian",
+    n_emulator_samples: int = 500,
+    noise_std: ArrayLike | None = None,
+    noise_covariance: ArrayLike | None = None,
+    names_out: Sequence[str] | None = None,
+    proposal_covariance: str | ArrayLike = "hessian",
     map_start: bool = True,
-    start=None,
+    x0: ArrayLike | None = None,
     posterior_predictive: int = 0,
-    dr_scale: float = 5.0,
-    adapt_start: int = 100,
-    adapt_interval: int = 100,
-    pooled_adaptation: bool = True,
-    evaluations: str = "speculative",
     seed: SeedLike = None,
 ) -> BayesResult:
     """Bayesian calibration of the parameters ``prior`` of ``model`` to ``data``.
+
+    Stages: problem setup (likelihood, prior, scaled coordinates), emulator build, start point
+    (MAP), initial proposal, chains, posterior predictive, summary.
 
     Parameters
     ----------
@@ -310,34 +543,31 @@ def calibrate_bayes(
         (m,) for one experiment.
     prior : ParameterSpace of the calibrated parameters (names matched to ``model.names_in``);
         its joint density is the prior and its support bounds the chains.
-    method : "dram" (default), "am", "dr" or "mh".
-    chain_samples : steps per chain, burn-in included (Dakota's ``chain_samples``).
-    burn_in : steps dropped at the start of each chain (default chain_samples // 20, the
-        reference study's 5,000 of 100,000). thin : keep every ``thin``-th step after that.
+    sampler : "dram" (default), "am", "dr", "mh", or a :class:`SamplerConfig` with its tuning
+        (Dakota DRAM defaults: dr_scale 5, adapt_start 100, adapt_interval 100; pooled
+        adaptation; ``evaluations`` "speculative" or "minimal", see :mod:`.samplers`).
+    n_samples : kept steps per chain (after burn-in and thinning); each chain takes
+        ``burn_in + (n_samples - 1) * thin + 1`` steps. The default with the default burn-in
+        is the reference study's 100,000 steps of which 5,000 burn-in.
+    burn_in : steps dropped at the start of each chain (default ``n_samples // 19``, 5 % of
+        the steps). thin : keep every ``thin``-th step after that.
     n_chains : chains advanced together; every step evaluates the likelihood of all of them in
         one batched call.
-    emulator : an unfitted GaussianProcess (fitted here on ``build_samples`` LHS points from the
-        prior, evaluated through :func:`rotoruq.model.evaluate`) or a fitted one
+    emulator : an unfitted GaussianProcess (fitted here on ``n_emulator_samples`` LHS points
+        from the prior, evaluated through :func:`rotoruq.model.evaluate`) or a fitted one
         (inputs in ``prior.names`` order, outputs the calibrated responses). None: the chains
         call the model itself.
-    data_covariance : scalar, (m,), (m, m), (n_exp, m) or (n_exp, m, m); see
-        :class:`GaussianLikelihood`. Default 1 (Dakota's unit variance when none is given).
-    responses : names of the model responses that ``data`` observes (default all, in order).
+    noise_std : standard deviation of the data noise (data units): scalar, (m,) per response
+        or (n_exp, m) per observation. noise_covariance : instead, a full (m, m) or
+        (n_exp, m, m) covariance. Neither: unit variance (Dakota's default).
+    names_out : names of the model responses that ``data`` observes (default all, in order).
     proposal_covariance : "hessian" (inverse Gauss-Newton Hessian of the negative log posterior
         at the start, eqs. 2.25-2.27, times 2.38^2/d), "prior" (prior variances times 2.38^2/d)
         or a (d, d) array in parameter units used as given.
-    map_start : start the chains at the maximum a posteriori point (L-BFGS-B from ``start``, or
+    map_start : start the chains at the maximum a posteriori point (L-BFGS-B from ``x0``, or
         from the best build sample / the prior mean).
-    start : (d,) start point (parameter units).
+    x0 : (d,) start point (parameter units).
     posterior_predictive : number of posterior draws pushed through the true model.
-    dr_scale, adapt_start, adapt_interval : Dakota DRAM defaults 5, 100, 100.
-    pooled_adaptation : AM covariance from the pooled history of all chains (inter-chain
-        adaptation) instead of each chain's own.
-    evaluations : "speculative" (default: stage 2 and, for one chain, a few steps ahead are
-        evaluated with stage 1 in one batched call; cheap and batch-friendly models) or
-        "minimal" (only the proposals the chain needs; expensive models evaluated point by
-        point). The chain is the same either way; see :mod:`.samplers`. An emulator with
-        uniform / normal priors runs compiled with the minimal schedule.
     seed : int or Generator.
 
     Returns
@@ -346,174 +576,39 @@ def calibrate_bayes(
     """
     t_start = time.perf_counter()
     rng = as_generator(seed)
-    if not isinstance(prior, ParameterSpace):
-        raise ParameterError(f"prior must be a ParameterSpace, got {type(prior).__name__}")
-    perm = align_inputs(model, prior.names)
-    names_out = tuple(model.names_out)
-    if responses is None:
-        resp_idx = np.arange(len(names_out))
-        cal_names = names_out
-    else:
-        missing = [r for r in responses if r not in names_out]
-        if missing:
-            raise ParameterError(f"responses {missing} are not outputs of the model "
-                                 f"{list(names_out)}")
-        cal_names = tuple(responses)
-        resp_idx = np.array([names_out.index(r) for r in responses])
-    lik = GaussianLikelihood(data, data_covariance, cal_names)
+    cfg = _as_sampler(sampler)
+    n_samples, thin, n_chains = int(n_samples), int(thin), int(n_chains)
+    burn_in = n_samples // 19 if burn_in is None else int(burn_in)
+    if n_samples < 1 or thin < 1 or n_chains < 1 or burn_in < 0:
+        raise ParameterError(f"need n_samples >= 1, burn_in >= 0, thin >= 1 and n_chains >= 1; "
+                             f"got {n_samples}, {burn_in}, {thin}, {n_chains}")
+    pb = _setup(model, data, prior, names_out, noise_std, noise_covariance)
+    truth = _TrueModel(model, prior)
     d = prior.dim
-    chain_samples, thin, n_chains = int(chain_samples), int(thin), int(n_chains)
-    burn_in = chain_samples // 20 if burn_in is None else int(burn_in)
-    if chain_samples < 1 or thin < 1 or n_chains < 1 or not 0 <= burn_in < chain_samples:
-        raise ParameterError(f"need chain_samples >= 1, 0 <= burn_in < chain_samples, thin >= 1 "
-                             f"and n_chains >= 1; got {chain_samples}, {burn_in}, {thin}, "
-                             f"{n_chains}")
-    cfg = SamplerConfig(method=method, dr_scale=dr_scale, adapt_start=adapt_start,
-                        adapt_interval=adapt_interval, pooled=pooled_adaptation,
-                        evaluations=evaluations)
-    logprior = LogPrior(prior)
-    center, scale = prior_scales(prior)
-    zlo, zhi = (logprior.lo - center) / scale, (logprior.hi - center) / scale
-    n_model = 0
 
-    def model_x(theta):
-        return theta if perm is None else theta[:, perm]
-
-    direct = not hasattr(model, "evaluate")
-    n_out = len(names_out)
-
-    def truth(theta):
-        nonlocal n_model
-        n_model += theta.shape[0]
-        x = model_x(theta)
-        if direct:  # a plain batched callable: skip the evaluation layer's bookkeeping
-            y = np.asarray(model(x), dtype=float)
-            if y.ndim == 1 and n_out == 1:
-                y = y[:, None]
-            if y.shape == (x.shape[0], n_out):
-                return y
-        return evaluate(model, x).values
-
-    # --- emulator -------------------------------------------------------------------------
     gp, loo, best_build = None, None, None
     if emulator is not None:
-        if not isinstance(emulator, GaussianProcess):
-            raise ParameterError("emulator must be a rotoruq GaussianProcess")
-        gp = emulator
-        if gp._fits:
-            if gp.n_inputs != d or gp.n_outputs != len(cal_names):
-                raise ModelShapeError(f"fitted emulator has {gp.n_inputs} inputs and "
-                                      f"{gp.n_outputs} outputs; need {d} and {len(cal_names)}")
-        else:
-            Xb = prior.draw(int(build_samples), design="lhs", seed=rng)
-            Yb = truth(Xb)[:, resp_idx]
-            ok = np.all(np.isfinite(Yb), 1)
-            if ok.sum() < d + 2:
-                raise EvaluationError(f"only {int(ok.sum())} of {len(Xb)} emulator build "
-                                      "evaluations succeeded")
-            gp.fit(Xb[ok], Yb[ok])
-            lp_build = logprior(Xb[ok]) + lik(Yb[ok])
-            best_build = Xb[ok][int(np.argmax(lp_build))]
-        loo = gp.loo()
-        log.info("emulator LOO: RMSE %s, Q2 %s", np.array2string(loo.rmse, precision=4),
-                 np.array2string(loo.q2, precision=4))
-        if np.any(loo.q2 < 0.9):
-            warnings.warn(f"emulator leave-one-out Q2 = {np.round(loo.q2, 3)} for responses "
-                          f"{cal_names}: below 0.9, the posterior may be wrong", RuntimeWarning,
-                          stacklevel=2)
+        gp, loo, best_build = _build_emulator(emulator, prior, truth, pb, n_emulator_samples,
+                                              rng)
         forward = gp._mean_fast
-    elif np.array_equal(resp_idx, np.arange(n_out)):
+    elif np.array_equal(pb.resp_idx, np.arange(len(truth.names_out))):
         forward = truth
     else:
         def forward(theta):
-            return truth(theta)[:, resp_idx]
+            return truth(theta)[:, pb.resp_idx]
 
-    post = _Posterior(forward, lik, logprior, center, scale, gp)
-
-    # --- start point ----------------------------------------------------------------------
-    if start is not None:
-        s = np.asarray(start, dtype=float).reshape(-1)
-        if s.size != d:
-            raise ParameterError(f"start must have {d} values for {prior.names}, got {s.size}")
-        z0 = (s - center) / scale
-        if not np.isfinite(post(z0[None])[0]):
-            raise ParameterError(f"start point {s} has zero posterior density (outside the prior "
-                                 "support or the model fails there)")
-    else:
-        # candidates: the prior mean, the best emulator build point, and (for the MAP search) an
-        # LHS batch of the prior evaluated in one call; the best few seed L-BFGS-B
-        cands = [center] + ([best_build] if best_build is not None else [])
-        if map_start:
-            cands.extend(prior.draw(max(16, 8 * d), design="lhs", seed=rng))
-        zc = (np.array(cands) - center) / scale
-        lpc = post(zc)
-        if not np.any(np.isfinite(lpc)):
-            unbounded = [n for n, lo, hi in zip(prior.names, logprior.lo, logprior.hi,
-                                                strict=True)
-                         if not (np.isfinite(lo) and np.isfinite(hi))]
-            where = f"the prior mean {center}"
-            if len(cands) > 1:
-                where += f" and {len(cands) - 1} other points drawn from the prior"
-            if unbounded:
-                raise ParameterError(
-                    f"no start point: the log posterior is not finite at {where} (the model fails "
-                    f"or the likelihood is NaN there) and parameters {unbounded} have infinite "
-                    "prior support, so there is no bounded box to search; pass start=[...] with "
-                    "a point where the model works")
-            raise EvaluationError(f"no start point: the log posterior is NaN or -inf at {where}")
-        order = np.argsort(-np.where(np.isfinite(lpc), lpc, -np.inf))
-        z0, lp0 = zc[order[0]], float(lpc[order[0]])
-        map_seeds = [zc[i] for i in order[:3] if np.isfinite(lpc[i])]
-    if start is not None:
-        lp0 = post(z0[None])[0]
-        map_seeds = [z0]
-    if map_start:
-        for zs in map_seeds:
-            zm = _map(post, zs, zlo, zhi)
-            lpm = post(zm[None])[0]
-            if np.isfinite(lpm) and lpm >= lp0:
-                z0, lp0 = zm, lpm
-    theta0 = center + scale * z0
-
-    # --- initial proposal covariance ------------------------------------------------------
-    sd = 2.38**2 / d
-    if isinstance(proposal_covariance, str):
-        if proposal_covariance == "hessian":
-            jac = _jacobian(model, gp, perm, theta0, forward, resp_idx, logprior.hi)
-            pv = scale**2
-            cov_z = sd * hessian_covariance(jac, lik.precision, pv, scale)
-        elif proposal_covariance == "prior":
-            cov_z = sd * np.eye(d)
-        else:
-            raise ParameterError(f"proposal_covariance must be 'hessian', 'prior' or a (d, d) "
-                                 f"array, got {proposal_covariance!r}")
-    else:
-        cov = np.asarray(proposal_covariance, dtype=float)
-        if cov.shape != (d, d):
-            raise ModelShapeError(f"proposal_covariance must be ({d}, {d}), got {cov.shape}")
-        try:
-            np.linalg.cholesky(cov)
-        except np.linalg.LinAlgError:
-            raise ParameterError("proposal_covariance is not positive definite") from None
-        cov_z = cov / np.outer(scale, scale)
+    post = _Posterior(forward, pb.lik, pb.logprior, pb.center, pb.scale, gp)
+    z0, lp0 = _start_point(post, prior, pb, x0, map_start, best_build, rng)
+    theta0 = pb.center + pb.scale * z0
+    cov_z = _initial_proposal(proposal_covariance, truth, gp, forward, pb, theta0)
     L0 = np.linalg.cholesky(cov_z + 1e-14 * np.eye(d))
+    state = _chain_starts(post, z0, lp0, L0, n_chains, rng)
 
-    # --- chain starts: the MAP, others drawn around it from the Laplace approximation ----
-    x = np.repeat(z0[None], n_chains, axis=0)
-    lp = np.full(n_chains, lp0)
-    if n_chains > 1:
-        cand = z0 + rng.standard_normal((n_chains - 1, d)) @ L0.T / np.sqrt(sd)
-        lpc = post(cand)
-        good = np.isfinite(lpc)
-        x[1:][good], lp[1:][good] = cand[good], lpc[good]
-    state = SamplerState(x=x, lp=lp, chol=np.repeat(L0[None], n_chains, axis=0),
-                         rng=np.random.default_rng(rng.integers(2**63)))
-    n_pre = post.n_evals
     post.reset_counts()
     t0, c0 = time.perf_counter(), time.process_time()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ExtrapolationWarning)
-        kept, kept_lp = run_chains(post, state, cfg, chain_samples, burn_in, thin)
+        kept, kept_lp = run_chains(post, state, cfg, n_samples, burn_in, thin)
     t_sampling, cpu_sampling = time.perf_counter() - t0, time.process_time() - c0
     if post.n_extrapolated:
         warnings.warn(f"emulator extrapolated for {post.n_extrapolated} proposals, up to "
@@ -522,72 +617,49 @@ def calibrate_bayes(
 
     pred_in = pred = None
     if posterior_predictive:
-        flat = center + scale * kept.reshape(-1, d)
-        pick = rng.choice(flat.shape[0], int(posterior_predictive), replace=True)
-        pred_in = flat[pick]
+        flat = pb.center + pb.scale * kept.reshape(-1, d)
+        pred_in = flat[rng.choice(flat.shape[0], int(posterior_predictive), replace=True)]
         pred = truth(pred_in)
     base = dict(
-        map_point=theta0, proposal_covariance=cov_z * np.outer(scale, scale), method=method,
-        burn_in=burn_in, thin=thin, n_likelihood_evals=post.n_evals,
-        n_model_evals=n_model,
-        n_nan_likelihood=post.n_nan, n_out_of_support=post.n_outside,
-        sampling_seconds=t_sampling, sampling_cpu_seconds=cpu_sampling, emulator=gp,
-        emulator_loo=loo, predictive_inputs=pred_in,
-        predictive=pred, predictive_names=names_out if pred is not None else (),
-        _state=(post, state, cfg, n_pre),
+        map_point=theta0, proposal_covariance=cov_z * np.outer(pb.scale, pb.scale),
+        sampler=cfg.sampler, burn_in=burn_in, thin=thin, n_likelihood_evaluations=post.n_evals,
+        n_evaluations=truth.n_evaluations, n_nan_likelihood=post.n_nan,
+        n_out_of_support=post.n_outside, sampling_seconds=t_sampling,
+        sampling_cpu_seconds=cpu_sampling, emulator=gp, emulator_loo=loo,
+        predictive_inputs=pred_in, predictive=pred, names_out=truth.names_out,
+        _state=(post, state, cfg),
     )
     res = _summarize(prior.names, kept.transpose(1, 0, 2), kept_lp.T, post, state, base, rng)
-    log.info("calibrate_bayes: %d chains x %d steps in %.2f s (total %.2f s)", n_chains,
-             chain_samples, t_sampling, time.perf_counter() - t_start)
+    log.info("calibrate_bayes: %d chains x %d kept steps in %.2f s (total %.2f s)", n_chains,
+             n_samples, t_sampling, time.perf_counter() - t_start)
     return res
 
 
-def _jacobian(model, gp, perm, theta0, forward, resp_idx, hi) -> np.ndarray:
-    """d q / d theta at theta0, (m, d) in prior order: emulator, model gradient, or batched FD."""
-    if gp is not None:
-        return gp.predict(theta0[None], return_var=False, return_grad=True,
-                          warn_distance=None)[1][0]
-    if has_gradient(model):
-        try:
-            xm = theta0[None] if perm is None else theta0[None][:, perm]
-            g = np.asarray(model.gradient(xm), dtype=float)[0][resp_idx]
-            out = np.empty_like(g)
-            if perm is None:
-                out = g
-            else:
-                out[:, perm] = g
-            if np.all(np.isfinite(out)):
-                return out
-        except NotImplementedError:
-            pass
-    J = forward_jacobian(forward, theta0, rel_step=1e-6, scale=1e-3, upper=hi)
-    return np.where(np.isfinite(J), J, 0.0)
-
-
-def continue_chain(result: BayesResult, n_steps: int, seed: SeedLike = None) -> BayesResult:
-    """Run ``n_steps`` more steps per chain from the final state of ``result`` (same proposal
-    and adaptation history, same thinning, no burn-in) and return the combined result."""
+def continue_chain(result: BayesResult, n_samples: int, *, seed: SeedLike = None) -> BayesResult:
+    """Keep ``n_samples`` more steps per chain from the final state of ``result`` (same
+    proposal and adaptation history, same thinning, no burn-in) and return the combined
+    result."""
     if result._state is None:
         raise ParameterError("this BayesResult carries no sampler state to continue from")
-    post, state, cfg, n_pre = result._state
+    post, state, cfg = result._state
     state = state.copy()
     if seed is not None:
         state.reseed(as_generator(seed))
     ev0, nan0, out0 = post.n_evals, post.n_nan, post.n_outside
     t0, c0 = time.perf_counter(), time.process_time()
-    kept, kept_lp = run_chains(post, state, cfg, int(n_steps), 0, result.thin)
+    kept, kept_lp = run_chains(post, state, cfg, int(n_samples), 0, result.thin)
     dt, dcpu = time.perf_counter() - t0, time.process_time() - c0
     z_old = (result.chains - post.center) / post.scale
     chains_z = np.concatenate([z_old, kept.transpose(1, 0, 2)], axis=1)
     lp = np.concatenate([result.log_posterior, kept_lp.T], axis=1)
     base = {k: getattr(result, k) for k in (
-        "map_point", "proposal_covariance", "method", "burn_in", "thin", "emulator",
-        "emulator_loo", "predictive_inputs", "predictive", "predictive_names")}
+        "map_point", "proposal_covariance", "sampler", "burn_in", "thin", "emulator",
+        "emulator_loo", "predictive_inputs", "predictive", "names_out")}
     base.update(
-        n_likelihood_evals=result.n_likelihood_evals + post.n_evals - ev0,
-        n_model_evals=result.n_model_evals + (post.n_evals - ev0 if post.gp is None else 0),
+        n_likelihood_evaluations=result.n_likelihood_evaluations + post.n_evals - ev0,
+        n_evaluations=result.n_evaluations + (post.n_evals - ev0 if post.gp is None else 0),
         n_nan_likelihood=result.n_nan_likelihood + post.n_nan - nan0,
         n_out_of_support=result.n_out_of_support + post.n_outside - out0,
         sampling_seconds=result.sampling_seconds + dt,
-        sampling_cpu_seconds=result.sampling_cpu_seconds + dcpu, _state=(post, state, cfg, n_pre))
-    return _summarize(result.names, chains_z, lp, post, state, base, seed)
+        sampling_cpu_seconds=result.sampling_cpu_seconds + dcpu, _state=(post, state, cfg))
+    return _summarize(result.names_in, chains_z, lp, post, state, base, seed)

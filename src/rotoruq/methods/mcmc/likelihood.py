@@ -9,6 +9,7 @@ costs O(m^2) whatever the number of experiments.
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ...errors import ModelShapeError, ParameterError
 from ._kernels import misfit_rows
@@ -36,15 +37,18 @@ class GaussianLikelihood:
     Parameters
     ----------
     data : (n_exp, m) or (m,) observations of the m calibrated responses.
-    covariance : data covariance, one of
+    noise_covariance : covariance of the data noise (data units squared), one of
         scalar (same variance for every response and experiment),
         (m,) variances, (m, m) full covariance (shared by all experiments),
         (n_exp, m) per-experiment variances, (n_exp, m, m) per-experiment covariances.
         A square 2-D array is read as the shared (m, m) covariance.
-    names : response names, for error messages.
+    names_out : response names, for error messages.
     """
 
-    def __init__(self, data, covariance, names: tuple[str, ...] | None = None):
+    def __init__(self, data: ArrayLike, noise_covariance: ArrayLike,
+                 names_out: tuple[str, ...] | None = None) -> None:
+        names = names_out
+        covariance = noise_covariance
         data = np.asarray(data, dtype=float)
         if data.ndim == 1:
             data = data[None, :]
@@ -78,7 +82,7 @@ class GaussianLikelihood:
             covs = cov
         else:
             raise ModelShapeError(
-                f"data_covariance of shape {cov.shape} does not fit data of shape {data.shape}: "
+                f"noise covariance of shape {cov.shape} does not fit data of shape {data.shape}: "
                 f"use a scalar, ({m},), ({m}, {m}), ({n_exp}, {m}) or ({n_exp}, {m}, {m})"
             )
         if var is not None:  # no factorization needed

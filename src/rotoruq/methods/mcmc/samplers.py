@@ -39,19 +39,25 @@ import numpy as np
 from ...errors import ParameterError
 from . import _kernels as kn
 
-__all__ = ["SamplerConfig", "SamplerState", "run_chains", "METHODS", "EVALUATIONS"]
+__all__ = ["SamplerConfig", "SamplerState", "run_chains", "SAMPLERS", "EVALUATIONS"]
 
-METHODS = ("mh", "dr", "am", "dram")
+SAMPLERS = ("mh", "dr", "am", "dram")
 EVALUATIONS = ("speculative", "minimal")
 
 
 @dataclass(frozen=True)
 class SamplerConfig:
-    """method : "mh", "dr", "am" or "dram"; evaluations : "speculative" or "minimal" (module
-    doc); max_lookahead : most steps evaluated ahead in one call (speculative, one chain).
-    Other fields as in Dakota (module doc)."""
+    """An MCMC sampler and its tuning (pass it as ``calibrate_bayes(sampler=...)``).
 
-    method: str = "dram"
+    sampler : "mh", "dr", "am" or "dram". dr_scale : stage-2 proposal scale divisor (5).
+    adapt_start, adapt_interval : AM adaptation from step 100, every 100 steps. scale :
+    proposal scale (default ``2.38**2 / d``). eps : AM regularization (1e-8). pooled : AM
+    covariance from the pooled history of all chains (inter-chain adaptation) instead of each
+    chain's own. evaluations : "speculative" or "minimal" (module doc). max_lookahead : most
+    steps evaluated ahead in one call (speculative, one chain). Defaults are Dakota's DRAM.
+    """
+
+    sampler: str = "dram"
     dr_scale: float = 5.0
     adapt_start: int = 100
     adapt_interval: int = 100
@@ -62,8 +68,8 @@ class SamplerConfig:
     max_lookahead: int = 8
 
     def __post_init__(self):
-        if self.method not in METHODS:
-            raise ParameterError(f"unknown MCMC method {self.method!r}; valid: {METHODS}")
+        if self.sampler not in SAMPLERS:
+            raise ParameterError(f"unknown MCMC sampler {self.sampler!r}; valid: {SAMPLERS}")
         if self.dr_scale <= 0 or self.adapt_interval < 1 or self.adapt_start < 0:
             raise ParameterError("dr_scale must be > 0, adapt_interval >= 1, adapt_start >= 0")
         if self.evaluations not in EVALUATIONS:
@@ -74,11 +80,11 @@ class SamplerConfig:
 
     @property
     def delayed_rejection(self) -> bool:
-        return self.method in ("dr", "dram")
+        return self.sampler in ("dr", "dram")
 
     @property
     def adaptive(self) -> bool:
-        return self.method in ("am", "dram")
+        return self.sampler in ("am", "dram")
 
 
 _COUNTS = ("prop1", "acc1", "prop2", "acc2")
@@ -143,19 +149,20 @@ class SamplerState:
 
 
 def run_chains(logpost: Callable[[np.ndarray], np.ndarray], state: SamplerState,
-               cfg: SamplerConfig, n_steps: int, burn_in: int = 0, thin: int = 1,
+               cfg: SamplerConfig, n_samples: int, burn_in: int = 0, thin: int = 1,
                block: int = 4096) -> tuple[np.ndarray, np.ndarray]:
-    """Advance all chains ``n_steps`` steps in place.
+    """Advance all chains in place until each has ``n_samples`` kept steps.
 
     logpost : batched log posterior, (k, d) -> (k,), -inf (never NaN) where impossible; its
         value at a point must not depend on the other points of the batch.
-    Returns the kept samples (n_kept, c, d) and their log posterior (n_kept, c): steps
+    Takes ``burn_in + (n_samples - 1) * thin + 1`` steps (none for ``n_samples = 0``) and
+    returns the kept samples (n_samples, c, d) and their log posterior (n_samples, c): steps
     ``burn_in, burn_in + thin, ...`` counted from the start of this call.
     """
     c, d = state.x.shape
     thin = max(int(thin), 1)
-    n_steps = int(n_steps)
-    n_keep = max(0, (n_steps - burn_in + thin - 1) // thin) if n_steps > burn_in else 0
+    n_keep = max(int(n_samples), 0)
+    n_steps = burn_in + (n_keep - 1) * thin + 1 if n_keep else 0
     out = np.empty((n_keep, c, d))
     out_lp = np.empty((n_keep, c))
     dr = cfg.delayed_rejection

@@ -1,0 +1,918 @@
+"""The compiled hover solve: one sample at a time, from its inputs to its hub loads.
+
+Notation (per sample; arrays over azimuth j = 0..N_psi-1 and span stations i = 0..N_r-1)
+
+    Omega     rotor speed [rad/s]                 rho      air density [kg/m^3]
+    kappa     induced-velocity factor (ground effect x induced power factor) [-]
+    R, e, c   radius, flap/lag hinge offset, chord [m]        N_b   number of blades
+    r_i, w_i  Gauss stations and weights [m]; rr_i = r_i - e [m]; twist_i [rad]
+    psi_j     azimuth [rad]; k = 0..H harmonic index; w_k = k Omega [rad/s]
+    Q[d, k]   blade motion harmonics [rad], d = 0 flap beta, 1 lag zeta, 2 feathering theta;
+              q_d(psi) = Re(sum_k Q[d, k] exp(i k psi))
+    Z_k       structural operator (3x3 complex) [N m/rad]; J_k = Z_k + linear aerodynamic
+              damping/stiffness: the Newton-like Jacobian (a preconditioner)
+    K_b, C_b  flap spring [N m/rad], damper [N m s/rad]; K_l, C_l the same for lag
+    K_p, C_p  feathering stiffness [N m/rad], damping [N m s/rad] (through the pitch link)
+    x_ac      aerodynamic centre aft of the feathering axis [m]; cm0 added section CM [-]
+    v0        uniform induced velocity [m/s]; v_r[i] BEMT annulus induced velocity [m/s];
+              (vc, vs) first-harmonic (Pitt-Peters) inflow [m/s]
+    U_T, U_P  in-plane and normal section velocity [m/s]; phi = atan2(U_P, U_T) inflow angle
+    alpha     section angle of attack [deg]; M Mach number [-]; cl, cd, cm section coefficients
+    dF_z, dF_x, dM_p  section thrust, in-plane force [N/m] and feathering moment [N m/m]
+    relax     per-sample step factor [-]; size: largest step of Q [rad] and of v / (Omega R)
+
+Stages of one iteration: :func:`_aerodynamic_loads` (section loads over the disk at the state),
+:func:`_blade_root_loads` (their harmonics: the structural residual), the motion step with
+the Jacobian of :func:`_structural_jacobian`, :func:`_inflow_update` (momentum); at the final
+state :func:`_hub_loads` re-evaluates the equations and gives the loads.
+
+Every sample is solved on its own by :func:`_solve_sample`: its own step control and
+convergence test, no reduction across samples, sums in numpy's pairwise order; so a sample's
+result is bitwise the same in any batch, chunk or thread. :func:`solve_samples` runs without
+the GIL, so :func:`rotoruq.rotor.hover.solve_hover` spreads a large batch over threads. No
+fast-math: the operation order is the source's. ``rotoruq.rotor._reference`` holds the numpy
+implementation the tests compare this with (1e-10 relative).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numba
+import numpy as np
+
+_JIT = {"cache": True, "error_model": "numpy", "nogil": True}
+# small functions called per blade element: inlined into their caller (no call overhead)
+_INLINE = {**_JIT, "inline": "always"}
+
+A0 = 5.73           # lift slope [1/rad] of the Newton preconditioner (see inflow.py)
+RAD2DEG = 180.0 / np.pi
+TWO_OVER_PI = 2 / np.pi
+MAX_BLADE_MOTION = 2.0 * np.pi
+PITCH_STEP_DEG = 1e-3   # forward-difference step in alpha of the feathering stiffness [deg]
+
+# Columns of the per-sample input matrix
+(OMEGA, RHO, KAPPA, K_FLAP, C_FLAP, K_LAG, C_LAG, K_FEATHER, C_FEATHER, X_AC, CM0, COLLECTIVE,
+ LATERAL, LONGITUDINAL, N_COLUMNS) = range(15)
+
+# Failure reasons of the iteration (the final check's reasons are judged in hover.py)
+OK, NONFINITE, TOO_LARGE, NOT_CONVERGED = range(4)
+
+# Airfoil kinds
+TABLE, LINEAR = 0, 1
+
+
+class Rotor(NamedTuple):
+    """Rotor constants and the blade grid shared by every sample of a batch."""
+
+    radius: float
+    chord: float
+    hinge_offset: float
+    n_blades: int
+    area: float
+    speed_of_sound: float
+    root_cutout: float
+    pitch_inertia: float
+    I_flap: float
+    I_lag: float
+    S_flap: float
+    tan_delta3: float
+    solidity: float
+    twist_rad: float          # total twist [rad]
+    bemt: bool
+    harmonic_inflow: bool
+    tip_loss: bool
+    pitching_moment: bool
+    r: np.ndarray             # (N_r,)
+    w: np.ndarray
+    rr: np.ndarray
+    twist: np.ndarray
+    w_rr: np.ndarray          # w * rr
+    w_r: np.ndarray           # w * r
+    cos_psi: np.ndarray       # (N_psi,)
+    sin_psi: np.ndarray
+    cos_k: np.ndarray         # (K, N_psi) cos(k psi)
+    sin_k: np.ndarray
+    analysis: np.ndarray      # (2K, N_psi) weights: Q_k = sum_j f_j (W[k, j] + i W[K + k, j])
+    sums: np.ndarray          # grid integrals, see SUM_* below
+
+
+# grid integrals sum_i w_i (...) in Rotor.sums
+(SUM_W_R_RR2, SUM_W_R2_RR, SUM_W_R2, SUM_W_R_RR, SUM_W_R, SUM_W_R3, SUM_W_R_RR_R,
+ N_SUMS) = range(8)
+
+
+class Table(NamedTuple):
+    """An airfoil in the kernel's form: a bilinear table over (alpha, Mach) with the fit-row
+    polynomials of :class:`rotoruq.rotor.airfoil.Airfoil`, or a linear airfoil."""
+
+    kind: int
+    alpha: np.ndarray         # (n_a,) grid [deg]
+    mach: np.ndarray          # (n_m,)
+    values: np.ndarray        # (3, n_a * n_m) cl, cd, cm at grid nodes (row-major alpha, Mach)
+    window: np.ndarray        # (n_a,) 1 inside the fit window |alpha| <= W, else 0
+    half_width: float         # W [deg]
+    has_fits: bool
+    replace_cd: bool
+    alpha_lut: np.ndarray     # uniform-bin lookup of the alpha interval (empty: bisection)
+    alpha_next: np.ndarray
+    alpha_inv_dx: np.ndarray
+    alpha_x0: float
+    alpha_inv_h: float
+    alpha_nbins: int
+    mach_inv_dx: np.ndarray
+    stall_pos: np.ndarray     # (n_m,) stall angles [deg] per Mach row (empty: no stall test)
+    stall_neg: np.ndarray
+    cda2: float               # linear airfoil's drag curvature [1/deg^2]
+
+
+# ---------------------------------------------------------------------------------------------
+# small numerics
+
+
+@numba.njit(**_JIT)
+def _psum(x, n):
+    """sum of x[0:n] in numpy's pairwise order (np.add.reduce on a contiguous row)."""
+    if n < 8:
+        res = -0.0
+        for i in range(n):
+            res += x[i]
+        return res
+    if n <= 128:
+        r0, r1, r2, r3 = x[0], x[1], x[2], x[3]
+        r4, r5, r6, r7 = x[4], x[5], x[6], x[7]
+        i = 8
+        stop = n - (n % 8)
+        while i < stop:
+            r0 += x[i]
+            r1 += x[i + 1]
+            r2 += x[i + 2]
+            r3 += x[i + 3]
+            r4 += x[i + 4]
+            r5 += x[i + 5]
+            r6 += x[i + 6]
+            r7 += x[i + 7]
+            i += 8
+        res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+        while i < n:
+            res += x[i]
+            i += 1
+        return res
+    half = n // 2
+    half -= half % 8
+    return _psum(x, half) + _psum(x[half:], n - half)
+
+
+@numba.njit(**_INLINE)
+def _nanmax(a, b):
+    """np.maximum: the larger of a and b, NaN if either is NaN."""
+    if a != a or b != b:
+        return np.nan
+    return a if a >= b else b
+
+
+@numba.njit(**_INLINE)
+def _nanmin(a, b):
+    """np.minimum: the smaller of a and b, NaN if either is NaN."""
+    if a != a or b != b:
+        return np.nan
+    return a if a <= b else b
+
+
+@numba.njit(**_JIT)
+def _lu_solve(A, b):
+    """x with A x = b for a small complex A (Gaussian elimination, partial pivoting on
+    |re| + |im| as LAPACK's zgetrf). A and b are overwritten."""
+    m = b.size
+    for col in range(m):
+        p = col
+        best = abs(A[col, col].real) + abs(A[col, col].imag)
+        for row in range(col + 1, m):
+            v = abs(A[row, col].real) + abs(A[row, col].imag)
+            if v > best:
+                best, p = v, row
+        if p != col:
+            for k in range(m):
+                A[col, k], A[p, k] = A[p, k], A[col, k]
+            b[col], b[p] = b[p], b[col]
+        piv = A[col, col]
+        for row in range(col + 1, m):
+            f = A[row, col] / piv
+            A[row, col] = f
+            for k in range(col + 1, m):
+                A[row, k] -= f * A[col, k]
+            b[row] -= f * b[col]
+    x = np.empty(m, dtype=np.complex128)
+    for row in range(m - 1, -1, -1):
+        s = b[row]
+        for k in range(row + 1, m):
+            s -= A[row, k] * x[k]
+        x[row] = s / A[row, row]
+    return x
+
+
+@numba.njit(**_INLINE)
+def _locate_lut(x, grid, lut, nxt, inv_dx, x0, inv_h, nbins):
+    """Interval index and weight of x in an increasing grid, clamped (c81.Bracket.locate)."""
+    if lut.size == 0:
+        lo, hi = 0, grid.size - 1
+        while hi - lo > 1:
+            mid = (lo + hi) // 2
+            if grid[mid] <= x:
+                lo = mid
+            else:
+                hi = mid
+        i = lo
+    else:
+        b = (x - x0) * inv_h
+        b = min(max(b, 0.0), float(nbins))
+        i = lut[int(b)]
+        if x >= nxt[i]:
+            i += 1
+    t = (x - grid[i]) * inv_dx[i]
+    return i, min(max(t, 0.0), 1.0)
+
+
+@numba.njit(**_INLINE)
+def _locate(x, grid, inv_dx):
+    """Interval index and weight in a short grid (linear scan), clamped."""
+    n = grid.size
+    if n == 1:
+        return 0, 0.0
+    i = 0
+    while i < n - 2 and x >= grid[i + 1]:
+        i += 1
+    t = (x - grid[i]) * inv_dx[i]
+    return i, min(max(t, 0.0), 1.0)
+
+
+@numba.njit(**_INLINE)
+def _bilinear(v, c, idx, nm, t, s):
+    """Coefficient c between the nodes idx, idx + 1 (Mach), idx + nm (alpha) of the table."""
+    lo = v[c, idx]
+    lo = lo + (v[c, idx + nm] - lo) * t
+    hi = v[c, idx + 1]
+    hi = hi + (v[c, idx + nm + 1] - hi) * t
+    return lo + (hi - lo) * s
+
+
+@numba.njit(**_JIT)
+def _coefficients(alpha, mach, af, fit, linear, cl, cd, cm):
+    """cl, cd, cm (N_psi, N_r) at alpha [deg, wrapped] and Mach over the disk; ``fit``
+    (5, n_m) the sample's fit-row coefficients, ``linear`` (3,) its (cla, cl0, cd0) for a
+    linear airfoil. One call per pass: the table's arrays are bound once, not per element."""
+    npsi, nr = alpha.shape
+    if af.kind == LINEAR:
+        cla, cl0, cd0, cda2 = linear[0], linear[1], linear[2], af.cda2
+        for j in range(npsi):
+            for i in range(nr):
+                a = alpha[j, i]
+                cl[j, i] = cla * a + cl0
+                cd[j, i] = cd0 + cda2 * (a * a)
+                cm[j, i] = 0.0
+        return
+    ga, gm, values, window = af.alpha, af.mach, af.values, af.window
+    lut, nxt, inv_dx, m_inv_dx = af.alpha_lut, af.alpha_next, af.alpha_inv_dx, af.mach_inv_dx
+    x0, inv_h, nbins, hw = af.alpha_x0, af.alpha_inv_h, af.alpha_nbins, af.half_width
+    has_fits, replace_cd = af.has_fits, af.replace_cd
+    nm = gm.size
+    for j in range(npsi):
+        for i in range(nr):
+            a = alpha[j, i]
+            ia, t = _locate_lut(a, ga, lut, nxt, inv_dx, x0, inv_h, nbins)
+            im, s = _locate(abs(mach[j, i]), gm, m_inv_dx)
+            idx = ia * nm + im
+            out0 = _bilinear(values, 0, idx, nm, t, s)
+            out1 = _bilinear(values, 1, idx, nm, t, s)
+            out2 = _bilinear(values, 2, idx, nm, t, s)
+            if has_fits:
+                h = window[ia]
+                h = h + (window[ia + 1] - h) * t
+                ac = min(max(a, -hw), hw)
+                cla = fit[0, im] + (fit[0, im + 1] - fit[0, im]) * s
+                cl0 = fit[1, im] + (fit[1, im + 1] - fit[1, im]) * s
+                out0 += (cla * ac + cl0) * h
+                if replace_cd:
+                    cda2 = fit[2, im] + (fit[2, im + 1] - fit[2, im]) * s
+                    cda = fit[3, im] + (fit[3, im + 1] - fit[3, im]) * s
+                    cd0 = fit[4, im] + (fit[4, im + 1] - fit[4, im]) * s
+                    out1 += (((cda2 * ac + cda) * ac) + cd0) * h
+            cl[j, i] = out0
+            cd[j, i] = out1
+            cm[j, i] = out2
+
+
+@numba.njit(**_INLINE)
+def _wrap_deg(a):
+    if -180.0 <= a < 180.0:
+        return a
+    return (a + 180.0) % 360.0 - 180.0
+
+
+@numba.njit(**_JIT)
+def _prandtl(r, v, omega, radius, root_cutout, n_blades, derivative):
+    """Prandtl tip and root loss F(r, v) and dF/dv (inflow.prandtl_loss, one station)."""
+    av = abs(v)
+    ratio = av / (omega * r)
+    phi = max(ratio, 1e-6)
+    limited = ratio <= 1e-6
+    F = 1.0
+    dlogF = 0.0
+    for part in range(2):
+        if part == 0:
+            dist = radius - r
+        else:
+            if not root_cutout > 0:
+                continue
+            dist = r - root_cutout
+        f = 0.5 * n_blades * dist / (r * phi)
+        fc = min(f, 50.0)
+        ex = math.exp(-fc)
+        Fi = TWO_OVER_PI * math.acos(ex)
+        dFi = 0.0 if fc >= 50.0 else TWO_OVER_PI * ex / math.sqrt(max(1.0 - ex * ex, 1e-300))
+        F = F * Fi
+        dlogF = dlogF + (0.0 if limited else dFi * (-f / max(av, 1e-300))) / max(Fi, 1e-3)
+    Fc = max(F, 1e-3)
+    if not derivative:
+        return Fc, 0.0
+    sign = 1.0 if v > 0 else (-1.0 if v < 0 else 0.0)
+    return Fc, (F * dlogF * sign if F > 1e-3 else 0.0)
+
+
+@numba.njit(**_JIT)
+def _uniform_tip_loss(v0, omega, rot, scratch):
+    """Area (r dr) mean of the Prandtl factor over the span for one v; 1 without tip loss."""
+    if not rot.tip_loss:
+        return 1.0
+    r_, w_r, radius, root, nb = rot.r, rot.w_r, rot.radius, rot.root_cutout, rot.n_blades
+    nr = r_.size
+    for i in range(nr):
+        scratch[i] = _prandtl(r_[i], v0, omega, radius, root, nb, False)[0] * w_r[i]
+    return _psum(scratch, nr) / rot.sums[SUM_W_R]
+
+
+# ---------------------------------------------------------------------------------------------
+# stages
+
+
+@numba.njit(**_JIT)
+def _structural_jacobian(prm, rot):
+    """Structural operator Z (K, 3, 3), the inverse of the Jacobian J_k (K, 3, 3), the joint
+    (mean motion, uniform inflow) and (first harmonic, harmonic inflow) 4x4 Jacobians J0, J1
+    (their momentum rows completed per iteration), the commanded-pitch forcing F_cmd (3, K),
+    the initial inflow v_init [m/s] and the blade-element thrust slope k_v [N s/m]."""
+    K = rot.cos_k.shape[0]
+    Om, rho, kappa = prm[OMEGA], prm[RHO], prm[KAPPA]
+    K_b, C_b, K_l, C_l = prm[K_FLAP], prm[C_FLAP], prm[K_LAG], prm[C_LAG]
+    K_p, C_p, x_ac = prm[K_FEATHER], prm[C_FEATHER], prm[X_AC]
+    e, c, R = rot.hinge_offset, rot.chord, rot.radius
+    sums = rot.sums
+    I_b, I_l, I_p, S = rot.I_flap, rot.I_lag, rot.pitch_inertia, rot.S_flap
+    Om2 = Om**2
+    Z = np.zeros((K, 3, 3), dtype=np.complex128)
+    for k in range(K):
+        wk = Om * k
+        Z[k, 0, 0] = K_b + Om2 * (I_b + e * S) - wk**2 * I_b + 1j * wk * C_b
+        Z[k, 1, 1] = K_l + Om2 * e * S - wk**2 * I_l + 1j * wk * C_l
+        Z[k, 2, 2] = K_p + Om2 * I_p - wk**2 * I_p + 1j * wk * C_p
+        Z[k, 2, 0] = K_p * rot.tan_delta3
+    # aerodynamic flap damping, the flap moment's pitch derivative, lag damping, and the
+    # feathering moment of the lift x_ac aft of the axis (linear theory)
+    c_ab = 0.5 * rho * A0 * c * Om * sums[SUM_W_R_RR2]
+    k_abt = 0.5 * rho * A0 * c * Om**2 * sums[SUM_W_R2_RR]
+    c_lag_aero = 0.5 * rho * c * Om * 0.02 * sums[SUM_W_R_RR2]
+    q_tt = 0.5 * rho * c * A0 * Om**2 * sums[SUM_W_R2]
+    q_tb = 0.5 * rho * c * A0 * Om**2 * sums[SUM_W_R_RR]
+    # The mean lift's pitch derivative is reduced by the inflow's response to it (BEMT: by
+    # m / (m + k_v), m = 4 rho A v / kappa^2, k_v = dT_BE/dv) at the linear-theory inflow.
+    th75 = np.deg2rad(prm[COLLECTIVE]) + rot.twist_rad * (
+        0.75 * R - rot.root_cutout) / (R - rot.root_cutout)
+    sigma = rot.solidity
+    lam = sigma * A0 / 16 * (np.sqrt(1 + 32 / (sigma * A0) * np.abs(th75) * 0.75) - 1)
+    v_init = max(lam, 1e-3) * Om * R * np.sqrt(max(kappa, 0.1))
+    m_mom = 4 * rho * rot.area * v_init / max(kappa, 0.1) ** 2
+    k_v = rot.n_blades * 0.5 * rho * c * A0 * Om * sums[SUM_W_R]
+    J = Z.copy()
+    Jinv = np.empty((K, 3, 3), dtype=np.complex128)
+    for k in range(K):
+        wk = Om * k
+        J[k, 0, 0] += 1j * wk * c_ab
+        J[k, 0, 2] -= k_abt
+        J[k, 1, 1] += 1j * wk * c_lag_aero
+        fb = m_mom / (m_mom + k_v) if (rot.bemt and k == 0) else 1.0
+        J[k, 2, 2] += x_ac * q_tt * fb
+        J[k, 2, 0] -= 1j * k * (x_ac * q_tb)
+        for col in range(3):
+            unit = np.zeros(3, dtype=np.complex128)
+            unit[col] = 1.0
+            Jinv[k, :, col] = _lu_solve(J[k].copy(), unit)
+    qa = 0.5 * rho * c * A0 * Om
+    theta_cmd = np.zeros(K, dtype=np.complex128)
+    theta_cmd[0] = np.deg2rad(prm[COLLECTIVE])
+    if K > 1:
+        theta_cmd[1] = np.deg2rad(prm[LATERAL]) - 1j * np.deg2rad(prm[LONGITUDINAL])
+    F_cmd = np.zeros((3, K), dtype=np.complex128)
+    for k in range(K):
+        F_cmd[2, k] = (K_p + 1j * (Om * k) * C_p) * theta_cmd[k]
+    J0 = np.zeros((4, 4), dtype=np.complex128)
+    J0[:3, :3] = J[0]
+    J0[0, 3] = 0.5 * rho * c * A0 * Om * sums[SUM_W_R_RR]
+    J0[2, 3] = -x_ac * 0.5 * rho * c * A0 * Om * sums[SUM_W_R]
+    J0[3, 2] = -rot.n_blades * 0.5 * rho * c * A0 * Om**2 * sums[SUM_W_R2]
+    J1 = np.zeros((4, 4), dtype=np.complex128)
+    if K > 1:
+        J1[:3, :3] = J[1]
+    J1[0, 3] = qa * sums[SUM_W_R_RR_R] / R
+    return Z, Jinv, J0, J1, F_cmd, v_init, k_v, qa
+
+
+@numba.njit(**_INLINE)
+def _synth(Q, d, cos_k, sin_k, j):
+    """q_d(psi_j) and dq_d/dpsi at psi_j."""
+    val = Q[d, 0].real * cos_k[0, j]
+    der = 0.0
+    for k in range(1, Q.shape[1]):
+        re, im = Q[d, k].real, Q[d, k].imag
+        val = val + (re * cos_k[k, j] - im * sin_k[k, j])
+        der = der - k * (re * sin_k[k, j] + im * cos_k[k, j])
+    return val, der
+
+
+@numba.njit(**_JIT)
+def _aerodynamic_loads(Q, v0, vc, vs, v_r, prm, rot, af, fit, linear, ws):
+    """Section loads over the disk (N_psi, N_r) at the state: ws.dFz, ws.dFx, ws.dMp, with
+    the flow (alpha, mach) and coefficients kept for the final check. Returns True when the
+    section flow is not finite somewhere (the loads there are taken at a neutral flow)."""
+    Om, rho = prm[OMEGA], prm[RHO]
+    R, c, a_sound = rot.radius, rot.chord, rot.speed_of_sound
+    x_ac, cm0 = prm[X_AC], prm[CM0]
+    r_, rr_, twist_ = rot.r, rot.rr, rot.twist
+    cos_psi, sin_psi, cos_k, sin_k = rot.cos_psi, rot.sin_psi, rot.cos_k, rot.sin_k
+    bemt, table, pitching_moment = rot.bemt, af.kind == TABLE, rot.pitching_moment
+    m_lo, m_hi = af.mach[0], af.mach[-1]
+    alpha_, mach_, qc_, cphi_, sphi_ = ws.alpha, ws.mach, ws.qc, ws.cphi, ws.sphi
+    npsi, nr = cos_psi.size, r_.size
+    bad = False
+    for j in range(npsi):
+        beta, dbeta = _synth(Q, 0, cos_k, sin_k, j)
+        _, dzeta = _synth(Q, 1, cos_k, sin_k, j)
+        theta, _ = _synth(Q, 2, cos_k, sin_k, j)
+        ws.beta[j] = beta
+        cs = vc * cos_psi[j] + vs * sin_psi[j]
+        for i in range(nr):
+            r, rr = r_[i], rr_[i]
+            base = v_r[i] if bemt else v0
+            UT = Om * (r - rr * dzeta)
+            UP = (base + (r / R) * cs) + (Om * rr) * dbeta
+            phi = math.atan2(UP, UT)
+            alpha = (theta + twist_[i] - phi) * RAD2DEG
+            U2 = UT**2 + UP**2
+            U = math.sqrt(U2)
+            # cos(phi), sin(phi) without the trigonometric calls (equal to a few ulp)
+            if U > 0:
+                cphi_[j, i], sphi_[j, i] = UT / U, UP / U
+            else:
+                cphi_[j, i], sphi_[j, i] = math.cos(phi), math.sin(phi)
+            mach = U / a_sound
+            if not (np.isfinite(alpha) and np.isfinite(U2)):
+                bad = True
+                alpha, mach, U2 = 0.0, 0.0, 0.0
+            if table:
+                mach = min(max(mach, m_lo), m_hi)
+            alpha_[j, i] = _wrap_deg(alpha)
+            mach_[j, i] = mach
+            qc_[j, i] = 0.5 * rho * U2 * c
+    _coefficients(alpha_, mach_, af, fit, linear, ws.cl, ws.cd, ws.cm)
+    cl_, cd_, cm_ = ws.cl, ws.cd, ws.cm
+    dFz, dFx, dMp = ws.dFz, ws.dFx, ws.dMp
+    for j in range(npsi):
+        for i in range(nr):
+            cl, cd, qc = cl_[j, i], cd_[j, i], qc_[j, i]
+            cphi, sphi = cphi_[j, i], sphi_[j, i]
+            dFz[j, i] = qc * (cl * cphi - cd * sphi)
+            dFx[j, i] = qc * (cl * sphi + cd * cphi)
+            cm_sec = (cm_[j, i] if pitching_moment else 0.0) + cm0
+            dMp[j, i] = qc * (c * cm_sec - x_ac * cl)
+    return bad
+
+
+@numba.njit(**_JIT)
+def _analyse(f, rot, out, scratch):
+    """Harmonics out[k] (k = 0..K-1) of f over azimuth, one pairwise sum per weight row."""
+    K, npsi = rot.cos_k.shape
+    W = rot.analysis
+    for k in range(K):
+        for j in range(npsi):
+            scratch[j] = f[j] * W[k, j]
+        re = _psum(scratch, npsi)
+        for j in range(npsi):
+            scratch[j] = f[j] * W[K + k, j]
+        out[k] = re + 1j * _psum(scratch, npsi)
+
+
+@numba.njit(**_JIT)
+def _span_sum(field, weight, out, scratch):
+    """out[j] = sum_i field[j, i] weight[i] (per azimuth, pairwise over the span)."""
+    npsi, nr = field.shape
+    for j in range(npsi):
+        for i in range(nr):
+            scratch[i] = field[j, i] * weight[i]
+        out[j] = _psum(scratch, nr)
+
+
+@numba.njit(**_JIT)
+def _blade_root_loads(Q, Z, F_cmd, rot, ws):
+    """Structural residual R_dyn (3, K) = F(aero) + F_cmd - Z Q and the first harmonic of the
+    blade-root thrust moment Mz1 (for the harmonic inflow)."""
+    K = Q.shape[1]
+    R_dyn = np.empty((3, K), dtype=np.complex128)
+    harm = np.empty(K, dtype=np.complex128)
+    for d in range(3):
+        if d == 0:
+            _span_sum(ws.dFz, rot.w_rr, ws.psi_line, ws.span_line)
+        elif d == 1:
+            _span_sum(ws.dFx, rot.w_rr, ws.psi_line, ws.span_line)
+        else:
+            _span_sum(ws.dMp, rot.w, ws.psi_line, ws.span_line)
+        _analyse(ws.psi_line, rot, harm, ws.psi_scratch)
+        for k in range(K):
+            zq = Z[k, d, 0] * Q[0, k]
+            zq = zq + Z[k, d, 1] * Q[1, k]
+            zq = zq + Z[k, d, 2] * Q[2, k]
+            R_dyn[d, k] = (harm[k] + F_cmd[d, k]) - zq
+    Mz1 = 0.0 + 0.0j
+    if rot.harmonic_inflow and K > 1:
+        _span_sum(ws.dFz, rot.w_r, ws.psi_line, ws.span_line)
+        _analyse(ws.psi_line, rot, harm, ws.psi_scratch)
+        Mz1 = harm[1]
+    return R_dyn, Mz1
+
+
+@numba.njit(**_JIT)
+def _blade_thrust(rot, ws, out):
+    """Per-station thrust per unit span, azimuth mean over N_b blades (N_r,) [N/m]."""
+    npsi, nr = ws.dFz.shape
+    dFz, scratch, cos_beta = ws.dFz, ws.psi_scratch, ws.psi_line
+    for j in range(npsi):
+        cos_beta[j] = math.cos(ws.beta[j])
+    for i in range(nr):
+        for j in range(npsi):
+            scratch[j] = dFz[j, i] * cos_beta[j]
+        out[i] = rot.n_blades * _psum(scratch, npsi) / npsi
+
+
+@numba.njit(**_JIT)
+def _harmonic_gain(v0, prm, rot):
+    Om, R = prm[OMEGA], rot.radius
+    lam0 = max(abs(v0) / (Om * R), 1e-4)
+    return 0.5 * rot.n_blades * prm[KAPPA] / (prm[RHO] * rot.area * Om * R**2 * lam0)
+
+
+@numba.njit(**_JIT)
+def _inflow_update(st, dT_r, prm, rot, ws):
+    """BEMT: a damped Newton step per annulus on dT_BE(r) = 4 pi rho F r v|v| / kappa^2 with
+    the blade-element slope from the secant of the last two iterates (bounded by 1/4..4 x
+    linear theory). Updates st.v_r, v_prev, dT_prev, v0 and returns the largest step of the
+    inflow ratio."""
+    Om, rho, kappa = prm[OMEGA], prm[RHO], prm[KAPPA]
+    R, Nb, c = rot.radius, rot.n_blades, rot.chord
+    relax = st.scalars[RELAX]
+    nr = rot.r.size
+    dv = 0.0
+    for i in range(nr):
+        r = rot.r[i]
+        v = st.v_r[i]
+        if rot.tip_loss:
+            F, dF = _prandtl(r, v, Om, R, rot.root_cutout, Nb, True)
+        else:
+            F, dF = 1.0, 0.0
+        lin = -Nb * 0.5 * rho * c * A0 * Om * r
+        dv_prev = v - st.v_prev[i]
+        if abs(dv_prev) > 1e-12 * (Om * R):
+            sec = (dT_r[i] - st.dT_prev[i]) / dv_prev
+            slope = _nanmin(_nanmax(sec, 4.0 * lin), 0.25 * lin)
+        else:
+            slope = lin
+        f = dT_r[i] - 4 * np.pi * rho * F * r * v * abs(v) / kappa**2
+        df = slope - 4 * np.pi * rho * r * (2 * F * abs(v) + dF * v * abs(v)) / kappa**2
+        v_new = v - f / df
+        st.v_prev[i] = v
+        st.dT_prev[i] = dT_r[i]
+        v_new = v + relax * (v_new - v)
+        dv = _nanmax(dv, abs(v_new - v))
+        st.v_r[i] = v_new
+        ws.span_line[i] = v_new * rot.w_r[i]
+    st.scalars[V0] = _psum(ws.span_line, nr) / rot.sums[SUM_W_R]
+    return dv / (Om * R)
+
+
+# indices of the scalar state
+V0, VC, VS, RELAX, RESID, N_SCALARS = range(6)
+
+
+class State(NamedTuple):
+    Q: np.ndarray             # (3, K) complex
+    scalars: np.ndarray       # v0, vc, vs, relax, resid
+    v_r: np.ndarray           # (N_r,) BEMT annulus inflow
+    v_prev: np.ndarray
+    dT_prev: np.ndarray
+
+
+class Work(NamedTuple):
+    beta: np.ndarray          # (N_psi,)
+    dFz: np.ndarray           # (N_psi, N_r)
+    dFx: np.ndarray
+    dMp: np.ndarray
+    alpha: np.ndarray
+    mach: np.ndarray
+    cl: np.ndarray
+    cd: np.ndarray
+    cm: np.ndarray
+    qc: np.ndarray
+    cphi: np.ndarray
+    sphi: np.ndarray
+    shifted: np.ndarray       # alpha + the forward-difference step, its cl, cd, cm
+    cl2: np.ndarray
+    cd2: np.ndarray
+    cm2: np.ndarray
+    psi_line: np.ndarray      # (N_psi,)
+    psi_scratch: np.ndarray
+    span_line: np.ndarray     # (N_r,)
+    span_scratch: np.ndarray
+    dT_r: np.ndarray
+
+
+@numba.njit(**_JIT)
+def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
+    """One iteration of a sample: returns (step size, flow not finite)."""
+    Om, rho, kappa = prm[OMEGA], prm[RHO], prm[KAPPA]
+    R = rot.radius
+    K = st.Q.shape[1]
+    sc = st.scalars
+    relax = sc[RELAX]
+    bad = _aerodynamic_loads(st.Q, sc[V0], sc[VC], sc[VS], st.v_r, prm, rot, af, fit,
+                             linear, ws)
+    R_dyn, Mz1 = _blade_root_loads(st.Q, Z, F_cmd, rot, ws)
+    dQ = np.empty((3, K), dtype=np.complex128)
+    for k in range(K):
+        for d in range(3):
+            y = Jinv[k, d, 0] * R_dyn[0, k]
+            y = y + Jinv[k, d, 1] * R_dyn[1, k]
+            dQ[d, k] = y + Jinv[k, d, 2] * R_dyn[2, k]
+    dv1 = 0.0
+    if rot.harmonic_inflow and K > 1:
+        # first harmonic: blade motion and the Pitt-Peters inflow V1 = v_c - i v_s together
+        s = rot.sums
+        dMz_dV = -qa * s[SUM_W_R3] / R
+        dMz_dB = -1j * qa * Om * s[SUM_W_R2_RR]
+        dMz_dT = qa * Om * s[SUM_W_R3]
+        G = _harmonic_gain(sc[V0], prm, rot)
+        V1 = sc[VC] - 1j * sc[VS]
+        rhs = np.empty(4, dtype=np.complex128)
+        rhs[:3] = R_dyn[:, 1]
+        rhs[3] = G * Mz1 - V1
+        A = J1.copy()
+        A[3, 0] = -G * dMz_dB
+        A[3, 2] = -G * dMz_dT
+        A[3, 3] = 1.0 - G * dMz_dV
+        d1 = _lu_solve(A, rhs)
+        dQ[:, 1] = d1[:3]
+        V1 = V1 + relax * d1[3]
+        sc[VC], sc[VS] = V1.real, -V1.imag
+        dv1 = abs(d1[3]) / (Om * R)
+    _blade_thrust(rot, ws, ws.dT_r)
+    dv_step = 0.0
+    if not rot.bemt:
+        # mean blade motion and the uniform inflow together (a soft feathering restraint
+        # couples the blade pitch to the lift, and the lift to the inflow)
+        v = sc[V0]
+        F = _uniform_tip_loss(v, Om, rot, ws.span_scratch)
+        mom = 2 * rho * rot.area * F / kappa**2
+        A = J0.copy()
+        A[3, 3] = k_v + 2 * mom * abs(v)
+        rhs = np.empty(4, dtype=np.complex128)
+        rhs[:3] = R_dyn[:, 0]
+        for i in range(rot.r.size):
+            ws.span_line[i] = ws.dT_r[i] * rot.w[i]
+        rhs[3] = _psum(ws.span_line, rot.r.size) - mom * v * abs(v)
+        d0 = _lu_solve(A, rhs)
+        dQ[:, 0] = d0[:3]
+        dv_step = d0[3].real
+    big = 0.0
+    for d in range(3):
+        for k in range(K):
+            dQ[d, k] = dQ[d, k] * relax
+            st.Q[d, k] = st.Q[d, k] + dQ[d, k]
+            big = _nanmax(big, abs(dQ[d, k]))
+    if rot.bemt:
+        dv = _inflow_update(st, ws.dT_r, prm, rot, ws)
+    else:
+        sc[V0] = sc[V0] + relax * dv_step
+        dv = abs(relax * dv_step) / (Om * R)
+    size = _nanmax(big, _nanmax(dv, dv1)) / relax
+    # per-sample step control: halve the step of a sample whose update grew (stall and strong
+    # aerodynamic pitching moments make the fixed point oscillate), regrow it when it shrinks
+    if size > sc[RESID]:
+        sc[RELAX] = max(0.5 * relax, 0.05)
+    else:
+        sc[RELAX] = min(1.5 * relax, 1.0)
+    sc[RESID] = size
+    return size, bad
+
+
+@numba.njit(**_JIT)
+def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
+    """Loads and the equation residual re-evaluated at the final state. Writes out[:] =
+    thrust [N], torque [N m], equation residual [-], stalled fraction [-], min cd [-], static
+    feathering stiffness [N m/rad], flow not finite (1.0) and returns the blade-root flap
+    moment harmonics about the hub centre (K,) [N m]."""
+    Om, rho, kappa = prm[OMEGA], prm[RHO], prm[KAPPA]
+    R, Nb = rot.radius, rot.n_blades
+    K = st.Q.shape[1]
+    sc = st.scalars
+    npsi, nr = rot.cos_psi.size, rot.r.size
+    bad = _aerodynamic_loads(st.Q, sc[V0], sc[VC], sc[VS], st.v_r, prm, rot, af, fit,
+                             linear, ws)
+    R_dyn, Mz1 = _blade_root_loads(st.Q, Z, F_cmd, rot, ws)
+    e_dyn = 0.0
+    for d in range(3):
+        worst = 0.0
+        for k in range(K):
+            a = abs(R_dyn[d, k])
+            worst = a if (a > worst or a != a) else worst
+        e = worst / abs(Z[0, d, d])
+        e_dyn = e if (e > e_dyn or e != e) else e_dyn
+    dT_r = ws.dT_r
+    _blade_thrust(rot, ws, dT_r)
+    for i in range(nr):
+        ws.span_line[i] = dT_r[i] * rot.w[i]
+    thrust = _psum(ws.span_line, nr)
+    # momentum residual: the inflow-ratio change a Newton step would still make
+    if rot.bemt:
+        e_mom = 0.0
+        for i in range(nr):
+            r, v = rot.r[i], st.v_r[i]
+            if rot.tip_loss:
+                F, dF = _prandtl(r, v, Om, R, rot.root_cutout, Nb, True)
+            else:
+                F, dF = 1.0, 0.0
+            d_be = -Nb * 0.5 * rho * rot.chord * A0 * Om * r
+            f = dT_r[i] - 4 * np.pi * rho * F * r * v * abs(v) / kappa**2
+            df = d_be - 4 * np.pi * rho * r * (2 * F * abs(v) + dF * v * abs(v)) / kappa**2
+            step = abs((v - f / df) - v)
+            e_mom = step if (step > e_mom or step != step) else e_mom
+        e_mom = e_mom / (Om * R)
+    else:
+        v = sc[V0]
+        F = _uniform_tip_loss(v, Om, rot, ws.span_scratch)
+        kap = kappa * F**-0.5
+        dT_be = -Nb * 0.5 * rho * rot.chord * A0 * Om * rot.sums[SUM_W_R]
+        f = thrust - 2 * rho * rot.area * v * abs(v) / kap**2
+        df = dT_be - 4 * rho * rot.area * abs(v) / kap**2
+        e_mom = abs((v - f / df) - v) / (Om * R)
+    e_h = 0.0
+    if rot.harmonic_inflow:
+        G = _harmonic_gain(sc[V0], prm, rot)
+        e_h = abs(G * Mz1 - (sc[VC] - 1j * sc[VS])) / (Om * R)
+    eq = max(max(e_dyn, e_mom), e_h)
+    if e_dyn != e_dyn or e_mom != e_mom or e_h != e_h or not np.isfinite(eq):
+        eq = np.inf
+
+    # torque: N_b x azimuth mean of the span integral of dF_x r
+    _span_sum(ws.dFx, rot.w_r, ws.psi_line, ws.span_line)
+    torque = Nb * _psum(ws.psi_line, npsi) / npsi
+    # blade-root flap moment about the hub centre: hinge spring/damper + offset x hinge shear
+    _span_sum(ws.dFz, rot.w, ws.psi_line, ws.span_line)
+    Fz = np.empty(K, dtype=np.complex128)
+    _analyse(ws.psi_line, rot, Fz, ws.psi_scratch)
+    M_root = np.empty(K, dtype=np.complex128)
+    for k in range(K):
+        wk = Om * k
+        B = st.Q[0, k]
+        M_root[k] = (prm[K_FLAP] + 1j * wk * prm[C_FLAP]) * B + rot.hinge_offset * (
+            Fz[k] + rot.S_flap * wk**2 * B)
+    # stall: share of the disk's blade-element area (r dr dpsi) beyond the stall angle
+    frac = 0.0
+    if af.stall_pos.size:
+        gm, m_inv_dx, pos, neg = af.mach, af.mach_inv_dx, af.stall_pos, af.stall_neg
+        alpha, mach = ws.alpha, ws.mach
+        for i in range(nr):
+            for j in range(npsi):
+                # stall angles linear in Mach between the rows (np.interp), clamped
+                im, s = _locate(mach[j, i], gm, m_inv_dx)
+                a_pos = pos[im] + (pos[im + 1] - pos[im]) * s
+                a_neg = neg[im] + (neg[im + 1] - neg[im]) * s
+                a = alpha[j, i]
+                ws.psi_scratch[j] = 1.0 if (a > a_pos or a < a_neg) else 0.0
+            ws.span_line[i] = _psum(ws.psi_scratch, npsi) * rot.w_r[i]
+        frac = _psum(ws.span_line, nr) / (npsi * rot.sums[SUM_W_R])
+    cd_min = np.inf
+    for j in range(npsi):
+        for i in range(nr):
+            v = ws.cd[j, i]
+            cd_min = v if (v < cd_min or v != v) else cd_min
+    # static feathering stiffness: link + propeller moment I_p Omega^2 - d(mean aerodynamic
+    # pitching moment)/d(pitch), the section slopes by a forward difference in alpha at the
+    # converged flow; exactly zero without table CM and aerodynamic-centre offset
+    dM = 0.0
+    x_ac = prm[X_AC]
+    if rot.pitching_moment or x_ac != 0:
+        h = PITCH_STEP_DEG
+        for j in range(npsi):
+            for i in range(nr):
+                ws.shifted[j, i] = _wrap_deg(ws.alpha[j, i] + h)
+        _coefficients(ws.shifted, ws.mach, af, fit, linear, ws.cl2, ws.cd2, ws.cm2)
+        for j in range(npsi):
+            for i in range(nr):
+                cm_d = (ws.cm2[j, i] - ws.cm[j, i]) if rot.pitching_moment else 0.0
+                ws.dFx[j, i] = ws.qc[j, i] * (rot.chord * cm_d
+                                              - x_ac * (ws.cl2[j, i] - ws.cl[j, i]))
+        _span_sum(ws.dFx, rot.w, ws.psi_line, ws.span_line)
+        dM = _psum(ws.psi_line, npsi) * (RAD2DEG / (h * npsi))
+    out[0] = thrust
+    out[1] = torque
+    out[2] = eq
+    out[3] = frac
+    out[4] = cd_min
+    out[5] = prm[K_FEATHER] + rot.pitch_inertia * Om**2 - dM
+    out[6] = 1.0 if bad else 0.0
+    return M_root
+
+
+# ---------------------------------------------------------------------------------------------
+# one sample, and the batch
+
+
+@numba.njit(**_JIT)
+def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, Q_out, scalars_out,
+                  status_out, loads_out, M_root_out):
+    """Iterate one sample to convergence and evaluate its loads at the final state.
+
+    prm : (N_COLUMNS,) inputs. Writes Q_out (3, K), scalars_out (v0, vc, vs, relax, resid),
+    status_out (reason, diverging DOF, flow not finite in the last step, iterations),
+    loads_out (see :func:`_hub_loads`; only when the iteration converged) and M_root_out (K,).
+    """
+    K = rot.cos_k.shape[0]
+    npsi, nr = rot.cos_psi.size, rot.r.size
+    Z, Jinv, J0, J1, F_cmd, v_init, k_v, qa = _structural_jacobian(prm, rot)
+    # initial state: pitch from the quasi-static pitch-link balance, no flap, linear-theory
+    # hover inflow at 0.75 R
+    Q = np.zeros((3, K), dtype=np.complex128)
+    for k in range(K):
+        Q[2, k] = F_cmd[2, k] / Z[k, 2, 2]
+    scalars = np.zeros(N_SCALARS)
+    scalars[V0] = v_init
+    scalars[RELAX] = 1.0
+    scalars[RESID] = np.inf
+    v_r = np.full(nr, v_init)
+    st = State(Q, scalars, v_r, v_r.copy(), np.zeros(nr))
+    f = np.empty((15, npsi, nr))
+    ws = Work(np.empty(npsi), f[0], f[1], f[2], f[3], f[4], f[5], f[6], f[7], f[8], f[9],
+              f[10], f[11], f[12], f[13], f[14], np.empty(npsi),
+              np.empty(npsi), np.empty(nr), np.empty(nr), np.empty(nr))
+    reason, dof, bad, iterations = NOT_CONVERGED, 0, False, 0
+    for _ in range(max_iterations):
+        size, bad = _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws)
+        iterations += 1
+        # largest harmonic amplitude per DOF; the DOF named is np.argmax's (first NaN, else
+        # first largest) and the test np.max's (NaN never exceeds the limit)
+        largest, dof = -1.0, 0
+        for d in range(3):
+            amp = 0.0
+            for k in range(K):
+                a = abs(Q[d, k])
+                if a != a or a > amp:
+                    amp = a
+                if amp != amp:
+                    break
+            if largest == largest and (amp != amp or amp > largest):
+                largest, dof = amp, d
+        if bad or not np.isfinite(size):
+            reason = NONFINITE
+            break
+        if largest > MAX_BLADE_MOTION:
+            reason = TOO_LARGE
+            break
+        if size < tolerance:
+            reason = OK
+            break
+    Q_out[:, :] = Q
+    scalars_out[:] = scalars
+    status_out[0] = reason
+    status_out[1] = dof
+    status_out[2] = 1 if bad else 0
+    status_out[3] = iterations
+    if reason == OK:
+        M_root_out[:] = _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, loads_out)
+
+
+@numba.njit(**_JIT)
+def solve_samples(prm, rot, af, fits, linear, tolerance, max_iterations, Q, scalars, status,
+                  loads, M_root):
+    """Solve the samples of ``prm`` (n, N_COLUMNS) one after the other, writing row s of
+    every output array (see :func:`_solve_sample`). Releases the GIL: threads may solve
+    disjoint slices of a batch at the same time."""
+    for s in range(prm.shape[0]):
+        _solve_sample(prm[s], rot, af, fits[s], linear[s], tolerance, max_iterations, Q[s],
+                      scalars[s], status[s], loads[s], M_root[s])

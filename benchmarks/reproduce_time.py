@@ -35,7 +35,7 @@ def main() -> None:
         t0 = time.perf_counter()
         try:
             run_study(studies_dir() / CHAPTERS[name], out=os.path.join(out_root, name),
-                      quick=args.quick, log=None)
+                      quick=args.quick)
         except Exception as exc:  # noqa: BLE001 - report the failure, time the rest
             result["errors"][name] = f"{type(exc).__name__}: {exc}"
             traceback.print_exc()

@@ -282,7 +282,7 @@ def test_cuu_with_sampling_inner_from_a_study_file(tmp_path):
     """The user's path: a study file's CUU step with inner = "sampling" through the CLI. The
     Bo105 thrust is nearly linear in one lift slope (first-order std 15.0 N at std 5.375e-3),
     so a 22.5 N target needs about 1.5 times the input std; a fresh LHS confirms the target."""
-    from rotoruq.study.results import load_step
+    from rotoruq.results import load_step
 
     sd = 5.375e-3
     study = tmp_path / "cuu.toml"

@@ -108,7 +108,7 @@ std = 0.3
 [[steps]]
 name = "lhs"
 type = "sampling"
-n = 40
+n_samples = 40
 """
     executors = {
         "serial": '[executor]\nkind = "serial"',

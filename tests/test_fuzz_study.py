@@ -36,12 +36,12 @@ upper = 0.12
 [[steps]]
 name = "lhs"
 type = "sampling"
-n = 20
+n_samples = 20
 
 [[steps]]
 name = "sens"
 type = "sensitivity"
-n = 16
+n_samples = 16
 """
 
 LINES = SEED_TEXT.splitlines()

@@ -36,9 +36,9 @@ from rotoruq.mbdyn import (
     template_values,
 )
 from rotoruq.mbdyn.case import template_text
+from rotoruq.results import load_step
 from rotoruq.rotor.model import RotorModel
 from rotoruq.rotor.presets import get_preset
-from rotoruq.study.results import load_step
 from rotoruq.study.schema import load_study
 
 CLI = [sys.executable, "-m", "rotoruq.study.cli"]
@@ -255,7 +255,7 @@ def small_study(folder: Path, n: int) -> Path:
     """The bundled study, smaller: an LHS of n points, 10 revolutions per run."""
     text = (STUDIES / "mbdyn_rigid.toml").read_text()
     text = text.replace('"--revolutions", "40"', '"--revolutions", "10"')
-    text = text.replace("n = 20", f"n = {n}")
+    text = text.replace("n_samples = 20", f"n_samples = {n}")
     head, _, _ = text.partition('[[steps]]\nname = "sensitivity"')
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / "mbdyn.toml"

@@ -10,12 +10,12 @@ def rosenbrock(x):
     return 100 * (x[:, 1] - x[:, 0] ** 2) ** 2 + (1 - x[:, 0]) ** 2
 
 
-@pytest.mark.parametrize("method", ["quadrature", "sparse_grid", "regression"])
+@pytest.mark.parametrize("estimator", ["quadrature", "sparse_grid", "regression"])
 @pytest.mark.parametrize("order", [4, 5])
-def test_rosenbrock_mean_is_402(method, order):
+def test_rosenbrock_mean_is_402(estimator, order):
     space = rq.ParameterSpace({"a": rq.Normal(0, 1), "b": rq.Normal(0, 1)})
     model = rq.FunctionModel(rosenbrock, ["a", "b"], ["r"])
-    res = polynomial_chaos(model, space, order, method=method, seed=1)
+    res = polynomial_chaos(model, space, order, estimator=estimator, seed=1)
     assert res.mean[0] == pytest.approx(402.0, rel=1e-10)
     # exact variance: E[f^2] - 402^2 with Gaussian moments (a polynomial of degree 4)
     assert res.variance[0] == pytest.approx(1102406.0, rel=1e-9)
@@ -35,9 +35,13 @@ def test_ishigami_sobol_from_coefficients_and_surrogate_sampling():
     assert res.families == ("legendre",) * 3
     np.testing.assert_allclose(res.main[0], [0.3139, 0.4424, 0.0], atol=2e-3)
     np.testing.assert_allclose(res.total[0], [0.5576, 0.4424, 0.2437], atol=2e-3)
-    y = res.sample(20000, seed=1)
-    assert y.shape == (20000, 1)
-    assert y.mean() == pytest.approx(3.5, abs=0.05)
+    surrogate = res.as_model()
+    assert surrogate.names_in == space.names and surrogate.names_out == ("y",)
+    x = space.draw(50, seed=2)
+    np.testing.assert_array_equal(surrogate(x), res.predict(x))
+    prop = rq.sample(surrogate, space, 20000, design="random", seed=1)
+    assert prop.outputs.shape == (20000, 1)
+    assert prop.mean[0] == pytest.approx(3.5, abs=0.05)  # the exact mean a + 0.5 ... = 3.5
 
 
 def test_askey_families_are_exact_for_polynomials():
@@ -76,7 +80,7 @@ def test_truncation_and_bad_input():
     model = rq.FunctionModel(lambda x: x[:, 0], ["a"], ["y"])
     with pytest.raises(ParameterError, match="order"):
         polynomial_chaos(model, space, 0)
-    with pytest.raises(ParameterError, match="unknown PCE method"):
-        polynomial_chaos(model, space, 2, method="collocation")
+    with pytest.raises(ParameterError, match="unknown PCE estimator"):
+        polynomial_chaos(model, space, 2, estimator="collocation")
     with pytest.raises(ParameterError, match="n_samples"):
-        polynomial_chaos(model, space, 3, method="regression", n_samples=2)
+        polynomial_chaos(model, space, 3, estimator="regression", n_samples=2)

@@ -17,8 +17,8 @@ from rotoruq.report.compare import ComparedCell, compare_tables, resolve
 from rotoruq.report.diagnostics import step_warnings
 from rotoruq.report.html import write_report
 from rotoruq.report.reference import TABLES, table
+from rotoruq.results import StepResult, save_step
 from rotoruq.study.cli import main
-from rotoruq.study.results import StepResult, save_step
 from rotoruq.study.runner import run_study
 from rotoruq.study.steps import StepContext, run_forward_check
 from test_runner import STUDY, linear_factory
@@ -190,7 +190,7 @@ def test_non_holding_claims_carry_diagnostic_reasons():
 def _run(tmp_path):
     p = tmp_path / "lin.toml"
     p.write_text(STUDY)
-    return run_study(p, model_factory=linear_factory(), log=None)
+    return run_study(p, model_factory=linear_factory())
 
 
 def test_user_study_report_is_its_own(tmp_path):
@@ -299,7 +299,7 @@ def test_joint_posterior_predictive_keeps_correlations():
                             "b": Normal(chain[:, 1].mean(), sb)})
     ctx = StepContext(
         name="check", type="forward_check", space=space, responses=("y1", "y2"),
-        options={"n": 2000, "method": "lhs", "sweep": {"c": [1.0]}}, fixed={"c": 1.0},
+        options={"n_samples": 2000, "design": "lhs", "sweep": {"c": [1.0]}}, fixed={"c": 1.0},
         make_model=linear_factory(), rng=np.random.default_rng(2),
         data_columns={"c": np.array([1.0]), "y1": np.array([9.5]), "y2": np.array([-1.0])},
         source=source)
@@ -322,7 +322,7 @@ def test_sobol_step_reports_variance_and_flags_negligible(tmp_path):
 
     p = tmp_path / "m.toml"
     p.write_text(METHODS)
-    s = run_study(p, model_factory=linear_factory(), log=None, only=None)["sobol"]
+    s = run_study(p, model_factory=linear_factory(), only=None)["sobol"]
     # y1 = 2a + 3b: Var = 4 * 0.01 + 9 * 0.04 = 0.4 exactly; CV = sqrt(0.4) / 8
     assert s.get("out_var/y1") == pytest.approx(0.4, rel=0.05)
     assert s.get("out_cv/y1") == pytest.approx(np.sqrt(0.4) / 8, rel=0.05)
@@ -362,3 +362,61 @@ def test_reproduce_quick(tmp_path):
     assert sorted(f"{k}.png" for k in page_figs) == sorted(
         p.name for p in (tmp_path / "report" / "figures").glob("*.png"))
     assert "validation_bayes_pairs" in page_figs and "experiment_bayes_pairs" in page_figs
+
+
+def test_report_never_rebuilds_the_model(tmp_path):
+    """The run records the model's properties; the report is written with the rotor
+    package unimportable and still shows them in the thesis tables."""
+    import ast
+    import csv
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import rotoruq
+    from rotoruq.rotor.presets import get_preset
+
+    report_src = Path(rotoruq.__file__).parent / "report"
+    for f in report_src.glob("*.py"):
+        for node in ast.walk(ast.parse(f.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                assert not (node.module or "").startswith(("rotor", "study")), f
+                assert not (node.level == 0 and (node.module or "").startswith(
+                    ("rotoruq.rotor", "rotoruq.study"))), f
+    study = tmp_path / "experiment.toml"
+    study.write_text(
+        '[study]\nname = "experiment"\n\n[model]\npreset = "gvpm"\nresponses = ["thrust"]\n'
+        'fixed = { collective_deg = 5.4, height_over_radius = 4.0 }\n\n'
+        '[parameters.cla_m03]\ndistribution = "normal"\nmean = 0.108\nstd = 5.4e-3\n\n'
+        '[[steps]]\nname = "mv"\ntype = "mean_value"\n')
+    out = tmp_path / "out"
+    cli = [sys.executable, "-m", "rotoruq.study.cli"]
+    proc = subprocess.run([*cli, "run", str(study), "--out", str(out), "--no-report"],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    info = json.loads((out / "study.json").read_text())
+    assert info["model"]["values"]["radius"] == get_preset("gvpm").radius
+    assert len(info["model"]["curves"]["fradenburgh_thrust_ratio"]["thrust_ratio"]) == 200
+    blocked = (
+        "import sys\n"
+        "from rotoruq.study.cli import build_parser, main\n"
+        "build_parser()  # every subcommand module loaded; from here on no rotor import\n"
+        "for m in [m for m in sys.modules if m.split('.')[:2] == ['rotoruq', 'rotor']]:\n"
+        "    sys.modules[m] = None\n"
+        "sys.modules['rotoruq.rotor'] = None\n"
+        "try:\n"
+        "    from rotoruq.rotor.presets import get_preset\n"
+        "    sys.exit(3)\n"
+        "except ImportError:\n"
+        "    pass\n"
+        "sys.exit(main(sys.argv[1:]))\n")
+    proc = subprocess.run([sys.executable, "-c", blocked, "report", str(out), "--out",
+                           str(tmp_path / "report")], capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    cells = {}
+    for path in (tmp_path / "report" / "tables").glob("table_*.csv"):
+        for row in csv.DictReader(path.open()):
+            cells[row["source"]] = row["ours"]
+    assert float(cells["model:gvpm:radius"]) == get_preset("gvpm").radius
+    assert float(cells["model:gvpm:chord"]) == get_preset("gvpm").chord

@@ -56,7 +56,7 @@ def test_report_renders_in_chromium(tmp_path):
         pytest.skip("chromium is not installed")
     p = tmp_path / "lin.toml"
     p.write_text(STUDY)
-    run = run_study(p, model_factory=linear_factory(), log=None)
+    run = run_study(p, model_factory=linear_factory())
     index = write_report([run.out], tmp_path / "report")
     probe = index.with_name("probe.html")
     probe.write_text(index.read_text().replace("<head>", "<head>" + PROBE, 1))

@@ -71,7 +71,7 @@ def test_thrust_sensitivity_to_kp_within_thesis_range():
         "cd0_m02": rq.Normal(0.0079, 3.95e-4), "cd0_m03": rq.Normal(0.0077, 3.85e-4),
         "k_pitch_link": rq.Normal(15.0, 0.75), "ei_flap": rq.Normal(10.0, 0.5)})
     m = rq.RotorModel("gvpm", names_in=space.names, names_out=["thrust"], fixed=OP)
-    s = rq.sobol_indices(m, space, n=128, seed=1, n_bootstrap=0)
+    s = rq.sobol_indices(m, space, 128, seed=1, n_bootstrap=0)
     main = dict(zip(space.names, s.main[0], strict=True))
     assert 0.07 < main["k_pitch_link"] < 0.28
     assert main["cla_m03"] > 0.5 and main["cla_m03"] == max(main.values())
@@ -106,7 +106,7 @@ def test_cyclic_axes_and_signs_of_table_4_6():
                                "longitudinal_deg": rq.Uniform(-2, 2)})
     m = rq.RotorModel("gvpm", names_in=space.names, names_out=["thrust", "roll", "pitch"],
                       fixed={"omega": 224.6375, "k_pitch_link": 10.0, "ei_flap": 10.0})
-    s = rq.sobol_indices(m, space, n=128, seed=2, n_bootstrap=0)
+    s = rq.sobol_indices(m, space, 128, seed=2, n_bootstrap=0)
     (tc, tl, tg), (rc, rl, rg), (pc, pl, pg) = s.main
     assert tc > 0.9
     assert rl > 0.6 and rl > 3 * rg

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from rotoruq.model import FunctionModel
+from rotoruq.results import load_results
 from rotoruq.study.cli import main
-from rotoruq.study.results import load_results
 from rotoruq.study.runner import run_study
 
 # y1 = 2 a + 3 b + c ;  y2 = a - b     (c is a fixed input)
@@ -64,7 +64,7 @@ y2 = [-1.0, -1.0]
 [[steps]]
 name = "truth"
 type = "sampling"
-n = 400
+n_samples = 400
 noise_std = { y1 = 0.5 }
 
 [[steps]]
@@ -83,7 +83,7 @@ name = "check"
 type = "forward_check"
 from = "fit.calibrated"
 data = "obs"
-n = 300
+n_samples = 300
 sweep = { c = [1.0, 2.0] }
 """
 
@@ -95,7 +95,7 @@ def write(tmp_path: Path, text: str = STUDY) -> Path:
 
 
 def test_run_linear_study(tmp_path):
-    run = run_study(write(tmp_path), model_factory=linear_factory(), log=None)
+    run = run_study(write(tmp_path), model_factory=linear_factory())
     assert run.out == tmp_path / "rotoruq-results" / "lin"
     truth = run["truth"]
     # exact: mean y1 = 2 + 6 + 1 = 9, std y1 = sqrt(0.04 + 0.36) ; LHS on 400 points
@@ -129,27 +129,27 @@ def test_run_linear_study(tmp_path):
 def test_rerun_reuses_and_redoes_what_changed(tmp_path):
     path = write(tmp_path)
     calls: list = []
-    first = run_study(path, model_factory=linear_factory(calls), log=None)
+    first = run_study(path, model_factory=linear_factory(calls))
     n_first = sum(calls)
     calls.clear()
-    again = run_study(path, model_factory=linear_factory(calls), log=None)
+    again = run_study(path, model_factory=linear_factory(calls))
     assert sum(calls) == 0 and set(again.reused) == {"truth", "mv", "fit", "check"}
     assert again["truth"].scalars == first["truth"].scalars
     # change the last step only: the others are reused
-    path.write_text(STUDY.replace("n = 300", "n = 200"))
-    third = run_study(path, model_factory=linear_factory(calls), log=None)
+    path.write_text(STUDY.replace("n_samples = 300", "n_samples = 200"))
+    third = run_study(path, model_factory=linear_factory(calls))
     assert set(third.reused) == {"truth", "mv", "fit"}
     assert 0 < sum(calls) < n_first
 
 
 def test_same_seed_same_numbers(tmp_path):
-    a = run_study(write(tmp_path), out=tmp_path / "a", model_factory=linear_factory(), log=None)
-    b = run_study(write(tmp_path), out=tmp_path / "b", model_factory=linear_factory(), log=None)
+    a = run_study(write(tmp_path), out=tmp_path / "a", model_factory=linear_factory())
+    b = run_study(write(tmp_path), out=tmp_path / "b", model_factory=linear_factory())
     assert a["truth"].scalars == b["truth"].scalars
 
 
 def test_quick_reduces_samples(tmp_path):
-    run = run_study(write(tmp_path), quick=True, model_factory=linear_factory(), log=None)
+    run = run_study(write(tmp_path), quick=True, model_factory=linear_factory())
     assert run["truth"].arrays["inputs"].shape == (40, 2)
     assert run["check"].arrays["outputs@1"].shape == (40, 2)
 
@@ -188,7 +188,7 @@ y2 = [-1.0, -1.0]
 name = "sobol"
 type = "sensitivity"
 responses = ["y1"]
-n = 4000
+n_samples = 4000
 
 [[steps]]
 name = "pce"
@@ -208,7 +208,7 @@ parameters = ["a"]
 responses = ["y2"]
 emulator = "none"
 noise_std = 0.1
-chain_samples = 6000
+n_samples = 6000
 burn_in = 500
 
 [steps.distributions.a]
@@ -230,14 +230,14 @@ type = "evidence"
 responses = ["y2"]
 intervals = { a = [[0.0, 1.0, 0.5], [1.0, 2.0, 0.5]] }
 response_levels = { y2 = [-1.5] }
-n = 10
+n_samples = 10
 """
 
 
 def test_every_method_step_on_a_linear_model(tmp_path):
     p = tmp_path / "methods.toml"
     p.write_text(METHODS)
-    run = run_study(p, model_factory=linear_factory(), log=None)
+    run = run_study(p, model_factory=linear_factory())
     # y1 = 2a + 3b + 0: Var = 0.04 + 0.36; S_a = 0.1, S_b = 0.9 (additive: S = T)
     s = run["sobol"]
     assert s.get("S/y1/a") == pytest.approx(0.1, abs=0.05)
@@ -259,3 +259,98 @@ def test_every_method_step_on_a_linear_model(tmp_path):
     ds = run["ds"]  # cell [0, 1] gives y2 in [-2, -1]: Bel(y2 <= -1.5) = 0, Pl = 0.5
     assert ds.get("cbf/y2/0") == pytest.approx(0.0)
     assert ds.get("cpf/y2/0") == pytest.approx(0.5)
+
+
+CORNERS = STUDY.split("[[steps]]")[0] + """
+[[steps]]
+name = "corners"
+type = "corners"
+k = 2
+"""
+
+
+def test_a_new_step_type_is_one_record(tmp_path):
+    """A step type registered in one place (one StepType record) is validated in study
+    files, run by the runner, saved, and rendered by the report and the step tables."""
+    from rotoruq.errors import InputFileError
+    from rotoruq.model import evaluate
+    from rotoruq.report.hooks import RENDERINGS
+    from rotoruq.report.html import write_report
+    from rotoruq.report.steptables import StepTable, step_tables
+    from rotoruq.results import StepResult
+    from rotoruq.study.options import Option, integer
+    from rotoruq.study.steptypes import STEP_TYPES, StepType, register_step_type
+
+    def run_corners(ctx):
+        """The model at the 2^d corners mean +- k std of the inputs: min and max."""
+        k = ctx.options["k"]
+        mean = np.array([d.mean for d in ctx.space.distributions])
+        std = np.array([d.std for d in ctx.space.distributions])
+        signs = np.array(np.meshgrid(*[[-1.0, 1.0]] * ctx.space.dim)).reshape(ctx.space.dim, -1).T
+        y = np.asarray(evaluate(ctx.model(), mean + k * signs * std).values)
+        scalars = {f"{w}/{r}": float(f(y[:, j])) for j, r in enumerate(ctx.responses)
+                   for w, f in (("min", np.min), ("max", np.max))}
+        return StepResult(ctx.name, ctx.type, scalars, meta={"n_evaluations": len(signs)})
+
+    def corner_tables(res, labels):
+        resp = res.meta["responses"]
+        return [StepTable("Corner extremes", ("response", "min", "max"),
+                          tuple((r, res.get(f"min/{r}"), res.get(f"max/{r}")) for r in resp))]
+
+    register_step_type(StepType("corners", run_corners, options={"k": Option(integer(1), 3)},
+                                tables=corner_tables))
+    try:
+        path = write(tmp_path, CORNERS)
+        run = run_study(path, model_factory=linear_factory())
+        res = run["corners"]
+        # y1 = 2a + 3b + c, a ~ (1, 0.1), b ~ (2, 0.2), c = 1; corners at +-2 std
+        assert res.get("max/y1") == pytest.approx(2 * 1.2 + 3 * 2.4 + 1, rel=1e-12)
+        assert res.get("min/y1") == pytest.approx(2 * 0.8 + 3 * 1.6 + 1, rel=1e-12)
+        assert res.meta["n_evaluations"] == 4 and res.meta["options"] == {"k": 2}
+        assert load_results(run.out)["corners"].get("max/y2") == pytest.approx(1.2 - 1.6)
+        assert step_tables(res)[0].title == "Corner extremes"
+        index = write_report([run.out], tmp_path / "report")
+        assert "Corner extremes" in index.read_text()
+        with pytest.raises(InputFileError, match="did you mean 'k'"):
+            run_study(write(tmp_path, CORNERS.replace("k = 2", "kk = 2")),
+                      model_factory=linear_factory())
+    finally:
+        STEP_TYPES.pop("corners", None)
+        RENDERINGS.pop("corners", None)
+
+
+def test_cli_progress_is_logging(tmp_path):
+    """Progress lines reach stderr through logging; --quiet keeps only warnings."""
+    import subprocess
+    import sys
+
+    study = tmp_path / "mv.toml"
+    study.write_text(textwrap.dedent("""\
+        [study]
+        name = "mv"
+
+        [model]
+        preset = "gvpm"
+        responses = ["thrust"]
+        fixed = { collective_deg = 5.4, height_over_radius = 4.0 }
+
+        [parameters.cla_m03]
+        distribution = "normal"
+        mean = 0.108
+        std = 5.4e-3
+
+        [[steps]]
+        name = "mv"
+        type = "mean_value"
+        """))
+    cli = [sys.executable, "-m", "rotoruq.study.cli"]
+    loud = subprocess.run([*cli, "run", str(study), "--out", str(tmp_path / "a"), "--no-report"],
+                          capture_output=True, text=True, timeout=300)
+    assert loud.returncode == 0, loud.stderr
+    assert "[mv] mv: running mean_value (cla_m03 -> thrust)" in loud.stderr
+    assert "[mv] mv: done in" in loud.stderr
+    quiet = subprocess.run([*cli, "--quiet", "run", str(study), "--out", str(tmp_path / "b"),
+                            "--no-report"], capture_output=True, text=True, timeout=300)
+    assert quiet.returncode == 0, quiet.stderr
+    assert "running" not in quiet.stderr and "done in" not in quiet.stderr
+    assert "summary of mv" in quiet.stdout

@@ -24,7 +24,7 @@ def test_lognormal_ratio_matches_exact_distribution():
         model,
         space,
         20000,
-        method="lhs",
+        design="lhs",
         seed=7,
         response_levels=levels,
         probability_levels=[0.1, 0.9],
@@ -49,7 +49,7 @@ def test_lognormal_ratio_matches_exact_distribution():
 def test_normal_response_has_zero_excess_kurtosis_and_exact_cis():
     space = rq.ParameterSpace({"a": rq.Normal(1.0, 2.0)})
     model = rq.FunctionModel(lambda x: x[:, 0], ["a"], ["y"])
-    st = sample(model, space, 50000, method="lhs", seed=3).statistics
+    st = sample(model, space, 50000, design="lhs", seed=3).statistics
     assert abs(st.skewness[0]) < 0.02 and abs(st.kurtosis[0]) < 0.05
     assert st.std_ci[0, 0] < 2.0 < st.std_ci[0, 1]
 
@@ -60,24 +60,24 @@ def test_lhs_beats_mc_variance_of_the_mean():
         lambda x: np.exp(x[:, 0]) + np.sin(3 * x[:, 1]) * x[:, 2], space.names, ["f"]
     )
     means = {
-        m: [sample(model, space, 64, method=m, seed=s).mean[0] for s in range(40)]
-        for m in ("mc", "lhs", "sobol")
+        m: [sample(model, space, 64, design=m, seed=s).mean[0] for s in range(40)]
+        for m in ("random", "lhs", "sobol")
     }
     var = {m: np.var(v) for m, v in means.items()}
-    assert var["lhs"] < 0.3 * var["mc"]
-    assert var["sobol"] < 0.3 * var["mc"]
+    assert var["lhs"] < 0.3 * var["random"]
+    assert var["sobol"] < 0.3 * var["random"]
 
 
-def test_same_seed_same_numbers_and_methods():
+def test_same_seed_same_numbers_and_designs():
     space = rq.ParameterSpace({"a": rq.Normal(0, 1), "b": rq.Gumbel(2.0, 1.0)})
     model = rq.FunctionModel(lambda x: x[:, 0] ** 2 + x[:, 1], space.names, ["f"])
-    for m in ("lhs", "mc", "sobol", "halton"):
-        r1 = sample(model, space, 33, method=m, seed=11)
-        r2 = sample(model, space, 33, method=m, seed=11)
+    for m in ("lhs", "random", "sobol", "halton"):
+        r1 = sample(model, space, 33, design=m, seed=11)
+        r2 = sample(model, space, 33, design=m, seed=11)
         np.testing.assert_array_equal(r1.outputs, r2.outputs)
         assert r1.inputs.shape == (33, 2)
     assert not np.array_equal(
-        r1.outputs, sample(model, space, 33, method="halton", seed=12).outputs
+        r1.outputs, sample(model, space, 33, design="halton", seed=12).outputs
     )
 
 
@@ -85,16 +85,17 @@ def test_refine_lhs_doubles_into_a_latin_hypercube_and_sobol_continues():
     space = rq.ParameterSpace({"a": rq.Uniform(0, 1), "b": rq.Uniform(0, 1)})
     model = rq.FunctionModel(lambda x: x.sum(axis=1), space.names, ["s"])
     r = refine(sample(model, space, 50, seed=1), 50)
-    assert r.n == 100 and r.n_evaluations == 100
+    assert r.n_samples == 100 and r.n_evaluations == 100
     for j in range(2):
         counts = np.histogram(r.inputs[:, j], bins=100, range=(0, 1))[0]
         assert np.all(counts == 1)
     r = refine(sample(model, space, 30, seed=1), 17)  # not a doubling: still every stratum <= 2
-    assert r.n == 47
+    assert r.n_samples == 47
     assert np.histogram(r.inputs[:, 0], bins=47, range=(0, 1))[0].max() <= 2
-    s1 = refine(sample(model, space, 64, method="sobol", seed=5), 64)
-    s2 = sample(model, space, 128, method="sobol", seed=5)
-    np.testing.assert_allclose(s1.inputs, s2.inputs)
+    for design in ("sobol", "halton", "random"):  # a continued sequence: the larger draw
+        s1 = refine(sample(model, space, 64, design=design, seed=5), 64)
+        s2 = sample(model, space, 128, design=design, seed=5)
+        np.testing.assert_array_equal(s1.inputs, s2.inputs)
 
 
 def test_correlated_sampling_and_nan_rows_are_dropped_with_a_count():
@@ -123,24 +124,55 @@ def test_bad_inputs():
     with pytest.raises(ModelShapeError):
         sample(rq.FunctionModel(lambda x: np.ones((x.shape[0], 3)), ["a"], ["f"]), space, 10)
     model = rq.FunctionModel(lambda x: x[:, 0], ["a"], ["f"])
-    with pytest.raises(ParameterError, match="unknown sampling method"):
-        sample(model, space, 10, method="grid")
+    for design in ("grid", "mc"):  # "mc" is spelled "random" (docs/vocabulary.md)
+        with pytest.raises(ParameterError, match="unknown design"):
+            sample(model, space, 10, design=design)
     with pytest.raises(ParameterError, match=">= 2"):
         sample(model, space, 1)
     with pytest.raises(ParameterError, match="confidence"):
         response_statistics(np.ones((5, 1)), confidence=1.5)
 
 
-@pytest.mark.parametrize("method", ["lhs", "mc", "sobol"])
-def test_refine_twice_gives_the_same_points(method):
+@pytest.mark.parametrize("design", ["lhs", "random", "sobol"])
+def test_refine_twice_gives_the_same_points(design):
     space = rq.ParameterSpace({"a": rq.Normal(0, 1), "b": rq.Uniform(0, 1)})
     model = rq.FunctionModel(lambda x: x.sum(axis=1), space.names, ["f"])
     gen = np.random.default_rng(4)
-    base = sample(model, space, 16, method=method, seed=gen)
+    base = sample(model, space, 16, design=design, seed=gen)
     gen.random(100)  # the caller's generator moves on: refine must not depend on it
     r1, r2 = refine(base, 16), refine(base, 16)
     np.testing.assert_array_equal(r1.inputs, r2.inputs)
-    again = refine(sample(model, space, 16, method=method, seed=np.random.default_rng(4)), 16)
+    again = refine(sample(model, space, 16, design=design, seed=np.random.default_rng(4)), 16)
     np.testing.assert_array_equal(r1.inputs, again.inputs)
     # refining the refined result continues: new points differ from the first extension
     assert not np.array_equal(refine(r1, 16).inputs[32:], r1.inputs[16:])
+
+
+def test_public_signatures_and_results_follow_the_vocabulary():
+    """docs/vocabulary.md for this package's sampling-type methods: n_samples, design=,
+    estimator=, keyword-only seed, names_in/names_out, results frozen with eq=False."""
+    import dataclasses
+    import inspect
+
+    from rotoruq.methods.evidence import EvidenceResult, evidence
+    from rotoruq.methods.pce import PCEResult, polynomial_chaos
+    from rotoruq.methods.sampling import ResponseStatistics, SamplingResult
+    from rotoruq.methods.sensitivity import SobolResult, pick_freeze_design, sobol_indices
+    from rotoruq.methods.surrogate import GaussianProcess, LeaveOneOut
+
+    banned = {"n", "method", "n_more", "names", "labels", "n_model_evals", "start"}
+    for fn in (sample, refine, sobol_indices, pick_freeze_design, polynomial_chaos, evidence,
+               GaussianProcess.__init__):
+        params = inspect.signature(fn).parameters
+        assert not banned & set(params), (fn.__qualname__, banned & set(params))
+        if "seed" in params:
+            assert params["seed"].kind is inspect.Parameter.KEYWORD_ONLY, fn.__qualname__
+    assert "n_samples" in inspect.signature(sample).parameters
+    assert "design" in inspect.signature(sobol_indices).parameters
+    assert "estimator" in inspect.signature(polynomial_chaos).parameters
+    for cls in (SamplingResult, ResponseStatistics, SobolResult, PCEResult, EvidenceResult,
+                LeaveOneOut):
+        params = cls.__dataclass_params__
+        assert params.frozen and not params.eq, cls.__name__
+        fields = {f.name for f in dataclasses.fields(cls)}
+        assert not banned & fields, (cls.__name__, banned & fields)

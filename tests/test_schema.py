@@ -12,7 +12,8 @@ import pytest
 
 from rotoruq.errors import InputFileError
 from rotoruq.params import Normal, Uniform
-from rotoruq.study.schema import Locator, load_study
+from rotoruq.study.locator import Locator
+from rotoruq.study.schema import load_study
 
 VALID = """\
 [study]
@@ -40,7 +41,7 @@ file = "loads.csv"
 [[steps]]
 name = "bayes"
 type = "bayes_calibration"
-chain_samples = 2000
+n_samples = 2000
 burn_in = 100
 
 [[steps]]
@@ -48,7 +49,7 @@ name = "fwd"
 type = "forward_check"
 from = "bayes.posterior"
 data = "measured"
-n = 50
+n_samples = 50
 """
 
 CSV = "height_over_radius,thrust,power\n4,25.68,350.9\n2,29.0,399.4\n"
@@ -89,7 +90,7 @@ def test_valid_study_loads(tmp_path):
     np.testing.assert_allclose(study.data["measured"].columns["thrust"], [25.68, 29.0])
     bayes, fwd = study.steps
     assert bayes.data == "measured"  # the only data set is the default for calibration
-    assert bayes.options["chain_samples"] == 2000 and bayes.options["sampler"] == "dram"
+    assert bayes.options["n_samples"] == 2000 and bayes.options["sampler"] == "dram"
     assert fwd.source == ("bayes", "posterior")
     assert fwd.line == line_of(VALID, "[[steps]]") + 6
     space = study.space()
@@ -147,16 +148,16 @@ def test_negative_std(tmp_path):
 
 
 def test_circular_from(tmp_path):
-    text = VALID.replace('chain_samples = 2000', 'chain_samples = 2000\nfrom = "fwd.posterior"')
+    text = VALID.replace('n_samples = 2000', 'n_samples = 2000\nfrom = "fwd.posterior"')
     text = text.replace('type = "forward_check"', 'type = "bayes_calibration"')
-    text = text.replace("n = 50", "")
+    text = text.replace("n_samples = 50", "")
     err = error_of(tmp_path, text)
     assert err.line == line_of(text, 'from = "fwd.posterior"')
     assert "circular reference bayes -> fwd -> bayes" in str(err)
 
 
 def test_forward_reference(tmp_path):
-    text = VALID.replace('chain_samples = 2000', 'chain_samples = 2000\nfrom = "later.posterior"')
+    text = VALID.replace('n_samples = 2000', 'n_samples = 2000\nfrom = "later.posterior"')
     text += '\n[[steps]]\nname = "later"\ntype = "bayes_calibration"\n'
     err = error_of(tmp_path, text)
     assert "a reference to an earlier step; 'later' is step #3" in str(err)
@@ -170,28 +171,21 @@ def test_from_needs_a_posterior(tmp_path):
 
 
 def test_unknown_key_suggests_closest(tmp_path):
-    text = VALID.replace("chain_samples = 2000", "chain_sample = 2000")
+    text = VALID.replace("n_samples = 2000", "n_sample = 2000")
     err = error_of(tmp_path, text)
-    assert err.line == line_of(text, "chain_sample = 2000")
-    assert "did you mean 'chain_samples'?" in str(err)
-    assert err.found == "chain_sample"
+    assert err.line == line_of(text, "n_sample = 2000")
+    assert "did you mean 'n_samples'?" in str(err)
+    assert err.found == "n_sample"
     text = VALID.replace("seed = 3", "sed = 3")
     err = error_of(tmp_path, text)
     assert err.line == 3 and "did you mean 'seed'?" in str(err)
 
 
 def test_wrong_option_type(tmp_path):
-    text = VALID.replace("n = 50", 'n = "many"')
+    text = VALID.replace("n_samples = 50", 'n_samples = "many"')
     err = error_of(tmp_path, text)
-    assert err.line == line_of(text, 'n = "many"')
-    assert "'n' of step 'fwd' (forward_check) to be an integer >= 1" in str(err)
-
-
-def test_burn_in_shorter_than_chain(tmp_path):
-    text = VALID.replace("burn_in = 100", "burn_in = 5000")
-    err = error_of(tmp_path, text)
-    assert err.line == line_of(text, "burn_in = 5000")
-    assert "burn_in < chain_samples" in str(err)
+    assert err.line == line_of(text, 'n_samples = "many"')
+    assert "'n_samples' of step 'fwd' (forward_check) to be an integer >= 1" in str(err)
 
 
 def test_unknown_response_and_fixed_input(tmp_path):
@@ -202,7 +196,7 @@ def test_unknown_response_and_fixed_input(tmp_path):
 
 
 def test_step_parameters_must_exist(tmp_path):
-    text = VALID.replace("n = 50", 'n = 50\nparameters = ["cla_m03", "kp"]')
+    text = VALID.replace("n_samples = 50", 'n_samples = 50\nparameters = ["cla_m03", "kp"]')
     err = error_of(tmp_path, text)
     assert err.line == line_of(text, 'parameters = ["cla_m03", "kp"]')
     assert "names from [parameters] (cla_m03, k_pitch_link)" in str(err)
@@ -242,3 +236,95 @@ def test_bundled_studies_load():
     for f in files:
         study = load_study(f)
         assert study.steps
+
+
+def test_airfoil_inputs_are_the_rotors(tmp_path):
+    """Airfoil coefficient names are checked by the rotor's own list: cla_m075 is valid
+    when the preset's airfoil is fitted at Mach 0.75, and rejected (file, line, the valid
+    names) when it is not; bo105's airfoil fits no drag, so cd0_m03 is not an input."""
+    fitted = VALID.replace('fixed = { collective_deg = 5.4, height_over_radius = 4.0 }',
+                           'fixed = { collective_deg = 5.4, height_over_radius = 4.0 }\n'
+                           'preset_options = { airfoil_fit_machs = [0.3, 0.75] }')
+    fitted = fitted.replace("[parameters.k_pitch_link]", "[parameters.cla_m075]")
+    fitted = fitted.replace("lower = 10\nupper = 20", "lower = 0.1\nupper = 0.12")
+    study = load_study(write(tmp_path, fitted))
+    assert study.parameter_names == ("cla_m03", "cla_m075")
+    text = VALID.replace("[parameters.k_pitch_link]", "[parameters.cla_m075]")
+    err = error_of(tmp_path, text)
+    assert err.line == line_of(text, "[parameters.cla_m075]")
+    assert "an input of the rotor model 'gvpm'" in str(err) and "cla_m04" in str(err)
+    text = VALID.replace('preset = "gvpm"', 'preset = "bo105"')
+    text = text.replace("[parameters.k_pitch_link]", "[parameters.cd0_m03]")
+    err = error_of(tmp_path, text)
+    assert err.found == "cd0_m03" and "cl0_m03" in str(err)
+
+
+def test_option_defaults_are_the_methods(tmp_path):
+    """A key a study file leaves out takes the default of the method's own parameter (its
+    signature), so a study and a Python call agree; every such parameter exists."""
+    import inspect
+
+    from rotoruq.study.options import REQUIRED, SIGNATURE, signature_default
+    from rotoruq.study.steptypes import STEP_TYPES
+
+    for st in STEP_TYPES.values():
+        for key, opt in st.options.items():
+            if opt.default is SIGNATURE:
+                signature_default(opt.method or st.method, opt.param or key)  # no LookupError
+    from rotoruq.methods.mcmc import calibrate_bayes
+    from rotoruq.methods.sensitivity import sobol_indices
+
+    text = VALID + '\n[[steps]]\nname = "sens"\ntype = "sensitivity"\nn_samples = 64\n'
+    study = load_study(write(tmp_path, text))
+    sens = study.step("sens").options
+    sig = inspect.signature(sobol_indices).parameters
+    opts = STEP_TYPES["sensitivity"].options
+    assert sens["design"] == sig[opts["design"].param or "design"].default
+    assert sens["estimator"] == sig[opts["estimator"].param or "estimator"].default
+    bayes = study.step("bayes").options
+    sig = inspect.signature(calibrate_bayes).parameters
+    opts = STEP_TYPES["bayes_calibration"].options
+    assert bayes["burn_in"] == 100  # given in the file
+    no_burn = load_study(write(tmp_path, VALID.replace("burn_in = 100\n", "")))
+    assert no_burn.step("bayes").options["burn_in"] == sig["burn_in"].default
+    assert bayes["sampler"] == sig[opts["sampler"].param or "sampler"].default
+    # a method parameter without default is required in the study file
+    assert STEP_TYPES["pce"].default("order") is REQUIRED
+    err = error_of(tmp_path, VALID + '\n[[steps]]\nname = "pc"\ntype = "pce"\n')
+    assert "to define 'order'" in str(err)
+
+
+def test_pce_points_only_for_regression(tmp_path):
+    text = VALID + '\n[[steps]]\nname = "pc"\ntype = "pce"\norder = 2\nn_samples = 40\n'
+    err = error_of(tmp_path, text)
+    assert err.line == line_of(text, "n_samples = 40")
+    assert 'n_samples only with estimator = "regression"' in str(err)
+    study = load_study(write(tmp_path, text.replace("n_samples = 40",
+                                                    'n_samples = 40\nestimator = "regression"')))
+    assert study.step("pc").options["n_samples"] == 40
+
+
+def test_quick_overrides_are_options_of_the_step(tmp_path):
+    text = VALID.replace("n_samples = 50", "n_samples = 50\nquick = { n = 5 }")
+    err = error_of(tmp_path, text)
+    assert err.found == "n" and "keys of quick = {...} of step 'fwd'" in str(err)
+    assert err.line == line_of(text, "quick = { n = 5 }")
+    err = error_of(tmp_path, text.replace("{ n = 5 }", "{ n_samples = 0 }"))
+    assert "to be an integer >= 1" in str(err)
+    study = load_study(write(tmp_path, text.replace("{ n = 5 }", "{ n_samples = 5 }")))
+    assert study.step("fwd").quick == {"n_samples": 5}
+
+
+def test_cli_names_the_new_word_for_an_old_key(tmp_path):
+    """The user's path: ``rotoruq run`` on a study with a key from before the vocabulary
+    (``chain_samples``) fails with the file, the line and the key it expected."""
+    import subprocess
+    import sys
+
+    text = VALID.replace("n_samples = 2000", "chain_samples = 2000")
+    p = write(tmp_path, text)
+    proc = subprocess.run([sys.executable, "-m", "rotoruq.study.cli", "run", str(p)],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 1
+    assert f"{p}, line {line_of(text, 'chain_samples')}" in proc.stderr
+    assert "n_samples" in proc.stderr and "found 'chain_samples'" in proc.stderr

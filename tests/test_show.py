@@ -49,7 +49,7 @@ select = { height_over_radius = 4.0 }
 [[steps]]
 name = "lhs"
 type = "sampling"
-n = 20
+n_samples = 20
 
 [[steps]]
 name = "mv"
@@ -72,12 +72,12 @@ type = "evidence"
 responses = ["thrust"]
 intervals = { k_pitch_link = [[14.0, 15.0, 0.5], [15.0, 16.0, 0.5]] }
 response_levels = { thrust = [26.0] }
-n = 10
+n_samples = 10
 
 [[steps]]
 name = "sobol"
 type = "sensitivity"
-n = 16
+n_samples = 16
 
 [[steps]]
 name = "bayes"
@@ -85,8 +85,8 @@ type = "bayes_calibration"
 parameters = ["cla_m03"]
 data = "measured"
 noise_std = { thrust = 0.86, power = 11.66 }
-build_samples = 20
-chain_samples = 1500
+n_emulator_samples = 20
+n_samples = 1500
 burn_in = 200
 
 [[steps]]
@@ -103,7 +103,7 @@ name = "check"
 type = "forward_check"
 from = "bayes.posterior"
 data = "measured"
-n = 20
+n_samples = 20
 sweep = { height_over_radius = [4.0], omega = [224.6375] }
 """
 
@@ -148,7 +148,7 @@ def test_user_study_every_step_type_in_report_and_show(user_run):
             assert all(len(r) == len(t["columns"]) for r in t["rows"])
     # numbers in the tables are the saved scalars
     mv = data["steps"]["mv"]["tables"][0]
-    from rotoruq.study.results import load_step
+    from rotoruq.results import load_step
 
     saved = load_step(out / "steps" / "mv")
     assert mv["rows"][0][:3] == ["thrust", saved.get("mean/thrust"), saved.get("std/thrust")]
@@ -192,7 +192,7 @@ def test_readme_study_example_is_sensible(tmp_path):
     """The README's example: the lift slope stays in its prior's bulk and the measured 4R
     thrust lies within 3 predictive std devs under the joint posterior predictive (the
     example once ended at 4x the nominal lift slope, 357 std devs from the thrust)."""
-    from rotoruq.study.results import load_step
+    from rotoruq.results import load_step
 
     study = tmp_path / "quick.toml"
     study.write_text(_readme_study())

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rotoruq.study.results import load_step
+from rotoruq.results import load_step
 
 ROOT = Path(__file__).resolve().parents[1]
 CLI = [sys.executable, "-m", "rotoruq.study.cli"]
@@ -88,7 +88,7 @@ def external_study(folder: Path, *, n: int = 8, executor: str = "serial", failur
         [[steps]]
         name = "lhs"
         type = "sampling"
-        n = {n}
+        n_samples = {n}
         """
     folder.mkdir(parents=True, exist_ok=True)
     (folder / "driver.py").write_text(DRIVER)
@@ -195,7 +195,7 @@ upper = 20.0
 [[steps]]
 name = "lhs"
 type = "sampling"
-n = 6
+n_samples = 6
 """
 
 
@@ -320,7 +320,7 @@ def test_rotor_study_killed_and_resumed_is_bitwise_equal(tmp_path):
     the rotor's answers must not depend on which points share a batch."""
     path = tmp_path / "study.toml"
     path.write_text(ROTOR_STUDY.format(preset="gvpm", collective=5.4, h=3.0, options="")
-                    .replace("n = 6", "n = 2000")
+                    .replace("n_samples = 6", "n_samples = 2000")
                     .replace("[[steps]]", '[parameters.cla_m03]\ndistribution = "normal"\n'
                              'mean = 0.108\nstd = 0.005\n\n[[steps]]'))
     cli("run", path, "--out", tmp_path / "ref", "--no-report")

@@ -92,11 +92,11 @@ _LAZY: dict[str, str] = {
     "write_parameters": ".evaluation",
     "write_results": ".evaluation",
     "write_report": ".report.html",
-    "StepResult": ".study.results",
-    "load_results": ".study.results",
+    "StepResult": ".results",
+    "load_results": ".results",
     "StudyRun": ".study.runner",
     "run_study": ".study.runner",
-    "Study": ".study.schema",
+    "Study": ".study.spec",
     "load_study": ".study.schema",
 }
 # public submodules
@@ -314,6 +314,12 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     from .report.html import (
         write_report as write_report,
     )
+    from .results import (
+        StepResult as StepResult,
+    )
+    from .results import (
+        load_results as load_results,
+    )
     from .rotor import presets as presets
     from .rotor.aero import (
         LinearAirfoil as LinearAirfoil,
@@ -357,12 +363,6 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     from .rotor.presets import (
         get_preset as get_preset,
     )
-    from .study.results import (
-        StepResult as StepResult,
-    )
-    from .study.results import (
-        load_results as load_results,
-    )
     from .study.runner import (
         StudyRun as StudyRun,
     )
@@ -370,8 +370,8 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
         run_study as run_study,
     )
     from .study.schema import (
-        Study as Study,
-    )
-    from .study.schema import (
         load_study as load_study,
+    )
+    from .study.spec import (
+        Study as Study,
     )

@@ -447,8 +447,8 @@ class PCEInner(CallableInner):
                                  "(deterministic in theta, so the outer finite differences "
                                  "are meaningful), not 'regression'")
         self.order = int(order)
-        self.options: dict[str, Any] = {"method": estimator, "quadrature_points": quadrature_points,
-                        "basis": basis}
+        self.options: dict[str, Any] = {"estimator": estimator,
+                                        "quadrature_points": quadrature_points, "basis": basis}
 
     def run(self, space: ParameterSpace) -> Any:
         from .pce import polynomial_chaos
@@ -658,7 +658,7 @@ def check_cuu(result: CUUResult, model: Model, n_samples: int = 300, *, design: 
     from .sampling import sample
 
     view = FixedInputs(model, result.fixed) if result.fixed else model
-    s = sample(view, result.space, n_samples, method=design, seed=seed)
+    s = sample(view, result.space, n_samples, design=design, seed=seed)
     names_out = tuple(model.names_out)
     achieved: dict = {}
     rel: dict = {}

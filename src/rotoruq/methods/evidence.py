@@ -23,7 +23,8 @@ import numpy as np
 
 from .._rng import SeedLike, as_generator
 from ..errors import ParameterError
-from ..params import Interval, ParameterSpace
+from ..model import Model
+from ..params import Interval, ParameterSpace, unit_design
 from ._common import eval_space, levels_per_response
 
 __all__ = ["EvidenceResult", "evidence"]
@@ -86,7 +87,7 @@ def _refine(model, space, xs, y, lo, hi, cmin, cmax, n_starts, rel_step=1e-7):
     return cmin, cmax, count[0]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class EvidenceResult:
     """Belief and plausibility of response levels.
 
@@ -121,7 +122,7 @@ class EvidenceResult:
 
 
 def evidence(
-    model,
+    model: Model,
     space: ParameterSpace,
     *,
     response_levels=None,
@@ -150,8 +151,7 @@ def evidence(
         basin: more samples and starts raise that chance, no setting guarantees it.
     seed : int or Generator.
     """
-    from scipy.stats import qmc
-
+    intervals = [dd for dd in space.distributions if isinstance(dd, Interval)]
     bad = [
         n
         for n, dd in zip(space.names, space.distributions, strict=True)
@@ -165,14 +165,14 @@ def evidence(
         raise ParameterError(f"n_samples and n_starts must be >= 1, got {n_samples}, {n_starts}")
     d = space.dim
     rng = as_generator(seed)
-    ivs = [np.array(dd.intervals) for dd in space.distributions]
-    bpas = [np.array(dd.bpa) for dd in space.distributions]
+    ivs = [np.array(dd.intervals) for dd in intervals]
+    bpas = [np.array(dd.bpa) for dd in intervals]
     combos = list(itertools.product(*[range(len(b)) for b in bpas]))
     lo = np.array([[ivs[j][c[j], 0] for j in range(d)] for c in combos])
     hi = np.array([[ivs[j][c[j], 1] for j in range(d)] for c in combos])
     bpa = np.array([np.prod([bpas[j][c[j]] for j in range(d)]) for c in combos])
     n_cells = len(combos)
-    unit = qmc.LatinHypercube(d=d, seed=rng).random(int(n_samples))
+    unit = unit_design(int(n_samples), d, design="lhs", seed=rng)
     if d <= 10:
         unit = np.vstack([unit, np.array(list(itertools.product([0.0, 1.0], repeat=d)))])
     per = unit.shape[0]

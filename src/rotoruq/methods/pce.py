@@ -31,11 +31,14 @@ from scipy import special
 
 from .._rng import SeedLike, as_generator
 from ..errors import ParameterError
-from ..params import Beta, Exponential, Gamma, Normal, ParameterSpace, Uniform
+from ..model import Model
+from ..params import Beta, Exponential, Gamma, Normal, ParameterSpace, Uniform, unit_design
 from ._common import eval_space, nan_rows_warning
 from .sampling import unit_to_space
 
-__all__ = ["PCEResult", "polynomial_chaos", "total_order_indices", "Germ"]
+__all__ = ["PCEResult", "PCEModel", "polynomial_chaos", "total_order_indices", "Germ"]
+
+ESTIMATORS = ("quadrature", "sparse_grid", "regression")
 
 
 def total_order_indices(d: int, p: int) -> np.ndarray:
@@ -149,7 +152,7 @@ def _design_matrix(germs, alpha, xi):
     return out
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class PCEResult:
     """A polynomial chaos expansion of m responses.
 
@@ -158,7 +161,7 @@ class PCEResult:
     names_in, names_out; order p; multi_indices (N_T, d); coefficients (N_T, m);
     families (d,) polynomial family per input; mean (m,) = c_0 (eq. 2.18);
     variance (m,) = sum_{i>0} c_i^2 (eq. 2.19); std (m,); main, total (m, d) Sobol' indices
-    from the coefficients; method ("quadrature", "sparse_grid", "regression");
+    from the coefficients; estimator ("quadrature", "sparse_grid", "regression");
     n_evaluations; n_dropped (failed points left out of a regression fit).
     """
 
@@ -173,25 +176,44 @@ class PCEResult:
     std: np.ndarray
     main: np.ndarray
     total: np.ndarray
-    method: str
+    estimator: str
     n_evaluations: int
     n_dropped: int = 0
-    space: ParameterSpace | None = field(default=None, repr=False, compare=False)
-    germs: list = field(default_factory=list, repr=False, compare=False)
+    space: ParameterSpace | None = field(default=None, repr=False)
+    germs: list = field(default_factory=list, repr=False)
 
     @property
     def n_terms(self) -> int:
         return self.multi_indices.shape[0]
 
-    def predict(self, x) -> np.ndarray:
+    def predict(self, x: np.ndarray) -> np.ndarray:
         """Expansion at points x (n, d) in ``names_in`` order: (n, m)."""
+        if self.space is None:
+            raise ParameterError("this PCEResult does not carry its parameter space")
         x = self.space._check(x)
         xi = _x_to_xi(self.space, self.germs, x)
         return _design_matrix(self.germs, self.multi_indices, xi) @ self.coefficients
 
-    def sample(self, n: int, seed: SeedLike = None, method: str = "random") -> np.ndarray:
-        """Responses of the expansion at n points drawn from the space: (n, m)."""
-        return self.predict(self.space.draw(n, design=method, seed=seed))
+    def as_model(self) -> PCEModel:
+        """The expansion as a :class:`~rotoruq.model.Model` (inputs ``names_in``, outputs
+        ``names_out``), e.g. to propagate through it with ``rq.sample(result.as_model(),
+        space, n_samples)``."""
+        return PCEModel(self)
+
+
+class PCEModel:
+    """A :class:`PCEResult` seen through the Model protocol (``__call__`` = ``predict``)."""
+
+    def __init__(self, result: PCEResult):
+        self.result = result
+        self.names_in = result.names_in
+        self.names_out = result.names_out
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        return self.result.predict(x)
+
+    def __repr__(self) -> str:
+        return f"PCEModel(order={self.result.order}, in={self.names_in}, out={self.names_out})"
 
 
 def _smolyak_terms(d: int, level: int):
@@ -215,11 +237,11 @@ def _tensor_grid(germs, npts):
 
 
 def polynomial_chaos(
-    model,
+    model: Model,
     space: ParameterSpace,
     order: int,
     *,
-    method: str = "quadrature",
+    estimator: str = "quadrature",
     n_samples: int | None = None,
     quadrature_points: int | None = None,
     basis: str = "askey",
@@ -231,7 +253,7 @@ def polynomial_chaos(
     ----------
     model, space : the Model and its uncertain inputs (matched by name).
     order : total polynomial order p (>= 1).
-    method : "quadrature" (tensor Gauss rule, ``quadrature_points`` per input, default p + 1),
+    estimator : "quadrature" (tensor Gauss rule, ``quadrature_points`` per input, default p + 1),
         "sparse_grid" (Smolyak level p over Gauss rules of 1..p+1 points) or "regression"
         (least squares on ``n_samples`` LHS points, default 2 N_T).
     basis : "askey" (table 2.1 where it applies, Hermite in u-space otherwise) or "hermite"
@@ -250,18 +272,21 @@ def polynomial_chaos(
     alpha = total_order_indices(d, order)
     m = len(model.names_out)
     n_dropped = 0
-    if method == "quadrature":
+    if estimator not in ESTIMATORS:
+        raise ParameterError(
+            f"unknown PCE estimator {estimator!r}; valid: {', '.join(ESTIMATORS)}")
+    if estimator == "quadrature":
         nq = int(quadrature_points or order + 1)
         xi, w = _tensor_grid(germs, [nq] * d)
         batch = eval_space(model, space, _xi_to_x(space, germs, xi))
         if batch.failures:
             raise ParameterError(
                 f"{len(batch.failures)} quadrature evaluations failed; projection needs all "
-                "points (use method='regression')"
+                "points (use estimator='regression')"
             )
         coef = _design_matrix(germs, alpha, xi).T @ (w[:, None] * batch.values)
         n_eval = xi.shape[0]
-    elif method == "sparse_grid":
+    elif estimator == "sparse_grid":
         terms = _smolyak_terms(d, order)
         grids = [_tensor_grid(germs, i) for i, _ in terms]
         allxi = np.vstack([g[0] for g in grids])
@@ -269,7 +294,7 @@ def polynomial_chaos(
         batch = eval_space(model, space, _xi_to_x(space, germs, uniq))
         if batch.failures:
             raise ParameterError(
-                f"{len(batch.failures)} sparse-grid evaluations failed; use method='regression'"
+                f"{len(batch.failures)} sparse-grid evaluations failed; use estimator='regression'"
             )
         y_all = batch.values[inv.ravel()]
         coef = np.zeros((alpha.shape[0], m))
@@ -280,15 +305,11 @@ def polynomial_chaos(
             inside = np.all(alpha <= np.array(npts) - 1, axis=1)
             coef[inside] += c * (_design_matrix(germs, alpha[inside], xi).T @ (w[:, None] * y))
         n_eval = uniq.shape[0]
-    elif method == "regression":
+    else:  # regression
         n = int(n_samples or 2 * alpha.shape[0])
         if n < alpha.shape[0]:
             raise ParameterError(f"regression needs n_samples >= N_T = {alpha.shape[0]}, got {n}")
-        from .sampling import _design
-
-        rng = as_generator(seed)
-        q = _design("lhs", n, d, rng, 0)
-        x = unit_to_space(space, q)
+        x = unit_to_space(space, unit_design(n, d, design="lhs", seed=as_generator(seed)))
         batch = eval_space(model, space, x)
         ok = batch.ok
         n_dropped = int(np.sum(~ok))
@@ -296,10 +317,6 @@ def polynomial_chaos(
         psi = _design_matrix(germs, alpha, _x_to_xi(space, germs, x[ok]))
         coef = np.linalg.lstsq(psi, batch.values[ok], rcond=None)[0]
         n_eval = n
-    else:
-        raise ParameterError(
-            f"unknown PCE method {method!r}; valid: quadrature, sparse_grid, regression"
-        )
     c2 = coef[1:] ** 2
     var = c2.sum(axis=0)
     a = alpha[1:]
@@ -334,7 +351,7 @@ def polynomial_chaos(
         std=np.sqrt(var),
         main=main,
         total=total,
-        method=method,
+        estimator=estimator,
         n_evaluations=int(n_eval),
         n_dropped=n_dropped,
         space=space,

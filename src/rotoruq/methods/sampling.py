@@ -10,15 +10,16 @@ Moment conventions (Dakota's): ``std`` is the sample standard deviation (ddof = 
 from __future__ import annotations
 
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import stats
-from scipy.stats import qmc
 
 from .._rng import SeedLike, as_generator
 from ..errors import ParameterError
-from ..params import ParameterSpace
+from ..model import Model
+from ..params import ParameterSpace, unit_design
 from ._common import eval_space, levels_per_response, nan_rows_warning
 
 __all__ = [
@@ -28,19 +29,21 @@ __all__ = [
     "sample",
     "refine",
     "unit_to_space",
+    "check_design",
+    "DESIGNS",
 ]
 
 DEFAULT_PERCENTILES = (1.0, 5.0, 10.0, 25.0, 50.0, 75.0, 90.0, 95.0, 99.0)
-_METHODS = ("lhs", "mc", "sobol", "halton")
+DESIGNS = ("lhs", "random", "sobol", "halton")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ResponseStatistics:
     """Statistics of m responses from n samples (non-finite values left out per response).
 
     Attributes
     ----------
-    names : (m,) response names.
+    names_out : (m,) response names.
     n_valid : (m,) number of finite values used per response.
     n_dropped : (m,) number of values left out (failed or NaN) per response.
     mean, std, skewness, kurtosis : (m,) sample moments (std ddof=1; skewness G1 and excess
@@ -53,7 +56,7 @@ class ResponseStatistics:
     probability_levels, probability_response : dict name -> arrays: empirical quantiles.
     """
 
-    names: tuple[str, ...]
+    names_out: tuple[str, ...]
     n_valid: np.ndarray
     n_dropped: np.ndarray
     mean: np.ndarray
@@ -82,13 +85,13 @@ class ResponseStatistics:
                 "kurtosis": float(self.kurtosis[k]),
                 "n_valid": int(self.n_valid[k]),
             }
-            for k, n in enumerate(self.names)
+            for k, n in enumerate(self.names_out)
         ]
 
 
 def response_statistics(
-    values,
-    names=None,
+    values: np.ndarray,
+    names_out: Sequence[str] | None = None,
     *,
     response_levels=None,
     probability_levels=None,
@@ -102,7 +105,7 @@ def response_statistics(
     if y.ndim == 1:
         y = y[:, None]
     n, m = y.shape
-    names = tuple(names) if names is not None else tuple(f"y{k}" for k in range(m))
+    names = tuple(names_out) if names_out is not None else tuple(f"y{k}" for k in range(m))
     if not 0 < confidence < 1:
         raise ParameterError(f"confidence must lie in (0, 1), got {confidence}")
     finite = np.isfinite(y)
@@ -146,7 +149,7 @@ def response_statistics(
             raise ParameterError(f"probability_levels for {name!r} must lie in [0, 1]")
         p_resp[name] = np.quantile(v, p) if nk else np.full(p.size, np.nan)
     return ResponseStatistics(
-        names=names,
+        names_out=names,
         n_valid=n_valid,
         n_dropped=n - n_valid,
         mean=out["mean"],
@@ -166,7 +169,7 @@ def response_statistics(
     )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SamplingResult:
     """Result of :func:`sample`.
 
@@ -177,7 +180,7 @@ class SamplingResult:
     outputs : (n, m) responses (NaN rows for failed points).
     failures : dict row -> reason for failed points.
     statistics : ResponseStatistics of the finite responses.
-    method : design ("lhs", "mc", "sobol", "halton").
+    design : "lhs", "random", "sobol" or "halton".
     unit : (n, d) the design in (0, 1)^d (used by :func:`refine`).
     n_evaluations : model evaluations made (all rows, failed ones included).
     """
@@ -188,16 +191,16 @@ class SamplingResult:
     outputs: np.ndarray
     failures: dict
     statistics: ResponseStatistics
-    method: str
+    design: str
     unit: np.ndarray = field(repr=False)
     n_evaluations: int = 0
-    model: object = field(default=None, repr=False, compare=False)
-    space: ParameterSpace | None = field(default=None, repr=False, compare=False)
-    options: dict = field(default_factory=dict, repr=False, compare=False)
+    model: Model | None = field(default=None, repr=False)
+    space: ParameterSpace | None = field(default=None, repr=False)
+    options: dict = field(default_factory=dict, repr=False)
 
     # convenience accessors
     @property
-    def n(self) -> int:
+    def n_samples(self) -> int:
         return self.inputs.shape[0]
 
     @property
@@ -251,31 +254,15 @@ def unit_to_space(space: ParameterSpace, q: np.ndarray) -> np.ndarray:
     return space.from_u(stats.norm.ppf(np.clip(q, 1e-16, 1 - 1e-16)))
 
 
-def _qmc_engine(method: str, d: int, engine_seed: int):
-    if method == "sobol":
-        return qmc.Sobol(d=d, scramble=True, seed=engine_seed)
-    return qmc.Halton(d=d, scramble=True, seed=engine_seed)
+def check_design(design: str) -> str:
+    """``design`` in lower case if it is one of :data:`DESIGNS`, else a ParameterError."""
+    d = str(design).lower()
+    if d not in DESIGNS:
+        raise ParameterError(f"unknown design {design!r}; valid: {', '.join(DESIGNS)}")
+    return d
 
 
-def _design(method: str, n: int, d: int, rng: np.random.Generator, engine_seed: int):
-    if method == "mc":
-        return rng.random((n, d))
-    if method == "lhs":
-        return qmc.LatinHypercube(d=d, seed=rng).random(n)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)  # Sobol balance for n not a power of 2
-        return _qmc_engine(method, d, engine_seed).random(n)
-
-
-def _check_method(method: str) -> str:
-    m = method.lower()
-    m = {"random": "mc", "monte_carlo": "mc", "latin": "lhs"}.get(m, m)
-    if m not in _METHODS:
-        raise ParameterError(f"unknown sampling method {method!r}; valid: {', '.join(_METHODS)}")
-    return m
-
-
-def _finish(model, space, q, method, options, failures_offset=None, previous=None):
+def _finish(model, space, q, design, options, previous=None):
     x = unit_to_space(space, q)
     batch = eval_space(model, space, x)
     y, failures = batch.values, dict(batch.failures)
@@ -296,7 +283,7 @@ def _finish(model, space, q, method, options, failures_offset=None, previous=Non
         warn=False,
     )
     n_bad = int(np.sum(~np.all(np.isfinite(y), axis=1)))
-    nan_rows_warning(n_bad, y.shape[0], f"sample ({method})")
+    nan_rows_warning(n_bad, y.shape[0], f"sample ({design})")
     return SamplingResult(
         names_in=space.names,
         names_out=names_out,
@@ -304,7 +291,7 @@ def _finish(model, space, q, method, options, failures_offset=None, previous=Non
         outputs=y,
         failures=failures,
         statistics=st,
-        method=method,
+        design=design,
         unit=q,
         n_evaluations=y.shape[0],
         model=model,
@@ -314,54 +301,65 @@ def _finish(model, space, q, method, options, failures_offset=None, previous=Non
 
 
 def sample(
-    model,
+    model: Model,
     space: ParameterSpace,
-    n: int,
+    n_samples: int,
     *,
-    method: str = "lhs",
-    seed: SeedLike = None,
+    design: str = "lhs",
     response_levels=None,
     probability_levels=None,
-    percentiles=DEFAULT_PERCENTILES,
+    percentiles: Sequence[float] = DEFAULT_PERCENTILES,
     confidence: float = 0.95,
+    seed: SeedLike = None,
 ) -> SamplingResult:
-    """Propagate ``space`` through ``model`` with ``n`` samples in ONE batched model call.
+    """Propagate ``space`` through ``model`` with ``n_samples`` points in ONE batched call.
 
     Parameters
     ----------
     model : Model; inputs matched to ``space.names`` by name.
     space : ParameterSpace (correlations honoured through the Nataf model).
-    n : number of samples (>= 2).
-    method : "lhs" (Latin hypercube), "mc" (plain Monte Carlo), "sobol" or "halton"
-        (scrambled, scipy.stats.qmc).
-    seed : int or numpy Generator.
+    n_samples : number of samples (>= 2).
+    design : "lhs" (Latin hypercube), "random" (plain Monte Carlo), "sobol" or "halton"
+        (scrambled, scipy.stats.qmc); drawn by :func:`rotoruq.params.unit_design`.
     response_levels : levels z for the empirical P(y <= z) / P(y > z) (same for all responses,
         a mapping name -> levels, or one sequence per response).
     probability_levels : probabilities mapped to empirical quantiles.
     percentiles : percentiles (percent) to report.
     confidence : level of the mean / std confidence intervals.
+    seed : int or numpy Generator.
 
     Failed rows stay in ``outputs`` as NaN (reason in ``failures``) and are left out of the
     statistics with a RuntimeWarning giving the count.
     """
-    n = int(n)
+    n = int(n_samples)
     if n < 2:
-        raise ParameterError(f"number of samples must be >= 2, got {n}")
-    method = _check_method(method)
+        raise ParameterError(f"n_samples must be >= 2, got {n_samples}")
+    design = check_design(design)
     rng = as_generator(seed)
-    engine_seed = int(rng.integers(2**62))
-    q = _design(method, n, space.dim, rng, engine_seed)
+    # a QMC design gets a generator of its own, rebuilt by refine() from this integer (scipy's
+    # QMC engines spawn from a generator's seed sequence, which its state does not hold); LHS
+    # and random designs draw from the caller's generator, continued by refine() from the
+    # state snapshot (not the generator), so refining one result twice gives the same points
+    # whatever else drew from the caller's generator
+    design_seed = int(rng.integers(2**62))
+    qmc_design = design in ("sobol", "halton")
+    q = unit_design(n, space.dim, design=design,
+                    seed=np.random.default_rng(design_seed) if qmc_design else rng)
     options = {
         "response_levels": response_levels,
         "probability_levels": probability_levels,
         "percentiles": tuple(percentiles),
         "confidence": confidence,
-        "engine_seed": engine_seed,
-        # a snapshot, not the generator: refine() restarts from it, so refining one result
-        # twice gives the same points whatever else drew from the caller's generator
+        "design_seed": design_seed,
         "rng_state": rng.bit_generator.state,
     }
-    return _finish(model, space, q, method, options)
+    return _finish(model, space, q, design, options)
+
+
+def _generator_at(state: dict) -> np.random.Generator:
+    rng = np.random.Generator(getattr(np.random, state["bit_generator"])())
+    rng.bit_generator.state = state
+    return rng
 
 
 def _lhs_extension(u_old: np.ndarray, n_more: int, rng: np.random.Generator) -> np.ndarray:
@@ -388,40 +386,33 @@ def _lhs_extension(u_old: np.ndarray, n_more: int, rng: np.random.Generator) -> 
     return out
 
 
-def refine(result: SamplingResult, n_more: int, *, seed: SeedLike = None) -> SamplingResult:
-    """Grow a sample by ``n_more`` points (one model call for the new points only).
+def refine(result: SamplingResult, n_samples: int, *, seed: SeedLike = None) -> SamplingResult:
+    """Grow a sample by ``n_samples`` more points (one model call for the new points only).
 
     * "lhs": new points fill the empty strata of the finer grid (exact LHS of 2n points when
-      ``n_more == n``; LHS-like otherwise);
-    * "sobol" / "halton": the same scrambled sequence is continued;
-    * "mc": independent new points (plain Monte Carlo extension).
+      ``n_samples == n``; LHS-like otherwise);
+    * "sobol" / "halton" / "random": the sequence is continued (the points that ``sample``
+      would have drawn with the larger count and the same seed).
 
-    ``seed`` defaults to the state the original sample's generator was left in (continued),
-    so a refined run is reproducible from the original seed, and refining one result twice
-    gives the same points.
+    ``seed`` (lhs and random) defaults to the state the original sample's generator was left in
+    (continued), so a refined run is reproducible from the original seed, and refining one
+    result twice gives the same points.
     """
-    n_more = int(n_more)
+    n_more = int(n_samples)
     if n_more < 1:
-        raise ParameterError(f"n_more must be >= 1, got {n_more}")
+        raise ParameterError(f"n_samples (points to add) must be >= 1, got {n_samples}")
     if result.model is None or result.space is None:
         raise ParameterError("this SamplingResult does not carry its model and space")
     opts = dict(result.options)
-    if seed is not None:
-        rng = as_generator(seed)
+    if result.design in ("lhs", "random"):
+        rng = as_generator(seed) if seed is not None else _generator_at(opts["rng_state"])
+        if result.design == "lhs":
+            q = _lhs_extension(result.unit, n_more, rng)
+        else:
+            q = unit_design(n_more, result.space.dim, design="random", seed=rng)
+        opts["rng_state"] = rng.bit_generator.state
     else:
-        state = opts["rng_state"]
-        rng = np.random.Generator(getattr(np.random, state["bit_generator"])())
-        rng.bit_generator.state = state
-    d = result.space.dim
-    if result.method == "lhs":
-        q = _lhs_extension(result.unit, n_more, rng)
-    elif result.method == "mc":
-        q = rng.random((n_more, d))
-    else:
-        eng = _qmc_engine(result.method, d, opts["engine_seed"])
-        eng.fast_forward(result.n)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)
-            q = eng.random(n_more)
-    opts["rng_state"] = rng.bit_generator.state
-    return _finish(result.model, result.space, q, result.method, opts, previous=result)
+        n_old = result.n_samples
+        q = unit_design(n_old + n_more, result.space.dim, design=result.design,
+                        seed=np.random.default_rng(opts["design_seed"]))[n_old:]
+    return _finish(result.model, result.space, q, result.design, opts, previous=result)

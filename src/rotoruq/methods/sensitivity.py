@@ -2,31 +2,43 @@
 
 Design (Saltelli 2010): two independent base samples A and B of N points each and, for every
 input i, the matrix A_B^i (A with column i taken from B). The model is called ONCE on the
-stacked batch [A; B; A_B^1; ...; A_B^d] of N (d + 2) points.
+stacked batch [A; B; A_B^1; ...; A_B^d] of N (d + 2) points. A and B are the two halves of one
+2d-dimensional design from :func:`rotoruq.params.unit_design` (scrambled Sobol' by default,
+as SALib and scipy.stats.sobol_indices draw it).
 
-Estimators (f_A, f_B, f_i = f(A_B^i); V the variance of f over A and B, f_0 their mean):
+Estimators (f_A, f_B, f_i = f(A_B^i); f_0 the mean over A and B; V_AB the variance over A and
+B; V_all the variance over all N (d + 2) outputs, a lower-noise estimate of the same variance
+since every block has the law of f):
 
-* ``"hybrid"`` (default): total = Jansen's ``mean((f_A - f_i)^2) / (2 V_all)``, with V_all the
-  variance over all N (d + 2) outputs (every block has the law of f, so this is a lower-noise
-  estimate of the same variance); main = the average of the centred Saltelli 2010 estimator
-  ``mean((f_B - f_0) (f_i - f_A)) / V_all`` and Janon's estimator (below), whose errors are
-  only partly correlated, except for inputs whose estimated total index is below 0.1, which
-  take the Saltelli estimate alone: its numerator vanishes with the total effect, while
-  Janon's has an error floor of order N^-1/2 for any index near zero (the 8-D Sobol' G
-  function's nearly inert inputs). How it was chosen and measured: ``benchmarks/
-  sobol_accuracy.py`` (the 0.1 was picked after looking at the G function; 0.05 and 0.2 give
-  the same results there, and Ishigami has no input below it).
-* ``"saltelli2010"``: main ``mean((f_B - f_0) (f_i - f_A)) / V`` (Saltelli et al. 2010,
-  table 2 (b), centred); total (Jansen 1999) ``mean((f_A - f_i)^2) / (2 V)``. The pair used by
-  SALib and scipy.stats.sobol_indices.
-* ``"jansen"``: main ``(V - mean((f_B - f_i)^2) / 2) / V``; total as above.
+* ``"hybrid"`` (default): total = Jansen's ``mean((f_A - f_i)^2) / (2 V_all)``; main = the
+  mean of three estimates of the same index whose errors are only partly correlated: the
+  centred Saltelli 2010 numerator ``mean((f_B - f_0) (f_i - f_A))`` over V_AB and over V_all,
+  and Janon's estimator (below); except for inputs whose Saltelli estimate over V_AB is below
+  0.2, which take that estimate alone: Janon's estimator has an error floor of order N^-1/2
+  for an index near zero (the G function's inert inputs, Ishigami's x3 whose main effect is 0
+  but total is not), while Saltelli's numerator shrinks with the effect. How the rule was
+  chosen: ``benchmarks/sobol_accuracy.py`` (per seed, the largest error over all main and
+  total indices, paired against the peers' estimator on the same design over >= 300 seeds; the
+  0.2 was picked after looking at Ishigami with a = 5, b = 0.5, where 0.1 lost to the peers
+  at N = 256; the benchmark lists which functions were looked at and which were not).
+* ``"saltelli2010"``: main ``mean((f_B - f_0) (f_i - f_A)) / V_AB`` (Saltelli et al. 2010,
+  table 2 (b), centred); total (Jansen 1999) ``mean((f_A - f_i)^2) / (2 V_AB)``. The pair used
+  by SALib and scipy.stats.sobol_indices.
+* ``"jansen"``: main ``(V_AB - mean((f_B - f_i)^2) / 2) / V_AB``; total as above.
 * ``"janon"``: main by Janon et al. (2014), the correlation-type estimator of the pairs
   (f_B, f_i), which share x_i, with the pairs' own mean and variance; total
   ``1 - janon(f_A, f_i)`` (those pairs share every input but x_i).
 
-None of these is guaranteed in [0, 1] for finite N; values are reported as computed, with
-bootstrap percentile intervals (resampling the N base rows; every estimator is a function of
-means of per-row terms, so all resamples cost one matrix product).
+None of these is guaranteed in [0, 1] for finite N; values are reported as computed.
+
+Intervals: every estimator is a smooth function of the means of 6 + 7 d per-row terms. The
+intervals are percentile intervals of a *parametric bootstrap of those means*: ``n_bootstrap``
+draws from the normal law with the terms' sample mean and covariance / N (the central limit
+theorem for means of i.i.d. rows), each pushed through the estimator. To first order this is
+the row-resampling bootstrap (tests compare the two), at O(N K^2) for the covariance plus
+O(B K) for the draws instead of O(B N K) for B resamples of N rows: the intervals cost less
+than the analysis. Both treat the rows as independent, so with a QMC design (the default)
+they are conservative: the design's error is smaller than i.i.d. rows would give.
 
 References: A. Saltelli et al., Comput. Phys. Commun. 181 (2010) 259-270; M. J. W. Jansen,
 Comput. Phys. Commun. 117 (1999) 35-43; A. Janon et al., ESAIM: PS 18 (2014) 342-364.
@@ -34,23 +46,27 @@ Comput. Phys. Commun. 117 (1999) 35-43; A. Janon et al., ESAIM: PS 18 (2014) 342
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import lapack
 
 from .._rng import SeedLike, as_generator
 from ..errors import ParameterError
-from ..params import ParameterSpace
+from ..model import Model
+from ..params import ParameterSpace, unit_design
 from ._common import eval_space, nan_rows_warning
-from .sampling import _check_method, unit_to_space
+from .sampling import check_design, unit_to_space
 
 __all__ = ["SobolResult", "sobol_indices", "sobol_from_design", "pick_freeze_design"]
 
 ESTIMATORS = ("hybrid", "saltelli2010", "jansen", "janon")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class SobolResult:
     """Main and total Sobol' indices.
 
@@ -58,10 +74,12 @@ class SobolResult:
     ----------
     names_in, names_out : input (d) and response (m) names.
     main, total : (m, d) first-order and total-effect indices.
-    main_ci, total_ci : (m, d, 2) bootstrap percentile intervals at level ``confidence``
-        (NaN when ``n_bootstrap == 0``).
+    main_ci, total_ci : (m, d, 2) percentile intervals at level ``confidence`` (NaN when
+        ``n_bootstrap == 0``).
     variance, mean : (m,) response variance and mean over the base samples.
-    estimator : estimator name; n_base : N; n_evaluations : N (d + 2) model evaluations;
+    estimator : estimator name; design : base design ("sobol", ..., or None when the
+        responses were handed to :func:`sobol_from_design`); n_samples : N base samples;
+    n_evaluations : N (d + 2) model evaluations;
     n_dropped : (m,) base rows left out because one of their d + 2 evaluations failed.
     """
 
@@ -74,12 +92,13 @@ class SobolResult:
     variance: np.ndarray
     mean: np.ndarray
     estimator: str
+    design: str | None
     confidence: float
-    n_base: int
+    n_samples: int
     n_evaluations: int
     n_dropped: np.ndarray
 
-    def _k(self, response) -> int:
+    def _k(self, response: str | int | None) -> int:
         if response is None:
             if len(self.names_out) != 1:
                 raise ParameterError(f"name a response: one of {list(self.names_out)}")
@@ -90,7 +109,8 @@ class SobolResult:
             raise ParameterError(f"unknown response {response!r}; valid: {list(self.names_out)}")
         return self.names_out.index(response)
 
-    def ranking(self, response=None, by: str = "total") -> list[tuple[str, float, float]]:
+    def ranking(self, response: str | int | None = None,
+                by: str = "total") -> list[tuple[str, float, float]]:
         """Inputs sorted by decreasing ``by`` index ("total" or "main") for one response:
         a list of (name, main, total), ready for a tornado diagram."""
         k = self._k(response)
@@ -120,31 +140,17 @@ class SobolResult:
         return rows
 
 
-def pick_freeze_design(space: ParameterSpace, n: int, *, method="sobol", seed=None) -> np.ndarray:
+def pick_freeze_design(space: ParameterSpace, n_samples: int, *, design: str = "sobol",
+                       seed: SeedLike = None) -> np.ndarray:
     """The stacked pick-and-freeze batch [A; B; A_B^1; ...; A_B^d], shape (N (d + 2), d).
 
     A and B are the two halves of one 2d-dimensional design (so the QMC structure is kept).
     """
-    n = int(n)
+    n = int(n_samples)
     if n < 2:
-        raise ParameterError(f"number of base samples must be >= 2, got {n}")
-    method = _check_method(method)
+        raise ParameterError(f"n_samples (base samples) must be >= 2, got {n_samples}")
     d = space.dim
-    rng = as_generator(seed)
-    from scipy.stats import qmc
-
-    if method == "mc":
-        q = rng.random((n, 2 * d))
-    elif method == "lhs":
-        q = qmc.LatinHypercube(d=2 * d, seed=rng).random(n)
-    else:
-        if method == "sobol":  # 64 bits: scipy.stats.sobol_indices draws the same design
-            eng = qmc.Sobol(d=2 * d, scramble=True, seed=rng, bits=64)
-        else:
-            eng = qmc.Halton(d=2 * d, scramble=True, seed=rng)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)
-            q = eng.random(n)
+    q = unit_design(n, 2 * d, design=check_design(design), seed=as_generator(seed))
     qa, qb = q[:, :d], q[:, d:]
     blocks = [qa, qb]
     for i in range(d):
@@ -155,14 +161,14 @@ def pick_freeze_design(space: ParameterSpace, n: int, *, method="sobol", seed=No
     return unit_to_space(space, np.vstack(blocks))
 
 
-# Every estimator is a function of means of per-row terms, so a bootstrap resample (row counts
-# w) is one matrix product w @ T instead of a gather of (B, N, d + 2) arrays.
+# Every estimator is a function of means of per-row terms (resampled as a whole by the
+# parametric bootstrap).
 _BASE_TERMS = 6  # fa, fb, fa^2, fb^2, row sum over all blocks, row sum of squares
 _PER_INPUT = 7  # fi, fi^2, fb fi, fb (fi - fa), (fa - fi)^2, fa fi, (fb - fi)^2
-SMALL_TOTAL = 0.1
+SMALL_MAIN = 0.2
 
 
-def _row_terms(fa, fb, fi):
+def _row_terms(fa: np.ndarray, fb: np.ndarray, fi: np.ndarray) -> np.ndarray:
     """Per-row terms (N, 6 + 7 d) of centred responses fa, fb (N,) and fi (d, N)."""
     cols = [fa, fb, fa * fa, fb * fb, fa + fb + fi.sum(0), fa * fa + fb * fb + (fi * fi).sum(0)]
     per = np.stack([fi, fi * fi, fb * fi, fb * (fi - fa), (fa - fi) ** 2, fa * fi,
@@ -170,8 +176,13 @@ def _row_terms(fa, fb, fi):
     return np.column_stack(cols + list(per.reshape(-1, fa.size)))
 
 
-def _indices(means, n, d, estimator):
-    """Main, total (..., d) and the A/B variance (...,) from term means (..., 6 + 7 d)."""
+def _indices(means: np.ndarray, n: int, d: int, estimator: str,
+             small: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Main, total (..., d) and the A/B variance (...,) from term means (..., 6 + 7 d).
+
+    small : (d,) which inputs take the hybrid's Saltelli-only branch; None decides from
+    ``means`` (a bootstrap passes the point estimate's choice, so every draw uses one rule).
+    """
     m_a, m_b, m_a2, m_b2, m_s1, m_s2 = (means[..., j] for j in range(_BASE_TERMS))
     per = means[..., _BASE_TERMS:].reshape(*means.shape[:-1], d, _PER_INPUT)
     m_i, m_i2, m_bi, m_bdi, m_jt, m_ai, m_jm = (per[..., j] for j in range(_PER_INPUT))
@@ -186,50 +197,66 @@ def _indices(means, n, d, estimator):
         return (m_xi - mid**2) / (0.5 * (m_x2[..., None] + m_i2) - mid**2)
 
     if estimator == "janon":
-        main = janon(m_b, m_b2, m_bi)
-        total = 1.0 - janon(m_a, m_a2, m_ai)
-    elif estimator == "hybrid":
-        v = v_all[..., None]
-        total = jansen_tot / v
+        return janon(m_b, m_b2, m_bi), 1.0 - janon(m_a, m_a2, m_ai), var_ab
+    v = var_ab[..., None]
+    total = jansen_tot / v
+    if estimator == "saltelli2010":
+        main = salt_num / v
+    elif estimator == "jansen":
+        main = (v - 0.5 * m_jm) / v
+    else:  # hybrid
         salt = salt_num / v
-        main = np.where(total < SMALL_TOTAL, salt, 0.5 * (salt + janon(m_b, m_b2, m_bi)))
-    else:
-        v = var_ab[..., None]
-        if estimator == "saltelli2010":
-            main = salt_num / v
-        else:  # jansen
-            main = (v - 0.5 * m_jm) / v
-        total = jansen_tot / v
+        if small is None:
+            small = salt < SMALL_MAIN
+        va = v_all[..., None]
+        main = np.where(small, salt, (salt + salt_num / va + janon(m_b, m_b2, m_bi)) / 3.0)
+        total = jansen_tot / va
     return main, total, var_ab
 
 
-def _name(names_out, k: int) -> str:
+def _name(names_out: Sequence[str] | None, k: int) -> str:
     return names_out[k] if names_out is not None else f"y{k}"
 
 
-def _bootstrap_counts(rng, b: int, n: int) -> np.ndarray:
-    """(b, n) multiplicities of the rows in b resamples with replacement of n rows."""
-    idx = rng.integers(0, n, size=(b, n)) + (n * np.arange(b))[:, None]
-    return np.bincount(idx.ravel(), minlength=b * n).reshape(b, n).astype(float)
+def _mean_draws(rng: np.random.Generator, terms: np.ndarray, b: int) -> np.ndarray:
+    """(b, K) draws of the term means from their normal law N(mean, cov / N).
+
+    The covariance is singular by construction (the row sums, and (f_A - f_i)^2 against
+    f_A^2, f_A f_i and f_i^2, are linear combinations of other terms), so it is factored by
+    LAPACK's pivoted Cholesky for semidefinite matrices (dpstrf), not eigh: a 27 x 27 eigh
+    took 40 ms with two BLAS threads on a busy machine, dpstrf takes microseconds."""
+    n, k = terms.shape
+    mean = terms.mean(0)
+    centred = terms - mean
+    cov = centred.T @ centred / ((n - 1) * n)
+    c, piv, rank, _ = lapack.dpstrf(cov, lower=1)
+    root = np.zeros((k, k))
+    root[piv - 1, :rank] = np.tril(c)[:, :rank]  # cov = root @ root.T
+    return mean + rng.standard_normal((b, rank)) @ root[:, :rank].T
+
+
+def _quantiles(draws: np.ndarray, a: float) -> np.ndarray:
+    """(d, 2) percentile interval of draws (b, d); nanquantile (slow) only if needed."""
+    q = np.nanquantile if np.isnan(draws).any() else np.quantile
+    return q(draws, [a / 2, 1 - a / 2], axis=0).T
 
 
 def sobol_from_design(
-    y,
+    y: np.ndarray,
     d: int,
     *,
     estimator: str = "hybrid",
     n_bootstrap: int = 100,
     confidence: float = 0.95,
+    names_in: Sequence[str] | None = None,
+    names_out: Sequence[str] | None = None,
     seed: SeedLike = None,
-    names_in=None,
-    names_out=None,
 ) -> SobolResult:
     """Indices from responses ``y`` (N (d + 2), m) of :func:`pick_freeze_design`.
 
     Base rows with a non-finite value in any of their d + 2 evaluations are left out (per
-    response), with a RuntimeWarning giving the count. The bootstrap resamples base rows:
-    every estimator is a function of means of 6 + 7 d per-row terms, so all ``n_bootstrap``
-    resamples are one (n_bootstrap, N) x (N, 6 + 7 d) matrix product.
+    response), with a RuntimeWarning giving the count. ``n_bootstrap`` draws of the
+    parametric bootstrap (module docstring) give the intervals; ``seed`` drives them.
     """
     estimator = estimator.lower()
     if estimator not in ESTIMATORS:
@@ -276,19 +303,17 @@ def sobol_from_design(
         c = b.mean()  # the estimators are shift invariant; centring avoids cancellation
         terms = _row_terms(b[0] - c, b[1] - c, b[2:] - c)
         with np.errstate(divide="ignore", invalid="ignore"):
-            main[k], total[k], var[k] = _indices(terms.mean(0), nk, d, estimator)
+            means = terms.mean(0)
+            small = None
+            if estimator == "hybrid":
+                salt, _, _ = _indices(means, nk, d, "saltelli2010")
+                small = salt < SMALL_MAIN
+            main[k], total[k], var[k] = _indices(means, nk, d, estimator, small)
             if n_bootstrap > 0:
-                chunk = max(1, int(2e7 // (nk * 8)))
-                bs_s, bs_t = [], []
-                for start in range(0, int(n_bootstrap), chunk):
-                    w = _bootstrap_counts(rng, min(chunk, int(n_bootstrap) - start), nk)
-                    s_b, t_b, _ = _indices(w @ terms / nk, nk, d, estimator)
-                    bs_s.append(s_b)
-                    bs_t.append(t_b)
-                bs_s = np.concatenate(bs_s)
-                bs_t = np.concatenate(bs_t)
-                main_ci[k] = np.nanquantile(bs_s, [a / 2, 1 - a / 2], axis=0).T
-                total_ci[k] = np.nanquantile(bs_t, [a / 2, 1 - a / 2], axis=0).T
+                s_b, t_b, _ = _indices(_mean_draws(rng, terms, int(n_bootstrap)), nk, d,
+                                       estimator, small)
+                main_ci[k] = _quantiles(s_b, a)
+                total_ci[k] = _quantiles(t_b, a)
     names_in = tuple(names_in) if names_in is not None else tuple(f"x{i}" for i in range(d))
     names_out = tuple(names_out) if names_out is not None else tuple(f"y{k}" for k in range(m))
     return SobolResult(
@@ -301,23 +326,24 @@ def sobol_from_design(
         variance=var,
         mean=mean,
         estimator=estimator,
+        design=None,
         confidence=float(confidence),
-        n_base=n,
+        n_samples=n,
         n_evaluations=y.shape[0],
         n_dropped=n_dropped,
     )
 
 
 def sobol_indices(
-    model,
+    model: Model,
     space: ParameterSpace,
-    n: int,
+    n_samples: int,
     *,
     estimator: str = "hybrid",
-    seed: SeedLike = None,
+    design: str = "sobol",
     n_bootstrap: int = 100,
     confidence: float = 0.95,
-    method: str = "sobol",
+    seed: SeedLike = None,
 ) -> SobolResult:
     """Main and total Sobol' indices of every response with N (d + 2) evaluations.
 
@@ -326,28 +352,30 @@ def sobol_indices(
     model : Model; inputs matched to ``space.names`` by name.
     space : ParameterSpace. Indices of correlated inputs are computed on the Nataf model
         but lose their variance-decomposition meaning (they no longer sum to <= 1).
-    n : number N of base samples (a power of 2 suits ``method="sobol"``).
+    n_samples : number N of base samples (a power of 2 suits ``design="sobol"``).
     estimator : "hybrid" (default), "saltelli2010", "jansen" or "janon" (module docstring).
-    seed : int or Generator (design and bootstrap).
-    n_bootstrap : bootstrap resamples for the intervals (0: none; default 100, SALib's
-        default, enough for 95 % percentile intervals to about +-0.01 in probability).
+    design : base design: "sobol" (scrambled Sobol', default), "halton", "lhs" or "random".
+    n_bootstrap : draws of the parametric bootstrap for the intervals (0: none; default 100,
+        SALib's default number of resamples).
     confidence : interval level.
-    method : base design: "sobol" (scrambled Sobol', default), "halton", "lhs" or "mc".
+    seed : int or Generator (design and intervals).
 
     Returns
     -------
     SobolResult with ``main`` and ``total`` of shape (m, d).
     """
     rng = as_generator(seed)
-    x = pick_freeze_design(space, n, method=method, seed=rng)
+    design = check_design(design)
+    x = pick_freeze_design(space, n_samples, design=design, seed=rng)
     batch = eval_space(model, space, x)
-    return sobol_from_design(
+    res = sobol_from_design(
         batch.values,
         space.dim,
         estimator=estimator,
         n_bootstrap=n_bootstrap,
         confidence=confidence,
-        seed=rng,
         names_in=space.names,
         names_out=tuple(model.names_out),
+        seed=rng,
     )
+    return dataclasses.replace(res, design=design)

@@ -39,8 +39,24 @@ TRENDS = ("constant", "linear", "reduced_quadratic", "quadratic", None)
 KERNELS = ("sqexp", "matern32", "matern52")
 _LOG_ELL_BOUNDS = (np.log(1e-3), np.log(1e2))
 _LOG_ETA_BOUNDS = (np.log(1e-10), np.log(1.0))
-_BASE_JITTER = 1e-10
+_EPS = float(np.finfo(float).eps)
+
+
+def base_jitter(n: int) -> float:
+    """First jitter tried on an n x n correlation matrix, relative to its unit diagonal: n eps,
+    the size of the Cholesky factorization's own backward error (Higham, Accuracy and
+    Stability, thm. 10.3), so a smaller one would be lost in round-off. A larger one smooths
+    the interpolant: its holdout error grows like the jitter's square root (1e-10, the
+    former value, gave 3x scikit-learn's holdout error on the 4-D case of
+    ``benchmarks/gp_fit.py``)."""
+    return n * _EPS
+
 _MAX_JITTER = 1e-4
+# Largest relative residual of the training-system solve accepted before the jitter is
+# raised. Chosen among 1e-4 ... 1e-8 on the interpolation test design and benchmarks/gp_fit.py:
+# 1e-4 let a numerically singular optimum through (training-point error 0.03), 1e-6 and
+# tighter raised the jitter mid-optimization often enough to cost 6 % holdout error in 9-D.
+_SOLVE_TOL = 1e-5
 _SCREEN_POINTS = 150
 _ONE_THREAD_MAX = 2000
 
@@ -109,9 +125,13 @@ def _basis_grad(z: np.ndarray, trend: str | None) -> np.ndarray:
     return g
 
 
-def _robust_cholesky(a: np.ndarray, jitter: float) -> tuple[np.ndarray, float]:
-    """Lower Cholesky factor of ``a + jitter I``, raising the jitter x100 until it succeeds.
-    ``a`` is modified in place (its diagonal)."""
+def _robust_cholesky(a: np.ndarray, jitter: float,
+                     rhs: np.ndarray | None = None) -> tuple[np.ndarray, float]:
+    """Lower Cholesky factor of ``a + jitter I``, raising the jitter x100 until the factor
+    exists and, when ``rhs`` (n,) is given, solves ``(a + jitter I) z = rhs`` to a relative
+    residual below :data:`_SOLVE_TOL`: with the jitter at round-off level a factor can exist
+    and still be too ill-conditioned to interpolate with (its likelihood is then round-off,
+    which an optimizer would climb). ``a`` is modified in place (its diagonal)."""
     diag = np.diag_indices(a.shape[0])
     added = 0.0
     while True:
@@ -119,7 +139,11 @@ def _robust_cholesky(a: np.ndarray, jitter: float) -> tuple[np.ndarray, float]:
         added = jitter
         c, info = lapack.dpotrf(a, lower=1, clean=1, overwrite_a=0)
         if info == 0:
-            return c, jitter
+            if rhs is None:
+                return c, jitter
+            z = linalg.cho_solve((c, True), rhs, check_finite=False)
+            if np.linalg.norm(a @ z - rhs) <= _SOLVE_TOL * np.linalg.norm(rhs):
+                return c, jitter
         if jitter >= _MAX_JITTER:
             raise np.linalg.LinAlgError(
                 f"correlation matrix not positive definite even with jitter {jitter:.1e}"
@@ -127,7 +151,7 @@ def _robust_cholesky(a: np.ndarray, jitter: float) -> tuple[np.ndarray, float]:
         jitter *= 100.0
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class LeaveOneOut:
     """Closed-form leave-one-out cross-validation (Dubrule 1983).
 
@@ -206,14 +230,14 @@ class GaussianProcess:
         nugget: None | float | str | Sequence[float] = None,
         n_restarts: int = 2,
         mean: float | Sequence[float] | None = None,
-        seed: SeedLike = None,
         *,
         length_scales: Sequence[float] | np.ndarray | None = None,
         variance: float | Sequence[float] | None = None,
         optimize: bool = True,
         likelihood: str = "auto",
         screen_points: int | None = _SCREEN_POINTS,
-    ):
+        seed: SeedLike = None,
+    ) -> None:
         if trend not in TRENDS:
             raise ParameterError(f"unknown trend {trend!r}; valid: {TRENDS}")
         if kernel not in KERNELS:
@@ -356,8 +380,10 @@ class GaussianProcess:
             ys = (Y[:, j] - self._y_mean[j]) / self._y_std[j]
             nj = None if noise is None else float(noise[j])
             if not self.optimize:
+                assert log_ell0 is not None  # checked in __init__
                 theta = log_ell0[j]
                 if nj is not None:
+                    assert s2_fixed is not None  # a fixed nugget needs variance= (__init__)
                     theta = np.append(theta, np.log(s2_fixed[j]))
                 self._fits.append(self._fit_at(ys, theta, nj))
             else:
@@ -365,7 +391,7 @@ class GaussianProcess:
                                                 None if log_ell0 is None else log_ell0[j]))
         self._build_fast()
         worst = max(f.jitter if f.concentrated else f.jitter / f.sigma2 for f in self._fits)
-        if worst > _BASE_JITTER * 1.01 and self.nugget is None:
+        if worst > base_jitter(n) * 1.01 and self.nugget is None:
             warnings.warn(f"GaussianProcess: correlation matrix was ill-conditioned; a jitter of "
                           f"{worst:.1e} was added to its diagonal", RuntimeWarning, stacklevel=3)
         return self
@@ -390,7 +416,7 @@ class GaussianProcess:
     def _solve(self, ys: np.ndarray, theta: np.ndarray, noise: float | None, want_grad: bool,
                Xs: np.ndarray | None = None, F: np.ndarray | None = None):
         """Log-likelihood (concentrated when possible), its gradient and the solved systems."""
-        if Xs is None:
+        if Xs is None or F is None:
             Xs, F = self._Xs, self._F
         n, d = Xs.shape
         inv_ell, eta, s2, dn, conc = self._unpack(theta, noise)
@@ -398,7 +424,7 @@ class GaussianProcess:
         R, G = _corr(h, self.kernel)
         M = s2 * R if s2 != 1.0 else R.copy()
         M[np.diag_indices(n)] += eta + dn
-        L, jitter = _robust_cholesky(M, _BASE_JITTER * s2)
+        L, jitter = _robust_cholesky(M, base_jitter(n) * s2, ys)
         Lf = linalg.solve_triangular(L, F, lower=True, check_finite=False)
         Ly = linalg.solve_triangular(L, ys, lower=True, check_finite=False)
         if F.shape[1]:
@@ -503,6 +529,7 @@ class GaussianProcess:
             res = run(obj, s, 60 if len(starts) == 1 else 150)
             if best is None or res.fun < best.fun:
                 best = res
+        assert best is not None  # starts is never empty
         return self._fit_at(ys, best.x, noise)
 
     def _fit_at(self, ys: np.ndarray, theta: np.ndarray, noise: float | None) -> _Fit:
@@ -554,8 +581,9 @@ class GaussianProcess:
     @property
     def jitter(self) -> np.ndarray:
         """Variance added to the covariance diagonal for a stable Cholesky factorization, per
-        response, in response units squared, shape (m,). It starts at 1e-10 sigma^2 and is
-        raised x100 while the factorization fails (a warning says so above 1e-10)."""
+        response, in response units squared, shape (m,). It starts at n eps sigma^2
+        (:func:`base_jitter`, n training points) and is raised x100 while the factorization
+        fails (a warning says so when it was raised)."""
         self._check_fitted()
         return np.array([f.jitter * f.sigma2 if f.concentrated else f.jitter
                          for f in self._fits]) * self._y_std**2
@@ -606,9 +634,9 @@ class GaussianProcess:
         n, m = X.shape[0], len(self._fits)
         f = _basis(xs - 0.5, self.trend)
         mean = np.empty((n, m))
-        var = np.empty((n, m)) if return_var else None
-        grad = np.empty((n, m, d)) if return_grad else None
-        fg = _basis_grad(xs - 0.5, self.trend) if return_grad else None
+        var = np.empty((n if return_var else 0, m))
+        grad = np.empty((n if return_grad else 0, m, d))
+        fg = _basis_grad(xs - 0.5, self.trend) if return_grad else np.empty((0, 0, d))
         for j, fit in enumerate(self._fits):
             h = np.sqrt(_scaled_sqdist(xs, self._Xs, fit.inv_ell))
             r, G = _corr(h, self.kernel)

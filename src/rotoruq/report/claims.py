@@ -15,7 +15,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 
-from ..study.results import StepResult
+from ..results import StepResult
 from .compare import ComparedTable
 from .diagnostics import PILEUP_MAX, STD_RATIO_MAX, step_warnings, strong_correlations
 
@@ -107,9 +107,10 @@ def _kofn(vals: Sequence[float | None], ok) -> tuple[int, int] | None:
 
 
 def _worst(vals: Sequence[float | None], largest: bool = True) -> float | None:
-    if not vals or any(v is None for v in vals):
+    known = [v for v in vals if v is not None]
+    if not vals or len(known) < len(vals):
         return None
-    return max(vals) if largest else min(vals)
+    return max(known) if largest else min(known)
 
 
 def _rel_errors(ref: list, got: list) -> list[float | None]:
@@ -249,7 +250,7 @@ def claims(tables: list[ComparedTable], results: Results | None = None,
         t = by[num]
         rows = _rowlabels(t)
         keys = [src.split("/")[1].split("@")[0] for _, cells in t.ref.rows
-                for _, src in cells[:1]]
+                for _, src in cells[:1] if src is not None]
         out += _forward_claims(
             f"gvpm_within_1std_{where[3:]}", f"GVPM: measured loads within one predictive std "
             f"{where} (table {num})", exp, step, label, rows, keys, 1.0,
@@ -316,7 +317,7 @@ def _forward_claims(key, text, steps, step, label, rows, resp, limit, thesis_val
             if prefix and all(v is None for v in vals):
                 continue  # no chain: the joint predictive was not computed
         vals = [None if v is None or not math.isfinite(v) else float(v) for v in vals]
-        reasons = []
+        reasons: list[str] = []
         for lab, r, v in zip(rows, resp, vals, strict=True):
             if v is not None and v > limit:
                 reasons.append(
@@ -325,7 +326,7 @@ def _forward_claims(key, text, steps, step, label, rows, resp, limit, thesis_val
                     f"{res.get(f'{prefix}std/{r}{label}'):.3g})")
         if reasons:
             reasons += _bayes_reasons(steps, "bayes", labels, correlations=not prefix)
-        details = ()
+        details: tuple[str, ...] = ()
         if res is not None and any(f"pp_std/{r}{label}" in res.scalars for r in resp):
             details = (_spread_contrast(res, resp, label),)
         thesis = thesis_vals if not prefix else [None] * len(resp)

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..study.results import StepResult
+from ..results import StepResult
 from .reference import TABLES, ReferenceTable
 
 __all__ = ["ComparedCell", "ComparedTable", "compare_tables", "resolve", "REFERENCE_STUDIES"]
@@ -52,7 +52,7 @@ class ComparedCell:
     def rel(self) -> float | None:
         """(ours - thesis) / |thesis| (None when the thesis value is 0)."""
         d = self.diff
-        if d is None or self.thesis == 0:
+        if d is None or self.thesis is None or self.thesis == 0:
             return None
         return d / abs(self.thesis)
 
@@ -77,7 +77,7 @@ class ComparedCell:
     def diff_value(self) -> float | None:
         """The difference in the unit of :attr:`diff_kind` (relative as a fraction)."""
         k = self.diff_kind
-        if k == "sigma":
+        if k == "sigma" and self.diff is not None and self.sigma:
             return self.diff / self.sigma
         if k == "relative":
             return self.rel
@@ -87,6 +87,8 @@ class ComparedCell:
         from .tables import fmt
 
         k, v = self.diff_kind, self.diff_value
+        if v is None:
+            return fmt(None)
         if k == "sigma":
             return f"{v:+.2f} σ"
         if k == "relative":
@@ -110,27 +112,6 @@ class ComparedTable:
         return sum(c.thesis is not None for _, cells in self.rows for c in cells)
 
 
-@lru_cache(maxsize=4)
-def _model_values(preset: str) -> dict[str, float]:
-    out: dict[str, float] = {}
-    try:
-        from ..rotor.presets import get_preset
-
-        p = get_preset(preset)
-        for k, v in vars(p).items():
-            if isinstance(v, int | float) and not isinstance(v, bool):
-                out[k] = float(v)
-    except Exception:  # noqa: BLE001 - a preset we cannot build just leaves cells empty
-        return out
-    try:
-        from ..rotor.model import load_airfoil
-
-        out.update(load_airfoil(p).nominal_values())
-    except Exception:  # noqa: BLE001
-        pass
-    return out
-
-
 @lru_cache(maxsize=1)
 def _measurements() -> dict[str, np.ndarray]:
     path = Path(__file__).resolve().parents[1] / "data" / "gvpm_measurements.csv"
@@ -139,13 +120,20 @@ def _measurements() -> dict[str, np.ndarray]:
     return {h: np.array([float(r[i]) for r in rows[1:]]) for i, h in enumerate(rows[0])}
 
 
-def resolve(source: str | None, steps: Mapping[str, StepResult]) -> float | None:
-    """Value of a reference cell's source (see :mod:`rotoruq.report.reference`)."""
+def resolve(source: str | None, steps: Mapping[str, StepResult],
+            model_values: Mapping[str, float] | None = None) -> float | None:
+    """Value of a reference cell's source (see :mod:`rotoruq.report.reference`).
+
+    ``model_values`` are the model properties the run recorded (``study.json`` ``model.values``:
+    preset fields and nominal airfoil coefficients); a ``model:PRESET:NAME`` cell reads them,
+    so the report never rebuilds the model.
+    """
     if source is None:
         return None
     if source.startswith("model:"):
-        _, preset, name = source.split(":", 2)
-        return _model_values(preset).get(name)
+        _, _preset, name = source.split(":", 2)
+        v = (model_values or {}).get(name)
+        return None if v is None else float(v)
     if source.startswith("data:"):
         col, h = source[5:].split("@")
         m = _measurements()
@@ -171,18 +159,23 @@ def _sigma_columns(columns) -> dict[int, int]:
     return out
 
 
-def compare_tables(results: Results) -> list[ComparedTable]:
-    """Every reference table with our values from ``results`` (study -> steps)."""
+def compare_tables(results: Results,
+                   model_values: Mapping[str, Mapping[str, float]] | None = None
+                   ) -> list[ComparedTable]:
+    """Every reference table with our values from ``results`` (study -> steps) and the model
+    properties each study's run recorded (``model_values``: study -> name -> value)."""
     out = []
+    model_values = model_values or {}
     for ref in TABLES:
         steps = results.get(ref.study, {})
+        values = model_values.get(ref.study, {})
         twins = _sigma_columns(ref.columns)
         rows = []
         for lab, cells in ref.rows:
             row = []
             for j, (th, src) in enumerate(cells):
                 sig = cells[twins[j]][0] if j in twins else None
-                row.append(ComparedCell(th, resolve(src, steps), src, sig))
+                row.append(ComparedCell(th, resolve(src, steps, values), src, sig))
             rows.append((lab, tuple(row)))
         out.append(ComparedTable(ref, tuple(rows)))
     return out

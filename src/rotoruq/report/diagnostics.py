@@ -24,9 +24,11 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from ..study.results import StepResult
+from ..results import StepResult
+from .hooks import rendering
 
-__all__ = ["step_warnings", "strong_correlations", "THRESHOLDS"]
+__all__ = ["step_warnings", "strong_correlations", "THRESHOLDS", "bayes_warnings",
+           "cuu_warnings", "sobol_warnings", "least_squares_warnings"]
 
 ESS_MIN = 200.0
 RHAT_MAX = 1.01
@@ -63,47 +65,64 @@ def strong_correlations(res: StepResult, labels: Mapping[str, str] | None = None
 
 
 def step_warnings(res: StepResult, labels: Mapping[str, str] | None = None) -> list[str]:
-    """Warnings computed from one saved step (empty when it has nothing to flag)."""
-    labels = labels or {}
+    """Warnings computed from one saved step (empty when it has nothing to flag): its type's
+    ``warnings`` renderer (:mod:`rotoruq.report.hooks`)."""
+    hook = rendering(res.type).warnings
+    return hook(res, labels or {}) if hook is not None else []
+
+
+def bayes_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
+    """MCMC mixing, emulator quality, prior-bound pile-up, identifiability, noise model."""
     w: list[str] = []
     name = res.name
-    if res.type == "bayes_calibration":
-        def listed(prefix, bad, fmt):
-            hits = [(p, v) for p, v in _keys(res, prefix).items() if bad(v)]
-            return ", ".join(f"{_lab(p, labels)} ({fmt(v)})" for p, v in hits)
 
-        if low := listed("ess/", lambda v: v < ESS_MIN, lambda v: f"{v:.0f}"):
-            w.append(f"{name}: low effective sample size (below {ESS_MIN:.0f}): {low}")
-        if high := listed("rhat/", lambda v: v > RHAT_MAX, lambda v: f"{v:.3f}"):
-            w.append(f"{name}: chain not mixed (R-hat above {RHAT_MAX}): {high}")
-        if poor := listed("loo_q2/", lambda v: v < LOO_Q2_MIN, lambda v: f"{v:.3f}"):
-            w.append(f"{name}: poor emulator (leave-one-out Q2 below {LOO_Q2_MIN}): {poor}")
-        for side, word in (("lo", "lower"), ("hi", "upper")):
-            for p, f in _keys(res, f"pileup_{side}/").items():
-                if f > PILEUP_MAX:
-                    w.append(f"{name}: {_lab(p, labels)} piles up against its prior's {word} "
-                             f"bound ({100 * f:.0f} % of the chain in the outer 5 % of the "
-                             "range)")
-        if weak := listed("std_ratio/", lambda v: v > STD_RATIO_MAX, lambda v: f"{v:.2f}"):
-            w.append(f"{name}: not identifiable from these data (posterior std / prior std "
-                     f"above {STD_RATIO_MAX}): {weak}")
-        if far := listed("prior_z/", lambda v: abs(v) > PRIOR_Z_MAX, lambda v: f"{v:+.1f}"):
-            w.append(f"{name}: the posterior left the prior's bulk (prior std devs from the "
-                     f"prior mean): {far}")
-        for msg in res.meta.get("warnings", []) or []:
-            w.append(f"{name}: {msg}")
-        if str(res.meta.get("noise_model", "")).startswith("unit"):
-            w.append(f"{name}: no noise model given: unit data variance for every response")
-    elif res.type == "cuu":
-        if res.meta.get("identifiable") is False:
-            diag = res.meta.get("diagnostic") or "the input std devs are not identifiable"
-            w.append(f"{name}: not identifiable: {diag}")
-    elif res.type in ("sensitivity", "pce"):
-        for r, flag in _keys(res, "negligible/").items():
-            if flag:
-                w.append(f"{name}: {r} has negligible variance (std "
-                         f"{res.get(f'out_std/{r}'):.3g}, {res.get(f'out_cv/{r}'):.1e} of "
-                         "its mean): its Sobol indices split up numerical noise")
-    elif res.type == "least_squares" and res.meta.get("success") is False:
-        w.append(f"{name}: least squares did not converge ({res.meta.get('message', '')})")
+    def listed(prefix, bad, fmt):
+        hits = [(p, v) for p, v in _keys(res, prefix).items() if bad(v)]
+        return ", ".join(f"{_lab(p, labels)} ({fmt(v)})" for p, v in hits)
+
+    if low := listed("ess/", lambda v: v < ESS_MIN, lambda v: f"{v:.0f}"):
+        w.append(f"{name}: low effective sample size (below {ESS_MIN:.0f}): {low}")
+    if high := listed("rhat/", lambda v: v > RHAT_MAX, lambda v: f"{v:.3f}"):
+        w.append(f"{name}: chain not mixed (R-hat above {RHAT_MAX}): {high}")
+    if poor := listed("loo_q2/", lambda v: v < LOO_Q2_MIN, lambda v: f"{v:.3f}"):
+        w.append(f"{name}: poor emulator (leave-one-out Q2 below {LOO_Q2_MIN}): {poor}")
+    for side, word in (("lo", "lower"), ("hi", "upper")):
+        for p, f in _keys(res, f"pileup_{side}/").items():
+            if f > PILEUP_MAX:
+                w.append(f"{name}: {_lab(p, labels)} piles up against its prior's {word} "
+                         f"bound ({100 * f:.0f} % of the chain in the outer 5 % of the "
+                         "range)")
+    if weak := listed("std_ratio/", lambda v: v > STD_RATIO_MAX, lambda v: f"{v:.2f}"):
+        w.append(f"{name}: not identifiable from these data (posterior std / prior std "
+                 f"above {STD_RATIO_MAX}): {weak}")
+    if far := listed("prior_z/", lambda v: abs(v) > PRIOR_Z_MAX, lambda v: f"{v:+.1f}"):
+        w.append(f"{name}: the posterior left the prior's bulk (prior std devs from the "
+                 f"prior mean): {far}")
+    for msg in res.meta.get("warnings", []) or []:
+        w.append(f"{name}: {msg}")
+    if str(res.meta.get("noise_model", "")).startswith("unit"):
+        w.append(f"{name}: no noise model given: unit data variance for every response")
     return w
+
+
+def cuu_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
+    """A calibration under uncertainty whose input std devs are not identifiable."""
+    if res.meta.get("identifiable") is False:
+        diag = res.meta.get("diagnostic") or "the input std devs are not identifiable"
+        return [f"{res.name}: not identifiable: {diag}"]
+    return []
+
+
+def sobol_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
+    """Sobol indices of a response with negligible variance (sensitivity, pce)."""
+    return [f"{res.name}: {r} has negligible variance (std "
+            f"{res.get(f'out_std/{r}'):.3g}, {res.get(f'out_cv/{r}'):.1e} of "
+            "its mean): its Sobol indices split up numerical noise"
+            for r, flag in _keys(res, "negligible/").items() if flag]
+
+
+def least_squares_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
+    """A least-squares calibration that did not converge."""
+    if res.meta.get("converged") is False:
+        return [f"{res.name}: least squares did not converge ({res.meta.get('message', '')})"]
+    return []

@@ -2,7 +2,7 @@
 a PNG file, every table as CSV and the claims as JSON.
 
 ``write_report([results_dir, ...], report_dir)`` reads saved study outputs (see
-:mod:`rotoruq.study.results`) and writes ``report_dir/index.html``,
+:mod:`rotoruq.results`) and writes ``report_dir/index.html``,
 ``figures/<study>_<figure>.png``, ``tables/`` and ``claims.json``. It only reads results:
 ``rotoruq report RESULTS`` rebuilds it at any time. A reference study (``validation`` on the
 bo105 preset, ``experiment`` on gvpm) gets the thesis's tables beside ours and the claims;
@@ -15,19 +15,23 @@ import base64
 import datetime as _dt
 import html
 import json
+import logging
 import re
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
 
-from ..study.results import StepResult, load_results
+from ..results import STUDY_INFO, StepResult, is_study_dir, load_results, load_study_info
 from .claims import INDEPENDENT, JOINT, Claim, claims, claims_json
 from .compare import REFERENCE_STUDIES, compare_tables
 from .diagnostics import THRESHOLDS
+from .hooks import rendering
 from .steptables import step_tables, table_csv
 from .tables import fmt, step_table_html, table_html, write_csv
 
 __all__ = ["write_report", "find_study_dirs", "is_reference"]
+
+log = logging.getLogger(__name__)
 
 _CSS = """
 body{font-family:system-ui,sans-serif;max-width:1200px;margin:auto;padding:1em;color:#222}
@@ -52,9 +56,9 @@ _STATUS_CLASS = {"holds": "st-holds", "holds, with a warning": "st-warn",
 def find_study_dirs(root: str | Path) -> list[Path]:
     """Study output folders under ``root`` (``root`` itself when it is one)."""
     root = Path(root)
-    if (root / "study.json").is_file():
+    if is_study_dir(root):
         return [root]
-    return sorted(p.parent for p in root.glob("*/study.json"))
+    return sorted(p.parent for p in root.glob(f"*/{STUDY_INFO}"))
 
 
 def is_reference(info: dict) -> bool:
@@ -62,6 +66,12 @@ def is_reference(info: dict) -> bool:
     preset = (info.get("model") or {}).get("preset")
     name = info.get("name")
     return name in REFERENCE_STUDIES and (preset is None or REFERENCE_STUDIES[name] == preset)
+
+
+def _recorded(info: dict, what: str) -> dict:
+    """``study.json``'s record of the model: ``values`` (preset fields and nominal airfoil
+    coefficients) or ``curves`` (reference curves), written by the run."""
+    return dict((info.get("model") or {}).get(what) or {})
 
 
 def _png(fig) -> bytes:
@@ -176,15 +186,18 @@ def _figure_html(f, png: bytes, key: str) -> str:
 
 
 def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
-                 title: str | None = None, log: Callable[[str], None] | None = None) -> Path:
+                 title: str | None = None) -> Path:
     """Write the report of the given study output folders; returns ``index.html``.
 
     title : page title (default: the reference study's when one is present, else the
-        studies' names). log : a line per study and per figure batch (None: silent).
+        studies' names). Progress (a line per study and per figure batch) goes to the
+        ``rotoruq.report.html`` logger at INFO.
+
+    The report only reads what the runs recorded (step results and ``study.json``, which
+    holds the model's properties and reference curves): it never builds or runs a model.
     """
     from .plots import figures_for_study
 
-    log = log or (lambda _m: None)
     t_start = time.perf_counter()
     report_dir = Path(report_dir)
     fig_dir, tab_dir = report_dir / "figures", report_dir / "tables"
@@ -194,7 +207,7 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
     infos: dict[str, dict] = {}
     for d in results_dirs:
         for folder in find_study_dirs(d):
-            info = json.loads((folder / "study.json").read_text())
+            info = load_study_info(folder)
             studies[info["name"]] = load_results(folder)
             infos[info["name"]] = info
     labels = {n: {k: v.get("label") or k for k, v in i.get("parameters", {}).items()}
@@ -203,7 +216,7 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
              for n, i in infos.items()}
     reference = [n for n, i in infos.items() if is_reference(i)]
     ref_results = {n: studies[n] for n in reference}
-    tables = compare_tables(ref_results)
+    tables = compare_tables(ref_results, {n: _recorded(infos[n], "values") for n in reference})
     claim_list = claims(tables, ref_results, labels) if reference else []
     if title is None:
         if reference:
@@ -229,9 +242,15 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
         body.append(_claims_section(claim_list))
         (report_dir / "claims.json").write_text(json.dumps(claims_json(claim_list), indent=1))
 
+    unrendered = sorted({s.type for steps in studies.values() for s in steps.values()
+                         if rendering(s.type).tables is None})
+    if unrendered:
+        log.warning("report: no renderers registered for step type(s) %s: key/value tables "
+                    "only (importing rotoruq.study registers the built-in step types)",
+                    ", ".join(unrendered))
     for name, steps in studies.items():
         info = infos[name]
-        log(f"report: {name} ({len(steps)} steps)")
+        log.info("report: %s (%d steps)", name, len(steps))
         sid = _anchor("study", name)
         heading(2, f"Study {name}: {info.get('description', '')}".rstrip(": "), sid)
         anchors = {s: _anchor(sid, "step", s) for s in steps}
@@ -255,13 +274,14 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
                         "10 %, 1 σ or 0.05 absolute), "
                         "<span style='background:#fee8c8'>&nbsp;differs&nbsp;</span>, "
                         "uncoloured: nothing to compare.</p>")
-            for t in mine:
-                write_csv(t, tab_dir)
-                heading(4, f"Table {t.ref.number}: {t.ref.caption}", f"table-{t.ref.number}")
-                body.append(table_html(t))
+            for ct in mine:
+                write_csv(ct, tab_dir)
+                heading(4, f"Table {ct.ref.number}: {ct.ref.caption}", f"table-{ct.ref.number}")
+                body.append(table_html(ct))
         t0 = time.perf_counter()
         figs = figures_for_study(name, steps, labels.get(name, {}), units.get(name, {}),
-                                 reference=name in reference)
+                                 reference=name in reference,
+                                 curves=_recorded(info, "curves"))
         if figs:
             heading(3, "Figures", _anchor(sid, "figures"))
         for f in figs:
@@ -270,7 +290,7 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
             (fig_dir / f"{key}.png").write_bytes(png)
             toc.append((4, f"fig-{key}", f.caption))
             body.append(_figure_html(f, png, key))
-        log(f"report: {name}: {len(figs)} figures in {time.perf_counter() - t0:.1f} s")
+        log.info("report: %s: %d figures in %.1f s", name, len(figs), time.perf_counter() - t0)
 
     nav = "".join(
         f"<li style='margin-left:{(lvl - 2) * 1.2}em'><a href='#{a}'>{html.escape(txt)}</a>"
@@ -284,5 +304,5 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
             + "\n".join(head + body) + "</body></html>")
     index = report_dir / "index.html"
     index.write_text(page, encoding="utf-8")
-    log(f"report: written in {time.perf_counter() - t_start:.1f} s")
+    log.info("report: written in %.1f s", time.perf_counter() - t_start)
     return index

@@ -13,15 +13,17 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-from matplotlib.figure import Figure as _MplFigure
 from scipy import stats
 
-from ..study.results import StepResult, dict_to_dist
+from ..params import Distribution
+from ..results import StepResult, dict_to_dist
+from .hooks import FigureContext, rendering
 from .reference import TABLES
 
 __all__ = ["Figure", "figures_for_study", "tornado", "prior_posterior", "chain_traces",
            "pair_plot", "load_distributions", "cuu_comparison", "ground_effect_curves",
-           "UNITS", "axis_label"]
+           "UNITS", "axis_label", "sensitivity_figures", "bayes_figures",
+           "forward_check_figures", "sampling_figures", "cuu_figures"]
 
 # Units of the rotoruq vocabulary (DESIGN.md section 3); a study file's ``unit`` overrides.
 UNITS = {
@@ -67,6 +69,8 @@ def axis_label(name: str, labels: Mapping[str, str] | None = None,
 
 def _subplots(*args, figsize=None, **kwargs):
     """Figure and axes without pyplot: no global backend switch, nothing to close."""
+    from matplotlib.figure import Figure as _MplFigure  # matplotlib loads when drawing
+
     fig = _MplFigure(figsize=figsize, layout="constrained")
     return fig, fig.subplots(*args, **kwargs)
 
@@ -129,7 +133,7 @@ def tornado(res: StepResult, labels, units=None, thesis: dict | None = None) -> 
 
 
 def prior_posterior(res: StepResult, labels, units=None,
-                    truth: Mapping[str, object] | None = None) -> list[Figure]:
+                    truth: Mapping[str, Distribution] | None = None) -> list[Figure]:
     """Prior density, the chain's histogram and the normal fit handed on, per parameter."""
     names = res.columns("chain")
     chain = np.asarray(res.arrays["chain"])
@@ -192,6 +196,8 @@ def pair_plot(res: StepResult, labels, units=None) -> list[Figure]:
     idx = np.linspace(0, chain.shape[0] - 1, min(chain.shape[0], 1000)).astype(int)
     corr = np.corrcoef(chain, rowvar=False) if d > 1 else np.ones((1, 1))
     size = 1.6 * d + 1.4
+    from matplotlib.figure import Figure as _MplFigure
+
     fig = _MplFigure(figsize=(size, size))
     axes = fig.subplots(d, d, squeeze=False)
     margin = 1.3 / size
@@ -225,13 +231,14 @@ def pair_plot(res: StepResult, labels, units=None) -> list[Figure]:
 
 def _thesis_prediction(step: str, label: str) -> dict[str, tuple[float, float]]:
     """response -> (mean, std) the thesis prints for this forward step and sweep point."""
-    out = {}
+    out: dict[str, tuple[float, float]] = {}
     for t in TABLES:
         for _, cells in t.rows:
             if len(cells) < 2:
                 continue
             (m, src), (s, _src2) = cells[0], cells[1]
-            if src and src.startswith(f"{step}:mean/") and src.endswith(label):
+            if (src and src.startswith(f"{step}:mean/") and src.endswith(label)
+                    and m is not None and s is not None):
                 r = src.split("/", 1)[1][: len(src.split("/", 1)[1]) - len(label)]
                 out[r] = (m, s)
     return out
@@ -263,7 +270,7 @@ def load_distributions(res: StepResult, units=None, thesis: bool = False) -> lis
                 v = v[np.isfinite(v)]
                 if v.size < 2:
                     continue
-                lo, hi = min(lo, v.min()), max(hi, v.max())
+                lo, hi = min(lo, float(v.min())), max(hi, float(v.max()))
                 ax.hist(v, bins=30, density=True, color=color, alpha=0.3, rasterized=True)
                 if np.std(v) > 0:
                     g = np.linspace(v.min(), v.max(), 200)
@@ -272,10 +279,11 @@ def load_distributions(res: StepResult, units=None, thesis: bool = False) -> lis
                 ax2.step(s, np.arange(1, s.size + 1) / s.size, where="post", color=color,
                          label=name)
             if r in th and th[r][1]:
-                m, s = th[r]
-                g = np.linspace(min(lo, m - 3 * s), max(hi, m + 3 * s), 200)
-                ax.plot(g, stats.norm.pdf(g, m, s), "k:", lw=1.2, label="thesis N(mean, std)")
-                ax2.plot(g, stats.norm.cdf(g, m, s), "k:", lw=1.2, label="thesis N(mean, std)")
+                th_mean, th_std = th[r]
+                g = np.linspace(min(lo, th_mean - 3 * th_std), max(hi, th_mean + 3 * th_std), 200)
+                for axis, law in ((ax, stats.norm.pdf), (ax2, stats.norm.cdf)):
+                    axis.plot(g, law(g, th_mean, th_std), "k:", lw=1.2,
+                              label="thesis N(mean, std)")
             measured = res.scalars.get(f"data/{r}{label}")
             if measured is not None:
                 for a in (ax, ax2):
@@ -330,7 +338,9 @@ def cuu_comparison(res: StepResult, labels, units=None) -> list[Figure]:
     return [Figure(f"{res.name}_cuu", f"Calibration under uncertainty ({res.name})", fig)]
 
 
-def ground_effect_curves(res: StepResult, thesis: bool = False) -> list[Figure]:
+def ground_effect_curves(res: StepResult, thesis: bool = False,
+                         curves: Mapping[str, Mapping[str, list]] | None = None
+                         ) -> list[Figure]:
     """C_T/C_T(4R) and C_Q/C_Q(4R) vs H/R: model mean with +-3 std bars under each
     propagation, the thesis's (tables 4.18-4.19), the test points, Cheeseman-Bennett and the
     (digitized, approximate) Fradenburgh curve for C_T."""
@@ -371,14 +381,12 @@ def ground_effect_curves(res: StepResult, thesis: bool = False) -> list[Figure]:
             cb = 1.0 / (1.0 - (1.0 / (4.0 * h)) ** 2)
             cb_ref = 1.0 / (1.0 - (1.0 / (4.0 * ref)) ** 2)
             ax.plot(h, cb / cb_ref, "--", color="C4", label="Cheeseman-Bennett (constant power)")
-            try:
-                from ..rotor.ground_effect import fradenburgh_thrust_ratio
-
-                fr = fradenburgh_thrust_ratio(h)
-                ax.plot(h, fr / fradenburgh_thrust_ratio(np.array([ref]))[0], "-.",
-                        color="C2", label="Fradenburgh (digitized, approximate)")
-            except ImportError:
-                pass
+            fr = (curves or {}).get("fradenburgh_thrust_ratio")
+            if fr:
+                fh = np.asarray(fr["height_over_radius"], dtype=float)
+                fv = np.asarray(fr["thrust_ratio"], dtype=float)
+                ax.plot(fh, fv / np.interp(ref, fh, fv), "-.", color="C2",
+                        label="Fradenburgh (digitized, approximate)")
         ax.set_xlabel("rotor height H/R [-]")
         ax.set_ylabel(f"{sym} / {sym}(4R test) [-]")
         ax.set_title(f"Normalised {title} coefficient vs height", fontsize=10)
@@ -404,41 +412,67 @@ def _thesis_sobol(step: str, study: str) -> dict | None:
     return out or None
 
 
+def sensitivity_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:
+    """Tornado of main/total indices (sensitivity and pce steps), with the thesis's beside."""
+    if "inputs" not in res.meta:
+        return []
+    return tornado(res, ctx.labels, ctx.units,
+                   _thesis_sobol(res.name, ctx.study) if ctx.reference else None)
+
+
+def bayes_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:
+    """Prior/posterior densities, chain traces and a pair plot of a Bayes step's chain; in the
+    reference validation study, the ``truth`` sampling step's distributions are drawn too."""
+    if "chain" not in res.arrays:
+        return []
+    truth = None
+    if ctx.reference and ctx.study == "validation" and "truth" in ctx.steps:
+        truth = {p: dict_to_dist(d) for p, d in
+                 ctx.steps["truth"].meta.get("input_distributions", {}).items()}
+    figs = prior_posterior(res, ctx.labels, ctx.units, truth or None)
+    figs += chain_traces(res, ctx.labels, ctx.units)
+    if len(res.columns("chain")) > 1:
+        figs += pair_plot(res, ctx.labels, ctx.units)
+    return figs
+
+
+def forward_check_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:
+    """Ground-effect curves of a normalized sweep, else the propagated load distributions."""
+    if res.meta.get("normalized"):
+        return ground_effect_curves(res, thesis=ctx.reference, curves=ctx.curves)
+    return load_distributions(res, ctx.units, thesis=ctx.reference)
+
+
+def sampling_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:
+    """Distributions of the sampled responses."""
+    if "outputs" not in res.arrays:
+        return []
+    return load_distributions(StepResult(
+        res.name, res.type, res.scalars, {"outputs": res.arrays["outputs"]},
+        meta={"columns": {"outputs": res.columns("outputs")}, "labels": [""]}), ctx.units)
+
+
+def cuu_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:
+    """Response distributions with the initial and the calibrated inputs against targets."""
+    return cuu_comparison(res, ctx.labels, ctx.units)
+
+
 def figures_for_study(study: str, steps: Mapping[str, StepResult], labels: Mapping[str, str],
-                      units: Mapping[str, str] | None = None, reference: bool = False
+                      units: Mapping[str, str] | None = None, reference: bool = False,
+                      curves: Mapping[str, Mapping[str, list]] | None = None
                       ) -> list[Figure]:
-    """All figures for one study's saved steps, in step order. ``reference``: the study is a
-    reference study, so the thesis's numbers are drawn beside ours."""
+    """All figures for one study's saved steps, in step order: each step's type's ``figures``
+    renderer (:mod:`rotoruq.report.hooks`). ``reference``: the study is a reference study,
+    so the thesis's numbers are drawn beside ours. ``curves``: reference curves the run
+    recorded (``study.json`` ``model.curves``)."""
+    ctx = FigureContext(study, steps, labels, units or {}, reference, curves or {})
     figs: list[Figure] = []
-    truth_dists = {}
     for res in steps.values():
-        if res.type == "sampling":
-            for p, d in res.meta.get("input_distributions", {}).items():
-                truth_dists.setdefault(res.name, {})[p] = dict_to_dist(d)
-    for res in steps.values():
+        hook = rendering(res.type).figures
+        if hook is None:
+            continue
         try:
-            if res.type in ("sensitivity", "pce") and "inputs" in res.meta:
-                figs += tornado(res, labels, units,
-                                _thesis_sobol(res.name, study) if reference else None)
-            elif res.type == "bayes_calibration" and "chain" in res.arrays:
-                truth = truth_dists.get("truth") if reference and study == "validation" \
-                    else None
-                figs += prior_posterior(res, labels, units, truth)
-                figs += chain_traces(res, labels, units)
-                if len(res.columns("chain")) > 1:
-                    figs += pair_plot(res, labels, units)
-            elif res.type == "forward_check":
-                if res.meta.get("normalized"):
-                    figs += ground_effect_curves(res, thesis=reference)
-                else:
-                    figs += load_distributions(res, units, thesis=reference)
-            elif res.type == "sampling" and "outputs" in res.arrays:
-                figs += load_distributions(StepResult(
-                    res.name, res.type, res.scalars, {"outputs": res.arrays["outputs"]},
-                    meta={"columns": {"outputs": res.columns("outputs")}, "labels": [""]}),
-                    units)
-            elif res.type == "cuu":
-                figs += cuu_comparison(res, labels, units)
+            figs += hook(res, ctx)
         except (KeyError, ValueError, IndexError) as exc:  # a figure never fails the report
             fig, ax = _subplots(figsize=(5, 1))
             ax.axis("off")

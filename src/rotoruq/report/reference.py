@@ -4,7 +4,7 @@ transcribed as data, each cell paired with where our value comes from.
 A cell is ``(thesis_value, source)``. ``source`` is
 
 * ``"STEP:KEY"`` - scalar ``KEY`` of step ``STEP`` of the table's study (see
-  :class:`rotoruq.study.results.StepResult`), e.g. ``"sens_aero:S/thrust/cla_m03"``;
+  :class:`rotoruq.results.StepResult`), e.g. ``"sens_aero:S/thrust/cla_m03"``;
 * ``"model:PRESET:NAME"`` - a property of the rotor preset, or a nominal airfoil coefficient;
 * ``"data:COLUMN@H"`` - the shipped GVPM measurements (column at H/R = H);
 * ``None`` - nothing of ours to compare (the cell shows the thesis value only).

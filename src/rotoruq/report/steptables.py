@@ -1,7 +1,7 @@
 """Tables of one saved step's own numbers, for every step type: what a user's study shows in
 its report and what ``rotoruq show`` prints or exports.
 
-:func:`step_tables` turns a :class:`~rotoruq.study.results.StepResult` into a list of
+:func:`step_tables` turns a :class:`~rotoruq.results.StepResult` into a list of
 :class:`StepTable` (plain data); :func:`table_text`, :func:`table_csv` and
 :meth:`StepTable.as_dict` render them for a terminal, a spreadsheet and JSON. The HTML report
 renders the same tables (:func:`rotoruq.report.tables.step_table_html`).
@@ -12,13 +12,17 @@ from __future__ import annotations
 import csv
 import io
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from ..study.results import StepResult
+from ..results import StepResult
 from .diagnostics import step_warnings
+from .hooks import rendering
 
-__all__ = ["StepTable", "step_tables", "table_text", "table_csv", "fmt_cell"]
+__all__ = ["StepTable", "step_tables", "table_text", "table_csv", "fmt_cell",
+           "sampling_tables", "forward_check_tables", "sensitivity_tables", "pce_tables",
+           "mean_value_tables", "reliability_tables", "evidence_tables", "bayes_tables",
+           "least_squares_tables", "cuu_tables"]
 
 Cell = float | str | None
 
@@ -74,7 +78,7 @@ def _moments_rows(res: StepResult, names: Sequence[str], suffix: str = "", label
 _MOMENTS = ("mean", "std", "skewness", "excess kurtosis")
 
 
-def _sampling(res: StepResult, labels) -> list[StepTable]:
+def sampling_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
     resp = res.columns("outputs") or _responses(res)
     out = [_t("Response statistics (model outputs)", ("response", *_MOMENTS),
               _moments_rows(res, resp))]
@@ -92,7 +96,7 @@ def _inputs_table(res: StepResult, labels) -> StepTable:
                for p in _params(res)])
 
 
-def _forward(res: StepResult, labels) -> list[StepTable]:
+def forward_check_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
     resp = _responses(res)
     out = []
     joint = bool(res.meta.get("joint_predictive"))
@@ -123,7 +127,7 @@ def _forward(res: StepResult, labels) -> list[StepTable]:
     return out
 
 
-def _sensitivity(res: StepResult, labels) -> list[StepTable]:
+def sensitivity_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
     resp, inputs = _responses(res), list(res.meta.get("inputs") or _params(res))
     conf = res.meta.get("confidence", 0.95)
     out = [_t("Output spread", ("response", "mean", "variance", "std", "CV = std / |mean|",
@@ -148,7 +152,7 @@ def _sensitivity(res: StepResult, labels) -> list[StepTable]:
     return out
 
 
-def _pce(res: StepResult, labels) -> list[StepTable]:
+def pce_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
     resp, inputs = _responses(res), list(res.meta.get("inputs") or _params(res))
     out = [_t("Response moments (polynomial chaos)", ("response", "mean", "std"),
               [[r, _v(res, f"mean/{r}"), _v(res, f"std/{r}")] for r in resp])]
@@ -160,7 +164,7 @@ def _pce(res: StepResult, labels) -> list[StepTable]:
     return out
 
 
-def _mean_value(res: StepResult, labels) -> list[StepTable]:
+def mean_value_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
     resp, inputs = _responses(res), _params(res)
     return [_t("Mean value method (first order)", ("response", "mean", "std"),
                [[r, _v(res, f"mean/{r}"), _v(res, f"std/{r}")] for r in resp]),
@@ -183,18 +187,18 @@ def _levels(res: StepResult, whats: Sequence[str], title: str) -> list[StepTable
     return out
 
 
-def _reliability(res: StepResult, labels) -> list[StepTable]:
+def reliability_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
     return _levels(res, ("response_levels", "cdf_probability", "cdf_reliability",
                          "generalized_reliability", "probability_levels",
                          "probability_response"), "Reliability (MPP search)")
 
 
-def _evidence(res: StepResult, labels) -> list[StepTable]:
+def evidence_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
     return _levels(res, ("response_levels", "cbf", "cpf"),
                    "Belief (CBF) and plausibility (CPF) of response <= level")
 
 
-def _bayes(res: StepResult, labels) -> list[StepTable]:
+def bayes_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
     names = res.columns("chain") or _params(res)
     rows = [[_lab(p, labels), _v(res, f"input_mean/{p}"), _v(res, f"input_std/{p}"),
              _v(res, f"mean/{p}"), _v(res, f"std/{p}"), _v(res, f"skewness/{p}"),
@@ -225,7 +229,7 @@ def _bayes(res: StepResult, labels) -> list[StepTable]:
     return out
 
 
-def _least_squares(res: StepResult, labels) -> list[StepTable]:
+def least_squares_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
     names = [k.split("/", 1)[1] for k in res.scalars if k.startswith("value/")]
     return [_t("Calibrated parameters (least squares)", ("parameter", "value", "std"),
                [[_lab(p, labels), _v(res, f"value/{p}"), _v(res, f"std/{p}")]
@@ -233,7 +237,7 @@ def _least_squares(res: StepResult, labels) -> list[StepTable]:
                f"{res.meta.get('message', '')}")]
 
 
-def _cuu(res: StepResult, labels) -> list[StepTable]:
+def cuu_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
     params = _params(res)
     resp = _responses(res)
     out = [_t("Inputs: initial and calibrated", ("input", "initial mean", "initial std",
@@ -252,24 +256,11 @@ def _cuu(res: StepResult, labels) -> list[StepTable]:
     return out
 
 
-_BUILDERS: dict[str, Callable[[StepResult, Mapping[str, str]], list[StepTable]]] = {
-    "sampling": _sampling,
-    "forward_check": _forward,
-    "sensitivity": _sensitivity,
-    "pce": _pce,
-    "mean_value": _mean_value,
-    "reliability": _reliability,
-    "evidence": _evidence,
-    "bayes_calibration": _bayes,
-    "least_squares": _least_squares,
-    "cuu": _cuu,
-}
-
-
 def step_tables(res: StepResult, labels: Mapping[str, str] | None = None) -> list[StepTable]:
-    """The tables of one step (every step type), then its warnings, if any."""
+    """The tables of one step (its type's ``tables`` renderer, see
+    :mod:`rotoruq.report.hooks`; a key/value table without one), then its warnings."""
     labels = labels or {}
-    build = _BUILDERS.get(res.type)
+    build = rendering(res.type).tables
     tables = build(res, labels) if build else [
         _t("Results", ("key", "value"), [[k, float(v)] for k, v in res.scalars.items()])]
     tables = [t for t in tables if t.rows]

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import logging
 import signal
 import sys
 import threading
@@ -25,7 +26,9 @@ def build_parser() -> argparse.ArgumentParser:
         description="Verification, validation and calibration under uncertainty of rotor models.",
     )
     parser.add_argument("--debug", action="store_true",
-                        help="show the full traceback of an error")
+                        help="show debug messages and the full traceback of an error")
+    parser.add_argument("--quiet", action="store_true",
+                        help="no progress lines: only warnings and errors")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
         try:
@@ -58,9 +61,36 @@ def main(argv: list[str] | None = None) -> int:
         signal.signal(signal.SIGTERM, previous)
 
 
+class _StderrHandler(logging.StreamHandler):
+    """Progress lines of the ``rotoruq`` loggers on the current ``sys.stderr``."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.setFormatter(logging.Formatter("%(message)s"))
+
+    @property  # type: ignore[override]  # follow sys.stderr when a caller swaps it
+    def stream(self):  # noqa: D102
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value) -> None:
+        pass
+
+
+def configure_logging(quiet: bool = False, debug: bool = False) -> None:
+    """Send the library's log records (the ``rotoruq`` loggers) to stderr as plain lines:
+    INFO and above by default, WARNING with ``quiet``, DEBUG with ``debug``."""
+    root = logging.getLogger("rotoruq")
+    for h in [h for h in root.handlers if isinstance(h, _StderrHandler)]:
+        root.removeHandler(h)
+    root.addHandler(_StderrHandler())
+    root.setLevel(logging.DEBUG if debug else logging.WARNING if quiet else logging.INFO)
+
+
 def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    configure_logging(quiet=args.quiet, debug=args.debug)
     if not getattr(args, "_run", None):
         parser.print_help()
         return 2

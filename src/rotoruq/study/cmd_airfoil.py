@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 from pathlib import Path
 
@@ -13,7 +14,7 @@ from ..rotor.c81 import read_c81, write_c81
 HELP = "fit CL/CD lines of a C81 airfoil table, or write a table with perturbed fits"
 
 
-def add_arguments(parser):
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     sub = parser.add_subparsers(dest="airfoil_command", metavar="ACTION")
     src_help = (f"C81 file (fixed or free format), or the name of a bundled table "
                 f"({', '.join(BUNDLED_AIRFOILS)})")
@@ -55,7 +56,7 @@ def _parse_sets(items):
     return out
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     action = getattr(args, "airfoil_command", None)
     if action == "fit":
         fit = fit_airfoil(_load(args.file), args.mach, (-args.window, args.window))

@@ -102,7 +102,7 @@ def run_driver(params_path, results_path, model, responses=None) -> int:
     return 0
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     p = read_parameters(args.params)
     responses = args.responses or list(p.names_out)
     from ..rotor.model import RotorModel  # the physics is only imported when used

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 
 import numpy as np
@@ -11,7 +12,7 @@ from ..errors import ParameterError
 HELP = "evaluate the rotor model at one or a few points and print the loads"
 
 
-def add_arguments(p):
+def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--preset", default="gvpm", help="rotor preset (bo105, gvpm)")
     p.add_argument(
         "--set",
@@ -49,7 +50,7 @@ def parse_assignments(items: list[str]) -> tuple[list[str], np.ndarray]:
     return names, x
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from ..rotor.model import RotorModel
 
     names, x = parse_assignments(args.set)
@@ -57,7 +58,7 @@ def run(args) -> int:
     out = model.evaluate(x)
     rows = []
     for i in range(x.shape[0]):
-        row = {k: float(v) for k, v in zip(names, x[i], strict=True)}
+        row: dict[str, float | str] = {k: float(v) for k, v in zip(names, x[i], strict=True)}
         row.update({k: float(v) for k, v in zip(model.names_out, out.values[i], strict=True)})
         if i in out.failures:
             row["failure"] = out.failures[i]

@@ -2,18 +2,19 @@
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 HELP = "rebuild the HTML report from saved study results"
 
 
-def add_arguments(parser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("results", nargs="+",
                         help="study output folder(s), or a folder holding several")
     parser.add_argument("--out", help="report folder (default: <first RESULTS>/report)")
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from ..errors import InputFileError
     from ..report.html import find_study_dirs, write_report
 
@@ -21,8 +22,6 @@ def run(args) -> int:
         raise InputFileError(args.results[0], None,
                              "a study output folder (with study.json) or a folder of them")
     out = Path(args.out) if args.out else Path(args.results[0]) / "report"
-    from .runner import _log
-
-    index = write_report(args.results, out, log=_log)
+    index = write_report(args.results, out)
     print(f"report: {index}")
     return 0

@@ -3,6 +3,7 @@ write ``<out>/report/index.html``."""
 
 from __future__ import annotations
 
+import argparse
 import json
 import time
 from pathlib import Path
@@ -23,7 +24,7 @@ def studies_dir() -> Path:
     return path
 
 
-def add_arguments(parser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("which", nargs="?", default="all",
                         choices=["validation", "experiment", "all"],
                         help="chapter 3 (validation), chapter 4 (experiment) or both")
@@ -32,36 +33,36 @@ def add_arguments(parser) -> None:
     parser.add_argument("--out", default="rotoruq-results", help="output folder")
 
 
-def reproduce(which: str = "all", out: str | Path = "rotoruq-results", quick: bool = False,
-              log=None) -> dict:
+def reproduce(which: str = "all", out: str | Path = "rotoruq-results",
+              quick: bool = False) -> dict:
     """Run the chapters, write the report; returns ``{"report": path, "seconds": {...}}``.
     Holds ``out`` (and so each chapter's folder in it) for the whole run."""
     from .lock import results_lock
 
     out = Path(out)
     with results_lock(out, "reproduce"):
-        return _reproduce(which, out, quick, log)
+        return _reproduce(which, out, quick)
 
 
-def _reproduce(which, out: Path, quick: bool, log) -> dict:
+def _reproduce(which: str, out: Path, quick: bool) -> dict:
     from ..report.html import write_report
-    from .runner import _log, run_study
+    from ..results import is_study_dir
+    from .runner import run_study
 
     names = list(CHAPTERS) if which == "all" else [which]
     seconds = {}
     for name in names:
         t0 = time.perf_counter()
-        run_study(studies_dir() / CHAPTERS[name], out=out / name, quick=quick,
-                  log=_log if log is None else log)
+        run_study(studies_dir() / CHAPTERS[name], out=out / name, quick=quick)
         seconds[name] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    index = write_report([out / n for n in CHAPTERS if (out / n / "study.json").is_file()],
-                         out / "report", log=_log if log is None else log)
+    index = write_report([out / n for n in CHAPTERS if is_study_dir(out / n)],
+                         out / "report")
     seconds["report"] = time.perf_counter() - t0
     return {"report": str(index), "seconds": seconds}
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     result = reproduce(args.which, args.out, args.quick)
     print(json.dumps(result["seconds"], indent=1))
     print(f"report: {result['report']}")

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import sys
+import argparse
 from pathlib import Path
 
 HELP = "run a study file (TOML) and write its results and HTML report"
 
 
-def add_arguments(parser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("study", help="study file (TOML), or the name of a study shipped "
                         "with rotoruq (quick, validation, experiment)")
     parser.add_argument("--out", help="output directory (default: [study] output)")
@@ -29,7 +29,7 @@ def resolve_study(name: str) -> tuple[Path, bool]:
     return (cand, True) if cand.is_file() else (path, False)
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from .lock import results_lock
     from .runner import run_study
     from .schema import load_study
@@ -44,14 +44,10 @@ def run(args) -> int:
         if not args.no_report:
             from ..report.html import write_report
 
-            index = write_report([result.out], Path(result.out) / "report", log=_log)
+            index = write_report([result.out], Path(result.out) / "report")
             print(f"report: {index}")
     print(summary(result))
     return 0
-
-
-def _log(msg: str) -> None:
-    print(msg, file=sys.stderr, flush=True)
 
 
 def summary(result) -> str:

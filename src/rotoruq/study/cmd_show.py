@@ -3,6 +3,7 @@ without STEP), or export them as CSV or JSON, without opening the HTML report.""
 
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from pathlib import Path
@@ -10,7 +11,7 @@ from pathlib import Path
 HELP = "print the result tables of a study's steps (or export them with --csv / --json)"
 
 
-def add_arguments(parser) -> None:
+def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("results", help="a study output folder (the one holding study.json)")
     parser.add_argument("step", nargs="?", help="one step (default: every step)")
     fmt = parser.add_mutually_exclusive_group()
@@ -25,13 +26,12 @@ def show_data(results: str | Path, step: str | None = None) -> dict:
     from ..errors import InputFileError
     from ..report.diagnostics import step_warnings
     from ..report.steptables import step_tables
-    from .results import load_results
+    from ..results import is_study_dir, load_results, load_study_info
 
     folder = Path(results)
-    info_path = folder / "study.json"
-    if not info_path.is_file():
+    if not is_study_dir(folder):
         raise InputFileError(folder, None, "a study output folder (with study.json)")
-    info = json.loads(info_path.read_text())
+    info = load_study_info(folder)
     steps = load_results(folder)
     if step is not None and step not in steps:
         raise InputFileError(folder, None, f"a saved step named {step!r}; saved steps: "
@@ -50,7 +50,7 @@ def show_data(results: str | Path, step: str | None = None) -> dict:
     return out
 
 
-def run(args) -> int:
+def run(args: argparse.Namespace) -> int:
     from ..report.steptables import StepTable, table_csv, table_text
 
     data = show_data(args.results, args.step)

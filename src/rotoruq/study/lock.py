@@ -18,6 +18,7 @@ import json
 import os
 import socket
 import time
+from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -58,7 +59,7 @@ def _read(fd: int) -> dict | None:
 
 
 @contextmanager
-def results_lock(folder: str | os.PathLike, command: str = "run"):
+def results_lock(folder: str | os.PathLike, command: str = "run") -> Iterator[ResultsLock]:
     """Hold the results folder ``folder`` for one run (a context manager yielding a
     :class:`ResultsLock`); raises :class:`ResultsLockedError` when another run holds it."""
     folder = Path(folder)

@@ -5,7 +5,7 @@
 
 Output directory (``[study] output``, or ``out=``)::
 
-    study.toml  study.json  evaluations.sqlite  steps/<name>/...   (see rotoruq.study.results)
+    study.toml  study.json  evaluations.sqlite  steps/<name>/...   (see rotoruq.results)
 
 Re-running: each step's fingerprint hashes its spec, the model, its distributions, data and
 seed, and the fingerprints of the steps it takes from. A step whose fingerprint matches the
@@ -17,36 +17,42 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import math
-import sys
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from ..atomic import write_bytes, write_text
+from ..atomic import write_bytes
 from ..errors import ParameterError
 from ..evaluation.identity import code_version, model_identity
 from ..params import ParameterSpace
-from .lock import results_lock
-from .results import (
+from ..results import (
     IncompleteStepError,
     StepResult,
     clean_partial_saves,
-    dict_to_dist,
     load_step,
     save_step,
+    save_study_info,
 )
-from .schema import StepSpec, Study, load_study
-from .steps import QUICK, StepContext, run_adapter
+from .lock import results_lock
+from .schema import load_study
+from .spec import StepSpec, Study
+from .steps import StepContext
+from .steptypes import STEP_TYPES, run_step
 
-__all__ = ["run_study", "StudyRun", "build_model", "build_model_factory", "step_options"]
+__all__ = ["run_study", "StudyRun", "build_model", "build_model_factory", "step_options",
+           "model_record"]
+
+log = logging.getLogger(__name__)
 
 ModelFactory = Callable[[Sequence[str], Sequence[str], Mapping[str, float]], object]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class StudyRun:
     """Outcome of :func:`run_study`: the results by step name, the output directory and which
     steps were reused from a previous run."""
@@ -62,8 +68,9 @@ class StudyRun:
 
 
 def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
-                fixed: Mapping[str, float], out: Path | None = None):
-    """The study's ``[model]`` for one step, without the evaluation store: a
+                fixed: Mapping[str, float], out: Path | None = None) -> Any:
+    """The study's ``[model]`` for one step (an object of the :class:`rotoruq.model.Model`
+    protocol), without the evaluation store: a
     :class:`~rotoruq.rotor.model.RotorModel`, or an
     :class:`~rotoruq.evaluation.external.ExternalModel` over ``inputs`` plus the fixed inputs
     (written into every parameters file), wrapped so that its inputs are ``inputs``.
@@ -73,7 +80,7 @@ def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
     folder ``out`` (default ``out/work``).
     """
     spec = study.model
-    if spec.kind == "preset":
+    if spec.preset is not None:
         from ..rotor.model import RotorModel
         from ..rotor.presets import get_preset
 
@@ -84,6 +91,8 @@ def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
     from ..model import FixedInputs
 
     ext = spec.external
+    if ext is None:
+        raise ParameterError(f"{study.path}: [model] needs preset = ... or command = [...]")
     base = study.path.parent if study.path is not None else Path.cwd()
     out = Path(out) if out is not None else study.info.output
 
@@ -93,6 +102,7 @@ def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
             return word
         return str((base / p).absolute())
 
+    policy: str | dict[str, list[float]]
     if ext.failure == "retry":
         policy = f"retry:{max(1, ext.retries)}"
     elif ext.failure == "recover":
@@ -151,11 +161,11 @@ def _with_store(factory: ModelFactory, study: Study, store_path: Path | None) ->
 
 
 def step_options(step: StepSpec, quick: bool) -> dict:
-    """The step's options, reduced for ``quick`` runs (QUICK defaults, then ``quick = {...}``
-    from the study file)."""
+    """The step's options, reduced for ``quick`` runs (the step type's ``quick`` bounds, then
+    ``quick = {...}`` from the study file)."""
     opts = dict(step.options)
     if quick:
-        for k, v in QUICK.get(step.type, {}).items():
+        for k, v in STEP_TYPES[step.type].quick.items():
             if opts.get(k) is not None:
                 opts[k] = min(opts[k], v)
         opts.update(step.quick)
@@ -281,10 +291,6 @@ def _seed(study: Study, step: StepSpec, options) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence([study.info.seed, step.index]))
 
 
-def _log(msg: str) -> None:
-    print(msg, file=sys.stderr, flush=True)
-
-
 def run_study(
     study: Study | str | Path,
     *,
@@ -292,7 +298,6 @@ def run_study(
     quick: bool = False,
     model_factory: ModelFactory | None = None,
     only: Sequence[str] | None = None,
-    log: Callable[[str], None] | None = _log,
 ) -> StudyRun:
     """Run the steps of ``study`` in order and write their results.
 
@@ -300,26 +305,29 @@ def run_study(
     ----------
     study : Study, or path of a study file.
     out : output directory (default: the study's ``[study] output``).
-    quick : reduce sample sizes (see ``steps.QUICK`` and each step's ``quick = {...}``).
+    quick : reduce sample sizes (each step type's ``quick`` bounds and each step's
+        ``quick = {...}``).
     model_factory : ``f(inputs, responses, fixed) -> Model`` replacing the ``[model]`` table
         (for Python models; tests).
     only : run only these steps (and load the ones they depend on from earlier runs).
-    log : progress messages (None: silent).
+
+    Progress (a line per step, a status line every ``steps.STATUS_INTERVAL`` s while a step
+    runs) goes to the ``rotoruq.study`` loggers at INFO; the CLI shows it on stderr.
     """
     if not isinstance(study, Study):
         study = load_study(study)
     out = Path(out) if out is not None else study.info.output
-    log = log or (lambda _m: None)
     with results_lock(out, "run") as lock:
         if lock.taken_over and lock.taken_over.get("pid"):
-            log(f"[{study.info.name}] taking over {out} from a run that stopped (PID "
-                f"{lock.taken_over.get('pid')} on {lock.taken_over.get('host', '?')})")
+            log.warning("[%s] taking over %s from a run that stopped (PID %s on %s)",
+                        study.info.name, out, lock.taken_over.get("pid"),
+                        lock.taken_over.get("host", "?"))
         clean_partial_saves(out)
-        return _run_locked(study, out, quick, model_factory, only, log)
+        return _run_locked(study, out, quick, model_factory, only)
 
 
 def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactory | None,
-                only: Sequence[str] | None, log: Callable[[str], None]) -> StudyRun:
+                only: Sequence[str] | None) -> StudyRun:
     if study.path.is_file():
         write_bytes(out / "study.toml", study.path.read_bytes())
     store_path = out / study.store.path if study.store.enabled else None
@@ -349,14 +357,14 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
             try:
                 saved = load_step(folder)
             except IncompleteStepError as exc:
-                log(f"[{study.info.name}] {step.name}: saved result is incomplete ({exc}); "
-                    "running it again")
+                log.warning("[%s] %s: saved result is incomplete (%s); running it again",
+                            study.info.name, step.name, exc)
                 saved = None
             if saved is not None and (saved.fingerprint == fp
                                       or (only is not None and step.name not in only)):
                 results[step.name] = saved
                 reused.append(step.name)
-                log(f"[{study.info.name}] {step.name}: reused ({step.type})")
+                log.info("[%s] %s: reused (%s)", study.info.name, step.name, step.type)
                 continue
         if only is not None and step.name not in only:
             raise ParameterError(f"step {step.name!r} has no saved result to reuse; run it")
@@ -365,11 +373,11 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
             responses=tuple(responses), fixed=fixed, make_model=factory,
             rng=_seed(study, step, options), data=data, data_columns=columns,
             targets=_step_targets(step, options, results),
-            source=results[step.source[0]] if step.source else None, log=log,
+            source=results[step.source[0]] if step.source else None,
         )
-        log(f"[{study.info.name}] {step.name}: running {step.type} "
-            f"({', '.join(space.names)} -> {', '.join(responses)})")
-        res, dt = run_adapter(ctx)
+        log.info("[%s] %s: running %s (%s -> %s)", study.info.name, step.name, step.type,
+                 ", ".join(space.names), ", ".join(responses))
+        res, dt = run_step(ctx)
         meta = dict(res.meta)
         meta.update(seconds=dt, title=step.title, parameters=list(space.names),
                     responses=list(responses), fixed=fixed, options=options,
@@ -382,8 +390,33 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
         save_step(res, out)
         results[step.name] = res
         seconds[step.name] = dt
-        log(f"[{study.info.name}] {step.name}: done in {dt:.1f} s")
+        log.info("[%s] %s: done in %.1f s", study.info.name, step.name, dt)
     return StudyRun(study, out, results, tuple(reused), seconds)
+
+
+def model_record(study: Study) -> dict:
+    """What the report needs to know about the model, so that it never builds one.
+
+    For a rotor preset: ``values``, the preset's numeric fields and the airfoil's nominal
+    (fitted) coefficients by input name (the thesis tables quote some of them); ``curves``,
+    the digitized Fradenburgh ground-effect thrust ratio T/T_inf on H/R in [0.8, 4.2] (200
+    points). An external model records nothing.
+    """
+    if study.model.preset is None:
+        return {}
+    from ..rotor.ground_effect import fradenburgh_thrust_ratio
+    from ..rotor.model import load_airfoil
+    from ..rotor.presets import get_preset
+
+    preset = get_preset(study.model.preset, **dict(study.model.preset_options))
+    values = {k: float(v) for k, v in vars(preset).items()
+              if isinstance(v, int | float) and not isinstance(v, bool)}
+    values.update(load_airfoil(preset).nominal_values())
+    h = np.linspace(0.8, 4.2, 200)
+    curves = {"fradenburgh_thrust_ratio": {
+        "height_over_radius": h.tolist(),
+        "thrust_ratio": np.asarray(fradenburgh_thrust_ratio(h), dtype=float).tolist()}}
+    return {"values": values, "curves": curves}
 
 
 def _write_study_json(study: Study, out: Path, quick: bool) -> None:
@@ -393,16 +426,12 @@ def _write_study_json(study: Study, out: Path, quick: bool) -> None:
         "seed": study.info.seed,
         "quick": quick,
         "model": {"kind": study.model.kind, "preset": study.model.preset,
-                  "responses": list(study.model.responses), "fixed": dict(study.model.fixed)},
+                  "responses": list(study.model.responses), "fixed": dict(study.model.fixed),
+                  **model_record(study)},
         "parameters": {p.name: {"kind": p.kind, **p.params, "label": p.label, "unit": p.unit}
                        for p in study.parameters},
         "steps": [s.name for s in study.steps],
         "step_types": {s.name: s.type for s in study.steps},
         "titles": {s.name: s.title for s in study.steps},
     }
-    write_text(out / "study.json", json.dumps(doc, indent=1, default=str))
-
-
-def distributions_of(result: StepResult) -> dict:
-    """Distribution objects a step hands on (posterior / calibrated)."""
-    return {k: dict_to_dist(v) for k, v in result.distributions.items()}
+    save_study_info(out, doc)

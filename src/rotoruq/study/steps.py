@@ -1,13 +1,13 @@
 """Step adapters: one small function per step type, ``run_<type>(ctx) -> StepResult``.
 
 Each adapter calls one method of :mod:`rotoruq.methods` and flattens its result into a
-:class:`~rotoruq.study.results.StepResult` (scalars, arrays, distributions). The runner
-prepares the :class:`StepContext`; the adapters hold no study logic of their own.
+:class:`~rotoruq.results.StepResult` (scalars, arrays, distributions). The runner
+prepares the :class:`StepContext`; the adapters hold no study logic of their own. The
+step-type registry (:mod:`rotoruq.study.steptypes`) ties each adapter to its options.
 """
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -17,9 +17,9 @@ from scipy import stats
 
 from ..errors import ParameterError
 from ..params import Normal, ParameterSpace
-from .results import StepResult, dist_to_dict
+from ..results import StepResult, dist_to_dict
 
-__all__ = ["StepContext", "ADAPTERS", "QUICK"]
+__all__ = ["StepContext"]
 
 
 @dataclass
@@ -37,7 +37,6 @@ class StepContext:
     rng : numpy Generator for this step.
     source : the saved result of the ``from`` step (None without one); a forward check uses
         its chain for the joint posterior predictive.
-    log : status lines (None: silent).
     """
 
     name: str
@@ -52,24 +51,17 @@ class StepContext:
     data_columns: Mapping[str, np.ndarray] = field(default_factory=dict)
     targets: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     source: StepResult | None = None
-    log: Callable[[str], None] | None = None
 
-    def model(self, fixed: Mapping[str, float] | None = None):
+    def observations(self) -> np.ndarray:
+        """The step's data (k, m); a step type that needs data declares ``needs_data``."""
+        if self.data is None:
+            raise ParameterError(f"step {self.name!r} ({self.type}) needs data = \"NAME\"")
+        return self.data
+
+    def model(self, fixed: Mapping[str, float] | None = None) -> Any:
         f = dict(self.fixed)
         f.update(fixed or {})
         return self.make_model(self.space.names, self.responses, f)
-
-
-# Sample sizes for `--quick` (a reduced run: same steps, small samples).
-QUICK: dict[str, dict[str, int]] = {
-    "sampling": {"n": 40},
-    "sensitivity": {"n": 32},
-    "forward_check": {"n": 40},
-    "pce": {"n": 40},
-    "evidence": {"n": 20},
-    "bayes_calibration": {"chain_samples": 2000, "burn_in": 200, "build_samples": 60},
-    "cuu": {"verify_samples": 40},
-}
 
 
 def _stats_scalars(prefix_names: Sequence[str], values: np.ndarray, suffix: str = "") -> dict:
@@ -115,7 +107,7 @@ def run_sampling(ctx: StepContext) -> StepResult:
     from ..methods.sampling import sample
 
     o = ctx.options
-    res = sample(ctx.model(), ctx.space, o["n"], method=o["method"], seed=ctx.rng)
+    res = sample(ctx.model(), ctx.space, o["n_samples"], design=o["design"], seed=ctx.rng)
     clean = np.asarray(res.outputs)
     noisy = clean + _noise(ctx, o.get("noise_std"), clean.shape)
     scalars = _stats_scalars(ctx.responses, clean)
@@ -142,7 +134,8 @@ def _posterior_draws(ctx: StepContext, n: int) -> np.ndarray | None:
         return None
     chain = np.asarray(src.arrays["chain"], dtype=float)
     pick = ctx.rng.choice(chain.shape[0], size=n, replace=n > chain.shape[0])
-    return chain[np.ix_(pick, [names.index(p) for p in ctx.space.names])]
+    cols = np.array([names.index(p) for p in ctx.space.names], dtype=int)
+    return chain[np.ix_(pick, cols)]
 
 
 def _spread(out: np.ndarray) -> tuple[float, float]:
@@ -179,7 +172,7 @@ def run_forward_check(ctx: StepContext) -> StepResult:
         if rows.size == 0:
             raise ParameterError(f"step {ctx.name!r}: no data row with {key} = {value}")
         norm_row = int(rows[0])
-    draws = _posterior_draws(ctx, o["n"])
+    draws = _posterior_draws(ctx, o["n_samples"])
     src_noise = ctx.source.scalars if ctx.source is not None else {}
     scalars, arrays, columns, n_eval = {}, {}, {}, 0
     labels = []
@@ -188,7 +181,7 @@ def run_forward_check(ctx: StepContext) -> StepResult:
         label = f"@{point[match]:g}" if sweep and match in point else ""
         labels.append(label)
         model = ctx.model(point)
-        res = sample(model, ctx.space, o["n"], method=o["method"], seed=ctx.rng)
+        res = sample(model, ctx.space, o["n_samples"], design=o["design"], seed=ctx.rng)
         out = np.asarray(res.outputs, dtype=float)
         n_eval += int(res.n_evaluations)
         pp = None
@@ -259,7 +252,8 @@ def run_sensitivity(ctx: StepContext) -> StepResult:
     from ..methods.sensitivity import sobol_indices
 
     o = ctx.options
-    res = sobol_indices(ctx.model(), ctx.space, n=o["n"], seed=ctx.rng)
+    res = sobol_indices(ctx.model(), ctx.space, o["n_samples"], estimator=o["estimator"],
+                        design=o["design"], seed=ctx.rng)
     main, total = np.asarray(res.main), np.asarray(res.total)
     main_ci, total_ci = np.asarray(res.main_ci), np.asarray(res.total_ci)
     scalars = output_spread_scalars(ctx.responses, res.mean, res.variance)
@@ -300,8 +294,7 @@ def run_reliability(ctx: StepContext) -> StepResult:
     o = ctx.options
     res = mpp_search(ctx.model(), ctx.space, response_levels=o.get("response_levels"),
                      probability_levels=o.get("probability_levels"),
-                     integration="second_order" if o["integration"] == "sorm" else
-                     "first_order")
+                     integration=o["integration"])
     scalars = {}
     for r in ctx.responses:
         for what in ("response_levels", "cdf_probability", "cdf_reliability",
@@ -315,15 +308,13 @@ def run_reliability(ctx: StepContext) -> StepResult:
 
 
 def run_pce(ctx: StepContext) -> StepResult:
-    """Polynomial chaos: quadrature by default, regression on ``n`` LHS points when given."""
+    """Polynomial chaos of total order ``order`` by ``estimator`` (quadrature, sparse grid,
+    or regression on ``n_samples`` LHS points)."""
     from ..methods.pce import polynomial_chaos
 
     o = ctx.options
-    if o.get("n"):
-        res = polynomial_chaos(ctx.model(), ctx.space, o["order"], method="regression",
-                               n_samples=o["n"], seed=ctx.rng)
-    else:
-        res = polynomial_chaos(ctx.model(), ctx.space, o["order"], seed=ctx.rng)
+    res = polynomial_chaos(ctx.model(), ctx.space, o["order"], estimator=o["estimator"],
+                           n_samples=o["n_samples"], seed=ctx.rng)
     scalars = {}
     for k, r in enumerate(ctx.responses):
         scalars[f"mean/{r}"] = float(res.mean[k])
@@ -345,14 +336,14 @@ def run_evidence(ctx: StepContext) -> StepResult:
 
     o = ctx.options
     space = ParameterSpace([
-        (p, Interval([(float(lo), float(hi)) for lo, hi, _ in cells],
-                     [float(w) for _, _, w in cells]))
+        (p, Interval(tuple((float(lo), float(hi)) for lo, hi, _ in cells),
+                     tuple(float(w) for _, _, w in cells)))
         for p, cells in o["intervals"].items()])
     fixed = dict(ctx.fixed)
     fixed.update({p: d.mean for p, d in zip(ctx.space.names, ctx.space.distributions,
                                              strict=True) if p not in space.names})
     res = evidence(ctx.make_model(space.names, ctx.responses, fixed), space,
-                   response_levels=o.get("response_levels"), n_samples=o["n"], seed=ctx.rng)
+                   response_levels=o.get("response_levels"), n_samples=o["n_samples"], seed=ctx.rng)
     scalars = {}
     for r in ctx.responses:
         for what in ("response_levels", "cbf", "cpf"):
@@ -409,9 +400,8 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         res = calibrate_bayes(
-            ctx.model(), ctx.data, ctx.space, sampler=o["sampler"], emulator=emulator,
-            n_emulator_samples=o["build_samples"],
-            n_samples=o["chain_samples"] - o["burn_in"],  # kept steps (chain_samples: all)
+            ctx.model(), ctx.observations(), ctx.space, sampler=o["sampler"], emulator=emulator,
+            n_emulator_samples=o["n_emulator_samples"], n_samples=o["n_samples"],
             burn_in=o["burn_in"], noise_std=sd,
             proposal_covariance=o["proposal"], seed=ctx.rng,
         )
@@ -457,10 +447,10 @@ def run_least_squares(ctx: StepContext) -> StepResult:
     o = ctx.options
     sd = _per_response(o.get("noise_std"), ctx.responses)
     res = calibrate(
-        ctx.model(), ctx.data, ctx.space, noise_std=sd,
-        max_iterations=o["max_iterations"],
+        ctx.model(), ctx.observations(), ctx.space, noise_std=sd,
+        optimizer=o["optimizer"], max_iterations=o["max_iterations"],
         max_function_evaluations=o["max_function_evaluations"],
-        tolerance=o["convergence_tolerance"],
+        tolerance=o["tolerance"],
     )
     scalars = {}
     calibrated = {}
@@ -473,7 +463,7 @@ def run_least_squares(ctx: StepContext) -> StepResult:
     scalars["cost"] = float(res.cost)
     return StepResult(ctx.name, ctx.type, scalars, {"residuals": np.asarray(res.residuals)},
                       calibrated, meta={"n_evaluations": int(res.n_evaluations),
-                                        "success": bool(res.converged), "message": res.message})
+                                        "converged": bool(res.converged), "message": res.message})
 
 
 def run_cuu(ctx: StepContext) -> StepResult:
@@ -492,8 +482,8 @@ def run_cuu(ctx: StepContext) -> StepResult:
         targets={r: {"mean": m, "std": s} if "mean" in stats_ else {"std": s}
                  for r, (m, s) in targets.items()},
         inner=o["inner"],
-        max_iterations=o["max_iterations"], tolerance=o["convergence_tolerance"],
-        seed=ctx.rng,
+        optimizer=o["optimizer"], max_iterations=o["max_iterations"],
+        tolerance=o["tolerance"], seed=ctx.rng,
     )
     cal_space: ParameterSpace = res.space
     scalars = {}
@@ -509,8 +499,8 @@ def run_cuu(ctx: StepContext) -> StepResult:
     n = o.get("verify_samples", 0)
     if n:
         for tag, space in (("initial", ctx.space), ("calibrated", cal_space)):
-            s = sample(model, space, n, method=o["method"], seed=ctx.rng)
-            out = np.asarray(s.outputs)
+            checked = sample(model, space, n, design=o["design"], seed=ctx.rng)
+            out = np.asarray(checked.outputs)
             for k, r in enumerate(ctx.responses):
                 v = out[:, k][np.isfinite(out[:, k])]
                 scalars[f"{tag}_out_mean/{r}"] = float(np.mean(v))
@@ -523,50 +513,3 @@ def run_cuu(ctx: StepContext) -> StepResult:
         "columns": columns, "n_evaluations": int(res.n_evaluations),
         "identifiable": bool(res.identifiable), "diagnostic": res.diagnostic,
         "condition_number": float(res.condition_number), "message": res.message})
-
-
-ADAPTERS: dict[str, Callable[[StepContext], StepResult]] = {
-    "sampling": run_sampling,
-    "sensitivity": run_sensitivity,
-    "mean_value": run_mean_value,
-    "reliability": run_reliability,
-    "pce": run_pce,
-    "evidence": run_evidence,
-    "bayes_calibration": run_bayes_calibration,
-    "least_squares": run_least_squares,
-    "cuu": run_cuu,
-    "forward_check": run_forward_check,
-}
-
-
-# Seconds between status lines of a running step (a silent terminal for minutes reads as a
-# hang).
-STATUS_INTERVAL = 15.0
-
-
-def run_adapter(ctx: StepContext) -> tuple[StepResult, float]:
-    """Run the adapter of ``ctx.type``; returns the result and the wall time in s. While it
-    runs, ``ctx.log`` gets a status line every :data:`STATUS_INTERVAL` seconds."""
-    import threading
-
-    from ..evaluation.progress import format_duration
-
-    t0 = time.perf_counter()
-    done = threading.Event()
-
-    def status() -> None:
-        while not done.wait(STATUS_INTERVAL):
-            ctx.log(f"  {ctx.name}: {ctx.type} running, "
-                    f"{format_duration(time.perf_counter() - t0)} elapsed")
-
-    watcher = None
-    if ctx.log is not None:
-        watcher = threading.Thread(target=status, name=f"status-{ctx.name}", daemon=True)
-        watcher.start()
-    try:
-        res = ADAPTERS[ctx.type](ctx)
-    finally:
-        done.set()
-        if watcher is not None:
-            watcher.join()
-    return res, time.perf_counter() - t0

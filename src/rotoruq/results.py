@@ -7,6 +7,10 @@ the step hands to later steps (posterior / calibrated) and JSON metadata. On dis
     <out>/steps/<name>/result.json     name, type, fingerprint, scalars, distributions, meta
     <out>/steps/<name>/scalars.csv     key,value
     <out>/steps/<name>/<array>.npy     every array, plus <array>.csv when it has named columns
+    <out>/study.json                   the study: name, description, seed, quick, step order,
+                                       parameters (labels, units) and the model's record
+                                       (``model.values``, ``model.curves``; see
+                                       :func:`rotoruq.study.runner.model_record`)
 
 Saves are atomic (see :func:`save_step`) and loads check every file against the sha256 that
 ``result.json`` records, so a half-saved step is never trusted.
@@ -29,16 +33,20 @@ from typing import Any
 
 import numpy as np
 
-from ..atomic import atomic_write, fsync_dir, write_text
-from ..errors import RotoruqError
-from ..evaluation.identity import file_sha256
-from ..params import Distribution, make_distribution
+from .atomic import atomic_write, fsync_dir, write_text
+from .errors import RotoruqError
+from .evaluation.identity import file_sha256
+from .params import Distribution, make_distribution
 
 __all__ = ["StepResult", "save_step", "load_step", "load_results", "dist_to_dict",
-           "dict_to_dist", "IncompleteStepError", "clean_partial_saves"]
+           "dict_to_dist", "IncompleteStepError", "clean_partial_saves", "STUDY_INFO",
+           "save_study_info", "load_study_info", "is_study_dir"]
+
+#: The file of a study output folder that describes the study (see the module docstring).
+STUDY_INFO = "study.json"
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class StepResult:
     """Outcome of one study step.
 
@@ -217,13 +225,28 @@ def load_step(folder: str | Path) -> StepResult:
     )
 
 
+def save_study_info(directory: str | Path, info: Mapping[str, Any]) -> Path:
+    """Write ``directory/study.json`` atomically; returns its path."""
+    path = Path(directory) / STUDY_INFO
+    write_text(path, json.dumps(_jsonable(dict(info)), indent=1, default=str))
+    return path
+
+
+def is_study_dir(directory: str | Path) -> bool:
+    """Whether ``directory`` is a study output folder (it holds ``study.json``)."""
+    return (Path(directory) / STUDY_INFO).is_file()
+
+
+def load_study_info(directory: str | Path) -> dict[str, Any]:
+    """``directory/study.json`` as a dict (``{}`` when the folder has none)."""
+    path = Path(directory) / STUDY_INFO
+    return json.loads(path.read_text(encoding="utf-8")) if path.is_file() else {}
+
+
 def load_results(directory: str | Path) -> dict[str, StepResult]:
     """All saved steps of one study output directory, in the order they were run."""
     directory = Path(directory)
-    order = []
-    info = directory / "study.json"
-    if info.is_file():
-        order = json.loads(info.read_text()).get("steps", [])
+    order = load_study_info(directory).get("steps", [])
     found = {p.parent.name: p.parent for p in (directory / "steps").glob("*/result.json")}
     names = [n for n in order if n in found] + sorted(set(found) - set(order))
     return {n: load_step(found[n]) for n in names}

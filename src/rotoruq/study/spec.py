@@ -1,0 +1,167 @@
+"""The validated form of a study file: frozen dataclasses built by
+:func:`rotoruq.study.schema.load_study`."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import ParameterError
+from ..params import Distribution, ParameterSpace
+
+__all__ = ["Study", "StudyInfo", "ModelSpec", "ExternalSpec", "ParameterSpec", "DataSet",
+           "ExecutorSpec", "StoreSpec", "StepSpec"]
+
+
+@dataclass(frozen=True)
+class StudyInfo:
+    """``[study]``: name, seed (int), output directory (absolute), free-text description."""
+
+    name: str
+    seed: int
+    output: Path
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class ExternalSpec:
+    """An external solver driven through Dakota's fork contract (``driver params results``)."""
+
+    command: tuple[str, ...]
+    files: tuple[str, ...] = ()
+    templates: tuple[str, ...] = ()
+    parameters_format: str = "standard"
+    timeout: float | None = None
+    failure: str = "abort"
+    retries: int = 0
+    recover: tuple[float, ...] | None = None
+    workdir: str | None = None
+
+
+@dataclass(frozen=True)
+class ModelSpec:
+    """``[model]``: a rotor preset (``kind="preset"``) or an external driver."""
+
+    kind: str
+    responses: tuple[str, ...]
+    fixed: Mapping[str, float]
+    preset: str | None = None
+    preset_options: Mapping[str, Any] = field(default_factory=dict)
+    external: ExternalSpec | None = None
+
+
+@dataclass(frozen=True)
+class ParameterSpec:
+    """``[parameters.NAME]``: a named distribution (``distribution`` plus its parameters)."""
+
+    name: str
+    kind: str
+    params: Mapping[str, float]
+    distribution: Distribution
+    line: int | None = None
+    label: str = ""
+    unit: str = ""
+
+
+@dataclass(frozen=True, eq=False)
+class DataSet:
+    """``[data.NAME]``: columns of observations, each an array of shape (k,)."""
+
+    name: str
+    columns: Mapping[str, np.ndarray]
+    source: str
+
+    @property
+    def n(self) -> int:
+        return len(next(iter(self.columns.values()))) if self.columns else 0
+
+    def matrix(self, names: Sequence[str]) -> np.ndarray:
+        """Observations as an array (k, len(names)) in the order of ``names``."""
+        missing = [n for n in names if n not in self.columns]
+        if missing:
+            raise ParameterError(
+                f"data set {self.name!r} has no column(s) {missing}; it has {list(self.columns)}"
+            )
+        return np.column_stack([self.columns[n] for n in names])
+
+
+@dataclass(frozen=True)
+class ExecutorSpec:
+    """``[executor]``: ``kind`` in serial / processes / dask; ``workers``; dask ``scheduler``."""
+
+    kind: str = "serial"
+    workers: int | None = None
+    scheduler: str | None = None
+
+
+@dataclass(frozen=True)
+class StoreSpec:
+    """``[store]``: SQLite evaluation store (``path`` relative to the output dir)."""
+
+    enabled: bool = True
+    path: str = "evaluations.sqlite"
+
+
+@dataclass(frozen=True)
+class StepSpec:
+    """One ``[[steps]]`` entry.
+
+    ``source`` is the ``from`` reference as ``(step, attribute)``; ``parameters`` /
+    ``responses`` restrict the study's sets (None: all); ``distributions`` replaces (or adds)
+    the distributions of some inputs for this step only; ``fixed`` adds fixed model inputs
+    for this step; ``options`` holds the type-specific options with defaults filled in.
+    """
+
+    name: str
+    type: str
+    index: int
+    options: Mapping[str, Any]
+    source: tuple[str, str] | None = None
+    parameters: tuple[str, ...] | None = None
+    responses: tuple[str, ...] | None = None
+    fixed: Mapping[str, float] = field(default_factory=dict)
+    data: str | None = None
+    title: str = ""
+    quick: Mapping[str, Any] = field(default_factory=dict)
+    line: int | None = None
+    distributions: tuple[ParameterSpec, ...] = ()
+
+
+@dataclass(frozen=True, eq=False)
+class Study:
+    """A validated study. ``parameters`` is ordered as in the file."""
+
+    path: Path
+    info: StudyInfo
+    model: ModelSpec
+    parameters: tuple[ParameterSpec, ...]
+    data: Mapping[str, DataSet]
+    executor: ExecutorSpec
+    store: StoreSpec
+    steps: tuple[StepSpec, ...]
+    text: str = ""
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.parameters)
+
+    def parameter(self, name: str) -> ParameterSpec:
+        for p in self.parameters:
+            if p.name == name:
+                return p
+        raise ParameterError(f"study {self.info.name!r} has no parameter {name!r}")
+
+    def space(self, names: Sequence[str] | None = None) -> ParameterSpace:
+        """ParameterSpace of the named parameters (all when None), in the given order."""
+        names = self.parameter_names if names is None else tuple(names)
+        return ParameterSpace([(n, self.parameter(n).distribution) for n in names])
+
+    def step(self, name: str) -> StepSpec:
+        for s in self.steps:
+            if s.name == name:
+                return s
+        raise ParameterError(f"study {self.info.name!r} has no step {name!r}")

@@ -223,7 +223,7 @@ def emulator(seed, repeats, steps=100_000, burn=5000):
     model = rq.FunctionModel(rotor_like, space.names, ["T", "Q"])
     truth = np.array([[0.1075, 0.1172, 0.1135, 15035.0]])
     data = rotor_like(truth) + np.random.default_rng(seed).normal(0, 0.5, (100, 2))
-    X = space.sample(500, seed=seed)
+    X = space.draw(500, seed=seed)
     t0 = time.perf_counter()
     gp = GaussianProcess(trend="reduced_quadratic", seed=seed).fit(X, model(X))
     out = {"held_equal": "GP (500 points, reduced quadratic trend), likelihood (100 "

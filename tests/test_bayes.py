@@ -229,7 +229,7 @@ def test_emulator_with_other_priors_takes_the_general_route():
 def test_emulator_extrapolation_is_warned_with_distance():
     model = smooth_model()
     narrow = rq.ParameterSpace({"k": rq.Uniform(0.9, 1.1), "c": rq.Uniform(0.6, 0.8)})
-    X = narrow.sample(30, seed=0)
+    X = narrow.draw(30, seed=0)
     gp = GaussianProcess(trend="linear", seed=0).fit(X, model(X))
     wide = rq.ParameterSpace({"k": rq.Normal(1.0, 1.0), "c": rq.Normal(0.7, 1.0)})
     with pytest.warns(ExtrapolationWarning, match=r"box-widths outside its training box"):

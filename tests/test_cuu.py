@@ -84,7 +84,7 @@ def _three_input():
 def test_nonlinear_equal_sensitivities_recovered_and_confirmed_by_lhs():
     model = _three_input()
     truth = ParameterSpace({"x1": Normal(1, 0.05), "x2": Normal(1, 0.08), "x3": Normal(1, 0.06)})
-    y = model(truth.sample(20000, seed=5, method="lhs"))
+    y = model(truth.draw(20000, design="lhs", seed=5))
     targets = {n: {"std": float(s)} for n, s in zip(model.names_out, y.std(axis=0, ddof=1),
                                                    strict=True)}
     start = ParameterSpace({"x1": Normal(1, 0.1), "x2": Normal(1, 0.1), "x3": Normal(1, 0.1)})
@@ -104,7 +104,7 @@ def test_nonlinear_equal_sensitivities_recovered_and_confirmed_by_lhs():
 def test_lhs_inner_with_common_random_numbers():
     model = _three_input()
     truth = ParameterSpace({"x1": Normal(1, 0.05), "x2": Normal(1, 0.08), "x3": Normal(1, 0.06)})
-    y = model(truth.sample(20000, seed=5, method="lhs"))
+    y = model(truth.draw(20000, design="lhs", seed=5))
     targets = {n: {"std": float(s)} for n, s in zip(model.names_out, y.std(axis=0, ddof=1),
                                                    strict=True)}
     start = ParameterSpace({"x1": Normal(1, 0.1), "x2": Normal(1, 0.1), "x3": Normal(1, 0.1)})

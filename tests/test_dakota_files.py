@@ -7,7 +7,7 @@ import time
 import numpy as np
 import pytest
 
-from rotoruq.errors import InputFileError
+from rotoruq.errors import InputFileError, ParameterError
 from rotoruq.evaluation.dakota_files import (
     format_parameters,
     format_results,
@@ -138,10 +138,10 @@ def test_results_values_gradients_hessians_round_trip(tmp_path):
     hess = np.array([[[1.0, 2.0], [2.0, 5.5]]])
     path = write_results(tmp_path / "r.out", vals, ["thrust", "torque", "power"],
                          gradients=grads, hessians=hess)
-    r = read_results(path, names=["thrust", "torque", "power"], asv=[3, 7, 1], n_dvv=2)
+    r = read_results(path, names_out=["thrust", "torque", "power"], asv=[3, 7, 1], n_dvv=2)
     assert not r.failed
     np.testing.assert_array_equal(r.values, vals)
-    assert r.labels == ("thrust", "torque", "power")
+    assert r.names_out == ("thrust", "torque", "power")
     np.testing.assert_array_equal(r.gradients, grads)
     np.testing.assert_array_equal(r.hessians, hess)
 
@@ -151,25 +151,25 @@ def test_results_dakota_layouts():
     text = "1.5\n-2.0e+01\n[1.0 2.0]\n[ 3.0 4.0 ]\n[[ 1 0\n   0 1 ]]\n[[2 1 1 2]]\n"
     r = parse_results(text)
     np.testing.assert_array_equal(r.values, [1.5, -20.0])
-    assert r.labels == (None, None)
+    assert r.names_out == (None, None)
     np.testing.assert_array_equal(r.gradients, [[1, 2], [3, 4]])
     np.testing.assert_array_equal(r.hessians, [np.eye(2), [[2, 1], [1, 2]]])
     # several values on one line, labels optional per value
     r = parse_results("1.0 a 2.0 3.0 c\n")
     np.testing.assert_array_equal(r.values, [1, 2, 3])
-    assert r.labels == ("a", None, "c")
+    assert r.names_out == ("a", None, "c")
 
 
 @pytest.mark.parametrize("text", ["fail\n", "FAIL\n", "Fail: solver diverged\n", "  fail"])
 def test_fail_marker_any_case(text):
-    assert parse_results(text, names=["thrust"]).failed
+    assert parse_results(text, names_out=["thrust"]).failed
 
 
 def test_labels_reorder_and_mismatch():
-    r = parse_results("2.0 torque\n1.0 thrust\n", names=["thrust", "torque"])
+    r = parse_results("2.0 torque\n1.0 thrust\n", names_out=["thrust", "torque"])
     np.testing.assert_array_equal(r.values, [1.0, 2.0])
     with pytest.raises(InputFileError, match="response labels"):
-        parse_results("2.0 torque\n1.0 lift\n", "r.out", names=["thrust", "torque"])
+        parse_results("2.0 torque\n1.0 lift\n", "r.out", names_out=["thrust", "torque"])
 
 
 @pytest.mark.parametrize(
@@ -196,11 +196,11 @@ def test_results_errors_name_file_and_line(text, line, words):
 
 def test_results_count_checked_against_asv():
     with pytest.raises(InputFileError, match="2 response values"):
-        parse_results("1.0\n", names=["thrust", "torque"])
+        parse_results("1.0\n", names_out=["thrust", "torque"])
     with pytest.raises(InputFileError, match="1 gradients"):
-        parse_results("1.0\n", names=["thrust"], asv=[3])
+        parse_results("1.0\n", names_out=["thrust"], asv=[3])
     with pytest.raises(InputFileError, match="3 entries per gradient"):
-        parse_results("1.0\n[ 1 2 ]\n", names=["thrust"], asv=[3], n_dvv=3)
+        parse_results("1.0\n[ 1 2 ]\n", names_out=["thrust"], asv=[3], n_dvv=3)
 
 
 def test_missing_results_file(tmp_path):
@@ -271,3 +271,17 @@ def test_undecodable_files_name_file_and_line(tmp_path, read):
     with pytest.raises(InputFileError) as err:
         read(p)
     assert err.value.path == str(p) and err.value.line == 2 and "UTF-8" in str(err.value)
+
+
+def test_file_contents_use_the_names_of_models_and_compare_by_identity(tmp_path):
+    p = read_parameters(write_parameters(tmp_path / "p.in", {"a": 1.0, "b": 2}, ["f", "g"]))
+    assert p.names_in == ("a", "b") and p.names_out == ("f", "g")
+    r = read_results(write_results(tmp_path / "r.out", [1.0, 2.0], ["f", "g"]),
+                     names_out=["f", "g"])
+    assert r.names_out == ("f", "g")
+    # results hold arrays: == is identity (no "truth value of an array is ambiguous")
+    again = read_results(tmp_path / "r.out")
+    assert r == r and not (r == again)
+    np.testing.assert_array_equal(r.values, again.values)
+    with pytest.raises(ParameterError, match="needs values"):
+        write_results(tmp_path / "x.out")

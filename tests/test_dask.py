@@ -61,7 +61,7 @@ def test_external_batch_on_two_workers(cluster, tmp_path):
         # a second pass through Dask reuses everything that succeeded
         with Evaluator(m, store=tmp_path / "d.db", executor=ex, study="dask") as ev:
             again = ev.evaluate(x)
-            assert ev.last_stats.reused == 9 and ev.last_stats.evaluated == 1
+            assert ev.last_stats.n_reused == 9 and ev.last_stats.n_evaluations == 1
         np.testing.assert_array_equal(again.values[ok], out.values[ok])
     finally:
         ex.close()

@@ -99,7 +99,7 @@ def test_evaluator_matches_direct_evaluation(executor, chunk, pool, tmp_path):
     out = ev.evaluate(x)
     np.testing.assert_array_equal(out.values, ref.values)
     assert out.failures == ref.failures
-    assert ev.last_stats.evaluated == 22 and ev.last_stats.duplicates == 1
+    assert ev.last_stats.n_evaluations == 22 and ev.last_stats.n_duplicates == 1
     assert ev.store.count() == 22
     assert ev.store.count(status="failed") == len({tuple(r) for r in x[x[:, 0] > 2.5]})
 

@@ -286,7 +286,7 @@ def test_run_driver_values_gradients_and_order(tmp_path):
     write_parameters(tmp_path / "p.in", {"k_pitch_link": 15.0, "collective_deg": 5.4},
                      {"torque": 3, "thrust": 1}, dvv=["collective_deg"], format="aprepro")
     assert run_driver(tmp_path / "p.in", tmp_path / "r.out", _grad_model()) == 0
-    r = read_results(tmp_path / "r.out", names=["torque", "thrust"], asv=[3, 1], n_dvv=1)
+    r = read_results(tmp_path / "r.out", names_out=["torque", "thrust"], asv=[3, 1], n_dvv=1)
     np.testing.assert_array_equal(r.values, [5.4 + 30.0, 5.4 * 15.0])
     np.testing.assert_array_equal(r.gradients, [[1.0]])
 
@@ -390,7 +390,7 @@ def test_bad_results_and_hangs_go_through_every_policy(driver, tmp_path, monkeyp
         assert runs_of(side, 2.0) == want  # the driver really ran again
         if policy == "continue":  # a failed point is run again by the next evaluation
             ev.evaluate(x)
-            assert ev.last_stats.reused == 2 and ev.last_stats.evaluated == 1
+            assert ev.last_stats.n_reused == 2 and ev.last_stats.n_evaluations == 1
     ev.close()
     if kind == 9:  # each attempt was stopped at the timeout, driver and grandchild killed
         pids = run_pids(pid_dir)

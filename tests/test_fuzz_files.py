@@ -119,7 +119,7 @@ def test_parameters_parser_raises_only_rotoruq_errors(text):
 @FUZZ
 @given(text=_any(RESULT_TEXTS), checked=st.booleans())
 def test_results_parser_raises_only_rotoruq_errors(text, checked):
-    kw = {"names": ["f", "g"], "asv": [3, 1], "n_dvv": 2} if checked else {}
+    kw = {"names_out": ["f", "g"], "asv": [3, 1], "n_dvv": 2} if checked else {}
     _parses_or_rotoruq_error(parse_results, text, "results.out", **kw)
 
 

@@ -218,7 +218,7 @@ def test_elastic_rotor_cyclic_moments_are_odd_in_the_command(tmp_path):
     the model, checked to 1e-6 relative), and the moment is not negligible (> 0.5 N m per deg;
     the built-in model gives 1.6)."""
     p = get_preset("gvpm")
-    settings = CaseSettings(revolutions=6, average=1, tol=1e-2)
+    settings = CaseSettings(revolutions=6, average=1, tolerance=1e-2)
     base = {"collective_deg": 5.0, "k_pitch_link": 15.0, "ei_flap": 7.0, "longitudinal_deg": 0.0}
     up, down = (run_case(tmp_path / str(s), p, {**base, "lateral_deg": s}, template="elastic",
                          settings=settings, mbdyn=MBDYN) for s in (1.0, -1.0))
@@ -236,7 +236,7 @@ def test_not_periodic_and_mbdyn_errors_are_failures(tmp_path):
     # two revolutions: the inflow is still settling when the windows are compared
     with pytest.raises(MBDynError, match="periodic steady state"):
         run_case(tmp_path / "a", p, {"collective_deg": 5.0},
-                 settings=CaseSettings(revolutions=2, average=1, tol=1e-12), mbdyn=MBDYN)
+                 settings=CaseSettings(revolutions=2, average=1, tolerance=1e-12), mbdyn=MBDYN)
     bad = tmp_path / "bad.mbd"
     bad.write_text(template_text("rigid")[0].replace("max iterations: 20;",
                                                     "max iterations: twenty;"))

@@ -10,17 +10,17 @@ def test_normal_moments_and_transforms():
     assert space.names == ("a", "b")
     np.testing.assert_allclose(space.mean, [2.0, 1.0])
     np.testing.assert_allclose(space.std, [0.5, 4 / np.sqrt(12)])
-    x = space.sample(500, seed=3)
+    x = space.draw(500, seed=3)
     assert x.shape == (500, 2)
     np.testing.assert_allclose(space.from_u(space.to_u(x)), x, rtol=1e-10, atol=1e-12)
 
 
 def test_lhs_is_stratified_and_seeded():
     space = rq.ParameterSpace({"u": rq.Uniform(0.0, 1.0)})
-    x = space.sample(100, seed=1)
+    x = space.draw(100, seed=1)
     counts = np.histogram(x[:, 0], bins=100, range=(0, 1))[0]
     assert np.all(counts == 1)
-    np.testing.assert_array_equal(x, space.sample(100, seed=1))
+    np.testing.assert_array_equal(x, space.draw(100, seed=1))
 
 
 def test_lognormal_uses_mean_and_std_of_variable():
@@ -57,7 +57,7 @@ def test_interval_mixture_and_correlated_nataf_space():
     r = np.array([[1.0, 0.5], [0.5, 1.0]])
     space = rq.ParameterSpace({"a": rq.LogNormal(1.0, 0.3), "b": rq.Uniform(0, 1)}, correlation=r)
     assert space.nataf[0, 1] > 0.5  # Nataf inflates the normal-score correlation here
-    x = space.sample(100000, seed=1, method="mc")
+    x = space.draw(100000, design="random", seed=1)
     assert np.corrcoef(x.T)[0, 1] == pytest.approx(0.5, abs=0.01)
     np.testing.assert_allclose(space.from_u(space.to_u(x[:50])), x[:50], rtol=1e-9)
     np.testing.assert_allclose(space.covariance[0, 1], 0.5 * 0.3 * (1 / np.sqrt(12)))
@@ -175,3 +175,74 @@ def test_truncated_normal_matches_scipy_in_the_body():
 def test_non_numeric_parameters_are_parameter_errors(build, match):
     with pytest.raises(ParameterError, match=match):
         build()
+
+
+def test_distribution_parameters_use_the_study_file_words():
+    # README and study files write LogNormal(mean=, std=): the keywords are the fields
+    d = rq.LogNormal(mean=2.0, std=0.3)
+    assert (d.mean, d.std) == (2.0, 0.3)
+    n = rq.Normal(mean=1.5, std=0.2)
+    assert (n.mean, n.std) == (1.5, 0.2)
+    # every distribution rebuilds from its description, under the same keys
+    for dist in [n, d, rq.TruncatedNormal(mean=1.0, std=2.0, lower=0.0),
+                 rq.Uniform(lower=0.0, upper=2.0), rq.Beta(alpha=2.0, beta=3.0),
+                 rq.Triangular(mode=0.5, lower=0.0, upper=1.0), rq.Gumbel(alpha=1.0, beta=2.0),
+                 rq.Interval([(0.0, 1.0), (2.0, 3.0)], [0.3, 0.7])]:
+        again = rq.make_distribution(**dist.describe())
+        assert again == dist
+    with pytest.raises(ParameterError, match="takes mean, std; got mu, sigma"):
+        rq.make_distribution("normal", mu=0.0, sigma=1.0)
+
+
+def test_truncated_normal_moments_are_of_the_truncated_variable():
+    from scipy import stats
+
+    d = rq.TruncatedNormal(mean=1.0, std=2.0, lower=0.0, upper=4.0)
+    ref = stats.truncnorm(-0.5, 1.5, loc=1.0, scale=2.0)
+    assert d.moments == pytest.approx((ref.mean(), ref.std()), rel=1e-12)
+    space = rq.ParameterSpace({"t": d})
+    assert space.mean[0] == pytest.approx(ref.mean(), rel=1e-12)
+    assert space.std[0] == pytest.approx(ref.std(), rel=1e-12)
+
+
+@pytest.mark.parametrize("design", ["lhs", "random", "sobol", "halton"])
+def test_draw_designs_are_seeded_bitwise(design):
+    space = rq.ParameterSpace({"a": rq.Normal(0, 1), "b": rq.Uniform(0, 1)})
+    x = space.draw(64, design=design, seed=7)
+    assert x.shape == (64, 2)
+    np.testing.assert_array_equal(x, space.draw(64, design=design, seed=7))
+    assert not np.array_equal(x, space.draw(64, design=design, seed=8))
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"design": "mc"}, "unknown design 'mc'; valid: lhs, random, sobol, halton"),
+        ({"seed": True}, "seed must be a non-negative integer.*True"),
+        ({"seed": 1.0}, "seed must be a non-negative integer.*float"),
+        ({"seed": "1"}, "seed must be a non-negative integer.*str"),
+        ({"seed": -1}, "seed must be a non-negative integer, got -1"),
+    ],
+)
+def test_draw_rejects_bad_design_and_seed(kwargs, match):
+    space = rq.ParameterSpace({"a": rq.Normal(0, 1)})
+    with pytest.raises(ParameterError, match=match):
+        space.draw(4, **kwargs)
+
+
+def test_draw_seed_is_keyword_only_and_n_samples_checked():
+    space = rq.ParameterSpace({"a": rq.Normal(0, 1)})
+    with pytest.raises(TypeError):
+        space.draw(4, "lhs")  # type: ignore[misc]
+    with pytest.raises(ParameterError, match="n_samples must be an integer >= 1, got 0"):
+        space.draw(0)
+
+
+def test_as_generator_passes_generators_through_and_accepts_numpy_ints():
+    g = np.random.default_rng(3)
+    assert rq.as_generator(g) is g
+    a = rq.as_generator(np.int64(5)).random(3)
+    np.testing.assert_array_equal(a, np.random.default_rng(5).random(3))
+    ss = np.random.SeedSequence(9)
+    np.testing.assert_array_equal(rq.as_generator(ss).random(2),
+                                  np.random.default_rng(np.random.SeedSequence(9)).random(2))

@@ -20,7 +20,7 @@ def test_rosenbrock_mean_is_402(estimator, order):
     # exact variance: E[f^2] - 402^2 with Gaussian moments (a polynomial of degree 4)
     assert res.variance[0] == pytest.approx(1102406.0, rel=1e-9)
     assert res.n_terms == {4: 15, 5: 21}[order]  # eq. 2.16
-    x = space.sample(5, seed=3)
+    x = space.draw(5, seed=3)
     np.testing.assert_allclose(res.predict(x)[:, 0], rosenbrock(x), rtol=1e-9)
 
 
@@ -37,7 +37,7 @@ def test_ishigami_sobol_from_coefficients_and_surrogate_sampling():
     np.testing.assert_allclose(res.total[0], [0.5576, 0.4424, 0.2437], atol=2e-3)
     surrogate = res.as_model()
     assert surrogate.names_in == space.names and surrogate.names_out == ("y",)
-    x = space.sample(50, seed=2)
+    x = space.draw(50, seed=2)
     np.testing.assert_array_equal(surrogate(x), res.predict(x))
     prop = rq.sample(surrogate, space, 20000, design="random", seed=1)
     assert prop.outputs.shape == (20000, 1)

@@ -118,12 +118,12 @@ def test_evaluator_reuses_identical_inputs_across_runs(tmp_path):
     x = np.random.default_rng(1).normal(size=(10, 2))
     ev = Evaluator(m, store=tmp_path / "e.db", study="st", chunk_size=4)
     a = ev.evaluate(x)
-    assert sum(calls) == 10 and ev.last_stats.reused == 0
+    assert sum(calls) == 10 and ev.last_stats.n_reused == 0
     ev2 = Evaluator(m, store=tmp_path / "e.db", study="st")
     y = np.vstack([x[3:7], [[9.0, 9.0]], x[3:4]])
     b = ev2.evaluate(y)
     assert sum(calls) == 11  # only the new point was run, once
-    assert ev2.last_stats.reused == 5 and ev2.last_stats.evaluated == 1
+    assert ev2.last_stats.n_reused == 5 and ev2.last_stats.n_evaluations == 1
     np.testing.assert_array_equal(b.values[:4], a.values[3:7])
     np.testing.assert_array_equal(b.values[4], [18.0, 81.0])
     # another study does not see these evaluations; a tolerance finds near points
@@ -132,4 +132,4 @@ def test_evaluator_reuses_identical_inputs_across_runs(tmp_path):
     assert sum(calls) == 13
     ev4 = Evaluator(m, store=tmp_path / "e.db", study="st", tolerance=1e-8)
     ev4.evaluate(x * (1 + 1e-12))
-    assert ev4.last_stats.reused == 10 and sum(calls) == 13
+    assert ev4.last_stats.n_reused == 10 and sum(calls) == 13

@@ -1,170 +1,377 @@
 """rotoruq: verification, validation and calibration under uncertainty of helicopter rotor models.
 
-The public API is re-exported here; see README.md for a tour.
+The public API is re-exported here; see README.md for a tour. The names are loaded on first use
+(PEP 562 module ``__getattr__``), so ``import rotoruq`` and importing one layer (say
+``rotoruq.rotor.hover``) do not load the others.
 """
 
 from __future__ import annotations
 
-from . import errors
-from ._rng import as_generator
-from .errors import EvaluationError, InputFileError, ParameterError, RotoruqError
-from .model import EvalBatch, FunctionModel, Model, evaluate
-from .params import (
-    Beta,
-    Exponential,
-    Gamma,
-    Gumbel,
-    LogNormal,
-    LogUniform,
-    Normal,
-    ParameterSpace,
-    Triangular,
-    TruncatedNormal,
-    Uniform,
-    Weibull,
-    make_distribution,
-)
+import importlib
+from typing import TYPE_CHECKING, Any
 
 __version__ = "0.1.0"
 
-__all__ = [
-    "__version__",
-    "errors",
-    "as_generator",
-    "EvaluationError",
-    "InputFileError",
-    "ParameterError",
-    "RotoruqError",
-    "EvalBatch",
-    "FunctionModel",
-    "Model",
-    "evaluate",
-    "Beta",
-    "Exponential",
-    "Gamma",
-    "Gumbel",
-    "LogNormal",
-    "LogUniform",
-    "Normal",
-    "ParameterSpace",
-    "Triangular",
-    "TruncatedNormal",
-    "Uniform",
-    "Weibull",
-    "make_distribution",
-]
+# public name -> module that defines it (relative to this package)
+_LAZY: dict[str, str] = {
+    "as_generator": "._rng",
+    "EvaluationError": ".errors",
+    "InputFileError": ".errors",
+    "ParameterError": ".errors",
+    "RotoruqError": ".errors",
+    "EvalBatch": ".model",
+    "FunctionModel": ".model",
+    "Model": ".model",
+    "evaluate": ".model",
+    "Beta": ".params",
+    "Exponential": ".params",
+    "Gamma": ".params",
+    "Gumbel": ".params",
+    "Interval": ".params",
+    "LogNormal": ".params",
+    "LogUniform": ".params",
+    "Normal": ".params",
+    "ParameterSpace": ".params",
+    "Triangular": ".params",
+    "TruncatedNormal": ".params",
+    "Uniform": ".params",
+    "Weibull": ".params",
+    "make_distribution": ".params",
+    "LinearAirfoil": ".rotor.aero",
+    "RESPONSES": ".rotor.model",
+    "ROTOR_INPUTS": ".rotor.model",
+    "RotorModel": ".rotor.model",
+    "RotorPreset": ".rotor.presets",
+    "get_preset": ".rotor.presets",
+    "Airfoil": ".rotor.airfoil",
+    "AirfoilFit": ".rotor.airfoil",
+    "fit_airfoil": ".rotor.airfoil",
+    "write_perturbed_c81": ".rotor.airfoil",
+    "C81Block": ".rotor.c81",
+    "C81Table": ".rotor.c81",
+    "read_c81": ".rotor.c81",
+    "write_c81": ".rotor.c81",
+    "EvidenceResult": ".methods.evidence",
+    "evidence": ".methods.evidence",
+    "PCEResult": ".methods.pce",
+    "polynomial_chaos": ".methods.pce",
+    "MeanValueResult": ".methods.reliability",
+    "MPPResult": ".methods.reliability",
+    "mean_value": ".methods.reliability",
+    "mean_value_from_gradient": ".methods.reliability",
+    "mpp_search": ".methods.reliability",
+    "ResponseStatistics": ".methods.sampling",
+    "SamplingResult": ".methods.sampling",
+    "refine": ".methods.sampling",
+    "response_statistics": ".methods.sampling",
+    "sample": ".methods.sampling",
+    "SobolResult": ".methods.sensitivity",
+    "sobol_indices": ".methods.sensitivity",
+    "BayesResult": ".methods.mcmc",
+    "calibrate_bayes": ".methods.mcmc",
+    "continue_chain": ".methods.mcmc",
+    "GaussianProcess": ".methods.surrogate",
+    "LeaveOneOut": ".methods.surrogate",
+    "CUUCheck": ".methods.cuu",
+    "CUUResult": ".methods.cuu",
+    "calibrate_under_uncertainty": ".methods.cuu",
+    "check_cuu": ".methods.cuu",
+    "CalibrationResult": ".methods.least_squares",
+    "LeastSquaresResult": ".methods.least_squares",
+    "calibrate": ".methods.least_squares",
+    "least_squares": ".methods.least_squares",
+    "DaskExecutor": ".evaluation",
+    "Evaluator": ".evaluation",
+    "ExternalModel": ".evaluation",
+    "ProcessExecutor": ".evaluation",
+    "SerialExecutor": ".evaluation",
+    "Store": ".evaluation",
+    "fill_template": ".evaluation",
+    "read_parameters": ".evaluation",
+    "read_results": ".evaluation",
+    "write_parameters": ".evaluation",
+    "write_results": ".evaluation",
+    "write_report": ".report.html",
+    "StepResult": ".results",
+    "load_results": ".results",
+    "StudyRun": ".study.runner",
+    "run_study": ".study.runner",
+    "Study": ".study.spec",
+    "load_study": ".study.schema",
+}
+# public submodules
+_SUBMODULES: dict[str, str] = {"errors": ".errors", "presets": ".rotor.presets"}
 
-# --- rotor (issue 2) ---
-from .rotor import presets
-from .rotor.aero import LinearAirfoil
-from .rotor.model import RESPONSES, ROTOR_INPUTS, RotorModel
-from .rotor.presets import RotorPreset, get_preset
+__all__ = ["__version__", *_SUBMODULES, *_LAZY]
 
-__all__ += ["presets", "LinearAirfoil", "RESPONSES", "ROTOR_INPUTS", "RotorModel",
-            "RotorPreset", "get_preset"]
 
-from .rotor.airfoil import Airfoil, AirfoilFit, fit_airfoil, write_perturbed_c81  # noqa: E402
-from .rotor.c81 import C81Block, C81Table, read_c81, write_c81  # noqa: E402
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        value = getattr(importlib.import_module(_LAZY[name], __name__), name)
+    elif name in _SUBMODULES:
+        value = importlib.import_module(_SUBMODULES[name], __name__)
+    else:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    globals()[name] = value  # later look-ups skip __getattr__
+    return value
 
-__all__ += ["Airfoil", "AirfoilFit", "fit_airfoil", "write_perturbed_c81", "C81Block",
-            "C81Table", "read_c81", "write_c81"]
-# --- methods: forward UQ and sensitivity (issue 3) ---
-from .methods.evidence import EvidenceResult, evidence  # noqa: E402
-from .methods.pce import PCEResult, polynomial_chaos  # noqa: E402
-from .methods.reliability import (  # noqa: E402
-    MeanValueResult,
-    MPPResult,
-    mean_value,
-    mean_value_from_gradient,
-    mpp_search,
-)
-from .methods.sampling import (  # noqa: E402
-    ResponseStatistics,
-    SamplingResult,
-    refine,
-    response_statistics,
-    sample,
-)
-from .methods.sensitivity import SobolResult, sobol_indices  # noqa: E402
-from .params import Interval  # noqa: E402
 
-__all__ += [
-    "Interval",
-    "MeanValueResult",
-    "mean_value",
-    "mean_value_from_gradient",
-    "MPPResult",
-    "mpp_search",
-    "SamplingResult",
-    "ResponseStatistics",
-    "sample",
-    "refine",
-    "response_statistics",
-    "SobolResult",
-    "sobol_indices",
-    "PCEResult",
-    "polynomial_chaos",
-    "EvidenceResult",
-    "evidence",
-]
-# --- methods: surrogates and Bayes (issue 4) ---
-from .methods.mcmc import BayesResult, calibrate_bayes, continue_chain  # noqa: E402
-from .methods.surrogate import GaussianProcess, LeaveOneOut  # noqa: E402
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
 
-__all__ += ["BayesResult", "calibrate_bayes", "continue_chain", "GaussianProcess", "LeaveOneOut"]
-# --- methods: least squares and CUU (issue 5) ---
-from .methods.cuu import CUUCheck, CUUResult, calibrate_under_uncertainty, check_cuu  # noqa: E402
-from .methods.least_squares import (  # noqa: E402
-    CalibrationResult,
-    LeastSquaresResult,
-    calibrate,
-    least_squares,
-)
 
-__all__ += [
-    "CUUCheck",
-    "CUUResult",
-    "CalibrationResult",
-    "LeastSquaresResult",
-    "calibrate",
-    "calibrate_under_uncertainty",
-    "check_cuu",
-    "least_squares",
-]
-# --- evaluation layer (issue 6) ---
-from .evaluation import (  # noqa: E402
-    DaskExecutor,
-    Evaluator,
-    ExternalModel,
-    ProcessExecutor,
-    SerialExecutor,
-    Store,
-    fill_template,
-    read_parameters,
-    read_results,
-    write_parameters,
-    write_results,
-)
-
-__all__ += [
-    "DaskExecutor",
-    "Evaluator",
-    "ExternalModel",
-    "ProcessExecutor",
-    "SerialExecutor",
-    "Store",
-    "fill_template",
-    "read_parameters",
-    "read_results",
-    "write_parameters",
-    "write_results",
-]
-# --- study and report (issue 7) ---
-from .report.html import write_report  # noqa: E402
-from .results import StepResult, load_results  # noqa: E402
-from .study.runner import StudyRun, run_study  # noqa: E402
-from .study.schema import load_study  # noqa: E402
-from .study.spec import Study  # noqa: E402
-
-__all__ += ["Study", "StudyRun", "StepResult", "load_study", "load_results", "run_study",
-            "write_report"]
+if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
+    from . import errors as errors
+    from ._rng import (
+        as_generator as as_generator,
+    )
+    from .errors import (
+        EvaluationError as EvaluationError,
+    )
+    from .errors import (
+        InputFileError as InputFileError,
+    )
+    from .errors import (
+        ParameterError as ParameterError,
+    )
+    from .errors import (
+        RotoruqError as RotoruqError,
+    )
+    from .evaluation import (
+        DaskExecutor as DaskExecutor,
+    )
+    from .evaluation import (
+        Evaluator as Evaluator,
+    )
+    from .evaluation import (
+        ExternalModel as ExternalModel,
+    )
+    from .evaluation import (
+        ProcessExecutor as ProcessExecutor,
+    )
+    from .evaluation import (
+        SerialExecutor as SerialExecutor,
+    )
+    from .evaluation import (
+        Store as Store,
+    )
+    from .evaluation import (
+        fill_template as fill_template,
+    )
+    from .evaluation import (
+        read_parameters as read_parameters,
+    )
+    from .evaluation import (
+        read_results as read_results,
+    )
+    from .evaluation import (
+        write_parameters as write_parameters,
+    )
+    from .evaluation import (
+        write_results as write_results,
+    )
+    from .methods.cuu import (
+        CUUCheck as CUUCheck,
+    )
+    from .methods.cuu import (
+        CUUResult as CUUResult,
+    )
+    from .methods.cuu import (
+        calibrate_under_uncertainty as calibrate_under_uncertainty,
+    )
+    from .methods.cuu import (
+        check_cuu as check_cuu,
+    )
+    from .methods.evidence import (
+        EvidenceResult as EvidenceResult,
+    )
+    from .methods.evidence import (
+        evidence as evidence,
+    )
+    from .methods.least_squares import (
+        CalibrationResult as CalibrationResult,
+    )
+    from .methods.least_squares import (
+        LeastSquaresResult as LeastSquaresResult,
+    )
+    from .methods.least_squares import (
+        calibrate as calibrate,
+    )
+    from .methods.least_squares import (
+        least_squares as least_squares,
+    )
+    from .methods.mcmc import (
+        BayesResult as BayesResult,
+    )
+    from .methods.mcmc import (
+        calibrate_bayes as calibrate_bayes,
+    )
+    from .methods.mcmc import (
+        continue_chain as continue_chain,
+    )
+    from .methods.pce import (
+        PCEResult as PCEResult,
+    )
+    from .methods.pce import (
+        polynomial_chaos as polynomial_chaos,
+    )
+    from .methods.reliability import (
+        MeanValueResult as MeanValueResult,
+    )
+    from .methods.reliability import (
+        MPPResult as MPPResult,
+    )
+    from .methods.reliability import (
+        mean_value as mean_value,
+    )
+    from .methods.reliability import (
+        mean_value_from_gradient as mean_value_from_gradient,
+    )
+    from .methods.reliability import (
+        mpp_search as mpp_search,
+    )
+    from .methods.sampling import (
+        ResponseStatistics as ResponseStatistics,
+    )
+    from .methods.sampling import (
+        SamplingResult as SamplingResult,
+    )
+    from .methods.sampling import (
+        refine as refine,
+    )
+    from .methods.sampling import (
+        response_statistics as response_statistics,
+    )
+    from .methods.sampling import (
+        sample as sample,
+    )
+    from .methods.sensitivity import (
+        SobolResult as SobolResult,
+    )
+    from .methods.sensitivity import (
+        sobol_indices as sobol_indices,
+    )
+    from .methods.surrogate import (
+        GaussianProcess as GaussianProcess,
+    )
+    from .methods.surrogate import (
+        LeaveOneOut as LeaveOneOut,
+    )
+    from .model import (
+        EvalBatch as EvalBatch,
+    )
+    from .model import (
+        FunctionModel as FunctionModel,
+    )
+    from .model import (
+        Model as Model,
+    )
+    from .model import (
+        evaluate as evaluate,
+    )
+    from .params import (
+        Beta as Beta,
+    )
+    from .params import (
+        Exponential as Exponential,
+    )
+    from .params import (
+        Gamma as Gamma,
+    )
+    from .params import (
+        Gumbel as Gumbel,
+    )
+    from .params import (
+        Interval as Interval,
+    )
+    from .params import (
+        LogNormal as LogNormal,
+    )
+    from .params import (
+        LogUniform as LogUniform,
+    )
+    from .params import (
+        Normal as Normal,
+    )
+    from .params import (
+        ParameterSpace as ParameterSpace,
+    )
+    from .params import (
+        Triangular as Triangular,
+    )
+    from .params import (
+        TruncatedNormal as TruncatedNormal,
+    )
+    from .params import (
+        Uniform as Uniform,
+    )
+    from .params import (
+        Weibull as Weibull,
+    )
+    from .params import (
+        make_distribution as make_distribution,
+    )
+    from .report.html import (
+        write_report as write_report,
+    )
+    from .results import (
+        StepResult as StepResult,
+    )
+    from .results import (
+        load_results as load_results,
+    )
+    from .rotor import presets as presets
+    from .rotor.aero import (
+        LinearAirfoil as LinearAirfoil,
+    )
+    from .rotor.airfoil import (
+        Airfoil as Airfoil,
+    )
+    from .rotor.airfoil import (
+        AirfoilFit as AirfoilFit,
+    )
+    from .rotor.airfoil import (
+        fit_airfoil as fit_airfoil,
+    )
+    from .rotor.airfoil import (
+        write_perturbed_c81 as write_perturbed_c81,
+    )
+    from .rotor.c81 import (
+        C81Block as C81Block,
+    )
+    from .rotor.c81 import (
+        C81Table as C81Table,
+    )
+    from .rotor.c81 import (
+        read_c81 as read_c81,
+    )
+    from .rotor.c81 import (
+        write_c81 as write_c81,
+    )
+    from .rotor.model import (
+        RESPONSES as RESPONSES,
+    )
+    from .rotor.model import (
+        ROTOR_INPUTS as ROTOR_INPUTS,
+    )
+    from .rotor.model import (
+        RotorModel as RotorModel,
+    )
+    from .rotor.presets import (
+        RotorPreset as RotorPreset,
+    )
+    from .rotor.presets import (
+        get_preset as get_preset,
+    )
+    from .study.runner import (
+        StudyRun as StudyRun,
+    )
+    from .study.runner import (
+        run_study as run_study,
+    )
+    from .study.schema import (
+        load_study as load_study,
+    )
+    from .study.spec import (
+        Study as Study,
+    )

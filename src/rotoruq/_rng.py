@@ -1,28 +1,35 @@
-"""Random-number generator helpers: every random method takes ``seed`` as an int, None or a
-:class:`numpy.random.Generator` and turns it into a Generator with :func:`as_generator`."""
+"""Random-number generator helper: every random method takes a keyword-only ``seed`` (an int,
+None, a :class:`numpy.random.SeedSequence` or a :class:`numpy.random.Generator`) and turns it into
+a Generator with :func:`as_generator`. The same seed gives the same numbers, bitwise."""
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
+
+from .errors import ParameterError
 
 SeedLike = int | np.random.Generator | np.random.SeedSequence | None
 
-__all__ = ["SeedLike", "as_generator", "spawn"]
+__all__ = ["SeedLike", "as_generator"]
 
 
 def as_generator(seed: SeedLike = None) -> np.random.Generator:
-    """Return a Generator: ``seed`` itself if it is one, else ``numpy.random.default_rng(seed)``."""
-    if isinstance(seed, np.random.Generator):
-        return seed
-    return np.random.default_rng(seed)
+    """Return a Generator: ``seed`` itself if it is one, else ``numpy.random.default_rng(seed)``.
 
-
-def spawn(seed: SeedLike, n: int) -> list[np.random.Generator]:
-    """Return ``n`` independent generators derived from ``seed`` (for parallel chains/workers)."""
-    if isinstance(seed, np.random.Generator):
-        seqs = seed.bit_generator.seed_seq.spawn(n)  # type: ignore[attr-defined]
-    elif isinstance(seed, np.random.SeedSequence):
-        seqs = seed.spawn(n)
-    else:
-        seqs = np.random.SeedSequence(seed).spawn(n)
-    return [np.random.default_rng(s) for s in seqs]
+    Raises :class:`~rotoruq.errors.ParameterError` for anything but a non-negative integer,
+    None, a SeedSequence or a Generator: ``True``/``False`` (a bool is an int to Python, so
+    ``seed=True`` would silently mean seed 1), floats (``1.5`` is not a seed, and ``1.0`` hides a
+    computed value), strings and arrays.
+    """
+    if seed is None or isinstance(seed, np.random.Generator | np.random.SeedSequence):
+        return seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)
+    if isinstance(seed, bool | np.bool_) or not isinstance(seed, numbers.Integral):
+        raise ParameterError(
+            f"seed must be a non-negative integer, None, a numpy SeedSequence or Generator; "
+            f"got {seed!r} ({type(seed).__name__})"
+        )
+    if int(seed) < 0:
+        raise ParameterError(f"seed must be a non-negative integer, got {int(seed)}")
+    return np.random.default_rng(int(seed))

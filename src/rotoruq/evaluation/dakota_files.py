@@ -51,6 +51,7 @@ import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -118,7 +119,7 @@ def _small_int(s: str) -> int | None:
     return _to_int(s) if len(s) <= 19 else None
 
 
-def check_label(label, what: str = "label") -> str:
+def check_label(label: Any, what: str = "label") -> str:
     """Check a label written to a Dakota file or used in a file name; returns it.
 
     A label must be a non-empty string of printable characters without white space (the
@@ -138,7 +139,7 @@ def check_label(label, what: str = "label") -> str:
     return label
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ParametersFile:
     """Content of a Dakota parameters file.
 
@@ -160,11 +161,13 @@ class ParametersFile:
     format: str = "standard"
 
     @property
-    def names(self) -> tuple[str, ...]:
+    def names_in(self) -> tuple[str, ...]:
+        """Variable labels, in file order."""
         return tuple(self.variables)
 
     @property
-    def responses(self) -> tuple[str, ...]:
+    def names_out(self) -> tuple[str, ...]:
+        """Response labels (those of the ASV block), in file order."""
         return tuple(self.asv)
 
     def values(self) -> np.ndarray:
@@ -177,19 +180,19 @@ class ParametersFile:
         return np.array(out, dtype=float)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ResultsFile:
     """Content of a Dakota results file.
 
     values : (k,) function values in file order (k = number of values present).
-    labels : label of each value, or None where the value had none.
+    names_out : label of each value, or None where the value had none.
     gradients : (g, p) array, one row per gradient block, or None.
     hessians : (h, p, p) array, or None.
     failed : True when the file reports a failed evaluation (``fail``).
     """
 
     values: np.ndarray
-    labels: tuple[str | None, ...] = ()
+    names_out: tuple[str | None, ...] = ()
     gradients: np.ndarray | None = None
     hessians: np.ndarray | None = None
     failed: bool = False
@@ -199,7 +202,7 @@ class ResultsFile:
 # parameters
 
 
-def _fmt_value(v) -> str:
+def _fmt_value(v: float | int | str) -> str:
     if isinstance(v, bool):
         raise ParameterError("boolean variable values are not supported")
     if isinstance(v, (int, np.integer)):
@@ -215,7 +218,7 @@ def _fmt_value(v) -> str:
 
 def format_parameters(
     variables: Mapping[str, float | int | str],
-    responses: Sequence[str] | Mapping[str, int],
+    names_out: Sequence[str] | Mapping[str, int],
     *,
     asv: int | Sequence[int] = 1,
     dvv: Sequence[str] | None = None,
@@ -229,7 +232,7 @@ def format_parameters(
     Parameters
     ----------
     variables : mapping label -> value (floats written with 17 significant digits).
-    responses : response labels, or a mapping label -> ASV code (then ``asv`` is ignored).
+    names_out : response labels, or a mapping label -> ASV code (then ``asv`` is ignored).
     asv : one code for every response, or one per response.
     dvv : derivative variable labels (default: every float-valued variable).
     analysis_components : (component, driver) pairs.
@@ -239,11 +242,13 @@ def format_parameters(
     """
     if format not in ("standard", "aprepro"):
         raise ParameterError(f"format must be 'standard' or 'aprepro', got {format!r}")
-    if isinstance(responses, Mapping):
-        codes = {str(k): int(v) for k, v in responses.items()}
+    codes: dict[str, int]
+    if isinstance(names_out, Mapping):
+        codes = {str(k): int(v) for k, v in names_out.items()}
     else:
-        names = [str(r) for r in responses]
-        asv_list = [int(asv)] * len(names) if np.isscalar(asv) else [int(a) for a in asv]
+        names = [str(r) for r in names_out]
+        asv_list = [int(asv)] * len(names) if isinstance(asv, int | np.integer) else \
+            [int(a) for a in asv]
         if len(asv_list) != len(names):
             raise ParameterError(f"{len(asv_list)} ASV codes for {len(names)} responses")
         codes = dict(zip(names, asv_list, strict=True))
@@ -253,9 +258,9 @@ def format_parameters(
     labels = [check_label(k, "variable label") for k in variables]
     for k in codes:
         check_label(k, "response label")
-    for c, d in analysis_components:
-        check_label(c, "analysis component")
-        check_label(d, "analysis driver name")
+    for component, driver in analysis_components:
+        check_label(component, "analysis component")
+        check_label(driver, "analysis driver name")
     for m in metadata or ():
         check_label(m, "metadata label")
     if not _is_int(str(eval_id)) and not all(_digits(p) for p in str(eval_id).split(":")):
@@ -300,10 +305,15 @@ def format_parameters(
     return "".join(out)
 
 
-def write_parameters(path: str | os.PathLike, variables, responses, **kwargs) -> Path:
-    """Write a parameters file (see :func:`format_parameters`); returns the path."""
+def write_parameters(
+    path: str | os.PathLike,
+    variables: Mapping[str, float | int | str],
+    names_out: Sequence[str] | Mapping[str, int],
+    **kwargs: Any,
+) -> Path:
+    """Write a parameters file (keywords of :func:`format_parameters`); returns the path."""
     path = Path(path)
-    path.write_text(format_parameters(variables, responses, **kwargs))
+    path.write_text(format_parameters(variables, names_out, **kwargs))
     return path
 
 
@@ -481,21 +491,22 @@ def read_parameters(path: str | os.PathLike) -> ParametersFile:
 
 def format_results(
     values: Sequence[float] | np.ndarray,
-    labels: Sequence[str] | None = None,
+    names_out: Sequence[str] | None = None,
     *,
     gradients: np.ndarray | None = None,
     hessians: np.ndarray | None = None,
 ) -> str:
-    """Text of a results file: values (with labels), then gradients, then Hessians.
+    """Text of a results file: values (with their response labels ``names_out``), then
+    gradients, then Hessians.
 
-    gradients : (g, p) array or None; hessians : (h, p, p) array or None.
+    values : (k,); gradients : (g, p) array or None; hessians : (h, p, p) array or None.
     """
     values = np.atleast_1d(np.asarray(values, dtype=float))
-    if labels is not None and len(labels) != len(values):
-        raise ParameterError(f"{len(labels)} labels for {len(values)} values")
+    if names_out is not None and len(names_out) != len(values):
+        raise ParameterError(f"{len(names_out)} labels for {len(values)} values")
     out = []
     for i, v in enumerate(values):
-        lab = f" {labels[i]}" if labels is not None else ""
+        lab = f" {names_out[i]}" if names_out is not None else ""
         out.append(f"{v:{_WIDTH}.16e}{lab}\n")
     if gradients is not None:
         for g in np.atleast_2d(np.asarray(gradients, dtype=float)):
@@ -511,16 +522,26 @@ def format_results(
 
 
 def write_results(
-    path: str | os.PathLike, values=None, labels=None, *, gradients=None, hessians=None,
+    path: str | os.PathLike,
+    values: Sequence[float] | np.ndarray | None = None,
+    names_out: Sequence[str] | None = None,
+    *,
+    gradients: np.ndarray | None = None,
+    hessians: np.ndarray | None = None,
     failed: bool = False,
 ) -> Path:
-    """Write a results file; ``failed=True`` writes the ``FAIL`` marker only.
+    """Write a results file (see :func:`format_results`); ``failed=True`` writes the ``FAIL``
+    marker only.
 
     The file is written to a temporary name and renamed, so a reader never sees half a file.
     """
     path = Path(path)
-    text = FAIL_TEXT if failed else format_results(values, labels, gradients=gradients,
-                                                   hessians=hessians)
+    if failed:
+        text = FAIL_TEXT
+    elif values is None:
+        raise ParameterError("write_results needs values (or failed=True)")
+    else:
+        text = format_results(values, names_out, gradients=gradients, hessians=hessians)
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(text)
     os.replace(tmp, path)
@@ -553,7 +574,7 @@ def parse_results(
     text: str,
     path: str | os.PathLike | None = None,
     *,
-    names: Sequence[str] | None = None,
+    names_out: Sequence[str] | None = None,
     asv: Sequence[int] | None = None,
     n_dvv: int | None = None,
 ) -> ResultsFile:
@@ -561,9 +582,9 @@ def parse_results(
 
     Parameters
     ----------
-    names : expected response labels, in order. When given, the number of values is checked
-        and labels, where present, must match (a file whose labels are a permutation of
-        ``names`` is reordered).
+    names_out : expected response labels, in order. When given, the number of values is
+        checked and labels, where present, must match (a file whose labels are a permutation
+        of ``names_out`` is reordered).
     asv : active set codes per response (default: values only, i.e. all 1). Used to check
         how many values, gradients and Hessians the file must hold.
     n_dvv : number of derivative variables (length of each gradient).
@@ -571,8 +592,8 @@ def parse_results(
     toks = _tokens(text, path)
     if toks and toks[0][1].lower().startswith("fail"):
         return ResultsFile(np.zeros(0), (), None, None, True)
-    if names is not None and asv is None:
-        asv = [1] * len(names)
+    if names_out is not None and asv is None:
+        asv = [1] * len(names_out)
     values: list[float] = []
     labels: list[str | None] = []
     i = 0
@@ -652,8 +673,8 @@ def parse_results(
             if have != want:
                 last = toks[-1][0] if toks else None
                 raise InputFileError(path, last, f"{want} {what}", f"{have}")
-    if names is not None and any(lab is not None for lab in labs):
-        wanted = [n for n, a in zip(names, asv, strict=True) if a & 1]
+    if names_out is not None and asv is not None and any(lab is not None for lab in labs):
+        wanted = [n for n, a in zip(names_out, asv, strict=True) if a & 1]
         if list(labs) != wanted:
             if sorted(lab or "" for lab in labs) == sorted(wanted) and None not in labs:
                 order = [labs.index(n) for n in wanted]
@@ -664,9 +685,16 @@ def parse_results(
     return ResultsFile(vals, labs, g, h, False)
 
 
-def read_results(path: str | os.PathLike, **kwargs) -> ResultsFile:
+def read_results(
+    path: str | os.PathLike,
+    *,
+    names_out: Sequence[str] | None = None,
+    asv: Sequence[int] | None = None,
+    n_dvv: int | None = None,
+) -> ResultsFile:
     """Read and parse a results file (see :func:`parse_results` for the checks)."""
     path = Path(path)
     if not path.is_file():
         raise InputFileError(path, None, "a results file written by the driver", "no file")
-    return parse_results(read_text(path, "Dakota results file"), path, **kwargs)
+    return parse_results(read_text(path, "Dakota results file"), path, names_out=names_out,
+                         asv=asv, n_dvv=n_dvv)

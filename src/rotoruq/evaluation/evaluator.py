@@ -20,15 +20,17 @@ back, never repeated.
 from __future__ import annotations
 
 import math
+import os
 import time
 import uuid
 import weakref
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from ..errors import EvaluationError, ModelShapeError, ParameterError
-from ..model import EvalBatch, evaluate, has_gradient
+from ..model import EvalBatch, Model, evaluate, has_gradient
 from .executors import Executor, make_executor
 from .external import RunResult, _abort_message
 from .identity import model_identity
@@ -38,20 +40,20 @@ from .store import NewRecord, Store, canonical_keys, open_store
 __all__ = ["Evaluator", "EvalStats", "model_identity"]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class EvalStats:
     """What the last :meth:`Evaluator.evaluate` call did.
 
-    n : rows asked for; reused : rows found in the store; evaluated : distinct points run;
-    duplicates : rows that repeated another row of the batch; failed : rows that failed;
-    wall_time : seconds.
+    n_samples : rows asked for; n_reused : rows found in the store; n_evaluations : distinct
+    points run (model evaluations spent); n_duplicates : rows that repeated another row of the
+    batch; n_failed : rows that failed; wall_time : seconds.
     """
 
-    n: int
-    reused: int
-    evaluated: int
-    duplicates: int
-    failed: int
+    n_samples: int
+    n_reused: int
+    n_evaluations: int
+    n_duplicates: int
+    n_failed: int
     wall_time: float
 
 
@@ -98,9 +100,9 @@ class Evaluator:
 
     def __init__(
         self,
-        model,
+        model: Model,
         *,
-        store: Store | str | None = None,
+        store: Store | str | os.PathLike | None = None,
         executor: str | Executor = "serial",
         study: str = "default",
         run_id: str | None = None,
@@ -198,8 +200,8 @@ class Evaluator:
         # distinct missing points, each with the rows that share it
         keys = canonical_keys(x) if n else []
         groups: dict[str, list[int]] = {}
-        for i in np.flatnonzero(~done):
-            groups.setdefault(keys[i], []).append(int(i))
+        for i in np.flatnonzero(~done).tolist():
+            groups.setdefault(keys[i], []).append(i)
         firsts = [rows[0] for rows in groups.values()]
         row_groups = list(groups.values())
         if firsts:
@@ -217,7 +219,7 @@ class Evaluator:
             ids = self._eval_ids(len(firsts))
             tasks = [(pts[j], ids[j]) for j in range(len(firsts))]
             spans = [[j] for j in range(len(firsts))]
-            fn = _ExternalTask(self.model)
+            fn: _ExternalTask | _ChunkTask = _ExternalTask(self.model)
             policy = getattr(self.model, "failure_policy", None)
             abort = getattr(policy, "kind", policy) == "abort"
         else:
@@ -304,7 +306,7 @@ class Evaluator:
         return recs, fails
 
 
-def as_evaluator(model, **kwargs) -> Evaluator:
+def as_evaluator(model: Model, **kwargs: Any) -> Evaluator:
     """``model`` itself if it is already an Evaluator, else ``Evaluator(model, **kwargs)``."""
     return model if isinstance(model, Evaluator) else Evaluator(model, **kwargs)
 

@@ -27,7 +27,7 @@ import pickle
 import time
 import traceback
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Generator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -43,7 +43,7 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class TaskOutcome:
     """Result of one task: ``value`` when it returned, ``error`` (text) when it raised."""
 
@@ -97,7 +97,7 @@ class Executor(ABC):
     n_workers: int = 1
 
     @abstractmethod
-    def run(self, fn: Callable[[Any], Any], tasks: Sequence[Any]) -> Iterator[TaskOutcome]:
+    def run(self, fn: Callable[[Any], Any], tasks: Sequence[Any]) -> Generator[TaskOutcome]:
         """Yield one outcome per task, in completion order."""
 
     def close(self) -> None:
@@ -116,7 +116,7 @@ class SerialExecutor(Executor):
 
     n_workers = 1
 
-    def run(self, fn, tasks):
+    def run(self, fn: Callable[[Any], Any], tasks: Sequence[Any]) -> Generator[TaskOutcome]:
         for i, task in enumerate(tasks):
             value, error, wall = _timed(fn, task)
             yield TaskOutcome(i, value, error, wall)
@@ -154,7 +154,7 @@ class ProcessExecutor(Executor):
             self._pool = cf.ProcessPoolExecutor(self.n_workers, mp_context=ctx)
         return self._pool
 
-    def run(self, fn, tasks):
+    def run(self, fn: Callable[[Any], Any], tasks: Sequence[Any]) -> Generator[TaskOutcome]:
         payload = _dumps(fn)
         pool = self._get_pool()
         futures = {pool.submit(_call, payload, t): i for i, t in enumerate(tasks)}
@@ -201,7 +201,7 @@ class DaskExecutor(Executor):
     """
 
     def __init__(
-        self, address: str | None = None, *, client=None, n_workers: int | None = None,
+        self, address: str | None = None, *, client: Any = None, n_workers: int | None = None,
         threads_per_worker: int = 1,
     ):
         self.address = address
@@ -209,10 +209,12 @@ class DaskExecutor(Executor):
         self._threads = threads_per_worker
         self._client = client
         self._own_client = client is None
-        self._cluster = None
+        self._cluster: Any = None
 
     @property
-    def client(self):
+    def client(self) -> Any:
+        """The ``distributed.Client`` (started on first use; a local cluster without an
+        address)."""
         if self._client is None:
             try:
                 from distributed import Client, LocalCluster
@@ -235,7 +237,7 @@ class DaskExecutor(Executor):
         n = sum(w.get("nthreads", 1) for w in info.get("workers", {}).values())
         return max(1, n)
 
-    def run(self, fn, tasks):
+    def run(self, fn: Callable[[Any], Any], tasks: Sequence[Any]) -> Generator[TaskOutcome]:
         from distributed import as_completed
 
         client = self.client
@@ -264,7 +266,7 @@ class DaskExecutor(Executor):
         return f"DaskExecutor(address={self.address!r})"
 
 
-def make_executor(spec: str | Executor | None, **kwargs) -> Executor:
+def make_executor(spec: str | Executor | None, **kwargs: Any) -> Executor:
     """An Executor from a name ("serial", "processes", "dask") or an existing Executor.
 
     ``"processes:4"`` sets the number of workers; ``"dask:tcp://host:8786"`` a scheduler.

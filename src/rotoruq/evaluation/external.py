@@ -54,6 +54,7 @@ import uuid
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -81,7 +82,8 @@ class FailurePolicy:
     recover: tuple[float, ...] | None = None
 
 
-def parse_failure_policy(policy, n_out: int) -> FailurePolicy:
+def parse_failure_policy(policy: str | Mapping[str, Any] | FailurePolicy,
+                         n_out: int) -> FailurePolicy:
     """Turn ``"abort"``, ``"continue"``, ``"retry:N"`` or ``{"recover": values}`` into a
     :class:`FailurePolicy`."""
     if isinstance(policy, FailurePolicy):
@@ -109,7 +111,7 @@ def parse_failure_policy(policy, n_out: int) -> FailurePolicy:
                          "'retry:N' or {'recover': values}")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class RunResult:
     """Outcome of one external evaluation.
 
@@ -213,7 +215,7 @@ class ExternalModel:
         parameters_file: str = "params.in",
         results_file: str = "results.out",
         timeout: float | None = None,
-        failure_policy="continue",
+        failure_policy: str | Mapping[str, Any] | FailurePolicy = "continue",
         keep_workdirs: bool | str = "failed",
         env: Mapping[str, str] | None = None,
         analysis_components: Sequence[tuple[str, str]] = (),
@@ -300,7 +302,7 @@ class ExternalModel:
         successful answer). Files are hashed on the first call only.
         """
         if self._identity is None:
-            command = []
+            command: list[str | dict[str, str]] = []
             for i, word in enumerate(self.command):
                 path = Path(word) if "{" not in word else None
                 if path is not None and i == 0 and os.sep not in word:
@@ -443,7 +445,7 @@ class ExternalModel:
             return (None, f"bad results file: {size} bytes (more than {MAX_RESULTS_BYTES}; "
                     "not read)", out_s, err_s)
         try:
-            res = read_results(wd / self.results_file, names=self.names_out,
+            res = read_results(wd / self.results_file, names_out=self.names_out,
                                asv=[1] * len(self.names_out))
         except InputFileError as exc:
             return None, f"bad results file: {exc}", out_s, err_s
@@ -475,6 +477,7 @@ class ExternalModel:
         attempts = 0
         tries = 1 + (self.policy.retries if self.policy.kind == "retry" else 0)
         wd = None
+        error: str | None
         while True:
             attempts += 1
             try:

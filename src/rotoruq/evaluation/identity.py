@@ -22,6 +22,7 @@ import math
 from collections.abc import Mapping
 from functools import lru_cache
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -91,7 +92,7 @@ def _plain(o):
     return repr(o)
 
 
-def digest(obj) -> str:
+def digest(obj: Any) -> str:
     """sha256 hex digest of a configuration (nested mappings, sequences, numbers, arrays)."""
     text = json.dumps(_plain(obj), sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()
@@ -102,7 +103,7 @@ def _qualname(o) -> str:
     return f"{t.__module__}.{t.__qualname__}"
 
 
-def model_identity(model) -> str:
+def model_identity(model: Any) -> str:
     """Text that tells models apart in the store and in step fingerprints.
 
     ``class|inputs->responses|digest``, where the digest covers the class, the model's

@@ -41,7 +41,7 @@ _CHUNK = 64 * 1024
 _PROC = Path("/proc")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class DriverRun:
     """What happened to one driver process.
 

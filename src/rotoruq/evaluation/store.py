@@ -27,6 +27,7 @@ import time
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 
@@ -89,7 +90,7 @@ def _dumps(a) -> str | None:
     return json.dumps([float(v) for v in np.ravel(a)])
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class NewRecord:
     """One finished evaluation to commit (what an evaluator hands to :meth:`Store.add`)."""
 
@@ -105,7 +106,7 @@ class NewRecord:
     attempts: int = 1
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class EvalRecord:
     """One stored evaluation. ``outputs`` is None for failures without recovered values."""
 
@@ -381,7 +382,8 @@ def _record(row) -> EvalRecord:
     (id_, study, run_id, model, _key, nin, nout, inputs, outputs, status, error, stdout, stderr,
      wall, started, finished, host, pid, eval_id, attempts) = row
     return EvalRecord(id_, study, run_id, model, tuple(json.loads(nin)), tuple(json.loads(nout)),
-                      _floats(inputs), _floats(outputs), status, error, stdout, stderr, wall,
+                      cast(np.ndarray, _floats(inputs)),  # the inputs column is NOT NULL
+                      _floats(outputs), status, error, stdout, stderr, wall,
                       started, finished, host, pid, eval_id, attempts)
 
 

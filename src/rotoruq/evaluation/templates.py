@@ -18,7 +18,7 @@ the template's size.
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from pathlib import Path
 
 import numpy as np
@@ -79,7 +79,7 @@ def _parse_field(body: str, path, line):
     name, rest = s[:k], s[k:].lstrip()
     if not name or not (name[0].isalpha() or name[0] == "_"):
         raise bad
-    default = None
+    default: str | float | None = None
     if rest.startswith("="):
         rest = rest[1:].lstrip()
         if rest[:1] in ("'", '"'):
@@ -125,7 +125,9 @@ def template_fields(text: str, path: str | os.PathLike | None = None) -> list[st
     return out
 
 
-def check_template(text: str, labels, path: str | os.PathLike | None = None) -> None:
+def check_template(
+    text: str, labels: Collection[str], path: str | os.PathLike | None = None
+) -> None:
     """Check that every field of a template parses and has a value: a label among ``labels``
     or a default. Raises :class:`~rotoruq.errors.InputFileError` naming the line otherwise."""
     known = set(labels)

@@ -14,11 +14,17 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from ..errors import ParameterError
 from ..evaluation.templates import fill_template, template_fields
 from .extract import HubLoads, hub_loads
 from .solver import run_mbdyn
+
+if TYPE_CHECKING:
+    from ..rotor.airfoil import Airfoil
+    from ..rotor.c81 import C81Table
+    from ..rotor.presets import RotorPreset
 
 __all__ = ["TEMPLATES", "CaseSettings", "template_text", "template_values", "run_case",
            "rigid_equivalent", "sample_table", "GEOMETRY_FIELDS", "OGE_DISTANCE"]
@@ -42,12 +48,12 @@ DERIVED_FROM = {"ground_distance": ("height_over_radius",), "final_time": ("omeg
 class CaseSettings:
     """Time integration of a case: ``revolutions`` simulated, ``steps_per_rev`` time steps per
     revolution, loads averaged over the last ``average`` revolutions (the ``average`` before
-    them must agree within ``tol``, relative), ``timeout`` [s] for MBDyn."""
+    them must agree within ``tolerance``, relative), ``timeout`` [s] for MBDyn."""
 
     revolutions: int = 12
     steps_per_rev: int = 72
     average: int = 2
-    tol: float = 2e-3
+    tolerance: float = 2e-3
     timeout: float | None = 600.0
 
     def __post_init__(self):
@@ -68,7 +74,8 @@ def template_text(template: str | os.PathLike) -> tuple[str, Path]:
     return p.read_text(), p
 
 
-def template_values(preset, inputs: Mapping[str, float], settings: CaseSettings) -> dict:
+def template_values(preset: RotorPreset, inputs: Mapping[str, float],
+                    settings: CaseSettings) -> dict[str, Any]:
     """Every value a template can use.
 
     - the rotor inputs (:data:`rotoruq.rotor.model.ROTOR_INPUTS`, deg and SI): the preset's
@@ -90,7 +97,7 @@ def template_values(preset, inputs: Mapping[str, float], settings: CaseSettings)
                  else repr(k) for k in unknown]
         raise ParameterError(f"{', '.join(hints)}: not rotor inputs of preset {preset.name!r}; "
                              f"valid: {', '.join(base)}")
-    vals = {**base, **{k: float(v) for k, v in inputs.items()}}
+    vals: dict[str, Any] = {**base, **{k: float(v) for k, v in inputs.items()}}
     vals.update({k: float(getattr(preset, k)) for k in GEOMETRY_FIELDS})
     h = vals["height_over_radius"]
     if not h > 0.25:
@@ -104,9 +111,9 @@ def template_values(preset, inputs: Mapping[str, float], settings: CaseSettings)
     return vals
 
 
-def run_case(workdir: str | os.PathLike, preset, inputs: Mapping[str, float],
+def run_case(workdir: str | os.PathLike, preset: RotorPreset, inputs: Mapping[str, float],
              template: str | os.PathLike = "rigid", settings: CaseSettings | None = None,
-             mbdyn: str | os.PathLike | None = None, airfoil=None) -> HubLoads:
+             mbdyn: str | os.PathLike | None = None, airfoil: Airfoil | None = None) -> HubLoads:
     """Run one hover case in ``workdir`` and return its mean :class:`HubLoads`.
 
     ``inputs`` holds rotor inputs (``collective_deg``, ``height_over_radius``, ...) and airfoil
@@ -141,16 +148,16 @@ def run_case(workdir: str | os.PathLike, preset, inputs: Mapping[str, float],
     return hub_loads(run.prefix.with_suffix(".rot"), omega=values["omega"], rho=values["rho"],
                      radius=preset.radius, steps_per_rev=settings.steps_per_rev,
                      revolutions=settings.revolutions, average=settings.average,
-                     tol=settings.tol, joint=jnt if jnt.exists() else None)
+                     tolerance=settings.tolerance, joint=jnt if jnt.exists() else None)
 
 
-def sample_table(airfoil, overrides: Mapping[str, float]):
+def sample_table(airfoil: Airfoil, overrides: Mapping[str, float]) -> C81Table:
     """The c81 table of one sample, as the built-in model sees it: the airfoil's
     :meth:`~rotoruq.rotor.airfoil.Airfoil.perturbed_table` (fits at the fit rows)."""
     return airfoil.perturbed_table(dict(overrides))
 
 
-def rigid_equivalent(preset):
+def rigid_equivalent(preset: RotorPreset) -> RotorPreset:
     """The built-in model of the rigid template's physics: blades clamped at the collective
     (flap, lag and pitch-link springs effectively rigid), uniform momentum inflow without the
     first-harmonic part, no tip loss, no induced-power factor, Cheeseman-Bennett ground effect.

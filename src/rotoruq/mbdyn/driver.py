@@ -20,6 +20,7 @@ reports the reason.
 from __future__ import annotations
 
 import argparse
+import logging
 import sys
 from pathlib import Path
 
@@ -27,6 +28,8 @@ from ..errors import RotoruqError
 from ..evaluation.dakota_files import read_parameters, write_results
 from .case import TEMPLATES, CaseSettings, run_case
 from .extract import RESPONSES
+
+log = logging.getLogger(__name__)
 
 __all__ = ["main", "build_parser"]
 
@@ -50,8 +53,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"time steps per revolution (default {d.steps_per_rev})")
     p.add_argument("--average", type=int, default=d.average,
                    help=f"revolutions averaged at the end (default {d.average})")
-    p.add_argument("--tol", type=float, default=d.tol,
-                   help=f"periodicity tolerance, relative (default {d.tol:g})")
+    p.add_argument("--tolerance", type=float, default=d.tolerance,
+                   help=f"periodicity tolerance, relative (default {d.tolerance:g})")
     p.add_argument("--timeout", type=float, default=d.timeout,
                    help=f"seconds MBDyn may run (default {d.timeout:g})")
     return p
@@ -63,18 +66,18 @@ def main(argv: list[str] | None = None) -> int:
         from ..rotor.presets import get_preset
 
         p = read_parameters(args.params)
-        names = list(p.responses)
+        names = list(p.names_out)
         bad = [n for n in names if n not in RESPONSES]
         if bad:
             raise RotoruqError(f"{args.params}: responses {bad} are not MBDyn hub loads; "
                                f"available: {', '.join(RESPONSES)}")
-        settings = CaseSettings(args.revolutions, args.steps_per_rev, args.average, args.tol,
+        settings = CaseSettings(args.revolutions, args.steps_per_rev, args.average, args.tolerance,
                                 args.timeout)
         loads = run_case(Path.cwd(), get_preset(args.preset),
                          {k: float(v) for k, v in p.variables.items()},
                          template=args.template, settings=settings, mbdyn=args.mbdyn)
     except (RotoruqError, OSError, ValueError) as exc:
-        print(f"rotoruq mbdyn driver: {exc}", file=sys.stderr)
+        log.error("%s", exc)
         write_results(args.results, failed=True)
         return 1
     write_results(args.results, [loads.response(n) for n in names], names)
@@ -82,4 +85,5 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":  # pragma: no cover
+    logging.basicConfig(format="rotoruq mbdyn driver: %(message)s", stream=sys.stderr)
     sys.exit(main())

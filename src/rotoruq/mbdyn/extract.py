@@ -19,7 +19,7 @@ measures; with cyclic flapping the mean roll and pitch differ from the aerodynam
 
 Loads are averaged over the last ``average`` revolutions; the run must have reached its final
 step and be periodic: the mean thrust and torque over the last ``average`` revolutions must
-differ from those over the ``average`` revolutions before by less than ``tol`` (relative),
+differ from those over the ``average`` revolutions before by less than ``tolerance`` (relative),
 and must not alternate from one time step to the next (a numerical limit cycle of the
 inflow update, whose mean is not the steady state).
 """
@@ -41,7 +41,7 @@ __all__ = ["HubLoads", "read_rotor_output", "read_joint_output", "hub_loads", "R
 RESPONSES = ("thrust", "torque", "roll", "pitch", "power", "ct", "cq")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class HubLoads:
     """Mean hub loads of one MBDyn run (README sign conventions, SI units).
 
@@ -104,7 +104,7 @@ def read_joint_output(path: str | os.PathLike) -> np.ndarray:
 
 def hub_loads(path: str | os.PathLike, *, omega: float, rho: float, radius: float,
               steps_per_rev: int, revolutions: int, average: int = 2,
-              tol: float = 2e-3, joint: str | os.PathLike | None = None) -> HubLoads:
+              tolerance: float = 2e-3, joint: str | os.PathLike | None = None) -> HubLoads:
     """Mean hub loads over the last ``average`` revolutions of a ``.rot`` file.
 
     Parameters
@@ -112,7 +112,7 @@ def hub_loads(path: str | os.PathLike, *, omega: float, rho: float, radius: floa
     path : the ``.rot`` file. omega [rad/s], rho [kg/m^3], radius [m]: for power and
         coefficients. steps_per_rev, revolutions : the run's time steps per revolution and
         simulated revolutions (the file must hold at least revolutions * steps_per_rev rows).
-    average : revolutions averaged. tol : periodicity tolerance (relative).
+    average : revolutions averaged. tolerance : periodicity tolerance (relative).
     joint : optional ``.jnt`` file of the airframe-hub joint alone. Its reaction in the global
         frame (columns 8-13: the airframe's; the local one turns with the hub) is minus the
         load the rotor puts on the airframe, blade inertia included: what a balance under the
@@ -144,16 +144,16 @@ def hub_loads(path: str | os.PathLike, *, omega: float, rho: float, radius: floa
     # relative change of thrust and torque between the two windows
     scale = np.maximum(np.abs(m_last[[3, 6]]), 1e-12)
     periodicity = float(np.max(np.abs(m_last[[3, 6]] - m_before[[3, 6]]) / scale))
-    if periodicity > tol:
+    if periodicity > tolerance:
         raise MBDynError(
             f"MBDyn's run in {path} did not reach a periodic steady state: mean thrust/torque "
             f"changed by {periodicity:.2%} between the last two {average}-revolution windows "
-            f"(tolerance {tol:.2%}); simulate more revolutions")
+            f"(tolerance {tolerance:.2%}); simulate more revolutions")
     # A mean over a window can hide a numerical limit cycle: loads that flip between two
     # values every time step (an undamped quasi-steady inflow update) average to a wrong value.
     sign = np.where(np.arange(n_avg) % 2, -1.0, 1.0)
     alternating = float(np.max(np.abs(sign @ last[:, [3, 6]]) / n_avg / scale))
-    if alternating > tol:
+    if alternating > tolerance:
         raise MBDynError(
             f"MBDyn's loads in {path} alternate between time steps (amplitude {alternating:.2%} "
             "of the mean): a numerical oscillation, not a steady state; damp the inflow update "

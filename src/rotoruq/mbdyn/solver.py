@@ -29,7 +29,7 @@ class MBDynError(EvaluationError):
     """MBDyn failed, did not converge, or wrote output rotoruq cannot use."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class MBDynRun:
     """A finished MBDyn run: the output prefix (``<prefix>.rot``, ``.out``, ...), wall time [s]
     and the tail of its combined stdout/stderr."""

@@ -64,7 +64,7 @@ from typing import Any
 
 import numpy as np
 
-from .._rng import SeedLike, as_generator
+from .._rng import SeedLike
 from ..errors import EvaluationError, ParameterError
 from ..model import (
     FD_STEP,
@@ -385,8 +385,8 @@ class SamplingInner(InnerMethod):
 
     def bind(self, problem: _Problem, seed: SeedLike) -> None:
         super().bind(problem, seed)
-        self.unit = unit_design(self.n_samples, problem.space.dim, as_generator(seed),
-                                self.design)
+        self.unit = unit_design(self.n_samples, problem.space.dim, design=self.design,
+                                seed=seed)
 
     def statistics(self, mu: np.ndarray, sd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         from .sampling import unit_to_space

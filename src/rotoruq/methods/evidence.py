@@ -172,7 +172,7 @@ def evidence(
     hi = np.array([[ivs[j][c[j], 1] for j in range(d)] for c in combos])
     bpa = np.array([np.prod([bpas[j][c[j]] for j in range(d)]) for c in combos])
     n_cells = len(combos)
-    unit = unit_design(int(n_samples), d, rng, "lhs")
+    unit = unit_design(int(n_samples), d, design="lhs", seed=rng)
     if d <= 10:
         unit = np.vstack([unit, np.array(list(itertools.product([0.0, 1.0], repeat=d)))])
     per = unit.shape[0]

@@ -309,7 +309,7 @@ def polynomial_chaos(
         n = int(n_samples or 2 * alpha.shape[0])
         if n < alpha.shape[0]:
             raise ParameterError(f"regression needs n_samples >= N_T = {alpha.shape[0]}, got {n}")
-        x = unit_to_space(space, unit_design(n, d, as_generator(seed), "lhs"))
+        x = unit_to_space(space, unit_design(n, d, design="lhs", seed=as_generator(seed)))
         batch = eval_space(model, space, x)
         ok = batch.ok
         n_dropped = int(np.sum(~ok))

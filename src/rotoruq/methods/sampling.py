@@ -343,8 +343,8 @@ def sample(
     # whatever else drew from the caller's generator
     design_seed = int(rng.integers(2**62))
     qmc_design = design in ("sobol", "halton")
-    q = unit_design(n, space.dim, np.random.default_rng(design_seed) if qmc_design else rng,
-                    design)
+    q = unit_design(n, space.dim, design=design,
+                    seed=np.random.default_rng(design_seed) if qmc_design else rng)
     options = {
         "response_levels": response_levels,
         "probability_levels": probability_levels,
@@ -409,10 +409,10 @@ def refine(result: SamplingResult, n_samples: int, *, seed: SeedLike = None) -> 
         if result.design == "lhs":
             q = _lhs_extension(result.unit, n_more, rng)
         else:
-            q = unit_design(n_more, result.space.dim, rng, "random")
+            q = unit_design(n_more, result.space.dim, design="random", seed=rng)
         opts["rng_state"] = rng.bit_generator.state
     else:
         n_old = result.n_samples
-        q = unit_design(n_old + n_more, result.space.dim,
-                        np.random.default_rng(opts["design_seed"]), result.design)[n_old:]
+        q = unit_design(n_old + n_more, result.space.dim, design=result.design,
+                        seed=np.random.default_rng(opts["design_seed"]))[n_old:]
     return _finish(result.model, result.space, q, result.design, opts, previous=result)

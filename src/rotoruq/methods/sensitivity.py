@@ -150,7 +150,7 @@ def pick_freeze_design(space: ParameterSpace, n_samples: int, *, design: str = "
     if n < 2:
         raise ParameterError(f"n_samples (base samples) must be >= 2, got {n_samples}")
     d = space.dim
-    q = unit_design(n, 2 * d, as_generator(seed), check_design(design))
+    q = unit_design(n, 2 * d, design=check_design(design), seed=as_generator(seed))
     qa, qb = q[:, :d], q[:, d:]
     blocks = [qa, qb]
     for i in range(d):

@@ -63,7 +63,7 @@ def run_driver(params_path, results_path, model, responses=None) -> int:
     Dakota expects.
     """
     p = read_parameters(params_path)
-    names = list(responses) if responses else list(p.responses)
+    names = list(responses) if responses else list(p.names_out)
     asv = [p.asv.get(n, 1) for n in names]
     missing = [n for n in names if n not in model.names_out]
     if missing:
@@ -104,7 +104,7 @@ def run_driver(params_path, results_path, model, responses=None) -> int:
 
 def run(args: argparse.Namespace) -> int:
     p = read_parameters(args.params)
-    responses = args.responses or list(p.responses)
+    responses = args.responses or list(p.names_out)
     from ..rotor.model import RotorModel  # the physics is only imported when used
 
     model = RotorModel(args.preset, names_in=list(p.variables), names_out=responses,

@@ -371,7 +371,7 @@ def _build_emulator(emulator, prior: ParameterSpace, truth: _TrueModel, pb: _Pro
             raise ModelShapeError(f"fitted emulator has {gp.n_inputs} inputs and "
                                   f"{gp.n_outputs} outputs; need {d} and {m}")
     else:
-        Xb = prior.sample(int(n_emulator_samples), seed=rng, method="lhs")
+        Xb = prior.draw(int(n_emulator_samples), design="lhs", seed=rng)
         Yb = truth(Xb)[:, pb.resp_idx]
         ok = np.all(np.isfinite(Yb), 1)
         if ok.sum() < d + 2:
@@ -409,7 +409,7 @@ def _start_point(post: _Posterior, prior: ParameterSpace, pb: _Problem, x0, map_
     else:
         cands = [pb.center] + ([best_build] if best_build is not None else [])
         if map_start:
-            cands.extend(prior.sample(max(16, 8 * d), seed=rng, method="lhs"))
+            cands.extend(prior.draw(max(16, 8 * d), design="lhs", seed=rng))
         zc = (np.array(cands) - pb.center) / pb.scale
         lpc = post(zc)
         if not np.any(np.isfinite(lpc)):

@@ -1,0 +1,48 @@
+"""Uncertain parameters: marginal distributions (:mod:`.distributions`, :mod:`.interval`), the
+Nataf model of correlated parameters (:mod:`.nataf`) and the :class:`ParameterSpace` that every
+method draws points from and transforms into (:mod:`.space`)."""
+
+from __future__ import annotations
+
+from .catalog import DISTRIBUTIONS, make_distribution
+from .distributions import (
+    Beta,
+    Distribution,
+    Exponential,
+    Gamma,
+    Gumbel,
+    LogNormal,
+    LogUniform,
+    Normal,
+    Triangular,
+    TruncatedNormal,
+    Uniform,
+    Weibull,
+)
+from .interval import Interval
+from .nataf import NatafModel, nataf_correlation, nataf_model
+from .space import DESIGNS, ParameterSpace, unit_design
+
+__all__ = [
+    "Distribution",
+    "Normal",
+    "TruncatedNormal",
+    "LogNormal",
+    "Uniform",
+    "LogUniform",
+    "Beta",
+    "Gamma",
+    "Exponential",
+    "Gumbel",
+    "Weibull",
+    "Triangular",
+    "Interval",
+    "ParameterSpace",
+    "DESIGNS",
+    "unit_design",
+    "NatafModel",
+    "nataf_correlation",
+    "nataf_model",
+    "make_distribution",
+    "DISTRIBUTIONS",
+]

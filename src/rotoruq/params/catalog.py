@@ -1,0 +1,55 @@
+"""Distributions by name: the ``distribution = "..."`` key of a study file and the ``kind`` of
+:meth:`Distribution.describe`."""
+
+from __future__ import annotations
+
+import difflib
+import inspect
+from typing import Any
+
+from ..errors import ParameterError
+from . import distributions as dist
+from .distributions import Distribution
+from .interval import Interval
+
+__all__ = ["DISTRIBUTIONS", "make_distribution"]
+
+DISTRIBUTIONS: dict[str, type[Distribution]] = {
+    "normal": dist.Normal,
+    "truncated_normal": dist.TruncatedNormal,
+    "lognormal": dist.LogNormal,
+    "uniform": dist.Uniform,
+    "loguniform": dist.LogUniform,
+    "beta": dist.Beta,
+    "gamma": dist.Gamma,
+    "exponential": dist.Exponential,
+    "gumbel": dist.Gumbel,
+    "weibull": dist.Weibull,
+    "triangular": dist.Triangular,
+    "interval": Interval,
+}
+
+
+def make_distribution(kind: str, **params: Any) -> Distribution:
+    """Build a distribution from its name (a key of :data:`DISTRIBUTIONS`) and its parameters
+    under their field names (``mean``, ``std``, ``lower``, ``upper``, ``mode``, ``alpha``,
+    ``beta``, ``intervals``, ``bpa``).
+
+    An unknown kind or parameter raises :class:`~rotoruq.errors.ParameterError` naming the
+    valid ones.
+    """
+    key = kind.strip().lower().replace("-", "_").replace(" ", "_")
+    if key not in DISTRIBUTIONS:
+        close = difflib.get_close_matches(key, DISTRIBUTIONS, n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise ParameterError(
+            f"unknown distribution {kind!r}{hint}; valid: {', '.join(sorted(DISTRIBUTIONS))}"
+        )
+    cls = DISTRIBUTIONS[key]
+    try:
+        return cls(**params)
+    except TypeError as exc:
+        names = list(inspect.signature(cls).parameters)
+        raise ParameterError(
+            f"distribution {kind!r} takes {', '.join(names)}; got {', '.join(params)}"
+        ) from exc

@@ -1,0 +1,288 @@
+"""The :class:`ParameterSpace`: an ordered mapping name -> distribution that every method
+draws points from and transforms into.
+
+Points are arrays of shape ``(n, d)`` in the order of ``space.names``. Standard normal space
+("u-space") is reached through the marginal CDFs, ``z = Phi^-1(F_i(x_i))``; for independent
+variables ``u = z``, with a correlation matrix through the Nataf model
+(:mod:`rotoruq.params.nataf`). Every u <-> x transform is exact in both tails to |u| = 37.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import stats
+from scipy.linalg import solve_triangular
+from scipy.stats import qmc
+
+from .._rng import SeedLike, as_generator
+from ..errors import ParameterError
+from .distributions import Distribution
+from .interval import Interval
+from .nataf import nataf_model
+
+__all__ = ["DESIGNS", "ParameterSpace", "unit_design"]
+
+DESIGNS = ("lhs", "random", "sobol", "halton")
+"""Names of the point designs of :func:`unit_design` and :meth:`ParameterSpace.draw`."""
+
+
+@dataclass(frozen=True, eq=False)
+class ParameterSpace:
+    """An ordered set of named uncertain parameters, independent or correlated.
+
+    Parameters
+    ----------
+    parameters : mapping name -> Distribution, or iterable of (name, Distribution)
+    correlation : array (d, d), optional
+        Correlation matrix of the parameters themselves (x-space, Pearson), symmetric, unit
+        diagonal, positive definite. Sampling and the u-space transforms use the Nataf model
+        (Gaussian copula) with the equivalent normal-score correlation :attr:`nataf`.
+
+    Points are arrays of shape ``(n, d)`` with columns in the order of :attr:`names`.
+    """
+
+    parameters: Mapping[str, Distribution] | Iterable[tuple[str, Distribution]]
+    correlation: np.ndarray | None = None
+    _items: tuple[tuple[str, Distribution], ...] = field(init=False, repr=False)
+    _nataf: np.ndarray | None = field(init=False, repr=False)
+    _chol: np.ndarray | None = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        items = (
+            list(self.parameters.items())
+            if isinstance(self.parameters, Mapping)
+            else list(self.parameters)
+        )
+        seen = set()
+        for name, dist in items:
+            if not isinstance(name, str) or not name:
+                raise ParameterError(f"parameter names must be non-empty strings, got {name!r}")
+            if name in seen:
+                raise ParameterError(f"parameter {name!r} defined twice")
+            if not isinstance(dist, Distribution):
+                raise ParameterError(
+                    f"parameter {name!r}: expected a rotoruq distribution, got {type(dist)}"
+                )
+            seen.add(name)
+        if not items:
+            raise ParameterError("a ParameterSpace needs at least one parameter")
+        model = nataf_model([d for _, d in items], self.correlation)
+        object.__setattr__(self, "_items", tuple(items))
+        object.__setattr__(self, "parameters", dict(items))
+        object.__setattr__(self, "correlation", model.correlation)
+        object.__setattr__(self, "_nataf", model.nataf)
+        object.__setattr__(self, "_chol", model.cholesky)
+
+    # --- description -----------------------------------------------------------------------
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(n for n, _ in self._items)
+
+    @property
+    def distributions(self) -> tuple[Distribution, ...]:
+        return tuple(d for _, d in self._items)
+
+    @property
+    def dim(self) -> int:
+        return len(self._items)
+
+    def __len__(self) -> int:
+        return self.dim
+
+    def __getitem__(self, name: str) -> Distribution:
+        try:
+            return self.parameters[name]  # type: ignore[index]
+        except KeyError:
+            raise ParameterError(
+                f"unknown parameter {name!r}; this space has {', '.join(self.names)}"
+            ) from None
+
+    def index(self, name: str) -> int:
+        try:
+            return self.names.index(name)
+        except ValueError:
+            raise ParameterError(
+                f"unknown parameter {name!r}; this space has {', '.join(self.names)}"
+            ) from None
+
+    @property
+    def mean(self) -> np.ndarray:
+        """Means, shape (d,)."""
+        return np.array([d.moments[0] for d in self.distributions])
+
+    @property
+    def std(self) -> np.ndarray:
+        """Standard deviations, shape (d,)."""
+        return np.array([d.moments[1] for d in self.distributions])
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """Support bounds, shape (d, 2) (may contain +-inf)."""
+        return np.array([d.bounds for d in self.distributions])
+
+    @property
+    def correlated(self) -> bool:
+        return self.correlation is not None
+
+    @property
+    def correlation_matrix(self) -> np.ndarray:
+        """x-space correlation, shape (d, d) (identity when independent)."""
+        return np.eye(self.dim) if self.correlation is None else np.array(self.correlation)
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """x-space covariance diag(std) R diag(std), shape (d, d)."""
+        s = self.std
+        return self.correlation_matrix * np.outer(s, s)
+
+    @property
+    def nataf(self) -> np.ndarray:
+        """Normal-score correlation R0 of the Nataf model, shape (d, d)."""
+        return np.eye(self.dim) if self._nataf is None else np.array(self._nataf)
+
+    @property
+    def epistemic(self) -> tuple[str, ...]:
+        """Names of the :class:`Interval` (epistemic) parameters."""
+        return tuple(n for n, d in self._items if isinstance(d, Interval))
+
+    def replace(self, **dists: Distribution) -> ParameterSpace:
+        """A new space with some distributions replaced (names must exist; correlation kept)."""
+        for name in dists:
+            self.index(name)
+        return ParameterSpace(
+            [(n, dists.get(n, d)) for n, d in self._items], correlation=self.correlation
+        )
+
+    def subset(self, names: Iterable[str]) -> ParameterSpace:
+        """A new space with only these parameters (in this order; correlation kept)."""
+        names = list(names)
+        corr = None
+        if self.correlation is not None:
+            idx = [self.index(n) for n in names]
+            corr = self.correlation[np.ix_(idx, idx)]
+        return ParameterSpace([(n, self[n]) for n in names], correlation=corr)
+
+    # --- transforms ------------------------------------------------------------------------
+    def _check(self, x: Any) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        if x.ndim == 1:
+            x = x[None, :]
+        if x.ndim != 2 or x.shape[1] != self.dim:
+            raise ParameterError(
+                f"points must have shape (n, {self.dim}) for parameters {self.names}, "
+                f"got {x.shape}"
+            )
+        return x
+
+    def _marginals(self, method: str, points: Any) -> np.ndarray:
+        """Apply each marginal's ``method`` (``"ppf"``, ``"cdf"``, ...) to its column."""
+        points = self._check(points)
+        return np.column_stack(
+            [getattr(d, method)(points[:, j]) for j, d in enumerate(self.distributions)]
+        )
+
+    def from_unit(self, q: Any) -> np.ndarray:
+        """Map probabilities in (0, 1)^d (shape (n, d)) to parameter values by marginal ppf."""
+        return self._marginals("ppf", q)
+
+    def to_unit(self, x: Any) -> np.ndarray:
+        """Map parameter values to marginal CDF values in [0, 1]^d."""
+        return self._marginals("cdf", x)
+
+    def to_z(self, x: Any) -> np.ndarray:
+        """Marginal normal scores z = Phi^-1(F_i(x_i)), shape (n, d) (correlated if the space
+        is). Exact in both tails (see :meth:`Distribution.to_z`), |z| <= 37.5."""
+        return self._marginals("to_z", x)
+
+    def from_z(self, z: Any) -> np.ndarray:
+        """Inverse of :meth:`to_z`: ``x_i = F_i^-1(Phi(z_i))``, exact in both tails."""
+        return self._marginals("from_z", z)
+
+    def to_u(self, x: Any) -> np.ndarray:
+        """Transform to independent standard normal space, shape (n, d).
+
+        Independent: u = Phi^-1(F(x)). Correlated: Nataf, u = L^-1 z with L L^T = R0.
+        Both tails are exact to |u| = 37 (the upper tail goes through the survival function);
+        beyond a finite support bound, u saturates at +-37.5.
+        """
+        z = self.to_z(x)
+        if self._chol is None:
+            return z
+        return solve_triangular(self._chol, z.T, lower=True).T
+
+    def from_u(self, u: Any) -> np.ndarray:
+        """Inverse of :meth:`to_u`."""
+        u = self._check(u)
+        if self._chol is not None:
+            u = u @ self._chol.T
+        return self.from_z(u)
+
+    def logpdf(self, x: Any) -> np.ndarray:
+        """Joint log density, shape (n,); -inf outside the support.
+
+        Sum of the marginal log densities, plus the Gaussian-copula term when correlated.
+        """
+        x = self._check(x)
+        out = np.zeros(x.shape[0])
+        for j, d in enumerate(self.distributions):
+            out += d.logpdf(x[:, j])
+        if self._chol is not None:
+            with np.errstate(invalid="ignore"):
+                z = self.to_z(x)
+                r0inv = np.linalg.inv(self.nataf)
+                quad = np.einsum("ni,ij,nj->n", z, r0inv - np.eye(self.dim), z)
+                logdet = 2.0 * np.sum(np.log(np.diag(self._chol)))
+                out = out - 0.5 * quad - 0.5 * logdet
+        return np.where(np.isnan(out), -np.inf, out)
+
+    def contains(self, x: Any) -> np.ndarray:
+        """Boolean mask (n,) of points inside the support bounds."""
+        x = self._check(x)
+        b = self.bounds
+        return np.all((x >= b[:, 0]) & (x <= b[:, 1]), axis=1)
+
+    # --- drawing points ------------------------------------------------------------------
+    def draw(
+        self, n_samples: int, *, design: str = "lhs", seed: SeedLike = None
+    ) -> np.ndarray:
+        """Draw ``n_samples`` points, shape (n_samples, d).
+
+        design : "lhs" (Latin hypercube), "random" (plain Monte Carlo), "sobol" or "halton"
+            (scrambled low-discrepancy sequences), all from :mod:`scipy.stats.qmc`. With
+            correlations the design's normal scores are correlated through the Nataf factor,
+            so an LHS design is stratified in u-space rather than in each marginal.
+        seed : int, numpy Generator or None. The same seed gives the same points, bitwise.
+        """
+        q = unit_design(n_samples, self.dim, design=design, seed=seed)
+        if self._chol is not None:
+            # correlate the normal scores of the design (Nataf); marginals keep their law
+            return self.from_u(stats.norm.ppf(np.clip(q, 1e-16, 1 - 1e-16)))
+        return self.from_unit(q)
+
+
+def unit_design(
+    n_samples: int, dim: int, *, design: str = "lhs", seed: SeedLike = None
+) -> np.ndarray:
+    """Points in (0, 1)^dim, shape (n_samples, dim), from the named design (see
+    :data:`DESIGNS`); raises :class:`~rotoruq.errors.ParameterError` for an unknown design or
+    ``n_samples < 1``."""
+    if isinstance(n_samples, bool) or int(n_samples) != n_samples or n_samples < 1:
+        raise ParameterError(f"n_samples must be an integer >= 1, got {n_samples!r}")
+    n_samples = int(n_samples)
+    rng = as_generator(seed)
+    if design == "random":
+        return rng.random((n_samples, dim))
+    if design == "lhs":
+        return qmc.LatinHypercube(d=dim, seed=rng).random(n_samples)
+    if design == "sobol":
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # non power-of-2 balance warning
+            return qmc.Sobol(d=dim, scramble=True, seed=rng).random(n_samples)
+    if design == "halton":
+        return qmc.Halton(d=dim, scramble=True, seed=rng).random(n_samples)
+    raise ParameterError(f"unknown design {design!r}; valid: {', '.join(DESIGNS)}")

@@ -158,9 +158,9 @@ class ParameterSpace:
             [(n, dists.get(n, d)) for n, d in self._items], correlation=self.correlation
         )
 
-    def subset(self, names: Iterable[str]) -> ParameterSpace:
+    def subset(self, names_in: Iterable[str]) -> ParameterSpace:
         """A new space with only these parameters (in this order; correlation kept)."""
-        names = list(names)
+        names = list(names_in)
         corr = None
         if self.correlation is not None:
             idx = [self.index(n) for n in names]

@@ -155,9 +155,9 @@ class Study:
                 return p
         raise ParameterError(f"study {self.info.name!r} has no parameter {name!r}")
 
-    def space(self, names: Sequence[str] | None = None) -> ParameterSpace:
+    def space(self, names_in: Sequence[str] | None = None) -> ParameterSpace:
         """ParameterSpace of the named parameters (all when None), in the given order."""
-        names = self.parameter_names if names is None else tuple(names)
+        names = self.parameter_names if names_in is None else tuple(names_in)
         return ParameterSpace([(n, self.parameter(n).distribution) for n in names])
 
     def step(self, name: str) -> StepSpec:

@@ -115,8 +115,8 @@ class AirfoilFit:
     cda: np.ndarray
     cd0: np.ndarray
     alpha_range: tuple[float, float] = (-10.0, 10.0)
-    n_points_cl: np.ndarray = field(default=None)
-    n_points_cd: np.ndarray = field(default=None)
+    n_points_cl: np.ndarray | None = field(default=None)
+    n_points_cd: np.ndarray | None = field(default=None)
 
     def coefficients(self) -> np.ndarray:
         """Array of shape (k, 5): columns cla, cl0, cda2, cda, cd0."""
@@ -255,6 +255,7 @@ class Airfoil:
             machs = table.cl.mach[table.cl.mach <= 0.6 + _TOL]
         else:
             machs = np.sort(np.atleast_1d(np.asarray(fit_machs, dtype=float)))
+        self._nominal: AirfoilFit | None
         if machs.size:
             self._nominal = fit_airfoil(table, machs, (-w, w))
             machs = self._nominal.machs

@@ -202,7 +202,7 @@ class C81Table:
             for f in ("mach", "alpha", "values")
         )
 
-    __hash__ = None
+    __hash__ = None  # type: ignore[assignment]  # equal tables compare equal: unhashable
 
 
 # --------------------------------------------------------------------------------------------

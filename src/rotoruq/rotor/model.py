@@ -61,10 +61,10 @@ _POSITIVE = ("omega", "rho")
 def load_airfoil(preset: RotorPreset) -> Airfoil:
     """The preset's airfoil: a bundled table name or a path to a c81 file."""
     fit = preset.airfoil_fit_machs or None
-    kw = {"fit_machs": fit, "replace": tuple(preset.airfoil_replace)}
+    replace = tuple(preset.airfoil_replace)
     if Path(preset.airfoil).suffix.lower() == ".c81":
-        return Airfoil.from_c81(preset.airfoil, **kw)
-    return Airfoil.bundled(preset.airfoil, **kw)
+        return Airfoil.from_c81(preset.airfoil, fit_machs=fit, replace=replace)
+    return Airfoil.bundled(preset.airfoil, fit_machs=fit, replace=replace)
 
 
 class RotorModel:

@@ -235,14 +235,20 @@ def _locate_lut(x, grid, lut, nxt, inv_dx, x0, inv_h, nbins):
 
 
 @numba.njit(**_INLINE)
-def _locate(x, grid, inv_dx):
-    """Interval index and weight in a short grid (linear scan), clamped."""
+def _locate_near(x, grid, inv_dx, i):
+    """Interval index and weight of x in a short increasing grid, clamped, searched from a
+    nearby interval i (the neighbouring azimuth's: in hover a station's Mach number barely
+    moves); the same answer as a scan from 0 (NaN: interval 0)."""
     n = grid.size
     if n == 1:
         return 0, 0.0
-    i = 0
-    while i < n - 2 and x >= grid[i + 1]:
-        i += 1
+    if x != x:
+        i = 0
+    else:
+        while i > 0 and x < grid[i]:
+            i -= 1
+        while i < n - 2 and x >= grid[i + 1]:
+            i += 1
     t = (x - grid[i]) * inv_dx[i]
     return i, min(max(t, 0.0), 1.0)
 
@@ -277,11 +283,12 @@ def _coefficients(alpha, mach, af, fit, linear, cl, cd, cm):
     x0, inv_h, nbins, hw = af.alpha_x0, af.alpha_inv_h, af.alpha_nbins, af.half_width
     has_fits, replace_cd = af.has_fits, af.replace_cd
     nm = gm.size
-    for j in range(npsi):
-        for i in range(nr):
+    for i in range(nr):
+        im = 0
+        for j in range(npsi):
             a = alpha[j, i]
             ia, t = _locate_lut(a, ga, lut, nxt, inv_dx, x0, inv_h, nbins)
-            im, s = _locate(abs(mach[j, i]), gm, m_inv_dx)
+            im, s = _locate_near(abs(mach[j, i]), gm, m_inv_dx, im)
             idx = ia * nm + im
             out0 = _bilinear(values, 0, idx, nm, t, s)
             out1 = _bilinear(values, 1, idx, nm, t, s)
@@ -798,9 +805,10 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
         gm, m_inv_dx, pos, neg = af.mach, af.mach_inv_dx, af.stall_pos, af.stall_neg
         alpha, mach = ws.alpha, ws.mach
         for i in range(nr):
+            im = 0
             for j in range(npsi):
                 # stall angles linear in Mach between the rows (np.interp), clamped
-                im, s = _locate(mach[j, i], gm, m_inv_dx)
+                im, s = _locate_near(mach[j, i], gm, m_inv_dx, im)
                 a_pos = pos[im] + (pos[im + 1] - pos[im]) * s
                 a_neg = neg[im] + (neg[im + 1] - neg[im]) * s
                 a = alpha[j, i]

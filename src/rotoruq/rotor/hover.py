@@ -303,13 +303,15 @@ def airfoil_samples(airfoil: Airfoil | LinearAirfoil, overrides: Mapping[str, np
         if overrides:
             airfoil._override_values(dict(overrides), n)   # raises: no parameters
         return np.zeros((n, 5, nm)), np.zeros((n, 3))
-    if overrides:
-        vals = airfoil._override_values({k: _col(overrides, k, n) for k in overrides}, n)
-        vals = np.broadcast_to(vals, (n,) + vals.shape[1:])
-        coef = airfoil._coef_table(np.ascontiguousarray(vals))
-    else:
-        coef = np.tile(airfoil._coef_cols, (1, n))
-    fits = np.ascontiguousarray(np.moveaxis(coef.reshape(5, n, nm), 1, 0))
+    if any(name not in airfoil._name_index for name in overrides):
+        airfoil._override_values(dict(overrides), n)   # raises: names the valid parameters
+    # the nominal coefficients at every Mach column, then each override at its fit row's
+    # column(s) (the values Airfoil._coef_table places, without its per-call reshaping)
+    fits = np.empty((n, 5, nm))
+    fits[:] = airfoil._coef_cols.reshape(5, nm)
+    for name in overrides:
+        row, coefficient = airfoil._name_index[name]
+        fits[:, coefficient, airfoil._fitcol == row] = _col(overrides, name, n)[:, None]
     return fits, np.zeros((n, 3))
 
 

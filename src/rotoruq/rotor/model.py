@@ -250,7 +250,26 @@ class RotorModel:
         assert self.last_solution is not None
         return self.last_solution
 
+    def _all_valid(self, params, overrides) -> bool:
+        """True when no row breaks a rule of :meth:`_validate` (the same tests on stacked
+        columns, a few numpy calls: the common case of a small batch costs little)."""
+        h = params["height_over_radius"]
+        finite = np.array([v for k, v in params.items() if k != "height_over_radius"]
+                          + list(overrides.values()))
+        nonneg = np.array([params[k] for k in _NONNEGATIVE if k in params])
+        positive = np.array([params[k] for k in _POSITIVE])
+        amp = (np.abs(params["collective_deg"]) + np.abs(params["lateral_deg"])
+               + np.abs(params["longitudinal_deg"]))
+        tip_mach = params["omega"] * self.preset.radius / self.preset.speed_of_sound
+        h_min = min_height_over_radius(self.preset.ground_effect)
+        return bool(np.isfinite(finite).all() and not np.isnan(h).any()
+                    and not (nonneg < 0).any() and not (positive <= 0).any()
+                    and not ((h <= MIN_HEIGHT_OVER_RADIUS) | (h < h_min)).any()
+                    and not (amp > MAX_PITCH_DEG).any() and not (tip_mach >= 1.0).any())
+
     def _validate(self, params, overrides, n) -> dict[int, str]:
+        if self._all_valid(params, overrides):
+            return {}
         failures: dict[int, str] = {}
 
         def fail(mask, reason):

@@ -205,8 +205,11 @@ class RotorModel:
         n = x.shape[0]
         cols = {name: x[:, j] for j, name in enumerate(self.names_in)}
         params, overrides = {}, {}
-        for name, val in self.defaults().items():
-            params[name] = cols.get(name, np.full(n, val))
+        defaults = self.defaults()
+        filled = np.empty((len(defaults), n))   # one array for every defaulted column
+        filled[:] = np.fromiter(defaults.values(), float, len(defaults))[:, None]
+        for j, name in enumerate(defaults):
+            params[name] = cols[name] if name in cols else filled[j]
         for name in OPTIONAL_INPUTS:
             if name in cols:
                 params[name] = cols[name]
@@ -216,17 +219,20 @@ class RotorModel:
             elif name in self.fixed:
                 overrides[name] = np.full(n, self.fixed[name])
         failures = self._validate(params, overrides, n)
-        ok = np.array([i not in failures for i in range(n)])
         out = np.full((n, len(self.names_out)), np.nan)
-        rows = np.flatnonzero(ok)
+        rows = np.array([i for i in range(n) if i not in failures], dtype=np.intp) if (
+            failures) else np.arange(n)
         sols = []
         if rows.size:
+            if failures:
+                params = {k: v[rows] for k, v in params.items()}
+                overrides = {k: v[rows] for k, v in overrides.items()}
             sol = solve_hover(
                 self.preset,
                 self.airfoil,
                 self.grid,
-                {k: v[rows] for k, v in params.items()},
-                {k: v[rows] for k, v in overrides.items()},
+                params,
+                overrides,
                 n_harmonics=self.n_harmonics,
                 tolerance=self.tolerance,
                 max_iterations=self.max_iterations,

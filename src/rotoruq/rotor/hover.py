@@ -421,7 +421,16 @@ def judge(live: np.ndarray, checked: Mapping[str, np.ndarray], mean_pitch: np.nd
     thrust, torque, eq = checked["thrust"], checked["torque"], checked["eq"]
     stalled, cd_min, k_eff = checked["stalled"], checked["cd_min"], checked["k_eff"]
     bad = checked["bad"]
-    for i in live:
+    # the rows that may fail a test below, found with whole-array tests (a superset: each
+    # is then judged row by row, the rest pass)
+    th_all = np.rad2deg(mean_pitch[live])
+    cmd_all = np.rad2deg(np.deg2rad(collective_deg[live]))
+    with np.errstate(invalid="ignore"):
+        suspect = ((bad[live] != 0) | ~np.isfinite(thrust[live]) | ~np.isfinite(torque[live])
+                   | ~(eq[live] <= check_tolerance) | (stalled[live] > STALL_AREA_LIMIT)
+                   | (np.sign(cmd_all) * (th_all - cmd_all) > np.maximum(2.0, np.abs(cmd_all)))
+                   | (cd_min[live] < 0) | (torque[live] < 0) | ~(k_eff[live] > 0))
+    for i in live[suspect]:
         frac = stalled[i]
         th = float(np.rad2deg(mean_pitch[i]))
         cmd = float(np.rad2deg(np.deg2rad(collective_deg[i])))

@@ -208,8 +208,8 @@ class RotorModel:
         defaults = self.defaults()
         filled = np.empty((len(defaults), n))   # one array for every defaulted column
         filled[:] = np.fromiter(defaults.values(), float, len(defaults))[:, None]
-        for j, name in enumerate(defaults):
-            params[name] = cols[name] if name in cols else filled[j]
+        for row, name in enumerate(defaults):
+            params[name] = cols[name] if name in cols else filled[row]
         for name in OPTIONAL_INPUTS:
             if name in cols:
                 params[name] = cols[name]

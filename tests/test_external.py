@@ -438,7 +438,11 @@ def test_grandchild_left_behind_by_a_successful_driver_is_killed(driver, tmp_pat
 
 INTERRUPTED = r'''
 import faulthandler
+import signal
 import sys
+# A terminal's Ctrl-C: a test run started in the background (`cmd &` in a script) inherits
+# SIGINT ignored, and Python keeps an ignored SIGINT ignored (CI hung here twice).
+signal.signal(signal.SIGINT, signal.default_int_handler)
 faulthandler.dump_traceback_later(20, exit=False)  # where it waits, if it ever hangs
 import numpy as np
 from rotoruq.evaluation.external import ExternalModel

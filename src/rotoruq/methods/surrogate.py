@@ -457,8 +457,7 @@ class GaussianProcess:
                    inv_ell=inv_ell, eta=eta, s2=s2, dn=dn, conc=conc)
         if not want_grad:
             return ll, None, out
-        Minv, info = lapack.dpotri(L, lower=1)
-        Minv = np.tril(Minv)
+        Minv, info = lapack.dpotri(L, lower=1)  # lower triangle; L's upper is zero (clean=1)
         Minv += np.tril(Minv, -1).T
         if conc and reml:  # M^-1 -> the projection M^-1 - M^-1 F (F^T M^-1 F)^-1 F^T M^-1
             qf = linalg.solve_triangular(

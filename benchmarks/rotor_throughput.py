@@ -9,10 +9,13 @@ nominal) with the same discretization, tolerance and iteration limit, in one run
   128 (its best chunk size), one thread (it is numpy arithmetic on small arrays).
 
 Evaluations per second for batches of 1, 100 and 1000, both presets; the compiled side also at
-one thread (``compiled_1_thread``). ``compile_s``: the first call in a fresh process with an
-empty numba cache (the cost paid once per install; ``first_call_cached_s`` the cost of loading
-the cache). ``max_relative_difference``: largest |compiled - numpy| / |numpy| of thrust,
-torque, roll and pitch over the batch of 1000 (rows valid in both).
+one thread (``compiled_1_thread``), with the thread scaling as wall-time speed-up
+(``thread_speedup_wall``) and CPU time per sample at 2 threads and at 1
+(``cpu_us_per_sample``, ``cpu_us_per_sample_1_thread``: equal when threading costs
+nothing). ``compile_s``: the first call in a fresh process with an empty numba cache (the cost
+paid once per install; ``first_call_cached_s`` the cost of loading the cache).
+``max_relative_difference``: largest |compiled - numpy| / |numpy| of thrust, torque, roll and
+pitch over the batch of 1000 (rows valid in both).
 
 ``--runs N`` (default 3) repeats the measurement; the JSON keeps every run and the median and
 range of each figure; ``--summary`` prints README's paragraph from the saved JSON. Prints JSON
@@ -114,12 +117,17 @@ def one_run(rng: np.random.Generator, threads: int) -> dict:
             row["compiled"], row["compiled_per_cpu_s"] = _rate(model, x)
             numba.set_num_threads(1)
             try:
-                row["compiled_1_thread"], _ = _rate(model, x)
+                row["compiled_1_thread"], row["compiled_1_thread_per_cpu_s"] = _rate(model, x)
             finally:
                 numba.set_num_threads(threads)
             row["numpy"], row["numpy_per_cpu_s"] = _rate(
                 lambda z, m=model: _reference(m, z), x)
             row["speedup"] = row["compiled"] / row["numpy"]
+            # 2 threads against 1: wall time, and CPU time per sample (a busy machine slows
+            # the wall clock; the CPU time shows what threading itself costs)
+            row["thread_speedup_wall"] = row["compiled"] / row["compiled_1_thread"]
+            row["cpu_us_per_sample"] = 1e6 / row["compiled_per_cpu_s"]
+            row["cpu_us_per_sample_1_thread"] = 1e6 / row["compiled_1_thread_per_cpu_s"]
             if n == max(BATCHES):
                 a, b = model(x), _reference(model, x)
                 ok = np.all(np.isfinite(a) & np.isfinite(b), axis=1)
@@ -154,6 +162,11 @@ def summary_text(result: dict) -> str:
         fmt = f"{{:,.{digits}f}}"
         return f"{fmt.format(med)} ({fmt.format(lo)}-{fmt.format(hi)})"
 
+    met = [k for k, ok in result["targets_met"].items() if ok]
+    missed = [k for k, ok in result["targets_met"].items() if not ok]
+    goals = ", ".join(f"{k} {v:,}/s" for k, v in result["targets"].items())
+    targets = (f"Targets of issue 12 (the medians against {goals}): met "
+               f"{', '.join(met) or 'none'}; not met {', '.join(missed) or 'none'}.")
     return (
         f"Medians of {len(result['runs'])} runs (range in brackets), {result['threads']} "
         f"threads on {result['cpu_count']} shared cores (load {result['load_average']:.1f}): "
@@ -164,10 +177,17 @@ def summary_text(result: dict) -> str:
         f"({f('gvpm', 'batch_1', 'speedup', 1)}x); bo105 "
         f"{f('bo105', 'batch_1000', 'compiled')}/s at batch 1000 "
         f"({f('bo105', 'batch_1000', 'compiled_per_cpu_s')} per CPU-second, "
-        f"{f('bo105', 'batch_1000', 'speedup', 1)}x). Largest relative difference from the "
+        f"{f('bo105', 'batch_1000', 'speedup', 1)}x). Two threads against one at batch 1000 "
+        f"(gvpm): {f('gvpm', 'batch_1000', 'thread_speedup_wall', 2)}x in wall time, "
+        f"{f('gvpm', 'batch_1000', 'cpu_us_per_sample')} us of CPU per sample against "
+        f"{f('gvpm', 'batch_1000', 'cpu_us_per_sample_1_thread')} us on one thread "
+        f"(equal: threading costs no CPU; a wall-time gain below 2x is the other jobs on the "
+        f"cores; {result['cpu_count']} free cores at this CPU time per sample would give "
+        f"{result['cpu_count'] * s['gvpm']['batch_1000']['compiled_per_cpu_s'][0]:,.0f}/s). "
+        f"Largest relative difference from the "
         f"numpy implementation {result['max_relative_difference']:.1e}. First use compiles "
         f"the kernel in {result['compile_s']:.0f} s (once per install: numba's cache; later "
-        f"processes load it in {result['first_call_cached_s']:.2f} s)."
+        f"processes load it in {result['first_call_cached_s']:.2f} s). {targets}"
     )
 
 

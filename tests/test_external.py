@@ -437,7 +437,9 @@ def test_grandchild_left_behind_by_a_successful_driver_is_killed(driver, tmp_pat
 
 
 INTERRUPTED = r'''
+import faulthandler
 import sys
+faulthandler.dump_traceback_later(20, exit=False)  # where it waits, if it ever hangs
 import numpy as np
 from rotoruq.evaluation.external import ExternalModel
 from rotoruq.evaluation.process_tree import is_running as alive
@@ -459,7 +461,15 @@ def test_interrupted_evaluation_kills_the_driver_tree(driver, tmp_path):
     pids = run_pids(pid_dir)
     assert len(pids) == 2 and all(alive(p) for p in pids)
     proc.send_signal(signal.SIGINT)  # Ctrl-C: KeyboardInterrupt in the waiting thread
-    _, err = proc.communicate(timeout=10)
+    try:
+        _, err = proc.communicate(timeout=60)
+    except subprocess.TimeoutExpired as exc:
+        proc.kill()
+        try:
+            _, err = proc.communicate(timeout=10)
+        except subprocess.TimeoutExpired:  # something else holds its stderr open
+            err = b"(stderr still held open by another process)"
+        raise AssertionError(f"no exit 60 s after Ctrl-C; its stacks:\n{err.decode()}") from exc
     assert proc.returncode != 0 and b"KeyboardInterrupt" in err
     assert not [p for p in pids if alive(p)]
 

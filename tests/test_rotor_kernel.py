@@ -230,3 +230,44 @@ def test_cli_evaluate_equals_numpy_oracle():
     got = np.array([[r["thrust"], r["torque"]] for r in rows])
     np.testing.assert_allclose(got[:, 0], ref.thrust, rtol=RTOL)
     np.testing.assert_allclose(got[:, 1], ref.torque, rtol=RTOL)
+
+
+def test_mach_interval_search_from_any_start_equals_a_scan_from_zero():
+    """The kernel searches a station's Mach interval from the neighbouring azimuth's; from
+    every start it must give the interval and weight of np.searchsorted (clamped to the
+    grid's end intervals; NaN: interval 0, as the scan from 0 gives)."""
+    from rotoruq.rotor import _kernel as kern
+    from rotoruq.rotor.hover import airfoil_table
+
+    table = airfoil_table(RotorModel("gvpm").airfoil)
+    grid, inv_dx = table.mach, table.mach_inv_dx
+    xs = np.concatenate([grid, grid[:-1] + 0.3 * np.diff(grid), [-0.5, -1e-300, 0.95, 7.0]])
+    for x in xs:
+        want = min(max(int(np.searchsorted(grid, x, side="right")) - 1, 0), grid.size - 2)
+        weight = min(max((x - grid[want]) * inv_dx[want], 0.0), 1.0)
+        for start in range(grid.size - 1):
+            assert kern._locate_near(x, grid, inv_dx, start) == (want, weight), (x, start)
+    for start in range(grid.size - 1):
+        assert kern._locate_near(np.nan, grid, inv_dx, start)[0] == 0
+
+
+@pytest.mark.parametrize(("column", "value", "reason"), [
+    ("collective_deg", np.nan, "collective_deg is nan"),
+    ("cla_m02", np.inf, "cla_m02 is inf"),
+    ("k_pitch_link", -1.0, "k_pitch_link must be >= 0"),
+    ("omega", 0.0, "omega must be > 0"),
+    ("omega", 2000.0, "supersonic"),
+    ("height_over_radius", np.nan, "height_over_radius is NaN"),
+    ("height_over_radius", 0.2, "height_over_radius 0.2"),
+    ("lateral_deg", 89.0, "exceeds 90 deg"),
+])
+def test_a_single_invalid_row_is_refused_before_the_solve(column, value, reason):
+    """A batch of one takes the validation's whole-array shortcut: it must still refuse
+    every invalid row with the reason the row-by-row checks give."""
+    model = RotorModel("gvpm", names_in=GVPM_IN, names_out=["thrust"])
+    x = np.array([GVPM_MEAN])
+    x[0, GVPM_IN.index("height_over_radius")] = np.inf
+    x[0, GVPM_IN.index(column)] = value
+    batch = model.evaluate(x)
+    assert reason in batch.failures[0]
+    assert model.last_solution is None or model.last_solution.iterations[0] == 0

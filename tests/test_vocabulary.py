@@ -81,6 +81,15 @@ def _callables():
                     yield f"{name}.{attr}", member
 
 
+def _signatures():
+    """(qualified name, parameters) of every public callable whose signature can be read."""
+    for qualname, func in _callables():
+        try:
+            yield qualname, inspect.signature(func).parameters
+        except (TypeError, ValueError):
+            continue
+
+
 def _result_classes():
     for name, obj in _public_objects():
         if inspect.isclass(obj) and dataclasses.is_dataclass(obj) and name.endswith(
@@ -90,11 +99,7 @@ def _result_classes():
 
 def test_public_signatures_use_the_vocabulary():
     bad = []
-    for qualname, func in _callables():
-        try:
-            params = inspect.signature(func).parameters
-        except (TypeError, ValueError):
-            continue
+    for qualname, params in _signatures():
         for p in params:
             if p in RETIRED_PARAMETERS:
                 bad.append(f"{qualname}({p}=) -> {RETIRED_PARAMETERS[p]}")
@@ -107,11 +112,7 @@ def test_public_signatures_use_the_vocabulary():
 
 def test_seed_is_keyword_only_and_only_where_random():
     bad = []
-    for qualname, func in _callables():
-        try:
-            params = inspect.signature(func).parameters
-        except (TypeError, ValueError):
-            continue
+    for qualname, params in _signatures():
         if qualname == "as_generator":  # the seed normalizer: the seed is its one argument
             continue
         if "seed" in params and params["seed"].kind is not inspect.Parameter.KEYWORD_ONLY:

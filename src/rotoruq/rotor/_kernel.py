@@ -181,9 +181,9 @@ def _nanmin(a, b):
 
 
 @numba.njit(**_JIT)
-def _lu_solve(A, b):
+def _lu_solve(A, b, x):
     """x with A x = b for a small complex A (Gaussian elimination, partial pivoting on
-    |re| + |im| as LAPACK's zgetrf). A and b are overwritten."""
+    |re| + |im| as LAPACK's zgetrf), written to and returned as x. A and b are overwritten."""
     m = b.size
     for col in range(m):
         p = col
@@ -203,7 +203,6 @@ def _lu_solve(A, b):
             for k in range(col + 1, m):
                 A[row, k] -= f * A[col, k]
             b[row] -= f * b[col]
-    x = np.empty(m, dtype=np.complex128)
     for row in range(m - 1, -1, -1):
         s = b[row]
         for k in range(row + 1, m):
@@ -235,14 +234,20 @@ def _locate_lut(x, grid, lut, nxt, inv_dx, x0, inv_h, nbins):
 
 
 @numba.njit(**_INLINE)
-def _locate(x, grid, inv_dx):
-    """Interval index and weight in a short grid (linear scan), clamped."""
+def _locate_near(x, grid, inv_dx, i):
+    """Interval index and weight of x in a short increasing grid, clamped, searched from a
+    nearby interval i (the neighbouring azimuth's: in hover a station's Mach number barely
+    moves); the same answer as a scan from 0 (NaN: interval 0)."""
     n = grid.size
     if n == 1:
         return 0, 0.0
-    i = 0
-    while i < n - 2 and x >= grid[i + 1]:
-        i += 1
+    if x != x:
+        i = 0
+    else:
+        while i > 0 and x < grid[i]:
+            i -= 1
+        while i < n - 2 and x >= grid[i + 1]:
+            i += 1
     t = (x - grid[i]) * inv_dx[i]
     return i, min(max(t, 0.0), 1.0)
 
@@ -277,11 +282,12 @@ def _coefficients(alpha, mach, af, fit, linear, cl, cd, cm):
     x0, inv_h, nbins, hw = af.alpha_x0, af.alpha_inv_h, af.alpha_nbins, af.half_width
     has_fits, replace_cd = af.has_fits, af.replace_cd
     nm = gm.size
-    for j in range(npsi):
-        for i in range(nr):
+    for i in range(nr):
+        im = 0
+        for j in range(npsi):
             a = alpha[j, i]
             ia, t = _locate_lut(a, ga, lut, nxt, inv_dx, x0, inv_h, nbins)
-            im, s = _locate(abs(mach[j, i]), gm, m_inv_dx)
+            im, s = _locate_near(abs(mach[j, i]), gm, m_inv_dx, im)
             idx = ia * nm + im
             out0 = _bilinear(values, 0, idx, nm, t, s)
             out1 = _bilinear(values, 1, idx, nm, t, s)
@@ -406,7 +412,7 @@ def _structural_jacobian(prm, rot):
         for col in range(3):
             unit = np.zeros(3, dtype=np.complex128)
             unit[col] = 1.0
-            Jinv[k, :, col] = _lu_solve(J[k].copy(), unit)
+            Jinv[k, :, col] = _lu_solve(J[k].copy(), unit, np.empty(3, dtype=np.complex128))
     qa = 0.5 * rho * c * A0 * Om
     theta_cmd = np.zeros(K, dtype=np.complex128)
     theta_cmd[0] = np.deg2rad(prm[COLLECTIVE])
@@ -526,8 +532,7 @@ def _blade_root_loads(Q, Z, F_cmd, rot, ws):
     """Structural residual R_dyn (3, K) = F(aero) + F_cmd - Z Q and the first harmonic of the
     blade-root thrust moment Mz1 (for the harmonic inflow)."""
     K = Q.shape[1]
-    R_dyn = np.empty((3, K), dtype=np.complex128)
-    harm = np.empty(K, dtype=np.complex128)
+    R_dyn, harm = ws.R_dyn, ws.harm
     for d in range(3):
         if d == 0:
             _span_sum(ws.dFz, rot.w_rr, ws.psi_line, ws.span_line)
@@ -641,6 +646,12 @@ class Work(NamedTuple):
     span_line: np.ndarray     # (N_r,)
     span_scratch: np.ndarray
     dT_r: np.ndarray
+    dQ: np.ndarray            # (3, K) complex: the motion step
+    R_dyn: np.ndarray         # (3, K) complex: the structural residual
+    harm: np.ndarray          # (K,) complex
+    A: np.ndarray             # (4, 4) complex: a joint Jacobian, its LU factors
+    rhs: np.ndarray           # (4,) complex
+    x: np.ndarray             # (4,) complex: the joint step
 
 
 @numba.njit(**_JIT)
@@ -654,7 +665,7 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
     bad = _aerodynamic_loads(st.Q, sc[V0], sc[VC], sc[VS], st.v_r, prm, rot, af, fit,
                              linear, ws)
     R_dyn, Mz1 = _blade_root_loads(st.Q, Z, F_cmd, rot, ws)
-    dQ = np.empty((3, K), dtype=np.complex128)
+    dQ = ws.dQ
     for k in range(K):
         for d in range(3):
             y = Jinv[k, d, 0] * R_dyn[0, k]
@@ -669,14 +680,14 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
         dMz_dT = qa * Om * s[SUM_W_R3]
         G = _harmonic_gain(sc[V0], prm, rot)
         V1 = sc[VC] - 1j * sc[VS]
-        rhs = np.empty(4, dtype=np.complex128)
+        rhs, A = ws.rhs, ws.A
         rhs[:3] = R_dyn[:, 1]
         rhs[3] = G * Mz1 - V1
-        A = J1.copy()
+        A[:, :] = J1
         A[3, 0] = -G * dMz_dB
         A[3, 2] = -G * dMz_dT
         A[3, 3] = 1.0 - G * dMz_dV
-        d1 = _lu_solve(A, rhs)
+        d1 = _lu_solve(A, rhs, ws.x)
         dQ[:, 1] = d1[:3]
         V1 = V1 + relax * d1[3]
         sc[VC], sc[VS] = V1.real, -V1.imag
@@ -689,14 +700,14 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
         v = sc[V0]
         F = _uniform_tip_loss(v, Om, rot, ws.span_scratch)
         mom = 2 * rho * rot.area * F / kappa**2
-        A = J0.copy()
+        rhs, A = ws.rhs, ws.A
+        A[:, :] = J0
         A[3, 3] = k_v + 2 * mom * abs(v)
-        rhs = np.empty(4, dtype=np.complex128)
         rhs[:3] = R_dyn[:, 0]
         for i in range(rot.r.size):
             ws.span_line[i] = ws.dT_r[i] * rot.w[i]
         rhs[3] = _psum(ws.span_line, rot.r.size) - mom * v * abs(v)
-        d0 = _lu_solve(A, rhs)
+        d0 = _lu_solve(A, rhs, ws.x)
         dQ[:, 0] = d0[:3]
         dv_step = d0[3].real
     big = 0.0
@@ -798,9 +809,10 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
         gm, m_inv_dx, pos, neg = af.mach, af.mach_inv_dx, af.stall_pos, af.stall_neg
         alpha, mach = ws.alpha, ws.mach
         for i in range(nr):
+            im = 0
             for j in range(npsi):
                 # stall angles linear in Mach between the rows (np.interp), clamped
-                im, s = _locate(mach[j, i], gm, m_inv_dx)
+                im, s = _locate_near(mach[j, i], gm, m_inv_dx, im)
                 a_pos = pos[im] + (pos[im + 1] - pos[im]) * s
                 a_neg = neg[im] + (neg[im + 1] - neg[im]) * s
                 a = alpha[j, i]
@@ -845,16 +857,18 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
 
 
 @numba.njit(**_JIT)
-def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, Q_out, scalars_out,
-                  status_out, loads_out, M_root_out):
+def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_out,
+                  scalars_out, status_out, loads_out, M_root_out):
     """Iterate one sample to convergence and evaluate its loads at the final state.
 
-    prm : (N_COLUMNS,) inputs. Writes Q_out (3, K), scalars_out (v0, vc, vs, relax, resid),
-    status_out (reason, diverging DOF, flow not finite in the last step, iterations),
-    loads_out (see :func:`_hub_loads`; only when the iteration converged) and M_root_out (K,).
+    prm : (N_COLUMNS,) inputs; ws : a :class:`Work` (every entry is written before it is
+    read within a pass, so a workspace carries nothing from one sample to the next).
+    Writes Q_out (3, K), scalars_out (v0, vc, vs, relax, resid), status_out (reason,
+    diverging DOF, flow not finite in the last step, iterations), loads_out (see
+    :func:`_hub_loads`; only when the iteration converged) and M_root_out (K,).
     """
     K = rot.cos_k.shape[0]
-    npsi, nr = rot.cos_psi.size, rot.r.size
+    nr = rot.r.size
     Z, Jinv, J0, J1, F_cmd, v_init, k_v, qa = _structural_jacobian(prm, rot)
     # initial state: pitch from the quasi-static pitch-link balance, no flap, linear-theory
     # hover inflow at 0.75 R
@@ -867,10 +881,6 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, Q_out, s
     scalars[RESID] = np.inf
     v_r = np.full(nr, v_init)
     st = State(Q, scalars, v_r, v_r.copy(), np.zeros(nr))
-    f = np.empty((15, npsi, nr))
-    ws = Work(np.empty(npsi), f[0], f[1], f[2], f[3], f[4], f[5], f[6], f[7], f[8], f[9],
-              f[10], f[11], f[12], f[13], f[14], np.empty(npsi),
-              np.empty(npsi), np.empty(nr), np.empty(nr), np.empty(nr))
     reason, dof, bad, iterations = NOT_CONVERGED, 0, False, 0
     for _ in range(max_iterations):
         size, bad = _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws)
@@ -908,11 +918,26 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, Q_out, s
 
 
 @numba.njit(**_JIT)
+def _workspace(rot):
+    """The scratch arrays of one solve (one per calling thread, reused sample after sample)."""
+    K = rot.cos_k.shape[0]
+    npsi, nr = rot.cos_psi.size, rot.r.size
+    f = np.empty((15, npsi, nr))
+    c = np.empty((3, 3, K), dtype=np.complex128)
+    v = np.empty((3, 4), dtype=np.complex128)
+    return Work(np.empty(npsi), f[0], f[1], f[2], f[3], f[4], f[5], f[6], f[7], f[8], f[9],
+                f[10], f[11], f[12], f[13], f[14], np.empty(npsi), np.empty(npsi),
+                np.empty(nr), np.empty(nr), np.empty(nr), c[0], c[1], c[2, 0],
+                np.empty((4, 4), dtype=np.complex128), v[0], v[1])
+
+
+@numba.njit(**_JIT)
 def solve_samples(prm, rot, af, fits, linear, tolerance, max_iterations, Q, scalars, status,
                   loads, M_root):
     """Solve the samples of ``prm`` (n, N_COLUMNS) one after the other, writing row s of
     every output array (see :func:`_solve_sample`). Releases the GIL: threads may solve
     disjoint slices of a batch at the same time."""
+    ws = _workspace(rot)
     for s in range(prm.shape[0]):
-        _solve_sample(prm[s], rot, af, fits[s], linear[s], tolerance, max_iterations, Q[s],
-                      scalars[s], status[s], loads[s], M_root[s])
+        _solve_sample(prm[s], rot, af, fits[s], linear[s], tolerance, max_iterations, ws,
+                      Q[s], scalars[s], status[s], loads[s], M_root[s])

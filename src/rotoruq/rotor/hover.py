@@ -303,13 +303,15 @@ def airfoil_samples(airfoil: Airfoil | LinearAirfoil, overrides: Mapping[str, np
         if overrides:
             airfoil._override_values(dict(overrides), n)   # raises: no parameters
         return np.zeros((n, 5, nm)), np.zeros((n, 3))
-    if overrides:
-        vals = airfoil._override_values({k: _col(overrides, k, n) for k in overrides}, n)
-        vals = np.broadcast_to(vals, (n,) + vals.shape[1:])
-        coef = airfoil._coef_table(np.ascontiguousarray(vals))
-    else:
-        coef = np.tile(airfoil._coef_cols, (1, n))
-    fits = np.ascontiguousarray(np.moveaxis(coef.reshape(5, n, nm), 1, 0))
+    if any(name not in airfoil._name_index for name in overrides):
+        airfoil._override_values(dict(overrides), n)   # raises: names the valid parameters
+    # the nominal coefficients at every Mach column, then each override at its fit row's
+    # column(s) (the values Airfoil._coef_table places, without its per-call reshaping)
+    fits = np.empty((n, 5, nm))
+    fits[:] = airfoil._coef_cols.reshape(5, nm)
+    for name in overrides:
+        row, coefficient = airfoil._name_index[name]
+        fits[:, coefficient, airfoil._fitcol == row] = _col(overrides, name, n)[:, None]
     return fits, np.zeros((n, 3))
 
 
@@ -419,7 +421,16 @@ def judge(live: np.ndarray, checked: Mapping[str, np.ndarray], mean_pitch: np.nd
     thrust, torque, eq = checked["thrust"], checked["torque"], checked["eq"]
     stalled, cd_min, k_eff = checked["stalled"], checked["cd_min"], checked["k_eff"]
     bad = checked["bad"]
-    for i in live:
+    # the rows that may fail a test below, found with whole-array tests (a superset: each
+    # is then judged row by row, the rest pass)
+    th_all = np.rad2deg(mean_pitch[live])
+    cmd_all = np.rad2deg(np.deg2rad(collective_deg[live]))
+    with np.errstate(invalid="ignore"):
+        suspect = ((bad[live] != 0) | ~np.isfinite(thrust[live]) | ~np.isfinite(torque[live])
+                   | ~(eq[live] <= check_tolerance) | (stalled[live] > STALL_AREA_LIMIT)
+                   | (np.sign(cmd_all) * (th_all - cmd_all) > np.maximum(2.0, np.abs(cmd_all)))
+                   | (cd_min[live] < 0) | (torque[live] < 0) | ~(k_eff[live] > 0))
+    for i in live[suspect]:
         frac = stalled[i]
         th = float(np.rad2deg(mean_pitch[i]))
         cmd = float(np.rad2deg(np.deg2rad(collective_deg[i])))

@@ -205,8 +205,11 @@ class RotorModel:
         n = x.shape[0]
         cols = {name: x[:, j] for j, name in enumerate(self.names_in)}
         params, overrides = {}, {}
-        for name, val in self.defaults().items():
-            params[name] = cols.get(name, np.full(n, val))
+        defaults = self.defaults()
+        filled = np.empty((len(defaults), n))   # one array for every defaulted column
+        filled[:] = np.fromiter(defaults.values(), float, len(defaults))[:, None]
+        for row, name in enumerate(defaults):
+            params[name] = cols[name] if name in cols else filled[row]
         for name in OPTIONAL_INPUTS:
             if name in cols:
                 params[name] = cols[name]
@@ -216,17 +219,20 @@ class RotorModel:
             elif name in self.fixed:
                 overrides[name] = np.full(n, self.fixed[name])
         failures = self._validate(params, overrides, n)
-        ok = np.array([i not in failures for i in range(n)])
         out = np.full((n, len(self.names_out)), np.nan)
-        rows = np.flatnonzero(ok)
+        rows = np.array([i for i in range(n) if i not in failures], dtype=np.intp) if (
+            failures) else np.arange(n)
         sols = []
         if rows.size:
+            if failures:
+                params = {k: v[rows] for k, v in params.items()}
+                overrides = {k: v[rows] for k, v in overrides.items()}
             sol = solve_hover(
                 self.preset,
                 self.airfoil,
                 self.grid,
-                {k: v[rows] for k, v in params.items()},
-                {k: v[rows] for k, v in overrides.items()},
+                params,
+                overrides,
                 n_harmonics=self.n_harmonics,
                 tolerance=self.tolerance,
                 max_iterations=self.max_iterations,
@@ -250,7 +256,26 @@ class RotorModel:
         assert self.last_solution is not None
         return self.last_solution
 
+    def _all_valid(self, params, overrides) -> bool:
+        """True when no row breaks a rule of :meth:`_validate` (the same tests on stacked
+        columns, a few numpy calls: the common case of a small batch costs little)."""
+        h = params["height_over_radius"]
+        finite = np.array([v for k, v in params.items() if k != "height_over_radius"]
+                          + list(overrides.values()))
+        nonneg = np.array([params[k] for k in _NONNEGATIVE if k in params])
+        positive = np.array([params[k] for k in _POSITIVE])
+        amp = (np.abs(params["collective_deg"]) + np.abs(params["lateral_deg"])
+               + np.abs(params["longitudinal_deg"]))
+        tip_mach = params["omega"] * self.preset.radius / self.preset.speed_of_sound
+        h_min = min_height_over_radius(self.preset.ground_effect)
+        return bool(np.isfinite(finite).all() and not np.isnan(h).any()
+                    and not (nonneg < 0).any() and not (positive <= 0).any()
+                    and not ((h <= MIN_HEIGHT_OVER_RADIUS) | (h < h_min)).any()
+                    and not (amp > MAX_PITCH_DEG).any() and not (tip_mach >= 1.0).any())
+
     def _validate(self, params, overrides, n) -> dict[int, str]:
+        if self._all_valid(params, overrides):
+            return {}
         failures: dict[int, str] = {}
 
         def fail(mask, reason):

@@ -362,6 +362,19 @@ def test_reproduce_quick(tmp_path):
     assert sorted(f"{k}.png" for k in page_figs) == sorted(
         p.name for p in (tmp_path / "report" / "figures").glob("*.png"))
     assert "validation_bayes_pairs" in page_figs and "experiment_bayes_pairs" in page_figs
+    # the figures are the same bytes whether this process draws them all or shares them
+    # with one or two worker processes
+    dirs = [tmp_path / "validation", tmp_path / "experiment"]
+
+    def report(workers):
+        out = tmp_path / f"report_{workers}"
+        page = write_report(dirs, out, workers=workers).read_text()
+        figs = {p.name: p.read_bytes() for p in (out / "figures").glob("*.png")}
+        return re.sub(r"Generated \S+ from [^<]*", "", page), figs
+
+    one, three = report(1), report(3)
+    assert len(one[1]) == len(page_figs)
+    assert one == three
 
 
 def test_report_never_rebuilds_the_model(tmp_path):

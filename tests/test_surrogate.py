@@ -62,9 +62,11 @@ def _matern52(d2):
     return (1.0 + s + s * s / 3.0) * np.exp(-s)
 
 
-def _brute_loo(x, y, ell, nugget=1e-10):
-    """Leave-one-out by refitting (fixed length-scales, ordinary Kriging, Matern 5/2)."""
+def _brute_loo(x, y, ell, nugget=1e-10, linear=False):
+    """Leave-one-out by refitting (fixed length-scales, Matern 5/2; ordinary Kriging, or
+    universal Kriging with a linear trend)."""
     n = len(x)
+    F = np.c_[np.ones(n), x] if linear else np.ones((n, 1))
     e = np.empty(n)
     for i in range(n):
         keep = np.arange(n) != i
@@ -72,20 +74,21 @@ def _brute_loo(x, y, ell, nugget=1e-10):
         d2 = (((xa[:, None, :] - xa[None, :, :]) / ell) ** 2).sum(-1)
         R = _matern52(d2) + nugget * np.eye(n - 1)
         Ri = np.linalg.inv(R)
-        one = np.ones(n - 1)
-        beta = one @ Ri @ ya / (one @ Ri @ one)
+        fa = F[keep]
+        beta = np.linalg.solve(fa.T @ Ri @ fa, fa.T @ Ri @ ya)
         r = _matern52((((xa - x[i]) / ell) ** 2).sum(-1))
-        e[i] = y[i] - (beta + r @ Ri @ (ya - beta))
+        e[i] = y[i] - (F[i] @ beta + r @ Ri @ (ya - fa @ beta))
     return e
 
 
-def test_loo_closed_form_matches_refitting():
+@pytest.mark.parametrize("trend", ["constant", "linear"])
+def test_loo_closed_form_matches_refitting(trend):
     x = qmc.LatinHypercube(d=2, seed=4).random(25)
     y = np.sin(9 * x[:, 0]) + np.cos(7 * x[:, 1])
-    gp = GaussianProcess(trend="constant", kernel="matern52", n_restarts=0, seed=0).fit(x, y)
+    gp = GaussianProcess(trend=trend, kernel="matern52", n_restarts=0, seed=0).fit(x, y)
     ell_unit = gp.length_scales[0] / (x.max(0) - x.min(0))
     xs = (x - x.min(0)) / (x.max(0) - x.min(0))
-    brute = _brute_loo(xs, y, ell_unit)
+    brute = _brute_loo(xs, y, ell_unit, linear=trend == "linear")
     np.testing.assert_allclose(gp.loo().errors[:, 0], brute, rtol=1e-4, atol=1e-8)
 
 

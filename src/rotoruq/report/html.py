@@ -16,16 +16,24 @@ import datetime as _dt
 import html
 import json
 import logging
+import os
+import pickle
 import re
+import shutil
+import subprocess
+import sys
+import tempfile
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from ..results import STUDY_INFO, StepResult, is_study_dir, load_results, load_study_info
 from .claims import INDEPENDENT, JOINT, Claim, claims, claims_json
 from .compare import REFERENCE_STUDIES, compare_tables
 from .diagnostics import THRESHOLDS
-from .hooks import rendering
+from .hooks import FigureContext, rendering
 from .steptables import step_tables, table_csv
 from .tables import fmt, step_table_html, table_html, write_csv
 
@@ -80,6 +88,41 @@ def _png(fig) -> bytes:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90)
     return buf.getvalue()
+
+
+@dataclass(frozen=True, eq=False)
+class _Rendered:
+    """A figure drawn once: its PNG and the axis labels the page records beside it."""
+
+    name: str
+    caption: str
+    png: bytes
+    xlabels: tuple[str, ...]
+    ylabels: tuple[str, ...]
+
+
+def _render(figs) -> list[_Rendered]:
+    out = []
+    for f in figs:
+        shown = [ax for ax in f.figure.axes if ax.axison]
+        out.append(_Rendered(f.name, f.caption, _png(f.figure),
+                             tuple(sorted({a.get_xlabel() for a in shown} - {""})),
+                             tuple(sorted({a.get_ylabel() for a in shown} - {""}))))
+    return out
+
+
+# Below this many steps with figures, a second process costs more than it saves.
+_PARALLEL_MIN_STEPS = 6
+
+
+def draw_step(hook: Callable, steps: Mapping[str, StepResult], step: str, study: str,
+              labels: Mapping[str, str], units: Mapping[str, str], reference: bool,
+              curves: Mapping[str, Any]) -> list[_Rendered]:
+    """Draw and render one step's figures (in this process or in the figure worker)."""
+    from .plots import step_figures
+
+    ctx = FigureContext(study, steps, labels, units, reference, curves)
+    return _render(step_figures(hook, steps[step], ctx))
 
 
 def _anchor(*parts: str) -> str:
@@ -168,36 +211,29 @@ def _noise_note(steps: dict[str, StepResult]) -> str:
             "units): " + "; ".join(parts) + ".</p>")
 
 
-def _figure_html(f, png: bytes, key: str) -> str:
-    xl, yl = [], []
-    for ax in f.figure.axes:
-        if not ax.axison:
-            continue
-        if ax.get_xlabel():
-            xl.append(ax.get_xlabel())
-        if ax.get_ylabel():
-            yl.append(ax.get_ylabel())
+def _figure_html(f: _Rendered, key: str) -> str:
     e = html.escape
-    b64 = base64.b64encode(png).decode()
-    return (f"<figure id='fig-{e(key)}' data-xlabels='{e(json.dumps(sorted(set(xl))))}' "
-            f"data-ylabels='{e(json.dumps(sorted(set(yl))))}'><img alt='{e(f.caption)}' "
+    b64 = base64.b64encode(f.png).decode()
+    return (f"<figure id='fig-{e(key)}' data-xlabels='{e(json.dumps(list(f.xlabels)))}' "
+            f"data-ylabels='{e(json.dumps(list(f.ylabels)))}'><img alt='{e(f.caption)}' "
             f"src='data:image/png;base64,{b64}'><figcaption>{e(f.caption)}</figcaption>"
             "</figure>")
 
 
 def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
-                 title: str | None = None) -> Path:
+                 title: str | None = None, *, workers: int | None = None) -> Path:
     """Write the report of the given study output folders; returns ``index.html``.
 
     title : page title (default: the reference study's when one is present, else the
         studies' names). Progress (a line per study and per figure batch) goes to the
         ``rotoruq.report.html`` logger at INFO.
+    workers : processes that draw the figures (each figure is drawn once, as PNG). Default:
+        two when the machine has two or more cores and at least six steps have figures,
+        else one (this process). The page and every file are the same whatever the count.
 
     The report only reads what the runs recorded (step results and ``study.json``, which
     holds the model's properties and reference curves): it never builds or runs a model.
     """
-    from .plots import figures_for_study
-
     t_start = time.perf_counter()
     report_dir = Path(report_dir)
     fig_dir, tab_dir = report_dir / "figures", report_dir / "tables"
@@ -205,92 +241,104 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
     tab_dir.mkdir(parents=True, exist_ok=True)
     studies: dict[str, dict[str, StepResult]] = {}
     infos: dict[str, dict] = {}
+    folders: dict[str, str] = {}
     for d in results_dirs:
         for folder in find_study_dirs(d):
             info = load_study_info(folder)
             studies[info["name"]] = load_results(folder)
             infos[info["name"]] = info
+            folders[info["name"]] = str(folder)
     labels = {n: {k: v.get("label") or k for k, v in i.get("parameters", {}).items()}
               for n, i in infos.items()}
     units = {n: {k: v.get("unit") for k, v in i.get("parameters", {}).items() if v.get("unit")}
              for n, i in infos.items()}
     reference = [n for n, i in infos.items() if is_reference(i)]
-    ref_results = {n: studies[n] for n in reference}
-    tables = compare_tables(ref_results, {n: _recorded(infos[n], "values") for n in reference})
-    claim_list = claims(tables, ref_results, labels) if reference else []
-    if title is None:
-        if reference:
-            title = "rotoruq: reproduction of the reference study"
-        else:
-            title = "rotoruq: " + ", ".join(
-                f"{n}" + (f" ({infos[n].get('description')})" if infos[n].get("description")
-                          else "") for n in infos)
+    # figures first: a worker process draws them while this one builds the tables
+    drawing = _FigureDrawing(studies, folders, [
+        _Job(study, name, hook, (labels.get(study, {}), units.get(study, {}),
+                                 study in reference, _recorded(infos[study], "curves")))
+        for study, steps in studies.items() for name, res in steps.items()
+        if (hook := rendering(res.type).figures) is not None], workers)
+    drawn: dict[tuple[str, str], list[_Rendered]] | None = None
+    try:
+        ref_results = {n: studies[n] for n in reference}
+        tables = compare_tables(ref_results, {n: _recorded(infos[n], "values") for n in reference})
+        claim_list = claims(tables, ref_results, labels) if reference else []
+        if title is None:
+            if reference:
+                title = "rotoruq: reproduction of the reference study"
+            else:
+                title = "rotoruq: " + ", ".join(
+                    f"{n}" + (f" ({infos[n].get('description')})" if infos[n].get("description")
+                              else "") for n in infos)
 
-    toc: list[tuple[int, str, str]] = []  # (level, anchor, text)
-    body: list[str] = []
+        toc: list[tuple[int, str, str]] = []  # (level, anchor, text)
+        body: list[str] = []
 
-    def heading(level: int, text: str, anchor: str) -> None:
-        toc.append((level, anchor, text))
-        body.append(f"<h{level} id='{anchor}'>{html.escape(text)}</h{level}>")
+        def heading(level: int, text: str, anchor: str) -> None:
+            toc.append((level, anchor, text))
+            body.append(f"<h{level} id='{anchor}'>{html.escape(text)}</h{level}>")
 
-    quick = [n for n, i in infos.items() if i.get("quick")]
-    if quick:
-        body.append(f"<p><b>Quick run</b> ({', '.join(quick)}): small samples; the numbers "
-                    "show the pipeline works, not the converged values.</p>")
-    if claim_list:
-        heading(2, "Summary: claims of the reference study", "claims")
-        body.append(_claims_section(claim_list))
-        (report_dir / "claims.json").write_text(json.dumps(claims_json(claim_list), indent=1))
+        quick = [n for n, i in infos.items() if i.get("quick")]
+        if quick:
+            body.append(f"<p><b>Quick run</b> ({', '.join(quick)}): small samples; the numbers "
+                        "show the pipeline works, not the converged values.</p>")
+        if claim_list:
+            heading(2, "Summary: claims of the reference study", "claims")
+            body.append(_claims_section(claim_list))
+            (report_dir / "claims.json").write_text(json.dumps(claims_json(claim_list), indent=1))
 
-    unrendered = sorted({s.type for steps in studies.values() for s in steps.values()
-                         if rendering(s.type).tables is None})
-    if unrendered:
-        log.warning("report: no renderers registered for step type(s) %s: key/value tables "
-                    "only (importing rotoruq.study registers the built-in step types)",
-                    ", ".join(unrendered))
-    for name, steps in studies.items():
-        info = infos[name]
-        log.info("report: %s (%d steps)", name, len(steps))
-        sid = _anchor("study", name)
-        heading(2, f"Study {name}: {info.get('description', '')}".rstrip(": "), sid)
-        anchors = {s: _anchor(sid, "step", s) for s in steps}
-        body.append(_steps_summary(steps, anchors))
-        body.append(_noise_note(steps))
-        heading(3, "Results by step", _anchor(sid, "steps"))
-        for s in steps.values():
-            heading(4, f"{s.name} ({s.type}): {s.meta.get('title') or ''}".rstrip(": "),
-                    anchors[s.name])
-            for k, t in enumerate(step_tables(s, labels.get(name))):
-                (tab_dir / f"{name}_{s.name}_{k + 1}.csv").write_text(table_csv(t))
-                body.append(step_table_html(t))
-        if name in reference:
-            mine = [t for t in tables if t.ref.study == name]
-            heading(3, "Thesis tables beside ours", _anchor(sid, "thesis"))
-            body.append("<p class=note>Differences: in the thesis's standard deviations "
-                        "(\u03c3) for means with a printed std; absolute for indices, "
-                        "std-dev counts and shape moments or where the thesis value is near "
-                        "zero; relative (%) otherwise. Colour of our value: "
-                        "<span style='background:#e5f5e0'>&nbsp;agrees&nbsp;</span> (within "
-                        "10 %, 1 σ or 0.05 absolute), "
-                        "<span style='background:#fee8c8'>&nbsp;differs&nbsp;</span>, "
-                        "uncoloured: nothing to compare.</p>")
-            for ct in mine:
-                write_csv(ct, tab_dir)
-                heading(4, f"Table {ct.ref.number}: {ct.ref.caption}", f"table-{ct.ref.number}")
-                body.append(table_html(ct))
-        t0 = time.perf_counter()
-        figs = figures_for_study(name, steps, labels.get(name, {}), units.get(name, {}),
-                                 reference=name in reference,
-                                 curves=_recorded(info, "curves"))
-        if figs:
-            heading(3, "Figures", _anchor(sid, "figures"))
-        for f in figs:
-            png = _png(f.figure)
-            key = f"{name}_{f.name}"  # two studies may both have a step "bayes"
-            (fig_dir / f"{key}.png").write_bytes(png)
-            toc.append((4, f"fig-{key}", f.caption))
-            body.append(_figure_html(f, png, key))
-        log.info("report: %s: %d figures in %.1f s", name, len(figs), time.perf_counter() - t0)
+        unrendered = sorted({s.type for steps in studies.values() for s in steps.values()
+                             if rendering(s.type).tables is None})
+        if unrendered:
+            log.warning("report: no renderers registered for step type(s) %s: key/value tables "
+                        "only (importing rotoruq.study registers the built-in step types)",
+                        ", ".join(unrendered))
+        for name, steps in studies.items():
+            info = infos[name]
+            log.info("report: %s (%d steps)", name, len(steps))
+            sid = _anchor("study", name)
+            heading(2, f"Study {name}: {info.get('description', '')}".rstrip(": "), sid)
+            anchors = {s: _anchor(sid, "step", s) for s in steps}
+            body.append(_steps_summary(steps, anchors))
+            body.append(_noise_note(steps))
+            heading(3, "Results by step", _anchor(sid, "steps"))
+            for s in steps.values():
+                heading(4, f"{s.name} ({s.type}): {s.meta.get('title') or ''}".rstrip(": "),
+                        anchors[s.name])
+                for k, t in enumerate(step_tables(s, labels.get(name))):
+                    (tab_dir / f"{name}_{s.name}_{k + 1}.csv").write_text(table_csv(t))
+                    body.append(step_table_html(t))
+            if name in reference:
+                mine = [t for t in tables if t.ref.study == name]
+                heading(3, "Thesis tables beside ours", _anchor(sid, "thesis"))
+                body.append("<p class=note>Differences: in the thesis's standard deviations "
+                            "(\u03c3) for means with a printed std; absolute for indices, "
+                            "std-dev counts and shape moments or where the thesis value is near "
+                            "zero; relative (%) otherwise. Colour of our value: "
+                            "<span style='background:#e5f5e0'>&nbsp;agrees&nbsp;</span> (within "
+                            "10 %, 1 σ or 0.05 absolute), "
+                            "<span style='background:#fee8c8'>&nbsp;differs&nbsp;</span>, "
+                            "uncoloured: nothing to compare.</p>")
+                for ct in mine:
+                    write_csv(ct, tab_dir)
+                    heading(4, f"Table {ct.ref.number}: {ct.ref.caption}", f"table-{ct.ref.number}")
+                    body.append(table_html(ct))
+            t0 = time.perf_counter()
+            if drawn is None:
+                drawn = drawing.finish()
+            figs = [f for step in steps for f in drawn.get((name, step), [])]
+            if figs:
+                heading(3, "Figures", _anchor(sid, "figures"))
+            for f in figs:
+                key = f"{name}_{f.name}"  # two studies may both have a step "bayes"
+                (fig_dir / f"{key}.png").write_bytes(f.png)
+                toc.append((4, f"fig-{key}", f.caption))
+                body.append(_figure_html(f, key))
+            log.info("report: %s: %d figures (%.1f s waited)", name, len(figs),
+                     time.perf_counter() - t0)
+    finally:
+        drawing.close()
 
     nav = "".join(
         f"<li style='margin-left:{(lvl - 2) * 1.2}em'><a href='#{a}'>{html.escape(txt)}</a>"
@@ -306,3 +354,97 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
     index.write_text(page, encoding="utf-8")
     log.info("report: written in %.1f s", time.perf_counter() - t_start)
     return index
+
+
+
+@dataclass(frozen=True, eq=False)
+class _Job:
+    study: str
+    step: str
+    hook: Callable
+    context: tuple  # FigureContext's labels, units, reference, curves
+
+
+class _FigureDrawing:
+    """Every step's figures, drawn once, by this process and ``workers - 1`` worker
+    subprocesses (:mod:`rotoruq.report._figworker`) that claim jobs from the other end of
+    the list. The workers start first, so they draw while this process builds the tables."""
+
+    def __init__(self, studies: dict[str, dict[str, StepResult]], folders: dict[str, str],
+                 jobs: list[_Job], workers: int | None):
+        from ._figworker import JOBS_FILE, hook_name
+
+        self.studies, self.jobs = studies, jobs
+        if workers is None:
+            workers = 2 if (os.cpu_count() or 1) >= 2 and len(jobs) >= _PARALLEL_MIN_STEPS else 1
+        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+            raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+        self.job_dir: Path | None = None
+        self.procs: list[subprocess.Popen] = []
+        names = [hook_name(j.hook) for j in jobs]
+        shared = [i for i, n in enumerate(names) if n is not None]
+        if workers == 1 or not shared:
+            return
+        self.job_dir = Path(tempfile.mkdtemp(prefix="rotoruq-figures-"))
+        spec = [{"study": jobs[i].study, "step": jobs[i].step, "hook": names[i],
+                 "folder": folders[jobs[i].study], "context": list(jobs[i].context)}
+                for i in shared]
+        self.shared = shared
+        (self.job_dir / JOBS_FILE).write_text(json.dumps(spec), encoding="utf-8")
+        for _ in range(workers - 1):
+            self.procs.append(subprocess.Popen(
+                [sys.executable, "-m", "rotoruq.report._figworker", str(self.job_dir)],
+                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE))
+
+    def finish(self) -> dict[tuple[str, str], list[_Rendered]]:
+        """Draw what the workers have not claimed, wait for them, collect (study, step) ->
+        rendered figures. A worker that fails leaves its jobs to this process."""
+        from ._figworker import claim
+
+        out: dict[tuple[str, str], list[_Rendered]] = {}
+        mine = set(range(len(self.jobs)))
+        if self.job_dir is not None:
+            mine -= set(self.shared)
+        for i in sorted(mine):
+            out[self._key(i)] = self._draw(i)
+        if self.job_dir is not None:
+            for k in reversed(range(len(self.shared))):  # the workers work from the front
+                if not claim(self.job_dir, k):
+                    break
+                mine.add(self.shared[k])
+                out[self._key(self.shared[k])] = self._draw(self.shared[k])
+        log.info("report: %d of %d figure jobs drawn here, the rest by %d worker(s)",
+                 len(mine), len(self.jobs), len(self.procs))
+        if self.job_dir is not None:
+            try:
+                for proc in self.procs:
+                    _, err = proc.communicate()
+                    if proc.returncode != 0:
+                        log.warning("report: a figure worker failed (exit %s); drawing its "
+                                    "figures here: %s", proc.returncode,
+                                    err.decode(errors="replace").strip()[-2000:])
+                for k, i in enumerate(self.shared):
+                    if i in mine:
+                        continue
+                    done = self.job_dir / f"{k}.pkl"
+                    out[self._key(i)] = (pickle.loads(done.read_bytes()) if done.is_file()
+                                         else self._draw(i))
+            finally:
+                self.close()
+        return out
+
+    def close(self) -> None:
+        """Stop workers still running (after an error) and remove the job folder."""
+        for proc in self.procs:
+            if proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+        if self.job_dir is not None:
+            shutil.rmtree(self.job_dir, ignore_errors=True)
+
+    def _key(self, i: int) -> tuple[str, str]:
+        return self.jobs[i].study, self.jobs[i].step
+
+    def _draw(self, i: int) -> list[_Rendered]:
+        j = self.jobs[i]
+        return draw_step(j.hook, self.studies[j.study], j.step, j.study, *j.context)

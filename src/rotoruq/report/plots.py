@@ -23,7 +23,7 @@ from .reference import TABLES
 __all__ = ["Figure", "figures_for_study", "tornado", "prior_posterior", "chain_traces",
            "pair_plot", "load_distributions", "cuu_comparison", "ground_effect_curves",
            "UNITS", "axis_label", "sensitivity_figures", "bayes_figures",
-           "forward_check_figures", "sampling_figures", "cuu_figures"]
+           "forward_check_figures", "sampling_figures", "cuu_figures", "step_figures"]
 
 # Units of the rotoruq vocabulary (DESIGN.md section 3); a study file's ``unit`` overrides.
 UNITS = {
@@ -469,13 +469,18 @@ def figures_for_study(study: str, steps: Mapping[str, StepResult], labels: Mappi
     figs: list[Figure] = []
     for res in steps.values():
         hook = rendering(res.type).figures
-        if hook is None:
-            continue
-        try:
-            figs += hook(res, ctx)
-        except (KeyError, ValueError, IndexError) as exc:  # a figure never fails the report
-            fig, ax = _subplots(figsize=(5, 1))
-            ax.axis("off")
-            ax.text(0.0, 0.5, f"{res.name}: figure not drawn ({exc})", fontsize=8)
-            figs.append(Figure(f"{res.name}_missing", f"{res.name}: no figure", fig))
+        if hook is not None:
+            figs += step_figures(hook, res, ctx)
     return figs
+
+
+def step_figures(hook, res: StepResult, ctx: FigureContext) -> list[Figure]:
+    """The figures ``hook`` (a step type's ``figures`` renderer) draws for ``res``; a figure
+    never fails the report: a hook that raises on missing data gives a one-line note."""
+    try:
+        return list(hook(res, ctx))
+    except (KeyError, ValueError, IndexError) as exc:
+        fig, ax = _subplots(figsize=(5, 1))
+        ax.axis("off")
+        ax.text(0.0, 0.5, f"{res.name}: figure not drawn ({exc})", fontsize=8)
+        return [Figure(f"{res.name}_missing", f"{res.name}: no figure", fig)]

@@ -1,0 +1,83 @@
+"""The files a saved step leaves for users: every array with named columns as CSV beside the
+.npy, values exact (shortest form that reads back to the same float)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rotoruq.results import StepResult, load_step, save_step
+
+
+def test_csv_copies_read_back_bitwise(tmp_path):
+    rng = np.random.default_rng(3)
+    chain = rng.normal(size=(20_000, 3)) * np.array([1e-12, 1.0, 3e7])
+    chain[5, 1], chain[6, 2], chain[7, 0] = np.nan, np.inf, -0.0
+    counts = np.arange(12).reshape(4, 3)
+    res = StepResult("bayes", "bayes_calibration", {"ess/a": 12.5},
+                     arrays={"chain": chain, "counts": counts, "flat": np.ones(4)},
+                     meta={"columns": {"chain": ["a", "b", "c"], "counts": ["x", "y", "z"]}})
+    folder = save_step(res, tmp_path)
+    text = (folder / "chain.csv").read_text()
+    assert text.splitlines()[0] == "a,b,c"
+    back = np.loadtxt(folder / "chain.csv", delimiter=",", skiprows=1)
+    assert back.shape == chain.shape
+    assert np.array_equal(back, chain, equal_nan=True)
+    assert np.array_equal(np.signbit(back), np.signbit(chain))
+    assert np.array_equal(np.loadtxt(folder / "counts.csv", delimiter=",", skiprows=1), counts)
+    assert not (folder / "flat.csv").exists()  # no column names, no CSV
+    loaded = load_step(folder)
+    assert np.array_equal(loaded.arrays["chain"], chain, equal_nan=True)
+    assert not [p.name for p in folder.iterdir() if p.name.endswith(".tmp")]
+
+
+def _line_figure(res, ctx):
+    from rotoruq.report.plots import Figure, _subplots
+
+    fig, ax = _subplots(figsize=(3, 2))
+    ax.plot(res.arrays["y"][:, 0])
+    ax.set_xlabel("sample [-]")
+    return [Figure(f"{res.name}_line", f"line of {res.name}", fig)]
+
+
+def _lambda_figure(res, ctx):
+    import time
+
+    time.sleep(1.5)  # the report draws these itself first: the worker has time to claim
+    return _line_figure(res, ctx)
+
+
+def test_report_figures_survive_a_worker_that_cannot_import_their_hook(tmp_path, caplog,
+                                                                     monkeypatch):
+    """A figure hook the worker process cannot import (here: a test module's function) is
+    drawn by the report itself after the worker fails; a hook that is no importable function
+    at all (a lambda) is never sent. The page is the same as when drawn in one process."""
+    import logging
+    import re
+
+    from rotoruq.report.hooks import RENDERINGS, Rendering, register_rendering
+    from rotoruq.report.html import write_report
+    from rotoruq.results import save_study_info
+
+    monkeypatch.chdir(tmp_path)  # the worker cannot import this test module from here
+    register_rendering("test_line", Rendering(figures=_line_figure))
+    register_rendering("test_lambda", Rendering(figures=lambda r, c: _lambda_figure(r, c)))
+    try:
+        for k in range(3):
+            for kind in ("test_line", "test_lambda"):
+                save_step(StepResult(f"{kind}{k}", kind, {"a": 1.0},
+                                     arrays={"y": np.arange(10.0 + k)[:, None]}), tmp_path)
+        save_study_info(tmp_path, {"name": "lines", "parameters": {}})
+        with caplog.at_level(logging.WARNING, logger="rotoruq.report.html"):
+            two = write_report([tmp_path], tmp_path / "r2", workers=2).read_text()
+        assert "figure worker failed" in caplog.text
+        one = write_report([tmp_path], tmp_path / "r1", workers=1).read_text()
+    finally:
+        RENDERINGS.pop("test_line", None)
+        RENDERINGS.pop("test_lambda", None)
+
+    def strip(page):
+        return re.sub(r"Generated \S+ from [^<]*", "", page)
+
+    assert strip(one) == strip(two)
+    assert len(re.findall(r"<figure id=", two)) == 6
+    assert len(list((tmp_path / "r2" / "figures").glob("*.png"))) == 6

@@ -7,6 +7,8 @@ Run it once first so the numba caches are warm; compare versions by alternating 
 
     python benchmarks/reproduce_time.py            # full study
     python benchmarks/reproduce_time.py --quick    # the reduced CI version
+    python benchmarks/reproduce_time.py --summary benchmarks/results/reproduce_time.json
+                                                   # README's sentence from a saved run
 """
 
 from __future__ import annotations
@@ -50,10 +52,27 @@ def run_once(out_root: str, chapters: list[str], quick: bool) -> dict:
     return result
 
 
+def summary(result: dict) -> str:
+    """README's sentence for a saved result."""
+    sec, rng = result["seconds"], result["range"]
+
+    def stage(s: str) -> str:
+        return f"{sec[s]:.1f} ({rng[s][0]:.1f}-{rng[s][1]:.1f}) s"
+
+    chapters = ", ".join(f"{s} {stage(s)}" for s in sec if s not in ("report", "total"))
+    verdict = "within" if result["within_target"] else "NOT within"
+    return (f"{result['repeats']} runs, medians, range in brackets, {result['cpus']} cores, "
+            f"load {result['load_average_1min']:.1f}: {chapters}, report {stage('report')} with "
+            f"{result['figures']} figures, total {stage('total')}: {verdict} the "
+            f"{result['target_seconds']:.0f} s target.")
+
+
 def main() -> None:
     from rotoruq.study.cmd_reproduce import CHAPTERS
 
     ap = argparse.ArgumentParser()
+    ap.add_argument("--summary", default=None, metavar="JSON",
+                    help="print README's sentence for a saved result and exit")
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--out", default=None, help="keep the results here (default: temporary)")
     ap.add_argument("--chapters", nargs="+", default=list(CHAPTERS), choices=list(CHAPTERS))
@@ -61,6 +80,10 @@ def main() -> None:
                     help="fresh reproductions in a row (medians and ranges are printed)")
     ap.add_argument("--json", default=None, help="also write the JSON to this file")
     args = ap.parse_args()
+    if args.summary:
+        with open(args.summary, encoding="utf-8") as fh:
+            print(summary(json.load(fh)))
+        return
     out_root = args.out or tempfile.mkdtemp(prefix="rotoruq-reproduce-")
     runs = [run_once(os.path.join(out_root, f"run{k + 1}") if args.repeats > 1 else out_root,
                      args.chapters, args.quick) for k in range(args.repeats)]

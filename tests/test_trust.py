@@ -281,7 +281,7 @@ def test_half_saved_step_is_recomputed(tmp_path):
 
 @pytest.mark.slow
 def test_sigkill_at_random_moments_resumes_bitwise(tmp_path):
-    n = 24
+    n = 60  # enough work left after each resume for ten kills, however fast the runs start
     study = external_study(tmp_path / "s", n=n, executor="processes")
     ref_log, log = tmp_path / "ref.log", tmp_path / "kill.log"
     base_env = {"DRIVER_SLEEP": "0.05"}
@@ -296,7 +296,14 @@ def test_sigkill_at_random_moments_resumes_bitwise(tmp_path):
         proc = subprocess.Popen([*CLI, "run", str(study), "--out", str(out), "--no-report"],
                                 env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                                 start_new_session=True)
-        time.sleep(rng.uniform(0.3, 2.5))
+        # kill at a random moment after this run has finished an evaluation of its own (a fixed
+        # delay killed nothing once the runs started faster)
+        seen = log.stat().st_size if log.exists() else 0
+        deadline = time.monotonic() + 60
+        while (proc.poll() is None and time.monotonic() < deadline
+               and (log.stat().st_size if log.exists() else 0) == seen):
+            time.sleep(0.01)
+        time.sleep(rng.uniform(0.0, 0.15))
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)  # the run and its workers, as a crash would
             proc.wait()
@@ -320,10 +327,12 @@ def test_rotor_study_killed_and_resumed_is_bitwise_equal(tmp_path):
     the rotor's answers must not depend on which points share a batch."""
     path = tmp_path / "study.toml"
     path.write_text(ROTOR_STUDY.format(preset="gvpm", collective=5.4, h=3.0, options="")
-                    .replace("n_samples = 6", "n_samples = 2000")
+                    .replace("n_samples = 6", "n_samples = 20000")
                     .replace("[[steps]]", '[parameters.cla_m03]\ndistribution = "normal"\n'
                              'mean = 0.108\nstd = 0.005\n\n[[steps]]'))
+    t0 = time.monotonic()
     cli("run", path, "--out", tmp_path / "ref", "--no-report")
+    duration = time.monotonic() - t0  # kill moments scale with it: the kernel's speed varies
     reference = outputs(tmp_path / "ref")
     out = tmp_path / "out"
     rng = random.Random(3)
@@ -332,7 +341,7 @@ def test_rotor_study_killed_and_resumed_is_bitwise_equal(tmp_path):
         proc = subprocess.Popen([*CLI, "run", str(path), "--out", str(out), "--no-report"],
                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                 start_new_session=True)
-        time.sleep(rng.uniform(1.2, 2.5))
+        time.sleep(rng.uniform(0.4, 0.8) * duration)
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
             kills += 1

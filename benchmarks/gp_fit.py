@@ -38,6 +38,7 @@ import time
 import warnings
 
 import numpy as np
+from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
 from scipy.stats import qmc
 
 from rotoruq.methods.surrogate import GaussianProcess
@@ -135,9 +136,7 @@ def main():
     ap.add_argument("--out", help="also write the JSON to this file")
     ap.add_argument("--summary", help="print README's paragraph from this JSON file and exit")
     args = ap.parse_args()
-    if args.summary:
-        with open(args.summary) as fh:
-            print(summary(json.load(fh)))
+    if print_saved_summary(args.summary, summary):
         return
     r = args.repeats
     out = {"n_train": 500, "n_holdout": 2000, "repeats": r, "error": "holdout RMSE / std"}

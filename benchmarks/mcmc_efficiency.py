@@ -38,6 +38,7 @@ import time
 import warnings
 
 import numpy as np
+from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
 
 import rotoruq as rq
 from rotoruq.methods.mcmc import SamplerConfig, calibrate_bayes, effective_sample_size
@@ -292,9 +293,7 @@ def main():
     ap.add_argument("--out", help="also write the JSON here")
     ap.add_argument("--summary", metavar="JSON", help="print the README sentence of a saved run")
     args = ap.parse_args()
-    if args.summary:
-        with open(args.summary) as fh:
-            print(summary(json.load(fh)))
+    if print_saved_summary(args.summary, summary):
         return
     model, space, data = make_problem(0)
     warnings.simplefilter("ignore")

@@ -21,6 +21,7 @@ import time
 import traceback
 
 import numpy as np
+from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
 
 TARGET_SECONDS = 30.0
 
@@ -80,9 +81,7 @@ def main() -> None:
                     help="fresh reproductions in a row (medians and ranges are printed)")
     ap.add_argument("--json", default=None, help="also write the JSON to this file")
     args = ap.parse_args()
-    if args.summary:
-        with open(args.summary, encoding="utf-8") as fh:
-            print(summary(json.load(fh)))
+    if print_saved_summary(args.summary, summary):
         return
     out_root = args.out or tempfile.mkdtemp(prefix="rotoruq-reproduce-")
     runs = [run_once(os.path.join(out_root, f"run{k + 1}") if args.repeats > 1 else out_root,

@@ -48,6 +48,7 @@ import time
 import warnings
 
 import numpy as np
+from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
 from scipy import stats
 
 import rotoruq as rq
@@ -280,9 +281,7 @@ def main():
     ap.add_argument("--repeats", type=int, default=21)
     ap.add_argument("--summary", help="print README's paragraph from this JSON file and exit")
     args = ap.parse_args()
-    if args.summary:
-        with open(args.summary) as fh:
-            print(summary(json.load(fh)))
+    if print_saved_summary(args.summary, summary):
         return
     t0 = time.perf_counter()
     acc, per_seed = accuracy(args.seeds)

@@ -9,6 +9,11 @@ Run it once first so the numba caches are warm; compare versions by alternating 
     python benchmarks/reproduce_time.py --quick    # the reduced CI version
     python benchmarks/reproduce_time.py --summary benchmarks/results/reproduce_time.json
                                                    # README's sentence from a saved run
+
+After the runs, the report of the last run is drawn again ``--report-repeats`` times with one
+process and with a figure worker (``write_report(workers=1)`` against ``workers=2``,
+alternated, into fresh folders): the same results, figures and tables on both sides, so the
+ratio is what the second process buys on this machine.
 """
 
 from __future__ import annotations
@@ -53,6 +58,23 @@ def run_once(out_root: str, chapters: list[str], quick: bool) -> dict:
     return result
 
 
+def report_workers(dirs: list[str], repeats: int) -> dict:
+    """Seconds to write the report of ``dirs`` with 1 and 2 drawing processes, alternated."""
+    from rotoruq.report.html import write_report
+
+    times: dict[int, list[float]] = {1: [], 2: []}
+    for _ in range(repeats):
+        for workers in (1, 2):
+            with tempfile.TemporaryDirectory() as out:
+                t0 = time.perf_counter()
+                write_report(dirs, os.path.join(out, "report"), workers=workers)
+                times[workers].append(time.perf_counter() - t0)
+    med = {w: float(np.median(t)) for w, t in times.items()}
+    return {"repeats": repeats, "seconds_1_process": times[1], "seconds_2_processes": times[2],
+            "median_1_process": med[1], "median_2_processes": med[2],
+            "speedup": med[1] / med[2]}
+
+
 def summary(result: dict) -> str:
     """README's sentence for a saved result."""
     sec, rng = result["seconds"], result["range"]
@@ -62,10 +84,16 @@ def summary(result: dict) -> str:
 
     chapters = ", ".join(f"{s} {stage(s)}" for s in sec if s not in ("report", "total"))
     verdict = "within" if result["within_target"] else "NOT within"
-    return (f"{result['repeats']} runs, medians, range in brackets, {result['cpus']} cores, "
+    text = (f"{result['repeats']} runs, medians, range in brackets, {result['cpus']} cores, "
             f"load {result['load_average_1min']:.1f}: {chapters}, report {stage('report')} with "
             f"{result['figures']} figures, total {stage('total')}: {verdict} the "
             f"{result['target_seconds']:.0f} s target.")
+    if w := result.get("report_workers"):
+        text += (f" The report alone, {w['repeats']} alternated runs: "
+                 f"{w['median_1_process']:.2f} s drawing in one process, "
+                 f"{w['median_2_processes']:.2f} s with a figure worker "
+                 f"({w['speedup']:.2f}x).")
+    return text
 
 
 def main() -> None:
@@ -80,6 +108,9 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=1,
                     help="fresh reproductions in a row (medians and ranges are printed)")
     ap.add_argument("--json", default=None, help="also write the JSON to this file")
+    ap.add_argument("--report-repeats", type=int, default=3,
+                    help="redraw the last report with 1 and 2 processes this many times each "
+                         "(0: skip)")
     args = ap.parse_args()
     if print_saved_summary(args.summary, summary):
         return
@@ -100,6 +131,11 @@ def main() -> None:
     result["target_seconds"] = TARGET_SECONDS
     result["within_target"] = result["total_seconds"] < TARGET_SECONDS and not result["errors"]
     result["out"] = out_root
+    last = os.path.join(out_root, f"run{args.repeats}") if args.repeats > 1 else out_root
+    dirs = [os.path.join(last, n) for n in args.chapters
+            if os.path.isfile(os.path.join(last, n, "study.json"))]
+    if args.report_repeats > 0 and dirs:
+        result["report_workers"] = report_workers(dirs, args.report_repeats)
     text = json.dumps(result, indent=1)
     print(text)
     if args.json:

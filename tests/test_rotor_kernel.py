@@ -242,13 +242,24 @@ def test_mach_interval_search_from_any_start_equals_a_scan_from_zero():
     table = airfoil_table(RotorModel("gvpm").airfoil)
     grid, inv_dx = table.mach, table.mach_inv_dx
     xs = np.concatenate([grid, grid[:-1] + 0.3 * np.diff(grid), [-0.5, -1e-300, 0.95, 7.0]])
+    im = np.empty((2, 1), dtype=np.int64)
+    s = np.empty((2, 1))
     for x in xs:
         want = min(max(int(np.searchsorted(grid, x, side="right")) - 1, 0), grid.size - 2)
-        weight = min(max((x - grid[want]) * inv_dx[want], 0.0), 1.0)
+        weight = min(max((abs(x) - grid[want]) * inv_dx[want], 0.0), 1.0) if x >= 0 else None
         for start in range(grid.size - 1):
-            assert kern._locate_near(x, grid, inv_dx, start) == (want, weight), (x, start)
+            # the first azimuth puts the search at interval `start`, the second searches x
+            mach = np.array([[grid[start]], [x]])
+            kern._mach_intervals(mach, grid, inv_dx, im, s)
+            assert im[0, 0] == start
+            if x >= 0:
+                assert (im[1, 0], s[1, 0]) == (want, weight), (x, start)
+            else:   # |Mach| is searched: a negative number is its magnitude's interval
+                assert im[1, 0] == min(max(int(np.searchsorted(grid, -x, side="right")) - 1,
+                                           0), grid.size - 2)
     for start in range(grid.size - 1):
-        assert kern._locate_near(np.nan, grid, inv_dx, start)[0] == 0
+        kern._mach_intervals(np.array([[grid[start]], [np.nan]]), grid, inv_dx, im, s)
+        assert im[1, 0] == 0
 
 
 @pytest.mark.parametrize(("column", "value", "reason"), [

@@ -43,7 +43,10 @@ import numba
 import numpy as np
 
 _JIT = {"cache": True, "error_model": "numpy", "nogil": True}
-# small functions called per blade element: inlined into their caller (no call overhead)
+# small functions of scalars called per blade element: inlined into their caller (no call
+# overhead). Per-element code that reads arrays is written out in its loop instead: numba
+# updates the reference count of every array passed to an inlined helper, an atomic
+# operation per array and call that cost 14 % of the solve (issue 12).
 _INLINE = {**_JIT, "inline": "always"}
 
 A0 = 5.73           # lift slope [1/rad] of the Newton preconditioner (see inflow.py)
@@ -211,62 +214,40 @@ def _lu_solve(A, b, x):
     return x
 
 
-@numba.njit(**_INLINE)
-def _locate_lut(x, grid, lut, nxt, inv_dx, x0, inv_h, nbins):
-    """Interval index and weight of x in an increasing grid, clamped (c81.Bracket.locate)."""
-    if lut.size == 0:
-        lo, hi = 0, grid.size - 1
-        while hi - lo > 1:
-            mid = (lo + hi) // 2
-            if grid[mid] <= x:
-                lo = mid
+@numba.njit(**_JIT)
+def _mach_intervals(mach, gm, inv_dx, im_out, s_out):
+    """Interval index im_out and weight s_out (N_psi, N_r) of |Mach| in the table's Mach grid
+    gm, clamped; kept for the coefficients, the stall test and the pitch-stiffness difference
+    of a pass. Each station's search starts from the previous azimuth's interval (in hover a
+    station's Mach number barely moves): the answer of a scan from 0 (NaN: interval 0)."""
+    npsi, nr = mach.shape
+    n = gm.size
+    for i in range(nr):
+        im = 0
+        for j in range(npsi):
+            x = abs(mach[j, i])
+            if n == 1:
+                im, s = 0, 0.0
             else:
-                hi = mid
-        i = lo
-    else:
-        b = (x - x0) * inv_h
-        b = min(max(b, 0.0), float(nbins))
-        i = lut[int(b)]
-        if x >= nxt[i]:
-            i += 1
-    t = (x - grid[i]) * inv_dx[i]
-    return i, min(max(t, 0.0), 1.0)
-
-
-@numba.njit(**_INLINE)
-def _locate_near(x, grid, inv_dx, i):
-    """Interval index and weight of x in a short increasing grid, clamped, searched from a
-    nearby interval i (the neighbouring azimuth's: in hover a station's Mach number barely
-    moves); the same answer as a scan from 0 (NaN: interval 0)."""
-    n = grid.size
-    if n == 1:
-        return 0, 0.0
-    if x != x:
-        i = 0
-    else:
-        while i > 0 and x < grid[i]:
-            i -= 1
-        while i < n - 2 and x >= grid[i + 1]:
-            i += 1
-    t = (x - grid[i]) * inv_dx[i]
-    return i, min(max(t, 0.0), 1.0)
-
-
-@numba.njit(**_INLINE)
-def _bilinear(v, c, idx, nm, t, s):
-    """Coefficient c between the nodes idx, idx + 1 (Mach), idx + nm (alpha) of the table."""
-    lo = v[c, idx]
-    lo = lo + (v[c, idx + nm] - lo) * t
-    hi = v[c, idx + 1]
-    hi = hi + (v[c, idx + nm + 1] - hi) * t
-    return lo + (hi - lo) * s
+                if x != x:
+                    im = 0
+                else:
+                    while im > 0 and x < gm[im]:
+                        im -= 1
+                    while im < n - 2 and x >= gm[im + 1]:
+                        im += 1
+                s = min(max((x - gm[im]) * inv_dx[im], 0.0), 1.0)
+            im_out[j, i] = im
+            s_out[j, i] = s
 
 
 @numba.njit(**_JIT)
-def _coefficients(alpha, mach, af, fit, linear, cl, cd, cm):
-    """cl, cd, cm (N_psi, N_r) at alpha [deg, wrapped] and Mach over the disk; ``fit``
-    (5, n_m) the sample's fit-row coefficients, ``linear`` (3,) its (cla, cl0, cd0) for a
-    linear airfoil. One call per pass: the table's arrays are bound once, not per element."""
+def _coefficients(alpha, im_, s_, af, fit, linear, cl, cd, cm):
+    """cl, cd, cm (N_psi, N_r) at alpha [deg, wrapped] over the disk, at the Mach intervals
+    (im_, s_) of :func:`_mach_intervals`; ``fit`` (5, n_m) the sample's fit-row coefficients,
+    ``linear`` (3,) its (cla, cl0, cd0) for a linear airfoil. One call per pass: the table's
+    arrays are bound once. The interval searches are written out in the loop: a helper
+    taking the table's arrays costs reference-count updates per element."""
     npsi, nr = alpha.shape
     if af.kind == LINEAR:
         cla, cl0, cd0, cda2 = linear[0], linear[1], linear[2], af.cda2
@@ -277,21 +258,44 @@ def _coefficients(alpha, mach, af, fit, linear, cl, cd, cm):
                 cd[j, i] = cd0 + cda2 * (a * a)
                 cm[j, i] = 0.0
         return
-    ga, gm, values, window = af.alpha, af.mach, af.values, af.window
-    lut, nxt, inv_dx, m_inv_dx = af.alpha_lut, af.alpha_next, af.alpha_inv_dx, af.mach_inv_dx
+    ga, values, window = af.alpha, af.values, af.window
+    lut, nxt, inv_dx = af.alpha_lut, af.alpha_next, af.alpha_inv_dx
     x0, inv_h, nbins, hw = af.alpha_x0, af.alpha_inv_h, af.alpha_nbins, af.half_width
     has_fits, replace_cd = af.has_fits, af.replace_cd
-    nm = gm.size
-    for i in range(nr):
-        im = 0
-        for j in range(npsi):
+    nm, na = af.mach.size, ga.size
+    bisect = lut.size == 0
+    for j in range(npsi):
+        for i in range(nr):
             a = alpha[j, i]
-            ia, t = _locate_lut(a, ga, lut, nxt, inv_dx, x0, inv_h, nbins)
-            im, s = _locate_near(abs(mach[j, i]), gm, m_inv_dx, im)
+            # alpha interval, clamped (c81.Bracket.locate): a uniform-bin lookup, else bisection
+            if bisect:
+                lo, hi = 0, na - 1
+                while hi - lo > 1:
+                    mid = (lo + hi) // 2
+                    if ga[mid] <= a:
+                        lo = mid
+                    else:
+                        hi = mid
+                ia = lo
+            else:
+                b = min(max((a - x0) * inv_h, 0.0), float(nbins))
+                ia = lut[int(b)]
+                if a >= nxt[ia]:
+                    ia += 1
+            t = min(max((a - ga[ia]) * inv_dx[ia], 0.0), 1.0)
+            im, s = im_[j, i], s_[j, i]
+            # bilinear between the nodes idx, idx + 1 (Mach), idx + nm (alpha)
             idx = ia * nm + im
-            out0 = _bilinear(values, 0, idx, nm, t, s)
-            out1 = _bilinear(values, 1, idx, nm, t, s)
-            out2 = _bilinear(values, 2, idx, nm, t, s)
+            k0, k1, k2, k3 = idx, idx + nm, idx + 1, idx + nm + 1
+            lo_ = values[0, k0] + (values[0, k1] - values[0, k0]) * t
+            hi_ = values[0, k2] + (values[0, k3] - values[0, k2]) * t
+            out0 = lo_ + (hi_ - lo_) * s
+            lo_ = values[1, k0] + (values[1, k1] - values[1, k0]) * t
+            hi_ = values[1, k2] + (values[1, k3] - values[1, k2]) * t
+            out1 = lo_ + (hi_ - lo_) * s
+            lo_ = values[2, k0] + (values[2, k1] - values[2, k0]) * t
+            hi_ = values[2, k2] + (values[2, k3] - values[2, k2]) * t
+            out2 = lo_ + (hi_ - lo_) * s
             if has_fits:
                 h = window[ia]
                 h = h + (window[ia + 1] - h) * t
@@ -433,18 +437,6 @@ def _structural_jacobian(prm, rot):
     return Z, Jinv, J0, J1, F_cmd, v_init, k_v, qa
 
 
-@numba.njit(**_INLINE)
-def _synth(Q, d, cos_k, sin_k, j):
-    """q_d(psi_j) and dq_d/dpsi at psi_j."""
-    val = Q[d, 0].real * cos_k[0, j]
-    der = 0.0
-    for k in range(1, Q.shape[1]):
-        re, im = Q[d, k].real, Q[d, k].imag
-        val = val + (re * cos_k[k, j] - im * sin_k[k, j])
-        der = der - k * (re * sin_k[k, j] + im * cos_k[k, j])
-    return val, der
-
-
 @numba.njit(**_JIT)
 def _aerodynamic_loads(Q, v0, vc, vs, v_r, prm, rot, af, fit, linear, ws):
     """Section loads over the disk (N_psi, N_r) at the state: ws.dFz, ws.dFx, ws.dMp, with
@@ -459,11 +451,23 @@ def _aerodynamic_loads(Q, v0, vc, vs, v_r, prm, rot, af, fit, linear, ws):
     m_lo, m_hi = af.mach[0], af.mach[-1]
     alpha_, mach_, qc_, cphi_, sphi_ = ws.alpha, ws.mach, ws.qc, ws.cphi, ws.sphi
     npsi, nr = cos_psi.size, r_.size
+    K = Q.shape[1]
     bad = False
     for j in range(npsi):
-        beta, dbeta = _synth(Q, 0, cos_k, sin_k, j)
-        _, dzeta = _synth(Q, 1, cos_k, sin_k, j)
-        theta, _ = _synth(Q, 2, cos_k, sin_k, j)
+        # flap beta and its psi-derivative, lag rate, feathering at psi_j: q_d(psi_j) =
+        # Re(sum_k Q[d, k] exp(i k psi_j)) (written out: see _coefficients)
+        beta = Q[0, 0].real * cos_k[0, j]
+        theta = Q[2, 0].real * cos_k[0, j]
+        dbeta = dzeta = 0.0
+        for k in range(1, K):
+            ck, sk = cos_k[k, j], sin_k[k, j]
+            re, im = Q[0, k].real, Q[0, k].imag
+            beta = beta + (re * ck - im * sk)
+            dbeta = dbeta - k * (re * sk + im * ck)
+            re, im = Q[1, k].real, Q[1, k].imag
+            dzeta = dzeta - k * (re * sk + im * ck)
+            re, im = Q[2, k].real, Q[2, k].imag
+            theta = theta + (re * ck - im * sk)
         ws.beta[j] = beta
         cs = vc * cos_psi[j] + vs * sin_psi[j]
         for i in range(nr):
@@ -489,7 +493,9 @@ def _aerodynamic_loads(Q, v0, vc, vs, v_r, prm, rot, af, fit, linear, ws):
             alpha_[j, i] = _wrap_deg(alpha)
             mach_[j, i] = mach
             qc_[j, i] = 0.5 * rho * U2 * c
-    _coefficients(alpha_, mach_, af, fit, linear, ws.cl, ws.cd, ws.cm)
+    if table:
+        _mach_intervals(mach_, af.mach, af.mach_inv_dx, ws.im, ws.s)
+    _coefficients(alpha_, ws.im, ws.s, af, fit, linear, ws.cl, ws.cd, ws.cm)
     cl_, cd_, cm_ = ws.cl, ws.cd, ws.cm
     dFz, dFx, dMp = ws.dFz, ws.dFx, ws.dMp
     for j in range(npsi):
@@ -652,6 +658,8 @@ class Work(NamedTuple):
     A: np.ndarray             # (4, 4) complex: a joint Jacobian, its LU factors
     rhs: np.ndarray           # (4,) complex
     x: np.ndarray             # (4,) complex: the joint step
+    im: np.ndarray            # (N_psi, N_r) int: Mach interval of each element (table)
+    s: np.ndarray             # (N_psi, N_r): its weight
 
 
 @numba.njit(**_JIT)
@@ -806,13 +814,11 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
     # stall: share of the disk's blade-element area (r dr dpsi) beyond the stall angle
     frac = 0.0
     if af.stall_pos.size:
-        gm, m_inv_dx, pos, neg = af.mach, af.mach_inv_dx, af.stall_pos, af.stall_neg
-        alpha, mach = ws.alpha, ws.mach
+        pos, neg, alpha, im_, s_ = af.stall_pos, af.stall_neg, ws.alpha, ws.im, ws.s
         for i in range(nr):
-            im = 0
             for j in range(npsi):
                 # stall angles linear in Mach between the rows (np.interp), clamped
-                im, s = _locate_near(mach[j, i], gm, m_inv_dx, im)
+                im, s = im_[j, i], s_[j, i]
                 a_pos = pos[im] + (pos[im + 1] - pos[im]) * s
                 a_neg = neg[im] + (neg[im + 1] - neg[im]) * s
                 a = alpha[j, i]
@@ -834,7 +840,7 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
         for j in range(npsi):
             for i in range(nr):
                 ws.shifted[j, i] = _wrap_deg(ws.alpha[j, i] + h)
-        _coefficients(ws.shifted, ws.mach, af, fit, linear, ws.cl2, ws.cd2, ws.cm2)
+        _coefficients(ws.shifted, ws.im, ws.s, af, fit, linear, ws.cl2, ws.cd2, ws.cm2)
         for j in range(npsi):
             for i in range(nr):
                 cm_d = (ws.cm2[j, i] - ws.cm[j, i]) if rot.pitching_moment else 0.0
@@ -928,7 +934,8 @@ def _workspace(rot):
     return Work(np.empty(npsi), f[0], f[1], f[2], f[3], f[4], f[5], f[6], f[7], f[8], f[9],
                 f[10], f[11], f[12], f[13], f[14], np.empty(npsi), np.empty(npsi),
                 np.empty(nr), np.empty(nr), np.empty(nr), c[0], c[1], c[2, 0],
-                np.empty((4, 4), dtype=np.complex128), v[0], v[1])
+                np.empty((4, 4), dtype=np.complex128), v[0], v[1],
+                np.zeros((npsi, nr), dtype=np.int64), np.zeros((npsi, nr)))
 
 
 @numba.njit(**_JIT)

@@ -52,6 +52,7 @@ def run_once(out_root: str, chapters: list[str], quick: bool) -> dict:
     dirs = [os.path.join(out_root, n) for n in chapters
             if os.path.isfile(os.path.join(out_root, n, "study.json"))]
     write_report(dirs, os.path.join(out_root, "report"))
+    result["dirs"] = dirs   # the studies the report was written from (not in the JSON)
     result["seconds"]["report"] = round(time.perf_counter() - t0, 2)
     result["figures"] = len(os.listdir(os.path.join(out_root, "report", "figures")))
     result["seconds"]["total"] = round(time.perf_counter() - t_all, 2)
@@ -131,11 +132,8 @@ def main() -> None:
     result["target_seconds"] = TARGET_SECONDS
     result["within_target"] = result["total_seconds"] < TARGET_SECONDS and not result["errors"]
     result["out"] = out_root
-    last = os.path.join(out_root, f"run{args.repeats}") if args.repeats > 1 else out_root
-    dirs = [os.path.join(last, n) for n in args.chapters
-            if os.path.isfile(os.path.join(last, n, "study.json"))]
-    if args.report_repeats > 0 and dirs:
-        result["report_workers"] = report_workers(dirs, args.report_repeats)
+    if args.report_repeats > 0 and runs[-1]["dirs"]:
+        result["report_workers"] = report_workers(runs[-1]["dirs"], args.report_repeats)
     text = json.dumps(result, indent=1)
     print(text)
     if args.json:

@@ -214,6 +214,12 @@ def _lu_solve(A, b, x):
     return x
 
 
+@numba.njit(**_INLINE)
+def _lerp(a, b, t):
+    """a + (b - a) t: the table's linear interpolation, in this operation order."""
+    return a + (b - a) * t
+
+
 @numba.njit(**_JIT)
 def _mach_intervals(mach, gm, inv_dx, im_out, s_out):
     """Interval index im_out and weight s_out (N_psi, N_r) of |Mach| in the table's Mach grid
@@ -287,26 +293,22 @@ def _coefficients(alpha, im_, s_, af, fit, linear, cl, cd, cm):
             # bilinear between the nodes idx, idx + 1 (Mach), idx + nm (alpha)
             idx = ia * nm + im
             k0, k1, k2, k3 = idx, idx + nm, idx + 1, idx + nm + 1
-            lo_ = values[0, k0] + (values[0, k1] - values[0, k0]) * t
-            hi_ = values[0, k2] + (values[0, k3] - values[0, k2]) * t
-            out0 = lo_ + (hi_ - lo_) * s
-            lo_ = values[1, k0] + (values[1, k1] - values[1, k0]) * t
-            hi_ = values[1, k2] + (values[1, k3] - values[1, k2]) * t
-            out1 = lo_ + (hi_ - lo_) * s
-            lo_ = values[2, k0] + (values[2, k1] - values[2, k0]) * t
-            hi_ = values[2, k2] + (values[2, k3] - values[2, k2]) * t
-            out2 = lo_ + (hi_ - lo_) * s
+            out0 = _lerp(_lerp(values[0, k0], values[0, k1], t),
+                         _lerp(values[0, k2], values[0, k3], t), s)
+            out1 = _lerp(_lerp(values[1, k0], values[1, k1], t),
+                         _lerp(values[1, k2], values[1, k3], t), s)
+            out2 = _lerp(_lerp(values[2, k0], values[2, k1], t),
+                         _lerp(values[2, k2], values[2, k3], t), s)
             if has_fits:
-                h = window[ia]
-                h = h + (window[ia + 1] - h) * t
+                h = _lerp(window[ia], window[ia + 1], t)
                 ac = min(max(a, -hw), hw)
-                cla = fit[0, im] + (fit[0, im + 1] - fit[0, im]) * s
-                cl0 = fit[1, im] + (fit[1, im + 1] - fit[1, im]) * s
+                cla = _lerp(fit[0, im], fit[0, im + 1], s)
+                cl0 = _lerp(fit[1, im], fit[1, im + 1], s)
                 out0 += (cla * ac + cl0) * h
                 if replace_cd:
-                    cda2 = fit[2, im] + (fit[2, im + 1] - fit[2, im]) * s
-                    cda = fit[3, im] + (fit[3, im + 1] - fit[3, im]) * s
-                    cd0 = fit[4, im] + (fit[4, im + 1] - fit[4, im]) * s
+                    cda2 = _lerp(fit[2, im], fit[2, im + 1], s)
+                    cda = _lerp(fit[3, im], fit[3, im + 1], s)
+                    cd0 = _lerp(fit[4, im], fit[4, im + 1], s)
                     out1 += (((cda2 * ac + cda) * ac) + cd0) * h
             cl[j, i] = out0
             cd[j, i] = out1
@@ -819,8 +821,8 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
             for j in range(npsi):
                 # stall angles linear in Mach between the rows (np.interp), clamped
                 im, s = im_[j, i], s_[j, i]
-                a_pos = pos[im] + (pos[im + 1] - pos[im]) * s
-                a_neg = neg[im] + (neg[im + 1] - neg[im]) * s
+                a_pos = _lerp(pos[im], pos[im + 1], s)
+                a_neg = _lerp(neg[im], neg[im + 1], s)
                 a = alpha[j, i]
                 ws.psi_scratch[j] = 1.0 if (a > a_pos or a < a_neg) else 0.0
             ws.span_line[i] = _psum(ws.psi_scratch, npsi) * rot.w_r[i]

@@ -41,6 +41,7 @@ _LAZY: dict[str, str] = {
     "RESPONSES": ".rotor.model",
     "ROTOR_INPUTS": ".rotor.model",
     "RotorModel": ".rotor.model",
+    "RotorDiscretization": ".rotor.discretization",
     "RotorPreset": ".rotor.presets",
     "get_preset": ".rotor.presets",
     "Airfoil": ".rotor.airfoil",
@@ -67,6 +68,15 @@ _LAZY: dict[str, str] = {
     "sample": ".methods.sampling",
     "SobolResult": ".methods.sensitivity",
     "sobol_indices": ".methods.sensitivity",
+    "ValidationResult": ".methods.validation",
+    "ComparisonError": ".methods.validation",
+    "validate": ".methods.validation",
+    "comparison_error": ".methods.validation",
+    "area_metric": ".methods.validation",
+    "GCIResult": ".methods.verification",
+    "VerificationResult": ".methods.verification",
+    "grid_convergence_index": ".methods.verification",
+    "verify_discretization": ".methods.verification",
     "BayesResult": ".methods.mcmc",
     "calibrate_bayes": ".methods.mcmc",
     "continue_chain": ".methods.mcmc",
@@ -257,6 +267,33 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     from .methods.surrogate import (
         LeaveOneOut as LeaveOneOut,
     )
+    from .methods.validation import (
+        ComparisonError as ComparisonError,
+    )
+    from .methods.validation import (
+        ValidationResult as ValidationResult,
+    )
+    from .methods.validation import (
+        area_metric as area_metric,
+    )
+    from .methods.validation import (
+        comparison_error as comparison_error,
+    )
+    from .methods.validation import (
+        validate as validate,
+    )
+    from .methods.verification import (
+        GCIResult as GCIResult,
+    )
+    from .methods.verification import (
+        VerificationResult as VerificationResult,
+    )
+    from .methods.verification import (
+        grid_convergence_index as grid_convergence_index,
+    )
+    from .methods.verification import (
+        verify_discretization as verify_discretization,
+    )
     from .model import (
         EvalBatch as EvalBatch,
     )
@@ -347,6 +384,9 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     )
     from .rotor.c81 import (
         write_c81 as write_c81,
+    )
+    from .rotor.discretization import (
+        RotorDiscretization as RotorDiscretization,
     )
     from .rotor.model import (
         RESPONSES as RESPONSES,

@@ -162,13 +162,17 @@ def test_gci_reproduces_celik_et_al_2008_table_1(phi, cells, table):
 
 def test_gci_on_an_exact_power_law_and_two_grids():
     h = np.array([1.0, 2.0, 4.0])                  # constant ratio 2
-    f0, c, p = 3.0, np.array([0.1, -0.2]), 1.7
+    f0, c, p = 3.0, np.array([1e-3, -2e-3]), 1.7
     f = f0 + c[None, :] * h[:, None] ** p
     res = grid_convergence_index(f[0], f[1], f[2], ratio=2.0)
     np.testing.assert_allclose(res.observed_order, p, rtol=1e-10)
     np.testing.assert_allclose(res.extrapolated, f0, rtol=1e-12)
     np.testing.assert_allclose(res.asymptotic_ratio, 1.0, rtol=0.02)
     assert res.in_asymptotic_range.all() and res.converging.all()
+    off = grid_convergence_index(f[0], f[1], f[2], ratio=2.0, formal_order=3.0)
+    assert not off.in_asymptotic_range.any()
+    osc = grid_convergence_index(1.0, 1.01, 0.98, ratio=2.0)
+    assert osc.oscillatory and not osc.in_asymptotic_range
     # u_num is the exact error of the fine solution on an exact power law
     np.testing.assert_allclose(res.u_num, np.abs(f[0] - f0), rtol=1e-10)
     two = grid_convergence_index(f[0], f[1], ratio=2.0, formal_order=p)
@@ -243,3 +247,5 @@ def test_rotor_span_quadrature_observes_its_third_order():
     np.testing.assert_allclose(res.observed_order, 3.0, atol=0.1)
     assert res.converging.all() and not res.oscillatory.any()
     np.testing.assert_allclose(res.asymptotic_ratio, 1.0, atol=0.1)
+    assert verify_discretization(factory, [2, 1, 0], [[5.0, -1.0, -1.0]], ratio=2.0,
+                                 formal_order=3.0).in_asymptotic_range.all()

@@ -13,12 +13,15 @@ f_ext = (r21^p f1 - f2) / (r21^p - 1), and the fine-grid index is (Roache 1994, 
     GCI_fine = Fs |e21 / f1| / (r21^p - 1)
 
 with the safety factor Fs = 1.25 for three grids (observed order) and Fs = 3 for two grids
-(the order assumed: the scheme's formal order). The asymptotic-range check compares the two
-indices in response units: |f2| GCI_32 / (r21^p |f1| GCI_21) is about 1 when both grid pairs are
-in the asymptotic range (exactly 1 for an error C h^p and a constant ratio).
+(the order assumed: the scheme's formal order). The asymptotic-range check: Roache's ratio
+GCI_32 / (r21^p GCI_21) is about 1 in the asymptotic range; with a constant ratio and the
+observed order it is |f1 / f2| by construction, so it tests little: the grids are judged in the
+asymptotic range when, in addition, the convergence is monotone (e21 and e32 of one sign,
+|e21| < |e32|) and, when the formal order is given, the observed order is within the
+tolerance of it.
 
-**u_num.** ASME V&V 20-2009 (section 5) reads the GCI as an expanded uncertainty whose coverage
-factor is the safety factor, so its standard numerical uncertainty is u_num = GCI / Fs, in
+**u_num.** Following ASME V&V 20-2009, the GCI is read as an expanded uncertainty whose
+coverage factor is the safety factor, so the standard numerical uncertainty is u_num = GCI / Fs, in
 response units |f1| GCI_fine / Fs = |f2 - f1| / (r21^p - 1): the magnitude of the Richardson
 error estimate. This module takes that convention (``u_num`` fields); a more conservative
 reader can use the GCI itself (``gci_fine`` times |f1|).
@@ -61,8 +64,10 @@ class GCIResult:
     extrapolated_relative_error : e_ext21 = |(f_ext - f1) / f_ext|.
     gci_fine : Fs e_a21 / (r21^p - 1), relative to |f1| (a fraction, not a percentage).
     gci_medium : Fs e_a32 / (r32^p - 1), relative to |f2| (NaN with two grids).
-    asymptotic_ratio : |f2| gci_medium / (r21^p |f1| gci_fine), about 1 in the asymptotic range.
-    in_asymptotic_range : |asymptotic_ratio - 1| <= the stated tolerance (False with two grids).
+    asymptotic_ratio : gci_medium / (r21^p gci_fine), Roache's check (about 1).
+    in_asymptotic_range : |asymptotic_ratio - 1| <= the tolerance, monotone convergence and,
+        with a formal order, |p - formal_order| <= tolerance * formal_order (False with two
+        grids: nothing is observed).
     converging : |e21| < |e32| (three grids; True with two grids: it cannot be tested).
     oscillatory : e32 / e21 < 0.
     safety_factor : Fs.
@@ -141,11 +146,13 @@ def grid_convergence_index(
     ratio_coarse : float, > 1, optional
         r32 = h3 / h2 (default: ``ratio``, a constant refinement).
     formal_order : float, > 0, optional
-        The scheme's order; required with two grids (it is the order used).
+        The scheme's order; required with two grids (it is the order used); with three grids
+        the observed order is compared with it in the asymptotic-range check.
     safety_factor : float, optional
         Fs (default 1.25 with three grids, 3 with two).
     asymptotic_tolerance : float
-        |asymptotic_ratio - 1| below which the grids are judged in the asymptotic range.
+        Relative tolerance of the asymptotic-range check (Roache's ratio against 1, the
+        observed order against the formal order).
 
     Returns
     -------
@@ -195,14 +202,16 @@ def grid_convergence_index(
         u_num = np.where(e21 == 0, 0.0, np.abs(e21) / (rp - 1.0))
         if three:
             gci32 = fs * np.abs(e32 / f2) / (r32**p - 1.0)
-            asym = (np.abs(e32) / (r32**p - 1.0)) / (rp * np.abs(e21) / (rp - 1.0))
+            asym = gci32 / (rp * gci21)
             converging = np.abs(e21) < np.abs(e32)
             oscillatory = e32 * e21 < 0
         else:
             gci32 = asym = np.full(f1.shape, np.nan)
             converging = np.ones(f1.shape, bool)
             oscillatory = np.zeros(f1.shape, bool)
-    in_range = np.abs(asym - 1.0) <= asymptotic_tolerance
+    in_range = (np.abs(asym - 1.0) <= asymptotic_tolerance) & converging & ~oscillatory
+    if three and formal_order is not None:
+        in_range &= np.abs(p - formal_order) <= asymptotic_tolerance * formal_order
     return GCIResult(
         fine=f1, medium=f2, coarse=f3, ratio=r21, ratio_coarse=r32, observed_order=p,
         extrapolated=ext, relative_error=ea21, extrapolated_relative_error=e_ext,

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 import pytest
 from scipy import integrate, stats
@@ -249,3 +251,50 @@ def test_rotor_span_quadrature_observes_its_third_order():
     np.testing.assert_allclose(res.asymptotic_ratio, 1.0, atol=0.1)
     assert verify_discretization(factory, [2, 1, 0], [[5.0, -1.0, -1.0]], ratio=2.0,
                                  formal_order=3.0).in_asymptotic_range.all()
+
+
+# An external "solver" using only the standard library: the trapezoidal integral of
+# exp(a t) over [0, 1] with the number of intervals read from its filled input file.
+TRAPEZOID_SOLVER = r'''
+import math, sys
+params, results = sys.argv[1], sys.argv[2]
+lines = open(params).read().splitlines()
+x = {tag: float(val) for val, tag in (ln.split() for ln in lines[1 : 1 + int(lines[0].split()[0])])}
+n = int(open("solver.inp").read().split("=")[1])
+f = [math.exp(x["a"] * i / n) for i in range(n + 1)]
+open(results, "w").write(f"{(sum(f) - 0.5 * (f[0] + f[-1])) / n!r} integral\n")
+'''
+
+
+def test_verify_discretization_of_an_external_solver_through_a_template_field(tmp_path):
+    from rotoruq.evaluation.external import ExternalModel
+    from rotoruq.model import FixedInputs
+
+    solver = tmp_path / "solver.py"
+    solver.write_text(TRAPEZOID_SOLVER)
+    template = tmp_path / "solver.inp"
+    template.write_text("n_intervals = {n_intervals:.0f}\n")
+
+    def factory(n):
+        model = ExternalModel([sys.executable, "-S", str(solver)], ["a", "n_intervals"],
+                              ["integral"], workdir=tmp_path / "work",
+                              template_files=[template])
+        return FixedInputs(model, {"n_intervals": n})
+
+    res = verify_discretization(factory, [40, 20, 10], [[1.0]], ratio=2.0, formal_order=2.0)
+    assert res.names_in == ("a",)
+    assert res.observed_order[0, 0] == pytest.approx(2.0, abs=0.01)
+    assert res.extrapolated[0, 0] == pytest.approx(np.e - 1.0, rel=1e-6)
+    assert res.in_asymptotic_range.all()
+
+
+def test_verification_u_num_per_condition_feeds_validate():
+    # the verification points are the validation conditions: u_num is (n_conditions, n_resp)
+    ver = verify_discretization(_trapezoid_factory, [16, 8, 4], [[1.0], [2.0]], ratio=2.0)
+    z = _standardized(np.random.default_rng(2).standard_normal(1000))[:, None]
+    pred = [ver.values[0, c] + 0.01 * z for c in range(2)]
+    data = [np.array([[1.70], [1.74]]), np.array([[3.2], [3.18]])]
+    res = validate(pred, data, u_num=ver.u_num, u_systematic=0.005, conditions=[1.0, 2.0])
+    # two repeats differing by d: s = d / sqrt(2), s / sqrt(2) = d / 2
+    u_d = np.array([[np.hypot(0.02, 0.005)], [np.hypot(0.01, 0.005)]])
+    np.testing.assert_allclose(res.u_val, np.sqrt(ver.u_num**2 + 0.01**2 + u_d**2), rtol=1e-12)

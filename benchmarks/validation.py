@@ -12,6 +12,8 @@ lateral / longitudinal 5 / -1 / -1 deg, pitch link K_p = 10 N (the preset), per 
 * ``three_grid``: the observed order, Roache's asymptotic-range ratio and the flags from
   levels (40, 144), (20, 72), (10, 36) refined by 2 (the GCI there is the 40-station grid's;
   in the asymptotic range only if monotone with the observed order within 10 % of 2);
+* ``azimuth_only``: three-grid GCI of the production grid over azimuth steps alone
+  (36, 18, 9 steps at 10 stations): the azimuth sum's part of u_num;
 * ``reference_error``: the production model's actual error against a much finer solve
   (640 stations, 144 steps), to judge whether u_num covers it;
 * ``iteration_error``: |S(tolerance 1e-8) - S(tolerance 1e-12)| at the production grid, the
@@ -49,6 +51,9 @@ def run() -> dict:
     two = verify_discretization(factory, [0, -1], x, ratio=2.0, formal_order=ASSUMED_ORDER)
     three = verify_discretization(factory, [2, 1, 0], x, ratio=2.0,
                                   formal_order=ASSUMED_ORDER)
+    azimuth = verify_discretization(
+        rq.RotorDiscretization("gvpm", names_in=NAMES_IN, names_out=RESPONSES,
+                               refine_stations=False), [0, -1, -2], x, ratio=2.0)
     f0 = two.values[0]
     seconds = time.perf_counter() - t0
     out: dict = {"preset": "gvpm", "points": POINTS, "names_in": NAMES_IN,
@@ -73,6 +78,10 @@ def run() -> dict:
                                "oscillatory": bool(three.oscillatory[i, j]),
                                "in_asymptotic_range": bool(three.in_asymptotic_range[i, j]),
                                "u_num_40_stations": float(three.u_num[i, j])},
+                "azimuth_only": {"values_36_18_9": [float(v) for v in azimuth.values[:, i, j]],
+                                 "u_num": float(azimuth.u_num[i, j]),
+                                 "observed_order": float(azimuth.observed_order[i, j]),
+                                 "oscillatory": bool(azimuth.oscillatory[i, j])},
                 "reference_error": ref_err,
                 "reference_error_over_u_num": ref_err / u if u > 0 else None,
                 "iteration_error": float(abs(prod[i, j] - f0[i, j])),

@@ -129,6 +129,10 @@ def test_validate_rejects_bad_input_with_clear_errors():
         validate(pred, [np.ones((2, 2))], u_num=[0.1, 0.2, 0.3])
     with pytest.raises(ParameterError, match="names_out has 1 names for 2 responses"):
         validate(pred, [np.ones((2, 2))], names_out=["thrust"])
+    with pytest.raises(ParameterError, match="must be 3-D"):
+        validate(np.ones((5, 2)), [np.ones((2, 2))])
+    with pytest.raises(ParameterError, match="non-finite"):
+        validate([np.full((5, 2), np.nan)], [np.ones((2, 2))])
     with pytest.raises(ParameterError, match="coverage_factor"):
         comparison_error(1.0, 2.0, coverage_factor=0.0)
 

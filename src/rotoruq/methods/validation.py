@@ -213,8 +213,14 @@ def area_metric(samples: npt.ArrayLike, data: npt.ArrayLike) -> float:
 def _per_condition(name: str, values, n_responses: int | None) -> list[np.ndarray]:
     if isinstance(values, np.ndarray) and values.ndim == 3:
         values = list(values)
-    if isinstance(values, np.ndarray) and values.ndim == 2 and name == "data":
+    elif isinstance(values, np.ndarray) and values.ndim == 2 and name == "data":
         values = [row[None, :] for row in values]  # one repeat per condition
+    elif isinstance(values, np.ndarray):
+        raise ParameterError(
+            f"{name} as an array must be 3-D (n_conditions, n, n_responses)"
+            + (" or 2-D (n_conditions, n_responses)" if name == "data" else "")
+            + f", got shape {values.shape}; or give a list with one (n, n_responses) array "
+            "per condition")
     if not isinstance(values, (Sequence, np.ndarray)) or len(values) == 0:
         raise ParameterError(f"{name} must be a sequence with one (n, n_responses) array per "
                              "condition")
@@ -230,7 +236,8 @@ def _per_condition(name: str, values, n_responses: int | None) -> list[np.ndarra
             raise ParameterError(f"{name}[{c}] has {a.shape[1]} responses, expected "
                                  f"{n_responses}")
         if not np.isfinite(a).all():
-            raise ParameterError(f"{name}[{c}] contains non-finite values")
+            raise ParameterError(f"{name}[{c}] contains non-finite values (drop failed "
+                                 "evaluations or missing measurements before validating)")
         n_responses = a.shape[1]
         out.append(a)
     return out

@@ -106,7 +106,7 @@ def test_standard_layout_matches_dakota():
         f"{'3':>24} eval_id",
     ]
     assert format_parameters({"a": 1.0}, ["f"], metadata=["t"]).splitlines()[-2:] == [
-        f"{'1':>24} metadata", f"{'MD_1':>24} t"]
+        f"{'1':>24} metadata", f"{'t':>24} MD_1"]  # Dakota 6.24: "seconds MD_1"
 
 
 @pytest.mark.parametrize(

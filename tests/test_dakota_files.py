@@ -12,6 +12,7 @@ from rotoruq.evaluation.dakota_files import (
     format_parameters,
     format_results,
     parse_parameters,
+    parse_parameters_batch,
     parse_results,
     read_parameters,
     read_results,
@@ -285,3 +286,168 @@ def test_file_contents_use_the_names_of_models_and_compare_by_identity(tmp_path)
     np.testing.assert_array_equal(r.values, again.values)
     with pytest.raises(ParameterError, match="needs values"):
         write_results(tmp_path / "x.out")
+
+
+# --- files as Dakota 6.24 writes them (copied from its runs: analysis_components with a driver
+# string holding spaces, a label holding '=', the metadata block, a batch of two evaluations)
+
+DAKOTA_624_STANDARD = """\
+                                          2 variables
+                      1.000000000000000e+00 x1
+                      2.000000000000000e+00 P=W
+                                          2 functions
+                                          1 ASV_1:f
+                                          1 ASV_2:g=h
+                                          2 derivative_variables
+                                          1 DVV_1:x1
+                                          2 DVV_2:P=W
+                                          1 analysis_components
+                              c1 with space AC_1:/tmp/dk/drv2.sh --set a=1
+                                          1 eval_id
+                                          1 metadata
+                                    seconds MD_1
+"""
+
+DAKOTA_624_APREPRO = """\
+                    { DAKOTA_VARS     =                      2 }
+                    { x1              =  1.000000000000000e+00 }
+                    { P=W             =  2.000000000000000e+00 }
+                    { DAKOTA_FNS      =                      2 }
+                    { ASV_1:f         =                      1 }
+                    { ASV_2:g=h       =                      1 }
+                    { DAKOTA_DER_VARS =                      2 }
+                    { DVV_1:x1        =                      1 }
+                    { DVV_2:P=W       =                      2 }
+                    { DAKOTA_AN_COMPS =                      1 }
+                    { AC_1:/tmp/dk/drv2.sh --set a=1 =                      "c1 with space" }
+                    { DAKOTA_EVAL_ID  =                      1 }
+                    { DAKOTA_METADATA =                      1 }
+                    { MD_1            =                      "seconds" }
+"""
+
+
+@pytest.mark.parametrize("text", [DAKOTA_624_STANDARD, DAKOTA_624_APREPRO])
+def test_dakota_624_components_labels_with_equals_and_metadata(text):
+    p = parse_parameters(text, "params.in")
+    assert p.variables == {"x1": 1.0, "P=W": 2.0}
+    assert p.asv == {"f": 1, "g=h": 1}
+    assert p.dvv == ("x1", "P=W")
+    assert p.analysis_components == (("c1 with space", "/tmp/dk/drv2.sh --set a=1"),)
+    assert p.metadata == ("seconds",)
+
+
+def test_batch_files_hold_one_block_per_evaluation():
+    block = DAKOTA_624_STANDARD.replace("1 eval_id", "1:{} eval_id")
+    text = block.format(1) + block.format(2).replace("1.000000000000000e+00 x1", "3.5 x1")
+    with pytest.raises(InputFileError, match="parse_parameters_batch"):
+        parse_parameters(text, "params.in")
+    blocks = parse_parameters_batch(text, "params.in")
+    assert [b.eval_id for b in blocks] == ["1:1", "1:2"]
+    assert [b.variables["x1"] for b in blocks] == [1.0, 3.5]
+    assert parse_parameters_batch(DAKOTA_624_STANDARD)[0].metadata == ("seconds",)
+
+
+def test_metadata_values_come_last_in_results():
+    text = format_results([1.0, 2.0], ["f", "g"], gradients=[[1.0], [2.0]],
+                          metadata={"seconds": 0.5})
+    lines = text.splitlines()
+    assert lines[-1].split() == ["5.0000000000000000e-01", "seconds"]
+    assert lines[2].startswith("[")
+
+
+# --- the driver loop (rotoruq.evaluation.driver) on a function model: fast, exact answers
+
+
+def _make(args, names_in, names_out, fixed):
+    """f = a * b**2, g = a + b: the deck's inputs are a and b (b may be fixed by --set)."""
+    from rotoruq.model import FixedInputs, FunctionModel
+
+    def f(x):
+        return np.c_[x[:, 0] * x[:, 1] ** 2, x[:, 0] + x[:, 1]]
+
+    model = FunctionModel(f, ["a", "b"], ["f", "g"])
+    model = FixedInputs(model, fixed) if fixed else model
+    if sorted(model.names_in) != sorted(names_in):
+        raise ParameterError(f"inputs {names_in} are not {list(model.names_in)}")
+    from rotoruq.evaluation.driver import _Ordered
+
+    return _Ordered(model, names_in, names_out)
+
+
+def _drive(tmp_path, argv, **params):
+    from rotoruq.evaluation.driver import main
+
+    write_parameters(tmp_path / "p.in", **params)
+    return main([*argv, str(tmp_path / "p.in"), str(tmp_path / "r.out")], _make,
+                program="test driver", description="")
+
+
+def test_driver_options_never_swallow_the_appended_file_names(tmp_path, capsys):
+    # --set then the two names Dakota appends; --map for a renamed variable and response
+    code = _drive(tmp_path, ["--set", "b=3", "--map", "alpha=a", "--map", "F=f"],
+                  variables={"alpha": 2.0}, names_out=["F"])
+    assert code == 0
+    r = read_results(tmp_path / "r.out", names_out=["F"])
+    assert r.values.tolist() == [18.0] and r.names_out == ("F",)
+    # --outputs (one value, comma list) in place of the deck's labels
+    code = _drive(tmp_path, ["--outputs", "g,f"], variables={"b": 3.0, "a": 2.0},
+                  names_out=["y1", "y2"])
+    assert code == 0 and read_results(tmp_path / "r.out").values.tolist() == [5.0, 18.0]
+
+
+@pytest.mark.parametrize("argv, params, words", [
+    (["--set", "b"], {"variables": {"a": 1.0}}, "--set expects NAME=VALUE"),
+    (["--set", "b=x"], {"variables": {"a": 1.0}}, "is not a number"),
+    (["--bogus"], {"variables": {"a": 1.0, "b": 1.0}}, "unrecognized arguments"),
+    (["--set", "b=1"], {"variables": {"a": 1.0, "b": 1.0}}, "the parameters file sets it"),
+    (["--map", "c=a"], {"variables": {"a": 1.0, "b": 1.0}}, "neither variables"),
+    (["--outputs", "f,g"], {"variables": {"a": 1.0, "b": 1.0}}, "2 outputs"),
+    ([], {"variables": {"a": 1.0, "c": 1.0}}, "inputs ['a', 'c']"),
+    ([], {"variables": {"a": 1.0, "b": 1.0}, "names_out": {"f": 5}}, "Hessians"),
+    ([], {"variables": {"a": 1.0, "b": 1.0}, "metadata": ["memory"]}, "metadata ['memory']"),
+])
+def test_every_driver_failure_writes_fail_and_says_why(tmp_path, capsys, argv, params, words):
+    params.setdefault("names_out", ["f"])
+    code = _drive(tmp_path, argv, **params)
+    assert code in (1, 2)
+    assert words in capsys.readouterr().err
+    assert read_results(tmp_path / "r.out").failed
+
+
+def test_driver_asv_values_gradients_and_metadata(tmp_path):
+    # f = a b^2: df/da = b^2 = 9, df/db = 2 a b = 12; g = a + b (value only)
+    code = _drive(tmp_path, [], variables={"a": 2.0, "b": 3.0}, names_out={"f": 3, "g": 1},
+                  dvv=["b", "a"], metadata=["seconds"])
+    assert code == 0
+    text = (tmp_path / "r.out").read_text()
+    r = parse_results(text.rsplit("\n", 2)[0], names_out=["f", "g"], asv=[3, 1], n_dvv=2)
+    np.testing.assert_allclose(r.values, [18.0, 5.0], rtol=0)
+    # central differences with the project's FD step: error ~ h^2 and round-off, < 1e-8
+    np.testing.assert_allclose(r.gradients, [[12.0, 9.0]], rtol=1e-8)
+    assert text.splitlines()[-1].split()[1] == "seconds"
+    # ASV 0: nothing asked, nothing written
+    assert _drive(tmp_path, [], variables={"a": 2.0, "b": 3.0}, names_out={"f": 0}) == 0
+    assert (tmp_path / "r.out").read_text() == ""
+
+
+def test_driver_batch_fails_only_the_bad_block(tmp_path, capsys):
+    from rotoruq.evaluation.driver import main
+
+    one = format_parameters({"a": 2.0, "b": 3.0}, ["f"], eval_id="1:1")
+    bad = format_parameters({"a": 2.0, "b": float("inf")}, ["f"], eval_id="1:2")
+    (tmp_path / "p.in").write_text(one + bad + one.replace("1:1 eval_id", "1:3 eval_id"))
+    assert main([str(tmp_path / "p.in"), str(tmp_path / "r.out")], _make, program="t",
+                description="") == 1
+    blocks = (tmp_path / "r.out").read_text().split("#\n")
+    assert [parse_results(b).failed for b in blocks] == [False, True, False]
+    assert parse_results(blocks[2]).values.tolist() == [18.0]
+    assert "evaluation 1:2 failed" in capsys.readouterr().err
+
+
+def test_named_pairs_split_at_the_last_equals_sign():
+    from rotoruq.evaluation.driver import ArgumentError, named_pairs
+
+    assert named_pairs(["P=W=power", "x=y"], "--map") == {"P=W": "power", "x": "y"}
+    assert named_pairs(["omega=-2.5e1"], "--set", number=True) == {"omega": -25.0}
+    with pytest.raises(ArgumentError, match="names 'x' twice"):
+        named_pairs(["x=1", "x=2"], "--map")

@@ -451,3 +451,30 @@ def test_named_pairs_split_at_the_last_equals_sign():
     assert named_pairs(["omega=-2.5e1"], "--set", number=True) == {"omega": -25.0}
     with pytest.raises(ArgumentError, match="names 'x' twice"):
         named_pairs(["x=1", "x=2"], "--map")
+
+
+def test_rotoruq_driver_loads_only_the_evaluation_layer_and_the_rotor(tmp_path):
+    """The lean path: one evaluation of ``rotoruq driver`` (what Dakota runs per point) loads
+    the evaluation layer and the rotor model, never the study's step types, the report, the
+    methods, the results layer or scipy.stats."""
+    import subprocess
+    import sys
+
+    write_parameters(tmp_path / "params.in", {"collective_deg": 8.0}, ["thrust"])
+    probe = ("import runpy, sys\n"
+             "sys.argv = ['rotoruq', 'driver', 'params.in', 'results.out']\n"
+             "try:\n    runpy.run_module('rotoruq.study.cli', run_name='__main__')\n"
+             "except SystemExit as e:\n    assert not e.code, e.code\n"
+             "print(' '.join(sorted(sys.modules)))\n")
+    out = subprocess.run([sys.executable, "-c", probe], cwd=tmp_path, capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    loaded = set(out.stdout.split())
+    assert not read_results(tmp_path / "results.out").failed
+    assert "rotoruq.rotor.model" in loaded and "rotoruq.evaluation.driver" in loaded
+    ours = {m for m in loaded if m.startswith("rotoruq.")}
+    unwanted = sorted(m for m in ours if m.split(".")[1] in ("methods", "report", "results")
+                      or (m.startswith("rotoruq.study.")
+                          and m not in ("rotoruq.study.cli", "rotoruq.study.cmd_driver")))
+    assert not unwanted, f"the driver loads {unwanted}"
+    assert "scipy.stats" not in loaded

@@ -478,3 +478,126 @@ def test_rotoruq_driver_loads_only_the_evaluation_layer_and_the_rotor(tmp_path):
                           and m not in ("rotoruq.study.cli", "rotoruq.study.cmd_driver")))
     assert not unwanted, f"the driver loads {unwanted}"
     assert "scipy.stats" not in loaded
+
+
+# --- tabular files: the layouts Dakota 6.24 writes (copied from its runs), our export
+
+TAB_ANNOTATED = """\
+%eval_id interface x1             P=W            f              g
+1        NO_ID      1              2              1              2
+2        NO_ID      3              4e-300         1              2
+"""
+TAB_CUSTOM_HEADER_ID = """\
+%eval_id x1             P=W            f              g
+1        1              2              1              2
+2        3              4e-300         1              2
+"""
+TAB_CUSTOM_ID = """\
+1                     1              2              1              2
+2                     3         4e-300              1              2
+"""
+TAB_FREEFORM = """\
+             1              2              1              2
+             3         4e-300              1              2
+"""
+NAMES = ["x1", "P=W", "f", "g"]
+
+
+@pytest.mark.parametrize("text, layout, names, ids, iface", [
+    (TAB_ANNOTATED, "annotated", None, [1, 2], ("NO_ID", "NO_ID")),
+    (TAB_CUSTOM_HEADER_ID, "custom_annotated", None, [1, 2], None),
+    (TAB_CUSTOM_ID, "custom_annotated", NAMES, [1, 2], None),
+    (TAB_FREEFORM, "freeform", NAMES, None, None),
+])
+def test_read_dakota_tabular_layouts(text, layout, names, ids, iface):
+    from rotoruq.evaluation.tabular import parse_tabular
+
+    t = parse_tabular(text, "t.dat", names=names)
+    assert t.names == tuple(NAMES) and t.layout == layout and len(t) == 2
+    np.testing.assert_array_equal(t.values, [[1, 2, 1, 2], [3, 4e-300, 1, 2]])
+    assert (None if t.eval_id is None else t.eval_id.tolist()) == ids
+    assert t.interface == iface
+    np.testing.assert_array_equal(t["P=W"], [2, 4e-300])
+
+
+@pytest.mark.parametrize("text, names, line, words", [
+    (TAB_ANNOTATED.replace("4e-300         1", "4e-300"), None, 3, "6 columns"),
+    (TAB_ANNOTATED.replace("4e-300", "4x-300"), None, 3, "a number in column 'P=W'"),
+    (TAB_ANNOTATED.replace("2        NO_ID", "2.5      NO_ID"), None, 3, "integer eval_id"),
+    (TAB_FREEFORM, None, 1, "a '%' header"),
+    (TAB_ANNOTATED, ["x1", "f"], 1, "the columns"),
+    ("", None, None, "an empty file"),
+])
+def test_malformed_tabular_files_name_file_and_line(text, names, line, words):
+    from rotoruq.evaluation.tabular import parse_tabular
+
+    with pytest.raises(InputFileError) as err:
+        parse_tabular(text, "t.dat", names=names)
+    assert err.value.line == line and words in str(err.value) and "t.dat" in str(err.value)
+
+
+def _study_folder(tmp_path):
+    """A study output folder: study.json with a fixed input, a store with two models."""
+    from rotoruq.evaluation.store import NewRecord, Store
+    from rotoruq.results import save_study_info
+
+    out = tmp_path / "run"
+    out.mkdir()
+    save_study_info(out, {"name": "s", "model": {"fixed": {"omega": 230.0}}})
+    store = Store(out / "evaluations.sqlite")
+    x = np.array([[5.0, 1.1], [6.0, 1.2]])
+    store.add([NewRecord(r, np.array([r[0] * 10, r[1] + 1])) for r in x], study="s",
+              model="m1", names_in=["collective_deg", "rho"], names_out=["thrust", "torque"])
+    store.add([NewRecord(np.array([1.0, 1.0]), None, status="failed")], study="s", model="m1",
+              names_in=["collective_deg", "rho"], names_out=["thrust", "torque"])
+    store.add([NewRecord(np.array([7.0]), np.array([1.0]))], study="s", model="m2",
+              names_in=["k_flap"], names_out=["thrust"])
+    store.close()
+    return out, x
+
+
+def test_export_columns_fixed_inputs_only_and_interface(tmp_path, capsys):
+    from rotoruq.evaluation.tabular import read_tabular
+    from rotoruq.study.cli import main
+
+    out, x = _study_folder(tmp_path)
+    dat = tmp_path / "t.dat"
+    # two models in the store: the error lists them, --inputs picks one
+    assert main(["export", str(out), "--dakota-tabular", str(dat)]) == 1
+    assert "inputs collective_deg,rho -> thrust,torque" in capsys.readouterr().err
+    assert main(["export", str(out), "--dakota-tabular", str(dat),
+                 "--inputs", "rho,collective_deg"]) == 0
+    t = read_tabular(dat)
+    assert t.names == ("collective_deg", "rho", "omega", "thrust", "torque")
+    np.testing.assert_array_equal(t.columns(["collective_deg", "rho"]), x)
+    np.testing.assert_array_equal(t["omega"], [230.0, 230.0])
+    np.testing.assert_array_equal(t["thrust"], x[:, 0] * 10)
+    assert t.eval_id.tolist() == [1, 2] and t.interface == ("NO_ID", "NO_ID")
+    # the deck's order, inputs only, an interface id of our own
+    assert main(["export", str(out), "--dakota-tabular", str(dat), "--inputs",
+                 "collective_deg,rho", "--columns", "omega,rho,collective_deg",
+                 "--inputs-only", "--interface", "rotor"]) == 0
+    t = read_tabular(dat)
+    assert t.names == ("omega", "rho", "collective_deg") and t.interface == ("rotor",) * 2
+    np.testing.assert_array_equal(t.values[:, 1:], x[:, ::-1])
+    # failed evaluations on request; an unknown column is an error naming the choices
+    assert main(["export", str(out / "evaluations.sqlite"), "--dakota-tabular", str(dat),
+                 "--inputs", "collective_deg,rho", "--include-failed"]) == 0
+    assert np.isnan(read_tabular(dat)["thrust"][2])
+    assert main(["export", str(out), "--dakota-tabular", str(dat), "--inputs",
+                 "collective_deg,rho", "--columns", "theta"]) == 1
+    assert "columns ['theta'] are neither inputs" in capsys.readouterr().err
+
+
+def test_tabular_write_read_round_trip_is_exact(tmp_path):
+    from rotoruq.evaluation.tabular import read_tabular, write_tabular
+
+    rng = np.random.default_rng(3)
+    v = rng.normal(size=(5, 3)) * 10.0 ** rng.integers(-300, 300, size=(5, 3))
+    for layout in ("annotated", "custom_annotated", "freeform"):
+        # custom_annotated: header and eval_id, no interface column
+        p = write_tabular(tmp_path / f"{layout}.dat", ["a", "b=c", "d"], v, layout=layout,
+                          interface=None if layout == "custom_annotated" else "NO_ID")
+        t = read_tabular(p, names=None if layout != "freeform" else ["a", "b=c", "d"])
+        np.testing.assert_array_equal(t.values, v)
+        assert t.layout == layout

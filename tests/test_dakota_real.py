@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from rotoruq.evaluation.dakota_files import read_results, write_parameters
-from rotoruq.evaluation.tabular import read_tabular, write_tabular
+from rotoruq.evaluation.tabular import read_tabular
 from rotoruq.model import evaluate, model_gradient
 
 DAKOTA = shutil.which("dakota")
@@ -199,14 +199,24 @@ def test_mbdyn_driver_fails_into_dakota_recover(tmp_path):
 
 
 def test_tabular_files_both_ways(tmp_path):
-    """We write an annotated points file (columns in an order of our own); Dakota imports it
-    in a list parameter study, evaluates it through the driver and writes its tabular file;
-    we read that back: same points, responses equal to the Python API."""
-    pts = np.array([[1.2, 7.0], [1.1, 8.5]])
-    write_tabular(tmp_path / "points.dat", ["rho", "collective_deg"], pts)
+    """``rotoruq export --inputs-only --columns`` writes a store's points in the deck's order
+    (the store holds them the other way round); Dakota imports them in a list parameter study,
+    evaluates them through the driver and writes its tabular file; we read that back: same
+    points, responses equal to the Python API."""
+    from rotoruq.evaluation.store import NewRecord, Store
+    from rotoruq.study.cli import main
+
+    pts = np.array([[1.2, 7.0], [1.1, 8.5]])  # (rho, collective_deg), as stored
+    store = Store(tmp_path / "evaluations.sqlite")
+    store.add([NewRecord(p, np.array([0.0])) for p in pts], study="s", model="m",
+              names_in=["rho", "collective_deg"], names_out=["thrust"])
+    store.close()
+    assert main(["export", str(tmp_path / "evaluations.sqlite"), "--dakota-tabular",
+                 str(tmp_path / "points.dat"), "--columns", "collective_deg,rho",
+                 "--inputs-only"]) == 0
     text = deck(
         method="  list_parameter_study\n    import_points_file = 'points.dat' annotated",
-        variables="  continuous_design = 2\n    descriptors = 'rho' 'collective_deg'",
+        variables="  continuous_design = 2\n    descriptors = 'collective_deg' 'rho'",
         driver=f"{ROTORUQ} driver",
         responses="  response_functions = 1\n    descriptors = 'thrust'\n"
                   "  no_gradients\n  no_hessians")

@@ -25,7 +25,7 @@ malformed row raises :class:`~rotoruq.errors.InputFileError` naming the file and
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -33,8 +33,10 @@ import numpy as np
 
 from ..errors import InputFileError, ParameterError
 from .dakota_files import check_label, read_text
+from .store import Store
 
-__all__ = ["TabularData", "read_tabular", "write_tabular", "LAYOUTS"]
+__all__ = ["TabularData", "read_tabular", "parse_tabular", "format_tabular", "write_tabular",
+           "export_store", "LAYOUTS"]
 
 #: the layouts of Dakota's tabular files
 LAYOUTS = ("annotated", "custom_annotated", "freeform")
@@ -143,6 +145,15 @@ def parse_tabular(text: str, path: str | os.PathLike | None = None, *,
                        layout)
 
 
+def _column_name(name) -> str:
+    """A column label: a word (Dakota splits on white space; labels like ``P=W`` are fine)."""
+    if (not isinstance(name, str) or not name or name.startswith("%")
+            or any(c.isspace() or not c.isprintable() for c in name)):
+        raise ParameterError(f"column name {name!r} must be a non-empty word without white "
+                             "space or control characters, not starting with '%'")
+    return name
+
+
 def _is_number(word: str) -> bool:
     try:
         float(word)
@@ -184,7 +195,7 @@ def format_tabular(names: Sequence[str], values: np.ndarray, *, layout: str = "a
     """Text of a tabular file (see :func:`write_tabular`)."""
     if layout not in LAYOUTS:
         raise ParameterError(f"layout must be one of {LAYOUTS}, got {layout!r}")
-    names = [check_label(n, "column name") for n in names]
+    names = [_column_name(n) for n in names]
     if len(set(names)) < len(names):
         raise ParameterError(f"column names must be distinct, got {names}")
     values = np.atleast_2d(np.asarray(values, dtype=float))
@@ -201,6 +212,9 @@ def format_tabular(names: Sequence[str], values: np.ndarray, *, layout: str = "a
         eval_id = True if eval_id is None else eval_id
     if interface is not None:
         check_label(interface, "interface id")
+        if _is_number(interface):
+            raise ParameterError(f"interface id {interface!r} looks like a number; Dakota "
+                                 "could not tell it from a value")
     cols = (["eval_id"] if eval_id else []) + (["interface"] if interface else []) + names
     out = []
     if header:
@@ -246,3 +260,91 @@ def write_tabular(path: str | os.PathLike, names: Sequence[str], values: np.ndar
     tmp.write_text(text)
     tmp.replace(path)
     return path
+
+
+def export_store(store: Store | str | os.PathLike, path: str | os.PathLike, *,
+                 columns: Sequence[str] | None = None, fixed: Mapping[str, float] | None = None,
+                 inputs_only: bool = False, interface: str | None = "NO_ID",
+                 layout: str = "annotated", study: str | None = None,
+                 inputs: Sequence[str] | None = None, include_failed: bool = False) -> Path:
+    """Write a store's evaluations as a Dakota tabular file, columns named and ordered.
+
+    Dakota reads a points file by position, so the columns must be in the order of the deck's
+    variables: ``columns`` gives it.
+
+    Parameters
+    ----------
+    store : a :class:`~rotoruq.evaluation.store.Store` or the path of its file.
+    path : the tabular file to write.
+    columns : input (and optionally response) names in the order wanted; inputs left out are
+        not written. Default: the model's input order (the stored inputs, then ``fixed``).
+        Responses not named follow the inputs in the stored order (none with
+        ``inputs_only``).
+    fixed : inputs held fixed in the run (e.g. a study's ``[model] fixed``): written as
+        constant columns.
+    inputs_only : write no response column (a points file for ``import_points_file``).
+    interface : the interface id of the rows (``NO_ID`` is Dakota's default; None for none).
+    layout : "annotated", "custom_annotated" or "freeform" (see :func:`write_tabular`).
+    study : only the evaluations of this study name.
+    inputs : the input names of the evaluations to export, when the store holds evaluations
+        of several models (the error lists them).
+    include_failed : failed evaluations as rows of ``nan`` responses (default: left out).
+
+    Returns
+    -------
+    Path
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> import numpy as np
+    >>> from rotoruq.evaluation.store import NewRecord, Store
+    >>> d = Path(tempfile.mkdtemp())
+    >>> s = Store(d / "e.sqlite")
+    >>> _ = s.add([NewRecord(np.array([1.0, 2.0]), np.array([3.0]))], study="s", model="m",
+    ...           names_in=["a", "b"], names_out=["f"])
+    >>> p = export_store(s, d / "t.dat", columns=["b", "c", "a"], fixed={"c": 9.0})
+    >>> read_tabular(p).names, read_tabular(p).values.tolist()
+    (('b', 'c', 'a', 'f'), [[2.0, 9.0, 1.0, 3.0]])
+    """
+    st = store if isinstance(store, Store) else Store(store)
+    recs = st.records(study=study)
+    if not include_failed:
+        recs = [r for r in recs if r.outputs is not None and r.status != "failed"]
+    groups: dict[tuple, list] = {}
+    for r in recs:
+        groups.setdefault((r.names_in, r.names_out), []).append(r)
+    if inputs is not None:
+        groups = {k: v for k, v in groups.items() if sorted(k[0]) == sorted(inputs)}
+    where = f" of study {study!r}" if study else ""
+    if not groups:
+        raise ParameterError(f"no evaluations{where} to export from {st.path}"
+                             + (f" with inputs {list(inputs)}" if inputs is not None else ""))
+    if len(groups) > 1:
+        listing = "; ".join(f"{len(v)} with inputs {','.join(k[0])} -> {','.join(k[1])}"
+                            for k, v in groups.items())
+        raise ParameterError(f"the store holds evaluations of several models ({listing}): "
+                             "choose one by its inputs")
+    (names_in, names_out), rows = next(iter(groups.items()))
+    fixed = {str(k): float(v) for k, v in (fixed or {}).items() if k not in names_in}
+    table: dict[str, np.ndarray] = {n: np.array([r.inputs[i] for r in rows])
+                                    for i, n in enumerate(names_in)}
+    table.update({k: np.full(len(rows), v) for k, v in fixed.items()})
+    outs = {n: np.array([np.nan if r.outputs is None else r.outputs[j] for r in rows])
+            for j, n in enumerate(names_out)}
+    all_inputs = list(names_in) + list(fixed)
+    if columns is None:
+        cols = all_inputs
+    else:
+        cols = list(columns)
+        unknown = [c for c in cols if c not in table and c not in outs]
+        if unknown:
+            raise ParameterError(f"columns {unknown} are neither inputs {all_inputs} nor "
+                                 f"responses {list(names_out)} of the stored evaluations")
+        if inputs_only and any(c in outs for c in cols):
+            raise ParameterError(f"inputs_only, but the columns {cols} name responses")
+    if not inputs_only and not any(c in outs for c in cols):
+        cols += list(names_out)
+    data = np.column_stack([table[c] if c in table else outs[c] for c in cols])
+    return write_tabular(path, cols, data, layout=layout, interface=interface)

@@ -17,7 +17,7 @@ import threading
 from ..errors import RotoruqError
 
 # Order in which subcommands are listed by --help.
-COMMANDS = ("reproduce", "run", "report", "show", "evaluate", "airfoil", "driver")
+COMMANDS = ("reproduce", "run", "report", "show", "evaluate", "airfoil", "driver", "export")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -198,6 +198,43 @@ def test_mbdyn_driver_fails_into_dakota_recover(tmp_path):
     assert read_tabular(tmp_path / "tabular.dat")["thrust"].tolist() == [7.0]
 
 
+def _mbdyn() -> str | None:
+    from rotoruq.mbdyn import MBDynNotFoundError, find_mbdyn
+
+    try:
+        return str(find_mbdyn())
+    except MBDynNotFoundError:
+        default = Path.home() / ".cache" / "mbdyn" / "bin" / "mbdyn"
+        return str(default) if default.is_file() and os.access(default, os.X_OK) else None
+
+
+MBDYN = _mbdyn()
+
+
+@pytest.mark.mbdyn
+@pytest.mark.skipif(MBDYN is None, reason="MBDyn not available: build it with "
+                    "shared/tools/build-mbdyn and set MBDYN (CI does both)")
+def test_mbdyn_driver_through_dakota_equals_external_model(tmp_path):
+    """Two MBDyn cases through Dakota (a renamed variable) and through rq.ExternalModel with
+    the same driver: the same loads (Dakota's tabular file holds 16 significant digits)."""
+    from rotoruq.evaluation.external import ExternalModel
+
+    x = np.array([[5.4], [7.0]])
+    words = [*MBDYN_DRIVER.split(), "--mbdyn", str(MBDYN), "--revolutions", "8"]
+    text = deck(
+        method="  list_parameter_study\n    list_of_points = 5.4 7.0",
+        variables="  continuous_design = 1\n    descriptors = 'theta'",
+        driver=" ".join(words + ["--map", "theta=collective_deg"]),
+        responses="  response_functions = 2\n    descriptors = 'thrust' 'torque'\n"
+                  "  no_gradients\n  no_hessians")
+    run_dakota(tmp_path / "dakota", text)
+    tab = read_tabular(tmp_path / "dakota" / "tabular.dat")
+    ext = ExternalModel(words, ["collective_deg"], ["thrust", "torque"],
+                        workdir=tmp_path / "ext", timeout=600).evaluate(x)
+    assert not ext.failures, ext.failures
+    np.testing.assert_allclose(tab.columns(["thrust", "torque"]), ext.values, rtol=1e-15)
+
+
 def test_tabular_files_both_ways(tmp_path):
     """``rotoruq export --inputs-only --columns`` writes a store's points in the deck's order
     (the store holds them the other way round); Dakota imports them in a list parameter study,

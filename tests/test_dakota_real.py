@@ -39,7 +39,7 @@ def rotor(names_in, names_out, fixed=None):
 
 
 def deck(*, method: str, variables: str, driver: str, responses: str, interface: str = "",
-         tabular: str = "tabular.dat") -> str:
+         tabular: str = "tabular.dat", interface_id: str = "") -> str:
     return f"""
 environment
   tabular_data
@@ -50,6 +50,7 @@ method
 variables
 {variables}
 interface
+{f"  id_interface = '{interface_id}'" if interface_id else ""}
   fork
     analysis_drivers = '{driver}'
     parameters_file = 'params.in'
@@ -95,10 +96,12 @@ def test_deck_with_renamed_variables_set_components_metadata_and_tags(tmp_path, 
                    "    work_directory named 'wd' directory_tag directory_save\n"
                    + ("    aprepro\n" if fmt == "aprepro" else "")),
         responses="  response_functions = 2\n    descriptors = 'T' 'power'\n"
-                  "  metadata 'seconds'\n  no_gradients\n  no_hessians")
+                  "  metadata 'seconds'\n  no_gradients\n  no_hessians",
+        interface_id="rotor_if")
     run_dakota(tmp_path, text)
     tab = read_tabular(tmp_path / "tabular.dat")
     assert tab.names == ("theta_0", "h_r", "T", "power") and tab.layout == "annotated"
+    assert tab.interface == ("rotor_if", "rotor_if")
     np.testing.assert_array_equal(tab.columns(["theta_0", "h_r"]), POINTS)
     expected = evaluate(rotor(["collective_deg", "height_over_radius"], ["thrust", "power"],
                               {"omega": omega}), POINTS)

@@ -359,12 +359,13 @@ def run_model(params: str | Path, results: str | Path, model: Model,
 
 def main(argv: Sequence[str] | None, make_model: MakeModel, *, program: str,
          description: str, add_model_arguments: Callable[[argparse.ArgumentParser], None]
-         | None = None) -> int:
+         | None = None, prog: str | None = None) -> int:
     """Parse a driver's command line and :func:`run` it; a command line that does not parse
     still writes ``FAIL`` when the results file can be told (the last word, after an existing
-    parameters file), and returns 2."""
+    parameters file), and returns 2. ``program`` prefixes messages, ``prog`` (default
+    ``program``) is the command shown in the usage line."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    parser = _Parser(prog=program, description=description)
+    parser = _Parser(prog=prog or program, description=description)
     add_arguments(parser)
     if add_model_arguments is not None:
         add_model_arguments(parser)

@@ -125,8 +125,9 @@ def _make_model(args: argparse.Namespace, names_in: list[str], names_out: list[s
 
 
 def main(argv: list[str] | None = None) -> int:
-    return _driver.main(argv, _make_model, program=PROGRAM,
-                        description=build_parser().description or "",
+    parser = build_parser()
+    return _driver.main(argv, _make_model, program=PROGRAM, prog=parser.prog,
+                        description=parser.description or "",
                         add_model_arguments=_model_arguments)
 
 

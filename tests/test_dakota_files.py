@@ -601,3 +601,40 @@ def test_tabular_write_read_round_trip_is_exact(tmp_path):
         t = read_tabular(p, names=None if layout != "freeform" else ["a", "b=c", "d"])
         np.testing.assert_array_equal(t.values, v)
         assert t.layout == layout
+
+
+def test_driver_batch_with_mixed_asv(tmp_path):
+    """One block asks values and gradients, one only values, in aprepro: every gradient comes
+    from one batched finite-difference call, values are exact."""
+    from rotoruq.evaluation.driver import main
+
+    a = format_parameters({"a": 2.0, "b": 3.0}, {"f": 3, "g": 2}, eval_id="4:1",
+                          format="aprepro")
+    b = format_parameters({"a": 1.0, "b": 0.5}, {"f": 1, "g": 1}, eval_id="4:2",
+                          format="aprepro")
+    (tmp_path / "p.in").write_text(a + b)
+    assert main([str(tmp_path / "p.in"), str(tmp_path / "r.out")], _make, program="t",
+                description="") == 0
+    first, second = (tmp_path / "r.out").read_text().split("#\n")
+    r1 = parse_results(first, names_out=["f", "g"], asv=[3, 2], n_dvv=2)
+    assert r1.values.tolist() == [18.0]
+    np.testing.assert_allclose(r1.gradients, [[9.0, 12.0], [1.0, 1.0]], rtol=1e-8)
+    assert parse_results(second, names_out=["f", "g"]).values.tolist() == [0.25, 1.5]
+
+
+def test_mbdyn_driver_honours_the_asv_without_running_mbdyn(tmp_path, monkeypatch, capsys):
+    """ASV 0 asks nothing (no MBDyn run, an empty results file); Hessians are refused with
+    FAIL before MBDyn is looked for; a response MBDyn does not compute is a FAIL too."""
+    from rotoruq.mbdyn.driver import main
+
+    monkeypatch.chdir(tmp_path)
+    missing = str(tmp_path / "no-mbdyn")
+    write_parameters("p.in", {"collective_deg": 5.0}, {"thrust": 0})
+    assert main(["--mbdyn", missing, "p.in", "r.out"]) == 0
+    assert (tmp_path / "r.out").read_text() == ""
+    write_parameters("p.in", {"collective_deg": 5.0}, {"thrust": 4})
+    assert main(["--mbdyn", missing, "p.in", "r.out"]) == 1
+    assert read_results("r.out").failed and "Hessians" in capsys.readouterr().err
+    write_parameters("p.in", {"collective_deg": 5.0}, ["lift"])
+    assert main(["--mbdyn", missing, "p.in", "r.out"]) == 1
+    assert read_results("r.out").failed and "not MBDyn hub loads" in capsys.readouterr().err

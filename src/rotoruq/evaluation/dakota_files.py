@@ -63,7 +63,9 @@ __all__ = [
     "ResultsFile",
     "format_parameters",
     "parse_parameters",
+    "parse_parameters_batch",
     "read_parameters",
+    "read_parameters_batch",
     "write_parameters",
     "format_results",
     "parse_results",
@@ -284,7 +286,7 @@ def format_parameters(
     lines.append((str(eval_id), "eval_id"))
     if metadata is not None:
         lines.append((str(len(metadata)), "metadata"))
-        lines += [(f"MD_{i}", str(m)) for i, m in enumerate(metadata, 1)]
+        lines += [(str(m), f"MD_{i}") for i, m in enumerate(metadata, 1)]  # "seconds MD_1"
     if format == "standard":
         return "".join(f"{v:>{_WIDTH}} {t}\n" for v, t in lines)
     header = {
@@ -299,8 +301,8 @@ def format_parameters(
     for v, t in lines:
         if t.startswith("AC_"):
             v = f'"{v}"'
-        if v.startswith("MD_"):  # metadata: { MD_i = "label" }
-            t, v = v, f'"{t}"'
+        if t.startswith("MD_"):  # metadata: { MD_i = "label" }
+            v = f'"{v}"'
         out.append(f"{'':20}{{ {header.get(t, t):<15} = {v:>{_WIDTH}} }}\n")
     return "".join(out)
 
@@ -318,14 +320,43 @@ def write_parameters(
 
 
 def _aprepro_line(line: str) -> tuple[str, str] | None:
-    """``(tag, value)`` of a stripped ``{ tag = value }`` line, or None."""
+    """``(tag, value)`` of a stripped ``{ tag = value }`` line, or None.
+
+    Dakota writes labels as they are, so a tag may hold ``=`` (``{ P=W = 1.5 }``) and, for an
+    analysis component, spaces (``{ AC_1:driver --opt = "comp" }``): the value is the quoted
+    string at the end, else the word after the last ``=``.
+    """
     if len(line) < 2 or line[0] != "{" or line[-1] != "}":
         return None
-    tag, eq, value = line[1:-1].partition("=")
+    body = line[1:-1].strip()
+    if body.endswith('"') and len(body) >= 2:
+        start = body.rfind('"', 0, len(body) - 1)
+        if start < 0:
+            return None
+        tag, eq, value = body[:start].rstrip(), "=", body[start:]
+        if not tag.endswith("="):
+            return None
+        tag = tag[:-1]
+    else:
+        tag, eq, value = body.rpartition("=")
     tag, value = tag.strip(), value.strip()
-    if not eq or not tag or any(c.isspace() for c in tag):
+    if not eq or not tag or not value:
+        return None
+    if any(c.isspace() for c in tag) and not tag.startswith("AC_"):
         return None
     return tag, value
+
+
+def _component_split(line: str) -> tuple[str, str] | None:
+    """``(component, tag)`` of a standard-format analysis component line, where both sides
+    may hold spaces: ``c1 with space AC_1:driver --set a=1`` (Dakota 6.24 writes it so)."""
+    k = line.find(" AC_")
+    while k >= 0:
+        head, colon, _ = line[k + 1 :].partition(":")
+        if colon and _digits(head[3:]):
+            return line[:k].strip(), line[k + 1 :]
+        k = line.find(" AC_", k + 1)
+    return None
 
 
 def _pairs(text: str, path) -> tuple[str, list[tuple[int, str, str]]]:
@@ -349,7 +380,10 @@ def _pairs(text: str, path) -> tuple[str, list[tuple[int, str, str]]]:
         fmt = "standard"
         parts = line.split()
         if len(parts) != 2:
-            raise InputFileError(path, lineno, "a 'value tag' pair", raw)
+            comp = _component_split(line)
+            if comp is None:
+                raise InputFileError(path, lineno, "a 'value tag' pair", raw)
+            parts = list(comp)
         rows.append((lineno, parts[0], parts[1]))
     if fmt is None:
         raise InputFileError(path, None, "a Dakota parameters file", "an empty file")
@@ -389,15 +423,14 @@ def _indexed_tag(tag: str, prefix: str) -> str | None:
     return label if _digits(head[len(prefix) + 1 :]) else None
 
 
-def parse_parameters(text: str, path: str | os.PathLike | None = None) -> ParametersFile:
-    """Parse the text of a parameters file (standard or aprepro format, detected)."""
+def _parse_blocks(text: str, path) -> list[ParametersFile]:
+    """Every parameters block of a file: one, or several for Dakota's ``batch`` interface
+    (blocks follow each other, each from ``<n> variables`` to its ``eval_id`` and metadata)."""
     fmt, rows = _pairs(text, path)
     if fmt == "aprepro":
-        # rename the block headers; metadata items { MD_i = "label" } become (MD_i, label)
-        rows = [
-            (ln, t, v) if t.startswith("MD_") else (ln, v, _APREPRO_HEAD.get(t, t))
-            for ln, v, t in rows
-        ]
+        # block headers renamed; metadata items { MD_i = "label" } become (label, MD_i) as in
+        # the standard format ("seconds MD_1")
+        rows = [(ln, v, _APREPRO_HEAD.get(t, t)) for ln, v, t in rows]
     pos = 0
 
     def block(tag: str, expected_item: str) -> list[tuple[int, str, str]]:
@@ -414,54 +447,101 @@ def parse_parameters(text: str, path: str | os.PathLike | None = None) -> Parame
         pos += 1 + n
         return items
 
-    variables: dict[str, float | int | str] = {}
-    for ln, v, t in block("variables", "variable"):
-        if t in variables:
-            raise InputFileError(path, ln, f"a new variable label (duplicate {t!r})", t)
-        if _is_fortran(v):
-            _number(v, path, ln, "a variable value")
-        try:
-            variables[t] = _number(v, path, ln, "a number")
-        except InputFileError:
-            variables[t] = v  # string variable
-    asv: dict[str, int] = {}
-    for ln, v, t in block("functions", "ASV"):
-        label, code = _indexed_tag(t, "ASV"), _small_int(v)
-        if label is None or code is None or not 0 <= code <= 7:
-            raise InputFileError(path, ln, "'<code 0-7> ASV_i:label'", f"{v} {t}")
-        asv[label] = code
-    dvv = []
-    names = list(variables)
-    for ln, v, t in block("derivative_variables", "DVV"):
-        label, idx = _indexed_tag(t, "DVV"), _small_int(v)
-        if label is None or idx is None:
-            raise InputFileError(path, ln, "'<variable id> DVV_i:label'", f"{v} {t}")
-        if label not in variables:
-            if not 1 <= idx <= len(names):
-                raise InputFileError(path, ln, "a derivative variable among the variables", t)
-            label = names[idx - 1]
-        dvv.append(label)
-    comps = []
-    for ln, v, t in block("analysis_components", "AC"):
-        label = _indexed_tag(t, "AC")
-        if label is None:
-            raise InputFileError(path, ln, "'<component> AC_i:driver'", f"{v} {t}")
-        comps.append((v, label))
-    if pos >= len(rows) or rows[pos][2] != "eval_id":
-        found = "end of file" if pos >= len(rows) else f"{rows[pos][1]} {rows[pos][2]}"
-        raise InputFileError(path, rows[pos][0] if pos < len(rows) else None,
-                             "'<id> eval_id'", found)
-    ln, eval_id, _ = rows[pos]
-    if not all(_digits(part) for part in eval_id.split(":")):
-        raise InputFileError(path, ln, "an evaluation id like 12 or 1:4:2", eval_id)
-    pos += 1
-    metadata: tuple[str, ...] = ()
-    if pos < len(rows) and rows[pos][2] == "metadata":
-        metadata = tuple(t for _, _, t in block("metadata", "MD"))
+    out = []
+    while True:
+        variables: dict[str, float | int | str] = {}
+        for ln, v, t in block("variables", "variable"):
+            if t in variables:
+                raise InputFileError(path, ln, f"a new variable label (duplicate {t!r})", t)
+            if _is_fortran(v):
+                _number(v, path, ln, "a variable value")
+            try:
+                variables[t] = _number(v, path, ln, "a number")
+            except InputFileError:
+                variables[t] = v  # string variable
+        asv: dict[str, int] = {}
+        for ln, v, t in block("functions", "ASV"):
+            label, code = _indexed_tag(t, "ASV"), _small_int(v)
+            if label is None or code is None or not 0 <= code <= 7:
+                raise InputFileError(path, ln, "'<code 0-7> ASV_i:label'", f"{v} {t}")
+            asv[label] = code
+        dvv = []
+        names = list(variables)
+        for ln, v, t in block("derivative_variables", "DVV"):
+            label, idx = _indexed_tag(t, "DVV"), _small_int(v)
+            if label is None or idx is None:
+                raise InputFileError(path, ln, "'<variable id> DVV_i:label'", f"{v} {t}")
+            if label not in variables:
+                if not 1 <= idx <= len(names):
+                    raise InputFileError(path, ln, "a derivative variable among the variables",
+                                         t)
+                label = names[idx - 1]
+            dvv.append(label)
+        comps = []
+        for ln, v, t in block("analysis_components", "AC"):
+            label = _indexed_tag(t, "AC")
+            if label is None:
+                raise InputFileError(path, ln, "'<component> AC_i:driver'", f"{v} {t}")
+            comps.append((v, label))
+        if pos >= len(rows) or rows[pos][2] != "eval_id":
+            found = "end of file" if pos >= len(rows) else f"{rows[pos][1]} {rows[pos][2]}"
+            raise InputFileError(path, rows[pos][0] if pos < len(rows) else None,
+                                 "'<id> eval_id'", found)
+        ln, eval_id, _ = rows[pos]
+        if not all(_digits(part) for part in eval_id.split(":")):
+            raise InputFileError(path, ln, "an evaluation id like 12 or 1:4:2", eval_id)
+        pos += 1
+        metadata: tuple[str, ...] = ()
+        if pos < len(rows) and rows[pos][2] == "metadata":
+            items = block("metadata", "MD")
+            for ln, v, t in items:
+                if not (t.startswith("MD_") and _digits(t[3:])):
+                    raise InputFileError(path, ln, "'<label> MD_i'", f"{v} {t}")
+            metadata = tuple(v for _, v, _ in items)
+        out.append(ParametersFile(variables, asv, tuple(dvv), tuple(comps), eval_id, metadata,
+                                  fmt))
+        if pos >= len(rows) or rows[pos][2] != "variables":
+            break
     if pos < len(rows):
         ln, v, t = rows[pos]
         raise InputFileError(path, ln, "end of file after eval_id (and metadata)", f"{v} {t}")
-    return ParametersFile(variables, asv, tuple(dvv), tuple(comps), eval_id, metadata, fmt)
+    return out
+
+
+def parse_parameters(text: str, path: str | os.PathLike | None = None) -> ParametersFile:
+    """Parse the text of a parameters file (standard or aprepro format, detected).
+
+    A file of several blocks (Dakota's ``batch`` interface) raises
+    :class:`~rotoruq.errors.InputFileError`; read it with :func:`parse_parameters_batch`.
+
+    Examples
+    --------
+    >>> p = parse_parameters("1 variables\n2.5 P=W\n1 functions\n1 ASV_1:f\n"
+    ...                      "0 derivative_variables\n0 analysis_components\n3 eval_id\n")
+    >>> p.variables, p.asv, p.eval_id
+    ({'P=W': 2.5}, {'f': 1}, '3')
+    """
+    blocks = _parse_blocks(text, path)
+    if len(blocks) > 1:
+        raise InputFileError(path, None, "one parameters block (a batch file holds several: "
+                             "read it with parse_parameters_batch)", f"{len(blocks)} blocks")
+    return blocks[0]
+
+
+def parse_parameters_batch(text: str, path: str | os.PathLike | None = None
+                           ) -> list[ParametersFile]:
+    """Parse a parameters file of one or more blocks (Dakota's ``batch`` interface writes one
+    block per evaluation, with evaluation ids ``<batch>:<eval>``).
+
+    Examples
+    --------
+    >>> one = ("1 variables\n{x} a\n1 functions\n1 ASV_1:f\n0 derivative_variables\n"
+    ...        "0 analysis_components\n1:{i} eval_id\n")
+    >>> blocks = parse_parameters_batch(one.format(x=1.0, i=1) + one.format(x=2.0, i=2))
+    >>> [(b.eval_id, b.variables["a"]) for b in blocks]
+    [('1:1', 1.0), ('1:2', 2.0)]
+    """
+    return _parse_blocks(text, path)
 
 
 def read_text(path: str | os.PathLike, what: str) -> str:
@@ -485,6 +565,12 @@ def read_parameters(path: str | os.PathLike) -> ParametersFile:
     return parse_parameters(read_text(path, "Dakota parameters file"), path)
 
 
+def read_parameters_batch(path: str | os.PathLike) -> list[ParametersFile]:
+    """Read and parse a parameters file of one or more blocks (see
+    :func:`parse_parameters_batch`)."""
+    return parse_parameters_batch(read_text(path, "Dakota parameters file"), path)
+
+
 # ---------------------------------------------------------------------------------------------
 # results
 
@@ -495,11 +581,14 @@ def format_results(
     *,
     gradients: np.ndarray | None = None,
     hessians: np.ndarray | None = None,
+    metadata: Mapping[str, float] | None = None,
 ) -> str:
     """Text of a results file: values (with their response labels ``names_out``), then
-    gradients, then Hessians.
+    gradients, then Hessians, then the metadata values with their labels (Dakota 6.24 reads
+    them last).
 
-    values : (k,); gradients : (g, p) array or None; hessians : (h, p, p) array or None.
+    values : (k,); gradients : (g, p) array or None; hessians : (h, p, p) array or None;
+    metadata : label -> value, in the order of the parameters file's metadata block.
     """
     values = np.atleast_1d(np.asarray(values, dtype=float))
     if names_out is not None and len(names_out) != len(values):
@@ -518,6 +607,8 @@ def format_results(
         for m in h:
             rows = ["  ".join(f"{e:.16e}" for e in r) for r in m]
             out.append("[[ " + "\n   ".join(rows) + " ]]\n")
+    for label, v in (metadata or {}).items():
+        out.append(f"{float(v):{_WIDTH}.16e} {check_label(label, 'metadata label')}\n")
     return "".join(out)
 
 
@@ -528,6 +619,7 @@ def write_results(
     *,
     gradients: np.ndarray | None = None,
     hessians: np.ndarray | None = None,
+    metadata: Mapping[str, float] | None = None,
     failed: bool = False,
 ) -> Path:
     """Write a results file (see :func:`format_results`); ``failed=True`` writes the ``FAIL``
@@ -541,7 +633,8 @@ def write_results(
     elif values is None:
         raise ParameterError("write_results needs values (or failed=True)")
     else:
-        text = format_results(values, names_out, gradients=gradients, hessians=hessians)
+        text = format_results(values, names_out, gradients=gradients, hessians=hessians,
+                              metadata=metadata)
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(text)
     os.replace(tmp, path)

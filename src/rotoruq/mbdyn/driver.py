@@ -1,4 +1,4 @@
-"""``python -m rotoruq.mbdyn.driver PARAMS RESULTS``: MBDyn as a Dakota-style analysis driver.
+"""``python -m rotoruq.mbdyn.driver [options] PARAMS RESULTS``: MBDyn as a Dakota analysis driver.
 
 A study's external model calls it (paths of ``[model]`` are relative to the study file)::
 
@@ -7,40 +7,89 @@ A study's external model calls it (paths of ``[model]`` are relative to the stud
                "--template", "rigid", "{params}", "{results}"]
     responses = ["thrust", "torque", "power"]
 
-It reads the parameters file (rotor inputs such as ``collective_deg`` and
-``height_over_radius``, and airfoil coefficients such as ``cla_m03``), writes the sample's c81
-table and the filled MBDyn input into the current (work) directory, runs MBDyn (``--mbdyn``,
-else ``$MBDYN``, else ``mbdyn`` on PATH), and writes the responses named by the parameters
-file's functions (``thrust``, ``torque``, ``roll``, ``pitch``, ``power``, ``ct``, ``cq``).
-When MBDyn fails, stops early or does not reach a periodic state, the results file says
-``FAIL``, the reason goes to stderr and the exit status is 1, so rotoruq's failure policy
-reports the reason.
+and so does a Dakota deck (``analysis_drivers = 'python -m rotoruq.mbdyn.driver --template
+rigid'``). It reads the parameters file (rotor inputs such as ``collective_deg`` and
+``height_over_radius``, airfoil coefficients such as ``cla_m03``, deck labels renamed by
+``--map``, inputs held by ``--set``), writes the sample's c81 table and the filled MBDyn input
+into the current (work) directory, runs MBDyn (``--mbdyn``, else ``$MBDYN``, else ``mbdyn`` on
+PATH), and writes the responses named by the parameters file's functions (``thrust``,
+``torque``, ``roll``, ``pitch``, ``power``, ``ct``, ``cq``) as its active set vector asks:
+values, gradients by central finite differences (one MBDyn run per stencil point, each in a
+folder ``point_<k>``), never Hessians. A batch file (Dakota's ``batch`` interface) runs one
+case per block, each in its ``point_<k>`` folder.
+
+When MBDyn fails, stops early or does not reach a periodic state, or the file or the command
+line is wrong, the results file says ``FAIL``, the reason goes to stderr and the exit status is
+1 (2 for a command line that does not parse), so Dakota's ``failure_capture`` and rotoruq's
+failure policy both apply (see :mod:`rotoruq.evaluation.driver`).
 """
 
 from __future__ import annotations
 
 import argparse
-import logging
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
-from ..errors import RotoruqError
-from ..evaluation.dakota_files import read_parameters, write_results
+import numpy as np
+
+from ..errors import ParameterError, RotoruqError
+from ..evaluation import driver as _driver
+from ..model import EvalBatch
 from .case import TEMPLATES, CaseSettings, run_case
 from .extract import RESPONSES
 
-log = logging.getLogger(__name__)
+__all__ = ["main", "build_parser", "MBDynCaseModel"]
 
-__all__ = ["main", "build_parser"]
+PROGRAM = "rotoruq mbdyn driver"
 
 
-def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
-        prog="python -m rotoruq.mbdyn.driver",
-        description="Run one MBDyn hover case from a Dakota parameters file and write the "
-                    "results file.")
-    p.add_argument("params", type=Path, help="Dakota parameters file (standard or aprepro)")
-    p.add_argument("results", type=Path, help="results file to write")
+class MBDynCaseModel:
+    """One MBDyn hover case per point, as a :class:`~rotoruq.model.Model`.
+
+    names_in : rotor inputs and airfoil coefficients; names_out : hub loads of
+    :data:`~rotoruq.mbdyn.extract.RESPONSES`; fixed : inputs held at a value. A call with one
+    point runs in ``workdir`` itself, with several in ``workdir/point_<k>``. A point whose run
+    fails is a failure of its row (reason kept), never an exception.
+    """
+
+    def __init__(self, names_in: Sequence[str], names_out: Sequence[str],
+                 fixed: dict[str, float], args: argparse.Namespace,
+                 workdir: Path | None = None) -> None:
+        bad = [n for n in names_out if n not in RESPONSES]
+        if bad:
+            raise ParameterError(f"responses {bad} are not MBDyn hub loads; available: "
+                                 f"{', '.join(RESPONSES)}")
+        from ..rotor.presets import get_preset
+
+        self.names_in, self.names_out = tuple(names_in), tuple(names_out)
+        self.fixed = dict(fixed)
+        self.preset = get_preset(args.preset)
+        self.settings = CaseSettings(args.revolutions, args.steps_per_rev, args.average,
+                                     args.tolerance, args.timeout)
+        self.args = args
+        self.workdir = Path.cwd() if workdir is None else Path(workdir)
+
+    def evaluate(self, x: np.ndarray) -> EvalBatch:
+        x = np.atleast_2d(np.asarray(x, dtype=float))
+        values = np.full((len(x), len(self.names_out)), np.nan)
+        failures: dict[int, str] = {}
+        for k, row in enumerate(x):
+            wd = self.workdir if len(x) == 1 else self.workdir / f"point_{k}"
+            inputs = {**self.fixed, **dict(zip(self.names_in, row.tolist(), strict=True))}
+            try:
+                loads = run_case(wd, self.preset, inputs, template=self.args.template,
+                                 settings=self.settings, mbdyn=self.args.mbdyn)
+                values[k] = [loads.response(n) for n in self.names_out]
+            except (RotoruqError, OSError, ValueError) as exc:
+                failures[k] = str(exc)
+        return EvalBatch(values, failures)
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        return self.evaluate(x).values
+
+
+def _model_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--preset", default="gvpm", help="rotor preset for geometry and the inputs "
                    "the parameters file does not set (default: gvpm)")
     p.add_argument("--template", default="rigid",
@@ -57,33 +106,30 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"periodicity tolerance, relative (default {d.tolerance:g})")
     p.add_argument("--timeout", type=float, default=d.timeout,
                    help=f"seconds MBDyn may run (default {d.timeout:g})")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The driver's command line (for ``--help`` and documentation)."""
+    p = argparse.ArgumentParser(
+        prog="python -m rotoruq.mbdyn.driver",
+        description="Run one MBDyn hover case from a Dakota parameters file and write the "
+                    "results file.")
+    _driver.add_arguments(p)
+    _model_arguments(p)
     return p
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    try:
-        from ..rotor.presets import get_preset
+def _make_model(args: argparse.Namespace, names_in: list[str], names_out: list[str],
+                fixed: dict[str, float]) -> MBDynCaseModel:
+    return MBDynCaseModel(names_in, names_out, fixed, args)
 
-        p = read_parameters(args.params)
-        names = list(p.names_out)
-        bad = [n for n in names if n not in RESPONSES]
-        if bad:
-            raise RotoruqError(f"{args.params}: responses {bad} are not MBDyn hub loads; "
-                               f"available: {', '.join(RESPONSES)}")
-        settings = CaseSettings(args.revolutions, args.steps_per_rev, args.average, args.tolerance,
-                                args.timeout)
-        loads = run_case(Path.cwd(), get_preset(args.preset),
-                         {k: float(v) for k, v in p.variables.items()},
-                         template=args.template, settings=settings, mbdyn=args.mbdyn)
-    except (RotoruqError, OSError, ValueError) as exc:
-        log.error("%s", exc)
-        write_results(args.results, failed=True)
-        return 1
-    write_results(args.results, [loads.response(n) for n in names], names)
-    return 0
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    return _driver.main(argv, _make_model, program=PROGRAM, prog=parser.prog,
+                        description=parser.description or "",
+                        add_model_arguments=_model_arguments)
 
 
 if __name__ == "__main__":  # pragma: no cover
-    logging.basicConfig(format="rotoruq mbdyn driver: %(message)s", stream=sys.stderr)
     sys.exit(main())

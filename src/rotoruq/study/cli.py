@@ -17,7 +17,7 @@ import threading
 from ..errors import RotoruqError
 
 # Order in which subcommands are listed by --help.
-COMMANDS = ("reproduce", "run", "report", "show", "evaluate", "airfoil", "driver")
+COMMANDS = ("reproduce", "run", "report", "show", "evaluate", "airfoil", "driver", "export")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -87,7 +87,24 @@ def configure_logging(quiet: bool = False, debug: bool = False) -> None:
     root.setLevel(logging.DEBUG if debug else logging.WARNING if quiet else logging.INFO)
 
 
+def _driver_argv(argv: list[str]) -> list[str] | None:
+    """The driver's own words when the command is ``driver`` (after any global flags)."""
+    k = 0
+    while k < len(argv) and argv[k] in ("--quiet", "--debug"):
+        k += 1
+    return argv[k + 1 :] if argv[k : k + 1] == ["driver"] else None
+
+
 def _main(argv: list[str] | None) -> int:
+    words = _driver_argv(list(sys.argv[1:] if argv is None else argv))
+    if words is not None and not {"-h", "--help"} & set(words):
+        # Dakota runs the driver once per evaluation: skip the other subcommands' imports, and
+        # let the driver answer every error with a FAIL results file
+        from .cmd_driver import main as driver_main
+
+        return driver_main(words)
+    from . import steptypes  # noqa: F401  (the step types and their report hooks)
+
     parser = build_parser()
     args = parser.parse_args(argv)
     configure_logging(quiet=args.quiet, debug=args.debug)

@@ -299,10 +299,11 @@ def simulation_based_calibration(
         gp = emulator
         if not _is_fitted(gp):
             gp = copy.copy(emulator)
+            s_design, s_fit = s_emulator.spawn(2)
             if gp.seed is None:
-                gp.seed = np.random.default_rng(s_emulator.spawn(1)[0])
+                gp.seed = np.random.default_rng(s_fit)
             X = prior.draw(int(n_emulator_samples), design="lhs",
-                           seed=np.random.default_rng(s_emulator))
+                           seed=np.random.default_rng(s_design))
             Y = truth(X)
             n_evaluations += X.shape[0]
             ok = np.all(np.isfinite(Y), 1)
@@ -323,16 +324,16 @@ def simulation_based_calibration(
     ess = np.empty(n_replications)
     n_short = 0
     for i, s_rep in enumerate(s_reps):
-        s_noise, s_cal = s_rep.spawn(2)
+        s_noise, s_cal, s_more = s_rep.spawn(3)
         eps = np.random.default_rng(s_noise).standard_normal((n_experiments, m))
         data = clean[i] + noise * eps
         if calibrate is None:
             res = calibrate_bayes(model, data, prior, noise_std=noise, names_out=list(obs),
                                   emulator=gp, seed=s_cal, **bayes_options)
-            for k, s_more in enumerate(s_cal.spawn(3)):
+            for k, s_k in enumerate(s_more.spawn(3)):
                 if dg.effective_sample_size(res.chains).min() >= n_draws:
                     break
-                res = continue_chain(res, n_samples * 2**k, seed=s_more)
+                res = continue_chain(res, int(bayes_options["n_samples"]) * 2**k, seed=s_k)
             n_evaluations += res.n_evaluations
             draws = res.chains
         else:

@@ -119,6 +119,19 @@ def test_overconfident_posterior_fails_with_the_predicted_spread():
         assert f"{name}: 90% interval covers" in r.reason
 
 
+def test_calibrate_without_seed_is_called_with_the_data_only():
+    exact = _conjugate(0.3, 1, 1.0)
+    seen = []
+
+    def calibrate(data):
+        seen.append(data.shape)
+        return exact(data, seed=len(seen))
+
+    r = rq.simulation_based_calibration(LINEAR, LINEAR_PRIOR, noise_std=0.3, n_replications=5,
+                                        calibrate=calibrate, seed=0)
+    assert seen == [(1, 4)] * 5 and r.ranks.shape == (5, 3)
+
+
 def test_bins_need_not_divide_the_ranks():
     """L = 30 (31 rank values) in 20 bins: unequal exact bin probabilities, still uniform."""
     r = rq.simulation_based_calibration(LINEAR, LINEAR_PRIOR, noise_std=0.3, n_draws=30,

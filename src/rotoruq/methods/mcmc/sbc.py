@@ -16,6 +16,7 @@ noise of each replication, the emulator design and fit, and each replication's c
 from __future__ import annotations
 
 import copy
+import inspect
 import math
 import time
 from collections.abc import Callable, Sequence
@@ -216,7 +217,8 @@ def simulation_based_calibration(
         whose ESS stays below ``n_draws`` is continued (up to 3 times) with
         :func:`continue_chain`. Otherwise a callable ``calibrate(data, seed=SeedSequence)`` with
         ``data`` (n_experiments, m) returning a :class:`BayesResult` or posterior draws
-        (n, d) or (n_chains, n, d) in ``prior.names`` order.
+        (n, d) or (n_chains, n, d) in ``prior.names`` order; a callable without a ``seed``
+        parameter is called as ``calibrate(data)`` (then its randomness is its own).
     n_draws : L, the thinned draws each rank is taken among (ranks 0..L; 99 gives 100 values).
     n_samples : kept chain steps of the default calibration.
     emulator : with the default calibration, a GaussianProcess built ONCE from the prior (on
@@ -316,6 +318,7 @@ def simulation_based_calibration(
     # while a burn-in of half the kept steps forgets the start at a fraction of that
     bayes_options = {"n_samples": int(n_samples), "burn_in": int(n_samples) // 2,
                      "map_start": False, **options}
+    takes_seed = calibrate is not None and _takes_seed(calibrate)
     ranks = np.empty((n_replications, d), dtype=int)
     z = np.empty((n_replications, d))
     mean = np.empty((n_replications, d))
@@ -337,7 +340,8 @@ def simulation_based_calibration(
             n_evaluations += res.n_evaluations
             draws = res.chains
         else:
-            draws = _as_draws(calibrate(data, seed=s_cal), d)
+            out = calibrate(data, seed=s_cal) if takes_seed else calibrate(data)
+            draws = _as_draws(out, d)
         ess[i] = float(dg.effective_sample_size(draws).min())
         n_short += bool(ess[i] < n_draws)
         flat = draws.reshape(-1, d)
@@ -370,3 +374,12 @@ def _is_fitted(gp: GaussianProcess) -> bool:
     except ParameterError:
         return False
     return True
+
+
+def _takes_seed(func: Callable[..., Any]) -> bool:
+    try:
+        params = inspect.signature(func).parameters
+    except (TypeError, ValueError):
+        return True
+    return "seed" in params or any(p.kind is inspect.Parameter.VAR_KEYWORD
+                                   for p in params.values())

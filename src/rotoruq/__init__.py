@@ -80,6 +80,8 @@ _LAZY: dict[str, str] = {
     "BayesResult": ".methods.mcmc",
     "calibrate_bayes": ".methods.mcmc",
     "continue_chain": ".methods.mcmc",
+    "SBCResult": ".methods.mcmc.sbc",
+    "simulation_based_calibration": ".methods.mcmc.sbc",
     "GaussianProcess": ".methods.surrogate",
     "LeaveOneOut": ".methods.surrogate",
     "CUUCheck": ".methods.cuu",
@@ -218,6 +220,12 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     )
     from .methods.mcmc import (
         continue_chain as continue_chain,
+    )
+    from .methods.mcmc.sbc import (
+        SBCResult as SBCResult,
+    )
+    from .methods.mcmc.sbc import (
+        simulation_based_calibration as simulation_based_calibration,
     )
     from .methods.pce import (
         PCEResult as PCEResult,

@@ -1,0 +1,385 @@
+"""Simulation-based calibration (Talts, Betancourt, Simpson, Vehtari and Gelman 2018).
+
+A self-check of a Bayesian calibration: draw ``theta_true`` from the prior, simulate data from
+the TRUE model plus noise, compute the posterior the same way a study does, and record the rank
+of ``theta_true`` among ``L`` roughly independent posterior draws. When the calibration is right
+the ranks are uniform on ``0..L`` for every parameter (the posterior, averaged over the prior
+predictive, is the prior), the central credible intervals cover ``theta_true`` at their nominal
+rate and ``(theta_true - posterior mean) / posterior std`` has unit spread. An over-confident
+posterior (an emulator whose error the likelihood ignores, a sampler that has not mixed) piles
+the ranks at both ends, under-covers and spreads the z-scores above 1.
+
+Everything random is spawned from one :class:`numpy.random.SeedSequence`: the prior draws, the
+noise of each replication, the emulator design and fit, and each replication's chains.
+"""
+
+from __future__ import annotations
+
+import copy
+import inspect
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+from scipy import stats
+
+from ..._rng import SeedLike
+from ...errors import EvaluationError, ModelShapeError, ParameterError
+from ...model import Model, align_inputs, evaluate
+from ...params import ParameterSpace
+from ..surrogate import GaussianProcess
+from . import diagnostics as dg
+from .bayes import BayesResult, calibrate_bayes, continue_chain
+
+__all__ = ["SBCResult", "simulation_based_calibration"]
+
+COVERAGE_LEVELS = (0.5, 0.9)
+
+
+@dataclass(frozen=True, eq=False)
+class SBCResult:
+    """Outcome of :func:`simulation_based_calibration`.
+
+    names_in : parameter names (columns below). n_draws : L, the thinned posterior draws each
+    rank is taken among (ranks run over 0..L).
+    theta_true : (n_replications, d) the prior draws the data were simulated at (parameter
+        units). ranks : (n_replications, d) number of thinned posterior draws below theta_true.
+    rank_histogram : (d, n_bins) counts of the ranks in ``n_bins`` bins of ``0..L``; bin b holds
+        ranks r with ``floor(r * n_bins / (L + 1)) == b``. bin_probability : (n_bins,) the
+        probability of each bin under uniform ranks (1 / n_bins when n_bins divides L + 1).
+    p_value : (d,) chi-square test of the histogram against ``bin_probability``
+        (n_bins - 1 degrees of freedom).
+    z_scores : (n_replications, d) ``(theta_true - posterior mean) / posterior std``;
+        z_score_std : (d,) their standard deviation over replications (1 when calibrated, above
+        1 when over-confident).
+    coverage_50, coverage_90 : (d,) fraction of replications whose central (equal-tailed) 50 %
+        and 90 % credible intervals contain theta_true. coverage_50_se, coverage_90_se : their
+        binomial standard errors at the nominal rate, ``sqrt(p (1 - p) / n_replications)``.
+    posterior_mean, posterior_std : (n_replications, d).
+    ess : (n_replications,) smallest effective sample size over the parameters of each
+        replication's posterior draws; n_autocorrelated : replications whose ESS stayed below
+        ``n_draws`` (their ranks come from autocorrelated draws).
+    alpha : significance level of the uniformity test; coverage_tolerance : allowed distance of
+        a coverage from its nominal rate, in binomial standard errors.
+    passed : every parameter passes every test. reason : which parameter fails which test (or
+        a one-line summary of the pass).
+    n_evaluations : true-model evaluations (data simulation and emulator build, plus what the
+        default calibration spent). seconds : wall time.
+    """
+
+    names_in: tuple[str, ...]
+    n_draws: int
+    theta_true: np.ndarray
+    ranks: np.ndarray
+    rank_histogram: np.ndarray
+    bin_probability: np.ndarray
+    p_value: np.ndarray
+    z_scores: np.ndarray
+    z_score_std: np.ndarray
+    coverage_50: np.ndarray
+    coverage_90: np.ndarray
+    coverage_50_se: float
+    coverage_90_se: float
+    posterior_mean: np.ndarray
+    posterior_std: np.ndarray
+    ess: np.ndarray
+    n_autocorrelated: int
+    alpha: float
+    coverage_tolerance: float
+    passed: bool
+    reason: str
+    n_evaluations: int
+    seconds: float
+
+    @property
+    def n_replications(self) -> int:
+        return int(self.ranks.shape[0])
+
+    def summary(self) -> str:
+        """A plain-text table: p-value, z-score spread and coverages per parameter."""
+        rows = [f"{'parameter':<16}{'p_value':>10}{'z_std':>8}{'cov50':>8}{'cov90':>8}"]
+        for j, n in enumerate(self.names_in):
+            rows.append(f"{n:<16}{self.p_value[j]:>10.3g}{self.z_score_std[j]:>8.3f}"
+                        f"{self.coverage_50[j]:>8.3f}{self.coverage_90[j]:>8.3f}")
+        rows.append(f"{self.n_replications} replications, L = {self.n_draws} draws; "
+                    f"{'PASS' if self.passed else 'FAIL'}: {self.reason}")
+        return "\n".join(rows)
+
+
+def _seed_sequence(seed: SeedLike) -> np.random.SeedSequence:
+    if isinstance(seed, np.random.SeedSequence):
+        return seed
+    if isinstance(seed, np.random.Generator):
+        return np.random.SeedSequence(int(seed.integers(2**63)))
+    if seed is not None and (isinstance(seed, bool | np.bool_) or not isinstance(
+            seed, int | np.integer) or int(seed) < 0):
+        raise ParameterError(f"seed must be a non-negative integer, None, a numpy SeedSequence "
+                             f"or Generator; got {seed!r}")
+    return np.random.SeedSequence(None if seed is None else int(seed))
+
+
+def _n_bins(n_replications: int, n_draws: int) -> int:
+    """At least 10 expected ranks per bin, at most 20 bins, never more bins than ranks."""
+    return int(min(20, max(2, n_replications // 10), n_draws + 1))
+
+
+def _thin(draws: np.ndarray, n_draws: int) -> np.ndarray:
+    """``n_draws`` draws evenly spaced over the pooled chains: their spacing n / n_draws is at
+    least the chain's n / ESS whenever ESS >= n_draws."""
+    flat = draws.reshape(-1, draws.shape[-1])
+    idx = np.round(np.linspace(0, flat.shape[0] - 1, n_draws)).astype(int)
+    return flat[idx]
+
+
+def _as_draws(out: Any, d: int) -> np.ndarray:
+    """Posterior draws (c, n, d) from what a calibration returned."""
+    if isinstance(out, BayesResult):
+        arr = out.chains
+    else:
+        arr = np.asarray(out, dtype=float)
+    if arr.ndim == 2:
+        arr = arr[None]
+    if arr.ndim != 3 or arr.shape[-1] != d:
+        raise ModelShapeError(f"calibrate must return a BayesResult or posterior draws of "
+                              f"shape (n, {d}) or (n_chains, n, {d}); got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise EvaluationError("calibrate returned non-finite posterior draws")
+    return arr
+
+
+def _uniformity(ranks: np.ndarray, n_draws: int, n_bins: int):
+    """Histogram (d, n_bins), exact bin probabilities (n_bins,) and chi-square p-values (d,)."""
+    per_rank = np.floor(np.arange(n_draws + 1) * n_bins / (n_draws + 1)).astype(int)
+    prob = np.bincount(per_rank, minlength=n_bins) / (n_draws + 1.0)
+    bins = per_rank[ranks]  # (n_rep, d)
+    hist = np.stack([np.bincount(bins[:, j], minlength=n_bins) for j in range(ranks.shape[1])])
+    expected = prob * ranks.shape[0]
+    chi2 = ((hist - expected) ** 2 / expected).sum(1)
+    return hist, prob, stats.chi2.sf(chi2, n_bins - 1)
+
+
+def _verdict(names, p_value, coverage, n_rep, alpha, tolerance) -> tuple[bool, str]:
+    fails = []
+    for j, n in enumerate(names):
+        if not p_value[j] > alpha:
+            fails.append(f"{n}: ranks not uniform (chi-square p = {p_value[j]:.3g} <= {alpha})")
+        for level, cov in zip(COVERAGE_LEVELS, coverage, strict=True):
+            se = math.sqrt(level * (1 - level) / n_rep)
+            if abs(cov[j] - level) > tolerance * se:
+                fails.append(f"{n}: {level:.0%} interval covers {cov[j]:.3f}, outside "
+                             f"{level:.2f} +- {tolerance:g} x {se:.3f}")
+    if fails:
+        return False, "; ".join(fails)
+    return True, (f"ranks uniform (smallest p = {p_value.min():.3g} > {alpha}) and coverages "
+                  f"within {tolerance:g} binomial standard errors of 50 % and 90 %")
+
+
+def simulation_based_calibration(
+    model: Model,
+    prior: ParameterSpace,
+    *,
+    noise_std: ArrayLike,
+    n_replications: int = 200,
+    n_experiments: int = 1,
+    calibrate: Callable[..., Any] | None = None,
+    n_draws: int = 99,
+    n_samples: int = 2000,
+    emulator: GaussianProcess | None = None,
+    n_emulator_samples: int = 500,
+    names_out: Sequence[str] | None = None,
+    alpha: float = 0.01,
+    coverage_tolerance: float = 3.0,
+    seed: SeedLike = None,
+    **options: Any,
+) -> SBCResult:
+    """Simulation-based calibration of a Bayesian calibration of ``prior`` on ``model``.
+
+    Each of ``n_replications`` replications draws ``theta_true`` from ``prior``, simulates
+    ``n_experiments`` observations ``model(theta_true) + noise_std * N(0, 1)`` from the TRUE
+    model (never the emulator), computes the posterior with ``calibrate`` and records the rank
+    of ``theta_true`` among ``n_draws`` posterior draws thinned to be roughly independent (draws
+    evenly spaced over the chains, at least ``n / ESS`` apart).
+
+    Parameters
+    ----------
+    model : Model (names_in, names_out, batched __call__); the data are simulated from it.
+    prior : ParameterSpace of the calibrated parameters; theta_true is drawn from it.
+    noise_std : standard deviation of the simulated noise and of the likelihood, data units:
+        scalar or (m,) per observed response; every value > 0.
+    n_replications : replications (200 or more for a test of any power).
+    n_experiments : observations per replication (rows of the simulated data).
+    calibrate : None (default): :func:`calibrate_bayes` with ``n_samples`` DRAM steps (5 %
+        burn-in, MAP start), ``noise_std``, ``names_out``, the emulator and ``options``; a chain
+        whose ESS stays below ``n_draws`` is continued (up to 3 times) with
+        :func:`continue_chain`. Otherwise a callable ``calibrate(data, seed=SeedSequence)`` with
+        ``data`` (n_experiments, m) returning a :class:`BayesResult` or posterior draws
+        (n, d) or (n_chains, n, d) in ``prior.names`` order; a callable without a ``seed``
+        parameter is called as ``calibrate(data)`` (then its randomness is its own).
+    n_draws : L, the thinned draws each rank is taken among (ranks 0..L; 99 gives 100 values).
+    n_samples : kept chain steps of the default calibration.
+    emulator : with the default calibration, a GaussianProcess built ONCE from the prior (on
+        ``n_emulator_samples`` LHS points of the true model; an unfitted GP without its own
+        seed gets one spawned here) and used as fitted in every replication (the emulator does
+        not depend on the data). A fitted GP is used as given.
+    names_out : model responses that the data observe (default all).
+    alpha : the uniformity test fails when the chi-square p-value <= alpha (per parameter).
+    coverage_tolerance : a coverage fails when it is more than this many binomial standard
+        errors from its nominal rate.
+    seed : int, SeedSequence, Generator or None; the same seed gives bitwise the same result.
+    **options : further keyword arguments of :func:`calibrate_bayes` (default calibration).
+
+    Returns
+    -------
+    SBCResult
+
+    Notes
+    -----
+    The rank histogram has ``n_bins = min(20, max(2, n_replications // 10), n_draws + 1)``
+    bins (at least 10 expected ranks per bin, at most 20); the chi-square test uses each bin's
+    exact probability under uniform ranks, so ``n_bins`` need not divide ``n_draws + 1``. With
+    ``d`` parameters the test fails by chance with probability about ``1 - (1 - alpha)^d``.
+
+    Examples
+    --------
+    >>> import numpy as np, rotoruq as rq
+    >>> prior = rq.ParameterSpace({"a": rq.Normal(0.0, 1.0), "b": rq.Normal(1.0, 0.5)})
+    >>> model = rq.FunctionModel(lambda x: np.column_stack([x[:, 0] + x[:, 1] ** 2,
+    ...                                                     x[:, 0] - x[:, 1]]),
+    ...                          ["a", "b"], ["y1", "y2"])
+    >>> r = rq.simulation_based_calibration(model, prior, noise_std=0.3, n_replications=20,
+    ...                                     n_draws=19, n_samples=600, seed=1)
+    >>> r.ranks.shape, r.rank_histogram.shape
+    ((20, 2), (2, 2))
+    """
+    t_start = time.perf_counter()
+    n_replications, n_experiments, n_draws = int(n_replications), int(n_experiments), int(n_draws)
+    if n_replications < 2 or n_experiments < 1 or n_draws < 1:
+        raise ParameterError(f"need n_replications >= 2, n_experiments >= 1 and n_draws >= 1; "
+                             f"got {n_replications}, {n_experiments}, {n_draws}")
+    if not 0 < alpha < 1 or not coverage_tolerance > 0:
+        raise ParameterError(f"need 0 < alpha < 1 and coverage_tolerance > 0; got {alpha}, "
+                             f"{coverage_tolerance}")
+    if calibrate is not None and (emulator is not None or options):
+        raise ParameterError("emulator and calibrate_bayes options apply to the default "
+                             "calibration only; pass them inside your calibrate callable")
+    names_model = tuple(model.names_out)
+    obs = names_model if names_out is None else tuple(names_out)
+    unknown = [n for n in obs if n not in names_model]
+    if unknown:
+        raise ParameterError(f"names_out {unknown} are not responses of the model; expected "
+                             f"some of {list(names_model)}")
+    cols = np.array([names_model.index(n) for n in obs])
+    m, d = len(obs), prior.dim
+    noise = np.asarray(noise_std, dtype=float)
+    if noise.ndim > 1 or (noise.ndim == 1 and noise.size != m):
+        raise ModelShapeError(f"noise_std must be a scalar or ({m},) for responses {list(obs)}, "
+                              f"got shape {noise.shape}")
+    if not np.all(np.isfinite(noise)) or not np.all(noise > 0):
+        raise ParameterError(f"noise_std must be finite and > 0, got {noise_std!r}")
+    perm = align_inputs(model, prior.names)
+
+    def truth(theta: np.ndarray) -> np.ndarray:
+        x = theta if perm is None else theta[:, perm]
+        return np.asarray(evaluate(model, x).values, dtype=float)[:, cols]
+
+    ss = _seed_sequence(seed)
+    s_theta, s_emulator, *s_reps = ss.spawn(2 + n_replications)
+    theta_true = prior.draw(n_replications, design="random", seed=np.random.default_rng(s_theta))
+    clean = truth(theta_true)
+    n_evaluations = n_replications
+    bad = np.flatnonzero(~np.all(np.isfinite(clean), 1))
+    if bad.size:
+        raise EvaluationError(f"the model failed (non-finite responses) at {bad.size} of "
+                              f"{n_replications} prior draws, first at {theta_true[bad[0]]}")
+
+    gp = None
+    if calibrate is None and emulator is not None:
+        gp = emulator
+        if not _is_fitted(gp):
+            gp = copy.copy(emulator)
+            s_design, s_fit = s_emulator.spawn(2)
+            if gp.seed is None:
+                gp.seed = np.random.default_rng(s_fit)
+            X = prior.draw(int(n_emulator_samples), design="lhs",
+                           seed=np.random.default_rng(s_design))
+            Y = truth(X)
+            n_evaluations += X.shape[0]
+            ok = np.all(np.isfinite(Y), 1)
+            if ok.sum() < d + 2:
+                raise EvaluationError(f"only {int(ok.sum())} of {len(X)} emulator build "
+                                      "evaluations succeeded")
+            gp.fit(X[ok], Y[ok])
+
+    # no MAP pre-solve by default: its finite-difference L-BFGS-B costs 20x the chain here,
+    # while a burn-in of half the kept steps forgets the start at a fraction of that
+    bayes_options = {"n_samples": int(n_samples), "burn_in": int(n_samples) // 2,
+                     "map_start": False, **options}
+    takes_seed = calibrate is not None and _takes_seed(calibrate)
+    ranks = np.empty((n_replications, d), dtype=int)
+    z = np.empty((n_replications, d))
+    mean = np.empty((n_replications, d))
+    std = np.empty((n_replications, d))
+    covered = np.zeros((len(COVERAGE_LEVELS), n_replications, d), dtype=bool)
+    ess = np.empty(n_replications)
+    n_short = 0
+    for i, s_rep in enumerate(s_reps):
+        s_noise, s_cal, s_more = s_rep.spawn(3)
+        eps = np.random.default_rng(s_noise).standard_normal((n_experiments, m))
+        data = clean[i] + noise * eps
+        if calibrate is None:
+            res = calibrate_bayes(model, data, prior, noise_std=noise, names_out=list(obs),
+                                  emulator=gp, seed=s_cal, **bayes_options)
+            for k, s_k in enumerate(s_more.spawn(3)):
+                if dg.effective_sample_size(res.chains).min() >= n_draws:
+                    break
+                res = continue_chain(res, int(bayes_options["n_samples"]) * 2**k, seed=s_k)
+            n_evaluations += res.n_evaluations
+            draws = res.chains
+        else:
+            out = calibrate(data, seed=s_cal) if takes_seed else calibrate(data)
+            draws = _as_draws(out, d)
+        ess[i] = float(dg.effective_sample_size(draws).min())
+        n_short += bool(ess[i] < n_draws)
+        flat = draws.reshape(-1, d)
+        thinned = _thin(draws, n_draws)
+        ranks[i] = (thinned < theta_true[i]).sum(0)
+        mean[i], std[i] = flat.mean(0), flat.std(0, ddof=1)
+        z[i] = (theta_true[i] - mean[i]) / std[i]
+        for k, level in enumerate(COVERAGE_LEVELS):
+            lo, hi = np.quantile(flat, [0.5 - level / 2, 0.5 + level / 2], axis=0)
+            covered[k, i] = (lo <= theta_true[i]) & (theta_true[i] <= hi)
+
+    hist, prob, p_value = _uniformity(ranks, n_draws, _n_bins(n_replications, n_draws))
+    coverage = covered.mean(1)
+    passed, reason = _verdict(prior.names, p_value, coverage, n_replications, alpha,
+                              coverage_tolerance)
+    se = [math.sqrt(lv * (1 - lv) / n_replications) for lv in COVERAGE_LEVELS]
+    return SBCResult(
+        names_in=tuple(prior.names), n_draws=n_draws, theta_true=theta_true, ranks=ranks,
+        rank_histogram=hist, bin_probability=prob, p_value=p_value, z_scores=z,
+        z_score_std=z.std(0, ddof=1), coverage_50=coverage[0], coverage_90=coverage[1],
+        coverage_50_se=se[0], coverage_90_se=se[1], posterior_mean=mean, posterior_std=std,
+        ess=ess, n_autocorrelated=n_short, alpha=float(alpha),
+        coverage_tolerance=float(coverage_tolerance), passed=passed, reason=reason,
+        n_evaluations=n_evaluations, seconds=time.perf_counter() - t_start)
+
+
+def _is_fitted(gp: GaussianProcess) -> bool:
+    try:
+        gp.n_inputs  # noqa: B018  (raises on an unfitted GP)
+    except ParameterError:
+        return False
+    return True
+
+
+def _takes_seed(func: Callable[..., Any]) -> bool:
+    try:
+        params = inspect.signature(func).parameters
+    except (TypeError, ValueError):
+        return True
+    return "seed" in params or any(p.kind is inspect.Parameter.VAR_KEYWORD
+                                   for p in params.values())

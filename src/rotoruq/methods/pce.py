@@ -14,7 +14,9 @@ other / corr.   Hermite                          u (Nataf / marginal u-space tra
 =============== ================================ ===============================
 
 (In a correlated space every input uses Hermite in the Nataf u-space.) The expansion is
-truncated at total order p: N_T = (d + p)! / (d! p!) terms (eq. 2.16). Coefficients by
+truncated at total order p: N_T = (d + p)! / (d! p!) terms (eq. 2.16), or (Dakota's default
+on a tensor quadrature grid) kept as the grid's tensor basis, degree <= p in each input, or by
+a hyperbolic (q-norm) truncation. Coefficients by
 projection (eq. 2.17) with tensor Gauss quadrature or a Smolyak sparse grid (combination
 technique on the projections), or by least-squares regression on an LHS sample. Moments
 (eqs. 2.18, 2.19) and Sobol' indices follow from the coefficients.
@@ -36,9 +38,20 @@ from ..params import Beta, Exponential, Gamma, Normal, ParameterSpace, Uniform, 
 from ._common import eval_space, nan_rows_warning
 from .sampling import unit_to_space
 
-__all__ = ["PCEResult", "PCEModel", "polynomial_chaos", "total_order_indices", "Germ"]
+__all__ = [
+    "PCEResult",
+    "PCEModel",
+    "polynomial_chaos",
+    "total_order_indices",
+    "tensor_indices",
+    "hyperbolic_indices",
+    "Germ",
+    "TRUNCATIONS",
+]
 
 ESTIMATORS = ("quadrature", "sparse_grid", "regression")
+TRUNCATIONS = ("tensor", "total_order", "hyperbolic")
+"""Basis truncations of :func:`polynomial_chaos`."""
 
 
 def total_order_indices(d: int, p: int) -> np.ndarray:
@@ -46,6 +59,40 @@ def total_order_indices(d: int, p: int) -> np.ndarray:
     out = [a for a in itertools.product(range(p + 1), repeat=d) if sum(a) <= p]
     out.sort(key=lambda a: (sum(a), tuple(-v for v in a)))
     return np.array(out, dtype=int).reshape(-1, d)
+
+
+def tensor_indices(d: int, p: int) -> np.ndarray:
+    """Multi-indices with every degree <= p (the tensor basis), shape ((p + 1)^d, d), sorted
+    by total degree.
+
+    Examples
+    --------
+    >>> tensor_indices(2, 1).tolist()
+    [[0, 0], [1, 0], [0, 1], [1, 1]]
+    """
+    out = list(itertools.product(range(p + 1), repeat=d))
+    out.sort(key=lambda a: (sum(a), tuple(-v for v in a)))
+    return np.array(out, dtype=int).reshape(-1, d)
+
+
+def hyperbolic_indices(d: int, p: int, q_norm: float) -> np.ndarray:
+    """Multi-indices with ``(sum_j alpha_j^q)^(1/q) <= p`` (hyperbolic truncation of Blatman
+    and Sudret 2011; q = 1 is the total order), shape (N, d), sorted by total degree.
+
+    Parameters
+    ----------
+    d : number of inputs; p : maximal degree; q_norm : q in (0, 1].
+
+    Examples
+    --------
+    >>> hyperbolic_indices(2, 2, 0.5).tolist()
+    [[0, 0], [1, 0], [0, 1], [2, 0], [0, 2]]
+    """
+    if not 0.0 < q_norm <= 1.0:
+        raise ParameterError(f"q_norm must lie in (0, 1], got {q_norm}")
+    alpha = total_order_indices(d, p)
+    norm = np.sum(alpha.astype(float) ** q_norm, axis=1) ** (1.0 / q_norm)
+    return alpha[norm <= p * (1.0 + 1e-12)]
 
 
 class Germ:
@@ -162,7 +209,8 @@ class PCEResult:
     families (d,) polynomial family per input; mean (m,) = c_0 (eq. 2.18);
     variance (m,) = sum_{i>0} c_i^2 (eq. 2.19); std (m,); main, total (m, d) Sobol' indices
     from the coefficients; estimator ("quadrature", "sparse_grid", "regression");
-    n_evaluations; n_dropped (failed points left out of a regression fit).
+    n_evaluations; n_dropped (failed points left out of a regression fit); truncation
+    ("tensor", "total_order" or "hyperbolic").
     """
 
     names_in: tuple[str, ...]
@@ -179,12 +227,41 @@ class PCEResult:
     estimator: str
     n_evaluations: int
     n_dropped: int = 0
+    truncation: str = "total_order"
     space: ParameterSpace | None = field(default=None, repr=False)
     germs: list = field(default_factory=list, repr=False)
 
     @property
     def n_terms(self) -> int:
         return self.multi_indices.shape[0]
+
+    def interaction(self, *names: str) -> np.ndarray:
+        """Sobol' index of the interaction of exactly these inputs, shape (m,).
+
+        The share of the variance carried by the terms whose non-zero degrees are exactly on
+        ``names`` (one name: the main index; two: the pure second-order index S_ij).
+
+        Examples
+        --------
+        >>> import rotoruq as rq
+        >>> space = rq.ParameterSpace({"a": rq.Uniform(-1, 1), "b": rq.Uniform(-1, 1)})
+        >>> m = rq.FunctionModel(lambda x: x[:, 0] * x[:, 1], ["a", "b"], ["y"])
+        >>> float(polynomial_chaos(m, space, 2).interaction("a", "b")[0])
+        1.0
+        """
+        if not names:
+            raise ParameterError("interaction needs at least one input name")
+        idx = []
+        for n in names:
+            if n not in self.names_in:
+                raise ParameterError(f"unknown input {n!r}; valid: {list(self.names_in)}")
+            idx.append(self.names_in.index(n))
+        support = self.multi_indices > 0
+        want = np.zeros(len(self.names_in), dtype=bool)
+        want[idx] = True
+        rows = np.all(support == want, axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return (self.coefficients[rows] ** 2).sum(axis=0) / self.variance
 
     def predict(self, x: np.ndarray) -> np.ndarray:
         """Expansion at points x (n, d) in ``names_in`` order: (n, m)."""
@@ -236,6 +313,23 @@ def _tensor_grid(germs, npts):
     return nodes.reshape(-1, len(germs)), w
 
 
+def _tensor_projection(germs, nq: int, alpha: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Projection coefficients (N, m) of ``values`` (nq^d, m), given on the tensor Gauss grid
+    of :func:`_tensor_grid`, onto the basis terms ``alpha`` (N, d).
+
+    One 1-D projection per axis (O(nq^d d p) work) instead of the (nq^d, N) design matrix,
+    which for a tensor basis would be square in the grid size.
+    """
+    d, m = len(germs), values.shape[1]
+    pmax = int(alpha.max()) if alpha.size else 0
+    t = values.reshape((nq,) * d + (m,))
+    for j, g in enumerate(germs):
+        nodes, wj = g.gauss(nq)
+        proj = (g.basis(pmax, nodes) * wj[:, None]).T  # (pmax + 1, nq)
+        t = np.moveaxis(np.tensordot(proj, t, axes=([1], [j])), 0, j)
+    return t[tuple(alpha.T)]
+
+
 def polynomial_chaos(
     model: Model,
     space: ParameterSpace,
@@ -245,14 +339,23 @@ def polynomial_chaos(
     n_samples: int | None = None,
     quadrature_points: int | None = None,
     basis: str = "askey",
+    truncation: str | None = None,
+    q_norm: float = 0.5,
     seed: SeedLike = None,
 ) -> PCEResult:
-    """Fit a total-order-``order`` polynomial chaos expansion of every response.
+    """Fit an order-``order`` polynomial chaos expansion of every response.
 
     Parameters
     ----------
     model, space : the Model and its uncertain inputs (matched by name).
-    order : total polynomial order p (>= 1).
+    order : polynomial order p (>= 1): the total order, or the degree in each input for the
+        tensor basis.
+    truncation : "tensor" (degree <= p in each input, (p + 1)^d terms: Dakota's basis on a
+        tensor grid, and the default for ``estimator="quadrature"``; needs
+        ``quadrature_points >= p + 1`` there, where the projection is then exact for every
+        polynomial in the basis), "total_order" (N_T = (d + p)! / (d! p!) terms, the default
+        for the other estimators) or "hyperbolic" (``||alpha||_q <= p`` with ``q_norm``).
+    q_norm : q in (0, 1] of the hyperbolic truncation.
     estimator : "quadrature" (tensor Gauss rule, ``quadrature_points`` per input, default p + 1),
         "sparse_grid" (Smolyak level p over Gauss rules of 1..p+1 points) or "regression"
         (least squares on ``n_samples`` LHS points, default 2 N_T).
@@ -269,14 +372,31 @@ def polynomial_chaos(
         raise ParameterError(f"basis must be 'askey' or 'hermite', got {basis!r}")
     d = space.dim
     germs = _germs(space, basis)
-    alpha = total_order_indices(d, order)
     m = len(model.names_out)
     n_dropped = 0
     if estimator not in ESTIMATORS:
         raise ParameterError(
             f"unknown PCE estimator {estimator!r}; valid: {', '.join(ESTIMATORS)}")
+    if truncation is None:
+        truncation = "tensor" if estimator == "quadrature" else "total_order"
+    if truncation == "tensor" and estimator == "sparse_grid":
+        raise ParameterError("a sparse grid cannot resolve the tensor basis; use truncation "
+                             "'total_order' or 'hyperbolic' with estimator 'sparse_grid'")
+    if truncation == "tensor":
+        alpha = tensor_indices(d, order)
+    elif truncation == "total_order":
+        alpha = total_order_indices(d, order)
+    elif truncation == "hyperbolic":
+        alpha = hyperbolic_indices(d, order, q_norm)
+    else:
+        raise ParameterError(
+            f"unknown truncation {truncation!r}; valid: {', '.join(TRUNCATIONS)}")
     if estimator == "quadrature":
         nq = int(quadrature_points or order + 1)
+        if truncation == "tensor" and nq < order + 1:
+            raise ParameterError(
+                f"a tensor basis of degree {order} per input needs quadrature_points >= "
+                f"{order + 1}, got {nq}")
         xi, w = _tensor_grid(germs, [nq] * d)
         batch = eval_space(model, space, _xi_to_x(space, germs, xi))
         if batch.failures:
@@ -284,7 +404,7 @@ def polynomial_chaos(
                 f"{len(batch.failures)} quadrature evaluations failed; projection needs all "
                 "points (use estimator='regression')"
             )
-        coef = _design_matrix(germs, alpha, xi).T @ (w[:, None] * batch.values)
+        coef = _tensor_projection(germs, nq, alpha, batch.values)
         n_eval = xi.shape[0]
     elif estimator == "sparse_grid":
         terms = _smolyak_terms(d, order)
@@ -354,6 +474,7 @@ def polynomial_chaos(
         estimator=estimator,
         n_evaluations=int(n_eval),
         n_dropped=n_dropped,
+        truncation=truncation,
         space=space,
         germs=germs,
     )

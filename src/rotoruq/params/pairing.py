@@ -67,7 +67,6 @@ def restricted_pairing(
     Examples
     --------
     >>> import numpy as np
-from scipy.special import ndtri
     >>> from rotoruq.params import unit_design
     >>> rng = np.random.default_rng(0)
     >>> q = restricted_pairing(unit_design(500, 9, pairing="random", seed=1), rng)

@@ -47,11 +47,15 @@ __all__ = [
     "hyperbolic_indices",
     "Germ",
     "TRUNCATIONS",
+    "SOLVERS",
 ]
 
 ESTIMATORS = ("quadrature", "sparse_grid", "regression")
 TRUNCATIONS = ("tensor", "total_order", "hyperbolic")
 """Basis truncations of :func:`polynomial_chaos`."""
+SOLVERS = ("least_squares", "omp")
+"""Regression solvers of :func:`polynomial_chaos`."""
+_OMP_PATIENCE = 20
 
 
 def total_order_indices(d: int, p: int) -> np.ndarray:
@@ -210,7 +214,8 @@ class PCEResult:
     variance (m,) = sum_{i>0} c_i^2 (eq. 2.19); std (m,); main, total (m, d) Sobol' indices
     from the coefficients; estimator ("quadrature", "sparse_grid", "regression");
     n_evaluations; n_dropped (failed points left out of a regression fit); truncation
-    ("tensor", "total_order" or "hyperbolic").
+    ("tensor", "total_order" or "hyperbolic"); loo_error (m,) relative leave-one-out error of
+    a sparse ("omp") regression, None otherwise.
     """
 
     names_in: tuple[str, ...]
@@ -228,6 +233,7 @@ class PCEResult:
     n_evaluations: int
     n_dropped: int = 0
     truncation: str = "total_order"
+    loo_error: np.ndarray | None = None
     space: ParameterSpace | None = field(default=None, repr=False)
     germs: list = field(default_factory=list, repr=False)
 
@@ -235,11 +241,11 @@ class PCEResult:
     def n_terms(self) -> int:
         return self.multi_indices.shape[0]
 
-    def interaction(self, *names: str) -> np.ndarray:
+    def interaction(self, *names_in: str) -> np.ndarray:
         """Sobol' index of the interaction of exactly these inputs, shape (m,).
 
         The share of the variance carried by the terms whose non-zero degrees are exactly on
-        ``names`` (one name: the main index; two: the pure second-order index S_ij).
+        ``names_in`` (one name: the main index; two: the pure second-order index S_ij).
 
         Examples
         --------
@@ -249,10 +255,10 @@ class PCEResult:
         >>> float(polynomial_chaos(m, space, 2).interaction("a", "b")[0])
         1.0
         """
-        if not names:
+        if not names_in:
             raise ParameterError("interaction needs at least one input name")
         idx = []
-        for n in names:
+        for n in names_in:
             if n not in self.names_in:
                 raise ParameterError(f"unknown input {n!r}; valid: {list(self.names_in)}")
             idx.append(self.names_in.index(n))
@@ -313,6 +319,62 @@ def _tensor_grid(germs, npts):
     return nodes.reshape(-1, len(germs)), w
 
 
+def _omp(psi: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
+    """Orthogonal matching pursuit with the sparsity chosen by leave-one-out error.
+
+    Parameters
+    ----------
+    psi : (n, P) design matrix; y : (n,) responses.
+
+    Returns
+    -------
+    coef : (P,) coefficients, zero outside the chosen active set (refit by least squares).
+    loo : the chosen fit's leave-one-out mean squared error.
+
+    The constant term enters first; each step adds the column most correlated with the
+    residual (orthogonalized against the active ones by twice-repeated Gram-Schmidt, so a step
+    costs O(n P)), up to n - 2 terms so that the leave-one-out error e_i / (1 - h_ii) stays
+    defined; the path stops once that error has not improved for ``_OMP_PATIENCE`` steps.
+    The fit with the least leave-one-out error along the path is kept.
+    """
+    n, p = psi.shape
+    norms = np.linalg.norm(psi, axis=0)
+    usable = norms > 0
+    norms[~usable] = 1.0
+    q = np.empty((n, min(p, n)))
+    h = np.zeros(n)
+    resid = y.astype(float).copy()
+    active: list[int] = []
+    best_loo, best_k, since = np.inf, 0, 0
+    candidate = 0  # the constant first
+    while candidate >= 0:
+        v = psi[:, candidate].astype(float)
+        for _ in range(2):
+            v -= q[:, : len(active)] @ (q[:, : len(active)].T @ v)
+        nv = np.linalg.norm(v)
+        usable[candidate] = False
+        if nv > 1e-10 * norms[candidate]:
+            k = len(active)
+            q[:, k] = v / nv
+            active.append(candidate)
+            h += q[:, k] ** 2
+            resid -= q[:, k] * (q[:, k] @ resid)
+            loo = float(np.mean((resid / (1.0 - np.minimum(h, 1.0 - 1e-12))) ** 2))
+            if loo < best_loo:
+                best_loo, best_k, since = loo, len(active), 0
+            else:
+                since += 1
+            if len(active) >= min(p, n - 2) or since >= _OMP_PATIENCE or not np.any(resid):
+                break
+        score = np.abs(psi.T @ resid) / norms
+        score[~usable] = -1.0
+        candidate = int(np.argmax(score)) if np.any(usable) else -1
+    chosen = active[:best_k]
+    coef = np.zeros(p)
+    coef[chosen] = np.linalg.lstsq(psi[:, chosen], y, rcond=None)[0]
+    return coef, float(best_loo)
+
+
 def _tensor_projection(germs, nq: int, alpha: np.ndarray, values: np.ndarray) -> np.ndarray:
     """Projection coefficients (N, m) of ``values`` (nq^d, m), given on the tensor Gauss grid
     of :func:`_tensor_grid`, onto the basis terms ``alpha`` (N, d).
@@ -341,6 +403,7 @@ def polynomial_chaos(
     basis: str = "askey",
     truncation: str | None = None,
     q_norm: float = 0.5,
+    solver: str = "least_squares",
     seed: SeedLike = None,
 ) -> PCEResult:
     """Fit an order-``order`` polynomial chaos expansion of every response.
@@ -361,6 +424,11 @@ def polynomial_chaos(
         (least squares on ``n_samples`` LHS points, default 2 N_T).
     basis : "askey" (table 2.1 where it applies, Hermite in u-space otherwise) or "hermite"
         (Hermite in u-space for every input).
+    solver : "regression" only: "least_squares" (all terms; needs n_samples >= N) or "omp"
+        (orthogonal matching pursuit, Dakota's ``omp``: a sparse fit per response whose number
+        of terms, and order up to ``order``, minimize the leave-one-out error; fewer samples
+        than terms allowed, default n_samples = N_T of the order). The result's
+        ``loo_error`` holds the relative leave-one-out error of each response.
     seed : design seed for "regression".
 
     All points of a design go to the model in ONE batched call.
@@ -374,9 +442,14 @@ def polynomial_chaos(
     germs = _germs(space, basis)
     m = len(model.names_out)
     n_dropped = 0
+    loo: np.ndarray | None = None
     if estimator not in ESTIMATORS:
         raise ParameterError(
             f"unknown PCE estimator {estimator!r}; valid: {', '.join(ESTIMATORS)}")
+    if solver not in SOLVERS:
+        raise ParameterError(f"unknown solver {solver!r}; valid: {', '.join(SOLVERS)}")
+    if solver != "least_squares" and estimator != "regression":
+        raise ParameterError(f"solver {solver!r} needs estimator 'regression'")
     if truncation is None:
         truncation = "tensor" if estimator == "quadrature" else "total_order"
     if truncation == "tensor" and estimator == "sparse_grid":
@@ -426,16 +499,38 @@ def polynomial_chaos(
             coef[inside] += c * (_design_matrix(germs, alpha[inside], xi).T @ (w[:, None] * y))
         n_eval = uniq.shape[0]
     else:  # regression
-        n = int(n_samples or 2 * alpha.shape[0])
-        if n < alpha.shape[0]:
-            raise ParameterError(f"regression needs n_samples >= N_T = {alpha.shape[0]}, got {n}")
+        default_n = alpha.shape[0] if solver == "omp" else 2 * alpha.shape[0]
+        n = int(n_samples or default_n)
+        if solver == "least_squares" and n < alpha.shape[0]:
+            raise ParameterError(f"regression needs n_samples >= N_T = {alpha.shape[0]}, got {n}"
+                                 " (or solver='omp')")
+        if n < 4:
+            raise ParameterError(f"regression needs n_samples >= 4, got {n}")
         x = unit_to_space(space, unit_design(n, d, design="lhs", seed=as_generator(seed)))
         batch = eval_space(model, space, x)
         ok = batch.ok
         n_dropped = int(np.sum(~ok))
         nan_rows_warning(n_dropped, n, "polynomial_chaos regression")
         psi = _design_matrix(germs, alpha, _x_to_xi(space, germs, x[ok]))
-        coef = np.linalg.lstsq(psi, batch.values[ok], rcond=None)[0]
+        yv = batch.values[ok]
+        if solver == "least_squares":
+            coef = np.linalg.lstsq(psi, yv, rcond=None)[0]
+        else:
+            coef = np.zeros((alpha.shape[0], m))
+            loo = np.full(m, np.nan)
+            degree = alpha.sum(axis=1) if truncation != "tensor" else alpha.max(axis=1)
+            for k in range(m):
+                best = None
+                # candidate orders 1..p on the same sample: the order is cross-validated too
+                for o in range(1, order + 1):
+                    rows = np.flatnonzero(degree <= o)
+                    c, e = _omp(psi[:, rows], yv[:, k])
+                    if best is None or e < best[0]:
+                        best = (e, rows, c)
+                assert best is not None
+                coef[best[1], k] = best[2]
+                var_y = np.var(yv[:, k])
+                loo[k] = best[0] / var_y if var_y > 0 else 0.0
         n_eval = n
     c2 = coef[1:] ** 2
     var = c2.sum(axis=0)
@@ -475,6 +570,7 @@ def polynomial_chaos(
         n_evaluations=int(n_eval),
         n_dropped=n_dropped,
         truncation=truncation,
+        loo_error=loo,
         space=space,
         germs=germs,
     )

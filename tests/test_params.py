@@ -309,6 +309,12 @@ def test_restricted_lhs_is_bitwise_seeded_and_degenerate_sizes_are_random_pairs(
     for n in (1, 2, 4):
         np.testing.assert_array_equal(unit_design(n, 4, seed=3),
                                       unit_design(n, 4, pairing="random", seed=3))
+    # ... and a correlated space still gets its correlation, through the Nataf factor
+    space = rq.ParameterSpace({"a": rq.Normal(0, 1), "b": rq.LogNormal(1, 0.5),
+                               "c": rq.Uniform(0, 1)},
+                              correlation=[[1, 0.7, 0], [0.7, 1, 0], [0, 0, 1]])
+    np.testing.assert_allclose(space.draw(3, seed=1), space.draw(3, pairing="random", seed=1),
+                               rtol=1e-12)
     with pytest.raises(ParameterError, match="unknown pairing 'iman'; valid: restricted, random"):
         unit_design(10, 2, pairing="iman")
     with pytest.raises(ParameterError, match="positive definite"):

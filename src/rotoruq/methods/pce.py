@@ -18,7 +18,9 @@ truncated at total order p: N_T = (d + p)! / (d! p!) terms (eq. 2.16), or (Dakot
 on a tensor quadrature grid) kept as the grid's tensor basis, degree <= p in each input, or by
 a hyperbolic (q-norm) truncation. Coefficients by
 projection (eq. 2.17) with tensor Gauss quadrature or a Smolyak sparse grid (combination
-technique on the projections), or by least-squares regression on an LHS sample. Moments
+technique on the projections), or by regression on an LHS sample: least squares on all terms,
+or orthogonal matching pursuit (sparse, the number of terms and the order chosen by
+leave-one-out error). Moments
 (eqs. 2.18, 2.19) and Sobol' indices follow from the coefficients.
 """
 

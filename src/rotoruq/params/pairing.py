@@ -11,7 +11,7 @@ for independent inputs, the Nataf correlation R0 for correlated ones).
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import ndtri
+from scipy.special import ndtr, ndtri
 
 from ..errors import ParameterError
 
@@ -53,7 +53,9 @@ def restricted_pairing(
     -------
     array (n, d)
         The re-paired design. With ``n <= d`` the score correlation matrix is singular and no
-        pairing can reach the target: the columns are then paired at random (as is ``n = 1``).
+        pairing can reach the target: the columns stay paired at random (as for ``n = 1``)
+        and a non-identity target is imposed on their normal scores through its Cholesky
+        factor instead (the design is then not stratified per column).
 
     Notes
     -----
@@ -91,7 +93,12 @@ def restricted_pairing(
         except np.linalg.LinAlgError:
             raise ParameterError("target correlation must be positive definite") from None
     if n <= d or d < 2:
-        return q.copy()
+        if target is None or d < 2:
+            return q.copy()
+        # no pairing reaches the target: correlate the normal scores instead (the design is
+        # then stratified in u-space, not per column, as a randomly paired one mapped by Nataf)
+        z = ndtri(np.clip(q, 1e-16, 1.0 - 1e-16)) @ p_target.T
+        return np.clip(ndtr(z), 1e-300, 1.0 - 1e-16)
     goal = p_target @ p_target.T
     qs = np.sort(q, axis=0)
     # the normal scores of the design's own values (centred per column): what the Nataf

@@ -305,7 +305,8 @@ def unit_design(
         :func:`~rotoruq.params.pairing.restricted_pairing` so that the normal scores
         Phi^-1(q) have correlation near ``correlation`` (identity by default); every column
         still hits each of its n strata once. With ``n_samples <= dim`` no pairing can
-        control the correlation and the columns stay randomly paired. "random": columns
+        control the correlation: the columns stay randomly paired (and a ``correlation`` is
+        imposed on their normal scores by its Cholesky factor). "random": columns
         paired at random (scipy's Latin hypercube as is).
     correlation : (dim, dim) target correlation of the normal scores for a restricted LHS
         (e.g. a space's Nataf correlation :attr:`ParameterSpace.nataf`); ignored otherwise.

@@ -428,7 +428,8 @@ def polynomial_chaos(
         (Hermite in u-space for every input).
     solver : "regression" only: "least_squares" (all terms; needs n_samples >= N) or "omp"
         (orthogonal matching pursuit, Dakota's ``omp``: a sparse fit per response whose number
-        of terms, and order up to ``order``, minimize the leave-one-out error; fewer samples
+        of terms, and order up to ``order`` (raised until two orders in a row do not improve
+        it), minimize the leave-one-out error; fewer samples
         than terms allowed, default n_samples = N_T of the order). The result's
         ``loo_error`` holds the relative leave-one-out error of each response.
     seed : design seed for "regression".
@@ -523,12 +524,18 @@ def polynomial_chaos(
             degree = alpha.sum(axis=1) if truncation != "tensor" else alpha.max(axis=1)
             for k in range(m):
                 best = None
-                # candidate orders 1..p on the same sample: the order is cross-validated too
+                # orders 1, 2, ... on the same sample (adaptive order, as Dakota's
+                # cross-validated OMP): stop once two orders in a row have not improved
+                worse = 0
                 for o in range(1, order + 1):
                     rows = np.flatnonzero(degree <= o)
                     c, e = _omp(psi[:, rows], yv[:, k])
                     if best is None or e < best[0]:
-                        best = (e, rows, c)
+                        best, worse = (e, rows, c), 0
+                    else:
+                        worse += 1
+                        if worse >= 2:
+                            break
                 assert best is not None
                 coef[best[1], k] = best[2]
                 var_y = np.var(yv[:, k])

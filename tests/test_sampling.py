@@ -176,3 +176,22 @@ def test_public_signatures_and_results_follow_the_vocabulary():
         assert params.frozen and not params.eq, cls.__name__
         fields = {f.name for f in dataclasses.fields(cls)}
         assert not banned & fields, (cls.__name__, banned & fields)
+
+
+def test_restricted_pairing_sharpens_the_std_of_a_sum_and_survives_refine():
+    # sum of 9 standard normals: exact std 3; random pairing errs by ~ sqrt(2 * 36 / n) * 3 / 2
+    space = rq.ParameterSpace({f"x{i}": rq.Normal(0, 1) for i in range(9)})
+    model = rq.FunctionModel(lambda x: x.sum(axis=1), space.names, ["s"])
+    err = {p: [abs(sample(model, space, 500, pairing=p, seed=s).std[0] / 3 - 1)
+               for s in range(5)] for p in ("restricted", "random")}
+    assert max(err["restricted"]) < 0.005
+    assert np.mean(err["random"]) > 3 * np.mean(err["restricted"])
+    res = sample(model, space, 200, seed=2)
+    assert res.options["pairing"] == "restricted"
+    grown = refine(res, 200)  # the new half is paired among itself: still an LHS of 400
+    for j in range(9):
+        assert np.all(np.histogram(grown.unit[:, j], bins=400, range=(0, 1))[0] == 1)
+    off = ~np.eye(9, dtype=bool)
+    assert np.abs(stats.spearmanr(grown.inputs).statistic[off]).max() < 0.02
+    with pytest.raises(ParameterError, match="unknown pairing"):
+        sample(model, space, 10, pairing="iman")

@@ -14,9 +14,13 @@ other / corr.   Hermite                          u (Nataf / marginal u-space tra
 =============== ================================ ===============================
 
 (In a correlated space every input uses Hermite in the Nataf u-space.) The expansion is
-truncated at total order p: N_T = (d + p)! / (d! p!) terms (eq. 2.16). Coefficients by
+truncated at total order p: N_T = (d + p)! / (d! p!) terms (eq. 2.16), or (Dakota's default
+on a tensor quadrature grid) kept as the grid's tensor basis, degree <= p in each input, or by
+a hyperbolic (q-norm) truncation. Coefficients by
 projection (eq. 2.17) with tensor Gauss quadrature or a Smolyak sparse grid (combination
-technique on the projections), or by least-squares regression on an LHS sample. Moments
+technique on the projections), or by regression on an LHS sample: least squares on all terms,
+or orthogonal matching pursuit (sparse, the number of terms and the order chosen by
+leave-one-out error). Moments
 (eqs. 2.18, 2.19) and Sobol' indices follow from the coefficients.
 """
 
@@ -36,9 +40,24 @@ from ..params import Beta, Exponential, Gamma, Normal, ParameterSpace, Uniform, 
 from ._common import eval_space, nan_rows_warning
 from .sampling import unit_to_space
 
-__all__ = ["PCEResult", "PCEModel", "polynomial_chaos", "total_order_indices", "Germ"]
+__all__ = [
+    "PCEResult",
+    "PCEModel",
+    "polynomial_chaos",
+    "total_order_indices",
+    "tensor_indices",
+    "hyperbolic_indices",
+    "Germ",
+    "TRUNCATIONS",
+    "SOLVERS",
+]
 
 ESTIMATORS = ("quadrature", "sparse_grid", "regression")
+TRUNCATIONS = ("tensor", "total_order", "hyperbolic")
+"""Basis truncations of :func:`polynomial_chaos`."""
+SOLVERS = ("least_squares", "omp")
+"""Regression solvers of :func:`polynomial_chaos`."""
+_OMP_PATIENCE = 20
 
 
 def total_order_indices(d: int, p: int) -> np.ndarray:
@@ -46,6 +65,40 @@ def total_order_indices(d: int, p: int) -> np.ndarray:
     out = [a for a in itertools.product(range(p + 1), repeat=d) if sum(a) <= p]
     out.sort(key=lambda a: (sum(a), tuple(-v for v in a)))
     return np.array(out, dtype=int).reshape(-1, d)
+
+
+def tensor_indices(d: int, p: int) -> np.ndarray:
+    """Multi-indices with every degree <= p (the tensor basis), shape ((p + 1)^d, d), sorted
+    by total degree.
+
+    Examples
+    --------
+    >>> tensor_indices(2, 1).tolist()
+    [[0, 0], [1, 0], [0, 1], [1, 1]]
+    """
+    out = list(itertools.product(range(p + 1), repeat=d))
+    out.sort(key=lambda a: (sum(a), tuple(-v for v in a)))
+    return np.array(out, dtype=int).reshape(-1, d)
+
+
+def hyperbolic_indices(d: int, p: int, q_norm: float) -> np.ndarray:
+    """Multi-indices with ``(sum_j alpha_j^q)^(1/q) <= p`` (hyperbolic truncation of Blatman
+    and Sudret 2011; q = 1 is the total order), shape (N, d), sorted by total degree.
+
+    Parameters
+    ----------
+    d : number of inputs; p : maximal degree; q_norm : q in (0, 1].
+
+    Examples
+    --------
+    >>> hyperbolic_indices(2, 2, 0.5).tolist()
+    [[0, 0], [1, 0], [0, 1], [2, 0], [0, 2]]
+    """
+    if not 0.0 < q_norm <= 1.0:
+        raise ParameterError(f"q_norm must lie in (0, 1], got {q_norm}")
+    alpha = total_order_indices(d, p)
+    norm = np.sum(alpha.astype(float) ** q_norm, axis=1) ** (1.0 / q_norm)
+    return alpha[norm <= p * (1.0 + 1e-12)]
 
 
 class Germ:
@@ -162,7 +215,9 @@ class PCEResult:
     families (d,) polynomial family per input; mean (m,) = c_0 (eq. 2.18);
     variance (m,) = sum_{i>0} c_i^2 (eq. 2.19); std (m,); main, total (m, d) Sobol' indices
     from the coefficients; estimator ("quadrature", "sparse_grid", "regression");
-    n_evaluations; n_dropped (failed points left out of a regression fit).
+    n_evaluations; n_dropped (failed points left out of a regression fit); truncation
+    ("tensor", "total_order" or "hyperbolic"); loo_error (m,) relative leave-one-out error of
+    a sparse ("omp") regression, None otherwise.
     """
 
     names_in: tuple[str, ...]
@@ -179,12 +234,42 @@ class PCEResult:
     estimator: str
     n_evaluations: int
     n_dropped: int = 0
+    truncation: str = "total_order"
+    loo_error: np.ndarray | None = None
     space: ParameterSpace | None = field(default=None, repr=False)
     germs: list = field(default_factory=list, repr=False)
 
     @property
     def n_terms(self) -> int:
         return self.multi_indices.shape[0]
+
+    def interaction(self, *names_in: str) -> np.ndarray:
+        """Sobol' index of the interaction of exactly these inputs, shape (m,).
+
+        The share of the variance carried by the terms whose non-zero degrees are exactly on
+        ``names_in`` (one name: the main index; two: the pure second-order index S_ij).
+
+        Examples
+        --------
+        >>> import rotoruq as rq
+        >>> space = rq.ParameterSpace({"a": rq.Uniform(-1, 1), "b": rq.Uniform(-1, 1)})
+        >>> m = rq.FunctionModel(lambda x: x[:, 0] * x[:, 1], ["a", "b"], ["y"])
+        >>> float(polynomial_chaos(m, space, 2).interaction("a", "b")[0])
+        1.0
+        """
+        if not names_in:
+            raise ParameterError("interaction needs at least one input name")
+        idx = []
+        for n in names_in:
+            if n not in self.names_in:
+                raise ParameterError(f"unknown input {n!r}; valid: {list(self.names_in)}")
+            idx.append(self.names_in.index(n))
+        support = self.multi_indices > 0
+        want = np.zeros(len(self.names_in), dtype=bool)
+        want[idx] = True
+        rows = np.all(support == want, axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return (self.coefficients[rows] ** 2).sum(axis=0) / self.variance
 
     def predict(self, x: np.ndarray) -> np.ndarray:
         """Expansion at points x (n, d) in ``names_in`` order: (n, m)."""
@@ -236,6 +321,79 @@ def _tensor_grid(germs, npts):
     return nodes.reshape(-1, len(germs)), w
 
 
+def _omp(psi: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
+    """Orthogonal matching pursuit with the sparsity chosen by leave-one-out error.
+
+    Parameters
+    ----------
+    psi : (n, P) design matrix; y : (n,) responses.
+
+    Returns
+    -------
+    coef : (P,) coefficients, zero outside the chosen active set (refit by least squares).
+    loo : the chosen fit's leave-one-out mean squared error.
+
+    The constant term enters first; each step adds the column most correlated with the
+    residual (orthogonalized against the active ones by twice-repeated Gram-Schmidt, so a step
+    costs O(n P)), up to n - 2 terms so that the leave-one-out error e_i / (1 - h_ii) stays
+    defined; the path stops once that error has not improved for ``_OMP_PATIENCE`` steps.
+    The fit with the least leave-one-out error along the path is kept.
+    """
+    n, p = psi.shape
+    norms = np.linalg.norm(psi, axis=0)
+    usable = norms > 0
+    norms[~usable] = 1.0
+    q = np.empty((n, min(p, n)))
+    h = np.zeros(n)
+    resid = y.astype(float).copy()
+    active: list[int] = []
+    best_loo, best_k, since = np.inf, 0, 0
+    candidate = 0  # the constant first
+    while candidate >= 0:
+        v = psi[:, candidate].astype(float)
+        for _ in range(2):
+            v -= q[:, : len(active)] @ (q[:, : len(active)].T @ v)
+        nv = np.linalg.norm(v)
+        usable[candidate] = False
+        if nv > 1e-10 * norms[candidate]:
+            k = len(active)
+            q[:, k] = v / nv
+            active.append(candidate)
+            h += q[:, k] ** 2
+            resid -= q[:, k] * (q[:, k] @ resid)
+            loo = float(np.mean((resid / (1.0 - np.minimum(h, 1.0 - 1e-12))) ** 2))
+            if loo < best_loo:
+                best_loo, best_k, since = loo, len(active), 0
+            else:
+                since += 1
+            if len(active) >= min(p, n - 2) or since >= _OMP_PATIENCE or not np.any(resid):
+                break
+        score = np.abs(psi.T @ resid) / norms
+        score[~usable] = -1.0
+        candidate = int(np.argmax(score)) if np.any(usable) else -1
+    chosen = active[:best_k]
+    coef = np.zeros(p)
+    coef[chosen] = np.linalg.lstsq(psi[:, chosen], y, rcond=None)[0]
+    return coef, float(best_loo)
+
+
+def _tensor_projection(germs, nq: int, alpha: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Projection coefficients (N, m) of ``values`` (nq^d, m), given on the tensor Gauss grid
+    of :func:`_tensor_grid`, onto the basis terms ``alpha`` (N, d).
+
+    One 1-D projection per axis (O(nq^d d p) work) instead of the (nq^d, N) design matrix,
+    which for a tensor basis would be square in the grid size.
+    """
+    d, m = len(germs), values.shape[1]
+    pmax = int(alpha.max()) if alpha.size else 0
+    t = values.reshape((nq,) * d + (m,))
+    for j, g in enumerate(germs):
+        nodes, wj = g.gauss(nq)
+        proj = (g.basis(pmax, nodes) * wj[:, None]).T  # (pmax + 1, nq)
+        t = np.moveaxis(np.tensordot(proj, t, axes=([1], [j])), 0, j)
+    return t[tuple(alpha.T)]
+
+
 def polynomial_chaos(
     model: Model,
     space: ParameterSpace,
@@ -245,19 +403,35 @@ def polynomial_chaos(
     n_samples: int | None = None,
     quadrature_points: int | None = None,
     basis: str = "askey",
+    truncation: str | None = None,
+    q_norm: float = 0.5,
+    solver: str = "least_squares",
     seed: SeedLike = None,
 ) -> PCEResult:
-    """Fit a total-order-``order`` polynomial chaos expansion of every response.
+    """Fit an order-``order`` polynomial chaos expansion of every response.
 
     Parameters
     ----------
     model, space : the Model and its uncertain inputs (matched by name).
-    order : total polynomial order p (>= 1).
+    order : polynomial order p (>= 1): the total order, or the degree in each input for the
+        tensor basis.
+    truncation : "tensor" (degree <= p in each input, (p + 1)^d terms: Dakota's basis on a
+        tensor grid, and the default for ``estimator="quadrature"``; needs
+        ``quadrature_points >= p + 1`` there, where the projection is then exact for every
+        polynomial in the basis), "total_order" (N_T = (d + p)! / (d! p!) terms, the default
+        for the other estimators) or "hyperbolic" (``||alpha||_q <= p`` with ``q_norm``).
+    q_norm : q in (0, 1] of the hyperbolic truncation.
     estimator : "quadrature" (tensor Gauss rule, ``quadrature_points`` per input, default p + 1),
         "sparse_grid" (Smolyak level p over Gauss rules of 1..p+1 points) or "regression"
         (least squares on ``n_samples`` LHS points, default 2 N_T).
     basis : "askey" (table 2.1 where it applies, Hermite in u-space otherwise) or "hermite"
         (Hermite in u-space for every input).
+    solver : "regression" only: "least_squares" (all terms; needs n_samples >= N) or "omp"
+        (orthogonal matching pursuit, Dakota's ``omp``: a sparse fit per response whose number
+        of terms, and order up to ``order`` (raised until two orders in a row do not improve
+        it), minimize the leave-one-out error; fewer samples
+        than terms allowed, default n_samples = N_T of the order). The result's
+        ``loo_error`` holds the relative leave-one-out error of each response.
     seed : design seed for "regression".
 
     All points of a design go to the model in ONE batched call.
@@ -269,14 +443,36 @@ def polynomial_chaos(
         raise ParameterError(f"basis must be 'askey' or 'hermite', got {basis!r}")
     d = space.dim
     germs = _germs(space, basis)
-    alpha = total_order_indices(d, order)
     m = len(model.names_out)
     n_dropped = 0
+    loo: np.ndarray | None = None
     if estimator not in ESTIMATORS:
         raise ParameterError(
             f"unknown PCE estimator {estimator!r}; valid: {', '.join(ESTIMATORS)}")
+    if solver not in SOLVERS:
+        raise ParameterError(f"unknown solver {solver!r}; valid: {', '.join(SOLVERS)}")
+    if solver != "least_squares" and estimator != "regression":
+        raise ParameterError(f"solver {solver!r} needs estimator 'regression'")
+    if truncation is None:
+        truncation = "tensor" if estimator == "quadrature" else "total_order"
+    if truncation == "tensor" and estimator == "sparse_grid":
+        raise ParameterError("a sparse grid cannot resolve the tensor basis; use truncation "
+                             "'total_order' or 'hyperbolic' with estimator 'sparse_grid'")
+    if truncation == "tensor":
+        alpha = tensor_indices(d, order)
+    elif truncation == "total_order":
+        alpha = total_order_indices(d, order)
+    elif truncation == "hyperbolic":
+        alpha = hyperbolic_indices(d, order, q_norm)
+    else:
+        raise ParameterError(
+            f"unknown truncation {truncation!r}; valid: {', '.join(TRUNCATIONS)}")
     if estimator == "quadrature":
         nq = int(quadrature_points or order + 1)
+        if truncation == "tensor" and nq < order + 1:
+            raise ParameterError(
+                f"a tensor basis of degree {order} per input needs quadrature_points >= "
+                f"{order + 1}, got {nq}")
         xi, w = _tensor_grid(germs, [nq] * d)
         batch = eval_space(model, space, _xi_to_x(space, germs, xi))
         if batch.failures:
@@ -284,7 +480,7 @@ def polynomial_chaos(
                 f"{len(batch.failures)} quadrature evaluations failed; projection needs all "
                 "points (use estimator='regression')"
             )
-        coef = _design_matrix(germs, alpha, xi).T @ (w[:, None] * batch.values)
+        coef = _tensor_projection(germs, nq, alpha, batch.values)
         n_eval = xi.shape[0]
     elif estimator == "sparse_grid":
         terms = _smolyak_terms(d, order)
@@ -306,16 +502,44 @@ def polynomial_chaos(
             coef[inside] += c * (_design_matrix(germs, alpha[inside], xi).T @ (w[:, None] * y))
         n_eval = uniq.shape[0]
     else:  # regression
-        n = int(n_samples or 2 * alpha.shape[0])
-        if n < alpha.shape[0]:
-            raise ParameterError(f"regression needs n_samples >= N_T = {alpha.shape[0]}, got {n}")
+        default_n = alpha.shape[0] if solver == "omp" else 2 * alpha.shape[0]
+        n = int(n_samples or default_n)
+        if solver == "least_squares" and n < alpha.shape[0]:
+            raise ParameterError(f"regression needs n_samples >= N_T = {alpha.shape[0]}, got {n}"
+                                 " (or solver='omp')")
+        if n < 4:
+            raise ParameterError(f"regression needs n_samples >= 4, got {n}")
         x = unit_to_space(space, unit_design(n, d, design="lhs", seed=as_generator(seed)))
         batch = eval_space(model, space, x)
         ok = batch.ok
         n_dropped = int(np.sum(~ok))
         nan_rows_warning(n_dropped, n, "polynomial_chaos regression")
         psi = _design_matrix(germs, alpha, _x_to_xi(space, germs, x[ok]))
-        coef = np.linalg.lstsq(psi, batch.values[ok], rcond=None)[0]
+        yv = batch.values[ok]
+        if solver == "least_squares":
+            coef = np.linalg.lstsq(psi, yv, rcond=None)[0]
+        else:
+            coef = np.zeros((alpha.shape[0], m))
+            loo = np.full(m, np.nan)
+            degree = alpha.sum(axis=1) if truncation != "tensor" else alpha.max(axis=1)
+            for k in range(m):
+                best = None
+                # orders 1, 2, ... on the same sample (adaptive order, as Dakota's
+                # cross-validated OMP): stop once two orders in a row have not improved
+                worse = 0
+                for o in range(1, order + 1):
+                    rows = np.flatnonzero(degree <= o)
+                    c, e = _omp(psi[:, rows], yv[:, k])
+                    if best is None or e < best[0]:
+                        best, worse = (e, rows, c), 0
+                    else:
+                        worse += 1
+                        if worse >= 2:
+                            break
+                assert best is not None
+                coef[best[1], k] = best[2]
+                var_y = np.var(yv[:, k])
+                loo[k] = best[0] / var_y if var_y > 0 else 0.0
         n_eval = n
     c2 = coef[1:] ** 2
     var = c2.sum(axis=0)
@@ -354,6 +578,8 @@ def polynomial_chaos(
         estimator=estimator,
         n_evaluations=int(n_eval),
         n_dropped=n_dropped,
+        truncation=truncation,
+        loo_error=loo,
         space=space,
         germs=germs,
     )

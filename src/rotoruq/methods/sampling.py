@@ -19,7 +19,7 @@ from scipy import stats
 from .._rng import SeedLike, as_generator
 from ..errors import ParameterError
 from ..model import Model
-from ..params import ParameterSpace, unit_design
+from ..params import PAIRINGS, ParameterSpace, restricted_pairing, unit_design
 from ._common import eval_space, levels_per_response, nan_rows_warning
 
 __all__ = [
@@ -247,9 +247,13 @@ class SamplingResult:
         return grid, kde(grid)
 
 
-def unit_to_space(space: ParameterSpace, q: np.ndarray) -> np.ndarray:
-    """Map a design in (0, 1)^d to parameter values (Nataf-correlated when the space is)."""
-    if space.correlation is None:
+def unit_to_space(space: ParameterSpace, q: np.ndarray, *, paired: bool = False) -> np.ndarray:
+    """Map a design in (0, 1)^d to parameter values (Nataf-correlated when the space is).
+
+    ``paired=True`` says the design already carries the space's correlation (a restricted
+    LHS aimed at :attr:`ParameterSpace.nataf`): it is then mapped by the marginals alone.
+    """
+    if space.correlation is None or paired:
         return space.from_unit(q)
     return space.from_u(stats.norm.ppf(np.clip(q, 1e-16, 1 - 1e-16)))
 
@@ -262,8 +266,16 @@ def check_design(design: str) -> str:
     return d
 
 
+def _carries_correlation(design: str, options: dict) -> bool:
+    return design == "lhs" and options.get("pairing") == "restricted"
+
+
+def _pair_target(space: ParameterSpace) -> np.ndarray | None:
+    return space.nataf if space.correlation is not None else None
+
+
 def _finish(model, space, q, design, options, previous=None):
-    x = unit_to_space(space, q)
+    x = unit_to_space(space, q, paired=_carries_correlation(design, options))
     batch = eval_space(model, space, x)
     y, failures = batch.values, dict(batch.failures)
     if previous is not None:
@@ -306,6 +318,7 @@ def sample(
     n_samples: int,
     *,
     design: str = "lhs",
+    pairing: str = "restricted",
     response_levels=None,
     probability_levels=None,
     percentiles: Sequence[float] = DEFAULT_PERCENTILES,
@@ -321,6 +334,11 @@ def sample(
     n_samples : number of samples (>= 2).
     design : "lhs" (Latin hypercube), "random" (plain Monte Carlo), "sobol" or "halton"
         (scrambled, scipy.stats.qmc); drawn by :func:`rotoruq.params.unit_design`.
+    pairing : "lhs" only: "restricted" (default, Dakota's LHS: Iman-Conover pairing of the
+        columns so the inputs' normal-score correlation is near the space's Nataf correlation,
+        identity when independent; every marginal stays stratified) or "random" (columns
+        paired at random, the behaviour before; with correlations the design is then
+        stratified in u-space). With ``n_samples <= dim`` the pairing is random either way.
     response_levels : levels z for the empirical P(y <= z) / P(y > z) (same for all responses,
         a mapping name -> levels, or one sequence per response).
     probability_levels : probabilities mapped to empirical quantiles.
@@ -335,6 +353,8 @@ def sample(
     if n < 2:
         raise ParameterError(f"n_samples must be >= 2, got {n_samples}")
     design = check_design(design)
+    if pairing not in PAIRINGS:
+        raise ParameterError(f"unknown pairing {pairing!r}; valid: {', '.join(PAIRINGS)}")
     rng = as_generator(seed)
     # a QMC design gets a generator of its own, rebuilt by refine() from this integer (scipy's
     # QMC engines spawn from a generator's seed sequence, which its state does not hold); LHS
@@ -343,9 +363,11 @@ def sample(
     # whatever else drew from the caller's generator
     design_seed = int(rng.integers(2**62))
     qmc_design = design in ("sobol", "halton")
-    q = unit_design(n, space.dim, design=design,
+    q = unit_design(n, space.dim, design=design, pairing=pairing,
+                    correlation=_pair_target(space),
                     seed=np.random.default_rng(design_seed) if qmc_design else rng)
     options = {
+        "pairing": pairing,
         "response_levels": response_levels,
         "probability_levels": probability_levels,
         "percentiles": tuple(percentiles),
@@ -390,7 +412,8 @@ def refine(result: SamplingResult, n_samples: int, *, seed: SeedLike = None) -> 
     """Grow a sample by ``n_samples`` more points (one model call for the new points only).
 
     * "lhs": new points fill the empty strata of the finer grid (exact LHS of 2n points when
-      ``n_samples == n``; LHS-like otherwise);
+      ``n_samples == n``; LHS-like otherwise), paired among themselves as the original
+      sample was (restricted or random);
     * "sobol" / "halton" / "random": the sequence is continued (the points that ``sample``
       would have drawn with the larger count and the same seed).
 
@@ -408,6 +431,8 @@ def refine(result: SamplingResult, n_samples: int, *, seed: SeedLike = None) -> 
         rng = as_generator(seed) if seed is not None else _generator_at(opts["rng_state"])
         if result.design == "lhs":
             q = _lhs_extension(result.unit, n_more, rng)
+            if _carries_correlation(result.design, opts):
+                q = restricted_pairing(q, rng, _pair_target(result.space))
         else:
             q = unit_design(n_more, result.space.dim, design="random", seed=rng)
         opts["rng_state"] = rng.bit_generator.state

@@ -21,6 +21,7 @@ from .distributions import (
 )
 from .interval import Interval
 from .nataf import NatafModel, nataf_correlation, nataf_model
+from .pairing import PAIRINGS, restricted_pairing
 from .space import DESIGNS, ParameterSpace, unit_design
 
 __all__ = [
@@ -40,6 +41,8 @@ __all__ = [
     "ParameterSpace",
     "DESIGNS",
     "unit_design",
+    "PAIRINGS",
+    "restricted_pairing",
     "NatafModel",
     "nataf_correlation",
     "nataf_model",

@@ -24,8 +24,9 @@ from ..errors import ParameterError
 from .distributions import Distribution
 from .interval import Interval
 from .nataf import nataf_model
+from .pairing import PAIRINGS, restricted_pairing
 
-__all__ = ["DESIGNS", "ParameterSpace", "unit_design"]
+__all__ = ["DESIGNS", "PAIRINGS", "ParameterSpace", "unit_design"]
 
 DESIGNS = ("lhs", "random", "sobol", "halton")
 """Names of the point designs of :func:`unit_design` and :meth:`ParameterSpace.draw`."""
@@ -248,37 +249,94 @@ class ParameterSpace:
 
     # --- drawing points ------------------------------------------------------------------
     def draw(
-        self, n_samples: int, *, design: str = "lhs", seed: SeedLike = None
+        self,
+        n_samples: int,
+        *,
+        design: str = "lhs",
+        pairing: str = "restricted",
+        seed: SeedLike = None,
     ) -> np.ndarray:
         """Draw ``n_samples`` points, shape (n_samples, d).
 
         design : "lhs" (Latin hypercube), "random" (plain Monte Carlo), "sobol" or "halton"
-            (scrambled low-discrepancy sequences), all from :mod:`scipy.stats.qmc`. With
-            correlations the design's normal scores are correlated through the Nataf factor,
-            so an LHS design is stratified in u-space rather than in each marginal.
+            (scrambled low-discrepancy sequences), all from :mod:`scipy.stats.qmc`.
+        pairing : for "lhs" only: "restricted" (default, as Dakota: Iman-Conover pairing of
+            the columns, so the sample's normal-score correlation is near the Nataf correlation
+            of the space, the identity when independent; every marginal stays stratified) or
+            "random" (columns paired at random; with correlations the normal scores are then
+            correlated through the Nataf factor, so the design is stratified in u-space
+            rather than in each marginal, as the other designs are).
         seed : int, numpy Generator or None. The same seed gives the same points, bitwise.
+
+        Examples
+        --------
+        >>> import rotoruq as rq
+        >>> space = rq.ParameterSpace({"a": rq.Normal(0, 1), "b": rq.Uniform(0, 1)})
+        >>> space.draw(4, seed=1).shape
+        (4, 2)
         """
-        q = unit_design(n_samples, self.dim, design=design, seed=seed)
-        if self._chol is not None:
+        target = self.nataf if self._chol is not None else None
+        q = unit_design(n_samples, self.dim, design=design, pairing=pairing,
+                        correlation=target, seed=seed)
+        if self._chol is not None and not (design == "lhs" and pairing == "restricted"):
             # correlate the normal scores of the design (Nataf); marginals keep their law
             return self.from_u(stats.norm.ppf(np.clip(q, 1e-16, 1 - 1e-16)))
         return self.from_unit(q)
 
 
 def unit_design(
-    n_samples: int, dim: int, *, design: str = "lhs", seed: SeedLike = None
+    n_samples: int,
+    dim: int,
+    *,
+    design: str = "lhs",
+    pairing: str = "restricted",
+    correlation: np.ndarray | None = None,
+    seed: SeedLike = None,
 ) -> np.ndarray:
-    """Points in (0, 1)^dim, shape (n_samples, dim), from the named design (see
-    :data:`DESIGNS`); raises :class:`~rotoruq.errors.ParameterError` for an unknown design or
-    ``n_samples < 1``."""
+    """Points in (0, 1)^dim, shape (n_samples, dim), from the named design.
+
+    Parameters
+    ----------
+    n_samples : int >= 1
+    dim : int >= 1
+    design : one of :data:`DESIGNS`.
+    pairing : one of :data:`PAIRINGS`, used by ``design="lhs"`` only. "restricted" (default,
+        Dakota's LHS): the columns of the Latin hypercube are re-ordered by
+        :func:`~rotoruq.params.pairing.restricted_pairing` so that the normal scores
+        Phi^-1(q) have correlation near ``correlation`` (identity by default); every column
+        still hits each of its n strata once. With ``n_samples <= dim`` no pairing can
+        control the correlation: the columns stay randomly paired (and a ``correlation`` is
+        imposed on their normal scores by its Cholesky factor). "random": columns
+        paired at random (scipy's Latin hypercube as is).
+    correlation : (dim, dim) target correlation of the normal scores for a restricted LHS
+        (e.g. a space's Nataf correlation :attr:`ParameterSpace.nataf`); ignored otherwise.
+    seed : int, numpy Generator or None; the same seed gives the same points, bitwise.
+
+    Raises :class:`~rotoruq.errors.ParameterError` for an unknown design or pairing, or
+    ``n_samples < 1``.
+
+    Examples
+    --------
+    >>> q = unit_design(8, 3, seed=1)
+    >>> q.shape
+    (8, 3)
+    >>> import numpy as np
+    >>> bool(np.all(np.sort(np.floor(q * 8), axis=0) == np.arange(8)[:, None]))
+    True
+    """
     if isinstance(n_samples, bool) or int(n_samples) != n_samples or n_samples < 1:
         raise ParameterError(f"n_samples must be an integer >= 1, got {n_samples!r}")
+    if pairing not in PAIRINGS:
+        raise ParameterError(f"unknown pairing {pairing!r}; valid: {', '.join(PAIRINGS)}")
     n_samples = int(n_samples)
     rng = as_generator(seed)
     if design == "random":
         return rng.random((n_samples, dim))
     if design == "lhs":
-        return qmc.LatinHypercube(d=dim, seed=rng).random(n_samples)
+        q = qmc.LatinHypercube(d=dim, seed=rng).random(n_samples)
+        if pairing == "restricted":
+            q = restricted_pairing(q, rng, correlation)
+        return q
     if design == "sobol":
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)  # non power-of-2 balance warning

@@ -20,6 +20,7 @@ from rotoruq.methods.mcmc.diagnostics import (
     mcse_quantile,
     split_rhat,
 )
+from rotoruq.methods.mcmc.export import FORMAT, read_chains, to_arviz_dict, write_chains
 
 with warnings.catch_warnings():
     warnings.simplefilter("ignore", FutureWarning)  # arviz announces its refactor on import
@@ -141,3 +142,82 @@ def test_bad_options_raise():
         effective_sample_size(x, kind="quantile")
     with pytest.raises(ParameterError, match=r"prob must be a quantile level in \(0, 1\)"):
         mcse_quantile(x, 1.5)
+
+
+# --- export -------------------------------------------------------------------------------
+
+
+def _posterior(seed=5):
+    rng = np.random.default_rng(seed)
+    x = rng.normal(size=(3, 60, 2)) * [2.0, 0.5] + [14.0, 0.1]
+    lp = -0.5 * (((x - [14.0, 0.1]) / [2.0, 0.5]) ** 2).sum(-1)
+    return x, ("K_p", "theta_0"), lp
+
+
+def test_netcdf_round_trips_through_arviz(tmp_path):
+    pytest.importorskip("h5netcdf")
+    x, names, lp = _posterior()
+    path = write_chains(tmp_path / "post.nc", x, names, lp, attrs={"sampler": "dram", "seed": 4})
+    idata = az.from_netcdf(path)
+    assert set(idata.groups()) == {"posterior", "sample_stats"}
+    assert list(idata.posterior.data_vars) == list(names)
+    for i, name in enumerate(names):
+        assert idata.posterior[name].dims == ("chain", "draw")
+        np.testing.assert_array_equal(idata.posterior[name].values, x[:, :, i])
+    np.testing.assert_array_equal(idata.sample_stats["lp"].values, lp)
+    assert idata.posterior.attrs["sampler"] == "dram"
+    # arviz's own diagnostics on the file are ours on the array
+    np.testing.assert_allclose([az.rhat(idata)[n].item() for n in names], split_rhat(x),
+                               rtol=1e-12)
+    back = read_chains(path)
+    assert back.names == names and back.attrs == {"sampler": "dram", "seed": 4}
+    np.testing.assert_array_equal(back.chains, x)
+    np.testing.assert_array_equal(back.log_posterior, lp)
+
+
+def test_netcdf_without_log_posterior(tmp_path):
+    pytest.importorskip("h5netcdf")
+    x, names, _ = _posterior()
+    path = write_chains(tmp_path / "post.nc", x, names)
+    assert set(az.from_netcdf(path).groups()) == {"posterior"}
+    assert read_chains(path).log_posterior is None
+
+
+def test_npz_round_trips_into_arviz(tmp_path):
+    x, names, lp = _posterior()
+    path = write_chains(tmp_path / "post", x, names, lp, attrs={"seed": 7})
+    assert path.suffix == ".npz"
+    with np.load(path) as f:  # the documented layout, readable without rotoruq
+        assert str(f["format"]) == FORMAT
+        assert tuple(f["names"]) == names
+        np.testing.assert_array_equal(f["chains"], x)
+        np.testing.assert_array_equal(f["log_posterior"], lp)
+    back = read_chains(path)
+    idata = az.from_dict(**to_arviz_dict(back))
+    np.testing.assert_array_equal(idata.posterior["theta_0"].values, x[:, :, 1])
+    np.testing.assert_array_equal(idata.sample_stats["lp"].values, lp)
+    np.testing.assert_allclose([az.ess(idata)[n].item() for n in names],
+                               effective_sample_size(x), rtol=1e-12)
+    assert back.attrs == {"seed": 7}
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(chains=np.zeros((3, 2))), "n_chains, n_draws, n_parameters"),
+    (dict(names=("a",)), "one name per parameter"),
+    (dict(names=("a", "a")), "distinct"),
+    (dict(names=("a", "b/c")), "without '/'"),
+    (dict(log_posterior=np.zeros((3, 59))), r"log_posterior must have shape \(n_chains"),
+    (dict(attrs={"x": [1, 2]}), "attrs values must be strings or numbers"),
+])
+def test_export_rejects_bad_input(tmp_path, kw, match):
+    x, names, lp = _posterior()
+    args = dict(chains=x, names=names, log_posterior=lp) | kw
+    attrs = args.pop("attrs", None)
+    with pytest.raises(ParameterError, match=match):
+        write_chains(tmp_path / "p.npz", attrs=attrs, **args)
+
+
+def test_reading_a_foreign_npz_names_the_format(tmp_path):
+    np.savez(tmp_path / "other.npz", chains=np.zeros((1, 4, 1)))
+    with pytest.raises(ParameterError, match="rotoruq-chains-1"):
+        read_chains(tmp_path / "other.npz")

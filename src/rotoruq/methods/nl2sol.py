@@ -18,8 +18,9 @@ least-squares algorithm", ACM TOMS 7(3), the algorithm behind Dakota's ``nl2sol`
   less than 1e-4 of its predicted reduction is recomputed with the other model (when that one
   would have predicted the actual change 1.5x better) or with a radius from Fletcher's
   quadratic interpolation; one gaining 75 % of the linear prediction grows the radius (up to
-  4x) and, when the radius cut it, is recomputed longer at once; the better-predicting model
-  is kept for the next iteration;
+  4x) and, when the radius cut it, is recomputed longer at once; a fair step doubles the radius
+  when the model foresaw the new gradient or ``f`` still falls steeply along it (NL2SOL's
+  gradient tests); the better-predicting model is kept for the next iteration;
 * NL2SOL's convergence tests with Dakota's defaults (see :class:`NL2SOLOptions`): relative
   function convergence (the Newton step of the model predicts at most ``tolerance * f``,
   declared after that step is taken, as Dakota does), x-convergence (a full Newton step of
@@ -49,6 +50,7 @@ __all__ = ["NL2SOLOptions", "NL2SOLOutcome", "nl2sol", "CONVERGED"]
 _EPS = np.finfo(float).eps
 # NL2SOL's tuning constants (Dennis, Gay, Welsch 1981; PORT defaults)
 _TUNER1, _TUNER2, _TUNER3 = 0.1, 1e-4, 0.75  # poor decrease, trivial decrease, increase radius
+_TUNER4, _TUNER5 = 0.5, 0.75  # gradient tests that double the radius of a fair step
 _RDFCMN, _RDFCMX, _INCFAC, _DECFAC = 0.1, 4.0, 2.0, 0.5  # radius factor bounds
 _FUZZ = 1.5  # switch models when the other model's prediction error is 1.5x smaller
 # scales D_i = max(DFAC D_i, ||J e_i||): NL2SOL lets them shrink (DFAC 0.6); kept monotone
@@ -217,7 +219,9 @@ def nl2sol(
     (try the other model, then a radius from Fletcher's quadratic interpolation); one that
     gains less than 10 % is accepted with half the radius unless the other model explains it
     better; one that gains 75 % of the linear prediction ``-g.s`` grows the radius up to four
-    times and, when it was cut by the radius, is recomputed longer at once. Convergence is
+    times and, when it was cut by the radius, is recomputed longer at once; any other accepted
+    step doubles the radius when the model predicted the new gradient within half the old
+    one's scaled norm or ``g+.s < 0.75 g.s`` (gradient tests). Convergence is
     judged on steps whose actual reduction is at most twice the predicted one: relative
     function (the Newton step of the model at the start of the iteration predicts at most
     ``tolerance * f``), x-convergence (a full Newton step of relative size at most
@@ -281,6 +285,7 @@ def nl2sol(
             return _model_reduction(g, H_of[m], s)
 
         stage, radinc = 1, 0
+        gradient_tests = False
         best = None  # the best decreasing trial of this iteration, kept while trying longer
         accept = None
         while accept is None:
@@ -300,6 +305,7 @@ def nl2sol(
             cand = (s, xt, rt, ft, pred, dstnrm, is_newton, model, nreduc)
             if best is not None and not ft < best[3]:
                 accept, radius = best, best[5]  # the longer step is worse: keep the saved one
+                gradient_tests = True
                 break
             if not np.isfinite(ft):
                 radius = _DECFAC * dstnrm if dstnrm > 0 else _DECFAC * radius
@@ -334,6 +340,7 @@ def nl2sol(
                 break
             if fdif < -_TUNER3 * gts or radinc < 0:
                 accept, radius = cand, max(dstnrm, _EPS)
+                gradient_tests = True
                 break
             radfac = _RDFCMX
             if fdif < (0.5 / radfac - 1.0) * gts:
@@ -356,6 +363,11 @@ def nl2sol(
         it += 1
         models.append(model)
         gt = Jt.T @ rt
+        if gradient_tests and (
+                np.linalg.norm((H_of[model] @ s - (gt - g)) / d)
+                <= _TUNER4 * np.linalg.norm(g / d) or float(gt @ s) < _TUNER5 * float(g @ s)):
+            # the model foresaw the new gradient, or f still falls steeply along s
+            radius = _INCFAC * dstnrm
         S = _secant_update(S, s, J, Jt, g, gt, rt)
         other = "augmented" if model == "gn" else "gn"
 

@@ -40,7 +40,7 @@ def test_split_rhat_detects_disagreeing_chains():
     assert np.all(np.abs(split_rhat(good) - 1.0) < 0.01)
     bad = good.copy()
     bad[0] += 1.0
-    assert np.all(split_rhat(bad) > 1.1)
+    assert np.all(split_rhat(bad) > 1.05)  # rank-normalised: 1.0997 here, as arviz
     drift = good + np.linspace(0, 3, 2000)[None, :, None]  # non-stationary: halves differ
     assert np.all(split_rhat(drift) > 1.1)
 

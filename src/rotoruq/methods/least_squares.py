@@ -54,8 +54,9 @@ class LeastSquaresResult:
     n_gradient_evaluations : analytic Jacobian evaluations (points); 0 with finite differences.
     n_calls : batched calls of ``residual`` (a finite-difference Jacobian is one call).
     converged : True when a convergence test was met.
-    status : short code: relative_function, absolute_function, x, gradient, max_iterations,
-        max_function_evaluations, false_convergence (or scipy's status for trf/lm).
+    status : why it stopped (NL2SOL's tests): relative_function, x, relative_function_and_x,
+        absolute_function, singular, gradient (converged); max_iterations,
+        max_function_evaluations, false_convergence (not); scipy's status for trf/lm.
     message : human-readable reason for stopping.
     models : per iteration, "gn" (Gauss-Newton) or "augmented" (``J^T J + S``); empty for scipy.
     optimizer : "nl2sol", "trf" or "lm".
@@ -200,11 +201,14 @@ def least_squares(
     max_iterations: int = 100,
     max_function_evaluations: int = 1000,
     tolerance: float = 1e-4,
-    x_tolerance: float = 1.5e-8,
+    x_tolerance: float = 1e-5,
     absolute_tolerance: float = 1e-20,
+    singular_tolerance: float = 1e-10,
+    singular_radius: float = 1.0,
+    false_convergence_tolerance: float = 1e-8,
     noise_std: ArrayLike | None = None,
     fd_step: float = FD_STEP,
-    initial_radius: float | None = None,
+    initial_radius: float | None = 1.0,
     confidence: float = 0.95,
 ) -> LeastSquaresResult:
     """Minimize ``1/2 sum_i (r_i(x) / noise_std_i)^2``.
@@ -229,14 +233,21 @@ def least_squares(
         Dakota's defaults 100, 1000 and 1e-4. ``tolerance`` is NL2SOL's relative function
         tolerance (stop when at most that fraction of ``f`` can still be gained); for scipy it
         is passed as ``ftol``. Evaluations count points, Jacobian differences included.
-    x_tolerance : relative step size for x-convergence (NL2SOL's xctol).
+    x_tolerance : relative step size for x-convergence (NL2SOL's xctol; 1e-5 is what Dakota
+        derives from its default ``function_precision`` 1e-10).
     absolute_tolerance : stop when ``f`` falls below it (NL2SOL's afctol).
+    singular_tolerance, singular_radius : singular convergence (NL2SOL's sctol and lmaxs):
+        stop when no step of scaled length ``singular_radius`` is predicted to reduce ``f`` by
+        more than ``singular_tolerance * f`` (a rank-deficient Jacobian).
+    false_convergence_tolerance : false convergence (NL2SOL's xftol; Dakota's 1e-8): a step of
+        relative size below it that still fails to reduce ``f`` (noisy residuals or a wrong
+        Jacobian).
     noise_std : scalar or array_like (n_res,), optional
         Standard deviations of the data behind each residual (residual units). With them the
         covariance is ``(J^T W J)^-1``, ``W = diag(1 / noise_std^2)`` (noise known); without,
         ``s^2 (J^T J)^-1`` with the residual variance ``s^2 = sum r^2 / (n_res - p)``.
-    initial_radius : scaled trust radius of the first step (default ``100 ||D x0||``, or 100
-        when ``x0 = 0``, as MINPACK).
+    initial_radius : scaled trust radius ``||D s||`` of the first step (NL2SOL's lmax0,
+        default 1; None: ``100 ||D x0||``, or 100 when ``x0 = 0``, as MINPACK).
     confidence : level of the returned confidence intervals.
 
     Returns
@@ -280,7 +291,11 @@ def least_squares(
     options = NL2SOLOptions(max_iterations=max_iterations,
                             max_function_evaluations=max_function_evaluations,
                             tolerance=tolerance, x_tolerance=x_tolerance,
-                            absolute_tolerance=absolute_tolerance, initial_radius=initial_radius)
+                            absolute_tolerance=absolute_tolerance,
+                            singular_tolerance=singular_tolerance,
+                            singular_radius=singular_radius,
+                            false_convergence_tolerance=false_convergence_tolerance,
+                            initial_radius=initial_radius)
     out = nl2sol(res.one, jac_at, start, r0, lower, upper, options, lambda: res.n_points,
                  0 if analytic else p)
     stops = {
@@ -289,8 +304,9 @@ def least_squares(
             f"maximum number of function evaluations ({max_function_evaluations}) reached"
         ),
         "false_convergence": (
-            "false convergence: the trust region collapsed without meeting a convergence test "
-            "(noisy or non-smooth residuals, failed evaluations, or a wrong Jacobian)"
+            f"false convergence: a step of relative size below {false_convergence_tolerance:g} "
+            f"failed to reduce f without any convergence test being met (noisy or non-smooth "
+            f"residuals, failed evaluations, or a wrong Jacobian)"
         ),
     }
     cov, std, ci = _covariance(out.J, out.cost, out.r.size, p, known_noise, confidence, out.x)

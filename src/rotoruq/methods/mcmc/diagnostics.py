@@ -1,20 +1,41 @@
-"""Chain diagnostics: effective sample size, split R-hat, moments, KL divergence.
+"""Chain diagnostics: rank-normalised R-hat, bulk/tail ESS, MCSE, moments, KL divergence.
 
-ESS follows the multi-chain estimator of Vehtari et al. (2021) without rank normalization:
-autocovariances by FFT, combined across chains through the within/between variances, summed
-with Geyer's initial monotone sequence. KL divergence prior -> posterior is
+R-hat, ESS and MCSE follow Vehtari, Gelman, Simpson, Carpenter and Buerkner (2021, "Rank-
+normalization, folding, and localization: an improved R-hat for assessing convergence of
+MCMC", Bayesian Analysis 16(2)), the estimators arviz and Stan report:
+
+* chains are split in halves (a drifting chain then disagrees with itself);
+* *rank normalisation*: the pooled draws are replaced by ``Phi^-1((rank - 3/8) / (N + 1/4))``,
+  so R-hat and ESS exist for heavy tails and are invariant to monotone transforms;
+* *folding*: ``|x - median(x)|`` rank-normalised exposes chains that agree in location but
+  not in scale; the reported R-hat is the larger of the bulk and folded values;
+* ESS from the multi-chain autocorrelation (within/between variances), summed with Geyer's
+  initial monotone sequence; *bulk* ESS on the rank-normalised draws, *tail* ESS as the
+  smaller ESS of the indicators ``x <= q05`` and ``x <= q95``;
+* MCSE of the mean ``sd / sqrt(ESS_mean)`` and of a quantile from the beta-distributed
+  coverage of the quantile indicator.
+
+Everything is vectorised over the parameter axis. KL divergence prior -> posterior is
 ``KL = -H[post] - E_post[log prior]`` with the posterior entropy from the Kozachenko-Leonenko
 k-nearest-neighbour estimator (and, separately, from a Gaussian approximation).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
-from scipy import special
+from scipy import special, stats
 from scipy.spatial import cKDTree
 
-__all__ = ["autocovariance", "effective_sample_size", "split_rhat", "moments",
-           "entropy_knn", "entropy_gaussian"]
+from ...errors import ParameterError
+
+__all__ = ["autocovariance", "effective_sample_size", "split_rhat", "mcse_mean",
+           "mcse_quantile", "ChainDiagnostics", "diagnose", "moments", "entropy_knn",
+           "entropy_gaussian"]
+
+#: fewest draws per chain the split estimators accept (as arviz)
+MIN_DRAWS = 4
 
 
 def autocovariance(x: np.ndarray) -> np.ndarray:
@@ -25,52 +46,290 @@ def autocovariance(x: np.ndarray) -> np.ndarray:
     return np.fft.irfft(f * np.conj(f), n=2 * n, axis=-1)[..., :n] / n
 
 
-def effective_sample_size(chains: np.ndarray) -> np.ndarray:
-    """ESS per parameter of chains (c, n, d) -> (d,)."""
-    chains = np.asarray(chains, dtype=float)
-    c, n, d = chains.shape
-    if n < 4:
+def _as_chains(chains: np.ndarray) -> np.ndarray:
+    x = np.asarray(chains, dtype=float)
+    if x.ndim != 3 or 0 in x.shape:
+        raise ParameterError(
+            f"chains must be a non-empty array (n_chains, n_draws, n_parameters); "
+            f"got shape {x.shape}")
+    return x
+
+
+def _split(x: np.ndarray) -> np.ndarray:
+    """(c, n, d) -> (2c, n // 2, d): first and last halves (the middle draw of odd n dropped)."""
+    half = x.shape[1] // 2
+    return np.concatenate([x[:, :half], x[:, x.shape[1] - half:]], axis=0)
+
+
+def _rank_normalise(x: np.ndarray) -> np.ndarray:
+    """Pooled ranks per parameter mapped to normal scores (Blom's offset 3/8), same shape."""
+    m, n, d = x.shape
+    rank = stats.rankdata(x.reshape(m * n, d), method="average", axis=0)
+    return stats.norm.ppf((rank - 0.375) / (m * n + 0.25)).reshape(m, n, d)
+
+
+def _rhat_core(x: np.ndarray) -> np.ndarray:
+    """Potential scale reduction of (m, n, d) chains as given (no split), (d,)."""
+    n = x.shape[1]
+    within = x.var(1, ddof=1).mean(0)
+    between = n * x.mean(1).var(0, ddof=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.sqrt((between / within + n - 1.0) / n)
+
+
+def _ess_core(x: np.ndarray) -> np.ndarray:
+    """ESS of (m, n, d) chains as given (no split), (d,): Geyer's initial monotone sequence.
+
+    The truncation is the one of Stan and arviz: autocorrelations are summed in adjacent
+    pairs up to the first pair whose sum is not positive, the pair sums are made
+    non-increasing, and the even lag of the first rejected pair is added when positive.
+    """
+    m, n, d = x.shape
+    size = m * n
+    xt = np.moveaxis(x, 2, 0)  # (d, m, n)
+    acov = autocovariance(xt)
+    mean_var = acov[:, :, 0].mean(1) * n / (n - 1.0)
+    var_plus = mean_var * (n - 1.0) / n
+    if m > 1:
+        var_plus = var_plus + xt.mean(2).var(1, ddof=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rho = 1.0 - (mean_var[:, None] - acov.mean(1)) / var_plus[:, None]  # (d, n)
+    rho[:, 0] = 1.0
+    n_pairs = max(1, (n - 1) // 2)  # pairs (rho_2k, rho_2k+1) the sequence may reach
+    pairs = rho[:, 0:2 * n_pairs:2] + rho[:, 1:2 * n_pairs:2]  # (d, n_pairs)
+    nonpos = pairs <= 0.0
+    k_stop = np.where(nonpos.any(1), nonpos.argmax(1), n_pairs - 1)  # first rejected pair
+    kept = np.arange(n_pairs)[None, :] < k_stop[:, None]
+    monotone = np.minimum.accumulate(np.where(kept, pairs, np.inf), axis=1)
+    head = np.where(kept, monotone, 0.0).sum(1)
+    rows = np.arange(d)
+    even = rho[rows, 2 * k_stop]
+    tail = np.where((even > 0.0) | (pairs[rows, k_stop] >= 0.0), even, 0.0)
+    tau = np.maximum(-1.0 + 2.0 * head + tail, 1.0 / np.log10(size))
+    ess = size / tau
+    ess[np.isnan(rho).any(1)] = np.nan
+    flat = x.reshape(size, d)
+    ess[np.ptp(flat, axis=0) < np.finfo(float).resolution] = float(size)
+    return ess
+
+
+def effective_sample_size(chains: np.ndarray, *, kind: str = "bulk",
+                          prob: float | None = None) -> np.ndarray:
+    """Effective sample size per parameter (Vehtari et al. 2021).
+
+    Parameters
+    ----------
+    chains : ndarray, shape (n_chains, n_draws, d)
+        Draws of each chain, in any units.
+    kind : {"bulk", "tail", "mean", "quantile"}
+        ``bulk``: split chains, rank-normalised (efficiency of location summaries, robust to
+        heavy tails). ``tail``: the smaller ESS of the 5 % and 95 % quantile indicators.
+        ``mean``: split chains as they are (the ESS the MCSE of the mean uses).
+        ``quantile``: ESS of the indicator ``x <= q_prob``.
+    prob : float, optional
+        Quantile level in (0, 1), only (and required) for ``kind="quantile"``.
+
+    Returns
+    -------
+    ndarray, shape (d,)
+        ESS in draws (between 0 and, for antithetic chains, more than n_chains * n_draws);
+        ``n_chains * n_draws`` when there are fewer than 4 draws per chain.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x = np.random.default_rng(0).normal(size=(4, 1000, 2))  # independent draws
+    >>> bool(np.all(np.abs(effective_sample_size(x) / 4000 - 1) < 0.25))
+    True
+    """
+    x = _as_chains(chains)
+    c, n, d = x.shape
+    if n < MIN_DRAWS:
         return np.full(d, float(c * n))
-    out = np.empty(d)
-    for j in range(d):
-        x = chains[:, :, j]
-        acov = autocovariance(x)  # (c, n)
-        chain_var = acov[:, 0] * n / (n - 1.0)
-        W = chain_var.mean()
-        var_plus = W * (n - 1.0) / n
-        if c > 1:
-            var_plus += x.mean(1).var(ddof=1)
-        if not var_plus > 0:
-            out[j] = float(c * n)
-            continue
-        rho = 1.0 - (W - acov.mean(0)) / var_plus
-        rho[0] = 1.0
-        # Geyer: sums of adjacent pairs, truncated at the first negative pair, made monotone
-        npairs = n // 2
-        pairs = rho[: 2 * npairs].reshape(npairs, 2).sum(1)
-        neg = np.flatnonzero(pairs <= 0)
-        k = neg[0] if neg.size else npairs
-        pairs = np.minimum.accumulate(pairs[:k]) if k else pairs[:1]
-        tau = -1.0 + 2.0 * pairs.sum()
-        tau = max(tau, 1.0 / np.log10(max(c * n, 10)))
-        out[j] = c * n / tau
+    if kind == "bulk":
+        return _ess_core(_rank_normalise(_split(x)))
+    if kind == "mean":
+        return _ess_core(_split(x))
+    if kind == "tail":
+        return np.minimum(_ess_quantile(x, 0.05), _ess_quantile(x, 0.95))
+    if kind == "quantile":
+        if prob is None or not 0.0 < float(prob) < 1.0:
+            raise ParameterError(f"prob must be a quantile level in (0, 1); got {prob!r}")
+        return _ess_quantile(x, float(prob))
+    raise ParameterError(
+        f"kind must be one of 'bulk', 'tail', 'mean', 'quantile'; got {kind!r}")
+
+
+def _ess_quantile(x: np.ndarray, prob: float) -> np.ndarray:
+    q = np.quantile(x.reshape(-1, x.shape[2]), prob, axis=0)
+    return _ess_core(_split((x <= q).astype(float)))
+
+
+def split_rhat(chains: np.ndarray, *, kind: str = "rank") -> np.ndarray:
+    """Split R-hat per parameter; by default the rank-normalised, folded one.
+
+    Parameters
+    ----------
+    chains : ndarray, shape (n_chains, n_draws, d)
+        Draws of each chain. One chain is split in two halves and still gives an R-hat.
+    kind : {"rank", "bulk", "folded", "classic"}
+        ``rank``: max of ``bulk`` and ``folded`` (Vehtari et al. 2021, what arviz reports).
+        ``bulk``: split, rank-normalised. ``folded``: split, ``|x - median|`` rank-normalised
+        (sensitive to chains with different spreads). ``classic``: split R-hat of BDA3 on the
+        raw draws (for comparison with older tools).
+
+    Returns
+    -------
+    ndarray, shape (d,)
+        R-hat (dimensionless, 1 at convergence; 1.01 is the usual threshold); NaN with fewer
+        than 4 draws per chain.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x = np.random.default_rng(0).normal(size=(4, 1000, 1))
+    >>> x[0] *= 3.0  # one chain three times wider: same mean, flagged by the folded R-hat
+    >>> bool(split_rhat(x)[0] > 1.01), bool(split_rhat(x, kind="classic")[0] < 1.01)
+    (True, True)
+    """
+    x = _as_chains(chains)
+    if x.shape[1] < MIN_DRAWS:
+        return np.full(x.shape[2], np.nan)
+    s = _split(x)
+    if kind == "classic":
+        return _rhat_core(s)
+    if kind not in ("rank", "bulk", "folded"):
+        raise ParameterError(
+            f"kind must be one of 'rank', 'bulk', 'folded', 'classic'; got {kind!r}")
+    if kind == "bulk":
+        return _rhat_core(_rank_normalise(s))
+    median = np.median(s.reshape(-1, s.shape[2]), axis=0)
+    folded = _rhat_core(_rank_normalise(np.abs(s - median)))
+    return folded if kind == "folded" else np.fmax(_rhat_core(_rank_normalise(s)), folded)
+
+
+def mcse_mean(chains: np.ndarray) -> np.ndarray:
+    """Monte Carlo standard error of the posterior mean, ``sd / sqrt(ESS_mean)``.
+
+    Parameters
+    ----------
+    chains : ndarray, shape (n_chains, n_draws, d)
+        Draws of each chain.
+
+    Returns
+    -------
+    ndarray, shape (d,)
+        MCSE in the units of the draws.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x = np.random.default_rng(0).normal(size=(4, 2500, 1))
+    >>> bool(abs(mcse_mean(x)[0] - 0.01) < 0.001)  # iid: 1 / sqrt(10000)
+    True
+    """
+    x = _as_chains(chains)
+    sd = x.reshape(-1, x.shape[2]).std(0, ddof=1)
+    return sd / np.sqrt(effective_sample_size(x, kind="mean"))
+
+
+def mcse_quantile(chains: np.ndarray, prob: float) -> np.ndarray:
+    """Monte Carlo standard error of the ``prob`` quantile (Vehtari et al. 2021, sec. 4.3).
+
+    Half the distance between the draws at the 15.9 % and 84.1 % points of the beta
+    distribution of the quantile's coverage, ``Beta(ESS p + 1, ESS (1 - p) + 1)``, with the
+    ESS of the indicator ``x <= q_p``.
+
+    Parameters
+    ----------
+    chains : ndarray, shape (n_chains, n_draws, d)
+        Draws of each chain.
+    prob : float
+        Quantile level in (0, 1).
+
+    Returns
+    -------
+    ndarray, shape (d,)
+        MCSE in the units of the draws.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x = np.random.default_rng(0).normal(size=(4, 2500, 1))
+    >>> bool(0.01 < mcse_quantile(x, 0.5)[0] < 0.02)  # iid median: sqrt(pi/2) / 100
+    True
+    """
+    x = _as_chains(chains)
+    if not 0.0 < float(prob) < 1.0:
+        raise ParameterError(f"prob must be a quantile level in (0, 1); got {prob!r}")
+    d = x.shape[2]
+    if x.shape[1] < MIN_DRAWS:
+        return np.full(d, np.nan)
+    ess = _ess_quantile(x, float(prob))
+    with np.errstate(invalid="ignore"):
+        a = stats.beta.ppf(np.array([0.1586553, 0.8413447])[:, None],
+                           ess * prob + 1.0, ess * (1.0 - prob) + 1.0)  # (2, d)
+    srt = np.sort(x.reshape(-1, d), axis=0)
+    size = srt.shape[0]
+    lo = np.floor(np.fmax(a[0] * size - 1.0, 0.0))
+    hi = np.ceil(np.fmin(a[1] * size - 1.0, size - 1.0))
+    out = np.full(d, np.nan)
+    ok = np.isfinite(lo) & np.isfinite(hi)
+    cols = np.flatnonzero(ok)
+    out[ok] = 0.5 * (srt[hi[ok].astype(int), cols] - srt[lo[ok].astype(int), cols])
     return out
 
 
-def split_rhat(chains: np.ndarray) -> np.ndarray:
-    """Split R-hat (Gelman et al., BDA3) per parameter of chains (c, n, d) -> (d,)."""
-    chains = np.asarray(chains, dtype=float)
-    c, n, d = chains.shape
-    half = n // 2
-    if half < 2:
-        return np.full(d, np.nan)
-    parts = np.concatenate([chains[:, :half], chains[:, n - half:]], axis=0)  # (2c, half, d)
-    means = parts.mean(1)
-    W = parts.var(1, ddof=1).mean(0)
-    B = half * means.var(0, ddof=1)
-    var_plus = (half - 1.0) / half * W + B / half
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.sqrt(var_plus / W)
+@dataclass(frozen=True, eq=False)
+class ChainDiagnostics:
+    """Convergence diagnostics of one set of chains, each (d,) per parameter.
+
+    rhat : rank-normalised split R-hat, max of bulk and folded (dimensionless).
+    rhat_bulk, rhat_folded : its two parts. ess_bulk, ess_tail : effective sample sizes
+    (draws). mcse_mean : MCSE of the mean; mcse_q05, mcse_q95 : MCSE of the 5 % and 95 %
+    quantiles (units of the draws).
+    """
+
+    rhat: np.ndarray
+    rhat_bulk: np.ndarray
+    rhat_folded: np.ndarray
+    ess_bulk: np.ndarray
+    ess_tail: np.ndarray
+    mcse_mean: np.ndarray
+    mcse_q05: np.ndarray
+    mcse_q95: np.ndarray
+
+
+def diagnose(chains: np.ndarray) -> ChainDiagnostics:
+    """All diagnostics of chains (n_chains, n_draws, d) at once.
+
+    Parameters
+    ----------
+    chains : ndarray, shape (n_chains, n_draws, d)
+        Draws of each chain.
+
+    Returns
+    -------
+    ChainDiagnostics
+        R-hat (bulk, folded and their max), bulk and tail ESS, MCSE of the mean and of the
+        5 % / 95 % quantiles, each of shape (d,).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> dg = diagnose(np.random.default_rng(0).normal(size=(4, 500, 3)))
+    >>> dg.rhat.shape, bool(np.all(dg.rhat < 1.01))
+    ((3,), True)
+    """
+    x = _as_chains(chains)
+    bulk = split_rhat(x, kind="bulk")
+    folded = split_rhat(x, kind="folded")
+    return ChainDiagnostics(
+        rhat=np.fmax(bulk, folded), rhat_bulk=bulk, rhat_folded=folded,
+        ess_bulk=effective_sample_size(x, kind="bulk"),
+        ess_tail=effective_sample_size(x, kind="tail"),
+        mcse_mean=mcse_mean(x), mcse_q05=mcse_quantile(x, 0.05),
+        mcse_q95=mcse_quantile(x, 0.95))
 
 
 def moments(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

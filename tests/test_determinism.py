@@ -1,0 +1,185 @@
+"""Every public random function of rotoruq: the same seed gives bitwise the same result.
+
+The functions are found, not listed: every callable in ``rotoruq.__all__`` with a ``seed``
+parameter. Each needs a small problem below (``CASES``); a new random function without one
+fails :func:`test_every_random_function_has_a_recipe`, so none escapes the check. The result is
+walked (dataclass fields, mappings, sequences) and every array and number in it compared byte
+for byte. A different seed must change some array, so the comparison is not vacuous.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import warnings
+from collections.abc import Callable, Mapping
+
+import numpy as np
+import pytest
+
+import rotoruq as rq
+from rotoruq.methods.surrogate import ExtrapolationWarning
+
+# --- small problems -------------------------------------------------------------------------
+
+
+def _quadratic():
+    space = rq.ParameterSpace({"a": rq.Normal(0.5, 0.3), "b": rq.Uniform(-1.0, 1.0)})
+    model = rq.FunctionModel(
+        lambda x: np.column_stack([x[:, 0] + x[:, 1] ** 2, np.sin(x[:, 0]) * x[:, 1]]),
+        ["a", "b"], ["y", "z"])
+    return model, space
+
+
+def _bayes(seed, **kw):
+    model, space = _quadratic()
+    data = np.array([[0.8, 0.2], [0.7, 0.25], [0.9, 0.15]])
+    return rq.calibrate_bayes(model, data, space, n_samples=300, burn_in=20, n_chains=2,
+                              noise_std=[0.1, 0.05], seed=seed, **kw)
+
+
+def _gp(seed):
+    x = np.random.default_rng(0).uniform(-1.0, 1.0, size=(12, 2))
+    y = np.column_stack([np.sin(3 * x[:, 0]) + x[:, 1], x[:, 0] * x[:, 1]])
+    gp = rq.GaussianProcess(n_restarts=2, seed=seed).fit(x, y)
+    mean, var = gp.predict(np.linspace(-0.9, 0.9, 14).reshape(7, 2))
+    return {"length_scales": gp.length_scales, "process_variance": gp.process_variance,
+            "mean": mean, "var": var}
+
+
+def _cuu(seed, inner="sampling"):
+    a = np.array([[2.0, 1.0], [0.5, 3.0]])
+    model = rq.FunctionModel(lambda x: x @ a.T, ["x1", "x2"], ["y1", "y2"])
+    space = rq.ParameterSpace({"x1": rq.Normal(1.0, 0.1), "x2": rq.Normal(-2.0, 0.5)})
+    return model, rq.calibrate_under_uncertainty(
+        model, space, calibrate={"x1": "std", "x2": "std"},
+        targets={"y1": {"std": 0.7}, "y2": {"std": 0.65}}, inner=inner,
+        inner_options={"n_samples": 64} if inner == "sampling" else None, seed=seed)
+
+
+def _evidence(seed):
+    space = rq.ParameterSpace({
+        "a": rq.Interval([(0.0, 1.0), (1.0, 3.0)], [0.4, 0.6]),
+        "b": rq.Interval([(-1.0, 1.0), (0.5, 2.0)], [0.5, 0.5])})
+    model = rq.FunctionModel(lambda x: np.sin(3 * x[:, 0]) * x[:, 1], ["a", "b"], ["g"])
+    return rq.evidence(model, space, n_samples=20, n_starts=2, response_levels=[[0.0, 0.5]],
+                       seed=seed)
+
+
+def _sample(seed):
+    model, space = _quadratic()
+    return rq.sample(model, space, 40, seed=seed)
+
+
+def _bayes_emulated(seed):
+    # the README's example: an unseeded GaussianProcess() handed to calibrate_bayes(seed=)
+    return _bayes(seed, emulator=rq.GaussianProcess(), n_emulator_samples=30)
+
+
+#: case -> (public function, small problem calling it with a seed)
+CASES: dict[str, tuple[str, Callable[[int], object]]] = {
+    "as_generator": ("as_generator", lambda s: rq.as_generator(s).random(16)),
+    "sample": ("sample", _sample),
+    "refine": ("refine", lambda s: rq.refine(_sample(3), 24, seed=s)),
+    "sobol_indices": ("sobol_indices",
+                      lambda s: rq.sobol_indices(*_quadratic(), 64, n_bootstrap=20, seed=s)),
+    "polynomial_chaos": ("polynomial_chaos", lambda s: rq.polynomial_chaos(
+        *_quadratic(), 2, estimator="regression", n_samples=30, seed=s)),
+    "evidence": ("evidence", _evidence),
+    "calibrate_bayes": ("calibrate_bayes", _bayes),
+    "calibrate_bayes_emulator": ("calibrate_bayes", _bayes_emulated),
+    "continue_chain": ("continue_chain", lambda s: rq.continue_chain(_bayes(3), 100, seed=s)),
+    "GaussianProcess": ("GaussianProcess", _gp),
+    "calibrate_under_uncertainty": ("calibrate_under_uncertainty", lambda s: _cuu(s)[1]),
+    "check_cuu": ("check_cuu", lambda s: rq.check_cuu(
+        _cuu(3, inner="mean_value")[1], _cuu(3, inner="mean_value")[0], 40, seed=s)),
+}
+
+# issue 21: calibrate_bayes does not pass its seed to the emulator's fit (methods/mcmc/bayes.py,
+# owned elsewhere). strict: the test fails once it is fixed, so the mark is removed then.
+KNOWN_NONDETERMINISTIC = {"calibrate_bayes_emulator"}
+
+# random choices a seed may legitimately not change (the answer is the same optimum)
+SEED_INSENSITIVE = {"GaussianProcess", "calibrate_under_uncertainty"}
+
+# fields that measure the machine, not the method
+TIMING = ("seconds", "elapsed", "wall")
+
+
+def _random_functions() -> dict[str, Callable]:
+    out = {}
+    for name in rq.__all__:
+        obj = getattr(rq, name)
+        if not callable(obj):
+            continue
+        try:
+            params = inspect.signature(obj).parameters
+        except (TypeError, ValueError):
+            continue
+        if "seed" in params:
+            out[name] = obj
+    return out
+
+
+def _walk(obj, path: str, out: dict[str, object], depth: int = 0) -> None:
+    """Collect every array and number reachable from a result, keyed by its path."""
+    if depth > 6:
+        return
+    if isinstance(obj, np.ndarray):
+        out[path] = obj
+    elif isinstance(obj, bool | int | float | complex | np.number | np.bool_):
+        out[path] = np.asarray(obj)
+    elif dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        for f in dataclasses.fields(obj):
+            if f.name.startswith("_") or any(t in f.name for t in TIMING):
+                continue
+            _walk(getattr(obj, f.name), f"{path}.{f.name}", out, depth + 1)
+    elif isinstance(obj, Mapping):
+        for k, v in obj.items():
+            _walk(v, f"{path}[{k!r}]", out, depth + 1)
+    elif isinstance(obj, list | tuple):
+        for i, v in enumerate(obj):
+            _walk(v, f"{path}[{i}]", out, depth + 1)
+
+
+def _arrays(name: str, seed: int) -> dict[str, object]:
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExtrapolationWarning)
+        warnings.simplefilter("ignore", RuntimeWarning)
+        warnings.simplefilter("ignore", UserWarning)
+        result = CASES[name][1](seed)
+    out: dict[str, object] = {}
+    _walk(result, name, out)
+    return out
+
+
+def _bitwise_equal(a, b) -> bool:
+    a, b = np.asarray(a), np.asarray(b)
+    if a.shape != b.shape or a.dtype != b.dtype:
+        return False
+    if a.dtype.hasobject:
+        return bool(np.all(a == b))
+    return np.ascontiguousarray(a).tobytes() == np.ascontiguousarray(b).tobytes()
+
+
+def test_every_random_function_has_a_recipe():
+    found = set(_random_functions())
+    covered = {fn for fn, _ in CASES.values()}
+    assert found == covered, (
+        f"random functions without a determinism case: {sorted(found - covered)}; "
+        f"cases for names no longer public: {sorted(covered - found)}")
+
+
+@pytest.mark.parametrize("name", [
+    pytest.param(c, marks=pytest.mark.xfail(strict=True, reason="issue 21: emulator unseeded"))
+    if c in KNOWN_NONDETERMINISTIC else c for c in sorted(CASES)])
+def test_same_seed_gives_bitwise_the_same_result(name):
+    first, second = _arrays(name, 11), _arrays(name, 11)
+    assert first, f"{name}: no array or number found in its result"
+    assert first.keys() == second.keys()
+    differ = [k for k in first if not _bitwise_equal(first[k], second[k])]
+    assert not differ, f"{name}: seed 11 twice gives different {differ}"
+    if name not in SEED_INSENSITIVE:
+        other = _arrays(name, 12)
+        assert any(not _bitwise_equal(first[k], other[k]) for k in first if k in other), (
+            f"{name}: seeds 11 and 12 give the same result: the seed is not used")

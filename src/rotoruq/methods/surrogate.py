@@ -217,7 +217,10 @@ class GaussianProcess:
     screen_points : with more than twice this many training points (and at least 8 per trend
         coefficient), the starts are screened on a random subset of that size and only the
         best is polished on all points; None runs every start on all points.
-    seed : int or Generator for the random starts.
+    seed : int, SeedSequence or Generator for the random starts (and the screening subset).
+        None draws fresh entropy from the operating system at every :meth:`fit`: two fits
+        then differ; :func:`~rotoruq.methods.mcmc.calibrate_bayes` gives an unseeded
+        emulator a seed spawned from its own.
 
     The jitter actually added to the covariance diagonal (response units squared, per
     response) is :attr:`jitter`.

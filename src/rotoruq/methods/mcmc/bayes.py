@@ -10,6 +10,7 @@ design drawn from the prior (the reference study's workflow: 500 rotor runs, 100
 
 from __future__ import annotations
 
+import copy
 import csv
 import logging
 import time
@@ -44,6 +45,31 @@ from .samplers import SamplerConfig, SamplerState, run_chains
 __all__ = ["calibrate_bayes", "continue_chain", "BayesResult"]
 
 log = logging.getLogger(__name__)
+
+
+# Random stages of a calibration, each with its own child of the call's SeedSequence (spawn
+# key = position here): appending a stage never shifts the numbers of another.
+_STAGES = ("design", "emulator_fit", "start", "chain_starts", "chains", "predictive",
+           "summary", "refine")
+
+
+def _stage_seeds(seed: SeedLike) -> dict[str, np.random.SeedSequence]:
+    """One SeedSequence per random stage of :func:`calibrate_bayes`, spawned from ``seed``.
+
+    The children are built as ``SeedSequence.spawn`` builds them, without spawning from a
+    SeedSequence the caller passed (which would change its state and so the caller's next
+    call). A Generator is read once (4 draws) for the root entropy.
+    """
+    as_generator(seed if not isinstance(seed, np.random.SeedSequence) else None)  # validate
+    if isinstance(seed, np.random.Generator):
+        root = np.random.SeedSequence(seed.integers(2**63, size=4))
+    elif isinstance(seed, np.random.SeedSequence):
+        root = seed
+    else:
+        root = np.random.SeedSequence(None if seed is None else int(seed))
+    return {name: np.random.SeedSequence(root.entropy, spawn_key=(*root.spawn_key, i),
+                                         pool_size=root.pool_size)
+            for i, name in enumerate(_STAGES)}
 
 
 class _Posterior:
@@ -360,9 +386,13 @@ def _setup(model, data, prior, names_out, noise_std, noise_covariance) -> _Probl
 
 
 def _build_emulator(emulator, prior: ParameterSpace, truth: _TrueModel, pb: _Problem,
-                    n_emulator_samples: int, rng):
+                    n_emulator_samples: int, seeds: dict[str, np.random.SeedSequence]):
     """Stage 2: fit (or check) the GP emulator of the observed responses on an LHS design of
-    the prior; returns (gp, leave-one-out, best build point or None)."""
+    the prior; returns (gp, leave-one-out, best build point or None).
+
+    An unfitted emulator is copied before fitting (the caller's object stays unfitted, so a
+    second call with it fits afresh); a copy without a seed gets the call's
+    ``emulator_fit`` seed, so its restarts are reproducible too."""
     if not isinstance(emulator, GaussianProcess):
         raise ParameterError("emulator must be a rotoruq GaussianProcess")
     gp, best_build, d, m = emulator, None, prior.dim, len(pb.names_out)
@@ -371,7 +401,11 @@ def _build_emulator(emulator, prior: ParameterSpace, truth: _TrueModel, pb: _Pro
             raise ModelShapeError(f"fitted emulator has {gp.n_inputs} inputs and "
                                   f"{gp.n_outputs} outputs; need {d} and {m}")
     else:
-        Xb = prior.draw(int(n_emulator_samples), design="lhs", seed=rng)
+        gp = copy.copy(emulator)
+        if gp.seed is None:
+            gp.seed = seeds["emulator_fit"]
+        Xb = prior.draw(int(n_emulator_samples), design="lhs",
+                        seed=np.random.default_rng(seeds["design"]))
         Yb = truth(Xb)[:, pb.resp_idx]
         ok = np.all(np.isfinite(Yb), 1)
         if ok.sum() < d + 2:
@@ -486,7 +520,7 @@ def _jacobian(truth: _TrueModel, gp, theta0, forward, pb: _Problem) -> np.ndarra
 
 
 def _chain_starts(post: _Posterior, z0: np.ndarray, lp0: float, L0: np.ndarray,
-                  n_chains: int, rng) -> SamplerState:
+                  n_chains: int, rng, chain_rng) -> SamplerState:
     """Stage 5: the MAP for the first chain, the others drawn around it from the Laplace
     approximation (kept where their posterior is finite)."""
     d = z0.size
@@ -498,7 +532,7 @@ def _chain_starts(post: _Posterior, z0: np.ndarray, lp0: float, L0: np.ndarray,
         good = np.isfinite(lpc)
         x[1:][good], lp[1:][good] = cand[good], lpc[good]
     return SamplerState(x=x, lp=lp, chol=np.repeat(L0[None], n_chains, axis=0),
-                        rng=np.random.default_rng(rng.integers(2**63)))
+                        rng=chain_rng)
 
 
 def _as_sampler(sampler) -> SamplerConfig:
@@ -568,14 +602,19 @@ def calibrate_bayes(
         from the best build sample / the prior mean).
     x0 : (d,) start point (parameter units).
     posterior_predictive : number of posterior draws pushed through the true model.
-    seed : int or Generator.
+    seed : int, SeedSequence or Generator. Every random stage (emulator design, GP
+        restarts of an unseeded emulator, MAP starts, chain starts, chains, posterior
+        predictive draws, the KL subsample) has its own child of
+        ``numpy.random.SeedSequence(seed)``: the same seed gives bitwise the same result.
+        The caller's emulator is not modified (an unfitted one is fitted as a copy, in
+        ``BayesResult.emulator``).
 
     Returns
     -------
     BayesResult
     """
     t_start = time.perf_counter()
-    rng = as_generator(seed)
+    seeds = _stage_seeds(seed)
     cfg = _as_sampler(sampler)
     n_samples, thin, n_chains = int(n_samples), int(thin), int(n_chains)
     burn_in = n_samples // 19 if burn_in is None else int(burn_in)
@@ -589,7 +628,7 @@ def calibrate_bayes(
     gp, loo, best_build = None, None, None
     if emulator is not None:
         gp, loo, best_build = _build_emulator(emulator, prior, truth, pb, n_emulator_samples,
-                                              rng)
+                                              seeds)
         forward = gp._mean_fast
     elif np.array_equal(pb.resp_idx, np.arange(len(truth.names_out))):
         forward = truth
@@ -598,11 +637,14 @@ def calibrate_bayes(
             return truth(theta)[:, pb.resp_idx]
 
     post = _Posterior(forward, pb.lik, pb.logprior, pb.center, pb.scale, gp)
-    z0, lp0 = _start_point(post, prior, pb, x0, map_start, best_build, rng)
+    z0, lp0 = _start_point(post, prior, pb, x0, map_start, best_build,
+                           np.random.default_rng(seeds["start"]))
     theta0 = pb.center + pb.scale * z0
     cov_z = _initial_proposal(proposal_covariance, truth, gp, forward, pb, theta0)
     L0 = np.linalg.cholesky(cov_z + 1e-14 * np.eye(d))
-    state = _chain_starts(post, z0, lp0, L0, n_chains, rng)
+    state = _chain_starts(post, z0, lp0, L0, n_chains,
+                          np.random.default_rng(seeds["chain_starts"]),
+                          np.random.default_rng(seeds["chains"]))
 
     post.reset_counts()
     t0, c0 = time.perf_counter(), time.process_time()
@@ -618,7 +660,8 @@ def calibrate_bayes(
     pred_in = pred = None
     if posterior_predictive:
         flat = pb.center + pb.scale * kept.reshape(-1, d)
-        pred_in = flat[rng.choice(flat.shape[0], int(posterior_predictive), replace=True)]
+        pick = np.random.default_rng(seeds["predictive"])
+        pred_in = flat[pick.choice(flat.shape[0], int(posterior_predictive), replace=True)]
         pred = truth(pred_in)
     base = dict(
         map_point=theta0, proposal_covariance=cov_z * np.outer(pb.scale, pb.scale),
@@ -629,7 +672,8 @@ def calibrate_bayes(
         predictive_inputs=pred_in, predictive=pred, names_out=truth.names_out,
         _state=(post, state, cfg),
     )
-    res = _summarize(prior.names, kept.transpose(1, 0, 2), kept_lp.T, post, state, base, rng)
+    res = _summarize(prior.names, kept.transpose(1, 0, 2), kept_lp.T, post, state, base,
+                     seeds["summary"])
     log.info("calibrate_bayes: %d chains x %d kept steps in %.2f s (total %.2f s)", n_chains,
              n_samples, t_sampling, time.perf_counter() - t_start)
     return res
@@ -645,6 +689,9 @@ def continue_chain(result: BayesResult, n_samples: int, *, seed: SeedLike = None
     state = state.copy()
     if seed is not None:
         state.reseed(as_generator(seed))
+    # the summary's subsample: from the chains' own generator when no seed is given, so the
+    # same result continued twice gives the same numbers
+    summary_seed = np.random.SeedSequence(state.rng.integers(2**63, size=4))
     ev0, nan0, out0 = post.n_evals, post.n_nan, post.n_outside
     t0, c0 = time.perf_counter(), time.process_time()
     kept, kept_lp = run_chains(post, state, cfg, int(n_samples), 0, result.thin)
@@ -662,4 +709,4 @@ def continue_chain(result: BayesResult, n_samples: int, *, seed: SeedLike = None
         n_out_of_support=result.n_out_of_support + post.n_outside - out0,
         sampling_seconds=result.sampling_seconds + dt,
         sampling_cpu_seconds=result.sampling_cpu_seconds + dcpu, _state=(post, state, cfg))
-    return _summarize(result.names_in, chains_z, lp, post, state, base, seed)
+    return _summarize(result.names_in, chains_z, lp, post, state, base, summary_seed)

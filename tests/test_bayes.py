@@ -10,6 +10,7 @@ import pytest
 import rotoruq as rq
 from rotoruq.errors import ModelShapeError, ParameterError
 from rotoruq.methods.mcmc import SamplerConfig, calibrate_bayes, continue_chain
+from rotoruq.methods.mcmc.bayes import _Posterior
 from rotoruq.methods.surrogate import ExtrapolationWarning, GaussianProcess
 
 # --- linear-Gaussian: posterior in closed form ----------------------------------------------
@@ -203,18 +204,97 @@ def test_compiled_emulator_mean_equals_predict(trend, kernel):
     fast = gp._mean_fast(Xt)
     # predict forms distances as |a|^2 + |b|^2 - 2 a.b; a rounding error there is multiplied
     # by the kriging weights, which are large for a near-interpolating GP: bound eps sum|w|
-    alpha, y_std = gp._fast[4], gp._fast[10]
+    cg = gp.compiled()
+    alpha, y_std = cg.alpha, cg.y_std
     tol = 1e-14 * np.abs(alpha).sum(1) * y_std + 1e-12 * np.abs(ref).max(0)
     assert np.all(np.abs(fast - ref) <= tol), (np.abs(fast - ref).max(0), tol)
     np.testing.assert_array_equal(np.vstack([gp._mean_fast(x[None]) for x in Xt]), fast)
+    # the compiled Kriging variance (precomputed inverse factors) equals predict's (triangular
+    # solves) to round-off of the unit-variance standardized problem
+    mean, var = gp._mean_var_fast(Xt)
+    ref_mean, ref_var = gp.predict(Xt, warn_distance=None)
+    assert np.all(np.abs(mean - ref_mean) <= tol)
+    assert np.all(np.abs(var - ref_var) <= 1e-10 * gp.compiled(variance=True).var_scale)
+
+
+def _stacked_loglik(data, noise_cov, q, var):
+    """Direct log-likelihood of all observations stacked, (n_exp m,): mean q repeated, noise
+    blocks plus the emulator's error shared by the experiments (a rank-m term)."""
+    from scipy.stats import multivariate_normal
+
+    n_exp, m = data.shape
+    cov = np.zeros((n_exp * m, n_exp * m))
+    for e in range(n_exp):
+        cov[e * m:(e + 1) * m, e * m:(e + 1) * m] = noise_cov[e]
+    cov += np.kron(np.ones((n_exp, n_exp)), np.diag(var))
+    return multivariate_normal(np.tile(q, n_exp), cov).logpdf(data.reshape(-1))
+
+
+@pytest.mark.parametrize("noise", ["per_observation", "full"])
+def test_likelihood_with_emulator_variance_equals_the_stacked_gaussian(noise):
+    """GaussianLikelihood(q, variance) (compiled, sufficient statistics) equals the Gaussian
+    density of all observations with covariance noise + GP variance shared by the
+    experiments, computed directly (1e-10); variance 0 gives the plain likelihood."""
+    from rotoruq.methods.mcmc import GaussianLikelihood
+
+    rng = np.random.default_rng(3)
+    n_exp, m = 4, 3
+    data = rng.normal(size=(n_exp, m))
+    if noise == "full":
+        a = rng.normal(size=(m, m))
+        cov = a @ a.T + 0.5 * np.eye(m)
+        covs = np.broadcast_to(cov, (n_exp, m, m))
+    else:
+        cov = rng.uniform(0.1, 2.0, (n_exp, m))
+        covs = np.array([np.diag(c) for c in cov])
+    lik = GaussianLikelihood(data, cov)
+    q = rng.normal(size=(5, m))
+    var = rng.uniform(0.0, 3.0, (5, m))
+    got = lik(q, var)
+    ref = [_stacked_loglik(data, covs, q[k], var[k]) for k in range(5)]
+    np.testing.assert_allclose(got, ref, rtol=1e-10, atol=0)
+    np.testing.assert_allclose(lik(q, np.zeros_like(q)), lik(q), rtol=1e-12)
+
+
+@pytest.mark.filterwarnings("ignore::rotoruq.methods.surrogate.ExtrapolationWarning")
+def test_emulator_variance_in_the_posterior_and_the_switch():
+    """The compiled emulator posterior with the GP variance equals prior + the stacked
+    Gaussian with GaussianProcess.predict's variance at a few thetas (1e-10); with
+    emulator_variance=False it is the mean-only posterior; the general (Python) route
+    gives the same numbers."""
+    # a sparse GP with a nugget: a visible variance and kriging weights small enough that
+    # predict's distance formula is exact to 1e-10 (an interpolating GP's are not)
+    X = np.random.default_rng(2).random((12, 2)) * 2.0
+    gp = GaussianProcess(trend="linear", kernel="matern52", nugget=1e-3, seed=0).fit(
+        X, smooth_model()(X))
+    on = _emulator_result(n_samples=95, burn_in=5, emulator=gp)
+    off = _emulator_result(n_samples=95, burn_in=5, emulator=gp, emulator_variance=False)
+    post_on, post_off = on._state[0], off._state[0]
+    assert post_on.emulator_variance and not post_off.emulator_variance
+    data = post_on.loglik.data
+    thetas = np.array([[1.2, 0.7], [0.3, 1.9], [1.95, 0.05], [0.9, 1.1]])
+    z = (thetas - post_on.center) / post_on.scale
+    mean, var = gp.predict(thetas, warn_distance=None)
+    lp_prior = post_on.logprior(thetas)
+    covs = np.broadcast_to(np.eye(2) * 0.01, (data.shape[0], 2, 2))
+    ref = lp_prior + [_stacked_loglik(data, covs, mean[k], var[k]) for k in range(4)]
+    np.testing.assert_allclose(post_on(z), ref, rtol=1e-10)
+    assert np.all(var > 0)
+    np.testing.assert_allclose(post_off(z), lp_prior + post_off.loglik(mean), rtol=1e-10)
+    # the Python route (a prior the compiled kernel does not take) agrees
+    general = _Posterior(gp._mean_fast, post_on.loglik, post_on.logprior, post_on.center,
+                         post_on.scale, gp, True)
+    general.compiled = None
+    np.testing.assert_allclose(general(z), post_on(z), rtol=1e-12)
 
 
 def _emulator_result(prior=None, **kw):
     model = smooth_model()
     space = prior or rq.ParameterSpace({"k": rq.Uniform(0.0, 2.0), "c": rq.Uniform(0.0, 2.0)})
     data = model(np.array([[1.2, 0.7]])) + np.random.default_rng(4).normal(0, 0.1, (20, 2))
-    return calibrate_bayes(model, data, space, emulator=GaussianProcess(trend="linear", seed=0),
-                           n_emulator_samples=40, noise_std=0.1, seed=6, **kw)
+    kw.setdefault("emulator", GaussianProcess(trend="linear", seed=0))
+    return calibrate_bayes(model, data, space, n_emulator_samples=40, noise_std=0.1, seed=6,
+                           **kw)
 
 
 def test_compiled_emulator_posterior_equals_the_python_one():

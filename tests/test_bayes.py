@@ -257,6 +257,7 @@ def test_likelihood_with_emulator_variance_equals_the_stacked_gaussian(noise):
 
 
 @pytest.mark.filterwarnings("ignore::rotoruq.methods.surrogate.ExtrapolationWarning")
+@pytest.mark.filterwarnings("ignore:emulator error over the posterior:RuntimeWarning")
 def test_emulator_variance_in_the_posterior_and_the_switch():
     """The compiled emulator posterior with the GP variance equals prior + the stacked
     Gaussian with GaussianProcess.predict's variance at a few thetas (1e-10); with
@@ -286,6 +287,54 @@ def test_emulator_variance_in_the_posterior_and_the_switch():
                          post_on.scale, gp, True)
     general.compiled = None
     np.testing.assert_allclose(general(z), post_on(z), rtol=1e-12)
+
+
+def _three_output_problem():
+    def f(x):
+        a, b = x[:, 0], x[:, 1]
+        return np.column_stack([np.exp(0.8 * a) + b**2, a * b + np.sin(2 * b), np.cos(a) * b])
+
+    model = rq.FunctionModel(f, ["a", "b"], ["y1", "y2", "y3"])
+    space = rq.ParameterSpace({"a": rq.Uniform(0.0, 2.0), "b": rq.Uniform(0.0, 2.0)})
+    data = f(np.array([[1.1, 0.6]])) + np.random.default_rng(0).normal(0, 0.05, (3, 3))
+    return model, space, data
+
+
+def test_refinement_brings_the_emulator_error_below_target_and_the_posterior_home():
+    """A 10-point GP of a 2-parameter, 3-response nonlinear model: its error over the
+    posterior is 0.36-0.8 of the noise std (warned), and its posterior mean is off the
+    model's own posterior; refinement adds runs at the posterior draws until the ratio is
+    below 0.1, and the posterior mean moves to the model's own (within MC error)."""
+    from rotoruq.methods.mcmc import RefineConfig
+
+    model, space, data = _three_output_problem()
+    kw = dict(noise_std=0.05, n_samples=1500, burn_in=300, n_chains=4, seed=3)
+    direct = calibrate_bayes(model, data, space, **kw)
+    with pytest.warns(RuntimeWarning, match="emulator error over the posterior"):
+        sparse = calibrate_bayes(model, data, space, emulator=GaussianProcess(trend="linear"),
+                                 n_emulator_samples=10, **kw)
+    ad = sparse.emulator_adequacy
+    assert ad.runs_added == () and np.all(ad.loo_ratio > 0)
+    np.testing.assert_allclose(ad.noise_std, 0.05 / np.sqrt(3))
+    assert ad.posterior_ratio.max() > 0.3
+    cfg = RefineConfig(n_samples=40, target_ratio=0.1, batch=5)
+    ref = calibrate_bayes(model, data, space, emulator=GaussianProcess(trend="linear"),
+                          n_emulator_samples=10, refine=cfg, **kw)
+    ra = ref.emulator_adequacy
+    assert 1 <= len(ra.runs_added) and ra.n_added <= 40
+    assert np.all(ra.posterior_ratio < 0.1) and ra.target_ratio == 0.1
+    np.testing.assert_array_equal(ra.posterior_ratio_per_round[0], ad.posterior_ratio)
+    assert ref.emulator._X.shape[0] == 10 + ra.n_added
+    assert ref.n_evaluations == 10 + ra.n_added
+    se = np.sqrt(direct.std**2 / direct.ess + ref.std**2 / ref.ess)
+    assert np.all(np.abs(ref.mean - direct.mean) < 4.5 * se)
+    z_sparse = np.abs(sparse.mean - direct.mean) / direct.std
+    z_ref = np.abs(ref.mean - direct.mean) / direct.std
+    assert z_ref.max() < z_sparse.max()
+    with pytest.raises(ParameterError, match="refines an emulator"):
+        calibrate_bayes(model, data, space, refine=cfg, n_samples=10)
+    with pytest.raises(ParameterError, match="target_ratio"):
+        RefineConfig(target_ratio=0.0)
 
 
 def _emulator_result(prior=None, **kw):

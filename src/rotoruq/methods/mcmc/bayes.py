@@ -43,6 +43,15 @@ from ._kernels import (
     emulator_logpost_rows,
     scaled_logprior_rows,
 )
+from .adequacy import (
+    WARN_RATIO,
+    EmulatorAdequacy,
+    RefineConfig,
+    check_draws,
+    noise_std_of_mean,
+    pick_runs,
+    posterior_ratio,
+)
 from .likelihood import GaussianLikelihood
 from .proposals import LogPrior, hessian_covariance, prior_scales
 from .samplers import SamplerConfig, SamplerState, run_chains
@@ -167,6 +176,8 @@ class BayesResult:
     sampling_seconds, sampling_cpu_seconds : wall and CPU time of the chains (the CPU time is
         what the chains cost on a machine shared with other jobs).
     emulator, emulator_loo : the fitted GP and its leave-one-out quality (None without one).
+    emulator_adequacy : the emulator's error against the noise over the build design and the
+        posterior, and the runs added by refinement (:class:`EmulatorAdequacy`).
     predictive_inputs, predictive : posterior predictive draws pushed through the true model,
         (k, d) and (k, m) (None unless ``posterior_predictive`` > 0); names_out : the model's
         responses (columns of ``predictive``).
@@ -203,6 +214,7 @@ class BayesResult:
     predictive_inputs: np.ndarray | None = None
     predictive: np.ndarray | None = None
     names_out: tuple[str, ...] = ()
+    emulator_adequacy: EmulatorAdequacy | None = None
     _state: tuple | None = field(default=None, repr=False, compare=False)
 
     @property
@@ -430,10 +442,6 @@ def _build_emulator(emulator, prior: ParameterSpace, truth: _TrueModel, pb: _Pro
     loo = gp.loo()
     log.info("emulator LOO: RMSE %s, Q2 %s", np.array2string(loo.rmse, precision=4),
              np.array2string(loo.q2, precision=4))
-    if np.any(loo.q2 < 0.9):
-        warnings.warn(f"emulator leave-one-out Q2 = {np.round(loo.q2, 3)} for responses "
-                      f"{pb.names_out}: below 0.9, the posterior may be wrong", RuntimeWarning,
-                      stacklevel=3)
     return gp, loo, best_build
 
 
@@ -557,6 +565,44 @@ def _as_sampler(sampler) -> SamplerConfig:
     return SamplerConfig(sampler=sampler)
 
 
+def _child(ss: np.random.SeedSequence, i: int) -> np.random.SeedSequence:
+    """Child ``i`` of ``ss`` as ``ss.spawn`` makes it, without changing ``ss``."""
+    return np.random.SeedSequence(ss.entropy, spawn_key=(*ss.spawn_key, i),
+                                  pool_size=ss.pool_size)
+
+
+def _sample(truth, gp, pb: _Problem, prior, cfg, emulator_variance, x0, map_start, best_build,
+            proposal_covariance, n_chains, n_samples, burn_in, thin, seeds) -> dict:
+    """Stages 3-5 and the chains on one emulator (or the model): start point, initial
+    proposal, chain starts and chains; the chains' kept samples are scaled (n, c, d)."""
+    d = prior.dim
+    if gp is not None:
+        forward = gp._mean_fast
+    elif np.array_equal(pb.resp_idx, np.arange(len(truth.names_out))):
+        forward = truth
+    else:
+        def forward(theta):
+            return truth(theta)[:, pb.resp_idx]
+
+    post = _Posterior(forward, pb.lik, pb.logprior, pb.center, pb.scale, gp, emulator_variance)
+    z0, lp0 = _start_point(post, prior, pb, x0, map_start, best_build,
+                           np.random.default_rng(seeds["start"]))
+    theta0 = pb.center + pb.scale * z0
+    cov_z = _initial_proposal(proposal_covariance, truth, gp, forward, pb, theta0)
+    L0 = np.linalg.cholesky(cov_z + 1e-14 * np.eye(d))
+    state = _chain_starts(post, z0, lp0, L0, n_chains,
+                          np.random.default_rng(seeds["chain_starts"]),
+                          np.random.default_rng(seeds["chains"]))
+    post.reset_counts()
+    t0, c0 = time.perf_counter(), time.process_time()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExtrapolationWarning)
+        kept, kept_lp = run_chains(post, state, cfg, n_samples, burn_in, thin)
+    return dict(post=post, theta0=theta0, cov_z=cov_z, state=state, kept=kept,
+                kept_lp=kept_lp, seconds=time.perf_counter() - t0,
+                cpu_seconds=time.process_time() - c0)
+
+
 def calibrate_bayes(
     model: Model,
     data: ArrayLike,
@@ -570,6 +616,7 @@ def calibrate_bayes(
     emulator: GaussianProcess | None = None,
     n_emulator_samples: int = 500,
     emulator_variance: bool = True,
+    refine: RefineConfig | None = None,
     noise_std: ArrayLike | None = None,
     noise_covariance: ArrayLike | None = None,
     names_out: Sequence[str] | None = None,
@@ -611,6 +658,12 @@ def calibrate_bayes(
         theta and a sparse emulator widens the posterior instead of making it over-confident.
         False: the GP mean only (the reference thesis). Each evaluation then costs ``n^2 / 2``
         multiply-adds per response for ``n`` build points, against ``n d`` for the mean.
+    refine : RefineConfig(n_samples=, target_ratio=, batch=) to refine the emulator over the
+        posterior: after the chains, ``batch`` model runs at the posterior draws where the
+        emulator's Kriging std relative to the noise std is largest, a refit and new chains,
+        until every response's ratio (:class:`EmulatorAdequacy` ``posterior_ratio``) is
+        below ``target_ratio`` or ``n_samples`` runs were added. None: no refinement (the
+        ratio is still measured, and warned on above :data:`.adequacy.WARN_RATIO`).
     noise_std : standard deviation of the data noise (data units): scalar, (m,) per response
         or (n_exp, m) per observation. noise_covariance : instead, a full (m, m) or
         (n_exp, m, m) covariance. Neither: unit variance (Dakota's default).
@@ -649,29 +702,66 @@ def calibrate_bayes(
     if emulator is not None:
         gp, loo, best_build = _build_emulator(emulator, prior, truth, pb, n_emulator_samples,
                                               seeds)
-        forward = gp._mean_fast
-    elif np.array_equal(pb.resp_idx, np.arange(len(truth.names_out))):
-        forward = truth
-    else:
-        def forward(theta):
-            return truth(theta)[:, pb.resp_idx]
+    elif refine is not None:
+        raise ParameterError("refine= refines an emulator: pass emulator=GaussianProcess(...)")
+    if refine is not None and not isinstance(refine, RefineConfig):
+        raise ParameterError(f"refine must be a RefineConfig or None, got {refine!r}")
 
-    post = _Posterior(forward, pb.lik, pb.logprior, pb.center, pb.scale, gp, emulator_variance)
-    z0, lp0 = _start_point(post, prior, pb, x0, map_start, best_build,
-                           np.random.default_rng(seeds["start"]))
-    theta0 = pb.center + pb.scale * z0
-    cov_z = _initial_proposal(proposal_covariance, truth, gp, forward, pb, theta0)
-    L0 = np.linalg.cholesky(cov_z + 1e-14 * np.eye(d))
-    state = _chain_starts(post, z0, lp0, L0, n_chains,
-                          np.random.default_rng(seeds["chain_starts"]),
-                          np.random.default_rng(seeds["chains"]))
-
-    post.reset_counts()
-    t0, c0 = time.perf_counter(), time.process_time()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ExtrapolationWarning)
-        kept, kept_lp = run_chains(post, state, cfg, n_samples, burn_in, thin)
-    t_sampling, cpu_sampling = time.perf_counter() - t0, time.process_time() - c0
+    round_seeds = {k: seeds[k] for k in ("start", "chain_starts", "chains")}
+    runs_added: list[int] = []
+    ratios: list[np.ndarray] = []
+    adequacy = None
+    while True:
+        run = _sample(truth, gp, pb, prior, cfg, emulator_variance, x0, map_start, best_build,
+                      proposal_covariance, n_chains, n_samples, burn_in, thin, round_seeds)
+        post, kept = run["post"], run["kept"]
+        if gp is None:
+            break
+        noise_sd = noise_std_of_mean(pb.lik.pack)
+        draws = check_draws(pb.center + pb.scale * kept)
+        var = gp._mean_var_fast(draws)[1]
+        ratios.append(posterior_ratio(var, noise_sd))
+        budget = 0 if refine is None else refine.n_samples - sum(runs_added)
+        if refine is None or np.all(ratios[-1] < refine.target_ratio) or budget <= 0:
+            adequacy = EmulatorAdequacy(
+                names_out=pb.names_out, noise_std=noise_sd,
+                loo_ratio=(np.full(len(noise_sd), np.nan) if loo is None else loo.rmse)
+                / noise_sd,
+                posterior_ratio=ratios[-1], runs_added=tuple(runs_added),
+                posterior_ratio_per_round=np.array(ratios),
+                target_ratio=None if refine is None else refine.target_ratio)
+            break
+        # refine: model runs where the emulator is least sure relative to the noise, a refit
+        # (seeded from this round's child) and new chains from the round's own seeds
+        k = len(runs_added) + 1
+        rs = _child(seeds["refine"], k)
+        new_x = pick_runs(draws, var, noise_sd, min(refine.batch, budget))
+        new_y = truth(new_x)[:, pb.resp_idx]
+        ok = np.all(np.isfinite(new_y), 1)
+        runs_added.append(len(new_x))
+        X, Y = np.vstack([gp._X, new_x[ok]]), np.vstack([gp._Y, new_y[ok]])
+        gp = copy.copy(gp)
+        gp.seed = _child(rs, 0)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # jitter notes of near points
+            gp.fit(X, Y)
+        loo = gp.loo()
+        best_build = None
+        round_seeds = {key: _child(rs, i + 1) for i, key in enumerate(round_seeds)}
+        log.info("refinement round %d: %d runs added, emulator/noise std ratio %s", k,
+                 runs_added[-1], np.array2string(ratios[-1], precision=3))
+    if adequacy is not None and np.any(adequacy.posterior_ratio > WARN_RATIO):
+        bad = {r: round(float(v), 3) for r, v in zip(pb.names_out, adequacy.posterior_ratio,
+                                                      strict=True) if v > WARN_RATIO}
+        warnings.warn(f"emulator error over the posterior is more than {WARN_RATIO} of the "
+                      f"noise std (RMS Kriging std / noise std: {bad}); "
+                      + ("its variance is in the likelihood, so the posterior is wider than "
+                         "the data alone would give" if emulator_variance else
+                         "with emulator_variance=False the posterior is over-confident")
+                      + ": add build runs (n_emulator_samples) or refine=RefineConfig()",
+                      RuntimeWarning, stacklevel=2)
+    theta0, cov_z, state = run["theta0"], run["cov_z"], run["state"]
+    kept_lp, t_sampling, cpu_sampling = run["kept_lp"], run["seconds"], run["cpu_seconds"]
     if post.n_extrapolated:
         warnings.warn(f"emulator extrapolated for {post.n_extrapolated} proposals, up to "
                       f"{post.max_extrapolation:.3g} box-widths outside its training box",
@@ -690,7 +780,7 @@ def calibrate_bayes(
         n_out_of_support=post.n_outside, sampling_seconds=t_sampling,
         sampling_cpu_seconds=cpu_sampling, emulator=gp, emulator_loo=loo,
         predictive_inputs=pred_in, predictive=pred, names_out=truth.names_out,
-        _state=(post, state, cfg),
+        emulator_adequacy=adequacy, _state=(post, state, cfg),
     )
     res = _summarize(prior.names, kept.transpose(1, 0, 2), kept_lp.T, post, state, base,
                      seeds["summary"])
@@ -721,7 +811,7 @@ def continue_chain(result: BayesResult, n_samples: int, *, seed: SeedLike = None
     lp = np.concatenate([result.log_posterior, kept_lp.T], axis=1)
     base = {k: getattr(result, k) for k in (
         "map_point", "proposal_covariance", "sampler", "burn_in", "thin", "emulator",
-        "emulator_loo", "predictive_inputs", "predictive", "names_out")}
+        "emulator_loo", "predictive_inputs", "predictive", "names_out", "emulator_adequacy")}
     base.update(
         n_likelihood_evaluations=result.n_likelihood_evaluations + post.n_evals - ev0,
         n_evaluations=result.n_evaluations + (post.n_evals - ev0 if post.gp is None else 0),

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import copy
 import csv
+import dataclasses
 import logging
 import time
 import warnings
@@ -53,6 +54,7 @@ from .adequacy import (
     posterior_ratio,
 )
 from .likelihood import GaussianLikelihood
+from .noise import extended_prior, multiplier_groups, noise_loglik
 from .proposals import LogPrior, hessian_covariance, prior_scales
 from .samplers import SamplerConfig, SamplerState, run_chains
 
@@ -96,7 +98,7 @@ class _Posterior:
 
     def __init__(self, forward, loglik: GaussianLikelihood, logprior: LogPrior,
                  center: np.ndarray, scale: np.ndarray, gp: GaussianProcess | None,
-                 emulator_variance: bool = False):
+                 emulator_variance: bool = False, noise: _Problem | None = None):
         self.forward, self.loglik, self.logprior = forward, loglik, logprior
         self.center = np.ascontiguousarray(center, dtype=float)
         self.scale = np.ascontiguousarray(scale, dtype=float)
@@ -105,7 +107,8 @@ class _Posterior:
         # evaluations, outside the support, NaN likelihoods, extrapolations, largest extrapolation
         self.cnt = np.zeros(5)
         self.compiled = None
-        if gp is not None and logprior.compiled:
+        self.noise = noise  # noise multipliers: the Python route below
+        if gp is not None and logprior.compiled and noise is None:
             cg = gp.compiled(variance=self.emulator_variance)
             self.compiled = ((self.center, self.scale, logprior.pack, cg.mean_pack, loglik.pack,
                               cg.var_pack, self.emulator_variance), self.cnt)
@@ -138,6 +141,8 @@ class _Posterior:
         ok = lp > -np.inf
         nok = int(np.count_nonzero(ok))
         q = np.empty((0, 0))
+        if nok and self.noise is not None:
+            return self._with_multipliers(theta, ok, lp)
         if nok:
             th = theta if nok == n else theta[ok]
             if self.gp is not None and ((th < self._far_lo) | (th > self._far_hi)).any():
@@ -152,6 +157,36 @@ class _Posterior:
             q = np.ascontiguousarray(self.forward(th), dtype=float)
         add_loglik_rows(q, self.loglik.pack, lp, self.cnt)
         return lp
+
+    def _with_multipliers(self, theta: np.ndarray, ok: np.ndarray, lp: np.ndarray) -> np.ndarray:
+        """lp (k,) plus the likelihood with noise multipliers at the points ``ok`` of theta
+        (model parameters, then precision multipliers)."""
+        pb = self.noise
+        assert pb is not None and pb.groups is not None and pb.noise_var is not None
+        d = pb.n_theta
+        th = theta[ok]
+        x = np.ascontiguousarray(th[:, :d])
+        v = None
+        if self.gp is not None:
+            if ((x < self._far_lo) | (x > self._far_hi)).any():
+                dist = self.gp.extrapolation_distance(x)
+                self.cnt[3] += int((dist > 0.1).sum())
+                self.cnt[4] = max(self.cnt[4], float(dist.max()))
+            if self.emulator_variance:
+                q, v = self.gp._mean_var_fast(x)
+            else:
+                q = self.gp._mean_fast(x)
+        else:
+            q = np.asarray(self.forward(x), dtype=float)
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            ll = noise_loglik(q, v, th[:, d:], pb.lik.data, pb.noise_var, pb.groups)
+        bad = ~np.isfinite(ll)
+        self.cnt[0] += th.shape[0]
+        self.cnt[1] += int((~ok).sum())
+        self.cnt[2] += int(bad.sum())
+        out = lp.copy()
+        out[ok] = np.where(bad, -np.inf, lp[ok] + ll)
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -178,6 +213,10 @@ class BayesResult:
     emulator, emulator_loo : the fitted GP and its leave-one-out quality (None without one).
     emulator_adequacy : the emulator's error against the noise over the build design and the
         posterior, and the runs added by refinement (:class:`EmulatorAdequacy`).
+    noise_multiplier_names, noise_multiplier_chains : with ``noise_multipliers``, the
+        multipliers of the noise variance and their chains (n_chains, n_samples, k); their
+        moments by :meth:`noise_multiplier_summary`. The parameters' fields (``chains``,
+        ``mean``, ...) hold the model parameters only; ``kl_divergence`` covers both.
     predictive_inputs, predictive : posterior predictive draws pushed through the true model,
         (k, d) and (k, m) (None unless ``posterior_predictive`` > 0); names_out : the model's
         responses (columns of ``predictive``).
@@ -215,12 +254,25 @@ class BayesResult:
     predictive: np.ndarray | None = None
     names_out: tuple[str, ...] = ()
     emulator_adequacy: EmulatorAdequacy | None = None
+    noise_multiplier_names: tuple[str, ...] = ()
+    noise_multiplier_chains: np.ndarray | None = None
     _state: tuple | None = field(default=None, repr=False, compare=False)
 
     @property
     def samples(self) -> np.ndarray:
         """All kept samples pooled over chains, (n_chains * n_kept, d)."""
         return self.chains.reshape(-1, self.chains.shape[-1])
+
+    def noise_multiplier_summary(self, level: float = 0.95) -> dict[str, tuple[float, ...]]:
+        """Posterior mean, std and equal-tailed ``level`` interval of each noise variance
+        multiplier: name -> (mean, std, lower, upper)."""
+        if self.noise_multiplier_chains is None:
+            raise ParameterError("no noise multipliers were calibrated (noise_multipliers=)")
+        flat = self.noise_multiplier_chains.reshape(-1, len(self.noise_multiplier_names))
+        a = 0.5 * (1.0 - level)
+        q = np.quantile(flat, [a, 1.0 - a], axis=0)
+        return {n: (float(flat[:, j].mean()), float(flat[:, j].std()), float(q[0, j]),
+                    float(q[1, j])) for j, n in enumerate(self.noise_multiplier_names)}
 
     @property
     def ess_per_second(self) -> np.ndarray:
@@ -308,6 +360,22 @@ def _summarize(names, chains_z, lp, post: _Posterior, state: SamplerState, base:
         kl_divergence=float(kl_knn), kl_divergence_gaussian=float(kl_gauss), **base)
 
 
+def _split_multipliers(res: BayesResult, d: int) -> BayesResult:
+    """Move the sampled precision multipliers (columns d..) of a summary to the noise
+    fields, as variance multipliers ``1 / tau``."""
+    if len(res.names_in) == d:
+        return res
+    c = res.correlation
+    return dataclasses.replace(
+        res, names_in=res.names_in[:d], chains=res.chains[..., :d], mean=res.mean[:d],
+        std=res.std[:d], skewness=res.skewness[:d], kurtosis=res.kurtosis[:d],
+        correlation=c[:d, :d], credible_interval_95=res.credible_interval_95[:d],
+        ess=res.ess[:d], rhat=res.rhat[:d], map_point=res.map_point[:d],
+        proposal_covariance=res.proposal_covariance[:d, :d],
+        noise_multiplier_names=res.names_in[d:],
+        noise_multiplier_chains=1.0 / res.chains[..., d:])
+
+
 def _batched_fd_grad(post: _Posterior, z: np.ndarray, hi: np.ndarray):
     """Log posterior and its gradient at z (d,), forward differences on one batch of d+1
     points (z is scaled: unit prior scale, hence ``scale=1``)."""
@@ -368,6 +436,16 @@ class _Problem:
     scale: np.ndarray
     zlo: np.ndarray
     zhi: np.ndarray
+    space: ParameterSpace
+    n_theta: int
+    # noise multipliers: group of each observation (n_exp, m), stated variances, names
+    groups: np.ndarray | None = None
+    noise_var: np.ndarray | None = None
+    multiplier_names: tuple[str, ...] = ()
+
+    def pad(self, theta: np.ndarray) -> np.ndarray:
+        """A model-parameter point (n_theta,) with the multipliers at their prior mean."""
+        return np.concatenate([theta, self.center[self.n_theta:]])
 
 
 def _noise_covariance(noise_std, noise_covariance, shape: tuple[int, int]):
@@ -388,8 +466,10 @@ def _noise_covariance(noise_std, noise_covariance, shape: tuple[int, int]):
     return var
 
 
-def _setup(model, data, prior, names_out, noise_std, noise_covariance) -> _Problem:
-    """Stage 1: observed responses, likelihood, prior and scaled coordinates."""
+def _setup(model, data, prior, names_out, noise_std, noise_covariance, noise_multipliers=None,
+           noise_multiplier_prior=(1.0, 1.0)) -> _Problem:
+    """Stage 1: observed responses, likelihood, prior and scaled coordinates (with noise
+    multipliers: the prior extended by their precision multipliers, :mod:`.noise`)."""
     if not isinstance(prior, ParameterSpace):
         raise ParameterError(f"prior must be a ParameterSpace, got {type(prior).__name__}")
     model_out = tuple(model.names_out)
@@ -404,10 +484,23 @@ def _setup(model, data, prior, names_out, noise_std, noise_covariance) -> _Probl
         resp_idx = np.array([model_out.index(r) for r in observed])
     shape = np.atleast_2d(np.asarray(data, dtype=float)).shape
     lik = GaussianLikelihood(data, _noise_covariance(noise_std, noise_covariance, shape), observed)
-    logprior = LogPrior(prior)
-    center, scale = prior_scales(prior)
+    space, groups, noise_var = prior, None, None
+    mnames: tuple[str, ...] = ()
+    if noise_multipliers is not None:
+        if noise_covariance is not None:
+            raise ParameterError("noise_multipliers need independent noise given as noise_std "
+                                 "(scalar, per response or per observation), not "
+                                 "noise_covariance")
+        sd = 1.0 if noise_std is None else np.asarray(noise_std, dtype=float)
+        noise_var = np.array(np.broadcast_to(np.square(sd), lik.data.shape), dtype=float)
+        groups, mnames = multiplier_groups(noise_multipliers, observed, lik.n_exp)
+        a, b = noise_multiplier_prior
+        space = extended_prior(prior, mnames, a, b)
+    logprior = LogPrior(space)
+    center, scale = prior_scales(space)
     return _Problem(observed, resp_idx, lik, logprior, center, scale,
-                    (logprior.lo - center) / scale, (logprior.hi - center) / scale)
+                    (logprior.lo - center) / scale, (logprior.hi - center) / scale, space,
+                    prior.dim, groups, noise_var, mnames)
 
 
 def _build_emulator(emulator, prior: ParameterSpace, truth: _TrueModel, pb: _Problem,
@@ -437,7 +530,7 @@ def _build_emulator(emulator, prior: ParameterSpace, truth: _TrueModel, pb: _Pro
             raise EvaluationError(f"only {int(ok.sum())} of {len(Xb)} emulator build "
                                   "evaluations succeeded")
         gp.fit(Xb[ok], Yb[ok])
-        lp_build = pb.logprior(Xb[ok]) + pb.lik(Yb[ok])
+        lp_build = LogPrior(prior)(Xb[ok]) + pb.lik(Yb[ok])
         best_build = Xb[ok][int(np.argmax(lp_build))]
     loo = gp.loo()
     log.info("emulator LOO: RMSE %s, Q2 %s", np.array2string(loo.rmse, precision=4),
@@ -453,8 +546,10 @@ def _start_point(post: _Posterior, prior: ParameterSpace, pb: _Problem, x0, map_
     d = prior.dim
     if x0 is not None:
         s = np.asarray(x0, dtype=float).reshape(-1)
-        if s.size != d:
-            raise ParameterError(f"x0 must have {d} values for {prior.names}, got {s.size}")
+        if s.size != pb.n_theta:
+            raise ParameterError(f"x0 must have {pb.n_theta} values for "
+                                 f"{prior.names[:pb.n_theta]}, got {s.size}")
+        s = pb.pad(s)
         z0 = (s - pb.center) / pb.scale
         lp0 = post(z0[None])[0]
         if not np.isfinite(lp0):
@@ -462,7 +557,7 @@ def _start_point(post: _Posterior, prior: ParameterSpace, pb: _Problem, x0, map_
                                  "the prior support or the model fails there)")
         map_seeds = [z0]
     else:
-        cands = [pb.center] + ([best_build] if best_build is not None else [])
+        cands = [pb.center] + ([pb.pad(best_build)] if best_build is not None else [])
         if map_start:
             cands.extend(prior.draw(max(16, 8 * d), design="lhs", seed=rng))
         zc = (np.array(cands) - pb.center) / pb.scale
@@ -504,7 +599,8 @@ def _initial_proposal(proposal_covariance, truth: _TrueModel, gp, forward, pb: _
     sd = 2.38**2 / d
     if isinstance(proposal_covariance, str):
         if proposal_covariance == "hessian":
-            jac = _jacobian(truth, gp, theta0, forward, pb)
+            jac = _jacobian(truth, gp, theta0[:pb.n_theta], forward, pb)
+            jac = np.hstack([jac, np.zeros((jac.shape[0], d - pb.n_theta))])
             return sd * hessian_covariance(jac, pb.lik.precision, pb.scale**2, pb.scale)
         if proposal_covariance == "prior":
             return sd * np.eye(d)
@@ -536,7 +632,7 @@ def _jacobian(truth: _TrueModel, gp, theta0, forward, pb: _Problem) -> np.ndarra
         except NotImplementedError:
             pass
     J = finite_difference(forward, theta0, fd_step=FD_STEP, scale=1e-3, central=False,
-                          upper=pb.logprior.hi).gradient[0]
+                          upper=pb.logprior.hi[:pb.n_theta]).gradient[0]
     return np.where(np.isfinite(J), J, 0.0)
 
 
@@ -584,7 +680,8 @@ def _sample(truth, gp, pb: _Problem, prior, cfg, emulator_variance, x0, map_star
         def forward(theta):
             return truth(theta)[:, pb.resp_idx]
 
-    post = _Posterior(forward, pb.lik, pb.logprior, pb.center, pb.scale, gp, emulator_variance)
+    post = _Posterior(forward, pb.lik, pb.logprior, pb.center, pb.scale, gp, emulator_variance,
+                      pb if pb.groups is not None else None)
     z0, lp0 = _start_point(post, prior, pb, x0, map_start, best_build,
                            np.random.default_rng(seeds["start"]))
     theta0 = pb.center + pb.scale * z0
@@ -617,6 +714,8 @@ def calibrate_bayes(
     n_emulator_samples: int = 500,
     emulator_variance: bool = True,
     refine: RefineConfig | None = None,
+    noise_multipliers: str | Sequence[str] | None = None,
+    noise_multiplier_prior: tuple[float, float] = (1.0, 1.0),
     noise_std: ArrayLike | None = None,
     noise_covariance: ArrayLike | None = None,
     names_out: Sequence[str] | None = None,
@@ -664,6 +763,12 @@ def calibrate_bayes(
         until every response's ratio (:class:`EmulatorAdequacy` ``posterior_ratio``) is
         below ``target_ratio`` or ``n_samples`` runs were added. None: no refinement (the
         ratio is still measured, and warned on above :data:`.adequacy.WARN_RATIO`).
+    noise_multipliers : calibrate the noise too (Dakota's ``calibrate_error_multipliers``):
+        "one", "per_response", "per_experiment" or a list of observed responses; each
+        multiplies the stated noise variance of its observations and is sampled with the
+        parameters (:mod:`.noise`). Needs independent noise (``noise_std``).
+    noise_multiplier_prior : (alpha, beta) of each multiplier's inverse-gamma prior
+        (default (1, 1): weak, median 1.44).
     noise_std : standard deviation of the data noise (data units): scalar, (m,) per response
         or (n_exp, m) per observation. noise_covariance : instead, a full (m, m) or
         (n_exp, m, m) covariance. Neither: unit variance (Dakota's default).
@@ -694,7 +799,9 @@ def calibrate_bayes(
     if n_samples < 1 or thin < 1 or n_chains < 1 or burn_in < 0:
         raise ParameterError(f"need n_samples >= 1, burn_in >= 0, thin >= 1 and n_chains >= 1; "
                              f"got {n_samples}, {burn_in}, {thin}, {n_chains}")
-    pb = _setup(model, data, prior, names_out, noise_std, noise_covariance)
+    pb = _setup(model, data, prior, names_out, noise_std, noise_covariance, noise_multipliers,
+                noise_multiplier_prior)
+    space = pb.space
     truth = _TrueModel(model, prior)
     d = prior.dim
 
@@ -712,13 +819,13 @@ def calibrate_bayes(
     ratios: list[np.ndarray] = []
     adequacy = None
     while True:
-        run = _sample(truth, gp, pb, prior, cfg, emulator_variance, x0, map_start, best_build,
+        run = _sample(truth, gp, pb, space, cfg, emulator_variance, x0, map_start, best_build,
                       proposal_covariance, n_chains, n_samples, burn_in, thin, round_seeds)
         post, kept = run["post"], run["kept"]
         if gp is None:
             break
         noise_sd = noise_std_of_mean(pb.lik.pack)
-        draws = check_draws(pb.center + pb.scale * kept)
+        draws = check_draws((pb.center + pb.scale * kept)[..., :d])
         var = gp._mean_var_fast(draws)[1]
         ratios.append(posterior_ratio(var, noise_sd))
         budget = 0 if refine is None else refine.n_samples - sum(runs_added)
@@ -769,7 +876,7 @@ def calibrate_bayes(
 
     pred_in = pred = None
     if posterior_predictive:
-        flat = pb.center + pb.scale * kept.reshape(-1, d)
+        flat = (pb.center + pb.scale * kept.reshape(-1, space.dim))[:, :d]
         pick = np.random.default_rng(seeds["predictive"])
         pred_in = flat[pick.choice(flat.shape[0], int(posterior_predictive), replace=True)]
         pred = truth(pred_in)
@@ -782,8 +889,9 @@ def calibrate_bayes(
         predictive_inputs=pred_in, predictive=pred, names_out=truth.names_out,
         emulator_adequacy=adequacy, _state=(post, state, cfg),
     )
-    res = _summarize(prior.names, kept.transpose(1, 0, 2), kept_lp.T, post, state, base,
+    res = _summarize(space.names, kept.transpose(1, 0, 2), kept_lp.T, post, state, base,
                      seeds["summary"])
+    res = _split_multipliers(res, d)
     log.info("calibrate_bayes: %d chains x %d kept steps in %.2f s (total %.2f s)", n_chains,
              n_samples, t_sampling, time.perf_counter() - t_start)
     return res
@@ -806,7 +914,10 @@ def continue_chain(result: BayesResult, n_samples: int, *, seed: SeedLike = None
     t0, c0 = time.perf_counter(), time.process_time()
     kept, kept_lp = run_chains(post, state, cfg, int(n_samples), 0, result.thin)
     dt, dcpu = time.perf_counter() - t0, time.process_time() - c0
-    z_old = (result.chains - post.center) / post.scale
+    full = result.chains
+    if result.noise_multiplier_chains is not None:
+        full = np.concatenate([full, 1.0 / result.noise_multiplier_chains], axis=-1)
+    z_old = (full - post.center) / post.scale
     chains_z = np.concatenate([z_old, kept.transpose(1, 0, 2)], axis=1)
     lp = np.concatenate([result.log_posterior, kept_lp.T], axis=1)
     base = {k: getattr(result, k) for k in (
@@ -819,4 +930,6 @@ def continue_chain(result: BayesResult, n_samples: int, *, seed: SeedLike = None
         n_out_of_support=result.n_out_of_support + post.n_outside - out0,
         sampling_seconds=result.sampling_seconds + dt,
         sampling_cpu_seconds=result.sampling_cpu_seconds + dcpu, _state=(post, state, cfg))
-    return _summarize(result.names_in, chains_z, lp, post, state, base, summary_seed)
+    names = result.names_in + result.noise_multiplier_names
+    res = _summarize(names, chains_z, lp, post, state, base, summary_seed)
+    return _split_multipliers(res, len(result.names_in))

@@ -300,7 +300,7 @@ def _three_output_problem():
     return model, space, data
 
 
-def test_refinement_brings_the_emulator_error_below_target_and_the_posterior_home():
+def test_refinement_brings_the_emulator_error_below_target_and_the_posterior_home(tmp_path):
     """A 10-point GP of a 2-parameter, 3-response nonlinear model: its error over the
     posterior is 0.36-0.8 of the noise std (warned), and its posterior mean is off the
     model's own posterior; refinement adds runs at the posterior draws until the ratio is
@@ -326,6 +326,8 @@ def test_refinement_brings_the_emulator_error_below_target_and_the_posterior_hom
     np.testing.assert_array_equal(ra.posterior_ratio_per_round[0], ad.posterior_ratio)
     assert ref.emulator._X.shape[0] == 10 + ra.n_added
     assert ref.n_evaluations == 10 + ra.n_added
+    with np.load(ref.save(tmp_path / "post.npz")) as z:
+        np.testing.assert_array_equal(z["emulator_runs_added"], ra.runs_added)
     se = np.sqrt(direct.std**2 / direct.ess + ref.std**2 / ref.ess)
     assert np.all(np.abs(ref.mean - direct.mean) < 4.5 * se)
     z_sparse = np.abs(sparse.mean - direct.mean) / direct.std
@@ -338,7 +340,7 @@ def test_refinement_brings_the_emulator_error_below_target_and_the_posterior_hom
 
 
 @pytest.mark.slow  # 17 chains: ~6 s of CPU, up to 20 s on a shared machine
-def test_noise_multiplier_learns_an_understated_noise():
+def test_noise_multiplier_learns_an_understated_noise(tmp_path):
     """Data with noise std 0.1 stated as 0.05: the variance multiplier ("one", inverse-gamma
     prior) is sampled with the parameters; over 8 data sets its 90 % interval covers the
     true 4 and the parameters' 90 % intervals cover the truth at about their rate (>= 6 of 8
@@ -369,6 +371,8 @@ def test_noise_multiplier_learns_an_understated_noise():
                                         "noise_multiplier:y3")
     for name, lam in zip(r.noise_multiplier_names, (4.0, 1.0, 1.0), strict=True):
         assert summ[name][2] <= lam <= summ[name][3], (name, summ[name])
+    with np.load(r.save(tmp_path / "post.npz")) as z:
+        np.testing.assert_array_equal(z["noise_multiplier_chains"], r.noise_multiplier_chains)
     more = continue_chain(r, 100)
     assert more.noise_multiplier_chains.shape == (4, 1100, 3)
     # (kept as 1 / tau: the round trip is exact to one rounding)

@@ -302,7 +302,8 @@ class BayesResult:
 
     def save(self, path: str | Path) -> Path:
         """Write the chains: ``*.csv`` as a table (chain, step, parameters, log posterior),
-        anything else as a NumPy ``.npz`` archive with the chains and the summary arrays."""
+        anything else as a NumPy ``.npz`` archive with the chains and the summary arrays (and
+        the noise multipliers' chains and the emulator's adequacy when there are any)."""
         path = Path(path)
         if path.suffix.lower() == ".csv":
             c, n, d = self.chains.shape
@@ -319,6 +320,14 @@ class BayesResult:
         arrays = {k: getattr(self, k) for k in (
             "chains", "log_posterior", "mean", "std", "skewness", "kurtosis", "correlation",
             "credible_interval_95", "ess", "rhat", "map_point", "proposal_covariance")}
+        if self.noise_multiplier_chains is not None:
+            arrays["noise_multiplier_chains"] = self.noise_multiplier_chains
+            arrays["noise_multiplier_names"] = np.array(self.noise_multiplier_names)
+        if self.emulator_adequacy is not None:
+            ad = self.emulator_adequacy
+            arrays.update(emulator_noise_std=ad.noise_std, emulator_loo_ratio=ad.loo_ratio,
+                          emulator_posterior_ratio=ad.posterior_ratio,
+                          emulator_runs_added=np.array(ad.runs_added, dtype=int))
         np.savez(path, names_in=np.array(self.names_in), sampler=self.sampler,
                  acceptance_rate=self.acceptance_rate, kl_divergence=self.kl_divergence,
                  **arrays)

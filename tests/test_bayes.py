@@ -380,6 +380,43 @@ def test_noise_multiplier_learns_an_understated_noise(tmp_path):
                                r.noise_multiplier_chains, rtol=4e-16)
 
 
+@pytest.mark.parametrize("mode", ["one", "per_response", "per_experiment"])
+def test_noise_multiplier_likelihood_is_the_likelihood_of_the_scaled_noise(mode):
+    """With multipliers lambda = 1 / tau the likelihood (emulator variance or none) equals
+    GaussianLikelihood with the noise variances multiplied by lambda, observation by
+    observation (1e-12)."""
+    from rotoruq.methods.mcmc import GaussianLikelihood
+    from rotoruq.methods.mcmc.noise import multiplier_groups, noise_loglik
+
+    rng = np.random.default_rng(5)
+    n_exp, m = 4, 3
+    data = rng.normal(size=(n_exp, m))
+    var = rng.uniform(0.1, 2.0, (n_exp, m))
+    groups, names = multiplier_groups(mode, ("a", "b", "c"), n_exp)
+    q = rng.normal(size=(6, m))
+    v = rng.uniform(0.0, 1.0, (6, m))
+    tau = rng.uniform(0.2, 3.0, (6, len(names)))
+    got = noise_loglik(q, v, tau, data, var, groups)
+    got0 = noise_loglik(q, None, tau, data, var, groups)
+    for k in range(6):
+        lik = GaussianLikelihood(data, var / tau[k][groups])
+        np.testing.assert_allclose(got[k], lik(q[k:k + 1], v[k:k + 1])[0], rtol=1e-12)
+        np.testing.assert_allclose(got0[k], lik(q[k:k + 1])[0], rtol=1e-12)
+
+
+def test_noise_multipliers_with_an_emulator_and_named_responses():
+    """The multiplier route also runs on an emulator (with its variance) and on a subset
+    of responses: the unnamed responses keep their stated noise."""
+    model, space, data = _three_output_problem()
+    r = calibrate_bayes(model, data, space, emulator=GaussianProcess(trend="linear"),
+                        n_emulator_samples=30, noise_std=0.05, noise_multipliers=["y2"],
+                        n_samples=300, burn_in=50, seed=2)
+    assert r.noise_multiplier_names == ("noise_multiplier:y2",)
+    assert r.noise_multiplier_chains.shape == (1, 300, 1) and r.chains.shape == (1, 300, 2)
+    assert np.all(r.noise_multiplier_chains > 0)
+    assert r.emulator_adequacy is not None
+
+
 def test_noise_multiplier_bad_input():
     model, space, data = _three_output_problem()
     with pytest.raises(ParameterError, match=r"responses \['y3'\] that have no data"):

@@ -19,6 +19,7 @@ import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -58,6 +59,9 @@ from .noise import extended_prior, multiplier_groups, noise_loglik
 from .proposals import LogPrior, hessian_covariance, prior_scales
 from .samplers import SamplerConfig, SamplerState, run_chains
 
+if TYPE_CHECKING:
+    from .sbc import SBCResult
+
 __all__ = ["calibrate_bayes", "continue_chain", "BayesResult"]
 
 log = logging.getLogger(__name__)
@@ -66,7 +70,7 @@ log = logging.getLogger(__name__)
 # Random stages of a calibration, each with its own child of the call's SeedSequence (spawn
 # key = position here): appending a stage never shifts the numbers of another.
 _STAGES = ("design", "emulator_fit", "start", "chain_starts", "chains", "predictive",
-           "summary", "refine")
+           "summary", "refine", "self_check")
 
 
 def _stage_seeds(seed: SeedLike) -> dict[str, np.random.SeedSequence]:
@@ -217,6 +221,13 @@ class BayesResult:
         multipliers of the noise variance and their chains (n_chains, n_samples, k); their
         moments by :meth:`noise_multiplier_summary`. The parameters' fields (``chains``,
         ``mean``, ...) hold the model parameters only; ``kl_divergence`` covers both.
+    diagnostics : convergence diagnostics of the parameters' chains to arviz's standard
+        (rank-normalised split R-hat and its folded form, bulk and tail ESS, MCSE of the mean
+        and of the 5 % / 95 % quantiles in parameter units; ``ess`` is the bulk ESS and
+        ``rhat`` the larger of the bulk and folded R-hat).
+    self_check : with ``self_check=N``, the simulation-based calibration of this setup
+        (:class:`~rotoruq.methods.mcmc.sbc.SBCResult`): does the method recover parameters
+        drawn from the prior from data simulated with the stated noise?
     predictive_inputs, predictive : posterior predictive draws pushed through the true model,
         (k, d) and (k, m) (None unless ``posterior_predictive`` > 0); names_out : the model's
         responses (columns of ``predictive``).
@@ -256,12 +267,30 @@ class BayesResult:
     emulator_adequacy: EmulatorAdequacy | None = None
     noise_multiplier_names: tuple[str, ...] = ()
     noise_multiplier_chains: np.ndarray | None = None
+    diagnostics: dg.ChainDiagnostics | None = None
+    self_check: SBCResult | None = None
     _state: tuple | None = field(default=None, repr=False, compare=False)
 
     @property
     def samples(self) -> np.ndarray:
         """All kept samples pooled over chains, (n_chains * n_kept, d)."""
         return self.chains.reshape(-1, self.chains.shape[-1])
+
+    def to_netcdf(self, path: str | Path) -> Path:
+        """Write the chains for arviz: ``*.nc`` as an ``InferenceData``-compatible netCDF
+        (``posterior`` group, dims chain and draw, one variable per parameter;
+        ``sample_stats/lp``), any other suffix as the documented npz of
+        :func:`rotoruq.methods.mcmc.export.write_chains`.
+
+        Examples
+        --------
+        >>> import arviz as az                                  # doctest: +SKIP
+        >>> idata = az.from_netcdf(result.to_netcdf("chains.nc"))  # doctest: +SKIP
+        """
+        from .export import write_chains
+
+        return write_chains(path, self.chains, self.names_in, self.log_posterior,
+                            attrs={"sampler": self.sampler})
 
     def noise_multiplier_summary(self, level: float = 0.95) -> dict[str, tuple[float, ...]]:
         """Posterior mean, std and equal-tailed ``level`` interval of each noise variance
@@ -732,6 +761,7 @@ def calibrate_bayes(
     map_start: bool = True,
     x0: ArrayLike | None = None,
     posterior_predictive: int = 0,
+    self_check: int = 0,
     seed: SeedLike = None,
 ) -> BayesResult:
     """Bayesian calibration of the parameters ``prior`` of ``model`` to ``data``.
@@ -789,6 +819,12 @@ def calibrate_bayes(
         from the best build sample / the prior mean).
     x0 : (d,) start point (parameter units).
     posterior_predictive : number of posterior draws pushed through the true model.
+    self_check : N > 0 runs N replications of simulation-based calibration of this very
+        setup (:func:`~rotoruq.methods.mcmc.sbc.simulation_based_calibration`: parameters
+        drawn from ``prior``, data simulated from ``model`` with ``noise_std``, posteriors
+        with the same emulator, sampler and emulator variance, short chains) and stores the
+        verdict in ``BayesResult.self_check``. Needs ``noise_std`` (not a covariance) and no
+        noise multipliers. 0 (default): no self-check.
     seed : int, SeedSequence or Generator. Every random stage (emulator design, GP
         restarts of an unseeded emulator, MAP starts, chain starts, chains, posterior
         predictive draws, the KL subsample) has its own child of
@@ -901,9 +937,39 @@ def calibrate_bayes(
     res = _summarize(space.names, kept.transpose(1, 0, 2), kept_lp.T, post, state, base,
                      seeds["summary"])
     res = _split_multipliers(res, d)
+    res = dataclasses.replace(res, diagnostics=dg.diagnose(res.chains))
+    if self_check:
+        res = dataclasses.replace(res, self_check=_self_check(
+            model, prior, pb, gp, cfg, emulator_variance, noise_std, noise_covariance,
+            int(self_check), seeds["self_check"]))
     log.info("calibrate_bayes: %d chains x %d kept steps in %.2f s (total %.2f s)", n_chains,
              n_samples, t_sampling, time.perf_counter() - t_start)
     return res
+
+
+def _self_check(model, prior: ParameterSpace, pb: _Problem, gp, cfg: SamplerConfig,
+                emulator_variance: bool, noise_std, noise_covariance, n_replications: int,
+                seed: np.random.SeedSequence) -> SBCResult:
+    """Simulation-based calibration of the setup of one :func:`calibrate_bayes` call."""
+    from .sbc import simulation_based_calibration
+
+    if pb.groups is not None:
+        raise ParameterError("self_check with noise_multipliers: the replications would need "
+                             "the multipliers' prior to simulate data; run the self-check "
+                             "without noise_multipliers")
+    if noise_covariance is not None or noise_std is None:
+        raise ParameterError("self_check simulates data with a noise std per response: give "
+                             "noise_std (not noise_covariance, not unit variance by default)")
+    std = np.asarray(noise_std, dtype=float)
+    if std.ndim == 2:
+        if not np.all(std == std[:1]):
+            raise ParameterError("self_check simulates data with one noise std per response; "
+                                 "this call's noise_std differs between experiments")
+        std = std[0]
+    return simulation_based_calibration(
+        model, prior, noise_std=std, n_replications=n_replications,
+        n_experiments=pb.lik.data.shape[0], emulator=gp, names_out=pb.names_out, seed=seed,
+        sampler=cfg, emulator_variance=emulator_variance)
 
 
 def continue_chain(result: BayesResult, n_samples: int, *, seed: SeedLike = None) -> BayesResult:
@@ -941,4 +1007,6 @@ def continue_chain(result: BayesResult, n_samples: int, *, seed: SeedLike = None
         sampling_cpu_seconds=result.sampling_cpu_seconds + dcpu, _state=(post, state, cfg))
     names = result.names_in + result.noise_multiplier_names
     res = _summarize(names, chains_z, lp, post, state, base, summary_seed)
-    return _split_multipliers(res, len(result.names_in))
+    res = _split_multipliers(res, len(result.names_in))
+    return dataclasses.replace(res, diagnostics=dg.diagnose(res.chains),
+                               self_check=result.self_check)

@@ -70,6 +70,11 @@ _LAZY: dict[str, str] = {
     "BayesResult": ".methods.mcmc",
     "calibrate_bayes": ".methods.mcmc",
     "continue_chain": ".methods.mcmc",
+    "Discrepancy": ".methods.mcmc.discrepancy",
+    "DiscrepancyPrediction": ".methods.mcmc.discrepancy",
+    "DiscrepancyResult": ".methods.mcmc.discrepancy",
+    "calibrate_with_discrepancy": ".methods.mcmc.discrepancy",
+    "predict_with_discrepancy": ".methods.mcmc.discrepancy",
     "GaussianProcess": ".methods.surrogate",
     "LeaveOneOut": ".methods.surrogate",
     "CUUCheck": ".methods.cuu",
@@ -208,6 +213,21 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     )
     from .methods.mcmc import (
         continue_chain as continue_chain,
+    )
+    from .methods.mcmc.discrepancy import (
+        Discrepancy as Discrepancy,
+    )
+    from .methods.mcmc.discrepancy import (
+        DiscrepancyPrediction as DiscrepancyPrediction,
+    )
+    from .methods.mcmc.discrepancy import (
+        DiscrepancyResult as DiscrepancyResult,
+    )
+    from .methods.mcmc.discrepancy import (
+        calibrate_with_discrepancy as calibrate_with_discrepancy,
+    )
+    from .methods.mcmc.discrepancy import (
+        predict_with_discrepancy as predict_with_discrepancy,
     )
     from .methods.pce import (
         PCEResult as PCEResult,

@@ -32,6 +32,7 @@ from ...errors import ModelShapeError, ParameterError
 from ...model import Model, align_inputs, evaluate
 from ...params import ParameterSpace
 from . import diagnostics as dg
+from ._discrepancy_kernel import MATERN52, SQUARED_EXPONENTIAL, gp_marginal_loglik
 from .proposals import LogPrior, prior_scales
 from .samplers import SamplerConfig, SamplerState, run_chains
 
@@ -42,6 +43,7 @@ KINDS = ("gp", "polynomial")
 KERNELS = ("squared_exponential", "matern52")
 _LOG_2PI = float(np.log(2.0 * np.pi))
 _JITTER = 1e-10
+_KERNEL_CODES = {"squared_exponential": SQUARED_EXPONENTIAL, "matern52": MATERN52}
 
 
 @dataclass(frozen=True)
@@ -184,6 +186,8 @@ class _Forward:
         self.perm = align_inputs(model, names + (config_name,))
         self.resp_idx = resp_idx
         self.n_evaluations = 0
+        self._direct = not hasattr(model, "evaluate")
+        self._m = len(tuple(model.names_out))
 
     def __call__(self, theta: np.ndarray, xs: np.ndarray) -> np.ndarray:
         k, d = theta.shape
@@ -195,8 +199,16 @@ class _Forward:
         if self.perm is not None:
             X = X[:, self.perm]
         self.n_evaluations += X.shape[0]
-        y = evaluate(self.model, X).values[:, self.resp_idx]
-        return y.reshape(k, nc, -1)
+        y = None
+        if self._direct:  # a plain batched callable: skip the evaluation layer's bookkeeping
+            y = np.asarray(self.model(X), dtype=float)
+            if y.ndim == 1 and self._m == 1:
+                y = y[:, None]
+            if y.shape != (X.shape[0], self._m):
+                y = None
+        if y is None:
+            y = evaluate(self.model, X).values
+        return y[:, self.resp_idx].reshape(k, nc, -1)
 
 
 class _Posterior:
@@ -208,26 +220,37 @@ class _Posterior:
         self.xs, self.ybar, self.var_mean = xs, ybar, var_mean  # (nc,), (nc, m), (m, nc)
         self.center, self.scale, self.d = center, scale, d
         self.n_evals = 0
+        self._jitter = _JITTER * float(var_mean.max())
+        self._fixed: tuple[np.ndarray, np.ndarray] | None = None
 
     def split(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         phi = self.center + self.scale * np.atleast_2d(z)
         return phi[:, :self.d], phi[:, self.d:]
 
     def marginal_loglik(self, eta: np.ndarray, hyper: np.ndarray) -> np.ndarray:
-        """(k,) log N(ybar; eta, K_delta + diag(sigma^2 / n_c)) summed over responses."""
-        resid = (self.ybar[None] - eta).transpose(0, 2, 1)  # (k, m, nc)
-        C = self.form.cov(hyper, self.xs, self.xs).copy()
-        idx = np.arange(self.xs.size)
-        C[:, :, idx, idx] += self.var_mean[None] + _JITTER * self.var_mean.max()
-        out = np.full(eta.shape[0], -np.inf)
-        fin = np.all(np.isfinite(resid), axis=(1, 2)) & np.all(np.isfinite(C), axis=(1, 2, 3))
-        if not fin.any():
-            return out
-        L = np.linalg.cholesky(C[fin])
-        w = np.linalg.solve(L, resid[fin][..., None])[..., 0]
-        logdet = 2.0 * np.log(np.diagonal(L, axis1=-2, axis2=-1)).sum(-1)
-        ll = -0.5 * ((w * w).sum(-1) + logdet + self.xs.size * _LOG_2PI)
-        out[fin] = ll.sum(-1)
+        """(k,) log N(ybar; eta, K_delta + diag(sigma^2 / n_c)) summed over responses; eta
+        (k, n_c, m), hyper (k, n_hyper) log-hyperparameters."""
+        resid = np.ascontiguousarray((self.ybar[None] - eta).transpose(0, 2, 1))  # (k, m, nc)
+        out = np.empty(eta.shape[0])
+        spec = self.form.spec
+        if spec is not None and spec.kind == "gp":
+            m = self.ybar.shape[1]
+            gp_marginal_loglik(resid, self.xs, self.var_mean,
+                               np.ascontiguousarray(hyper[:, :m]),
+                               np.ascontiguousarray(hyper[:, m:]),
+                               _KERNEL_CODES[spec.kernel], self._jitter, out)
+        else:  # the covariance does not depend on the sample: one factor for all
+            if self._fixed is None:
+                C = self.form.cov(np.zeros((1, 0)), self.xs, self.xs)[0].copy()
+                idx = np.arange(self.xs.size)
+                C[:, idx, idx] += self.var_mean + self._jitter
+                L = np.linalg.cholesky(C)
+                self._fixed = (np.linalg.inv(L),
+                               2.0 * np.log(np.diagonal(L, axis1=-2, axis2=-1)).sum(-1))
+            Linv, logdet = self._fixed
+            w = np.einsum("rpq,krq->krp", Linv, resid)
+            out[:] = (-0.5 * ((w * w).sum(-1) + logdet[None] + self.xs.size * _LOG_2PI)).sum(-1)
+        out[~np.isfinite(out)] = -np.inf
         return out
 
     def __call__(self, z: np.ndarray) -> np.ndarray:
@@ -414,17 +437,27 @@ def _data(data, configurations, names_out, model, noise_std):
 def _map_and_covariance(post: _Posterior, z0: np.ndarray, zlo, zhi):
     """MAP (L-BFGS-B) in scaled coordinates and the inverse finite-difference Hessian there."""
     big = 1e30
+    D = z0.size
+    step = 1e-5 * np.eye(D)
 
     def f(z):
         v = post(z[None])[0]
         return -v if np.isfinite(v) else big
 
+    def fg(z):  # value and central-difference gradient from one batch of 2 D + 1 points
+        v = -post(np.vstack([z[None], z + step, z - step]))
+        if not np.all(np.isfinite(v)):
+            return (v[0] if np.isfinite(v[0]) else big), np.zeros(D)
+        return v[0], (v[1:D + 1] - v[D + 1:]) / 2e-5
+
     bounds = list(zip(np.where(np.isfinite(zlo), zlo, None), np.where(np.isfinite(zhi), zhi,
                                                                        None), strict=True))
-    res = optimize.minimize(f, z0, method="L-BFGS-B", bounds=bounds,
-                            options={"maxiter": 500})
+    if np.all(np.isinf(zlo)) and np.all(np.isinf(zhi)):
+        res = optimize.minimize(fg, z0, jac=True, method="BFGS", options={"maxiter": 500})
+    else:
+        res = optimize.minimize(fg, z0, jac=True, method="L-BFGS-B", bounds=bounds,
+                                options={"maxiter": 500})
     zm = res.x if f(res.x) <= f(z0) else z0
-    D = zm.size
     h = 1e-3
     E = np.eye(D) * h
     # all points of the central-difference Hessian in one batch

@@ -334,7 +334,8 @@ class DiscrepancyResult:
     mean, std : (d,); credible_interval_95 : (d, 2). ess, rhat : (d + n_hyper,) in the order
     names_in + hyper_names. prior_std : (d,). std_ratio_to_prior : posterior / prior std.
     std_without_discrepancy : (d,) posterior std of a calibration without discrepancy
-    (Laplace approximation at its MAP); std_ratio_to_no_discrepancy : std / that.
+    (Laplace approximation at its MAP; NaN when the MAP lies on the edge of the prior support
+    or the Hessian there is not positive definite); std_ratio_to_no_discrepancy : std / that.
     configurations : (n_c,) distinct configurations of the data; discrepancy_at_data :
     (n_draws, n_c, n_responses) draws of ``delta`` there; level_correlation : (d,
     n_responses) posterior correlation of each parameter with the discrepancy's mean level over
@@ -435,7 +436,9 @@ def _data(data, configurations, names_out, model, noise_std):
 
 
 def _map_and_covariance(post: _Posterior, z0: np.ndarray, zlo, zhi):
-    """MAP (L-BFGS-B) in scaled coordinates and the inverse finite-difference Hessian there."""
+    """MAP in scaled coordinates, the inverse finite-difference Hessian of the negative log
+    posterior there (eigenvalues floored), and whether that Hessian was finite and positive
+    definite (else the covariance is only a usable proposal, not a Laplace approximation)."""
     big = 1e30
     D = z0.size
     step = 1e-5 * np.eye(D)
@@ -472,11 +475,12 @@ def _map_and_covariance(post: _Posterior, z0: np.ndarray, zlo, zhi):
         for j in range(i, D):
             H[i, j] = H[j, i] = (v[q] - v[q + 1] - v[q + 2] + v[q + 3]) / (4 * h * h)
             q += 4
-    if not np.all(np.isfinite(H)):
-        return zm, np.eye(D)
+    if not np.all(np.isfinite(H)):  # at the edge of the support: no Laplace approximation
+        return zm, np.eye(D), False
     w, V = np.linalg.eigh(0.5 * (H + H.T))
+    ok = bool(w.min() > 0)
     w = np.maximum(w, max(w.max(), 1.0) * 1e-8)
-    return zm, (V / w) @ V.T
+    return zm, (V / w) @ V.T, ok
 
 
 def calibrate_with_discrepancy(
@@ -582,7 +586,7 @@ def calibrate_with_discrepancy(
     if not np.isfinite(post(z0[None])[0]):
         raise ParameterError(f"the log posterior is not finite at the prior mean {tc} of "
                              f"{prior.names}: the model fails there or the prior is degenerate")
-    zm, cov = _map_and_covariance(post, z0, zlo, zhi)
+    zm, cov, _ = _map_and_covariance(post, z0, zlo, zhi)
     D = zm.size
     L0 = np.linalg.cholesky(2.38**2 / D * cov + 1e-12 * np.eye(D))
     x_start = np.repeat(zm[None], n_chains, axis=0)
@@ -686,7 +690,9 @@ def _laplace_std_without(post: _Posterior, d: int, tc, ts, zlo, zhi) -> np.ndarr
     plain = _Posterior(post.forward, post.logprior, _Form(None, post.xs, post.form.amp_scale,
                                                           post.form.ell_median),
                        post.xs, post.ybar, post.var_mean, tc, ts, d)
-    _, cov = _map_and_covariance(plain, np.zeros(d), zlo, zhi)
+    _, cov, ok = _map_and_covariance(plain, np.zeros(d), zlo, zhi)
+    if not ok:
+        return np.full(d, np.nan)
     return np.sqrt(np.diag(cov)) * ts
 
 

@@ -334,8 +334,9 @@ class DiscrepancyResult:
     mean, std : (d,); credible_interval_95 : (d, 2). ess, rhat : (d + n_hyper,) in the order
     names_in + hyper_names. prior_std : (d,). std_ratio_to_prior : posterior / prior std.
     std_without_discrepancy : (d,) posterior std of a calibration without discrepancy
-    (Laplace approximation at its MAP; NaN when the MAP lies on the edge of the prior support
-    or the Hessian there is not positive definite); std_ratio_to_no_discrepancy : std / that.
+    (Laplace approximation at its MAP, at most the prior std; NaN when the MAP lies on the edge
+    of the prior support or the Hessian there is not positive definite);
+    std_ratio_to_no_discrepancy : std / that.
     configurations : (n_c,) distinct configurations of the data; discrepancy_at_data :
     (n_draws, n_c, n_responses) draws of ``delta`` there; level_correlation : (d,
     n_responses) posterior correlation of each parameter with the discrepancy's mean level over
@@ -471,10 +472,11 @@ def _map_and_covariance(post: _Posterior, z0: np.ndarray, zlo, zhi):
     v = -post(np.array(pts))
     H = np.empty((D, D))
     q = 1
-    for i in range(D):
-        for j in range(i, D):
-            H[i, j] = H[j, i] = (v[q] - v[q + 1] - v[q + 2] + v[q + 3]) / (4 * h * h)
-            q += 4
+    with np.errstate(invalid="ignore"):
+        for i in range(D):
+            for j in range(i, D):
+                H[i, j] = H[j, i] = (v[q] - v[q + 1] - v[q + 2] + v[q + 3]) / (4 * h * h)
+                q += 4
     if not np.all(np.isfinite(H)):  # at the edge of the support: no Laplace approximation
         return zm, np.eye(D), False
     w, V = np.linalg.eigh(0.5 * (H + H.T))
@@ -693,7 +695,9 @@ def _laplace_std_without(post: _Posterior, d: int, tc, ts, zlo, zhi) -> np.ndarr
     _, cov, ok = _map_and_covariance(plain, np.zeros(d), zlo, zhi)
     if not ok:
         return np.full(d, np.nan)
-    return np.sqrt(np.diag(cov)) * ts
+    # a direction the data do not inform is flat under a uniform prior: its posterior std is
+    # the prior's, not the floored curvature's
+    return np.minimum(np.sqrt(np.diag(cov)) * ts, post.logprior.space.std.astype(float))
 
 
 def _identifiability_text(names_in, names_out, corr, confounded, ratio_prior, ratio_without,

@@ -30,7 +30,7 @@ from scipy import optimize
 from ..._rng import SeedLike, as_generator
 from ...errors import ModelShapeError, ParameterError
 from ...model import Model, align_inputs, evaluate
-from ...params import ParameterSpace
+from ...params import ParameterSpace, Uniform
 from . import diagnostics as dg
 from ._discrepancy_kernel import MATERN52, SQUARED_EXPONENTIAL, gp_marginal_loglik
 from .proposals import LogPrior, prior_scales
@@ -334,8 +334,9 @@ class DiscrepancyResult:
     mean, std : (d,); credible_interval_95 : (d, 2). ess, rhat : (d + n_hyper,) in the order
     names_in + hyper_names. prior_std : (d,). std_ratio_to_prior : posterior / prior std.
     std_without_discrepancy : (d,) posterior std of a calibration without discrepancy
-    (Laplace approximation at its MAP, at most the prior std; NaN when the MAP lies on the edge
-    of the prior support or the Hessian there is not positive definite);
+    (Laplace approximation at its MAP, a uniform prior counted as a normal of its variance, at
+    most the prior std; NaN when the MAP lies on the edge of the prior support or the Hessian
+    there is not positive definite);
     std_ratio_to_no_discrepancy : std / that.
     configurations : (n_c,) distinct configurations of the data; discrepancy_at_data :
     (n_draws, n_c, n_responses) draws of ``delta`` there; level_correlation : (d,
@@ -436,10 +437,14 @@ def _data(data, configurations, names_out, model, noise_std):
     return names, xs, ybar, counts, sd, resp_idx, y
 
 
-def _map_and_covariance(post: _Posterior, z0: np.ndarray, zlo, zhi):
+def _map_and_covariance(post: _Posterior, z0: np.ndarray, zlo, zhi,
+                        flat: np.ndarray | None = None):
     """MAP in scaled coordinates, the inverse finite-difference Hessian of the negative log
     posterior there (eigenvalues floored), and whether that Hessian was finite and positive
-    definite (else the covariance is only a usable proposal, not a Laplace approximation)."""
+    definite (else the covariance is only a usable proposal, not a Laplace approximation).
+    ``flat`` (D,) marks coordinates whose prior is uniform: they get the curvature of a
+    normal prior of the same variance (Dakota's choice), or a direction the data do not inform
+    would make every correlated parameter's variance unbounded."""
     big = 1e30
     D = z0.size
     step = 1e-5 * np.eye(D)
@@ -479,6 +484,8 @@ def _map_and_covariance(post: _Posterior, z0: np.ndarray, zlo, zhi):
                 q += 4
     if not np.all(np.isfinite(H)):  # at the edge of the support: no Laplace approximation
         return zm, np.eye(D), False
+    if flat is not None:
+        H[np.diag_indices(D)] += flat.astype(float)  # unit prior variance in scaled coordinates
     w, V = np.linalg.eigh(0.5 * (H + H.T))
     ok = bool(w.min() > 0)
     w = np.maximum(w, max(w.max(), 1.0) * 1e-8)
@@ -588,7 +595,9 @@ def calibrate_with_discrepancy(
     if not np.isfinite(post(z0[None])[0]):
         raise ParameterError(f"the log posterior is not finite at the prior mean {tc} of "
                              f"{prior.names}: the model fails there or the prior is degenerate")
-    zm, cov, _ = _map_and_covariance(post, z0, zlo, zhi)
+    flat = np.array([isinstance(dist, Uniform) for dist in prior.distributions]
+                    + [False] * form.n_hyper)
+    zm, cov, _ = _map_and_covariance(post, z0, zlo, zhi, flat)
     D = zm.size
     L0 = np.linalg.cholesky(2.38**2 / D * cov + 1e-12 * np.eye(D))
     x_start = np.repeat(zm[None], n_chains, axis=0)
@@ -632,7 +641,7 @@ def calibrate_with_discrepancy(
 
     std = flat_theta.std(axis=0, ddof=1)
     prior_std = prior.std.astype(float)
-    std_without = _laplace_std_without(post, d, tc, ts, zlo[:d], zhi[:d])
+    std_without = _laplace_std_without(post, d, tc, ts, zlo[:d], zhi[:d], flat[:d])
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio_prior = std / prior_std
         ratio_without = std / std_without
@@ -686,13 +695,14 @@ def _conditional_draws(post: _Posterior, eta_data: np.ndarray, hyper: np.ndarray
     return (mean + (root @ z)[..., 0]).transpose(0, 2, 1)
 
 
-def _laplace_std_without(post: _Posterior, d: int, tc, ts, zlo, zhi) -> np.ndarray:
+def _laplace_std_without(post: _Posterior, d: int, tc, ts, zlo, zhi,
+                         flat: np.ndarray) -> np.ndarray:
     """Posterior std (d,) of the parameters calibrated without discrepancy (Laplace at the
     MAP): the reference for the identifiability ratio."""
     plain = _Posterior(post.forward, post.logprior, _Form(None, post.xs, post.form.amp_scale,
                                                           post.form.ell_median),
                        post.xs, post.ybar, post.var_mean, tc, ts, d)
-    _, cov, ok = _map_and_covariance(plain, np.zeros(d), zlo, zhi)
+    _, cov, ok = _map_and_covariance(plain, np.zeros(d), zlo, zhi, flat)
     if not ok:
         return np.full(d, np.nan)
     # a direction the data do not inform is flat under a uniform prior: its posterior std is

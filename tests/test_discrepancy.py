@@ -30,13 +30,15 @@ def decay_model():
 
 # --- conjugate closed form: constant model, constant (degree-0) discrepancy -----------------
 
-M0, T0, S_B, SIG = 1.0, 0.5, 0.3, 0.2
+M0, T0, SIG = 1.0, 0.5, 0.2
 H_CONST = np.repeat([1.0, 2.0, 3.0], 4)
 
 
-def test_constant_offset_matches_conjugate_posterior():
+@pytest.mark.parametrize("S_B", [0.3, 0.01])
+def test_constant_offset_matches_conjugate_posterior(S_B):
     # y_i = a + b + eps, a ~ N(M0, T0^2), b ~ N(0, S_B^2): the posterior is Gaussian and the
-    # data inform only a + b, so a and b are confounded (correlation near -1).
+    # data inform only a + b, so a and b are confounded (correlation near -1) unless the
+    # offset's prior is narrow.
     y = 1.6 + SIG * np.random.default_rng(0).standard_normal(H_CONST.size)
     n = y.size
     prior = rq.ParameterSpace({"a": rq.Normal(M0, T0)})
@@ -54,8 +56,8 @@ def test_constant_offset_matches_conjugate_posterior():
     se = np.sqrt(var_a / ess)
     assert abs(res.mean[0] - mean_a) < 4 * se
     assert abs(res.std[0] / np.sqrt(var_a) - 1) < 4 / np.sqrt(2 * ess)
-    assert abs(res.level_correlation[0, 0] - corr_ab) < 0.02
-    assert res.confounded[0]
+    assert abs(res.level_correlation[0, 0] - corr_ab) < max(0.02, 4 / np.sqrt(ess))
+    assert res.confounded[0] == (abs(corr_ab) >= 0.5)
     # without discrepancy the posterior is N with precision 1/T0^2 + n/SIG^2 (Laplace exact)
     sd_plain = np.sqrt(1.0 / (1.0 / T0**2 + n / SIG**2))
     assert res.std_without_discrepancy[0] == pytest.approx(sd_plain, rel=1e-4)

@@ -191,6 +191,23 @@ def test_held_out_coverage_nominal_with_discrepancy_and_low_without():
     assert cov0 < 0.9 - 5 * se, cov0
 
 
+def test_map_on_prior_bound_gives_no_laplace_std_and_exponential_posterior():
+    # y = a h with data at a = 1.5 but a ~ U(0, 1): the posterior is the normal likelihood
+    # truncated far from its mode, close to an exponential of rate (1.5 - 1) / s^2 below 1
+    m = rq.FunctionModel(lambda x: x[:, 0] * x[:, 1], ["a", "h"], ["y"])
+    h = np.repeat([1.0, 2.0], 3)
+    res = calibrate_with_discrepancy(
+        m, 1.5 * h, rq.ParameterSpace({"a": rq.Uniform(0.0, 1.0)}), configurations=h,
+        configuration_name="h", discrepancy=None, noise_std=0.1, n_samples=4000, n_chains=2,
+        n_draws=10, seed=0)
+    s2 = 0.1**2 / np.sum(h**2)
+    assert res.map_point[0] == pytest.approx(1.0, abs=1e-6)
+    assert np.isnan(res.std_without_discrepancy[0])
+    rate = 0.5 / s2
+    assert res.std[0] == pytest.approx(1.0 / rate, rel=4 / np.sqrt(res.ess[0]))
+    assert 1.0 - res.mean[0] == pytest.approx(1.0 / rate, rel=4 / np.sqrt(res.ess[0]))
+
+
 # --- determinism and bad input --------------------------------------------------------------
 
 def _small(seed, **kw):

@@ -469,11 +469,13 @@ def _map_and_covariance(post: _Posterior, z0: np.ndarray, zlo, zhi,
     zm = res.x if f(res.x) <= f(z0) else z0
     h = 1e-3
     E = np.eye(D) * h
-    # all points of the central-difference Hessian in one batch
-    pts = [zm]
+    # all points of the central-difference Hessian in one batch, a MAP on the edge of a
+    # bounded prior moved inside by the stencil's reach (else half the stencil is outside)
+    zh = np.clip(zm, zlo + 3 * h, zhi - 3 * h)
+    pts = [zh]
     for i in range(D):
         for j in range(i, D):
-            pts += [zm + E[i] + E[j], zm + E[i] - E[j], zm - E[i] + E[j], zm - E[i] - E[j]]
+            pts += [zh + E[i] + E[j], zh + E[i] - E[j], zh - E[i] + E[j], zh - E[i] - E[j]]
     v = -post(np.array(pts))
     H = np.empty((D, D))
     q = 1
@@ -487,7 +489,7 @@ def _map_and_covariance(post: _Posterior, z0: np.ndarray, zlo, zhi,
     if flat is not None:
         H[np.diag_indices(D)] += flat.astype(float)  # unit prior variance in scaled coordinates
     w, V = np.linalg.eigh(0.5 * (H + H.T))
-    ok = bool(w.min() > 0)
+    ok = bool(w.min() > 0) and np.array_equal(zh, zm)
     w = np.maximum(w, max(w.max(), 1.0) * 1e-8)
     return zm, (V / w) @ V.T, ok
 

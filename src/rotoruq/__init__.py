@@ -82,6 +82,11 @@ _LAZY: dict[str, str] = {
     "continue_chain": ".methods.mcmc",
     "SBCResult": ".methods.mcmc.sbc",
     "simulation_based_calibration": ".methods.mcmc.sbc",
+    "Discrepancy": ".methods.mcmc.discrepancy",
+    "DiscrepancyPrediction": ".methods.mcmc.discrepancy",
+    "DiscrepancyResult": ".methods.mcmc.discrepancy",
+    "calibrate_with_discrepancy": ".methods.mcmc.discrepancy",
+    "predict_with_discrepancy": ".methods.mcmc.discrepancy",
     "GaussianProcess": ".methods.surrogate",
     "LeaveOneOut": ".methods.surrogate",
     "CUUCheck": ".methods.cuu",
@@ -220,6 +225,21 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     )
     from .methods.mcmc import (
         continue_chain as continue_chain,
+    )
+    from .methods.mcmc.discrepancy import (
+        Discrepancy as Discrepancy,
+    )
+    from .methods.mcmc.discrepancy import (
+        DiscrepancyPrediction as DiscrepancyPrediction,
+    )
+    from .methods.mcmc.discrepancy import (
+        DiscrepancyResult as DiscrepancyResult,
+    )
+    from .methods.mcmc.discrepancy import (
+        calibrate_with_discrepancy as calibrate_with_discrepancy,
+    )
+    from .methods.mcmc.discrepancy import (
+        predict_with_discrepancy as predict_with_discrepancy,
     )
     from .methods.mcmc.sbc import (
         SBCResult as SBCResult,

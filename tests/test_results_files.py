@@ -31,7 +31,7 @@ def test_csv_copies_read_back_bitwise(tmp_path):
 
 
 def _line_figure(res, ctx):
-    from rotoruq.report.plots import Figure, _subplots
+    from rotoruq.render.figures import Figure, _subplots
 
     fig, ax = _subplots(figsize=(3, 2))
     ax.plot(res.arrays["y"][:, 0])
@@ -53,27 +53,27 @@ def test_report_figures_survive_a_worker_that_cannot_import_their_hook(tmp_path,
     at all (a lambda) is never sent. The page is the same as when drawn in one process."""
     import logging
     import re
+    from types import MappingProxyType
 
-    from rotoruq.report.hooks import RENDERINGS, Rendering, register_rendering
+    import rotoruq.steps
     from rotoruq.report.html import write_report
     from rotoruq.results import save_study_info
+    from rotoruq.steps import STEP_TYPES, StepType
 
     monkeypatch.chdir(tmp_path)  # the worker cannot import this test module from here
-    register_rendering("test_line", Rendering(figures=_line_figure))
-    register_rendering("test_lambda", Rendering(figures=lambda r, c: _lambda_figure(r, c)))
-    try:
-        for k in range(3):
-            for kind in ("test_line", "test_lambda"):
-                save_step(StepResult(f"{kind}{k}", kind, {"a": 1.0},
-                                     arrays={"y": np.arange(10.0 + k)[:, None]}), tmp_path)
-        save_study_info(tmp_path, {"name": "lines", "parameters": {}})
-        with caplog.at_level(logging.WARNING, logger="rotoruq.report.html"):
-            two = write_report([tmp_path], tmp_path / "r2", workers=2).read_text()
-        assert "figure worker failed" in caplog.text
-        one = write_report([tmp_path], tmp_path / "r1", workers=1).read_text()
-    finally:
-        RENDERINGS.pop("test_line", None)
-        RENDERINGS.pop("test_lambda", None)
+    monkeypatch.setattr(rotoruq.steps, "STEP_TYPES", MappingProxyType({
+        **STEP_TYPES, "test_line": StepType("test_line", run=None, figures=_line_figure),
+        "test_lambda": StepType("test_lambda", run=None,
+                                figures=lambda r, c: _lambda_figure(r, c))}))
+    for k in range(3):
+        for kind in ("test_line", "test_lambda"):
+            save_step(StepResult(f"{kind}{k}", kind, {"a": 1.0},
+                                 arrays={"y": np.arange(10.0 + k)[:, None]}), tmp_path)
+    save_study_info(tmp_path, {"name": "lines", "parameters": {}})
+    with caplog.at_level(logging.WARNING, logger="rotoruq.report.html"):
+        two = write_report([tmp_path], tmp_path / "r2", workers=2).read_text()
+    assert "figure worker failed" in caplog.text
+    one = write_report([tmp_path], tmp_path / "r1", workers=1).read_text()
 
     def strip(page):
         return re.sub(r"Generated \S+ from [^<]*", "", page)

@@ -38,11 +38,10 @@ from ..results import (
     save_step,
     save_study_info,
 )
+from ..steps import StepContext, run_step, step_type
 from .lock import results_lock
 from .schema import load_study
 from .spec import StepSpec, Study
-from .steps import StepContext
-from .steptypes import STEP_TYPES, run_step
 
 __all__ = ["run_study", "StudyRun", "build_model", "build_model_factory", "step_options",
            "model_record"]
@@ -165,7 +164,7 @@ def step_options(step: StepSpec, quick: bool) -> dict:
     ``quick = {...}`` from the study file)."""
     opts = dict(step.options)
     if quick:
-        for k, v in STEP_TYPES[step.type].quick.items():
+        for k, v in step_type(step.type).quick.items():
             if opts.get(k) is not None:
                 opts[k] = min(opts[k], v)
         opts.update(step.quick)
@@ -377,7 +376,7 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
         )
         log.info("[%s] %s: running %s (%s -> %s)", study.info.name, step.name, step.type,
                  ", ".join(space.names), ", ".join(responses))
-        res, dt = run_step(ctx)
+        res, dt = run_step(step_type(step.type).run, ctx)
         meta = dict(res.meta)
         meta.update(seconds=dt, title=step.title, parameters=list(space.names),
                     responses=list(responses), fixed=fixed, options=options,

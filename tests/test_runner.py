@@ -395,3 +395,83 @@ def test_cli_progress_is_logging(tmp_path):
     assert quiet.returncode == 0, quiet.stderr
     assert "running" not in quiet.stderr and "done in" not in quiet.stderr
     assert "summary of mv" in quiet.stdout
+
+
+def test_identities_cover_only_the_code_that_computes_the_answer():
+    """A rotor model's identity digests the rotor and its airfoil data; an external model's,
+    the evaluation layer's file contract; a step's, its step module and its methods."""
+    from rotoruq.evaluation.identity import EPOCHS, code_parts
+
+    external = code_parts(["rotoruq.evaluation.external"])
+    assert "rotoruq/evaluation/dakota_files.py" in external
+    assert not [k for k in external if "/methods/" in k or "/steps/" in k or "/rotor/" in k]
+    rotor = code_parts(["rotoruq.rotor.model"])
+    assert "rotoruq/rotor/_kernel.py" in rotor and "rotoruq/data/airfoils/naca0012.c81" in rotor
+    assert not [k for k in rotor if "/methods/" in k or "/evaluation/" in k]
+    pce = code_parts(["rotoruq.steps.pce"])
+    assert {"rotoruq/steps/pce.py", "rotoruq/methods/pce.py"} <= set(pce)
+    assert "rotoruq/methods/mcmc/bayes.py" not in pce and "rotoruq/report/html.py" not in pce
+    assert pce["epoch:methods"] == str(EPOCHS["methods"])
+    # calibration under uncertainty may run a PCE inside: its fingerprint covers pce.py
+    assert "rotoruq/methods/pce.py" in code_parts(["rotoruq.steps.cuu"])
+
+
+def test_editing_a_method_reruns_only_its_steps(tmp_path):
+    """Append a comment to methods/pce.py in a copy of the package: the pce step runs again
+    (``show --why-rerun`` names the file), the other steps are reused and every evaluation of
+    the external model comes from the store (its identity does not include the methods)."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    from test_trust import external_study
+
+    pkg = tmp_path / "pkg"
+    shutil.copytree(Path(__file__).resolve().parents[1] / "src" / "rotoruq", pkg / "rotoruq",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    log = tmp_path / "evaluations.log"
+    env = {**os.environ, "PYTHONPATH": str(pkg), "DRIVER_LOG": str(log)}
+    study = external_study(tmp_path / "s", n=6)
+    study.write_text(study.read_text() + textwrap.dedent("""
+        [[steps]]
+        name = "chaos"
+        type = "pce"
+        order = 2
+
+        [[steps]]
+        name = "mv"
+        type = "mean_value"
+        """))
+    out = tmp_path / "out"
+
+    def cli(*args):
+        proc = subprocess.run([sys.executable, "-m", "rotoruq.study.cli", *map(str, args)],
+                              capture_output=True, text=True, env=env, timeout=300)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        return proc.stdout
+
+    where = subprocess.run([sys.executable, "-c", "import rotoruq; print(rotoruq.__file__)"],
+                           capture_output=True, text=True, env=env, check=True).stdout
+    assert where.strip() == str(pkg / "rotoruq" / "__init__.py")
+    cli("run", study, "--out", out, "--no-report")
+    n_first = len(log.read_text().splitlines())
+    first = load_results(out)
+    # 6 LHS points, 3 x 3 quadrature nodes, the mean-value gradient (its centre point is a
+    # quadrature node, served by the store)
+    assert n_first == 6 + 9 + first["mv"].meta["n_evaluations"] - 1
+    assert cli("show", out, "--why-rerun").count(": reused") == 3
+    with open(pkg / "rotoruq" / "methods" / "pce.py", "a") as fh:
+        fh.write("\n# an edit that changes no number\n")
+    why = cli("show", out, "--why-rerun")
+    assert "chaos: runs again: code: rotoruq/methods/pce.py changed" in why, why
+    assert "lhs: reused" in why and "mv: reused" in why, why
+    summary = cli("run", study, "--out", out, "--no-report")
+    rows = {line.split()[0]: line for line in summary.splitlines()
+            if line.startswith("  ") and not line.startswith("     ")}
+    assert "reused" in rows["lhs"] and "reused" in rows["mv"], summary
+    assert "reused" not in rows["chaos"], summary
+    assert len(log.read_text().splitlines()) == n_first  # every evaluation from the store
+    again = load_results(out)["chaos"]
+    assert again.fingerprint != first["chaos"].fingerprint
+    assert again.scalars == first["chaos"].scalars

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from rotoruq.results import StepResult, load_step, save_step
 
@@ -81,3 +82,15 @@ def test_report_figures_survive_a_worker_that_cannot_import_their_hook(tmp_path,
     assert strip(one) == strip(two)
     assert len(re.findall(r"<figure id=", two)) == 6
     assert len(list((tmp_path / "r2" / "figures").glob("*.png"))) == 6
+
+
+def test_a_misspelled_scalar_raises_with_the_closest_names():
+    """``StepResult.get`` of a key the step never saved raises (a typo must not read as NaN)
+    and names the closest saved keys; an explicit default is returned as asked."""
+    res = StepResult("fwd", "forward_check", {"mean/y1": 1.5, "std/y1": 0.25, "mean/y2": 3.0})
+    assert res.get("mean/y1") == 1.5
+    with pytest.raises(KeyError, match=r"saved no scalar 'men/y1' \(did you mean 'mean/y1'"):
+        res.get("men/y1")
+    with pytest.raises(KeyError, match="saved no scalar 'zzz'"):
+        res.get("zzz")
+    assert np.isnan(res.get("skewness/y1", np.nan))

@@ -19,6 +19,7 @@ Saves are atomic (see :func:`save_step`) and loads check every file against the 
 from __future__ import annotations
 
 import csv
+import difflib
 import io
 import json
 import math
@@ -67,8 +68,28 @@ class StepResult:
     meta: Mapping[str, Any] = field(default_factory=dict)
     fingerprint: str = ""
 
-    def get(self, key: str, default: float = math.nan) -> float:
-        return float(self.scalars.get(key, default))
+    def get(self, key: str, default: float | None = None) -> float:
+        """Scalar ``key``. A key the step did not save raises ``KeyError`` naming the closest
+        saved keys (a typo such as ``"men/y1"`` must not read as NaN), unless ``default`` is
+        given.
+
+        Examples
+        --------
+        >>> res = StepResult("s", "sampling", {"mean/y1": 2.0, "std/y1": 0.5})
+        >>> res.get("mean/y1"), res.get("skewness/y1", float("nan"))
+        (2.0, nan)
+        >>> res.get("men/y1")
+        Traceback (most recent call last):
+        ...
+        KeyError: "step 's' saved no scalar 'men/y1' (did you mean 'mean/y1'?)"
+        """
+        if key in self.scalars:
+            return float(self.scalars[key])
+        if default is not None:
+            return float(default)
+        close = difflib.get_close_matches(key, list(self.scalars), n=3)
+        hint = f" (did you mean {', '.join(repr(c) for c in close)}?)" if close else ""
+        raise KeyError(f"step {self.name!r} saved no scalar {key!r}{hint}")
 
     def columns(self, array: str) -> list[str]:
         return list(self.meta.get("columns", {}).get(array, []))

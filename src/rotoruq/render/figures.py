@@ -9,6 +9,7 @@ numbers behind a figure (tables 4.12, 4.16-4.19, the Sobol tables) they are draw
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
@@ -116,12 +117,12 @@ def tornado(res: StepResult, labels, units=None, thesis: dict | None = None) -> 
     h = 0.28 if thesis else 0.4
     for a, r in enumerate(responses):
         ax = axes[0, a]
-        s = np.array([res.get(f"S/{r}/{p}") for p in inputs])
-        t = np.array([res.get(f"T/{r}/{p}") for p in inputs])
+        s = np.array([res.get(f"S/{r}/{p}", math.nan) for p in inputs])
+        t = np.array([res.get(f"T/{r}/{p}", math.nan) for p in inputs])
 
         def err(kind, v, r=r):
-            lo = np.array([res.get(f"{kind}_lo/{r}/{p}") for p in inputs])
-            hi = np.array([res.get(f"{kind}_hi/{r}/{p}") for p in inputs])
+            lo = np.array([res.get(f"{kind}_lo/{r}/{p}", math.nan) for p in inputs])
+            hi = np.array([res.get(f"{kind}_hi/{r}/{p}", math.nan) for p in inputs])
             if not np.all(np.isfinite(lo)):
                 return None
             return np.vstack([np.maximum(v - lo, 0), np.maximum(hi - v, 0)])
@@ -133,7 +134,7 @@ def tornado(res: StepResult, labels, units=None, thesis: dict | None = None) -> 
         if thesis:
             th = [thesis.get((r, p), np.nan) for p in inputs]
             ax.barh(y - h, th, height=h, color="#d62728", alpha=0.7, label="main S_i (thesis)")
-        neg = res.get(f"negligible/{r}") == 1
+        neg = res.get(f"negligible/{r}", math.nan) == 1
         ax.set_title(f"{r}" + (" (negligible variance)" if neg else ""), fontsize=9)
         lo = min(0.0, float(np.nanmin(np.r_[s, t, 0.0])) * 1.1)
         ax.set_xlim(lo, max(1.0, float(np.nanmax(np.r_[s, t, 0.0])) * 1.05))
@@ -377,8 +378,8 @@ def ground_effect_curves(res: StepResult, thesis: bool = False,
             series.append(("pp_", "model, joint posterior predictive (mean +- 3 std)", "C1",
                            0.04))
         for prefix, name, color, dx in series:
-            mean = np.array([res.get(f"{prefix}mean/{r}{lab}") for lab in labels])
-            std = np.array([res.get(f"{prefix}std/{r}{lab}") for lab in labels])
+            mean = np.array([res.get(f"{prefix}mean/{r}{lab}", math.nan) for lab in labels])
+            std = np.array([res.get(f"{prefix}std/{r}{lab}", math.nan) for lab in labels])
             ax.errorbar(heights + dx, mean, yerr=3 * std, fmt="-s", color=color, capsize=4,
                         ms=4, label=name)
         if thesis:
@@ -390,7 +391,7 @@ def ground_effect_curves(res: StepResult, thesis: bool = False,
             if np.any(np.isfinite(th_m)):
                 ax.errorbar(heights - 0.04, th_m, yerr=3 * np.asarray(th_s), fmt="--^",
                             color="C7", capsize=3, ms=4, label="thesis (mean +- 3 std)")
-        data = np.array([res.get(f"data/{r}{lab}") for lab in labels])
+        data = np.array([res.get(f"data/{r}{lab}", math.nan) for lab in labels])
         ax.plot(heights, data, "o", color="k", label="experiment")
         h = np.linspace(0.8, 4.2, 200)
         if r == "ct":

@@ -3,6 +3,7 @@ inputs to data; hands on normals at the optimum with the linearised std."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 
 import numpy as np
@@ -49,7 +50,7 @@ def least_squares_tables(res: StepResult, labels: Mapping[str, str]) -> list[Ste
     names = [k.split("/", 1)[1] for k in res.scalars if k.startswith("value/")]
     return [make_table("Calibrated parameters (least squares)", ("parameter", "value", "std"),
                        [[label(p, labels), value(res, f"value/{p}"), value(res, f"std/{p}")]
-                        for p in names], f"Cost {res.get('cost'):.6g}; "
+                        for p in names], f"Cost {res.get('cost', math.nan):.6g}; "
                        f"{res.meta.get('message', '')}")]
 
 

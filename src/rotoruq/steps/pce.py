@@ -10,9 +10,9 @@ import numpy as np
 from ..render.tables import StepTable, label, make_table, parameters, responses, value
 from ..results import StepResult
 from ._common import input_scalars
+from ._sobol import sensitivity_figures, sobol_warnings
 from .base import StepCheck, StepContext, StepType
 from .options import SIGNATURE, Option, choice, integer
-from .sensitivity import sensitivity_figures, sobol_warnings
 
 __all__ = ["STEP", "run_pce", "pce_tables"]
 

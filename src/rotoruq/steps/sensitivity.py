@@ -7,10 +7,10 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from ..render.figures import Figure, FigureContext, thesis_sobol, tornado
 from ..render.tables import StepTable, label, make_table, parameters, responses, value
 from ..results import StepResult
 from ._common import input_scalars
+from ._sobol import sensitivity_figures, sobol_warnings
 from .base import DESIGNS, StepContext, StepType
 from .options import SIGNATURE, Option, choice, integer
 
@@ -82,26 +82,6 @@ def sensitivity_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepT
                               "Estimates as computed (a negative value is sampling noise "
                               f"around 0); bootstrap {100 * conf:g} % intervals."))
     return out
-
-
-def sensitivity_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:
-    """Tornado of main/total indices (sensitivity and pce steps), with the thesis's beside."""
-    if "inputs" not in res.meta:
-        return []
-    return tornado(res, ctx.labels, ctx.units,
-                   thesis_sobol(res.name, ctx.study) if ctx.reference else None)
-
-
-def sobol_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
-    """Sobol indices of a response with negligible variance (sensitivity, pce)."""
-    return [f"{res.name}: {r} has negligible variance (std "
-            f"{res.get(f'out_std/{r}'):.3g}, {res.get(f'out_cv/{r}'):.1e} of "
-            "its mean): its Sobol indices split up numerical noise"
-            for r, flag in _prefixed(res, "negligible/").items() if flag]
-
-
-def _prefixed(res: StepResult, prefix: str) -> dict[str, float]:
-    return {k[len(prefix):]: float(v) for k, v in res.scalars.items() if k.startswith(prefix)}
 
 
 STEP = StepType(

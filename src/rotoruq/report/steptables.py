@@ -15,7 +15,7 @@ import io
 from collections.abc import Mapping
 
 from ..render.tables import Cell, StepTable, make_table
-from ..results import StepResult
+from ..results import RecordError, StepResult
 from .diagnostics import step_warnings
 from .hooks import rendering
 
@@ -27,8 +27,11 @@ def step_tables(res: StepResult, labels: Mapping[str, str] | None = None) -> lis
     :mod:`rotoruq.report.hooks`; a key/value table without one), then its warnings."""
     labels = labels or {}
     build = rendering(res.type).tables
-    tables = build(res, labels) if build else [
-        make_table("Results", ("key", "value"), [[k, float(v)] for k, v in res.scalars.items()])]
+    flat = [[k, float(v)] for k, v in res.scalars.items()]
+    try:
+        tables = build(res, labels) if build else [make_table("Results", ("key", "value"), flat)]
+    except RecordError as exc:  # saved before its type had a record: the flat view, and why
+        tables = [make_table("Results", ("key", "value"), flat, str(exc))]
     tables = [t for t in tables if t.rows]
     warns = step_warnings(res, labels)
     if warns:

@@ -4,17 +4,37 @@ its moments and the Sobol indices read from its coefficients."""
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 
-from ..render.tables import StepTable, label, make_table, parameters, responses, value
-from ..results import StepResult
+from ..render.tables import StepTable, label, make_table
+from ..results import StepRecord, StepResult
 from ._common import input_scalars
 from ._sobol import sensitivity_figures, sobol_warnings
 from .base import StepCheck, StepContext, StepType
 from .options import SIGNATURE, Option, choice, integer
 
-__all__ = ["STEP", "run_pce", "pce_tables"]
+__all__ = ["STEP", "PceRecord", "run_pce", "pce_tables"]
+
+
+@dataclass(frozen=True, eq=False)
+class PceRecord(StepRecord):
+    """What a pce step saves: m responses, d inputs.
+
+    names_in (d), names_out (m); mean, std (m,) of the expansion; main, total (m, d) Sobol
+    indices read from its coefficients.
+    """
+
+    AXES = {"mean": ("response",), "std": ("response",), "main": ("response", "input"),
+            "total": ("response", "input")}
+
+    names_in: tuple[str, ...]
+    names_out: tuple[str, ...]
+    mean: np.ndarray
+    std: np.ndarray
+    main: np.ndarray
+    total: np.ndarray
 
 
 def run_pce(ctx: StepContext) -> StepResult:
@@ -33,21 +53,25 @@ def run_pce(ctx: StepContext) -> StepResult:
             scalars[f"S/{r}/{p}"] = float(res.main[k, j])
             scalars[f"T/{r}/{p}"] = float(res.total[k, j])
     scalars.update(input_scalars(ctx.space))
-    return StepResult(ctx.name, ctx.type, scalars, {"main": np.asarray(res.main),
-                                                    "total": np.asarray(res.total)}, meta={
+    record = PceRecord(tuple(ctx.space.names), tuple(ctx.responses),
+                       np.asarray(res.mean, dtype=float), np.asarray(res.std, dtype=float),
+                       np.asarray(res.main), np.asarray(res.total))
+    arrays, meta = record.parts()
+    return StepResult(ctx.name, ctx.type, scalars, arrays, meta={
         "inputs": list(ctx.space.names), "responses": list(ctx.responses),
-        "n_evaluations": int(res.n_evaluations)})
+        "n_evaluations": int(res.n_evaluations), **meta})
 
 
 def pce_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
-    resp, inputs = responses(res), list(res.meta.get("inputs") or parameters(res))
+    rec = PceRecord.read(res)
     out = [make_table("Response moments (polynomial chaos)", ("response", "mean", "std"),
-                      [[r, value(res, f"mean/{r}"), value(res, f"std/{r}")] for r in resp])]
-    for r in resp:
+                      [[r, float(rec.mean[k]), float(rec.std[k])]
+                       for k, r in enumerate(rec.names_out)])]
+    for k, r in enumerate(rec.names_out):
         out.append(make_table(f"Sobol indices of {r} (from the expansion)",
                               ("input", "main S", "total T"),
-                              [[label(p, labels), value(res, f"S/{r}/{p}"),
-                                value(res, f"T/{r}/{p}")] for p in inputs]))
+                              [[label(p, labels), float(rec.main[k, j]), float(rec.total[k, j])]
+                               for j, p in enumerate(rec.names_in)]))
     return out
 
 

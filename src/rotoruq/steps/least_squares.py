@@ -3,22 +3,42 @@ inputs to data; hands on normals at the optimum with the linearised std."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..params import Normal
-from ..render.tables import StepTable, label, make_table, value
-from ..results import StepResult, dist_to_dict
+from ..render.tables import StepTable, label, make_table
+from ..results import StepRecord, StepResult, dist_to_dict
 from ._common import per_response
 from .base import StepContext, StepType
 from .options import SIGNATURE, Option, choice, integer, number, number_or_table
 
-__all__ = ["STEP", "run_least_squares", "least_squares_tables", "least_squares_warnings",
-           "LEAST_SQUARES"]
+__all__ = ["STEP", "LeastSquaresRecord", "run_least_squares", "least_squares_tables",
+           "least_squares_warnings", "LEAST_SQUARES"]
 
 LEAST_SQUARES = "rotoruq.methods.least_squares:least_squares"
+
+
+@dataclass(frozen=True, eq=False)
+class LeastSquaresRecord(StepRecord):
+    """What a least-squares step saves: d calibrated inputs.
+
+    names_in (d); x (d,) the optimum; std (d,) its linearised std; residuals (k, m) the
+    residuals there, per experiment and response; cost (of the scaled residuals); converged,
+    message.
+    """
+
+    AXES = {"x": ("input",), "std": ("input",), "residuals": ("experiment", "response")}
+
+    names_in: tuple[str, ...]
+    x: np.ndarray
+    std: np.ndarray
+    residuals: np.ndarray
+    cost: float
+    converged: bool
+    message: str
 
 
 def run_least_squares(ctx: StepContext) -> StepResult:
@@ -41,17 +61,21 @@ def run_least_squares(ctx: StepContext) -> StepResult:
         sd_p = s if np.isfinite(s) and s > 0 else ctx.space[p].std
         calibrated[p] = dist_to_dict(Normal(float(res.x[j]), sd_p))
     scalars["cost"] = float(res.cost)
-    return StepResult(ctx.name, ctx.type, scalars, {"residuals": np.asarray(res.residuals)},
-                      calibrated, meta={"n_evaluations": int(res.n_evaluations),
-                                        "converged": bool(res.converged), "message": res.message})
+    record = LeastSquaresRecord(tuple(res.names_in), np.asarray(res.x, dtype=float),
+                                np.asarray(res.std, dtype=float), np.asarray(res.residuals),
+                                float(res.cost), bool(res.converged), str(res.message))
+    arrays, meta = record.parts()
+    return StepResult(ctx.name, ctx.type, scalars, arrays, calibrated, meta={
+        "n_evaluations": int(res.n_evaluations), "converged": bool(res.converged),
+        "message": res.message, **meta})
 
 
 def least_squares_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
-    names = [k.split("/", 1)[1] for k in res.scalars if k.startswith("value/")]
+    rec = LeastSquaresRecord.read(res)
     return [make_table("Calibrated parameters (least squares)", ("parameter", "value", "std"),
-                       [[label(p, labels), value(res, f"value/{p}"), value(res, f"std/{p}")]
-                        for p in names], f"Cost {res.get('cost', math.nan):.6g}; "
-                       f"{res.meta.get('message', '')}")]
+                       [[label(p, labels), float(rec.x[j]), float(rec.std[j])]
+                        for j, p in enumerate(rec.names_in)],
+                       f"Cost {rec.cost:.6g}; {rec.message}")]
 
 
 def least_squares_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:

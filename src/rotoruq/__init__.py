@@ -110,9 +110,12 @@ _LAZY: dict[str, str] = {
     "write_results": ".evaluation",
     "write_report": ".report.html",
     "StepResult": ".results",
+    "StepRecord": ".results",
     "load_results": ".results",
+    "step_types": ".steps",
     "StudyRun": ".study.runner",
     "run_study": ".study.runner",
+    "why_rerun": ".study.runner",
     "Study": ".study.spec",
     "load_study": ".study.schema",
 }
@@ -380,6 +383,9 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
         write_report as write_report,
     )
     from .results import (
+        StepRecord as StepRecord,
+    )
+    from .results import (
         StepResult as StepResult,
     )
     from .results import (
@@ -431,11 +437,17 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     from .rotor.presets import (
         get_preset as get_preset,
     )
+    from .steps import (
+        step_types as step_types,
+    )
     from .study.runner import (
         StudyRun as StudyRun,
     )
     from .study.runner import (
         run_study as run_study,
+    )
+    from .study.runner import (
+        why_rerun as why_rerun,
     )
     from .study.schema import (
         load_study as load_study,

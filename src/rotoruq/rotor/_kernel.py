@@ -11,6 +11,7 @@ Notation (per sample; arrays over azimuth j = 0..N_psi-1 and span stations i = 0
               q_d(psi) = Re(sum_k Q[d, k] exp(i k psi))
     Z_k       structural operator (3x3 complex) [N m/rad]; J_k = Z_k + linear aerodynamic
               damping/stiffness: the Newton-like Jacobian (a preconditioner)
+    a_lift    the sample's lift slope [1/rad] in J_k (:func:`_lift_slope`; BEMT: A0)
     K_b, C_b  flap spring [N m/rad], damper [N m s/rad]; K_l, C_l the same for lag
     K_p, C_p  feathering stiffness [N m/rad], damping [N m s/rad] (through the pitch link)
     x_ac      aerodynamic centre aft of the feathering axis [m]; cm0 added section CM [-]
@@ -49,7 +50,7 @@ _JIT = {"cache": True, "error_model": "numpy", "nogil": True}
 # operation per array and call that cost 14 % of the solve (issue 12).
 _INLINE = {**_JIT, "inline": "always"}
 
-A0 = 5.73           # lift slope [1/rad] of the Newton preconditioner (see inflow.py)
+A0 = 5.73           # linear-theory lift slope [1/rad]: initial inflow, BEMT preconditioner
 RAD2DEG = 180.0 / np.pi
 TWO_OVER_PI = 2 / np.pi
 MAX_BLADE_MOTION = 2.0 * np.pi

@@ -1,0 +1,70 @@
+"""Every bundled study, run twice into fresh folders through the CLI, saves bitwise the same
+arrays and the same tables (issue 21's first acceptance test: the same seed gives the same
+posterior, the same forward checks, the same everything)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from test_mbdyn import MBDYN, env_with_mbdyn
+
+STUDIES = Path(__file__).resolve().parents[1] / "src" / "rotoruq" / "studies"
+CLI = [sys.executable, "-m", "rotoruq.study.cli"]
+BUNDLED = sorted(p.stem for p in STUDIES.glob("*.toml"))
+
+
+def _run(study: str, out: Path) -> None:
+    env = env_with_mbdyn() if study.startswith("mbdyn") else dict(os.environ)
+    proc = subprocess.run([*CLI, "run", study, "--quick", "--no-report", "--out", str(out)],
+                          capture_output=True, text=True, env=env, timeout=1800)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+
+
+def _saved(out: Path) -> dict[str, Path]:
+    """Every array and table a run saved, by path relative to its folder (the store of model
+    evaluations and the run's timing log are not results)."""
+    steps = out / "steps"
+    return {str(p.relative_to(out)): p for p in sorted(steps.rglob("*"))
+            if p.suffix in (".npy", ".csv", ".nc", ".npz")}
+
+
+def _differences(a: Path, b: Path) -> list[str]:
+    fa, fb = _saved(a), _saved(b)
+    diff = [f"{k}: saved by one run only" for k in sorted(set(fa) ^ set(fb))]
+    for key in sorted(set(fa) & set(fb)):
+        pa, pb = fa[key], fb[key]
+        if pa.suffix == ".npy":
+            x, y = np.load(pa, allow_pickle=False), np.load(pb, allow_pickle=False)
+            if x.shape != y.shape or x.tobytes() != y.tobytes():
+                where = (np.nanmax(np.abs(x - y)) if x.shape == y.shape
+                         and x.dtype.kind == "f" else "shape/dtype")
+                diff.append(f"{key}: arrays differ (max |diff| {where})")
+        elif key.endswith("scalars.csv"):
+            # wall and CPU times are measurements of the run, not results
+            rows = [[ln for ln in p.read_text().splitlines()
+                     if not ln.split(",")[0].endswith(("seconds", "_per_second"))]
+                    for p in (pa, pb)]
+            if rows[0] != rows[1]:
+                bad = [ra.split(",")[0] for ra, rb in zip(*rows, strict=False) if ra != rb]
+                diff.append(f"{key}: rows differ: {bad[:8]}")
+        elif pa.read_bytes() != pb.read_bytes():
+            diff.append(f"{key}: files differ")
+    return diff
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("study", BUNDLED)
+def test_bundled_study_repeats_bitwise(study, tmp_path):
+    if study.startswith("mbdyn") and MBDYN is None:
+        pytest.skip("MBDyn not available: build it with shared/tools/build-mbdyn and set "
+                    "MBDYN (CI does both)")
+    _run(study, tmp_path / "a")
+    _run(study, tmp_path / "b")
+    assert _saved(tmp_path / "a"), "the run saved no arrays"
+    assert _differences(tmp_path / "a", tmp_path / "b") == []

@@ -5,7 +5,10 @@ Thresholds of its warnings (stated in the report):
 
 * ``ESS_MIN`` effective sample size per parameter below which moments are noisy;
 * ``RHAT_MAX`` split R-hat above which the chain has not mixed (Vehtari et al. 2021: 1.01);
-* ``LOO_Q2_MIN`` emulator leave-one-out Q^2 below which the emulator is poor;
+* ``LOO_Q2_MIN`` emulator leave-one-out Q^2 (shown, no longer warned on: Q^2 measures the
+  emulator against the response's spread, not against the noise that decides the posterior);
+* ``POSTERIOR_RATIO_MAX`` the emulator's RMS Kriging std over the posterior / the noise std
+  above which the emulator's error matters (:data:`rotoruq.methods.mcmc.adequacy.WARN_RATIO`);
 * ``PILEUP_MAX`` fraction of the chain in the outer 5 % of a bounded prior's range (0.05 for
   a flat posterior) above which the posterior piles up against the bound;
 * ``STD_RATIO_MAX`` posterior std / prior std above which the data barely inform a parameter;
@@ -18,6 +21,8 @@ Thresholds of its warnings (stated in the report):
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -30,15 +35,27 @@ from ..render.figures import (
     prior_posterior,
 )
 from ..render.tables import StepTable, label, make_table, parameters, prefixed, value
-from ..results import StepResult, dict_to_dist, dist_to_dict
+from ..results import StepRecord, StepResult, dict_to_dist, dist_to_dict
 from ._common import input_scalars, per_response
-from .base import StepContext, StepType
-from .options import SIGNATURE, Option, choice, integer, number_or_table
+from .base import StepCheck, StepContext, StepType
+from .options import (
+    SIGNATURE,
+    Option,
+    boolean,
+    choice,
+    integer,
+    number,
+    number_list,
+    number_or_table,
+    string_list,
+    table,
+)
 
-__all__ = ["STEP", "run_bayes_calibration", "chain_diagnostic_scalars", "bayes_tables",
-           "bayes_figures", "bayes_warnings", "strong_correlations", "THRESHOLDS",
+__all__ = ["STEP", "BayesRecord", "run_bayes_calibration", "noise_model_text",
+           "chain_diagnostic_scalars", "bayes_tables", "bayes_figures", "bayes_warnings",
+           "strong_correlations", "THRESHOLDS",
            "ESS_MIN", "RHAT_MAX", "LOO_Q2_MIN", "PILEUP_MAX", "STD_RATIO_MAX", "PRIOR_Z_MAX",
-           "CORR_MAX"]
+           "CORR_MAX", "POSTERIOR_RATIO_MAX"]
 
 ESS_MIN = 200.0
 RHAT_MAX = 1.01
@@ -47,10 +64,12 @@ PILEUP_MAX = 0.15
 STD_RATIO_MAX = 0.8
 PRIOR_Z_MAX = 3.0
 CORR_MAX = 0.7
+POSTERIOR_RATIO_MAX = 0.3
 
 THRESHOLDS = {"ess_min": ESS_MIN, "rhat_max": RHAT_MAX, "loo_q2_min": LOO_Q2_MIN,
               "pileup_max": PILEUP_MAX, "std_ratio_max": STD_RATIO_MAX,
-              "prior_z_max": PRIOR_Z_MAX, "corr_max": CORR_MAX}
+              "prior_z_max": PRIOR_Z_MAX, "corr_max": CORR_MAX,
+              "posterior_ratio_max": POSTERIOR_RATIO_MAX}
 
 
 def chain_diagnostic_scalars(names: Sequence[str], chain: np.ndarray,
@@ -83,10 +102,110 @@ def chain_diagnostic_scalars(names: Sequence[str], chain: np.ndarray,
     return out
 
 
+@dataclass(frozen=True, eq=False)
+class BayesRecord(StepRecord):
+    """What a Bayes calibration step saves besides its flat chain: d parameters, m observed
+    responses, k noise multipliers.
+
+    names_in (d), names_out (m), multiplier_names (k). n_chains, n_draws : the chains' shape
+    (the saved ``chain`` array is (n_chains * n_draws, d), chain after chain).
+    mean, std (d,) posterior moments; correlation (d, d).
+    rhat_bulk, rhat_folded : rank-normalised split R-hat; ess_bulk, ess_tail : effective
+    sample sizes (draws); mcse_mean, mcse_q05, mcse_q95 : Monte Carlo standard errors of the
+    mean and of the 5 % / 95 % quantiles (parameter units) (Vehtari et al. 2021).
+    noise_std (m,) stated noise std of each response (data units; ones for unit variance).
+    noise_model : the noise model in words. emulator_variance : the emulator's Kriging
+    variance is in the likelihood. posterior_ratio, loo_ratio (m,) : the emulator's RMS
+    Kriging std over the posterior and its leave-one-out RMSE, each over the noise std of the
+    experiments' mean (NaN without an emulator); runs_added : model runs added by each
+    refinement round; target_ratio : refinement target (None without refinement).
+    sbc_rank_histogram (d, bins), sbc_p_value, sbc_coverage_50, sbc_coverage_90 (d,) : the
+    self-check (simulation-based calibration; zero-length without one); self_check_passed
+    (None without one) and self_check_reason.
+    multiplier_mean, multiplier_std, multiplier_lower, multiplier_upper (k,) : posterior of
+    the noise variance multipliers (mean, std, 95 % equal-tailed interval).
+    acceptance : fraction of chain steps that moved.
+    """
+
+    AXES = {"mean": ("parameter",), "std": ("parameter",),
+            "correlation": ("parameter", "parameter"),
+            "rhat_bulk": ("parameter",), "rhat_folded": ("parameter",),
+            "ess_bulk": ("parameter",), "ess_tail": ("parameter",),
+            "mcse_mean": ("parameter",), "mcse_q05": ("parameter",), "mcse_q95": ("parameter",),
+            "noise_std": ("response",), "posterior_ratio": ("response",),
+            "loo_ratio": ("response",),
+            "sbc_rank_histogram": ("parameter", "bin"), "sbc_p_value": ("parameter",),
+            "sbc_coverage_50": ("parameter",), "sbc_coverage_90": ("parameter",),
+            "multiplier_mean": ("multiplier",), "multiplier_std": ("multiplier",),
+            "multiplier_lower": ("multiplier",), "multiplier_upper": ("multiplier",)}
+
+    names_in: tuple[str, ...]
+    names_out: tuple[str, ...]
+    multiplier_names: tuple[str, ...]
+    n_chains: int
+    n_draws: int
+    mean: np.ndarray
+    std: np.ndarray
+    correlation: np.ndarray
+    rhat_bulk: np.ndarray
+    rhat_folded: np.ndarray
+    ess_bulk: np.ndarray
+    ess_tail: np.ndarray
+    mcse_mean: np.ndarray
+    mcse_q05: np.ndarray
+    mcse_q95: np.ndarray
+    noise_std: np.ndarray
+    noise_model: str
+    emulator_variance: bool
+    posterior_ratio: np.ndarray
+    loo_ratio: np.ndarray
+    runs_added: tuple[int, ...]
+    target_ratio: float | None
+    sbc_rank_histogram: np.ndarray
+    sbc_p_value: np.ndarray
+    sbc_coverage_50: np.ndarray
+    sbc_coverage_90: np.ndarray
+    self_check_passed: bool | None
+    self_check_reason: str
+    multiplier_mean: np.ndarray
+    multiplier_std: np.ndarray
+    multiplier_lower: np.ndarray
+    multiplier_upper: np.ndarray
+    acceptance: float
+
+
+def noise_model_text(noise_std: Mapping[str, float] | None, multipliers, prior,
+                     emulator: bool, emulator_variance: bool) -> str:
+    """The noise model of a Bayes step in one sentence (stated in its table and the report)."""
+    if noise_std is None:
+        text = "unit variance (none given)"
+    else:
+        text = "noise std per response (" + ", ".join(
+            f"{r} {v:g}" for r, v in noise_std.items()) + ")"
+    if multipliers is not None:
+        which = multipliers if isinstance(multipliers, str) else ", ".join(multipliers)
+        text += (f"; noise variance multipliers calibrated ({which}; inverse-gamma prior "
+                 f"alpha {prior[0]:g}, beta {prior[1]:g})")
+    if emulator:
+        text += ("; the emulator's Kriging variance added to the noise variance"
+                 if emulator_variance else
+                 "; the emulator's mean only (its error ignored, as in the reference thesis)")
+    return text
+
+
+def _refine_config(value):
+    if value is None:
+        return None
+    from ..methods.mcmc.adequacy import RefineConfig
+
+    return RefineConfig(**value)
+
+
 def run_bayes_calibration(ctx: StepContext) -> StepResult:
-    """Bayes calibration (DRAM on a GP emulator by default). The chain is saved (later forward
-    checks push its joint samples through the model); the distributions handed on are the
-    normals with the chain's mean and std, as the reference study does (its table 4.15)."""
+    """Bayes calibration (DRAM on a GP emulator by default, several chains advanced together).
+    The chains are saved (later forward checks and sampling steps propagate their joint
+    draws); the distributions handed on are the normals with the chain's mean and std, as
+    the reference study does (its table 4.15), for steps that ask for independent normals."""
     import warnings
 
     from ..methods.mcmc import calibrate_bayes
@@ -98,67 +217,175 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
 
         emulator = GaussianProcess(trend=o["trend"])
     sd = per_response(o.get("noise_std"), ctx.responses)
+    multipliers = o.get("noise_multipliers")
+    mult_prior = tuple(o.get("noise_multiplier_prior") or (1.0, 1.0))
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         res = calibrate_bayes(
             ctx.model(), ctx.observations(), ctx.space, sampler=o["sampler"], emulator=emulator,
             n_emulator_samples=o["n_emulator_samples"], n_samples=o["n_samples"],
-            burn_in=o["burn_in"], noise_std=sd,
-            proposal_covariance=o["proposal"], seed=ctx.rng,
+            burn_in=o["burn_in"], n_chains=o["n_chains"], noise_std=sd,
+            emulator_variance=o["emulator_variance"], refine=_refine_config(o.get("refine")),
+            noise_multipliers=multipliers, noise_multiplier_prior=mult_prior,
+            self_check=o["self_check"], proposal_covariance=o["proposal"], seed=ctx.rng,
         )
-    chain = np.asarray(res.chains).reshape(-1, ctx.space.dim)
+    names = tuple(res.names_in)
+    d = len(names)
+    chains = np.asarray(res.chains, dtype=float)
+    chain = chains.reshape(-1, d)
     scalars = input_scalars(ctx.space)
-    for j, p in enumerate(res.names_in):
+    dg = res.diagnostics
+    for j, p in enumerate(names):
         for what in ("mean", "std", "skewness", "kurtosis", "ess", "rhat"):
             scalars[f"{what}/{p}"] = float(np.asarray(getattr(res, what))[j])
         scalars[f"map/{p}"] = float(res.map_point[j])
+        if dg is not None:
+            for what in ("rhat_bulk", "rhat_folded", "ess_tail", "mcse_mean"):
+                scalars[f"{what}/{p}"] = float(np.asarray(getattr(dg, what))[j])
     scalars["acceptance"] = float(res.acceptance_rate)
     scalars["kl_divergence"] = float(res.kl_divergence)
-    scalars.update(chain_diagnostic_scalars(res.names_in, chain, ctx.space))
+    scalars["n_chains"] = float(chains.shape[0])
+    scalars.update(chain_diagnostic_scalars(names, chain, ctx.space))
     loo = getattr(res, "emulator_loo", None)
     if loo is not None:
         for k, r in enumerate(ctx.responses):
             scalars[f"loo_q2/{r}"] = float(np.asarray(loo.q2)[k])
             scalars[f"loo_nrmse/{r}"] = float(np.asarray(loo.nrmse)[k])
-    noise = (np.ones(len(ctx.responses)) if sd is None else
-             np.broadcast_to(np.asarray(sd, dtype=float), (len(ctx.responses),)))
+    m = len(ctx.responses)
+    noise = (np.ones(m) if sd is None else
+             np.broadcast_to(np.asarray(sd, dtype=float), (m,)).copy())
     for r, v in zip(ctx.responses, noise, strict=True):
         scalars[f"noise_std/{r}"] = float(v)
+    ad = res.emulator_adequacy
+    post_ratio = np.full(m, np.nan) if ad is None else np.asarray(ad.posterior_ratio, float)
+    loo_ratio = np.full(m, np.nan) if ad is None else np.asarray(ad.loo_ratio, float)
+    if ad is not None:
+        for k, r in enumerate(ctx.responses):
+            scalars[f"posterior_ratio/{r}"] = float(post_ratio[k])
+            scalars[f"loo_ratio/{r}"] = float(loo_ratio[k])
+        scalars["runs_added"] = float(ad.n_added)
+    sbc = res.self_check
+    if sbc is not None:
+        for j, p in enumerate(names):
+            scalars[f"sbc_p_value/{p}"] = float(sbc.p_value[j])
+            scalars[f"sbc_coverage_50/{p}"] = float(sbc.coverage_50[j])
+            scalars[f"sbc_coverage_90/{p}"] = float(sbc.coverage_90[j])
+        scalars["self_check_passed"] = float(sbc.passed)
+    mnames: tuple[str, ...] = tuple(res.noise_multiplier_names or ())
+    msum = res.noise_multiplier_summary() if mnames else {}
+    mstats = np.array([msum[n] for n in mnames], dtype=float).reshape(len(mnames), 4)
+    for n, (mean, std, lo, hi) in msum.items():
+        scalars[f"multiplier_mean/{n}"], scalars[f"multiplier_std/{n}"] = mean, std
+        scalars[f"multiplier_lower/{n}"], scalars[f"multiplier_upper/{n}"] = lo, hi
+    noise_dict = None if sd is None else dict(zip(ctx.responses, map(float, noise),
+                                                  strict=True))
+    text = noise_model_text(noise_dict, multipliers, mult_prior, emulator is not None,
+                            bool(o["emulator_variance"]))
+    diag = {k: (np.asarray(getattr(dg, k), float) if dg is not None else np.full(d, np.nan))
+            for k in ("rhat_bulk", "rhat_folded", "ess_bulk", "ess_tail", "mcse_mean",
+                      "mcse_q05", "mcse_q95")}
+    sbc_arrays = {f"sbc_{k}": (np.asarray(getattr(sbc, k), float) if sbc is not None
+                               else np.zeros(0)) for k in ("p_value", "coverage_50",
+                                                           "coverage_90")}
+    record = BayesRecord(
+        names_in=names, names_out=tuple(ctx.responses), multiplier_names=mnames,
+        n_chains=int(chains.shape[0]), n_draws=int(chains.shape[1]),
+        mean=np.asarray(res.mean, float), std=np.asarray(res.std, float),
+        correlation=np.asarray(res.correlation, float).reshape(d, d), **diag,
+        noise_std=noise, noise_model=text,
+        emulator_variance=bool(o["emulator_variance"]) and emulator is not None,
+        posterior_ratio=post_ratio, loo_ratio=loo_ratio,
+        runs_added=tuple(int(k) for k in (ad.runs_added if ad is not None else ())),
+        target_ratio=None if ad is None or ad.target_ratio is None else float(ad.target_ratio),
+        sbc_rank_histogram=(np.asarray(sbc.rank_histogram, float) if sbc is not None
+                            else np.zeros((d, 0))), **sbc_arrays,
+        self_check_passed=None if sbc is None else bool(sbc.passed),
+        self_check_reason="" if sbc is None else str(sbc.reason),
+        multiplier_mean=mstats[:, 0], multiplier_std=mstats[:, 1],
+        multiplier_lower=mstats[:, 2], multiplier_upper=mstats[:, 3],
+        acceptance=float(res.acceptance_rate))
+    rec_arrays, rec_meta = record.parts()
     posterior = {p: dist_to_dict(Normal(scalars[f"mean/{p}"], scalars[f"std/{p}"]))
-                 for p in res.names_in}
-    arrays = {"chain": chain, "data": np.asarray(ctx.data)}
-    columns = {"chain": list(res.names_in), "data": list(ctx.responses)}
+                 for p in names}
+    arrays = {"chain": chain, "log_posterior": np.asarray(res.log_posterior, dtype=float),
+              "data": np.asarray(ctx.data), **rec_arrays}
+    columns = {"chain": list(names), "data": list(ctx.responses)}
+    if mnames:
+        arrays["multiplier_chain"] = np.asarray(res.noise_multiplier_chains,
+                                                dtype=float).reshape(-1, len(mnames))
+        columns["multiplier_chain"] = list(mnames)
     return StepResult(ctx.name, ctx.type, scalars, arrays, posterior, meta={
         "columns": columns, "n_evaluations": int(res.n_evaluations),
-        "noise_model": "unit variance (none given)" if sd is None else "noise_std per response",
+        "noise_model": text, "n_chains": int(chains.shape[0]),
+        "reuse_data": bool(o.get("reuse_data")),
         "warnings": sorted({f"{w.category.__name__}: {w.message}" for w in caught})[:10],
         "prior": {p: dist_to_dict(d) for p, d in zip(ctx.space.names, ctx.space.distributions,
-                                                      strict=True)}})
+                                                      strict=True)}, **rec_meta})
 
 
 def bayes_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
     names = res.columns("chain") or parameters(res)
     rows = [[label(p, labels), value(res, f"input_mean/{p}"), value(res, f"input_std/{p}"),
              value(res, f"mean/{p}"), value(res, f"std/{p}"), value(res, f"skewness/{p}"),
-             value(res, f"kurtosis/{p}"), value(res, f"ess/{p}"), value(res, f"rhat/{p}"),
-             value(res, f"std_ratio/{p}"), value(res, f"pileup_lo/{p}"),
-             value(res, f"pileup_hi/{p}")]
+             value(res, f"kurtosis/{p}"), value(res, f"std_ratio/{p}"),
+             value(res, f"pileup_lo/{p}"), value(res, f"pileup_hi/{p}")]
             for p in names]
     out = [make_table("Prior and posterior", (
         "parameter", "prior mean", "prior std", "posterior mean", "posterior std", "skewness",
-        "excess kurtosis", "ESS", "R-hat", "post/prior std", "outer 5 % low",
-        "outer 5 % high"), rows,
+        "excess kurtosis", "post/prior std", "outer 5 % low", "outer 5 % high"), rows,
         "post/prior std near 1: the data do not inform the parameter; outer 5 %: "
         "fraction of the chain in the outer 5 % of a bounded prior's range (0.05 when "
         "flat).")]
+    n_chains = int(res.meta.get("n_chains", 1))
+    out.append(make_table(f"Convergence ({n_chains} chain{'s' if n_chains > 1 else ''})", (
+        "parameter", "R-hat", "R-hat bulk", "R-hat folded", "ESS bulk", "ESS tail",
+        "MCSE of the mean"),
+        [[label(p, labels), value(res, f"rhat/{p}"), value(res, f"rhat_bulk/{p}"),
+          value(res, f"rhat_folded/{p}"), value(res, f"ess/{p}"), value(res, f"ess_tail/{p}"),
+          value(res, f"mcse_mean/{p}")] for p in names],
+        f"Rank-normalised split R-hat (bulk and folded; R-hat is the larger, above "
+        f"{RHAT_MAX} the chains have not mixed), bulk and tail effective sample sizes and the "
+        "Monte Carlo standard error of the posterior mean (Vehtari et al. 2021, arviz's "
+        "definitions)."))
     resp = res.columns("data")
-    out.append(make_table("Chain and noise model", ("quantity", "value"), [
+    rows_noise: list[list[Any]] = [
         ["acceptance rate", value(res, "acceptance")],
         ["KL divergence posterior || prior [nats]", value(res, "kl_divergence")],
-        *[[f"noise std of {r}", value(res, f"noise_std/{r}")] for r in resp],
-        *[[f"emulator leave-one-out Q2 of {r}", value(res, f"loo_q2/{r}")] for r in resp
-          if f"loo_q2/{r}" in res.scalars]],
-        f"Noise model: {res.meta.get('noise_model', 'not recorded')}."))
+        *[[f"noise std of {r}", value(res, f"noise_std/{r}")] for r in resp]]
+    for r in resp:
+        if f"posterior_ratio/{r}" in res.scalars:
+            rows_noise += [[f"emulator std / noise std over the posterior, {r}",
+                            value(res, f"posterior_ratio/{r}")],
+                           [f"emulator leave-one-out RMSE / noise std, {r}",
+                            value(res, f"loo_ratio/{r}")]]
+        if f"loo_q2/{r}" in res.scalars:
+            rows_noise.append([f"emulator leave-one-out Q2 of {r}", value(res, f"loo_q2/{r}")])
+    if "runs_added" in res.scalars:
+        rows_noise.append(["model runs added by refinement", value(res, "runs_added")])
+    out.append(make_table("Noise model and emulator adequacy", ("quantity", "value"),
+                          rows_noise,
+                          f"Noise model: {res.meta.get('noise_model', 'not recorded')}. The "
+                          "emulator is adequate when its error over the posterior is a small "
+                          f"fraction of the noise (warned above {POSTERIOR_RATIO_MAX})."))
+    mult = prefixed(res, "multiplier_mean/")
+    if mult:
+        out.append(make_table("Noise variance multipliers (posterior)", (
+            "multiplier", "mean", "std", "2.5 %", "97.5 %"),
+            [[n, v, value(res, f"multiplier_std/{n}"), value(res, f"multiplier_lower/{n}"),
+              value(res, f"multiplier_upper/{n}")] for n, v in mult.items()],
+            "Each multiplies the stated noise variance of its observations; 1: the stated "
+            "noise is right."))
+    if "self_check_passed" in res.scalars:
+        reason = res.meta.get("record", {}).get("fields", {}).get("self_check_reason", "")
+        verdict = "passed" if res.get("self_check_passed") else "FAILED"
+        out.append(make_table(f"Self-check (simulation-based calibration): {verdict}", (
+            "parameter", "rank uniformity p-value", "50 % coverage", "90 % coverage"),
+            [[label(p, labels), value(res, f"sbc_p_value/{p}"),
+              value(res, f"sbc_coverage_50/{p}"), value(res, f"sbc_coverage_90/{p}")]
+             for p in names],
+            "Parameters drawn from the prior, data simulated with the stated noise, "
+            "calibrated the same way (Talts et al. 2018): uniform ranks and nominal "
+            f"coverages mean the posterior is calibrated. {reason}"))
     if len(names) > 1:
         idx = {p: i for i, p in enumerate(names)}
         mat = [[label(p, labels)] + [1.0 if p == q else value(
@@ -209,11 +436,20 @@ def bayes_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
         return ", ".join(f"{label(p, labels)} ({fmt(v)})" for p, v in hits)
 
     if low := listed("ess/", lambda v: v < ESS_MIN, lambda v: f"{v:.0f}"):
-        w.append(f"{name}: low effective sample size (below {ESS_MIN:.0f}): {low}")
+        w.append(f"{name}: low effective sample size (bulk, below {ESS_MIN:.0f}): {low}")
+    if low := listed("ess_tail/", lambda v: v < ESS_MIN, lambda v: f"{v:.0f}"):
+        w.append(f"{name}: low tail effective sample size (below {ESS_MIN:.0f}): the "
+                 f"credible intervals are noisy: {low}")
     if high := listed("rhat/", lambda v: v > RHAT_MAX, lambda v: f"{v:.3f}"):
-        w.append(f"{name}: chain not mixed (R-hat above {RHAT_MAX}): {high}")
-    if poor := listed("loo_q2/", lambda v: v < LOO_Q2_MIN, lambda v: f"{v:.3f}"):
-        w.append(f"{name}: poor emulator (leave-one-out Q2 below {LOO_Q2_MIN}): {poor}")
+        w.append(f"{name}: chains not mixed (rank-normalised R-hat above {RHAT_MAX}): {high}")
+    if poor := listed("posterior_ratio/", lambda v: v > POSTERIOR_RATIO_MAX,
+                      lambda v: f"{v:.2f}"):
+        w.append(f"{name}: emulator error over the posterior above {POSTERIOR_RATIO_MAX} of "
+                 f"the noise std (add n_emulator_samples or refine = {{...}}): {poor}")
+    if "self_check_passed" in res.scalars and not res.get("self_check_passed"):
+        reason = res.meta.get("record", {}).get("fields", {}).get("self_check_reason", "")
+        w.append(f"{name}: the self-check (simulation-based calibration) FAILED: the "
+                 f"posterior is not calibrated: {reason}")
     for side, word in (("lo", "lower"), ("hi", "upper")):
         for p, f in prefixed(res, f"pileup_{side}/").items():
             if f > PILEUP_MAX:
@@ -230,7 +466,90 @@ def bayes_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
         w.append(f"{name}: {msg}")
     if str(res.meta.get("noise_model", "")).startswith("unit"):
         w.append(f"{name}: no noise model given: unit data variance for every response")
+    if "noise variance multipliers" not in str(res.meta.get("noise_model", "")) and \
+            "emulator's mean only" in str(res.meta.get("noise_model", "")):
+        w.append(f"{name}: the emulator's own error is not in the likelihood "
+                 "(emulator_variance = false, as the reference thesis)")
+    if res.meta.get("reuse_data"):
+        w.append(f"{name}: calibrates data an earlier step calibrated too (reuse_data = "
+                 "true): the data count twice and the posterior is too narrow")
     return w
+
+
+_REFINE_KEYS = {"n_samples": integer(1), "target_ratio": number(positive=True,
+                                                                    allow_zero=False),
+                "batch": integer(1)}
+
+
+def _refine(v: Any) -> dict | None:
+    """``refine = { n_samples, target_ratio, batch }`` (each optional)."""
+    v = table(v)
+    for k, x in v.items():
+        if k not in _REFINE_KEYS:
+            raise TypeError(f"a table with keys among {', '.join(_REFINE_KEYS)} (found {k!r})")
+        try:
+            _REFINE_KEYS[k](x)
+        except TypeError as exc:
+            raise TypeError(f"refine.{k}: {exc}") from None
+    return v
+
+
+def _multipliers(v: Any) -> str | tuple[str, ...]:
+    """``"one"``, ``"per_response"``, ``"per_experiment"`` or a list of responses."""
+    if isinstance(v, str):
+        return choice("one", "per_response", "per_experiment")(v)
+    try:
+        return string_list(v)
+    except TypeError:
+        raise TypeError('"one", "per_response", "per_experiment" or a list of responses'
+                        ) from None
+
+
+def _prior_pair(v: Any) -> tuple[float, float]:
+    vals = number_list(v) if isinstance(v, list) else ()
+    if len(vals) != 2 or min(vals) <= 0:
+        raise TypeError("[alpha, beta], two numbers > 0 (inverse-gamma prior)")
+    return (vals[0], vals[1])
+
+
+def _check_bayes(c: StepCheck) -> None:
+    """Noise std > 0 for every response; multipliers only on calibrated responses and with a
+    stated noise std; a self-check only with a noise std per response and no multipliers."""
+    o = c.options
+    responses = c.responses or tuple(c.model.responses)
+    sd = o["noise_std"]
+    if isinstance(sd, Mapping):
+        for r, v in sd.items():
+            if v <= 0:
+                c.fail(("noise_std", r), "a noise std > 0 (data units)", repr(v))
+        missing = [r for r in responses if r not in sd]
+        if missing:
+            c.fail(("noise_std",), f"a noise std for every calibrated response "
+                   f"({', '.join(responses)}); missing {', '.join(missing)}")
+    elif sd is not None and sd <= 0:
+        c.fail(("noise_std",), "a noise std > 0 (data units)", repr(sd))
+    mult = o["noise_multipliers"]
+    if mult is not None:
+        if sd is None:
+            c.fail(("noise_multipliers",), "noise_std given with noise_multipliers (each "
+                   "multiplies a stated noise variance)")
+        if not isinstance(mult, str):
+            for r in mult:
+                if r not in responses:
+                    c.fail(("noise_multipliers",), "responses this step calibrates, with data "
+                           f"({', '.join(responses)})", r)
+    elif tuple(o["noise_multiplier_prior"]) != tuple(STEP.default("noise_multiplier_prior")):
+        c.fail(("noise_multiplier_prior",), "noise_multipliers = ... with it (a prior of "
+               "multipliers that are not calibrated)")
+    if o["self_check"]:
+        if sd is None:
+            c.fail(("self_check",), "noise_std per response with self_check (the "
+                   "replications simulate data with it)")
+        if mult is not None:
+            c.fail(("self_check",), "self_check without noise_multipliers (the replications "
+                   "cannot simulate data with a calibrated noise)")
+    if o["refine"] is not None and o["emulator"] == "none":
+        c.fail(("refine",), 'emulator = "gp" with refine (it refines the emulator)')
 
 
 STEP = StepType(
@@ -239,12 +558,19 @@ STEP = StepType(
     options={"sampler": Option(choice("dram", "mh", "dr", "am"), SIGNATURE),
              "n_samples": Option(integer(10), SIGNATURE),
              "burn_in": Option(integer(0), SIGNATURE),
+             "n_chains": Option(integer(1), 4),
              "emulator": Option(choice("gp", "none"), "gp"),
              "trend": Option(choice("constant", "linear", "reduced_quadratic", "quadratic"),
                              SIGNATURE, method="rotoruq.methods.surrogate:GaussianProcess"),
              "n_emulator_samples": Option(integer(2), SIGNATURE),
+             "emulator_variance": Option(boolean, SIGNATURE),
+             "refine": Option(_refine, None),
              "noise_std": Option(number_or_table, None),
+             "noise_multipliers": Option(_multipliers, None),
+             "noise_multiplier_prior": Option(_prior_pair, SIGNATURE),
+             "self_check": Option(integer(0), SIGNATURE),
+             "reuse_data": Option(boolean, False),
              "proposal": Option(choice("hessian", "prior"), SIGNATURE,
                                 param="proposal_covariance")},
-    quick={"n_samples": 1800, "burn_in": 200, "n_emulator_samples": 60},
-    tables=bayes_tables, figures=bayes_figures, warnings=bayes_warnings)
+    quick={"n_samples": 1800, "burn_in": 200, "n_emulator_samples": 60, "self_check": 20},
+    check=_check_bayes, tables=bayes_tables, figures=bayes_figures, warnings=bayes_warnings)

@@ -435,11 +435,33 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
                                              strict=True)})
         res = StepResult(res.name, res.type, res.scalars, res.arrays, res.distributions, meta,
                          fingerprint=fp)
-        save_step(res, out)
+        export_chains(res, save_step(res, out))
         results[step.name] = res
         seconds[step.name] = dt
         log.info("[%s] %s: done in %.1f s", study.info.name, step.name, dt)
     return StudyRun(study, out, results, tuple(reused), seconds)
+
+
+def export_chains(res: StepResult, folder: Path) -> Path | None:
+    """Write a Bayes step's chains next to its saved arrays for other tools:
+    ``chains.nc`` (arviz ``InferenceData`` layout) when xarray and h5netcdf are installed,
+    else the documented ``chains.npz`` of :func:`rotoruq.methods.mcmc.export.write_chains`.
+    None for a step without chains."""
+    import importlib.util
+
+    from ..methods.mcmc.export import write_chains
+
+    n_chains = res.meta.get("n_chains")
+    if "chain" not in res.arrays or not n_chains:
+        return None
+    names = res.columns("chain")
+    chains = np.asarray(res.arrays["chain"]).reshape(int(n_chains), -1, len(names))
+    lp = res.arrays.get("log_posterior")
+    netcdf = all(importlib.util.find_spec(m) is not None for m in ("xarray", "h5netcdf"))
+    return write_chains(folder / ("chains.nc" if netcdf else "chains.npz"), chains, names,
+                        None if lp is None else np.asarray(lp),
+                        attrs={"step": res.name, "sampler": str(res.meta.get("options", {})
+                                                                .get("sampler", ""))})
 
 
 def _changed_files(saved: Mapping[str, str], now: Mapping[str, str]) -> list[str]:

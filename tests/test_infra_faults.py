@@ -272,3 +272,96 @@ def test_sigterm_starts_no_queued_driver_and_keeps_finished_results(tmp_path):
         if proc.poll() is None:
             proc.kill()
             proc.communicate(timeout=10)
+
+
+def _pids_running(word: str) -> list[int]:
+    """Processes whose command line holds ``word``."""
+    found = []
+    for d in os.listdir("/proc"):
+        try:
+            if d.isdigit() and word.encode() in Path(f"/proc/{d}/cmdline").read_bytes():
+                found.append(int(d))
+        except OSError:  # ended meanwhile
+            continue
+    return found
+
+
+def _driver_workers(cli_pid: int) -> list[int]:
+    """Parents (pool workers of the CLI) of the running driver.py processes."""
+    from rotoruq.evaluation.process_tree import _stat
+
+    found = set()
+    for pid in _pids_running("driver.py"):
+        st = _stat(pid)
+        if st is not None and st[1] != cli_pid:
+            parent = _stat(st[1])
+            if parent is not None and parent[1] == cli_pid:
+                found.add(st[1])
+    return sorted(found)
+
+
+def test_cli_run_survives_a_sigkilled_pool_worker_bitwise(tmp_path):
+    """`rotoruq run` with process workers: one worker SIGKILLed mid-step (as the OOM killer
+    does) -> the step completes, bitwise equal to an uninterrupted run, no failure stored."""
+    from test_trust import CLI, external_study, outputs
+
+    study = external_study(tmp_path / "s", n=12, executor="processes")
+    env = {**os.environ, "PYTHONPATH": SRC, "DRIVER_SLEEP": "0.3"}
+    ref = subprocess.run([*CLI, "run", str(study), "--out", str(tmp_path / "ref"),
+                          "--no-report"], env=env, capture_output=True, text=True, timeout=300)
+    assert ref.returncode == 0, ref.stderr
+    log = tmp_path / "log"
+    proc = subprocess.Popen([*CLI, "run", str(study), "--out", str(tmp_path / "out"),
+                             "--no-report"], env={**env, "DRIVER_LOG": str(log)},
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        _wait_for(lambda: log.exists() and len(log.read_text().split()) >= 2
+                  and _driver_workers(proc.pid), 120, "two finished evaluations")
+        victim = _driver_workers(proc.pid)[0]
+        os.kill(victim, signal.SIGKILL)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 0, err
+    assert "Traceback" not in err
+    np.testing.assert_array_equal(outputs(tmp_path / "out"), outputs(tmp_path / "ref"))
+    st = Store(tmp_path / "out" / "evaluations.sqlite")
+    assert st.count(status="failed") == 0 and st.count() == 12
+
+
+@pytest.mark.parametrize("whole_group", [False, True], ids=["cli", "process-group"])
+def test_sigkill_of_the_cli_frees_the_folder_at_once(tmp_path, whole_group):
+    """kill -9 of `rotoruq run` (or of its whole process group) with 30 s drivers running on
+    process workers: 2 s later no worker or driver is left, and the next run starts at once
+    (nothing holds the results folder's lock) and finishes."""
+    from test_trust import CLI, external_study, outputs
+
+    study = external_study(tmp_path / "s", n=6, executor="processes")
+    out = tmp_path / "out"
+    env = {**os.environ, "PYTHONPATH": SRC}
+    proc = subprocess.Popen([*CLI, "run", str(study), "--out", str(out), "--no-report"],
+                            env={**env, "DRIVER_SLEEP": "30"}, start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        _wait_for(lambda: len(_driver_workers(proc.pid)) == 2, 120, "two drivers running")
+        workers = _driver_workers(proc.pid)
+        if whole_group:
+            os.killpg(proc.pid, signal.SIGKILL)
+        else:
+            proc.kill()
+        proc.wait(10)
+        time.sleep(2.0)
+        left = [pid for pid in _pids_running("driver.py") if is_running(pid)]
+        assert left == [] and not any(is_running(w) for w in workers)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    t0 = time.monotonic()
+    again = subprocess.run([*CLI, "run", str(study), "--out", str(out), "--no-report"],
+                           env=env, capture_output=True, text=True, timeout=300)
+    assert again.returncode == 0, again.stderr
+    assert "locked" not in again.stderr.lower() and time.monotonic() - t0 < 120
+    assert np.isfinite(outputs(out)).all()

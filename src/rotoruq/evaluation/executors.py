@@ -146,7 +146,7 @@ def _worker_init(parent: int) -> None:
     from .process_tree import kill_active_trees, watch_parent
 
     def on_term(signum, frame):
-        kill_active_trees()
+        kill_active_trees(stop=True)
         os._exit(128 + signum)
 
     signal.signal(signal.SIGTERM, on_term)

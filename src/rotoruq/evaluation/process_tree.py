@@ -51,6 +51,7 @@ _PROC = Path("/proc")
 _PR_SET_PDEATHSIG = 1
 _ACTIVE: dict[int, _Tree] = {}  # running driver trees of this process, by driver pid
 _ACTIVE_LOCK = threading.Lock()
+_STOPPING = threading.Event()  # set by kill_active_trees(stop=True): no new driver starts
 
 
 def _load_prctl():
@@ -79,16 +80,23 @@ def set_parent_death_signal(sig: int = signal.SIGKILL) -> bool:
     return _PRCTL(_PR_SET_PDEATHSIG, int(sig), 0, 0, 0) == 0
 
 
-def _driver_preexec() -> None:
-    # runs in the forked child before exec: the driver dies with the thread waiting for it,
-    # and gets the default SIGINT back (a process-pool worker ignores it)
-    set_parent_death_signal(signal.SIGKILL)
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
+def _driver_preexec(parent: int):
+    def preexec() -> None:
+        # runs in the forked child before exec: the driver dies with the thread waiting for
+        # it (and at once if that already happened between fork and prctl), and gets the
+        # default SIGINT back (a process-pool worker ignores it)
+        set_parent_death_signal(signal.SIGKILL)
+        if os.getppid() != parent:
+            os._exit(1)
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+    return preexec
 
 
-def kill_active_trees() -> int:
+def kill_active_trees(*, stop: bool = False) -> int:
     """SIGKILL every driver tree this process is running (drivers, their groups and
-    descendants); returns how many trees there were.
+    descendants); returns how many trees there were. With ``stop``, no driver starts in
+    this process afterwards (:func:`run_process_tree` raises ``InterruptedError``).
 
     Examples
     --------
@@ -96,6 +104,8 @@ def kill_active_trees() -> int:
     0
     """
     with _ACTIVE_LOCK:
+        if stop:
+            _STOPPING.set()
         trees = list(_ACTIVE.values())
     for tree in trees:
         tree.kill_all()
@@ -141,7 +151,7 @@ def watch_parent(pid: int, exit_code: int = 1) -> threading.Thread:
     """
     def watch() -> None:
         _wait_for_exit(pid)
-        kill_active_trees()
+        kill_active_trees(stop=True)
         os._exit(exit_code)
 
     t = threading.Thread(target=watch, name=f"rotoruq-watch-{pid}", daemon=True)
@@ -368,6 +378,8 @@ def run_process_tree(
     OSError
         When the command cannot be started (no such file, not executable).
     """
+    if _STOPPING.is_set():
+        raise InterruptedError("the run is stopping: no driver is started")
     t0 = time.perf_counter()
     token = uuid.uuid4().hex
     # the token goes first: found early in /proc/<pid>/environ, and it replaces the token of
@@ -382,7 +394,7 @@ def run_process_tree(
         proc = subprocess.Popen(list(argv), cwd=cwd, env=env, stdin=subprocess.DEVNULL,
                                 stdout=pipes[0][1], stderr=pipes[1][1], shell=False,
                                 close_fds=True, start_new_session=True,
-                                preexec_fn=_driver_preexec)
+                                preexec_fn=_driver_preexec(os.getpid()))
     except BaseException:
         for fd in (fd for pair in pipes for fd in pair):
             os.close(fd)
@@ -395,6 +407,9 @@ def run_process_tree(
     tree = _Tree(proc.pid, token)
     with _ACTIVE_LOCK:
         _ACTIVE[proc.pid] = tree
+        stopping = _STOPPING.is_set()
+    if stopping:  # the stop came while it was starting
+        tree.kill_all()
     sel = selectors.DefaultSelector()
     for c in caps:
         sel.register(c.fd, selectors.EVENT_READ, c)

@@ -295,7 +295,8 @@ class DaskExecutor(Executor):
     n_workers, threads_per_worker : size of the LocalCluster when one is started.
     resubmits : how many times a task lost to the infrastructure is submitted again.
     worker_timeout : seconds to wait for a worker when the scheduler has none left, before
-        :meth:`run` raises :class:`~rotoruq.errors.InfrastructureError`.
+        :meth:`run` raises :class:`~rotoruq.errors.InfrastructureError` (default: the
+        ``ROTORUQ_DASK_WORKER_TIMEOUT`` environment variable, else 30).
 
     External-solver tasks release the GIL while they wait for the subprocess, so threads are
     fine for them; vectorized Python models are better served by one thread per worker.
@@ -309,7 +310,7 @@ class DaskExecutor(Executor):
 
     def __init__(
         self, address: str | None = None, *, client: Any = None, n_workers: int | None = None,
-        threads_per_worker: int = 1, resubmits: int = 3, worker_timeout: float = 30.0,
+        threads_per_worker: int = 1, resubmits: int = 3, worker_timeout: float | None = None,
     ):
         self.address = address
         self._n_local = n_workers
@@ -317,6 +318,16 @@ class DaskExecutor(Executor):
         self._client = client
         self._own_client = client is None
         self._cluster: Any = None
+        if worker_timeout is None:
+            env = os.environ.get("ROTORUQ_DASK_WORKER_TIMEOUT", "30")
+            try:
+                worker_timeout = float(env)
+            except ValueError:
+                raise ParameterError("ROTORUQ_DASK_WORKER_TIMEOUT must be a number of seconds, "
+                                     f"got {env!r}") from None
+        if not worker_timeout >= 0 or resubmits < 0:
+            raise ParameterError(f"worker_timeout and resubmits must be >= 0, got "
+                                 f"{worker_timeout} and {resubmits}")
         self.resubmits = int(resubmits)
         self.worker_timeout = float(worker_timeout)
 
@@ -381,12 +392,18 @@ class DaskExecutor(Executor):
                 except Exception as exc:  # connection to the scheduler lost
                     done, last_error = set(), f"{type(exc).__name__}: {exc}"
                 again: list[int] = []
+                got = False
                 for fut in done:
                     i = futures.pop(fut)
                     try:
                         if fut.status == "cancelled":
                             raise cf.CancelledError(f"task {fut.key} was cancelled")
-                        value, error, wall = fut.result()
+                        value, error, wall = fut.result(timeout=2.0)
+                    except TimeoutError:
+                        # finished, then its worker died before the result was fetched: the
+                        # task waits to run again; keep waiting for it
+                        futures[fut] = i
+                        continue
                     except Exception as exc:  # lost worker, data or connection
                         last_error = f"{type(exc).__name__}: {exc}".splitlines()[0]
                         lost_count[i] += 1
@@ -397,10 +414,11 @@ class DaskExecutor(Executor):
                                 "are saved: run the same command again to resume") from None
                         again.append(i)
                         continue
+                    got = True
                     yield TaskOutcome(i, value, error, wall)
                 if again:
                     submit(again)
-                if not done:
+                if not got:
                     if self._n_live():
                         no_worker_since = None
                     elif no_worker_since is None:
@@ -434,6 +452,8 @@ def make_executor(spec: str | Executor | None, **kwargs: Any) -> Executor:
     """An Executor from a name ("serial", "processes", "dask") or an existing Executor.
 
     ``"processes:4"`` sets the number of workers; ``"dask:tcp://host:8786"`` a scheduler.
+    Keyword arguments: ``max_workers``, ``restarts`` (processes); ``address``, ``resubmits``,
+    ``worker_timeout`` (dask).
     """
     if isinstance(spec, Executor):
         return spec
@@ -443,8 +463,11 @@ def make_executor(spec: str | Executor | None, **kwargs: Any) -> Executor:
         raise ParameterError(f"executor must be a name or an Executor, got {spec!r}")
     name, _, arg = spec.partition(":")
     if name == "processes":
-        return ProcessExecutor(int(arg) if arg else kwargs.get("max_workers"))
+        return ProcessExecutor(int(arg) if arg else kwargs.get("max_workers"),
+                               **{k: kwargs[k] for k in ("restarts",) if k in kwargs})
     if name == "dask":
-        return DaskExecutor(arg or kwargs.get("address"))
+        return DaskExecutor(arg or kwargs.get("address"),
+                            **{k: kwargs[k] for k in ("resubmits", "worker_timeout")
+                               if k in kwargs})
     raise ParameterError(f"unknown executor {spec!r}; use 'serial', 'processes[:N]', "
                      "'dask[:tcp://host:port]' or an Executor instance")

@@ -124,6 +124,9 @@ def store_error(path: str | os.PathLike, exc: BaseException) -> StoreError:
                       f"check the file and the disk, then {_RESUME}")
 
 
+_CHECKED: set[tuple] = set()  # store files found intact by this process: (path, dev, inode)
+
+
 def _guarded(method):
     """Turn ``sqlite3`` and ``OSError`` failures of a Store method into a StoreError."""
 
@@ -210,6 +213,15 @@ class Store:
     path : database file (created with its directory when missing).
     timeout : seconds a writer waits for a lock before retrying (busy_timeout).
     retries : how many times a locked write is retried (with growing back-off) before raising.
+    check : run SQLite's ``PRAGMA quick_check`` on an existing file (once per file and
+        process; about 0.3 s for 100,000 evaluations) and raise
+        :class:`~rotoruq.errors.StoreCorruptError` when it finds damage.
+
+    Raises
+    ------
+    StoreError
+        For any storage fault (disk full, read-only, damaged file), on opening or later, with
+        a one-line message naming the file and what to do; never a raw ``sqlite3`` error.
 
     The store opens one connection per process and thread and reopens after a fork, so one
     Store object may be shared with worker processes.
@@ -230,9 +242,14 @@ class Store:
     @_guarded
     def _open(self, check: bool) -> None:
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        if check and self.path.is_file() and self.path.stat().st_size:
+        info = self.path.stat() if self.path.is_file() else None
+        # once per file and process: a study opens its store for every step
+        key = (str(self.path.resolve()), info.st_dev, info.st_ino) if info else None
+        if check and info is not None and info.st_size and key not in _CHECKED:
             problems = [r[0] for r in self._con().execute("PRAGMA quick_check").fetchall()]
-            if problems != ["ok"]:
+            if problems == ["ok"]:
+                _CHECKED.add(cast(tuple, key))
+            else:
                 raise StoreCorruptError(
                     self.path, "the evaluation store is damaged (integrity check: "
                     f"{'; '.join(str(p) for p in problems[:2])})",

@@ -300,6 +300,7 @@ def _driver_workers(cli_pid: int) -> list[int]:
     return sorted(found)
 
 
+@pytest.mark.slow
 def test_cli_run_survives_a_sigkilled_pool_worker_bitwise(tmp_path):
     """`rotoruq run` with process workers: one worker SIGKILLed mid-step (as the OOM killer
     does) -> the step completes, bitwise equal to an uninterrupted run, no failure stored."""

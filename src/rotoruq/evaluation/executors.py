@@ -9,7 +9,13 @@ All executors share one interface::
 ``run`` is a generator: results arrive in completion order, tagged with the task index; an
 exception inside a task becomes ``TaskOutcome.error`` (text with the traceback) and never
 stops the other tasks. Closing the generator early (``break``, an exception in the consumer)
-cancels the tasks that have not started.
+cancels the tasks that have not started (a process pool is stopped at once: its running
+drivers are killed and no queued task starts).
+
+A fault of the machinery rather than of the task (a pool worker killed, a lost Dask worker, a
+cancelled or forgotten future, a broken connection) never becomes an outcome: the task is run
+again on a fresh pool or another worker, and when that is not possible ``run`` raises
+:class:`~rotoruq.errors.InfrastructureError` after the outcomes it could deliver.
 
 - :class:`SerialExecutor` runs in the calling process.
 - :class:`ProcessExecutor` uses a local :class:`concurrent.futures.ProcessPoolExecutor`
@@ -230,10 +236,10 @@ class ProcessExecutor(Executor):
                 todo = sorted(lost)
                 if len(breaks) > self.restarts:
                     raise InfrastructureError(
-                        f"a process-pool worker died ({breaks[-1]}; {len(breaks)} time(s), "
-                        "e.g. killed by the out-of-memory killer); "
+                        f"a process-pool worker died {len(breaks)} time(s) (last: {breaks[-1]}; "
+                        "the out-of-memory killer, a kill or a crash in native code); "
                         f"{len(todo)} of {len(tasks)} task(s) were not run and nothing is "
-                        "stored for them: finished evaluations are saved, run the same command "
+                        "stored for them; finished evaluations are saved: run the same command "
                         "again to resume")
             finished = True
         finally:

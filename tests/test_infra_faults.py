@@ -291,7 +291,7 @@ def _driver_workers(cli_pid: int) -> list[int]:
     from rotoruq.evaluation.process_tree import _stat
 
     found = set()
-    for pid in _pids_running("driver.py"):
+    for pid in _pids_running("driver.py"):  # only those whose grandparent is the CLI
         st = _stat(pid)
         if st is not None and st[1] != cli_pid:
             parent = _stat(st[1])
@@ -354,7 +354,7 @@ def test_sigkill_of_the_cli_frees_the_folder_at_once(tmp_path, whole_group):
             proc.kill()
         proc.wait(10)
         time.sleep(2.0)
-        left = [pid for pid in _pids_running("driver.py") if is_running(pid)]
+        left = [pid for pid in _pids_running(str(tmp_path)) if is_running(pid)]
         assert left == [] and not any(is_running(w) for w in workers)
     finally:
         if proc.poll() is None:

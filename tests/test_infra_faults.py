@@ -420,3 +420,36 @@ def test_cli_run_losing_the_only_dask_worker_saves_no_step_and_resumes_bitwise(t
             w.kill()
             w.wait(10)
         cluster.close()
+
+
+# A run on a process pool whose store cannot grow past a file-size limit.
+FULL = textwrap.dedent('''
+    import resource, sys
+    import numpy as np
+    from rotoruq.errors import StoreError
+    from rotoruq.evaluation.evaluator import Evaluator
+    from rotoruq.model import FunctionModel
+
+    def f(x):
+        return np.c_[x[:, 0] * 2.0, x[:, 1] ** 2]
+
+    ev = Evaluator(FunctionModel(f, ["a", "b"], ["f", "g"]), store=sys.argv[1],
+                   executor="processes:2", chunk_size=50)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (200_000, 200_000))  # SIGXFSZ: Python ignores it
+    try:
+        ev.evaluate(np.random.default_rng(0).normal(size=(20_000, 2)))
+    except StoreError as exc:
+        print(exc)
+''')
+
+
+def test_store_fault_on_a_process_pool_is_one_line_and_no_pool_traceback(tmp_path):
+    path = tmp_path / "e.db"
+    proc = subprocess.run([sys.executable, "-c", FULL, str(path)], capture_output=True,
+                          text=True, timeout=120, env={**os.environ, "PYTHONPATH": SRC})
+    assert proc.returncode == 0, proc.stderr
+    (line,) = proc.stdout.splitlines()
+    assert line.startswith(f"{path}: ") and "free disk space" in line
+    assert proc.stderr == ""  # no concurrent.futures traceback at exit
+    st = Store(path)
+    assert 0 < st.count() < 20_000 and st.count(status="failed") == 0

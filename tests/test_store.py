@@ -307,3 +307,21 @@ def test_read_only_folder_is_a_clear_error(tmp_path):
         folder.chmod(0o755)
         path.chmod(0o644)
     _resume_after_fault(path, 3)
+
+
+def test_rotoruq_repair_command_moves_a_damaged_store_aside(tmp_path):
+    """The one-line error names `rotoruq repair RESULTS`; the command does what it says."""
+    import subprocess
+    import sys
+
+    path = _filled(tmp_path / "evaluations.sqlite")
+    data = path.read_bytes()
+    path.write_bytes(data[:16384] + bytes(16384) + data[32768:])
+    cmd = [sys.executable, "-m", "rotoruq.study.cli", "repair", str(tmp_path)]
+    first = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert first.returncode == 0, first.stderr
+    assert "damaged" in first.stdout and "moved it to" in first.stdout
+    assert len(list(tmp_path.glob("evaluations.sqlite.damaged-*"))) == 1
+    assert 0 < len(Store(path).records()) < 600
+    again = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert again.returncode == 0 and "store intact" in again.stdout

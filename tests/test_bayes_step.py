@@ -180,3 +180,73 @@ def test_self_check_needs_a_stated_noise(tmp_path):
     p.write_text(text)
     with pytest.raises(InputFileError, match="noise_std per response with self_check"):
         load_study(p)
+
+
+PROPAGATE = BAYES + """
+[[steps]]
+name = "push"
+type = "sampling"
+from = "bayes.posterior"
+n_samples = 500
+"""
+
+
+def test_posterior_propagates_jointly_by_default(tmp_path):
+    """Only y1 = a + b observed (a and b strongly anti-correlated), y2 = a - b pushed through
+    the posterior: the draws are the chain's own rows (thinned), so the spread of y2 is the
+    joint one, sqrt(c^T Sigma c) of the chain's covariance with c = (1, -1); independent
+    normals of the same marginals misstate it by the correlation they drop, and say so."""
+    steps = PROPAGATE.replace('emulator = "none"', 'emulator = "none"\nresponses = ["y1"]')
+    text = study_text(steps + '\n[[steps]]\nname = "normals"\ntype = "sampling"\n'
+                      'from = "bayes.posterior"\nn_samples = 500\n'
+                      'propagation = "independent_normals"\n')
+    run_ = run(tmp_path, text)
+    bayes, push, normals = run_["bayes"], run_["push"], run_["normals"]
+    chain = bayes.arrays["chain"]
+    rows = {tuple(r) for r in chain}
+    assert all(tuple(r) in rows for r in push.arrays["inputs"])
+    assert push.meta["propagation"] == "joint" and not push.meta.get("dropped_correlation")
+    c = np.cov(chain, rowvar=False)
+    joint = np.sqrt(c[0, 0] + c[1, 1] - 2 * c[0, 1])
+    assert push.get("std/y2") == pytest.approx(joint, rel=0.1)
+    indep = np.sqrt(c[0, 0] + c[1, 1])
+    assert normals.get("std/y2") == pytest.approx(indep, rel=0.1)
+    assert abs(indep / joint - 1) > 0.2  # the test tells the two apart (exact: 0.29)
+    p, q, rho = normals.meta["dropped_correlation"]
+    assert (p, q) == ("a", "b") and rho == pytest.approx(np.corrcoef(chain.T)[0, 1])
+    from rotoruq.steps.forward_check import propagation_warnings
+
+    (msg,) = propagation_warnings(normals, {})
+    assert "independent_normals" in msg and f"rho = {rho:+.2f}" in msg
+
+
+def test_forward_check_compares_with_every_repeat(tmp_path):
+    """Three repeats of one condition: the measured value is their mean, with its standard
+    error; the predictive std adds the calibration's noise of that mean, noise / sqrt(3)."""
+    text = study_text(BAYES + 'data = "obs"\n') + textwrap.dedent("""
+        [data.repeats]
+        c = [1.0, 1.0, 1.0, 2.0]
+        y1 = [1.0, 1.3, 0.7, 5.0]
+
+        [[steps]]
+        name = "check"
+        type = "forward_check"
+        from = "bayes.posterior"
+        data = "repeats"
+        responses = ["y1"]
+        n_samples = 400
+        sweep = { c = [1.0] }
+        """)
+
+    def factory_c(inputs, responses, fixed):
+        return factory(inputs, responses, {})
+
+    p = tmp_path / "study.toml"
+    p.write_text(text)
+    res = run_study(p, out=tmp_path / "o", model_factory=factory_c)["check"]
+    assert res.get("data/y1@1") == pytest.approx(1.0)
+    assert res.get("data_n/y1@1") == 3
+    assert res.get("data_sem/y1@1") == pytest.approx(0.3 / np.sqrt(3))
+    tot = np.hypot(res.get("pp_std/y1@1"), 0.2 / np.sqrt(3))
+    assert res.get("pp_nstd/y1@1") == pytest.approx(abs(1.0 - res.get("pp_mean/y1@1")) / tot)
+    assert res.meta["propagation"] == "joint"

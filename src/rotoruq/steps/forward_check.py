@@ -24,6 +24,7 @@ from .base import DESIGNS, StepCheck, StepContext, StepType
 from .options import SIGNATURE, Option, choice, integer, number_list, string, table
 
 __all__ = ["STEP", "SweepPoint", "ForwardCheck", "forward_check", "posterior_draws",
+           "dropped_correlation", "measurement_std", "propagation_warnings",
            "run_forward_check", "forward_check_tables", "forward_check_figures"]
 
 
@@ -34,9 +35,12 @@ class SweepPoint:
     label : ``"@<value of the matched input>"`` ("" without a sweep). point : the fixed inputs
     set at this point. outputs : (n, m) sampled responses, divided by ``scale``.
     pp_outputs : (N, m) responses at the posterior draws, divided by ``scale`` (None without a
-    chain). scale : (m,) the normalising data row's values (ones without ``normalize_by``).
-    measured : (m,) the matched data row divided by ``scale`` (NaN where the data set has no
-    such response or no row matches). row : index of the matched data row (None: none).
+    chain). scale : (m,) the normalising data rows' mean (ones without ``normalize_by``).
+    measured : (m,) the mean of every data row (repeat) matching the point, divided by
+    ``scale`` (NaN where the data set has no such response or no row matches). row : index of
+    the first matched row (None: none). n_repeats : (m,) matched rows with a finite value.
+    sem : (m,) standard error of that mean, std (ddof 1) / sqrt(n_repeats), divided by
+    ``scale`` (NaN with fewer than 2 repeats).
     """
 
     label: str
@@ -46,6 +50,8 @@ class SweepPoint:
     scale: np.ndarray
     measured: np.ndarray
     row: int | None = None
+    n_repeats: np.ndarray | None = None
+    sem: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -59,19 +65,60 @@ class ForwardCheck:
     sweep: Mapping[str, list[float]] = field(default_factory=dict)
 
 
-def posterior_draws(source: StepResult | None, names: Sequence[str], n: int,
-                    rng: np.random.Generator) -> np.ndarray | None:
+def posterior_draws(source: StepResult | None, names: Sequence[str], n: int
+                    ) -> np.ndarray | None:
     """``n`` joint draws (n, d) of the inputs ``names`` from ``source``'s saved chain, in
-    ``names`` order (None when that step has no chain covering them)."""
+    ``names`` order: the chain thinned to ``n`` evenly spaced draws (their correlation kept,
+    every draw inside the prior's support; no random choice). None when that step has no
+    chain covering ``names``.
+
+    Parameters
+    ----------
+    source : the saved Bayes step (its ``chain`` array, (N, d_chain), named columns).
+    names : the inputs wanted (a subset of the chain's columns).
+    n : number of draws (a draw repeats only when ``n`` exceeds the chain's length).
+
+    Returns
+    -------
+    ndarray, shape (n, len(names)), or None
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from rotoruq.results import StepResult
+    >>> chain = np.column_stack([np.arange(10.0), -np.arange(10.0)])
+    >>> src = StepResult("b", "bayes_calibration", arrays={"chain": chain},
+    ...                  meta={"columns": {"chain": ["a", "b"]}})
+    >>> posterior_draws(src, ["b"], 4).ravel().tolist()
+    [-0.0, -3.0, -6.0, -9.0]
+    """
     if source is None or "chain" not in source.arrays:
         return None
     cols = source.columns("chain")
     if not set(names) <= set(cols):
         return None
     chain = np.asarray(source.arrays["chain"], dtype=float)
-    pick = rng.choice(chain.shape[0], size=n, replace=n > chain.shape[0])
+    pick = np.linspace(0, chain.shape[0] - 1, int(n)).round().astype(int)
     idx = np.array([cols.index(p) for p in names], dtype=int)
     return chain[np.ix_(pick, idx)]
+
+
+def dropped_correlation(source: StepResult | None, names: Sequence[str]
+                        ) -> tuple[str, str, float] | None:
+    """The largest |posterior correlation| among ``names`` in ``source``'s chain (p, q, rho):
+    what propagating independent normals drops. None without a chain or with one name."""
+    if source is None or "chain" not in source.arrays:
+        return None
+    cols = source.columns("chain")
+    use = [p for p in names if p in cols]
+    if len(use) < 2:
+        return None
+    chain = np.asarray(source.arrays["chain"], dtype=float)[:, [cols.index(p) for p in use]]
+    c = np.corrcoef(chain, rowvar=False)
+    np.fill_diagonal(c, 0.0)
+    i, j = np.unravel_index(int(np.nanargmax(np.abs(c))), c.shape)
+    i, j = min(i, j), max(i, j)
+    return use[i], use[j], float(c[i, j])
 
 
 def forward_check(model_at: Callable[[Mapping[str, float]], Any], space: ParameterSpace,
@@ -80,7 +127,8 @@ def forward_check(model_at: Callable[[Mapping[str, float]], Any], space: Paramet
                   match: str | None = None,
                   data_columns: Mapping[str, np.ndarray] | None = None,
                   normalize_by: Mapping[str, float] | None = None,
-                  draws: np.ndarray | None = None) -> ForwardCheck:
+                  draws: np.ndarray | None = None, draws_only: bool = False
+                  ) -> ForwardCheck:
     """Sample ``space`` through the model at each operating point of ``sweep`` and match the
     data.
 
@@ -94,10 +142,13 @@ def forward_check(model_at: Callable[[Mapping[str, float]], Any], space: Paramet
     seed : the generator every sample is drawn from (keyword-only).
     sweep : input -> values, equal lengths (one point without).
     match : the sweep input whose value picks the data row (default: the first).
-    data_columns : the data set's columns (name -> (k,) values).
-    normalize_by : ``{column: value}``: divide every response by the data row where
-        ``column == value``.
+    data_columns : the data set's columns (name -> (k,) values); every row matching a point
+        (its repeats) enters that point's measured mean and standard error.
+    normalize_by : ``{column: value}``: divide every response by the mean of the data rows
+        where ``column == value``.
     draws : (N, d) posterior draws pushed through the model at each point (None: none).
+    draws_only : with ``draws``, propagate them alone: ``outputs`` are the responses at the
+        draws (the joint propagation) and ``space`` is not sampled.
 
     Returns
     -------
@@ -126,43 +177,52 @@ def forward_check(model_at: Callable[[Mapping[str, float]], Any], space: Paramet
     n_points = len(next(iter(grid.values()))) if grid else 1
     match = match or (next(iter(grid)) if grid else None)
     cols = data_columns or {}
-    norm_row = None
+    norm_rows = None
     if normalize_by:
         (key, val), = normalize_by.items()
-        rows = np.flatnonzero(np.isclose(cols[key], val))
-        if rows.size == 0:
+        norm_rows = np.flatnonzero(np.isclose(cols[key], val))
+        if norm_rows.size == 0:
             raise ParameterError(f"no data row with {key} = {val} (normalize_by)")
-        norm_row = int(rows[0])
     points, n_eval = [], 0
     for j in range(n_points):
         point = {k: float(v[j]) for k, v in grid.items()}
         label = f"@{point[match]:g}" if grid and match in point else ""
         model = model_at(point)
-        res = sample(model, space, n_samples, design=design, seed=seed)
-        out = np.asarray(res.outputs, dtype=float)
-        n_eval += int(res.n_evaluations)
         pp = None
         if draws is not None:
             pp = np.array(evaluate(model, draws).values, dtype=float)
             n_eval += draws.shape[0]
-        row = None
+        if draws_only and pp is not None:
+            out, pp = pp, None
+        else:
+            res = sample(model, space, n_samples, design=design, seed=seed)
+            out = np.asarray(res.outputs, dtype=float)
+            n_eval += int(res.n_evaluations)
+        rows = np.zeros(0, dtype=int)
         if cols and match is not None and match in cols and match in point:
             rows = np.flatnonzero(np.isclose(cols[match], point[match]))
-            row = int(rows[0]) if rows.size else None
         elif cols and not grid:
-            row = 0
-        scale = np.ones(len(responses))
-        measured = np.full(len(responses), np.nan)
+            rows = np.arange(len(next(iter(cols.values()))))
+        row = int(rows[0]) if rows.size else None
+        m = len(responses)
+        scale, measured = np.ones(m), np.full(m, np.nan)
+        n_rep, sem = np.zeros(m, dtype=int), np.full(m, np.nan)
         for k, r in enumerate(responses):
-            if norm_row is not None and r in cols:
-                scale[k] = float(cols[r][norm_row])
+            if norm_rows is not None and r in cols:
+                scale[k] = float(np.nanmean(np.asarray(cols[r], float)[norm_rows]))
             out[:, k] = out[:, k] / scale[k]
             if pp is not None:
                 pp[:, k] = pp[:, k] / scale[k]
-            if row is not None and r in cols:
-                measured[k] = float(cols[r][row]) / scale[k]
-        points.append(SweepPoint(label, point, out, pp, scale, measured, row))
-    return ForwardCheck(tuple(points), n_eval, norm_row is not None, grid)
+            if rows.size and r in cols:
+                v = np.asarray(cols[r], float)[rows]
+                v = v[np.isfinite(v)]
+                n_rep[k] = v.size
+                if v.size:
+                    measured[k] = float(np.mean(v)) / scale[k]
+                if v.size > 1:
+                    sem[k] = float(np.std(v, ddof=1) / np.sqrt(v.size)) / abs(scale[k])
+        points.append(SweepPoint(label, point, out, pp, scale, measured, row, n_rep, sem))
+    return ForwardCheck(tuple(points), n_eval, norm_rows is not None, grid)
 
 
 def _spread(out: np.ndarray) -> tuple[float, float]:
@@ -170,27 +230,46 @@ def _spread(out: np.ndarray) -> tuple[float, float]:
     return float(np.mean(v)), float(np.std(v, ddof=1)) if v.size > 1 else np.nan
 
 
+def measurement_std(noise: float, n_repeats: int, sem: float) -> float:
+    """Std of the measured mean of ``n_repeats`` repeats: the calibration's noise std
+    ``noise`` over sqrt(n_repeats) when there is one, else the repeats' own standard error
+    ``sem`` (0 when neither is known)."""
+    if noise > 0 and n_repeats > 0:
+        return noise / np.sqrt(n_repeats)
+    return float(sem) if np.isfinite(sem) else 0.0
+
+
 def run_forward_check(ctx: StepContext) -> StepResult:
-    """Propagation at one or several operating points (``sweep``) compared with data.
+    """Propagation at one or several operating points (``sweep``) compared with data (the
+    mean of every repeat of a condition, with its standard error).
 
-    Two propagations when ``from`` is a Bayes step with a chain:
+    When ``from`` is a Bayes step with a chain, ``propagation`` says how:
 
-    * independent normals (the reference study's method, its table 4.15): LHS of the normal
-      distributions built from each parameter's posterior mean and std (``mean/``, ``std/``,
-      ``nstd/`` keys);
-    * the joint posterior predictive: ``n`` draws of the chain itself (correlations kept)
-      through the true model (``pp_mean/``, ``pp_std/``). ``pp_noise/`` is the calibration's
-      noise std of that response (0 where the calibration did not observe it) and
-      ``pp_nstd/`` = |data - pp_mean| / sqrt(pp_std^2 + pp_noise^2): the distance of the
-      measurement from the predictive distribution of a measurement.
+    * ``"joint"`` (default): ``n_samples`` draws of the chain itself, thinned evenly
+      (correlations kept, every draw inside the prior's support), through the model: the
+      joint posterior predictive (``mean/``, ``std/`` and the same as ``pp_mean/``,
+      ``pp_std/``);
+    * ``"independent_normals"`` (the reference study's method, its table 4.15): LHS of normal
+      distributions with each parameter's posterior mean and std (``mean/``, ``std/``,
+      ``nstd/``), the joint draws beside them (``pp_*``), and a warning naming the largest
+      posterior correlation the normals drop.
+
+    ``data/`` is the mean of the matching rows, ``data_sem/`` its standard error, ``data_n/``
+    the number of repeats. ``pp_noise/`` is the calibration's noise std of one measurement
+    (0 where the calibration did not observe it) and ``pp_nstd/`` = |data - pp_mean| /
+    sqrt(pp_std^2 + s_meas^2), with s_meas the std of the measured mean
+    (:func:`measurement_std`): the distance of the measurement from its predictive
+    distribution.
     """
     o = ctx.options
-    draws = posterior_draws(ctx.source, ctx.space.names, o["n_samples"], ctx.rng)
+    propagation = o.get("propagation", "joint")
+    draws = posterior_draws(ctx.source, ctx.space.names, o["n_samples"])
+    joint = draws is not None and propagation == "joint"
     try:
         fc = forward_check(ctx.model, ctx.space, ctx.responses, o["n_samples"],
                            design=o["design"], seed=ctx.rng, sweep=o.get("sweep"),
                            match=o.get("match"), data_columns=ctx.data_columns,
-                           normalize_by=o.get("normalize_by"), draws=draws)
+                           normalize_by=o.get("normalize_by"), draws=draws, draws_only=joint)
     except ParameterError as exc:
         raise ParameterError(f"step {ctx.name!r}: {exc}") from None
     src_noise = ctx.source.scalars if ctx.source is not None else {}
@@ -198,19 +277,25 @@ def run_forward_check(ctx: StepContext) -> StepResult:
     arrays, columns = {}, {}
     for pt in fc.points:
         label = pt.label
+        joint_out = pt.outputs if joint else pt.pp_outputs
         for k, r in enumerate(ctx.responses):
-            if pt.pp_outputs is not None:
-                noise = float(src_noise.get(f"noise_std/{r}", 0.0)) / pt.scale[k]
-                pm, ps = _spread(pt.pp_outputs[:, k])
+            noise = float(src_noise.get(f"noise_std/{r}", 0.0)) / abs(pt.scale[k])
+            if joint_out is not None:
+                pm, ps = _spread(joint_out[:, k])
                 scalars.update({f"pp_mean/{r}{label}": pm, f"pp_std/{r}{label}": ps,
                                 f"pp_noise/{r}{label}": noise})
             if pt.row is not None and r in ctx.data_columns:
                 measured = float(pt.measured[k])
+                n_rep = int(pt.n_repeats[k]) if pt.n_repeats is not None else 1
+                sem = float(pt.sem[k]) if pt.sem is not None else np.nan
                 mean, std = _spread(pt.outputs[:, k])
                 scalars[f"data/{r}{label}"] = measured
+                scalars[f"data_n/{r}{label}"] = float(n_rep)
+                scalars[f"data_sem/{r}{label}"] = sem
                 scalars[f"nstd/{r}{label}"] = abs(measured - mean) / std if std > 0 else np.inf
-                if pt.pp_outputs is not None:
-                    tot = float(np.hypot(scalars[f"pp_std/{r}{label}"], noise))
+                if joint_out is not None:
+                    tot = float(np.hypot(scalars[f"pp_std/{r}{label}"],
+                                         measurement_std(noise, n_rep, sem)))
                     scalars[f"pp_nstd/{r}{label}"] = (
                         abs(measured - scalars[f"pp_mean/{r}{label}"]) / tot if tot > 0
                         else np.inf)
@@ -221,34 +306,70 @@ def run_forward_check(ctx: StepContext) -> StepResult:
             arrays[f"pp_outputs{label}"] = pt.pp_outputs
             columns[f"pp_outputs{label}"] = list(ctx.responses)
     scalars.update(input_scalars(ctx.space))
-    return StepResult(ctx.name, ctx.type, scalars, arrays, meta={
+    meta: dict[str, Any] = {
         "columns": columns, "n_evaluations": fc.n_evaluations,
         "labels": [p.label for p in fc.points], "sweep": dict(fc.sweep),
-        "normalized": fc.normalized, "joint_predictive": draws is not None})
+        "normalized": fc.normalized, "joint_predictive": draws is not None,
+        "propagation": ("joint" if joint else "independent_normals" if draws is not None
+                        else "sampling")}
+    if draws is not None and not joint:
+        dropped = dropped_correlation(ctx.source, ctx.space.names)
+        if dropped is not None:
+            meta["dropped_correlation"] = list(dropped)
+    return StepResult(ctx.name, ctx.type, scalars, arrays, meta=meta)
+
+
+def propagation_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
+    """Independent normals of a correlated posterior (forward checks and sampling steps)."""
+    dropped = res.meta.get("dropped_correlation")
+    if not dropped:
+        return []
+    p, q, rho = dropped
+    return [f"{res.name}: propagates independent normals of the posterior "
+            f"(propagation = \"independent_normals\"), dropping its correlations; the "
+            f"largest: {labels.get(p, p)} / {labels.get(q, q)} rho = {rho:+.2f}"]
 
 
 def forward_check_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
     resp = responses(res)
     out = []
-    joint = bool(res.meta.get("joint_predictive"))
+    prop = res.meta.get("propagation", "joint" if res.meta.get("joint_predictive")
+                        else "sampling")
+    both = prop == "independent_normals"
     for lab in res.meta.get("labels") or [""]:
         where = f" at {lab[1:]}" if lab else ""
-        cols = ["response", "mean", "std", "measured", "|measured - mean| / std"]
-        if joint:
-            cols += ["joint mean", "joint std", "noise std", "|measured - mean| / predictive std"]
+        if prop == "joint":
+            cols = ["response", "joint mean", "joint std", "measured mean", "repeats",
+                    "std error of the mean", "noise std", "|measured - mean| / predictive std"]
+        else:
+            cols = ["response", "mean", "std", "measured mean", "repeats",
+                    "std error of the mean", "|measured - mean| / std"]
+            if both:
+                cols += ["joint mean", "joint std", "noise std",
+                         "|measured - mean| / predictive std"]
         rows = []
         for r in resp:
             row = [r, value(res, f"mean/{r}{lab}"), value(res, f"std/{r}{lab}"),
-                   value(res, f"data/{r}{lab}"), value(res, f"nstd/{r}{lab}")]
-            if joint:
+                   value(res, f"data/{r}{lab}"), value(res, f"data_n/{r}{lab}"),
+                   value(res, f"data_sem/{r}{lab}")]
+            if prop == "joint":
+                row += [value(res, f"pp_noise/{r}{lab}"), value(res, f"pp_nstd/{r}{lab}")]
+            else:
+                row.append(value(res, f"nstd/{r}{lab}"))
+            if both:
                 row += [value(res, f"pp_mean/{r}{lab}"), value(res, f"pp_std/{r}{lab}"),
                         value(res, f"pp_noise/{r}{lab}"), value(res, f"pp_nstd/{r}{lab}")]
             rows.append(row)
-        note = ("mean/std: LHS of the step's input distributions"
-                + (" (independent normals from the posterior moments, the thesis's method); "
-                   "joint: chain samples through the model (correlations kept); predictive "
-                   "std = sqrt(joint std^2 + noise std^2), the calibration's noise model"
-                   if joint else "."))
+        pred = ("predictive std = sqrt(joint std^2 + s^2), s the std of the measured mean: "
+                "the calibration's noise std / sqrt(repeats), else the repeats' standard "
+                "error")
+        note = {"joint": "Propagation: the calibration's chain, thinned (its correlations "
+                         "kept), through the model; " + pred + ".",
+                "independent_normals": "Propagation: mean/std from LHS of independent "
+                "normals with the posterior's means and stds (the thesis's method, its "
+                "correlations dropped); joint: the chain's draws through the model; "
+                + pred + ".",
+                }.get(prop, "Propagation: LHS of the step's input distributions.")
         sweep = res.meta.get("sweep") or {}
         if sweep and lab:
             match = next(iter(sweep))
@@ -288,6 +409,7 @@ STEP = StepType(
              "design": Option(choice(*DESIGNS), SIGNATURE),
              "sweep": Option(table, None),
              "match": Option(string(), None),
-             "normalize_by": Option(table, None)},
+             "normalize_by": Option(table, None),
+             "propagation": Option(choice("joint", "independent_normals"), "joint")},
     quick={"n_samples": 40}, check=_check_sweep,
-    tables=forward_check_tables, figures=forward_check_figures)
+    tables=forward_check_tables, figures=forward_check_figures, warnings=propagation_warnings)

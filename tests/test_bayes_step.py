@@ -250,3 +250,27 @@ def test_forward_check_compares_with_every_repeat(tmp_path):
     tot = np.hypot(res.get("pp_std/y1@1"), 0.2 / np.sqrt(3))
     assert res.get("pp_nstd/y1@1") == pytest.approx(abs(1.0 - res.get("pp_mean/y1@1")) / tot)
     assert res.meta["propagation"] == "joint"
+
+
+def test_calibrating_the_same_data_twice_is_an_error_naming_both_lines(tmp_path):
+    stage2 = BAYES.replace('name = "bayes"', 'name = "again"') + 'from = "bayes.posterior"\n'
+    text = study_text(BAYES + stage2)
+    p = tmp_path / "study.toml"
+    p.write_text(text)
+    with pytest.raises(InputFileError) as info:
+        load_study(p)
+    lines = [i for i, ln in enumerate(text.splitlines(), 1) if ln == "[[steps]]"]
+    msg = str(info.value)
+    assert f"line {lines[1]}" in msg and f"(line {lines[0]})" in msg
+    assert "already calibrates y1, y2 of data set 'obs'" in msg and "reuse_data" in msg
+    # only the new observations: fine; or the reuse stated on purpose
+    load_study(_write(tmp_path, study_text(BAYES + stage2 + 'responses = ["y2"]\n').replace(
+        'emulator = "none"\nnoise_std', 'emulator = "none"\nresponses = ["y1"]\nnoise_std', 1)))
+    study = load_study(_write(tmp_path, study_text(BAYES + stage2 + "reuse_data = true\n")))
+    assert study.steps[1].options["reuse_data"] is True
+
+
+def _write(tmp_path: Path, text: str) -> Path:
+    p = tmp_path / "s2.toml"
+    p.write_text(text)
+    return p

@@ -466,8 +466,7 @@ def bayes_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
         w.append(f"{name}: {msg}")
     if str(res.meta.get("noise_model", "")).startswith("unit"):
         w.append(f"{name}: no noise model given: unit data variance for every response")
-    if "noise variance multipliers" not in str(res.meta.get("noise_model", "")) and \
-            "emulator's mean only" in str(res.meta.get("noise_model", "")):
+    if "emulator's mean only" in str(res.meta.get("noise_model", "")):
         w.append(f"{name}: the emulator's own error is not in the likelihood "
                  "(emulator_variance = false, as the reference thesis)")
     if res.meta.get("reuse_data"):

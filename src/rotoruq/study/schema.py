@@ -428,7 +428,32 @@ def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
         ))
     if not pnames and any(s.type != "forward_check" or s.source is None for s in steps):
         ck.fail(("parameters",), "at least one [parameters.NAME] table")
+    _check_data_used_once(ck, raw, steps, model)
     return tuple(steps)
+
+
+def _check_data_used_once(ck: Checker, raw: list, steps: list[StepSpec], model) -> None:
+    """Each observation calibrates once: a step calibrating (a type with a ``reuse_data``
+    option) the same responses of the same data set as an earlier one fails, naming both
+    lines, unless it says ``reuse_data = true`` (the report then states it)."""
+    seen: list[tuple[StepSpec, set[str]]] = []
+    for st in steps:
+        if "reuse_data" not in step_type(st.type).options or st.data is None:
+            continue
+        resp = set(st.responses or model.responses)
+        for earlier, used in seen:
+            both = sorted(resp & used)
+            if earlier.data == st.data and both and not st.options.get("reuse_data"):
+                key = ("data",) if "data" in raw[st.index] else ()
+                ck.fail(("steps", st.index, *key),
+                        f"data not calibrated before: step {earlier.name!r} (line "
+                        f"{earlier.line}) already calibrates {', '.join(both)} of data set "
+                        f"{st.data!r}. Calibrate the new observations only (e.g. responses = "
+                        f"[...] and from = \"{earlier.name}.posterior\" to condition on the "
+                        "earlier step), or set reuse_data = true to count them twice on "
+                        "purpose (the report states it)",
+                        f"step {st.name!r} calibrating {', '.join(both)} of {st.data!r} again")
+        seen.append((st, resp))
 
 
 def _step_check(ck: Checker, raw: list, names: list[str], i: int, inputs: ModelInputs,

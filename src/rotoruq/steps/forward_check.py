@@ -254,8 +254,8 @@ def run_forward_check(ctx: StepContext) -> StepResult:
       ``nstd/``), the joint draws beside them (``pp_*``), and a warning naming the largest
       posterior correlation the normals drop.
 
-    ``data/`` is the mean of the matching rows, ``data_sem/`` its standard error, ``data_n/``
-    the number of repeats. ``pp_noise/`` is the calibration's noise std of one measurement
+    ``data/`` is the mean of the matching rows, ``data_sem/`` its standard error (with two
+    repeats or more), ``data_n/`` the number of repeats. ``pp_noise/`` is the calibration's noise std of one measurement
     (0 where the calibration did not observe it) and ``pp_nstd/`` = |data - pp_mean| /
     sqrt(pp_std^2 + s_meas^2), with s_meas the std of the measured mean
     (:func:`measurement_std`): the distance of the measurement from its predictive
@@ -291,7 +291,8 @@ def run_forward_check(ctx: StepContext) -> StepResult:
                 mean, std = _spread(pt.outputs[:, k])
                 scalars[f"data/{r}{label}"] = measured
                 scalars[f"data_n/{r}{label}"] = float(n_rep)
-                scalars[f"data_sem/{r}{label}"] = sem
+                if np.isfinite(sem):  # two repeats or more
+                    scalars[f"data_sem/{r}{label}"] = sem
                 scalars[f"nstd/{r}{label}"] = abs(measured - mean) / std if std > 0 else np.inf
                 if joint_out is not None:
                     tot = float(np.hypot(scalars[f"pp_std/{r}{label}"],

@@ -263,8 +263,9 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
     drawn: dict[tuple[str, str], list[_Rendered]] | None = None
     try:
         ref_results = {n: studies[n] for n in reference}
-        tables = compare_tables(ref_results, {n: _recorded(infos[n], "values") for n in reference})
-        claim_list = claims(tables, ref_results, labels) if reference else []
+        values = {n: _recorded(infos[n], "values") for n in reference}
+        tables = compare_tables(ref_results, values)
+        claim_list = claims(tables, ref_results, labels, values) if reference else []
         if title is None:
             if reference:
                 title = "rotoruq: reproduction of the reference study"

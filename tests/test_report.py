@@ -11,6 +11,7 @@ import re
 import numpy as np
 import pytest
 
+import rotoruq
 from rotoruq.params import Normal, ParameterSpace
 from rotoruq.render.reference import TABLES, table
 from rotoruq.report.claims import INDEPENDENT, JOINT, Claim, claims
@@ -271,7 +272,25 @@ def test_report_claims_cannot_lie(tmp_path):
     assert rows == {c["key"]: c["status"] for c in data}
     embedded = re.search(r"<script type='application/json' id='claims-data'>(.*?)</script>",
                          page, re.S).group(1)
-    assert json.loads(embedded.replace("<\\/", "</")) == data
+    assert json.loads(embedded) == data
+    # the first screen: the verdict counts, one line per claim, before everything else
+    counts = re.search(r"<p class=counts data-holds='(\d+)' data-warn='(\d+)' "
+                       r"data-fails='(\d+)' data-na='(\d+)'>", page)
+    assert counts, page[:2000]
+    statuses = [c["status"] for c in data]
+    assert [int(g) for g in counts.groups()] == [
+        statuses.count(k) for k in ("holds", "holds, with a warning", "does not hold",
+                                    "not checked")]
+    assert sum(map(int, counts.groups())) == len(data)
+    assert page.index("id='verdict'") < page.index("id='claims'") < page.index(
+        "id='study-")
+    lines = re.findall(r"<li data-verdict='([^']+)'><span class=[^>]+>([^<]+)</span>", page)
+    assert lines == [(c["key"], c["status"]) for c in data]
+    # the V&V slot and the provenance (version, seeds, settings per step)
+    assert "id='vv-slot'" in page
+    prov = page[page.index("id='provenance'"):page.index("</details>",
+                                                         page.index("id='provenance'"))]
+    assert f"rotoruq {rotoruq.__version__}" in prov and "seeds: experiment" in prov
     csv = (tmp_path / "rep" / "tables" / "table_4_12.csv").read_text().splitlines()
     assert csv[0] == ("row,column,thesis,ours,ours_minus_thesis,relative,difference,"
                       "difference_unit,source")

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._kernel import LIFT_SECANT_DEG
 from .controls import swashplate_harmonics
 from .dynamics import HarmonicBasis, apply_blocks, fixed_sum, structural_operator
 from .geometry import CANTILEVER_SPRING_FACTOR, BladeGrid
@@ -69,20 +70,6 @@ class _Rotor:
                                 P["c_lag"], K_p, C_p, tan_d3)
         rr = self.rr
         wk = Om[:, None] * kvec[None, :]
-        # Jacobian: the structure plus linear aerodynamic flap damping and the flap moment's
-        # pitch derivative (a preconditioner: the converged state satisfies the full equations).
-        c_ab = 0.5 * rho * A0 * c * Om * float(np.sum(w * r * rr**2))
-        k_abt = 0.5 * rho * A0 * c * Om**2 * float(np.sum(w * r**2 * rr))
-        J = Z.copy()
-        J[..., 0, 0] += 1j * wk * c_ab[:, None]
-        J[..., 0, 2] -= k_abt[:, None]
-        J[..., 1, 1] += 1j * wk * (0.5 * rho * c * Om * 0.02 * float(np.sum(w * r * rr**2))
-                                   )[:, None]
-        # Linear-theory derivatives of the feathering moment of the lift acting x_ac aft of the
-        # feathering axis: d/dtheta = -x_ac q_tt, d/dbeta_k = i k x_ac q_tb.
-        x_ac = P["aero_center_offset"]
-        q_tt = 0.5 * rho * c * A0 * Om**2 * float(np.sum(w * r**2))
-        q_tb = 0.5 * rho * c * A0 * Om**2 * float(np.sum(w * r * rr))
         # The mean lift's pitch derivative is reduced by the inflow's response to it (BEMT:
         # by m / (m + k_v), m = 4 rho A v / kappa^2, k_v = dT_BE/dv), at the linear-theory
         # inflow of the initial state; the uniform inflow is solved jointly instead (J0).
@@ -92,13 +79,31 @@ class _Rotor:
         lam = sigma * A0 / 16 * (np.sqrt(1 + 32 / (sigma * A0) * np.abs(th75) * 0.75) - 1)
         v_init = np.maximum(lam, 1e-3) * Om * R * np.sqrt(np.maximum(kappa, 0.1))
         m_mom = 4 * rho * preset.area * v_init / np.maximum(kappa, 0.1) ** 2
-        k_v = preset.n_blades * 0.5 * rho * c * A0 * Om * float(np.sum(w * r))
+        # the aerodynamic terms with the airfoil's own lift slope (see _lift_slope)
+        # (BEMT keeps A0, as the kernel)
+        a_lift = (np.full(Om.shape, A0) if self.bemt else
+                  self._lift_slope(Om, np.rad2deg(th75 - np.sign(th75) * lam / 0.75), ov))
+        # Jacobian: the structure plus linear aerodynamic flap damping and the flap moment's
+        # pitch derivative (a preconditioner: the converged state satisfies the full equations).
+        c_ab = 0.5 * rho * a_lift * c * Om * float(np.sum(w * r * rr**2))
+        k_abt = 0.5 * rho * a_lift * c * Om**2 * float(np.sum(w * r**2 * rr))
+        J = Z.copy()
+        J[..., 0, 0] += 1j * wk * c_ab[:, None]
+        J[..., 0, 2] -= k_abt[:, None]
+        J[..., 1, 1] += 1j * wk * (0.5 * rho * c * Om * 0.02 * float(np.sum(w * r * rr**2))
+                                   )[:, None]
+        # Linear-theory derivatives of the feathering moment of the lift acting x_ac aft of the
+        # feathering axis: d/dtheta = -x_ac q_tt, d/dbeta_k = i k x_ac q_tb.
+        x_ac = P["aero_center_offset"]
+        q_tt = 0.5 * rho * c * a_lift * Om**2 * float(np.sum(w * r**2))
+        q_tb = 0.5 * rho * c * a_lift * Om**2 * float(np.sum(w * r * rr))
+        k_v = preset.n_blades * 0.5 * rho * c * a_lift * Om * float(np.sum(w * r))
         fb = np.ones((Om.size, kvec.size))
         if self.bemt:
             fb[:, 0] = m_mom / (m_mom + k_v)
         J[..., 2, 2] += (x_ac * q_tt)[:, None] * fb
         J[..., 2, 0] -= 1j * kvec[None, :] * (x_ac * q_tb)[:, None]
-        qa = 0.5 * rho * c * A0 * Om
+        qa = 0.5 * rho * c * a_lift * Om
         theta_cmd = swashplate_harmonics(P["collective_deg"], P["lateral_deg"],
                                          P["longitudinal_deg"], n_harmonics)
         F_cmd = np.zeros((Om.size, 3, kvec.size), dtype=complex)
@@ -107,9 +112,10 @@ class _Rotor:
         # (momentum) is set per iteration
         J0 = np.zeros((Om.size, 4, 4), dtype=complex)
         J0[:, :3, :3] = J[:, 0]
-        J0[:, 0, 3] = 0.5 * rho * c * A0 * Om * float(np.sum(w * r * rr))
-        J0[:, 2, 3] = -x_ac * 0.5 * rho * c * A0 * Om * float(np.sum(w * r))
-        J0[:, 3, 2] = -preset.n_blades * 0.5 * rho * c * A0 * Om**2 * float(np.sum(w * r**2))
+        J0[:, 0, 3] = 0.5 * rho * c * a_lift * Om * float(np.sum(w * r * rr))
+        J0[:, 2, 3] = -x_ac * 0.5 * rho * c * a_lift * Om * float(np.sum(w * r))
+        J0[:, 3, 2] = -preset.n_blades * 0.5 * rho * c * a_lift * Om**2 * float(
+            np.sum(w * r**2))
         J1 = np.zeros((Om.size, 4, 4), dtype=complex)
         J1[:, :3, :3] = J[:, 1]
         J1[:, 0, 3] = qa * float(np.sum(w * r * rr * r)) / R
@@ -120,6 +126,21 @@ class _Rotor:
             "cm0": P["cm0"], "x_ac": P["aero_center_offset"], "v_init": v_init,
             "J0": J0, "k_v": k_v,
         }
+
+    def _lift_slope(self, Om, alpha_ref, ov):
+        """Lift slope [1/rad] (n,) of the Jacobian: the secant of cl over alpha_ref +-
+        LIFT_SECANT_DEG at each station's Mach number Omega r / a, averaged with the flap
+        damping's weight w r (r - e)^2, bounded to [1/2, 2] x A0 (A0 if not finite)."""
+        h = LIFT_SECANT_DEG
+        alpha = np.stack([_wrap_deg(alpha_ref - h), _wrap_deg(alpha_ref + h)], axis=1)
+        alpha = np.repeat(alpha[:, :, None], self.r.size, axis=2)
+        mach = np.broadcast_to(Om[:, None, None] * self.r / self.p.speed_of_sound, alpha.shape)
+        lo, hi = getattr(self.airfoil, "mach_range", (-np.inf, np.inf))
+        cl = self.airfoil.coefficients(alpha, np.clip(mach, lo, hi), ov)[0]
+        weight = self.w * self.r * self.rr**2
+        a = np.sum((cl[:, 1] - cl[:, 0]) * weight, axis=1) / float(np.sum(weight)) * (
+            180.0 / np.pi / (2 * h))
+        return np.where(np.isfinite(a), np.clip(a, 0.5 * A0, 2.0 * A0), A0)
 
     def sub(self, idx):
         """Constants and airfoil overrides of the samples ``idx`` (all when None)."""

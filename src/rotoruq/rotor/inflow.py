@@ -16,7 +16,7 @@ import numpy as np
 
 __all__ = ["prandtl_loss", "uniform_update", "annulus_update"]
 
-A0 = 5.73  # lift slope [1/rad] used only in the Newton preconditioner
+A0 = 5.73  # linear-theory lift slope [1/rad]: initial inflow, BEMT Newton slope, residual check
 
 
 def _prandtl_factor(f):

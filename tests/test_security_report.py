@@ -113,6 +113,8 @@ def test_ids_and_file_names_come_from_a_slug(tmp_path):
         assert f.resolve().is_relative_to((tmp_path / "report").resolve())
         assert re.fullmatch(r"[A-Za-z0-9_.-]+", f.name), f.name
     assert slug("a b") != slug("a-b") and slug("a/b") != slug("a-b")
+    # the step's failed evaluations in the provenance, its reason escaped
+    assert "<span data-failed='2'>2 failed evaluations in the 1 steps" in page
     # the study name, description, step title and noise model are on the page as text
     for p in (PAYLOADS[0], PAYLOADS[1], PAYLOADS[4], PAYLOADS[5]):
         assert text(p) in page

@@ -288,7 +288,7 @@ def _provenance(studies: Mapping[str, Mapping[str, StepResult]],
     from .. import __version__
 
     commit = git_commit()
-    n_failed = 0
+    n_failed, recorded, unrecorded = 0, 0, 0
     rows = []
     for study, steps in studies.items():
         info = infos[study]
@@ -297,8 +297,10 @@ def _provenance(studies: Mapping[str, Mapping[str, StepResult]],
             fails = failed_evaluations(s)
             if fails is None:
                 failed = "not recorded"
+                unrecorded += 1
             else:
                 n_failed += fails[0]
+                recorded += 1
                 failed = str(fails[0]) + "".join(
                     f"<br>{e(r)} ({k})" for r, k in sorted(fails[1].items()))
             settings = json.dumps(s.meta.get("options") or {}, sort_keys=True, default=str)
@@ -316,7 +318,9 @@ def _provenance(studies: Mapping[str, Mapping[str, StepResult]],
     seeds = ", ".join(f"{e(n)} {e(infos[n].get('seed', '-'))}" for n in studies)
     return (f"<details class=prov id='provenance'><summary><b>Provenance</b>: rotoruq "
             f"{e(__version__)}, commit {e(commit or 'not available')}; seeds: {seeds}; "
-            f"<span data-failed='{n_failed}'>{n_failed} failed evaluations</span></summary>"
+            f"<span data-failed='{n_failed}'>{n_failed} failed evaluations in the {recorded} "
+            f"steps that record them</span>"
+            + (f" ({unrecorded} steps do not)" if unrecorded else "") + "</summary>"
             + "".join(rows) + "</details>")
 
 
@@ -389,10 +393,11 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
             body.append(f"<h{level} id='{anchor}'>{e(text)}</h{level}>")
 
         quick = [n for n, i in infos.items() if i.get("quick")]
+        first = ""
         if quick:
-            body.append(f"<p><b>Quick run</b> ({e(', '.join(quick))}): small samples; the "
-                        "numbers show the pipeline works, not the converged values.</p>")
-        first = _first_screen(claim_list, studies, infos, labels)
+            first = (f"<p><b>Quick run</b> ({e(', '.join(quick))}): small samples; the "
+                     "numbers show the pipeline works, not the converged values.</p>")
+        first += _first_screen(claim_list, studies, infos, labels)
         if claim_list:
             heading(2, "Claims of the reference study: values, thresholds, reasons", "claims")
             body.append(_claims_section(claim_list))

@@ -33,13 +33,19 @@ def failed_evaluations(res: StepResult) -> tuple[int, dict[str, int]] | None:
 
 
 def git_commit() -> str | None:
-    """The commit of rotoruq's source checkout (None when it is not one, or git is absent)."""
-    src = Path(__file__).resolve().parents[1]
+    """The commit of rotoruq's source checkout: only when rotoruq runs from its own source
+    tree (``src/rotoruq`` under a ``pyproject.toml`` naming rotoruq at the top of a git work
+    tree), never the commit of a repository an installed copy happens to sit in. None
+    otherwise, or without git."""
+    root = Path(__file__).resolve().parents[3]
     try:
-        out = subprocess.run(["git", "-C", str(src), "rev-parse", "--short=12", "HEAD"],
-                             capture_output=True, text=True, timeout=10)
-    except (OSError, subprocess.SubprocessError):
+        if 'name = "rotoruq"' not in (root / "pyproject.toml").read_text(encoding="utf-8"):
+            return None
+        out = subprocess.run(["git", "-C", str(root), "rev-parse", "--show-toplevel",
+                              "--short=12", "HEAD"], capture_output=True, text=True, timeout=10)
+    except (OSError, UnicodeDecodeError, subprocess.SubprocessError):
         return None
-    if out.returncode != 0:
+    lines = out.stdout.split()
+    if out.returncode != 0 or len(lines) != 2 or Path(lines[0]).resolve() != root:
         return None
-    return out.stdout.strip() or None
+    return lines[1]

@@ -45,6 +45,15 @@ def local_effects(steps: Steps, inputs: Sequence[str], response: str,
     Returns (step name, number of samples, input -> slope * std) for the sampling step that
     covers most of ``inputs``, the one with most samples among those (None when no step saved
     samples of ``response``). Rows with a non-finite value are left out.
+
+    Examples
+    --------
+    >>> x = np.random.default_rng(0).normal(size=(50, 2))
+    >>> s = StepResult("lhs", "sampling", arrays={"inputs": x, "outputs": 3 * x[:, :1] - x[:, 1:]},
+    ...                meta={"columns": {"inputs": ["a", "b"], "outputs": ["y"]}})
+    >>> step, n, eff = local_effects({"lhs": s}, ["a", "b"], "y", {"a": 0.1, "b": 2.0})
+    >>> step, n, round(eff["a"], 12), round(eff["b"], 12)
+    ('lhs', 50, 0.3, -2.0)
     """
     best = None
     for res in steps.values():
@@ -79,7 +88,18 @@ def negative_pitch_span(values: Mapping[str, float], fixed: Mapping[str, float]
     (R - r_root) is <= 0: ``r0`` [m], ``fraction`` r0 / R, the section Mach at r0 and at the
     tip, and the pitch at root and tip [deg]. ``values`` are the preset numbers recorded by
     the run, ``fixed`` the step's fixed inputs (a collective set there wins). None without a
-    twist or a radius."""
+    twist or a radius.
+
+    Examples
+    --------
+    The Bo105 preset at 6 deg collective: -8 deg of twist from r = 1.1 m to R = 4.912 m.
+
+    >>> span = negative_pitch_span({"radius": 4.912, "root_cutout": 1.1, "twist_deg": -8.0,
+    ...                             "omega": 44.4, "speed_of_sound": 340.3},
+    ...                            {"collective_deg": 6.0})
+    >>> round(span["r0"], 3), round(span["fraction"], 3), round(span["mach_r0"], 3)
+    (3.959, 0.806, 0.517)
+    """
     def num(k):
         v = fixed.get(k, values.get(k))
         try:
@@ -264,7 +284,16 @@ def input_recovery(cuu: StepResult, truth: StepResult | None, labels: Mapping[st
 def calibration_design(bayes: StepResult) -> list[str]:
     """The validation design of a calibration: the scatter of its data points against the
     likelihood's noise std. Data scattered far beyond the noise come from different inputs,
-    yet the likelihood treats them as repeats of one input."""
+    yet the likelihood treats them as repeats of one input.
+
+    Examples
+    --------
+    >>> data = np.array([[2100.0], [2200.0], [2300.0]])
+    >>> b = StepResult("bayes", "bayes_calibration", {"noise_std/thrust": 0.5},
+    ...                {"data": data}, meta={"columns": {"data": ["thrust"]}})
+    >>> calibration_design(b)[0][:57]
+    'the 3 data points scatter (std) by thrust 100 against 0.5'
+    """
     data = bayes.arrays.get("data")
     cols = _columns(bayes, "data") or list(bayes.meta.get("responses") or [])
     if data is None or len(data) < 2 or len(cols) != np.shape(data)[1]:

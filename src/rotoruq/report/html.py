@@ -230,7 +230,7 @@ def _num(v: Any) -> str:
     return e("-" if v is None else v)
 
 
-def verdict_counts(claim_list: Sequence[Claim]) -> dict[str, int]:
+def _verdict_counts(claim_list: Sequence[Claim]) -> dict[str, int]:
     """Number of claims in each state, in the order the first screen shows them."""
     return {k: sum(c.status == k for c in claim_list) for k, _ in _VERDICTS}
 
@@ -240,7 +240,7 @@ def _first_screen(claim_list: list[Claim], studies: Mapping[str, Mapping[str, St
     """The verdict (counts, one line per claim), the V&V table and the provenance."""
     out = ["<section class=first id='verdict'><h2>Verdict</h2>"]
     if claim_list:
-        n = verdict_counts(claim_list)
+        n = _verdict_counts(claim_list)
         attrs = " ".join(f"data-{_STATUS_CLASS[k][3:]}='{v}'" for k, v in n.items())
         parts = ", ".join(f"<span class={_STATUS_CLASS[k]}>{n[k]} {word}</span>"
                           for k, word in _VERDICTS)

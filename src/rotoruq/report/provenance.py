@@ -16,7 +16,16 @@ __all__ = ["failed_evaluations", "git_commit"]
 def failed_evaluations(res: StepResult) -> tuple[int, dict[str, int]] | None:
     """(count, reason -> count) of a step's failed model evaluations, as its run recorded
     them (``meta["failed_evaluations"]``: ``{"count", "reasons"}``; older steps: a count in
-    ``meta["failures"]``); None when the step recorded nothing."""
+    ``meta["failures"]``); None when the step recorded nothing.
+
+    Examples
+    --------
+    >>> failed_evaluations(StepResult("s", "sampling", meta={"failed_evaluations": {
+    ...     "count": 3, "reasons": {"solver diverged": 2, "timeout": 1}}}))
+    (3, {'solver diverged': 2, 'timeout': 1})
+    >>> failed_evaluations(StepResult("s", "sampling")) is None
+    True
+    """
     rec = res.meta.get("failed_evaluations")
     if isinstance(rec, Mapping):
         reasons = rec.get("reasons") or {}

@@ -290,7 +290,7 @@ def test_report_claims_cannot_lie(tmp_path):
     assert "id='vv-slot'" in page
     prov = page[page.index("id='provenance'"):page.index("</details>",
                                                          page.index("id='provenance'"))]
-    assert f"rotoruq {rotoruq.__version__}" in prov and "seeds: experiment" in prov
+    assert f"report by rotoruq {rotoruq.__version__}" in prov and "seeds: experiment" in prov
     csv = (tmp_path / "rep" / "tables" / "table_4_12.csv").read_text().splitlines()
     assert csv[0] == ("row,column,thesis,ours,ours_minus_thesis,relative,difference,"
                       "difference_unit,source")

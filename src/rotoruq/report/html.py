@@ -316,8 +316,9 @@ def _provenance(studies: Mapping[str, Mapping[str, StepResult]],
             "<th>evaluations</th><th class=l>failed evaluations (reasons)</th>"
             "<th class=l>code version</th></tr>" + "".join(trs) + "</table>")
     seeds = ", ".join(f"{e(n)} {e(infos[n].get('seed', '-'))}" for n in studies)
-    return (f"<details class=prov id='provenance'><summary><b>Provenance</b>: rotoruq "
-            f"{e(__version__)}, commit {e(commit or 'not available')}; seeds: {seeds}; "
+    return (f"<details class=prov id='provenance'><summary><b>Provenance</b>: report by rotoruq "
+            f"{e(__version__)}, commit {e(commit or 'not available')} (the version that "
+            f"computed each step: its code version below); seeds: {seeds}; "
             f"<span data-failed='{n_failed}'>{n_failed} failed evaluations in the {recorded} "
             f"steps that record them</span>"
             + (f" ({unrecorded} steps do not)" if unrecorded else "") + "</summary>"

@@ -82,6 +82,17 @@ def _sbc(seed):
                                            n_draws=9, n_samples=300, seed=seed)
 
 
+def _discrepancy(seed):
+    h = np.repeat([1.0, 2.0, 3.0], 2)
+    model = rq.FunctionModel(lambda x: x[:, 0] * np.exp(-0.3 * x[:, 1]), ["a", "h"], ["y"])
+    y = (2.0 * np.exp(-0.3 * h) + 0.1 * np.sin(h))[:, None]
+    prior = rq.ParameterSpace({"a": rq.Normal(2.0, 0.5)})
+    return rq.calibrate_with_discrepancy(
+        model, y, prior, configurations=h, configuration_name="h",
+        discrepancy=rq.Discrepancy(amplitude_scale=0.2), noise_std=0.05, n_samples=200,
+        n_draws=20, seed=seed)
+
+
 #: case -> (public function, small problem calling it with a seed)
 CASES: dict[str, tuple[str, Callable[[int], object]]] = {
     "as_generator": ("as_generator", lambda s: rq.as_generator(s).random(16)),
@@ -97,6 +108,10 @@ CASES: dict[str, tuple[str, Callable[[int], object]]] = {
     "continue_chain": ("continue_chain", lambda s: rq.continue_chain(_bayes(3), 100, seed=s)),
     "GaussianProcess": ("GaussianProcess", _gp),
     "simulation_based_calibration": ("simulation_based_calibration", _sbc),
+    "calibrate_with_discrepancy": ("calibrate_with_discrepancy", _discrepancy),
+    "predict_with_discrepancy": ("predict_with_discrepancy", lambda s: rq.predict_with_discrepancy(
+        _discrepancy(3), rq.FunctionModel(lambda x: x[:, 0] * np.exp(-0.3 * x[:, 1]),
+                                          ["a", "h"], ["y"]), [0.5], n_draws=30, seed=s)),
     "calibrate_under_uncertainty": ("calibrate_under_uncertainty", lambda s: _cuu(s)[1]),
     "check_cuu": ("check_cuu", lambda s: rq.check_cuu(
         _cuu(3, inner="mean_value")[1], _cuu(3, inner="mean_value")[0], 40, seed=s)),

@@ -159,3 +159,46 @@ def test_progress_silent_off_terminal_and_drawn_on_one():
     p.close()
     assert late.getvalue() == ""  # short runs draw nothing
     assert format_duration(3725) == "1:02:05" and format_duration(65) == "1:05"
+
+
+def test_executor_fault_options(monkeypatch):
+    from rotoruq.evaluation.executors import DaskExecutor
+
+    ex = make_executor("processes:2", restarts=5)
+    assert isinstance(ex, ProcessExecutor) and ex.restarts == 5
+    with pytest.raises(ValueError, match="restarts"):
+        ProcessExecutor(2, restarts=-1)
+    monkeypatch.setenv("ROTORUQ_DASK_WORKER_TIMEOUT", "7.5")
+    assert DaskExecutor("tcp://127.0.0.1:1").worker_timeout == 7.5  # no connection made
+    d = make_executor("dask:tcp://127.0.0.1:1", worker_timeout=3, resubmits=1)
+    assert (d.worker_timeout, d.resubmits) == (3.0, 1)
+    monkeypatch.setenv("ROTORUQ_DASK_WORKER_TIMEOUT", "soon")
+    with pytest.raises(ValueError, match="ROTORUQ_DASK_WORKER_TIMEOUT must be a number"):
+        DaskExecutor("tcp://127.0.0.1:1")
+
+
+def test_pool_left_early_starts_no_queued_task(tmp_path):
+    """Closing run() early (an exception in the consumer) stops the pool at once: the running
+    tasks end, the queued ones never start, the next batch gets a fresh pool."""
+    marks = tmp_path
+
+    def task(i):
+        (marks / f"t{i}").write_text("")
+        time.sleep(0.3 if i < 2 else 30)
+        return i
+
+    ex = ProcessExecutor(2)
+    try:
+        gen = ex.run(task, range(8))
+        first = next(gen)
+        t0 = time.perf_counter()
+        gen.close()
+        assert time.perf_counter() - t0 < 5  # did not wait for the 30 s tasks
+        time.sleep(0.5)
+        started = {p.name for p in marks.iterdir()}
+        assert first.index in (0, 1) and started <= {"t0", "t1", "t2", "t3"}
+        t1 = time.perf_counter()
+        assert sorted(o.value for o in ex.run(lambda i: i * i, [2, 3])) == [4, 9]
+        assert time.perf_counter() - t1 < 10  # no 30 s task holds a worker
+    finally:
+        ex.close()

@@ -169,26 +169,28 @@ def test_sparse_emulator_mean_only_fails():
     assert np.max(r.z_score_std) > 1.15
 
 
-def _refine_value():
-    """The refinement option with its defaults: a RefineConfig() if the package has one, else
-    True."""
-    config = getattr(mcmc, "RefineConfig", None)
-    return config() if config is not None else True
+@pytest.mark.slow
+def test_sparse_emulator_variance_alone_is_not_enough():
+    """The 12-point GP's own predictive variance in the likelihood (Higdon et al. 2004) widens
+    the posterior, but its maximum-likelihood length-scales under-state its error on so few
+    points: measured 90 % coverage 0.71-0.81 (mean only, same design: 0.56-0.72), and the
+    z-score spread grows (3.4-3.8 against 1.5-2.3: a few replications land far from the
+    truth, where the variance's log-determinant pulls toward the 12 training points). The
+    variance is not a fix on its own; refinement (next test) is."""
+    mean_only = _sbc(emulator=rq.GaussianProcess(seed=0), n_emulator_samples=12,
+                     emulator_variance=False)
+    with_var = _sbc(emulator=rq.GaussianProcess(seed=0), n_emulator_samples=12,
+                    emulator_variance=True)
+    assert np.all(with_var.coverage_90 >= mean_only.coverage_90), with_var.summary()
+    assert np.mean(with_var.coverage_90) > np.mean(mean_only.coverage_90) + 0.05
 
 
-@pytest.mark.parametrize("feature", [
-    pytest.param("emulator_variance", marks=pytest.mark.skipif(
-        "emulator_variance" not in BAYES_KEYWORDS,
-        reason="calibrate_bayes has no emulator_variance keyword yet")),
-    pytest.param("refine", marks=pytest.mark.skipif(
-        not {"emulator_variance", "refine"} <= set(BAYES_KEYWORDS),
-        reason="calibrate_bayes has no emulator_variance / refine keywords yet")),
-])
-def test_sparse_emulator_with_its_variance_is_calibrated(feature):
-    kw: dict = {"emulator_variance": True}
-    if feature == "refine":
-        kw["refine"] = _refine_value()
-    r = _sbc(emulator=rq.GaussianProcess(seed=0), n_emulator_samples=12, **kw)
+@pytest.mark.slow
+def test_sparse_emulator_with_refinement_is_calibrated():
+    """The same 12-point GP refined at the posterior (runs added where its std over the
+    noise std is largest) passes the test the mean-only emulator fails."""
+    r = _sbc(emulator=rq.GaussianProcess(seed=0), n_emulator_samples=12,
+             emulator_variance=True, refine=mcmc.RefineConfig())
     assert _calibrated(r), r.summary()
 
 

@@ -133,3 +133,195 @@ def test_evaluator_reuses_identical_inputs_across_runs(tmp_path):
     ev4 = Evaluator(m, store=tmp_path / "e.db", study="st", tolerance=1e-8)
     ev4.evaluate(x * (1 + 1e-12))
     assert ev4.last_stats.n_reused == 10 and sum(calls) == 13
+
+
+# -- storage faults: a one-line StoreError naming the file, never a raw sqlite3 error ----------
+
+KW1 = dict(study="s", model="m", names_in=("a",), names_out=("f",))
+SRC = str(__import__("pathlib").Path(__file__).resolve().parents[1] / "src")
+
+
+def _filled(path, n=600):
+    st = Store(path)
+    for i in range(n):
+        st.add([NewRecord(np.array([float(i)]), np.array([2.0 * i + 0.5]))], **KW1)
+    st.close()
+    return path
+
+
+def _one_line(exc, path):
+    msg = str(exc)
+    assert "\n" not in msg and msg.startswith(f"{path}: ")
+    return msg
+
+
+@pytest.mark.parametrize("damage", ["truncated", "zeroed", "garbage"])
+def test_damaged_store_is_a_clear_error_and_repair_keeps_what_is_readable(tmp_path, damage):
+    from rotoruq.errors import StoreCorruptError
+    from rotoruq.evaluation.store import repair_store
+
+    path = _filled(tmp_path / "e.db")
+    data = path.read_bytes()
+    if damage == "truncated":
+        bad = data[: len(data) // 2]
+    elif damage == "zeroed":  # pages in the middle overwritten with zeros
+        bad = data[:16384] + bytes(16384) + data[32768:]
+    else:
+        bad = np.random.default_rng(0).bytes(len(data))
+    path.write_bytes(bad)
+    with pytest.raises(StoreCorruptError) as info:
+        Store(path)
+    msg = _one_line(info.value, path)
+    assert "damaged" in msg and "rotoruq repair RESULTS" in msg
+    assert not isinstance(info.value, sqlite3.Error)
+
+    rep = repair_store(path)
+    assert rep.status == "rebuilt" and rep.quarantined.read_bytes() == bad
+    assert rep.quarantined.name.startswith("e.db.damaged-")
+    st = Store(path)
+    recs = st.records()
+    assert len(recs) == rep.n_salvaged < 600
+    if damage != "garbage":
+        assert rep.n_salvaged > 0
+    for r in recs:  # what was kept is what was written
+        assert r.outputs[0] == 2.0 * r.inputs[0] + 0.5
+    assert repair_store(path).status == "ok"
+
+    # resume: only the lost points are evaluated again
+    m = FunctionModel(lambda x: 2.0 * x + 0.5, ["a"], ["f"])
+    x = np.arange(600.0)[:, None]
+    with Evaluator(m, store=path, study="s", model_id="m") as ev:
+        out = ev.evaluate(x)
+        assert ev.last_stats.n_reused == rep.n_salvaged
+        assert ev.last_stats.n_evaluations == 600 - rep.n_salvaged
+    np.testing.assert_array_equal(out.values[:, 0], 2.0 * x[:, 0] + 0.5)
+
+
+CHILD = """
+import resource, signal, sys
+import numpy as np
+from rotoruq.errors import StoreError
+from rotoruq.evaluation.store import NewRecord, Store
+path, limit = sys.argv[1], int(sys.argv[2])
+kw = dict(study="s", model="m", names_in=("a",), names_out=("f",))
+signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # writes past the limit fail with EFBIG
+if limit:
+    resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+n = 0
+try:
+    st = Store(path)
+    for i in range(100000):
+        st.add([NewRecord(np.array([float(i)]), np.array([2.0 * i + 0.5]), stdout="o" * 4000)],
+               **kw)
+        n += 1
+        if not limit and n == 3:
+            break
+except StoreError as exc:
+    print(n)
+    print(exc)
+    sys.exit(3)
+print(n)
+"""
+
+
+def _child(args, prefix=()):
+    import subprocess
+    import sys
+
+    env = {**__import__("os").environ, "PYTHONPATH": SRC}
+    return subprocess.run([*prefix, sys.executable, "-c", CHILD, *map(str, args)],
+                          capture_output=True, text=True, timeout=120, env=env)
+
+
+def _resume_after_fault(path, n_committed):
+    st = Store(path)  # passes the integrity check
+    assert st.count() == n_committed
+    m = FunctionModel(lambda x: 2.0 * x + 0.5, ["a"], ["f"])
+    with Evaluator(m, store=st, study="s", model_id="m") as ev:
+        out = ev.evaluate(np.arange(n_committed + 5.0)[:, None])
+        assert ev.last_stats.n_reused == n_committed and ev.last_stats.n_evaluations == 5
+    np.testing.assert_array_equal(out.values[:, 0], 2.0 * np.arange(n_committed + 5.0) + 0.5)
+
+
+def test_file_size_limit_is_a_clear_error_and_the_store_resumes(tmp_path):
+    path = tmp_path / "e.db"
+    proc = _child([path, 150_000])
+    assert proc.returncode == 3, proc.stderr
+    n, msg = proc.stdout.splitlines()
+    assert msg.startswith(f"{path}: ") and "free disk space" in msg, msg
+    assert "Traceback" not in proc.stderr
+    assert int(n) > 0
+    _resume_after_fault(path, int(n))
+
+
+def test_full_disk_is_a_clear_error_and_the_store_resumes(tmp_path):
+    import os
+    import subprocess
+
+    mnt = tmp_path / "small"
+    mnt.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=256k", "tmpfs", str(mnt)],
+                      capture_output=True).returncode:
+        pytest.skip("cannot mount a small tmpfs here (not root); the file-size limit test "
+                    "covers the write error")
+    try:
+        path = mnt / "e.db"
+        _filled(path, n=3)
+        with open(mnt / "filler", "wb") as f:  # fill the file system but for ~40 KiB
+            while os.statvfs(mnt).f_bavail * os.statvfs(mnt).f_frsize > 40_000:
+                f.write(bytes(4096))
+        proc = _child([path, 10**9])  # the limit is never reached: the disk fills up first
+        assert proc.returncode == 3, proc.stdout + proc.stderr
+        msg = proc.stdout.splitlines()[1]
+        assert msg.startswith(f"{path}: ") and "free disk space" in msg, msg
+        assert "Traceback" not in proc.stderr
+        assert "no room" in msg  # ENOSPC: SQLite's "database or disk is full"
+        (mnt / "filler").unlink()
+        _resume_after_fault(path, 3 + int(proc.stdout.splitlines()[0]))
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], check=False)
+
+
+def test_read_only_folder_is_a_clear_error(tmp_path):
+    import os
+    import shutil
+
+    folder = tmp_path / "ro"
+    path = _filled(folder / "e.db", n=3)
+    prefix: tuple[str, ...] = ()
+    if os.geteuid() == 0:  # root writes anywhere: run the child without that privilege
+        if shutil.which("setpriv") is None:
+            pytest.skip("running as root without setpriv")
+        prefix = ("setpriv", "--bounding-set=-dac_override,-dac_read_search,-fowner")
+    folder.chmod(0o555)
+    path.chmod(0o444)
+    try:
+        proc = _child([path, 0], prefix)
+        assert proc.returncode == 3, proc.stdout + proc.stderr
+        msg = proc.stdout.splitlines()[1]
+        assert msg.startswith(f"{path}: ") and "read-only" in msg, msg
+        new = folder / "new" / "e.db"
+        proc = _child([new, 0], prefix)
+        assert proc.returncode == 3 and str(new) in proc.stdout, proc.stdout + proc.stderr
+    finally:
+        folder.chmod(0o755)
+        path.chmod(0o644)
+    _resume_after_fault(path, 3)
+
+
+def test_rotoruq_repair_command_moves_a_damaged_store_aside(tmp_path):
+    """The one-line error names `rotoruq repair RESULTS`; the command does what it says."""
+    import subprocess
+    import sys
+
+    path = _filled(tmp_path / "evaluations.sqlite")
+    data = path.read_bytes()
+    path.write_bytes(data[:16384] + bytes(16384) + data[32768:])
+    cmd = [sys.executable, "-m", "rotoruq.study.cli", "repair", str(tmp_path)]
+    first = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert first.returncode == 0, first.stderr
+    assert "damaged" in first.stdout and "moved it to" in first.stdout
+    assert len(list(tmp_path.glob("evaluations.sqlite.damaged-*"))) == 1
+    assert 0 < len(Store(path).records()) < 600
+    again = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert again.returncode == 0 and "store intact" in again.stdout

@@ -14,6 +14,9 @@ __all__ = [
     "ParameterError",
     "EvaluationError",
     "ModelShapeError",
+    "InfrastructureError",
+    "StoreError",
+    "StoreCorruptError",
 ]
 
 
@@ -65,3 +68,27 @@ class EvaluationError(RotoruqError, RuntimeError):
 
 class ModelShapeError(RotoruqError, ValueError):
     """A model returned an array of the wrong shape."""
+
+
+class InfrastructureError(RotoruqError, RuntimeError):
+    """The machinery running the evaluations failed (a lost Dask worker, a killed process-pool
+    worker, a broken connection), not the model: nothing about the points it was running is
+    stored, and running the same command again evaluates only the missing points."""
+
+
+class StoreError(RotoruqError, OSError):
+    """The evaluation store cannot be read or written (disk full, read-only folder, ...); the
+    message names the file and what to do."""
+
+    def __init__(self, path: str | PathLike, problem: str, remedy: str):
+        self.path = str(path)
+        self.problem = problem
+        self.remedy = remedy
+        super().__init__(f"{self.path}: {problem}; {remedy}")
+
+    def __str__(self) -> str:  # OSError would format (errno, strerror) otherwise
+        return f"{self.path}: {self.problem}; {self.remedy}"
+
+
+class StoreCorruptError(StoreError):
+    """The evaluation store file is damaged (truncated, overwritten, not a database)."""

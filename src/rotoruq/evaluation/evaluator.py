@@ -96,6 +96,12 @@ class Evaluator:
     progress : None (a bar on a terminal for runs longer than 2 s), True or False.
     model_id : override the text identifying the model in the store.
     reuse_failed : also reuse stored failures (default: failed points are run again).
+
+    Only the model's own failures become failed rows. A fault of the infrastructure (a killed
+    pool worker, a lost Dask worker) that the executor cannot recover from raises
+    :class:`~rotoruq.errors.InfrastructureError`, and a storage fault
+    :class:`~rotoruq.errors.StoreError`; in both cases the evaluations finished before it stay
+    in the store, so running again evaluates only the missing points.
     """
 
     def __init__(

@@ -9,7 +9,13 @@ All executors share one interface::
 ``run`` is a generator: results arrive in completion order, tagged with the task index; an
 exception inside a task becomes ``TaskOutcome.error`` (text with the traceback) and never
 stops the other tasks. Closing the generator early (``break``, an exception in the consumer)
-cancels the tasks that have not started.
+cancels the tasks that have not started (a process pool is stopped at once: its running
+drivers are killed and no queued task starts).
+
+A fault of the machinery rather than of the task (a pool worker killed, a lost Dask worker, a
+cancelled or forgotten future, a broken connection) never becomes an outcome: the task is run
+again on a fresh pool or another worker, and when that is not possible ``run`` raises
+:class:`~rotoruq.errors.InfrastructureError` after the outcomes it could deliver.
 
 - :class:`SerialExecutor` runs in the calling process.
 - :class:`ProcessExecutor` uses a local :class:`concurrent.futures.ProcessPoolExecutor`
@@ -24,6 +30,7 @@ from __future__ import annotations
 import concurrent.futures as cf
 import os
 import pickle
+import signal
 import time
 import traceback
 from abc import ABC, abstractmethod
@@ -31,7 +38,7 @@ from collections.abc import Callable, Generator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from ..errors import ParameterError
+from ..errors import InfrastructureError, ParameterError
 
 __all__ = [
     "TaskOutcome",
@@ -73,7 +80,10 @@ def _call(payload: bytes, task) -> tuple[Any, str | None, float]:
     key = hash(payload)
     fn = _FN_CACHE.get(key)
     if fn is None:
-        fn = pickle.loads(payload)
+        try:
+            fn = pickle.loads(payload)
+        except Exception as exc:  # the task's fault (its function cannot load here)
+            return None, f"could not load the task in the worker: {type(exc).__name__}: {exc}", 0.0
         if len(_FN_CACHE) > 8:
             _FN_CACHE.clear()
         _FN_CACHE[key] = fn
@@ -125,6 +135,31 @@ class SerialExecutor(Executor):
         return "SerialExecutor()"
 
 
+def _signal_text(code: int | None) -> str:
+    if code is None:
+        return "still running"
+    if code < 0:
+        try:
+            return f"killed by signal {-code} ({signal.Signals(-code).name})"
+        except ValueError:
+            return f"killed by signal {-code}"
+    return f"exit status {code}"
+
+
+def _worker_init(parent: int) -> None:
+    """Set up a process-pool worker: it and its drivers end with the run's main process
+    (``parent``) and with SIGTERM; Ctrl-C is the main process's to handle."""
+    from .process_tree import kill_active_trees, watch_parent
+
+    def on_term(signum, frame):
+        kill_active_trees(stop=True)
+        os._exit(128 + signum)
+
+    signal.signal(signal.SIGTERM, on_term)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    watch_parent(parent, exit_code=128 + signal.SIGKILL)
+
+
 class ProcessExecutor(Executor):
     """Local process pool.
 
@@ -133,17 +168,27 @@ class ProcessExecutor(Executor):
     max_workers : number of worker processes (default: ``os.cpu_count()``).
     mp_context : multiprocessing context name ("fork", "spawn", "forkserver") or None for
         Python's default.
+    restarts : how many times a broken pool is replaced in one :meth:`run` before giving up.
 
     The pool is started on first use and kept until :meth:`close`, so repeated batches do
-    not pay the start-up cost again. A worker that dies (killed, out of memory) turns its task
-    and the unfinished ones into errors; the next batch gets a fresh pool.
+    not pay the start-up cost again. A worker that dies (killed, out of memory) is an
+    infrastructure fault, not a result: the pool is replaced and the tasks it had not finished
+    are run again (their results do not depend on the worker); after ``restarts`` replacements
+    :meth:`run` raises :class:`~rotoruq.errors.InfrastructureError`. Workers and their
+    drivers end with the process that started them (even when it is SIGKILLed), and when
+    :meth:`run` is left early (an exception, Ctrl-C, SIGTERM) the workers are stopped at once:
+    queued tasks never start and running drivers are killed.
     """
 
-    def __init__(self, max_workers: int | None = None, *, mp_context: str | None = None):
+    def __init__(self, max_workers: int | None = None, *, mp_context: str | None = None,
+                 restarts: int = 2):
         self.n_workers = int(max_workers or os.cpu_count() or 1)
         if self.n_workers < 1:
             raise ParameterError(f"max_workers must be >= 1, got {max_workers}")
+        if restarts < 0:
+            raise ParameterError(f"restarts must be >= 0, got {restarts}")
         self.mp_context = mp_context
+        self.restarts = int(restarts)
         self._pool: cf.ProcessPoolExecutor | None = None
 
     def _get_pool(self) -> cf.ProcessPoolExecutor:
@@ -151,29 +196,87 @@ class ProcessExecutor(Executor):
             import multiprocessing as mp
 
             ctx = mp.get_context(self.mp_context) if self.mp_context else None
-            self._pool = cf.ProcessPoolExecutor(self.n_workers, mp_context=ctx)
+            self._pool = cf.ProcessPoolExecutor(self.n_workers, mp_context=ctx,
+                                                initializer=_worker_init,
+                                                initargs=(os.getpid(),))
         return self._pool
+
+    def worker_pids(self) -> list[int]:
+        """Process ids of the pool's live workers (empty before the first batch)."""
+        pool = self._pool
+        procs = dict(getattr(pool, "_processes", None) or {}) if pool is not None else {}
+        return [pid for pid, p in procs.items() if p.exitcode is None]
 
     def run(self, fn: Callable[[Any], Any], tasks: Sequence[Any]) -> Generator[TaskOutcome]:
         payload = _dumps(fn)
-        pool = self._get_pool()
-        futures = {pool.submit(_call, payload, t): i for i, t in enumerate(tasks)}
-        broken = False
+        todo = list(range(len(tasks)))
+        breaks: list[str] = []
+        finished = False
         try:
-            for fut in cf.as_completed(futures):
-                i = futures[fut]
-                try:
-                    value, error, wall = fut.result()
-                except Exception as exc:  # worker died or the task could not be pickled
-                    if isinstance(exc, cf.process.BrokenProcessPool):
-                        broken = True
-                    value, error, wall = None, f"{type(exc).__name__}: {exc}", 0.0
-                yield TaskOutcome(i, value, error, wall)
+            while todo:
+                pool = self._get_pool()
+                procs = dict(getattr(pool, "_processes", None) or {})
+                futures = {pool.submit(_call, payload, tasks[i]): i for i in todo}
+                procs.update(getattr(pool, "_processes", None) or {})
+                lost: list[int] = []
+                for fut in cf.as_completed(futures):
+                    i = futures[fut]
+                    try:
+                        value, error, wall = fut.result()
+                    except cf.process.BrokenProcessPool:
+                        lost.append(i)
+                        continue
+                    except Exception as exc:  # the task or its result could not be pickled
+                        value, error, wall = None, f"{type(exc).__name__}: {exc}", 0.0
+                    yield TaskOutcome(i, value, error, wall)
+                if not lost:
+                    break
+                breaks.append(self._death_note(procs))
+                self._discard_pool()
+                todo = sorted(lost)
+                if len(breaks) > self.restarts:
+                    raise InfrastructureError(
+                        f"a process-pool worker died {len(breaks)} time(s) (last: {breaks[-1]}; "
+                        "the out-of-memory killer, a kill or a crash in native code); "
+                        f"{len(todo)} of {len(tasks)} task(s) were not run and nothing is "
+                        "stored for them; finished evaluations are saved: run the same command "
+                        "again to resume")
+            finished = True
         finally:
-            for fut in futures:
-                fut.cancel()
-            if broken:
-                self.close()
+            if not finished:  # left early: no queued task may start, running ones end now
+                self._discard_pool()
+
+    @staticmethod
+    def _death_note(procs: dict) -> str:
+        codes = {}
+        for pid, p in procs.items():
+            p.join(timeout=1.0)
+            codes[pid] = p.exitcode
+        # the pool terminates the survivors (SIGTERM) once one worker died: name the other
+        dead = [(pid, c) for pid, c in codes.items() if c not in (None, -signal.SIGTERM)]
+        if not dead:
+            dead = [(pid, c) for pid, c in codes.items() if c is not None]
+        if not dead:
+            return "worker process ended"
+        pid, code = dead[0]
+        return f"PID {pid}, {_signal_text(code)}"
+
+    def _discard_pool(self) -> None:
+        """Stop the pool without waiting for its tasks: workers get SIGTERM (they kill their
+        drivers and exit), then SIGKILL if they are still there a moment later."""
+        pool, self._pool = self._pool, None
+        if pool is None:
+            return
+        procs = list((getattr(pool, "_processes", None) or {}).values())
+        for p in procs:
+            if p.exitcode is None:
+                p.terminate()
+        for p in procs:
+            p.join(timeout=2.0)
+            if p.exitcode is None:
+                p.kill()
+                p.join(timeout=2.0)
+        pool.shutdown(wait=True, cancel_futures=True)
 
     def close(self) -> None:
         if self._pool is not None:
@@ -181,7 +284,8 @@ class ProcessExecutor(Executor):
             self._pool = None
 
     def __getstate__(self):
-        return {"n_workers": self.n_workers, "mp_context": self.mp_context, "_pool": None}
+        return {"n_workers": self.n_workers, "mp_context": self.mp_context,
+                "restarts": self.restarts, "_pool": None}
 
     def __repr__(self) -> str:
         return f"ProcessExecutor(max_workers={self.n_workers})"
@@ -195,14 +299,24 @@ class DaskExecutor(Executor):
     address : scheduler address (``"tcp://host:8786"``); None starts a LocalCluster.
     client : an existing ``distributed.Client`` to use instead (not closed by :meth:`close`).
     n_workers, threads_per_worker : size of the LocalCluster when one is started.
+    resubmits : how many times a task lost to the infrastructure is submitted again.
+    worker_timeout : seconds to wait for a worker when the scheduler has none left, before
+        :meth:`run` raises :class:`~rotoruq.errors.InfrastructureError` (default: the
+        ``ROTORUQ_DASK_WORKER_TIMEOUT`` environment variable, else 30).
 
     External-solver tasks release the GIL while they wait for the subprocess, so threads are
     fine for them; vectorized Python models are better served by one thread per worker.
+
+    A task's own failure comes back as :attr:`TaskOutcome.error`. A lost worker, a cancelled
+    or forgotten future or a broken connection is not a result: the task is submitted again
+    (Dask runs it on another worker); when no worker is left for ``worker_timeout`` seconds,
+    or a task was lost ``resubmits + 1`` times, :meth:`run` raises
+    :class:`~rotoruq.errors.InfrastructureError` and nothing is reported for the lost tasks.
     """
 
     def __init__(
         self, address: str | None = None, *, client: Any = None, n_workers: int | None = None,
-        threads_per_worker: int = 1,
+        threads_per_worker: int = 1, resubmits: int = 3, worker_timeout: float | None = None,
     ):
         self.address = address
         self._n_local = n_workers
@@ -210,6 +324,18 @@ class DaskExecutor(Executor):
         self._client = client
         self._own_client = client is None
         self._cluster: Any = None
+        if worker_timeout is None:
+            env = os.environ.get("ROTORUQ_DASK_WORKER_TIMEOUT", "30")
+            try:
+                worker_timeout = float(env)
+            except ValueError:
+                raise ParameterError("ROTORUQ_DASK_WORKER_TIMEOUT must be a number of seconds, "
+                                     f"got {env!r}") from None
+        if not worker_timeout >= 0 or resubmits < 0:
+            raise ParameterError(f"worker_timeout and resubmits must be >= 0, got "
+                                 f"{worker_timeout} and {resubmits}")
+        self.resubmits = int(resubmits)
+        self.worker_timeout = float(worker_timeout)
 
     @property
     def client(self) -> Any:
@@ -237,22 +363,84 @@ class DaskExecutor(Executor):
         n = sum(w.get("nthreads", 1) for w in info.get("workers", {}).values())
         return max(1, n)
 
+    def _n_live(self) -> int:
+        try:
+            return len(self.client.scheduler_info().get("workers", {}))
+        except Exception:  # the scheduler cannot be reached: no workers as far as we know
+            return 0
+
+    def _where(self) -> str:
+        return self.address or (self._cluster.scheduler_address if self._cluster else "?")
+
     def run(self, fn: Callable[[Any], Any], tasks: Sequence[Any]) -> Generator[TaskOutcome]:
-        from distributed import as_completed
+        from distributed import wait
 
         client = self.client
-        payload = client.scatter(_dumps(fn), broadcast=True, hash=False)
-        futures = {client.submit(_call, payload, t, pure=False): i for i, t in enumerate(tasks)}
+        blob = _dumps(fn)
+        lost_count = [0] * len(tasks)
+        futures: dict[Any, int] = {}
+
+        def submit(indices: list[int]) -> None:
+            # the function travels inside each task's graph, not scattered: scattered data
+            # dies with the worker holding it and takes every waiting task with it
+            for i in indices:
+                futures[client.submit(_call, blob, tasks[i], pure=False)] = i
+
+        submit(list(range(len(tasks))))
+        no_worker_since: float | None = None
+        last_error = ""
         try:
-            for fut in as_completed(list(futures)):
-                i = futures[fut]
+            while futures:
                 try:
-                    value, error, wall = fut.result()
-                except Exception as exc:  # worker lost, task could not be deserialized, ...
-                    value, error, wall = None, f"{type(exc).__name__}: {exc}", 0.0
-                yield TaskOutcome(i, value, error, wall)
+                    done, _ = wait(list(futures), timeout=0.5, return_when="FIRST_COMPLETED")
+                except TimeoutError:
+                    done = set()
+                except Exception as exc:  # connection to the scheduler lost
+                    done, last_error = set(), f"{type(exc).__name__}: {exc}"
+                again: list[int] = []
+                got = False
+                for fut in done:
+                    i = futures.pop(fut)
+                    try:
+                        if fut.status == "cancelled":
+                            raise cf.CancelledError(f"task {fut.key} was cancelled")
+                        value, error, wall = fut.result(timeout=2.0)
+                    except TimeoutError:
+                        # finished, then its worker died before the result was fetched: the
+                        # task waits to run again; keep waiting for it
+                        futures[fut] = i
+                        continue
+                    except Exception as exc:  # lost worker, data or connection
+                        last_error = f"{type(exc).__name__}: {exc}".splitlines()[0]
+                        lost_count[i] += 1
+                        if lost_count[i] > self.resubmits:
+                            raise InfrastructureError(
+                                f"a task was lost on the Dask cluster at {self._where()} "
+                                f"{lost_count[i]} times ({last_error}); finished evaluations "
+                                "are saved: run the same command again to resume") from None
+                        again.append(i)
+                        continue
+                    got = True
+                    yield TaskOutcome(i, value, error, wall)
+                if again:
+                    submit(again)
+                if not got:
+                    if self._n_live():
+                        no_worker_since = None
+                    elif no_worker_since is None:
+                        no_worker_since = time.monotonic()
+                    elif time.monotonic() - no_worker_since > self.worker_timeout:
+                        raise InfrastructureError(
+                            f"all Dask workers lost at {self._where()} (none came back within "
+                            f"{self.worker_timeout:g} s; {len(futures)} of {len(tasks)} task(s) "
+                            "not run); finished evaluations are saved: resume with "
+                            "`rotoruq run` when workers are back"
+                            + (f" (last error: {last_error})" if last_error else ""))
         finally:
-            client.cancel([f for f in futures if not f.done()])
+            try:
+                client.cancel([f for f in futures if not f.done()])
+            except Exception:  # the scheduler is gone: nothing left to cancel
+                pass
 
     def close(self) -> None:
         if self._client is not None and self._own_client:
@@ -270,6 +458,8 @@ def make_executor(spec: str | Executor | None, **kwargs: Any) -> Executor:
     """An Executor from a name ("serial", "processes", "dask") or an existing Executor.
 
     ``"processes:4"`` sets the number of workers; ``"dask:tcp://host:8786"`` a scheduler.
+    Keyword arguments: ``max_workers``, ``restarts`` (processes); ``address``, ``resubmits``,
+    ``worker_timeout`` (dask).
     """
     if isinstance(spec, Executor):
         return spec
@@ -279,8 +469,11 @@ def make_executor(spec: str | Executor | None, **kwargs: Any) -> Executor:
         raise ParameterError(f"executor must be a name or an Executor, got {spec!r}")
     name, _, arg = spec.partition(":")
     if name == "processes":
-        return ProcessExecutor(int(arg) if arg else kwargs.get("max_workers"))
+        return ProcessExecutor(int(arg) if arg else kwargs.get("max_workers"),
+                               **{k: kwargs[k] for k in ("restarts",) if k in kwargs})
     if name == "dask":
-        return DaskExecutor(arg or kwargs.get("address"))
+        return DaskExecutor(arg or kwargs.get("address"),
+                            **{k: kwargs[k] for k in ("resubmits", "worker_timeout")
+                               if k in kwargs})
     raise ParameterError(f"unknown executor {spec!r}; use 'serial', 'processes[:N]', "
                      "'dask[:tcp://host:port]' or an Executor instance")

@@ -17,28 +17,146 @@ time limit. It is the one place where rotoruq runs a solver, and it guarantees:
   two files: the first ``cap`` bytes, then a ``[rotoruq: N bytes omitted]`` line and the last
   ``FILE_TAIL`` bytes. Memory held per stream is the last ``FILE_TAIL`` bytes, whatever the
   driver writes.
+- **Nothing outlives the run.** The driver gets a parent-death signal (``PR_SET_PDEATHSIG``,
+  SIGKILL): if the process waiting for it dies, even by SIGKILL, so does the driver. Every
+  running tree is listed, so that :func:`kill_active_trees` (called by a process-pool worker
+  on SIGTERM or when :func:`watch_parent` sees the run's main process die) ends them all.
 - **No busy waiting.** The thread sleeps in ``select`` on the output pipes and a pidfd of the
   driver (Linux >= 5.3), so a fast driver is seen to exit at once.
 """
 
 from __future__ import annotations
 
+import ctypes
 import os
+import select
 import selectors
 import signal
 import subprocess
+import sys
+import threading
 import time
 import uuid
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["DriverRun", "run_process_tree", "is_running", "TOKEN_VAR", "FILE_TAIL"]
+__all__ = ["DriverRun", "run_process_tree", "is_running", "kill_active_trees", "watch_parent",
+           "set_parent_death_signal", "TOKEN_VAR", "FILE_TAIL"]
 
 TOKEN_VAR = "ROTORUQ_DRIVER_TOKEN"
 FILE_TAIL = 64 * 1024  # bytes of the end of each stream kept (file and memory)
 _CHUNK = 64 * 1024
 _PROC = Path("/proc")
+_PR_SET_PDEATHSIG = 1
+_ACTIVE: dict[int, _Tree] = {}  # running driver trees of this process, by driver pid
+_ACTIVE_LOCK = threading.Lock()
+_STOPPING = threading.Event()  # set by kill_active_trees(stop=True): no new driver starts
+
+
+def _load_prctl():
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        return ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):  # pragma: no cover - a libc without prctl
+        return None
+
+
+_PRCTL = _load_prctl()  # looked up before any fork: the child only calls it
+
+
+def set_parent_death_signal(sig: int = signal.SIGKILL) -> bool:
+    """Ask the kernel to send ``sig`` to this process when the thread that started it ends
+    (Linux ``prctl(PR_SET_PDEATHSIG)``); False where that is not available.
+
+    Examples
+    --------
+    >>> set_parent_death_signal(0)  # clears it again
+    True
+    """
+    if _PRCTL is None:
+        return False
+    return _PRCTL(_PR_SET_PDEATHSIG, int(sig), 0, 0, 0) == 0
+
+
+def _driver_preexec(parent: int):
+    def preexec() -> None:
+        # runs in the forked child before exec: the driver dies with the thread waiting for
+        # it (and at once if that already happened between fork and prctl), and gets the
+        # default SIGINT back (a process-pool worker ignores it)
+        set_parent_death_signal(signal.SIGKILL)
+        if os.getppid() != parent:
+            os._exit(1)
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+    return preexec
+
+
+def kill_active_trees(*, stop: bool = False) -> int:
+    """SIGKILL every driver tree this process is running (drivers, their groups and
+    descendants); returns how many trees there were. With ``stop``, no driver starts in
+    this process afterwards (:func:`run_process_tree` raises ``InterruptedError``).
+
+    Examples
+    --------
+    >>> kill_active_trees()  # no driver running
+    0
+    """
+    with _ACTIVE_LOCK:
+        if stop:
+            _STOPPING.set()
+        trees = list(_ACTIVE.values())
+    for tree in trees:
+        tree.kill_all()
+    return len(trees)
+
+
+def _wait_for_exit(pid: int, poll: float = 0.2) -> None:
+    """Block until process ``pid`` (not necessarily a child) has ended."""
+    try:
+        fd = os.pidfd_open(pid)
+    except (AttributeError, OSError):
+        fd = None
+    if fd is not None:
+        try:
+            select.select([fd], [], [])
+        finally:
+            os.close(fd)
+        return
+    while is_running(pid) or (not _PROC.is_dir() and _exists(pid)):  # no pidfd: poll
+        time.sleep(poll)
+
+
+def _exists(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        pass
+    return True
+
+
+def watch_parent(pid: int, exit_code: int = 1) -> threading.Thread:
+    """Start a daemon thread that, when process ``pid`` ends (even by SIGKILL), kills this
+    process's driver trees and exits with ``exit_code``; for the workers of a run, so that
+    neither they nor their drivers outlive it.
+
+    Examples
+    --------
+    >>> t = watch_parent(os.getpid())  # watches itself: never fires
+    >>> t.daemon
+    True
+    """
+    def watch() -> None:
+        _wait_for_exit(pid)
+        kill_active_trees(stop=True)
+        os._exit(exit_code)
+
+    t = threading.Thread(target=watch, name=f"rotoruq-watch-{pid}", daemon=True)
+    t.start()
+    return t
 
 
 @dataclass(frozen=True, eq=False)
@@ -260,6 +378,8 @@ def run_process_tree(
     OSError
         When the command cannot be started (no such file, not executable).
     """
+    if _STOPPING.is_set():
+        raise InterruptedError("the run is stopping: no driver is started")
     t0 = time.perf_counter()
     token = uuid.uuid4().hex
     # the token goes first: found early in /proc/<pid>/environ, and it replaces the token of
@@ -273,7 +393,8 @@ def run_process_tree(
         pipes = [os.pipe(), os.pipe()]
         proc = subprocess.Popen(list(argv), cwd=cwd, env=env, stdin=subprocess.DEVNULL,
                                 stdout=pipes[0][1], stderr=pipes[1][1], shell=False,
-                                close_fds=True, start_new_session=True)
+                                close_fds=True, start_new_session=True,
+                                preexec_fn=_driver_preexec(os.getpid()))
     except BaseException:
         for fd in (fd for pair in pipes for fd in pair):
             os.close(fd)
@@ -284,6 +405,11 @@ def run_process_tree(
         os.close(w)
     caps = [_Capture(pipes[0][0], files[0], cap), _Capture(pipes[1][0], files[1], cap)]
     tree = _Tree(proc.pid, token)
+    with _ACTIVE_LOCK:
+        _ACTIVE[proc.pid] = tree
+        stopping = _STOPPING.is_set()
+    if stopping:  # the stop came while it was starting
+        tree.kill_all()
     sel = selectors.DefaultSelector()
     for c in caps:
         sel.register(c.fd, selectors.EVENT_READ, c)
@@ -320,6 +446,8 @@ def run_process_tree(
                 sel.unregister(pidfd)
             leftovers = tree.kill_all()
             proc.wait()
+            with _ACTIVE_LOCK:
+                _ACTIVE.pop(proc.pid, None)
             end = time.monotonic() + 2.0
             while any(c.open for c in caps) and time.monotonic() < end:
                 _pump(sel, 0.05)

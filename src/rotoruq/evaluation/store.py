@@ -13,13 +13,21 @@ The database runs in WAL mode with a busy timeout, and writes retry on "database
 so several processes (parallel studies, Dask workers on a shared file system that honours
 locks) may write to one file. Export to Dakota's annotated tabular format with
 :meth:`Store.export_tabular`.
+
+Storage faults are never raw ``sqlite3`` errors: a full disk, a read-only file or folder and a
+damaged file raise :class:`~rotoruq.errors.StoreError` (:class:`~rotoruq.errors.StoreCorruptError`
+for damage) with a one-line message naming the file and what to do. Opening a store runs
+SQLite's ``PRAGMA quick_check``; :func:`repair_store` moves a damaged store aside and keeps
+the evaluations that can still be read.
 """
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
+import shutil
 import socket
 import sqlite3
 import threading
@@ -31,9 +39,10 @@ from typing import cast
 
 import numpy as np
 
-from ..errors import ParameterError
+from ..errors import ParameterError, StoreCorruptError, StoreError
 
-__all__ = ["Store", "EvalRecord", "NewRecord", "canonical_key", "open_store"]
+__all__ = ["Store", "EvalRecord", "NewRecord", "StoreRepair", "canonical_key", "open_store",
+           "repair_store", "store_error"]
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS evaluations (
@@ -66,6 +75,71 @@ _COLUMNS = ("study", "run_id", "model", "key", "names_in", "names_out", "inputs"
             "pid", "eval_id", "attempts")
 
 STATUSES = ("ok", "failed", "recovered")
+
+
+_RESUME = "run the same command again (finished evaluations are saved)"
+_SIDE_FILES = ("-wal", "-shm", "-journal")
+
+
+def store_error(path: str | os.PathLike, exc: BaseException) -> StoreError:
+    """The :class:`~rotoruq.errors.StoreError` saying what ``exc`` (an ``sqlite3`` error or an
+    ``OSError`` met while using the store at ``path``) means and what to do.
+
+    Examples
+    --------
+    >>> import sqlite3
+    >>> err = store_error("e.db", sqlite3.DatabaseError("file is not a database"))
+    >>> str(err).startswith("e.db: the evaluation store is damaged (file is not a database)")
+    True
+    """
+    if isinstance(exc, StoreError):
+        return exc
+    name = getattr(exc, "sqlite_errorname", "") or ""
+    text = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    low = text.lower()
+    errno = getattr(exc, "errno", None)
+    if name.startswith(("SQLITE_CORRUPT", "SQLITE_NOTADB")) or "malformed" in low \
+            or "not a database" in low:
+        return StoreCorruptError(
+            path, f"the evaluation store is damaged ({text})",
+            "move it aside with `rotoruq repair RESULTS` (or rename the file) and run again: "
+            "the evaluations it held are kept where they can be read, the others are run "
+            "again")
+    if name == "SQLITE_FULL" or errno in (28, 27) or "disk is full" in low \
+            or "no space" in low or "too large" in low:
+        return StoreError(path, f"no room to write the evaluation store ({text})",
+                          f"free disk space (or raise the file-size limit), then {_RESUME}")
+    if name.startswith(("SQLITE_READONLY", "SQLITE_CANTOPEN", "SQLITE_PERM", "SQLITE_AUTH")) \
+            or errno in (1, 13, 30) or "readonly" in low or "read-only" in low \
+            or "unable to open" in low or "permission" in low:
+        return StoreError(path, f"cannot write the evaluation store ({text}: a read-only "
+                                "file, folder or file system?)",
+                          "make the folder writable or choose another results folder "
+                          "(--out), then run again")
+    if name.startswith("SQLITE_IOERR") or "i/o error" in low or isinstance(exc, OSError):
+        return StoreError(path, f"cannot read or write the evaluation store ({text}: a full "
+                                "disk, a file-size limit or a failing disk?)",
+                          f"free disk space or check the disk, then {_RESUME}")
+    return StoreError(path, f"the evaluation store failed ({type(exc).__name__}: {text})",
+                      f"check the file and the disk, then {_RESUME}")
+
+
+_CHECKED: set[tuple] = set()  # store files found intact by this process: (path, dev, inode)
+
+
+def _guarded(method):
+    """Turn ``sqlite3`` and ``OSError`` failures of a Store method into a StoreError."""
+
+    @functools.wraps(method)
+    def wrapper(self, *args, **kwargs):
+        try:
+            return method(self, *args, **kwargs)
+        except StoreError:
+            raise
+        except (sqlite3.Error, OSError) as exc:
+            raise store_error(self.path, exc) from exc
+
+    return wrapper
 
 
 def canonical_key(x: np.ndarray) -> str:
@@ -139,17 +213,49 @@ class Store:
     path : database file (created with its directory when missing).
     timeout : seconds a writer waits for a lock before retrying (busy_timeout).
     retries : how many times a locked write is retried (with growing back-off) before raising.
+    check : run SQLite's ``PRAGMA quick_check`` on an existing file (once per file and
+        process; about 0.3 s for 100,000 evaluations) and raise
+        :class:`~rotoruq.errors.StoreCorruptError` when it finds damage.
+
+    Raises
+    ------
+    StoreError
+        For any storage fault (disk full, read-only, damaged file), on opening or later, with
+        a one-line message naming the file and what to do; never a raw ``sqlite3`` error.
 
     The store opens one connection per process and thread and reopens after a fork, so one
     Store object may be shared with worker processes.
     """
 
-    def __init__(self, path: str | os.PathLike, *, timeout: float = 30.0, retries: int = 20):
+    def __init__(self, path: str | os.PathLike, *, timeout: float = 30.0, retries: int = 20,
+                 check: bool = True):
         self.path = Path(path)
         self.timeout = float(timeout)
         self.retries = int(retries)
         self._local = threading.local()
+        try:
+            self._open(check)
+        except BaseException:
+            self.close()
+            raise
+
+    @_guarded
+    def _open(self, check: bool) -> None:
         self.path.parent.mkdir(parents=True, exist_ok=True)
+        info = self.path.stat() if self.path.is_file() else None
+        # once per file and process: a study opens its store for every step
+        key = (str(self.path.resolve()), info.st_dev, info.st_ino) if info else None
+        if check and info is not None and info.st_size and key not in _CHECKED:
+            problems = [r[0] for r in self._con().execute("PRAGMA quick_check").fetchall()]
+            if problems == ["ok"]:
+                _CHECKED.add(cast(tuple, key))
+            else:
+                raise StoreCorruptError(
+                    self.path, "the evaluation store is damaged (integrity check: "
+                    f"{'; '.join(str(p) for p in problems[:2])})",
+                    "move it aside with `rotoruq repair RESULTS` (or rename the file) and run "
+                    "again")
+
         def schema(con):
             for stmt in _SCHEMA.split(";"):
                 if stmt.strip():
@@ -164,16 +270,23 @@ class Store:
         if con is None or self._local.pid != os.getpid():
             con = sqlite3.connect(self.path, timeout=self.timeout, isolation_level=None,
                                   check_same_thread=True)
-            con.execute(f"PRAGMA busy_timeout = {int(self.timeout * 1000)}")
-            for _ in range(self.retries):
-                try:
-                    con.execute("PRAGMA journal_mode = WAL")
-                    break
-                except sqlite3.OperationalError:
-                    time.sleep(0.05)
-            # WAL + NORMAL: a committed transaction survives the death of the process
-            # (SIGKILL); only an OS crash or power cut can lose the last commits.
-            con.execute("PRAGMA synchronous = NORMAL")
+            try:
+                con.execute(f"PRAGMA busy_timeout = {int(self.timeout * 1000)}")
+                for attempt in range(self.retries + 1):
+                    try:
+                        con.execute("PRAGMA journal_mode = WAL")
+                        break
+                    except sqlite3.OperationalError as exc:
+                        msg = str(exc).lower()
+                        if ("locked" not in msg and "busy" not in msg) or attempt == self.retries:
+                            raise
+                        time.sleep(0.05)
+                # WAL + NORMAL: a committed transaction survives the death of the process
+                # (SIGKILL); only an OS crash or power cut can lose the last commits.
+                con.execute("PRAGMA synchronous = NORMAL")
+            except BaseException:
+                con.close()
+                raise
             self._local.con = con
             self._local.pid = os.getpid()
         return con
@@ -220,6 +333,7 @@ class Store:
 
     # -- writing ---------------------------------------------------------------------------
 
+    @_guarded
     def add(
         self,
         records: Iterable[NewRecord],
@@ -256,6 +370,7 @@ class Store:
 
     # -- reading ---------------------------------------------------------------------------
 
+    @_guarded
     def lookup(
         self,
         x: np.ndarray,
@@ -304,6 +419,7 @@ class Store:
             out.append(recs[j] if worst[j] <= tolerance else None)
         return out
 
+    @_guarded
     def records(
         self, *, study: str | None = None, model: str | None = None, status: str | None = None,
         run_id: str | None = None,
@@ -321,6 +437,7 @@ class Store:
         q += " ORDER BY id"
         return [_record(r) for r in self._con().execute(q, args)]
 
+    @_guarded
     def count(self, *, study: str | None = None, status: str | None = None) -> int:
         """Number of stored evaluations (optionally of one study / status)."""
         where, args = [], []
@@ -334,11 +451,13 @@ class Store:
                                                    else "")
         return int(self._con().execute(q, args).fetchone()[0])
 
+    @_guarded
     def max_id(self) -> int:
         """Largest evaluation id so far (0 for an empty store)."""
         row = self._con().execute("SELECT MAX(id) FROM evaluations").fetchone()
         return int(row[0] or 0)
 
+    @_guarded
     def export_tabular(
         self, path: str | os.PathLike, *, study: str | None = None, model: str | None = None,
         interface: str = "NO_ID", include_failed: bool = False,
@@ -385,6 +504,154 @@ def _record(row) -> EvalRecord:
                       cast(np.ndarray, _floats(inputs)),  # the inputs column is NOT NULL
                       _floats(outputs), status, error, stdout, stderr, wall,
                       started, finished, host, pid, eval_id, attempts)
+
+
+@dataclass(frozen=True, eq=False)
+class StoreRepair:
+    """What :func:`repair_store` did.
+
+    path : the store file.
+    status : "ok" (intact, left alone), "missing" (no file) or "rebuilt" (damaged: moved
+        aside, a new store holds the evaluations that could be read).
+    problem : why the store was found damaged (None unless rebuilt).
+    quarantined : where the damaged file went (None unless rebuilt).
+    n_salvaged : evaluations copied into the new store.
+    """
+
+    path: Path
+    status: str
+    problem: str | None = None
+    quarantined: Path | None = None
+    n_salvaged: int = 0
+
+
+def _salvage(path: Path) -> list[tuple]:
+    """The rows of ``evaluations`` that can still be read from a damaged store (rowid ranges
+    around unreadable pages are skipped). Works on a copy whose header is made to agree with
+    the file's length (a truncated file is otherwise unreadable as a whole)."""
+    import struct
+    import tempfile
+
+    try:
+        data = bytearray(path.read_bytes())
+    except OSError:
+        return []
+    if len(data) < 100 or not data.startswith(b"SQLite format 3\0"):
+        return []
+    size = struct.unpack(">H", data[16:18])[0]
+    size = 65536 if size == 1 else size
+    if size < 512 or size & (size - 1):
+        return []
+    del data[len(data) // size * size :]
+    data[28:32] = struct.pack(">I", len(data) // size)
+    data[18:20] = b"\x01\x01"  # rollback-journal format: no -wal/-shm needed to read it
+    with tempfile.TemporaryDirectory() as tmp:
+        copy = Path(tmp) / "salvage.db"
+        copy.write_bytes(bytes(data))
+        return _salvage_rows(copy)
+
+
+def _salvage_rows(path: Path) -> list[tuple]:
+    try:
+        con = sqlite3.connect(f"file:{path}?mode=ro", uri=True, isolation_level=None)
+    except sqlite3.Error:
+        return []
+    rows: list[tuple] = []
+    q = (f"SELECT {', '.join(_COLUMNS)} FROM evaluations WHERE id > ? AND id <= ? "
+         "ORDER BY id")
+    try:
+        top = None
+        for probe in ("SELECT MAX(id) FROM evaluations",
+                      "SELECT seq FROM sqlite_sequence WHERE name = 'evaluations'"):
+            try:
+                top = int(con.execute(probe).fetchone()[0] or 0)
+                break
+            except (sqlite3.Error, TypeError):
+                continue
+        for lo in range(0, top or 0, 256):
+            try:
+                rows += con.execute(q, (lo, lo + 256)).fetchall()
+            except sqlite3.Error:  # a damaged page: read the block row by row
+                for i in range(lo, lo + 256):
+                    try:
+                        rows += con.execute(q, (i, i + 1)).fetchall()
+                    except sqlite3.Error:
+                        continue
+    finally:
+        con.close()
+    good = []
+    for r in rows:  # keep rows whose values parse: a damaged page may still read as text
+        try:
+            if r[8] not in STATUSES:
+                continue
+            json.loads(r[4]), json.loads(r[5]), _floats(r[6]), _floats(r[7])
+        except (TypeError, ValueError):
+            continue
+        good.append(r)
+    return good
+
+
+def repair_store(path: str | os.PathLike) -> StoreRepair:
+    """Check the store at ``path``; if it is damaged, move it aside and rebuild it from the
+    evaluations that can still be read.
+
+    The damaged file (with its ``-wal``/``-shm`` companions) is renamed to
+    ``<name>.damaged-<UTC time>`` in the same folder, never deleted; evaluations that are lost
+    are simply run again by the next run. An intact store is left alone.
+
+    Parameters
+    ----------
+    path : the store file (``<results>/evaluations.db`` for a study).
+
+    Returns
+    -------
+    StoreRepair
+
+    Raises
+    ------
+    StoreError
+        When the folder cannot be written (the damaged file cannot be moved aside).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "e.db"
+    >>> _ = p.write_bytes(b"not a database" * 100)
+    >>> r = repair_store(p)
+    >>> r.status, r.n_salvaged, r.quarantined.name.startswith("e.db.damaged-")
+    ('rebuilt', 0, True)
+    >>> repair_store(p).status
+    'ok'
+    """
+    path = Path(path)
+    if not path.exists():
+        return StoreRepair(path, "missing")
+    try:
+        Store(path).close()
+        return StoreRepair(path, "ok")
+    except StoreCorruptError as exc:
+        problem = exc.problem
+    rows = _salvage(path)
+    stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+    aside = path.with_name(f"{path.name}.damaged-{stamp}")
+    k = 1
+    while aside.exists():
+        k += 1
+        aside = path.with_name(f"{path.name}.damaged-{stamp}-{k}")
+    try:
+        shutil.move(path, aside)
+        for side in _SIDE_FILES:
+            extra = path.with_name(path.name + side)
+            if extra.exists():
+                shutil.move(extra, aside.with_name(aside.name + side))
+    except OSError as exc:
+        raise store_error(path, exc) from exc
+    st = Store(path)
+    sql = (f"INSERT INTO evaluations ({', '.join(_COLUMNS)}) "
+           f"VALUES ({', '.join('?' * len(_COLUMNS))})")
+    st._write(lambda con: [con.execute(sql, r) for r in rows])
+    st.close()
+    return StoreRepair(path, "rebuilt", problem, aside, len(rows))
 
 
 def open_store(store: Store | str | os.PathLike | None) -> Store | None:

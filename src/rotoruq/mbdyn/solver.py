@@ -9,12 +9,14 @@ from __future__ import annotations
 
 import os
 import shutil
+import signal
 import subprocess
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import EvaluationError, RotoruqError
+from ..evaluation.process_tree import set_parent_death_signal
 
 __all__ = ["MBDynError", "MBDynNotFoundError", "MBDynRun", "find_mbdyn", "run_mbdyn"]
 
@@ -61,6 +63,10 @@ def find_mbdyn(explicit: str | os.PathLike | None = None) -> Path:
         "MBDYN environment variable, pass --mbdyn PATH to the driver, or put mbdyn on PATH")
 
 
+def _die_with_parent() -> None:
+    set_parent_death_signal(signal.SIGKILL)
+
+
 def run_mbdyn(input_file: str | os.PathLike, prefix: str | os.PathLike,
               mbdyn: str | os.PathLike | None = None, timeout: float | None = None) -> MBDynRun:
     """Run ``mbdyn -f input_file -o prefix`` (absolute prefix, so output never lands next to
@@ -70,9 +76,11 @@ def run_mbdyn(input_file: str | os.PathLike, prefix: str | os.PathLike,
     input_file, prefix = Path(input_file).absolute(), Path(prefix).absolute()
     t0 = time.perf_counter()
     try:
+        # MBDyn dies with its driver, even when a process-group SIGKILL takes the driver first
         proc = subprocess.run([str(exe), "-f", str(input_file), "-o", str(prefix)],
                               cwd=input_file.parent, stdin=subprocess.DEVNULL,
-                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=timeout)
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, timeout=timeout,
+                              preexec_fn=_die_with_parent)
     except subprocess.TimeoutExpired:
         raise MBDynError(f"MBDyn did not finish {input_file.name} within {timeout:g} s") from None
     wall = time.perf_counter() - t0

@@ -9,8 +9,8 @@ from dataclasses import dataclass
 
 from ..results import StepResult
 
-__all__ = ["StepTable", "Cell", "make_table", "value", "label", "responses", "parameters",
-           "moments_rows", "inputs_table", "levels_tables", "MOMENTS"]
+__all__ = ["StepTable", "Cell", "make_table", "value", "prefixed", "label", "responses",
+           "parameters", "moments_rows", "inputs_table", "levels_tables", "MOMENTS"]
 
 Cell = float | str | None
 
@@ -44,6 +44,11 @@ def value(res: StepResult, key: str) -> float | None:
     """Scalar ``key`` of ``res`` as a float, None when the step did not save it."""
     v = res.scalars.get(key)
     return None if v is None else float(v)
+
+
+def prefixed(res: StepResult, prefix: str) -> dict[str, float]:
+    """The scalars of ``res`` whose key starts with ``prefix``, keyed by the rest."""
+    return {k[len(prefix):]: float(v) for k, v in res.scalars.items() if k.startswith(prefix)}
 
 
 def label(p: str, labels: Mapping[str, str]) -> str:

@@ -8,6 +8,7 @@ import math
 from collections.abc import Mapping
 
 from ..render.figures import Figure, FigureContext, thesis_sobol, tornado
+from ..render.tables import prefixed
 from ..results import StepResult
 
 __all__ = ["sensitivity_figures", "sobol_warnings"]
@@ -26,8 +27,5 @@ def sobol_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
     return [f"{res.name}: {r} has negligible variance (std "
             f"{res.get(f'out_std/{r}', math.nan):.3g}, {res.get(f'out_cv/{r}', math.nan):.1e} of "
             "its mean): its Sobol indices split up numerical noise"
-            for r, flag in _prefixed(res, "negligible/").items() if flag]
+            for r, flag in prefixed(res, "negligible/").items() if flag]
 
-
-def _prefixed(res: StepResult, prefix: str) -> dict[str, float]:
-    return {k[len(prefix):]: float(v) for k, v in res.scalars.items() if k.startswith(prefix)}

@@ -29,7 +29,7 @@ from ..render.figures import (
     pair_plot,
     prior_posterior,
 )
-from ..render.tables import StepTable, label, make_table, parameters, value
+from ..render.tables import StepTable, label, make_table, parameters, prefixed, value
 from ..results import StepResult, dict_to_dist, dist_to_dict
 from ._common import input_scalars, per_response
 from .base import StepContext, StepType
@@ -185,9 +185,6 @@ def bayes_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:
     return figs
 
 
-def _prefixed(res: StepResult, prefix: str) -> dict[str, float]:
-    return {k[len(prefix):]: float(v) for k, v in res.scalars.items() if k.startswith(prefix)}
-
 
 def strong_correlations(res: StepResult, labels: Mapping[str, str] | None = None,
                         limit: float = CORR_MAX) -> list[tuple[str, str, float]]:
@@ -195,7 +192,7 @@ def strong_correlations(res: StepResult, labels: Mapping[str, str] | None = None
     first."""
     labels = labels or {}
     out = []
-    for key, rho in _prefixed(res, "corr/").items():
+    for key, rho in prefixed(res, "corr/").items():
         p, q = key.split("/")
         if abs(rho) > limit:
             out.append((label(p, labels), label(q, labels), rho))
@@ -208,7 +205,7 @@ def bayes_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
     name = res.name
 
     def listed(prefix, bad, fmt):
-        hits = [(p, v) for p, v in _prefixed(res, prefix).items() if bad(v)]
+        hits = [(p, v) for p, v in prefixed(res, prefix).items() if bad(v)]
         return ", ".join(f"{label(p, labels)} ({fmt(v)})" for p, v in hits)
 
     if low := listed("ess/", lambda v: v < ESS_MIN, lambda v: f"{v:.0f}"):
@@ -218,7 +215,7 @@ def bayes_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
     if poor := listed("loo_q2/", lambda v: v < LOO_Q2_MIN, lambda v: f"{v:.3f}"):
         w.append(f"{name}: poor emulator (leave-one-out Q2 below {LOO_Q2_MIN}): {poor}")
     for side, word in (("lo", "lower"), ("hi", "upper")):
-        for p, f in _prefixed(res, f"pileup_{side}/").items():
+        for p, f in prefixed(res, f"pileup_{side}/").items():
             if f > PILEUP_MAX:
                 w.append(f"{name}: {label(p, labels)} piles up against its prior's {word} "
                          f"bound ({100 * f:.0f} % of the chain in the outer 5 % of the "

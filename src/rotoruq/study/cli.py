@@ -17,7 +17,8 @@ import threading
 from ..errors import RotoruqError
 
 # Order in which subcommands are listed by --help.
-COMMANDS = ("reproduce", "run", "report", "show", "evaluate", "airfoil", "driver", "export")
+COMMANDS = ("reproduce", "run", "report", "show", "evaluate", "airfoil", "driver", "export",
+            "repair")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -648,3 +648,11 @@ def test_reasons_are_computed_from_the_run():
     assert "C_T(1R) / C_T(4R) = 1.095 against the test's 1.415" in ge
     assert "1R the model's loads change Thrust T [N] +9.5 % against the test's +39.3 %" in \
         " ".join(a["gvpm_within_1std_1R_joint"].reasons)
+    assert "change with the height is weaker than the test's" in \
+        " ".join(a["gvpm_within_1std_1R_joint"].reasons)
+    # a ground-effect model stronger than the test's reads as such
+    c = _reasons_of(*_reference_set(3, [15.0, -34.0, -76.0, 0.04], 6.0, 87.0, 0.6, 6.4))
+    assert "change with the height is stronger than the test's" in \
+        " ".join(c["gvpm_within_1std_1R_joint"].reasons)
+    assert "the ground-effect model is stronger than the rotor's" in \
+        " ".join(c["ge_within_3std_ct_joint"].reasons)

@@ -282,10 +282,15 @@ def input_recovery(cuu: StepResult, truth: StepResult | None, labels: Mapping[st
         true = truth.scalars.get(f"input_std/{p}")
         if true:
             ratios[p] = cuu.get(f"std/{p}") / true
+    alive = [_lab(labels, p) for p, r in ratios.items() if r >= 1e-3]
+
+    def collapse(p: str) -> str:
+        others = [q for q in alive if q != _lab(labels, p)]
+        return ("; the spread collapsed" + (f": the output std devs come from {', '.join(others)}"
+                                           if others else "") if ratios[p] < 1e-3 else "")
+
     out = [f"{_lab(labels, p)}: calibrated std {cuu.get(f'std/{p}'):.3g} against the true "
-           f"{truth.get(f'input_std/{p}'):.3g} (x{r:.2g}"
-           + ("; the spread collapsed: the output std devs are matched by the other inputs"
-              if r < 1e-3 else "") + ")"
+           f"{truth.get(f'input_std/{p}'):.3g} (x{r:.2g}{collapse(p)})"
            for p, r in ratios.items() if not 0.5 <= r <= 2.0]
     return ratios, out
 

@@ -11,6 +11,7 @@ import re
 import numpy as np
 import pytest
 
+import rotoruq
 from rotoruq.params import Normal, ParameterSpace
 from rotoruq.render.reference import TABLES, table
 from rotoruq.report.claims import INDEPENDENT, JOINT, Claim, claims
@@ -271,7 +272,25 @@ def test_report_claims_cannot_lie(tmp_path):
     assert rows == {c["key"]: c["status"] for c in data}
     embedded = re.search(r"<script type='application/json' id='claims-data'>(.*?)</script>",
                          page, re.S).group(1)
-    assert json.loads(embedded.replace("<\\/", "</")) == data
+    assert json.loads(embedded) == data
+    # the first screen: the verdict counts, one line per claim, before everything else
+    counts = re.search(r"<p class=counts data-holds='(\d+)' data-warn='(\d+)' "
+                       r"data-fails='(\d+)' data-na='(\d+)'>", page)
+    assert counts, page[:2000]
+    statuses = [c["status"] for c in data]
+    assert [int(g) for g in counts.groups()] == [
+        statuses.count(k) for k in ("holds", "holds, with a warning", "does not hold",
+                                    "not checked")]
+    assert sum(map(int, counts.groups())) == len(data)
+    assert page.index("id='verdict'") < page.index("id='claims'") < page.index(
+        "id='study-")
+    lines = re.findall(r"<li data-verdict='([^']+)'><span class=[^>]+>([^<]+)</span>", page)
+    assert lines == [(c["key"], c["status"]) for c in data]
+    # the V&V slot and the provenance (version, seeds, settings per step)
+    assert "id='vv-slot'" in page
+    prov = page[page.index("id='provenance'"):page.index("</details>",
+                                                         page.index("id='provenance'"))]
+    assert f"report by rotoruq {rotoruq.__version__}" in prov and "seeds: experiment" in prov
     csv = (tmp_path / "rep" / "tables" / "table_4_12.csv").read_text().splitlines()
     assert csv[0] == ("row,column,thesis,ours,ours_minus_thesis,relative,difference,"
                       "difference_unit,source")
@@ -467,3 +486,173 @@ def test_the_report_is_the_same_in_a_fresh_interpreter(tmp_path):
     assert len(fresh[2]) >= 3 and len(fresh[1]) >= 4, fresh[1:]
     assert "Calibrated parameters (least squares)" in fresh[0]
     assert "Mean value method (first order)" in fresh[0]
+
+
+# ------------------------------------------------------------- reasons computed from the run
+_VAL_IN = ["cla_m03", "cla_m05", "cla_m06", "k_flap"]
+_LOADS = ["thrust", "roll", "pitch", "power"]
+
+
+def _sampling(name, inputs, outputs, x, y):
+    s = {f"input_std/{p}": float(x[:, j].std(ddof=1)) for j, p in enumerate(inputs)}
+    s |= {f"input_mean/{p}": float(x[:, j].mean()) for j, p in enumerate(inputs)}
+    s |= {f"mean/{r}": float(y[:, k].mean()) for k, r in enumerate(outputs)}
+    s |= {f"std/{r}": float(y[:, k].std(ddof=1)) for k, r in enumerate(outputs)}
+    return StepResult(name, "sampling", s, {"inputs": x, "outputs": y},
+                      meta={"columns": {"inputs": inputs, "outputs": outputs}})
+
+
+def _cuu(name, params, truth_std, cal_std, targets, y, truth_step):
+    s = {f"std/{p}": v for p, v in zip(params, cal_std, strict=True)}
+    s |= {f"initial_std/{p}": v for p, v in zip(params, truth_std, strict=True)}
+    s |= {f"mean/{p}": 1.0 for p in params}
+    outs = list(targets)
+    s |= {f"target_std/{r}": targets[r] for r in outs}
+    s |= {f"calibrated_out_std/{r}": float(y[:, k].std(ddof=1)) for k, r in enumerate(outs)}
+    s |= {f"calibrated_out_mean/{r}": float(y[:, k].mean()) for k, r in enumerate(outs)}
+    s |= {f"initial_out_std/{r}": targets[r] for r in outs}
+    return StepResult(name, "cuu", s, {"outputs_calibrated": y}, meta={
+        "columns": {"outputs_calibrated": outs}, "options": {"targets": f"{truth_step}.samples"},
+        "identifiable": True})
+
+
+def _reference_set(seed, slopes, collective, scatter, ge_gain, power_per_thrust):
+    """Both reference studies' saved steps, made from a linear stand-in of the rotor whose
+    derivatives (``slopes``: thrust per unit of each Bo105 input), collective, data scatter,
+    ground-effect strength and power/thrust slope set the causes the claims must name."""
+    rng = np.random.default_rng(seed)
+    std = np.array([5.4e-3, 5.9e-3, 5.7e-3, 750.0]) * (1 + 0.05 * seed)
+    mean = np.array([0.1075, 0.1172, 0.1135, 15035.0])
+
+    def thrust(x):
+        return 2000.0 + ((x - mean) / std) @ np.asarray(slopes)
+
+    # ------------------------------------------------------------------ validation (Bo105)
+    x = mean + std * rng.normal(size=(60, 4))
+    y = np.column_stack([thrust(x), 1400.0 + 0.1 * (thrust(x) - 2000.0)])
+    noisy = y + scatter * rng.normal(size=y.shape)
+    eff = np.asarray(slopes)
+    var = eff**2 / np.sum(eff**2)
+    val = {
+        "sens_mixed": StepResult("sens_mixed", "sensitivity", {
+            **{f"S/thrust/{p}": float(v) for p, v in zip(_VAL_IN, var, strict=True)},
+            **{f"input_std/{p}": float(s) for p, s in zip(_VAL_IN, std, strict=True)},
+            "out_std/thrust": float(np.sqrt(np.sum(eff**2)))},
+            meta={"fixed": {"collective_deg": collective}}),
+        "truth": _sampling("truth", _VAL_IN, ["thrust", "torque"], x, noisy),
+        "bayes": StepResult("bayes", "bayes_calibration", {
+            **{f"mean/{p}": float(m * (1.05 + 0.05 * seed)) for p, m in zip(
+                _VAL_IN, mean, strict=True)},
+            **{f"std/{p}": float(s) for p, s in zip(_VAL_IN, std, strict=True)},
+            "noise_std/thrust": 0.5, "noise_std/torque": 0.5},
+            {"data": noisy}, meta={"columns": {"data": ["thrust", "torque"]}}),
+    }
+    for step, params in (("mixed", _VAL_IN), ("aero", _VAL_IN[:3])):
+        xs = mean[:len(params)] + std[:len(params)] * rng.normal(size=(80, len(params)))
+        full = np.column_stack([xs, np.full((80, 4 - len(params)), mean[3])])
+        ys = np.column_stack([thrust(full), 1400.0 + 0.1 * (thrust(full) - 2000.0)])
+        val[f"cuu_truth_{step}"] = _sampling(f"cuu_truth_{step}", params, ["thrust", "torque"],
+                                             xs, ys)
+        cal = std[:len(params)] * np.r_[1e-6, rng.uniform(0.8, 3.0, len(params) - 1)]
+        yc = ys[:, :1] + (ys[:, :1] - ys[:, :1].mean()) * rng.uniform(0.5, 2.0)
+        yc = np.column_stack([yc, 1400.0 + 0.1 * (yc[:, 0] - 2000.0)])
+        val[f"cuu_{step}"] = _cuu(f"cuu_{step}", params, std[:len(params)], cal,
+                                  {"thrust": float(ys[:, 0].std()), "torque": float(
+                                      ys[:, 0].std() * 0.3)}, yc, f"cuu_truth_{step}")
+
+    # ------------------------------------------------------------------ experiment (GVPM)
+    data = {"thrust": (25.7, 29.0, 35.8), "roll": (-0.04, -0.25, -0.24),
+            "pitch": (-0.24, -0.31, -0.25), "power": (351.0, 399.0, 413.0)}
+    model4 = {k: v * (1 + 0.01 * seed) for k, v in
+              {"thrust": 26.3, "roll": -0.07, "pitch": -0.21, "power": 337.0}.items()}
+    spread = {"thrust": 2.2, "roll": 0.12, "pitch": 0.12, "power": 15.6}
+
+    def forward(name, labels, gains):
+        s = {}
+        for r in _LOADS:
+            for lab, g in zip(labels, gains, strict=True):
+                d = data[r][{"@4": 0, "@2": 1, "@1": 2}[lab]]
+                m = model4[r] * g
+                for pre, sd in (("", spread[r]), ("pp_", spread[r] / 3)):
+                    s |= {f"{pre}mean/{r}{lab}": m, f"{pre}std/{r}{lab}": sd,
+                          f"{pre}nstd/{r}{lab}": abs(d - m) / sd}
+                s[f"data/{r}{lab}"] = d
+        return StepResult(name, "forward_check", s, meta={"parameters": ["k_pitch_link"]})
+
+    g = np.array([1.0, 1.0 + ge_gain / 3, 1.0 + ge_gain])
+    exp = {"forward_4r": forward("forward_4r", ["@4"], [1.0]),
+           "forward_ige": forward("forward_ige", ["@2", "@1"], list(g[1:]))}
+    ge = {}
+    for resp, test, base in (("ct", (1.0, 1.006, 1.13, 1.415), 1.02),
+                             ("cq", (1.0, 1.014, 1.14, 1.203), 0.95 + 0.008 * seed)):
+        for h, d, k in zip(("@4", "@3", "@2", "@1"), test, (0, 0.1, 0.3, 1.0), strict=True):
+            m = base * (1 + ge_gain * k)
+            for pre in ("", "pp_"):
+                ge |= {f"{pre}mean/{resp}{h}": m, f"{pre}std/{resp}{h}": 0.01,
+                       f"{pre}nstd/{resp}{h}": abs(d - m) / 0.01}
+            ge[f"data/{resp}{h}"] = d
+    exp["ground_effect"] = StepResult("ground_effect", "forward_check", ge,
+                                      meta={"parameters": ["k_pitch_link"]})
+    coll = rng.normal(size=80)
+    yc = np.column_stack([26.0 + coll, 0.01 * seed * rng.normal(size=80),
+                          0.01 * seed * rng.normal(size=80),
+                          337.0 + power_per_thrust * coll])
+    exp["cuu_commands"] = _cuu("cuu_commands", ["collective_deg"], [0.17], [0.1],
+                               {"thrust": 0.86, "roll": 0.167, "pitch": 0.167, "power": 11.66},
+                               yc, "none")
+    values = {"validation": {"radius": 4.912, "root_cutout": 1.1, "twist_deg": -8.0,
+                             "omega": 44.4, "speed_of_sound": 340.3, "collective_deg": 6.0}}
+    return {"validation": val, "experiment": exp}, values
+
+
+def _reasons_of(results, values):
+    labels = {"validation": {"cla_m03": "C_La(0.3)", "cla_m05": "C_La(0.5)",
+                             "cla_m06": "C_La(0.6)", "k_flap": "K_f"}}
+    return {c.key: c for c in claims(compare_tables(results, values), results, labels, values)}
+
+
+def test_reasons_are_computed_from_the_run():
+    """Two result sets whose causes differ (derivatives, blade pitch, data scatter, ground-
+    effect strength, the model's power/thrust slope): every claim that does not hold in both
+    gives reasons, and no reason sentence of one set appears in the other (a fixed sentence
+    would)."""
+    a = _reasons_of(*_reference_set(1, [15.0, -34.0, -76.0, 0.04], 6.0, 87.0, 0.095, 6.4))
+    b = _reasons_of(*_reference_set(2, [40.0, 10.0, -60.0, 0.3], 10.0, 30.0, 0.03, 9.0))
+    both = [k for k in a if a[k].status == "does not hold" and b[k].status == "does not hold"]
+    assert {"bo105_sens_top", "bo105_bayes_means", "bo105_cuu_mixed_inputs",
+            "bo105_cuu_aero_inputs", "gvpm_cuu", "gvpm_within_1std_1R_joint",
+            "ge_within_3std_ct_joint", "ge_within_3std_cq_independent"} <= set(both)
+    for k in both:
+        assert len(a[k].reasons) >= 2 and len(b[k].reasons) >= 2, k
+        shared = set(a[k].reasons) & set(b[k].reasons)
+        assert not shared, (k, shared)
+    assert_claims_truthful([{**vars(c), "status": c.status} for c in a.values()])
+    # the causes themselves: the twist reading at 6 deg collective, not at 10 deg
+    top_a, top_b = " ".join(a["bo105_sens_top"].reasons), " ".join(b["bo105_sens_top"].reasons)
+    assert "is <= 0 outboard of r = 3.96 m (0.81 R" in top_a
+    assert "C_La(0.6), C_La(0.5) lower the thrust" in top_a
+    assert "positive over the whole span (10 deg at the root, 2 deg at the tip)" in top_b
+    # +1 std of each input: the slopes of the noiseless plane of the 80 samples of
+    # cuu_truth_mixed (preferred to the 60 noisy ones of truth) times the std
+    assert "by -76 (C_La(0.6)), -34 (C_La(0.5)), +15 (C_La(0.3)), +0.04 (K_f)" in top_a, top_a
+    # design of the Bo105 calibration: scatter against the noise std
+    assert any("against 0.5 (x" in r for r in a["bo105_bayes_means"].reasons)
+    # GVPM CUU: the ratio the targets imply (11.66 / 0.86) against the model's slope
+    cuu = " ".join(a["gvpm_cuu"].reasons)
+    assert "std(power) / std(thrust) = 13.6" in cuu and "dpower/dthrust" in cuu
+    assert re.search(r"is 6\.\d+ \(corr \+1\.000", cuu), cuu
+    # input spreads: a collapse reads as one
+    assert any("collapsed" in r for r in a["bo105_cuu_mixed_inputs"].reasons)
+    # ground effect: model ratio against the test's, computed
+    ge = " ".join(a["ge_within_3std_ct_joint"].reasons)
+    assert "C_T(1R) / C_T(4R) = 1.095 against the test's 1.415" in ge
+    assert "1R the model's loads change Thrust T [N] +9.5 % against the test's +39.3 %" in \
+        " ".join(a["gvpm_within_1std_1R_joint"].reasons)
+    assert "change with the height is weaker than the test's" in \
+        " ".join(a["gvpm_within_1std_1R_joint"].reasons)
+    # a ground-effect model stronger than the test's reads as such
+    c = _reasons_of(*_reference_set(3, [15.0, -34.0, -76.0, 0.04], 6.0, 87.0, 0.6, 6.4))
+    assert "change with the height is stronger than the test's" in \
+        " ".join(c["gvpm_within_1std_1R_joint"].reasons)
+    assert "the ground-effect model is stronger than the rotor's" in \
+        " ".join(c["ge_within_3std_ct_joint"].reasons)

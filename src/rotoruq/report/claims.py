@@ -16,6 +16,14 @@ from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 
 from ..results import StepResult
+from .causes import (
+    calibration_design,
+    input_recovery,
+    model_form_gap,
+    sensitivity_causes,
+    sweep_growth,
+    target_consistency,
+)
 from .compare import ComparedTable
 from .diagnostics import PILEUP_MAX, STD_RATIO_MAX, step_warnings, strong_correlations
 
@@ -160,15 +168,19 @@ def _misses(labels: list[str], vals: list, ok, fmt_item) -> list[str]:
 
 # --------------------------------------------------------------------------------- claims
 def claims(tables: list[ComparedTable], results: Results | None = None,
-           labels: Mapping[str, Mapping[str, str]] | None = None) -> list[Claim]:
+           labels: Mapping[str, Mapping[str, str]] | None = None,
+           model_values: Mapping[str, Mapping[str, float]] | None = None) -> list[Claim]:
     """The reference study's main claims, on our results and on the thesis's numbers.
 
     ``tables`` are the compared thesis tables (:func:`rotoruq.report.compare.compare_tables`);
     ``results`` (study -> step -> result) supplies the diagnostics and the joint posterior
-    predictive; ``labels`` (study -> parameter -> label) names parameters in the reasons.
+    predictive; ``labels`` (study -> parameter -> label) names parameters in the reasons;
+    ``model_values`` (study -> the preset numbers ``study.json`` recorded) give the blade
+    geometry a reason may need. Every reason is computed from these (:mod:`.causes`).
     """
     results = results or {}
     labels = labels or {}
+    model_values = model_values or {}
     val = results.get("validation", {})
     exp = results.get("experiment", {})
     lab_v, lab_e = labels.get("validation", {}), labels.get("experiment", {})
@@ -180,6 +192,8 @@ def claims(tables: list[ComparedTable], results: Results | None = None,
     errs = {w: _rel_errors(_col(t, 0, w), _col(t, 2, w)) for w in ("ours", "thesis")}
     reasons = _misses(_rowlabels(t), errs["ours"], lambda e: e <= 0.02,
                       lambda lab, e: f"{lab}: posterior mean {100 * e:.1f} % from the true mean")
+    if reasons and "bayes" in val:
+        reasons += calibration_design(val["bayes"])
     reasons += _bayes_reasons(val, "bayes", lab_v)
     out.append(Claim(
         "bo105_bayes_means", "Bo105 Bayes calibration: posterior means within 2 % of the true "
@@ -201,15 +215,8 @@ def claims(tables: list[ComparedTable], results: Results | None = None,
     s = val.get("sens_mixed")
     m = margin("ours")
     if s is not None and m is not None and m < 0:
-        main = _col(t, 0, "ours")
-        j = max(range(len(main)), key=lambda i: main[i])
-        reasons.append(f"{_rowlabels(t)[j]} dominates (S = {main[j]:.3f} against "
-                       f"{main[0]:.3f} for C_La(0.3))")
-        if s.get("negligible/thrust", math.nan) == 1:
-            reasons.append("the thrust variance is negligible (std "
-                           f"{s.get('out_std/thrust', math.nan):.3g} N), the indices split noise")
-        reasons.append("our NACA 23012 table is generated, not the thesis's (table 3.2): the "
-                       "lift slope of each Mach row, hence which row weighs most, differs")
+        reasons = sensitivity_causes(s, val, "thrust", "cla_m03", lab_v,
+                                     model_values.get("validation", {}))
     out.append(Claim(
         "bo105_sens_top", "Bo105 mixed sensitivity: C_La(0.3) has the largest main index of "
         "the mean thrust (table 3.6)", "S(C_La(0.3)) - largest other S", ">", 0.0,
@@ -226,6 +233,8 @@ def claims(tables: list[ComparedTable], results: Results | None = None,
         reasons = _misses(_rowlabels(t), errs["ours"], lambda e: e <= 0.05,
                           lambda lab, e: f"{lab}: calibrated std {100 * e:.1f} % from the "
                           "experimental")
+        if reasons and step in val:
+            reasons += target_consistency(val[step], lab_v)
         reasons += _cuu_reasons(val.get(step), lab_v)
         details = tuple(
             f"{lab}: our mean {o:.5g} against the thesis's {th:.5g} ({100 * (o / th - 1):+.0f} "
@@ -234,6 +243,11 @@ def claims(tables: list[ComparedTable], results: Results | None = None,
             for lab, o, th in zip(_rowlabels(t), _col(t, 0, "ours"), _col(t, 0, "thesis"),
                                   strict=True)
             if o is not None and th and abs(o / th - 1) > 0.1)
+        inputs = _input_recovery_claim(by[_INPUT_TABLE[num]], step, what, val, lab_v)
+        if inputs.passes is False:
+            details += (f"the input spreads are not recovered (smallest calibrated / true std "
+                        f"ratio {inputs.value:.3g}; claim {inputs.key}): matching the output "
+                        "std devs does not make the thesis's CUU claim hold",)
         out.append(Claim(
             f"bo105_{step}", f"Bo105 CUU ({what}): load std devs reproduced within "
             f"5 % (table {num})", "largest |calibrated std - experimental std| / experimental",
@@ -242,6 +256,7 @@ def claims(tables: list[ComparedTable], results: Results | None = None,
             _kofn(errs["thesis"], lambda e: e <= 0.05),
             reasons=tuple(reasons), warnings=_warnings(val, [step, "bayes"], lab_v),
             details=details))
+        out.append(inputs)
 
     # GVPM forward checks at 4R, 2R, 1R, under both propagations.
     for num, where, step, label in (("4.12", "at 4R", "forward_4r", "@4"),
@@ -261,6 +276,8 @@ def claims(tables: list[ComparedTable], results: Results | None = None,
     errs = {w: _rel_errors(_col(t, 1, w), _col(t, 2, w)) for w in ("ours", "thesis")}
     reasons = _misses(_rowlabels(t), errs["ours"], lambda e: e <= 0.10,
                       lambda lab, e: f"{lab}: calibrated std {100 * e:.0f} % from the target")
+    if reasons and "cuu_commands" in exp:
+        reasons += target_consistency(exp["cuu_commands"], lab_e)
     reasons += _cuu_reasons(exp.get("cuu_commands"), lab_e)
     out.append(Claim(
         "gvpm_cuu", "GVPM CUU on the commands: load std devs within 10 % of the targets "
@@ -274,6 +291,49 @@ def claims(tables: list[ComparedTable], results: Results | None = None,
         t = by[num]
         out += _ground_claims(num, name, resp, t, exp, lab_e)
     return [_with_fallback_reason(c) for c in out]
+
+
+# The thesis's input table of each CUU's output table.
+_INPUT_TABLE = {"3.11": "3.10", "3.13": "3.12"}
+# An input spread is recovered when calibrated and true std devs agree within this factor.
+_RECOVERY_FACTOR = 2.0
+
+
+def _targets_step(res: StepResult | None, steps: Mapping[str, StepResult]) -> StepResult | None:
+    """The step whose samples gave a CUU its targets (``targets = "step.samples"``)."""
+    ref = ((res.meta.get("options") or {}).get("targets") if res is not None else None)
+    if isinstance(ref, str) and "." in ref:
+        return steps.get(ref.split(".", 1)[0])
+    return None
+
+
+def _input_recovery_claim(t: ComparedTable, step: str, what: str, val, labels) -> Claim:
+    """The thesis's CUU claim is that the input spreads are recovered: each calibrated input
+    std within a factor 2 of the std the targets were made with."""
+    def ratios(which):
+        out = []
+        for true, cal in zip(_col(t, 1, which), _col(t, 3, which), strict=True):
+            if true is None or cal is None or true <= 0:
+                out.append(None)
+            else:
+                r = cal / true
+                out.append(min(r, 1 / r) if r > 0 else 0.0)
+        return out
+
+    ours, thesis = ratios("ours"), ratios("thesis")
+    ok = (lambda v: v >= 1 / _RECOVERY_FACTOR)  # noqa: E731
+    res = val.get(step)
+    reasons: list[str] = []
+    if res is not None and not all(v is None or ok(v) for v in ours):
+        reasons = input_recovery(res, _targets_step(res, val), labels)[1]
+        reasons += _cuu_reasons(res, labels)[:1]
+    return Claim(
+        f"bo105_{step}_inputs", f"Bo105 CUU ({what}): the input std devs are recovered, each "
+        f"within a factor {_RECOVERY_FACTOR:g} of the true one (table {t.ref.number})",
+        "smallest min(calibrated / true, true / calibrated) input std over the inputs", ">=",
+        1 / _RECOVERY_FACTOR, _worst(ours, largest=False), _worst(thesis, largest=False),
+        _kofn(ours, ok), _kofn(thesis, ok), reasons=tuple(reasons),
+        warnings=_warnings(val, [step], labels))
 
 
 def _with_fallback_reason(c: Claim) -> Claim:
@@ -325,6 +385,11 @@ def _forward_claims(key, text, steps, step, label, rows, resp, limit, thesis_val
                     f"(mean {res.get(f'{prefix}mean/{r}{label}', math.nan):.4g}"
                     f", measured {res.get(f'data/{r}{label}', math.nan):.4g}, std "
                     f"{res.get(f'{prefix}std/{r}{label}', math.nan):.3g})")
+        if reasons and label != "@4":
+            missed = [(lab, r) for lab, r, v in zip(rows, resp, vals, strict=True)
+                      if v is not None and v > limit]
+            reasons.append(sweep_growth(steps.get("forward_4r"), res, [r for _, r in missed],
+                                        label, [lab for lab, _ in missed], prefix))
         if reasons:
             reasons += _bayes_reasons(steps, "bayes", labels, correlations=not prefix)
         details: tuple[str, ...] = ()
@@ -378,9 +443,10 @@ def _ground_claims(num, name, resp, t: ComparedTable, exp, labels) -> list[Claim
 
         g = growth(means)
         reasons = []
-        if g is not None and g <= 0:
+        if g is not None and g <= 0 and res is not None:
             reasons.append(f"model {name} ratio at 4R, 2R, 1R: {means[0]:.4f}, {means[2]:.4f}, "
                            f"{means[3]:.4f}")
+            reasons += model_form_gap(res, resp, heights, prefix, labels)
         out.append(Claim(
             f"ge_growth_{resp}_{tag}", f"Ground effect: model {name} ratio grows from 4R to 2R "
             f"to 1R (table {num})", "smallest step of the mean ratio (2R - 4R, 1R - 2R)", ">",
@@ -392,9 +458,9 @@ def _ground_claims(num, name, resp, t: ComparedTable, exp, labels) -> list[Claim
                    f"{res.get(f'{prefix}mean/{resp}{h}', math.nan):.4f} +- "
                    f"{res.get(f'{prefix}std/{resp}{h}', math.nan):.3g} ({v:.2f} std devs)"
                    for h, v in zip(heights, nstd, strict=True) if v is not None and v > 3.0]
-        if reasons:
-            reasons.append("only the pitch-link stiffness is uncertain in this step: the "
-                           "spread is that of K_p alone")
+        if reasons and res is not None:
+            reasons += _ground_strength(res, resp, name, prefix)
+            reasons += model_form_gap(res, resp, heights, prefix, labels)
         out.append(Claim(
             f"ge_within_3std_{resp}_{tag}", f"Ground effect: measured {name} ratio within 3 "
             f"model std devs at every height (table {num}, figure 4.3{fig})",
@@ -402,4 +468,22 @@ def _ground_claims(num, name, resp, t: ComparedTable, exp, labels) -> list[Claim
             _worst(nstd), _worst(th_nstd), _kofn(nstd, lambda v: v <= 3.0),
             _kofn(th_nstd, lambda v: v <= 3.0), propagation=prop, reasons=tuple(reasons),
             warnings=_warnings(exp, ["bayes"], labels)))
+    return out
+
+
+def _ground_strength(res: StepResult, resp: str, name: str, prefix: str) -> list[str]:
+    """The ground-effect model's strength against the test's: the ratio 1R / 4R of each, and
+    the model at the reference height (where the ratios are normalised by the test)."""
+    nan = math.nan
+    m4, m1 = res.get(f"{prefix}mean/{resp}@4", nan), res.get(f"{prefix}mean/{resp}@1", nan)
+    d4, d1 = res.get(f"data/{resp}@4", nan), res.get(f"data/{resp}@1", nan)
+    s4 = res.get(f"{prefix}std/{resp}@4", nan)
+    out = []
+    if all(map(math.isfinite, (m4, m1, d4, d1))) and m4 and d4:
+        out.append(f"model {name}(1R) / {name}(4R) = {m1 / m4:.3f} against the test's "
+                   f"{d1 / d4:.3f}: the ground-effect model is "
+                   + ("weaker" if m1 / m4 < d1 / d4 else "stronger") + " than the rotor's")
+    if all(map(math.isfinite, (m4, d4, s4))) and d4 and s4 > 0 and abs(m4 - d4) > 3 * s4:
+        out.append(f"at 4R, the reference height, the model's {name} is already "
+                   f"{m4 / d4:.3f} of the test's ({abs(m4 - d4) / s4:.1f} model std devs off)")
     return out

@@ -13,12 +13,10 @@ from __future__ import annotations
 
 import base64
 import datetime as _dt
-import html
 import json
 import logging
 import os
 import pickle
-import re
 import shutil
 import subprocess
 import sys
@@ -34,7 +32,10 @@ from ..results import STUDY_INFO, StepResult, is_study_dir, load_results, load_s
 from .claims import INDEPENDENT, JOINT, Claim, claims, claims_json
 from .compare import REFERENCE_STUDIES, compare_tables
 from .diagnostics import THRESHOLDS
+from .escape import script_json, slug
+from .escape import text as e
 from .hooks import rendering
+from .provenance import failed_evaluations, git_commit
 from .steptables import step_tables, table_csv
 from .tables import fmt, step_table_html, table_html, write_csv
 
@@ -54,8 +55,11 @@ figcaption{font-size:12px;color:#444}
 .st-holds{color:#1a7f37;font-weight:bold} .st-warn{color:#9a6700;font-weight:bold}
 .st-fails{color:#b42318;font-weight:bold} .st-na{color:#777}
 ul.why{margin:0;padding-left:1.2em;font-size:11px;text-align:left}
-nav.toc{font-size:13px;column-width:18em}
+nav.toc{font-size:13px}
 details{font-size:11px;text-align:left}
+section.first{border:1px solid #ccc;padding:.5em 1em;margin:1em 0}
+p.counts{font-size:16px} ol.verdict{font-size:13px;padding-left:1.5em}
+ol.verdict li{margin:2px 0} details.prov,details.toc{font-size:12px}
 """
 
 _STATUS_CLASS = {"holds": "st-holds", "holds, with a warning": "st-warn",
@@ -127,12 +131,11 @@ def draw_step(hook: Callable, steps: Mapping[str, StepResult], step: str, study:
 
 
 def _anchor(*parts: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_-]+", "-", "-".join(parts)).strip("-")
+    """An id from study-supplied names: each part through :func:`~.escape.slug`."""
+    return "-".join(slug(p) for p in parts)
 
 
 def _claim_row(c: Claim) -> str:
-    e = html.escape
-
     def kofn(v):
         return "-" if v is None else f"{v[0]} of {v[1]}"
 
@@ -163,7 +166,7 @@ def _claims_section(claim_list: list[Claim]) -> str:
     head = ("<tr><th class=l>claim</th><th class=l>propagation</th><th>ours</th>"
             "<th>our value</th><th>threshold</th><th>ours k of n</th><th>thesis value</th>"
             "<th>thesis</th><th class=l>why (computed from this run)</th></tr>")
-    data = json.dumps(claims_json(claim_list)).replace("</", "<\\/")
+    data = script_json(claims_json(claim_list))
     t = THRESHOLDS
     return (
         "<table id='claims-table'>" + head + "".join(_claim_row(c) for c in claim_list)
@@ -175,8 +178,8 @@ def _claims_section(claim_list: list[Claim]) -> str:
         f"bound (more than {100 * t['pileup_max']:g} % of the chain in its outer 5 %), a "
         f"parameter the data do not inform (posterior std above {t['std_ratio_max']} x the "
         "prior's), a non-identifiable CUU). Forward checks after a calibration are evaluated "
-        f"under two propagations: <b>independent normals</b> ({html.escape(INDEPENDENT)}) "
-        f"and the <b>joint posterior predictive</b> ({html.escape(JOINT)}, the measurement "
+        f"under two propagations: <b>independent normals</b> ({e(INDEPENDENT)}) "
+        f"and the <b>joint posterior predictive</b> ({e(JOINT)}, the measurement "
         "compared with the model spread plus the calibration's noise). They differ when the "
         "posterior is correlated: independent normals ignore the correlation.</p>"
         f"<script type='application/json' id='claims-data'>{data}</script>")
@@ -186,11 +189,11 @@ def _steps_summary(steps: dict[str, StepResult], anchors: dict[str, str]) -> str
     rows = []
     for s in steps.values():
         rows.append(
-            f"<tr><td class=l><a href='#{anchors[s.name]}'>{html.escape(s.name)}</a></td>"
-            f"<td>{s.type}</td>"
-            f"<td class=l>{html.escape(str(s.meta.get('title', '')))}</td>"
-            f"<td>{s.meta.get('n_evaluations', '-')}</td>"
-            f"<td>{fmt(s.meta.get('seconds'))}</td></tr>")
+            f"<tr><td class=l><a href='#{anchors[s.name]}'>{e(s.name)}</a></td>"
+            f"<td>{e(s.type)}</td>"
+            f"<td class=l>{e(s.meta.get('title') or '')}</td>"
+            f"<td>{e(s.meta.get('n_evaluations', '-'))}</td>"
+            f"<td>{_num(s.meta.get('seconds'))}</td></tr>")
     return ("<table><tr><th class=l>step</th><th>type</th><th class=l>what</th>"
             f"<th>evaluations</th><th>seconds</th></tr>{''.join(rows)}</table>")
 
@@ -204,16 +207,125 @@ def _noise_note(steps: dict[str, StepResult]) -> str:
                  if k.startswith("noise_std/")}
         if noise:
             what = ", ".join(f"{r} {fmt(v)}" for r, v in noise.items())
-            parts.append(f"{html.escape(s.name)}: {html.escape(str(s.meta.get('noise_model')))}"
-                         f" ({what})")
+            parts.append(f"{e(s.name)}: {e(s.meta.get('noise_model'))} ({e(what)})")
     if not parts:
         return ""
     return ("<p class=note><b>Noise model of the calibrations</b> (data std devs in response "
             "units): " + "; ".join(parts) + ".</p>")
 
 
+# The page needs no script: inline <script> and event handlers are refused, images come
+# only from data: URLs (the JSON data block is not a script and is never executed).
+CSP = ("default-src 'none'; img-src data:; style-src 'unsafe-inline'; script-src 'none'; "
+       "base-uri 'none'; form-action 'none'")
+
+_VERDICTS = (("holds", "hold"), ("holds, with a warning", "hold with a warning"),
+             ("does not hold", "do not hold"), ("not checked", "not checked"))
+
+
+def _num(v: Any) -> str:
+    """A saved number for the page (anything else escaped as text)."""
+    if isinstance(v, int | float) and not isinstance(v, bool):
+        return fmt(float(v))
+    return e("-" if v is None else v)
+
+
+def _verdict_counts(claim_list: Sequence[Claim]) -> dict[str, int]:
+    """Number of claims in each state, in the order the first screen shows them."""
+    return {k: sum(c.status == k for c in claim_list) for k, _ in _VERDICTS}
+
+
+def _first_screen(claim_list: list[Claim], studies: Mapping[str, Mapping[str, StepResult]],
+                  infos: Mapping[str, dict], labels: Mapping[str, Mapping[str, str]]) -> str:
+    """The verdict (counts, one line per claim), the V&V table and the provenance."""
+    out = ["<section class=first id='verdict'><h2>Verdict</h2>"]
+    if claim_list:
+        n = _verdict_counts(claim_list)
+        attrs = " ".join(f"data-{_STATUS_CLASS[k][3:]}='{v}'" for k, v in n.items())
+        parts = ", ".join(f"<span class={_STATUS_CLASS[k]}>{n[k]} {word}</span>"
+                          for k, word in _VERDICTS)
+        out.append(f"<p class=counts {attrs}><b>{len(claim_list)} claims of the reference "
+                   f"study</b>: {parts}.</p><ol class=verdict>")
+        for c in claim_list:
+            prop = {INDEPENDENT: " (independent normals)", JOINT: " (joint predictive)"}.get(
+                c.propagation or "", "")
+            val = "" if c.value is None else f": {fmt(c.value)}, needs {e(c.op)} {c.threshold:g}"
+            out.append(f"<li data-verdict='{e(c.key)}'><span class={_STATUS_CLASS[c.status]}>"
+                       f"{e(c.status)}</span> {e(c.text)}{e(prop)}{val}</li>")
+        out.append("</ol><p class=note>Values, thresholds and the reasons computed from this "
+                   "run: <a href='#claims'>the claims table</a>.</p>")
+    else:
+        out.append("<p class=counts>No claims: none of these studies is a reference study "
+                   "(the thesis's claims are checked on <code>rotoruq reproduce</code>).</p>")
+    out.append(_vv_section(studies, labels))
+    out.append(_provenance(studies, infos))
+    out.append("</section>")
+    return "".join(out)
+
+
+def _vv_section(studies: Mapping[str, Mapping[str, StepResult]],
+                labels: Mapping[str, Mapping[str, str]]) -> str:
+    """What every step of type ``validation`` shows (its type's tables), or a clear slot."""
+    body = []
+    for study, steps in studies.items():
+        for s in steps.values():
+            if s.type != "validation":
+                continue
+            body.append(f"<p class=note>{e(study)} / {e(s.name)}: "
+                        f"{e(s.meta.get('title') or '')}</p>")
+            body += [step_table_html(t) for t in step_tables(s, labels.get(study))]
+    if not body:
+        body = ["<p class=note id='vv-slot'>No <code>validation</code> step in these results: "
+                "no comparison error E = S - D with its validation uncertainty to show. Add a "
+                "step of type <code>validation</code> to the study.</p>"]
+    return "<h3 id='vv'>Validation (V&amp;V)</h3>" + "".join(body)
+
+
+def _provenance(studies: Mapping[str, Mapping[str, StepResult]],
+                infos: Mapping[str, dict]) -> str:
+    """rotoruq's version and commit, each study's seed, every step's settings and its failed
+    evaluations, folded."""
+    from .. import __version__
+
+    commit = git_commit()
+    n_failed, recorded, unrecorded = 0, 0, 0
+    rows = []
+    for study, steps in studies.items():
+        info = infos[study]
+        trs = []
+        for s in steps.values():
+            fails = failed_evaluations(s)
+            if fails is None:
+                failed = "not recorded"
+                unrecorded += 1
+            else:
+                n_failed += fails[0]
+                recorded += 1
+                failed = str(fails[0]) + "".join(
+                    f"<br>{e(r)} ({k})" for r, k in sorted(fails[1].items()))
+            settings = json.dumps(s.meta.get("options") or {}, sort_keys=True, default=str)
+            trs.append(f"<tr><td class=l>{e(s.name)}</td><td class=l>{e(s.type)}</td>"
+                       f"<td class=l><code>{e(settings)}</code></td>"
+                       f"<td>{_num(s.meta.get('n_evaluations'))}</td><td class=l>{failed}</td>"
+                       f"<td class=l>{e(s.meta.get('code_version') or '-')}</td></tr>")
+        rows.append(
+            f"<p><b>{e(study)}</b>: seed {e(info.get('seed', '-'))}"
+            f"{', quick' if info.get('quick') else ''}; study file "
+            f"{e(info.get('study_file') or '-')}</p>"
+            "<table><tr><th class=l>step</th><th class=l>type</th><th class=l>settings</th>"
+            "<th>evaluations</th><th class=l>failed evaluations (reasons)</th>"
+            "<th class=l>code version</th></tr>" + "".join(trs) + "</table>")
+    seeds = ", ".join(f"{e(n)} {e(infos[n].get('seed', '-'))}" for n in studies)
+    return (f"<details class=prov id='provenance'><summary><b>Provenance</b>: report by rotoruq "
+            f"{e(__version__)}, commit {e(commit or 'not available')} (the version that "
+            f"computed each step: its code version below); seeds: {seeds}; "
+            f"<span data-failed='{n_failed}'>{n_failed} failed evaluations in the {recorded} "
+            f"steps that record them</span>"
+            + (f" ({unrecorded} steps do not)" if unrecorded else "") + "</summary>"
+            + "".join(rows) + "</details>")
+
+
 def _figure_html(f: _Rendered, key: str) -> str:
-    e = html.escape
     b64 = base64.b64encode(f.png).decode()
     return (f"<figure id='fig-{e(key)}' data-xlabels='{e(json.dumps(list(f.xlabels)))}' "
             f"data-ylabels='{e(json.dumps(list(f.ylabels)))}'><img alt='{e(f.caption)}' "
@@ -263,8 +375,9 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
     drawn: dict[tuple[str, str], list[_Rendered]] | None = None
     try:
         ref_results = {n: studies[n] for n in reference}
-        tables = compare_tables(ref_results, {n: _recorded(infos[n], "values") for n in reference})
-        claim_list = claims(tables, ref_results, labels) if reference else []
+        values = {n: _recorded(infos[n], "values") for n in reference}
+        tables = compare_tables(ref_results, values)
+        claim_list = claims(tables, ref_results, labels, values) if reference else []
         if title is None:
             if reference:
                 title = "rotoruq: reproduction of the reference study"
@@ -278,14 +391,16 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
 
         def heading(level: int, text: str, anchor: str) -> None:
             toc.append((level, anchor, text))
-            body.append(f"<h{level} id='{anchor}'>{html.escape(text)}</h{level}>")
+            body.append(f"<h{level} id='{anchor}'>{e(text)}</h{level}>")
 
         quick = [n for n, i in infos.items() if i.get("quick")]
+        first = ""
         if quick:
-            body.append(f"<p><b>Quick run</b> ({', '.join(quick)}): small samples; the numbers "
-                        "show the pipeline works, not the converged values.</p>")
+            first = (f"<p><b>Quick run</b> ({e(', '.join(quick))}): small samples; the "
+                     "numbers show the pipeline works, not the converged values.</p>")
+        first += _first_screen(claim_list, studies, infos, labels)
         if claim_list:
-            heading(2, "Summary: claims of the reference study", "claims")
+            heading(2, "Claims of the reference study: values, thresholds, reasons", "claims")
             body.append(_claims_section(claim_list))
             (report_dir / "claims.json").write_text(json.dumps(claims_json(claim_list), indent=1))
 
@@ -308,7 +423,8 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
                 heading(4, f"{s.name} ({s.type}): {s.meta.get('title') or ''}".rstrip(": "),
                         anchors[s.name])
                 for k, t in enumerate(step_tables(s, labels.get(name))):
-                    (tab_dir / f"{name}_{s.name}_{k + 1}.csv").write_text(table_csv(t))
+                    (tab_dir / f"{slug(name)}_{slug(s.name)}_{k + 1}.csv").write_text(
+                        table_csv(t))
                     body.append(step_table_html(t))
             if name in reference:
                 mine = [t for t in tables if t.ref.study == name]
@@ -332,7 +448,7 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
             if figs:
                 heading(3, "Figures", _anchor(sid, "figures"))
             for f in figs:
-                key = f"{name}_{f.name}"  # two studies may both have a step "bayes"
+                key = f"{slug(name)}_{slug(f.name)}"  # two studies may both have a step "bayes"
                 (fig_dir / f"{key}.png").write_bytes(f.png)
                 toc.append((4, f"fig-{key}", f.caption))
                 body.append(_figure_html(f, key))
@@ -342,14 +458,16 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
         drawing.close()
 
     nav = "".join(
-        f"<li style='margin-left:{(lvl - 2) * 1.2}em'><a href='#{a}'>{html.escape(txt)}</a>"
+        f"<li style='margin-left:{(lvl - 2) * 1.2}em'><a href='#{a}'>{e(txt)}</a>"
         "</li>" for lvl, a, txt in toc)
-    head = [f"<h1>{html.escape(title)}</h1>",
+    head = [f"<h1>{e(title)}</h1>",
             f"<p class=note>Generated {_dt.datetime.now().isoformat(timespec='seconds')} from "
-            f"{', '.join(html.escape(str(p)) for p in results_dirs)}.</p>",
-            f"<nav class=toc id='toc'><b>Contents</b><ul>{nav}</ul></nav>"]
+            f"{', '.join(e(p) for p in results_dirs)}.</p>", first,
+            f"<details class=toc><summary>Contents ({len(toc)} sections, tables and figures)"
+            f"</summary><nav class=toc id='toc'><ul>{nav}</ul></nav></details>"]
     page = ("<!DOCTYPE html><html><head><meta charset='utf-8'>"
-            f"<title>{html.escape(title)}</title><style>{_CSS}</style></head><body>"
+            f"<meta http-equiv='Content-Security-Policy' content=\"{CSP}\">"
+            f"<title>{e(title)}</title><style>{_CSS}</style></head><body>"
             + "\n".join(head + body) + "</body></html>")
     index = report_dir / "index.html"
     index.write_text(page, encoding="utf-8")

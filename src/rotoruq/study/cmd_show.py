@@ -1,7 +1,11 @@
 """``rotoruq show RESULTS [STEP] [--csv|--json|--why-rerun]``: print a step's result tables
 (all steps without STEP), or export them as CSV or JSON, without opening the HTML report;
 ``--why-rerun`` says which steps ``rotoruq run`` would run again and which part of their
-identity changed."""
+identity changed.
+
+Names, titles, labels and descriptions come from the study file and the results folder: the
+text and CSV output escape their control characters (:func:`rotoruq.report.escape.terminal`),
+so a name cannot rewrite the terminal; JSON escapes them itself."""
 
 from __future__ import annotations
 
@@ -27,9 +31,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def show_data(results: str | Path, step: str | None = None) -> dict:
     """``{"study", "description", "steps": {name: {"type", "title", "seconds",
-    "n_evaluations", "tables": [StepTable.as_dict()], "warnings": [...]}}}``."""
+    "n_evaluations", "failed_evaluations", "tables": [StepTable.as_dict()], "warnings":
+    [...]}}}``; ``failed_evaluations`` is ``{"count", "reasons": {reason: count}}`` or None
+    when the step recorded nothing."""
     from ..errors import InputFileError
     from ..report.diagnostics import step_warnings
+    from ..report.escape import terminal
+    from ..report.provenance import failed_evaluations
     from ..report.steptables import step_tables
     from ..results import is_study_dir, load_results, load_study_info
 
@@ -40,15 +48,18 @@ def show_data(results: str | Path, step: str | None = None) -> dict:
     steps = load_results(folder)
     if step is not None and step not in steps:
         raise InputFileError(folder, None, f"a saved step named {step!r}; saved steps: "
-                             + (", ".join(steps) or "none"))
+                             + (", ".join(map(terminal, steps)) or "none"))
     labels = {k: v.get("label") or k for k, v in info.get("parameters", {}).items()}
     out = {"study": info.get("name"), "description": info.get("description", ""), "steps": {}}
     for name, res in steps.items():
         if step is not None and name != step:
             continue
+        fails = failed_evaluations(res)
         out["steps"][name] = {
             "type": res.type, "title": res.meta.get("title", ""),
             "seconds": res.meta.get("seconds"), "n_evaluations": res.meta.get("n_evaluations"),
+            "failed_evaluations": None if fails is None else {"count": fails[0],
+                                                              "reasons": fails[1]},
             "tables": [t.as_dict() for t in step_tables(res, labels)],
             "warnings": step_warnings(res, labels),
         }
@@ -57,13 +68,15 @@ def show_data(results: str | Path, step: str | None = None) -> dict:
 
 def why_rerun_text(results: str | Path, step: str | None = None) -> str:
     """One line per step: ``reused`` or ``runs again: <part>: <what> changed; ...``."""
+    from ..report.escape import terminal
     from .runner import why_rerun
 
     lines = []
     for name, why in why_rerun(results).items():
         if step is not None and name != step:
             continue
-        lines.append(f"{name}: " + ("reused" if not why else "runs again: " + "; ".join(why)))
+        lines.append(terminal(name) + ": " + ("reused" if not why else "runs again: "
+                                              + "; ".join(map(terminal, why))))
     return "\n".join(lines) + "\n"
 
 
@@ -75,9 +88,10 @@ def run(args: argparse.Namespace) -> int:
         w(why_rerun_text(args.results, args.step))
         return 0
     data = show_data(args.results, args.step)
-    if args.json:
+    if args.json:  # json.dumps writes every control character as \uXXXX
         w(json.dumps(data, indent=1) + "\n")
         return 0
+    data = _for_terminal(data)
     for name, s in data["steps"].items():
         tables = [StepTable(t["title"], tuple(t["columns"]), tuple(map(tuple, t["rows"])),
                             t["note"]) for t in s["tables"]]
@@ -88,4 +102,22 @@ def run(args: argparse.Namespace) -> int:
         w(f"== {name} ({s['type']}) {s['title']}\n")
         for t in tables:
             w(table_text(t) + "\n\n")
+        fails = s["failed_evaluations"]
+        if fails:
+            w(f"failed evaluations: {fails['count']}"
+              + "".join(f"\n  {k} x {r}" for r, k in sorted(fails["reasons"].items()))
+              + "\n\n")
     return 0
+
+
+def _for_terminal(obj):
+    """``obj`` (show_data's dict) with every string's control characters escaped."""
+    from ..report.escape import terminal
+
+    if isinstance(obj, str):
+        return terminal(obj)
+    if isinstance(obj, dict):
+        return {_for_terminal(k): _for_terminal(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_for_terminal(v) for v in obj]
+    return obj

@@ -1,0 +1,326 @@
+"""Why a claim of the reference study does not hold, computed from the saved results.
+
+Each function reads saved steps (and, for the rotor, the preset numbers ``study.json``
+recorded) and returns sentences whose every number comes from the run: local derivatives
+from a linear regression on a sampling step's saved inputs and outputs, the blade span where
+the pitch is not positive, the model-form gap of a sweep against its spread, the output ratio
+CUU targets imply against the model's output-to-output slope, input-spread recovery, and the
+validation design of a calibration (data scatter against the likelihood's noise).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from ..results import StepResult
+
+__all__ = ["local_effects", "negative_pitch_span", "sensitivity_causes", "model_form_gap",
+           "sweep_growth", "target_consistency", "input_recovery", "calibration_design"]
+
+Steps = Mapping[str, StepResult]
+nan = math.nan
+
+# Two responses move together along the calibrated inputs when |corr| is at least this.
+_COUPLED = 0.95
+# The target ratio and the model's slope disagree when they differ by more than this fraction.
+_RATIO_TOL = 0.2
+
+
+def _lab(labels: Mapping[str, str], p: str) -> str:
+    return labels.get(p, p)
+
+
+def _columns(res: StepResult, array: str) -> list[str]:
+    return list((res.meta.get("columns") or {}).get(array) or [])
+
+
+def local_effects(steps: Steps, inputs: Sequence[str], response: str,
+                  stds: Mapping[str, float]) -> tuple[str, int, dict[str, float]] | None:
+    """Change of ``response`` for +1 std of each input, from a least-squares plane through
+    the saved samples of a sampling step of the same study.
+
+    Returns (step name, number of samples, input -> slope * std) for the sampling step that
+    covers most of ``inputs``, the one with most samples among those (None when no step saved
+    samples of ``response``). Rows with a non-finite value are left out.
+
+    Examples
+    --------
+    >>> x = np.random.default_rng(0).normal(size=(50, 2))
+    >>> s = StepResult("lhs", "sampling", arrays={"inputs": x, "outputs": 3 * x[:, :1] - x[:, 1:]},
+    ...                meta={"columns": {"inputs": ["a", "b"], "outputs": ["y"]}})
+    >>> step, n, eff = local_effects({"lhs": s}, ["a", "b"], "y", {"a": 0.1, "b": 2.0})
+    >>> step, n, round(eff["a"], 12), round(eff["b"], 12)
+    ('lhs', 50, 0.3, -2.0)
+    """
+    best = None
+    for res in steps.values():
+        if "inputs" not in res.arrays or "outputs" not in res.arrays:
+            continue
+        cin, cout = _columns(res, "inputs"), _columns(res, "outputs")
+        if response not in cout:
+            continue
+        common = [p for p in inputs if p in cin]
+        n = len(res.arrays["inputs"])
+        if common and (best is None or (len(common), n) > (len(best[1]), len(best[0].arrays[
+                "inputs"]))):
+            best = (res, common, cin, cout)
+    if best is None:
+        return None
+    res, common, cin, cout = best
+    x = np.asarray(res.arrays["inputs"], dtype=float)
+    y = np.asarray(res.arrays["outputs"], dtype=float)[:, cout.index(response)]
+    ok = np.all(np.isfinite(x), axis=1) & np.isfinite(y)
+    x, y = x[ok], y[ok]
+    if len(y) <= x.shape[1] + 1:
+        return None
+    a = np.column_stack([np.ones(len(y)), x])
+    coef = np.linalg.lstsq(a, y, rcond=None)[0][1:]
+    return res.name, int(len(y)), {p: float(coef[cin.index(p)] * stds.get(p, math.nan))
+                                   for p in common}
+
+
+def negative_pitch_span(values: Mapping[str, float], fixed: Mapping[str, float]
+                        ) -> dict[str, float] | None:
+    """Where the linearly twisted blade's pitch theta(r) = collective + twist (r - r_root) /
+    (R - r_root) is <= 0: ``r0`` [m], ``fraction`` r0 / R, the section Mach at r0 and at the
+    tip, and the pitch at root and tip [deg]. ``values`` are the preset numbers recorded by
+    the run, ``fixed`` the step's fixed inputs (a collective set there wins). None without a
+    twist or a radius.
+
+    Examples
+    --------
+    The Bo105 preset at 6 deg collective: -8 deg of twist from r = 1.1 m to R = 4.912 m.
+
+    >>> span = negative_pitch_span({"radius": 4.912, "root_cutout": 1.1, "twist_deg": -8.0,
+    ...                             "omega": 44.4, "speed_of_sound": 340.3},
+    ...                            {"collective_deg": 6.0})
+    >>> round(span["r0"], 3), round(span["fraction"], 3), round(span["mach_r0"], 3)
+    (3.959, 0.806, 0.517)
+    """
+    def num(k):
+        v = fixed.get(k, values.get(k))
+        try:
+            return float(v) if v is not None else math.nan
+        except (TypeError, ValueError):
+            return math.nan
+
+    big_r, r_root, twist, coll = (num("radius"), num("root_cutout"), num("twist_deg"),
+                                  num("collective_deg"))
+    if not all(math.isfinite(v) for v in (big_r, r_root, twist, coll)) or big_r <= r_root:
+        return None
+    tip = coll + twist
+    out = {"collective": coll, "twist": twist, "root": r_root, "radius": big_r,
+           "tip_pitch": tip, "r0": math.nan, "fraction": 0.0}
+    if twist < 0 < coll and tip <= 0:
+        r0 = r_root + (coll / -twist) * (big_r - r_root)
+        out.update(r0=r0, fraction=r0 / big_r)
+    elif coll <= 0:
+        out.update(r0=r_root, fraction=r_root / big_r)
+    omega, a = num("omega"), num("speed_of_sound")
+    if math.isfinite(omega) and math.isfinite(a) and a > 0:
+        out["mach_tip"] = omega * big_r / a
+        if math.isfinite(out["r0"]):
+            out["mach_r0"] = omega * out["r0"] / a
+    return out
+
+
+def sensitivity_causes(sens: StepResult, steps: Steps, response: str, claimed: str,
+                       labels: Mapping[str, str], values: Mapping[str, float]) -> list[str]:
+    """Why ``claimed`` is not the largest main index of ``response``: the dominant input,
+    the local effect of +1 std of each input, and, for lift slopes of a twisted rotor blade,
+    the span where the pitch (hence the angle of attack) is negative."""
+    inputs = [k.split("/")[2] for k in sens.scalars if k.startswith(f"S/{response}/")]
+    if not inputs:
+        return []
+    main = {p: sens.get(f"S/{response}/{p}") for p in inputs}
+    top = max(main, key=lambda p: main[p])
+    out = [f"{_lab(labels, top)} dominates (S = {main[top]:.3f} against "
+           f"{main.get(claimed, math.nan):.3f} for {_lab(labels, claimed)})"]
+    if sens.scalars.get(f"negligible/{response}") == 1:
+        out.append(f"the {response} variance is negligible (std "
+                   f"{sens.get(f'out_std/{response}', math.nan):.3g}), the indices split noise")
+    stds = {p: sens.get(f"input_std/{p}", math.nan) for p in inputs}
+    fx = local_effects(steps, inputs, response, stds)
+    signs: dict[str, float] = {}
+    if fx is not None:
+        step, n, eff = fx
+        signs = eff
+        order = sorted(eff, key=lambda p: -abs(eff[p]))
+        out.append(f"+1 std of each input changes {response} by "
+                   + ", ".join(f"{eff[p]:+.3g} ({_lab(labels, p)})" for p in order)
+                   + f" (least-squares plane through the {n} saved samples of step {step})")
+    lift = [p for p in inputs if p.startswith("cla_")]
+    span = negative_pitch_span(values, sens.meta.get("fixed") or {})
+    if lift and span is not None:
+        if span["fraction"] > 0 and math.isfinite(span["r0"]):
+            mach = ""
+            if "mach_r0" in span:
+                mach = (f"; section Mach {span['mach_r0']:.2f} there to "
+                        f"{span['mach_tip']:.2f} at the tip")
+            neg = [_lab(labels, p) for p in sorted(lift, key=lambda p: signs.get(p, 0.0))
+                   if signs.get(p, 0.0) < 0]
+            carried = (f": there the angle of attack is negative, so a steeper lift slope "
+                       f"lowers the lift ({', '.join(neg)} lower the {response})" if neg else "")
+            out.append(
+                f"blade pitch theta(r) = {span['collective']:.3g} deg "
+                f"{span['twist']:+.3g} deg (r - {span['root']:.3g} m) / "
+                f"{span['radius'] - span['root']:.4g} m is <= 0 outboard of r = "
+                f"{span['r0']:.3g} m ({span['fraction']:.2f} R{mach}){carried}")
+        else:
+            out.append(f"blade pitch is positive over the whole span ({span['collective']:.3g} "
+                       f"deg at the root, {span['tip_pitch']:.3g} deg at the tip): the "
+                       "ranking comes from the section loads, not from negative lift")
+    return out
+
+
+def model_form_gap(res: StepResult, resp: str, labels_h: Sequence[str], prefix: str,
+                   labels: Mapping[str, str]) -> list[str]:
+    """A sweep whose miss grows while the model's spread does not: measured - model at
+    each point against the model std (``prefix`` "" or "pp_" for the joint predictive)."""
+    pts = []
+    for h in labels_h:
+        d, m = res.scalars.get(f"data/{resp}{h}"), res.scalars.get(f"{prefix}mean/{resp}{h}")
+        s = res.scalars.get(f"{prefix}std/{resp}{h}")
+        if d is not None and m is not None and s is not None:
+            pts.append((h, d - m, s))
+    if len(pts) < 2:
+        return []
+    first, last = pts[0], pts[-1]
+    params = (", ".join(_lab(labels, p) for p in res.meta.get("parameters") or [])
+              or "its inputs")
+    trend = "grows" if abs(last[1]) > abs(first[1]) else "shrinks"
+    change = abs(last[1] - first[1])
+    smax = max(p[2] for p in pts)
+    out = (f"the gap measured - model {trend} from {first[1]:+.3g} at {first[0][1:]}R to "
+           f"{last[1]:+.3g} at {last[0][1:]}R ({abs(last[1]) / last[2]:.1f} model std devs) "
+           f"while the model std stays {min(p[2] for p in pts):.3g} to {smax:.3g}")
+    if change > 3 * smax:
+        out += (f": its change over the heights ({change:.3g}) is {change / smax:.0f} x the "
+                f"largest model std, which a spread of {params} (the step's uncertain inputs) "
+                "cannot account for: the model's dependence on the height misses the test's")
+    return [out]
+
+
+def sweep_growth(base: StepResult | None, res: StepResult, resp: Sequence[str], at: str,
+                 rows: Sequence[str], prefix: str) -> str:
+    """How much the model's and the test's loads change from the 4R reference point to
+    ``at`` (a model-form measure: the ground-effect model's strength)."""
+    if base is None:
+        return ""
+    parts: list[str] = []
+    weaker: list[bool] = []
+    for lab, r in zip(rows, resp, strict=True):
+        m0, m1 = base.get(f"{prefix}mean/{r}@4", nan), res.get(f"{prefix}mean/{r}{at}", nan)
+        d0, d1 = base.get(f"data/{r}@4", nan), res.get(f"data/{r}{at}", nan)
+        s0 = base.get(f"{prefix}std/{r}@4", nan)
+        if (not all(map(math.isfinite, (m0, m1, d0, d1, s0))) or m0 == 0 or abs(d0) < 3 * s0
+                or abs(d1 / d0 - 1) < 0.02):
+            continue  # a reference near zero (within 3 std devs) makes a percentage meaningless
+        parts.append(f"{lab} {100 * (m1 / m0 - 1):+.1f} % against the test's "
+                     f"{100 * (d1 / d0 - 1):+.1f} %")
+        weaker.append(abs(m1 / m0 - 1) < abs(d1 / d0 - 1))
+    if not parts:
+        return ""
+    what = ("weaker than" if all(weaker) else "stronger than" if not any(weaker)
+            else "unlike")
+    return (f"from 4R to {at[1:]}R the model's loads change " + ", ".join(parts)
+            + f": the model's change with the height is {what} the test's, a model-form gap "
+            "that no calibration at 4R can close")
+
+
+def target_consistency(cuu: StepResult, labels: Mapping[str, str]) -> list[str]:
+    """Pairs of targeted responses that the model moves together (|corr| >= 0.95 over the
+    calibrated samples): the std ratio their targets imply against the model's slope
+    d(b)/d(a) along the calibrated inputs. When they differ no input spread matches both."""
+    cols = _columns(cuu, "outputs_calibrated")
+    if "outputs_calibrated" not in cuu.arrays or len(cols) < 2:
+        return []
+    y = np.asarray(cuu.arrays["outputs_calibrated"], dtype=float)
+    y = y[np.all(np.isfinite(y), axis=1)]
+    tgt = {r: cuu.scalars.get(f"target_std/{r}") for r in cols}
+    out = []
+    for i, a in enumerate(cols):
+        for j in range(i + 1, len(cols)):
+            b = cols[j]
+            sa, sb = tgt[a], tgt[b]
+            if not sa or not sb or len(y) < 3 or np.std(y[:, i]) == 0 or np.std(y[:, j]) == 0:
+                continue
+            corr = float(np.corrcoef(y[:, i], y[:, j])[0, 1])
+            if abs(corr) < _COUPLED:
+                continue
+            slope = float(np.cov(y[:, i], y[:, j])[0, 1] / np.var(y[:, i], ddof=1))
+            implied = sb / sa
+            if abs(implied / abs(slope) - 1) <= _RATIO_TOL:
+                continue
+            inputs = ", ".join(_lab(labels, p) for p in _params(cuu))
+            out.append(
+                f"the targets imply std({b}) / std({a}) = {implied:.3g}, the model's "
+                f"d{b}/d{a} along the calibrated inputs is {slope:.3g} (corr {corr:+.3f} over "
+                f"{len(y)} samples): no spread of {inputs} "
+                f"matches both (calibrated std {cuu.get(f'calibrated_out_std/{a}', math.nan):.3g}"
+                f" and {cuu.get(f'calibrated_out_std/{b}', math.nan):.3g} against targets "
+                f"{sa:.3g} and {sb:.3g})")
+    return out
+
+
+def _params(cuu: StepResult) -> list[str]:
+    return [k.split("/", 1)[1] for k in cuu.scalars if k.startswith("std/")]
+
+
+def input_recovery(cuu: StepResult, truth: StepResult | None, labels: Mapping[str, str]
+                   ) -> tuple[dict[str, float], list[str]]:
+    """Calibrated input std / true input std for each calibrated input whose true spread the
+    step that made the targets saved (``input_std/<name>``), and sentences for the inputs
+    outside a factor 2."""
+    if truth is None:
+        return {}, []
+    ratios = {}
+    for p in _params(cuu):
+        true = truth.scalars.get(f"input_std/{p}")
+        if true:
+            ratios[p] = cuu.get(f"std/{p}") / true
+    alive = [_lab(labels, p) for p, r in ratios.items() if r >= 1e-3]
+
+    def collapse(p: str) -> str:
+        others = [q for q in alive if q != _lab(labels, p)]
+        return ("; the spread collapsed" + (f": the output std devs come from {', '.join(others)}"
+                                           if others else "") if ratios[p] < 1e-3 else "")
+
+    out = [f"{_lab(labels, p)}: calibrated std {cuu.get(f'std/{p}'):.3g} against the true "
+           f"{truth.get(f'input_std/{p}'):.3g} (x{r:.2g}{collapse(p)})"
+           for p, r in ratios.items() if not 0.5 <= r <= 2.0]
+    return ratios, out
+
+
+def calibration_design(bayes: StepResult) -> list[str]:
+    """The validation design of a calibration: the scatter of its data points against the
+    likelihood's noise std. Data scattered far beyond the noise come from different inputs,
+    yet the likelihood treats them as repeats of one input.
+
+    Examples
+    --------
+    >>> data = np.array([[2100.0], [2200.0], [2300.0]])
+    >>> b = StepResult("bayes", "bayes_calibration", {"noise_std/thrust": 0.5},
+    ...                {"data": data}, meta={"columns": {"data": ["thrust"]}})
+    >>> calibration_design(b)[0][:57]
+    'the 3 data points scatter (std) by thrust 100 against 0.5'
+    """
+    data = bayes.arrays.get("data")
+    cols = _columns(bayes, "data") or list(bayes.meta.get("responses") or [])
+    if data is None or len(data) < 2 or len(cols) != np.shape(data)[1]:
+        return []
+    parts = []
+    for j, r in enumerate(cols):
+        noise = bayes.scalars.get(f"noise_std/{r}")
+        scatter = float(np.std(np.asarray(data, dtype=float)[:, j], ddof=1))
+        if noise and scatter > 3 * noise:
+            parts.append(f"{r} {scatter:.3g} against {noise:.3g} (x{scatter / noise:.0f})")
+    if not parts:
+        return []
+    return [f"the {len(data)} data points scatter (std) by " + ", ".join(parts)
+            + ": they come from a population of different inputs, but the likelihood treats "
+            "them as repeats of one input with that noise, so the posterior is a compromise "
+            "point, not the population's mean"]

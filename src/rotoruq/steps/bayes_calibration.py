@@ -318,7 +318,9 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
         "columns": columns, "n_evaluations": int(res.n_evaluations),
         "noise_model": text, "n_chains": int(chains.shape[0]),
         "reuse_data": bool(o.get("reuse_data")),
-        "warnings": sorted({f"{w.category.__name__}: {w.message}" for w in caught})[:10],
+        # the emulator's adequacy is warned on from the record (bayes_warnings)
+        "warnings": sorted({f"{w.category.__name__}: {w.message}" for w in caught
+                            if not str(w.message).startswith("emulator error over")})[:10],
         "prior": {p: dist_to_dict(d) for p, d in zip(ctx.space.names, ctx.space.distributions,
                                                       strict=True)}, **rec_meta})
 
@@ -436,7 +438,7 @@ def bayes_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
         return ", ".join(f"{label(p, labels)} ({fmt(v)})" for p, v in hits)
 
     if low := listed("ess/", lambda v: v < ESS_MIN, lambda v: f"{v:.0f}"):
-        w.append(f"{name}: low effective sample size (bulk, below {ESS_MIN:.0f}): {low}")
+        w.append(f"{name}: low bulk effective sample size (below {ESS_MIN:.0f}): {low}")
     if low := listed("ess_tail/", lambda v: v < ESS_MIN, lambda v: f"{v:.0f}"):
         w.append(f"{name}: low tail effective sample size (below {ESS_MIN:.0f}): the "
                  f"credible intervals are noisy: {low}")
@@ -445,7 +447,7 @@ def bayes_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
     if poor := listed("posterior_ratio/", lambda v: v > POSTERIOR_RATIO_MAX,
                       lambda v: f"{v:.2f}"):
         w.append(f"{name}: emulator error over the posterior above {POSTERIOR_RATIO_MAX} of "
-                 f"the noise std (add n_emulator_samples or refine = {{...}}): {poor}")
+                 f"the noise std: {poor}; add n_emulator_samples or refine = {{...}}")
     if "self_check_passed" in res.scalars and not res.get("self_check_passed"):
         reason = res.meta.get("record", {}).get("fields", {}).get("self_check_reason", "")
         w.append(f"{name}: the self-check (simulation-based calibration) FAILED: the "

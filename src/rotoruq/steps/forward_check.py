@@ -255,9 +255,10 @@ def run_forward_check(ctx: StepContext) -> StepResult:
       posterior correlation the normals drop.
 
     ``data/`` is the mean of the matching rows, ``data_sem/`` its standard error (with two
-    repeats or more), ``data_n/`` the number of repeats. ``pp_noise/`` is the calibration's noise std of one measurement
-    (0 where the calibration did not observe it) and ``pp_nstd/`` = |data - pp_mean| /
-    sqrt(pp_std^2 + s_meas^2), with s_meas the std of the measured mean
+    repeats or more), ``data_n/`` the number of repeats. ``pp_noise/`` is the calibration's
+    noise std of one measurement (0 where the calibration did not observe it) and
+    ``pp_nstd/`` = |data - pp_mean| / sqrt(pp_std^2 + s_meas^2), with s_meas the std of the
+    measured mean
     (:func:`measurement_std`): the distance of the measurement from its predictive
     distribution.
     """

@@ -201,6 +201,17 @@ def _refine_config(value):
     return RefineConfig(**value)
 
 
+def _first_of_each_kind(caught) -> list[str]:
+    """The first warning of each category, in the order raised: the calibration's own come
+    before the self-check's replications, which repeat them. The emulator's adequacy is left
+    out (:func:`bayes_warnings` states it from the record)."""
+    out: dict[str, str] = {}
+    for w in caught:
+        if not str(w.message).startswith("emulator error over"):
+            out.setdefault(w.category.__name__, f"{w.category.__name__}: {w.message}")
+    return list(out.values())
+
+
 def run_bayes_calibration(ctx: StepContext) -> StepResult:
     """Bayes calibration (DRAM on a GP emulator by default, several chains advanced together).
     The chains are saved (later forward checks and sampling steps propagate their joint
@@ -318,9 +329,7 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
         "columns": columns, "n_evaluations": int(res.n_evaluations),
         "noise_model": text, "n_chains": int(chains.shape[0]),
         "reuse_data": bool(o.get("reuse_data")),
-        # the emulator's adequacy is warned on from the record (bayes_warnings)
-        "warnings": sorted({f"{w.category.__name__}: {w.message}" for w in caught
-                            if not str(w.message).startswith("emulator error over")})[:10],
+        "warnings": _first_of_each_kind(caught),
         "prior": {p: dist_to_dict(d) for p, d in zip(ctx.space.names, ctx.space.distributions,
                                                       strict=True)}, **rec_meta})
 

@@ -10,6 +10,8 @@ column, interpolated linearly in the configuration over the data's rows. Rows at
 predictions there are out-of-sample. Predictions are made at the data's configurations and at
 ``predict_at``, with the discrepancy (``eta + delta``) and without it (``eta``); a later
 ``validation`` step validates both. ``n_samples`` kept steps are split over two chains.
+``kind = "none"`` runs the same calibration over the configurations without a discrepancy
+(the comparison a reader needs).
 """
 
 from __future__ import annotations
@@ -48,8 +50,9 @@ def discrepancy_option(v):
     bad = [k for k in v if k not in _KEYS]
     if bad:
         raise TypeError(f"a table with keys among {', '.join(_KEYS)} (found {', '.join(bad)})")
-    if v.get("kind", "gp") not in ("gp", "polynomial"):
-        raise TypeError("kind = \"gp\" or \"polynomial\"")
+    if v.get("kind", "gp") not in ("gp", "polynomial", "none"):
+        raise TypeError("kind = \"gp\", \"polynomial\" or \"none\" (the same calibration over "
+                        "the configurations without a discrepancy)")
     if v.get("kernel", "squared_exponential") not in ("squared_exponential", "matern52"):
         raise TypeError("kernel = \"squared_exponential\" or \"matern52\"")
     for k in ("length_scale", "length_scale_log_std"):
@@ -182,7 +185,8 @@ def run_discrepancy(ctx: StepContext) -> StepResult:
             raise ParameterError(f"step {ctx.name!r}: discrepancy amplitude_scale has no value "
                                  f"for {missing}")
         spec["amplitude_scale"] = tuple(float(amp[r]) for r in ctx.responses)
-    form = Discrepancy(**spec)
+    kind = spec.get("kind", "gp")
+    form = None if kind == "none" else Discrepancy(**spec)
     model = _coupled_model(ctx, configuration, o.get("couple") or {})
     x = np.asarray(ctx.data_columns[configuration], dtype=float)
     y = ctx.observations()
@@ -211,7 +215,7 @@ def run_discrepancy(ctx: StepContext) -> StepResult:
         if rows.any():
             measured[j] = y[rows].mean(axis=0)
     rec = DiscrepancyRecord(
-        kind=form.kind, configuration=configuration, names_in=tuple(res.names_in),
+        kind=kind, configuration=configuration, names_in=tuple(res.names_in),
         names_out=tuple(res.names_out), hyper_names=tuple(res.hyper_names),
         chains=res.chains, hyper_chains=res.hyper_chains, mean=res.mean, std=res.std,
         std_ratio_to_prior=res.std_ratio_to_prior,
@@ -235,6 +239,9 @@ def run_discrepancy(ctx: StepContext) -> StepResult:
         scalars[f"map/{name}"] = float(res.map_point[j])
         scalars[f"std_ratio/{name}"] = float(res.std_ratio_to_prior[j])
     scalars["acceptance"] = float(res.acceptance_rate)
+    from .bayes_calibration import chain_diagnostic_scalars  # it imports this module
+
+    scalars.update(chain_diagnostic_scalars(res.names_in, chain, ctx.space))
     for k, r in enumerate(ctx.responses):
         scalars[f"noise_std/{r}"] = float(res.noise_std[k])
         for j, v in enumerate(at):
@@ -269,7 +276,8 @@ def discrepancy_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepT
               float(rec.ess[d + i]), float(rec.rhat[d + i])]
              for i, h in enumerate(rec.hyper_names)]
     out = [make_table(
-        f"Calibration with a {rec.kind} discrepancy over {rec.configuration}",
+        f"Calibration with a {rec.kind} discrepancy over {rec.configuration}" if rec.kind !=
+        "none" else f"Calibration over {rec.configuration} without a discrepancy",
         ("parameter", "posterior mean", "posterior std", "post/prior std",
          "std / std without discrepancy",
          *[f"corr with mean discrepancy of {r}" for r in rec.names_out], "confounded", "ESS",

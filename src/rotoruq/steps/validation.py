@@ -38,8 +38,9 @@ __all__ = ["STEP", "ValidationRecord", "run_validation", "validation_tables",
            "validation_figures", "validation_warnings", "predictions_at", "per_response_values"]
 
 #: Names of the prediction kinds a validation step compares.
-JOINT, WITH, WITHOUT, PRIOR = ("joint posterior predictive", "with discrepancy",
-                               "without discrepancy", "input distributions")
+JOINT, WITH, WITHOUT, PRIOR, NONE = (
+    "joint posterior predictive", "with discrepancy", "without discrepancy (same posterior)",
+    "input distributions", "calibrated without discrepancy")
 
 
 @dataclass(frozen=True, eq=False)
@@ -180,6 +181,8 @@ def predictions_at(ctx: StepContext, configuration: str, points: Sequence[Mappin
                                  f"{', '.join(rec.names_out)}")
         sel = [rec.names_out.index(r) for r in ctx.responses]
         eta = rec.pred_model[:, idx][:, :, sel]
+        if rec.kind == "none":
+            return (NONE,), eta[None]
         delta = rec.pred_discrepancy[:, idx][:, :, sel]
         return (WITH, WITHOUT), np.stack([eta + delta, eta])
     draws = posterior_draws(src, ctx.space.names, n, ctx.rng)
@@ -293,7 +296,8 @@ def run_validation(ctx: StepContext) -> StepResult:
                     scalars[f"{f}/{r}{lab}{tag}"] = float(getattr(rec, f)[p, j, k])
     arrays, meta = rec.parts()
     return StepResult(ctx.name, ctx.type, scalars, arrays, meta={
-        "n_evaluations": int(pred.shape[1] * pred.shape[2]) if kinds[0] != WITH else 0,
+        "n_evaluations": int(pred.shape[1] * pred.shape[2]) if kinds[0] in (JOINT, PRIOR)
+        else 0,
         "responses": list(ctx.responses), **meta})
 
 

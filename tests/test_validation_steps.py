@@ -1,0 +1,266 @@
+"""The ``verification`` and ``validation`` step types and the discrepancy branch of the Bayes
+step, through the CLI on the GVPM rotor: the saved numbers against hand computations and
+``rq.validate``, the report's V&V table, and bad input named at its study file line."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import rotoruq as rq
+from rotoruq.results import load_step
+from rotoruq.steps._discrepancy import DiscrepancyRecord
+from rotoruq.steps.validation import ValidationRecord
+from rotoruq.steps.verification import VerificationRecord
+
+HEIGHTS = [4.0, 3.0, 2.0, 1.0]
+OMEGA = [224.6375, 224.5718, 224.5443, 223.0457]
+U_SYS = {"thrust": 0.86, "power": 11.66}
+U_NUM = {"thrust": 0.1, "power": 0.5}
+
+HEAD = """\
+[study]
+name = "vv"
+seed = 5
+
+[model]
+preset = "gvpm"
+responses = ["thrust", "power"]
+fixed = { omega = 224.6375, height_over_radius = 4.0, lateral_deg = -1.0, longitudinal_deg = -1.0 }
+
+[data.heights]
+file = "gvpm_measurements.csv"
+
+[data.measured]
+file = "gvpm_measurements.csv"
+select = { height_over_radius = 4.0 }
+
+[parameters.collective_deg]
+distribution = "normal"
+mean = 5.4
+std = 0.5
+
+[parameters.k_pitch_link]
+distribution = "uniform"
+lower = 10.0
+upper = 20.0
+"""
+
+STUDY = HEAD + f"""
+[[steps]]
+name = "verify"
+type = "verification"
+parameters = ["collective_deg"]
+ratio = 2
+levels = 2
+formal_order = 2.0
+points = [{{ height_over_radius = 4.0, omega = 224.6375 }},
+          {{ height_over_radius = 1.0, omega = 223.0457 }}]
+
+[[steps]]
+name = "bayes_4r"
+type = "bayes_calibration"
+data = "measured"
+noise_std = {{ thrust = 0.86, power = 11.66 }}
+emulator = "none"
+n_samples = 300
+burn_in = 100
+
+[[steps]]
+name = "disc"
+type = "bayes_calibration"
+data = "heights"
+noise_std = {{ thrust = 0.86, power = 11.66 }}
+configuration = "height_over_radius"
+couple = {{ omega = "omega" }}
+predict_at = [1.0]
+discrepancy = {{ kind = "gp", amplitude_scale = {{ thrust = 3.0, power = 40.0 }},
+                length_scale = 2.0 }}
+n_samples = 600
+burn_in = 200
+
+[[steps]]
+name = "val_4r"
+type = "validation"
+from = "bayes_4r.posterior"
+data = "heights"
+conditions = {{ height_over_radius = {HEIGHTS}, omega = {OMEGA} }}
+u_systematic = {{ thrust = 0.86, power = 11.66 }}
+u_num = {{ thrust = 0.1, power = 0.5 }}
+n_samples = 60
+
+[[steps]]
+name = "val_disc"
+type = "validation"
+from = "disc.posterior"
+data = "heights"
+conditions = {{ height_over_radius = {HEIGHTS} }}
+u_systematic = {{ thrust = 0.86, power = 11.66 }}
+u_num = {{ thrust = 0.1, power = 0.5 }}
+"""
+
+
+def cli(*args, cwd: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "rotoruq.study.cli", *map(str, args)],
+                          capture_output=True, text=True, cwd=cwd, timeout=600)
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory) -> Path:
+    tmp = tmp_path_factory.mktemp("vv")
+    (tmp / "vv.toml").write_text(STUDY)
+    proc = cli("run", "vv.toml", "--out", "out", cwd=tmp)
+    assert proc.returncode == 0, proc.stderr
+    return tmp / "out"
+
+
+@pytest.mark.slow
+def test_validation_record_is_the_vv20_budget(run_dir):
+    for name in ("val_4r", "val_disc"):
+        rec = ValidationRecord.read(load_step(run_dir / "steps" / name))
+        assert rec.names_out == ("thrust", "power")
+        assert rec.conditions.tolist() == HEIGHTS
+        assert rec.n_repeats.tolist() == [1, 1, 1, 1]  # the GVPM data: one row per height
+        u_num = np.array([U_NUM["thrust"], U_NUM["power"]])
+        u_sys = np.array([U_SYS["thrust"], U_SYS["power"]])
+        for p in range(len(rec.predictions)):
+            pred = rec.predictive[p]                    # (n, c, m)
+            data = np.array([rec.data[rec.data_condition == j][0] for j in range(4)])
+            # by hand: E = mean(S) - D, u_val^2 = u_num^2 + std(S)^2 + u_sys^2 (one repeat)
+            e = pred.mean(axis=0) - data
+            u_val = np.sqrt(u_num**2 + pred.std(axis=0, ddof=1) ** 2 + u_sys**2)
+            np.testing.assert_allclose(rec.comparison_error[p], e, rtol=1e-12, atol=1e-12)
+            np.testing.assert_allclose(rec.u_val[p], u_val, rtol=1e-12)
+            np.testing.assert_allclose(rec.lower[p], e - 2.0 * u_val, rtol=1e-12, atol=1e-12)
+            # ... and rq.validate on the same inputs, field by field (to summation order: the
+            # saved array's memory layout differs from the one the step sliced)
+            ref = rq.validate([pred[:, j] for j in range(4)],
+                              [rec.data[rec.data_condition == j] for j in range(4)],
+                              u_num=u_num, u_systematic=u_sys, names_out=rec.names_out,
+                              conditions=HEIGHTS)
+            for f in ("comparison_error", "u_val", "u_input", "u_data", "error_ratio",
+                      "area_metric", "relative_area_metric", "sigma_distance"):
+                np.testing.assert_allclose(getattr(rec, f)[p], getattr(ref, f), rtol=1e-12,
+                                           atol=1e-10, err_msg=f)
+            np.testing.assert_array_equal(rec.within_n_sigma[p], ref.within_n_sigma)
+
+
+@pytest.mark.slow
+def test_discrepancy_predictions_reach_the_validation(run_dir):
+    disc = DiscrepancyRecord.read(load_step(run_dir / "steps" / "disc"))
+    val = ValidationRecord.read(load_step(run_dir / "steps" / "val_disc"))
+    # 1R is held out: calibrated on 4R, 3R, 2R only, predicted at all four
+    assert sorted(disc.data_configurations.tolist()) == [2.0, 3.0, 4.0]
+    assert disc.held_out.tolist() == [1.0]
+    assert sorted(disc.predict_configurations.tolist()) == [1.0, 2.0, 3.0, 4.0]
+    assert disc.chains.shape[0] == 2 and disc.hyper_names  # GP amplitude and length-scale
+    assert val.predictions == ("with discrepancy", "without discrepancy (same posterior)")
+    idx = [int(np.flatnonzero(np.isclose(disc.predict_configurations, h))[0]) for h in HEIGHTS]
+    np.testing.assert_array_equal(val.predictive[0],
+                                  disc.pred_model[:, idx] + disc.pred_discrepancy[:, idx])
+    np.testing.assert_array_equal(val.predictive[1], disc.pred_model[:, idx])
+    # the saved band of a new measurement is the quantiles of eta + delta + eps
+    draws = disc.pred_model + disc.pred_discrepancy + disc.pred_noise
+    lo, hi = np.quantile(draws, [0.05, 0.95], axis=0)
+    np.testing.assert_allclose(disc.band_lower, lo)
+    np.testing.assert_allclose(disc.band_upper, hi)
+    one = int(np.flatnonzero(disc.predict_configurations == 1.0)[0])
+    np.testing.assert_allclose(disc.measured[one], [35.8256, 413.0807])
+
+
+@pytest.mark.slow
+def test_verification_u_num_is_the_two_grid_gci(run_dir):
+    rec = VerificationRecord.read(load_step(run_dir / "steps" / "verify"))
+    assert rec.levels == ("10 stations x 36 azimuth steps", "5 stations x 18 azimuth steps")
+    assert rec.safety_factor == 3.0 and rec.formal_order == 2.0
+    f1, f2 = rec.values[0], rec.values[1]
+    # assumed order 2, ratio 2: u_num = GCI / Fs = |f2 - f1| / (2^2 - 1)
+    np.testing.assert_allclose(rec.u_num, np.abs(f2 - f1) / 3.0, rtol=1e-12)
+    assert np.all(rec.u_num / np.abs(f1) < 0.01)   # under 1 % of the load on this grid
+
+
+@pytest.mark.slow
+def test_report_has_the_vv_table(run_dir):
+    html = (run_dir / "report" / "index.html").read_text()
+    assert "V&amp;V 20 comparison error (with discrepancy)" in html \
+        or "V&V 20 comparison error (with discrepancy)" in html
+    assert "Solution verification: grid convergence index" in html
+
+
+def bad(tmp_path: Path, steps: str) -> tuple[subprocess.CompletedProcess, Path]:
+    path = tmp_path / "bad.toml"
+    path.write_text(HEAD + textwrap.dedent(steps))
+    return cli("run", path.name, "--out", "out", "--no-report", cwd=tmp_path), path
+
+
+def line_of(path: Path, text: str) -> int:
+    return next(i for i, ln in enumerate(path.read_text().splitlines(), 1) if text in ln)
+
+
+def test_refinement_ratio_at_most_one_names_its_line(tmp_path):
+    proc, path = bad(tmp_path, """
+        [[steps]]
+        name = "verify"
+        type = "verification"
+        ratio = 1.0
+        """)
+    assert proc.returncode != 0
+    assert f"line {line_of(path, 'ratio = 1.0')}" in proc.stderr
+    assert "a refinement ratio > 1" in proc.stderr
+
+
+def test_configuration_the_model_does_not_take_names_its_line(tmp_path):
+    proc, path = bad(tmp_path, """
+        [[steps]]
+        name = "val"
+        type = "validation"
+        data = "heights"
+        u_systematic = 1.0
+        conditions = { height = [4.0, 1.0] }
+        """)
+    assert proc.returncode != 0
+    assert f"line {line_of(path, 'conditions = ')}" in proc.stderr
+    assert "an input of the rotor model 'gvpm'" in proc.stderr and "height" in proc.stderr
+
+
+def test_verification_point_the_model_does_not_take_names_its_line(tmp_path):
+    proc, path = bad(tmp_path, """
+        [[steps]]
+        name = "verify"
+        type = "verification"
+        points = [{ h_over_r = 1.0 }]
+        """)
+    assert proc.returncode != 0
+    assert f"line {line_of(path, 'points = ')}" in proc.stderr
+    assert "h_over_r" in proc.stderr
+
+
+def test_two_levels_need_a_formal_order(tmp_path):
+    proc, path = bad(tmp_path, """
+        [[steps]]
+        name = "verify"
+        type = "verification"
+        levels = 2
+        """)
+    assert proc.returncode != 0
+    assert f"line {line_of(path, 'levels = 2')}" in proc.stderr
+    assert "formal_order" in proc.stderr
+
+
+def test_single_rows_without_a_stated_measurement_uncertainty(tmp_path):
+    proc, path = bad(tmp_path, """
+        [[steps]]
+        name = "val"
+        type = "validation"
+        data = "heights"
+        n_samples = 4
+        conditions = { height_over_radius = [4.0, 1.0], omega = [224.6375, 223.0457] }
+        """)
+    assert proc.returncode != 0
+    assert "single row at height_over_radius = 4, height_over_radius = 1" in proc.stderr
+    assert "u_systematic = { thrust = ..., power = ... }" in proc.stderr

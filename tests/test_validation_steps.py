@@ -79,8 +79,7 @@ noise_std = {{ thrust = 0.86, power = 11.66 }}
 configuration = "height_over_radius"
 couple = {{ omega = "omega" }}
 predict_at = [1.0]
-discrepancy = {{ kind = "gp", amplitude_scale = {{ thrust = 3.0, power = 40.0 }},
-                length_scale = 2.0 }}
+discrepancy = {{ amplitude_scale = {{ thrust = 3.0, power = 40.0 }}, length_scale = 2.0 }}
 n_samples = 600
 burn_in = 200
 

@@ -159,6 +159,7 @@ def test_discrepancy_predictions_reach_the_validation(run_dir):
     assert sorted(disc.predict_configurations.tolist()) == [1.0, 2.0, 3.0, 4.0]
     assert disc.chains.shape[0] == 2 and disc.hyper_names  # GP amplitude and length-scale
     assert val.predictions == ("with discrepancy", "without discrepancy (same posterior)")
+    assert val.held_out.tolist() == [0.0, 0.0, 0.0, 1.0]
     idx = [int(np.flatnonzero(np.isclose(disc.predict_configurations, h))[0]) for h in HEIGHTS]
     np.testing.assert_array_equal(val.predictive[0],
                                   disc.pred_model[:, idx] + disc.pred_discrepancy[:, idx])
@@ -189,6 +190,7 @@ def test_report_has_the_vv_table(run_dir):
     assert "V&amp;V 20 comparison error (with discrepancy)" in html \
         or "V&V 20 comparison error (with discrepancy)" in html
     assert "Solution verification: grid convergence index" in html
+    assert "Held-out test" in html and "height_over_radius = 1 (held out)" in html
 
 
 def bad(tmp_path: Path, steps: str) -> tuple[subprocess.CompletedProcess, Path]:

@@ -26,10 +26,11 @@ from ..params import Normal
 from ..render.tables import StepTable, label, make_table
 from ..results import StepRecord, StepResult, dist_to_dict
 from ._common import input_scalars, per_response
-from .base import StepContext
+from .base import StepCheck, StepContext
 
 __all__ = ["DiscrepancyRecord", "run_discrepancy", "discrepancy_tables",
-           "discrepancy_warnings", "discrepancy_option", "N_CHAINS", "BAND_LEVEL", "N_DRAWS"]
+           "discrepancy_warnings", "discrepancy_option", "check_discrepancy", "is_discrepancy",
+           "N_CHAINS", "BAND_LEVEL", "N_DRAWS"]
 
 #: Chains the kept steps are split over (R-hat across chains).
 N_CHAINS = 2
@@ -67,6 +68,33 @@ def discrepancy_option(v):
     if isinstance(d, bool) or not isinstance(d, int) or d < 0:
         raise TypeError("degree = an integer >= 0")
     return dict(v)
+
+
+def check_discrepancy(c: StepCheck) -> None:
+    """Study-file checks of the discrepancy options (file/line errors): ``configuration``
+    and the keys of ``couple`` must be inputs of the model; ``discrepancy``, ``configuration``,
+    ``couple`` and ``predict_at`` go together."""
+    o = c.options
+    if o.get("discrepancy") is None:
+        for key in ("configuration", "couple", "predict_at"):
+            if o.get(key) is not None:
+                c.fail((key,), f"{key} only with discrepancy = {{ ... }} (kind = \"none\" for a "
+                       "calibration over the configurations without one)")
+        return
+    if not o.get("configuration"):
+        c.fail(("discrepancy",), "configuration = \"<the model input that varies between "
+               "experiments, e.g. height_over_radius>\" beside discrepancy")
+    c.check_input(("configuration",), o["configuration"])
+    for key, col in (o.get("couple") or {}).items():
+        c.check_input(("couple", key), key)
+        if not isinstance(col, str):
+            c.fail(("couple", key), f"{key} = \"<a data column>\"", repr(col))
+
+
+def is_discrepancy(res: StepResult) -> bool:
+    """Whether ``res`` is a Bayes step calibrated through this branch."""
+    rec = res.meta.get("record")
+    return isinstance(rec, Mapping) and rec.get("type") == "DiscrepancyRecord"
 
 
 @dataclass(frozen=True, eq=False)

@@ -30,6 +30,7 @@ from ..render.figures import Figure, FigureContext, axis_label
 from ..render.tables import StepTable, make_table
 from ..results import StepRecord, StepResult
 from ._common import input_scalars
+from ._discrepancy import DiscrepancyRecord, is_discrepancy
 from .base import DESIGNS, StepCheck, StepContext, StepType
 from .forward_check import posterior_draws
 from .options import SIGNATURE, Option, choice, integer, number, number_list, string, table
@@ -59,8 +60,9 @@ class ValidationRecord(StepRecord):
     data mean lies in it.
     predictive : (p, n, c, m) the predictive samples validated. data : (k, m) the measured
     rows used; data_condition : (k,) the condition index of each row.
-    n_repeats : (c,). coverage_factor : k. n_sigma : the reference criterion's threshold.
-    level : of the band. u_num_source : where u_num came from.
+    n_repeats : (c,). held_out : (c,) 1.0 where the calibration did not see the condition's
+    data (a Bayes step's ``predict_at``), else 0.0. coverage_factor : k. n_sigma : the
+    reference criterion's threshold. level : of the band. u_num_source : where u_num came from.
     """
 
     AXES = {name: ("prediction", "condition", "response") for name in (
@@ -69,7 +71,7 @@ class ValidationRecord(StepRecord):
         "sigma_distance", "within_n_sigma", "band_lower", "band_upper", "inside_band")} | {
         "predictive": ("prediction", "sample", "condition", "response"),
         "data": ("row", "response"), "data_condition": ("row",), "n_repeats": ("condition",),
-        "conditions": ("condition",)}
+        "conditions": ("condition",), "held_out": ("condition",)}
 
     predictions: tuple[str, ...]
     configuration: str
@@ -96,6 +98,7 @@ class ValidationRecord(StepRecord):
     data: np.ndarray
     data_condition: np.ndarray
     n_repeats: np.ndarray
+    held_out: np.ndarray
     coverage_factor: float
     n_sigma: float
     level: float
@@ -151,14 +154,14 @@ def _conditions(ctx: StepContext) -> tuple[str, list[dict[str, float]]]:
 
 
 def predictions_at(ctx: StepContext, configuration: str, points: Sequence[Mapping[str, float]]
-                   ) -> tuple[tuple[str, ...], np.ndarray]:
-    """The predictive samples (p, n, c, m) at ``points`` and their kinds (see the module)."""
+                   ) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
+    """The predictive samples (p, n, c, m) at ``points``, their kinds (see the module) and
+    which points the calibration held out (c,)."""
     from ..model import evaluate
 
     src = ctx.source
     n = ctx.options["n_samples"]
-    if src is not None and src.meta.get("record", {}).get("type") == "DiscrepancyRecord":
-        from ._discrepancy import DiscrepancyRecord
+    if src is not None and is_discrepancy(src):
 
         rec = DiscrepancyRecord.read(src)
         at = np.asarray(rec.predict_configurations, dtype=float)
@@ -181,10 +184,11 @@ def predictions_at(ctx: StepContext, configuration: str, points: Sequence[Mappin
                                  f"{', '.join(rec.names_out)}")
         sel = [rec.names_out.index(r) for r in ctx.responses]
         eta = rec.pred_model[:, idx][:, :, sel]
+        held = np.array([float(np.any(np.isclose(rec.held_out, at[i]))) for i in idx])
         if rec.kind == "none":
-            return (NONE,), eta[None]
+            return (NONE,), eta[None], held
         delta = rec.pred_discrepancy[:, idx][:, :, sel]
-        return (WITH, WITHOUT), np.stack([eta + delta, eta])
+        return (WITH, WITHOUT), np.stack([eta + delta, eta]), held
     draws = posterior_draws(src, ctx.space.names, n, ctx.rng)
     kind = JOINT
     if draws is None:
@@ -201,7 +205,7 @@ def predictions_at(ctx: StepContext, configuration: str, points: Sequence[Mappin
             raise ParameterError(f"step {ctx.name!r}: {len(batch.failures)} predictive "
                                  f"samples failed at {pt} (first: {why})")
         out.append(np.asarray(batch.values, dtype=float))
-    return (kind,), np.stack(out, axis=1)[None]
+    return (kind,), np.stack(out, axis=1)[None], np.zeros(len(points))
 
 
 class _Inputs:
@@ -257,7 +261,7 @@ def run_validation(ctx: StepContext) -> StepResult:
             + " } (a standard uncertainty per response)")
     u_sys = None if usys is None else per_response_values(usys, ctx.responses, "u_systematic")
     u_num, u_num_source = _u_num(ctx)
-    kinds, pred = predictions_at(ctx, match, points)
+    kinds, pred, held = predictions_at(ctx, match, points)
     per_cond = [data[which == j] for j in range(len(points))]
     conds = [points[j][match] if match else j for j in range(len(points))]
     fields: dict[str, list] = {}
@@ -282,8 +286,8 @@ def run_validation(ctx: StepContext) -> StepResult:
     rec = ValidationRecord(
         predictions=kinds, configuration=match, conditions=np.asarray(conds, dtype=float),
         names_out=tuple(ctx.responses), predictive=pred, data=data, data_condition=which,
-        n_repeats=n_rep, coverage_factor=float(o["coverage_factor"]), n_sigma=float(o["n_sigma"]),
-        level=float(o["level"]), u_num_source=u_num_source,
+        n_repeats=n_rep, held_out=held, coverage_factor=float(o["coverage_factor"]),
+        n_sigma=float(o["n_sigma"]), level=float(o["level"]), u_num_source=u_num_source,
         **{k: np.stack(v) for k, v in fields.items()})
     scalars = input_scalars(ctx.space)
     for p, kind in enumerate(kinds):
@@ -302,7 +306,8 @@ def run_validation(ctx: StepContext) -> StepResult:
 
 
 def _fmt_cond(rec: ValidationRecord, j: int) -> str:
-    return f"{rec.configuration} = {rec.conditions[j]:g}" if rec.configuration else "-"
+    text = f"{rec.configuration} = {rec.conditions[j]:g}" if rec.configuration else "-"
+    return text + (" (held out)" if rec.held_out[j] else "")
 
 
 def validation_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
@@ -338,6 +343,19 @@ def validation_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTa
             "empirical CDFs (Ferson et al. 2008), it does not shrink as the spread grows; "
             "the thesis's criterion (distance in predictive std) beside it. Band: of a new "
             "measurement (prediction plus N(0, u_D^2))."))
+    held = [j for j in range(rec.conditions.size) if rec.held_out[j]]
+    if held:
+        rows = [[_fmt_cond(rec, j), r, kind, float(rec.data_mean[p, j, m]),
+                 f"[{rec.band_lower[p, j, m]:.4g}, {rec.band_upper[p, j, m]:.4g}]",
+                 "inside" if rec.inside_band[p, j, m] else "outside",
+                 float(rec.error_ratio[p, j, m]), float(rec.area_metric[p, j, m])]
+                for j in held for m, r in enumerate(rec.names_out)
+                for p, kind in enumerate(rec.predictions)]
+        out.insert(0, make_table(
+            "Held-out test", ("condition", "response", "prediction", "measured",
+                              f"{100 * rec.level:g} % band of a new measurement", "measured is",
+                              "|E| / u_val", "area metric"), rows,
+            "Conditions whose data the calibration did not see: out-of-sample predictions."))
     return out
 
 

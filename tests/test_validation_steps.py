@@ -98,9 +98,9 @@ name = "val_disc"
 type = "validation"
 from = "disc.posterior"
 data = "heights"
-conditions = {{ height_over_radius = {HEIGHTS} }}
+conditions = {{ height_over_radius = {HEIGHTS}, omega = {OMEGA} }}
 u_systematic = {{ thrust = 0.86, power = 11.66 }}
-u_num = {{ thrust = 0.1, power = 0.5 }}
+verification = {{ ratio = 2, levels = 2, formal_order = 2.0 }}
 """
 
 
@@ -125,7 +125,8 @@ def test_validation_record_is_the_vv20_budget(run_dir):
         assert rec.names_out == ("thrust", "power")
         assert rec.conditions.tolist() == HEIGHTS
         assert rec.n_repeats.tolist() == [1, 1, 1, 1]  # the GVPM data: one row per height
-        u_num = np.array([U_NUM["thrust"], U_NUM["power"]])
+        u_num = (np.array([U_NUM["thrust"], U_NUM["power"]]) if name == "val_4r"
+                 else rec.u_num[0])  # val_disc: the GCI per height (checked below)
         u_sys = np.array([U_SYS["thrust"], U_SYS["power"]])
         for p in range(len(rec.predictions)):
             pred = rec.predictive[p]                    # (n, c, m)
@@ -182,6 +183,20 @@ def test_verification_u_num_is_the_two_grid_gci(run_dir):
     # assumed order 2, ratio 2: u_num = GCI / Fs = |f2 - f1| / (2^2 - 1)
     np.testing.assert_allclose(rec.u_num, np.abs(f2 - f1) / 3.0, rtol=1e-12)
     assert np.all(rec.u_num / np.abs(f1) < 0.01)   # under 1 % of the load on this grid
+    # a validation step's verification = {...}: the GCI at each of its conditions, at the
+    # means of its inputs (here the posterior means of its from step)
+    val = ValidationRecord.read(load_step(run_dir / "steps" / "val_disc"))
+    disc = load_step(run_dir / "steps" / "disc")
+    names = ["collective_deg", "k_pitch_link"]
+    x = [[disc.scalars[f"mean/{n}"] for n in names]]
+    for j, (h, om) in enumerate(zip(HEIGHTS, OMEGA, strict=True)):
+        factory = rq.RotorDiscretization("gvpm", names_in=names, names_out=["thrust", "power"],
+                                         fixed={"omega": om, "height_over_radius": h,
+                                                "lateral_deg": -1.0, "longitudinal_deg": -1.0})
+        ref = rq.verify_discretization(factory, [0, -1], x, ratio=2.0, formal_order=2.0)
+        for p in range(2):
+            np.testing.assert_allclose(val.u_num[p, j], ref.u_num[0], rtol=1e-9)
+    assert "GCI at each condition" in val.u_num_source
 
 
 @pytest.mark.slow
@@ -265,3 +280,57 @@ def test_single_rows_without_a_stated_measurement_uncertainty(tmp_path):
     assert proc.returncode != 0
     assert "single row at height_over_radius = 4, height_over_radius = 1" in proc.stderr
     assert "u_systematic = { thrust = ..., power = ... }" in proc.stderr
+
+
+DRIVER = """\
+import math, sys
+vals = dict((k.strip(), float(v)) for k, v in (ln.split("=") for ln in open("input.txt")))
+a, n = vals["a"], int(vals["n_intervals"])
+h = 1.0 / n
+s = h * (0.5 * (1.0 + math.exp(a)) + sum(math.exp(a * i * h) for i in range(1, n)))
+open(sys.argv[2], "w").write(f"{s!r} integral\\n")
+"""
+
+EXTERNAL = """\
+[study]
+name = "ext"
+seed = 1
+
+[model]
+command = ["{python}", "driver.py", "{{params}}", "{{results}}"]
+templates = ["input.txt"]
+responses = ["integral"]
+fixed = {{ n_intervals = 40 }}            # the grid the study runs
+
+[parameters.a]
+distribution = "normal"
+mean = 1.0
+std = 0.1
+
+[[steps]]
+name = "verify"
+type = "verification"
+field = "n_intervals"
+ratio = 2
+levels = 3
+"""
+
+
+def test_external_model_verified_through_its_template_field(tmp_path):
+    """The trapezoidal rule for int_0^1 exp(a t) dt, n intervals in a template field: second
+    order, and the GCI bounds the fine grid's true error."""
+    (tmp_path / "driver.py").write_text(DRIVER)
+    (tmp_path / "input.txt").write_text("a = {a}\nn_intervals = {n_intervals}\n")
+    (tmp_path / "ext.toml").write_text(EXTERNAL.format(python=sys.executable))
+    proc = cli("run", "ext.toml", "--out", "out", "--no-report", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    rec = VerificationRecord.read(load_step(tmp_path / "out" / "steps" / "verify"))
+    assert rec.levels == ("n_intervals = 40", "n_intervals = 20", "n_intervals = 10")
+    exact = np.e - 1.0                                   # a = 1, the mean
+    fine = float(rec.values[0, 0, 0])
+    # trapezoid: error = h^2 / 12 (f'(1) - f'(0)) + O(h^4) = (e - 1) / (12 n^2)
+    assert abs((fine - exact) - (np.e - 1.0) / (12 * 40**2)) < 1e-7
+    assert abs(float(rec.observed_order[0, 0]) - 2.0) < 1e-3
+    gci_abs = float(rec.gci_fine[0, 0]) * abs(fine)      # Fs |e21| / (r^p - 1)
+    assert abs(fine - exact) <= gci_abs
+    np.testing.assert_allclose(rec.u_num[0, 0], gci_abs / 1.25, rtol=1e-12)

@@ -14,8 +14,10 @@ Where the predictions come from (``from``):
 
 u_input is the spread of those predictions (the propagated input uncertainty, no measurement
 noise); u_D = sqrt(s^2 / n + u_systematic^2) from the repeats of each condition (s their
-sample std) and the stated ``u_systematic``; u_num a number (or one per response) or the
-``u_num`` of an earlier ``verification`` step (``u_num = "STEP.u_num"``).
+sample std) and the stated ``u_systematic``; u_num a number (or one per response), the GCI
+of the model at each condition (``verification = { ratio = 2, levels = 2, formal_order = 2 }``,
+the options of the ``verification`` step type) or the ``u_num`` of an earlier
+``verification`` step (``u_num = "STEP.u_num"``).
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from ._discrepancy import DiscrepancyRecord, is_discrepancy
 from .base import DESIGNS, StepCheck, StepContext, StepType
 from .forward_check import posterior_draws
 from .options import SIGNATURE, Option, choice, integer, number, number_list, string, table
+from .verification import verification_option
 
 __all__ = ["STEP", "ValidationRecord", "run_validation", "validation_tables",
            "validation_figures", "validation_warnings", "predictions_at", "per_response_values"]
@@ -117,8 +120,19 @@ def per_response_values(value, responses: Sequence[str], what: str) -> np.ndarra
     return np.full(len(responses), float(value))
 
 
-def _u_num(ctx: StepContext) -> tuple[np.ndarray, str]:
+def _u_num(ctx: StepContext, points: Sequence[Mapping[str, float]]
+           ) -> tuple[np.ndarray, str]:
     """u_num (m,) or (c, m), and where it came from."""
+    verify = ctx.options.get("verification")
+    if verify is not None:
+        from .verification import verify_points
+
+        results, _, levels, _ = verify_points(ctx, verify, [dict(p) for p in points])
+        u = np.concatenate([np.atleast_2d(r.u_num) for r in results]).astype(float)
+        order = ("observed order" if verify.get("formal_order") is None
+                 else f"assumed order {verify['formal_order']:g}")
+        return u, (f"from the GCI at each condition (levels {' / '.join(levels)}, {order}, "
+                   f"u_num = GCI / Fs)")
     spec = ctx.options["u_num"]
     if not isinstance(spec, str):
         return per_response_values(spec, ctx.responses, "u_num"), "stated"
@@ -260,7 +274,7 @@ def run_validation(ctx: StepContext) -> StepResult:
             "u_systematic = { " + ", ".join(f"{r} = ..." for r in ctx.responses)
             + " } (a standard uncertainty per response)")
     u_sys = None if usys is None else per_response_values(usys, ctx.responses, "u_systematic")
-    u_num, u_num_source = _u_num(ctx)
+    u_num, u_num_source = _u_num(ctx, points)
     kinds, pred, held = predictions_at(ctx, match, points)
     per_cond = [data[which == j] for j in range(len(points))]
     conds = [points[j][match] if match else j for j in range(len(points))]
@@ -435,6 +449,9 @@ def _check(c: StepCheck) -> None:
     if match is not None and (cond is None or match not in cond):
         c.fail(("match",), f"a key of conditions ({', '.join(cond or {}) or 'none given'})",
                match)
+    if c.options["verification"] is not None and c.options["u_num"] != 0.0:
+        c.fail(("verification",), "either u_num = ... or verification = {...} (u_num from the "
+               "GCI at each condition), not both")
     if not 0 < c.options["level"] < 1:
         c.fail(("level",), "a band level between 0 and 1 (e.g. 0.9)", repr(c.options["level"]))
     for key in ("u_num", "u_systematic"):
@@ -462,6 +479,7 @@ STEP = StepType(
     options={"conditions": Option(table, None),
              "match": Option(string(), None),
              "u_num": Option(_uncertainty, 0.0),
+             "verification": Option(verification_option, None),
              "u_systematic": Option(_uncertainty, None),
              "coverage_factor": Option(number(positive=True, allow_zero=False), SIGNATURE),
              "n_sigma": Option(number(positive=True, allow_zero=False), SIGNATURE),

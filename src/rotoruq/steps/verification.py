@@ -13,8 +13,8 @@ What is refined:
   :data:`TOLERANCE` so that the iteration error does not pollute the observed order (as
   :class:`rotoruq.rotor.discretization.RotorDiscretization`); the counts must stay integers;
 * an external model: the template field ``field`` (a count such as ``n_intervals``: the
-  finest level has ``field_value``, each coarser one ``ratio`` times fewer), written into
-  the parameters file as a fixed input.
+  finest level has ``field_value``, by default its value in ``[model] fixed``, each coarser
+  one ``ratio`` times fewer), written into the parameters file as a fixed input.
 """
 
 from __future__ import annotations
@@ -31,8 +31,9 @@ from ..results import StepRecord, StepResult
 from .base import StepCheck, StepContext, StepType
 from .options import Option, choice, integer, number, string
 
-__all__ = ["STEP", "VerificationRecord", "run_verification", "verification_tables",
-           "verification_warnings", "TOLERANCE"]
+__all__ = ["STEP", "VerificationRecord", "run_verification", "verify_points",
+           "verification_tables", "verification_warnings", "TOLERANCE", "VERIFY_KEYS",
+           "verification_option"]
 
 #: Solver tolerance of the rotor at every verification level.
 TOLERANCE = 1e-12
@@ -116,25 +117,36 @@ def _rotor_factory(rotor: Any, ratio: float, refine: str, name: str):
     return factory, lambda level: "{} stations x {} azimuth steps".format(*counts(level))
 
 
-def run_verification(ctx: StepContext) -> StepResult:
-    """Grid convergence (observed order, GCI, u_num) per point and response."""
+def verify_points(ctx: StepContext, options: Mapping[str, Any],
+                  points: list[dict[str, float]]) -> tuple[list[Any], list[str], list[str],
+                                                           np.ndarray]:
+    """Grid convergence of the step's model at ``points`` (input values over the step's
+    fixed inputs; the step's parameters at their means unless given), with ``options``
+    ``ratio``, ``levels``, ``formal_order``, ``refine``, ``field``, ``field_value``.
+
+    Returns one :class:`~rotoruq.methods.verification.VerificationResult` per point, the
+    points' labels, the levels' labels and the parameter values (n_points, d)."""
     from ..methods.verification import verify_discretization
 
-    o = ctx.options
+    o = options
     ratio, n_levels = float(o["ratio"]), int(o["levels"])
     means = {n: d.mean for n, d in zip(ctx.space.names, ctx.space.distributions, strict=True)}
-    points = o.get("points") or [{}]
     levels = list(range(n_levels))
     labels: list[str] = []
     level_text: list[str] = []
     xs, results = [], []
-    for pt in points:
+    for pt in points or [{}]:
         values = {**means, **{k: float(v) for k, v in pt.items()}}
         fixed = {k: v for k, v in values.items() if k not in ctx.space.names}
         x = np.array([[values[n] for n in ctx.space.names]])
         field = o.get("field")
         if field:
-            fine = float(o["field_value"])
+            if o.get("field_value") is None and field not in ctx.fixed:
+                raise ParameterError(
+                    f"step {ctx.name!r}: give field_value = <the value of {field} on the grid "
+                    f"the study runs>, or {field} = ... in [model] fixed")
+            fine = float(o["field_value"] if o.get("field_value") is not None
+                         else ctx.fixed[field])
 
             def factory(level: int, fixed=fixed, field=field, fine=fine):
                 v = fine / ratio**level
@@ -149,20 +161,27 @@ def run_verification(ctx: StepContext) -> StepResult:
                 raise ParameterError(
                     f"step {ctx.name!r}: the model exposes no discretization; give field = "
                     "\"<its template field, e.g. n_intervals>\" and field_value = <its value>")
-            factory, text = _rotor_factory(rotor, ratio, o["refine"], ctx.name)
-        res = verify_discretization(factory, levels, x, ratio=ratio,
-                                    formal_order=o.get("formal_order"))
-        results.append(res)
+            factory, text = _rotor_factory(rotor, ratio, o.get("refine", "both"), ctx.name)
+        results.append(verify_discretization(factory, levels, x, ratio=ratio,
+                                             formal_order=o.get("formal_order")))
         xs.append(x[0])
         labels.append(", ".join(f"{k} = {float(v):.10g}" for k, v in pt.items()) or "nominal")
         if not level_text:
             level_text = [text(k) for k in levels]
+    return results, labels, level_text, np.array(xs)
+
+
+def run_verification(ctx: StepContext) -> StepResult:
+    """Grid convergence (observed order, GCI, u_num) per point and response."""
+    o = ctx.options
+    ratio = float(o["ratio"])
+    results, labels, level_text, xs = verify_points(ctx, o, o.get("points") or [{}])
     cat = {f: np.concatenate([np.atleast_2d(getattr(r, f)) for r in results]).astype(float)
            for f in ("observed_order", "extrapolated", "gci_fine", "u_num", "asymptotic_ratio",
                      "in_asymptotic_range", "converging", "oscillatory")}
     rec = VerificationRecord(
         names_in=tuple(ctx.space.names), names_out=tuple(ctx.responses), points=tuple(labels),
-        levels=tuple(level_text), x=np.array(xs),
+        levels=tuple(level_text), x=xs,
         values=np.concatenate([r.values for r in results], axis=1), ratio=ratio,
         safety_factor=float(results[0].safety_factor),
         formal_order=float("nan") if o.get("formal_order") is None else float(o["formal_order"]),
@@ -227,6 +246,27 @@ def _ratio(v: Any) -> float:
     return float(v)
 
 
+#: Keys of a ``verification = {...}`` table of a validation step (the step type's options).
+VERIFY_KEYS = ("ratio", "levels", "formal_order", "refine", "field", "field_value")
+
+
+def verification_option(v: Any) -> dict:
+    """Checker of ``verification = { ratio, levels, formal_order, refine, field, field_value }``
+    (defaults as the ``verification`` step type's)."""
+    if not isinstance(v, dict):
+        raise TypeError("a table { ratio = 2, levels = 2, formal_order = 2.0, ... }")
+    bad = [k for k in v if k not in VERIFY_KEYS]
+    if bad:
+        raise TypeError(f"a table with keys among {', '.join(VERIFY_KEYS)} "
+                        f"(found {', '.join(bad)})")
+    out = {k: STEP.options[k].default for k in VERIFY_KEYS}
+    for k, x in v.items():
+        out[k] = STEP.options[k].check(x)
+    if out["levels"] == 2 and out["formal_order"] is None:
+        raise TypeError("levels = 3 for an observed order, or levels = 2 with formal_order")
+    return out
+
+
 def _points(v: Any) -> list[dict]:
     if not isinstance(v, list) or not all(isinstance(p, dict) for p in v) or not v:
         raise TypeError("a list of tables of input values, e.g. [{ height_over_radius = 4.0 }]")
@@ -241,9 +281,6 @@ def _check(c: StepCheck) -> None:
         vals = c.numbers(pt, ("points",), f"points[{i}]")
         for k in vals:
             c.check_input(("points",), k)
-    if c.options["field"] is not None and c.options["field_value"] is None:
-        c.fail(("field_value",), f"field_value = <the value of {c.options['field']} on the "
-               "grid the study runs>")
 
 
 STEP = StepType(

@@ -400,9 +400,13 @@ def validation_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:
                          capsize=3, color=f"C{p}", label=f"E +- {rec.coverage_factor:g} u_val "
                          f"({kind})")
         ax2.axhline(0.0, color="k", lw=0.8)
-        for ax, what in ((ax1, r), (ax2, f"E of {r}")):
+        for j in np.flatnonzero(rec.held_out):
+            for ax in (ax1, ax2):
+                ax.axvspan(x[j] - 2.5 * width, x[j] + 2.5 * width, color="0.92", zorder=0,
+                           label="held out (not calibrated on)")
+        for ax, what in ((ax1, ""), (ax2, "E = S - D of ")):
             ax.set_xlabel(rec.configuration or "condition", fontsize=8)
-            ax.set_ylabel(what if ax is ax2 else axis_label(r, None, ctx.units), fontsize=8)
+            ax.set_ylabel(axis_label(r, None, ctx.units, what), fontsize=8)
             ax.tick_params(labelsize=7)
             ax.legend(fontsize=6)
         figs.append(Figure(f"{res.name}_{r}_validation",

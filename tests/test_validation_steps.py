@@ -334,3 +334,63 @@ def test_external_model_verified_through_its_template_field(tmp_path):
     gci_abs = float(rec.gci_fine[0, 0]) * abs(fine)      # Fs |e21| / (r^p - 1)
     assert abs(fine - exact) <= gci_abs
     np.testing.assert_allclose(rec.u_num[0, 0], gci_abs / 1.25, rtol=1e-12)
+
+
+LINEAR = """\
+[study]
+name = "lin"
+seed = 11
+
+[model]
+command = ["unused"]
+responses = ["y"]
+fixed = { c = 0.0 }
+
+[parameters.a]
+distribution = "normal"
+mean = 1.0
+std = 0.2
+
+[data.obs]
+c = [0.0, 0.0, 0.0, 2.0, 2.0]
+y = [2.1, 1.9, 2.3, 5.0, 5.4]
+
+[[steps]]
+name = "val"
+type = "validation"
+data = "obs"
+conditions = { c = [0.0, 2.0] }
+u_num = 0.05
+u_systematic = 0.1
+n_samples = 400
+"""
+
+
+def test_repeats_and_input_distributions_by_hand(tmp_path):
+    """y = 2 a + c, a ~ N(1, 0.2), no ``from``: S is the LHS mean of 2 a + c, u_input its std,
+    u_D = sqrt(s^2 / n + u_sys^2) from the repeats; the record equals that, by hand."""
+    from rotoruq.model import FunctionModel
+    from rotoruq.study.runner import run_study
+
+    def factory(inputs, responses, fixed):
+        return FunctionModel(lambda x: 2.0 * x[:, :1] + fixed["c"], inputs, responses)
+
+    (tmp_path / "lin.toml").write_text(LINEAR)
+    run = run_study(tmp_path / "lin.toml", out=tmp_path / "out", model_factory=factory)
+    rec = ValidationRecord.read(run["val"])
+    assert rec.predictions == ("input distributions",)
+    assert rec.n_repeats.tolist() == [3, 2]
+    obs = {0: np.array([2.1, 1.9, 2.3]), 1: np.array([5.0, 5.4])}
+    for j, c in enumerate((0.0, 2.0)):
+        s = rec.predictive[0, :, j, 0]
+        a = (s - c) / 2.0                      # the same LHS sample at both conditions
+        np.testing.assert_allclose(a, rec.predictive[0, :, 0, 0] / 2.0, rtol=1e-12)
+        assert abs(a.mean() - 1.0) < 0.01 and abs(a.std(ddof=1) - 0.2) < 0.01
+        u_d = np.sqrt(obs[j].var(ddof=1) / obs[j].size + 0.1**2)
+        u_val = np.sqrt(0.05**2 + s.std(ddof=1) ** 2 + u_d**2)
+        e = s.mean() - obs[j].mean()
+        np.testing.assert_allclose(rec.u_data[0, j, 0], u_d, rtol=1e-12)
+        np.testing.assert_allclose(rec.u_val[0, j, 0], u_val, rtol=1e-12)
+        np.testing.assert_allclose(rec.comparison_error[0, j, 0], e, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(rec.error_ratio[0, j, 0], abs(e) / u_val, rtol=1e-12)
+        assert rec.area_metric[0, j, 0] == rq.area_metric(s, obs[j])

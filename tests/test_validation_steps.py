@@ -394,3 +394,40 @@ def test_repeats_and_input_distributions_by_hand(tmp_path):
         np.testing.assert_allclose(rec.comparison_error[0, j, 0], e, rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(rec.error_ratio[0, j, 0], abs(e) / u_val, rtol=1e-12)
         assert rec.area_metric[0, j, 0] == rq.area_metric(s, obs[j])
+
+
+def _has_previous() -> bool:
+    from dataclasses import fields
+
+    from rotoruq.steps import StepContext
+
+    return "previous" in {f.name for f in fields(StepContext)}
+
+
+@pytest.mark.skipif(not _has_previous(), reason="the runner does not hand a step the results "
+                    "of earlier steps yet (StepContext.previous)")
+def test_u_num_by_reference_to_a_verification_step(tmp_path):
+    """``u_num = "verify.u_num"``: the largest u_num over the verification step's points."""
+    from rotoruq.model import FunctionModel
+    from rotoruq.study.runner import run_study
+
+    def factory(inputs, responses, fixed):
+        n = int(fixed["n_intervals"])
+
+        def f(x):
+            t = np.linspace(0.0, 1.0, n + 1)
+            return np.trapezoid(np.exp(x[:, :1] * t), t, axis=1)[:, None] + fixed["c"]
+
+        return FunctionModel(f, inputs, responses)
+
+    text = LINEAR.replace("fixed = { c = 0.0 }", "fixed = { c = 0.0, n_intervals = 8 }")
+    text = text.replace('[[steps]]\nname = "val"', '[[steps]]\nname = "verify"\n'
+                        'type = "verification"\nfield = "n_intervals"\n'
+                        'points = [{ c = 0.0 }, { c = 2.0 }]\n\n[[steps]]\nname = "val"')
+    text = text.replace("u_num = 0.05", 'u_num = "verify.u_num"')
+    (tmp_path / "lin.toml").write_text(text)
+    run = run_study(tmp_path / "lin.toml", out=tmp_path / "out", model_factory=factory)
+    ver = VerificationRecord.read(run["verify"])
+    val = ValidationRecord.read(run["val"])
+    assert np.all(val.u_num == ver.u_num.max(axis=0))
+    assert "verify" in val.u_num_source

@@ -359,8 +359,11 @@ def discrepancy_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str
                 w.append(f"{res.name}: held-out {r} at {rec.configuration} = {v:g} ({m:.4g}) "
                          f"lies outside the {100 * rec.level:g} % band with the discrepancy "
                          f"[{rec.band_lower[j, k]:.4g}, {rec.band_upper[j, k]:.4g}]")
-    bad = [f"{n} ({r:.3f})" for n, r in zip((*rec.names_in, *rec.hyper_names), rec.rhat,
-                                             strict=True) if r > 1.01]
+    # the parameters' R-hat and ESS are the Bayes step's own warnings; these are the
+    # hyperparameters'
+    hyper = rec.rhat[len(rec.names_in):]
+    bad = [f"{n} ({r:.3f})" for n, r in zip(rec.hyper_names, hyper, strict=True) if r > 1.01]
     if bad:
-        w.append(f"{res.name}: chains not mixed (R-hat above 1.01): {', '.join(bad)}")
+        w.append(f"{res.name}: discrepancy hyperparameters not mixed (R-hat above 1.01): "
+                 f"{', '.join(bad)}")
     return w

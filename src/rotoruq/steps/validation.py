@@ -305,7 +305,7 @@ def run_validation(ctx: StepContext) -> StepResult:
         **{k: np.stack(v) for k, v in fields.items()})
     scalars = input_scalars(ctx.space)
     for p, kind in enumerate(kinds):
-        tag = "" if p == 0 else f"[{kind}]"
+        tag = "" if p == 0 else "[" + kind.split(" (")[0].replace(" ", "_") + "]"
         for j, c in enumerate(conds):
             lab = f"@{c:g}" if match else ""
             for k, r in enumerate(ctx.responses):

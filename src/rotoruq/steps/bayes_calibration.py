@@ -32,8 +32,18 @@ from ..render.figures import (
 from ..render.tables import StepTable, label, make_table, parameters, prefixed, value
 from ..results import StepResult, dict_to_dist, dist_to_dict
 from ._common import input_scalars, per_response
+from ._discrepancy import discrepancy_option
 from .base import StepContext, StepType
-from .options import SIGNATURE, Option, choice, integer, number_or_table
+from .options import (
+    SIGNATURE,
+    Option,
+    choice,
+    integer,
+    number_list,
+    number_or_table,
+    string,
+    table,
+)
 
 __all__ = ["STEP", "run_bayes_calibration", "chain_diagnostic_scalars", "bayes_tables",
            "bayes_figures", "bayes_warnings", "strong_correlations", "THRESHOLDS",
@@ -91,6 +101,9 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
 
     from ..methods.mcmc import calibrate_bayes
 
+    if ctx.options.get("discrepancy") is not None:  # Kennedy-O'Hagan: steps/_discrepancy.py
+        from ._discrepancy import run_discrepancy
+        return run_discrepancy(ctx)
     o = ctx.options
     emulator = None
     if o["emulator"] == "gp":
@@ -245,6 +258,10 @@ STEP = StepType(
              "n_emulator_samples": Option(integer(2), SIGNATURE),
              "noise_std": Option(number_or_table, None),
              "proposal": Option(choice("hessian", "prior"), SIGNATURE,
-                                param="proposal_covariance")},
+                                param="proposal_covariance"),
+             "discrepancy": Option(discrepancy_option, None),
+             "configuration": Option(string(), None),
+             "predict_at": Option(number_list, None),
+             "couple": Option(table, None)},
     quick={"n_samples": 1800, "burn_in": 200, "n_emulator_samples": 60},
     tables=bayes_tables, figures=bayes_figures, warnings=bayes_warnings)

@@ -396,16 +396,6 @@ def test_repeats_and_input_distributions_by_hand(tmp_path):
         assert rec.area_metric[0, j, 0] == rq.area_metric(s, obs[j])
 
 
-def _has_previous() -> bool:
-    from dataclasses import fields
-
-    from rotoruq.steps import StepContext
-
-    return "previous" in {f.name for f in fields(StepContext)}
-
-
-@pytest.mark.skipif(not _has_previous(), reason="the runner does not hand a step the results "
-                    "of earlier steps yet (StepContext.previous)")
 def test_u_num_by_reference_to_a_verification_step(tmp_path):
     """``u_num = "verify.u_num"``: the largest u_num over the verification step's points."""
     from rotoruq.model import FunctionModel

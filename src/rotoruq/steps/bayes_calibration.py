@@ -32,7 +32,13 @@ from ..render.figures import (
 from ..render.tables import StepTable, label, make_table, parameters, prefixed, value
 from ..results import StepResult, dict_to_dist, dist_to_dict
 from ._common import input_scalars, per_response
-from ._discrepancy import discrepancy_option
+from ._discrepancy import (
+    check_discrepancy,
+    discrepancy_option,
+    discrepancy_tables,
+    discrepancy_warnings,
+    is_discrepancy,
+)
 from .base import StepContext, StepType
 from .options import (
     SIGNATURE,
@@ -246,8 +252,19 @@ def bayes_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
     return w
 
 
+def _tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
+    """The chain's tables, and with a discrepancy its identifiability and predictions."""
+    return bayes_tables(res, labels) + (discrepancy_tables(res, labels)
+                                        if is_discrepancy(res) else [])
+
+
+def _warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
+    return bayes_warnings(res, labels) + (discrepancy_warnings(res, labels)
+                                          if is_discrepancy(res) else [])
+
+
 STEP = StepType(
-    "bayes_calibration", run_bayes_calibration,
+    "bayes_calibration", run_bayes_calibration, check=check_discrepancy,
     method="rotoruq.methods.mcmc:calibrate_bayes", provides=("posterior",), needs_data=True,
     options={"sampler": Option(choice("dram", "mh", "dr", "am"), SIGNATURE),
              "n_samples": Option(integer(10), SIGNATURE),
@@ -264,4 +281,4 @@ STEP = StepType(
              "predict_at": Option(number_list, None),
              "couple": Option(table, None)},
     quick={"n_samples": 1800, "burn_in": 200, "n_emulator_samples": 60},
-    tables=bayes_tables, figures=bayes_figures, warnings=bayes_warnings)
+    tables=_tables, figures=bayes_figures, warnings=_warnings)

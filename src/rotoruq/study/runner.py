@@ -286,7 +286,7 @@ def _identity_parts(study: Study, step: StepSpec, space: ParameterSpace, fixed, 
                     data, previous, quick: bool, model_id: str, code: str) -> dict:
     """The parts of a step's identity, each a digest (see :data:`IDENTITY_PARTS`)."""
     refs = [step.source[0]] if step.source else []
-    for ref in (step.data, options.get("targets")):
+    for ref in (step.data, options.get("targets"), options.get("u_num")):
         if isinstance(ref, str) and "." in ref:
             refs.append(ref.split(".")[0])
     return {
@@ -453,6 +453,7 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
             rng=_seed(study, step, plan.options), data=plan.data, data_columns=plan.columns,
             targets=_step_targets(step, plan.options, results),
             source=results[step.source[0]] if step.source else None,
+            previous=dict(results),
         )
         log.info("[%s] %s: running %s (%s -> %s)", study.info.name, step.name, step.type,
                  ", ".join(plan.space.names), ", ".join(plan.responses))

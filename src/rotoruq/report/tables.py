@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import csv
-import html
 from pathlib import Path
 
 from .compare import ComparedTable
+from .escape import text as escape_text
 
 __all__ = ["fmt", "write_csv", "table_html", "step_table_html"]
 
@@ -57,7 +57,7 @@ def _agrees(c) -> bool | None:
 def table_html(t: ComparedTable) -> str:
     """An HTML table: for each thesis column, three sub-columns thesis / ours / difference
     (in the thesis's std devs, absolute or relative: see ``ComparedCell.diff_kind``)."""
-    e = html.escape
+    e = escape_text
     head1 = "<th rowspan=2></th>" + "".join(f"<th colspan=3>{e(c)}</th>" for c in t.ref.columns)
     head2 = "<th>thesis</th><th>ours</th><th>diff</th>" * len(t.ref.columns)
     body = []
@@ -78,7 +78,7 @@ def step_table_html(t) -> str:
     """A :class:`rotoruq.render.tables.StepTable` as an HTML table."""
     from .steptables import fmt_cell
 
-    e = html.escape
+    e = escape_text
     head = "".join(f"<th{' class=l' if j == 0 else ''}>{e(c)}</th>"
                    for j, c in enumerate(t.columns))
     rows = "".join(

@@ -53,6 +53,8 @@ class StepContext:
     rng : numpy Generator for this step.
     source : the saved result of the ``from`` step (None without one); a forward check uses
         its chain for the joint posterior predictive.
+    previous : the saved results of the steps before this one, by name (references such as
+        ``u_num = "verify.u_num"``).
     """
 
     name: str
@@ -67,6 +69,7 @@ class StepContext:
     data_columns: Mapping[str, np.ndarray] = field(default_factory=dict)
     targets: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     source: StepResult | None = None
+    previous: Mapping[str, StepResult] = field(default_factory=dict)
 
     def observations(self) -> np.ndarray:
         """The step's data (k, m); a step type that needs data declares ``needs_data``."""

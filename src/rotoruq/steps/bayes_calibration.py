@@ -37,6 +37,13 @@ from ..render.figures import (
 from ..render.tables import StepTable, label, make_table, parameters, prefixed, value
 from ..results import StepRecord, StepResult, dict_to_dist, dist_to_dict
 from ._common import input_scalars, per_response
+from ._discrepancy import (
+    check_discrepancy,
+    discrepancy_option,
+    discrepancy_tables,
+    discrepancy_warnings,
+    is_discrepancy,
+)
 from .base import StepCheck, StepContext, StepType
 from .options import (
     SIGNATURE,
@@ -47,6 +54,7 @@ from .options import (
     number,
     number_list,
     number_or_table,
+    string,
     string_list,
     table,
 )
@@ -221,6 +229,9 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
 
     from ..methods.mcmc import calibrate_bayes
 
+    if ctx.options.get("discrepancy") is not None:  # Kennedy-O'Hagan: steps/_discrepancy.py
+        from ._discrepancy import run_discrepancy
+        return run_discrepancy(ctx)
     o = ctx.options
     emulator = None
     if o["emulator"] == "gp":
@@ -562,8 +573,24 @@ def _check_bayes(c: StepCheck) -> None:
         c.fail(("refine",), 'emulator = "gp" with refine (it refines the emulator)')
 
 
+def _check(c: StepCheck) -> None:
+    _check_bayes(c)
+    check_discrepancy(c)
+
+
+def _tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
+    """The chain's tables, and with a discrepancy its identifiability and predictions."""
+    return bayes_tables(res, labels) + (discrepancy_tables(res, labels)
+                                        if is_discrepancy(res) else [])
+
+
+def _warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
+    return bayes_warnings(res, labels) + (discrepancy_warnings(res, labels)
+                                          if is_discrepancy(res) else [])
+
+
 STEP = StepType(
-    "bayes_calibration", run_bayes_calibration,
+    "bayes_calibration", run_bayes_calibration, check=_check,
     method="rotoruq.methods.mcmc:calibrate_bayes", provides=("posterior",), needs_data=True,
     options={"sampler": Option(choice("dram", "mh", "dr", "am"), SIGNATURE),
              "n_samples": Option(integer(10), SIGNATURE),
@@ -581,6 +608,10 @@ STEP = StepType(
              "self_check": Option(integer(0), SIGNATURE),
              "reuse_data": Option(boolean, False),
              "proposal": Option(choice("hessian", "prior"), SIGNATURE,
-                                param="proposal_covariance")},
+                                param="proposal_covariance"),
+             "discrepancy": Option(discrepancy_option, None),
+             "configuration": Option(string(), None),
+             "predict_at": Option(number_list, None),
+             "couple": Option(table, None)},
     quick={"n_samples": 1800, "burn_in": 200, "n_emulator_samples": 60, "self_check": 20},
-    check=_check_bayes, tables=bayes_tables, figures=bayes_figures, warnings=bayes_warnings)
+    tables=_tables, figures=bayes_figures, warnings=_warnings)

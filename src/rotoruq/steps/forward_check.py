@@ -65,8 +65,8 @@ class ForwardCheck:
     sweep: Mapping[str, list[float]] = field(default_factory=dict)
 
 
-def posterior_draws(source: StepResult | None, names: Sequence[str], n: int
-                    ) -> np.ndarray | None:
+def posterior_draws(source: StepResult | None, names: Sequence[str], n: int,
+                    rng: np.random.Generator | None = None) -> np.ndarray | None:
     """``n`` joint draws (n, d) of the inputs ``names`` from ``source``'s saved chain, in
     ``names`` order: the chain thinned to ``n`` evenly spaced draws (their correlation kept,
     every draw inside the prior's support; no random choice). None when that step has no
@@ -77,6 +77,8 @@ def posterior_draws(source: StepResult | None, names: Sequence[str], n: int
     source : the saved Bayes step (its ``chain`` array, (N, d_chain), named columns).
     names : the inputs wanted (a subset of the chain's columns).
     n : number of draws (a draw repeats only when ``n`` exceeds the chain's length).
+    rng : draw the ``n`` rows at random from it instead (with replacement when ``n`` exceeds
+        the chain's length).
 
     Returns
     -------
@@ -98,7 +100,10 @@ def posterior_draws(source: StepResult | None, names: Sequence[str], n: int
     if not set(names) <= set(cols):
         return None
     chain = np.asarray(source.arrays["chain"], dtype=float)
-    pick = np.linspace(0, chain.shape[0] - 1, int(n)).round().astype(int)
+    if rng is None:
+        pick = np.linspace(0, chain.shape[0] - 1, int(n)).round().astype(int)
+    else:
+        pick = rng.choice(chain.shape[0], size=n, replace=n > chain.shape[0])
     idx = np.array([cols.index(p) for p in names], dtype=int)
     return chain[np.ix_(pick, idx)]
 

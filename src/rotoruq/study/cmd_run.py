@@ -54,21 +54,25 @@ def summary(result) -> str:
     """A short terminal summary of a finished run: each step's time (or that it was reused),
     evaluations and warnings; ``rotoruq show`` prints the tables."""
     from ..report.diagnostics import step_warnings
+    from ..report.escape import terminal
 
     labels = {p.name: p.label or p.name for p in result.study.parameters}
-    lines = [f"summary of {result.study.info.name} ({len(result.results)} steps):"]
-    n_warn = 0
+    lines = [f"summary of {terminal(result.study.info.name)} ({len(result.results)} steps):"]
+    n_warn = n_failed = 0
     for name, res in result.results.items():
         when = ("reused" if name in result.reused else
                 f"{result.seconds.get(name, res.meta.get('seconds', 0.0)):.1f} s")
         warns = step_warnings(res, labels)
         n_warn += len(warns)
-        lines.append(f"  {name:<20} {res.type:<18} {when:>9}  "
+        failed = (res.meta.get("failed_evaluations") or {}).get("count", 0)
+        n_failed += failed
+        lines.append(f"  {terminal(name):<20} {res.type:<18} {when:>9}  "
                      f"{res.meta.get('n_evaluations', '-')!s:>7} evaluations"
+                     + (f", {failed} failed" if failed else "")
                      + (f"  {len(warns)} warning(s)" if warns else ""))
-        lines += [f"      ! {w}" for w in warns[:3]]
+        lines += [f"      ! {terminal(w)}" for w in warns[:3]]
         if len(warns) > 3:
             lines.append(f"      ! ... and {len(warns) - 3} more")
-    lines.append(f"{n_warn} warning(s). Tables: rotoruq show {result.out} [STEP] "
-                 "[--csv|--json]")
+    lines.append(f"{n_warn} warning(s), {n_failed} failed evaluation(s). Tables: rotoruq show "
+                 f"{terminal(result.out)} [STEP] [--csv|--json]")
     return "\n".join(lines)

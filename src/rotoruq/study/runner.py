@@ -21,6 +21,7 @@ import hashlib
 import json
 import logging
 import math
+from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -285,7 +286,7 @@ def _identity_parts(study: Study, step: StepSpec, space: ParameterSpace, fixed, 
                     data, previous, quick: bool, model_id: str, code: str) -> dict:
     """The parts of a step's identity, each a digest (see :data:`IDENTITY_PARTS`)."""
     refs = [step.source[0]] if step.source else []
-    for ref in (step.data, options.get("targets")):
+    for ref in (step.data, options.get("targets"), options.get("u_num")):
         if isinstance(ref, str) and "." in ref:
             refs.append(ref.split(".")[0])
     return {
@@ -301,6 +302,37 @@ def _identity_parts(study: Study, step: StepSpec, space: ParameterSpace, fixed, 
         "code": code,
         "upstream": {r: previous[r].fingerprint for r in refs},
     }
+
+
+class _FailureCount:
+    """A step's model that counts its failed evaluations by reason (saved as
+    ``meta["failed_evaluations"]``: the report's provenance and ``rotoruq show`` list them).
+    Everything else is the wrapped model's."""
+
+    def __init__(self, model, counts: Counter[str]):
+        self._model, self._counts = model, counts
+
+    def __getattr__(self, name):
+        from ..model import has_gradient
+
+        if name == "gradient" and not has_gradient(self._model):
+            raise AttributeError(name)
+        return getattr(self._model, name)
+
+    def evaluate(self, x):
+        from ..model import evaluate
+
+        batch = evaluate(self._model, x)
+        self._counts.update(batch.failures.values())
+        return batch
+
+    def __call__(self, x):
+        return self.evaluate(x).values
+
+
+def _counting_failures(factory: ModelFactory, counts: Counter[str]) -> ModelFactory:
+    return lambda inputs, responses, fixed: _FailureCount(factory(inputs, responses, fixed),
+                                                         counts)
 
 
 def _seed(study: Study, step: StepSpec, options) -> np.random.Generator:
@@ -413,17 +445,22 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
                 continue
         if only is not None and step.name not in only:
             raise ParameterError(f"step {step.name!r} has no saved result to reuse; run it")
+        failed: Counter[str] = Counter()
         ctx = StepContext(
             name=step.name, type=step.type, options=plan.options, space=plan.space,
-            responses=tuple(plan.responses), fixed=plan.fixed, make_model=factory,
+            responses=tuple(plan.responses), fixed=plan.fixed,
+            make_model=_counting_failures(factory, failed),
             rng=_seed(study, step, plan.options), data=plan.data, data_columns=plan.columns,
             targets=_step_targets(step, plan.options, results),
             source=results[step.source[0]] if step.source else None,
+            previous=dict(results),
         )
         log.info("[%s] %s: running %s (%s -> %s)", study.info.name, step.name, step.type,
                  ", ".join(plan.space.names), ", ".join(plan.responses))
         res, dt = run_step(step_type(step.type).run, ctx)
         meta = dict(res.meta)
+        meta.update(failed_evaluations={"count": sum(failed.values()),
+                                        "reasons": dict(failed.most_common(20))})
         meta.update(seconds=dt, title=step.title, parameters=list(plan.space.names),
                     responses=list(plan.responses), fixed=plan.fixed, options=plan.options,
                     source=".".join(step.source) if step.source else None,

@@ -434,16 +434,30 @@ def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
 
 def _check_data_used_once(ck: Checker, raw: list, steps: list[StepSpec], model) -> None:
     """Each observation calibrates once: a step calibrating (a type with a ``reuse_data``
-    option) the same responses of the same data set as an earlier one fails, naming both
-    lines, unless it says ``reuse_data = true`` (the report then states it)."""
+    option) the same responses of the same data set as an earlier one it conditions on
+    (through its chain of ``from``) fails, naming both lines, unless it says
+    ``reuse_data = true`` (the report then states it). Alternative calibrations of the same
+    data that do not condition on each other (with and without a discrepancy, say) are
+    comparisons, not reuse."""
+    by_name = {st.name: st for st in steps}
+
+    def upstream(st: StepSpec) -> set[str]:
+        names: set[str] = set()
+        while st.source is not None and st.source[0] not in names:
+            names.add(st.source[0])
+            st = by_name[st.source[0]]
+        return names
+
     seen: list[tuple[StepSpec, set[str]]] = []
     for st in steps:
         if "reuse_data" not in step_type(st.type).options or st.data is None:
             continue
         resp = set(st.responses or model.responses)
+        before = upstream(st)
         for earlier, used in seen:
             both = sorted(resp & used)
-            if earlier.data == st.data and both and not st.options.get("reuse_data"):
+            if (earlier.name in before and earlier.data == st.data and both
+                    and not st.options.get("reuse_data")):
                 key = ("data",) if "data" in raw[st.index] else ()
                 ck.fail(("steps", st.index, *key),
                         f"data not calibrated before: step {earlier.name!r} (line "

@@ -1,0 +1,369 @@
+"""The discrepancy branch of the ``bayes_calibration`` step (``discrepancy = {...}``): Bayes
+calibration jointly with a Kennedy-O'Hagan additive discrepancy over a configuration variable,
+its record, tables and warnings.
+
+The step's data rows carry the configuration (``configuration = "height_over_radius"``: a
+data column and a model input); inputs that vary with it in the experiment (the GVPM rotor's
+speed per height) follow it through ``couple = { omega = "omega" }``: model input -> data
+column, interpolated linearly in the configuration over the data's rows. Rows at a
+``predict_at`` configuration are **held out**: the calibration does not see them, the
+predictions there are out-of-sample. Predictions are made at the data's configurations and at
+``predict_at``, with the discrepancy (``eta + delta``) and without it (``eta``); a later
+``validation`` step validates both. ``n_samples`` kept steps are split over two chains.
+``kind = "none"`` runs the same calibration over the configurations without a discrepancy
+(the comparison a reader needs).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ParameterError
+from ..params import Normal
+from ..render.tables import StepTable, label, make_table
+from ..results import StepRecord, StepResult, dist_to_dict
+from ._common import input_scalars, per_response
+from .base import StepCheck, StepContext
+
+__all__ = ["DiscrepancyRecord", "run_discrepancy", "discrepancy_tables",
+           "discrepancy_warnings", "discrepancy_option", "check_discrepancy", "is_discrepancy",
+           "N_CHAINS", "BAND_LEVEL", "N_DRAWS"]
+
+#: Chains the kept steps are split over (R-hat across chains).
+N_CHAINS = 2
+#: Level of the predictive bands recorded.
+BAND_LEVEL = 0.9
+#: Posterior draws of the predictions.
+N_DRAWS = 1000
+
+_KEYS = ("kind", "kernel", "degree", "amplitude_scale", "length_scale", "length_scale_log_std")
+
+
+def discrepancy_option(v):
+    """Option checker of ``discrepancy = { kind, kernel, degree, amplitude_scale, length_scale,
+    length_scale_log_std }`` (amplitude_scale: a number or one per response)."""
+    if not isinstance(v, dict):
+        raise TypeError("a table { kind = \"gp\", amplitude_scale = { response = number }, "
+                        "length_scale = number, ... }")
+    bad = [k for k in v if k not in _KEYS]
+    if bad:
+        raise TypeError(f"a table with keys among {', '.join(_KEYS)} (found {', '.join(bad)})")
+    if v.get("kind", "gp") not in ("gp", "polynomial", "none"):
+        raise TypeError("kind = \"gp\", \"polynomial\" or \"none\" (the same calibration over "
+                        "the configurations without a discrepancy)")
+    if v.get("kernel", "squared_exponential") not in ("squared_exponential", "matern52"):
+        raise TypeError("kernel = \"squared_exponential\" or \"matern52\"")
+    for k in ("length_scale", "length_scale_log_std"):
+        x = v.get(k)
+        if x is not None and (isinstance(x, bool) or not isinstance(x, int | float) or x <= 0):
+            raise TypeError(f"{k} = a number > 0")
+    a = v.get("amplitude_scale")
+    vals = a.values() if isinstance(a, dict) else [] if a is None else [a]
+    if any(isinstance(x, bool) or not isinstance(x, int | float) or x <= 0 for x in vals):
+        raise TypeError("amplitude_scale = a number > 0 or { response = number > 0 }")
+    d = v.get("degree", 1)
+    if isinstance(d, bool) or not isinstance(d, int) or d < 0:
+        raise TypeError("degree = an integer >= 0")
+    return dict(v)
+
+
+def check_discrepancy(c: StepCheck) -> None:
+    """Study-file checks of the discrepancy options (file/line errors): ``configuration``
+    and the keys of ``couple`` must be inputs of the model; ``discrepancy``, ``configuration``,
+    ``couple`` and ``predict_at`` go together."""
+    o = c.options
+    if o.get("discrepancy") is None:
+        for key in ("configuration", "couple", "predict_at"):
+            if o.get(key) is not None:
+                c.fail((key,), f"{key} only with discrepancy = {{ ... }} (kind = \"none\" for a "
+                       "calibration over the configurations without one)")
+        return
+    if not o.get("configuration"):
+        c.fail(("discrepancy",), "configuration = \"<the model input that varies between "
+               "experiments, e.g. height_over_radius>\" beside discrepancy")
+    c.check_input(("configuration",), o["configuration"])
+    for key, col in (o.get("couple") or {}).items():
+        c.check_input(("couple", key), key)
+        if not isinstance(col, str):
+            c.fail(("couple", key), f"{key} = \"<a data column>\"", repr(col))
+
+
+def is_discrepancy(res: StepResult) -> bool:
+    """Whether ``res`` is a Bayes step calibrated through this branch."""
+    rec = res.meta.get("record")
+    return isinstance(rec, Mapping) and rec.get("type") == "DiscrepancyRecord"
+
+
+@dataclass(frozen=True, eq=False)
+class DiscrepancyRecord(StepRecord):
+    """What a Bayes step with a discrepancy saves: d parameters, h hyperparameters,
+    m responses, c data configurations, q predicted configurations.
+
+    kind : "gp", "polynomial". configuration : the configuration variable.
+    chains (chain, sample, d), hyper_chains (chain, sample, h) : the kept samples.
+    mean, std, std_ratio_to_prior, std_without_discrepancy, std_ratio_to_no_discrepancy (d).
+    ess, rhat (d + h) : in the order names_in + hyper_names. level_correlation (d, m) : the
+    posterior correlation of each parameter with the discrepancy's mean level; confounded (d)
+    1.0 / 0.0; identifiability : the finding in words. noise_std (m).
+    data_configurations (c) : the configurations calibrated on; held_out : the configurations
+    of data rows left out (at predict_at). predict_configurations (q) : where predicted.
+    pred_model, pred_discrepancy, pred_noise (draw, q, m) : eta, delta and a new
+    measurement's noise at posterior draws. band_lower, band_upper, band_lower_without,
+    band_upper_without (q, m) : the :data:`BAND_LEVEL` band of a new measurement with and
+    without the discrepancy. measured (q, m) : the data's mean there (NaN: no data).
+    """
+
+    AXES = {"chains": ("chain", "sample", "parameter"),
+            "hyper_chains": ("chain", "sample", "hyperparameter"),
+            "mean": ("parameter",), "std": ("parameter",),
+            "std_ratio_to_prior": ("parameter",), "std_without_discrepancy": ("parameter",),
+            "std_ratio_to_no_discrepancy": ("parameter",), "ess": ("quantity",),
+            "rhat": ("quantity",), "level_correlation": ("parameter", "response"),
+            "confounded": ("parameter",), "noise_std": ("response",),
+            "data_configurations": ("configuration",), "held_out": ("held_out",),
+            "predict_configurations": ("prediction",),
+            "pred_model": ("draw", "prediction", "response"),
+            "pred_discrepancy": ("draw", "prediction", "response"),
+            "pred_noise": ("draw", "prediction", "response"),
+            "band_lower": ("prediction", "response"), "band_upper": ("prediction", "response"),
+            "band_lower_without": ("prediction", "response"),
+            "band_upper_without": ("prediction", "response"),
+            "measured": ("prediction", "response")}
+
+    kind: str
+    configuration: str
+    names_in: tuple[str, ...]
+    names_out: tuple[str, ...]
+    hyper_names: tuple[str, ...]
+    chains: np.ndarray
+    hyper_chains: np.ndarray
+    mean: np.ndarray
+    std: np.ndarray
+    std_ratio_to_prior: np.ndarray
+    std_without_discrepancy: np.ndarray
+    std_ratio_to_no_discrepancy: np.ndarray
+    ess: np.ndarray
+    rhat: np.ndarray
+    level_correlation: np.ndarray
+    confounded: np.ndarray
+    identifiability: str
+    noise_std: np.ndarray
+    data_configurations: np.ndarray
+    held_out: np.ndarray
+    predict_configurations: np.ndarray
+    pred_model: np.ndarray
+    pred_discrepancy: np.ndarray
+    pred_noise: np.ndarray
+    band_lower: np.ndarray
+    band_upper: np.ndarray
+    band_lower_without: np.ndarray
+    band_upper_without: np.ndarray
+    measured: np.ndarray
+    acceptance_rate: float
+    level: float
+
+
+def _coupled_model(ctx: StepContext, configuration: str, couple: Mapping[str, str]):
+    """The model over (parameters, configuration); coupled inputs follow the configuration
+    (linear interpolation of their data columns)."""
+    from ..model import FunctionModel
+
+    cols = ctx.data_columns
+    if configuration not in cols:
+        raise ParameterError(f"step {ctx.name!r}: configuration = {configuration!r} is not a "
+                             f"column of its data set ({', '.join(cols)})")
+    x = np.asarray(cols[configuration], dtype=float)
+    order = np.argsort(x)
+    coupled = {}
+    for inp, col in couple.items():
+        if col not in cols:
+            raise ParameterError(f"step {ctx.name!r}: couple = {{ {inp} = {col!r} }}: no such "
+                                 f"data column ({', '.join(cols)})")
+        coupled[inp] = np.asarray(cols[col], dtype=float)[order]
+    names = [*ctx.space.names, configuration, *coupled]
+    fixed = {k: v for k, v in ctx.fixed.items() if k not in names}
+    inner = ctx.make_model(names, ctx.responses, fixed)
+    xs = x[order]
+
+    def f(z: np.ndarray) -> np.ndarray:
+        extra = [np.interp(z[:, -1], xs, v) for v in coupled.values()]
+        return np.asarray(inner(np.column_stack([z, *extra]) if extra else z), dtype=float)
+
+    return FunctionModel(f, [*ctx.space.names, configuration], list(ctx.responses))
+
+
+def run_discrepancy(ctx: StepContext) -> StepResult:
+    """Bayes calibration with a discrepancy (the ``bayes_calibration`` step with
+    ``discrepancy = {...}``); see the module docstring."""
+    from ..methods.mcmc.discrepancy import Discrepancy, calibrate_with_discrepancy
+
+    o = ctx.options
+    spec = dict(o["discrepancy"])
+    configuration = o.get("configuration")
+    if not configuration:
+        raise ParameterError(f"step {ctx.name!r}: discrepancy = {{...}} needs configuration = "
+                             "\"<the model input that varies between experiments>\"")
+    amp = spec.get("amplitude_scale")
+    if isinstance(amp, Mapping):
+        missing = [r for r in ctx.responses if r not in amp]
+        if missing:
+            raise ParameterError(f"step {ctx.name!r}: discrepancy amplitude_scale has no value "
+                                 f"for {missing}")
+        spec["amplitude_scale"] = tuple(float(amp[r]) for r in ctx.responses)
+    kind = spec.get("kind", "gp")
+    form = None if kind == "none" else Discrepancy(**spec)
+    model = _coupled_model(ctx, configuration, o.get("couple") or {})
+    x = np.asarray(ctx.data_columns[configuration], dtype=float)
+    y = ctx.observations()
+    predict = np.asarray(o.get("predict_at") or [], dtype=float)
+    held = np.zeros(x.size, dtype=bool)
+    for v in predict:
+        held |= np.isclose(x, v)
+    if held.all():
+        raise ParameterError(f"step {ctx.name!r}: every data row lies at a predict_at "
+                             "configuration; nothing is left to calibrate on")
+    at = np.unique(np.concatenate([x[~held], predict]))
+    n_samples = max(2, int(o["n_samples"]) // N_CHAINS)
+    res = calibrate_with_discrepancy(
+        model, y[~held], ctx.space, configurations=x[~held], configuration_name=configuration,
+        discrepancy=form, noise_std=per_response(o.get("noise_std"), ctx.responses),
+        names_out=ctx.responses, sampler=o["sampler"], n_samples=n_samples,
+        burn_in=int(o["burn_in"]) // N_CHAINS, n_chains=N_CHAINS, n_draws=N_DRAWS,
+        predict_at=at, seed=ctx.rng)
+    p = res.prediction
+    assert p is not None
+    lo, hi = p.interval(BAND_LEVEL)
+    lo_w, hi_w = p.interval(BAND_LEVEL, discrepancy=False)
+    measured = np.full((at.size, len(ctx.responses)), np.nan)
+    for j, v in enumerate(at):
+        rows = np.isclose(x, v)
+        if rows.any():
+            measured[j] = y[rows].mean(axis=0)
+    rec = DiscrepancyRecord(
+        kind=kind, configuration=configuration, names_in=tuple(res.names_in),
+        names_out=tuple(res.names_out), hyper_names=tuple(res.hyper_names),
+        chains=res.chains, hyper_chains=res.hyper_chains, mean=res.mean, std=res.std,
+        std_ratio_to_prior=res.std_ratio_to_prior,
+        std_without_discrepancy=res.std_without_discrepancy,
+        std_ratio_to_no_discrepancy=res.std_ratio_to_no_discrepancy, ess=res.ess,
+        rhat=res.rhat, level_correlation=res.level_correlation,
+        confounded=np.asarray(res.confounded, dtype=float), identifiability=res.identifiability,
+        noise_std=res.noise_std, data_configurations=res.configurations,
+        held_out=np.unique(x[held]), predict_configurations=at, pred_model=p.model_draws,
+        pred_discrepancy=p.discrepancy_draws, pred_noise=p.noise_draws, band_lower=lo,
+        band_upper=hi, band_lower_without=lo_w, band_upper_without=hi_w, measured=measured,
+        acceptance_rate=float(res.acceptance_rate), level=BAND_LEVEL)
+    arrays, meta = rec.parts()
+    chain = res.samples
+    scalars = input_scalars(ctx.space)
+    for j, name in enumerate(res.names_in):
+        scalars[f"mean/{name}"] = float(res.mean[j])
+        scalars[f"std/{name}"] = float(res.std[j])
+        scalars[f"ess/{name}"] = float(res.ess[j])
+        scalars[f"rhat/{name}"] = float(res.rhat[j])
+        scalars[f"map/{name}"] = float(res.map_point[j])
+        scalars[f"std_ratio/{name}"] = float(res.std_ratio_to_prior[j])
+    scalars["acceptance"] = float(res.acceptance_rate)
+    from .bayes_calibration import chain_diagnostic_scalars  # it imports this module
+
+    scalars.update(chain_diagnostic_scalars(res.names_in, chain, ctx.space))
+    for k, r in enumerate(ctx.responses):
+        scalars[f"noise_std/{r}"] = float(res.noise_std[k])
+        for j, v in enumerate(at):
+            inside = (lo[j, k] <= measured[j, k] <= hi[j, k]) if np.isfinite(
+                measured[j, k]) else np.nan
+            scalars[f"inside_band/{r}@{v:g}"] = float(inside)
+    posterior = {n: dist_to_dict(Normal(scalars[f"mean/{n}"], scalars[f"std/{n}"]))
+                 for n in res.names_in}
+    arrays.update(chain=chain, data=np.asarray(y))
+    return StepResult(ctx.name, ctx.type, scalars, arrays, posterior, meta={
+        **meta, "columns": {"chain": list(res.names_in), "data": list(ctx.responses)},
+        "n_evaluations": int(res.n_evaluations), "noise_model": "noise_std per response"
+        if o.get("noise_std") is not None else "pooled from the repeats",
+        "prior": {n: dist_to_dict(d) for n, d in zip(ctx.space.names, ctx.space.distributions,
+                                                      strict=True)}})
+
+
+def _cond(v: float, held: Sequence[float] | np.ndarray) -> str:
+    return f"{v:g}" + (" (held out)" if np.any(np.isclose(held, v)) else "")
+
+
+def discrepancy_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
+    """Posterior and identifiability; predictions with and without the discrepancy."""
+    rec = DiscrepancyRecord.read(res)
+    d = len(rec.names_in)
+    rows = [[label(p, labels), float(rec.mean[j]), float(rec.std[j]),
+             float(rec.std_ratio_to_prior[j]), float(rec.std_ratio_to_no_discrepancy[j]),
+             *[float(rec.level_correlation[j, k]) for k in range(len(rec.names_out))],
+             "yes" if rec.confounded[j] else "no", float(rec.ess[j]), float(rec.rhat[j])]
+            for j, p in enumerate(rec.names_in)]
+    rows += [[h, "", "", "", "", *[""] * len(rec.names_out), "",
+              float(rec.ess[d + i]), float(rec.rhat[d + i])]
+             for i, h in enumerate(rec.hyper_names)]
+    out = [make_table(
+        f"Calibration with a {rec.kind} discrepancy over {rec.configuration}" if rec.kind !=
+        "none" else f"Calibration over {rec.configuration} without a discrepancy",
+        ("parameter", "posterior mean", "posterior std", "post/prior std",
+         "std / std without discrepancy",
+         *[f"corr with mean discrepancy of {r}" for r in rec.names_out], "confounded", "ESS",
+         "R-hat"), rows,
+        f"{rec.identifiability} Calibrated on {rec.configuration} = "
+        + ", ".join(f"{v:g}" for v in rec.data_configurations)
+        + (f"; held out: {', '.join(f'{v:g}' for v in rec.held_out)}" if rec.held_out.size
+           else "") + f"; acceptance rate {rec.acceptance_rate:.2f}.")]
+    prow = []
+    for j, v in enumerate(rec.predict_configurations):
+        for k, r in enumerate(rec.names_out):
+            with_d = rec.pred_model[:, j, k] + rec.pred_discrepancy[:, j, k]
+            meas = float(rec.measured[j, k])
+            inside = ("-" if not np.isfinite(meas) else
+                      "yes" if rec.band_lower[j, k] <= meas <= rec.band_upper[j, k] else "no")
+            inside_w = ("-" if not np.isfinite(meas) else
+                        "yes" if rec.band_lower_without[j, k] <= meas
+                        <= rec.band_upper_without[j, k] else "no")
+            prow.append([_cond(v, rec.held_out), r, meas,
+                         float(np.mean(rec.pred_model[:, j, k])),
+                         float(np.mean(rec.pred_discrepancy[:, j, k])),
+                         float(np.std(with_d, ddof=1)),
+                         f"[{rec.band_lower[j, k]:.4g}, {rec.band_upper[j, k]:.4g}]", inside,
+                         f"[{rec.band_lower_without[j, k]:.4g}, "
+                         f"{rec.band_upper_without[j, k]:.4g}]", inside_w])
+    pct = f"{100 * rec.level:g} %"
+    out.append(make_table(
+        f"Predictions with and without the discrepancy ({rec.configuration})",
+        ("configuration", "response", "measured", "model mean", "discrepancy mean",
+         "std (model + discrepancy)", f"{pct} band with discrepancy", "measured inside",
+         f"{pct} band without", "measured inside (without)"), prow,
+        f"Bands of a new measurement (model + discrepancy + noise, or model + noise), "
+        f"equal-tailed {pct}, {rec.pred_model.shape[0]} posterior draws."))
+    return out
+
+
+def discrepancy_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
+    """Confounded parameters; held-out measurements outside the discrepancy-aware band."""
+    rec = DiscrepancyRecord.read(res)
+    w = []
+    conf = [label(p, labels) for j, p in enumerate(rec.names_in) if rec.confounded[j]]
+    if conf:
+        w.append(f"{res.name}: parameters confounded with the discrepancy: {', '.join(conf)} "
+                 f"({rec.identifiability})")
+    for j, v in enumerate(rec.predict_configurations):
+        if not np.any(np.isclose(rec.held_out, v)):
+            continue
+        for k, r in enumerate(rec.names_out):
+            m = float(rec.measured[j, k])
+            if np.isfinite(m) and not rec.band_lower[j, k] <= m <= rec.band_upper[j, k]:
+                w.append(f"{res.name}: held-out {r} at {rec.configuration} = {v:g} ({m:.4g}) "
+                         f"lies outside the {100 * rec.level:g} % band with the discrepancy "
+                         f"[{rec.band_lower[j, k]:.4g}, {rec.band_upper[j, k]:.4g}]")
+    # the parameters' R-hat and ESS are the Bayes step's own warnings; these are the
+    # hyperparameters'
+    hyper = rec.rhat[len(rec.names_in):]
+    bad = [f"{n} ({r:.3f})" for n, r in zip(rec.hyper_names, hyper, strict=True) if r > 1.01]
+    if bad:
+        w.append(f"{res.name}: discrepancy hyperparameters not mixed (R-hat above 1.01): "
+                 f"{', '.join(bad)}")
+    return w

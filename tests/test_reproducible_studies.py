@@ -17,7 +17,9 @@ from test_mbdyn import MBDYN, env_with_mbdyn
 
 STUDIES = Path(__file__).resolve().parents[1] / "src" / "rotoruq" / "studies"
 CLI = [sys.executable, "-m", "rotoruq.study.cli"]
-BUNDLED = sorted(p.stem for p in STUDIES.glob("*.toml"))
+# the MBDyn studies carry the mbdyn mark (a few minutes each; CI builds MBDyn for them)
+BUNDLED = [pytest.param(p.stem, marks=pytest.mark.mbdyn) if p.stem.startswith("mbdyn")
+           else p.stem for p in sorted(STUDIES.glob("*.toml"))]
 
 
 def _run(study: str, out: Path) -> None:

@@ -488,3 +488,20 @@ def test_importance_sampling_bad_input():
         importance_sampling(model, space, r, refinement="lhs")
     with pytest.raises(ParameterError, match="n_samples must be >= 2"):
         importance_sampling(model, space, r, n_samples=1)
+
+
+def test_sorm_tangent_hessian_equals_the_analytic_curvatures_at_2d_minus_1_squared_points():
+    # paraboloid g = -a + k b^2 / 2 (+ c^2 in 3-D): limit state curvature k (and 2 for c)
+    from rotoruq.methods.reliability import _tangent_basis, _UModel
+
+    space = rq.ParameterSpace({"a": rq.Normal(0, 1), "b": rq.Normal(0, 1), "c": rq.Normal(0, 1)})
+    model = rq.FunctionModel(lambda x: -x[:, 0] + 0.025 * x[:, 1] ** 2 + x[:, 2] ** 2,
+                             ["a", "b", "c"], ["g"])
+    um = _UModel(model, space, rq.model.FD_STEP)
+    u = np.array([3.0, 0.0, 0.0])
+    um.value_grad(u)
+    before = um.n_eval
+    basis = _tangent_basis(np.array([1.0, 0.0, 0.0]))
+    h = um.tangent_hessian(u, 0, basis)
+    assert um.n_eval - before == 2 * (3 - 1) ** 2
+    np.testing.assert_allclose(np.sort(np.linalg.eigvalsh(h)), [0.05, 2.0], rtol=1e-6)

@@ -16,7 +16,8 @@ approximations, SORM and importance sampling refinement, on closed-form answers.
 * ``refinement``: importance sampling around the cubic's MPP (``import``, ``adapt_import``,
   ``mm_adapt_import``) over ``--seeds`` seeds: mean and max relative error and the mean
   reported standard error; Dakota's ``probability_refinement`` with ``refinement_samples =
-  1000`` (its adaptive schemes iterate to their own convergence, up to 10^5 evaluations);
+  1000`` (its adaptive schemes iterate to their own convergence, up to 10^5 evaluations;
+  ``mm_adapt_import`` on ``--mm-seeds`` seeds only, default 5);
   rotoruq spends, seed by seed, the same number of sampling evaluations (1000 without
   Dakota), in 3 rounds for the adaptive schemes.
 
@@ -174,6 +175,12 @@ def _cell_exact(lo, hi):
     return a[0] + 0.5 * b[0], a[1] + 0.5 * b[1]
 
 
+def _progress(msg: str) -> None:
+    import sys
+
+    print(f"{time.strftime('%H:%M:%S')} {msg}", file=sys.stderr, flush=True)
+
+
 def evidence_rows(seeds: int, work: Path | None) -> dict:
     space = rq.ParameterSpace({"a": rq.Interval([(0.0, 1.0), (1.0, 3.0)], [0.4, 0.6]),
                                "b": rq.Interval([(-1.0, 1.0), (0.5, 2.0)], [0.5, 0.5])})
@@ -181,6 +188,7 @@ def evidence_rows(seeds: int, work: Path | None) -> dict:
                              ["a", "b"], ["g"])
     out: dict = {}
     for side in ("ego", "sampling"):
+        _progress(f"evidence {side}")
         err, ev, walls = [], [], []
         for s in range(seeds):
             t = time.perf_counter()
@@ -258,6 +266,7 @@ def _timed(fn):
 
 
 def mpp_rows(work: Path | None) -> dict:
+    _progress("mpp searches")
     space, model, p_exact = _cubic()
     cubic: dict = {"exact_probability": p_exact}
     for label, (search, integ) in SEARCHES.items():
@@ -315,19 +324,21 @@ def mpp_rows(work: Path | None) -> dict:
 
 
 # --- importance sampling refinement ----------------------------------------------------------
-def refinement_rows(seeds: int, work: Path | None) -> dict:
+def refinement_rows(seeds: int, work: Path | None, mm_seeds: int) -> dict:
     space, model, p_exact = _cubic()
     mpp = mpp_search(model, space, response_levels=[0.0])
     out: dict = {"exact_probability": p_exact, "form_rel_error":
                  float(mpp.cdf_probability["g"][0] / p_exact - 1), "mpp_evaluations":
                  mpp.n_evaluations}
     for ref in ("import", "adapt_import", "mm_adapt_import"):
+        _progress(f"refinement {ref}")
         rounds = 1 if ref == "import" else 3
         row: dict = {}
         budgets = [1000] * seeds
+        n_dak = min(seeds, mm_seeds) if ref == "mm_adapt_import" else seeds
         if work is not None:
             derr, dev, dwalls = [], [], []
-            for s in range(seeds):
+            for s in range(n_dak):
                 text, dwall = run_dakota(_RELIABILITY.format(
                     search="no_approx", levels="response_levels = 0.0",
                     integration="first_order",
@@ -342,7 +353,9 @@ def refinement_rows(seeds: int, work: Path | None) -> dict:
                              "wall_s": float(np.mean(dwalls))}
             # Dakota's adaptive schemes iterate to their own convergence: rotoruq gets the
             # same number of sampling evaluations, seed by seed
-            budgets = [max(1000, n - out["mpp_evaluations"]) for n in dev]
+            budgets = [max(1000, dev[s % len(dev)] - out["mpp_evaluations"])
+                       for s in range(seeds)]
+            row["dakota"]["seeds"] = n_dak
         err, se, walls, ev = [], [], [], []
         for s in range(seeds):
             r, wall = _timed(lambda s=s, ref=ref, rounds=rounds, n=budgets[s] // rounds:
@@ -416,6 +429,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--summary", metavar="JSON", default=None)
+    ap.add_argument("--mm-seeds", type=int, default=5,
+                    help="seeds of Dakota's mm_adapt_import (10^5 evaluations a run)")
     args = ap.parse_args()
     if print_saved_summary(args.summary, summary):
         return
@@ -427,7 +442,7 @@ def main() -> None:
         res = {"seeds": args.seeds, "dakota": have,
                "note": None if have else "dakota not found: Dakota rows are null",
                "evidence": evidence_rows(args.seeds, work), "mpp": mpp_rows(work),
-               "refinement": refinement_rows(args.seeds, work)}
+               "refinement": refinement_rows(args.seeds, work, args.mm_seeds)}
     print(json.dumps(res, indent=1))
 
 

@@ -9,7 +9,7 @@ approximations, SORM and importance sampling refinement, on closed-form answers.
 * ``cubic``: g = a^3 + b^3 - 18, a, b ~ N(10, 5), P(g <= 0) exact by quadrature
   (5.4876e-3). RIA at z = 0 with FORM, SORM (Breitung) and the AMV / AMV+ searches (Dakota's
   ``mpp_search``): relative error of the probability and evaluations, both tools. PMA SORM at
-  p = 0.01: level and evaluations.
+  p = 0.01: level, the exact probability below it (quadrature) and evaluations.
 * ``cantilever``: Dakota's cantilever (normalized stress and displacement, w = t = 2.5):
   AMV / AMV+ reliability indices at z = 0 against the converged MPP index (both tools agree
   on it to 1e-9) and evaluations.
@@ -243,6 +243,12 @@ def _cubic():
     return space, model, p
 
 
+def _cubic_cdf(z: float) -> float:
+    """P(a^3 + b^3 - 18 <= z) by quadrature."""
+    return integrate.quad(lambda t: stats.norm.pdf(t, 10, 5) * stats.norm.cdf(
+        np.cbrt(z + 18 - t**3), 10, 5), -np.inf, np.inf, epsabs=0, epsrel=1e-12, limit=500)[0]
+
+
 def _cantilever():
     w = t = 2.5
 
@@ -296,6 +302,8 @@ def mpp_rows(work: Path | None) -> dict:
             hessians="numerical_hessians"), work)
         pma["dakota"] = {"level": _cdf_rows(text, 0)[0][0], "n_evaluations": _evals(text),
                          "wall_s": dwall}
+    for side in pma.values():  # the exact probability below each tool's level (target 0.01)
+        side["exact_probability_at_level"] = _cubic_cdf(side["level"])
     cubic["pma_sorm_p0.01"] = pma
     space, model = _cantilever()
     full = mpp_search(model, space, response_levels=[0.0])
@@ -395,9 +403,11 @@ def summary(res: dict) -> str:
                   f"{row['dakota']['n_evaluations']})")
         out.append(s + ".")
     p = c["pma_sorm_p0.01"]
-    s = f"Cubic PMA SORM at p = 0.01: {p['rotoruq']['n_evaluations']} evaluations"
+    s = (f"Cubic PMA SORM at p = 0.01: {p['rotoruq']['n_evaluations']} evaluations, exact "
+         f"probability at its level {p['rotoruq']['exact_probability_at_level']:.4f}")
     if "dakota" in p:
-        s += f" (Dakota {p['dakota']['n_evaluations']})"
+        s += (f" (Dakota {p['dakota']['n_evaluations']}, "
+              f"{p['dakota']['exact_probability_at_level']:.4f})")
     out.append(s + ".")
     ca = res["mpp"]["cantilever"]
     for k, name in (("amv_x", "AMV"), ("amv_plus_x", "AMV+")):

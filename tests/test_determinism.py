@@ -93,6 +93,18 @@ def _discrepancy(seed):
         n_draws=20, seed=seed)
 
 
+def _importance(seed):
+    space = rq.ParameterSpace({"a": rq.Normal(10, 5), "b": rq.Normal(10, 5)})
+    model = rq.FunctionModel(lambda x: x[:, 0] ** 3 + x[:, 1] ** 3 - 18, ["a", "b"], ["g"])
+    mpp = rq.mpp_search(model, space, response_levels=[0.0])
+    return rq.importance_sampling(model, space, mpp, n_samples=200, n_rounds=1, seed=seed)
+
+
+def _box(seed):
+    return rq.box_extremes(lambda x: np.sin(3 * x[:, :1]) * x[:, 1:], [0.0, 1.0], [1.0, 3.0],
+                           max_evaluations=25, seed=seed)
+
+
 #: case -> (public function, small problem calling it with a seed)
 CASES: dict[str, tuple[str, Callable[[int], object]]] = {
     "as_generator": ("as_generator", lambda s: rq.as_generator(s).random(16)),
@@ -103,6 +115,8 @@ CASES: dict[str, tuple[str, Callable[[int], object]]] = {
     "polynomial_chaos": ("polynomial_chaos", lambda s: rq.polynomial_chaos(
         *_quadratic(), 2, estimator="regression", n_samples=30, seed=s)),
     "evidence": ("evidence", _evidence),
+    "importance_sampling": ("importance_sampling", _importance),
+    "box_extremes": ("box_extremes", _box),
     "calibrate_bayes": ("calibrate_bayes", _bayes),
     "calibrate_bayes_emulator": ("calibrate_bayes", _bayes_emulated),
     "continue_chain": ("continue_chain", lambda s: rq.continue_chain(_bayes(3), 100, seed=s)),

@@ -88,6 +88,9 @@ _LAZY: dict[str, str] = {
     "calibrate_with_discrepancy": ".methods.mcmc.discrepancy",
     "predict_with_discrepancy": ".methods.mcmc.discrepancy",
     "GaussianProcess": ".methods.surrogate",
+    "ImportanceSamplingResult": ".methods.importance",
+    "importance_sampling": ".methods.importance",
+    "box_extremes": ".methods.ego",
     "LeaveOneOut": ".methods.surrogate",
     "CUUCheck": ".methods.cuu",
     "CUUResult": ".methods.cuu",
@@ -202,11 +205,20 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     from .methods.cuu import (
         check_cuu as check_cuu,
     )
+    from .methods.ego import (
+        box_extremes as box_extremes,
+    )
     from .methods.evidence import (
         EvidenceResult as EvidenceResult,
     )
     from .methods.evidence import (
         evidence as evidence,
+    )
+    from .methods.importance import (
+        ImportanceSamplingResult as ImportanceSamplingResult,
+    )
+    from .methods.importance import (
+        importance_sampling as importance_sampling,
     )
     from .methods.least_squares import (
         CalibrationResult as CalibrationResult,

@@ -1,0 +1,179 @@
+"""Multi-fidelity Monte Carlo and approximate control variates on the monomial ladder.
+
+The ladder of the ACV papers (Gorodetsky et al. 2020, sec. 6; also PyApprox's and MXMCPy's
+examples): f_k(x) = x^(5 - k), x ~ U(0, 1). Every moment is a polynomial integral, so the exact
+mean, variance, covariances and fourth moments (and with them each estimator's exact variance)
+are known in closed form.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numpy.polynomial import Polynomial
+
+import rotoruq as rq
+from rotoruq.errors import ParameterError
+from rotoruq.methods.acv import (
+    allocate,
+    estimator_covariance,
+    estimator_variance,
+    optimal_weights,
+    sample_sets,
+)
+
+POWERS = (5, 4, 3)
+SPACE = rq.ParameterSpace({"x": rq.Uniform(0.0, 1.0)})
+
+
+def _ladder(powers=POWERS):
+    return [rq.FunctionModel(lambda x, p=p: x[:, 0] ** p, ["x"], ["y"]) for p in powers]
+
+
+def _exact(powers=POWERS):
+    """Mean (K,), covariance (K, K) and E[d_i^2 d_j^2] (K, K) of x^p, x ~ U(0, 1)."""
+    def integral(q: Polynomial) -> float:
+        Q = q.integ()
+        return float(Q(1.0) - Q(0.0))
+
+    polys = [Polynomial([0.0] * p + [1.0]) for p in powers]
+    mean = np.array([integral(q) for q in polys])
+    d = [q - m for q, m in zip(polys, mean, strict=True)]
+    cov = np.array([[integral(a * b) for b in d] for a in d])
+    m22 = np.array([[integral(a * a * b * b) for b in d] for a in d])
+    return mean, cov, m22
+
+
+def test_exact_moments_of_the_ladder():
+    mean, cov, m22 = _exact()
+    x = np.random.default_rng(0).random(400_000)
+    Y = np.stack([x**p for p in POWERS])
+    np.testing.assert_allclose(mean, Y.mean(axis=1), rtol=5e-3)
+    np.testing.assert_allclose(cov, np.cov(Y), rtol=2e-2)
+    assert mean[0] == pytest.approx(1 / 6) and cov[0, 0] == pytest.approx(1 / 11 - 1 / 36)
+
+
+def test_mfmc_allocation_matches_the_closed_form_for_two_models():
+    _, cov, _ = _exact((5, 4))
+    w, budget = np.array([1.0, 0.01]), 100.0
+    rho2 = cov[0, 1] ** 2 / (cov[0, 0] * cov[1, 1])
+    r = np.sqrt(w[0] * rho2 / (w[1] * (1.0 - rho2)))  # Peherstorfer et al. (2016), eq. 3.16
+    plan = allocate(cov, w, budget, estimator="mfmc")
+    assert plan.models == (0, 1)
+    assert plan.ratios[1] == pytest.approx(r, rel=1e-12)
+    n0 = budget / (w[0] + w[1] * r)
+    assert plan.n_samples.tolist() == [int(np.floor(n0)), int(np.floor(r * n0))]
+    # the minimum variance, sigma^2 / B (sum_k sqrt(w_k (rho_k^2 - rho_{k+1}^2)))^2 (eq. 3.19)
+    v_min = cov[0, 0] / budget * (np.sqrt(w[0] * (1 - rho2)) + np.sqrt(w[1] * rho2)) ** 2
+    assert estimator_variance("mfmc", n0 * np.array([1.0, r]), "mean", cov) == pytest.approx(
+        v_min, rel=1e-10)
+    # with two models ACV-MF is MFMC: its numerical optimum finds the same ratio
+    num = allocate(cov, w, budget, estimator="acvmf")
+    assert num.ratios[1] == pytest.approx(r, rel=1e-3)
+
+
+def test_mfmc_weights_are_peherstorfers():
+    _, cov, _ = _exact()
+    S = estimator_covariance(sample_sets("mfmc", [40, 400, 4000]), "mean", cov)
+    alpha, _ = optimal_weights(S)
+    sd = np.sqrt(np.diag(cov))
+    rho = cov[0] / (sd[0] * sd)
+    # alpha_k = rho_k sigma_1 / sigma_k on (mean over the larger set - over the smaller one)
+    np.testing.assert_allclose(alpha, -rho[1:] * sd[0] / sd[1:], rtol=1e-10)
+
+
+def test_variance_estimator_covariance_is_the_sample_variance_variance():
+    _, cov, m22 = _exact((5,))
+    n = 30
+    S = estimator_covariance(sample_sets("mfmc", [n]), "variance", cov, m22)
+    mu4, s4 = m22[0, 0], cov[0, 0] ** 2
+    assert S[0, 0] == pytest.approx(mu4 / n - (n - 3) * s4 / (n * (n - 1)), rel=1e-12)
+
+
+@pytest.mark.parametrize("estimator", ["mfmc", "acvmf", "acvis"])
+def test_estimators_are_unbiased_with_the_predicted_variance(estimator):
+    """300 seeds: the mean of the estimates is within 3.5 standard errors of the exact value
+    and their empirical variance matches the exact estimator variance within its own sampling
+    error (fourth-moment standard error of a sample variance, 3.5 sigma); the variance at the
+    allocation's cost is below plain Monte Carlo's at the same cost."""
+    mean, cov, m22 = _exact()
+    w, budget = np.array([1.0, 0.05, 0.01]), 400.0
+    plan = allocate(cov, w, budget, estimator=estimator, select=False)
+    allocation = np.zeros(3, dtype=int)
+    allocation[list(plan.models)] = plan.n_samples
+    n_rep = 300
+    est = {"mean": np.empty(n_rep), "variance": np.empty(n_rep)}
+    for i in range(n_rep):
+        res = rq.multifidelity_sample(_ladder(), SPACE, None, estimator=estimator, n_pilot=200,
+                                      costs=w, allocation=allocation, seed=i)
+        est["mean"][i], est["variance"][i] = res.mean[0], res.variance[0]
+    sub = np.ix_(plan.models, plan.models)
+    for stat, exact in (("mean", mean[0]), ("variance", cov[0, 0])):
+        v_theory = estimator_variance(estimator, plan.n_samples, stat, cov[sub], m22[sub])
+        e = est[stat]
+        assert abs(e.mean() - exact) < 3.5 * np.sqrt(v_theory / n_rep), (stat, e.mean(), exact)
+        v_emp = e.var(ddof=1)
+        mu4 = np.mean((e - e.mean()) ** 4)
+        se_v = np.sqrt((mu4 - v_emp**2 * (n_rep - 3) / (n_rep - 1)) / n_rep)
+        assert abs(v_emp - v_theory) < 3.5 * se_v, (stat, v_emp, v_theory, se_v)
+        n_plain = plan.cost / w[0]
+        v_plain = (cov[0, 0] / n_plain if stat == "mean"
+                   else m22[0, 0] / n_plain - (n_plain - 3) * cov[0, 0] ** 2
+                   / (n_plain * (n_plain - 1)))
+        assert v_emp < 0.5 * v_plain, (stat, v_emp, v_plain)
+
+
+def test_allocation_from_the_pilot_and_the_result_record():
+    mean, cov, _ = _exact()
+    w = [1.0, 0.05, 0.01]
+    res = rq.multifidelity_sample(_ladder(), SPACE, 400.0, estimator="mfmc", n_pilot=2000,
+                                  costs=w, seed=3)
+    exact_plan = allocate(cov, np.array(w), 400.0, estimator="mfmc")
+    assert res.models_used == exact_plan.models
+    np.testing.assert_allclose(res.allocation, exact_plan.n_samples, rtol=0.15)
+    assert res.cost_main <= 400.0 and res.cost_pilot == pytest.approx(2000 * sum(w))
+    assert res.n_evaluations == 2000 * 3 + int(res.allocation.sum())
+    np.testing.assert_allclose(res.correlation[0], cov[0] / np.sqrt(cov[0, 0] * np.diag(cov)),
+                               atol=0.02)
+    # plain MC needs sigma^2 / se^2 HF runs for the same standard error
+    assert res.n_equivalent_hf["mean"][0] == pytest.approx(cov[0, 0] / res.mean_se[0] ** 2,
+                                                           rel=0.1)
+    assert res.n_equivalent_hf["mean"][0] > 3 * res.budget
+    assert abs(res.mean[0] - mean[0]) < 4 * res.mean_se[0]
+    assert res.table()[0]["response"] == "y"
+
+
+def test_measured_costs_and_optimised_acv():
+    res = rq.multifidelity_sample(_ladder(), SPACE, 0.05, estimator="acvis", n_pilot=50,
+                                  seed=1)
+    assert res.costs_measured and np.all(res.costs > 0) and np.all(res.wall_pilot > 0)
+    assert res.allocation[0] >= 2 and np.isfinite(res.mean[0]) and np.isfinite(res.std[0])
+
+
+def test_same_seed_same_result_bitwise():
+    kw = dict(estimator="acvmf", n_pilot=30, costs=[1.0, 0.05, 0.01], seed=11)
+    a = rq.multifidelity_sample(_ladder(), SPACE, 50.0, **kw)
+    b = rq.multifidelity_sample(_ladder(), SPACE, 50.0, **kw)
+    assert a.allocation.tolist() == b.allocation.tolist()
+    assert a.mean.tobytes() == b.mean.tobytes() and a.variance.tobytes() == b.variance.tobytes()
+    c = rq.multifidelity_sample(_ladder(), SPACE, 50.0, **{**kw, "seed": 12})
+    assert c.mean.tobytes() != a.mean.tobytes()
+
+
+def test_bad_input_raises_clear_errors():
+    models, w = _ladder(), [1.0, 0.05, 0.01]
+    with pytest.raises(ParameterError, match="unknown estimator"):
+        rq.multifidelity_sample(models, SPACE, 10.0, estimator="mlmc", costs=w)
+    other = rq.FunctionModel(lambda x: x[:, 0], ["x"], ["z"])
+    with pytest.raises(ParameterError, match="responses"):
+        rq.multifidelity_sample([models[0], other], SPACE, 10.0, costs=[1.0, 0.1])
+    with pytest.raises(ParameterError, match="at least 2"):
+        rq.multifidelity_sample(models, SPACE, 0.5, costs=w, n_pilot=10, seed=0)
+    with pytest.raises(ParameterError, match="non-decreasing"):
+        rq.multifidelity_sample(models, SPACE, None, costs=w, allocation=[10, 50, 20], seed=0)
+    with pytest.raises(ParameterError, match="either a budget or an allocation"):
+        rq.multifidelity_sample(models, SPACE, 10.0, costs=w, allocation=[10, 50, 90])
+    with pytest.raises(ParameterError, match="statistics"):
+        rq.multifidelity_sample(models, SPACE, 10.0, costs=w, statistics=("median",))
+    with pytest.raises(ParameterError, match="costs"):
+        rq.multifidelity_sample(models, SPACE, 10.0, costs=[1.0, 0.0, 0.1])

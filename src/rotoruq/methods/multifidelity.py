@@ -289,7 +289,7 @@ def multifidelity_sample(
     with np.errstate(invalid="ignore", divide="ignore"):
         correlation = cov[:, 0, :] / (sd[:, :1] * sd)
 
-    if allocation is not None:
+    if budget is None:
         plan = fixed_allocation(cov[jt], w, np.asarray(allocation), estimator=estimator)
     else:
         plan = allocate(cov[jt], w, float(budget), estimator=estimator, select=select)

@@ -177,3 +177,76 @@ def test_bad_input_raises_clear_errors():
         rq.multifidelity_sample(models, SPACE, 10.0, costs=w, statistics=("median",))
     with pytest.raises(ParameterError, match="costs"):
         rq.multifidelity_sample(models, SPACE, 10.0, costs=[1.0, 0.0, 0.1])
+
+
+# --- co-kriging ------------------------------------------------------------------------------
+
+def _forrester(x):
+    """Forrester, Sobester and Keane (2007): the high-fidelity function on [0, 1]."""
+    return (6.0 * x[:, 0] - 2.0) ** 2 * np.sin(12.0 * x[:, 0] - 4.0)
+
+
+def _forrester_lf(x):
+    return 0.5 * _forrester(x) + 10.0 * (x[:, 0] - 0.5) - 5.0
+
+
+def _currin(x):
+    """Currin et al. (1991) exponential function on [0, 1]^2."""
+    x1, x2 = x[:, 0], x[:, 1]
+    return ((1.0 - np.exp(-0.5 / np.maximum(x2, 1e-12)))
+            * (2300 * x1**3 + 1900 * x1**2 + 2092 * x1 + 60)
+            / (100 * x1**3 + 500 * x1**2 + 4 * x1 + 20))
+
+
+def _currin_lf(x):
+    """Xiong, Qian and Wu (2013): the average of four shifted copies."""
+    def f(a, b):
+        return _currin(np.column_stack([a, b]))
+    x1, x2 = x[:, 0], x[:, 1]
+    lo = np.maximum(0.0, x2 - 0.05)
+    return 0.25 * (f(x1 + 0.05, x2 + 0.05) + f(x1 + 0.05, lo) + f(x1 - 0.05, x2 + 0.05)
+                   + f(x1 - 0.05, lo))
+
+
+def test_cokriging_recovers_the_forrester_scale_and_beats_a_gp_on_the_hf_runs():
+    x_lf = np.linspace(0.0, 1.0, 11)[:, None]
+    x_hf = x_lf[[0, 2, 4, 6, 8, 10]]  # nested in the LF design
+    ck = rq.CoKriging(seed=0).fit([x_lf, x_hf], [_forrester_lf(x_lf), _forrester(x_hf)])
+    assert ck.rho[0, 0] == pytest.approx(2.0, abs=0.02)  # y_hf = 2 y_lf - 20 (x - 0.5) + 10
+    xt = np.linspace(0.0, 1.0, 401)[:, None]
+    mean, var = ck.predict(xt)
+    gp = rq.GaussianProcess(seed=0).fit(x_hf, _forrester(x_hf))
+    rmse_ck = np.sqrt(np.mean((mean[:, 0] - _forrester(xt)) ** 2))
+    rmse_gp = np.sqrt(np.mean((gp.predict(xt, return_var=False)[:, 0] - _forrester(xt)) ** 2))
+    assert rmse_ck < 0.05 * rmse_gp, (rmse_ck, rmse_gp)
+    # interpolates the HF runs, with (near) zero variance there
+    m_hf, v_hf = ck.predict(x_hf)
+    np.testing.assert_allclose(m_hf[:, 0], _forrester(x_hf), atol=1e-3 * np.ptp(_forrester(xt)))
+    assert np.all(var >= 0) and v_hf.max() < 1e-3 * var.max()
+
+
+def test_cokriging_holdout_error_beats_a_gp_at_equal_hf_runs_in_2d():
+    space = rq.ParameterSpace({"a": rq.Uniform(0.0, 1.0), "b": rq.Uniform(0.0, 1.0)})
+    x_lf = space.draw(40, seed=1)
+    x_hf = x_lf[:10]
+    ck = rq.CoKriging(seed=0).fit([x_lf, x_hf], [_currin_lf(x_lf), _currin(x_hf)])
+    xt = space.draw(1000, design="random", seed=2)
+    gp = rq.GaussianProcess(seed=0).fit(x_hf, _currin(x_hf))
+    rmse_ck = np.sqrt(np.mean((ck.predict(xt, return_var=False)[:, 0] - _currin(xt)) ** 2))
+    pred_gp = gp.predict(xt, return_var=False, warn_distance=None)[:, 0]
+    rmse_gp = np.sqrt(np.mean((pred_gp - _currin(xt)) ** 2))
+    assert rmse_ck < 0.5 * rmse_gp, (rmse_ck, rmse_gp)
+    model = ck.as_model(["a", "b"], ["y"])
+    assert rq.evaluate(model, xt[:5]).values.shape == (5, 1)
+
+
+def test_cokriging_bad_input():
+    ck = rq.CoKriging()
+    with pytest.raises(ParameterError, match="not fitted"):
+        ck.predict(np.zeros((1, 1)))
+    with pytest.raises(ParameterError, match="sequences"):
+        ck.fit(np.zeros((5, 1)), np.zeros(5))
+    with pytest.raises(ParameterError, match="at least 3"):
+        ck.fit([np.zeros((5, 1)), np.zeros((2, 1))], [np.zeros(5), np.zeros(2)])
+    with pytest.raises(ParameterError, match="seed"):
+        rq.CoKriging({"seed": 1})

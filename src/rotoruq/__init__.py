@@ -54,6 +54,7 @@ _LAZY: dict[str, str] = {
     "write_c81": ".rotor.c81",
     "EvidenceResult": ".methods.evidence",
     "evidence": ".methods.evidence",
+    "CoKriging": ".methods.cokriging",
     "MultifidelityResult": ".methods.multifidelity",
     "multifidelity_sample": ".methods.multifidelity",
     "PCEResult": ".methods.pce",
@@ -183,6 +184,9 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     )
     from .evaluation import (
         write_results as write_results,
+    )
+    from .methods.cokriging import (
+        CoKriging as CoKriging,
     )
     from .methods.cuu import (
         CUUCheck as CUUCheck,

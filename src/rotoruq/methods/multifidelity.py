@@ -25,6 +25,7 @@ from ..errors import EvaluationError, ParameterError
 from ..model import Model
 from ..params import ParameterSpace
 from ._common import eval_space
+from ._seedseq import seed_sequence
 from .acv import (
     ESTIMATORS,
     Allocation,
@@ -121,19 +122,6 @@ class MultifidelityResult:
                 row[f"{s}_n_equivalent_hf"] = float(self.n_equivalent_hf[s][j])
             rows.append(row)
         return rows
-
-
-def _seed_sequence(seed: SeedLike) -> np.random.SeedSequence:
-    if isinstance(seed, np.random.SeedSequence):
-        return seed
-    if isinstance(seed, np.random.Generator):
-        return np.random.SeedSequence(int(seed.integers(2**63)))
-    if seed is None:
-        return np.random.SeedSequence()
-    if isinstance(seed, bool | np.bool_) or not isinstance(seed, int | np.integer) or seed < 0:
-        raise ParameterError(f"seed must be a non-negative integer, None, a numpy SeedSequence "
-                             f"or Generator; got {seed!r} ({type(seed).__name__})")
-    return np.random.SeedSequence(int(seed))
 
 
 def _check_models(models: Sequence[Model], space: ParameterSpace) -> tuple[str, ...]:
@@ -263,7 +251,7 @@ def multifidelity_sample(
         if w_given.shape != (K,) or not np.all(np.isfinite(w_given)) or np.any(w_given <= 0):
             raise ParameterError(f"costs must be {K} positive numbers (one per model), "
                                  f"got {costs!r}")
-    ss = _seed_sequence(seed)
+    ss = seed_sequence(seed)
     s_pilot, s_main = ss.spawn(2)
 
     # pilot: every model on the same points

@@ -122,7 +122,7 @@ def main() -> None:
         "in_process_eval_s": round(med["warm_eval"], 5),
         "target_overhead_s": 0.1,
         "meets_target": bool(med["driver"] - med["model"] < 0.1),
-        "driver_loads_study_step_types": "rotoruq.study.steptypes" in loaded,
+        "driver_loads_step_types": "rotoruq.steps" in loaded,
         "driver_loads_scipy_stats": "scipy.stats" in loaded,
         "driver_rotoruq_modules": sum(1 for m in loaded if m.startswith("rotoruq")),
         "results_ok": bool(not res.failed and len(res.values) == len(OUTPUTS)),

@@ -10,6 +10,7 @@ import pytest
 import rotoruq as rq
 from rotoruq.errors import ModelShapeError, ParameterError
 from rotoruq.methods.mcmc import SamplerConfig, calibrate_bayes, continue_chain
+from rotoruq.methods.mcmc.bayes import _Posterior
 from rotoruq.methods.surrogate import ExtrapolationWarning, GaussianProcess
 
 # --- linear-Gaussian: posterior in closed form ----------------------------------------------
@@ -103,6 +104,37 @@ def test_same_seed_same_chains():
         calibrate_bayes(model, DATA, space, n_samples=10, sampler=SamplerConfig(evaluations="all"))
 
 
+def test_readme_example_is_bitwise_reproducible():
+    """The README's call (an unseeded GaussianProcess emulator, seed=1) twice: every random
+    stage (design, GP restarts, MAP starts, chain starts, chains, predictive draws, the KL
+    subsample) comes from the call's seed, so chains, MAP and predictive are bitwise equal;
+    the caller's emulator is not fitted (a later call fits afresh) and a different seed
+    differs. continue_chain without a seed is reproducible too."""
+    model = smooth_model()
+    space = rq.ParameterSpace({"k": rq.Uniform(0.0, 2.0), "c": rq.Uniform(0.0, 2.0)})
+    data = model(np.array([[1.2, 0.7]])) + np.random.default_rng(4).normal(0, 0.1, (5, 2))
+    gp = rq.GaussianProcess(trend="reduced_quadratic")
+
+    def run(seed):
+        return rq.calibrate_bayes(model, data, prior=space, sampler="dram", noise_std=0.1,
+                                  emulator=gp, n_emulator_samples=30, n_samples=400,
+                                  burn_in=50, n_chains=4, posterior_predictive=20, seed=seed)
+
+    a, b = run(1), run(1)
+    assert not gp._fits and a.emulator is not gp
+    for f in ("chains", "log_posterior", "map_point", "predictive", "predictive_inputs",
+              "proposal_covariance"):
+        np.testing.assert_array_equal(getattr(a, f), getattr(b, f), err_msg=f)
+    assert a.kl_divergence == b.kl_divergence
+    np.testing.assert_array_equal(a.emulator.length_scales, b.emulator.length_scales)
+    assert not np.array_equal(run(2).chains, a.chains)
+    np.testing.assert_array_equal(continue_chain(a, 100).chains, continue_chain(b, 100).chains)
+    assert continue_chain(a, 100).kl_divergence == continue_chain(b, 100).kl_divergence
+    # a SeedSequence seed is not consumed: the same object twice gives the same result
+    ss = np.random.SeedSequence(5)
+    np.testing.assert_array_equal(run(ss).chains, run(ss).chains)
+
+
 # --- banana (Rosenbrock-type) posterior -----------------------------------------------------
 
 
@@ -172,18 +204,246 @@ def test_compiled_emulator_mean_equals_predict(trend, kernel):
     fast = gp._mean_fast(Xt)
     # predict forms distances as |a|^2 + |b|^2 - 2 a.b; a rounding error there is multiplied
     # by the kriging weights, which are large for a near-interpolating GP: bound eps sum|w|
-    alpha, y_std = gp._fast[4], gp._fast[10]
+    cg = gp.compiled()
+    alpha, y_std = cg.alpha, cg.y_std
     tol = 1e-14 * np.abs(alpha).sum(1) * y_std + 1e-12 * np.abs(ref).max(0)
     assert np.all(np.abs(fast - ref) <= tol), (np.abs(fast - ref).max(0), tol)
     np.testing.assert_array_equal(np.vstack([gp._mean_fast(x[None]) for x in Xt]), fast)
+    # the compiled Kriging variance (precomputed inverse factors) equals predict's (triangular
+    # solves) to round-off of the unit-variance standardized problem
+    mean, var = gp._mean_var_fast(Xt)
+    ref_mean, ref_var = gp.predict(Xt, warn_distance=None)
+    assert np.all(np.abs(mean - ref_mean) <= tol)
+    assert np.all(np.abs(var - ref_var) <= 1e-10 * gp.compiled(variance=True).var_scale)
+
+
+def _stacked_loglik(data, noise_cov, q, var):
+    """Direct log-likelihood of all observations stacked, (n_exp m,): mean q repeated, noise
+    blocks plus the emulator's error shared by the experiments (a rank-m term)."""
+    from scipy.stats import multivariate_normal
+
+    n_exp, m = data.shape
+    cov = np.zeros((n_exp * m, n_exp * m))
+    for e in range(n_exp):
+        cov[e * m:(e + 1) * m, e * m:(e + 1) * m] = noise_cov[e]
+    cov += np.kron(np.ones((n_exp, n_exp)), np.diag(var))
+    return multivariate_normal(np.tile(q, n_exp), cov).logpdf(data.reshape(-1))
+
+
+@pytest.mark.parametrize("noise", ["per_observation", "full"])
+def test_likelihood_with_emulator_variance_equals_the_stacked_gaussian(noise):
+    """GaussianLikelihood(q, variance) (compiled, sufficient statistics) equals the Gaussian
+    density of all observations with covariance noise + GP variance shared by the
+    experiments, computed directly (1e-10); variance 0 gives the plain likelihood."""
+    from rotoruq.methods.mcmc import GaussianLikelihood
+
+    rng = np.random.default_rng(3)
+    n_exp, m = 4, 3
+    data = rng.normal(size=(n_exp, m))
+    if noise == "full":
+        a = rng.normal(size=(m, m))
+        cov = a @ a.T + 0.5 * np.eye(m)
+        covs = np.broadcast_to(cov, (n_exp, m, m))
+    else:
+        cov = rng.uniform(0.1, 2.0, (n_exp, m))
+        covs = np.array([np.diag(c) for c in cov])
+    lik = GaussianLikelihood(data, cov)
+    q = rng.normal(size=(5, m))
+    var = rng.uniform(0.0, 3.0, (5, m))
+    got = lik(q, var)
+    ref = [_stacked_loglik(data, covs, q[k], var[k]) for k in range(5)]
+    np.testing.assert_allclose(got, ref, rtol=1e-10, atol=0)
+    np.testing.assert_allclose(lik(q, np.zeros_like(q)), lik(q), rtol=1e-12)
+
+
+@pytest.mark.filterwarnings("ignore::rotoruq.methods.surrogate.ExtrapolationWarning")
+@pytest.mark.filterwarnings("ignore:emulator error over the posterior:RuntimeWarning")
+def test_emulator_variance_in_the_posterior_and_the_switch():
+    """The compiled emulator posterior with the GP variance equals prior + the stacked
+    Gaussian with GaussianProcess.predict's variance at a few thetas (1e-10); with
+    emulator_variance=False it is the mean-only posterior; the general (Python) route
+    gives the same numbers."""
+    # a sparse GP with a nugget: a visible variance and kriging weights small enough that
+    # predict's distance formula is exact to 1e-10 (an interpolating GP's are not)
+    X = np.random.default_rng(2).random((12, 2)) * 2.0
+    gp = GaussianProcess(trend="linear", kernel="matern52", nugget=1e-3, seed=0).fit(
+        X, smooth_model()(X))
+    on = _emulator_result(n_samples=95, burn_in=5, emulator=gp)
+    off = _emulator_result(n_samples=95, burn_in=5, emulator=gp, emulator_variance=False)
+    post_on, post_off = on._state[0], off._state[0]
+    assert post_on.emulator_variance and not post_off.emulator_variance
+    data = post_on.loglik.data
+    thetas = np.array([[1.2, 0.7], [0.3, 1.9], [1.95, 0.05], [0.9, 1.1]])
+    z = (thetas - post_on.center) / post_on.scale
+    mean, var = gp.predict(thetas, warn_distance=None)
+    lp_prior = post_on.logprior(thetas)
+    covs = np.broadcast_to(np.eye(2) * 0.01, (data.shape[0], 2, 2))
+    ref = lp_prior + [_stacked_loglik(data, covs, mean[k], var[k]) for k in range(4)]
+    np.testing.assert_allclose(post_on(z), ref, rtol=1e-10)
+    assert np.all(var > 0)
+    np.testing.assert_allclose(post_off(z), lp_prior + post_off.loglik(mean), rtol=1e-10)
+    # the Python route (a prior the compiled kernel does not take) agrees
+    general = _Posterior(gp._mean_fast, post_on.loglik, post_on.logprior, post_on.center,
+                         post_on.scale, gp, True)
+    general.compiled = None
+    np.testing.assert_allclose(general(z), post_on(z), rtol=1e-12)
+
+
+def _three_output_problem():
+    def f(x):
+        a, b = x[:, 0], x[:, 1]
+        return np.column_stack([np.exp(0.8 * a) + b**2, a * b + np.sin(2 * b), np.cos(a) * b])
+
+    model = rq.FunctionModel(f, ["a", "b"], ["y1", "y2", "y3"])
+    space = rq.ParameterSpace({"a": rq.Uniform(0.0, 2.0), "b": rq.Uniform(0.0, 2.0)})
+    data = f(np.array([[1.1, 0.6]])) + np.random.default_rng(0).normal(0, 0.05, (3, 3))
+    return model, space, data
+
+
+def test_refinement_brings_the_emulator_error_below_target_and_the_posterior_home(tmp_path):
+    """A 10-point GP of a 2-parameter, 3-response nonlinear model: its error over the
+    posterior is 0.36-0.8 of the noise std (warned), and its posterior mean is off the
+    model's own posterior; refinement adds runs at the posterior draws until the ratio is
+    below 0.1, and the posterior mean moves to the model's own (within MC error)."""
+    from rotoruq.methods.mcmc import RefineConfig
+
+    model, space, data = _three_output_problem()
+    kw = dict(noise_std=0.05, n_samples=1500, burn_in=300, n_chains=4, seed=3)
+    direct = calibrate_bayes(model, data, space, **kw)
+    with pytest.warns(RuntimeWarning, match="emulator error over the posterior"):
+        sparse = calibrate_bayes(model, data, space, emulator=GaussianProcess(trend="linear"),
+                                 n_emulator_samples=10, **kw)
+    ad = sparse.emulator_adequacy
+    assert ad.runs_added == () and np.all(ad.loo_ratio > 0)
+    np.testing.assert_allclose(ad.noise_std, 0.05 / np.sqrt(3))
+    assert ad.posterior_ratio.max() > 0.3
+    cfg = RefineConfig(n_samples=40, target_ratio=0.1, batch=5)
+    ref = calibrate_bayes(model, data, space, emulator=GaussianProcess(trend="linear"),
+                          n_emulator_samples=10, refine=cfg, **kw)
+    ra = ref.emulator_adequacy
+    assert 1 <= len(ra.runs_added) and ra.n_added <= 40
+    assert np.all(ra.posterior_ratio < 0.1) and ra.target_ratio == 0.1
+    np.testing.assert_array_equal(ra.posterior_ratio_per_round[0], ad.posterior_ratio)
+    assert ref.emulator._X.shape[0] == 10 + ra.n_added
+    assert ref.n_evaluations == 10 + ra.n_added
+    with np.load(ref.save(tmp_path / "post.npz")) as z:
+        np.testing.assert_array_equal(z["emulator_runs_added"], ra.runs_added)
+    se = np.sqrt(direct.std**2 / direct.ess + ref.std**2 / ref.ess)
+    assert np.all(np.abs(ref.mean - direct.mean) < 4.5 * se)
+    z_sparse = np.abs(sparse.mean - direct.mean) / direct.std
+    z_ref = np.abs(ref.mean - direct.mean) / direct.std
+    assert z_ref.max() < z_sparse.max()
+    with pytest.raises(ParameterError, match="refines an emulator"):
+        calibrate_bayes(model, data, space, refine=cfg, n_samples=10)
+    with pytest.raises(ParameterError, match="target_ratio"):
+        RefineConfig(target_ratio=0.0)
+
+
+@pytest.mark.slow  # 17 chains: ~6 s of CPU, up to 20 s on a shared machine
+def test_noise_multiplier_learns_an_understated_noise(tmp_path):
+    """Data with noise std 0.1 stated as 0.05: the variance multiplier ("one", inverse-gamma
+    prior) is sampled with the parameters; over 8 data sets its 90 % interval covers the
+    true 4 and the parameters' 90 % intervals cover the truth at about their rate (>= 6 of 8
+    each: P(<= 5 of 8) = 0.04 at 0.9), where the stated noise alone covers less. Per
+    response: only the understated response's multiplier moves off 1."""
+    model, space, _ = _three_output_problem()
+    truth = np.array([1.1, 0.6])
+    y0 = model(truth[None])
+    kw = dict(noise_std=0.05, n_samples=1000, burn_in=200, n_chains=4)
+    lam_cover, th_cover, fixed_cover = 0, np.zeros(2), np.zeros(2)
+    for s in range(8):
+        data = y0 + np.random.default_rng(100 + s).normal(0, 0.1, (10, 3))
+        r = calibrate_bayes(model, data, space, noise_multipliers="one", seed=s, **kw)
+        assert r.chains.shape == (4, 1000, 2) and r.noise_multiplier_chains.shape == (4, 1000, 1)
+        _, _, lo, hi = r.noise_multiplier_summary(0.9)["noise_multiplier"]
+        lam_cover += lo <= 4.0 <= hi
+        ci = r.credible_interval(0.9)
+        th_cover += (ci[:, 0] <= truth) & (truth <= ci[:, 1])
+        ci = calibrate_bayes(model, data, space, seed=s, **kw).credible_interval(0.9)
+        fixed_cover += (ci[:, 0] <= truth) & (truth <= ci[:, 1])
+    assert lam_cover >= 6 and np.all(th_cover >= 6), (lam_cover, th_cover)
+    assert fixed_cover.sum() < th_cover.sum()
+    sd = np.array([0.1, 0.05, 0.05])
+    data = y0 + np.random.default_rng(7).normal(0, 1, (30, 3)) * sd
+    r = calibrate_bayes(model, data, space, noise_multipliers="per_response", seed=1, **kw)
+    summ = r.noise_multiplier_summary(0.99)
+    assert r.noise_multiplier_names == ("noise_multiplier:y1", "noise_multiplier:y2",
+                                        "noise_multiplier:y3")
+    for name, lam in zip(r.noise_multiplier_names, (4.0, 1.0, 1.0), strict=True):
+        assert summ[name][2] <= lam <= summ[name][3], (name, summ[name])
+    with np.load(r.save(tmp_path / "post.npz")) as z:
+        np.testing.assert_array_equal(z["noise_multiplier_chains"], r.noise_multiplier_chains)
+    more = continue_chain(r, 100)
+    assert more.noise_multiplier_chains.shape == (4, 1100, 3)
+    # (kept as 1 / tau: the round trip is exact to one rounding)
+    np.testing.assert_allclose(more.noise_multiplier_chains[:, :1000],
+                               r.noise_multiplier_chains, rtol=4e-16)
+
+
+@pytest.mark.parametrize("mode", ["one", "per_response", "per_experiment"])
+def test_noise_multiplier_likelihood_is_the_likelihood_of_the_scaled_noise(mode):
+    """With multipliers lambda = 1 / tau the likelihood (emulator variance or none) equals
+    GaussianLikelihood with the noise variances multiplied by lambda, observation by
+    observation (1e-12)."""
+    from rotoruq.methods.mcmc import GaussianLikelihood
+    from rotoruq.methods.mcmc.noise import multiplier_groups, noise_loglik
+
+    rng = np.random.default_rng(5)
+    n_exp, m = 4, 3
+    data = rng.normal(size=(n_exp, m))
+    var = rng.uniform(0.1, 2.0, (n_exp, m))
+    groups, names = multiplier_groups(mode, ("a", "b", "c"), n_exp)
+    q = rng.normal(size=(6, m))
+    v = rng.uniform(0.0, 1.0, (6, m))
+    tau = rng.uniform(0.2, 3.0, (6, len(names)))
+    got = noise_loglik(q, v, tau, data, var, groups)
+    got0 = noise_loglik(q, None, tau, data, var, groups)
+    for k in range(6):
+        lik = GaussianLikelihood(data, var / tau[k][groups])
+        np.testing.assert_allclose(got[k], lik(q[k:k + 1], v[k:k + 1])[0], rtol=1e-12)
+        np.testing.assert_allclose(got0[k], lik(q[k:k + 1])[0], rtol=1e-12)
+
+
+def test_noise_multipliers_with_an_emulator_and_named_responses():
+    """The multiplier route also runs on an emulator (with its variance) and on a subset
+    of responses: the unnamed responses keep their stated noise."""
+    model, space, data = _three_output_problem()
+    r = calibrate_bayes(model, data, space, emulator=GaussianProcess(trend="linear"),
+                        n_emulator_samples=30, noise_std=0.05, noise_multipliers=["y2"],
+                        n_samples=300, burn_in=50, seed=2)
+    assert r.noise_multiplier_names == ("noise_multiplier:y2",)
+    assert r.noise_multiplier_chains.shape == (1, 300, 1) and r.chains.shape == (1, 300, 2)
+    assert np.all(r.noise_multiplier_chains > 0)
+    assert r.emulator_adequacy is not None
+
+
+def test_noise_multiplier_bad_input():
+    model, space, data = _three_output_problem()
+    with pytest.raises(ParameterError, match=r"responses \['y3'\] that have no data"):
+        calibrate_bayes(model, data[:, :2], space, names_out=["y1", "y2"], noise_std=0.05,
+                        noise_multipliers=["y3"], n_samples=10)
+    with pytest.raises(ParameterError, match="noise_std must be finite and > 0"):
+        calibrate_bayes(model, data, space, noise_std=[0.05, 0.0, 0.05],
+                        noise_multipliers="one", n_samples=10)
+    with pytest.raises(ParameterError, match="need independent noise"):
+        calibrate_bayes(model, data, space, noise_covariance=np.eye(3),
+                        noise_multipliers="one", n_samples=10)
+    with pytest.raises(ParameterError, match="noise_multipliers must be one of"):
+        calibrate_bayes(model, data, space, noise_multipliers="each", n_samples=10)
+    with pytest.raises(ParameterError, match=r"\(alpha, beta\) must be > 0"):
+        calibrate_bayes(model, data, space, noise_multipliers="one",
+                        noise_multiplier_prior=(0.0, 1.0), n_samples=10)
+    with pytest.raises(ParameterError, match="no noise multipliers"):
+        calibrate_bayes(model, data, space, noise_std=0.05, n_samples=20).noise_multiplier_summary()
 
 
 def _emulator_result(prior=None, **kw):
     model = smooth_model()
     space = prior or rq.ParameterSpace({"k": rq.Uniform(0.0, 2.0), "c": rq.Uniform(0.0, 2.0)})
     data = model(np.array([[1.2, 0.7]])) + np.random.default_rng(4).normal(0, 0.1, (20, 2))
-    return calibrate_bayes(model, data, space, emulator=GaussianProcess(trend="linear", seed=0),
-                           n_emulator_samples=40, noise_std=0.1, seed=6, **kw)
+    kw.setdefault("emulator", GaussianProcess(trend="linear", seed=0))
+    return calibrate_bayes(model, data, space, n_emulator_samples=40, noise_std=0.1, seed=6,
+                           **kw)
 
 
 def test_compiled_emulator_posterior_equals_the_python_one():

@@ -76,6 +76,12 @@ def _bayes_emulated(seed):
     return _bayes(seed, emulator=rq.GaussianProcess(), n_emulator_samples=30)
 
 
+def _sbc(seed):
+    model, space = _quadratic()
+    return rq.simulation_based_calibration(model, space, noise_std=0.3, n_replications=6,
+                                           n_draws=9, n_samples=300, seed=seed)
+
+
 #: case -> (public function, small problem calling it with a seed)
 CASES: dict[str, tuple[str, Callable[[int], object]]] = {
     "as_generator": ("as_generator", lambda s: rq.as_generator(s).random(16)),
@@ -90,14 +96,14 @@ CASES: dict[str, tuple[str, Callable[[int], object]]] = {
     "calibrate_bayes_emulator": ("calibrate_bayes", _bayes_emulated),
     "continue_chain": ("continue_chain", lambda s: rq.continue_chain(_bayes(3), 100, seed=s)),
     "GaussianProcess": ("GaussianProcess", _gp),
+    "simulation_based_calibration": ("simulation_based_calibration", _sbc),
     "calibrate_under_uncertainty": ("calibrate_under_uncertainty", lambda s: _cuu(s)[1]),
     "check_cuu": ("check_cuu", lambda s: rq.check_cuu(
         _cuu(3, inner="mean_value")[1], _cuu(3, inner="mean_value")[0], 40, seed=s)),
 }
 
-# issue 21: calibrate_bayes does not pass its seed to the emulator's fit (methods/mcmc/bayes.py,
-# owned elsewhere). strict: the test fails once it is fixed, so the mark is removed then.
-KNOWN_NONDETERMINISTIC = {"calibrate_bayes_emulator"}
+# cases known to differ between two calls with one seed (strict xfail: fixed ones must leave)
+KNOWN_NONDETERMINISTIC: set[str] = set()
 
 # random choices a seed may legitimately not change (the answer is the same optimum)
 SEED_INSENSITIVE = {"GaussianProcess", "calibrate_under_uncertainty"}

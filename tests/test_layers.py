@@ -11,8 +11,16 @@ subpackage it reaches. A lower layer must never import a higher one:
     evaluation                      + model, params, atomic   (never methods, rotor, study, ...)
     mbdyn                           + rotor, evaluation (an external solver of the rotor)
     results                         + evaluation (the results format, below study and report)
-    report                          everything but study
+    render                          + results (table and figure primitives, thesis numbers)
+    steps                           + methods, evaluation, results, render (one module per
+                                    step type: options, adapter, tables, figures, warnings)
+    report                          + results, render, steps, evaluation (never rotor, study)
     study                           everything
+
+No module may, at import, write into another layer's globals (assign or delete an attribute or
+an item of a name imported from another layer, or call something of another layer for its
+effect, directly or through a function of its own): a registry filled that way differs
+between interpreters that imported different modules.
 
 The package ``rotoruq/__init__.py`` re-exports the public API lazily and is exempt. Imports under
 ``if TYPE_CHECKING:`` are annotations only and are exempt too.
@@ -42,8 +50,11 @@ ALLOWED: dict[str, set[str]] = {
     "evaluation": BOTTOM | UNITS,
     "mbdyn": BOTTOM | UNITS | {"rotor", "evaluation"},
     "results": BOTTOM | UNITS | {"evaluation"},
-    "report": BOTTOM | UNITS | {"rotor", "methods", "evaluation", "mbdyn", "results"},
-    "study": BOTTOM | UNITS | {"rotor", "methods", "evaluation", "mbdyn", "results", "report"},
+    "render": BOTTOM | UNITS | {"evaluation", "results"},
+    "steps": BOTTOM | UNITS | {"methods", "evaluation", "results", "render"},
+    "report": BOTTOM | UNITS | {"evaluation", "results", "render", "steps"},
+    "study": BOTTOM | UNITS | {"rotor", "methods", "evaluation", "mbdyn", "results", "render",
+                               "steps", "report"},
 }
 
 # Violations that other branches of issue 14 remove in parallel: (importing module, imported
@@ -137,6 +148,118 @@ def test_no_lower_layer_imports_a_higher_one():
     assert not new, "layer violations:\n" + "\n".join(s for v in new.values() for s in v)
     fixed = KNOWN_VIOLATIONS - set(found)
     assert not fixed, f"fixed: remove from KNOWN_VIOLATIONS: {sorted(fixed)}"
+
+
+def _foreign_names(tree: ast.AST, module: str, unit: str) -> set[str]:
+    """Names a module binds by importing from another layer's unit of rotoruq."""
+    package = module.rpartition(".")[0]
+    names: set[str] = set()
+    for node in tree.body if isinstance(tree, ast.Module) else []:
+        for sub in ast.walk(node):
+            if isinstance(sub, ast.Import):
+                for a in sub.names:
+                    if a.name.split(".")[0] == "rotoruq" and _unit(a.name) not in ("", unit):
+                        names.add((a.asname or a.name).split(".")[0])
+            elif isinstance(sub, ast.ImportFrom):
+                if sub.level:
+                    base = package.split(".")[: len(package.split(".")) - (sub.level - 1)]
+                    target = ".".join(base + ([sub.module] if sub.module else []))
+                else:
+                    target = sub.module or ""
+                for a in sub.names:
+                    full = target if sub.module else f"{target}.{a.name}"
+                    if full.split(".")[0] == "rotoruq" and _unit(full) not in ("", unit):
+                        names.add(a.asname or a.name)
+    return names
+
+
+def _root(node: ast.AST) -> str | None:
+    while isinstance(node, (ast.Attribute, ast.Subscript, ast.Call)):
+        node = node.func if isinstance(node, ast.Call) else node.value
+    return node.id if isinstance(node, ast.Name) else None
+
+
+def _writes(stmts: list[ast.stmt], foreign: set[str], local_writers: set[str]) -> list[int]:
+    """Lines of ``stmts`` (not descending into function bodies) that write into a foreign
+    name: assignment/deletion of its attribute or item, a call of it as a statement, or a call
+    of a local function that does so."""
+    lines = []
+    for stmt in stmts:
+        todo: list[ast.AST] = [stmt]
+        while todo:
+            node = todo.pop()
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)):
+                continue
+            targets: list[ast.AST] = []
+            if isinstance(node, (ast.Assign, ast.Delete)):
+                targets = list(node.targets)
+            elif isinstance(node, (ast.AugAssign, ast.AnnAssign)):
+                targets = [node.target]
+            if any(isinstance(x, (ast.Attribute, ast.Subscript)) and _root(x) in foreign
+                   for x in targets):
+                lines.append(node.lineno)
+            if isinstance(node, ast.Expr) and isinstance(node.value, ast.Call) and (
+                    _root(node.value.func) in foreign):
+                lines.append(node.lineno)
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and (
+                    node.func.id in local_writers):
+                lines.append(node.lineno)
+            todo.extend(ast.iter_child_nodes(node))
+    return lines
+
+
+def _is_main_guard(node: ast.stmt) -> bool:
+    """``if __name__ == "__main__":`` (runs as a script, not at import)."""
+    return (isinstance(node, ast.If) and isinstance(node.test, ast.Compare)
+            and isinstance(node.test.left, ast.Name) and node.test.left.id == "__name__")
+
+
+def foreign_writes(path: Path) -> list[str]:
+    """Where a module writes into another layer's globals when it is imported."""
+    module = _module_name(path)
+    tree = ast.parse(path.read_text(), filename=str(path))
+    foreign = _foreign_names(tree, module, _unit(module))
+    funcs = {n.name: n for n in tree.body if isinstance(n, (ast.FunctionDef,
+                                                             ast.AsyncFunctionDef))}
+    writers: set[str] = set()
+    changed = True
+    while changed:  # a local function that calls a writer is a writer
+        changed = False
+        for name, fn in funcs.items():
+            if name not in writers and _writes(fn.body, foreign, writers):
+                writers.add(name)
+                changed = True
+    body = [n for n in tree.body if not isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef))
+            and not _is_main_guard(n)]
+    return [f"{path.relative_to(SRC.parent)}:{line}" for line in _writes(body, foreign, writers)]
+
+
+def test_no_module_writes_into_another_layer_at_import():
+    found = [w for p in _sources() for w in foreign_writes(p)]
+    assert not found, "module-level writes into another layer:\n" + "\n".join(found)
+
+
+@pytest.mark.parametrize("source, bad", [
+    # the old registry: a local function, called at import, fills the report's table
+    ("from ...report.hooks import register_rendering\n"
+     "def register(st):\n    register_rendering(st.name, st)\n    return st\n"
+     "register(object())\n", True),
+    ("from ...report.hooks import RENDERINGS\nRENDERINGS['x'] = 1\n", True),
+    ("from ...report import hooks\nhooks.RENDERINGS.update(x=1)\n", True),
+    ("import rotoruq.report.hooks\nrotoruq.report.hooks.RENDERINGS = {}\n", True),
+    ("from ...report import hooks\nif True:\n    del hooks.RENDERINGS['x']\n", True),
+    # reading another layer, building one's own table, writing inside a function: fine
+    ("from ...report.hooks import RENDERINGS\nMINE = dict(RENDERINGS)\nMINE['x'] = 1\n"
+     "def later():\n    RENDERINGS['x'] = 1\n", False),
+    ("from ..mcmc import helper\nhelper.CACHE['x'] = 1\n", False),  # its own layer
+])
+def test_the_checker_sees_foreign_writes(tmp_path, monkeypatch, source, bad):
+    root = tmp_path / "rotoruq"
+    (root / "methods" / "mcmc").mkdir(parents=True)
+    path = root / "methods" / "mcmc" / "x.py"
+    path.write_text(source)
+    monkeypatch.setattr(sys.modules[__name__], "SRC", root)
+    assert bool(foreign_writes(path)) is bad, foreign_writes(path)
 
 
 @pytest.mark.parametrize(

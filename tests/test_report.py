@@ -12,15 +12,16 @@ import numpy as np
 import pytest
 
 from rotoruq.params import Normal, ParameterSpace
+from rotoruq.render.reference import TABLES, table
 from rotoruq.report.claims import INDEPENDENT, JOINT, Claim, claims
 from rotoruq.report.compare import ComparedCell, compare_tables, resolve
 from rotoruq.report.diagnostics import step_warnings
 from rotoruq.report.html import write_report
-from rotoruq.report.reference import TABLES, table
 from rotoruq.results import StepResult, save_step
+from rotoruq.steps import StepContext
+from rotoruq.steps.forward_check import run_forward_check
 from rotoruq.study.cli import main
 from rotoruq.study.runner import run_study
-from rotoruq.study.steps import StepContext, run_forward_check
 from test_runner import STUDY, linear_factory
 
 OPS = {"<=": operator.le, ">=": operator.ge, ">": operator.gt}
@@ -433,3 +434,36 @@ def test_report_never_rebuilds_the_model(tmp_path):
             cells[row["source"]] = row["ours"]
     assert float(cells["model:gvpm:radius"]) == get_preset("gvpm").radius
     assert float(cells["model:gvpm:chord"]) == get_preset("gvpm").chord
+
+
+def test_the_report_is_the_same_in_a_fresh_interpreter(tmp_path):
+    """``rq.write_report`` on a study's results renders the same page, tables and figures in a
+    fresh interpreter as after ``import rotoruq.study`` (the renderers come from the step
+    registry, not from whatever the study layer registered when it was imported)."""
+    import subprocess
+    import sys
+
+    from test_runner import write
+
+    run = run_study(write(tmp_path), model_factory=linear_factory())
+
+    def render(prelude: str, folder: str) -> tuple[str, list[str], list[str]]:
+        code = (f"{prelude}\nimport rotoruq as rq\n"
+                f"rq.write_report([{str(run.out)!r}], {str(tmp_path / folder)!r})\n")
+        subprocess.run([sys.executable, "-c", code], check=True, timeout=300)
+        page = (tmp_path / folder / "index.html").read_text()
+        page = re.sub(r"Generated \S+ from [^<]*", "", page)
+        files = sorted(p.relative_to(tmp_path / folder).as_posix()
+                       for p in (tmp_path / folder).rglob("*") if p.is_file())
+        return page, [f for f in files if f.endswith(".csv")], [f for f in files
+                                                                if f.endswith(".png")]
+
+    fresh = render("", "fresh")
+    after = render("import rotoruq.study", "after")
+    assert fresh[0] == after[0]
+    assert fresh[1] == after[1] and fresh[2] == after[2]
+    # every step type of the study rendered: its tables and the figures of sampling and the
+    # forward check
+    assert len(fresh[2]) >= 3 and len(fresh[1]) >= 4, fresh[1:]
+    assert "Calibrated parameters (least squares)" in fresh[0]
+    assert "Mean value method (first order)" in fresh[0]

@@ -261,62 +261,103 @@ def test_every_method_step_on_a_linear_model(tmp_path):
     assert ds.get("cpf/y2/0") == pytest.approx(0.5)
 
 
-CORNERS = STUDY.split("[[steps]]")[0] + """
-[[steps]]
-name = "corners"
-type = "corners"
-k = 2
-"""
+# A step type outside rotoruq: one module (below) and one registry line (an entry point in the
+# group "rotoruq.steps"; a test installs it as a dist-info folder on the path).
+CORNERS_MODULE = '''\
+"""Step type ``corners``: the model at the 2^d corners mean +- k std of the inputs."""
+
+import numpy as np
+
+from rotoruq.model import evaluate
+from rotoruq.render.tables import make_table, responses, value
+from rotoruq.results import StepResult
+from rotoruq.steps.base import StepType
+from rotoruq.steps.options import Option, integer
 
 
-def test_a_new_step_type_is_one_record(tmp_path):
-    """A step type registered in one place (one StepType record) is validated in study
-    files, run by the runner, saved, and rendered by the report and the step tables."""
-    from rotoruq.errors import InputFileError
-    from rotoruq.model import evaluate
-    from rotoruq.report.hooks import RENDERINGS
-    from rotoruq.report.html import write_report
-    from rotoruq.report.steptables import StepTable, step_tables
-    from rotoruq.results import StepResult
-    from rotoruq.study.options import Option, integer
-    from rotoruq.study.steptypes import STEP_TYPES, StepType, register_step_type
+def run_corners(ctx):
+    k = ctx.options["k"]
+    mean = np.array([d.mean for d in ctx.space.distributions])
+    std = np.array([d.std for d in ctx.space.distributions])
+    signs = np.array(np.meshgrid(*[[-1.0, 1.0]] * ctx.space.dim)).reshape(ctx.space.dim, -1).T
+    y = np.asarray(evaluate(ctx.model(), mean + k * signs * std).values)
+    scalars = {f"{w}/{r}": float(f(y[:, j])) for j, r in enumerate(ctx.responses)
+               for w, f in (("min", np.min), ("max", np.max))}
+    return StepResult(ctx.name, ctx.type, scalars, meta={"n_evaluations": len(signs)})
 
-    def run_corners(ctx):
-        """The model at the 2^d corners mean +- k std of the inputs: min and max."""
-        k = ctx.options["k"]
-        mean = np.array([d.mean for d in ctx.space.distributions])
-        std = np.array([d.std for d in ctx.space.distributions])
-        signs = np.array(np.meshgrid(*[[-1.0, 1.0]] * ctx.space.dim)).reshape(ctx.space.dim, -1).T
-        y = np.asarray(evaluate(ctx.model(), mean + k * signs * std).values)
-        scalars = {f"{w}/{r}": float(f(y[:, j])) for j, r in enumerate(ctx.responses)
-                   for w, f in (("min", np.min), ("max", np.max))}
-        return StepResult(ctx.name, ctx.type, scalars, meta={"n_evaluations": len(signs)})
 
-    def corner_tables(res, labels):
-        resp = res.meta["responses"]
-        return [StepTable("Corner extremes", ("response", "min", "max"),
-                          tuple((r, res.get(f"min/{r}"), res.get(f"max/{r}")) for r in resp))]
+def corner_tables(res, labels):
+    return [make_table("Corner extremes", ("response", "min", "max"),
+                       [(r, value(res, f"min/{r}"), value(res, f"max/{r}"))
+                        for r in responses(res)])]
 
-    register_step_type(StepType("corners", run_corners, options={"k": Option(integer(1), 3)},
-                                tables=corner_tables))
-    try:
-        path = write(tmp_path, CORNERS)
-        run = run_study(path, model_factory=linear_factory())
-        res = run["corners"]
-        # y1 = 2a + 3b + c, a ~ (1, 0.1), b ~ (2, 0.2), c = 1; corners at +-2 std
-        assert res.get("max/y1") == pytest.approx(2 * 1.2 + 3 * 2.4 + 1, rel=1e-12)
-        assert res.get("min/y1") == pytest.approx(2 * 0.8 + 3 * 1.6 + 1, rel=1e-12)
-        assert res.meta["n_evaluations"] == 4 and res.meta["options"] == {"k": 2}
-        assert load_results(run.out)["corners"].get("max/y2") == pytest.approx(1.2 - 1.6)
-        assert step_tables(res)[0].title == "Corner extremes"
-        index = write_report([run.out], tmp_path / "report")
-        assert "Corner extremes" in index.read_text()
-        with pytest.raises(InputFileError, match="did you mean 'k'"):
-            run_study(write(tmp_path, CORNERS.replace("k = 2", "kk = 2")),
-                      model_factory=linear_factory())
-    finally:
-        STEP_TYPES.pop("corners", None)
-        RENDERINGS.pop("corners", None)
+
+def corner_warnings(res, labels):
+    return [f"{res.name}: only {res.meta['n_evaluations']} corners"]
+
+
+STEP = StepType("corners", run_corners, options={"k": Option(integer(1), 3)},
+                tables=corner_tables, warnings=corner_warnings)
+'''
+
+
+def install_step_plugin(folder: Path) -> dict[str, str]:
+    """The corners step type as a plugin in ``folder``; returns the environment that finds
+    it (``PYTHONPATH``)."""
+    import os
+
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "corners_step.py").write_text(CORNERS_MODULE)
+    info = folder / "corners_step-1.0.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: corners-step\nVersion: 1.0\n")
+    (info / "entry_points.txt").write_text("[rotoruq.steps]\ncorners = corners_step:STEP\n")
+    path = [str(folder), os.environ.get("PYTHONPATH", "")]
+    return {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in path if p)}
+
+
+def test_a_new_step_type_is_one_file_and_one_registry_line(tmp_path):
+    """A step type written outside rotoruq (one module, one entry point) is validated in
+    study files, run through the command line, saved, rendered in the report and shown by
+    ``rotoruq show``; a typo in its options is caught with the closest key."""
+    import subprocess
+    import sys
+
+    from test_trust import external_study
+
+    env = install_step_plugin(tmp_path / "plugin")
+    study = external_study(tmp_path / "s", c=1.0)
+    study.write_text(study.read_text() + '\n[[steps]]\nname = "corners"\ntype = "corners"\n'
+                     "k = 2\n")
+    cli = [sys.executable, "-m", "rotoruq.study.cli"]
+    out = tmp_path / "out"
+    run = subprocess.run([*cli, "run", str(study), "--out", str(out)], capture_output=True,
+                         text=True, env=env, timeout=300)
+    assert run.returncode == 0, run.stderr[-3000:]
+    assert "corners              corners" in run.stdout
+    res = load_results(out)["corners"]
+    # y1 = 2a + 3b + c with a ~ U(0, 1) (mean 0.5, std 1/sqrt(12)), b ~ N(2, 0.5), c = 1:
+    # corners at mean +- 2 std
+    sa, sb = 2 / np.sqrt(12.0), 2 * 0.5
+    assert res.get("max/y1") == pytest.approx(2 * (0.5 + sa) + 3 * (2 + sb) + 1, rel=1e-12)
+    assert res.get("min/y2") == pytest.approx((0.5 - sa) - (2 + sb), rel=1e-12)
+    assert res.meta["n_evaluations"] == 4 and res.meta["options"] == {"k": 2}
+    page = (out / "report" / "index.html").read_text()
+    assert "Corner extremes" in page and "only 4 corners" in page
+    show = subprocess.run([*cli, "show", str(out), "corners"], capture_output=True, text=True,
+                          env=env, timeout=120)
+    assert show.returncode == 0, show.stderr
+    assert "== corners (corners)" in show.stdout and "Corner extremes" in show.stdout
+    assert f"{res.get('max/y1'):.4g}"[:4] in show.stdout
+    # without the plugin the type is unknown, and the error lists the known ones
+    bad = subprocess.run([*cli, "run", str(study), "--out", str(tmp_path / "o2")],
+                         capture_output=True, text=True, timeout=120)
+    assert bad.returncode != 0 and "a step type among sampling, sensitivity" in bad.stderr
+    typo = study.read_text().replace("k = 2", "kk = 2")
+    study.write_text(typo)
+    bad = subprocess.run([*cli, "run", str(study), "--out", str(tmp_path / "o3")],
+                         capture_output=True, text=True, env=env, timeout=120)
+    assert bad.returncode != 0 and "did you mean 'k'" in bad.stderr
 
 
 def test_cli_progress_is_logging(tmp_path):
@@ -354,3 +395,83 @@ def test_cli_progress_is_logging(tmp_path):
     assert quiet.returncode == 0, quiet.stderr
     assert "running" not in quiet.stderr and "done in" not in quiet.stderr
     assert "summary of mv" in quiet.stdout
+
+
+def test_identities_cover_only_the_code_that_computes_the_answer():
+    """A rotor model's identity digests the rotor and its airfoil data; an external model's,
+    the evaluation layer's file contract; a step's, its step module and its methods."""
+    from rotoruq.evaluation.identity import EPOCHS, code_parts
+
+    external = code_parts(["rotoruq.evaluation.external"])
+    assert "rotoruq/evaluation/dakota_files.py" in external
+    assert not [k for k in external if "/methods/" in k or "/steps/" in k or "/rotor/" in k]
+    rotor = code_parts(["rotoruq.rotor.model"])
+    assert "rotoruq/rotor/_kernel.py" in rotor and "rotoruq/data/airfoils/naca0012.c81" in rotor
+    assert not [k for k in rotor if "/methods/" in k or "/evaluation/" in k]
+    pce = code_parts(["rotoruq.steps.pce"])
+    assert {"rotoruq/steps/pce.py", "rotoruq/methods/pce.py"} <= set(pce)
+    assert "rotoruq/methods/mcmc/bayes.py" not in pce and "rotoruq/report/html.py" not in pce
+    assert pce["epoch:methods"] == str(EPOCHS["methods"])
+    # calibration under uncertainty may run a PCE inside: its fingerprint covers pce.py
+    assert "rotoruq/methods/pce.py" in code_parts(["rotoruq.steps.cuu"])
+
+
+def test_editing_a_method_reruns_only_its_steps(tmp_path):
+    """Append a comment to methods/pce.py in a copy of the package: the pce step runs again
+    (``show --why-rerun`` names the file), the other steps are reused and every evaluation of
+    the external model comes from the store (its identity does not include the methods)."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+
+    from test_trust import external_study
+
+    pkg = tmp_path / "pkg"
+    shutil.copytree(Path(__file__).resolve().parents[1] / "src" / "rotoruq", pkg / "rotoruq",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    log = tmp_path / "evaluations.log"
+    env = {**os.environ, "PYTHONPATH": str(pkg), "DRIVER_LOG": str(log)}
+    study = external_study(tmp_path / "s", n=6)
+    study.write_text(study.read_text() + textwrap.dedent("""
+        [[steps]]
+        name = "chaos"
+        type = "pce"
+        order = 2
+
+        [[steps]]
+        name = "mv"
+        type = "mean_value"
+        """))
+    out = tmp_path / "out"
+
+    def cli(*args):
+        proc = subprocess.run([sys.executable, "-m", "rotoruq.study.cli", *map(str, args)],
+                              capture_output=True, text=True, env=env, timeout=300)
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        return proc.stdout
+
+    where = subprocess.run([sys.executable, "-c", "import rotoruq; print(rotoruq.__file__)"],
+                           capture_output=True, text=True, env=env, check=True).stdout
+    assert where.strip() == str(pkg / "rotoruq" / "__init__.py")
+    cli("run", study, "--out", out, "--no-report")
+    n_first = len(log.read_text().splitlines())
+    first = load_results(out)
+    # 6 LHS points, 3 x 3 quadrature nodes, the mean-value gradient (its centre point is a
+    # quadrature node, served by the store)
+    assert n_first == 6 + 9 + first["mv"].meta["n_evaluations"] - 1
+    assert cli("show", out, "--why-rerun").count(": reused") == 3
+    with open(pkg / "rotoruq" / "methods" / "pce.py", "a") as fh:
+        fh.write("\n# an edit that changes no number\n")
+    why = cli("show", out, "--why-rerun")
+    assert "chaos: runs again: code: rotoruq/methods/pce.py changed" in why, why
+    assert "lhs: reused" in why and "mv: reused" in why, why
+    summary = cli("run", study, "--out", out, "--no-report")
+    rows = {line.split()[0]: line for line in summary.splitlines()
+            if line.startswith("  ") and not line.startswith("     ")}
+    assert "reused" in rows["lhs"] and "reused" in rows["mv"], summary
+    assert "reused" not in rows["chaos"], summary
+    assert len(log.read_text().splitlines()) == n_first  # every evaluation from the store
+    again = load_results(out)["chaos"]
+    assert again.fingerprint != first["chaos"].fingerprint
+    assert again.scalars == first["chaos"].scalars

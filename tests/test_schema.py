@@ -264,8 +264,8 @@ def test_option_defaults_are_the_methods(tmp_path):
     signature), so a study and a Python call agree; every such parameter exists."""
     import inspect
 
+    from rotoruq.steps import STEP_TYPES
     from rotoruq.study.options import REQUIRED, SIGNATURE, signature_default
-    from rotoruq.study.steptypes import STEP_TYPES
 
     for st in STEP_TYPES.values():
         for key, opt in st.options.items():

@@ -85,6 +85,11 @@ _LAZY: dict[str, str] = {
     "continue_chain": ".methods.mcmc",
     "SBCResult": ".methods.mcmc.sbc",
     "simulation_based_calibration": ".methods.mcmc.sbc",
+    "Discrepancy": ".methods.mcmc.discrepancy",
+    "DiscrepancyPrediction": ".methods.mcmc.discrepancy",
+    "DiscrepancyResult": ".methods.mcmc.discrepancy",
+    "calibrate_with_discrepancy": ".methods.mcmc.discrepancy",
+    "predict_with_discrepancy": ".methods.mcmc.discrepancy",
     "GaussianProcess": ".methods.surrogate",
     "LeaveOneOut": ".methods.surrogate",
     "CUUCheck": ".methods.cuu",
@@ -108,9 +113,12 @@ _LAZY: dict[str, str] = {
     "write_results": ".evaluation",
     "write_report": ".report.html",
     "StepResult": ".results",
+    "StepRecord": ".results",
     "load_results": ".results",
+    "step_types": ".steps",
     "StudyRun": ".study.runner",
     "run_study": ".study.runner",
+    "why_rerun": ".study.runner",
     "Study": ".study.spec",
     "load_study": ".study.schema",
 }
@@ -226,6 +234,21 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     )
     from .methods.mcmc import (
         continue_chain as continue_chain,
+    )
+    from .methods.mcmc.discrepancy import (
+        Discrepancy as Discrepancy,
+    )
+    from .methods.mcmc.discrepancy import (
+        DiscrepancyPrediction as DiscrepancyPrediction,
+    )
+    from .methods.mcmc.discrepancy import (
+        DiscrepancyResult as DiscrepancyResult,
+    )
+    from .methods.mcmc.discrepancy import (
+        calibrate_with_discrepancy as calibrate_with_discrepancy,
+    )
+    from .methods.mcmc.discrepancy import (
+        predict_with_discrepancy as predict_with_discrepancy,
     )
     from .methods.mcmc.sbc import (
         SBCResult as SBCResult,
@@ -372,6 +395,9 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
         write_report as write_report,
     )
     from .results import (
+        StepRecord as StepRecord,
+    )
+    from .results import (
         StepResult as StepResult,
     )
     from .results import (
@@ -423,11 +449,17 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     from .rotor.presets import (
         get_preset as get_preset,
     )
+    from .steps import (
+        step_types as step_types,
+    )
     from .study.runner import (
         StudyRun as StudyRun,
     )
     from .study.runner import (
         run_study as run_study,
+    )
+    from .study.runner import (
+        why_rerun as why_rerun,
     )
     from .study.schema import (
         load_study as load_study,

@@ -19,6 +19,7 @@ Saves are atomic (see :func:`save_step`) and loads check every file against the 
 from __future__ import annotations
 
 import csv
+import difflib
 import io
 import json
 import math
@@ -27,9 +28,9 @@ import shutil
 import tempfile
 import uuid
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, ClassVar, Self
 
 import numpy as np
 
@@ -40,7 +41,13 @@ from .params import Distribution, make_distribution
 
 __all__ = ["StepResult", "save_step", "load_step", "load_results", "dist_to_dict",
            "dict_to_dist", "IncompleteStepError", "clean_partial_saves", "STUDY_INFO",
-           "save_study_info", "load_study_info", "is_study_dir"]
+           "save_study_info", "load_study_info", "is_study_dir", "SCHEMA_VERSION",
+           "StepRecord", "RecordError"]
+
+#: Version of the saved step format. 1: ``result.json`` records it, and a step may carry a
+#: typed record (:class:`StepRecord`, ``meta["record"]``). A folder saved by a newer format
+#: is refused with the version it needs; older ones load (without records).
+SCHEMA_VERSION = 1
 
 #: The file of a study output folder that describes the study (see the module docstring).
 STUDY_INFO = "study.json"
@@ -67,8 +74,28 @@ class StepResult:
     meta: Mapping[str, Any] = field(default_factory=dict)
     fingerprint: str = ""
 
-    def get(self, key: str, default: float = math.nan) -> float:
-        return float(self.scalars.get(key, default))
+    def get(self, key: str, default: float | None = None) -> float:
+        """Scalar ``key``. A key the step did not save raises ``KeyError`` naming the closest
+        saved keys (a typo such as ``"men/y1"`` must not read as NaN), unless ``default`` is
+        given.
+
+        Examples
+        --------
+        >>> res = StepResult("s", "sampling", {"mean/y1": 2.0, "std/y1": 0.5})
+        >>> res.get("mean/y1"), res.get("skewness/y1", float("nan"))
+        (2.0, nan)
+        >>> res.get("men/y1")
+        Traceback (most recent call last):
+        ...
+        KeyError: "step 's' saved no scalar 'men/y1' (did you mean 'mean/y1'?)"
+        """
+        if key in self.scalars:
+            return float(self.scalars[key])
+        if default is not None:
+            return float(default)
+        close = difflib.get_close_matches(key, list(self.scalars), n=3)
+        hint = f" (did you mean {', '.join(repr(c) for c in close)}?)" if close else ""
+        raise KeyError(f"step {self.name!r} saved no scalar {key!r}{hint}")
 
     def columns(self, array: str) -> list[str]:
         return list(self.meta.get("columns", {}).get(array, []))
@@ -80,6 +107,98 @@ class StepResult:
 
     def distribution_objects(self) -> dict[str, Distribution]:
         return {k: dict_to_dist(v) for k, v in self.distributions.items()}
+
+
+class RecordError(RotoruqError, LookupError):
+    """A saved step carries no record of the type asked for, or one of a newer version."""
+
+
+@dataclass(frozen=True, eq=False)
+class StepRecord:
+    """Base of the typed records of step types: the step's numbers as named fields with
+    their shapes and axis names, saved through one generic serializer.
+
+    A subclass declares its fields: arrays (``np.ndarray``, each with its axis names in
+    :attr:`AXES`), names (``tuple[str, ...]``) and plain numbers or text. :meth:`parts` gives
+    the arrays and the ``meta["record"]`` entry of a :class:`StepResult`; :meth:`read` builds
+    the record back from a saved result. The flat scalars of the result stay as its flat view
+    (``rotoruq show --csv``, the reference tables). Reading an unknown attribute raises with
+    the closest field names.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from dataclasses import dataclass
+    >>> @dataclass(frozen=True, eq=False)
+    ... class MomentsRecord(StepRecord):
+    ...     AXES = {"mean": ("response",)}
+    ...     names_out: tuple[str, ...]
+    ...     mean: np.ndarray
+    >>> rec = MomentsRecord(("thrust",), np.array([1.5]))
+    >>> arrays, meta = rec.parts()
+    >>> back = MomentsRecord.read(StepResult("m", "moments", arrays=arrays, meta=meta))
+    >>> back.names_out, back.mean.tolist()
+    (('thrust',), [1.5])
+    >>> back.maen
+    Traceback (most recent call last):
+    ...
+    AttributeError: MomentsRecord has no field 'maen' (did you mean 'mean'?)
+    """
+
+    #: field -> axis names of an array field (its dimensions, in order).
+    AXES: ClassVar[Mapping[str, tuple[str, ...]]] = {}
+    #: Version of this record type; :meth:`read` refuses newer saved ones.
+    VERSION: ClassVar[int] = 1
+
+    if not TYPE_CHECKING:  # mypy sees the declared fields only, and flags a typo itself
+        def __getattr__(self, name: str) -> Any:
+            if name.startswith("__"):
+                raise AttributeError(name)
+            known = [f.name for f in fields(self)]
+            close = difflib.get_close_matches(name, known, n=1)
+            hint = (f" (did you mean {close[0]!r}?)" if close
+                    else f" (fields: {', '.join(known)})")
+            raise AttributeError(f"{type(self).__name__} has no field {name!r}{hint}")
+
+    def parts(self) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+        """``(arrays, meta)`` to put into a :class:`StepResult`."""
+        arrays: dict[str, np.ndarray] = {}
+        plain: dict[str, Any] = {}
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if f.name in self.AXES:
+                v = np.asarray(v)
+                if v.ndim != len(self.AXES[f.name]):
+                    raise ValueError(f"{type(self).__name__}.{f.name}: expected "
+                                     f"{len(self.AXES[f.name])} axes "
+                                     f"({', '.join(self.AXES[f.name])}), found shape {v.shape}")
+                arrays[f.name] = v
+            else:
+                plain[f.name] = list(v) if isinstance(v, tuple) else v
+        return arrays, {"record": {"type": type(self).__name__, "version": self.VERSION,
+                                   "fields": plain,
+                                   "axes": {k: list(a) for k, a in self.AXES.items()}}}
+
+    @classmethod
+    def read(cls, res: StepResult) -> Self:
+        """The record saved with ``res``; :class:`RecordError` when it has none (a result
+        of an older rotoruq) or one of a newer version."""
+        rec = res.meta.get("record")
+        if not isinstance(rec, Mapping) or rec.get("type") != cls.__name__:
+            raise RecordError(f"step {res.name!r} ({res.type}) was saved without a "
+                              f"{cls.__name__} (by a rotoruq older than results schema "
+                              f"{SCHEMA_VERSION}): run the step again")
+        if int(rec.get("version", 0)) > cls.VERSION:
+            raise RecordError(f"step {res.name!r}: {cls.__name__} version {rec['version']} "
+                              f"needs a newer rotoruq (this one reads up to {cls.VERSION})")
+        kwargs: dict[str, Any] = {}
+        for f in fields(cls):
+            if f.name in cls.AXES:
+                kwargs[f.name] = np.asarray(res.arrays[f.name])
+            else:
+                v = rec["fields"][f.name]
+                kwargs[f.name] = tuple(v) if isinstance(v, list) else v
+        return cls(**kwargs)
 
 
 def dist_to_dict(dist: Distribution) -> dict:
@@ -157,6 +276,7 @@ def save_step(result: StepResult, directory: str | Path) -> Path:
             if arr.ndim == 2 and len(cols) == arr.shape[1]:
                 put(f"{name}.csv", lambda fh, arr=arr, cols=cols: _write_csv(fh, arr, cols))
         doc = {
+            "schema": SCHEMA_VERSION,
             "name": result.name,
             "type": result.type,
             "fingerprint": result.fingerprint,
@@ -230,6 +350,9 @@ def load_step(folder: str | Path) -> StepResult:
         raise IncompleteStepError(f"{where}: not a complete JSON document ({exc})") from None
     if not isinstance(doc, dict) or not {"name", "type", "scalars"} <= set(doc):
         raise IncompleteStepError(f"{where}: expected a step result with name, type, scalars")
+    if int(doc.get("schema", 0)) > SCHEMA_VERSION:
+        raise RecordError(f"{where}: saved in results schema {doc['schema']}; this rotoruq "
+                          f"reads up to schema {SCHEMA_VERSION}: upgrade rotoruq")
     files = doc.get("files")
     if files is None:
         raise IncompleteStepError(f"{where}: saved without file checksums (an older or "

@@ -3,8 +3,14 @@
 An evaluation is reused from the store (and a study step from its saved results) only when
 everything that can change its answer is the same: the model's class, its full configuration
 (``model.identity()``: preset contents, airfoil table, fixed inputs, solver options, or for an
-external model its command, templates and files by content) and the code that computes it
-(:func:`code_version`: rotoruq's version plus a digest of its source and data files).
+external model its command, templates and files by content) and the code that computes it.
+
+That code is scoped to what computes the answer (:func:`code_parts`): the source files the
+model's module imports, transitively, within rotoruq (a rotor model: ``rotor/`` and what it
+uses, plus the airfoil data; an external model: the evaluation layer's file-contract modules),
+never the methods, the steps or the report. A step's fingerprint digests its own module and
+the method modules it imports the same way. :data:`EPOCHS` holds one integer per layer:
+raising one invalidates everything computed with that layer's code, on purpose.
 
 >>> from rotoruq.evaluation.identity import model_identity
 >>> model_identity(model)                                    # doctest: +SKIP
@@ -16,30 +22,42 @@ preset); per evaluation, the store key is only the bytes of the input vector.
 
 from __future__ import annotations
 
+import ast
 import hashlib
+import importlib.util
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-__all__ = ["code_version", "digest", "file_sha256", "model_identity"]
+__all__ = ["code_version", "code_parts", "code_digest", "model_code_parts", "EPOCHS",
+           "digest", "file_sha256", "model_identity"]
 
 _PACKAGE = Path(__file__).resolve().parent.parent
 # Folders whose code cannot change a model's answer or a step's numbers.
 _NOT_ANSWER = ("report",)
+# Layers a code closure never follows: they present numbers or run studies, they do not
+# compute a model's answer or a step's numbers.
+_NOT_COMPUTING = frozenset({"report", "render", "study"})
+
+#: One epoch per layer: raise a layer's number to invalidate, on purpose, every stored
+#: evaluation and saved step computed with that layer's code (e.g. after a fix whose effect
+#: the source digest cannot see, such as a changed data file outside the package).
+EPOCHS: Mapping[str, int] = {
+    "model": 1, "params": 1, "rotor": 1, "mbdyn": 1, "evaluation": 1, "methods": 1,
+    "steps": 1, "results": 1,
+}
 
 
 @lru_cache(maxsize=1)
 def code_version() -> str:
-    """rotoruq's version and a digest of the package's source and data files.
-
-    Any edit to the code that computes answers (a fix in the rotor solver, a method, the study
-    steps) changes it, so results computed by other code are never served. The report package
-    is left out: it only presents numbers.
+    """rotoruq's version and a digest of the package's source and data files (the report
+    left out): recorded with each saved step, for the record. Identities and fingerprints use
+    the scoped :func:`code_parts` instead, so an edit invalidates only what it can change.
     """
     from .. import __version__
 
@@ -54,6 +72,119 @@ def code_version() -> str:
         h.update(p.read_bytes())
         h.update(b"\0")
     return f"{__version__}+{h.hexdigest()[:16]}"
+
+
+def _module_file(name: str) -> Path | None:
+    """Source file of module ``name``: inside rotoruq found by path (no import), else by
+    ``importlib.util.find_spec`` (a plugin's module); None when there is none."""
+    parts = name.split(".")
+    if parts[0] == "rotoruq":
+        base = _PACKAGE.joinpath(*parts[1:])
+        for cand in (base / "__init__.py", base.with_suffix(".py")):
+            if cand.is_file():
+                return cand
+        return None
+    try:
+        spec = importlib.util.find_spec(name)
+    except (ImportError, ValueError):
+        return None
+    origin = getattr(spec, "origin", None)
+    return Path(origin) if origin and origin.endswith(".py") else None
+
+
+def _package_of(path: Path, name: str) -> str:
+    return name if path.name == "__init__.py" else name.rpartition(".")[0]
+
+
+def _imports(path: Path, name: str) -> set[str]:
+    """rotoruq modules ``path`` (module ``name``) imports, anywhere in the file."""
+    package = _package_of(path, name)
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            out |= {a.name for a in node.names if a.name.split(".")[0] == "rotoruq"}
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - (node.level - 1)]
+                target = ".".join(base + ([node.module] if node.module else []))
+            else:
+                target = node.module or ""
+            if target.split(".")[0] != "rotoruq":
+                continue
+            out.add(target)
+            out |= {f"{target}.{a.name}" for a in node.names}  # names may be submodules
+    return out
+
+
+def _unit(name: str) -> str:
+    parts = name.split(".")
+    return parts[1] if parts[0] == "rotoruq" and len(parts) > 1 else ""
+
+
+@lru_cache(maxsize=256)
+def _closure(roots: tuple[str, ...]) -> tuple[tuple[str, Path], ...]:
+    seen: dict[str, Path] = {}
+    todo = list(roots)
+    while todo:
+        name = todo.pop()
+        # the package root only re-exports names lazily: it computes nothing
+        if name in seen or name == "rotoruq" or _unit(name) in _NOT_COMPUTING:
+            continue
+        path = _module_file(name)
+        if path is None:
+            continue
+        seen[name] = path
+        todo.extend(_imports(path, name))
+    return tuple(sorted(seen.items()))
+
+
+def _label(path: Path) -> str:
+    try:
+        return "rotoruq/" + path.relative_to(_PACKAGE).as_posix()
+    except ValueError:
+        return path.as_posix()
+
+
+def code_parts(modules: Iterable[str]) -> dict[str, str]:
+    """What of rotoruq's code computes the answer of ``modules``, part by part.
+
+    The source files ``modules`` import, transitively, within rotoruq (the report, the
+    drawing primitives and the study layer excepted), each as ``"rotoruq/<path>": sha256``;
+    the airfoil data files when the rotor is among them; and ``"epoch:<layer>"`` for every
+    layer they touch (:data:`EPOCHS`). A plugin's module outside rotoruq enters by its file.
+
+    Examples
+    --------
+    >>> from rotoruq.evaluation.identity import code_parts
+    >>> parts = code_parts(["rotoruq.steps.pce"])
+    >>> "rotoruq/methods/pce.py" in parts, "rotoruq/methods/cuu.py" in parts
+    (True, False)
+    >>> parts["epoch:methods"]
+    '1'
+    """
+    files = _closure(tuple(sorted(set(modules))))
+    out = {_label(p): file_sha256(p)[:16] for _, p in files}
+    units = {_unit(n) for n, _ in files} - {""}
+    if "rotor" in units:
+        for p in sorted((_PACKAGE / "data" / "airfoils").glob("*")):
+            if p.is_file():
+                out[_label(p)] = file_sha256(p)[:16]
+    out.update({f"epoch:{u}": str(EPOCHS[u]) for u in sorted(units) if u in EPOCHS})
+    return dict(sorted(out.items()))
+
+
+def code_digest(parts: Mapping[str, str]) -> str:
+    """One digest of :func:`code_parts`."""
+    return digest(dict(parts))[:16]
+
+
+def model_code_parts(model: Any) -> dict[str, str]:
+    """:func:`code_parts` of the module defining ``model``'s class (an Evaluator: of the model
+    it wraps)."""
+    inner = getattr(model, "model", None)
+    if inner is not None and hasattr(model, "store"):
+        model = inner
+    return code_parts([type(model).__module__])
 
 
 def file_sha256(path: str | Path) -> str:
@@ -107,7 +238,9 @@ def model_identity(model: Any) -> str:
     """Text that tells models apart in the store and in step fingerprints.
 
     ``class|inputs->responses|digest``, where the digest covers the class, the model's
-    ``identity()`` (its full configuration) and :func:`code_version`. A model without an
+    ``identity()`` (its full configuration) and the code that computes its answers
+    (:func:`model_code_parts`: the model's own module and what it imports, not the methods
+    that sample it). A model without an
     ``identity()`` method is identified by its class and ``repr`` only: give your own models
     one if their configuration can change between runs. An Evaluator is identified by the model
     it wraps.
@@ -122,7 +255,8 @@ def model_identity(model: Any) -> str:
         config = ident
     else:
         config = repr(model)
-    doc = {"class": _qualname(model), "config": config, "code": code_version(),
+    doc = {"class": _qualname(model), "config": config,
+           "code": code_digest(model_code_parts(model)),
            "in": list(model.names_in), "out": list(model.names_out)}
     return (f"{_qualname(model)}|{','.join(model.names_in)}->{','.join(model.names_out)}"
             f"|{digest(doc)[:24]}")

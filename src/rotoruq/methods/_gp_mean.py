@@ -1,22 +1,27 @@
-"""Compiled mean of a fitted Gaussian process at one point or a small batch (numba).
+"""Compiled mean and variance of a fitted Gaussian process at one point or a small batch (numba).
 
 A Markov chain on an emulator asks for the GP mean at one or two points per step; numpy's call
 overhead (a dozen array operations per call) costs more than the arithmetic then. These kernels
 compute ``y_o = y_mean_o + y_std_o (sum_i alpha_oi r(h_oi) + g(x)^T beta_o)`` with a direct loop
-over the training points (no distance matrix, no temporaries), one output at a time.
+over the training points (no distance matrix, no temporaries), one output at a time, and, when
+asked, the Kriging variance from the same correlations ``r`` (:func:`gp_mean_var_into`).
 
-The GP is handed over as a *pack*: a tuple of arrays built once after fitting by
-:func:`gp_pack` (see :meth:`rotoruq.methods.surrogate.GaussianProcess._build_fast`).
+The GP is handed over as a :class:`CompiledGP` (built by
+:meth:`rotoruq.methods.surrogate.GaussianProcess.compiled`); the kernels take its
+:attr:`CompiledGP.mean_pack` and :attr:`CompiledGP.var_pack` tuples (numba takes tuples of
+arrays, not dataclasses).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numba as nb
 import numpy as np
 
-__all__ = ["KERNEL_IDS", "basis_terms", "gp_pack", "gp_mean_into", "gp_mean_batch"]
+__all__ = ["KERNEL_IDS", "CompiledGP", "basis_terms", "gp_pack", "gp_mean_into",
+           "gp_mean_batch", "gp_mean_var_into", "gp_mean_var_batch"]
 
 KERNEL_IDS = {"sqexp": 0, "matern32": 1, "matern52": 2}
 _SQRT3 = math.sqrt(3.0)
@@ -58,6 +63,78 @@ def gp_pack(lo, span, Xs, inv_ell, alpha, beta, trend, kernel, y_mean, y_std) ->
     return (f(lo, dtype=float), f(span, dtype=float), Xe, ie, f(alpha, dtype=float), f(beta),
             bi, bj, np.int64(KERNEL_IDS[kernel]), f(y_mean, dtype=float),
             f(y_std, dtype=float))
+
+
+@dataclass(frozen=True, eq=False)
+class CompiledGP:
+    """A fitted GP's arrays for the compiled kernels, one leading axis per response (m).
+
+    Mean: lo, span : (d,) training box (inputs scaled ``(x - lo) / span``); Xe : (m, n, d)
+    scaled training points times the inverse length-scales; inv_ell : (m, d) inverse
+    length-scales (scaled units); alpha : (m, n) kriging weights (``sigma^2`` folded in);
+    beta : (m, p) trend coefficients; basis_i, basis_j : (p,) trend terms
+    (:func:`basis_terms`); kernel_id : :data:`KERNEL_IDS`; y_mean, y_std : (m,) response
+    standardization.
+
+    Variance (empty with ``has_variance`` False): with ``r`` (n,) the correlations to the
+    training points and ``g`` (p,) the trend basis at x, the Kriging variance of response o
+    (response units squared, including the trend's uncertainty) is
+    ``var_scale_o (v0_o - |chol_inv_o r|^2 + |trend_chol_inv_o (minv_f_o^T r - g)|^2)``;
+    chol_inv : (m, n, n) inverse lower Cholesky factor of the training covariance (the
+    cross-covariance factor folded in), minv_f : (m, n, p) ``M^-1 F`` (same factor),
+    trend_chol_inv : (m, p, p) inverse Cholesky factor of ``F^T M^-1 F``; v0, var_scale : (m,).
+    One variance costs ``n^2 / 2`` multiply-adds per response (the mean ``n d``).
+    """
+
+    lo: np.ndarray
+    span: np.ndarray
+    Xe: np.ndarray
+    inv_ell: np.ndarray
+    alpha: np.ndarray
+    beta: np.ndarray
+    basis_i: np.ndarray
+    basis_j: np.ndarray
+    kernel_id: np.int64
+    y_mean: np.ndarray
+    y_std: np.ndarray
+    chol_inv: np.ndarray
+    minv_f: np.ndarray
+    trend_chol_inv: np.ndarray
+    v0: np.ndarray
+    var_scale: np.ndarray
+
+    @property
+    def n_outputs(self) -> int:
+        return int(self.Xe.shape[0])
+
+    @property
+    def has_variance(self) -> bool:
+        return self.chol_inv.shape[1] == self.Xe.shape[1]
+
+    @property
+    def mean_pack(self) -> tuple:
+        """The mean's arrays as the tuple the kernels take."""
+        return (self.lo, self.span, self.Xe, self.inv_ell, self.alpha, self.beta, self.basis_i,
+                self.basis_j, self.kernel_id, self.y_mean, self.y_std)
+
+    @property
+    def var_pack(self) -> tuple:
+        """The variance's arrays as the tuple the kernels take."""
+        return (self.chol_inv, self.minv_f, self.trend_chol_inv, self.v0, self.var_scale)
+
+
+def compile_gp(lo, span, Xs, inv_ell, alpha, beta, trend, kernel, y_mean, y_std,
+               variance=None) -> CompiledGP:
+    """A :class:`CompiledGP` from a fit's arrays (see :func:`gp_pack` for the mean's);
+    ``variance`` is None or the tuple (chol_inv, minv_f, trend_chol_inv, v0, var_scale)."""
+    mp = gp_pack(lo, span, Xs, inv_ell, alpha, beta, trend, kernel, y_mean, y_std)
+    m, n = mp[2].shape[:2]
+    p = mp[6].shape[0]
+    if variance is None:
+        variance = (np.zeros((m, 0, 0)), np.zeros((m, 0, p)), np.zeros((m, p, p)),
+                    np.zeros(m), np.zeros(m))
+    f = np.ascontiguousarray
+    return CompiledGP(*mp, *(f(a, dtype=float) for a in variance))
 
 
 @nb.njit(cache=True, nogil=True)
@@ -115,3 +192,93 @@ def gp_mean_batch(X: np.ndarray, pack: tuple) -> np.ndarray:
     out = np.empty((X.shape[0], pack[2].shape[0]))
     _mean_rows(X, pack, out)
     return out
+
+
+@nb.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
+def _tri_sumsq(Li, r, n) -> float:
+    """|Li r|^2 for a lower-triangular Li (n, n): the n^2/2 multiply-adds of the variance.
+    Reassociation lets the compiler vectorize the row sums (the result is still a function
+    of the inputs alone, the same on every call)."""
+    s = 0.0
+    for i in range(n):
+        t = 0.0
+        row = Li[i]
+        for j in range(i + 1):
+            t += row[j] * r[j]
+        s += t * t
+    return s
+
+
+@nb.njit(cache=True, nogil=True)
+def gp_mean_var_into(theta, pack, vpack, xs, xe, r, g, u, out, var) -> None:
+    """GP mean (m,) into ``out`` and Kriging variance (m,) into ``var`` at one point theta
+    (d,). Work arrays: xs, xe (d,), r (n,), g, u (p,). On return ``xs`` holds the scaled
+    point. The variance is ``v0 - |L^-1 r|^2 + |C^-1 (M^-1 F)^T r - g|^2`` (times the
+    scale), clipped at 0 like :meth:`GaussianProcess.predict`."""
+    lo, span, Xe, ie, alpha, beta, bi, bj, kernel, y_mean, y_std = pack
+    Li, MF, Ci, v0, vscale = vpack
+    m, n, d = Xe.shape
+    p = bi.shape[0]
+    for a in range(d):
+        xs[a] = (theta[a] - lo[a]) / span[a]
+    for q in range(p):
+        f = 1.0
+        if bi[q] >= 0:
+            f *= xs[bi[q]] - 0.5
+        if bj[q] >= 0:
+            f *= xs[bj[q]] - 0.5
+        g[q] = f
+    for o in range(m):
+        for a in range(d):
+            xe[a] = xs[a] * ie[o, a]
+        acc = 0.0
+        for i in range(n):
+            h2 = 0.0
+            for a in range(d):
+                w = xe[a] - Xe[o, i, a]
+                h2 += w * w
+            r[i] = _corr(h2, kernel)
+            acc += alpha[o, i] * r[i]
+        for q in range(p):
+            acc += beta[o, q] * g[q]
+        out[o] = y_mean[o] + y_std[o] * acc
+        # |L^-1 r|^2: row i of the triangular inverse touches r[0..i]
+        s = _tri_sumsq(Li[o], r, n)
+        for q in range(p):
+            t = -g[q]
+            for i in range(n):
+                t += MF[o, i, q] * r[i]
+            u[q] = t
+        w2 = 0.0
+        for q in range(p):
+            t = 0.0
+            for k in range(q + 1):
+                t += Ci[o, q, k] * u[k]
+            w2 += t * t
+        var[o] = max(v0[o] - s + w2, 0.0) * vscale[o]
+
+
+@nb.njit(cache=True, nogil=True)
+def _mean_var_rows(X, pack, vpack, out, var) -> None:
+    d = X.shape[1]
+    n = pack[2].shape[1]
+    p = pack[6].shape[0]
+    xs = np.empty(d)
+    xe = np.empty(d)
+    r = np.empty(n)
+    g = np.empty(p)
+    u = np.empty(p)
+    for k in range(X.shape[0]):
+        gp_mean_var_into(X[k], pack, vpack, xs, xe, r, g, u, out[k], var[k])
+
+
+def gp_mean_var_batch(X: np.ndarray, gp: CompiledGP) -> tuple[np.ndarray, np.ndarray]:
+    """GP mean and Kriging variance at points X (k, d) -> (k, m), (k, m), one point at a
+    time; ``gp`` must carry its variance arrays (:attr:`CompiledGP.has_variance`)."""
+    if not gp.has_variance:
+        raise ValueError("this CompiledGP was built without its variance arrays")
+    X = np.ascontiguousarray(X, dtype=float)
+    out = np.empty((X.shape[0], gp.n_outputs))
+    var = np.empty_like(out)
+    _mean_var_rows(X, gp.mean_pack, gp.var_pack, out, var)
+    return out, var

@@ -20,6 +20,7 @@ Example
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -31,9 +32,9 @@ from scipy.spatial import cKDTree
 
 from .._rng import SeedLike, as_generator
 from ..errors import ModelShapeError, ParameterError
-from ._gp_mean import gp_mean_batch, gp_pack
+from ._gp_mean import CompiledGP, compile_gp, gp_mean_batch, gp_mean_var_batch
 
-__all__ = ["GaussianProcess", "LeaveOneOut", "GPModel", "ExtrapolationWarning"]
+__all__ = ["GaussianProcess", "LeaveOneOut", "GPModel", "ExtrapolationWarning", "CompiledGP"]
 
 TRENDS = ("constant", "linear", "reduced_quadratic", "quadratic", None)
 KERNELS = ("sqexp", "matern32", "matern52")
@@ -217,7 +218,10 @@ class GaussianProcess:
     screen_points : with more than twice this many training points (and at least 8 per trend
         coefficient), the starts are screened on a random subset of that size and only the
         best is polished on all points; None runs every start on all points.
-    seed : int or Generator for the random starts.
+    seed : int, SeedSequence or Generator for the random starts (and the screening subset).
+        None draws fresh entropy from the operating system at every :meth:`fit`: two fits
+        then differ; :func:`~rotoruq.methods.mcmc.calibrate_bayes` gives an unseeded
+        emulator a seed spawned from its own.
 
     The jitter actually added to the covariance diagonal (response units squared, per
     response) is :attr:`jitter`.
@@ -670,16 +674,57 @@ class GaussianProcess:
         return out[0] if len(out) == 1 else tuple(out)
 
     def _build_fast(self) -> None:
-        """Pack every response's training points and weights for the compiled mean."""
-        self._fast = gp_pack(
+        """Pack every response's training points and weights for the compiled mean (the
+        variance's arrays are built on demand by :meth:`compiled`)."""
+        self._compiled = compile_gp(
             self._lo, self._span, self._Xs, np.array([f.inv_ell for f in self._fits]),
             np.array([f.alpha * (1.0 if f.concentrated else f.sigma2) for f in self._fits]),
             np.array([f.beta for f in self._fits]), self.trend, self.kernel, self._y_mean,
             self._y_std)
 
+    def compiled(self, variance: bool = False) -> CompiledGP:
+        """This GP's arrays for the compiled kernels (:class:`CompiledGP`), with the Kriging
+        variance's arrays when ``variance`` (built once, kept: an inverse triangular factor
+        per response, n^3/3 flops and n^2 doubles each).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from rotoruq.methods._gp_mean import gp_mean_var_batch
+        >>> X = np.linspace(0, 1, 8)[:, None]
+        >>> gp = GaussianProcess(seed=0).fit(X, np.sin(3 * X))
+        >>> mean, var = gp_mean_var_batch(np.array([[0.3]]), gp.compiled(variance=True))
+        >>> bool(np.allclose(var, gp.predict(np.array([[0.3]]))[1], atol=1e-12))
+        True
+        """
+        self._check_fitted()
+        if not variance or self._compiled.has_variance:
+            return self._compiled
+        li, mf, ci, v0, vs = [], [], [], [], []
+        for j, fit in enumerate(self._fits):
+            c = 1.0 if fit.concentrated else fit.sigma2
+            linv, info = lapack.dtrtri(fit.chol, lower=1)
+            if info != 0:
+                raise np.linalg.LinAlgError(f"triangular inverse failed (info={info})")
+            li.append(c * np.tril(linv))
+            mf.append(c * fit.minv_f)
+            p = fit.minv_f.shape[1]
+            ci.append(linalg.solve_triangular(fit.ft_minv_f_chol, np.eye(p), lower=True)
+                      if p else np.zeros((0, 0)))
+            v0.append(1.0 if fit.concentrated else fit.sigma2)
+            vs.append((fit.sigma2 if fit.concentrated else 1.0) * self._y_std[j] ** 2)
+        self._compiled = dataclasses.replace(
+            self._compiled, chol_inv=np.ascontiguousarray(li), minv_f=np.ascontiguousarray(mf),
+            trend_chol_inv=np.ascontiguousarray(ci), v0=np.array(v0), var_scale=np.array(vs))
+        return self._compiled
+
     def _mean_fast(self, X: np.ndarray) -> np.ndarray:
         """Mean only, no checks (used inside Markov chains), X (k, d) -> (k, m)."""
-        return gp_mean_batch(X, self._fast)
+        return gp_mean_batch(X, self._compiled.mean_pack)
+
+    def _mean_var_fast(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Mean and Kriging variance, no checks, X (k, d) -> (k, m), (k, m)."""
+        return gp_mean_var_batch(X, self.compiled(variance=True))
 
     # --- cross-validation ------------------------------------------------------------------
     def loo(self) -> LeaveOneOut:

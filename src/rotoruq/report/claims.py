@@ -140,7 +140,7 @@ def _bayes_reasons(steps: Mapping[str, StepResult], bayes: str, labels,
                 p = k.split("/", 1)[1]
                 out.append(f"the posterior of {labels.get(p, p)} piles up against its prior's "
                            f"{word} bound ({100 * v:.0f} % of the chain in the outer 5 %, "
-                           f"skewness {res.get(f'skewness/{p}'):+.2f})")
+                           f"skewness {res.get(f'skewness/{p}', math.nan):+.2f})")
     weak = [labels.get(k.split("/", 1)[1], k.split("/", 1)[1])
             for k, v in res.scalars.items() if k.startswith("std_ratio/") and v > STD_RATIO_MAX]
     if weak:
@@ -205,9 +205,9 @@ def claims(tables: list[ComparedTable], results: Results | None = None,
         j = max(range(len(main)), key=lambda i: main[i])
         reasons.append(f"{_rowlabels(t)[j]} dominates (S = {main[j]:.3f} against "
                        f"{main[0]:.3f} for C_La(0.3))")
-        if s.get("negligible/thrust") == 1:
+        if s.get("negligible/thrust", math.nan) == 1:
             reasons.append("the thrust variance is negligible (std "
-                           f"{s.get('out_std/thrust'):.3g} N), the indices split noise")
+                           f"{s.get('out_std/thrust', math.nan):.3g} N), the indices split noise")
         reasons.append("our NACA 23012 table is generated, not the thesis's (table 3.2): the "
                        "lift slope of each Mach row, hence which row weighs most, differs")
     out.append(Claim(
@@ -296,7 +296,7 @@ def _cuu_reasons(res: StepResult | None, labels) -> list[str]:
     for k, v in res.scalars.items():
         if k.startswith("initial_std/"):
             p = k.split("/", 1)[1]
-            new = res.get(f"std/{p}")
+            new = res.get(f"std/{p}", math.nan)
             if v > 0 and math.isfinite(new) and abs(new / v - 1) > 0.5:
                 out.append(f"{labels.get(p, p)} std driven from {v:.4g} to {new:.4g} "
                            f"({100 * (new / v - 1):+.0f} %)")
@@ -321,9 +321,10 @@ def _forward_claims(key, text, steps, step, label, rows, resp, limit, thesis_val
         for lab, r, v in zip(rows, resp, vals, strict=True):
             if v is not None and v > limit:
                 reasons.append(
-                    f"{lab}: {v:.2f} std devs (mean {res.get(f'{prefix}mean/{r}{label}'):.4g}"
-                    f", measured {res.get(f'data/{r}{label}'):.4g}, std "
-                    f"{res.get(f'{prefix}std/{r}{label}'):.3g})")
+                    f"{lab}: {v:.2f} std devs "
+                    f"(mean {res.get(f'{prefix}mean/{r}{label}', math.nan):.4g}"
+                    f", measured {res.get(f'data/{r}{label}', math.nan):.4g}, std "
+                    f"{res.get(f'{prefix}std/{r}{label}', math.nan):.3g})")
         if reasons:
             reasons += _bayes_reasons(steps, "bayes", labels, correlations=not prefix)
         details: tuple[str, ...] = ()
@@ -344,7 +345,7 @@ def _spread_contrast(res: StepResult, resp, label) -> str:
     """Why the two propagations differ: their predictive std side by side."""
     parts = []
     for r in resp:
-        a, b = res.get(f"std/{r}{label}"), res.get(f"pp_std/{r}{label}")
+        a, b = res.get(f"std/{r}{label}", math.nan), res.get(f"pp_std/{r}{label}", math.nan)
         if math.isfinite(a) and math.isfinite(b):
             parts.append(f"{r} {b:.3g} (independent normals: {a:.3g})")
     if not parts:
@@ -387,9 +388,9 @@ def _ground_claims(num, name, resp, t: ComparedTable, exp, labels) -> list[Claim
             None if growth(th_means) is None else (int(growth(th_means) > 0), 1),
             propagation=prop, reasons=tuple(reasons),
             warnings=_warnings(exp, ["bayes"], labels)))
-        reasons = [f"{h[1:]}R: measured {res.get(f'data/{resp}{h}'):.4f}, model "
-                   f"{res.get(f'{prefix}mean/{resp}{h}'):.4f} +- "
-                   f"{res.get(f'{prefix}std/{resp}{h}'):.3g} ({v:.2f} std devs)"
+        reasons = [f"{h[1:]}R: measured {res.get(f'data/{resp}{h}', math.nan):.4f}, model "
+                   f"{res.get(f'{prefix}mean/{resp}{h}', math.nan):.4f} +- "
+                   f"{res.get(f'{prefix}std/{resp}{h}', math.nan):.3g} ({v:.2f} std devs)"
                    for h, v in zip(heights, nstd, strict=True) if v is not None and v > 3.0]
         if reasons:
             reasons.append("only the pitch-link stiffness is uncertain in this step: the "

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..render.reference import TABLES, ReferenceTable
 from ..results import StepResult
-from .reference import TABLES, ReferenceTable
 
 __all__ = ["ComparedCell", "ComparedTable", "compare_tables", "resolve", "REFERENCE_STUDIES"]
 
@@ -122,7 +122,7 @@ def _measurements() -> dict[str, np.ndarray]:
 
 def resolve(source: str | None, steps: Mapping[str, StepResult],
             model_values: Mapping[str, float] | None = None) -> float | None:
-    """Value of a reference cell's source (see :mod:`rotoruq.report.reference`).
+    """Value of a reference cell's source (see :mod:`rotoruq.render.reference`).
 
     ``model_values`` are the model properties the run recorded (``study.json`` ``model.values``:
     preset fields and nominal airfoil coefficients); a ``model:PRESET:NAME`` cell reads them,

@@ -29,11 +29,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..render.figures import FigureContext
 from ..results import STUDY_INFO, StepResult, is_study_dir, load_results, load_study_info
 from .claims import INDEPENDENT, JOINT, Claim, claims, claims_json
 from .compare import REFERENCE_STUDIES, compare_tables
 from .diagnostics import THRESHOLDS
-from .hooks import FigureContext, rendering
+from .hooks import rendering
 from .steptables import step_tables, table_csv
 from .tables import fmt, step_table_html, table_html, write_csv
 

@@ -75,7 +75,7 @@ def table_html(t: ComparedTable) -> str:
 
 
 def step_table_html(t) -> str:
-    """A :class:`rotoruq.report.steptables.StepTable` as an HTML table."""
+    """A :class:`rotoruq.render.tables.StepTable` as an HTML table."""
     from .steptables import fmt_cell
 
     e = html.escape

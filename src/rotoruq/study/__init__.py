@@ -1,7 +1,5 @@
 """rotoruq.study: study files, the runner and the command line.
 
-Importing it registers the built-in step types (:mod:`rotoruq.study.steptypes`), which also
-gives the report the renderers of their results.
+The step types themselves live in :mod:`rotoruq.steps` (one module per type, one registry);
+this layer parses study files against their option schemas and runs them in order.
 """
-
-from . import steptypes  # noqa: F401  (registers the built-in step types)

@@ -103,8 +103,6 @@ def _main(argv: list[str] | None) -> int:
         from .cmd_driver import main as driver_main
 
         return driver_main(words)
-    from . import steptypes  # noqa: F401  (the step types and their report hooks)
-
     parser = build_parser()
     args = parser.parse_args(argv)
     configure_logging(quiet=args.quiet, debug=args.debug)

@@ -1,5 +1,7 @@
-"""``rotoruq show RESULTS [STEP] [--csv|--json]``: print a step's result tables (all steps
-without STEP), or export them as CSV or JSON, without opening the HTML report."""
+"""``rotoruq show RESULTS [STEP] [--csv|--json|--why-rerun]``: print a step's result tables
+(all steps without STEP), or export them as CSV or JSON, without opening the HTML report;
+``--why-rerun`` says which steps ``rotoruq run`` would run again and which part of their
+identity changed."""
 
 from __future__ import annotations
 
@@ -18,6 +20,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     fmt.add_argument("--csv", action="store_true",
                      help="CSV: each table preceded by a '# step: title' line")
     fmt.add_argument("--json", action="store_true", help="JSON: steps, tables, warnings")
+    fmt.add_argument("--why-rerun", action="store_true",
+                     help="which steps a new run would run again, and what changed (the "
+                          "step's spec, inputs, data, model, code file or an upstream step)")
 
 
 def show_data(results: str | Path, step: str | None = None) -> dict:
@@ -50,11 +55,26 @@ def show_data(results: str | Path, step: str | None = None) -> dict:
     return out
 
 
+def why_rerun_text(results: str | Path, step: str | None = None) -> str:
+    """One line per step: ``reused`` or ``runs again: <part>: <what> changed; ...``."""
+    from .runner import why_rerun
+
+    lines = []
+    for name, why in why_rerun(results).items():
+        if step is not None and name != step:
+            continue
+        lines.append(f"{name}: " + ("reused" if not why else "runs again: " + "; ".join(why)))
+    return "\n".join(lines) + "\n"
+
+
 def run(args: argparse.Namespace) -> int:
     from ..report.steptables import StepTable, table_csv, table_text
 
-    data = show_data(args.results, args.step)
     w = sys.stdout.write
+    if args.why_rerun:
+        w(why_rerun_text(args.results, args.step))
+        return 0
+    data = show_data(args.results, args.step)
     if args.json:
         w(json.dumps(data, indent=1) + "\n")
         return 0

@@ -7,8 +7,10 @@ Output directory (``[study] output``, or ``out=``)::
 
     study.toml  study.json  evaluations.sqlite  steps/<name>/...   (see rotoruq.results)
 
-Re-running: each step's fingerprint hashes its spec, the model, its distributions, data and
-seed, and the fingerprints of the steps it takes from. A step whose fingerprint matches the
+Re-running: each step's fingerprint hashes its spec, the model (with the code that computes
+its answers), its distributions, data and seed, the code of its step type and methods, and
+the fingerprints of the steps it takes from (:data:`IDENTITY_PARTS`; :func:`why_rerun` names
+the part that changed). A step whose fingerprint matches the
 saved one is loaded, not recomputed; model evaluations go through the evaluation store when
 the evaluation layer provides one, so a changed step still reuses identical evaluations.
 """
@@ -28,7 +30,13 @@ import numpy as np
 
 from ..atomic import write_bytes
 from ..errors import ParameterError
-from ..evaluation.identity import code_version, model_identity
+from ..evaluation.identity import (
+    code_digest,
+    code_parts,
+    code_version,
+    model_code_parts,
+    model_identity,
+)
 from ..params import ParameterSpace
 from ..results import (
     IncompleteStepError,
@@ -38,14 +46,13 @@ from ..results import (
     save_step,
     save_study_info,
 )
+from ..steps import StepContext, run_step, step_type
 from .lock import results_lock
 from .schema import load_study
 from .spec import StepSpec, Study
-from .steps import StepContext
-from .steptypes import STEP_TYPES, run_step
 
 __all__ = ["run_study", "StudyRun", "build_model", "build_model_factory", "step_options",
-           "model_record"]
+           "model_record", "why_rerun", "IDENTITY_PARTS"]
 
 log = logging.getLogger(__name__)
 
@@ -165,7 +172,7 @@ def step_options(step: StepSpec, quick: bool) -> dict:
     ``quick = {...}`` from the study file)."""
     opts = dict(step.options)
     if quick:
-        for k, v in STEP_TYPES[step.type].quick.items():
+        for k, v in step_type(step.type).quick.items():
             if opts.get(k) is not None:
                 opts[k] = min(opts[k], v)
         opts.update(step.quick)
@@ -248,8 +255,7 @@ def _step_targets(step: StepSpec, options, previous) -> dict[str, tuple[float, f
     return {r: (float(v[0]), float(v[1])) for r, v in t.items()}
 
 
-def _fingerprint(study: Study, step: StepSpec, space: ParameterSpace, fixed, options, data,
-                 previous, quick: bool, model_id: str) -> str:
+def _digest(obj: Any) -> str:
     def default(o):
         if isinstance(o, np.ndarray):
             return o.tolist()
@@ -259,30 +265,42 @@ def _fingerprint(study: Study, step: StepSpec, space: ParameterSpace, fixed, opt
             return repr(o)
         return repr(o)
 
-    upstream = []
+    text = json.dumps(obj, sort_keys=True, default=default)
+    return hashlib.sha256(text.encode()).hexdigest()[:20]
+
+
+#: What a step's fingerprint is made of (saved as ``meta["identity"]``; ``rotoruq show
+#: RESULTS --why-rerun`` names the part that changed).
+IDENTITY_PARTS = {
+    "spec": "the step's table in the study file, its options, seed, position or --quick",
+    "inputs": "the step's input distributions or fixed inputs",
+    "data": "the step's data",
+    "model": "the model (its configuration or the code computing its answers)",
+    "code": "the code computing the step (its step module and methods)",
+    "upstream": "a step it takes from",
+}
+
+
+def _identity_parts(study: Study, step: StepSpec, space: ParameterSpace, fixed, options,
+                    data, previous, quick: bool, model_id: str, code: str) -> dict:
+    """The parts of a step's identity, each a digest (see :data:`IDENTITY_PARTS`)."""
     refs = [step.source[0]] if step.source else []
     for ref in (step.data, options.get("targets")):
         if isinstance(ref, str) and "." in ref:
             refs.append(ref.split(".")[0])
-    for r in refs:
-        upstream.append(previous[r].fingerprint)
-    doc = {
-        "step": {k: v for k, v in asdict(step).items() if k not in ("line", "index")},
-        "options": options,
-        "model": asdict(study.model),
-        "model_identity": model_id,
-        "code": code_version(),
-        "space": [(n, d.describe()) for n, d in zip(space.names, space.distributions,
-                                                     strict=True)],
-        "fixed": dict(sorted(fixed.items())),
-        "data": None if data is None else np.asarray(data).tolist(),
-        "seed": study.info.seed,
-        "index": step.index,
-        "quick": quick,
-        "upstream": upstream,
+    return {
+        "spec": _digest({"step": {k: v for k, v in asdict(step).items()
+                                  if k not in ("line", "index")},
+                         "options": options, "model": asdict(study.model),
+                         "seed": study.info.seed, "index": step.index, "quick": quick}),
+        "inputs": _digest({"space": [(n, d.describe()) for n, d in
+                                     zip(space.names, space.distributions, strict=True)],
+                           "fixed": dict(sorted(fixed.items()))}),
+        "data": _digest(None if data is None else np.asarray(data).tolist()),
+        "model": model_id,
+        "code": code,
+        "upstream": {r: previous[r].fingerprint for r in refs},
     }
-    text = json.dumps(doc, sort_keys=True, default=default)
-    return hashlib.sha256(text.encode()).hexdigest()[:20]
 
 
 def _seed(study: Study, step: StepSpec, options) -> np.random.Generator:
@@ -326,32 +344,59 @@ def run_study(
         return _run_locked(study, out, quick, model_factory, only)
 
 
+@dataclass(frozen=True, eq=False)
+class _Planned:
+    """One step as the runner sees it before running: its context parts and identity."""
+
+    step: StepSpec
+    options: dict
+    space: ParameterSpace
+    fixed: dict
+    responses: list
+    data: Any
+    columns: Any
+    parts: dict
+    fingerprint: str
+    model_code: dict
+    step_code: dict
+
+
+def _plan_step(study: Study, step: StepSpec, results: Mapping[str, StepResult], quick: bool,
+               probe_factory: Callable, identities: dict) -> _Planned:
+    options = step_options(step, quick)
+    space, fixed = _step_space(study, step, results)
+    responses = list(step.responses or study.model.responses)
+    data, columns = _step_data(study, step, responses, results)
+    key = (tuple(space.names), tuple(responses), tuple(sorted(fixed.items())))
+    if key not in identities:
+        probe = probe_factory(list(space.names), list(responses), dict(fixed))
+        identities[key] = (model_identity(probe), model_code_parts(probe))
+        close = getattr(probe, "close", None)
+        if callable(close):
+            close()
+    model_id, model_code = identities[key]
+    step_code = code_parts([step_type(step.type).run.__module__])
+    parts = _identity_parts(study, step, space, fixed, options, data, results, quick,
+                            model_id, code_digest(step_code))
+    return _Planned(step, options, space, fixed, responses, data, columns, parts,
+                    _digest(parts), model_code, step_code)
+
+
 def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactory | None,
                 only: Sequence[str] | None) -> StudyRun:
     if study.path.is_file():
         write_bytes(out / "study.toml", study.path.read_bytes())
     store_path = out / study.store.path if study.store.enabled else None
     factory = model_factory or build_model_factory(study, store_path, out)
+    probe_factory = model_factory or (lambda i, r, f: build_model(study, i, r, f, out))
     _write_study_json(study, out, quick)
 
     results: dict[str, StepResult] = {}
     reused, seconds = [], {}
     identities: dict = {}
     for step in study.steps:
-        options = step_options(step, quick)
-        space, fixed = _step_space(study, step, results)
-        responses = step.responses or study.model.responses
-        data, columns = _step_data(study, step, responses, results)
-        key = (tuple(space.names), tuple(responses), tuple(sorted(fixed.items())))
-        if key not in identities:
-            probe = (model_factory or (lambda i, r, f: build_model(study, i, r, f, out)))(
-                list(space.names), list(responses), dict(fixed))
-            identities[key] = model_identity(probe)
-            close = getattr(probe, "close", None)
-            if callable(close):
-                close()
-        fp = _fingerprint(study, step, space, fixed, options, data, results, quick,
-                          identities[key])
+        plan = _plan_step(study, step, results, quick, probe_factory, identities)
+        fp = plan.fingerprint
         folder = out / "steps" / step.name
         if (folder / "result.json").is_file():
             try:
@@ -369,22 +414,25 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
         if only is not None and step.name not in only:
             raise ParameterError(f"step {step.name!r} has no saved result to reuse; run it")
         ctx = StepContext(
-            name=step.name, type=step.type, options=options, space=space,
-            responses=tuple(responses), fixed=fixed, make_model=factory,
-            rng=_seed(study, step, options), data=data, data_columns=columns,
-            targets=_step_targets(step, options, results),
+            name=step.name, type=step.type, options=plan.options, space=plan.space,
+            responses=tuple(plan.responses), fixed=plan.fixed, make_model=factory,
+            rng=_seed(study, step, plan.options), data=plan.data, data_columns=plan.columns,
+            targets=_step_targets(step, plan.options, results),
             source=results[step.source[0]] if step.source else None,
         )
         log.info("[%s] %s: running %s (%s -> %s)", study.info.name, step.name, step.type,
-                 ", ".join(space.names), ", ".join(responses))
-        res, dt = run_step(ctx)
+                 ", ".join(plan.space.names), ", ".join(plan.responses))
+        res, dt = run_step(step_type(step.type).run, ctx)
         meta = dict(res.meta)
-        meta.update(seconds=dt, title=step.title, parameters=list(space.names),
-                    responses=list(responses), fixed=fixed, options=options,
+        meta.update(seconds=dt, title=step.title, parameters=list(plan.space.names),
+                    responses=list(plan.responses), fixed=plan.fixed, options=plan.options,
                     source=".".join(step.source) if step.source else None,
-                    model_identity=identities[key], code_version=code_version(),
+                    model_identity=plan.parts["model"], code_version=code_version(),
+                    identity=plan.parts, code_files=plan.step_code,
+                    model_code_files=plan.model_code,
                     input_distributions={n: d.describe() for n, d in
-                                         zip(space.names, space.distributions, strict=True)})
+                                         zip(plan.space.names, plan.space.distributions,
+                                             strict=True)})
         res = StepResult(res.name, res.type, res.scalars, res.arrays, res.distributions, meta,
                          fingerprint=fp)
         save_step(res, out)
@@ -392,6 +440,83 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
         seconds[step.name] = dt
         log.info("[%s] %s: done in %.1f s", study.info.name, step.name, dt)
     return StudyRun(study, out, results, tuple(reused), seconds)
+
+
+def _changed_files(saved: Mapping[str, str], now: Mapping[str, str]) -> list[str]:
+    return sorted(k for k in set(saved) | set(now) if saved.get(k) != now.get(k))
+
+
+def why_rerun(out: str | Path, model_factory: ModelFactory | None = None
+              ) -> dict[str, list[str]]:
+    """For each step of the study saved in ``out``: why ``rotoruq run`` would run it again
+    (empty: its saved result would be reused).
+
+    The study is read from the file the run was started with (``study.json`` records it;
+    where it is gone, from the copy ``out/study.toml``, whose relative paths may then not
+    resolve), ``--quick`` from ``study.json``; each step's identity (:data:`IDENTITY_PARTS`)
+    is computed as a run would, from the saved results of the steps before it, and compared
+    part by part with the one its result recorded. A code part names the changed files.
+
+    Examples
+    --------
+    >>> why_rerun("rotoruq-results/quick")                       # doctest: +SKIP
+    {'sensitivity': [], 'mean_value': [],
+     'forward': ['code: rotoruq/methods/sampling.py changed']}
+    """
+    from ..errors import InputFileError
+    from ..results import load_results, load_study_info
+
+    out = Path(out)
+    info = load_study_info(out)
+    origin = Path(info.get("study_file") or out / "study.toml")
+    path = origin if origin.is_file() else out / "study.toml"
+    if not path.is_file():
+        raise InputFileError(out, None, "a results folder written by `rotoruq run` (with the "
+                             "study.toml it copies)")
+    study = load_study(path)
+    quick = bool(info.get("quick", False))
+    saved = load_results(out)
+    probe_factory = model_factory or (lambda i, r, f: build_model(study, i, r, f, out))
+    identities: dict = {}
+    reasons: dict[str, list[str]] = {}
+    for step in study.steps:
+        if any(r not in saved for r in ([step.source[0]] if step.source else [])):
+            reasons[step.name] = ["a step it takes from has no saved result"]
+            continue
+        plan = _plan_step(study, step, saved, quick, probe_factory, identities)
+        old = saved.get(step.name)
+        if old is None:
+            reasons[step.name] = ["no saved result"]
+            continue
+        if old.fingerprint == plan.fingerprint:
+            reasons[step.name] = []
+            continue
+        was = old.meta.get("identity")
+        if not isinstance(was, Mapping):
+            reasons[step.name] = ["saved by an older rotoruq (no identity parts recorded)"]
+            continue
+        why = []
+        for part, what in IDENTITY_PARTS.items():
+            if was.get(part) == plan.parts[part]:
+                continue
+            if part == "code":
+                files = _changed_files(old.meta.get("code_files") or {}, plan.step_code)
+                why.append(f"code: {', '.join(files) or what} changed")
+            elif part == "model":
+                files = _changed_files(old.meta.get("model_code_files") or {},
+                                       plan.model_code)
+                why.append(f"model: {'code ' + ', '.join(files) if files else what} changed")
+            elif part == "upstream":
+                steps = [r for r, f in plan.parts["upstream"].items()
+                         if (was.get("upstream") or {}).get(r) != f or reasons.get(r)]
+                why.append(f"upstream: {', '.join(steps) or what} changed")
+            else:
+                why.append(f"{part}: {what} changed")
+        for r in plan.parts["upstream"]:
+            if reasons.get(r) and not any(w.startswith("upstream") for w in why):
+                why.append(f"upstream: {r} runs again")
+        reasons[step.name] = why
+    return reasons
 
 
 def model_record(study: Study) -> dict:
@@ -425,6 +550,7 @@ def _write_study_json(study: Study, out: Path, quick: bool) -> None:
         "description": study.info.description,
         "seed": study.info.seed,
         "quick": quick,
+        "study_file": str(study.path.resolve()) if study.path.is_file() else None,
         "model": {"kind": study.model.kind, "preset": study.model.preset,
                   "responses": list(study.model.responses), "fixed": dict(study.model.fixed),
                   **model_record(study)},

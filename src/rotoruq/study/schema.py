@@ -35,8 +35,8 @@ steps::
 
 The file is split along its seams: :mod:`~rotoruq.study.locator` (line numbers),
 :mod:`~rotoruq.study.spec` (the dataclasses), :mod:`~rotoruq.study.options` (value checkers),
-:mod:`~rotoruq.study.datafiles` (``[data]``), :mod:`~rotoruq.study.steptypes` (the step types
-and their options); this module parses the tables in order.
+:mod:`~rotoruq.study.datafiles` (``[data]``), :mod:`rotoruq.steps` (the step types and their
+options); this module parses the tables in order.
 
 :func:`load_study` raises :class:`rotoruq.errors.InputFileError` naming the file, the line and
 the expected form for every problem; unknown keys come with the closest valid key.
@@ -55,6 +55,7 @@ from typing import NoReturn
 
 from ..errors import InputFileError, ParameterError
 from ..params import DISTRIBUTIONS, make_distribution
+from ..steps import StepCheck, StepType, find_step_type, step_type, step_types
 from .datafiles import parse_data
 from .options import (
     REQUIRED,
@@ -80,7 +81,6 @@ from .spec import (
     Study,
     StudyInfo,
 )
-from .steptypes import STEP_TYPES, StepCheck, StepType
 
 __all__ = ["load_study", "parse_study", "ModelInputs"]
 
@@ -350,11 +350,12 @@ def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
     for i, s in enumerate(raw):
         w = ("steps", i)
         if "type" not in s:
-            ck.fail(w, f"type = one of {', '.join(STEP_TYPES)} in [[steps]] #{i + 1}")
+            ck.fail(w, f"type = one of {', '.join(step_types())} in [[steps]] #{i + 1}")
         typ = s["type"]
-        if not isinstance(typ, str) or typ not in STEP_TYPES:
-            ck.fail(w + ("type",), f"a step type among {', '.join(STEP_TYPES)}"
-                    f"{close_hint(str(typ), list(STEP_TYPES))}", str(typ))
+        if not isinstance(typ, str) or find_step_type(typ) is None:
+            known = list(step_types())
+            ck.fail(w + ("type",), f"a step type among {', '.join(known)}"
+                    f"{close_hint(str(typ), known)}", str(typ))
         name = s.get("name", typ)
         if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_\-]*", name):
             ck.fail(w + ("name",), "a step name made of letters, digits, '_' and '-'", repr(name))
@@ -365,7 +366,7 @@ def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
     steps = []
     for i, s in enumerate(raw):
         w = ("steps", i)
-        st = STEP_TYPES[s["type"]]
+        st = step_type(s["type"])
         name = names[i]
         what = f"step {name!r} ({st.name})"
         ck.keys(s, list(COMMON_STEP_KEYS) + list(st.options), w, what)
@@ -481,7 +482,7 @@ def _check_ref(ck: Checker, raw: list, names: list[str], i: int, ref: str, key: 
         ck.fail(w, f"a reference to an earlier step; {target!r} is step #{names.index(target) + 1}"
                 f" (line {ck.loc.line('steps', names.index(target))}), after or at this one", ref)
     typ = raw[names.index(target)]["type"]
-    provides = STEP_TYPES[typ].provides
+    provides = step_type(typ).provides
     if attr not in attrs or attr not in provides:
         ck.fail(w, f"{key} = \"{target}.<attr>\" with <attr> one of "
                 f"{', '.join(a for a in attrs if a in provides) or '(none)'} "

@@ -1,6 +1,7 @@
 """Markov chain Monte Carlo Bayesian calibration: Gaussian likelihood, MH / DR / AM / DRAM
 samplers advancing several chains in one batched step, diagnostics (ESS, split R-hat, KL)."""
 
+from .adequacy import EmulatorAdequacy, RefineConfig
 from .bayes import BayesResult, calibrate_bayes, continue_chain
 from .diagnostics import effective_sample_size, split_rhat
 from .likelihood import GaussianLikelihood
@@ -10,6 +11,8 @@ __all__ = [
     "BayesResult",
     "calibrate_bayes",
     "continue_chain",
+    "EmulatorAdequacy",
+    "RefineConfig",
     "effective_sample_size",
     "split_rhat",
     "GaussianLikelihood",

@@ -26,7 +26,7 @@ import math
 import numba as nb
 import numpy as np
 
-from .._gp_mean import gp_mean_into
+from .._gp_mean import gp_mean_into, gp_mean_var_into
 
 _jit = nb.njit(cache=True, nogil=True)
 NEG_INF = -np.inf
@@ -252,8 +252,10 @@ def logprior_rows(theta, prior, out) -> None:
 
 @_jit
 def misfit_point(q, lik) -> float:
-    """``1/2 (q^T P q - 2 q^T b + c0)`` for responses q (m,); lik = (P, b, c0, const, diag)."""
-    P, b, c0, _, diag = lik
+    """``1/2 (q^T P q - 2 q^T b + c0)`` for responses q (m,); lik = (P, b, c0, const, diag,
+    P^-1, P^-1 b, c0 - b^T P^-1 b, log det P) (:class:`.likelihood.GaussianLikelihood`)."""
+    P, b, c0 = lik[0], lik[1], lik[2]
+    diag = lik[4]
     m = q.shape[0]
     quad = 0.0
     lin = 0.0
@@ -267,6 +269,43 @@ def misfit_point(q, lik) -> float:
                 s += P[i, j] * q[j]
             quad += q[i] * s
     return 0.5 * (quad - 2.0 * lin + c0)
+
+
+@_jit
+def loglik_var_point(q, v, lik) -> float:
+    """Log-likelihood of responses q (m,) whose emulator error has variance v (m,), shared by
+    every experiment and integrated out (:meth:`.likelihood.GaussianLikelihood.__call__`)."""
+    P, const, diag, Pinv, dbar, resid, logdet_p = lik[0], lik[3], lik[4], lik[5], lik[6], \
+        lik[7], lik[8]
+    m = q.shape[0]
+    acc = resid
+    if diag:
+        for j in range(m):
+            a = 1.0 + P[j, j] * v[j]
+            r = dbar[j] - q[j]
+            acc += math.log(a) + P[j, j] * r * r / a
+        return const - 0.5 * acc
+    A = Pinv.copy()
+    for j in range(m):
+        A[j, j] += v[j]
+    L = np.empty((m, m))
+    if not cholesky_into(A, L):
+        return math.nan
+    acc += logdet_p
+    for j in range(m):  # forward solve L w = r, accumulating |w|^2 and log det A
+        t = dbar[j] - q[j]
+        for k in range(j):
+            t -= L[j, k] * A[k, k]
+        w = t / L[j, j]
+        A[j, j] = w  # A's diagonal is free now: keep w there
+        acc += 2.0 * math.log(L[j, j]) + w * w
+    return const - 0.5 * acc
+
+
+@_jit
+def loglik_var_rows(Q, V, lik, out) -> None:
+    for k in range(Q.shape[0]):
+        out[k] = loglik_var_point(Q[k], V[k], lik)
 
 
 @_jit
@@ -313,14 +352,26 @@ def add_loglik_rows(Q, lik, lp, cnt) -> None:
 # --- the log posterior on an emulator, and a chain block that never leaves compiled code -----
 
 @_jit
+def _emulator_work(Z, post):
+    """Scratch for :func:`emulator_logpost`: rows theta, xs, xe, q, variance (d or m wide),
+    correlations r (n), trend basis g and its residual u (p)."""
+    Xe = post[3][2]
+    w = max(Z.shape[1], Xe.shape[0], Xe.shape[1], post[3][6].shape[0], 1)
+    return np.empty((8, w))
+
+
+@_jit
 def emulator_logpost(z, post, work, cnt) -> float:
     """Log posterior at scaled point z (d,): theta = center + scale z, uniform / normal prior,
-    GP mean, Gaussian likelihood. post = (center, scale, prior, gp pack, lik);
-    work : (4, max(d, m)) scratch; cnt : float counters (evaluations, outside the support,
-    non-finite likelihoods, extrapolations beyond 0.1 box-widths, largest extrapolation)."""
-    center, scale, prior, gp, lik = post
+    GP mean (and, with ``use_var``, the GP's Kriging variance added to the noise, shared by
+    the experiments), Gaussian likelihood. post = (center, scale, prior, gp mean pack, lik,
+    gp variance pack, use_var); work : :func:`_emulator_work`; cnt : float counters
+    (evaluations, outside the support, non-finite likelihoods, extrapolations beyond 0.1
+    box-widths, largest extrapolation)."""
+    center, scale, prior, gp, lik, gpv, use_var = post
     d = z.shape[0]
-    m = gp[2].shape[0]
+    m, n = gp[2].shape[0], gp[2].shape[1]
+    p = gp[6].shape[0]
     theta = work[0, :d]
     for a in range(d):
         theta[a] = center[a] + scale[a] * z[a]
@@ -330,7 +381,12 @@ def emulator_logpost(z, post, work, cnt) -> float:
         return NEG_INF
     xs = work[1, :d]
     q = work[3, :m]
-    gp_mean_into(theta, gp, xs, work[2, :d], q)
+    if use_var:
+        v = work[4, :m]
+        gp_mean_var_into(theta, gp, gpv, xs, work[2, :d], work[5, :n], work[6, :p],
+                         work[7, :p], q, v)
+    else:
+        gp_mean_into(theta, gp, xs, work[2, :d], q)
     e2 = 0.0
     for a in range(d):
         e = max(0.0, -xs[a]) + max(0.0, xs[a] - 1.0)
@@ -338,15 +394,39 @@ def emulator_logpost(z, post, work, cnt) -> float:
     if e2 > 0.01:
         cnt[N_EXTRAP] += 1.0
         cnt[MAX_EXTRAP] = max(cnt[MAX_EXTRAP], math.sqrt(e2))
-    return _with_loglik(lpr, q, lik, cnt)
+    if not use_var:
+        return _with_loglik(lpr, q, lik, cnt)
+    cnt[N_EVALS] += 1.0
+    ll = loglik_var_point(q, work[4, :m], lik)
+    if not math.isfinite(ll):
+        cnt[N_NAN] += 1.0
+        return NEG_INF
+    return lpr + ll
 
 
 @_jit
 def emulator_logpost_rows(Z, post, cnt, out) -> None:
-    d = Z.shape[1]
-    work = np.empty((4, max(d, post[3][2].shape[0])))
+    work = _emulator_work(Z, post)
     for k in range(Z.shape[0]):
         out[k] = emulator_logpost(Z[k], post, work, cnt)
+
+
+@_jit
+def add_loglik_var_rows(Q, V, lik, lp, cnt) -> None:
+    """:func:`add_loglik_rows` with the emulator's variance V (rows as Q)."""
+    r = 0
+    for k in range(lp.shape[0]):
+        if lp[k] == NEG_INF:
+            cnt[N_OUTSIDE] += 1.0
+            continue
+        cnt[N_EVALS] += 1.0
+        ll = loglik_var_point(Q[r], V[r], lik)
+        r += 1
+        if not math.isfinite(ll):
+            cnt[N_NAN] += 1.0
+            lp[k] = NEG_INF
+        else:
+            lp[k] += ll
 
 
 @_jit
@@ -356,7 +436,7 @@ def run_block_emulator(x, lp, L, Z1, Z2, LU1, LU2, nb_steps, Y, LPY, mean, m2, s
     chain needs: stage 1, then stage 2 for the chains whose stage 1 was rejected."""
     c, d = x.shape
     two = Y.shape[1] == 2
-    work = np.empty((4, max(d, post[3][2].shape[0])))
+    work = _emulator_work(x, post)
     for t in range(nb_steps):
         propose(x, L, Z1, Z2, t, 1, fpar[0], Y)
         for k in range(c):

@@ -10,13 +10,16 @@ design drawn from the prior (the reference study's workflow: 500 rotor runs, 100
 
 from __future__ import annotations
 
+import copy
 import csv
+import dataclasses
 import logging
 import time
 import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -36,14 +39,57 @@ from ...model import (
 from ...params import ParameterSpace
 from ..surrogate import ExtrapolationWarning, GaussianProcess, LeaveOneOut
 from . import diagnostics as dg
-from ._kernels import add_loglik_rows, emulator_logpost_rows, scaled_logprior_rows
+from ._kernels import (
+    add_loglik_rows,
+    add_loglik_var_rows,
+    emulator_logpost_rows,
+    scaled_logprior_rows,
+)
+from .adequacy import (
+    WARN_RATIO,
+    EmulatorAdequacy,
+    RefineConfig,
+    check_draws,
+    noise_std_of_mean,
+    pick_runs,
+    posterior_ratio,
+)
 from .likelihood import GaussianLikelihood
+from .noise import extended_prior, multiplier_groups, noise_loglik
 from .proposals import LogPrior, hessian_covariance, prior_scales
 from .samplers import SamplerConfig, SamplerState, run_chains
+
+if TYPE_CHECKING:
+    from .sbc import SBCResult
 
 __all__ = ["calibrate_bayes", "continue_chain", "BayesResult"]
 
 log = logging.getLogger(__name__)
+
+
+# Random stages of a calibration, each with its own child of the call's SeedSequence (spawn
+# key = position here): appending a stage never shifts the numbers of another.
+_STAGES = ("design", "emulator_fit", "start", "chain_starts", "chains", "predictive",
+           "summary", "refine", "self_check")
+
+
+def _stage_seeds(seed: SeedLike) -> dict[str, np.random.SeedSequence]:
+    """One SeedSequence per random stage of :func:`calibrate_bayes`, spawned from ``seed``.
+
+    The children are built as ``SeedSequence.spawn`` builds them, without spawning from a
+    SeedSequence the caller passed (which would change its state and so the caller's next
+    call). A Generator is read once (4 draws) for the root entropy.
+    """
+    as_generator(seed if not isinstance(seed, np.random.SeedSequence) else None)  # validate
+    if isinstance(seed, np.random.Generator):
+        root = np.random.SeedSequence(seed.integers(2**63, size=4))
+    elif isinstance(seed, np.random.SeedSequence):
+        root = seed
+    else:
+        root = np.random.SeedSequence(None if seed is None else int(seed))
+    return {name: np.random.SeedSequence(root.entropy, spawn_key=(*root.spawn_key, i),
+                                         pool_size=root.pool_size)
+            for i, name in enumerate(_STAGES)}
 
 
 class _Posterior:
@@ -55,17 +101,21 @@ class _Posterior:
     """
 
     def __init__(self, forward, loglik: GaussianLikelihood, logprior: LogPrior,
-                 center: np.ndarray, scale: np.ndarray, gp: GaussianProcess | None):
+                 center: np.ndarray, scale: np.ndarray, gp: GaussianProcess | None,
+                 emulator_variance: bool = False, noise: _Problem | None = None):
         self.forward, self.loglik, self.logprior = forward, loglik, logprior
         self.center = np.ascontiguousarray(center, dtype=float)
         self.scale = np.ascontiguousarray(scale, dtype=float)
         self.gp = gp
+        self.emulator_variance = bool(emulator_variance and gp is not None)
         # evaluations, outside the support, NaN likelihoods, extrapolations, largest extrapolation
         self.cnt = np.zeros(5)
         self.compiled = None
-        if gp is not None and logprior.compiled:
-            self.compiled = ((self.center, self.scale, logprior.pack, gp._fast, loglik.pack),
-                             self.cnt)
+        self.noise = noise  # noise multipliers: the Python route below
+        if gp is not None and logprior.compiled and noise is None:
+            cg = gp.compiled(variance=self.emulator_variance)
+            self.compiled = ((self.center, self.scale, logprior.pack, cg.mean_pack, loglik.pack,
+                              cg.var_pack, self.emulator_variance), self.cnt)
         if gp is not None:
             box = gp.bounds
             w = box[:, 1] - box[:, 0]
@@ -95,15 +145,52 @@ class _Posterior:
         ok = lp > -np.inf
         nok = int(np.count_nonzero(ok))
         q = np.empty((0, 0))
+        if nok and self.noise is not None:
+            return self._with_multipliers(theta, ok, lp)
         if nok:
             th = theta if nok == n else theta[ok]
             if self.gp is not None and ((th < self._far_lo) | (th > self._far_hi)).any():
                 dist = self.gp.extrapolation_distance(th)
                 self.cnt[3] += int((dist > 0.1).sum())
                 self.cnt[4] = max(self.cnt[4], float(dist.max()))
+            if self.emulator_variance:
+                assert self.gp is not None
+                q, v = self.gp._mean_var_fast(th)
+                add_loglik_var_rows(q, v, self.loglik.pack, lp, self.cnt)
+                return lp
             q = np.ascontiguousarray(self.forward(th), dtype=float)
         add_loglik_rows(q, self.loglik.pack, lp, self.cnt)
         return lp
+
+    def _with_multipliers(self, theta: np.ndarray, ok: np.ndarray, lp: np.ndarray) -> np.ndarray:
+        """lp (k,) plus the likelihood with noise multipliers at the points ``ok`` of theta
+        (model parameters, then precision multipliers)."""
+        pb = self.noise
+        assert pb is not None and pb.groups is not None and pb.noise_var is not None
+        d = pb.n_theta
+        th = theta[ok]
+        x = np.ascontiguousarray(th[:, :d])
+        v = None
+        if self.gp is not None:
+            if ((x < self._far_lo) | (x > self._far_hi)).any():
+                dist = self.gp.extrapolation_distance(x)
+                self.cnt[3] += int((dist > 0.1).sum())
+                self.cnt[4] = max(self.cnt[4], float(dist.max()))
+            if self.emulator_variance:
+                q, v = self.gp._mean_var_fast(x)
+            else:
+                q = self.gp._mean_fast(x)
+        else:
+            q = np.asarray(self.forward(x), dtype=float)
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            ll = noise_loglik(q, v, th[:, d:], pb.lik.data, pb.noise_var, pb.groups)
+        bad = ~np.isfinite(ll)
+        self.cnt[0] += th.shape[0]
+        self.cnt[1] += int((~ok).sum())
+        self.cnt[2] += int(bad.sum())
+        out = lp.copy()
+        out[ok] = np.where(bad, -np.inf, lp[ok] + ll)
+        return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -128,6 +215,19 @@ class BayesResult:
     sampling_seconds, sampling_cpu_seconds : wall and CPU time of the chains (the CPU time is
         what the chains cost on a machine shared with other jobs).
     emulator, emulator_loo : the fitted GP and its leave-one-out quality (None without one).
+    emulator_adequacy : the emulator's error against the noise over the build design and the
+        posterior, and the runs added by refinement (:class:`EmulatorAdequacy`).
+    noise_multiplier_names, noise_multiplier_chains : with ``noise_multipliers``, the
+        multipliers of the noise variance and their chains (n_chains, n_samples, k); their
+        moments by :meth:`noise_multiplier_summary`. The parameters' fields (``chains``,
+        ``mean``, ...) hold the model parameters only; ``kl_divergence`` covers both.
+    diagnostics : convergence diagnostics of the parameters' chains to arviz's standard
+        (rank-normalised split R-hat and its folded form, bulk and tail ESS, MCSE of the mean
+        and of the 5 % / 95 % quantiles in parameter units; ``ess`` is the bulk ESS and
+        ``rhat`` the larger of the bulk and folded R-hat).
+    self_check : with ``self_check=N``, the simulation-based calibration of this setup
+        (:class:`~rotoruq.methods.mcmc.sbc.SBCResult`): does the method recover parameters
+        drawn from the prior from data simulated with the stated noise?
     predictive_inputs, predictive : posterior predictive draws pushed through the true model,
         (k, d) and (k, m) (None unless ``posterior_predictive`` > 0); names_out : the model's
         responses (columns of ``predictive``).
@@ -164,12 +264,44 @@ class BayesResult:
     predictive_inputs: np.ndarray | None = None
     predictive: np.ndarray | None = None
     names_out: tuple[str, ...] = ()
+    emulator_adequacy: EmulatorAdequacy | None = None
+    noise_multiplier_names: tuple[str, ...] = ()
+    noise_multiplier_chains: np.ndarray | None = None
+    diagnostics: dg.ChainDiagnostics | None = None
+    self_check: SBCResult | None = None
     _state: tuple | None = field(default=None, repr=False, compare=False)
 
     @property
     def samples(self) -> np.ndarray:
         """All kept samples pooled over chains, (n_chains * n_kept, d)."""
         return self.chains.reshape(-1, self.chains.shape[-1])
+
+    def to_netcdf(self, path: str | Path) -> Path:
+        """Write the chains for arviz: ``*.nc`` as an ``InferenceData``-compatible netCDF
+        (``posterior`` group, dims chain and draw, one variable per parameter;
+        ``sample_stats/lp``), any other suffix as the documented npz of
+        :func:`rotoruq.methods.mcmc.export.write_chains`.
+
+        Examples
+        --------
+        >>> import arviz as az                                  # doctest: +SKIP
+        >>> idata = az.from_netcdf(result.to_netcdf("chains.nc"))  # doctest: +SKIP
+        """
+        from .export import write_chains
+
+        return write_chains(path, self.chains, self.names_in, self.log_posterior,
+                            attrs={"sampler": self.sampler})
+
+    def noise_multiplier_summary(self, level: float = 0.95) -> dict[str, tuple[float, ...]]:
+        """Posterior mean, std and equal-tailed ``level`` interval of each noise variance
+        multiplier: name -> (mean, std, lower, upper)."""
+        if self.noise_multiplier_chains is None:
+            raise ParameterError("no noise multipliers were calibrated (noise_multipliers=)")
+        flat = self.noise_multiplier_chains.reshape(-1, len(self.noise_multiplier_names))
+        a = 0.5 * (1.0 - level)
+        q = np.quantile(flat, [a, 1.0 - a], axis=0)
+        return {n: (float(flat[:, j].mean()), float(flat[:, j].std()), float(q[0, j]),
+                    float(q[1, j])) for j, n in enumerate(self.noise_multiplier_names)}
 
     @property
     def ess_per_second(self) -> np.ndarray:
@@ -199,7 +331,8 @@ class BayesResult:
 
     def save(self, path: str | Path) -> Path:
         """Write the chains: ``*.csv`` as a table (chain, step, parameters, log posterior),
-        anything else as a NumPy ``.npz`` archive with the chains and the summary arrays."""
+        anything else as a NumPy ``.npz`` archive with the chains and the summary arrays (and
+        the noise multipliers' chains and the emulator's adequacy when there are any)."""
         path = Path(path)
         if path.suffix.lower() == ".csv":
             c, n, d = self.chains.shape
@@ -216,6 +349,14 @@ class BayesResult:
         arrays = {k: getattr(self, k) for k in (
             "chains", "log_posterior", "mean", "std", "skewness", "kurtosis", "correlation",
             "credible_interval_95", "ess", "rhat", "map_point", "proposal_covariance")}
+        if self.noise_multiplier_chains is not None:
+            arrays["noise_multiplier_chains"] = self.noise_multiplier_chains
+            arrays["noise_multiplier_names"] = np.array(self.noise_multiplier_names)
+        if self.emulator_adequacy is not None:
+            ad = self.emulator_adequacy
+            arrays.update(emulator_noise_std=ad.noise_std, emulator_loo_ratio=ad.loo_ratio,
+                          emulator_posterior_ratio=ad.posterior_ratio,
+                          emulator_runs_added=np.array(ad.runs_added, dtype=int))
         np.savez(path, names_in=np.array(self.names_in), sampler=self.sampler,
                  acceptance_rate=self.acceptance_rate, kl_divergence=self.kl_divergence,
                  **arrays)
@@ -255,6 +396,22 @@ def _summarize(names, chains_z, lp, post: _Posterior, state: SamplerState, base:
                                                                           axis=0).T,
         ess=ess, rhat=rhat, acceptance_rate=acc / max(steps, 1), acceptance_per_stage=stages,
         kl_divergence=float(kl_knn), kl_divergence_gaussian=float(kl_gauss), **base)
+
+
+def _split_multipliers(res: BayesResult, d: int) -> BayesResult:
+    """Move the sampled precision multipliers (columns d..) of a summary to the noise
+    fields, as variance multipliers ``1 / tau``."""
+    if len(res.names_in) == d:
+        return res
+    c = res.correlation
+    return dataclasses.replace(
+        res, names_in=res.names_in[:d], chains=res.chains[..., :d], mean=res.mean[:d],
+        std=res.std[:d], skewness=res.skewness[:d], kurtosis=res.kurtosis[:d],
+        correlation=c[:d, :d], credible_interval_95=res.credible_interval_95[:d],
+        ess=res.ess[:d], rhat=res.rhat[:d], map_point=res.map_point[:d],
+        proposal_covariance=res.proposal_covariance[:d, :d],
+        noise_multiplier_names=res.names_in[d:],
+        noise_multiplier_chains=1.0 / res.chains[..., d:])
 
 
 def _batched_fd_grad(post: _Posterior, z: np.ndarray, hi: np.ndarray):
@@ -317,6 +474,16 @@ class _Problem:
     scale: np.ndarray
     zlo: np.ndarray
     zhi: np.ndarray
+    space: ParameterSpace
+    n_theta: int
+    # noise multipliers: group of each observation (n_exp, m), stated variances, names
+    groups: np.ndarray | None = None
+    noise_var: np.ndarray | None = None
+    multiplier_names: tuple[str, ...] = ()
+
+    def pad(self, theta: np.ndarray) -> np.ndarray:
+        """A model-parameter point (n_theta,) with the multipliers at their prior mean."""
+        return np.concatenate([theta, self.center[self.n_theta:]])
 
 
 def _noise_covariance(noise_std, noise_covariance, shape: tuple[int, int]):
@@ -337,8 +504,10 @@ def _noise_covariance(noise_std, noise_covariance, shape: tuple[int, int]):
     return var
 
 
-def _setup(model, data, prior, names_out, noise_std, noise_covariance) -> _Problem:
-    """Stage 1: observed responses, likelihood, prior and scaled coordinates."""
+def _setup(model, data, prior, names_out, noise_std, noise_covariance, noise_multipliers=None,
+           noise_multiplier_prior=(1.0, 1.0)) -> _Problem:
+    """Stage 1: observed responses, likelihood, prior and scaled coordinates (with noise
+    multipliers: the prior extended by their precision multipliers, :mod:`.noise`)."""
     if not isinstance(prior, ParameterSpace):
         raise ParameterError(f"prior must be a ParameterSpace, got {type(prior).__name__}")
     model_out = tuple(model.names_out)
@@ -353,16 +522,33 @@ def _setup(model, data, prior, names_out, noise_std, noise_covariance) -> _Probl
         resp_idx = np.array([model_out.index(r) for r in observed])
     shape = np.atleast_2d(np.asarray(data, dtype=float)).shape
     lik = GaussianLikelihood(data, _noise_covariance(noise_std, noise_covariance, shape), observed)
-    logprior = LogPrior(prior)
-    center, scale = prior_scales(prior)
+    space, groups, noise_var = prior, None, None
+    mnames: tuple[str, ...] = ()
+    if noise_multipliers is not None:
+        if noise_covariance is not None:
+            raise ParameterError("noise_multipliers need independent noise given as noise_std "
+                                 "(scalar, per response or per observation), not "
+                                 "noise_covariance")
+        sd = 1.0 if noise_std is None else np.asarray(noise_std, dtype=float)
+        noise_var = np.array(np.broadcast_to(np.square(sd), lik.data.shape), dtype=float)
+        groups, mnames = multiplier_groups(noise_multipliers, observed, lik.n_exp)
+        a, b = noise_multiplier_prior
+        space = extended_prior(prior, mnames, a, b)
+    logprior = LogPrior(space)
+    center, scale = prior_scales(space)
     return _Problem(observed, resp_idx, lik, logprior, center, scale,
-                    (logprior.lo - center) / scale, (logprior.hi - center) / scale)
+                    (logprior.lo - center) / scale, (logprior.hi - center) / scale, space,
+                    prior.dim, groups, noise_var, mnames)
 
 
 def _build_emulator(emulator, prior: ParameterSpace, truth: _TrueModel, pb: _Problem,
-                    n_emulator_samples: int, rng):
+                    n_emulator_samples: int, seeds: dict[str, np.random.SeedSequence]):
     """Stage 2: fit (or check) the GP emulator of the observed responses on an LHS design of
-    the prior; returns (gp, leave-one-out, best build point or None)."""
+    the prior; returns (gp, leave-one-out, best build point or None).
+
+    An unfitted emulator is copied before fitting (the caller's object stays unfitted, so a
+    second call with it fits afresh); a copy without a seed gets the call's
+    ``emulator_fit`` seed, so its restarts are reproducible too."""
     if not isinstance(emulator, GaussianProcess):
         raise ParameterError("emulator must be a rotoruq GaussianProcess")
     gp, best_build, d, m = emulator, None, prior.dim, len(pb.names_out)
@@ -371,22 +557,22 @@ def _build_emulator(emulator, prior: ParameterSpace, truth: _TrueModel, pb: _Pro
             raise ModelShapeError(f"fitted emulator has {gp.n_inputs} inputs and "
                                   f"{gp.n_outputs} outputs; need {d} and {m}")
     else:
-        Xb = prior.draw(int(n_emulator_samples), design="lhs", seed=rng)
+        gp = copy.copy(emulator)
+        if gp.seed is None:
+            gp.seed = seeds["emulator_fit"]
+        Xb = prior.draw(int(n_emulator_samples), design="lhs",
+                        seed=np.random.default_rng(seeds["design"]))
         Yb = truth(Xb)[:, pb.resp_idx]
         ok = np.all(np.isfinite(Yb), 1)
         if ok.sum() < d + 2:
             raise EvaluationError(f"only {int(ok.sum())} of {len(Xb)} emulator build "
                                   "evaluations succeeded")
         gp.fit(Xb[ok], Yb[ok])
-        lp_build = pb.logprior(Xb[ok]) + pb.lik(Yb[ok])
+        lp_build = LogPrior(prior)(Xb[ok]) + pb.lik(Yb[ok])
         best_build = Xb[ok][int(np.argmax(lp_build))]
     loo = gp.loo()
     log.info("emulator LOO: RMSE %s, Q2 %s", np.array2string(loo.rmse, precision=4),
              np.array2string(loo.q2, precision=4))
-    if np.any(loo.q2 < 0.9):
-        warnings.warn(f"emulator leave-one-out Q2 = {np.round(loo.q2, 3)} for responses "
-                      f"{pb.names_out}: below 0.9, the posterior may be wrong", RuntimeWarning,
-                      stacklevel=3)
     return gp, loo, best_build
 
 
@@ -398,8 +584,10 @@ def _start_point(post: _Posterior, prior: ParameterSpace, pb: _Problem, x0, map_
     d = prior.dim
     if x0 is not None:
         s = np.asarray(x0, dtype=float).reshape(-1)
-        if s.size != d:
-            raise ParameterError(f"x0 must have {d} values for {prior.names}, got {s.size}")
+        if s.size != pb.n_theta:
+            raise ParameterError(f"x0 must have {pb.n_theta} values for "
+                                 f"{prior.names[:pb.n_theta]}, got {s.size}")
+        s = pb.pad(s)
         z0 = (s - pb.center) / pb.scale
         lp0 = post(z0[None])[0]
         if not np.isfinite(lp0):
@@ -407,7 +595,7 @@ def _start_point(post: _Posterior, prior: ParameterSpace, pb: _Problem, x0, map_
                                  "the prior support or the model fails there)")
         map_seeds = [z0]
     else:
-        cands = [pb.center] + ([best_build] if best_build is not None else [])
+        cands = [pb.center] + ([pb.pad(best_build)] if best_build is not None else [])
         if map_start:
             cands.extend(prior.draw(max(16, 8 * d), design="lhs", seed=rng))
         zc = (np.array(cands) - pb.center) / pb.scale
@@ -449,7 +637,8 @@ def _initial_proposal(proposal_covariance, truth: _TrueModel, gp, forward, pb: _
     sd = 2.38**2 / d
     if isinstance(proposal_covariance, str):
         if proposal_covariance == "hessian":
-            jac = _jacobian(truth, gp, theta0, forward, pb)
+            jac = _jacobian(truth, gp, theta0[:pb.n_theta], forward, pb)
+            jac = np.hstack([jac, np.zeros((jac.shape[0], d - pb.n_theta))])
             return sd * hessian_covariance(jac, pb.lik.precision, pb.scale**2, pb.scale)
         if proposal_covariance == "prior":
             return sd * np.eye(d)
@@ -481,12 +670,12 @@ def _jacobian(truth: _TrueModel, gp, theta0, forward, pb: _Problem) -> np.ndarra
         except NotImplementedError:
             pass
     J = finite_difference(forward, theta0, fd_step=FD_STEP, scale=1e-3, central=False,
-                          upper=pb.logprior.hi).gradient[0]
+                          upper=pb.logprior.hi[:pb.n_theta]).gradient[0]
     return np.where(np.isfinite(J), J, 0.0)
 
 
 def _chain_starts(post: _Posterior, z0: np.ndarray, lp0: float, L0: np.ndarray,
-                  n_chains: int, rng) -> SamplerState:
+                  n_chains: int, rng, chain_rng) -> SamplerState:
     """Stage 5: the MAP for the first chain, the others drawn around it from the Laplace
     approximation (kept where their posterior is finite)."""
     d = z0.size
@@ -498,7 +687,7 @@ def _chain_starts(post: _Posterior, z0: np.ndarray, lp0: float, L0: np.ndarray,
         good = np.isfinite(lpc)
         x[1:][good], lp[1:][good] = cand[good], lpc[good]
     return SamplerState(x=x, lp=lp, chol=np.repeat(L0[None], n_chains, axis=0),
-                        rng=np.random.default_rng(rng.integers(2**63)))
+                        rng=chain_rng)
 
 
 def _as_sampler(sampler) -> SamplerConfig:
@@ -508,6 +697,45 @@ def _as_sampler(sampler) -> SamplerConfig:
         raise ParameterError(f"sampler must be 'mh', 'dr', 'am', 'dram' or a SamplerConfig, got "
                              f"{sampler!r}")
     return SamplerConfig(sampler=sampler)
+
+
+def _child(ss: np.random.SeedSequence, i: int) -> np.random.SeedSequence:
+    """Child ``i`` of ``ss`` as ``ss.spawn`` makes it, without changing ``ss``."""
+    return np.random.SeedSequence(ss.entropy, spawn_key=(*ss.spawn_key, i),
+                                  pool_size=ss.pool_size)
+
+
+def _sample(truth, gp, pb: _Problem, prior, cfg, emulator_variance, x0, map_start, best_build,
+            proposal_covariance, n_chains, n_samples, burn_in, thin, seeds) -> dict:
+    """Stages 3-5 and the chains on one emulator (or the model): start point, initial
+    proposal, chain starts and chains; the chains' kept samples are scaled (n, c, d)."""
+    d = prior.dim
+    if gp is not None:
+        forward = gp._mean_fast
+    elif np.array_equal(pb.resp_idx, np.arange(len(truth.names_out))):
+        forward = truth
+    else:
+        def forward(theta):
+            return truth(theta)[:, pb.resp_idx]
+
+    post = _Posterior(forward, pb.lik, pb.logprior, pb.center, pb.scale, gp, emulator_variance,
+                      pb if pb.groups is not None else None)
+    z0, lp0 = _start_point(post, prior, pb, x0, map_start, best_build,
+                           np.random.default_rng(seeds["start"]))
+    theta0 = pb.center + pb.scale * z0
+    cov_z = _initial_proposal(proposal_covariance, truth, gp, forward, pb, theta0)
+    L0 = np.linalg.cholesky(cov_z + 1e-14 * np.eye(d))
+    state = _chain_starts(post, z0, lp0, L0, n_chains,
+                          np.random.default_rng(seeds["chain_starts"]),
+                          np.random.default_rng(seeds["chains"]))
+    post.reset_counts()
+    t0, c0 = time.perf_counter(), time.process_time()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExtrapolationWarning)
+        kept, kept_lp = run_chains(post, state, cfg, n_samples, burn_in, thin)
+    return dict(post=post, theta0=theta0, cov_z=cov_z, state=state, kept=kept,
+                kept_lp=kept_lp, seconds=time.perf_counter() - t0,
+                cpu_seconds=time.process_time() - c0)
 
 
 def calibrate_bayes(
@@ -522,6 +750,10 @@ def calibrate_bayes(
     n_chains: int = 1,
     emulator: GaussianProcess | None = None,
     n_emulator_samples: int = 500,
+    emulator_variance: bool = True,
+    refine: RefineConfig | None = None,
+    noise_multipliers: str | Sequence[str] | None = None,
+    noise_multiplier_prior: tuple[float, float] = (1.0, 1.0),
     noise_std: ArrayLike | None = None,
     noise_covariance: ArrayLike | None = None,
     names_out: Sequence[str] | None = None,
@@ -529,6 +761,7 @@ def calibrate_bayes(
     map_start: bool = True,
     x0: ArrayLike | None = None,
     posterior_predictive: int = 0,
+    self_check: int = 0,
     seed: SeedLike = None,
 ) -> BayesResult:
     """Bayesian calibration of the parameters ``prior`` of ``model`` to ``data``.
@@ -557,6 +790,24 @@ def calibrate_bayes(
         from the prior, evaluated through :func:`rotoruq.model.evaluate`) or a fitted one
         (inputs in ``prior.names`` order, outputs the calibrated responses). None: the chains
         call the model itself.
+    emulator_variance : with an emulator, add its Kriging variance at theta to the noise
+        variance of each response (Higdon et al. 2004): the emulator's error, one per response
+        and shared by all experiments, is integrated out, so the log-determinant depends on
+        theta and a sparse emulator widens the posterior instead of making it over-confident.
+        False: the GP mean only (the reference thesis). Each evaluation then costs ``n^2 / 2``
+        multiply-adds per response for ``n`` build points, against ``n d`` for the mean.
+    refine : RefineConfig(n_samples=, target_ratio=, batch=) to refine the emulator over the
+        posterior: after the chains, ``batch`` model runs at the posterior draws where the
+        emulator's Kriging std relative to the noise std is largest, a refit and new chains,
+        until every response's ratio (:class:`EmulatorAdequacy` ``posterior_ratio``) is
+        below ``target_ratio`` or ``n_samples`` runs were added. None: no refinement (the
+        ratio is still measured, and warned on above :data:`.adequacy.WARN_RATIO`).
+    noise_multipliers : calibrate the noise too (Dakota's ``calibrate_error_multipliers``):
+        "one", "per_response", "per_experiment" or a list of observed responses; each
+        multiplies the stated noise variance of its observations and is sampled with the
+        parameters (:mod:`.noise`). Needs independent noise (``noise_std``).
+    noise_multiplier_prior : (alpha, beta) of each multiplier's inverse-gamma prior
+        (default (1, 1): weak, median 1.44).
     noise_std : standard deviation of the data noise (data units): scalar, (m,) per response
         or (n_exp, m) per observation. noise_covariance : instead, a full (m, m) or
         (n_exp, m, m) covariance. Neither: unit variance (Dakota's default).
@@ -568,48 +819,101 @@ def calibrate_bayes(
         from the best build sample / the prior mean).
     x0 : (d,) start point (parameter units).
     posterior_predictive : number of posterior draws pushed through the true model.
-    seed : int or Generator.
+    self_check : N > 0 runs N replications of simulation-based calibration of this very
+        setup (:func:`~rotoruq.methods.mcmc.sbc.simulation_based_calibration`: parameters
+        drawn from ``prior``, data simulated from ``model`` with ``noise_std``, posteriors
+        with the same emulator, sampler and emulator variance, short chains) and stores the
+        verdict in ``BayesResult.self_check``. Needs ``noise_std`` (not a covariance) and no
+        noise multipliers. 0 (default): no self-check.
+    seed : int, SeedSequence or Generator. Every random stage (emulator design, GP
+        restarts of an unseeded emulator, MAP starts, chain starts, chains, posterior
+        predictive draws, the KL subsample) has its own child of
+        ``numpy.random.SeedSequence(seed)``: the same seed gives bitwise the same result.
+        The caller's emulator is not modified (an unfitted one is fitted as a copy, in
+        ``BayesResult.emulator``).
 
     Returns
     -------
     BayesResult
     """
     t_start = time.perf_counter()
-    rng = as_generator(seed)
+    seeds = _stage_seeds(seed)
     cfg = _as_sampler(sampler)
     n_samples, thin, n_chains = int(n_samples), int(thin), int(n_chains)
     burn_in = n_samples // 19 if burn_in is None else int(burn_in)
     if n_samples < 1 or thin < 1 or n_chains < 1 or burn_in < 0:
         raise ParameterError(f"need n_samples >= 1, burn_in >= 0, thin >= 1 and n_chains >= 1; "
                              f"got {n_samples}, {burn_in}, {thin}, {n_chains}")
-    pb = _setup(model, data, prior, names_out, noise_std, noise_covariance)
+    pb = _setup(model, data, prior, names_out, noise_std, noise_covariance, noise_multipliers,
+                noise_multiplier_prior)
+    space = pb.space
     truth = _TrueModel(model, prior)
     d = prior.dim
 
     gp, loo, best_build = None, None, None
     if emulator is not None:
         gp, loo, best_build = _build_emulator(emulator, prior, truth, pb, n_emulator_samples,
-                                              rng)
-        forward = gp._mean_fast
-    elif np.array_equal(pb.resp_idx, np.arange(len(truth.names_out))):
-        forward = truth
-    else:
-        def forward(theta):
-            return truth(theta)[:, pb.resp_idx]
+                                              seeds)
+    elif refine is not None:
+        raise ParameterError("refine= refines an emulator: pass emulator=GaussianProcess(...)")
+    if refine is not None and not isinstance(refine, RefineConfig):
+        raise ParameterError(f"refine must be a RefineConfig or None, got {refine!r}")
 
-    post = _Posterior(forward, pb.lik, pb.logprior, pb.center, pb.scale, gp)
-    z0, lp0 = _start_point(post, prior, pb, x0, map_start, best_build, rng)
-    theta0 = pb.center + pb.scale * z0
-    cov_z = _initial_proposal(proposal_covariance, truth, gp, forward, pb, theta0)
-    L0 = np.linalg.cholesky(cov_z + 1e-14 * np.eye(d))
-    state = _chain_starts(post, z0, lp0, L0, n_chains, rng)
-
-    post.reset_counts()
-    t0, c0 = time.perf_counter(), time.process_time()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ExtrapolationWarning)
-        kept, kept_lp = run_chains(post, state, cfg, n_samples, burn_in, thin)
-    t_sampling, cpu_sampling = time.perf_counter() - t0, time.process_time() - c0
+    round_seeds = {k: seeds[k] for k in ("start", "chain_starts", "chains")}
+    runs_added: list[int] = []
+    ratios: list[np.ndarray] = []
+    adequacy = None
+    while True:
+        run = _sample(truth, gp, pb, space, cfg, emulator_variance, x0, map_start, best_build,
+                      proposal_covariance, n_chains, n_samples, burn_in, thin, round_seeds)
+        post, kept = run["post"], run["kept"]
+        if gp is None:
+            break
+        noise_sd = noise_std_of_mean(pb.lik.pack)
+        draws = check_draws((pb.center + pb.scale * kept)[..., :d])
+        var = gp._mean_var_fast(draws)[1]
+        ratios.append(posterior_ratio(var, noise_sd))
+        budget = 0 if refine is None else refine.n_samples - sum(runs_added)
+        if refine is None or np.all(ratios[-1] < refine.target_ratio) or budget <= 0:
+            adequacy = EmulatorAdequacy(
+                names_out=pb.names_out, noise_std=noise_sd,
+                loo_ratio=(np.full(len(noise_sd), np.nan) if loo is None else loo.rmse)
+                / noise_sd,
+                posterior_ratio=ratios[-1], runs_added=tuple(runs_added),
+                posterior_ratio_per_round=np.array(ratios),
+                target_ratio=None if refine is None else refine.target_ratio)
+            break
+        # refine: model runs where the emulator is least sure relative to the noise, a refit
+        # (seeded from this round's child) and new chains from the round's own seeds
+        k = len(runs_added) + 1
+        rs = _child(seeds["refine"], k)
+        new_x = pick_runs(draws, var, noise_sd, min(refine.batch, budget))
+        new_y = truth(new_x)[:, pb.resp_idx]
+        ok = np.all(np.isfinite(new_y), 1)
+        runs_added.append(len(new_x))
+        X, Y = np.vstack([gp._X, new_x[ok]]), np.vstack([gp._Y, new_y[ok]])
+        gp = copy.copy(gp)
+        gp.seed = _child(rs, 0)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # jitter notes of near points
+            gp.fit(X, Y)
+        loo = gp.loo()
+        best_build = None
+        round_seeds = {key: _child(rs, i + 1) for i, key in enumerate(round_seeds)}
+        log.info("refinement round %d: %d runs added, emulator/noise std ratio %s", k,
+                 runs_added[-1], np.array2string(ratios[-1], precision=3))
+    if adequacy is not None and np.any(adequacy.posterior_ratio > WARN_RATIO):
+        bad = {r: round(float(v), 3) for r, v in zip(pb.names_out, adequacy.posterior_ratio,
+                                                      strict=True) if v > WARN_RATIO}
+        warnings.warn(f"emulator error over the posterior is more than {WARN_RATIO} of the "
+                      f"noise std (RMS Kriging std / noise std: {bad}); "
+                      + ("its variance is in the likelihood, so the posterior is wider than "
+                         "the data alone would give" if emulator_variance else
+                         "with emulator_variance=False the posterior is over-confident")
+                      + ": add build runs (n_emulator_samples) or refine=RefineConfig()",
+                      RuntimeWarning, stacklevel=2)
+    theta0, cov_z, state = run["theta0"], run["cov_z"], run["state"]
+    kept_lp, t_sampling, cpu_sampling = run["kept_lp"], run["seconds"], run["cpu_seconds"]
     if post.n_extrapolated:
         warnings.warn(f"emulator extrapolated for {post.n_extrapolated} proposals, up to "
                       f"{post.max_extrapolation:.3g} box-widths outside its training box",
@@ -617,8 +921,9 @@ def calibrate_bayes(
 
     pred_in = pred = None
     if posterior_predictive:
-        flat = pb.center + pb.scale * kept.reshape(-1, d)
-        pred_in = flat[rng.choice(flat.shape[0], int(posterior_predictive), replace=True)]
+        flat = (pb.center + pb.scale * kept.reshape(-1, space.dim))[:, :d]
+        pick = np.random.default_rng(seeds["predictive"])
+        pred_in = flat[pick.choice(flat.shape[0], int(posterior_predictive), replace=True)]
         pred = truth(pred_in)
     base = dict(
         map_point=theta0, proposal_covariance=cov_z * np.outer(pb.scale, pb.scale),
@@ -627,12 +932,44 @@ def calibrate_bayes(
         n_out_of_support=post.n_outside, sampling_seconds=t_sampling,
         sampling_cpu_seconds=cpu_sampling, emulator=gp, emulator_loo=loo,
         predictive_inputs=pred_in, predictive=pred, names_out=truth.names_out,
-        _state=(post, state, cfg),
+        emulator_adequacy=adequacy, _state=(post, state, cfg),
     )
-    res = _summarize(prior.names, kept.transpose(1, 0, 2), kept_lp.T, post, state, base, rng)
+    res = _summarize(space.names, kept.transpose(1, 0, 2), kept_lp.T, post, state, base,
+                     seeds["summary"])
+    res = _split_multipliers(res, d)
+    res = dataclasses.replace(res, diagnostics=dg.diagnose(res.chains))
+    if self_check:
+        res = dataclasses.replace(res, self_check=_self_check(
+            model, prior, pb, gp, cfg, emulator_variance, noise_std, noise_covariance,
+            int(self_check), seeds["self_check"]))
     log.info("calibrate_bayes: %d chains x %d kept steps in %.2f s (total %.2f s)", n_chains,
              n_samples, t_sampling, time.perf_counter() - t_start)
     return res
+
+
+def _self_check(model, prior: ParameterSpace, pb: _Problem, gp, cfg: SamplerConfig,
+                emulator_variance: bool, noise_std, noise_covariance, n_replications: int,
+                seed: np.random.SeedSequence) -> SBCResult:
+    """Simulation-based calibration of the setup of one :func:`calibrate_bayes` call."""
+    from .sbc import simulation_based_calibration
+
+    if pb.groups is not None:
+        raise ParameterError("self_check with noise_multipliers: the replications would need "
+                             "the multipliers' prior to simulate data; run the self-check "
+                             "without noise_multipliers")
+    if noise_covariance is not None or noise_std is None:
+        raise ParameterError("self_check simulates data with a noise std per response: give "
+                             "noise_std (not noise_covariance, not unit variance by default)")
+    std = np.asarray(noise_std, dtype=float)
+    if std.ndim == 2:
+        if not np.all(std == std[:1]):
+            raise ParameterError("self_check simulates data with one noise std per response; "
+                                 "this call's noise_std differs between experiments")
+        std = std[0]
+    return simulation_based_calibration(
+        model, prior, noise_std=std, n_replications=n_replications,
+        n_experiments=pb.lik.data.shape[0], emulator=gp, names_out=pb.names_out, seed=seed,
+        sampler=cfg, emulator_variance=emulator_variance)
 
 
 def continue_chain(result: BayesResult, n_samples: int, *, seed: SeedLike = None) -> BayesResult:
@@ -645,16 +982,22 @@ def continue_chain(result: BayesResult, n_samples: int, *, seed: SeedLike = None
     state = state.copy()
     if seed is not None:
         state.reseed(as_generator(seed))
+    # the summary's subsample: from the chains' own generator when no seed is given, so the
+    # same result continued twice gives the same numbers
+    summary_seed = np.random.SeedSequence(state.rng.integers(2**63, size=4))
     ev0, nan0, out0 = post.n_evals, post.n_nan, post.n_outside
     t0, c0 = time.perf_counter(), time.process_time()
     kept, kept_lp = run_chains(post, state, cfg, int(n_samples), 0, result.thin)
     dt, dcpu = time.perf_counter() - t0, time.process_time() - c0
-    z_old = (result.chains - post.center) / post.scale
+    full = result.chains
+    if result.noise_multiplier_chains is not None:
+        full = np.concatenate([full, 1.0 / result.noise_multiplier_chains], axis=-1)
+    z_old = (full - post.center) / post.scale
     chains_z = np.concatenate([z_old, kept.transpose(1, 0, 2)], axis=1)
     lp = np.concatenate([result.log_posterior, kept_lp.T], axis=1)
     base = {k: getattr(result, k) for k in (
         "map_point", "proposal_covariance", "sampler", "burn_in", "thin", "emulator",
-        "emulator_loo", "predictive_inputs", "predictive", "names_out")}
+        "emulator_loo", "predictive_inputs", "predictive", "names_out", "emulator_adequacy")}
     base.update(
         n_likelihood_evaluations=result.n_likelihood_evaluations + post.n_evals - ev0,
         n_evaluations=result.n_evaluations + (post.n_evals - ev0 if post.gp is None else 0),
@@ -662,4 +1005,8 @@ def continue_chain(result: BayesResult, n_samples: int, *, seed: SeedLike = None
         n_out_of_support=result.n_out_of_support + post.n_outside - out0,
         sampling_seconds=result.sampling_seconds + dt,
         sampling_cpu_seconds=result.sampling_cpu_seconds + dcpu, _state=(post, state, cfg))
-    return _summarize(result.names_in, chains_z, lp, post, state, base, seed)
+    names = result.names_in + result.noise_multiplier_names
+    res = _summarize(names, chains_z, lp, post, state, base, summary_seed)
+    res = _split_multipliers(res, len(result.names_in))
+    return dataclasses.replace(res, diagnostics=dg.diagnose(res.chains),
+                               self_check=result.self_check)

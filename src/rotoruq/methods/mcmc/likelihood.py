@@ -12,7 +12,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from ...errors import ModelShapeError, ParameterError
-from ._kernels import misfit_rows
+from ._kernels import loglik_var_rows, misfit_rows
 
 __all__ = ["GaussianLikelihood"]
 
@@ -101,7 +101,16 @@ class GaussianLikelihood:
         self._const = -0.5 * (n_exp * m * np.log(2.0 * np.pi) + logdet)
         # diagonal precision (independent errors, the usual case): O(m) per evaluation
         diag = bool(np.count_nonzero(P - np.diag(np.diag(P))) == 0)
-        self.pack = (np.ascontiguousarray(P), b, float(c0), float(self._const), diag)
+        # the data's own mean and scatter, for the likelihood with an emulator's variance:
+        # dbar = P^-1 b, resid = c0 - b^T P^-1 b (the misfit at q = dbar)
+        p_chol = np.linalg.cholesky(P)
+        p_inv = np.linalg.inv(P)
+        p_inv = 0.5 * (p_inv + p_inv.T)
+        dbar = np.linalg.solve(P, b)
+        resid = max(float(c0 - b @ dbar), 0.0)
+        logdet_p = float(2.0 * np.log(np.diag(p_chol)).sum())
+        self.pack = (np.ascontiguousarray(P), b, float(c0), float(self._const), diag,
+                     np.ascontiguousarray(p_inv), dbar, resid, logdet_p)
 
     @staticmethod
     def _full(data, covs, shared):
@@ -135,9 +144,23 @@ class GaussianLikelihood:
         misfit_rows(q, self.pack, out)
         return out
 
-    def __call__(self, q: np.ndarray) -> np.ndarray:
-        """Log-likelihood (eq. 2.23, normalized) for responses q (k, m) -> (k,)."""
-        return self._const - self.misfit(q)
+    def __call__(self, q: np.ndarray, variance: np.ndarray | None = None) -> np.ndarray:
+        """Log-likelihood (eq. 2.23, normalized) for responses q (k, m) -> (k,).
+
+        ``variance`` (k, m): the variance of an emulator's error at each point (response
+        units squared), one error per response shared by every experiment (the emulator
+        is wrong by the same amount for all of them), integrated out as Higdon et al.
+        (2004) do: ``log L = const - 1/2 [resid + log det(I + P S) + r^T (P^-1 + S)^-1 r]``
+        with ``S = diag(variance)``, ``r = P^-1 b - q`` and ``resid = c0 - b^T P^-1 b``;
+        with ``variance = 0`` it is the likelihood of ``q``.
+        """
+        if variance is None:
+            return self._const - self.misfit(q)
+        q = np.ascontiguousarray(np.atleast_2d(q), dtype=float)
+        v = np.ascontiguousarray(np.broadcast_to(variance, q.shape), dtype=float)
+        out = np.empty(q.shape[0])
+        loglik_var_rows(q, v, self.pack, out)
+        return out
 
     def gauss_newton_hessian(self, jac: np.ndarray) -> np.ndarray:
         """``J^T (sum_e Gamma_e^-1) J`` (eq. 2.26) for a Jacobian (m, d)."""

@@ -1,0 +1,430 @@
+"""Figures of the report, drawn from saved step results with matplotlib's object API (no
+pyplot, so a notebook's backend is left alone; files are written through Agg).
+
+Every function returns a list of :class:`Figure` (name, caption, matplotlib figure); the
+report renders each once, as PNG, writes it to ``figures/`` and embeds the same bytes. Every
+axis is labelled with its unit, legends sit outside the data, and where the thesis prints the
+numbers behind a figure (tables 4.12, 4.16-4.19, the Sobol tables) they are drawn beside ours.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from ..params import Distribution
+from ..results import StepResult, dict_to_dist
+from .reference import TABLES
+
+__all__ = ["Figure", "FigureContext", "tornado", "prior_posterior", "chain_traces",
+           "pair_plot", "load_distributions", "cuu_comparison", "ground_effect_curves",
+           "UNITS", "axis_label", "unit_of", "thesis_sobol"]
+
+# Units of the rotoruq vocabulary (DESIGN.md section 3); a study file's ``unit`` overrides.
+UNITS = {
+    "thrust": "N", "torque": "N m", "roll": "N m", "pitch": "N m", "power": "W",
+    "ct": "-", "cq": "-", "collective_deg": "deg", "lateral_deg": "deg",
+    "longitudinal_deg": "deg", "omega": "rad/s", "rho": "kg/m^3", "height_over_radius": "-",
+    "k_flap": "N m/rad", "c_flap": "N m s/rad", "k_lag": "N m/rad", "c_lag": "N m s/rad",
+    "k_pitch_link": "N/m", "c_pitch_link": "N s/m", "ei_flap": "N m^2",
+}
+_UNIT_PREFIX = {"cla_": "1/deg", "cl0_": "-", "cd0_": "-", "cda_": "1/deg", "cda2_": "1/deg^2"}
+# A model's own response whose unit nobody stated is shown in the model's units.
+UNKNOWN_UNIT = "model units"
+
+_TICK = 8
+_LEGEND = {"fontsize": 8, "frameon": False}
+
+
+@dataclass(frozen=True, eq=False)
+class FigureContext:
+    """What a step type's figure renderer may use besides its own step.
+
+    study : the study's name. steps : every saved step of the study (name -> result).
+    labels, units : display label and unit per input/response name.
+    reference : the study is a reference study (thesis numbers are drawn beside ours).
+    curves : reference curves the run recorded (``study.json`` ``model.curves``).
+    """
+
+    study: str
+    steps: Mapping[str, StepResult]
+    labels: Mapping[str, str] = field(default_factory=dict)
+    units: Mapping[str, str] = field(default_factory=dict)
+    reference: bool = False
+    curves: Mapping[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class Figure:
+    name: str
+    caption: str
+    figure: object  # matplotlib.figure.Figure
+
+
+def unit_of(name: str, units: Mapping[str, str] | None = None) -> str:
+    units = units or {}
+    if units.get(name):
+        return units[name]
+    if name in UNITS:
+        return UNITS[name]
+    for prefix, u in _UNIT_PREFIX.items():
+        if name.startswith(prefix):
+            return u
+    return UNKNOWN_UNIT
+
+
+def axis_label(name: str, labels: Mapping[str, str] | None = None,
+               units: Mapping[str, str] | None = None, what: str = "") -> str:
+    """``"C_La(0.3) [1/deg]"``; ``what`` prefixes a statistic (``"PDF of thrust [1/N]"``)."""
+    lab = (labels or {}).get(name) or name
+    return f"{what}{lab} [{unit_of(name, units)}]"
+
+
+def _subplots(*args, figsize=None, **kwargs):
+    """Figure and axes without pyplot: no global backend switch, nothing to close."""
+    from matplotlib.figure import Figure as _MplFigure  # matplotlib loads when drawing
+
+    fig = _MplFigure(figsize=figsize, layout="constrained")
+    return fig, fig.subplots(*args, **kwargs)
+
+
+def _legend_below(fig, axes) -> None:
+    """One legend for the figure, below the axes (never over the data)."""
+    handles, names = [], []
+    for ax in np.ravel(axes):
+        for h, n in zip(*ax.get_legend_handles_labels(), strict=True):
+            if n not in names:
+                handles.append(h)
+                names.append(n)
+    if handles:
+        fig.legend(handles, names, loc="outside lower center", ncols=min(4, len(names)),
+                   **_LEGEND)
+
+
+def tornado(res: StepResult, labels, units=None, thesis: dict | None = None) -> list[Figure]:
+    """Horizontal bars of the main and total Sobol indices per response, with their bootstrap
+    intervals; the thesis's main indices beside ours when a thesis table maps this step."""
+    inputs, responses = res.meta["inputs"], res.meta["responses"]
+    k = len(responses)
+    fig, axes = _subplots(1, k, figsize=(3.4 * k + 1.8, 0.5 * len(inputs) + 2.0),
+                          sharey=True, squeeze=False)
+    y = np.arange(len(inputs))
+    h = 0.28 if thesis else 0.4
+    for a, r in enumerate(responses):
+        ax = axes[0, a]
+        s = np.array([res.get(f"S/{r}/{p}", math.nan) for p in inputs])
+        t = np.array([res.get(f"T/{r}/{p}", math.nan) for p in inputs])
+
+        def err(kind, v, r=r):
+            lo = np.array([res.get(f"{kind}_lo/{r}/{p}", math.nan) for p in inputs])
+            hi = np.array([res.get(f"{kind}_hi/{r}/{p}", math.nan) for p in inputs])
+            if not np.all(np.isfinite(lo)):
+                return None
+            return np.vstack([np.maximum(v - lo, 0), np.maximum(hi - v, 0)])
+
+        ax.barh(y + h, s, height=h, color="#1f77b4", label="main S_i (ours)",
+                xerr=err("S", s), error_kw={"lw": 0.8})
+        ax.barh(y, t, height=h, color="#9ecae1", label="total T_i (ours)",
+                xerr=err("T", t), error_kw={"lw": 0.8})
+        if thesis:
+            th = [thesis.get((r, p), np.nan) for p in inputs]
+            ax.barh(y - h, th, height=h, color="#d62728", alpha=0.7, label="main S_i (thesis)")
+        neg = res.get(f"negligible/{r}", math.nan) == 1
+        ax.set_title(f"{r}" + (" (negligible variance)" if neg else ""), fontsize=9)
+        lo = min(0.0, float(np.nanmin(np.r_[s, t, 0.0])) * 1.1)
+        ax.set_xlim(lo, max(1.0, float(np.nanmax(np.r_[s, t, 0.0])) * 1.05))
+        ax.axvline(0, color="k", lw=0.5)
+        ax.set_xlabel("Sobol index [-]")
+        ax.grid(axis="x", alpha=0.3)
+        ax.tick_params(labelsize=_TICK)
+    axes[0, 0].set_yticks(y, [axis_label(p, labels, units) for p in inputs])
+    axes[0, 0].set_ylabel("input")
+    _legend_below(fig, axes)
+    fig.suptitle(f"Sensitivity indices: {res.meta.get('title') or res.name}", fontsize=10)
+    return [Figure(f"{res.name}_tornado", f"Sobol indices with bootstrap intervals "
+                   f"({res.name})", fig)]
+
+
+def prior_posterior(res: StepResult, labels, units=None,
+                    truth: Mapping[str, Distribution] | None = None) -> list[Figure]:
+    """Prior density, the chain's histogram and the normal fit handed on, per parameter."""
+    names = res.columns("chain")
+    chain = np.asarray(res.arrays["chain"])
+    prior = {k: dict_to_dist(v) for k, v in res.meta.get("prior", {}).items()}
+    cols = min(3, len(names))
+    rows = int(np.ceil(len(names) / cols))
+    fig, axes = _subplots(rows, cols, figsize=(3.7 * cols, 2.7 * rows + 0.5), squeeze=False)
+    for j, p in enumerate(names):
+        ax = axes.flat[j]
+        x = chain[:, j]
+        lo, hi = np.percentile(x, [0.1, 99.9])
+        if p in prior:
+            plo, phi = prior[p].bounds
+            lo = min(lo, plo) if np.isfinite(plo) else lo
+            hi = max(hi, phi) if np.isfinite(phi) else hi
+        grid = np.linspace(lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo), 300)
+        ax.hist(x, bins=40, density=True, color="#c6dbef", label="posterior (chain)",
+                rasterized=True)
+        if p in prior:
+            ax.plot(grid, prior[p].pdf(grid), "k--", lw=1.2, label="prior")
+        ax.plot(grid, stats.norm.pdf(grid, x.mean(), x.std(ddof=1)), "C0", lw=1.5,
+                label="normal handed on (mean, std)")
+        if truth and p in truth:
+            ax.plot(grid, truth[p].pdf(grid), "C2", lw=1.2, label="true (data-generating)")
+        ax.set_xlabel(axis_label(p, labels, units), fontsize=9)
+        u = unit_of(p, units)
+        ax.set_ylabel("density [-]" if u == "-" else
+                      f"density [1/{u}]" if " " not in u else f"density [1/({u})]", fontsize=8)
+        ax.tick_params(labelsize=_TICK)
+    for ax in list(axes.flat)[len(names):]:
+        ax.axis("off")
+    _legend_below(fig, axes)
+    return [Figure(f"{res.name}_densities", f"Prior and posterior densities ({res.name})", fig)]
+
+
+def chain_traces(res: StepResult, labels, units=None) -> list[Figure]:
+    names = res.columns("chain")
+    chain = np.asarray(res.arrays["chain"])
+    fig, axes = _subplots(len(names), 1, figsize=(8, 1.15 * len(names) + 0.9), sharex=True,
+                          squeeze=False)
+    step = max(1, chain.shape[0] // 4000)
+    for j, p in enumerate(names):
+        ax = axes[j, 0]
+        ax.plot(np.arange(0, chain.shape[0], step), chain[::step, j], lw=0.4, color="C0",
+                rasterized=True)
+        ax.set_ylabel(axis_label(p, labels, units), fontsize=8, rotation=0, ha="right",
+                      va="center")
+        ax.tick_params(labelsize=_TICK)
+    axes[-1, 0].set_xlabel("chain sample after burn-in [-]")
+    return [Figure(f"{res.name}_traces", f"Chain traces ({res.name})", fig)]
+
+
+def pair_plot(res: StepResult, labels, units=None) -> list[Figure]:
+    """Lower triangle: joint samples (1,000 spread over the chain, rasterized); diagonal:
+    marginal histograms; the posterior correlation in each panel's corner (red beyond
+    |0.7|). Laid out by hand: constrained layout costs seconds on d^2 axes."""
+    names = res.columns("chain")
+    chain = np.asarray(res.arrays["chain"])
+    d = len(names)
+    idx = np.linspace(0, chain.shape[0] - 1, min(chain.shape[0], 1000)).astype(int)
+    corr = np.corrcoef(chain, rowvar=False) if d > 1 else np.ones((1, 1))
+    size = 1.6 * d + 1.4
+    from matplotlib.figure import Figure as _MplFigure
+
+    fig = _MplFigure(figsize=(size, size))
+    axes = fig.subplots(d, d, squeeze=False)
+    margin = 1.3 / size
+    fig.subplots_adjust(left=margin, bottom=margin, right=0.99, top=0.99, wspace=0.08,
+                        hspace=0.08)
+    for i in range(d):
+        for j in range(d):
+            ax = axes[i, j]
+            if j > i:
+                ax.set_visible(False)
+                continue
+            ax.tick_params(labelsize=7, labelrotation=45, labelbottom=i == d - 1,
+                           labelleft=j == 0 and i > 0)
+            if i == j:
+                counts, edges = np.histogram(chain[:, i], bins=30)
+                ax.stairs(counts, edges, fill=True, color="#6baed6")
+                ax.set_yticks([])
+            else:
+                ax.plot(chain[idx, j], chain[idx, i], ".", ms=1.2, alpha=0.4, color="C0",
+                        rasterized=True)
+                ax.text(0.03, 0.95, f"{corr[i, j]:+.2f}", transform=ax.transAxes, fontsize=7,
+                        va="top", color="C3" if abs(corr[i, j]) > 0.7 else "k")
+            if i == d - 1:
+                ax.set_xlabel(axis_label(names[j], labels, units), fontsize=8)
+            if j == 0 and i > 0:
+                ax.set_ylabel(axis_label(names[i], labels, units), fontsize=8)
+    axes[0, 0].set_ylabel("count [-]", fontsize=8)
+    return [Figure(f"{res.name}_pairs", f"Posterior pair plot, correlation in each panel "
+                   f"({res.name})", fig)]
+
+
+def _thesis_prediction(step: str, label: str) -> dict[str, tuple[float, float]]:
+    """response -> (mean, std) the thesis prints for this forward step and sweep point."""
+    out: dict[str, tuple[float, float]] = {}
+    for t in TABLES:
+        for _, cells in t.rows:
+            if len(cells) < 2:
+                continue
+            (m, src), (s, _src2) = cells[0], cells[1]
+            if (src and src.startswith(f"{step}:mean/") and src.endswith(label)
+                    and m is not None and s is not None):
+                r = src.split("/", 1)[1][: len(src.split("/", 1)[1]) - len(label)]
+                out[r] = (m, s)
+    return out
+
+
+def load_distributions(res: StepResult, units=None, thesis: bool = False) -> list[Figure]:
+    """PDF (histogram + KDE) and empirical CDF of every response at every sweep point, with
+    the measured value; the joint posterior predictive beside the independent-normal
+    propagation when the step has both, and the thesis's normal N(mean, std) when it prints
+    one."""
+    out = []
+    for label in res.meta.get("labels", [""]) or [""]:
+        arr = f"outputs{label}"
+        if arr not in res.arrays:
+            continue
+        resp = res.columns(arr)
+        pp = res.arrays.get(f"pp_outputs{label}")
+        th = _thesis_prediction(res.name, label) if thesis and label else {}
+        fig, axes = _subplots(2, len(resp), figsize=(3.3 * len(resp) + 0.4, 5.6),
+                              squeeze=False)
+        for k, r in enumerate(resp):
+            series = [("independent normals" if pp is not None else "samples",
+                       np.asarray(res.arrays[arr])[:, k], "C0")]
+            if pp is not None:
+                series.append(("joint posterior predictive", np.asarray(pp)[:, k], "C1"))
+            ax, ax2 = axes[0, k], axes[1, k]
+            lo, hi = np.inf, -np.inf
+            for name, v, color in series:
+                v = v[np.isfinite(v)]
+                if v.size < 2:
+                    continue
+                lo, hi = min(lo, float(v.min())), max(hi, float(v.max()))
+                ax.hist(v, bins=30, density=True, color=color, alpha=0.3, rasterized=True)
+                if np.std(v) > 0:
+                    g = np.linspace(v.min(), v.max(), 200)
+                    ax.plot(g, stats.gaussian_kde(v)(g), color=color, label=name)
+                s = np.sort(v)
+                ax2.step(s, np.arange(1, s.size + 1) / s.size, where="post", color=color,
+                         label=name)
+            if r in th and th[r][1]:
+                th_mean, th_std = th[r]
+                g = np.linspace(min(lo, th_mean - 3 * th_std), max(hi, th_mean + 3 * th_std), 200)
+                for axis, law in ((ax, stats.norm.pdf), (ax2, stats.norm.cdf)):
+                    axis.plot(g, law(g, th_mean, th_std), "k:", lw=1.2,
+                              label="thesis N(mean, std)")
+            measured = res.scalars.get(f"data/{r}{label}")
+            if measured is not None:
+                for a in (ax, ax2):
+                    a.axvline(measured, color="C3", ls="--", lw=1.2, label="measured")
+            u = unit_of(r, units)
+            ax.set_ylabel("PDF [-]" if u == "-" else
+                          f"PDF [1/{u}]" if " " not in u else f"PDF [1/({u})]", fontsize=8)
+            ax2.set_ylabel("CDF [-]", fontsize=8)
+            for a in (ax, ax2):
+                a.set_xlabel(axis_label(r, None, units), fontsize=8)
+                a.tick_params(labelsize=_TICK)
+        _legend_below(fig, axes)
+        where = f" at H/R = {label[1:]}" if label else ""
+        fig.suptitle(f"Response distributions{where} ({res.name})", fontsize=10)
+        out.append(Figure(f"{res.name}_loads{label.replace('@', '_h')}",
+                          f"Response PDFs and CDFs{where} ({res.name})", fig))
+    return out
+
+
+def cuu_comparison(res: StepResult, labels, units=None) -> list[Figure]:
+    """Input std devs before/after CUU and output CDFs: initial, calibrated, target."""
+    params = res.meta.get("parameters", [])
+    resp = res.columns("outputs_calibrated") or res.meta.get("responses", [])
+    n = 1 + len(resp)
+    fig, axes = _subplots(1, n, figsize=(3.4 * n, 3.6), squeeze=False)
+    ax = axes[0, 0]
+    x = np.arange(len(params))
+    init = [res.get(f"initial_std/{p}") / abs(res.get(f"mean/{p}") or 1) for p in params]
+    cal = [res.get(f"std/{p}") / abs(res.get(f"mean/{p}") or 1) for p in params]
+    ax.bar(x - 0.2, init, 0.4, label="initial input std", color="#9ecae1")
+    ax.bar(x + 0.2, cal, 0.4, label="calibrated input std", color="C0")
+    ax.set_xticks(x, [(labels or {}).get(p) or p for p in params], rotation=30, fontsize=_TICK)
+    ax.set_xlabel("input")
+    ax.set_ylabel("input std / |mean| [-]", fontsize=8)
+    for k, r in enumerate(resp):
+        ax = axes[0, k + 1]
+        for tag, style in (("initial", ":"), ("calibrated", "-")):
+            arr = res.arrays.get(f"outputs_{tag}")
+            if arr is None:
+                continue
+            v = np.sort(np.asarray(arr)[:, k])
+            v = v[np.isfinite(v)]
+            ax.plot(v, np.arange(1, v.size + 1) / v.size, style, label=f"{tag} inputs (LHS)")
+        m, s = res.scalars.get(f"target_mean/{r}"), res.scalars.get(f"target_std/{r}")
+        if m is not None and s is not None:
+            g = np.linspace(m - 4 * s, m + 4 * s, 200)
+            ax.plot(g, stats.norm.cdf(g, m, s), "k--", lw=1, label="target N(mean, std)")
+        ax.set_xlabel(axis_label(r, None, units), fontsize=8)
+        ax.set_ylabel("CDF [-]", fontsize=8)
+        ax.tick_params(labelsize=_TICK)
+    _legend_below(fig, axes)
+    return [Figure(f"{res.name}_cuu", f"Calibration under uncertainty ({res.name})", fig)]
+
+
+def ground_effect_curves(res: StepResult, thesis: bool = False,
+                         curves: Mapping[str, Mapping[str, list]] | None = None
+                         ) -> list[Figure]:
+    """C_T/C_T(4R) and C_Q/C_Q(4R) vs H/R: model mean with +-3 std bars under each
+    propagation, the thesis's (tables 4.18-4.19), the test points, Cheeseman-Bennett and the
+    (digitized, approximate) Fradenburgh curve for C_T."""
+    sweep = res.meta.get("sweep", {})
+    heights = np.asarray(sweep.get("height_over_radius", []), dtype=float)
+    if heights.size == 0:
+        return []
+    labels = res.meta.get("labels", [])
+    out = []
+    for r, title in (("ct", "thrust"), ("cq", "torque")):
+        if f"mean/{r}{labels[0]}" not in res.scalars:
+            continue
+        sym = "C_T" if r == "ct" else "C_Q"
+        fig, ax = _subplots(figsize=(7.2, 4.2))
+        series = [("", "model, independent normals (mean +- 3 std)", "C0", 0.0)]
+        if f"pp_mean/{r}{labels[0]}" in res.scalars:
+            series.append(("pp_", "model, joint posterior predictive (mean +- 3 std)", "C1",
+                           0.04))
+        for prefix, name, color, dx in series:
+            mean = np.array([res.get(f"{prefix}mean/{r}{lab}", math.nan) for lab in labels])
+            std = np.array([res.get(f"{prefix}std/{r}{lab}", math.nan) for lab in labels])
+            ax.errorbar(heights + dx, mean, yerr=3 * std, fmt="-s", color=color, capsize=4,
+                        ms=4, label=name)
+        if thesis:
+            th_m, th_s = [], []
+            for lab in labels:
+                t = _thesis_prediction(res.name, lab).get(r)
+                th_m.append(np.nan if t is None else t[0])
+                th_s.append(np.nan if t is None else t[1])
+            if np.any(np.isfinite(th_m)):
+                ax.errorbar(heights - 0.04, th_m, yerr=3 * np.asarray(th_s), fmt="--^",
+                            color="C7", capsize=3, ms=4, label="thesis (mean +- 3 std)")
+        data = np.array([res.get(f"data/{r}{lab}", math.nan) for lab in labels])
+        ax.plot(heights, data, "o", color="k", label="experiment")
+        h = np.linspace(0.8, 4.2, 200)
+        if r == "ct":
+            ref = 4.0
+            cb = 1.0 / (1.0 - (1.0 / (4.0 * h)) ** 2)
+            cb_ref = 1.0 / (1.0 - (1.0 / (4.0 * ref)) ** 2)
+            ax.plot(h, cb / cb_ref, "--", color="C4", label="Cheeseman-Bennett (constant power)")
+            fr = (curves or {}).get("fradenburgh_thrust_ratio")
+            if fr:
+                fh = np.asarray(fr["height_over_radius"], dtype=float)
+                fv = np.asarray(fr["thrust_ratio"], dtype=float)
+                ax.plot(fh, fv / np.interp(ref, fh, fv), "-.", color="C2",
+                        label="Fradenburgh (digitized, approximate)")
+        ax.set_xlabel("rotor height H/R [-]")
+        ax.set_ylabel(f"{sym} / {sym}(4R test) [-]")
+        ax.set_title(f"Normalised {title} coefficient vs height", fontsize=10)
+        ax.grid(alpha=0.3)
+        ax.tick_params(labelsize=_TICK)
+        fig.legend(loc="outside right upper", **_LEGEND)
+        out.append(Figure(f"{res.name}_{r}_vs_height",
+                          f"Normalised {title} coefficient vs H/R ({res.name})", fig))
+    return out
+
+
+def thesis_sobol(step: str, study: str) -> dict | None:
+    """(response, input) -> thesis main index for the step, from the reference tables."""
+    out = {}
+    for t in TABLES:
+        if t.study != study:
+            continue
+        for _, cells in t.rows:
+            for value, src in cells:
+                if src and src.startswith(f"{step}:S/"):
+                    _, r, p = src.split(":", 1)[1].split("/")
+                    out[(r, p)] = value
+    return out or None

@@ -1,0 +1,183 @@
+"""What a step type is: the :class:`StepType` record, the :class:`StepContext` its adapter
+runs in, the :class:`StepCheck` its extra validation sees, and :func:`run_step`.
+
+Each step type is one module of :mod:`rotoruq.steps` defining ``STEP = StepType(...)``; the
+registry (:data:`rotoruq.steps.STEP_TYPES`) lists them. Option defaults of method parameters
+are read from the method's signature (:data:`~rotoruq.steps.options.SIGNATURE`): a study file
+and a Python call without that key get the same value.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any, NoReturn
+
+import numpy as np
+
+from ..errors import ParameterError
+from ..params import ParameterSpace
+from ..render.figures import Figure, FigureContext
+from ..render.tables import StepTable
+from ..results import StepResult
+from .options import SIGNATURE, Option, signature_default
+
+__all__ = ["StepType", "StepCheck", "StepContext", "run_step", "STATUS_INTERVAL", "DESIGNS",
+           "TablesHook", "FiguresHook", "WarningsHook"]
+
+log = logging.getLogger(__name__)
+
+#: Sampling designs (``design = ...``).
+DESIGNS = ("lhs", "random", "sobol", "halton")
+
+TablesHook = Callable[[StepResult, Mapping[str, str]], list[StepTable]]
+FiguresHook = Callable[[StepResult, FigureContext], list[Figure]]
+WarningsHook = Callable[[StepResult, Mapping[str, str]], list[str]]
+
+
+@dataclass
+class StepContext:
+    """Everything a step needs.
+
+    space : the uncertain inputs of the step (priors / input distributions), shape d.
+    responses : the step's response names (m).
+    fixed : the other model inputs and their values.
+    make_model(inputs, responses, fixed) -> Model : builds (store-backed) models, e.g. for
+        sweeps over fixed inputs.
+    data : (k, m) observations of ``responses`` (None when the step has no data).
+    data_columns : every column of the data set (for sweeps and normalisation).
+    targets : response -> (mean, std) (CUU).
+    rng : numpy Generator for this step.
+    source : the saved result of the ``from`` step (None without one); a forward check uses
+        its chain for the joint posterior predictive.
+    """
+
+    name: str
+    type: str
+    options: Mapping[str, Any]
+    space: ParameterSpace
+    responses: tuple[str, ...]
+    fixed: Mapping[str, float]
+    make_model: Callable[..., Any]
+    rng: np.random.Generator
+    data: np.ndarray | None = None
+    data_columns: Mapping[str, np.ndarray] = field(default_factory=dict)
+    targets: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    source: StepResult | None = None
+
+    def observations(self) -> np.ndarray:
+        """The step's data (k, m); a step type that needs data declares ``needs_data``."""
+        if self.data is None:
+            raise ParameterError(f"step {self.name!r} ({self.type}) needs data = \"NAME\"")
+        return self.data
+
+    def model(self, fixed: Mapping[str, float] | None = None) -> Any:
+        f = dict(self.fixed)
+        f.update(fixed or {})
+        return self.make_model(self.space.names, self.responses, f)
+
+
+@dataclass(frozen=True, eq=False)
+class StepCheck:
+    """What a step type's ``check`` hook sees of one parsed step.
+
+    options : the step's options, defaults filled in. model : the study's ``[model]``
+    (:class:`rotoruq.study.spec.ModelSpec`: ``responses``, ``inputs``, ...).
+    responses : the step's ``responses`` selection (None: all). parameters : the study's
+    parameter names. fail(key_path, expected, found) raises the file/line error for a key
+    of this step. reference(ref, key, attrs) checks a ``"step.attr"`` reference to an
+    earlier step. check_input(key_path, name) checks a model input name. numbers(table,
+    key_path, what) checks a table of numbers.
+    """
+
+    options: Mapping[str, Any]
+    model: Any
+    responses: tuple[str, ...] | None
+    parameters: tuple[str, ...]
+    fail: Callable[..., NoReturn]
+    reference: Callable[[str, str, tuple[str, ...]], tuple[str, str]]
+    check_input: Callable[[tuple, str], None]
+    numbers: Callable[[Mapping, tuple, str], dict[str, float]]
+
+
+@dataclass(frozen=True, eq=False)
+class StepType:
+    """One step type.
+
+    name : the ``type`` of a ``[[steps]]`` table. run : the adapter
+        ``run(StepContext) -> StepResult`` (it calls the method; study logic of the type
+        lives in a function of its own). options : key -> :class:`Option`.
+    method : ``"module:function"`` whose signature gives the :data:`SIGNATURE` defaults.
+    provides : attributes later steps may take (``"posterior"``, ``"calibrated"``,
+        ``"samples"``) through ``from = "step.ATTR"`` / ``data = "step.ATTR"``.
+    needs_data : the step takes observations (the study's only data set when it names none).
+    quick : option -> upper bound under ``--quick``.
+    check : extra validation ``check(StepCheck)`` after the options are read.
+    tables(result, labels) -> list of :class:`~rotoruq.render.tables.StepTable`;
+    figures(result, context) -> list of :class:`~rotoruq.render.figures.Figure`
+        (context: :class:`~rotoruq.render.figures.FigureContext`);
+    warnings(result, labels) -> list of warning sentences. Each may be None (the report then
+        shows a key/value table, no figures, no warnings).
+    modules : the modules whose code computes this type's numbers (its own module and its
+        methods'); their source enters the step's fingerprint (:func:`step_code_version`).
+    """
+
+    name: str
+    run: Callable[[StepContext], StepResult]
+    options: Mapping[str, Option] = field(default_factory=dict)
+    method: str | None = None
+    provides: tuple[str, ...] = ()
+    needs_data: bool = False
+    quick: Mapping[str, int] = field(default_factory=dict)
+    check: Callable[[StepCheck], None] | None = None
+    tables: TablesHook | None = None
+    figures: FiguresHook | None = None
+    warnings: WarningsHook | None = None
+    modules: tuple[str, ...] = ()
+
+    def default(self, key: str) -> Any:
+        """Default of option ``key``: its own, or its method parameter's (:data:`REQUIRED`
+        when that has none)."""
+        opt = self.options[key]
+        if opt.default is not SIGNATURE:
+            return opt.default
+        target = opt.method or self.method
+        if target is None:
+            raise LookupError(f"step type {self.name!r}: option {key!r} takes its default "
+                              "from a method signature, but the step type names no method")
+        return signature_default(target, opt.param or key)
+
+
+#: Seconds between status lines of a running step (a silent terminal for minutes reads as a
+#: hang).
+STATUS_INTERVAL = 15.0
+
+
+def run_step(run: Callable[[StepContext], StepResult], ctx: StepContext
+             ) -> tuple[StepResult, float]:
+    """Run the adapter ``run`` on ``ctx``; returns the result and the wall time in s. While it
+    runs, a status line goes to the log (INFO) every :data:`STATUS_INTERVAL` seconds."""
+    from ..evaluation.progress import format_duration
+
+    t0 = time.perf_counter()
+    done = threading.Event()
+
+    def status() -> None:
+        while not done.wait(STATUS_INTERVAL):
+            log.info("  %s: %s running, %s elapsed", ctx.name, ctx.type,
+                     format_duration(time.perf_counter() - t0))
+
+    watcher = None
+    if log.isEnabledFor(logging.INFO):
+        watcher = threading.Thread(target=status, name=f"status-{ctx.name}", daemon=True)
+        watcher.start()
+    try:
+        res = run(ctx)
+    finally:
+        done.set()
+        if watcher is not None:
+            watcher.join()
+    return res, time.perf_counter() - t0

@@ -1,0 +1,77 @@
+"""Step type ``mean_value``: first-order mean and std of each response from the gradient at
+the input means, and each input's importance factor."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..render.tables import StepTable, label, make_table
+from ..results import StepRecord, StepResult
+from ._common import input_scalars
+from .base import StepContext, StepType
+from .options import SIGNATURE, Option, table
+
+__all__ = ["STEP", "MeanValueRecord", "run_mean_value", "mean_value_tables", "LEVELS"]
+
+#: The ``response_levels`` / ``probability_levels`` options (mean value, reliability).
+LEVELS = {"response_levels": Option(table, SIGNATURE),
+          "probability_levels": Option(table, SIGNATURE)}
+
+
+@dataclass(frozen=True, eq=False)
+class MeanValueRecord(StepRecord):
+    """What a mean-value step saves: m responses, d inputs.
+
+    names_in (d), names_out (m); mean, std (m,) first-order moments; importance (m, d) each
+    input's share of the first-order variance; gradient (m, d) at the input means.
+    """
+
+    AXES = {"mean": ("response",), "std": ("response",), "importance": ("response", "input"),
+            "gradient": ("response", "input")}
+
+    names_in: tuple[str, ...]
+    names_out: tuple[str, ...]
+    mean: np.ndarray
+    std: np.ndarray
+    importance: np.ndarray
+    gradient: np.ndarray
+
+
+def run_mean_value(ctx: StepContext) -> StepResult:
+    from ..methods.reliability import mean_value
+
+    o = ctx.options
+    res = mean_value(ctx.model(), ctx.space, response_levels=o.get("response_levels"),
+                     probability_levels=o.get("probability_levels"))
+    scalars = {}
+    for k, r in enumerate(ctx.responses):
+        scalars[f"mean/{r}"] = float(res.mean[k])
+        scalars[f"std/{r}"] = float(res.std[k])
+        for j, p in enumerate(ctx.space.names):
+            scalars[f"importance/{r}/{p}"] = float(res.importance[k, j])
+    scalars.update(input_scalars(ctx.space))
+    record = MeanValueRecord(tuple(ctx.space.names), tuple(ctx.responses),
+                             np.asarray(res.mean, dtype=float), np.asarray(res.std, dtype=float),
+                             np.asarray(res.importance, dtype=float), np.asarray(res.gradient))
+    arrays, meta = record.parts()
+    return StepResult(ctx.name, ctx.type, scalars, arrays,
+                      meta={"n_evaluations": int(res.n_evaluations), **meta})
+
+
+def mean_value_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
+    rec = MeanValueRecord.read(res)
+    return [make_table("Mean value method (first order)", ("response", "mean", "std"),
+                       [[r, float(rec.mean[k]), float(rec.std[k])]
+                        for k, r in enumerate(rec.names_out)]),
+            make_table("Importance factors", ("input", *rec.names_out),
+                       [[label(p, labels), *[float(v) for v in rec.importance[:, j]]]
+                        for j, p in enumerate(rec.names_in)],
+                       "Share of each input in the first-order variance.")]
+
+
+STEP = StepType(
+    "mean_value", run_mean_value, method="rotoruq.methods.reliability:mean_value",
+    options=dict(LEVELS), tables=mean_value_tables)

@@ -143,6 +143,15 @@ def test_allocation_from_the_pilot_and_the_result_record():
     assert res.table()[0]["response"] == "y"
 
 
+def test_budget_in_hf_runs():
+    kw = dict(estimator="mfmc", n_pilot=20, costs=[2.0, 0.1, 0.02], seed=4)
+    a = rq.multifidelity_sample(_ladder(), SPACE, 50.0, budget_unit="hf_runs", **kw)
+    b = rq.multifidelity_sample(_ladder(), SPACE, 100.0, **kw)
+    assert a.budget == 100.0 and a.allocation.tolist() == b.allocation.tolist()
+    with pytest.raises(ParameterError, match="budget_unit"):
+        rq.multifidelity_sample(_ladder(), SPACE, 50.0, budget_unit="seconds", **kw)
+
+
 def test_measured_costs_and_optimised_acv():
     res = rq.multifidelity_sample(_ladder(), SPACE, 0.05, estimator="acvis", n_pilot=50,
                                   seed=1)
@@ -250,3 +259,49 @@ def test_cokriging_bad_input():
         ck.fit([np.zeros((5, 1)), np.zeros((2, 1))], [np.zeros(5), np.zeros(2)])
     with pytest.raises(ParameterError, match="seed"):
         rq.CoKriging({"seed": 1})
+
+
+# --- the study step type -----------------------------------------------------------------------
+
+def _step_context(options, make_model):
+    from rotoruq.steps import STEP_TYPES, StepContext
+
+    st = STEP_TYPES["multifidelity"]
+    full = {k: st.default(k) for k in st.options if k not in options}
+    full.update(options)
+    return st, StepContext(name="mf", type="multifidelity", options=full, space=SPACE,
+                           responses=("y",), fixed={}, make_model=make_model,
+                           rng=np.random.default_rng(5))
+
+
+def test_multifidelity_step_runs_the_named_models_and_reports_the_allocation():
+    ladder = dict(zip(("model", "x4", "x3", "flat"), _ladder((5, 4, 3, 1)), strict=True))
+
+    def make_model(inputs, responses, fixed, model=None):
+        return ladder[model or "model"]
+
+    st, ctx = _step_context({"models": ("x4", "x3"), "budget": 100.0,
+                             "costs": (1.0, 0.05, 0.01), "n_pilot": 200}, make_model)
+    res = st.run(ctx)
+    mean, cov, _ = _exact()
+    assert res.meta["models"] == ["model", "x4", "x3"]
+    assert abs(res.scalars["mean/y"] - mean[0]) < 4 * res.scalars["mean_se/y"]
+    assert res.scalars["runs/model"] == 200 + res.scalars["allocation/model"]
+    assert res.scalars["n_equivalent_hf/mean/y"] > 3 * 100.0
+    alloc, est = st.tables(res, {})
+    assert [row[0] for row in alloc.rows] == ["model", "x4", "x3"]
+    assert est.rows[0][0] == "y" and est.rows[0][1] == res.scalars["mean/y"]
+    assert st.warnings(res, {}) == []
+    # a weak, costly model is left out, and the report says so
+    st, ctx = _step_context({"models": ("x4", "flat"), "budget": 100.0,
+                             "costs": (1.0, 0.05, 0.9), "n_pilot": 100}, make_model)
+    res = st.run(ctx)
+    assert res.scalars["used/flat"] == 0.0
+    assert any("'flat' was left out" in w for w in st.warnings(res, {}))
+
+
+def test_multifidelity_step_needs_a_factory_of_named_models():
+    st, ctx = _step_context({"models": ("x4",), "budget": 10.0},
+                            lambda inputs, responses, fixed: _ladder()[0])
+    with pytest.raises(ParameterError, match="builds named models"):
+        st.run(ctx)

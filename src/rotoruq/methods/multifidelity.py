@@ -36,9 +36,10 @@ from .acv import (
     sample_sets,
 )
 
-__all__ = ["MultifidelityResult", "multifidelity_sample", "STATISTICS"]
+__all__ = ["MultifidelityResult", "multifidelity_sample", "STATISTICS", "BUDGET_UNITS"]
 
 STATISTICS = ("mean", "variance")
+BUDGET_UNITS = ("cost", "hf_runs")
 
 
 @dataclass(frozen=True, eq=False)
@@ -60,7 +61,7 @@ class MultifidelityResult:
     costs : (K,) cost of one evaluation of each model: wall seconds per point measured in the
         pilot (batched evaluation, driver included) when not given.
     costs_measured : True when ``costs`` were measured.
-    budget : cost given to the main phase (units of ``costs``).
+    budget : cost given to the main phase (units of ``costs``, whatever ``budget_unit``).
     cost_pilot, cost_main : cost of the pilot and of the main phase, ``costs`` times the
         evaluations (the pilot comes on top of ``budget``).
     wall_pilot, wall_main : (K,) seconds spent evaluating each model.
@@ -172,6 +173,7 @@ def multifidelity_sample(
     space: ParameterSpace,
     budget: float | None,
     *,
+    budget_unit: str = "cost",
     estimator: str = "mfmc",
     n_pilot: int = 50,
     costs: Sequence[float] | None = None,
@@ -192,6 +194,8 @@ def multifidelity_sample(
         estimators' variances assume independent points).
     budget : cost of the main phase, in the units of ``costs`` (seconds when measured); the
         pilot's ``n_pilot * sum(costs)`` comes on top. None when ``allocation`` is given.
+    budget_unit : "cost" (``budget`` in the units of ``costs``) or "hf_runs" (in evaluations
+        of the high-fidelity model: ``budget * costs[0]``).
     estimator : "mfmc" (multifidelity Monte Carlo, closed-form allocation), "acvmf" or "acvis"
         (approximate control variates, allocation by numerical optimisation).
     n_pilot : points of the pilot, every model on each (>= 4): it measures the costs and the
@@ -244,6 +248,8 @@ def multifidelity_sample(
     jt = names_out.index(target)
     if isinstance(n_pilot, bool) or not isinstance(n_pilot, int | np.integer) or n_pilot < 4:
         raise ParameterError(f"n_pilot must be an integer >= 4, got {n_pilot!r}")
+    if budget_unit not in BUDGET_UNITS:
+        raise ParameterError(f"budget_unit must be one of {BUDGET_UNITS}, got {budget_unit!r}")
     if (budget is None) == (allocation is None):
         raise ParameterError("give either a budget or an allocation (evaluations per model)")
     if costs is not None:
@@ -280,6 +286,8 @@ def multifidelity_sample(
     if budget is None:
         plan = fixed_allocation(cov[jt], w, np.asarray(allocation), estimator=estimator)
     else:
+        if budget_unit == "hf_runs":
+            budget = float(budget) * float(w[0])
         plan = allocate(cov[jt], w, float(budget), estimator=estimator, select=select)
     used = list(plan.models)
     sets = sample_sets(estimator, plan.n_samples)

@@ -76,6 +76,8 @@ class MultifidelityResult:
         estimator variance.
     speedup : statistic -> (m,) cost of those runs over ``cost_pilot + cost_main``.
     n_evaluations : evaluations of all models, pilot included.
+    pilot_inputs : (n_pilot, d) the pilot's points; pilot_outputs : (n_pilot, K, m) every
+        model's responses there (NaN where one failed).
     """
 
     names_in: tuple[str, ...]
@@ -103,6 +105,8 @@ class MultifidelityResult:
     speedup: dict = field(default_factory=dict)
     n_evaluations: int = 0
     plan: Allocation | None = field(default=None, repr=False)
+    pilot_inputs: np.ndarray | None = field(default=None, repr=False)
+    pilot_outputs: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def std(self) -> np.ndarray:
@@ -346,4 +350,5 @@ def multifidelity_sample(
         correlation=correlation, mean=est["mean"], mean_se=se["mean"],
         variance=est["variance"], variance_se=se["variance"], weights=weights,
         n_equivalent_hf=n_eq, speedup=speedup,
-        n_evaluations=int(n_pilot) * K + int(plan.n_samples.sum()), plan=plan)
+        n_evaluations=int(n_pilot) * K + int(plan.n_samples.sum()), plan=plan,
+        pilot_inputs=xp, pilot_outputs=Yp)

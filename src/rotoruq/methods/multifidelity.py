@@ -148,7 +148,7 @@ def _check_models(models: Sequence[Model], space: ParameterSpace) -> tuple[str, 
     return names_out
 
 
-def _timed(model: Model, space: ParameterSpace, x: np.ndarray, what: str
+def _timed(model: Model, space: ParameterSpace, x: np.ndarray
            ) -> tuple[np.ndarray, dict, float]:
     t0 = time.perf_counter()
     batch = eval_space(model, space, x)
@@ -270,7 +270,7 @@ def multifidelity_sample(
     wall_pilot = np.zeros(K)
     ok = np.ones(int(n_pilot), dtype=bool)
     for k, mod in enumerate(models):
-        Yp[:, k, :], fails, wall_pilot[k] = _timed(mod, space, xp, "pilot")
+        Yp[:, k, :], fails, wall_pilot[k] = _timed(mod, space, xp)
         ok &= np.all(np.isfinite(Yp[:, k, :]), axis=1)
         if fails:
             ok[list(fails)] = False
@@ -303,7 +303,7 @@ def multifidelity_sample(
     values: list[np.ndarray] = []
     for pos, k in enumerate(used):
         idx = sets.indices(2 * pos if pos else 0)
-        y, fails, wall_main[k] = _timed(models[k], space, xm[idx], "main")
+        y, fails, wall_main[k] = _timed(models[k], space, xm[idx])
         if fails:
             first = next(iter(fails.items()))
             raise EvaluationError(

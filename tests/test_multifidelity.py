@@ -82,6 +82,23 @@ def test_mfmc_weights_are_peherstorfers():
     np.testing.assert_allclose(alpha, -rho[1:] * sd[0] / sd[1:], rtol=1e-10)
 
 
+@pytest.mark.parametrize("estimator", ["acvmf", "acvis"])
+def test_acv_variance_matches_gorodetsky_closed_form(estimator):
+    """Gorodetsky et al. (2020), sec. 4: Var = (C_00 - a^T (F o C)^-1 a) / N with
+    a = diag(F) o c, F^IS_ij = (r_i - 1)(r_j - 1) / (r_i r_j), F^MF_ij = (min(r_i, r_j) - 1)
+    / min(r_i, r_j) (i != j), F_ii = (r_i - 1) / r_i for both."""
+    _, cov, _ = _exact((5, 4, 3, 2))
+    N, r = 20, np.array([3.0, 11.0, 40.0])
+    lo = np.minimum.outer(r, r)
+    F = ((r[:, None] - 1) * (r[None, :] - 1) / np.outer(r, r) if estimator == "acvis"
+         else (lo - 1) / lo)
+    np.fill_diagonal(F, (r - 1) / r)
+    a = np.diag(F) * cov[0, 1:]
+    closed = (cov[0, 0] - a @ np.linalg.solve(F * cov[1:, 1:], a)) / N
+    ours = estimator_variance(estimator, N * np.concatenate([[1.0], r]), "mean", cov)
+    assert ours == pytest.approx(closed, rel=1e-10)
+
+
 def test_variance_estimator_covariance_is_the_sample_variance_variance():
     _, cov, m22 = _exact((5,))
     n = 30

@@ -15,9 +15,12 @@ Monte Carlo needs for the same standard error of the mean and of the variance
 from the pilot's covariances (``--pilot`` points, so the correlations carry that sampling
 error; the JSON gives them).
 
-Co-kriging: on the pilot's points, the elastic MBDyn runs of the first half train (with the
+``predicted_at_larger_budgets``: the same rule on the pilot's covariances at budgets of 20 to
+200 elastic runs (no further runs): the pilot's fixed cost weighs less as the budget grows.
+
+Co-kriging: on the pilot's points, the first 4 or 8 elastic MBDyn runs train (with the
 built-in rotor on those points plus ``--n-lf`` LHS points) a :class:`rotoruq.CoKriging` and a
-GaussianProcess on the same high-fidelity runs; the second half is the holdout.
+GaussianProcess on the same high-fidelity runs; the last 8 are the holdout.
 
 Needs MBDyn ($MBDYN, PATH, or ~/.cache/mbdyn/bin/mbdyn). Run (about 5 minutes on 2 cores):
 python benchmarks/multifidelity_mbdyn.py > benchmarks/results/multifidelity_mbdyn.json
@@ -87,26 +90,60 @@ class MBDynModel:
 
 
 def cokriging_holdout(res, builtin, n_lf: int, seed: int) -> dict:
-    """Co-kriging against a GP on the same elastic runs: train on the first half of the
-    pilot, test on the second half."""
+    """Co-kriging against a GP on the same elastic runs: train on the first 4 or 8 of the
+    pilot's points, test on the last 8."""
     X, Y = res.pilot_inputs, res.pilot_outputs  # (n, d), (n, K, m)
     ok = np.all(np.isfinite(Y[:, 0, :]), axis=1)
     X, Y = X[ok], Y[ok]
-    h = len(X) // 2
-    x_hf, y_hf, x_test, y_test = X[:h], Y[:h, 0, :], X[h:], Y[h:, 0, :]
-    x_lf = np.vstack([x_hf, SPACE.draw(n_lf, seed=seed)])
-    y_lf = rq.evaluate(builtin, x_lf).values
-    ck = rq.CoKriging(seed=seed).fit([x_lf, x_hf], [y_lf, y_hf])
-    gp = rq.GaussianProcess(seed=seed).fit(x_hf, y_hf)
-    pred_ck = ck.predict(x_test, return_var=False)
-    pred_gp = gp.predict(x_test, return_var=False, warn_distance=None)
+    x_test, y_test = X[-8:], Y[-8:, 0, :]
     scale = np.std(Y[:, 0, :], axis=0)
-    rmse = {name: np.sqrt(np.mean((p - y_test) ** 2, axis=0)) / scale
-            for name, p in (("cokriging", pred_ck), ("gp_hf_only", pred_gp))}
-    return {"n_hf_train": int(h), "n_hf_test": int(len(X) - h), "n_lf": int(len(x_lf)),
+    out = {}
+    for h in (4, 8):
+        if h > len(X) - 8:
+            continue
+        x_hf, y_hf = X[:h], Y[:h, 0, :]
+        x_lf = np.vstack([x_hf, SPACE.draw(n_lf, seed=seed)])
+        y_lf = rq.evaluate(builtin, x_lf).values
+        ck = rq.CoKriging(seed=seed).fit([x_lf, x_hf], [y_lf, y_hf])
+        gp = rq.GaussianProcess(seed=seed).fit(x_hf, y_hf)
+        pred = {"cokriging": ck.predict(x_test, return_var=False),
+                "gp_hf_only": gp.predict(x_test, return_var=False, warn_distance=None)}
+        out[f"n_hf_train_{h}"] = {
+            "n_lf": int(len(x_lf)), "n_hf_test": int(len(x_test)),
             "rho": dict(zip(RESPONSES, map(float, ck.rho[0]), strict=True)),
-            "holdout_nrmse": {k: dict(zip(RESPONSES, map(float, v), strict=True))
-                              for k, v in rmse.items()}}
+            "holdout_nrmse": {k: dict(zip(RESPONSES, map(float, np.sqrt(np.mean(
+                (p - y_test) ** 2, axis=0)) / scale), strict=True)) for k, p in pred.items()}}
+    return out
+
+
+def larger_budgets(res, budgets=(20.0, 50.0, 100.0, 200.0)) -> dict:
+    """What the pilot predicts at larger budgets (in elastic runs, the pilot's cost on top):
+    the same allocation rule and estimator on the pilot's covariances, no further runs."""
+    from rotoruq.methods.acv import allocate, estimator_variance
+
+    Y = res.pilot_outputs[np.all(np.isfinite(res.pilot_outputs), axis=(1, 2))]
+    d = Y - Y.mean(axis=0)
+    w = np.asarray(res.costs)
+    out = {}
+    for b in budgets:
+        row = {}
+        for j, r in enumerate(RESPONSES):
+            cov = np.cov(Y[:, :, j], rowvar=False)
+            m22 = np.einsum("nk,nl->kl", d[:, :, j] ** 2, d[:, :, j] ** 2) / len(Y)
+            plan = allocate(cov, w, b * w[0], estimator=res.estimator)
+            sub = np.ix_(plan.models, plan.models)
+            spent = (res.cost_pilot + plan.cost) / w[0]
+            v_mean = estimator_variance(res.estimator, plan.n_samples, "mean", cov[sub])
+            v_var = estimator_variance(res.estimator, plan.n_samples, "variance", cov[sub],
+                                       m22[sub])
+            s2, mu4 = cov[0, 0], m22[0, 0]
+            qa, qb, qc = v_var, -(v_var + mu4 - s2**2), mu4 - 3 * s2**2
+            n_var = (-qb + np.sqrt(max(qb * qb - 4 * qa * qc, 0.0))) / (2 * qa)
+            row[r] = {"hf_runs_main": int(plan.n_samples[0]), "spent_in_hf_runs": spent,
+                      "fewer_hf_runs_mean": float(s2 / v_mean / spent),
+                      "fewer_hf_runs_variance": float(n_var / spent)}
+        out[f"budget_{b:g}"] = row
+    return out
 
 
 def main() -> dict:
@@ -132,6 +169,7 @@ def main() -> dict:
                                       n_pilot=args.pilot, seed=args.seed)
         wall = time.perf_counter() - t0
         ck = cokriging_holdout(res, builtin, args.n_lf, args.seed)
+        bigger = larger_budgets(res)
     w_hf = float(res.costs[0])
     spent_hf_runs = (res.cost_pilot + res.cost_main) / w_hf
     per_response = {}
@@ -149,7 +187,7 @@ def main() -> dict:
                                             / spent_hf_runs),
         }
     out = {
-        "estimator": res.estimator, "pilot": res.n_pilot, "budget_hf_runs": args.budget,
+        "estimator": res.estimator, "n_pilot": res.n_pilot, "budget_hf_runs": args.budget,
         "elastic_revolutions": args.elastic_revolutions,
         "rigid_revolutions": args.rigid_revolutions,
         "cost_per_run_s": dict(zip(models, map(float, res.costs), strict=True)),
@@ -160,7 +198,11 @@ def main() -> dict:
         "spent_in_hf_runs": spent_hf_runs, "wall_s": wall,
         "responses": per_response,
         "mbdyn_failures": {"elastic": len(elastic.failures), "rigid": len(rigid.failures)},
+        "predicted_at_larger_budgets": bigger,
         "cokriging": ck,
+        "pilot": {"inputs": res.pilot_inputs.tolist(),
+                  "outputs": {name: res.pilot_outputs[:, k, :].tolist()
+                              for k, name in enumerate(models)}},
         "target_met": all(v["fewer_hf_runs_mean"] >= 10 and v["fewer_hf_runs_variance"] >= 10
                           for v in per_response.values()),
         "note": (f"standard errors and plain-MC counts predicted from the {res.n_pilot}-point "

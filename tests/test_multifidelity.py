@@ -72,6 +72,15 @@ def test_mfmc_allocation_matches_the_closed_form_for_two_models():
     assert num.ratios[1] == pytest.approx(r, rel=1e-3)
 
 
+def test_a_nearly_exact_low_fidelity_model_still_gets_two_hf_runs():
+    # rho^2 = 1 - 1e-8: the optimum wants a fraction of a high-fidelity run
+    cov = np.array([[1.0, 1.0 - 5e-9], [1.0 - 5e-9, 1.0]])
+    for estimator in ("mfmc", "acvmf"):
+        plan = allocate(cov, [1.0, 1e-3], 20.0, estimator=estimator)
+        assert plan.n_samples[0] == 2 and plan.cost <= 20.0
+        assert plan.n_samples[1] == int(np.floor((20.0 - 2.0) / 1e-3 + 1e-9))
+
+
 def test_mfmc_weights_are_peherstorfers():
     _, cov, _ = _exact()
     S = estimator_covariance(sample_sets("mfmc", [40, 400, 4000]), "mean", cov)

@@ -322,12 +322,22 @@ def allocate(cov: np.ndarray, costs, budget: float, *, estimator: str = "mfmc",
     assert best is not None  # the HF model alone is always admissible
     _, models, r = best
     sub_cov, sub_w = cov[np.ix_(models, models)], w[list(models)]
-    n = _integer(estimator, budget / float(sub_w @ r) * r)
-    if n[0] < 2:
+    n_cont = budget / float(sub_w @ r) * r
+    if n_cont[0] < 2.0 and len(models) > 1:
+        # the optimum wants fewer than the 2 high-fidelity runs a variance needs (a very good
+        # low-fidelity model): take 2 and spread what is left in the optimum's proportions
+        low = 2.0 * sub_w[0] + 2.0 * float(sub_w[1:].sum())
+        if budget >= low:
+            lf = n_cont[1:] * (budget - 2.0 * sub_w[0]) / float(sub_w[1:] @ n_cont[1:])
+            n_cont = np.concatenate([[2.0], np.maximum(lf, 2.0)])
+    n = _integer(estimator, n_cont)
+    while float(sub_w @ n) > budget * (1 + 1e-12) and n[-1] > n[0]:
+        n[-1] -= 1  # rounding the floors up to 2 may overspend: trim the cheapest set
+    if n[0] < 2 or float(sub_w @ n) > budget * (1 + 1e-12):
         raise ParameterError(
-            f"budget {budget:g} buys {n[0]} high-fidelity evaluation(s) with the {estimator} "
-            f"allocation (costs {w[list(models)].tolist()}); at least 2 are needed: raise the "
-            f"budget above {2 * float(sub_w @ r):g}")
+            f"budget {budget:g} buys {int(n_cont[0])} high-fidelity evaluation(s) with the "
+            f"{estimator} allocation (costs {w[list(models)].tolist()}); at least 2 are "
+            f"needed: raise the budget above {2 * float(sub_w @ r):g}")
     return Allocation(estimator=estimator, models=models, ratios=r, n_samples=n,
                       cost=float(sub_w @ n),
                       variance=estimator_variance(estimator, n, "mean", sub_cov))

@@ -54,6 +54,9 @@ _LAZY: dict[str, str] = {
     "write_c81": ".rotor.c81",
     "EvidenceResult": ".methods.evidence",
     "evidence": ".methods.evidence",
+    "CoKriging": ".methods.cokriging",
+    "MultifidelityResult": ".methods.multifidelity",
+    "multifidelity_sample": ".methods.multifidelity",
     "PCEResult": ".methods.pce",
     "polynomial_chaos": ".methods.pce",
     "MeanValueResult": ".methods.reliability",
@@ -193,6 +196,9 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     from .evaluation import (
         write_results as write_results,
     )
+    from .methods.cokriging import (
+        CoKriging as CoKriging,
+    )
     from .methods.cuu import (
         CUUCheck as CUUCheck,
     )
@@ -261,6 +267,12 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     )
     from .methods.mcmc.sbc import (
         simulation_based_calibration as simulation_based_calibration,
+    )
+    from .methods.multifidelity import (
+        MultifidelityResult as MultifidelityResult,
+    )
+    from .methods.multifidelity import (
+        multifidelity_sample as multifidelity_sample,
     )
     from .methods.pce import (
         PCEResult as PCEResult,

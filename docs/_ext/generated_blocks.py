@@ -1,0 +1,104 @@
+"""Number blocks in the docs that are generated from saved benchmark and script results.
+
+A block in a docs page (Markdown) reads::
+
+    <!-- generated: python benchmarks/gp_fit.py --summary benchmarks/results/gp_fit.json -->
+    ...the command's output, verbatim...
+    <!-- end generated -->
+
+The command prints text from a saved JSON file (never a new measurement), so it is fast and
+deterministic. ``python docs/_ext/generated_blocks.py`` rewrites every block from its command;
+``--check`` only reports the blocks that differ (``tests/test_docs.py`` runs the check).
+Commands run in this process (``runpy``, with the script's folder on ``sys.path`` as for
+``python script.py``) from the repository root, so the imports are paid once.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import re
+import runpy
+import shlex
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+DOCS = ROOT / "docs"
+BLOCK = re.compile(
+    r"^(<!-- generated: (?P<cmd>[^\n]+?) -->\n)(?P<body>.*?)^(<!-- end generated -->)$",
+    re.S | re.M)
+
+
+@dataclass(frozen=True, eq=False)
+class Block:
+    """One generated block: the page it is in, its command and its current text."""
+
+    page: Path
+    command: str
+    text: str
+
+
+def blocks(docs: Path = DOCS) -> list[Block]:
+    """Every generated block of every Markdown page under ``docs`` (build output excluded)."""
+    found = []
+    for page in sorted(docs.rglob("*.md")):
+        if "_build" in page.parts:
+            continue
+        for m in BLOCK.finditer(page.read_text(encoding="utf-8")):
+            found.append(Block(page, m["cmd"], m["body"]))
+    return found
+
+
+def run_command(command: str) -> str:
+    """The output of ``python SCRIPT ARGS...`` run in this process from the repository root."""
+    argv = shlex.split(command)
+    if len(argv) < 2 or argv[0] != "python" or not argv[1].endswith(".py"):
+        raise ValueError(f"a generated block's command must be 'python SCRIPT.py ...', "
+                         f"got {command!r}")
+    script = ROOT / argv[1]
+    if not script.is_file():
+        raise FileNotFoundError(f"generated block command {command!r}: no script {script}")
+    out = io.StringIO()
+    old_argv, old_path, old_cwd = sys.argv, list(sys.path), os.getcwd()
+    try:
+        sys.argv = [str(script), *argv[2:]]
+        sys.path.insert(0, str(script.parent))
+        os.chdir(ROOT)
+        with contextlib.redirect_stdout(out):
+            try:
+                runpy.run_path(str(script), run_name="__main__")
+            except SystemExit as exc:
+                if exc.code not in (None, 0):
+                    raise RuntimeError(f"{command!r} exited with {exc.code}") from None
+    finally:
+        sys.argv, sys.path[:] = old_argv, old_path
+        os.chdir(old_cwd)
+    return out.getvalue().strip("\n") + "\n"
+
+
+def regenerate(page: Path) -> str:
+    """The page's text with every block replaced by its command's output."""
+    def sub(m: re.Match) -> str:
+        return m[1] + run_command(m["cmd"]) + m[4]
+    return BLOCK.sub(sub, page.read_text(encoding="utf-8"))
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = sys.argv[1:] if argv is None else argv
+    stale = []
+    for page in sorted({b.page for b in blocks()}):
+        text = regenerate(page)
+        if text != page.read_text(encoding="utf-8"):
+            stale.append(page)
+            if "--check" not in args:
+                page.write_text(text, encoding="utf-8")
+    for page in stale:
+        print(f"{'stale' if '--check' in args else 'rewritten'}: {page.relative_to(ROOT)}")
+    return 1 if stale and "--check" in args else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

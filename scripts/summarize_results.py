@@ -1,0 +1,60 @@
+"""Print the docs' text for a saved result whose benchmark has no ``--summary`` of its own.
+
+    python scripts/summarize_results.py least_squares benchmarks/results/least_squares.json
+
+Kinds:
+- ``least_squares``: evaluations and final sum of squares of every solver in the same run,
+  like for like (forward-difference Jacobians, every evaluated point counted): ours with its
+  defaults and with Dakota's, scipy ``lm`` and ``trf``; then the comparison with real Dakota's
+  nl2sol when that run had Dakota.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from collections.abc import Callable
+
+SOLVERS = {"nl2sol": "ours", "nl2sol_dakota_defaults": "ours (Dakota's defaults)",
+           "scipy_lm": "scipy lm", "scipy_trf": "scipy trf"}
+
+
+def least_squares(res: dict) -> str:
+    """Markdown table of evaluations (sum of squares) per problem and solver."""
+    head = "| problem (published minimum) | " + " | ".join(SOLVERS.values()) + " |"
+    lines = [head, "|---" * (len(SOLVERS) + 1) + "|"]
+    for name, p in res["problems"].items():
+        kind = ", large residual" if p["large_residual"] else ""
+        cells = [f"{p[k]['evaluations']} ({p[k]['sumsq']:.6g})" if k in p else "-"
+                 for k in SOLVERS]
+        lines.append(f"| {name} ({p['published_sumsq']:g}{kind}) | " + " | ".join(cells) + " |")
+    lines += ["", "Evaluations (final sum of squares); every solver with forward-difference "
+              "Jacobians, every evaluated point counted by one wrapper."]
+    dk = res.get("dakota", {})
+    if dk.get("dakota_available"):
+        parts = []
+        for name, case in dk.items():
+            if not isinstance(case, dict):
+                continue
+            ours, theirs = case["rotoruq"], case["dakota"]
+            parts.append(f"{name} {ours['iterations']} vs {theirs['iterations']} iterations "
+                         f"(cost excess {ours['cost_excess']:.2g} vs {theirs['cost_excess']:.2g})")
+        lines += ["", f"Against Dakota's nl2sol (convergence_tolerance "
+                  f"{dk['convergence_tolerance']:g}, ours vs Dakota): " + "; ".join(parts) + "."]
+    return "\n".join(lines)
+
+
+KINDS: dict[str, Callable[[dict], str]] = {"least_squares": least_squares}
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("kind", choices=sorted(KINDS))
+    ap.add_argument("json", help="the saved result")
+    args = ap.parse_args(argv)
+    with open(args.json, encoding="utf-8") as fh:
+        print(KINDS[args.kind](json.load(fh)))
+
+
+if __name__ == "__main__":
+    main()

@@ -509,7 +509,7 @@ def _parse_blocks(text: str, path) -> list[ParametersFile]:
 
 
 def parse_parameters(text: str, path: str | os.PathLike | None = None) -> ParametersFile:
-    """Parse the text of a parameters file (standard or aprepro format, detected).
+    r"""Parse the text of a parameters file (standard or aprepro format, detected).
 
     A file of several blocks (Dakota's ``batch`` interface) raises
     :class:`~rotoruq.errors.InputFileError`; read it with :func:`parse_parameters_batch`.
@@ -530,7 +530,7 @@ def parse_parameters(text: str, path: str | os.PathLike | None = None) -> Parame
 
 def parse_parameters_batch(text: str, path: str | os.PathLike | None = None
                            ) -> list[ParametersFile]:
-    """Parse a parameters file of one or more blocks (Dakota's ``batch`` interface writes one
+    r"""Parse a parameters file of one or more blocks (Dakota's ``batch`` interface writes one
     block per evaluation, with evaluation ids ``<batch>:<eval>``).
 
     Examples

@@ -3,6 +3,8 @@
     python scripts/summarize_results.py least_squares benchmarks/results/least_squares.json
 
 Kinds:
+- ``mbdyn_rigid`` / ``mbdyn_elastic``: the two parts of ``benchmarks/mbdyn_parity.py
+  --from-json`` (its own formatting), for pages that discuss them apart.
 - ``least_squares``: evaluations and final sum of squares of every solver in the same run,
   like for like (forward-difference Jacobians, every evaluated point counted): ours with its
   defaults and with Dakota's, scipy ``lm`` and ``trf``; then the comparison with real Dakota's
@@ -13,7 +15,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from collections.abc import Callable
+from pathlib import Path
 
 SOLVERS = {"nl2sol": "ours", "nl2sol_dakota_defaults": "ours (Dakota's defaults)",
            "scipy_lm": "scipy lm", "scipy_trf": "scipy trf"}
@@ -44,7 +48,31 @@ def least_squares(res: dict) -> str:
     return "\n".join(lines)
 
 
-KINDS: dict[str, Callable[[dict], str]] = {"least_squares": least_squares}
+def _parity_markdown(res: dict) -> str:
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from mbdyn_parity import markdown
+
+    return markdown(res)
+
+
+def mbdyn_rigid(res: dict) -> str:
+    """The rigid-blade parity table and the speed line of a saved MBDyn parity run."""
+    return _parity_markdown({k: v for k, v in res.items() if k != "elastic"})
+
+
+def mbdyn_elastic(res: dict) -> str:
+    """The elastic GVPM table of a saved MBDyn parity run (``--elastic``)."""
+    if "elastic" not in res:
+        raise SystemExit("this MBDyn parity run has no elastic part (run it with --elastic)")
+    full, rigid = _parity_markdown(res), mbdyn_rigid(res)
+    if not full.startswith(rigid):
+        raise SystemExit("mbdyn_parity.markdown no longer prints the rigid part first")
+    return full[len(rigid):].strip("\n")
+
+
+KINDS: dict[str, Callable[[dict], str]] = {"least_squares": least_squares,
+                                           "mbdyn_rigid": mbdyn_rigid,
+                                           "mbdyn_elastic": mbdyn_elastic}
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -28,17 +28,19 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 DOCS = ROOT / "docs"
 BLOCK = re.compile(
-    r"^(<!-- generated: (?P<cmd>[^\n]+?) -->\n)(?P<body>.*?)^(<!-- end generated -->)$",
-    re.S | re.M)
+    r"^(?P<indent>[ ]*)(<!-- generated: (?P<cmd>[^\n]+?) -->\n)(?P<body>.*?)"
+    r"^(?P=indent)(<!-- end generated -->)$", re.S | re.M)
 
 
 @dataclass(frozen=True, eq=False)
 class Block:
-    """One generated block: the page it is in, its command and its current text."""
+    """One generated block: the page it is in, its command, its current text (without the
+    indentation of a block inside a list item) and that indentation."""
 
     page: Path
     command: str
     text: str
+    indent: str = ""
 
 
 def blocks(docs: Path = DOCS) -> list[Block]:
@@ -48,7 +50,7 @@ def blocks(docs: Path = DOCS) -> list[Block]:
         if "_build" in page.parts:
             continue
         for m in BLOCK.finditer(page.read_text(encoding="utf-8")):
-            found.append(Block(page, m["cmd"], m["body"]))
+            found.append(Block(page, m["cmd"], _dedent(m["body"], m["indent"]), m["indent"]))
     return found
 
 
@@ -79,10 +81,21 @@ def run_command(command: str) -> str:
     return out.getvalue().strip("\n") + "\n"
 
 
+def _dedent(text: str, indent: str) -> str:
+    return "".join(ln[len(indent):] if ln.startswith(indent) else ln
+                   for ln in text.splitlines(keepends=True))
+
+
+def _indent(text: str, indent: str) -> str:
+    return "".join(indent + ln if ln.strip() else ln for ln in text.splitlines(keepends=True))
+
+
 def regenerate(page: Path) -> str:
-    """The page's text with every block replaced by its command's output."""
+    """The page's text with every block replaced by its command's output (indented like the
+    block's markers, so a block can sit inside a list item)."""
     def sub(m: re.Match) -> str:
-        return m[1] + run_command(m["cmd"]) + m[4]
+        ind = m["indent"]
+        return ind + m[2] + _indent(run_command(m["cmd"]), ind) + ind + m[5]
     return BLOCK.sub(sub, page.read_text(encoding="utf-8"))
 
 

@@ -59,7 +59,9 @@ def test_docstring_examples_run(module):
 WITH_EXAMPLES = ["rotoruq.model", "rotoruq.params.space", "rotoruq.params.pairing",
                  "rotoruq.params.catalog", "rotoruq.params.nataf", "rotoruq.methods.sampling",
                  "rotoruq.methods.sensitivity", "rotoruq.methods.pce",
-                 "rotoruq.methods.least_squares", "rotoruq.methods.cuu"]
+                 "rotoruq.methods.least_squares", "rotoruq.methods.cuu",
+                 "rotoruq.rotor.presets", "rotoruq.rotor.airfoil", "rotoruq.rotor.c81",
+                 "rotoruq.evaluation.templates", "rotoruq.evaluation.dakota_files"]
 
 
 def _public_names() -> set[str]:

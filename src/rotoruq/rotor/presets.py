@@ -240,7 +240,16 @@ PRESETS = {"bo105": bo105, "gvpm": gvpm}
 
 
 def get_preset(name: str | RotorPreset, **overrides) -> RotorPreset:
-    """Return a preset by name (``"bo105"``, ``"gvpm"``) with optional property overrides."""
+    """Return a preset by name (``"bo105"``, ``"gvpm"``) with optional property overrides.
+
+    Examples
+    --------
+    >>> p = get_preset("gvpm")
+    >>> p.name, p.n_blades
+    ('gvpm', 4)
+    >>> get_preset("gvpm", radius=0.5).radius          # overrides: property -> value (SI)
+    0.5
+    """
     if isinstance(name, RotorPreset):
         return name.replace(**overrides) if overrides else name
     try:

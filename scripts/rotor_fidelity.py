@@ -221,12 +221,14 @@ def mbdyn_checks() -> dict:
     """The model configured like the reference multibody runs (DESIGN.md hints a and b):
     MBDyn's NACA 0012 table (from ../shared, not shipped), uniform inflow, no tip loss, no
     feathering coupling, rigid link."""
+    import os
     from pathlib import Path
 
     from rotoruq.rotor.airfoil import Airfoil
 
-    path = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "airfoils"
-    path = path / "naca0012.c81"
+    # the shared folder as .ci/run finds it: $ROTORUQ_SHARED, else ../shared beside the clone
+    shared = os.environ.get("ROTORUQ_SHARED") or Path(__file__).resolve().parents[2] / "shared"
+    path = Path(shared) / "data" / "airfoils" / "naca0012.c81"
     if not path.exists():
         return {"skipped": f"{path} not found"}
     af = Airfoil.from_c81(path, fit_mode=False)
@@ -249,6 +251,7 @@ def main(argv: list[str] | None = None) -> None:
     n = 32 if args.quick else 256
     out = {
         "quick": args.quick,
+        "n_samples": n,
         "mbdyn_checks": mbdyn_checks(),
         "control_chain": control_chain(),
         "chosen_properties": chosen_properties(),

@@ -5,6 +5,9 @@
 Kinds:
 - ``mbdyn_rigid`` / ``mbdyn_elastic``: the two parts of ``benchmarks/mbdyn_parity.py
   --from-json`` (its own formatting), for pages that discuss them apart.
+- ``fidelity_mbdyn``, ``fidelity_cyclic``, ``fidelity_table_4_9``: the rotor-model tables of
+  ``scripts/rotor_fidelity.py --out scripts/results/rotor_fidelity.json`` (the checks against
+  MBDyn's published runs, the cyclic response of thesis table 4.6, the indices of table 4.9).
 - ``least_squares``: evaluations and final sum of squares of every solver in the same run,
   like for like (forward-difference Jacobians, every evaluated point counted): ours with its
   defaults and with Dakota's, scipy ``lm`` and ``trf``; then the comparison with real Dakota's
@@ -48,6 +51,52 @@ def least_squares(res: dict) -> str:
     return "\n".join(lines)
 
 
+def fidelity_mbdyn(res: dict) -> str:
+    """The model configured like the reference multibody runs, against MBDyn's numbers."""
+    checks = res["mbdyn_checks"]
+    if "skipped" in checks:
+        raise SystemExit(f"the saved run skipped the MBDyn checks: {checks['skipped']}")
+    g, b = checks["gvpm_rigid_5.4deg"], checks["bo105_6deg_whole_span_-6.2"]
+    return "\n".join([
+        "| case | rotoruq | MBDyn |", "|---|---|---|",
+        f"| GVPM, rigid link, 5.4 deg, thrust / torque | {g['rotoruq'][0]:.4g} N / "
+        f"{g['rotoruq'][1]:.4g} N m | {g['mbdyn'][0]:g} N / {g['mbdyn'][1]:g} N m |",
+        f"| Bo105, 6 deg, -2 deg long., -6.2 deg whole-span twist | {b['rotoruq'][0]:.4g} N / "
+        f"{b['rotoruq'][1]:.4g} N m | {b['mbdyn'][0]:g} N / {b['mbdyn'][1]:g} N m |"])
+
+
+def fidelity_cyclic(res: dict) -> str:
+    """Main Sobol' indices of the cyclic commands on roll and pitch, and the flap lag."""
+    c = res["cyclic_response"]
+    resp = c["responses"]
+    r, q = resp.index("roll"), resp.index("pitch")
+    cases = ["preset", "no_ac_offset", "no_ac_offset_harmonic_inflow"]
+    thesis = c["thesis_table_4_6_main"]
+    lines = ["| | thesis | rotoruq preset | no a.c. offset | no a.c. offset, Pitt-Peters inflow |",
+             "|---|---|---|---|---|"]
+    for cmd, label in (("lateral_deg", "lateral"), ("longitudinal_deg", "longitudinal")):
+        cells = [f"{thesis[cmd][r]:.3g}, {thesis[cmd][q]:.3g}"]
+        cells += [f"{c[k]['main'][cmd][r]:.3f}, {c[k]['main'][cmd][q]:.3f}" for k in cases]
+        lines.append(f"| {label} -> roll, pitch | " + " | ".join(cells) + " |")
+    lags = [f"{c[k]['flap_lag_deg']:.0f} deg" for k in cases]
+    lines.append("| flap lag behind the cyclic | 64-74 deg (implied) | " + " | ".join(lags) + " |")
+    n = res.get("n_samples")
+    lines += ["", f"Sobol' base samples: {n}; first flap frequency "
+              f"{c['first_flap_frequency_per_rev']:.2f}/rev, Lock number {c['lock_number']:.1f}."]
+    return "\n".join(lines)
+
+
+def fidelity_table_4_9(res: dict) -> str:
+    """Main Sobol' indices of the aerodynamic and structural inputs against thesis table 4.9."""
+    t = res["table_4_9"]
+    lines = ["| input | " + " | ".join(f"{y} (thesis / ours)" for y in t["responses"]) + " |",
+             "|---" * (len(t["responses"]) + 1) + "|"]
+    for name, ours in t["main"].items():
+        cells = [f"{th:.3g} / {o:.3g}" for th, o in zip(t["thesis_main"][name], ours, strict=True)]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def _parity_markdown(res: dict) -> str:
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
     from mbdyn_parity import markdown
@@ -71,6 +120,9 @@ def mbdyn_elastic(res: dict) -> str:
 
 
 KINDS: dict[str, Callable[[dict], str]] = {"least_squares": least_squares,
+                                           "fidelity_mbdyn": fidelity_mbdyn,
+                                           "fidelity_cyclic": fidelity_cyclic,
+                                           "fidelity_table_4_9": fidelity_table_4_9,
                                            "mbdyn_rigid": mbdyn_rigid,
                                            "mbdyn_elastic": mbdyn_elastic}
 

@@ -5,9 +5,11 @@
 Kinds:
 - ``mbdyn_rigid`` / ``mbdyn_elastic``: the two parts of ``benchmarks/mbdyn_parity.py
   --from-json`` (its own formatting), for pages that discuss them apart.
-- ``fidelity_mbdyn``, ``fidelity_cyclic``, ``fidelity_table_4_9``: the rotor-model tables of
-  ``scripts/rotor_fidelity.py --out scripts/results/rotor_fidelity.json`` (the checks against
-  MBDyn's published runs, the cyclic response of thesis table 4.6, the indices of table 4.9).
+- ``fidelity_mbdyn``, ``fidelity_cyclic``, ``fidelity_table_4_9``, ``fidelity_bo105``,
+  ``fidelity_ground_effect``: the rotor-model tables of ``scripts/rotor_fidelity.py --out
+  scripts/results/rotor_fidelity.json`` (the checks against MBDyn's published runs, the cyclic
+  response of thesis table 4.6, the indices of table 4.9, the Bo105 loads of table 3.11 per
+  twist reading, the ground-effect ratios of tables 4.18 and 4.19).
 - ``least_squares``: evaluations and final sum of squares of every solver in the same run,
   like for like (forward-difference Jacobians, every evaluated point counted): ours with its
   defaults and with Dakota's, scipy ``lm`` and ``trf``; then the comparison with real Dakota's
@@ -97,6 +99,37 @@ def fidelity_table_4_9(res: dict) -> str:
     return "\n".join(lines)
 
 
+def fidelity_bo105(res: dict) -> str:
+    """Bo105 thrust and torque at 6 deg collective, -2 deg longitudinal, per twist and fits."""
+    b = res["bo105_geometry"]
+    thesis = b["thesis_table_3_11_thrust_torque"]
+    lines = ["| twist | lift fits | thrust [N] | torque [N m] |", "|---|---|---|---|"]
+    for twist, label in (("-6.2", "-6.2 deg over the whole span"), ("-8.0", "linear -8 deg")):
+        for fits, flabel in (("thesis_fits", "thesis (table 3.2)"), ("bundled_fits", "bundled")):
+            t, q = b[f"twist_{twist}_{fits}"]
+            lines.append(f"| {label} | {flabel} | {t:.0f} | {q:.0f} |")
+    lines.append(f"| thesis table 3.11 | | {thesis[0]:.0f} | {thesis[1]:.0f} |")
+    return "\n".join(lines)
+
+
+def fidelity_ground_effect(res: dict) -> str:
+    """C_T(h)/C_T(4R) and C_Q(h)/C_Q(4R) per ground-effect model against the GVPM test."""
+    g = res["ground_effect"]
+    heights = g["heights"]
+    models = [k for k in g if isinstance(g[k], dict)]
+    head = ", ".join(f"{h:g}R" for h in heights[1:])
+    lines = [f"| model | C_T ratio at {head} | C_Q ratio at {head} |", "|---|---|---|"]
+
+    def row(name: str, ct: list, cq: list) -> str:
+        return (f"| {name} | " + ", ".join(f"{v:.3f}" for v in ct[1:]) + " | "
+                + ", ".join(f"{v:.3f}" for v in cq[1:]) + " |")
+
+    for m in models:
+        lines.append(row(m, g[m]["ct_ratio"], g[m]["cq_ratio"]))
+    lines.append(row("the test", g["test_ct_ratio"], g["test_cq_ratio"]))
+    return "\n".join(lines)
+
+
 def _parity_markdown(res: dict) -> str:
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
     from mbdyn_parity import markdown
@@ -123,6 +156,8 @@ KINDS: dict[str, Callable[[dict], str]] = {"least_squares": least_squares,
                                            "fidelity_mbdyn": fidelity_mbdyn,
                                            "fidelity_cyclic": fidelity_cyclic,
                                            "fidelity_table_4_9": fidelity_table_4_9,
+                                           "fidelity_bo105": fidelity_bo105,
+                                           "fidelity_ground_effect": fidelity_ground_effect,
                                            "mbdyn_rigid": mbdyn_rigid,
                                            "mbdyn_elastic": mbdyn_elastic}
 

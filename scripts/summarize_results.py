@@ -5,11 +5,12 @@
 Kinds:
 - ``mbdyn_rigid`` / ``mbdyn_elastic``: the two parts of ``benchmarks/mbdyn_parity.py
   --from-json`` (its own formatting), for pages that discuss them apart.
-- ``fidelity_mbdyn``, ``fidelity_cyclic``, ``fidelity_table_4_9``, ``fidelity_bo105``,
-  ``fidelity_ground_effect``: the rotor-model tables of ``scripts/rotor_fidelity.py --out
-  scripts/results/rotor_fidelity.json`` (the checks against MBDyn's published runs, the cyclic
-  response of thesis table 4.6, the indices of table 4.9, the Bo105 loads of table 3.11 per
-  twist reading, the ground-effect ratios of tables 4.18 and 4.19).
+- ``fidelity_mbdyn``, ``fidelity_properties``, ``fidelity_cyclic``, ``fidelity_table_4_9``,
+  ``fidelity_bo105``, ``fidelity_ground_effect``: the rotor-model tables of
+  ``scripts/rotor_fidelity.py --out scripts/results/rotor_fidelity.json`` (the checks against
+  MBDyn's published runs, the GVPM loads with each chosen property varied, the cyclic response
+  of thesis table 4.6, the indices of table 4.9, the Bo105 loads of table 3.11 per twist
+  reading, the ground-effect ratios of tables 4.18 and 4.19).
 - ``least_squares``: evaluations and final sum of squares of every solver in the same run,
   like for like (forward-difference Jacobians, every evaluated point counted): ours with its
   defaults and with Dakota's, scipy ``lm`` and ``trf``; then the comparison with real Dakota's
@@ -65,6 +66,23 @@ def fidelity_mbdyn(res: dict) -> str:
         f"{g['rotoruq'][1]:.4g} N m | {g['mbdyn'][0]:g} N / {g['mbdyn'][1]:g} N m |",
         f"| Bo105, 6 deg, -2 deg long., -6.2 deg whole-span twist | {b['rotoruq'][0]:.4g} N / "
         f"{b['rotoruq'][1]:.4g} N m | {b['mbdyn'][0]:g} N / {b['mbdyn'][1]:g} N m |"])
+
+
+def fidelity_properties(res: dict) -> str:
+    """GVPM loads at the section 4.3 commands (K_p = 15) with each chosen property varied."""
+    c = res["chosen_properties"]
+    lines = ["| GVPM variant | thrust [N] | roll [N m] | pitch [N m] | power [W] | thrust change |",
+             "|---|---|---|---|---|---|"]
+    t, r, q, w = c["preset_T_roll_pitch_P"]
+    lines.append(f"| preset | {t:.4g} | {r:.3g} | {q:.3g} | {w:.4g} | - |")
+    for name, v in c.items():
+        if not isinstance(v, dict):
+            continue
+        t, r, q, w = v["T_roll_pitch_P"]
+        failed = f" ({v['failures']} failed)" if v["failures"] else ""
+        lines.append(f"| {name} | {t:.4g} | {r:.3g} | {q:.3g} | {w:.4g} | "
+                     f"{v['thrust_change_percent']:+.2f} %{failed} |")
+    return "\n".join(lines)
 
 
 def fidelity_cyclic(res: dict) -> str:
@@ -154,6 +172,7 @@ def mbdyn_elastic(res: dict) -> str:
 
 KINDS: dict[str, Callable[[dict], str]] = {"least_squares": least_squares,
                                            "fidelity_mbdyn": fidelity_mbdyn,
+                                           "fidelity_properties": fidelity_properties,
                                            "fidelity_cyclic": fidelity_cyclic,
                                            "fidelity_table_4_9": fidelity_table_4_9,
                                            "fidelity_bo105": fidelity_bo105,

@@ -5,10 +5,11 @@
 Kinds:
 - ``mbdyn_rigid`` / ``mbdyn_elastic``: the two parts of ``benchmarks/mbdyn_parity.py
   --from-json`` (its own formatting), for pages that discuss them apart.
-- ``fidelity_mbdyn``, ``fidelity_properties``, ``fidelity_cyclic``, ``fidelity_table_4_9``,
-  ``fidelity_bo105``, ``fidelity_ground_effect``: the rotor-model tables of
+- ``fidelity_mbdyn``, ``fidelity_properties``, ``fidelity_control_chain``, ``fidelity_cyclic``,
+  ``fidelity_table_4_9``, ``fidelity_bo105``, ``fidelity_ground_effect``: the rotor-model tables of
   ``scripts/rotor_fidelity.py --out scripts/results/rotor_fidelity.json`` (the checks against
-  MBDyn's published runs, the GVPM loads with each chosen property varied, the cyclic response
+  MBDyn's published runs, the GVPM loads with each chosen property varied, the pitch link's
+  stiffness and which feathering terms carry K_p's effect, the cyclic response
   of thesis table 4.6, the indices of table 4.9, the Bo105 loads of table 3.11 per twist
   reading, the ground-effect ratios of tables 4.18 and 4.19).
 - ``least_squares``: evaluations and final sum of squares of every solver in the same run,
@@ -82,6 +83,29 @@ def fidelity_properties(res: dict) -> str:
         failed = f" ({v['failures']} failed)" if v["failures"] else ""
         lines.append(f"| {name} | {t:.4g} | {r:.3g} | {q:.3g} | {w:.4g} | "
                      f"{v['thrust_change_percent']:+.2f} %{failed} |")
+    return "\n".join(lines)
+
+
+def fidelity_control_chain(res: dict) -> str:
+    """The GVPM pitch link's stiffness and the thrust over K_p with each feathering term."""
+    c = res["control_chain"]
+    t10, t15, t20, rigid = c["posterior_commands_thrust_N_at_kp_10_15_20_rigid"]
+    lines = [
+        f"Pitch link l0 = {1e3 * c['pitch_link_length_m']:g} mm, horn "
+        f"{1e3 * c['pitch_horn_arm_m']:g} mm: k_theta = {c['k_theta_at_kp15_Nm_per_rad']:.3g} "
+        f"N m/rad at K_p = 15 against the propeller moment I_p Omega^2 = "
+        f"{c['propeller_moment_Ip_omega2_Nm_per_rad']:.3g} N m/rad. Thrust at the posterior "
+        f"commands for K_p = 10, 15, 20: {t10:.4g}, {t15:.4g}, {t20:.4g} N "
+        f"({c['thrust_change_kp_10_to_20_percent']:+.1f} %; rigid link {rigid:.4g} N). The "
+        f"measured 25.68 N needs a collective of {c['collective_for_measured_thrust_deg']:.2f} "
+        "deg with the other posterior means.", "",
+        "| feathering terms | thrust at K_p = 10, 15, 20 [N] | change 10 -> 20 |", "|---|---|---|"]
+    for name, v in c["kp_effect_by_term"].items():
+        thrust = ", ".join("failed" if t != t else f"{t:.4g}"  # NaN: the solve failed
+                           for t in v["thrust_N_at_kp_10_15_20"])
+        change = v["change_10_to_20_percent"]
+        lines.append(f"| {name} | {thrust} | "
+                     + ("-" if change != change else f"{change:+.1f} %") + " |")
     return "\n".join(lines)
 
 
@@ -173,6 +197,7 @@ def mbdyn_elastic(res: dict) -> str:
 KINDS: dict[str, Callable[[dict], str]] = {"least_squares": least_squares,
                                            "fidelity_mbdyn": fidelity_mbdyn,
                                            "fidelity_properties": fidelity_properties,
+                                           "fidelity_control_chain": fidelity_control_chain,
                                            "fidelity_cyclic": fidelity_cyclic,
                                            "fidelity_table_4_9": fidelity_table_4_9,
                                            "fidelity_bo105": fidelity_bo105,

@@ -337,25 +337,40 @@ def sample(
 
     Parameters
     ----------
-    model : Model; inputs matched to ``space.names`` by name.
-    space : ParameterSpace (correlations honoured through the Nataf model).
-    n_samples : number of samples (>= 2).
-    design : "lhs" (Latin hypercube), "random" (plain Monte Carlo), "sobol" or "halton"
+    model : Model
+        Inputs matched to ``space.names`` by name; called once on (n_samples, d).
+    space : ParameterSpace
+        The d uncertain inputs, in their own units (correlations honoured through the Nataf
+        model).
+    n_samples : int
+        Number of samples (>= 2).
+    design : str
+        "lhs" (Latin hypercube), "random" (plain Monte Carlo), "sobol" or "halton"
         (scrambled, scipy.stats.qmc); drawn by :func:`rotoruq.params.unit_design`.
-    pairing : "lhs" only: "restricted" (default, Dakota's LHS: Iman-Conover pairing of the
+    pairing : str
+        "lhs" only: "restricted" (default, Dakota's LHS: Iman-Conover pairing of the
         columns so the inputs' normal-score correlation is near the space's Nataf correlation,
         identity when independent; every marginal stays stratified) or "random" (columns
         paired at random, the behaviour before; with correlations the design is then
         stratified in u-space). With ``n_samples <= dim`` the pairing is random either way.
-    response_levels : levels z for the empirical P(y <= z) / P(y > z) (same for all responses,
-        a mapping name -> levels, or one sequence per response).
-    probability_levels : probabilities mapped to empirical quantiles.
-    percentiles : percentiles (percent) to report.
-    confidence : level of the mean / std confidence intervals.
-    seed : int or numpy Generator.
+    response_levels : sequence of float, mapping or sequence of sequences, optional
+        Levels z (response units) for the empirical P(y <= z) / P(y > z): the same for all
+        responses, a mapping name -> levels, or one sequence per response.
+    probability_levels : sequence of float, optional
+        Probabilities in (0, 1) mapped to empirical quantiles (response units).
+    percentiles : sequence of float
+        Percentiles (percent) to report.
+    confidence : float
+        Level of the mean / std confidence intervals.
+    seed : int, numpy Generator or None
+        The same seed gives the same points, bitwise.
 
-    Failed rows stay in ``outputs`` as NaN (reason in ``failures``) and are left out of the
-    statistics with a RuntimeWarning giving the count.
+    Returns
+    -------
+    SamplingResult
+        ``inputs`` (n_samples, d), ``outputs`` (n_samples, m) and their ``statistics``.
+        Failed rows stay in ``outputs`` as NaN (reason in ``failures``) and are left out of
+        the statistics with a RuntimeWarning giving the count.
 
     Examples
     --------

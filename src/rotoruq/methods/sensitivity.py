@@ -349,20 +349,30 @@ def sobol_indices(
 
     Parameters
     ----------
-    model : Model; inputs matched to ``space.names`` by name.
-    space : ParameterSpace. Indices of correlated inputs are computed on the Nataf model
+    model : Model
+        Inputs matched to ``space.names`` by name; called on N (d + 2) points in one batch.
+    space : ParameterSpace
+        The d uncertain inputs. Indices of correlated inputs are computed on the Nataf model
         but lose their variance-decomposition meaning (they no longer sum to <= 1).
-    n_samples : number N of base samples (a power of 2 suits ``design="sobol"``).
-    estimator : "hybrid" (default), "saltelli2010", "jansen" or "janon" (module docstring).
-    design : base design: "sobol" (scrambled Sobol', default), "halton", "lhs" or "random".
-    n_bootstrap : draws of the parametric bootstrap for the intervals (0: none; default 100,
-        SALib's default number of resamples).
-    confidence : interval level.
-    seed : int or Generator (design and intervals).
+    n_samples : int
+        Number N of base samples (a power of 2 suits ``design="sobol"``).
+    estimator : str
+        "hybrid" (default), "saltelli2010", "jansen" or "janon" (module docstring).
+    design : str
+        Base design: "sobol" (scrambled Sobol', default), "halton", "lhs" or "random".
+    n_bootstrap : int
+        Draws of the parametric bootstrap for the intervals (0: none; default 100, SALib's
+        default number of resamples).
+    confidence : float
+        Interval level, in (0, 1).
+    seed : int, numpy Generator or None
+        Seeds the design and the intervals; the same seed gives the same indices, bitwise.
 
     Returns
     -------
-    SobolResult with ``main`` and ``total`` of shape (m, d).
+    SobolResult
+        ``main`` and ``total`` of shape (m, d) (dimensionless shares of each response's
+        variance), ``main_ci`` and ``total_ci`` (m, d, 2).
 
     Examples
     --------

@@ -224,8 +224,24 @@ def has_gradient(model: Model) -> bool:
 def evaluate(model: Model, x: ArrayLike) -> EvalBatch:
     """Evaluate ``model`` on a batch and check the result.
 
-    Rows that come back non-finite without a reason get the reason "non-finite response".
-    Raises :class:`ModelShapeError` when the model returns the wrong shape.
+    Parameters
+    ----------
+    model : Model
+        Any object of the Model protocol (``names_in``, ``names_out``, batched call).
+    x : array_like, shape (n, d)
+        One point per row, columns in ``model.names_in`` order, in the inputs' own units.
+
+    Returns
+    -------
+    EvalBatch
+        ``values`` (n, m) in ``model.names_out`` order and ``failures`` (row -> reason).
+        Rows that come back non-finite without a reason get the reason "non-finite
+        response".
+
+    Raises
+    ------
+    ModelShapeError
+        When the model returns the wrong shape.
 
     Examples
     --------

@@ -199,15 +199,34 @@ class StepRecord:
             raise RecordError(f"step {res.name!r} ({res.type}) was saved without a "
                               f"{cls.__name__} (by a rotoruq older than results schema "
                               f"{SCHEMA_VERSION}): run the step again")
+        if not isinstance(rec.get("version", 0), int):
+            raise RecordError(f"not written by rotoruq: step {res.name!r} (its {cls.__name__} "
+                              "version is not a number); remove it or re-run the step")
         if int(rec.get("version", 0)) > cls.VERSION:
             raise RecordError(f"step {res.name!r}: {cls.__name__} version {rec['version']} "
                               f"needs a newer rotoruq (this one reads up to {cls.VERSION})")
+        saved = rec.get("fields")
+
+        def foreign(why: str) -> RecordError:
+            return RecordError(f"not written by rotoruq: step {res.name!r} ({why}); remove it "
+                               "or re-run the step")
+
+        if not isinstance(saved, Mapping):
+            raise foreign(f"its {cls.__name__} has no fields")
         kwargs: dict[str, Any] = {}
         for f in fields(cls):
             if f.name in cls.AXES:
-                kwargs[f.name] = np.asarray(res.arrays[f.name])
+                if f.name not in res.arrays:
+                    raise foreign(f"its {cls.__name__} lacks the array {f.name!r}")
+                arr = np.asarray(res.arrays[f.name])
+                if arr.ndim != len(cls.AXES[f.name]):
+                    raise foreign(f"{cls.__name__}.{f.name} has {arr.ndim} axes, not "
+                                  f"{len(cls.AXES[f.name])}")
+                kwargs[f.name] = arr
             else:
-                v = rec["fields"][f.name]
+                if f.name not in saved:
+                    raise foreign(f"its {cls.__name__} lacks the field {f.name!r}")
+                v = saved[f.name]
                 kwargs[f.name] = tuple(v) if isinstance(v, list) else v
         return cls(**kwargs)
 

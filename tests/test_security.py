@@ -243,6 +243,9 @@ def test_a_pickled_array_is_not_written_by_rotoruq_and_never_unpickled(tmp_path)
     ("files", {"/etc/hostname": "0" * 64}),
     ("scalars", ["not", "a", "table"]),
     ("name", "other"),
+    ("meta", {"seconds": "x"}),
+    ("meta", {"columns": {"inputs": 5}}),
+    ("meta", {"record": 5}),
 ])
 def test_a_result_json_pointing_outside_its_folder_is_refused(tmp_path, field, value):
     step = saved_folder(tmp_path / "out")

@@ -401,6 +401,14 @@ def clean_partial_saves(directory: str | Path) -> list[Path]:
     return removed
 
 
+# the entries of a step's meta that the runner writes and the report and `show` read
+_META_KINDS: dict[str, type | tuple[type, ...]] = {
+    "columns": dict, "seconds": (int, float), "n_evaluations": int, "title": str,
+    "parameters": list, "responses": list, "fixed": dict, "options": dict, "source": str,
+    "record": dict, "identity": dict, "input_distributions": dict,
+}
+
+
 def load_step(folder: str | Path) -> StepResult:
     """Read a saved step; raises :class:`IncompleteStepError` when it is not whole,
     :class:`ForeignStepFileError` naming a file rotoruq did not write, and
@@ -423,6 +431,14 @@ def load_step(folder: str | Path) -> StepResult:
         if key in doc and doc[key] is not None and not isinstance(doc[key], kind):
             raise ForeignStepFileError(where, f"{key!r} is a {type(doc[key]).__name__}, "
                                        f"not a {kind.__name__}")
+    for key, kinds in _META_KINDS.items():
+        v = (doc.get("meta") or {}).get(key)
+        if v is not None and (not isinstance(v, kinds) or isinstance(v, bool)):
+            raise ForeignStepFileError(where, f"meta {key!r} is a {type(v).__name__}")
+    columns = (doc.get("meta") or {}).get("columns") or {}
+    if not all(isinstance(c, list) and all(isinstance(x, str) for x in c)
+               for c in columns.values()):
+        raise ForeignStepFileError(where, "meta 'columns' holds something else than names")
     if name_problem(doc["name"]) or name_problem(doc["type"]) or doc["name"] != folder.name:
         raise ForeignStepFileError(where, f"step name {doc['name']!r} in folder "
                                    f"{folder.name!r}")

@@ -166,13 +166,13 @@ def check_name(name: object, *, what: str = "name", path: str | os.PathLike | No
     Traceback (most recent call last):
     ...
     rotoruq.errors.InputFileError: s.toml, line 2: expected the study name without '/', \
-'\\\\', '..', control characters or a leading '.' (found a path separator), found '../../escaped'
+'\\', '..', control characters or a leading '.' (found a path separator), found '../../escaped'
     """
     why = name_problem(name)
     if why is not None:
-        raise InputFileError(path, line, f"{what} without '/', '\\\\', '..', control "
+        raise InputFileError(path, line, f"{what} without '/', '\\', '..', control "
                              f"characters or a leading '.' (found {why})",
-                             terminal_text(name))
+                             name if isinstance(name, str) else repr(name))
     assert isinstance(name, str)
     return name
 
@@ -225,7 +225,7 @@ without '..' (an absolute path), found '/tmp/elsewhere'
             why = "a '..' component"
     if why is not None:
         raise InputFileError(path, line, f"{what} relative to its folder, without '..' ({why})",
-                             terminal_text(value))
+                             text if isinstance(text, str) else repr(value))
     assert text is not None
     return Path(text)
 
@@ -267,7 +267,7 @@ def inside(root: str | os.PathLike, value: object, *, what: str = "path",
     if target != base and base not in target.parents:
         raise InputFileError(path, line, f"{what} inside {terminal_text(root)} (it leads to "
                              f"{terminal_text(target)} through a symlink)",
-                             terminal_text(value))
+                             str(value))
     return joined
 
 

@@ -169,9 +169,12 @@ def test_a_symlink_in_the_results_folder_is_refused_naming_it(root, entry):
     target = root / "victim" / ("missing.sqlite" if entry == "evaluations.sqlite" else "")
     (root / "out" / entry).symlink_to(target if entry == "evaluations.sqlite"
                                       else root / "victim")
+    # the store is refused already where the study names it (its path leads outside the
+    # results folder through the link); the other entries by the results-folder check
+    expect = (["[store] path", "through a symlink"] if entry == "evaluations.sqlite" else
+              ["symlink in a results folder", str(root / "out" / entry)])
     err = refused_without_writes(root, "run", root / "st" / "study.toml", "--out",
-                                 root / "out", expect=["symlink in a results folder",
-                                                       str(root / "out" / entry)])
+                                 root / "out", expect=expect)
     assert err.count("\n") == 1  # one line
     assert sorted(p.name for p in (root / "victim").iterdir()) == ["precious.txt"]
 
@@ -351,9 +354,8 @@ def test_study_paths_that_leave_their_folder_are_refused_naming_the_line(
     if "templates" in str(lines):
         text = text.replace('templates = ["input.txt"]\n', "")
     line_no = text.splitlines().index(next(iter(lines.values())).splitlines()[-1]) + 1
-    study = parse_study(text, path)
-    with pytest.raises(InputFileError) as exc:
-        check_study_paths(study, tmp_path / "out")
+    with pytest.raises(InputFileError) as exc:  # names already where the file is parsed
+        check_study_paths(parse_study(text, path), tmp_path / "out")
     assert exc.value.line == line_no, str(exc.value)
     assert expected in str(exc.value)
     assert not any(is_control(c) for c in str(exc.value))
@@ -427,3 +429,36 @@ def test_relative_paths_never_climb_out(parts):
     assert not rel.is_absolute() and ".." not in rel.parts
     base = Path("/base/folder")
     assert base in (base / rel).parents or base / rel == base
+
+
+@pytest.mark.parametrize("old,new,expect", [
+    ('name = "ext"', 'name = "../../../escaped"', "line 2: expected the study name without"),
+    ('name = "ext"', 'name = "x\\u001b]0;owned\\u0007"', "line 2: expected the study name"),
+    ('name = "ext"', 'name = "ext"\noutput = "../../escaped"',
+     "line 3: expected [study] output relative"),
+    ("[[steps]]", '[store]\npath = "../../store.sqlite"\n[[steps]]',
+     "line 21: expected [store] path"),
+    ("[[steps]]", '[store]\npath = "/tmp/store.sqlite"\n[[steps]]',
+     "line 21: expected [store] path"),
+])
+def test_a_study_naming_a_place_outside_is_refused_before_any_write(root, old, new, expect):
+    study = root / "st" / "study.toml"
+    study.write_text(study.read_text().replace(old, new))
+    before = snapshot(root)
+    proc = cli("run", study, "--no-report")
+    assert proc.returncode == 1, proc.stderr
+    assert expect in proc.stderr and "\x1b" not in proc.stderr, proc.stderr
+    assert snapshot(root) == before
+
+
+def test_an_outside_store_is_written_only_with_the_option(root):
+    study = root / "st" / "study.toml"
+    store = root / "shared" / "store.sqlite"
+    store.parent.mkdir()
+    study.write_text(study.read_text().replace(
+        '[[steps]]', f'[store]\npath = "{store}"\n\n[[steps]]'))
+    assert cli("run", study, "--out", root / "out", "--no-report").returncode == 1
+    assert not store.exists()
+    proc = cli("run", study, "--out", root / "out", "--no-report", "--allow-outside-store")
+    assert proc.returncode == 0, proc.stderr
+    assert store.is_file()

@@ -505,3 +505,10 @@ def test_sorm_tangent_hessian_equals_the_analytic_curvatures_at_2d_minus_1_squar
     h = um.tangent_hessian(u, 0, basis)
     assert um.n_eval - before == 2 * (3 - 1) ** 2
     np.testing.assert_allclose(np.sort(np.linalg.eigvalsh(h)), [0.05, 2.0], rtol=1e-6)
+
+
+def test_the_reliability_step_offers_every_mpp_approximation():
+    from rotoruq.methods.reliability import APPROXIMATIONS
+    from rotoruq.steps import reliability
+
+    assert tuple(reliability.APPROXIMATIONS) == tuple(APPROXIMATIONS)

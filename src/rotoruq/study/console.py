@@ -50,8 +50,10 @@ def route_warnings(quiet: bool = False) -> None:
 
     Examples
     --------
+    >>> saved = warnings.showwarning
     >>> route_warnings(quiet=True)
-    >>> warnings.warn("not shown")
+    >>> warnings.warn("not printed: --quiet")
+    >>> warnings.showwarning = saved
     """
     logger = logging.getLogger(WARNINGS_LOGGER)
     for h in [h for h in logger.handlers if isinstance(h, _WarningLines)]:

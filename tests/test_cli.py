@@ -238,3 +238,21 @@ def test_density_units_and_the_coefficient_of_variation():
     assert cv_or_none(CV_MIN_MEAN_OVER_STD * 2.0, 2.0) == pytest.approx(
         1 / CV_MIN_MEAN_OVER_STD)
     assert cv_or_none(0.0, 0.0) is None and cv_or_none(float("nan"), 1.0) is None
+
+
+def test_a_broken_pipe_that_is_not_stdout_is_an_error():
+    # a worker's or a driver's pipe breaking is no reader going away: it must not pass as a
+    # quiet success
+    from rotoruq.study.console import pipe_safe
+
+    def run(args):
+        r, w = os.pipe()
+        os.close(r)
+        try:
+            os.write(w, b"to a worker that died")
+        finally:
+            os.close(w)
+        return 0
+
+    with pytest.raises(BrokenPipeError):
+        pipe_safe(run)(None)

@@ -89,12 +89,49 @@ def pipe_safe(run: Callable[[Any], int | None]) -> Callable[[Any], int]:
             code = int(run(args) or 0)
             sys.stdout.flush()
         except BrokenPipeError:
+            if not stdout_reader_gone():
+                raise  # another pipe broke (a worker, a driver): a real error
             _silence_stdout()
             return 0
         return code
 
     wrapped.__wrapped__ = run  # type: ignore[attr-defined]
     return wrapped
+
+
+def stdout_reader_gone(fd: int | None = None) -> bool:
+    """Whether stdout (or the file descriptor ``fd``) is a pipe whose reading end has been
+    closed: ``poll`` reports an error condition on the writing end then.
+
+    Parameters
+    ----------
+    fd : int, optional
+        File descriptor to look at; default: ``sys.stdout``'s.
+
+    Returns
+    -------
+    bool
+        False for a terminal, a file, an open pipe or a stdout that is no file at all.
+
+    Examples
+    --------
+    >>> r, w = os.pipe()
+    >>> stdout_reader_gone(w)
+    False
+    >>> os.close(r)
+    >>> stdout_reader_gone(w)
+    True
+    >>> os.close(w)
+    """
+    import select
+
+    try:
+        fd = sys.stdout.fileno() if fd is None else fd
+        poller = select.poll()
+        poller.register(fd, select.POLLOUT)
+        return any(ev & select.POLLERR for _, ev in poller.poll(0))
+    except (OSError, ValueError, AttributeError):
+        return False
 
 
 def _silence_stdout() -> None:

@@ -16,6 +16,7 @@ import threading
 
 from .. import __version__
 from ..errors import RotoruqError
+from ..safety import terminal_text
 from .console import pipe_safe, route_warnings
 
 # Order in which subcommands are listed by --help.
@@ -125,12 +126,15 @@ def _main(argv: list[str] | None) -> int:
     except (RotoruqError, OSError) as exc:
         if args.debug:
             raise
-        print(f"rotoruq {args.command}: error: {exc}", file=sys.stderr)
+        # messages quote study-supplied names and paths: no escape code reaches the terminal
+        print(f"rotoruq {args.command}: error: {terminal_text(exc, lines=True)}",
+              file=sys.stderr)
         return 1
     except Exception as exc:  # a bug, not bad input: say so, keep the terminal readable
         if args.debug:
             raise
-        print(f"rotoruq {args.command}: internal error: {type(exc).__name__}: {exc}\n"
+        print(f"rotoruq {args.command}: internal error: {type(exc).__name__}: "
+              f"{terminal_text(exc, lines=True)}\n"
               f"(run 'rotoruq --debug {args.command} ...' for the traceback, and please report "
               "it)", file=sys.stderr)
         return 2

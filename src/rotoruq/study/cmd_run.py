@@ -46,13 +46,14 @@ def run(args: argparse.Namespace) -> int:
                       outside_store=args.allow_outside_store)
     with results_lock(out, "run"):  # the run and its report, one at a time per folder
         result = run_study(study, out=out, quick=args.quick, only=args.only)
-        print(f"results: {result.out}")
+        say = (lambda line: None) if getattr(args, "quiet", False) else print
+        say(f"results: {result.out}")
         if not args.no_report:
             from ..report.html import write_report
 
             index = write_report([result.out], Path(result.out) / "report")
-            print(f"report: {index}")
-    print(summary(result))
+            say(f"report: {index}")
+    say(summary(result))
     return 0
 
 

@@ -1,6 +1,7 @@
 """Rotor-model fidelity numbers quoted in README "Rotor model" (prints JSON).
 
-    python scripts/rotor_fidelity.py            # about a minute on 2 cores
+    python scripts/rotor_fidelity.py [--out FILE]   # about a minute on 2 cores
+    python scripts/rotor_fidelity.py --quick        # 32 Sobol' base samples: a smoke run
 
 Sections:
 - mbdyn_checks: the model configured like the reference study's multibody runs.
@@ -19,6 +20,7 @@ Sections:
 
 from __future__ import annotations
 
+import argparse
 import json
 
 import numpy as np
@@ -143,7 +145,7 @@ def cyclic_response(n: int = 256) -> dict:
                                                       "harmonic_inflow": True}}.items():
         p = gvpm(**kw)
         m = rq.RotorModel(p, names_in=space.names, names_out=RESP, fixed=fixed)
-        s = rq.sobol_indices(m, space, n=n, seed=1, n_bootstrap=0)
+        s = rq.sobol_indices(m, space, n_samples=n, seed=1, n_bootstrap=0)
         g = rq.RotorModel(p, names_in=space.names, names_out=["roll", "pitch"], fixed=fixed)
         y = g([[5, 1, 0], [5, -1, 0], [5, 0, 1], [5, 0, -1]])
         gain = np.array([(y[0] - y[1]) / 2, (y[2] - y[3]) / 2])   # rows lat, long
@@ -182,7 +184,7 @@ def table_4_9(n: int = 256) -> dict:
         "cd0_m02": rq.Normal(0.0079, 3.95e-4), "cd0_m03": rq.Normal(0.0077, 3.85e-4),
         "k_pitch_link": rq.Normal(15.0, 0.75), "ei_flap": rq.Normal(10.0, 0.5)})
     m = rq.RotorModel("gvpm", names_in=space.names, names_out=RESP, fixed=OP)
-    s = rq.sobol_indices(m, space, n=n, seed=1, n_bootstrap=0)
+    s = rq.sobol_indices(m, space, n_samples=n, seed=1, n_bootstrap=0)
     return {"responses": RESP, "thesis_main": THESIS_4_9,
             "main": {k: _r(s.main[:, j], 3) for j, k in enumerate(space.names)}}
 
@@ -219,12 +221,14 @@ def mbdyn_checks() -> dict:
     """The model configured like the reference multibody runs (DESIGN.md hints a and b):
     MBDyn's NACA 0012 table (from ../shared, not shipped), uniform inflow, no tip loss, no
     feathering coupling, rigid link."""
+    import os
     from pathlib import Path
 
     from rotoruq.rotor.airfoil import Airfoil
 
-    path = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "airfoils"
-    path = path / "naca0012.c81"
+    # the shared folder as .ci/run finds it: $ROTORUQ_SHARED, else ../shared beside the clone
+    shared = os.environ.get("ROTORUQ_SHARED") or Path(__file__).resolve().parents[2] / "shared"
+    path = Path(shared) / "data" / "airfoils" / "naca0012.c81"
     if not path.exists():
         return {"skipped": f"{path} not found"}
     af = Airfoil.from_c81(path, fit_mode=False)
@@ -238,17 +242,29 @@ def mbdyn_checks() -> dict:
             "bo105_6deg_whole_span_-6.2": {"rotoruq": _r(b), "mbdyn": [2214.0, 1734.0]}}
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true",
+                    help="32 Sobol' base samples instead of 256 (a smoke run, not the numbers)")
+    ap.add_argument("--out", help="also write the JSON to this file")
+    args = ap.parse_args(argv)
+    n = 32 if args.quick else 256
     out = {
+        "quick": args.quick,
+        "n_samples": n,
         "mbdyn_checks": mbdyn_checks(),
         "control_chain": control_chain(),
         "chosen_properties": chosen_properties(),
-        "cyclic_response": cyclic_response(),
-        "table_4_9": table_4_9(),
+        "cyclic_response": cyclic_response(n),
+        "table_4_9": table_4_9(n),
         "bo105_geometry": bo105_geometry(),
         "ground_effect": ground_effect(),
     }
-    print(json.dumps(out, indent=1))
+    text = json.dumps(out, indent=1)
+    print(text)
+    if args.out:
+        with open(args.out, "w", encoding="utf-8") as fh:
+            fh.write(text + "\n")
 
 
 if __name__ == "__main__":

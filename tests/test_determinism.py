@@ -93,6 +93,36 @@ def _discrepancy(seed):
         n_draws=20, seed=seed)
 
 
+def _importance(seed):
+    space = rq.ParameterSpace({"a": rq.Normal(10, 5), "b": rq.Normal(10, 5)})
+    model = rq.FunctionModel(lambda x: x[:, 0] ** 3 + x[:, 1] ** 3 - 18, ["a", "b"], ["g"])
+    mpp = rq.mpp_search(model, space, response_levels=[0.0])
+    return rq.importance_sampling(model, space, mpp, n_samples=200, n_rounds=1, seed=seed)
+
+
+def _box(seed):
+    return rq.box_extremes(lambda x: np.sin(3 * x[:, :1]) * x[:, 1:], [0.0, 1.0], [1.0, 3.0],
+                           max_evaluations=25, seed=seed)
+
+
+def _ladder():
+    return [rq.FunctionModel(lambda x, p=p: x[:, 0] ** p, ["x"], ["y"]) for p in (5, 4, 3)]
+
+
+def _multifidelity(seed):
+    return rq.multifidelity_sample(_ladder(), rq.ParameterSpace({"x": rq.Uniform(0.0, 1.0)}),
+                                   50.0, n_pilot=20, costs=[1.0, 0.05, 0.01], seed=seed)
+
+
+def _cokriging(seed):
+    x_lo = np.linspace(0.0, 1.0, 11)[:, None]
+    x_hi = x_lo[::3]
+    lo, hi = np.sin(8 * x_lo) + x_lo, 2.0 * (np.sin(8 * x_hi) + x_hi) + x_hi ** 2
+    ck = rq.CoKriging(seed=seed).fit([x_lo, x_hi], [lo, hi])
+    mean, var = ck.predict(np.linspace(0.05, 0.95, 7)[:, None])
+    return {"mean": mean, "var": var, "rho": np.asarray(ck.rho, dtype=float)}
+
+
 #: case -> (public function, small problem calling it with a seed)
 CASES: dict[str, tuple[str, Callable[[int], object]]] = {
     "as_generator": ("as_generator", lambda s: rq.as_generator(s).random(16)),
@@ -103,10 +133,14 @@ CASES: dict[str, tuple[str, Callable[[int], object]]] = {
     "polynomial_chaos": ("polynomial_chaos", lambda s: rq.polynomial_chaos(
         *_quadratic(), 2, estimator="regression", n_samples=30, seed=s)),
     "evidence": ("evidence", _evidence),
+    "importance_sampling": ("importance_sampling", _importance),
+    "box_extremes": ("box_extremes", _box),
     "calibrate_bayes": ("calibrate_bayes", _bayes),
     "calibrate_bayes_emulator": ("calibrate_bayes", _bayes_emulated),
     "continue_chain": ("continue_chain", lambda s: rq.continue_chain(_bayes(3), 100, seed=s)),
     "GaussianProcess": ("GaussianProcess", _gp),
+    "CoKriging": ("CoKriging", _cokriging),
+    "multifidelity_sample": ("multifidelity_sample", _multifidelity),
     "simulation_based_calibration": ("simulation_based_calibration", _sbc),
     "calibrate_with_discrepancy": ("calibrate_with_discrepancy", _discrepancy),
     "predict_with_discrepancy": ("predict_with_discrepancy", lambda s: rq.predict_with_discrepancy(

@@ -4,7 +4,7 @@ Every module under ``src/rotoruq`` is parsed (not imported) and each ``import`` 
 or inside a function, since a deferred import is still a dependency - is resolved to the rotoruq
 subpackage it reaches. A lower layer must never import a higher one:
 
-    errors, _rng, atomic            the bottom: import nothing of rotoruq but each other
+    errors, _rng, atomic, safety    the bottom: import nothing of rotoruq but each other
     model, params                   + the bottom
     rotor                           + model, params           (never methods, evaluation, ...)
     methods                         + model, params           (never rotor, evaluation, ...)
@@ -37,12 +37,13 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "rotoruq"
 
-BOTTOM = {"errors", "_rng", "atomic"}
+BOTTOM = {"errors", "_rng", "atomic", "safety"}
 UNITS = {"model", "params"}
 ALLOWED: dict[str, set[str]] = {
     "errors": set(),
     "_rng": {"errors"},
     "atomic": set(),
+    "safety": {"errors"},
     "model": BOTTOM,
     "params": BOTTOM,
     "rotor": BOTTOM | UNITS,

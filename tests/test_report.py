@@ -208,10 +208,11 @@ def test_user_study_report_is_its_own(tmp_path):
     assert "claims of the reference study" not in page and "Table 3.4" not in page
     assert not (tmp_path / "report" / "claims.json").exists()
     assert "src='http" not in page and 'src="http' not in page
-    # one figure, one PNG file: drawn once, no second (SVG) rendering
+    # one figure, one PNG and one SVG file
     pngs = sorted((tmp_path / "report" / "figures").glob("*.png"))
     assert len(pngs) == len(imgs)
-    assert not list((tmp_path / "report" / "figures").glob("*.svg"))
+    assert sorted(p.stem for p in (tmp_path / "report" / "figures").glob("*.svg")) == \
+        [p.stem for p in pngs]
     # a table for each step, with the step's own numbers
     for step in ("truth", "mv", "fit", "check"):
         assert f"id='study-lin-step-{step}'" in page
@@ -360,9 +361,11 @@ def test_report_cli_rejects_empty_folder(tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_reproduce_quick(tmp_path):
+def test_reproduce_quick(tmp_path, capsys):
     """The bundled reference study, reduced (`rotoruq reproduce --quick`), end to end."""
     assert main(["reproduce", "all", "--quick", "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out  # the same summary as `run`, per chapter
+    assert "summary of validation" in out and "summary of experiment" in out
     page = (tmp_path / "report" / "index.html").read_text()
     for number in ("3.4", "3.9", "3.13", "4.9", "4.12", "4.14", "4.17", "4.19"):
         assert f"Table {number}:" in page

@@ -1,17 +1,21 @@
 """The report opens in a real browser (headless Debian Chromium): every figure loads, every
-figure's axes are labelled with units, and every table-of-contents link resolves."""
+figure's axes are labelled with units, every table-of-contents link resolves; the first screen
+shows the verdict counts, every figure is also an SVG file, and the page prints to a PDF."""
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import shutil
 import subprocess
+import xml.etree.ElementTree as ET
 
 import pytest
 
 from rotoruq.report.html import write_report
 from rotoruq.study.runner import run_study
+from test_report import _fake_reference
 from test_runner import STUDY, linear_factory
 
 pytestmark = pytest.mark.browser
@@ -75,3 +79,75 @@ def test_report_renders_in_chromium(tmp_path):
     assert m and m.group(1) == "0" and int(m.group(2)) == total, m and m.group(0)
     m = re.search(r'data-toc="(\d+)/(\d+)"', out.stdout)
     assert m and int(m.group(2)) >= 5 and m.group(1) == m.group(2), m and m.group(0)
+
+
+# Sets <body data-counts="holds/warn/fails/na" data-counts-top="y" data-height="h"
+# data-svgs="figure-id=href;..."> once the page has loaded: the verdict counts block's numbers
+# and where it sits (CSS pixels from the top of the page), the window height, and each
+# figure's SVG link.
+FIRST_SCREEN_PROBE = """<script>
+window.addEventListener('load', function () {
+  var c = document.querySelector('p.counts');
+  var b = document.body;
+  if (c) {
+    b.setAttribute('data-counts', ['holds', 'warn', 'fails', 'na'].map(function (k) {
+      return c.getAttribute('data-' + k); }).join('/'));
+    b.setAttribute('data-counts-top', String(Math.round(c.getBoundingClientRect().bottom)));
+    b.setAttribute('data-counts-text', c.textContent);
+  }
+  b.setAttribute('data-height', String(window.innerHeight));
+  var figs = Array.prototype.slice.call(document.querySelectorAll('figure'));
+  b.setAttribute('data-svgs', figs.map(function (f) {
+    var a = f.querySelector('figcaption a[href$=".svg"]');
+    return f.id + '=' + (a ? a.getAttribute('href') : '');
+  }).join(';'));
+});
+</script>"""
+
+
+def _chromium(tmp_path, *args: str) -> subprocess.CompletedProcess:
+    if CHROMIUM is None:
+        if os.environ.get("CI"):
+            pytest.fail("chromium is required in CI (apt-get install chromium)")
+        pytest.skip("chromium is not installed")
+    cmd = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+           "--no-first-run", "--disable-background-networking", "--disable-component-update",
+           "--disable-sync", f"--user-data-dir={tmp_path / 'profile'}", *args]
+    out = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    return out
+
+
+def test_first_screen_shows_the_verdict_and_every_figure_is_svg(tmp_path):
+    exp, val = _fake_reference(tmp_path)
+    index = write_report([exp, val], tmp_path / "report")
+    claims = json.loads((tmp_path / "report" / "claims.json").read_text())
+    probe = index.with_name("probe.html")
+    probe.write_text(index.read_text().replace("<head>", "<head>" + FIRST_SCREEN_PROBE, 1))
+    out = _chromium(tmp_path, "--window-size=1280,800", "--virtual-time-budget=10000",
+                    "--dump-dom", probe.as_uri())
+    body = re.search(r"<body([^>]*)>", out.stdout)
+    assert body, out.stdout[:500]
+    attrs = dict(re.findall(r'(data-[a-z-]+)="([^"]*)"', body.group(1)))
+    # the counts, as the claims say, within the first screen of a laptop-sized window
+    statuses = [c["status"] for c in claims]
+    expect = [statuses.count(k) for k in ("holds", "holds, with a warning", "does not hold",
+                                          "not checked")]
+    assert attrs["data-counts"] == "/".join(map(str, expect))
+    assert 0 < int(attrs["data-counts-top"]) <= int(attrs["data-height"])
+    assert f"{len(claims)} claims of the reference study" in attrs["data-counts-text"]
+    # every figure links its SVG file, which exists beside its PNG and is an SVG drawing
+    links = dict(p.split("=", 1) for p in attrs["data-svgs"].split(";") if p)
+    assert len(links) >= 3
+    figures = tmp_path / "report" / "figures"
+    for fig_id, href in links.items():
+        assert href == f"figures/{fig_id.removeprefix('fig-')}.svg"
+        svg = tmp_path / "report" / href
+        assert svg.with_suffix(".png").is_file()
+        assert ET.parse(svg).getroot().tag == "{http://www.w3.org/2000/svg}svg"
+    assert sorted(p.stem for p in figures.glob("*.svg")) == sorted(
+        p.stem for p in figures.glob("*.png"))
+    # printed by the browser, the page is a PDF (the print CSS hides the folded contents)
+    pdf = tmp_path / "report.pdf"
+    _chromium(tmp_path, f"--print-to-pdf={pdf}", "--no-pdf-header-footer", index.as_uri())
+    assert pdf.read_bytes()[:5] == b"%PDF-"

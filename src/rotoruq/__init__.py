@@ -54,6 +54,9 @@ _LAZY: dict[str, str] = {
     "write_c81": ".rotor.c81",
     "EvidenceResult": ".methods.evidence",
     "evidence": ".methods.evidence",
+    "CoKriging": ".methods.cokriging",
+    "MultifidelityResult": ".methods.multifidelity",
+    "multifidelity_sample": ".methods.multifidelity",
     "PCEResult": ".methods.pce",
     "polynomial_chaos": ".methods.pce",
     "MeanValueResult": ".methods.reliability",
@@ -88,6 +91,9 @@ _LAZY: dict[str, str] = {
     "calibrate_with_discrepancy": ".methods.mcmc.discrepancy",
     "predict_with_discrepancy": ".methods.mcmc.discrepancy",
     "GaussianProcess": ".methods.surrogate",
+    "ImportanceSamplingResult": ".methods.importance",
+    "importance_sampling": ".methods.importance",
+    "box_extremes": ".methods.ego",
     "LeaveOneOut": ".methods.surrogate",
     "CUUCheck": ".methods.cuu",
     "CUUResult": ".methods.cuu",
@@ -190,6 +196,9 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     from .evaluation import (
         write_results as write_results,
     )
+    from .methods.cokriging import (
+        CoKriging as CoKriging,
+    )
     from .methods.cuu import (
         CUUCheck as CUUCheck,
     )
@@ -202,11 +211,20 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     from .methods.cuu import (
         check_cuu as check_cuu,
     )
+    from .methods.ego import (
+        box_extremes as box_extremes,
+    )
     from .methods.evidence import (
         EvidenceResult as EvidenceResult,
     )
     from .methods.evidence import (
         evidence as evidence,
+    )
+    from .methods.importance import (
+        ImportanceSamplingResult as ImportanceSamplingResult,
+    )
+    from .methods.importance import (
+        importance_sampling as importance_sampling,
     )
     from .methods.least_squares import (
         CalibrationResult as CalibrationResult,
@@ -249,6 +267,12 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     )
     from .methods.mcmc.sbc import (
         simulation_based_calibration as simulation_based_calibration,
+    )
+    from .methods.multifidelity import (
+        MultifidelityResult as MultifidelityResult,
+    )
+    from .methods.multifidelity import (
+        multifidelity_sample as multifidelity_sample,
     )
     from .methods.pce import (
         PCEResult as PCEResult,

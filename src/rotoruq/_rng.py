@@ -12,7 +12,7 @@ from .errors import ParameterError
 
 SeedLike = int | np.random.Generator | np.random.SeedSequence | None
 
-__all__ = ["SeedLike", "as_generator"]
+__all__ = ["SeedLike", "as_generator", "as_seed_sequence"]
 
 
 def as_generator(seed: SeedLike = None) -> np.random.Generator:
@@ -33,3 +33,22 @@ def as_generator(seed: SeedLike = None) -> np.random.Generator:
     if int(seed) < 0:
         raise ParameterError(f"seed must be a non-negative integer, got {int(seed)}")
     return np.random.default_rng(int(seed))
+
+
+def as_seed_sequence(seed: SeedLike = None) -> np.random.SeedSequence:
+    """``seed`` as a :class:`numpy.random.SeedSequence`, for methods that spawn independent
+    streams (one child per stage or replication): a SeedSequence itself, a Generator gives one
+    drawn from it (so it advances), an int or None its own. Other types raise
+    :class:`~rotoruq.errors.ParameterError`, as :func:`as_generator` does.
+
+    Examples
+    --------
+    >>> as_seed_sequence(3).entropy
+    3
+    """
+    if isinstance(seed, np.random.SeedSequence):
+        return seed
+    if isinstance(seed, np.random.Generator):
+        return np.random.SeedSequence(int(seed.integers(2**63)))
+    as_generator(seed)  # the same checks
+    return np.random.SeedSequence(None if seed is None else int(seed))

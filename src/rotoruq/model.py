@@ -224,8 +224,37 @@ def has_gradient(model: Model) -> bool:
 def evaluate(model: Model, x: ArrayLike) -> EvalBatch:
     """Evaluate ``model`` on a batch and check the result.
 
-    Rows that come back non-finite without a reason get the reason "non-finite response".
-    Raises :class:`ModelShapeError` when the model returns the wrong shape.
+    Parameters
+    ----------
+    model : Model
+        Any object of the Model protocol (``names_in``, ``names_out``, batched call).
+    x : array_like, shape (n, d)
+        One point per row, columns in ``model.names_in`` order, in the inputs' own units.
+
+    Returns
+    -------
+    EvalBatch
+        ``values`` (n, m) in ``model.names_out`` order and ``failures`` (row -> reason).
+        Rows that come back non-finite without a reason get the reason "non-finite
+        response".
+
+    Raises
+    ------
+    ModelShapeError
+        When the model returns the wrong shape.
+
+    Examples
+    --------
+    A model of 2 inputs and 1 response on 3 points (``x`` (n, d), ``values`` (n, m)); a point
+    whose response is not finite is a failure with its reason, not an error:
+
+    >>> import numpy as np
+    >>> model = FunctionModel(lambda x: x[:, :1] * x[:, 1:], ["a", "b"], ["y"])
+    >>> batch = evaluate(model, np.array([[1.0, 2.0], [3.0, 4.0], [0.5, np.nan]]))
+    >>> batch.values[:2, 0].tolist()
+    [2.0, 12.0]
+    >>> batch.failures
+    {2: 'non-finite response'}
     """
     x = np.atleast_2d(np.asarray(x, dtype=float))
     n = x.shape[0]

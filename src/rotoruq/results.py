@@ -13,19 +13,22 @@ the step hands to later steps (posterior / calibrated) and JSON metadata. On dis
                                        :func:`rotoruq.study.runner.model_record`)
 
 Saves are atomic (see :func:`save_step`) and loads check every file against the sha256 that
-``result.json`` records, so a half-saved step is never trusted.
+``result.json`` records, so a half-saved step is never trusted. A results folder may come from
+someone else: every file is read without following a symlink, arrays never unpickle
+(``allow_pickle=False``), and a file rotoruq did not write (tampered, foreign, pointing
+outside its step folder) raises :class:`ForeignStepFileError` naming it.
 """
 
 from __future__ import annotations
 
 import csv
 import difflib
+import hashlib
 import io
 import json
 import math
 import os
 import shutil
-import tempfile
 import uuid
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
@@ -34,15 +37,23 @@ from typing import TYPE_CHECKING, Any, ClassVar, Self
 
 import numpy as np
 
-from .atomic import fsync_dir, write_text
+from .atomic import fsync_dir, make_temp_dir, write_text
 from .errors import RotoruqError
-from .evaluation.identity import file_sha256
 from .params import Distribution, make_distribution
+from .safety import (
+    ForeignFileError,
+    check_name,
+    name_problem,
+    no_symlink,
+    open_nofollow,
+    read_nofollow,
+    real_dir,
+)
 
 __all__ = ["StepResult", "save_step", "load_step", "load_results", "dist_to_dict",
            "dict_to_dist", "IncompleteStepError", "clean_partial_saves", "STUDY_INFO",
            "save_study_info", "load_study_info", "is_study_dir", "SCHEMA_VERSION",
-           "StepRecord", "RecordError"]
+           "StepRecord", "RecordError", "ForeignStepFileError"]
 
 #: Version of the saved step format. 1: ``result.json`` records it, and a step may carry a
 #: typed record (:class:`StepRecord`, ``meta["record"]``). A folder saved by a newer format
@@ -188,15 +199,34 @@ class StepRecord:
             raise RecordError(f"step {res.name!r} ({res.type}) was saved without a "
                               f"{cls.__name__} (by a rotoruq older than results schema "
                               f"{SCHEMA_VERSION}): run the step again")
+        if not isinstance(rec.get("version", 0), int):
+            raise RecordError(f"not written by rotoruq: step {res.name!r} (its {cls.__name__} "
+                              "version is not a number); remove it or re-run the step")
         if int(rec.get("version", 0)) > cls.VERSION:
             raise RecordError(f"step {res.name!r}: {cls.__name__} version {rec['version']} "
                               f"needs a newer rotoruq (this one reads up to {cls.VERSION})")
+        saved = rec.get("fields")
+
+        def foreign(why: str) -> RecordError:
+            return RecordError(f"not written by rotoruq: step {res.name!r} ({why}); remove it "
+                               "or re-run the step")
+
+        if not isinstance(saved, Mapping):
+            raise foreign(f"its {cls.__name__} has no fields")
         kwargs: dict[str, Any] = {}
         for f in fields(cls):
             if f.name in cls.AXES:
-                kwargs[f.name] = np.asarray(res.arrays[f.name])
+                if f.name not in res.arrays:
+                    raise foreign(f"its {cls.__name__} lacks the array {f.name!r}")
+                arr = np.asarray(res.arrays[f.name])
+                if arr.ndim != len(cls.AXES[f.name]):
+                    raise foreign(f"{cls.__name__}.{f.name} has {arr.ndim} axes, not "
+                                  f"{len(cls.AXES[f.name])}")
+                kwargs[f.name] = arr
             else:
-                v = rec["fields"][f.name]
+                if f.name not in saved:
+                    raise foreign(f"its {cls.__name__} lacks the field {f.name!r}")
+                v = saved[f.name]
                 kwargs[f.name] = tuple(v) if isinstance(v, list) else v
         return cls(**kwargs)
 
@@ -242,23 +272,36 @@ class IncompleteStepError(RotoruqError):
     (a save interrupted before the atomic rename, or files changed by hand)."""
 
 
+class ForeignStepFileError(ForeignFileError, IncompleteStepError):
+    """A file of a saved step that rotoruq did not write: a pickled or malformed ``.npy``,
+    a ``result.json`` of the wrong shape or listing files outside its folder. The runner
+    treats it as an incomplete step (it runs the step again); ``show`` and ``report`` stop
+    with one line naming the file."""
+
+
 def save_step(result: StepResult, directory: str | Path) -> Path:
     """Write ``result`` under ``directory/steps/<name>/``; returns that folder.
 
     The step is written whole into a temporary folder (every file flushed to disk, then
     ``result.json`` with the sha256 of every other file), which then replaces the old folder
-    by rename. A reader finds the old step, the new step or none: never a mix.
+    by rename. A reader finds the old step, the new step or none: never a mix. Folders and
+    files get the user's umask; ``steps/`` and the old step folder must be real folders
+    (:class:`~rotoruq.safety.UnsafePathError` naming a symlink).
     """
-    steps = Path(directory) / "steps"
-    steps.mkdir(parents=True, exist_ok=True)
+    check_name(result.name, what="a step name")
+    for name in result.arrays:
+        check_name(name, what=f"an array name of step {result.name!r}")
+    Path(directory).mkdir(parents=True, exist_ok=True)
+    steps = real_dir(Path(directory) / "steps", create=True)
     folder = steps / result.name
-    tmp = Path(tempfile.mkdtemp(prefix=f".tmp-{result.name}.", dir=steps))
+    if folder.is_symlink() or folder.exists():
+        real_dir(folder)
+    tmp = make_temp_dir(steps, f".tmp-{result.name}.")
     try:
         files: dict[str, str] = {}
 
         def put(name: str, write) -> None:
-            _write_synced(tmp / name, write)
-            files[name] = file_sha256(tmp / name)
+            files[name] = _write_synced(tmp / name, write)
 
         def put_csv(fh):
             text = io.StringIO(newline="")
@@ -303,13 +346,31 @@ def save_step(result: StepResult, directory: str | Path) -> Path:
     return folder
 
 
-def _write_synced(path: Path, write) -> None:
-    """Write a file of a step's private temporary folder and flush it to disk. No rename of
-    its own: the folder is renamed whole once every file is synced (and the folder itself)."""
-    with open(path, "wb") as fh:
-        write(fh)
+class _Hashing(io.RawIOBase):
+    """A binary file that also feeds what is written to a sha256."""
+
+    def __init__(self, fh) -> None:
+        self.fh, self.sha = fh, hashlib.sha256()
+
+    def writable(self) -> bool:
+        return True
+
+    def write(self, b) -> int:
+        self.sha.update(b)
+        return self.fh.write(b)
+
+
+def _write_synced(path: Path, write) -> str:
+    """Write a new file of a step's temporary folder (never through a link: ``O_EXCL``),
+    flush it to disk, and return its sha256. No rename of its own: the folder is renamed
+    whole once every file is synced (and the folder itself)."""
+    fd = open_nofollow(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+    with os.fdopen(fd, "wb") as fh:
+        out = _Hashing(fh)
+        write(out)
         fh.flush()
         os.fsync(fh.fileno())
+    return out.sha.hexdigest()
 
 
 def _write_csv(fh, arr: np.ndarray, cols: Sequence[str], rows_per_block: int = 8192) -> None:
@@ -331,46 +392,106 @@ def clean_partial_saves(directory: str | Path) -> list[Path]:
     """Remove temporary folders left by saves that were interrupted; returns what was removed.
     Call it only while holding the results folder's lock."""
     steps = Path(directory) / "steps"
-    removed = []
+    removed: list[Path] = []
+    if not steps.is_dir() or steps.is_symlink():
+        return removed
     for p in sorted(steps.glob(".tmp-*")) + sorted(steps.glob(".old-*")):
         shutil.rmtree(p, ignore_errors=True)
         removed.append(p)
     return removed
 
 
+# the entries of a step's meta that the runner writes and the report and `show` read
+_META_KINDS: dict[str, type | tuple[type, ...]] = {
+    "columns": dict, "seconds": (int, float), "n_evaluations": int, "title": str,
+    "parameters": list, "responses": list, "fixed": dict, "options": dict, "source": str,
+    "record": dict, "identity": dict, "input_distributions": dict,
+}
+
+
 def load_step(folder: str | Path) -> StepResult:
-    """Read a saved step; raises :class:`IncompleteStepError` when it is not whole."""
+    """Read a saved step; raises :class:`IncompleteStepError` when it is not whole,
+    :class:`ForeignStepFileError` naming a file rotoruq did not write, and
+    :class:`~rotoruq.safety.UnsafePathError` naming a symlink."""
     folder = Path(folder)
     where = folder / "result.json"
     try:
-        doc = json.loads(where.read_text(encoding="utf-8"))
+        raw = read_nofollow(where)
     except FileNotFoundError:
         raise IncompleteStepError(f"{where}: missing") from None
+    try:
+        doc = json.loads(raw.decode("utf-8"))
     except (UnicodeDecodeError, ValueError) as exc:
         raise IncompleteStepError(f"{where}: not a complete JSON document ({exc})") from None
     if not isinstance(doc, dict) or not {"name", "type", "scalars"} <= set(doc):
         raise IncompleteStepError(f"{where}: expected a step result with name, type, scalars")
-    if int(doc.get("schema", 0)) > SCHEMA_VERSION:
+    shapes = {"name": str, "type": str, "scalars": dict, "files": dict, "arrays": list,
+              "meta": dict, "distributions": dict, "fingerprint": str, "schema": int}
+    for key, kind in shapes.items():
+        if key in doc and doc[key] is not None and not isinstance(doc[key], kind):
+            raise ForeignStepFileError(where, f"{key!r} is a {type(doc[key]).__name__}, "
+                                       f"not a {kind.__name__}")
+    for key, kinds in _META_KINDS.items():
+        v = (doc.get("meta") or {}).get(key)
+        if v is not None and (not isinstance(v, kinds) or isinstance(v, bool)):
+            raise ForeignStepFileError(where, f"meta {key!r} is a {type(v).__name__}")
+    columns = (doc.get("meta") or {}).get("columns") or {}
+    if not all(isinstance(c, list) and all(isinstance(x, str) for x in c)
+               for c in columns.values()):
+        raise ForeignStepFileError(where, "meta 'columns' holds something else than names")
+    if name_problem(doc["name"]) or name_problem(doc["type"]) or doc["name"] != folder.name:
+        raise ForeignStepFileError(where, f"step name {doc['name']!r} in folder "
+                                   f"{folder.name!r}")
+    if int(doc.get("schema", 0) or 0) > SCHEMA_VERSION:
         raise RecordError(f"{where}: saved in results schema {doc['schema']}; this rotoruq "
                           f"reads up to schema {SCHEMA_VERSION}: upgrade rotoruq")
     files = doc.get("files")
     if files is None:
         raise IncompleteStepError(f"{where}: saved without file checksums (an older or "
                                   "interrupted save)")
+    data: dict[str, bytes] = {}
     for name, sha in files.items():
+        if name_problem(name) or name == "result.json" or not isinstance(sha, str):
+            raise ForeignStepFileError(where, f"it lists a file {name!r} outside its folder")
         p = folder / name
-        if not p.is_file() or file_sha256(p) != sha:
+        try:
+            data[name] = read_nofollow(p)
+        except FileNotFoundError:
+            raise IncompleteStepError(f"{p}: missing or changed since the step was "
+                                      "saved") from None
+        if hashlib.sha256(data[name]).hexdigest() != sha:
             raise IncompleteStepError(f"{p}: missing or changed since the step was saved")
-    arrays = {n: np.load(folder / f"{n}.npy") for n in doc.get("arrays", [])}
+    arrays = {}
+    for n in doc.get("arrays") or []:
+        if not isinstance(n, str) or f"{n}.npy" not in data:
+            raise ForeignStepFileError(where, f"it lists an array {n!r} that is not one of "
+                                       "its files")
+        arrays[n] = _load_npy(folder / f"{n}.npy", data[f"{n}.npy"])
+    try:
+        scalars = {k: _unjson_scalar(v) for k, v in doc["scalars"].items()}
+    except (TypeError, ValueError) as exc:
+        raise ForeignStepFileError(where, f"a scalar that is not a number: {exc}") from None
     return StepResult(
         name=doc["name"],
         type=doc["type"],
-        scalars={k: _unjson_scalar(v) for k, v in doc["scalars"].items()},
+        scalars=scalars,
         arrays=arrays,
-        distributions=doc.get("distributions", {}),
-        meta=doc.get("meta", {}),
-        fingerprint=doc.get("fingerprint", ""),
+        distributions=doc.get("distributions") or {},
+        meta=doc.get("meta") or {},
+        fingerprint=doc.get("fingerprint") or "",
     )
+
+
+def _load_npy(path: Path, raw: bytes) -> np.ndarray:
+    """An array saved by :func:`save_step`: plain numbers, booleans or text, never objects
+    (a pickle is refused, never run)."""
+    try:
+        arr = np.load(io.BytesIO(raw), allow_pickle=False)
+    except (ValueError, OSError, EOFError) as exc:
+        raise ForeignStepFileError(path, f"not a plain numpy array: {exc}") from None
+    if not isinstance(arr, np.ndarray) or arr.dtype.kind not in "biufcUSM":
+        raise ForeignStepFileError(path, f"an array of {getattr(arr, 'dtype', type(arr))}")
+    return arr
 
 
 def save_study_info(directory: str | Path, info: Mapping[str, Any]) -> Path:
@@ -382,19 +503,44 @@ def save_study_info(directory: str | Path, info: Mapping[str, Any]) -> Path:
 
 def is_study_dir(directory: str | Path) -> bool:
     """Whether ``directory`` is a study output folder (it holds ``study.json``)."""
-    return (Path(directory) / STUDY_INFO).is_file()
+    p = Path(directory) / STUDY_INFO
+    return p.is_file() or p.is_symlink()
 
 
 def load_study_info(directory: str | Path) -> dict[str, Any]:
-    """``directory/study.json`` as a dict (``{}`` when the folder has none)."""
+    """``directory/study.json`` as a dict (``{}`` when the folder has none); a symlink is
+    :class:`~rotoruq.safety.UnsafePathError`, anything but a JSON object
+    :class:`ForeignStepFileError`."""
     path = Path(directory) / STUDY_INFO
-    return json.loads(path.read_text(encoding="utf-8")) if path.is_file() else {}
+    try:
+        raw = read_nofollow(path)
+    except FileNotFoundError:
+        return {}
+    try:
+        doc = json.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError) as exc:
+        raise ForeignStepFileError(path, f"not JSON: {exc}") from None
+    if not isinstance(doc, dict):
+        raise ForeignStepFileError(path, "not a JSON object")
+    return doc
 
 
 def load_results(directory: str | Path) -> dict[str, StepResult]:
-    """All saved steps of one study output directory, in the order they were run."""
+    """All saved steps of one study output directory, in the order they were run. Every
+    step folder must be a real folder (a symlink raises
+    :class:`~rotoruq.safety.UnsafePathError` naming it)."""
     directory = Path(directory)
     order = load_study_info(directory).get("steps", [])
-    found = {p.parent.name: p.parent for p in (directory / "steps").glob("*/result.json")}
+    if not isinstance(order, list):
+        raise ForeignStepFileError(directory / STUDY_INFO, "'steps' is not a list")
+    steps = directory / "steps"
+    found: dict[str, Path] = {}
+    if steps.is_symlink() or steps.exists():
+        for p in sorted(real_dir(steps).iterdir()):
+            if p.name.startswith("."):
+                continue
+            no_symlink(p)
+            if p.is_dir() and os.path.lexists(p / "result.json"):
+                found[p.name] = p
     names = [n for n in order if n in found] + sorted(set(found) - set(order))
     return {n: load_step(found[n]) for n in names}

@@ -313,7 +313,19 @@ def write_parameters(
     names_out: Sequence[str] | Mapping[str, int],
     **kwargs: Any,
 ) -> Path:
-    """Write a parameters file (keywords of :func:`format_parameters`); returns the path."""
+    """Write a parameters file (keywords of :func:`format_parameters`); returns the path.
+
+    Examples
+    --------
+    A parameters file for one evaluation of two variables and one response, read back:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> path = write_parameters(Path(tempfile.mkdtemp()) / "params.in",
+    ...                         {"collective_deg": 5.4, "omega": 224.6375}, ["thrust"])
+    >>> read_parameters(path).variables
+    {'collective_deg': 5.4, 'omega': 224.6375}
+    """
     path = Path(path)
     path.write_text(format_parameters(variables, names_out, **kwargs))
     return path
@@ -509,7 +521,7 @@ def _parse_blocks(text: str, path) -> list[ParametersFile]:
 
 
 def parse_parameters(text: str, path: str | os.PathLike | None = None) -> ParametersFile:
-    """Parse the text of a parameters file (standard or aprepro format, detected).
+    r"""Parse the text of a parameters file (standard or aprepro format, detected).
 
     A file of several blocks (Dakota's ``batch`` interface) raises
     :class:`~rotoruq.errors.InputFileError`; read it with :func:`parse_parameters_batch`.
@@ -530,7 +542,7 @@ def parse_parameters(text: str, path: str | os.PathLike | None = None) -> Parame
 
 def parse_parameters_batch(text: str, path: str | os.PathLike | None = None
                            ) -> list[ParametersFile]:
-    """Parse a parameters file of one or more blocks (Dakota's ``batch`` interface writes one
+    r"""Parse a parameters file of one or more blocks (Dakota's ``batch`` interface writes one
     block per evaluation, with evaluation ids ``<batch>:<eval>``).
 
     Examples
@@ -561,7 +573,17 @@ def read_text(path: str | os.PathLike, what: str) -> str:
 
 
 def read_parameters(path: str | os.PathLike) -> ParametersFile:
-    """Read and parse a parameters file."""
+    """Read and parse a parameters file.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> path = write_parameters(Path(tempfile.mkdtemp()) / "params.in", {"x": 1.5}, ["y", "z"])
+    >>> p = read_parameters(path)
+    >>> p.variables, p.asv                  # active set: 1 = value requested
+    ({'x': 1.5}, {'y': 1, 'z': 1})
+    """
     return parse_parameters(read_text(path, "Dakota parameters file"), path)
 
 
@@ -626,6 +648,16 @@ def write_results(
     marker only.
 
     The file is written to a temporary name and renamed, so a reader never sees half a file.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> path = write_results(Path(tempfile.mkdtemp()) / "results.out", [25.7, 281.4],
+    ...                      ["thrust", "power"])
+    >>> r = read_results(path)
+    >>> r.values.tolist(), r.names_out, r.failed
+    ([25.7, 281.4], ('thrust', 'power'), False)
     """
     path = Path(path)
     if failed:
@@ -785,7 +817,18 @@ def read_results(
     asv: Sequence[int] | None = None,
     n_dvv: int | None = None,
 ) -> ResultsFile:
-    """Read and parse a results file (see :func:`parse_results` for the checks)."""
+    """Read and parse a results file (see :func:`parse_results` for the checks).
+
+    Examples
+    --------
+    A failed evaluation is a file with ``FAIL``; reading it says so:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> path = write_results(Path(tempfile.mkdtemp()) / "results.out", failed=True)
+    >>> read_results(path).failed
+    True
+    """
     path = Path(path)
     if not path.is_file():
         raise InputFileError(path, None, "a results file written by the driver", "no file")

@@ -47,7 +47,6 @@ import os
 import shlex
 import shutil
 import signal
-import tempfile
 import threading
 import time
 import uuid
@@ -58,6 +57,7 @@ from typing import Any
 
 import numpy as np
 
+from ..atomic import make_temp_dir
 from ..errors import EvaluationError, InputFileError, ParameterError, RotoruqError
 from ..model import EvalBatch
 from .dakota_files import check_label, read_results, read_text, write_parameters
@@ -392,7 +392,7 @@ class ExternalModel:
         try:
             wd.mkdir()  # exclusive: fails rather than reuse a directory
         except FileExistsError:
-            wd = Path(tempfile.mkdtemp(prefix=wd.name + ".", dir=self.workdir))
+            wd = make_temp_dir(self.workdir, wd.name + ".")  # the umask, not 0700
         return wd
 
     def _prepare(self, wd: Path, values: Mapping[str, float]) -> None:

@@ -161,6 +161,12 @@ def fill_template(
     text : template text.
     values : label -> value (floats print with ``repr`` unless a spec is given).
     path : file name used in error messages.
+
+    Examples
+    --------
+    >>> fill_template("theta = {collective_deg}; k = {k_pitch_link:.3e}; h = {h = 4.0}",
+    ...               {"collective_deg": 5.4, "k_pitch_link": 15.0})
+    'theta = 5.4; k = 1.500e+01; h = 4.0'
     """
     out: list[str] = []
     for piece in _scan(text, path):
@@ -183,7 +189,18 @@ def fill_template(
 def fill_template_file(
     src: str | os.PathLike, dst: str | os.PathLike, values: Mapping[str, object]
 ) -> Path:
-    """Fill the template file ``src`` and write the result to ``dst``; returns ``dst``."""
+    r"""Fill the template file ``src`` and write the result to ``dst``; returns ``dst``.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> folder = Path(tempfile.mkdtemp())
+    >>> _ = (folder / "input.tpl").write_text("omega = {omega}  # rad/s\n")
+    >>> out = fill_template_file(folder / "input.tpl", folder / "input.txt", {"omega": 224.6375})
+    >>> out.read_text()
+    'omega = 224.6375  # rad/s\n'
+    """
     src, dst = Path(src), Path(dst)
     dst.write_text(fill_template(read_text(src, "template file"), values, path=src))
     return dst

@@ -2,9 +2,12 @@
 
 Every input has intervals with basic probability assignments (BPAs). A *cell* is one choice
 of interval per input (cartesian product); its BPA is the product of the inputs' BPAs. On
-each cell the response range [min, max] is estimated by sampling (all cells in ONE batched
-model call) and then refined by bound-constrained local optimization (L-BFGS-B from the best
-sample, by default), so that interior extrema of non-monotone responses are found.
+each cell the response range [min, max] is found by efficient global optimization on one
+Gaussian process over all cells (``optimizer="ego"``, the default, as Dakota's
+``global_evidence ego``: see :mod:`rotoruq.methods.ego`), or estimated by sampling (all cells
+in ONE batched model call) and refined by bound-constrained local optimization
+(``optimizer="sampling"``: L-BFGS-B from the best samples), so that interior extrema of
+non-monotone responses are found.
 
 Cumulative belief and plausibility of a response level z (thesis section 2.3.4):
 
@@ -96,6 +99,8 @@ class EvidenceResult:
     names_in, names_out; cells_lower, cells_upper : (c, d) cell bounds; cell_bpa : (c,);
     cell_min, cell_max : (c, m) response range per cell; response_levels, cbf, cpf, ccbf,
     ccpf : dict name -> arrays over the levels; n_evaluations.
+    optimizer : "ego" or "sampling"; converged : False when EGO stopped at its evaluation budget
+        before every cell's expected improvement fell below the tolerance.
     """
 
     names_in: tuple[str, ...]
@@ -111,6 +116,8 @@ class EvidenceResult:
     ccbf: dict
     ccpf: dict
     n_evaluations: int
+    optimizer: str = "sampling"
+    converged: bool = True
 
     def belief_plausibility(self, name: str, z) -> tuple[np.ndarray, np.ndarray]:
         """(Bel(g <= z), Pl(g <= z)) for response ``name`` at levels z."""
@@ -126,9 +133,12 @@ def evidence(
     space: ParameterSpace,
     *,
     response_levels=None,
-    n_samples: int = 100,
+    optimizer: str = "ego",
+    n_samples: int | None = None,
     optimize: bool = True,
     n_starts: int = 3,
+    tolerance: float = 1e-4,
+    max_evaluations: int | None = None,
     seed: SeedLike = None,
 ) -> EvidenceResult:
     """Dempster-Shafer belief/plausibility of response levels.
@@ -138,8 +148,15 @@ def evidence(
     model : Model; inputs matched by name.
     space : ParameterSpace whose inputs are all :class:`Interval`.
     response_levels : levels z (same for every response, mapping, or one sequence each).
-    n_samples : LHS points per cell (the cell's corners are added); all cells go to the model
-        in one batch of c * (n_samples + 2^d) points (corners only up to d = 10).
+    optimizer : "ego" (default): efficient global optimization of every cell's min and max on
+        one Gaussian process over the whole interval box, refined where any cell's extreme
+        is uncertain, until every cell's expected improvement (divided by the response's
+        observed range) is below ``tolerance``; each new point is one model call (sequential,
+        for expensive models). "sampling": the sampling + local search below.
+    n_samples : "ego": size of the initial Latin hypercube over the whole box (default
+        ``(d + 1)(d + 2) / 2``, Dakota's). "sampling": LHS points per cell (default 100; the
+        cell's corners are added); all cells go to the model in one batch of
+        c * (n_samples + 2^d) points (corners only up to d = 10).
     optimize : refine each cell's min and max with L-BFGS-B from the best sample (default;
         each function value and its forward-difference gradient is one batched model call of
         d + 1 points). Without it the range is that of the samples and corners only, which
@@ -149,7 +166,23 @@ def evidence(
         samples that lie in different parts of the cell (multimodal responses). Local
         optimization finds the global extremum of a cell only when one start lies in its
         basin: more samples and starts raise that chance, no setting guarantees it.
+    tolerance, max_evaluations : "ego" only: the stopping expected improvement (relative to
+        the response's range) and the evaluation budget (default ``100 (d + 1)`` per
+        response; a ``RuntimeWarning`` and ``converged=False`` when it is reached).
     seed : int or Generator.
+
+    Returns
+    -------
+    EvidenceResult
+
+    Examples
+    --------
+    >>> import rotoruq as rq
+    >>> sp = rq.ParameterSpace({"a": rq.Interval([(0.0, 1.0), (1.0, 3.0)], [0.4, 0.6])})
+    >>> m = rq.FunctionModel(lambda x: (x[:, 0] - 0.5) ** 2, ["a"], ["g"])
+    >>> r = evidence(m, sp, response_levels=[0.1], seed=1)
+    >>> r.cbf["g"], r.cpf["g"]  # only the first cell's range [0, 0.25] reaches below 0.1
+    (array([0.]), array([0.4]))
     """
     intervals = [dd for dd in space.distributions if isinstance(dd, Interval)]
     bad = [
@@ -161,8 +194,14 @@ def evidence(
         raise ParameterError(f"evidence needs Interval inputs; not intervals: {bad}")
     if space.correlation is not None:
         raise ParameterError("evidence does not take correlated inputs")
-    if int(n_samples) < 1 or (optimize and int(n_starts) < 1):
-        raise ParameterError(f"n_samples and n_starts must be >= 1, got {n_samples}, {n_starts}")
+    if optimizer not in ("ego", "sampling"):
+        raise ParameterError(f"evidence optimizer must be 'ego' or 'sampling', got "
+                             f"{optimizer!r}")
+    if n_samples is not None and int(n_samples) < (2 if optimizer == "ego" else 1):
+        raise ParameterError(f"n_samples must be >= {2 if optimizer == 'ego' else 1}, got "
+                             f"{n_samples}")
+    if optimizer == "sampling" and optimize and int(n_starts) < 1:
+        raise ParameterError(f"n_starts must be >= 1, got {n_starts}")
     d = space.dim
     rng = as_generator(seed)
     ivs = [np.array(dd.intervals) for dd in intervals]
@@ -172,6 +211,27 @@ def evidence(
     hi = np.array([[ivs[j][c[j], 1] for j in range(d)] for c in combos])
     bpa = np.array([np.prod([bpas[j][c[j]] for j in range(d)]) for c in combos])
     n_cells = len(combos)
+    names_out = tuple(model.names_out)
+    converged = True
+    if optimizer == "ego":
+        from .ego import box_extremes
+
+        box = box_extremes(
+            lambda xx: eval_space(model, space, xx).values, lo, hi, n_initial=n_samples,
+            tolerance=tolerance,
+            max_evaluations=(100 * (d + 1) * len(names_out) if max_evaluations is None
+                             else int(max_evaluations)),
+            seed=rng)
+        cmin, cmax, n_eval, converged = box.minimum, box.maximum, box.n_evaluations, box.converged
+    else:
+        cmin, cmax, n_eval = _sample_and_refine(model, space, lo, hi, n_cells, d, 100 if
+                                                n_samples is None else int(n_samples),
+                                                optimize, n_starts, rng)
+    return _result(space, names_out, response_levels, lo, hi, bpa, cmin, cmax, n_eval, optimizer,
+                   converged)
+
+
+def _sample_and_refine(model, space, lo, hi, n_cells, d, n_samples, optimize, n_starts, rng):
     unit = unit_design(int(n_samples), d, design="lhs", seed=rng)
     if d <= 10:
         unit = np.vstack([unit, np.array(list(itertools.product([0.0, 1.0], repeat=d)))])
@@ -187,7 +247,11 @@ def evidence(
         cmin, cmax, extra = _refine(model, space, x.reshape(n_cells, per, d), y, lo, hi,
                                     cmin, cmax, int(n_starts))
         n_eval += extra
-    names_out = tuple(model.names_out)
+    return cmin, cmax, n_eval
+
+
+def _result(space, names_out, response_levels, lo, hi, bpa, cmin, cmax, n_eval, optimizer,
+            converged):
     rl = levels_per_response(response_levels, names_out, "response_levels")
     cbf, cpf, ccbf, ccpf = {}, {}, {}, {}
     for k, name in enumerate(names_out):
@@ -210,4 +274,6 @@ def evidence(
         ccbf=ccbf,
         ccpf=ccpf,
         n_evaluations=int(n_eval),
+        optimizer=optimizer,
+        converged=bool(converged),
     )

@@ -100,7 +100,15 @@ def response_statistics(
     warn: bool = True,
 ) -> ResponseStatistics:
     """Statistics of a sample of responses ``values`` (n, m); NaN/inf entries are dropped per
-    response, with a RuntimeWarning saying how many (``warn=False`` silences it)."""
+    response, with a RuntimeWarning saying how many (``warn=False`` silences it).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> st = response_statistics(np.array([[1.0], [2.0], [3.0], [np.nan]]), ["y"], warn=False)
+    >>> float(st.mean[0]), float(st.std[0]), int(st.n_dropped[0])     # std with ddof 1
+    (2.0, 1.0, 1)
+    """
     y = np.asarray(values, dtype=float)
     if y.ndim == 1:
         y = y[:, None]
@@ -329,25 +337,56 @@ def sample(
 
     Parameters
     ----------
-    model : Model; inputs matched to ``space.names`` by name.
-    space : ParameterSpace (correlations honoured through the Nataf model).
-    n_samples : number of samples (>= 2).
-    design : "lhs" (Latin hypercube), "random" (plain Monte Carlo), "sobol" or "halton"
+    model : Model
+        Inputs matched to ``space.names`` by name; called once on (n_samples, d).
+    space : ParameterSpace
+        The d uncertain inputs, in their own units (correlations honoured through the Nataf
+        model).
+    n_samples : int
+        Number of samples (>= 2).
+    design : str
+        "lhs" (Latin hypercube), "random" (plain Monte Carlo), "sobol" or "halton"
         (scrambled, scipy.stats.qmc); drawn by :func:`rotoruq.params.unit_design`.
-    pairing : "lhs" only: "restricted" (default, Dakota's LHS: Iman-Conover pairing of the
+    pairing : str
+        "lhs" only: "restricted" (default, Dakota's LHS: Iman-Conover pairing of the
         columns so the inputs' normal-score correlation is near the space's Nataf correlation,
         identity when independent; every marginal stays stratified) or "random" (columns
         paired at random, the behaviour before; with correlations the design is then
         stratified in u-space). With ``n_samples <= dim`` the pairing is random either way.
-    response_levels : levels z for the empirical P(y <= z) / P(y > z) (same for all responses,
-        a mapping name -> levels, or one sequence per response).
-    probability_levels : probabilities mapped to empirical quantiles.
-    percentiles : percentiles (percent) to report.
-    confidence : level of the mean / std confidence intervals.
-    seed : int or numpy Generator.
+    response_levels : sequence of float, mapping or sequence of sequences, optional
+        Levels z (response units) for the empirical P(y <= z) / P(y > z): the same for all
+        responses, a mapping name -> levels, or one sequence per response.
+    probability_levels : sequence of float, optional
+        Probabilities in (0, 1) mapped to empirical quantiles (response units).
+    percentiles : sequence of float
+        Percentiles (percent) to report.
+    confidence : float
+        Level of the mean / std confidence intervals.
+    seed : int, numpy Generator or None
+        The same seed gives the same points, bitwise.
 
-    Failed rows stay in ``outputs`` as NaN (reason in ``failures``) and are left out of the
-    statistics with a RuntimeWarning giving the count.
+    Returns
+    -------
+    SamplingResult
+        ``inputs`` (n_samples, d), ``outputs`` (n_samples, m) and their ``statistics``.
+        Failed rows stay in ``outputs`` as NaN (reason in ``failures``) and are left out of
+        the statistics with a RuntimeWarning giving the count.
+
+    Examples
+    --------
+    y = a + b with a ~ N(10, 2) and b ~ U(0, 1): mean 10.5, std sqrt(4 + 1/12) = 2.021:
+
+    >>> import numpy as np
+    >>> import rotoruq as rq
+    >>> space = rq.ParameterSpace({"a": rq.Normal(10.0, 2.0), "b": rq.Uniform(0.0, 1.0)})
+    >>> model = rq.FunctionModel(lambda x: x[:, :1] + x[:, 1:], space.names, ["y"])
+    >>> res = rq.sample(model, space, 1000, seed=1)
+    >>> res.inputs.shape, res.outputs.shape                 # (n_samples, d), (n_samples, m)
+    ((1000, 2), (1000, 1))
+    >>> bool(abs(res.statistics.mean[0] - 10.5) < 0.01)
+    True
+    >>> bool(abs(res.statistics.std[0] - np.sqrt(4 + 1 / 12)) < 0.05)
+    True
     """
     n = int(n_samples)
     if n < 2:
@@ -420,6 +459,17 @@ def refine(result: SamplingResult, n_samples: int, *, seed: SeedLike = None) -> 
     ``seed`` (lhs and random) defaults to the state the original sample's generator was left in
     (continued), so a refined run is reproducible from the original seed, and refining one
     result twice gives the same points.
+
+    Examples
+    --------
+    >>> import rotoruq as rq
+    >>> space = rq.ParameterSpace({"a": rq.Uniform(0.0, 1.0)})
+    >>> model = rq.FunctionModel(lambda x: 3.0 * x, space.names, ["y"])
+    >>> more = rq.refine(rq.sample(model, space, 50, seed=1), 50)
+    >>> more.outputs.shape                 # 100 points: an exact LHS of the finer strata
+    (100, 1)
+    >>> sorted((more.inputs[:, 0] * 100).astype(int).tolist()) == list(range(100))
+    True
     """
     n_more = int(n_samples)
     if n_more < 1:

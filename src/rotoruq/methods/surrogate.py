@@ -10,12 +10,27 @@ Hyperparameters (log length-scales, and the nugget when estimated) maximize the 
 concentrated over ``beta`` (generalized least squares) and ``sigma^2``; the gradient is analytic
 and the optimizer is L-BFGS-B from several starts. One GP is fitted per response.
 
-Example
--------
+Examples
+--------
+A smooth function of 2 inputs learned from 30 Latin hypercube points; inputs are (n, d),
+responses (n, m), in their own units:
+
+>>> import numpy as np
+>>> from scipy.stats import qmc
+>>> X = qmc.LatinHypercube(d=2, seed=0).random(30)                # (30, 2)
+>>> Y = (np.sin(3 * X[:, 0]) + X[:, 1] ** 2)[:, None]              # (30, 1)
 >>> gp = GaussianProcess(trend="reduced_quadratic", kernel="sqexp", seed=0).fit(X, Y)
->>> mean, var = gp.predict(Xnew)                      # (n, m), (n, m)
->>> mean, var, grad = gp.predict(Xnew, return_grad=True)   # grad (n, m, d)
->>> gp.loo().rmse                                      # leave-one-out RMSE per response
+>>> Xnew = np.array([[0.25, 0.5], [0.75, 0.1]])
+>>> mean, var = gp.predict(Xnew)                                  # (n, m), (n, m)
+>>> mean.shape, var.shape
+((2, 1), (2, 1))
+>>> bool(np.max(np.abs(mean[:, 0] - (np.sin(3 * Xnew[:, 0]) + Xnew[:, 1] ** 2))) < 1e-2)
+True
+>>> mean, var, grad = gp.predict(Xnew, return_grad=True)          # grad (n, m, d)
+>>> grad.shape
+(2, 1, 2)
+>>> gp.loo().rmse.shape                                           # leave-one-out, per response
+(1,)
 """
 
 from __future__ import annotations

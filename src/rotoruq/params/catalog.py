@@ -37,6 +37,15 @@ def make_distribution(kind: str, **params: Any) -> Distribution:
 
     An unknown kind or parameter raises :class:`~rotoruq.errors.ParameterError` naming the
     valid ones.
+
+    Examples
+    --------
+    >>> d = make_distribution("normal", mean=10.0, std=2.0)
+    >>> float(d.mean), float(d.std)
+    (10.0, 2.0)
+    >>> u = make_distribution("uniform", lower=0.0, upper=3.0)
+    >>> make_distribution(**u.describe()).describe()         # describe() rebuilds it
+    {'kind': 'uniform', 'lower': 0.0, 'upper': 3.0}
     """
     key = kind.strip().lower().replace("-", "_").replace(" ", "_")
     if key not in DISTRIBUTIONS:

@@ -42,6 +42,16 @@ def nataf_correlation(
     correlation by Gauss-Hermite quadrature (``n_quad`` points per axis) and root finding.
     Pairs of normals keep ``R_ij``. Raises :class:`~rotoruq.errors.ParameterError` when a
     requested correlation cannot be reached with these marginals. Shape (d, d).
+
+    Examples
+    --------
+    Two uniforms: the x-space correlation rho and the normal-score one rho0 are related by
+    rho = (6 / pi) arcsin(rho0 / 2), so rho = 0.5 needs rho0 = 2 sin(pi / 12) = 0.5176:
+
+    >>> from rotoruq.params import Uniform
+    >>> r0 = nataf_correlation([Uniform(0, 1), Uniform(0, 1)], [[1.0, 0.5], [0.5, 1.0]])
+    >>> r0.shape, round(float(r0[0, 1]), 4)
+    ((2, 2), 0.5176)
     """
     r = np.array(correlation, dtype=float)
     t, wt = np.polynomial.hermite_e.hermegauss(n_quad)
@@ -96,6 +106,16 @@ def nataf_model(distributions: Sequence[Distribution], correlation: Any) -> Nata
     ``correlation`` None or the identity gives an independent model (all fields None). Raises
     :class:`~rotoruq.errors.ParameterError` when the matrix is not (d, d), finite, symmetric,
     of unit diagonal, positive definite, or not reachable with the marginals.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from rotoruq.params import Normal, Uniform
+    >>> m = nataf_model([Normal(0, 1), Uniform(0, 1)], [[1.0, 0.3], [0.3, 1.0]])
+    >>> m.nataf.shape, bool(np.allclose(m.cholesky @ m.cholesky.T, m.nataf))
+    ((2, 2), True)
+    >>> nataf_model([Normal(0, 1), Uniform(0, 1)], None).nataf is None
+    True
     """
     if correlation is None:
         return NatafModel(None, None, None)

@@ -258,15 +258,27 @@ class ParameterSpace:
     ) -> np.ndarray:
         """Draw ``n_samples`` points, shape (n_samples, d).
 
-        design : "lhs" (Latin hypercube), "random" (plain Monte Carlo), "sobol" or "halton"
+        Parameters
+        ----------
+        n_samples : int
+            Number of points.
+        design : str
+            "lhs" (Latin hypercube), "random" (plain Monte Carlo), "sobol" or "halton"
             (scrambled low-discrepancy sequences), all from :mod:`scipy.stats.qmc`.
-        pairing : for "lhs" only: "restricted" (default, as Dakota: Iman-Conover pairing of
-            the columns, so the sample's normal-score correlation is near the Nataf correlation
+        pairing : str
+            For "lhs" only: "restricted" (default, as Dakota: Iman-Conover pairing of the
+            columns, so the sample's normal-score correlation is near the Nataf correlation
             of the space, the identity when independent; every marginal stays stratified) or
             "random" (columns paired at random; with correlations the normal scores are then
             correlated through the Nataf factor, so the design is stratified in u-space
             rather than in each marginal, as the other designs are).
-        seed : int, numpy Generator or None. The same seed gives the same points, bitwise.
+        seed : int, numpy Generator or None
+            The same seed gives the same points, bitwise.
+
+        Returns
+        -------
+        ndarray, shape (n_samples, d)
+            The points in the parameters' own units, columns in ``names`` order.
 
         Examples
         --------

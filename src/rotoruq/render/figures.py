@@ -23,7 +23,7 @@ from .reference import TABLES
 
 __all__ = ["Figure", "FigureContext", "tornado", "prior_posterior", "chain_traces",
            "pair_plot", "load_distributions", "cuu_comparison", "ground_effect_curves",
-           "UNITS", "axis_label", "unit_of", "thesis_sobol"]
+           "UNITS", "axis_label", "unit_of", "per_unit", "thesis_sobol"]
 
 # Units of the rotoruq vocabulary (DESIGN.md section 3); a study file's ``unit`` overrides.
 UNITS = {
@@ -31,7 +31,8 @@ UNITS = {
     "ct": "-", "cq": "-", "collective_deg": "deg", "lateral_deg": "deg",
     "longitudinal_deg": "deg", "omega": "rad/s", "rho": "kg/m^3", "height_over_radius": "-",
     "k_flap": "N m/rad", "c_flap": "N m s/rad", "k_lag": "N m/rad", "c_lag": "N m s/rad",
-    "k_pitch_link": "N/m", "c_pitch_link": "N s/m", "ei_flap": "N m^2",
+    # the link's law is per unit strain (README): K_p acts as EA [N], its damping as [N s]
+    "k_pitch_link": "N", "c_pitch_link": "N s", "ei_flap": "N m^2",
 }
 _UNIT_PREFIX = {"cla_": "1/deg", "cl0_": "-", "cd0_": "-", "cda_": "1/deg", "cda2_": "1/deg^2"}
 # A model's own response whose unit nobody stated is shown in the model's units.
@@ -76,6 +77,34 @@ def unit_of(name: str, units: Mapping[str, str] | None = None) -> str:
         if name.startswith(prefix):
             return u
     return UNKNOWN_UNIT
+
+
+def per_unit(unit: str) -> str:
+    """The unit of a density over a quantity in ``unit``: ``"N"`` -> ``"1/N"``,
+    ``"1/deg"`` -> ``"deg"``, ``"N m"`` -> ``"1/(N m)"``, ``"-"`` -> ``"-"``.
+
+    Parameters
+    ----------
+    unit : str
+        The quantity's unit as :func:`unit_of` gives it.
+
+    Returns
+    -------
+    str
+        The unit of its probability density.
+
+    Examples
+    --------
+    >>> per_unit("1/deg"), per_unit("N m"), per_unit("kg/m^3")
+    ('deg', '1/(N m)', '1/(kg/m^3)')
+    """
+    unit = unit.strip()
+    if unit in ("-", ""):
+        return "-"
+    if unit.startswith("1/"):
+        rest = unit[2:].strip()
+        return rest[1:-1] if rest.startswith("(") and rest.endswith(")") else rest
+    return f"1/{unit}" if " " not in unit and "/" not in unit else f"1/({unit})"
 
 
 def axis_label(name: str, labels: Mapping[str, str] | None = None,
@@ -178,8 +207,7 @@ def prior_posterior(res: StepResult, labels, units=None,
             ax.plot(grid, truth[p].pdf(grid), "C2", lw=1.2, label="true (data-generating)")
         ax.set_xlabel(axis_label(p, labels, units), fontsize=9)
         u = unit_of(p, units)
-        ax.set_ylabel("density [-]" if u == "-" else
-                      f"density [1/{u}]" if " " not in u else f"density [1/({u})]", fontsize=8)
+        ax.set_ylabel(f"density [{per_unit(u)}]", fontsize=8)
         ax.tick_params(labelsize=_TICK)
     for ax in list(axes.flat)[len(names):]:
         ax.axis("off")
@@ -307,8 +335,7 @@ def load_distributions(res: StepResult, units=None, thesis: bool = False) -> lis
                 for a in (ax, ax2):
                     a.axvline(measured, color="C3", ls="--", lw=1.2, label="measured")
             u = unit_of(r, units)
-            ax.set_ylabel("PDF [-]" if u == "-" else
-                          f"PDF [1/{u}]" if " " not in u else f"PDF [1/({u})]", fontsize=8)
+            ax.set_ylabel(f"PDF [{per_unit(u)}]", fontsize=8)
             ax2.set_ylabel("CDF [-]", fontsize=8)
             for a in (ax, ax2):
                 a.set_xlabel(axis_label(r, None, units), fontsize=8)

@@ -8,9 +8,11 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from ..results import StepResult
+from .figures import UNKNOWN_UNIT, unit_of
 
 __all__ = ["StepTable", "Cell", "make_table", "value", "prefixed", "label", "responses",
-           "parameters", "moments_rows", "inputs_table", "levels_tables", "MOMENTS"]
+           "parameters", "moments_rows", "inputs_table", "levels_tables", "MOMENTS", "with_unit",
+           "cv_or_none", "CV_MIN_MEAN_OVER_STD"]
 
 Cell = float | str | None
 
@@ -56,6 +58,73 @@ def label(p: str, labels: Mapping[str, str]) -> str:
     return labels.get(p) or p
 
 
+def with_unit(name: str, labels: Mapping[str, str] | None = None,
+              units: Mapping[str, str] | None = None) -> str:
+    """Display label of ``name`` with its unit, ``"thrust [N]"``; the label alone when the
+    unit is not known (a model's own response) or the name is a derived one such as
+    ``noisy_thrust`` (then the unit of ``thrust``).
+
+    Parameters
+    ----------
+    name : str
+        Input or response name.
+    labels, units : mapping, optional
+        Display labels and units by name (a study file's ``label`` and ``unit``).
+
+    Returns
+    -------
+    str
+        ``"<label> [<unit>]"`` or ``"<label>"``.
+
+    Examples
+    --------
+    >>> with_unit("thrust"), with_unit("k_pitch_link", {"k_pitch_link": "K_p"})
+    ('thrust [N]', 'K_p [N]')
+    >>> with_unit("y1")
+    'y1'
+    """
+    base = name[len("noisy_"):] if name.startswith("noisy_") else name
+    u = unit_of(base, units)
+    text = label(name, labels or {})
+    return text if u == UNKNOWN_UNIT else f"{text} [{u}]"
+
+
+#: The coefficient of variation std / |mean| is printed only where |mean| is at least this
+#: fraction of std: below it the mean is zero within its spread, and the ratio (656, 1930 in
+#: an earlier report) measures how close to zero the mean happens to fall, not the spread.
+CV_MIN_MEAN_OVER_STD = 1e-2
+
+
+def cv_or_none(mean: float, std: float) -> float | None:
+    """The coefficient of variation std / |mean| [-], or None (not printed) when |mean| is
+    below :data:`CV_MIN_MEAN_OVER_STD` times std (a mean that is zero within its spread).
+
+    Parameters
+    ----------
+    mean, std : float
+        Mean and standard deviation of one quantity (same unit).
+
+    Returns
+    -------
+    float or None
+
+    Examples
+    --------
+    >>> cv_or_none(25.0, 1.0)
+    0.04
+    >>> cv_or_none(1e-4, 1.0) is None
+    True
+    >>> cv_or_none(3.0, 0.0)
+    0.0
+    """
+    mean, std = float(mean), float(std)
+    if not (math.isfinite(mean) and math.isfinite(std)):
+        return None
+    if abs(mean) < CV_MIN_MEAN_OVER_STD * std or (mean == 0.0):
+        return None
+    return std / abs(mean)
+
+
 def responses(res: StepResult) -> list[str]:
     """The step's response names (``meta["responses"]``)."""
     return list(res.meta.get("responses") or [])
@@ -70,10 +139,10 @@ MOMENTS = ("mean", "std", "skewness", "excess kurtosis")
 
 
 def moments_rows(res: StepResult, names: Sequence[str], suffix: str = "", labels=None):
-    """Rows name, mean, std, skewness, excess kurtosis of ``names`` (keys ``mean/<n><suffix>``
-    and so on)."""
+    """Rows name [unit of mean and std], mean, std, skewness, excess kurtosis of ``names``
+    (keys ``mean/<n><suffix>`` and so on)."""
     labels = labels or {}
-    return [[label(n, labels), value(res, f"mean/{n}{suffix}"), value(res, f"std/{n}{suffix}"),
+    return [[with_unit(n, labels), value(res, f"mean/{n}{suffix}"), value(res, f"std/{n}{suffix}"),
              value(res, f"skewness/{n}{suffix}"), value(res, f"kurtosis/{n}{suffix}")]
             for n in names]
 
@@ -81,7 +150,7 @@ def moments_rows(res: StepResult, names: Sequence[str], suffix: str = "", labels
 def inputs_table(res: StepResult, labels) -> StepTable:
     """The step's input distributions (``input_mean/``, ``input_std/``, bounds)."""
     return make_table("Input distributions", ("input", "mean", "std", "lower", "upper"),
-                      [[label(p, labels), value(res, f"input_mean/{p}"),
+                      [[with_unit(p, labels), value(res, f"input_mean/{p}"),
                         value(res, f"input_std/{p}"), value(res, f"input_lower/{p}"),
                         value(res, f"input_upper/{p}")] for p in parameters(res)])
 
@@ -95,7 +164,8 @@ def levels_tables(res: StepResult, whats: Sequence[str], title: str) -> list[Ste
         if n == 0:
             continue
         present = [w for w in whats if f"{w}/{r}/0" in res.scalars]
-        out.append(make_table(f"{title}: {r}", ("level", *[w.replace("_", " ") for w in present]),
+        out.append(make_table(f"{title}: {with_unit(r)}",
+                              ("level", *[w.replace("_", " ") for w in present]),
                               [[i + 1, *[value(res, f"{w}/{r}/{i}") for w in present]]
                                for i in range(n)]))
     return out

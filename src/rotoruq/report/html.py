@@ -1,12 +1,13 @@
 """The report: one self-contained HTML page (figures embedded as base64 PNG), every figure as
-a PNG file, every table as CSV and the claims as JSON.
+a PNG and an SVG file, every table as CSV and the claims as JSON; printed from a browser, the
+page makes a clean PDF (print CSS).
 
 ``write_report([results_dir, ...], report_dir)`` reads saved study outputs (see
 :mod:`rotoruq.results`) and writes ``report_dir/index.html``,
-``figures/<study>_<figure>.png``, ``tables/`` and ``claims.json``. It only reads results:
-``rotoruq report RESULTS`` rebuilds it at any time. A reference study (``validation`` on the
-bo105 preset, ``experiment`` on gvpm) gets the thesis's tables beside ours and the claims;
-every study gets a table per step.
+``figures/<study>_<figure>.png`` and ``.svg``, ``tables/`` and ``claims.json``. It only reads
+results: ``rotoruq report RESULTS`` rebuilds it at any time. A reference study
+(``validation`` on the bo105 preset, ``experiment`` on gvpm) gets the thesis's tables beside
+ours and the claims; every study gets a table per step.
 """
 
 from __future__ import annotations
@@ -60,6 +61,17 @@ details{font-size:11px;text-align:left}
 section.first{border:1px solid #ccc;padding:.5em 1em;margin:1em 0}
 p.counts{font-size:16px} ol.verdict{font-size:13px;padding-left:1.5em}
 ol.verdict li{margin:2px 0} details.prov,details.toc{font-size:12px}
+figcaption a{color:#555}
+@media print{
+body{max-width:none;margin:0;padding:0;font-size:11px}
+details.toc,figcaption .files{display:none}
+figure,table,section.first,ol.verdict li{break-inside:avoid}
+h1,h2,h3,h4{break-after:avoid}
+figure img{max-width:100%;max-height:23cm}
+a{color:inherit;text-decoration:none}
+td.ok,td.off,th,.st-holds,.st-warn,.st-fails{-webkit-print-color-adjust:exact;
+print-color-adjust:exact}
+}
 """
 
 _STATUS_CLASS = {"holds": "st-holds", "holds, with a warning": "st-warn",
@@ -87,21 +99,39 @@ def _recorded(info: dict, what: str) -> dict:
     return dict((info.get("model") or {}).get(what) or {})
 
 
+#: PNG resolution [dots per inch]: sharp on a high-density screen and in a printed page.
+PNG_DPI = 150
+
+
 def _png(fig) -> bytes:
     import io
 
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90)
+    fig.savefig(buf, format="png", dpi=PNG_DPI)
+    return buf.getvalue()
+
+
+def _svg(fig) -> bytes:
+    """The figure as SVG, the same bytes on every drawing: no date, and element ids hashed
+    with a fixed salt (matplotlib's default salt is random)."""
+    import io
+
+    import matplotlib as mpl
+
+    buf = io.BytesIO()
+    with mpl.rc_context({"svg.hashsalt": "rotoruq"}):
+        fig.savefig(buf, format="svg", metadata={"Date": None})
     return buf.getvalue()
 
 
 @dataclass(frozen=True, eq=False)
 class _Rendered:
-    """A figure drawn once: its PNG and the axis labels the page records beside it."""
+    """A figure drawn once: its PNG, its SVG and the axis labels the page records beside it."""
 
     name: str
     caption: str
     png: bytes
+    svg: bytes
     xlabels: tuple[str, ...]
     ylabels: tuple[str, ...]
 
@@ -110,7 +140,7 @@ def _render(figs) -> list[_Rendered]:
     out = []
     for f in figs:
         shown = [ax for ax in f.figure.axes if ax.axison]
-        out.append(_Rendered(f.name, f.caption, _png(f.figure),
+        out.append(_Rendered(f.name, f.caption, _png(f.figure), _svg(f.figure),
                              tuple(sorted({a.get_xlabel() for a in shown} - {""})),
                              tuple(sorted({a.get_ylabel() for a in shown} - {""}))))
     return out
@@ -329,8 +359,9 @@ def _figure_html(f: _Rendered, key: str) -> str:
     b64 = base64.b64encode(f.png).decode()
     return (f"<figure id='fig-{e(key)}' data-xlabels='{e(json.dumps(list(f.xlabels)))}' "
             f"data-ylabels='{e(json.dumps(list(f.ylabels)))}'><img alt='{e(f.caption)}' "
-            f"src='data:image/png;base64,{b64}'><figcaption>{e(f.caption)}</figcaption>"
-            "</figure>")
+            f"src='data:image/png;base64,{b64}'><figcaption>{e(f.caption)} <span class=files>"
+            f"(<a href='figures/{e(key)}.svg'>SVG</a>, <a href='figures/{e(key)}.png'>PNG</a>)"
+            "</span></figcaption></figure>")
 
 
 def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
@@ -340,7 +371,7 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
     title : page title (default: the reference study's when one is present, else the
         studies' names). Progress (a line per study and per figure batch) goes to the
         ``rotoruq.report.html`` logger at INFO.
-    workers : processes that draw the figures (each figure is drawn once, as PNG). Default:
+    workers : processes that draw the figures (each figure is drawn once, as PNG and SVG). Default:
         two when the machine has two or more cores and at least six steps have figures,
         else one (this process). The page and every file are the same whatever the count.
 
@@ -450,6 +481,7 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
             for f in figs:
                 key = f"{slug(name)}_{slug(f.name)}"  # two studies may both have a step "bayes"
                 (fig_dir / f"{key}.png").write_bytes(f.png)
+                (fig_dir / f"{key}.svg").write_bytes(f.svg)
                 toc.append((4, f"fig-{key}", f.caption))
                 body.append(_figure_html(f, key))
             log.info("report: %s: %d figures (%.1f s waited)", name, len(figs),

@@ -396,6 +396,13 @@ def read_c81(path) -> C81Table:
     ------
     InputFileError
         Naming the file, the line and what was expected there.
+
+    Examples
+    --------
+    >>> from importlib.resources import files
+    >>> table = read_c81(files("rotoruq") / "data" / "airfoils" / "naca0012.c81")
+    >>> table.cl.values.shape == (table.cl.alpha.size, table.cl.mach.size)    # (na, nm)
+    True
     """
     path = os.fspath(path)
     try:
@@ -504,6 +511,18 @@ def write_c81(table: C81Table, path, free_format: bool = False) -> Path:
     Returns
     -------
     Path of the written file.
+
+    Examples
+    --------
+    The free format keeps every value to the last bit:
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> from importlib.resources import files
+    >>> table = read_c81(files("rotoruq") / "data" / "airfoils" / "naca23012.c81")
+    >>> path = write_c81(table, Path(tempfile.mkdtemp()) / "t.c81", free_format=True)
+    >>> read_c81(path) == table
+    True
     """
     path = Path(path)
     blocks = list(table.blocks().values())

@@ -8,6 +8,7 @@
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import fields
 from pathlib import Path
@@ -25,6 +26,12 @@ from .hover import HoverSolution, check_airfoil, solve_hover
 from .presets import RotorPreset, get_preset
 
 __all__ = ["RotorModel", "ROTOR_INPUTS", "RESPONSES", "load_airfoil"]
+
+log = logging.getLogger(__name__)
+
+COMPILE_NOTICE = "compiling rotor kernels (once per install, ~30-90 s) ..."
+#: Processes that have said it (a list, so the notice is given once per process).
+_compile_noticed: list[bool] = []
 
 #: Rotor inputs every preset accepts (angles in deg, SI otherwise).
 ROTOR_INPUTS = (
@@ -56,6 +63,39 @@ _NONNEGATIVE = ("k_flap", "c_flap", "k_lag", "c_lag", "k_pitch_link", "c_pitch_l
 #: rotor operating state (the blade would face backwards).
 MAX_PITCH_DEG = 90.0
 _POSITIVE = ("omega", "rho")
+
+
+def kernels_cached() -> bool:
+    """Whether numba's on-disk cache holds the rotor kernel for this source file.
+
+    Reads the cache's small index (no compilation): False when the index is absent or was
+    written for another version of ``_kernel.py`` (numba would recompile then).
+
+    Returns
+    -------
+    bool
+        True when the first evaluation will load compiled code instead of compiling.
+
+    Examples
+    --------
+    >>> isinstance(kernels_cached(), bool)
+    True
+    """
+    from . import _kernel
+
+    try:
+        return bool(_kernel.solve_samples._cache._cache_file._load_index())
+    except Exception:  # a numba without this cache layout: say nothing rather than guess
+        return True
+
+
+def _notice_compile() -> None:
+    """Say once per process, before the first solve, that the kernels are being compiled."""
+    if _compile_noticed:
+        return
+    _compile_noticed.append(True)
+    if not kernels_cached():
+        log.info(COMPILE_NOTICE)
 
 
 def load_airfoil(preset: RotorPreset) -> Airfoil:
@@ -227,6 +267,7 @@ class RotorModel:
             if failures:
                 params = {k: v[rows] for k, v in params.items()}
                 overrides = {k: v[rows] for k, v in overrides.items()}
+            _notice_compile()
             sol = solve_hover(
                 self.preset,
                 self.airfoil,

@@ -240,7 +240,29 @@ PRESETS = {"bo105": bo105, "gvpm": gvpm}
 
 
 def get_preset(name: str | RotorPreset, **overrides) -> RotorPreset:
-    """Return a preset by name (``"bo105"``, ``"gvpm"``) with optional property overrides."""
+    """Return a preset by name (``"bo105"``, ``"gvpm"``) with optional property overrides.
+
+    Parameters
+    ----------
+    name : str or RotorPreset
+        ``"bo105"`` (thesis table 3.1) or ``"gvpm"`` (table 4.2); a preset is returned as is
+        (with the overrides applied).
+    **overrides
+        Preset properties to replace, by field name, in SI units (m, kg/m, rad/s, ...) or
+        degrees where the field name says ``_deg``.
+
+    Returns
+    -------
+    RotorPreset
+
+    Examples
+    --------
+    >>> p = get_preset("gvpm")
+    >>> p.name, p.n_blades
+    ('gvpm', 4)
+    >>> get_preset("gvpm", radius=0.5).radius          # overrides: property -> value (SI)
+    0.5
+    """
     if isinstance(name, RotorPreset):
         return name.replace(**overrides) if overrides else name
     try:

@@ -31,6 +31,7 @@ from . import (
     forward_check,
     least_squares,
     mean_value,
+    multifidelity,
     pce,
     reliability,
     sampling,
@@ -46,7 +47,7 @@ __all__ = ["STEP_TYPES", "ENTRY_POINT_GROUP", "StepType", "StepContext", "StepCh
 #: The built-in step types, in the order the documentation lists them.
 STEP_TYPES: Mapping[str, StepType] = MappingProxyType({m.STEP.name: m.STEP for m in (
     sampling, sensitivity, mean_value, reliability, pce, evidence, bayes_calibration,
-    least_squares, cuu, forward_check, verification, validation)})
+    least_squares, cuu, forward_check, verification, validation, multifidelity)})
 
 #: Entry-point group of step types outside rotoruq (each entry: ``name = "module:STEP"``).
 ENTRY_POINT_GROUP = "rotoruq.steps"

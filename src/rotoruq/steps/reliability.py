@@ -13,7 +13,11 @@ from .base import StepContext, StepType
 from .mean_value import LEVELS
 from .options import SIGNATURE, Option, choice
 
-__all__ = ["STEP", "run_reliability", "reliability_tables"]
+__all__ = ["STEP", "run_reliability", "reliability_tables", "APPROXIMATIONS"]
+
+#: ``mpp_search(approximation=)``'s choices (methods.reliability.APPROXIMATIONS; spelled out
+#: so that importing the step types does not import the method and scipy.stats)
+APPROXIMATIONS = ("none", "x_taylor_mean", "u_taylor_mean", "x_taylor_mpp", "u_taylor_mpp")
 
 
 def run_reliability(ctx: StepContext) -> StepResult:
@@ -23,7 +27,7 @@ def run_reliability(ctx: StepContext) -> StepResult:
     o = ctx.options
     res = mpp_search(ctx.model(), ctx.space, response_levels=o.get("response_levels"),
                      probability_levels=o.get("probability_levels"),
-                     integration=o["integration"])
+                     integration=o["integration"], approximation=o["approximation"])
     scalars = {}
     for r in ctx.responses:
         for what in ("response_levels", "cdf_probability", "cdf_reliability",
@@ -45,5 +49,6 @@ def reliability_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepT
 STEP = StepType(
     "reliability", run_reliability, method="rotoruq.methods.reliability:mpp_search",
     options={"integration": Option(choice("first_order", "second_order"), SIGNATURE),
+             "approximation": Option(choice(*APPROXIMATIONS), SIGNATURE),
              **LEVELS},
     tables=reliability_tables)

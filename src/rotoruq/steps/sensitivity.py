@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..render.tables import StepTable, label, make_table
+from ..render.tables import StepTable, cv_or_none, label, make_table, with_unit
 from ..results import StepRecord, StepResult
 from ._common import input_scalars
 from ._sobol import sensitivity_figures, sobol_warnings
@@ -95,9 +95,10 @@ def sensitivity_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepT
     cv = [s / abs(m) if m != 0 else np.inf for s, m in zip(std, rec.mean, strict=True)]
     negligible = [c < NEGLIGIBLE_CV for c in cv]
     out = [make_table("Output spread", ("response", "mean", "variance", "std",
-                                        "CV = std / |mean|", "negligible variance"),
-                      [[r, float(rec.mean[k]), float(rec.variance[k]), float(std[k]),
-                        float(cv[k]), "yes: indices meaningless" if negligible[k] else "no"]
+                                        "CV = std / |mean| [-]", "negligible variance"),
+                      [[with_unit(r, labels), float(rec.mean[k]), float(rec.variance[k]),
+                        float(std[k]), cv_or_none(float(rec.mean[k]), float(std[k])),
+                        "yes: indices meaningless" if negligible[k] else "no"]
                        for k, r in enumerate(rec.names_out)],
                       "A response whose std is below 1e-4 of its mean has negligible variance.")]
     lo, hi = f"{100 * (1 - conf) / 2:g} %", f"{100 * (1 + conf) / 2:g} %"

@@ -14,7 +14,10 @@ import signal
 import sys
 import threading
 
+from .. import __version__
 from ..errors import RotoruqError
+from ..safety import terminal_text
+from .console import pipe_safe, route_warnings
 
 # Order in which subcommands are listed by --help.
 COMMANDS = ("reproduce", "run", "report", "show", "evaluate", "airfoil", "driver", "export",
@@ -29,7 +32,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true",
                         help="show debug messages and the full traceback of an error")
     parser.add_argument("--quiet", action="store_true",
-                        help="no progress lines: only warnings and errors")
+                        help="errors only: no progress, warnings or summary")
+    parser.add_argument("--version", action="version", version=f"rotoruq {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
         try:
@@ -40,7 +44,7 @@ def build_parser() -> argparse.ArgumentParser:
             raise
         p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
         mod.add_arguments(p)
-        p.set_defaults(_run=mod.run)
+        p.set_defaults(_run=pipe_safe(mod.run))
     return parser
 
 
@@ -80,12 +84,14 @@ class _StderrHandler(logging.StreamHandler):
 
 def configure_logging(quiet: bool = False, debug: bool = False) -> None:
     """Send the library's log records (the ``rotoruq`` loggers) to stderr as plain lines:
-    INFO and above by default, WARNING with ``quiet``, DEBUG with ``debug``."""
+    INFO and above by default, ERROR with ``quiet``, DEBUG with ``debug``; Python warnings as
+    one ``warning: ...`` line each (none with ``quiet``)."""
+    route_warnings(quiet=quiet and not debug)
     root = logging.getLogger("rotoruq")
     for h in [h for h in root.handlers if isinstance(h, _StderrHandler)]:
         root.removeHandler(h)
     root.addHandler(_StderrHandler())
-    root.setLevel(logging.DEBUG if debug else logging.WARNING if quiet else logging.INFO)
+    root.setLevel(logging.DEBUG if debug else logging.ERROR if quiet else logging.INFO)
 
 
 def _driver_argv(argv: list[str]) -> list[str] | None:
@@ -120,12 +126,15 @@ def _main(argv: list[str] | None) -> int:
     except (RotoruqError, OSError) as exc:
         if args.debug:
             raise
-        print(f"rotoruq {args.command}: error: {exc}", file=sys.stderr)
+        # messages quote study-supplied names and paths: no escape code reaches the terminal
+        print(f"rotoruq {args.command}: error: {terminal_text(exc, lines=True)}",
+              file=sys.stderr)
         return 1
     except Exception as exc:  # a bug, not bad input: say so, keep the terminal readable
         if args.debug:
             raise
-        print(f"rotoruq {args.command}: internal error: {type(exc).__name__}: {exc}\n"
+        print(f"rotoruq {args.command}: internal error: {type(exc).__name__}: "
+              f"{terminal_text(exc, lines=True)}\n"
               f"(run 'rotoruq --debug {args.command} ...' for the traceback, and please report "
               "it)", file=sys.stderr)
         return 2

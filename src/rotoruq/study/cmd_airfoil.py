@@ -85,8 +85,10 @@ def run(args: argparse.Namespace) -> int:
         airfoil = Airfoil(_load(args.file), fit_machs=machs, alpha_window=args.window)
         table = airfoil.perturbed_table(sets)
         path = write_c81(table, args.output, free_format=args.free_format)
-        print(f"wrote {path} (fit rows at Mach {', '.join(f'{m:g}' for m in airfoil.fit_machs)}"
-              f", |alpha| <= {args.window:g} deg)")
+        if not getattr(args, "quiet", False):
+            print(f"wrote {path} (fit rows at Mach "
+                  f"{', '.join(f'{m:g}' for m in airfoil.fit_machs)}, |alpha| <= "
+                  f"{args.window:g} deg)")
         return 0
     print("usage: rotoruq airfoil {fit,write} ... (see rotoruq airfoil --help)")
     return 2

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 import numpy as np
 
@@ -50,26 +51,54 @@ def parse_assignments(items: list[str]) -> tuple[list[str], np.ndarray]:
     return names, x
 
 
+def fixed_inputs_line(model) -> str:
+    """The inputs the preset supplies (every rotor input not given with ``--set``), one line:
+    ``fixed inputs (preset gvpm): lateral_deg=-1 longitudinal_deg=-1 ...``."""
+    given = set(model.names_in)
+    fixed = " ".join(f"{k}={v:.6g}" for k, v in model.defaults().items() if k not in given)
+    return f"fixed inputs (preset {model.preset.name}): {fixed}"
+
+
 def run(args: argparse.Namespace) -> int:
     from ..rotor.model import RotorModel
 
+    quiet = getattr(args, "quiet", False)
     names, x = parse_assignments(args.set)
     model = RotorModel(args.preset, names_in=names, names_out=args.responses)
     out = model.evaluate(x)
     rows = []
     for i in range(x.shape[0]):
-        row: dict[str, float | str] = {k: float(v) for k, v in zip(names, x[i], strict=True)}
-        row.update({k: float(v) for k, v in zip(model.names_out, out.values[i], strict=True)})
+        row: dict[str, float | str | None] = {
+            k: float(v) for k, v in zip(names, x[i], strict=True)}
+        # JSON has no NaN: a failed point's responses are null
+        row.update({k: float(v) if np.isfinite(v) else None
+                    for k, v in zip(model.names_out, out.values[i], strict=True)})
         if i in out.failures:
             row["failure"] = out.failures[i]
         rows.append(row)
     if args.json:
+        if not quiet:
+            print(fixed_inputs_line(model), file=sys.stderr)
         print(json.dumps(rows, indent=2))
-        return 0
-    header = list(names) + list(model.names_out)
-    print("  ".join(f"{h:>14s}" for h in header))
-    for i, row in enumerate(rows):
-        print("  ".join(f"{row[h]:14.6g}" for h in header))
-        if "failure" in row:
-            print(f"    point {i} failed: {row['failure']}")
-    return 1 if out.failures else 0
+    else:
+        if not quiet:
+            print(fixed_inputs_line(model))
+        header = list(names) + list(model.names_out)
+        print("  ".join(f"{h:>14s}" for h in header))
+        for i, row in enumerate(rows):
+            print("  ".join(f"{_num(row[h]):14.6g}" for h in header))
+            if "failure" in row:
+                print(f"    point {i} failed: {row['failure']}")
+    if out.failures:
+        n = x.shape[0]
+        what = ("the evaluation failed" if n == 1 else f"all {n} evaluations failed"
+                if len(out.failures) == n
+                else f"{len(out.failures)} of {n} evaluations failed")
+        reasons = sorted(set(out.failures.values()))
+        print(f"rotoruq evaluate: error: {what} ({'; '.join(reasons[:3])})", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _num(v) -> float:
+    return float("nan") if v is None else float(v)

@@ -23,5 +23,6 @@ def run(args: argparse.Namespace) -> int:
                              "a study output folder (with study.json) or a folder of them")
     out = Path(args.out) if args.out else Path(args.results[0]) / "report"
     index = write_report(args.results, out)
-    print(f"report: {index}")
+    if not getattr(args, "quiet", False):
+        print(f"report: {index}")
     return 0

@@ -31,12 +31,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true",
                         help="small samples: a check that runs in about a minute")
     parser.add_argument("--out", default="rotoruq-results", help="output folder")
+    parser.add_argument("--json", action="store_true",
+                        help="print the report's path and the seconds per chapter as JSON "
+                        "instead of the summary")
 
 
 def reproduce(which: str = "all", out: str | Path = "rotoruq-results",
               quick: bool = False) -> dict:
-    """Run the chapters, write the report; returns ``{"report": path, "seconds": {...}}``.
-    Holds ``out`` (and so each chapter's folder in it) for the whole run."""
+    """Run the chapters, write the report; returns ``{"report": path, "seconds": {...},
+    "runs": {chapter: StudyRun}}``. Holds ``out`` (and so each chapter's folder in it) for the
+    whole run."""
     from .lock import results_lock
 
     out = Path(out)
@@ -50,20 +54,28 @@ def _reproduce(which: str, out: Path, quick: bool) -> dict:
     from .runner import run_study
 
     names = list(CHAPTERS) if which == "all" else [which]
-    seconds = {}
+    seconds, runs = {}, {}
     for name in names:
         t0 = time.perf_counter()
-        run_study(studies_dir() / CHAPTERS[name], out=out / name, quick=quick)
+        runs[name] = run_study(studies_dir() / CHAPTERS[name], out=out / name, quick=quick)
         seconds[name] = time.perf_counter() - t0
     t0 = time.perf_counter()
     index = write_report([out / n for n in CHAPTERS if is_study_dir(out / n)],
                          out / "report")
     seconds["report"] = time.perf_counter() - t0
-    return {"report": str(index), "seconds": seconds}
+    return {"report": str(index), "seconds": seconds, "runs": runs}
 
 
 def run(args: argparse.Namespace) -> int:
+    from .cmd_run import summary
+
     result = reproduce(args.which, args.out, args.quick)
-    print(json.dumps(result["seconds"], indent=1))
-    print(f"report: {result['report']}")
+    if args.json:
+        print(json.dumps({"report": result["report"], "seconds": result["seconds"]}, indent=1))
+    elif not getattr(args, "quiet", False):
+        for res in result["runs"].values():
+            print(f"results: {res.out}")
+        print(f"report: {result['report']}")
+        for res in result["runs"].values():
+            print(summary(res))
     return 0

@@ -16,6 +16,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--only", nargs="+", metavar="STEP",
                         help="run only these steps (earlier results are reused)")
     parser.add_argument("--no-report", action="store_true", help="do not write the report")
+    parser.add_argument("--allow-outside-store", action="store_true",
+                        help="allow a [store] path outside the results folder (absolute or "
+                             "with '..'), e.g. a store shared between studies")
 
 
 def resolve_study(name: str) -> tuple[Path, bool]:
@@ -31,6 +34,7 @@ def resolve_study(name: str) -> tuple[Path, bool]:
 
 def run(args: argparse.Namespace) -> int:
     from .lock import results_lock
+    from .paths import check_study_paths
     from .runner import run_study
     from .schema import load_study
 
@@ -38,15 +42,18 @@ def run(args: argparse.Namespace) -> int:
     study = load_study(path)
     out = Path(args.out) if args.out else (
         Path("rotoruq-results") / study.info.name if bundled else study.info.output)
+    check_study_paths(study, out, out_given=bool(args.out) or bundled,
+                      outside_store=args.allow_outside_store)
     with results_lock(out, "run"):  # the run and its report, one at a time per folder
         result = run_study(study, out=out, quick=args.quick, only=args.only)
-        print(f"results: {result.out}")
+        say = (lambda line: None) if getattr(args, "quiet", False) else print
+        say(f"results: {result.out}")
         if not args.no_report:
             from ..report.html import write_report
 
             index = write_report([result.out], Path(result.out) / "report")
-            print(f"report: {index}")
-    print(summary(result))
+            say(f"report: {index}")
+    say(summary(result))
     return 0
 
 

@@ -9,6 +9,13 @@ are reported in ``ResultsLock.taken_over``.
 
 Advisory locks need a file system that honours them (local disks do; some network file
 systems do not).
+
+The lock file is opened without following a symlink and never truncated unless it is a
+lock rotoruq wrote (a regular file with one link, empty or holding a lock record): a results
+folder from an archive with ``.rotoruq.lock`` linked to another file leaves that file intact.
+Taking the lock also checks the folder (:func:`check_results_folder`): the entries rotoruq
+writes (``steps/``, ``report/``, ``work/``, ``study.json``, the store...) must be real files
+and folders, not symlinks planted to redirect the run's writes.
 """
 
 from __future__ import annotations
@@ -17,6 +24,7 @@ import fcntl
 import json
 import os
 import socket
+import stat
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -24,10 +32,20 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import RotoruqError
+from ..safety import ForeignFileError, no_symlink, open_nofollow, real_dir
 
-__all__ = ["ResultsLockedError", "ResultsLock", "results_lock", "LOCK_NAME"]
+__all__ = ["ResultsLockedError", "ResultsLock", "results_lock", "LOCK_NAME",
+           "check_results_folder", "RESULTS_DIRS", "RESULTS_FILES"]
 
 LOCK_NAME = ".rotoruq.lock"
+
+#: Folders of a results folder that rotoruq writes into: real folders, never symlinks.
+RESULTS_DIRS = ("steps", "report", "work")
+#: Files of a results folder that rotoruq writes (the default store and SQLite's companions
+#: included): never symlinks.
+RESULTS_FILES = (LOCK_NAME, "study.json", "study.toml", "evaluations.sqlite",
+                 "evaluations.sqlite-journal", "evaluations.sqlite-wal",
+                 "evaluations.sqlite-shm")
 
 
 @dataclass(frozen=True)
@@ -58,17 +76,62 @@ def _read(fd: int) -> dict | None:
     return doc if isinstance(doc, dict) else None
 
 
+def check_results_folder(folder: str | os.PathLike) -> Path:
+    """``folder`` when what rotoruq writes in it is real: the folders
+    :data:`RESULTS_DIRS` and every step folder under ``steps/`` are real folders, the files
+    :data:`RESULTS_FILES` are not symlinks. Raises :class:`~rotoruq.safety.UnsafePathError`
+    naming the first symlink found (a missing entry is fine).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     _ = check_results_folder(d)
+    """
+    folder = Path(folder)
+    for name in RESULTS_FILES:
+        no_symlink(folder / name)
+    for name in RESULTS_DIRS:
+        if (folder / name).is_symlink() or (folder / name).exists():
+            real_dir(folder / name)
+    steps = folder / "steps"
+    if steps.is_dir():
+        for entry in sorted(steps.iterdir()):
+            if entry.is_symlink() or entry.is_dir():
+                real_dir(entry)
+    return folder
+
+
+def _open_lock(path: Path) -> int:
+    """The lock file, opened read-write without following a symlink, created (umask) when
+    missing; a file that is not rotoruq's lock (a hard link to another file, or foreign
+    contents) is refused before anything is written to it."""
+    fd = open_nofollow(path, os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise ForeignFileError(path, "not a regular file")
+        if st.st_nlink != 1:
+            raise ForeignFileError(path, f"a file with {st.st_nlink} hard links")
+        if st.st_size and _read(fd) is None:
+            raise ForeignFileError(path, "not a rotoruq lock record")
+    except BaseException:
+        os.close(fd)
+        raise
+    return fd
+
+
 @contextmanager
 def results_lock(folder: str | os.PathLike, command: str = "run") -> Iterator[ResultsLock]:
     """Hold the results folder ``folder`` for one run (a context manager yielding a
     :class:`ResultsLock`); raises :class:`ResultsLockedError` when another run holds it."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    path = (folder / LOCK_NAME).resolve()
+    path = folder.resolve() / LOCK_NAME
     if path in _HELD:
         yield _HELD[path]
         return
-    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    fd = _open_lock(path)
     try:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -83,6 +146,7 @@ def results_lock(folder: str | os.PathLike, command: str = "run") -> Iterator[Re
                 f"{holder.get('host', '?')}, since {when}); wait for it to finish, or choose "
                 "another output folder (--out)") from None
         stale = _read(fd)
+        check_results_folder(folder)  # under the lock: no other run changes it meanwhile
         me = {"pid": os.getpid(), "host": socket.gethostname(), "since": time.time(),
               "command": command}
         os.ftruncate(fd, 0)

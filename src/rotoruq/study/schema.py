@@ -55,6 +55,7 @@ from typing import NoReturn
 
 from ..errors import InputFileError, ParameterError
 from ..params import DISTRIBUTIONS, make_distribution
+from ..safety import check_name
 from ..steps import StepCheck, StepType, find_step_type, step_type, step_types
 from .datafiles import parse_data
 from .options import (
@@ -204,6 +205,7 @@ def _parse_info(ck: Checker, doc: dict, base: Path, path: Path) -> StudyInfo:
     t = ck.table(doc.get("study", {}), ("study",), "[study]")
     ck.keys(t, STUDY_KEYS, ("study",), "[study]")
     name = ck.value(t, "name", (string(), path.stem), ("study",), "[study]")
+    check_name(name, what="the study name", path=path, line=ck.loc.line("study", "name"))
     seed = ck.value(t, "seed", (integer(), 1), ("study",), "[study]")
     out = ck.value(t, "output", (string(), f"rotoruq-results/{name}"), ("study",), "[study]")
     desc = ck.value(t, "description", (string(), ""), ("study",), "[study]")

@@ -27,7 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy import stats
 
-from ..._rng import SeedLike
+from ..._rng import SeedLike, as_seed_sequence
 from ...errors import EvaluationError, ModelShapeError, ParameterError
 from ...model import Model, align_inputs, evaluate
 from ...params import ParameterSpace
@@ -108,18 +108,6 @@ class SBCResult:
         rows.append(f"{self.n_replications} replications, L = {self.n_draws} draws; "
                     f"{'PASS' if self.passed else 'FAIL'}: {self.reason}")
         return "\n".join(rows)
-
-
-def _seed_sequence(seed: SeedLike) -> np.random.SeedSequence:
-    if isinstance(seed, np.random.SeedSequence):
-        return seed
-    if isinstance(seed, np.random.Generator):
-        return np.random.SeedSequence(int(seed.integers(2**63)))
-    if seed is not None and (isinstance(seed, bool | np.bool_) or not isinstance(
-            seed, int | np.integer) or int(seed) < 0):
-        raise ParameterError(f"seed must be a non-negative integer, None, a numpy SeedSequence "
-                             f"or Generator; got {seed!r}")
-    return np.random.SeedSequence(None if seed is None else int(seed))
 
 
 def _n_bins(n_replications: int, n_draws: int) -> int:
@@ -286,7 +274,7 @@ def simulation_based_calibration(
         x = theta if perm is None else theta[:, perm]
         return np.asarray(evaluate(model, x).values, dtype=float)[:, cols]
 
-    ss = _seed_sequence(seed)
+    ss = as_seed_sequence(seed)
     s_theta, s_emulator, *s_reps = ss.spawn(2 + n_replications)
     theta_true = prior.draw(n_replications, design="random", seed=np.random.default_rng(s_theta))
     clean = truth(theta_true)

@@ -1,0 +1,353 @@
+"""Multi-fidelity forward UQ: the mean and variance of a high-fidelity model's responses from
+few of its runs and many runs of cheaper, correlated models.
+
+:func:`multifidelity_sample` runs a pilot (every model on the same ``n_pilot`` random points) to
+measure each model's cost and the correlations between the models, allocates the budget
+(:func:`rotoruq.methods.acv.allocate`: multifidelity Monte Carlo, Peherstorfer, Willcox,
+Gunzburger 2016, SIAM J. Sci. Comput. 38(5); approximate control variates ACV-MF / ACV-IS,
+Gorodetsky, Geraci, Eldred, Jakeman 2020, J. Comput. Phys. 408), then evaluates the models on
+fresh, independent random points and combines the plain sample estimators with the optimal
+control-variate weights. The pilot is not reused in the estimate, so the weights are
+independent of the points they weight and the estimators are unbiased.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._rng import SeedLike, as_seed_sequence
+from ..errors import EvaluationError, ParameterError
+from ..model import Model
+from ..params import ParameterSpace
+from ._common import eval_space
+from .acv import (
+    ESTIMATORS,
+    Allocation,
+    allocate,
+    estimator_covariance,
+    fixed_allocation,
+    optimal_weights,
+    sample_sets,
+)
+
+__all__ = ["MultifidelityResult", "multifidelity_sample", "STATISTICS", "BUDGET_UNITS"]
+
+STATISTICS = ("mean", "variance")
+BUDGET_UNITS = ("cost", "hf_runs")
+
+
+@dataclass(frozen=True, eq=False)
+class MultifidelityResult:
+    """Result of :func:`multifidelity_sample`.
+
+    Attributes
+    ----------
+    names_in, names_out : input (d) and response (m) names.
+    estimator : "mfmc", "acvmf" or "acvis".
+    statistics : the statistics estimated ("mean", "variance").
+    target : the response whose mean-estimator variance the allocation minimised.
+    models_used : indices (into ``models``) of the models the estimator uses, the
+        high-fidelity model first, in the estimator's order (models the allocation found
+        useless are left out).
+    allocation : (K,) main-phase evaluations of each given model (0 for one left out).
+    n_pilot : pilot points (every model evaluated on each; rows where a model failed are
+        left out of the pilot statistics).
+    costs : (K,) cost of one evaluation of each model: wall seconds per point measured in the
+        pilot (batched evaluation, driver included) when not given.
+    costs_measured : True when ``costs`` were measured.
+    budget : cost given to the main phase (units of ``costs``, whatever ``budget_unit``).
+    cost_pilot, cost_main : cost of the pilot and of the main phase, ``costs`` times the
+        evaluations (the pilot comes on top of ``budget``).
+    wall_pilot, wall_main : (K,) seconds spent evaluating each model.
+    correlation : (m, K) pilot correlation of each model with the high-fidelity model.
+    mean, variance : (m,) estimates (NaN for a statistic not asked for); the multi-fidelity
+        variance estimate is unbiased and may, rarely, come out negative.
+    mean_se, variance_se : (m,) their standard errors predicted from the pilot moments and
+        the allocation.
+    weights : statistic -> (m, len(models_used) - 1) control-variate weights alpha_k (the
+        estimate is Q_0(z_0) + sum_k alpha_k (Q_k(z_k*) - Q_k(z_k))).
+    n_equivalent_hf : statistic -> (m,) high-fidelity runs plain Monte Carlo needs for the same
+        estimator variance.
+    speedup : statistic -> (m,) cost of those runs over ``cost_pilot + cost_main``.
+    n_evaluations : evaluations of all models, pilot included.
+    pilot_inputs : (n_pilot, d) the pilot's points; pilot_outputs : (n_pilot, K, m) every
+        model's responses there (NaN where one failed).
+    """
+
+    names_in: tuple[str, ...]
+    names_out: tuple[str, ...]
+    estimator: str
+    statistics: tuple[str, ...]
+    target: str
+    models_used: tuple[int, ...]
+    allocation: np.ndarray
+    n_pilot: int
+    costs: np.ndarray
+    costs_measured: bool
+    budget: float
+    cost_pilot: float
+    cost_main: float
+    wall_pilot: np.ndarray
+    wall_main: np.ndarray
+    correlation: np.ndarray
+    mean: np.ndarray
+    mean_se: np.ndarray
+    variance: np.ndarray
+    variance_se: np.ndarray
+    weights: dict = field(default_factory=dict)
+    n_equivalent_hf: dict = field(default_factory=dict)
+    speedup: dict = field(default_factory=dict)
+    n_evaluations: int = 0
+    plan: Allocation | None = field(default=None, repr=False)
+    pilot_inputs: np.ndarray | None = field(default=None, repr=False)
+    pilot_outputs: np.ndarray | None = field(default=None, repr=False)
+
+    @property
+    def std(self) -> np.ndarray:
+        """(m,) square root of the variance estimate (NaN where it is negative)."""
+        with np.errstate(invalid="ignore"):
+            return np.sqrt(self.variance)
+
+    def table(self) -> list[dict]:
+        """One dict per response: estimates, standard errors, equivalent HF runs."""
+        rows = []
+        for j, name in enumerate(self.names_out):
+            row: dict = {"response": name}
+            for s in self.statistics:
+                est = self.mean if s == "mean" else self.variance
+                se = self.mean_se if s == "mean" else self.variance_se
+                row[s] = float(est[j])
+                row[f"{s}_se"] = float(se[j])
+                row[f"{s}_n_equivalent_hf"] = float(self.n_equivalent_hf[s][j])
+            rows.append(row)
+        return rows
+
+
+def _check_models(models: Sequence[Model], space: ParameterSpace) -> tuple[str, ...]:
+    if isinstance(models, str) or not isinstance(models, Sequence) or len(models) < 1:
+        raise ParameterError("models must be a sequence of Models, the high-fidelity one first, "
+                             f"got {models!r}")
+    names_out = tuple(models[0].names_out)
+    for k, mod in enumerate(models):
+        for attr in ("names_in", "names_out"):
+            if not hasattr(mod, attr) or not callable(mod):
+                raise ParameterError(f"models[{k}] is not a Model (names_in, names_out, "
+                                     f"__call__): {mod!r}")
+        if set(mod.names_in) != set(space.names):
+            raise ParameterError(f"models[{k}] has inputs {list(mod.names_in)}; every model "
+                                 f"must take the space's parameters {list(space.names)}")
+        if tuple(mod.names_out) != names_out:
+            raise ParameterError(f"models[{k}] has responses {list(mod.names_out)}; every model "
+                                 f"must return the high-fidelity model's {list(names_out)}")
+    return names_out
+
+
+def _timed(model: Model, space: ParameterSpace, x: np.ndarray
+           ) -> tuple[np.ndarray, dict, float]:
+    t0 = time.perf_counter()
+    batch = eval_space(model, space, x)
+    return batch.values, batch.failures, time.perf_counter() - t0
+
+
+def _sample_moments(Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Y (n, K, m) -> covariance (m, K, K) and E[d_i^2 d_j^2] (m, K, K) of the centred values."""
+    d = Y - Y.mean(axis=0)
+    n = Y.shape[0]
+    cov = np.einsum("nkj,nlj->jkl", d, d) / (n - 1)
+    d2 = d**2
+    m22 = np.einsum("nkj,nlj->jkl", d2, d2) / n
+    return cov, m22
+
+
+def _plain_variance_runs(var_est: float, sigma2: float, mu4: float) -> float:
+    """n with Var[s^2_n] = mu4 / n - (n - 3) sigma^4 / (n (n - 1)) = var_est (larger root)."""
+    a, b, c = var_est, -(var_est + mu4 - sigma2**2), mu4 - 3.0 * sigma2**2
+    disc = b * b - 4.0 * a * c
+    return float((-b + np.sqrt(max(disc, 0.0))) / (2.0 * a))
+
+
+def multifidelity_sample(
+    models: Sequence[Model],
+    space: ParameterSpace,
+    budget: float | None,
+    *,
+    budget_unit: str = "cost",
+    estimator: str = "mfmc",
+    n_pilot: int = 50,
+    costs: Sequence[float] | None = None,
+    statistics: Sequence[str] = STATISTICS,
+    target: str | None = None,
+    select: bool = True,
+    allocation: Sequence[int] | None = None,
+    seed: SeedLike = None,
+) -> MultifidelityResult:
+    """Mean and variance of ``models[0]``'s responses using cheaper correlated models.
+
+    Parameters
+    ----------
+    models : sequence of K Models, the high-fidelity one first; all take ``space``'s inputs
+        and return the same responses. Each is evaluated in batches through
+        :func:`rotoruq.model.evaluate`.
+    space : ParameterSpace of the inputs (points drawn by plain random sampling: the
+        estimators' variances assume independent points).
+    budget : cost of the main phase, in the units of ``costs`` (seconds when measured); the
+        pilot's ``n_pilot * sum(costs)`` comes on top. None when ``allocation`` is given.
+    budget_unit : "cost" (``budget`` in the units of ``costs``) or "hf_runs" (in evaluations
+        of the high-fidelity model: ``budget * costs[0]``).
+    estimator : "mfmc" (multifidelity Monte Carlo, closed-form allocation), "acvmf" or "acvis"
+        (approximate control variates, allocation by numerical optimisation).
+    n_pilot : points of the pilot, every model on each (>= 4): it measures the costs and the
+        covariances that set the allocation, the weights and the standard errors.
+    costs : (K,) cost of one evaluation of each model; None measures wall seconds per point
+        in the pilot (the allocation then depends on the machine's timing: pass the result's
+        ``costs`` back to reproduce a run bitwise).
+    statistics : any of "mean", "variance".
+    target : the response whose mean estimator the allocation optimises (default the first).
+    select : let the allocation leave out low-fidelity models that do not pay (see
+        :func:`rotoruq.methods.acv.allocate`).
+    allocation : (K,) main-phase evaluations per model (0 leaves a model out) instead of the
+        optimised allocation (e.g. another tool's, to compare at equal samples); the pilot
+        then sets only the weights and the standard errors.
+    seed : int, SeedSequence, Generator or None. The same seed (and costs) gives bitwise the
+        same result.
+
+    Returns
+    -------
+    MultifidelityResult
+
+    Raises
+    ------
+    ParameterError for inconsistent models, an unknown estimator or statistic, a budget too
+    small for two high-fidelity runs; EvaluationError when a model fails in the main phase.
+
+    Examples
+    --------
+    >>> import numpy as np, rotoruq as rq
+    >>> space = rq.ParameterSpace({"x": rq.Uniform(0, 1)})
+    >>> hf = rq.FunctionModel(lambda x: x[:, 0] ** 5, ["x"])
+    >>> lf = rq.FunctionModel(lambda x: x[:, 0] ** 4, ["x"])
+    >>> res = rq.multifidelity_sample([hf, lf], space, 100.0, costs=[1.0, 0.01],
+    ...                               n_pilot=100, seed=1)
+    >>> res.allocation.tolist(), bool(abs(res.mean[0] - 1 / 6) < 4 * res.mean_se[0])
+    ([51, 4888], True)
+    """
+    if estimator not in ESTIMATORS:
+        raise ParameterError(f"unknown estimator {estimator!r}; valid: {', '.join(ESTIMATORS)}")
+    stats_asked = tuple(statistics)
+    bad = [s for s in stats_asked if s not in STATISTICS]
+    if bad or not stats_asked:
+        raise ParameterError(f"statistics must be a non-empty subset of {STATISTICS}, "
+                             f"got {list(statistics)}")
+    names_out = _check_models(models, space)
+    K, m = len(models), len(names_out)
+    target = names_out[0] if target is None else target
+    if target not in names_out:
+        raise ParameterError(f"target {target!r} is not a response; valid: {list(names_out)}")
+    jt = names_out.index(target)
+    if isinstance(n_pilot, bool) or not isinstance(n_pilot, int | np.integer) or n_pilot < 4:
+        raise ParameterError(f"n_pilot must be an integer >= 4, got {n_pilot!r}")
+    if budget_unit not in BUDGET_UNITS:
+        raise ParameterError(f"budget_unit must be one of {BUDGET_UNITS}, got {budget_unit!r}")
+    if (budget is None) == (allocation is None):
+        raise ParameterError("give either a budget or an allocation (evaluations per model)")
+    if costs is not None:
+        w_given = np.asarray(costs, dtype=float)
+        if w_given.shape != (K,) or not np.all(np.isfinite(w_given)) or np.any(w_given <= 0):
+            raise ParameterError(f"costs must be {K} positive numbers (one per model), "
+                                 f"got {costs!r}")
+    ss = as_seed_sequence(seed)
+    s_pilot, s_main = ss.spawn(2)
+
+    # pilot: every model on the same points
+    xp = space.draw(int(n_pilot), design="random", seed=np.random.default_rng(s_pilot))
+    Yp = np.empty((int(n_pilot), K, m))
+    wall_pilot = np.zeros(K)
+    ok = np.ones(int(n_pilot), dtype=bool)
+    for k, mod in enumerate(models):
+        Yp[:, k, :], fails, wall_pilot[k] = _timed(mod, space, xp)
+        ok &= np.all(np.isfinite(Yp[:, k, :]), axis=1)
+        if fails:
+            ok[list(fails)] = False
+    if ok.sum() < 4:
+        raise EvaluationError(f"pilot: only {int(ok.sum())} of {n_pilot} points succeeded on "
+                              "every model; at least 4 are needed")
+    if not ok.all():
+        warnings.warn(f"multifidelity pilot: {int((~ok).sum())} of {n_pilot} points failed on "
+                      "some model and are left out of the pilot statistics", RuntimeWarning,
+                      stacklevel=2)
+    w = w_given if costs is not None else wall_pilot / n_pilot
+    cov, m22 = _sample_moments(Yp[ok])
+    sd = np.sqrt(np.einsum("jkk->jk", cov))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        correlation = cov[:, 0, :] / (sd[:, :1] * sd)
+
+    if budget is None:
+        plan = fixed_allocation(cov[jt], w, np.asarray(allocation), estimator=estimator)
+    else:
+        if budget_unit == "hf_runs":
+            budget = float(budget) * float(w[0])
+        plan = allocate(cov[jt], w, float(budget), estimator=estimator, select=select)
+    used = list(plan.models)
+    sets = sample_sets(estimator, plan.n_samples)
+
+    # main phase: fresh points, each model on its largest set
+    xm = space.draw(int(round(sets.n_points)), design="random",
+                    seed=np.random.default_rng(s_main))
+    wall_main = np.zeros(K)
+    values: list[np.ndarray] = []
+    for pos, k in enumerate(used):
+        idx = sets.indices(2 * pos if pos else 0)
+        y, fails, wall_main[k] = _timed(models[k], space, xm[idx])
+        if fails:
+            first = next(iter(fails.items()))
+            raise EvaluationError(
+                f"multifidelity_sample: models[{k}] failed on {len(fails)} of {idx.size} points "
+                f"(first: point {first[0]}: {first[1]}); the estimators need every point")
+        full = np.full((xm.shape[0], m), np.nan)
+        full[idx] = y
+        values.append(full)
+
+    spent = np.zeros(K, dtype=int)
+    spent[used] = plan.n_samples
+    nan = np.full(m, np.nan)
+    est = {"mean": nan.copy(), "variance": nan.copy()}
+    se = {"mean": nan.copy(), "variance": nan.copy()}
+    weights, n_eq, speedup = {}, {}, {}
+    cost_pilot = float(n_pilot * w.sum())
+    cost_main = float(w[used] @ plan.n_samples)
+    sub = np.ix_(used, used)
+    for s in stats_asked:
+        alphas = np.zeros((m, len(used) - 1))
+        n_eq[s] = np.full(m, np.nan)
+        for j in range(m):
+            S = estimator_covariance(sets, s, cov[j][sub], m22[j][sub])
+            alpha, var = optimal_weights(S)
+            alphas[j] = alpha
+            q = []
+            for si, k in enumerate(sets.model_of_set):
+                v = values[k][sets.indices(si), j]
+                q.append(v.mean() if s == "mean" else v.var(ddof=1))
+            delta = np.array([q[2 * i - 1] - q[2 * i] for i in range(1, len(used))])
+            est[s][j] = q[0] + float(alpha @ delta)
+            se[s][j] = np.sqrt(max(var, 0.0))
+            sigma2 = cov[j, 0, 0]
+            n_eq[s][j] = (sigma2 / var if s == "mean"
+                          else _plain_variance_runs(var, sigma2, m22[j, 0, 0]))
+        weights[s] = alphas
+        speedup[s] = n_eq[s] * w[0] / (cost_pilot + cost_main)
+    return MultifidelityResult(
+        names_in=tuple(space.names), names_out=names_out, estimator=estimator,
+        statistics=stats_asked, target=target, models_used=tuple(used), allocation=spent,
+        n_pilot=int(n_pilot), costs=w, costs_measured=costs is None,
+        budget=plan.cost if budget is None else float(budget),
+        cost_pilot=cost_pilot, cost_main=cost_main, wall_pilot=wall_pilot, wall_main=wall_main,
+        correlation=correlation, mean=est["mean"], mean_se=se["mean"],
+        variance=est["variance"], variance_se=se["variance"], weights=weights,
+        n_equivalent_hf=n_eq, speedup=speedup,
+        n_evaluations=int(n_pilot) * K + int(plan.n_samples.sum()), plan=plan,
+        pilot_inputs=xp, pilot_outputs=Yp)

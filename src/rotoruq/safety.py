@@ -1,0 +1,361 @@
+"""Names, paths and text that come from someone else's study file or results folder.
+
+A study file names its study, its steps and the files it reads and writes; a results folder
+may come out of an archive. Nothing in them may write outside the results folder, follow a
+symlink planted there, or put escape codes on the user's terminal:
+
+- :func:`check_name`: a study or step name usable as one file name (no ``/``, ``\\``,
+  ``..`` or control characters);
+- :func:`check_relative` / :func:`inside`: a relative path without ``..`` that stays inside
+  its folder once resolved (symlinks included);
+- :func:`real_dir`, :func:`no_symlink`, :func:`open_nofollow`, :func:`read_nofollow`: files
+  and folders of a results folder, never through a symlink;
+- :func:`terminal_text`: a string with its control characters shown as escapes.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import stat
+import unicodedata
+from pathlib import Path, PurePath
+
+from .errors import InputFileError, RotoruqError
+
+__all__ = ["UnsafePathError", "ForeignFileError", "check_name", "name_problem",
+           "check_relative", "inside", "no_symlink", "real_dir", "open_nofollow",
+           "read_nofollow", "terminal_text", "is_control"]
+
+# Unicode's bidirectional overrides and isolates reorder what a terminal shows (a name can
+# hide or reverse the text after it); they are format characters, not control ones.
+_BIDI = frozenset("\u061c\u200e\u200f\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069")
+
+#: Longest name accepted, in UTF-8 bytes: it must fit in one file name (255 on every common
+#: file system) with the prefixes rotoruq adds (``.tmp-``, ``.old-``, suffixes).
+MAX_NAME_BYTES = 200
+
+
+class UnsafePathError(RotoruqError, ValueError):
+    """A path that would leave its folder, or a symlink where rotoruq writes or reads."""
+
+
+class ForeignFileError(RotoruqError, ValueError):
+    """A file of a results folder that rotoruq did not write (tampered, foreign or
+    corrupted): the message names it and says to remove it or re-run the step."""
+
+    def __init__(self, path: str | os.PathLike, why: str = ""):
+        self.path = str(path)
+        self.why = why
+        detail = f" ({why})" if why else ""
+        super().__init__(f"not written by rotoruq: {terminal_text(self.path)}{detail}; "
+                         "remove it or re-run the step")
+
+
+def is_control(ch: str) -> bool:
+    """Whether the character ``ch`` changes what a terminal shows rather than being shown:
+    C0/C1 controls and DEL (Unicode category Cc), and bidirectional overrides.
+
+    Examples
+    --------
+    >>> [is_control(c) for c in "a\\x1b\\x7f\\u202e\\u00e9"]
+    [False, True, True, True, False]
+    """
+    return unicodedata.category(ch) == "Cc" or ch in _BIDI
+
+
+def terminal_text(text: object, *, lines: bool = False) -> str:
+    """``str(text)`` with every control character (see :func:`is_control`) shown as an
+    escape (``\\x1b``, ``\\u202e``) and a backslash before a literal ``\\x``/``\\u``, so the
+    result holds no control character and cannot be confused with one that was escaped.
+    Newlines and tabs are escaped too (one study string stays on one line) unless
+    ``lines`` is true (a message of several lines).
+
+    Parameters
+    ----------
+    text : object
+        A study-supplied string (a name, a description, a path, an error message).
+    lines : bool
+        Keep ``\\n`` and ``\\t`` as they are.
+
+    Returns
+    -------
+    str
+        Printable text.
+
+    Examples
+    --------
+    >>> terminal_text("x\\x1b]0;owned\\x07y")
+    'x\\\\x1b]0;owned\\\\x07y'
+    >>> terminal_text("plain name, é")
+    'plain name, é'
+    >>> print(terminal_text("two\\nlines\\a", lines=True))
+    two
+    lines\\x07
+    """
+    s = str(text)
+    keep = "\n\t" if lines else ""
+    if not any(is_control(c) and c not in keep for c in s):
+        return s
+    out = []
+    for c in s:
+        if is_control(c) and c not in keep:
+            o = ord(c)
+            out.append(f"\\x{o:02x}" if o < 0x100 else f"\\u{o:04x}")
+        else:
+            out.append(c)
+    return "".join(out)
+
+
+def name_problem(name: object) -> str | None:
+    """What makes ``name`` unusable as a study or step name (as one file name), or ``None``
+    when it is fine.
+
+    Examples
+    --------
+    >>> name_problem("bayes_1"), name_problem("up..x"), name_problem("a\\x1bb")
+    (None, "'..'", 'a control character (\\\\x1b)')
+    """
+    if not isinstance(name, str):
+        return f"a {type(name).__name__}, not text"
+    if not name.strip():
+        return "nothing but white space" if name else "an empty name"
+    for c in name:
+        if is_control(c):
+            return f"a control character ({terminal_text(c)})"
+    if "/" in name or "\\" in name:
+        return "a path separator"
+    if ".." in name:
+        return "'..'"
+    if name.startswith("."):
+        return "a leading '.' (hidden file)"
+    if len(name.encode("utf-8")) > MAX_NAME_BYTES:
+        return f"more than {MAX_NAME_BYTES} bytes"
+    return None
+
+
+def check_name(name: object, *, what: str = "name", path: str | os.PathLike | None = None,
+               line: int | None = None) -> str:
+    """``name`` when it can name one file: text without ``/``, ``\\``, ``..``, control
+    characters or a leading ``.``, not blank, at most :data:`MAX_NAME_BYTES` bytes.
+
+    Parameters
+    ----------
+    name : object
+        The name read from a study file (a study or step name).
+    what : str
+        What it names, for the message (``"the study name"``).
+    path, line : file and 1-based line it was read from, for the message (optional).
+
+    Returns
+    -------
+    str
+        ``name`` unchanged.
+
+    Raises
+    ------
+    InputFileError
+        Naming the file and line, what is expected, and the name (control characters
+        escaped).
+
+    Examples
+    --------
+    >>> check_name("quick")
+    'quick'
+    >>> check_name("../../escaped", what="the study name", path="s.toml", line=2)
+    Traceback (most recent call last):
+    ...
+    rotoruq.errors.InputFileError: s.toml, line 2: expected the study name without '/', \
+'\\', '..', control characters or a leading '.' (found a path separator), found '../../escaped'
+    """
+    why = name_problem(name)
+    if why is not None:
+        raise InputFileError(path, line, f"{what} without '/', '\\', '..', control "
+                             f"characters or a leading '.' (found {why})",
+                             name if isinstance(name, str) else repr(name))
+    assert isinstance(name, str)
+    return name
+
+
+def check_relative(value: object, *, what: str = "path",
+                   path: str | os.PathLike | None = None, line: int | None = None) -> Path:
+    """``value`` as a relative path that cannot climb out of its folder: not absolute (nor
+    ``~``), no ``..`` component, no control character, not empty.
+
+    Parameters
+    ----------
+    value : object
+        The path as written in a study file.
+    what : str
+        What it is, for the message (``"[store] path"``).
+    path, line : file and 1-based line it was read from, for the message (optional).
+
+    Returns
+    -------
+    pathlib.Path
+        The relative path.
+
+    Raises
+    ------
+    InputFileError
+        Naming the file, line and the path.
+
+    Examples
+    --------
+    >>> check_relative("work/runs")
+    PosixPath('work/runs')
+    >>> check_relative("/tmp/elsewhere", what="[store] path")
+    Traceback (most recent call last):
+    ...
+    rotoruq.errors.InputFileError: <string>: expected [store] path relative to its folder, \
+without '..' (an absolute path), found '/tmp/elsewhere'
+    """
+    why = None
+    text = os.fspath(value) if isinstance(value, str | os.PathLike) else None
+    if not isinstance(text, str):
+        why = f"a {type(value).__name__}"
+    else:
+        if not text.strip():
+            why = "an empty path"
+        elif any(is_control(c) for c in text):
+            why = "a control character"
+        elif PurePath(text).is_absolute() or text.startswith("~") or text.startswith("\\"):
+            why = "an absolute path"
+        elif ".." in PurePath(text).parts or ".." in text.split("\\"):
+            why = "a '..' component"
+    if why is not None:
+        raise InputFileError(path, line, f"{what} relative to its folder, without '..' ({why})",
+                             text if isinstance(text, str) else repr(value))
+    assert text is not None
+    return Path(text)
+
+
+def inside(root: str | os.PathLike, value: object, *, what: str = "path",
+           path: str | os.PathLike | None = None, line: int | None = None) -> Path:
+    """``root / value`` after checking that it stays inside ``root``: ``value`` passes
+    :func:`check_relative`, and its resolved form (symlinks followed, as far as they exist)
+    lies under the resolved ``root``.
+
+    Parameters
+    ----------
+    root : path-like
+        The folder it must stay in (the results folder, the study file's folder).
+    value : object
+        The relative path from the study file.
+    what, path, line : as for :func:`check_relative`.
+
+    Returns
+    -------
+    pathlib.Path
+        ``Path(root) / value`` (not resolved: messages keep the user's spelling).
+
+    Raises
+    ------
+    InputFileError
+        When ``value`` is absolute, has ``..`` or a control character, or leads out of
+        ``root`` through a symlink.
+
+    Examples
+    --------
+    >>> inside("out", "evaluations.sqlite")
+    PosixPath('out/evaluations.sqlite')
+    """
+    rel = check_relative(value, what=what, path=path, line=line)
+    joined = Path(root) / rel
+    base = Path(root).resolve()
+    target = joined.resolve()
+    if target != base and base not in target.parents:
+        raise InputFileError(path, line, f"{what} inside {terminal_text(root)} (it leads to "
+                             f"{terminal_text(target)} through a symlink)",
+                             str(value))
+    return joined
+
+
+def no_symlink(p: str | os.PathLike) -> Path:
+    """``p`` when it is not a symlink (it may be missing); :class:`UnsafePathError` naming
+    it otherwise.
+
+    Examples
+    --------
+    >>> no_symlink("no/such/file")
+    PosixPath('no/such/file')
+    """
+    p = Path(p)
+    if p.is_symlink():
+        raise UnsafePathError(
+            f"symlink in a results folder: {terminal_text(p)} -> "
+            f"{terminal_text(os.readlink(p))}; rotoruq reads and writes only real files and "
+            "folders there (a folder unpacked from an archive may carry links): remove it")
+    return p
+
+
+def real_dir(p: str | os.PathLike, *, create: bool = False) -> Path:
+    """``p`` when it is a real folder (not a symlink to one); with ``create``, a missing
+    one is made with the user's umask. :class:`UnsafePathError` naming it otherwise.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     real_dir(Path(d) / "steps", create=True).is_dir()
+    True
+    """
+    p = no_symlink(p)
+    try:
+        st = os.lstat(p)
+    except FileNotFoundError:
+        if not create:
+            raise
+        try:
+            os.mkdir(p, 0o777)
+        except FileExistsError:
+            pass
+        st = os.lstat(no_symlink(p))
+    if not stat.S_ISDIR(st.st_mode):
+        raise UnsafePathError(f"{terminal_text(p)}: expected a folder written by rotoruq, "
+                              "found a file; remove it")
+    return p
+
+
+def open_nofollow(p: str | os.PathLike, flags: int = os.O_RDONLY, mode: int = 0o666) -> int:
+    """``os.open(p, flags | O_NOFOLLOW | O_CLOEXEC, mode)``: a symlink at ``p`` raises
+    :class:`UnsafePathError` naming it instead of being followed. ``mode`` is filtered by
+    the umask, as for any new file.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     fd = open_nofollow(Path(d) / "f", os.O_WRONLY | os.O_CREAT)
+    ...     os.close(fd)
+    """
+    try:
+        return os.open(p, flags | os.O_NOFOLLOW | os.O_CLOEXEC, mode)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP or (exc.errno == errno.ENOTDIR and Path(p).is_symlink()):
+            no_symlink(p)
+        raise
+
+
+def read_nofollow(p: str | os.PathLike) -> bytes:
+    """The bytes of the regular file ``p``, opened without following a symlink
+    (:class:`UnsafePathError`); a folder or device there is :class:`ForeignFileError`.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     _ = (Path(d) / "a.txt").write_text("x")
+    ...     read_nofollow(Path(d) / "a.txt")
+    b'x'
+    """
+    fd = open_nofollow(p, os.O_RDONLY | os.O_NONBLOCK)
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise ForeignFileError(p, "not a regular file")
+        chunks = []
+        while chunk := os.read(fd, 1 << 20):
+            chunks.append(chunk)
+        return b"".join(chunks)
+    finally:
+        os.close(fd)

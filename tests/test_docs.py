@@ -1,0 +1,159 @@
+"""The documentation keeps itself true: doctests run, generated numbers match their sources,
+the API page lists the public API, and scripts/ and benchmarks/ lint and run.
+
+- Every docstring example (``>>>``) in ``src/rotoruq`` runs as a doctest, one test per module.
+- Every public function of the modules listed in ``WITH_EXAMPLES`` has an Examples section.
+- Every ``<!-- generated: COMMAND -->`` block of the docs equals what COMMAND prints now (the
+  commands print saved JSON results: fast and deterministic); after a new measurement,
+  ``python docs/_ext/generated_blocks.py`` rewrites the blocks.
+- The API page (written at build time by ``docs/_ext/public_api.py``) documents every name of
+  ``rotoruq.__all__`` and of the subpackages it lists, each resolvable.
+- (slow) ``ruff`` passes on scripts/, benchmarks/, examples/ and the docs' extensions, and each
+  script or benchmark with a ``--quick`` option runs with it.
+"""
+
+from __future__ import annotations
+
+import doctest
+import importlib
+import inspect
+import pkgutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import rotoruq
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "docs" / "_ext"))
+
+import generated_blocks  # noqa: E402
+import public_api  # noqa: E402
+
+
+def _modules_with_examples() -> list[str]:
+    found = []
+    for info in pkgutil.walk_packages(rotoruq.__path__, "rotoruq."):
+        spec = importlib.util.find_spec(info.name)
+        if spec and spec.origin and ">>>" in Path(spec.origin).read_text(encoding="utf-8"):
+            found.append(info.name)
+    return sorted(found)
+
+
+@pytest.mark.parametrize("module", _modules_with_examples())
+def test_docstring_examples_run(module):
+    mod = importlib.import_module(module)
+    runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    out: list[str] = []
+    tests = doctest.DocTestFinder().find(mod, module)
+    assert any(t.examples for t in tests), f"{module} has '>>>' but no doctest was found"
+    for test in tests:
+        runner.run(test, out=out.append)
+    result = runner.summarize(verbose=False)
+    assert result.failed == 0, "".join(out)
+
+
+# modules whose public functions all carry an Examples section (with units and shapes)
+WITH_EXAMPLES = ["rotoruq.model", "rotoruq.params.space", "rotoruq.params.pairing",
+                 "rotoruq.params.catalog", "rotoruq.params.nataf", "rotoruq.methods.sampling",
+                 "rotoruq.methods.sensitivity", "rotoruq.methods.pce",
+                 "rotoruq.methods.least_squares", "rotoruq.methods.cuu",
+                 "rotoruq.rotor.presets", "rotoruq.rotor.airfoil", "rotoruq.rotor.c81",
+                 "rotoruq.evaluation.templates", "rotoruq.evaluation.dakota_files"]
+
+
+def _public_names() -> set[str]:
+    names = set(rotoruq.__all__)
+    for sub in public_api.SUBPACKAGES:
+        names |= set(importlib.import_module(sub).__all__)
+    return names
+
+
+def _public_functions(module: str):
+    """Functions defined in ``module`` that the public API (the API page's names) exports."""
+    public = _public_names()
+    for name, obj in vars(importlib.import_module(module)).items():
+        if inspect.isfunction(obj) and obj.__module__ == module and name in public:
+            yield name, obj
+
+
+@pytest.mark.parametrize("module", WITH_EXAMPLES)
+def test_public_functions_have_examples(module):
+    assert list(_public_functions(module)), f"{module} exports no public function"
+    missing = [name for name, obj in _public_functions(module)
+               if "Examples\n--------" not in (inspect.getdoc(obj) or "")]
+    assert not missing, f"{module}: public functions without an Examples section: {missing}"
+
+
+BLOCKS = generated_blocks.blocks()
+
+
+def test_docs_have_generated_blocks():
+    pages = {b.page.name for b in BLOCKS}
+    assert "benchmarks.md" in pages and len(BLOCKS) >= 10, pages
+
+
+@pytest.mark.parametrize("block", BLOCKS,
+                         ids=[f"{b.page.name}:{b.command.split()[1]}" for b in BLOCKS])
+def test_generated_block_is_current(block):
+    assert block.text == generated_blocks.run_command(block.command), (
+        f"{block.page.relative_to(ROOT)}: the block of '{block.command}' differs from what the "
+        f"command prints now; run 'python docs/_ext/generated_blocks.py' to rewrite it")
+
+
+def test_generated_block_command_must_be_a_script():
+    with pytest.raises(ValueError, match="python SCRIPT.py"):
+        generated_blocks.run_command("echo 42")
+    with pytest.raises(FileNotFoundError, match="no script"):
+        generated_blocks.run_command("python benchmarks/no_such_benchmark.py --summary x.json")
+
+
+def test_api_page_lists_every_public_name():
+    page = public_api.api_page()
+    listed = {line.strip() for line in page.splitlines() if line.startswith("   ")}
+    expected = {n for n in rotoruq.__all__ if n not in ("__version__", "errors", "presets")}
+    assert expected <= listed, sorted(expected - listed)
+    for sub in public_api.SUBPACKAGES:
+        mod = importlib.import_module(sub)
+        assert set(mod.__all__) <= listed | set(rotoruq.__all__), sub
+    for name in expected:
+        assert getattr(rotoruq, name) is not None
+
+
+def test_tutorials_are_in_the_site():
+    index = (ROOT / "docs" / "index.md").read_text(encoding="utf-8")
+    for page in sorted((ROOT / "docs" / "tutorials").glob("*.md")):
+        assert f"tutorials/{page.stem}\n" in index, f"{page.name} is not in docs/index.md"
+
+
+LINTED = ["scripts", "benchmarks", "examples", "docs/_ext", "docs/conf.py"]
+
+
+# benchmarks/reproduce_time.py --quick is `rotoruq reproduce --quick` plus two report redraws
+# (7 min on a loaded 2-core machine); tests/test_install.py already runs that reproduction from
+# a wheel, and the benchmark's --summary runs in test_generated_block_is_current.
+NOT_SMOKE_RUN = {"reproduce_time.py"}
+
+
+def _quick_scripts() -> list[Path]:
+    return sorted(p for d in ("scripts", "benchmarks") for p in (ROOT / d).glob("*.py")
+                  if '"--quick"' in p.read_text(encoding="utf-8") and p.name not in NOT_SMOKE_RUN)
+
+
+@pytest.mark.slow
+def test_scripts_and_benchmarks_lint():
+    done = subprocess.run([sys.executable, "-m", "ruff", "check", *LINTED], cwd=ROOT,
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stdout + done.stderr
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("script", _quick_scripts(), ids=lambda p: f"{p.parent.name}/{p.name}")
+def test_script_runs_quick(script, tmp_path):
+    # from an empty folder: a script must not write into the repository
+    done = subprocess.run([sys.executable, str(script), "--quick"], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-4000:]
+    assert done.stdout.strip(), f"{script.name} --quick printed nothing"

@@ -133,7 +133,7 @@ def test_warnings_turn_holds_into_holds_with_a_warning():
     assert c.status == "holds" and not c.warnings
     for bad, words in (({"rhat/k_pitch_link": 1.05}, "R-hat above 1.01): k_pitch_link (1.050)"),
                        ({"ess/k_pitch_link": 50.0}, "(below 200): k_pitch_link (50)"),
-                       ({"loo_q2/thrust": 0.5}, "Q2 below 0.9): thrust (0.500)"),
+                       ({"posterior_ratio/thrust": 0.5}, "of the noise std: thrust (0.50)"),
                        ({"pileup_hi/cd0_m02": 0.4}, "upper bound"),
                        ({"std_ratio/ei_flap": 0.97}, "not identifiable")):
         res = _exp(scalars, ok | bad)
@@ -320,7 +320,8 @@ def test_joint_posterior_predictive_keeps_correlations():
                             "b": Normal(chain[:, 1].mean(), sb)})
     ctx = StepContext(
         name="check", type="forward_check", space=space, responses=("y1", "y2"),
-        options={"n_samples": 2000, "design": "lhs", "sweep": {"c": [1.0]}}, fixed={"c": 1.0},
+        options={"n_samples": 2000, "design": "lhs", "sweep": {"c": [1.0]},
+                 "propagation": "independent_normals"}, fixed={"c": 1.0},
         make_model=linear_factory(), rng=np.random.default_rng(2),
         data_columns={"c": np.array([1.0]), "y1": np.array([9.5]), "y2": np.array([-1.0])},
         source=source)

@@ -47,7 +47,8 @@ n_samples = 16
 LINES = SEED_TEXT.splitlines()
 TOKENS = ["=", "[", "]", "{", "}", '"', ",", "\n", "-1", "0", "1e400", "nan", "inf", "true",
           "9" * 40, "[[steps]]", "type = \"bayes\"", "from = \"lhs\"", "n = -5",
-          "distribution = \"lognormal\"", "std = 0", "\x00", "\xff", "é"]
+          "distribution = \"lognormal\"", "std = 0", "\x00", "\xff", "é",
+          "9" * 20_000, "-" + "1" * 5_000]  # beyond Python's 4300-digit int limit
 
 
 def _check(text: str, tmp: Path | None = None) -> None:
@@ -105,3 +106,39 @@ def test_bundled_studies_load(name):
     from rotoruq.study.cmd_reproduce import studies_dir
 
     assert load_study(studies_dir() / name).steps
+
+
+ARGS = ["run", "show", "report", "evaluate", "export", "repair", "airfoil",
+        "--quick", "--json", "--csv", "--out", "--only", "--why-rerun", "--preset", "gvpm",
+        "--set", "collective_deg=5", "collective_deg=", "=", "nope=1", "k_pitch_link=1e400",
+        "--responses", "thrust", "--dakota-tabular", "-", "missing.toml", "missing_dir",
+        "\x1b[2J", "9" * 5000, "", "--", "-h"]
+
+
+@settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.sampled_from(ARGS), min_size=1, max_size=6))
+def test_cli_arguments_never_give_an_internal_error(tmp_path_factory, argv):
+    """Any command line ends with a usage or one-line error, never "internal error"
+    (in-process: the CLI's own top-level error handling, in a fresh empty folder)."""
+    import contextlib
+    import io
+    import os
+
+    from rotoruq.study.cli import main
+
+    if argv[0] == "run" and "--quick" not in argv:
+        argv = [*argv, "--quick"]  # bounded work
+    folder = tmp_path_factory.mktemp("cli")
+    err, out = io.StringIO(), io.StringIO()
+    cwd = os.getcwd()
+    os.chdir(folder)
+    try:
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
+            try:
+                code = main([*argv, "--out", str(folder / "o")] if argv[0] == "run" else argv)
+            except SystemExit as exc:  # argparse: usage errors and --help
+                code = exc.code
+    finally:
+        os.chdir(cwd)
+    assert "internal error" not in err.getvalue(), (argv, err.getvalue())
+    assert code in (0, 1, 2, None), (argv, code)

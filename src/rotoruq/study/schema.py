@@ -187,6 +187,11 @@ def parse_study(text: str, path: str | Path = "<study>") -> Study:
         line = int(m.group(1)) if m else None
         reason = re.sub(r"\s*\(at line \d+, column \d+\)", "", str(exc))
         raise InputFileError(path, line, "valid TOML", reason) from None
+    except ValueError as exc:  # an integer of more than 4300 digits (Python's own limit)
+        m = re.search(r"\d{4301,}", text)
+        line = text[: m.start()].count("\n") + 1 if m else None
+        raise InputFileError(path, line, "a number of at most 4300 digits",
+                             str(exc).split(";")[0]) from None
     ck = Checker(path, text)
     base = path.parent if path.name != "<study>" else Path.cwd()
     ck.keys(doc, TOP_KEYS, (), "a study file")

@@ -18,7 +18,7 @@ from ..errors import RotoruqError
 
 # Order in which subcommands are listed by --help.
 COMMANDS = ("reproduce", "run", "report", "show", "evaluate", "airfoil", "driver", "export",
-            "repair")
+            "dakota", "repair")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1052,7 +1052,7 @@ def _emit(deck: Deck, name: str | None, seed: int | None, drv: _Driver, resp: _R
 # --------------------------------------------------------------------------- export
 #: step types the exporter writes as Dakota decks
 EXPORTABLE = ("sampling", "sensitivity", "mean_value", "reliability", "pce", "least_squares",
-              "bayes_calibration")
+              "bayes_calibration", "cuu")
 
 _DAKOTA_DIST = {
     "normal": ("normal_uncertain", (("means", "mean"), ("std_deviations", "std"))),
@@ -1154,37 +1154,26 @@ def _space_of(study: Any, st: Any) -> tuple[list[str], list[Any]]:
 
 
 def _deck_for(study: Any, st: Any, o: dict, data_dir: Any) -> str:
+    if st.type == "cuu":
+        return _cuu_deck(study, st, o, data_dir)
     names, specs = _space_of(study, st)
     responses = list(st.responses or study.model.responses)
     seed = study.info.seed
     method, resp_extra = _method_text(st, o, responses, names, seed)
-    var_lines = []
-    by_kind: dict[str, list[tuple[str, dict]]] = {}
-    for n, spec in zip(names, specs, strict=True):
-        d = _describe(spec)
-        kind = d.pop("kind")
-        if st.type == "least_squares":
-            lo, hi = _bounds(spec)
-            by_kind.setdefault("continuous_design", []).append(
-                (n, {"initial_point": float(_mean(spec)), "lower_bounds": lo,
-                     "upper_bounds": hi}))
-            continue
-        if kind not in _DAKOTA_DIST:
-            raise InputFileError(None, None, f"a distribution Dakota's deck can state for "
-                                 f"{n!r} ({', '.join(_DAKOTA_DIST)})", kind)
-        dk, fields = _DAKOTA_DIST[kind]
-        by_kind.setdefault(dk, []).append((n, {a: d[b] for a, b in fields}))
-    for dk, items in by_kind.items():
-        var_lines.append(f"  {dk} = {len(items)}")
-        keys = list(items[0][1])
-        for k in keys:
-            vals = [v[k] for _, v in items]
-            if all(math.isinf(x) for x in vals):
-                continue
-            var_lines.append(f"    {k} = " + " ".join(_fmt(x) for x in vals))
-        var_lines.append("    descriptors = " + " ".join(f"'{n}'" for n, _ in items))
+    if st.type == "least_squares":
+        bounds = [_bounds(spec) for spec in specs]
+        var_lines = [f"  continuous_design = {len(names)}",
+                     "    initial_point = " + " ".join(_fmt(_mean(p)) for p in specs)]
+        for k, j in (("lower_bounds", 0), ("upper_bounds", 1)):
+            if not all(math.isinf(b[j]) for b in bounds):
+                var_lines.append(f"    {k} = " + " ".join(
+                    _fmt(max(min(b[j], 1e30), -1e30)) for b in bounds))
+        var_lines.append("    descriptors = " + " ".join(f"'{n}'" for n in names))
+    else:
+        var_lines = _uncertain_lines(names, specs)
     fixed = dict(study.model.fixed)
     fixed.update(st.fixed)
+    var_lines += _state_lines(study, fixed)
     driver = _driver_line(study, fixed, responses)
     kind = "calibration_terms" if st.type in ("least_squares", "bayes_calibration") \
         else "response_functions"
@@ -1218,6 +1207,154 @@ responses
 """
 
 
+def _state_lines(study: Any, fixed: Mapping) -> list[str]:
+    """An external model's fixed inputs as continuous_state variables (its command reads them
+    from the parameters file; the rotor driver gets them as --set instead)."""
+    if study.model.kind == "preset" or not fixed:
+        return []
+    return [f"  continuous_state = {len(fixed)}",
+            "    initial_state = " + " ".join(_fmt(v) for v in fixed.values()),
+            "    descriptors = " + " ".join(f"'{k}'" for k in fixed)]
+
+
+def _uncertain_lines(names: Sequence[str], specs: Sequence[Any]) -> list[str]:
+    by_kind: dict[str, list[tuple[str, dict]]] = {}
+    for n, spec in zip(names, specs, strict=True):
+        d = _describe(spec)
+        kind = d.pop("kind")
+        if kind not in _DAKOTA_DIST:
+            raise InputFileError(None, None, f"a distribution Dakota's deck can state for "
+                                 f"{n!r} ({', '.join(_DAKOTA_DIST)})", kind)
+        dk, fields = _DAKOTA_DIST[kind]
+        by_kind.setdefault(dk, []).append((n, {a: d[b] for a, b in fields}))
+    out = []
+    for dk, items in by_kind.items():
+        out.append(f"  {dk} = {len(items)}")
+        for k in items[0][1]:
+            vals = [v[k] for _, v in items]
+            if not all(math.isinf(x) for x in vals):
+                out.append(f"    {k} = " + " ".join(_fmt(x) for x in vals))
+        out.append("    descriptors = " + " ".join(f"'{n}'" for n, _ in items))
+    return out
+
+
+def _cuu_deck(study: Any, st: Any, o: dict, data_dir: Any) -> str:
+    """The nested model of the thesis's CUU: an outer nl2sol on the calibrated statistics,
+    mapped onto the inner uncertain variables' means / std deviations, an inner mean value
+    (or LHS, or PCE by quadrature) method. Relative weighting is the same least squares with
+    each mapping row weighted by 1 / |target| and the data t / |t|."""
+    if isinstance(o["targets"], str):
+        raise InputFileError(study.path, st.line, "targets given as numbers in the study file "
+                             "(not from an earlier step)", o["targets"])
+    names, specs = _space_of(study, st)
+    for n, spec in zip(names, specs, strict=True):
+        if spec.kind not in ("normal", "lognormal"):
+            raise InputFileError(study.path, st.line, f"a normal or lognormal {n!r} (Dakota "
+                                 "maps a design variable onto its mean / std_deviation)",
+                                 spec.kind)
+    responses = list(st.responses or study.model.responses)
+    stats_ = {"std": ["std"], "mean": ["mean"], "mean_std": ["mean", "std"]}[o["calibrate"]]
+    outer = [(n, s) for n in names for s in stats_]
+    x0 = [float(getattr(spec.distribution, s)) for spec in specs for s in stats_]
+    rows, data, tnames = [], [], []
+    relative = o.get("weighting", "relative") == "relative"
+    for r, (tm, ts) in o["targets"].items():
+        for s in stats_:
+            t = float(tm if s == "mean" else ts)
+            w = 1.0 / abs(t) if relative and t != 0 else 1.0
+            row = [0.0] * (2 * len(responses))
+            row[2 * responses.index(r) + (0 if s == "mean" else 1)] = w
+            rows.append(row)
+            data.append(t * w)
+            tnames.append(f"{s}_{r}")
+    if data_dir is not None:
+        Path(data_dir, f"{st.name}.dat").write_text(" ".join(_fmt(x) for x in data) + "\n")
+    inner = o.get("inner") or "mean_value"
+    seed = study.info.seed
+    if inner == "mean_value":
+        inner_method = "  local_reliability"
+        inner_grads = ("  numerical_gradients\n    method_source dakota\n"
+                       "    interval_type central\n    fd_step_size = 1e-6")
+    elif inner == "sampling":
+        inner_method = f"  sampling\n    sample_type lhs\n    samples = 200\n    seed = {seed}"
+        inner_grads = "  no_gradients"
+    else:
+        inner_method = "  polynomial_chaos\n    quadrature_order = 3"
+        inner_grads = "  no_gradients"
+    fixed = dict(study.model.fixed)
+    fixed.update(st.fixed)
+    lo = [1e-6 * x if s == "std" else -1e30 for (_, s), x in zip(outer, x0, strict=True)]
+    mapping = "\n".join("      " + " ".join(_fmt(v) for v in row) for row in rows)
+    tol = f"\n    convergence_tolerance = {o['tolerance']!r}" if o.get("tolerance") else ""
+    iters = (f"\n    max_iterations = {o['max_iterations']}" if o.get("max_iterations")
+             else "")
+    return f"""# Dakota deck of the rotoruq study {study.info.name!r}, step {st.name!r} (cuu: nested
+# model, {'relative' if relative else 'absolute'} residuals), written by 'rotoruq dakota export'.
+environment
+  top_method_pointer = 'OUTER'
+  output_precision = 16
+method
+  id_method = 'OUTER'
+  nl2sol{tol}{iters}
+  model_pointer = 'NESTED'
+model
+  id_model = 'NESTED'
+  nested
+    sub_method_pointer = 'INNER'
+    primary_variable_mapping = {' '.join(f"'{n}'" for n, _ in outer)}
+    secondary_variable_mapping = {' '.join("'std_deviation'" if s == "std" else "'mean'"
+                                           for _, s in outer)}
+    primary_response_mapping =
+{mapping}
+  variables_pointer = 'OUTER_V'
+  responses_pointer = 'OUTER_R'
+variables
+  id_variables = 'OUTER_V'
+  continuous_design = {len(outer)}
+    initial_point = {' '.join(_fmt(x) for x in x0)}
+    lower_bounds = {' '.join(_fmt(x) for x in lo)}
+    descriptors = {' '.join(f"'{s}_{n}'" for n, s in outer)}
+responses
+  id_responses = 'OUTER_R'
+  calibration_terms = {len(rows)}
+    descriptors = {' '.join(f"'{t}'" for t in tnames)}
+  calibration_data_file = '{st.name}.dat'
+    freeform
+    num_experiments = 1
+  numerical_gradients
+    method_source dakota
+    interval_type forward
+    fd_step_size = 1e-6
+  no_hessians
+method
+  id_method = 'INNER'
+{inner_method}
+  model_pointer = 'INNER_M'
+model
+  id_model = 'INNER_M'
+  single
+    interface_pointer = 'MODEL'
+  variables_pointer = 'INNER_V'
+  responses_pointer = 'INNER_R'
+variables
+  id_variables = 'INNER_V'
+{chr(10).join(_uncertain_lines(names, specs) + _state_lines(study, fixed))}
+interface
+  id_interface = 'MODEL'
+  fork
+    analysis_drivers = '{_driver_line(study, fixed, responses)}'
+    parameters_file = 'params.in'
+    results_file = 'results.out'
+    file_tag
+responses
+  id_responses = 'INNER_R'
+  response_functions = {len(responses)}
+    descriptors = {' '.join(f"'{r}'" for r in responses)}
+{inner_grads}
+  no_hessians
+"""
+
+
 def _describe(spec: Any) -> dict:
     return {"kind": spec.kind, **{k: float(v) for k, v in spec.params.items()}}
 
@@ -1233,6 +1370,8 @@ def _bounds(spec: Any) -> tuple[float, float]:
 
 def _driver_line(study: Any, fixed: Mapping, responses: list[str]) -> str:
     m = study.model
+    if m.kind != "preset":
+        fixed = {}
     sets = " ".join(f"--set {k}={float(v)!r}" for k, v in fixed.items())
     if m.kind == "preset":
         return f"{rotoruq_command()} driver --preset {m.preset} {sets}".strip()
@@ -1240,9 +1379,6 @@ def _driver_line(study: Any, fixed: Mapping, responses: list[str]) -> str:
     if m.external.parameters_format != "standard" or m.external.templates:
         raise InputFileError(None, None, "an external model with standard parameters files "
                              "and no templates (the exported deck calls its command)")
-    if fixed:
-        raise InputFileError(None, None, "an external model without fixed inputs (Dakota "
-                             "passes only the deck's variables to its command)")
     return " ".join(shlex.quote(a) for a in m.external.command)
 
 

@@ -62,7 +62,7 @@ __all__ = ["DeckEntry", "DeckBlock", "Deck", "parse_deck", "read_deck", "deck_to
 
 BLOCKS = ("environment", "method", "model", "variables", "interface", "responses")
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eEdD][+-]?\d+)?$")
-_TOKEN = re.compile(r"""'[^']*'|"[^"]*"|=|[^\s='"]+""")
+_TOKEN = re.compile(r"""'[^']*'|"[^"]*"|=|[^\s=,'"]+""")  # commas separate, as blanks
 
 
 @dataclass(frozen=True)
@@ -596,7 +596,8 @@ def _read_method(deck: Deck, block: DeckBlock, responses: list[str]) -> _Method:
                    "polynomial_chaos": _PCE, "global_evidence": _EVIDENCE,
                    "nl2sol": _NL2SOL, "bayes_calibration": _BAYES}[kind]
         if e.keyword not in allowed:
-            c.unknown(e, [kind + " " + k for k in allowed])
+            c.what = kind
+            c.unknown(e, allowed)
         k = e.keyword
         if k == "seed":
             seed = _num(c, e, 1, "integer")[0]
@@ -1441,15 +1442,16 @@ def _method_text(st: Any, o: dict, responses: list[str], names: list[str],
     sampler = o.get("sampler") or "dram"
     burn = int(o.get("burn_in") or 0)
     n = int(o.get("n_samples") or _default(t, "n_samples"))
-    lines = ["  bayes_calibration queso", f"    {sampler}",
-             f"    chain_samples = {n + burn}", f"    burn_in_samples = {burn}",
-             f"    seed = {seed}"]
+    # Dakota 6.24 reads these in this order only (the sampler after the emulator)
+    lines = ["  bayes_calibration queso", f"    chain_samples = {n + burn}", f"    seed = {seed}"]
     if (o.get("emulator") or "gp") == "gp":
         ne = o.get("n_emulator_samples") or _default(t, "n_emulator_samples")
         lines += ["    emulator", "      gaussian_process surfpack",
                   f"      build_samples = {ne}"]
+    lines.append(f"    {sampler}")
     lines.append("    proposal_covariance "
                  + ("prior" if (o.get("proposal") or "hessian") == "prior" else "derivatives"))
+    lines.append(f"    burn_in_samples = {burn}")
     return "\n".join(lines), ""
 
 

@@ -45,7 +45,10 @@ lines = [ln.split() for ln in open(sys.argv[1]).read().splitlines()]
 n = int(lines[0][0])
 v = {ln[1]: float(ln[0]) for ln in lines[1:n + 1]}
 m = int(lines[n + 1][0])
-labels = [ln[1].split(":", 1)[1] for ln in lines[n + 2:n + 2 + m]]
+# the active set: only the values asked for (Dakota labels the responses of a deck with
+# calibration data 'y1_1', ...)
+labels = [ln[1].split(":", 1)[1].split("_")[0] for ln in lines[n + 2:n + 2 + m]
+          if int(ln[0]) & 1]
 a, b = v["a"], v.get("b", 0.0)
 y = {"y1": a + 0.5 * b, "y2": 4.0 * a - b, "y3": a * a + b}
 open(sys.argv[2], "w").write("".join(f"{y[k]:.17e} {k}\\n" for k in labels))

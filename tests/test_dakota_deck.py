@@ -38,7 +38,10 @@ lines = [ln.split() for ln in open(sys.argv[1]).read().splitlines()]
 n = int(lines[0][0])
 v = {ln[1]: float(ln[0]) for ln in lines[1:n + 1]}
 m = int(lines[n + 1][0])
-labels = [ln[1].split(":", 1)[1] for ln in lines[n + 2:n + 2 + m]]
+# the active set: only the values asked for (Dakota labels the responses of a deck with
+# calibration data 'y1_1', ...)
+labels = [ln[1].split(":", 1)[1].split("_")[0] for ln in lines[n + 2:n + 2 + m]
+          if int(ln[0]) & 1]
 a, b = v["a"], v.get("b", 0.0)
 y = {"y1": a + 0.5 * b, "y2": 4.0 * a - b, "y3": a * a + b}
 open(sys.argv[2], "w").write("".join(f"{y[k]:.17e} {k}\\n" for k in labels))
@@ -437,3 +440,87 @@ def test_nested_cuu_deck_absolute_weighting_matches_dakota(tmp_path):
     cli("--quiet", "run", "study.toml", "--out", "out", "--no-report", cwd=rel)
     assert load_step(rel / "out" / "steps" / "cuu").get("std/a") == pytest.approx(
         relative, rel=1e-7)
+
+
+NL2SOL_DECK = """\
+method
+  nl2sol
+    convergence_tolerance = 1e-10
+variables
+  continuous_design = 2
+    initial_point = 1.5 1.6
+    lower_bounds = 0.0 0.0
+    upper_bounds = 4.0 4.0
+    descriptors = 'a' 'b'
+{interface}responses
+  calibration_terms = 2
+    descriptors = 'y1' 'y2'
+  calibration_data_file = 'data.dat'
+    freeform
+    num_experiments = 1
+  numerical_gradients
+    method_source dakota
+    interval_type forward
+    fd_step_size = 1e-7
+  no_hessians
+"""
+
+
+@needs_dakota
+def test_nl2sol_deck_recovers_the_inputs_in_both_tools(tmp_path):
+    """y1 = a + b/2 = 2.5, y2 = 4a - b = 8.2 has the one solution a = 2.2, b = 0.6; the
+    design variables start at their initial point (a distribution on the bounds with that
+    mean)."""
+    setup(tmp_path, NL2SOL_DECK.format(interface=INTERFACE), data_dat="2.5 8.2\n")
+    study, res = import_and_run(tmp_path, "least_squares")
+    spec = load_study(study)
+    assert spec.parameter("a").distribution.mean == pytest.approx(1.5)
+    assert spec.parameter("b").distribution.bounds == (0.0, 4.0)
+    assert res.get("value/a") == pytest.approx(2.2, rel=1e-6)
+    assert res.get("value/b") == pytest.approx(0.6, rel=1e-6)
+    for out in (dakota(tmp_path), export_and_dakota(tmp_path, study)):
+        rows = after("Best parameters", out, 2)
+        assert {r[1]: float(r[0]) for r in rows} == pytest.approx({"a": 2.2, "b": 0.6},
+                                                                   rel=1e-6)
+
+
+RELIABILITY_DECK = """\
+method
+  local_reliability
+    mpp_search no_approx
+    response_levels = 2.2 6.0
+    num_response_levels = 1 1
+variables
+""" + """  normal_uncertain = 2
+    means = 2.0 1.0
+    std_deviations = 0.3 0.2
+    descriptors = 'a' 'b'
+{interface}responses
+  response_functions = 2
+    descriptors = 'y1' 'y2'
+  numerical_gradients
+    method_source dakota
+    interval_type central
+    fd_step_size = 1e-6
+  no_hessians
+"""
+
+
+@needs_dakota
+def test_reliability_ria_deck_is_exact_on_linear_responses(tmp_path):
+    """Linear responses of normal inputs: the MPP search gives P(y <= z) = Phi((z - mean) /
+    std) exactly: y1 <= 2.2 and y2 <= 6.0."""
+    from scipy.stats import norm
+
+    setup(tmp_path, RELIABILITY_DECK.format(interface=INTERFACE))
+    study, res = import_and_run(tmp_path, "reliability")
+    text = study.read_text()
+    assert 'response_levels = { y1 = [2.2], y2 = [6.0] }' in text
+    p = [norm.cdf((2.2 - 2.5) / np.hypot(0.3, 0.1)), norm.cdf((6.0 - 7.0) / np.hypot(1.2, 0.2))]
+    got = [res.get(k) for k in sorted(res.scalars) if k.startswith("cdf_probability/")]
+    np.testing.assert_allclose(got, p, rtol=1e-6)
+    for out in (dakota(tmp_path), export_and_dakota(tmp_path, study)):
+        lines = out.splitlines()
+        rows = [lines[k + 3].split() for k, ln in enumerate(lines)
+                if ln.startswith("Cumulative Distribution Function (CDF) for")]
+        np.testing.assert_allclose([float(r[1]) for r in rows], p, rtol=1e-6)

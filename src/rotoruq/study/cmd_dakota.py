@@ -53,6 +53,6 @@ def run(args: argparse.Namespace) -> int:
         write_text(path, text)
         print(path)
     if skipped:
-        print(f"not exported (types without a Dakota deck): {', '.join(skipped)}",
-              file=sys.stderr)
+        print(f"not exported (a type without a Dakota deck, or distributions from an "
+              f"earlier step's results): {', '.join(skipped)}", file=sys.stderr)
     return 0

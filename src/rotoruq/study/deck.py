@@ -1131,6 +1131,8 @@ def study_to_decks(study: Any, *, steps: Sequence[str] | None = None, quick: boo
     for st in study.steps:
         if steps is not None and st.name not in steps:
             continue
+        if steps is None and st.source is not None:
+            continue  # distributions from an earlier step's results: only when asked for
         if st.type not in EXPORTABLE:
             if steps is not None:
                 raise InputFileError(None, None, "a step of a type the export writes ("
@@ -1139,7 +1141,13 @@ def study_to_decks(study: Any, *, steps: Sequence[str] | None = None, quick: boo
         opts = dict(st.options)
         if quick:
             opts.update(step_type(st.type).quick)
-        out[st.name] = _deck_for(study, st, opts, data_dir)
+        try:
+            out[st.name] = _deck_for(study, st, opts, data_dir)
+        except InputFileError as exc:
+            if exc.path != "<string>":
+                raise
+            raise InputFileError(study.path, st.line, f"{exc.expected} in step {st.name!r}",
+                                 exc.found) from None
     return out
 
 
@@ -1172,8 +1180,7 @@ def _deck_for(study: Any, st: Any, o: dict, data_dir: Any) -> str:
         var_lines.append("    descriptors = " + " ".join(f"'{n}'" for n in names))
     else:
         var_lines = _uncertain_lines(names, specs)
-    fixed = dict(study.model.fixed)
-    fixed.update(st.fixed)
+    fixed = {k: v for k, v in {**study.model.fixed, **st.fixed}.items() if k not in names}
     var_lines += _state_lines(study, fixed)
     driver = _driver_line(study, fixed, responses)
     kind = "calibration_terms" if st.type in ("least_squares", "bayes_calibration") \
@@ -1282,8 +1289,7 @@ def _cuu_deck(study: Any, st: Any, o: dict, data_dir: Any) -> str:
     else:
         inner_method = "  polynomial_chaos\n    quadrature_order = 3"
         inner_grads = "  no_gradients"
-    fixed = dict(study.model.fixed)
-    fixed.update(st.fixed)
+    fixed = {k: v for k, v in {**study.model.fixed, **st.fixed}.items() if k not in names}
     lo = [1e-6 * x if s == "std" else -1e30 for (_, s), x in zip(outer, x0, strict=True)]
     mapping = "\n".join("      " + " ".join(_fmt(v) for v in row) for row in rows)
     tol = f"\n    convergence_tolerance = {o['tolerance']!r}" if o.get("tolerance") else ""
@@ -1401,13 +1407,16 @@ def _method_text(st: Any, o: dict, responses: list[str], names: list[str],
     t = st.type
     if t in ("sampling", "sensitivity"):
         design = o.get("design") or "lhs"
+        note = ""
         if design not in ("lhs", "random"):
-            raise InputFileError(None, None, "design 'lhs' or 'random' (Dakota's sample "
-                                 "types)", design)
+            # Dakota's sampling has no low-discrepancy sequences: the same estimator on LHS
+            note = (f"    # rotoruq's design '{design}' has no Dakota sample_type: LHS "
+                    "(the same estimator, its own statistical error)\n")
+            design = "lhs"
         n = o.get("n_samples") or _default(t, "n_samples")
         vbd = "\n    variance_based_decomp" if t == "sensitivity" else ""
-        return (f"  sampling\n    sample_type {design}\n    samples = {n}\n    seed = {seed}"
-                f"{vbd}", "")
+        return (f"  sampling\n{note}    sample_type {design}\n    samples = {n}\n"
+                f"    seed = {seed}{vbd}", "")
     if t == "mean_value":
         return ("  local_reliability" + _levels_text(o, "response_levels", responses)
                 + _levels_text(o, "probability_levels", responses), "")

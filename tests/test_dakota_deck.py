@@ -551,3 +551,42 @@ def test_bundled_studies_export_decks_dakota_accepts(tmp_path, bundled):
     if bundled == "experiment":
         assert {p.suffixes[0][1:] for p in decks} == {"sens_commands", "sens_aero", "sens_mixed",
                                                       "bayes_moments"}
+
+
+def test_distributions_and_evidence_translate_to_a_study_the_schema_accepts(tmp_path):
+    """Each of Dakota's uncertain variable types becomes the same distribution (Dakota's own
+    parameters: lognormal by mean/std, gumbel alpha/beta...); interval variables feed an
+    evidence step with their cells."""
+    deck = parse_deck(f"""method
+  global_evidence lhs samples = 30 seed = 4
+    response_levels = 1.0 2.0 num_response_levels = 2
+variables
+  lognormal_uncertain = 1 means 2.0 std_deviations 0.5 descriptors 'ln'
+  triangular_uncertain = 1 modes 1 lower_bounds 0 upper_bounds 3 descriptors 'tr'
+  gumbel_uncertain = 1 alphas 2.0 betas 1.0 descriptors 'gu'
+  beta_uncertain = 1 alphas 2 betas 3 lower_bounds 0 upper_bounds 1 descriptors 'be'
+  normal_uncertain = 1 means 0 std_deviations 1 lower_bounds -1 upper_bounds 2
+    descriptors 'tn'
+  continuous_interval_uncertain = 2
+    num_intervals = 2 1
+    interval_probabilities = 0.25 0.75 1.0
+    lower_bounds = 0.0 0.5 1.0
+    upper_bounds = 1.0 2.0 2.0
+    descriptors 'a' 'b'
+{INTERFACE}responses
+  response_functions = 1 descriptors 'y1'
+  no_gradients no_hessians
+""", tmp_path / "ev.in")
+    study = parse_study(deck_to_study(deck), tmp_path / "ev.toml")
+    kinds = {p.name: (p.kind, dict(p.params)) for p in study.parameters}
+    assert kinds["ln"] == ("lognormal", {"mean": 2.0, "std": 0.5})
+    assert kinds["tr"] == ("triangular", {"mode": 1.0, "lower": 0.0, "upper": 3.0})
+    assert kinds["gu"] == ("gumbel", {"alpha": 2.0, "beta": 1.0})
+    assert kinds["be"][0] == "beta" and kinds["tn"][0] == "truncated_normal"
+    assert study.parameter("a").distribution.bounds == (0.0, 2.0)  # the cells' hull
+    step = study.steps[0]
+    assert step.type == "evidence" and step.options["n_samples"] == 30
+    assert step.options["intervals"] == {"a": [[0.0, 1.0, 0.25], [0.5, 2.0, 0.75]],
+                                         "b": [[1.0, 2.0, 1.0]]}
+    assert step.options["response_levels"] == {"y1": [1.0, 2.0]}
+    assert study.info.seed == 4

@@ -340,7 +340,9 @@ def _distribution(v: _Var, deck: Deck) -> dict:
         al, be, lo, hi = need("alphas", "betas", "lower_bounds", "upper_bounds")
         return {"distribution": "beta", "alpha": al, "beta": be, "lower": lo, "upper": hi}
     if g == "continuous_interval_uncertain":
-        return {"distribution": "interval", **a}
+        # the evidence step takes the cells; the parameter is their hull
+        return {"distribution": "uniform", "lower": min(lo for lo, _ in a["intervals"]),
+                "upper": max(hi for _, hi in a["intervals"])}
     al, be = need("alphas", "betas")
     return {"distribution": g.split("_")[0], "alpha": al, "beta": be}
 

@@ -291,10 +291,12 @@ def _dakota_results(case: str, out: str) -> dict:
             if m:
                 for row in lines[k + 2:]:
                     parts = row.split()
-                    if len(parts) != 3:
+                    try:
+                        main, total = float(parts[0]), float(parts[1])
+                    except (ValueError, IndexError):
                         break
-                    res[f"S/{m.group(1)}/{parts[2]}"] = float(parts[0])
-                    res[f"T/{m.group(1)}/{parts[2]}"] = float(parts[1])
+                    res[f"S/{m.group(1)}/{parts[2]}"] = main
+                    res[f"T/{m.group(1)}/{parts[2]}"] = total
     elif case == "dram_gp":
         i = next(k for k, ln in enumerate(lines)
                  if "Sample moment statistics for each posterior variable" in ln)

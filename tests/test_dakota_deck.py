@@ -111,12 +111,13 @@ def after(header: str, out: str, rows: int) -> list[list[str]]:
 # --------------------------------------------------------------------- the grammar
 def test_grammar_comments_equals_quotes_lists_and_lines():
     d = parse_deck("# head\nmethod, # c\n  sampling samples=5 seed 3\nvariables\n"
-                   "  normal_uncertain = 2 means 1 2.5e-1\n   descriptors 'x # y' \"z\"\n",
+                   "  normal_uncertain = 2 means 1 2.5e-1\n   descriptor 'x # y' \"z\"\n",
                    "d.in")
     assert [b.kind for b in d.blocks] == ["method", "variables"]
     v = d.blocks[1].entries
     assert (v[0].keyword, v[0].values, v[0].line) == ("normal_uncertain", (2.0,), 5)
     assert v[1].values == (1.0, 0.25) and v[2].values == ("x # y", "z") and v[2].line == 6
+    assert v[2].keyword == "descriptors"  # Dakota's alias
     assert d.blocks[0].entries[1].values == (5.0,)
     with pytest.raises(InputFileError, match=r"d.in, line 2: expected a closed quoted"):
         parse_deck("method\n  id_method = 'x\n", "d.in")

@@ -61,6 +61,15 @@ __all__ = ["DeckEntry", "DeckBlock", "Deck", "parse_deck", "read_deck", "deck_to
            "study_to_decks", "EXPORTABLE"]
 
 BLOCKS = ("environment", "method", "model", "variables", "interface", "responses")
+# Dakota's aliases of the keywords translated here -> the name used below
+ALIASES = {"descriptor": "descriptors", "analysis_driver": "analysis_drivers",
+           "num_response_functions": "response_functions",
+           "least_squares_terms": "calibration_terms",
+           "num_least_squares_terms": "calibration_terms",
+           "num_calibration_terms": "calibration_terms",
+           "least_squares_data_file": "calibration_data_file",
+           "interval_probs": "interval_probabilities",
+           "secondary_variable_mappings": "secondary_variable_mapping"}
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eEdD][+-]?\d+)?$")
 _TOKEN = re.compile(r"""'[^']*'|"[^"]*"|=|[^\s=,'"]+""")  # commas separate, as blanks
 
@@ -154,7 +163,7 @@ def parse_deck(text: str, path: str | os.PathLike = "<deck>") -> Deck:
             if kind is None:
                 raise InputFileError(path, no, "a block keyword first (" + ", ".join(BLOCKS)
                                      + ")", tok)
-            entries.append(DeckEntry(word, (), no))
+            entries.append(DeckEntry(ALIASES.get(word, word), (), no))
     if kind is not None:
         blocks.append(DeckBlock(kind, tuple(entries), start))
     return Deck(tuple(blocks), path)

@@ -591,3 +591,22 @@ variables
                                          "b": [[1.0, 2.0, 1.0]]}
     assert step.options["response_levels"] == {"y1": [1.0, 2.0]}
     assert study.info.seed == 4
+
+
+@pytest.mark.parametrize("old, new, line, expected", [
+    ("    sub_method_pointer = 'INNER'\n",
+     "    sub_method_pointer = 'INNER'\n    optional_interface_pointer = 'X'\n", 13,
+     "'optional_interface_pointer' is not translated"),
+    ("  local_reliability\n", "  local_reliability\n    mpp_search no_approx\n", 33,
+     "an inner local_reliability (mean value), sampling or polynomial_chaos"),
+    ("secondary_variable_mapping = 'std_deviation'", "secondary_variable_mapping = 'lower_bound'",
+     10, "'mean' or 'std_deviation'"),
+])
+def test_nested_cuu_forms_not_translated_name_their_line(tmp_path, old, new, line, expected):
+    (tmp_path / "targets.dat").write_text("0.1 1.0\n")
+    text = CUU_DECK.replace("{interface}", INTERFACE.replace(
+        "interface\n", "interface\n  id_interface = 'I'\n"))
+    assert old in text
+    with pytest.raises(InputFileError) as err:
+        deck_to_study(parse_deck(text.replace(old, new), tmp_path / "cuu.in"))
+    assert f"cuu.in, line {line}:" in str(err.value) and expected in str(err.value)

@@ -720,14 +720,13 @@ def _step(m: _Method, design_params: list[str]) -> dict:
     return step
 
 
-def _pointer(c: _Cursor | None, block: DeckBlock, key: str) -> str | None:
+def _pointer(block: DeckBlock, key: str) -> str | None:
     e = block.find(key)
     return str(e.values[0]) if e and e.values else None
 
 
 def _nested_cuu(deck: Deck) -> tuple[DeckBlock, DeckBlock, DeckBlock, dict] | None:
     """The thesis's CUU form: (outer method, inner method, the nested model block, mapping)."""
-    models = {b.id: b for b in deck.of("model")}
     nested = [b for b in deck.of("model") if b.find("nested")]
     if not nested:
         return None
@@ -744,8 +743,9 @@ def _nested_cuu(deck: Deck) -> tuple[DeckBlock, DeckBlock, DeckBlock, dict] | No
             info[k] = _strs(c, e, 1)[0]
         elif k == "primary_variable_mapping":
             info[k] = _strs(c, e)
-        elif k in ("secondary_variable_mapping", "secondary_variable_mappings"):
+        elif k == "secondary_variable_mapping":
             info["secondary"] = _strs(c, e)
+            info["secondary_line"] = e.line
         elif k == "primary_response_mapping":
             info[k] = _num(c, e, None)
         else:
@@ -754,12 +754,11 @@ def _nested_cuu(deck: Deck) -> tuple[DeckBlock, DeckBlock, DeckBlock, dict] | No
                           "variables_pointer", "responses_pointer", "id_model"])
     methods = deck.of("method")
     inner = [m for m in methods if m.id == info.get("sub_method_pointer")]
-    outer = [m for m in methods if _pointer(None, m, "model_pointer") == nb.id]
+    outer = [m for m in methods if _pointer(m, "model_pointer") == nb.id]
     if len(inner) != 1 or len(outer) != 1:
         raise InputFileError(deck.path, nb.line, "one outer method whose model_pointer names "
                              "this nested model and one inner method named by its "
                              "sub_method_pointer")
-    del models
     return outer[0], inner[0], nb, info
 
 
@@ -889,9 +888,9 @@ def _cuu_study(deck: Deck, cuu: tuple, name: str | None) -> str:
     outer_b, inner_b, nb, info = cuu
     _check_environment(deck)
     outer_vars = _read_variables(deck, _by_id(deck, "variables",
-                                              _pointer(None, outer_b, "variables_pointer")
+                                              _pointer(outer_b, "variables_pointer")
                                               or info.get("variables_pointer"), nb.line))
-    inner_model = _by_id(deck, "model", _pointer(None, inner_b, "model_pointer"), inner_b.line)
+    inner_model = _by_id(deck, "model", _pointer(inner_b, "model_pointer"), inner_b.line)
     ic = _Cursor(deck, inner_model, "inner model")
     for e in ic:
         if e.keyword not in ("id_model", "single", "variables_pointer", "interface_pointer",
@@ -899,13 +898,13 @@ def _cuu_study(deck: Deck, cuu: tuple, name: str | None) -> str:
             ic.unknown(e, ["single", "variables_pointer", "interface_pointer",
                            "responses_pointer"])
     inner_vars = _read_variables(deck, _by_id(deck, "variables", _pointer(
-        None, inner_model, "variables_pointer"), inner_model.line))
+        inner_model, "variables_pointer"), inner_model.line))
     inner_resp = _read_responses(deck, _by_id(deck, "responses", _pointer(
-        None, inner_model, "responses_pointer"), inner_model.line))
+        inner_model, "responses_pointer"), inner_model.line))
     outer_resp = _read_responses(deck, _by_id(deck, "responses", _pointer(
-        None, outer_b, "responses_pointer") or info.get("responses_pointer"), nb.line))
+        outer_b, "responses_pointer") or info.get("responses_pointer"), nb.line))
     drv = _read_interface(deck, _by_id(deck, "interface", _pointer(
-        None, inner_model, "interface_pointer"), inner_model.line))
+        inner_model, "interface_pointer"), inner_model.line))
     outer = _read_method(deck, outer_b, outer_resp.names)
     inner = _read_method(deck, inner_b, inner_resp.names)
     if outer.kind != "nl2sol":
@@ -924,9 +923,9 @@ def _cuu_study(deck: Deck, cuu: tuple, name: str | None) -> str:
                              "continuous_design variable, an inner variable and "
                              "'std_deviation' or 'mean'")
     inner_names = [v.name for v in inner_vars.uncertain]
-    stats_ = {s for s in sec}
+    stats_ = set(sec)
     if not stats_ <= {"std_deviation", "mean"} or any(p not in inner_names for p in pvm):
-        raise InputFileError(deck.path, nb.line, f"mappings onto the inner uncertain variables "
+        raise InputFileError(deck.path, info.get("secondary_line", nb.line), f"mappings onto the inner uncertain variables "
                              f"({', '.join(inner_names)}) and their 'mean' or "
                              "'std_deviation'", " ".join(pvm + sec))
     unmapped = [n for n in inner_names if n not in pvm]

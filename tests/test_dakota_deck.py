@@ -600,7 +600,7 @@ variables
     ("  local_reliability\n", "  local_reliability\n    mpp_search no_approx\n", 33,
      "an inner local_reliability (mean value), sampling or polynomial_chaos"),
     ("secondary_variable_mapping = 'std_deviation'", "secondary_variable_mapping = 'lower_bound'",
-     10, "'mean' or 'std_deviation'"),
+     14, "'mean' or 'std_deviation'"),
 ])
 def test_nested_cuu_forms_not_translated_name_their_line(tmp_path, old, new, line, expected):
     (tmp_path / "targets.dat").write_text("0.1 1.0\n")

@@ -925,7 +925,8 @@ def _cuu_study(deck: Deck, cuu: tuple, name: str | None) -> str:
     inner_names = [v.name for v in inner_vars.uncertain]
     stats_ = set(sec)
     if not stats_ <= {"std_deviation", "mean"} or any(p not in inner_names for p in pvm):
-        raise InputFileError(deck.path, info.get("secondary_line", nb.line), f"mappings onto the inner uncertain variables "
+        raise InputFileError(deck.path, info.get("secondary_line", nb.line),
+                             "mappings onto the inner uncertain variables "
                              f"({', '.join(inner_names)}) and their 'mean' or "
                              "'std_deviation'", " ".join(pvm + sec))
     unmapped = [n for n in inner_names if n not in pvm]

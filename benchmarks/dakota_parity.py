@@ -309,8 +309,10 @@ def _dakota_results(case: str, out: str) -> dict:
 
 
 def _dakota_evaluations(out: str) -> int:
-    counts = [int(v) for v in re.findall(r"Function evaluation summary[^:]*:\s*(\d+) total",
-                                         out)]
+    """The model runs: the 'new' evaluations of Dakota's last summary of the interface (its
+    duplicates are answered from Dakota's cache)."""
+    counts = [int(v) for v in re.findall(
+        r"Function evaluation summary[^:]*:\s*\d+ total \((\d+) new", out)]
     return max(counts) if counts else 0
 
 

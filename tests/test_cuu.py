@@ -317,3 +317,47 @@ def test_cuu_with_sampling_inner_from_a_study_file(tmp_path):
     assert res.get("std/cla_m03") == pytest.approx(1.5 * sd, rel=0.1)
     assert res.get("calibrated_out_std/thrust") == pytest.approx(22.5, rel=0.12)
     assert res.meta["n_evaluations"] >= 400  # the inner sampling ran (200 points a call)
+
+
+def test_weighting_relative_and_absolute_closed_forms():
+    """One std, two std targets that cannot both be met: y1 = x, y2 = 4 x, std_k = a_k s.
+    Relative residuals (a s - t) / t give s = sum(a/t) / sum(a^2/t^2); absolute ones (Dakota's
+    nested model) s = sum(a t) / sum(a^2). Where the targets can all be met both are exact."""
+    a, t = np.array([1.0, 4.0]), np.array([0.1, 1.0])
+    model = FunctionModel(lambda x: np.column_stack([x[:, 0], 4.0 * x[:, 0]]), ["x"],
+                          ["y1", "y2"])
+    space = ParameterSpace({"x": Normal(2.0, 0.3)})
+    targets = {"y1": {"std": t[0]}, "y2": {"std": t[1]}}
+    got = {w: calibrate_under_uncertainty(model, space, calibrate={"x": "std"},
+                                          targets=targets, weighting=w, tolerance=1e-12)
+           for w in ("relative", "absolute")}
+    assert got["relative"].x[0] == pytest.approx(np.sum(a / t) / np.sum(a**2 / t**2), rel=1e-6)
+    assert got["absolute"].x[0] == pytest.approx(np.sum(a * t) / np.sum(a**2), rel=1e-6)
+    assert got["absolute"].x[0] > 1.9 * got["relative"].x[0]  # 0.241 vs 0.121: they differ
+    assert got["absolute"].weighting == "absolute"
+    # an exactly attainable target: both weightings find the same std
+    met = {w: calibrate_under_uncertainty(model, space, calibrate={"x": "std"},
+                                          targets={"y2": {"std": 0.8}}, weighting=w).x[0]
+           for w in ("relative", "absolute")}
+    assert met["relative"] == pytest.approx(0.2, rel=1e-6)
+    assert met["absolute"] == pytest.approx(0.2, rel=1e-6)
+    with pytest.raises(ParameterError, match="weighting must be one of 'relative', 'absolute'"):
+        calibrate_under_uncertainty(model, space, calibrate={"x": "std"}, targets=targets,
+                                    weighting="dakota")
+
+
+def test_weighting_is_a_step_option_stated_in_the_table():
+    from rotoruq.results import StepResult
+    from rotoruq.steps import step_type
+    from rotoruq.steps.cuu import cuu_tables
+
+    opt = step_type("cuu").options["weighting"]
+    assert opt.check("absolute") == "absolute"
+    with pytest.raises(TypeError):
+        opt.check("dakota")
+    res = StepResult("cuu", "cuu", {"mean/x": 1.0, "std/x": 0.2, "initial_mean/x": 1.0,
+                                    "initial_std/x": 0.1},
+                     meta={"identifiable": True, "weighting": "absolute"})
+    assert "plain differences s - t, as Dakota" in cuu_tables(res, {})[0].note
+    res_rel = StepResult("cuu", "cuu", dict(res.scalars), meta={"identifiable": True})
+    assert "relative to the targets" in cuu_tables(res_rel, {})[0].note

@@ -4,8 +4,12 @@ An *inner* UQ method turns the input distributions into response statistics ``s(
 (mean and/or standard deviation per response); an *outer* least-squares solver
 (:func:`rotoruq.methods.least_squares.least_squares`, NL2SOL-style by default) moves the
 calibrated input statistics ``theta`` (input means and/or standard deviations) until the
-response statistics match their targets. Residuals are relative: ``(s_k(theta) - t_k) / |t_k|``
-(or ``s_k - t_k`` for a zero target), so thrust in N and torque in N m weigh alike.
+response statistics match their targets. Residuals are weighted by ``weighting``:
+``"relative"`` (default) ``(s_k(theta) - t_k) / |t_k|`` (or ``s_k - t_k`` for a zero target), so
+thrust in N and torque in N m weigh alike; ``"absolute"`` the plain differences ``s_k - t_k``,
+as Dakota's nested model with ``calibration_terms`` computes them. The two agree when the
+targets can all be met; they differ when there are more targets than calibrated statistics
+(the least-squares compromise weighs the responses differently).
 
 Inner methods
 -------------
@@ -81,9 +85,12 @@ from .least_squares import LeastSquaresResult, least_squares
 from .reliability import mean_value_from_gradient
 
 __all__ = ["CUUResult", "CUUCheck", "calibrate_under_uncertainty", "check_cuu", "INNERS",
+           "WEIGHTINGS",
            "MeanValueInner", "SamplingInner", "PCEInner", "CallableInner"]
 
 _STATS = ("mean", "std")
+#: residual weightings of the outer least squares
+WEIGHTINGS = ("relative", "absolute")
 _SQRT3 = math.sqrt(3.0)
 
 
@@ -104,12 +111,14 @@ class CUUResult:
     targets : mapping response -> {statistic: target}.
     statistics_before, statistics_after : mapping response -> {"mean": ..., "std": ...} of
         every response from the inner method at ``x0`` and at ``x``.
-    least_squares : the outer :class:`LeastSquaresResult` (its residuals are relative).
+    least_squares : the outer :class:`LeastSquaresResult` (its residuals weighted by
+        ``weighting``).
     singular_values : (min(n_targets, p),) singular values of the scaled outer Jacobian.
     condition_number : largest / smallest singular value (inf when rank deficient).
     identifiable : False when the diagnostic flags the calibration.
     diagnostic : explanation of the identifiability verdict.
     inner : name of the inner method. optimizer : the outer solver.
+    weighting : "relative" or "absolute" residuals of the outer least squares.
     n_evaluations : model evaluations (points) of the whole nested study.
     converged, message : from the outer solver.
     """
@@ -132,6 +141,7 @@ class CUUResult:
     diagnostic: str
     inner: str
     optimizer: str
+    weighting: str
     n_evaluations: int
     converged: bool
     message: str
@@ -241,10 +251,10 @@ def _parse_targets(targets, names_out: Sequence[str]) -> list[tuple[int, str, fl
 
 class _Problem:
     """Maps outer variables theta (K, p) to input moments and, through the inner method, to
-    relative residuals of the targeted response statistics."""
+    weighted residuals of the targeted response statistics."""
 
     def __init__(self, model: Model, space: ParameterSpace, calibrated: list[tuple[int, str]],
-                 targets: list[tuple[int, str, float]]) -> None:
+                 targets: list[tuple[int, str, float]], weighting: str = "relative") -> None:
         self.model = model
         self.space = space
         self.calibrated = calibrated
@@ -256,7 +266,8 @@ class _Problem:
         self.n_eval = 0
         self.means_move = any(s == "mean" for _, s in calibrated)
         t = np.array([v for _, _, v in targets])
-        self.scale = np.where(t != 0, np.abs(t), 1.0)
+        self.scale = (np.where(t != 0, np.abs(t), 1.0) if weighting == "relative"
+                      else np.ones_like(t))
         self.target = t
 
     def moments(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -557,6 +568,7 @@ def calibrate_under_uncertainty(
     fixed: Mapping[str, float] | None = None,
     bounds: Mapping | None = None,
     optimizer: str = "nl2sol",
+    weighting: str = "relative",
     gradient: GradientOption = "auto",
     fd_step: float = FD_STEP,
     identifiability_tolerance: float = 1e-3,
@@ -584,6 +596,9 @@ def calibrate_under_uncertainty(
     bounds : mapping ``"input.stat"`` (or ``(input, stat)``) -> (lower, upper) for calibrated
         statistics. Defaults: stds in ``[1e-6 std0, inf)``; means of lognormals ``> 0``.
     optimizer : outer solver, "nl2sol" (default), "trf" or "lm".
+    weighting : residuals of the outer least squares: "relative" (default) to the targets,
+        ``(s - t) / |t|``, or "absolute", ``s - t`` as Dakota's nested model. They give the
+        same answer when every target can be met, different compromises otherwise.
     gradient : how the mean-value inner method gets the model's gradient: "auto",
         "analytic", "finite_difference" or a callable (see
         :func:`rotoruq.model.model_gradient`).
@@ -612,7 +627,24 @@ def calibrate_under_uncertainty(
     ...                                      targets={"y": {"mean": 4.0, "std": 0.2}})
     >>> np.round([cuu.space.parameters["a"].mean, cuu.space.parameters["a"].std], 6).tolist()
     [2.0, 0.1]
+
+    Residual weighting: relative (default) against absolute, as Dakota's nested model:
+
+    >>> from rotoruq import FunctionModel, Normal, ParameterSpace
+    >>> m = FunctionModel(lambda x: np.column_stack([x[:, 0], 2 * x[:, 0]]), ["a"], ["y", "z"])
+    >>> space = ParameterSpace({"a": Normal(1.0, 0.1)})
+    >>> t = {"y": {"std": 0.1}, "z": {"std": 1.0}}
+    >>> rel = calibrate_under_uncertainty(m, space, calibrate={"a": "std"}, targets=t)
+    >>> ab = calibrate_under_uncertainty(m, space, calibrate={"a": "std"}, targets=t,
+    ...                                  weighting="absolute")
+    >>> # closed forms: sum(a/t) / sum(a^2/t^2) = 12/104 and sum(a t) / sum(a^2) = 2.1/5
+    >>> round(float(rel.x[0]), 4), round(float(ab.x[0]), 4)
+    (0.1154, 0.42)
     """
+    if weighting not in WEIGHTINGS:
+        raise ParameterError(f"weighting must be one of {', '.join(map(repr, WEIGHTINGS))} "
+                             f"(relative to the targets, or plain differences as Dakota), "
+                             f"got {weighting!r}")
     fixed = dict(fixed or {})
     if not isinstance(space, ParameterSpace):
         raise ParameterError(f"space must be a ParameterSpace, got {type(space).__name__}")
@@ -621,7 +653,7 @@ def calibrate_under_uncertainty(
     calibrated = _parse_calibrate(calibrate, space, fixed)
     tgt = _parse_targets(targets, tuple(model.names_out))
     method = _make_inner(inner, inner_options, gradient, fd_step)
-    prob = _Problem(view, space, calibrated, tgt)
+    prob = _Problem(view, space, calibrated, tgt, weighting)
     method.bind(prob, seed)
 
     def statistics(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -655,7 +687,8 @@ def calibrate_under_uncertainty(
         statistics_before=_response_statistics(names_out, mean0[0], std0[0]),
         statistics_after=_response_statistics(names_out, mean1[0], std1[0]),
         least_squares=ls, singular_values=sv, condition_number=float(cond), identifiable=ok,
-        diagnostic=diag, inner=method.name, optimizer=ls.optimizer, n_evaluations=prob.n_eval,
+        diagnostic=diag, inner=method.name, optimizer=ls.optimizer, weighting=weighting,
+        n_evaluations=prob.n_eval,
         converged=ls.converged, message=ls.message,
     )
 

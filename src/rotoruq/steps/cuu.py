@@ -45,7 +45,7 @@ def run_cuu(ctx: StepContext) -> StepResult:
         targets={r: {"mean": m, "std": s} if "mean" in stats_ else {"std": s}
                  for r, (m, s) in targets.items()},
         inner=o["inner"],
-        optimizer=o["optimizer"], max_iterations=o["max_iterations"],
+        optimizer=o["optimizer"], weighting=o["weighting"], max_iterations=o["max_iterations"],
         tolerance=o["tolerance"], seed=ctx.rng,
     )
     cal_space: ParameterSpace = res.space
@@ -75,6 +75,7 @@ def run_cuu(ctx: StepContext) -> StepResult:
     return StepResult(ctx.name, ctx.type, scalars, arrays, calibrated, meta={
         "columns": columns, "n_evaluations": int(res.n_evaluations),
         "identifiable": bool(res.identifiable), "diagnostic": res.diagnostic,
+        "weighting": res.weighting,
         "condition_number": float(res.condition_number), "message": res.message})
 
 
@@ -86,7 +87,8 @@ def cuu_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
         [[label(p, labels), value(res, f"initial_mean/{p}"), value(res, f"initial_std/{p}"),
           value(res, f"mean/{p}"), value(res, f"std/{p}")] for p in params],
         "Identifiable: " + ("yes" if res.meta.get("identifiable", True) else
-                            f"no ({res.meta.get('diagnostic', '')})"))]
+                            f"no ({res.meta.get('diagnostic', '')})")
+        + ". " + _WEIGHTING_NOTE.get(res.meta.get("weighting", "relative"), ""))]
     out.append(make_table("Responses: targets and sampled statistics",
                           ("response", "target mean", "target std", "initial mean",
                            "initial std", "calibrated mean", "calibrated std"),
@@ -97,6 +99,13 @@ def cuu_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
                             value(res, f"calibrated_out_std/{r}")]
                            for r in resp]))
     return out
+
+
+_WEIGHTING_NOTE = {
+    "relative": "Residuals relative to the targets, (s - t) / |t| (Dakota's nested model uses "
+                "plain differences: weighting = \"absolute\").",
+    "absolute": "Residuals are plain differences s - t, as Dakota's nested model.",
+}
 
 
 def cuu_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:
@@ -134,6 +143,7 @@ STEP = StepType(
              "calibrate": Option(choice("std", "mean", "mean_std"), "std"),
              "inner": Option(choice("mean_value", "sampling", "pce"), SIGNATURE),
              "optimizer": Option(choice("nl2sol", "trf", "lm"), SIGNATURE),
+             "weighting": Option(choice("relative", "absolute"), SIGNATURE),
              "max_iterations": Option(integer(1), SIGNATURE, method=LEAST_SQUARES),
              "tolerance": Option(number(positive=True, allow_zero=False), SIGNATURE,
                                  method=LEAST_SQUARES),

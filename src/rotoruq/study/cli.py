@@ -21,7 +21,7 @@ from .console import pipe_safe, route_warnings
 
 # Order in which subcommands are listed by --help.
 COMMANDS = ("reproduce", "run", "report", "show", "evaluate", "airfoil", "driver", "export",
-            "repair")
+            "dakota", "repair")
 
 
 def build_parser() -> argparse.ArgumentParser:

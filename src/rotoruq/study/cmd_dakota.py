@@ -1,0 +1,58 @@
+"""``rotoruq dakota import DECK -o STUDY.toml`` and ``rotoruq dakota export STUDY -o DECK``:
+Dakota input decks translated into study files and a study's steps written as Dakota decks
+(see :mod:`rotoruq.study.deck`)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+HELP = "translate a Dakota input deck into a study file, or a study's steps into Dakota decks"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    sub = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
+    imp = sub.add_parser("import", help="a Dakota deck -> a study file (TOML)")
+    imp.add_argument("deck", type=Path, help="the Dakota input deck")
+    imp.add_argument("-o", "--output", type=Path, required=True, metavar="STUDY.toml",
+                     help="the study file to write")
+    imp.add_argument("--name", help="the study's name (default: the deck's file stem)")
+    exp = sub.add_parser("export", help="a study's steps -> Dakota decks")
+    exp.add_argument("study", type=Path, help="the study file")
+    exp.add_argument("-o", "--output", type=Path, required=True, metavar="DECK.in",
+                     help="the deck to write; with several steps DECK.<step>.in each")
+    exp.add_argument("--step", action="append", default=None, metavar="NAME",
+                     help="export this step (repeatable; default: every step the export "
+                          "supports)")
+    exp.add_argument("--quick", action="store_true", help="the steps' --quick sizes")
+
+
+def run(args: argparse.Namespace) -> int:
+    from ..atomic import write_text
+    from .deck import EXPORTABLE, deck_to_study, read_deck, study_to_decks
+
+    if args.action == "import":
+        text = deck_to_study(read_deck(args.deck), name=args.name)
+        write_text(args.output, text)
+        print(args.output)
+        return 0
+    from ..errors import InputFileError
+    from .schema import load_study
+
+    study = load_study(args.study)
+    out: Path = args.output
+    out.parent.mkdir(parents=True, exist_ok=True)
+    decks = study_to_decks(study, steps=args.step, quick=args.quick, data_dir=out.parent)
+    if not decks:
+        raise InputFileError(args.study, None, "a step of a type the export writes ("
+                             + ", ".join(EXPORTABLE) + ")", "none")
+    skipped = [s.name for s in study.steps if s.name not in decks and args.step is None]
+    for name, text in decks.items():
+        path = out if len(decks) == 1 else out.with_name(f"{out.stem}.{name}{out.suffix}")
+        write_text(path, text)
+        print(path)
+    if skipped:
+        print(f"not exported (a type without a Dakota deck, or distributions from an "
+              f"earlier step's results): {', '.join(skipped)}", file=sys.stderr)
+    return 0

@@ -1,0 +1,1505 @@
+"""Dakota input decks in and out: a reader of Dakota's deck grammar, a translator of the deck
+features a rotorcraft UQ study uses into a study file's TOML text, and an exporter that writes
+a study's steps back as Dakota decks whose ``fork`` interface runs the study's model through
+``rotoruq driver``.
+
+The grammar read: blocks ``environment``, ``method``, ``model``, ``variables``, ``interface``,
+``responses``; inside a block, keywords (unquoted words) each followed by their values
+(numbers or quoted strings); ``=`` between a keyword and its values is optional; ``#`` starts a
+comment. Every keyword the translator does not translate raises
+:class:`~rotoruq.errors.InputFileError` naming the deck, the line and what it translates there.
+
+Translated (see :func:`deck_to_study`):
+
+* variables: ``normal``, ``lognormal``, ``uniform``, ``loguniform``, ``triangular``,
+  ``exponential``, ``beta``, ``gamma``, ``gumbel``, ``weibull`` and
+  ``continuous_interval_uncertain`` with their Dakota parameters and ``descriptors``;
+  ``continuous_state`` -> fixed inputs; ``continuous_design`` -> the calibrated inputs of a
+  least-squares step, fixed inputs elsewhere.
+* responses: ``response_functions`` / ``calibration_terms`` with ``descriptors``, gradients
+  (``no_``/``numerical_``/``analytic_gradients``, the model's own choice in rotoruq),
+  ``calibration_data_file`` (inline ``[data]`` columns, ``variance_type 'scalar'`` -> the noise
+  std of each response).
+* methods: ``sampling`` (``lhs``/``random``, ``samples``, ``seed``; with
+  ``variance_based_decomp`` a ``sensitivity`` step), ``local_reliability`` (a ``mean_value``
+  step; with ``mpp_search`` a ``reliability`` step, ``integration first_order|second_order``,
+  RIA ``response_levels``, PMA ``probability_levels``), ``polynomial_chaos``
+  (``quadrature_order q`` -> order q - 1 by quadrature, ``expansion_order`` with
+  ``collocation_points``/``collocation_ratio`` -> regression), ``global_evidence``,
+  ``nl2sol`` (a ``least_squares`` step), ``bayes_calibration queso`` (``mh``/``dr``/``am``/
+  ``dram``, ``emulator gaussian_process``, ``build_samples``, ``chain_samples``,
+  ``burn_in_samples``, ``proposal_covariance prior|derivatives``), and the nested model of
+  the thesis's CUU (outer ``nl2sol`` on ``continuous_design`` variables mapped to the
+  ``std_deviation`` / ``mean`` of inner uncertain variables, inner ``local_reliability``,
+  ``sampling`` or ``polynomial_chaos``, targets from the outer calibration data) -> a ``cuu``
+  step with ``weighting = "absolute"`` (Dakota's residuals are plain differences).
+* interface: ``fork``/``system`` with ``analysis_drivers``; a ``rotoruq driver`` string gives
+  ``[model] preset`` (``--preset``), ``fixed`` (``--set``), renamed variables and responses
+  (``--map``); any other driver an external model ``command``. File handling keywords
+  (``parameters_file``, ``file_tag``, ``work_directory`` ...) concern Dakota's own runs and
+  are read and left out.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import re
+import shlex
+import sys
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputFileError
+
+__all__ = ["DeckEntry", "DeckBlock", "Deck", "parse_deck", "read_deck", "deck_to_study",
+           "study_to_decks", "EXPORTABLE"]
+
+BLOCKS = ("environment", "method", "model", "variables", "interface", "responses")
+# Dakota's aliases of the keywords translated here -> the name used below
+ALIASES = {"descriptor": "descriptors", "analysis_driver": "analysis_drivers",
+           "num_response_functions": "response_functions",
+           "least_squares_terms": "calibration_terms",
+           "num_least_squares_terms": "calibration_terms",
+           "num_calibration_terms": "calibration_terms",
+           "least_squares_data_file": "calibration_data_file",
+           "interval_probs": "interval_probabilities",
+           "secondary_variable_mappings": "secondary_variable_mapping"}
+_NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eEdD][+-]?\d+)?$")
+_TOKEN = re.compile(r"""'[^']*'|"[^"]*"|=|[^\s=,'"]+""")  # commas separate, as blanks
+
+
+@dataclass(frozen=True)
+class DeckEntry:
+    """One keyword of a deck and its values (floats, or strings for quoted values); ``line``
+    is 1-based."""
+
+    keyword: str
+    values: tuple
+    line: int
+
+
+@dataclass(frozen=True, eq=False)
+class DeckBlock:
+    """A top-level block (``method``, ``variables`` ...) and its entries in deck order."""
+
+    kind: str
+    entries: tuple[DeckEntry, ...]
+    line: int
+
+    def find(self, keyword: str) -> DeckEntry | None:
+        """The first entry ``keyword`` (None when absent)."""
+        return next((e for e in self.entries if e.keyword == keyword), None)
+
+    @property
+    def id(self) -> str | None:
+        e = self.find(f"id_{self.kind}")
+        return str(e.values[0]) if e and e.values else None
+
+
+@dataclass(frozen=True, eq=False)
+class Deck:
+    """A parsed Dakota input deck: its blocks in order and the file it came from."""
+
+    blocks: tuple[DeckBlock, ...]
+    path: str = "<deck>"
+
+    def of(self, kind: str) -> list[DeckBlock]:
+        return [b for b in self.blocks if b.kind == kind]
+
+
+def _value(tok: str) -> Any:
+    if tok[0] in "'\"":
+        return tok[1:-1]
+    return float(tok.replace("d", "e").replace("D", "e"))
+
+
+def parse_deck(text: str, path: str | os.PathLike = "<deck>") -> Deck:
+    """Parse a Dakota input deck's text into blocks of keyword entries.
+
+    Parameters
+    ----------
+    text : the deck.
+    path : the deck's name in error messages.
+
+    Returns
+    -------
+    Deck
+
+    Examples
+    --------
+    >>> d = parse_deck("method\\n  sampling  # LHS\\n    samples = 10 seed 3\\n")
+    >>> [(e.keyword, e.values, e.line) for e in d.blocks[0].entries]
+    [('sampling', (), 2), ('samples', (10.0,), 3), ('seed', (3.0,), 3)]
+    """
+    path = str(path)
+    blocks: list[DeckBlock] = []
+    kind, start, entries = None, 0, []  # type: ignore[var-annotated]
+    for no, raw in enumerate(text.splitlines(), 1):
+        line = _strip_comment(raw)
+        toks = _TOKEN.findall(line)
+        if line.count("'") % 2 or line.count('"') % 2:
+            raise InputFileError(path, no, "a closed quoted string", raw.strip())
+        for tok in toks:
+            if tok == "=":
+                continue
+            if tok[0] in "'\"" or _NUMBER.match(tok):
+                if not entries:
+                    raise InputFileError(path, no, "a keyword before a value", tok)
+                last = entries[-1]
+                entries[-1] = DeckEntry(last.keyword, last.values + (_value(tok),), last.line)
+                continue
+            word = tok.lower()
+            if word in BLOCKS:
+                if kind is not None:
+                    blocks.append(DeckBlock(kind, tuple(entries), start))
+                kind, start, entries = word, no, []
+                continue
+            if kind is None:
+                raise InputFileError(path, no, "a block keyword first (" + ", ".join(BLOCKS)
+                                     + ")", tok)
+            entries.append(DeckEntry(ALIASES.get(word, word), (), no))
+    if kind is not None:
+        blocks.append(DeckBlock(kind, tuple(entries), start))
+    return Deck(tuple(blocks), path)
+
+
+def _strip_comment(line: str) -> str:
+    quote = None
+    for i, ch in enumerate(line):
+        if quote:
+            quote = None if ch == quote else quote
+        elif ch in "'\"":
+            quote = ch
+        elif ch == "#":
+            return line[:i]
+    return line
+
+
+def read_deck(path: str | os.PathLike) -> Deck:
+    """:func:`parse_deck` of a deck file."""
+    return parse_deck(Path(path).read_text(), path)
+
+
+# --------------------------------------------------------------------------- import
+class _Cursor:
+    """Walks a block's entries; every entry must be taken by the translator."""
+
+    def __init__(self, deck: Deck, block: DeckBlock, what: str):
+        self.deck, self.block, self.what = deck, block, what
+        self.i = 0
+
+    def __iter__(self) -> Iterator[DeckEntry]:
+        while self.i < len(self.block.entries):
+            e = self.block.entries[self.i]
+            self.i += 1
+            yield e
+
+    def peek(self) -> DeckEntry | None:
+        return self.block.entries[self.i] if self.i < len(self.block.entries) else None
+
+    def next_if(self, *keywords: str) -> DeckEntry | None:
+        e = self.peek()
+        if e is not None and e.keyword in keywords:
+            self.i += 1
+            return e
+        return None
+
+    def fail(self, e: DeckEntry, expected: str) -> Any:
+        raise InputFileError(self.deck.path, e.line, expected, e.keyword)
+
+    def unknown(self, e: DeckEntry, known: Sequence[str]) -> Any:
+        return self.fail(e, f"a {self.what} keyword rotoruq translates ("
+                         + ", ".join(known) + f"); '{e.keyword}' is not translated")
+
+
+def _num(c: _Cursor, e: DeckEntry, n: int | None = 1, kind: str = "number") -> list:
+    vals = list(e.values)
+    if any(not isinstance(v, float) for v in vals) or (n is not None and len(vals) != n) \
+            or not vals:
+        c.fail(e, f"{n if n is not None else 'one or more'} {kind}(s) after '{e.keyword}'")
+    if kind == "integer" and any(v != int(v) for v in vals):
+        c.fail(e, f"integers after '{e.keyword}'")
+    return [int(v) for v in vals] if kind == "integer" else vals
+
+
+def _strs(c: _Cursor, e: DeckEntry, n: int | None = None) -> list[str]:
+    vals = list(e.values)
+    if any(not isinstance(v, str) for v in vals) or (n is not None and len(vals) != n) \
+            or not vals:
+        c.fail(e, f"{n if n is not None else 'one or more'} quoted string(s) after "
+               f"'{e.keyword}'")
+    return vals
+
+
+# variables: group keyword -> (default descriptor prefix, its attributes)
+_GROUPS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "normal_uncertain": ("nuv", ("means", "std_deviations", "lower_bounds", "upper_bounds")),
+    "lognormal_uncertain": ("lnuv", ("means", "std_deviations")),
+    "uniform_uncertain": ("uuv", ("lower_bounds", "upper_bounds")),
+    "loguniform_uncertain": ("luuv", ("lower_bounds", "upper_bounds")),
+    "triangular_uncertain": ("tuv", ("modes", "lower_bounds", "upper_bounds")),
+    "exponential_uncertain": ("euv", ("betas",)),
+    "beta_uncertain": ("buv", ("alphas", "betas", "lower_bounds", "upper_bounds")),
+    "gamma_uncertain": ("gauv", ("alphas", "betas")),
+    "gumbel_uncertain": ("guuv", ("alphas", "betas")),
+    "weibull_uncertain": ("wuv", ("alphas", "betas")),
+    "continuous_interval_uncertain": ("ciuv", ("num_intervals", "interval_probabilities",
+                                               "interval_probs", "lower_bounds",
+                                               "upper_bounds")),
+    "continuous_state": ("csv", ("initial_state", "lower_bounds", "upper_bounds")),
+    "continuous_design": ("cdv", ("initial_point", "lower_bounds", "upper_bounds")),
+}
+
+
+@dataclass
+class _Var:
+    name: str
+    group: str
+    attrs: dict
+    line: int
+
+
+@dataclass
+class _Vars:
+    uncertain: list[_Var] = field(default_factory=list)
+    state: list[_Var] = field(default_factory=list)
+    design: list[_Var] = field(default_factory=list)
+
+
+def _read_variables(deck: Deck, block: DeckBlock) -> _Vars:
+    c = _Cursor(deck, block, "variables")
+    out = _Vars()
+    for e in c:
+        if e.keyword == "id_variables":
+            continue
+        if e.keyword not in _GROUPS:
+            c.unknown(e, ["id_variables", *_GROUPS])
+        n = _num(c, e, 1, "integer")[0]
+        prefix, attrs = _GROUPS[e.keyword]
+        got: dict[str, list] = {}
+        names = [f"{prefix}_{i + 1}" for i in range(n)]
+        while (a := c.next_if("descriptors", *attrs)) is not None:
+            if a.keyword == "descriptors":
+                names = _strs(c, a, n)
+            elif a.keyword == "num_intervals":
+                got[a.keyword] = _num(c, a, n, "integer")
+            else:
+                got["interval_probabilities" if a.keyword == "interval_probs"
+                    else a.keyword] = _num(c, a, None)
+        if e.keyword != "continuous_interval_uncertain":
+            for k, v in got.items():
+                if len(v) != n:
+                    c.fail(e, f"{n} values of {k} (one per variable)")
+        target = (out.state if e.keyword == "continuous_state" else
+                  out.design if e.keyword == "continuous_design" else out.uncertain)
+        if e.keyword == "continuous_interval_uncertain":
+            counts = got.get("num_intervals", [1] * n)
+            lo, hi = got.get("lower_bounds", []), got.get("upper_bounds", [])
+            probs = got.get("interval_probabilities", [1.0 / k for k in counts for _ in range(k)])
+            if not (len(lo) == len(hi) == len(probs) == sum(counts)):
+                c.fail(e, f"{sum(counts)} lower_bounds, upper_bounds and "
+                       "interval_probabilities (num_intervals in all)")
+            k0 = 0
+            for i, name in enumerate(names):
+                k1 = k0 + counts[i]
+                target.append(_Var(name, e.keyword, {
+                    "intervals": [[lo[j], hi[j]] for j in range(k0, k1)],
+                    "bpa": probs[k0:k1]}, e.line))
+                k0 = k1
+            continue
+        for i, name in enumerate(names):
+            target.append(_Var(name, e.keyword, {k: v[i] for k, v in got.items()}, e.line))
+    return out
+
+
+def _distribution(v: _Var, deck: Deck) -> dict:
+    a, g = v.attrs, v.group
+
+    def need(*keys: str) -> list:
+        miss = [k for k in keys if k not in a]
+        if miss:
+            raise InputFileError(deck.path, v.line, f"{', '.join(miss)} for {g} {v.name!r}")
+        return [a[k] for k in keys]
+
+    if g == "normal_uncertain":
+        mean, std = need("means", "std_deviations")
+        lo, hi = a.get("lower_bounds", -math.inf), a.get("upper_bounds", math.inf)
+        if math.isinf(lo) and math.isinf(hi):
+            return {"distribution": "normal", "mean": mean, "std": std}
+        return {"distribution": "truncated_normal", "mean": mean, "std": std,
+                "lower": lo, "upper": hi}
+    if g == "lognormal_uncertain":
+        mean, std = need("means", "std_deviations")
+        return {"distribution": "lognormal", "mean": mean, "std": std}
+    if g in ("uniform_uncertain", "loguniform_uncertain"):
+        lo, hi = need("lower_bounds", "upper_bounds")
+        return {"distribution": g.split("_")[0], "lower": lo, "upper": hi}
+    if g == "triangular_uncertain":
+        mode, lo, hi = need("modes", "lower_bounds", "upper_bounds")
+        return {"distribution": "triangular", "mode": mode, "lower": lo, "upper": hi}
+    if g == "exponential_uncertain":
+        return {"distribution": "exponential", "beta": need("betas")[0]}
+    if g == "beta_uncertain":
+        al, be, lo, hi = need("alphas", "betas", "lower_bounds", "upper_bounds")
+        return {"distribution": "beta", "alpha": al, "beta": be, "lower": lo, "upper": hi}
+    if g == "continuous_interval_uncertain":
+        # the evidence step takes the cells; the parameter is their hull
+        return {"distribution": "uniform", "lower": min(lo for lo, _ in a["intervals"]),
+                "upper": max(hi for _, hi in a["intervals"])}
+    al, be = need("alphas", "betas")
+    return {"distribution": g.split("_")[0], "alpha": al, "beta": be}
+
+
+def _design_distribution(v: _Var, deck: Deck) -> dict:
+    """A calibrated design variable as a distribution whose mean is its initial point and
+    whose support its bounds (rotoruq's least squares starts at the means, within supports)."""
+    a = v.attrs
+    lo, hi = a.get("lower_bounds", -math.inf), a.get("upper_bounds", math.inf)
+    x0 = a.get("initial_point")
+    if math.isinf(lo) or math.isinf(hi):
+        if x0 is None:
+            raise InputFileError(deck.path, v.line, f"initial_point or both bounds for "
+                                 f"continuous_design {v.name!r}")
+        return {"distribution": "normal", "mean": x0, "std": abs(x0) * 0.1 or 1.0}
+    if x0 is None or math.isclose(x0, 0.5 * (lo + hi), rel_tol=1e-12, abs_tol=1e-300):
+        return {"distribution": "uniform", "lower": lo, "upper": hi}
+    mode = 3.0 * x0 - lo - hi  # a triangular whose mean is the initial point
+    if not lo <= mode <= hi:
+        raise InputFileError(deck.path, v.line, f"an initial_point of {v.name!r} within the "
+                             "middle third of its bounds (rotoruq starts at the mean of a "
+                             "distribution on the bounds)", repr(x0))
+    return {"distribution": "triangular", "mode": mode, "lower": lo, "upper": hi}
+
+
+@dataclass
+class _Responses:
+    names: list[str]
+    kind: str
+    data: dict | None = None
+    noise_std: dict | None = None
+    line: int = 0
+
+
+_RESP_SKIP = ("id_responses", "no_gradients", "analytic_gradients", "no_hessians",
+              "numerical_gradients", "method_source", "dakota", "vendor", "interval_type",
+              "forward", "central", "fd_step_size", "fd_gradient_step_size")
+
+
+def _read_responses(deck: Deck, block: DeckBlock) -> _Responses:
+    c = _Cursor(deck, block, "responses")
+    out = _Responses([], "", line=block.line)
+    for e in c:
+        if e.keyword in ("response_functions", "calibration_terms"):
+            n = _num(c, e, 1, "integer")[0]
+            out.kind = e.keyword
+            prefix = "response_fn" if e.keyword == "response_functions" else "least_sq_term"
+            out.names = [f"{prefix}_{i + 1}" for i in range(n)]
+            if (d := c.next_if("descriptors")) is not None:
+                out.names = _strs(c, d, n)
+        elif e.keyword == "calibration_data_file":
+            fname = _strs(c, e, 1)[0]
+            layout, n_exp, variance = "annotated", 1, "none"
+            while (a := c.next_if("freeform", "annotated", "custom_annotated", "header",
+                                  "eval_id", "interface_id", "num_experiments",
+                                  "variance_type", "num_config_variables")) is not None:
+                if a.keyword in ("freeform", "annotated", "custom_annotated"):
+                    layout = a.keyword
+                elif a.keyword == "num_experiments":
+                    n_exp = _num(c, a, 1, "integer")[0]
+                elif a.keyword == "variance_type":
+                    variance = _strs(c, a, 1)[0]
+                    if variance not in ("none", "scalar"):
+                        c.fail(a, "variance_type 'none' or 'scalar' (one noise std per "
+                               "response)")
+                elif a.keyword == "num_config_variables" and _num(c, a, 1, "integer")[0]:
+                    c.fail(a, "num_config_variables 0 (configuration variables are not "
+                           "translated: give them as a [data] column and a sweep)")
+            out.data, out.noise_std = _calibration_data(c, e, fname, layout, n_exp, variance,
+                                                        out.names)
+        elif e.keyword not in _RESP_SKIP:
+            c.unknown(e, ["response_functions", "calibration_terms", "descriptors",
+                          "calibration_data_file", *_RESP_SKIP])
+    if not out.names:
+        raise InputFileError(deck.path, block.line, "response_functions = N or "
+                             "calibration_terms = N in the responses block")
+    return out
+
+
+def _calibration_data(c: _Cursor, e: DeckEntry, fname: str, layout: str, n_exp: int,
+                      variance: str, names: list[str]) -> tuple[dict, dict | None]:
+    path = Path(c.deck.path).parent / fname
+    if not path.is_file():
+        c.fail(e, f"an existing calibration data file ({path})")
+    rows = [ln.split() for ln in path.read_text().splitlines() if ln.strip()
+            and not ln.lstrip().startswith("#")]
+    if layout != "freeform":
+        rows = rows[1:]
+    m = len(names)
+    width = m * (2 if variance == "scalar" else 1)
+    try:
+        vals = np.array([[float(v) for v in r[-width:]] for r in rows[:n_exp]])
+    except ValueError:
+        c.fail(e, f"{n_exp} rows of numbers in {fname}")
+    if vals.shape != (n_exp, width):
+        c.fail(e, f"{n_exp} rows of {width} numbers in {fname} ({layout})")
+    data = {r: [float(v) for v in vals[:, j]] for j, r in enumerate(names)}
+    noise = None
+    if variance == "scalar":
+        noise = {r: float(np.sqrt(np.mean(vals[:, m + j]))) for j, r in enumerate(names)}
+    return data, noise
+
+
+@dataclass
+class _Driver:
+    preset: str | None = None
+    command: list[str] | None = None
+    fixed: dict = field(default_factory=dict)
+    mapping: dict = field(default_factory=dict)
+    outputs: list[str] = field(default_factory=list)
+    parameters_format: str = "standard"
+    failure: dict = field(default_factory=dict)
+
+
+_IF_SKIP = ("id_interface", "fork", "system", "parameters_file", "results_file", "file_tag",
+            "file_save", "work_directory", "named", "directory_tag", "directory_save",
+            "standard", "asynchronous", "evaluation_concurrency", "link_files", "copy_files",
+            "verbatim", "labeled")
+
+
+def _read_interface(deck: Deck, block: DeckBlock) -> _Driver:
+    c = _Cursor(deck, block, "interface")
+    drv = _Driver()
+    seen = None
+    for e in c:
+        if e.keyword in ("analysis_drivers", "analysis_driver"):
+            strs = _strs(c, e)
+            if len(strs) != 1:
+                c.fail(e, "one analysis driver (several drivers per evaluation are not "
+                       "translated)")
+            seen = (strs[0], e)
+        elif e.keyword == "aprepro":
+            drv.parameters_format = "aprepro"
+        elif e.keyword == "failure_capture":
+            a = c.next_if("abort", "recover", "retry", "continuation")
+            if a is None or a.keyword == "continuation":
+                c.fail(e, "failure_capture abort, recover VALUES or retry N")
+            assert a is not None
+            drv.failure = ({"failure": "abort"} if a.keyword == "abort" else
+                           {"failure": "recover", "recover": _num(c, a, None)}
+                           if a.keyword == "recover" else
+                           {"failure": "retry", "retries": _num(c, a, 1, "integer")[0]})
+        elif e.keyword not in _IF_SKIP:
+            c.unknown(e, ["analysis_drivers", "aprepro", "failure_capture", *_IF_SKIP])
+    if seen is None:
+        raise InputFileError(deck.path, block.line, "analysis_drivers = '...' in the "
+                             "interface block (fork or system)")
+    _parse_driver(c, seen[1], seen[0], drv)
+    return drv
+
+
+def _parse_driver(c: _Cursor, e: DeckEntry, text: str, drv: _Driver) -> None:
+    argv = shlex.split(text)
+    rest: list[str] | None = None
+    if argv and Path(argv[0]).name.startswith("rotoruq") and argv[1:2] == ["driver"]:
+        rest = argv[2:]
+    elif len(argv) >= 4 and argv[1:3] == ["-m", "rotoruq.study.cli"] and argv[3] == "driver":
+        rest = argv[4:]
+    if rest is None:
+        drv.command = argv
+        return
+    p = argparse.ArgumentParser(add_help=False, exit_on_error=False)
+    p.add_argument("--preset", default="gvpm")
+    p.add_argument("--set", action="append", default=[], dest="fixed")
+    p.add_argument("--map", action="append", default=[], dest="mapping")
+    p.add_argument("--outputs", "--resp", action="append", default=[], dest="outputs")
+    try:
+        args, extra = p.parse_known_args(rest)
+    except argparse.ArgumentError as exc:
+        c.fail(e, f"a rotoruq driver string ({exc})")
+    if extra:
+        c.fail(e, "rotoruq driver options --preset, --set NAME=VALUE, --map DECK=NAME, "
+               f"--outputs; not {' '.join(extra)}")
+    from ..evaluation.driver import named_pairs
+
+    drv.preset = args.preset
+    try:
+        drv.fixed = named_pairs(args.fixed, "--set", number=True)
+        drv.mapping = named_pairs(args.mapping, "--map")
+    except Exception as exc:  # the driver's own message, at the deck line
+        c.fail(e, f"a rotoruq driver string ({exc})")
+    drv.outputs = [o for item in args.outputs for o in item.split(",")]
+
+
+# methods -------------------------------------------------------------------------------
+_SAMPLING = ("sample_type", "lhs", "random", "samples", "seed", "fixed_seed",
+             "variance_based_decomp", "output", "silent", "quiet", "normal", "verbose")
+_RELIABILITY = ("mpp_search", "x_taylor_mean", "u_taylor_mean", "x_taylor_mpp",
+                "u_taylor_mpp", "x_two_point", "u_two_point", "no_approx", "integration",
+                "first_order", "second_order", "response_levels", "probability_levels",
+                "num_response_levels", "num_probability_levels", "compute", "probabilities",
+                "reliabilities", "output", "silent", "quiet", "normal", "verbose")
+_PCE = ("quadrature_order", "expansion_order", "collocation_points", "collocation_ratio",
+        "seed", "variance_based_decomp", "askey", "least_squares", "output", "silent",
+        "quiet", "normal", "verbose")
+_EVIDENCE = ("lhs", "samples", "seed", "response_levels", "num_response_levels", "output",
+             "silent", "quiet", "normal", "verbose")
+_NL2SOL = ("convergence_tolerance", "max_iterations", "max_function_evaluations", "output",
+           "silent", "quiet", "normal", "verbose")
+_BAYES = ("queso", "mh", "metropolis_hastings", "dr", "delayed_rejection", "am",
+          "adaptive_metropolis", "dram", "chain_samples", "samples", "burn_in_samples",
+          "seed", "emulator", "gaussian_process", "surfpack", "build_samples",
+          "proposal_covariance", "prior", "derivatives", "output", "silent", "quiet",
+          "normal", "verbose")
+_METHOD_COMMON = ("id_method", "model_pointer")
+_METHODS = ("sampling", "local_reliability", "polynomial_chaos", "global_evidence", "nl2sol",
+            "bayes_calibration")
+
+
+@dataclass
+class _Method:
+    kind: str
+    opts: dict
+    block: DeckBlock
+    seed: int | None = None
+    path: str = "<deck>"
+
+
+def _levels(c: _Cursor, e: DeckEntry, names: list[str], counts: list[int] | None) -> dict:
+    vals = _num(c, e, None)
+    if counts is None:
+        if len(vals) % len(names):
+            c.fail(e, f"levels for each of the {len(names)} responses (or num_"
+                   f"{e.keyword} per response)")
+        counts = [len(vals) // len(names)] * len(names)
+    if len(counts) != len(names) or sum(counts) != len(vals):
+        c.fail(e, f"{sum(counts)} levels split over {len(names)} responses by num_"
+               f"{e.keyword}")
+    out, k = {}, 0
+    for r, n in zip(names, counts, strict=True):
+        if n:
+            out[r] = vals[k:k + n]
+        k += n
+    return out
+
+
+def _read_method(deck: Deck, block: DeckBlock, responses: list[str]) -> _Method:
+    c = _Cursor(deck, block, "method")
+    kind, opts, seed = None, {}, None
+    levels: dict[str, DeckEntry] = {}
+    counts: dict[str, list[int]] = {}
+    for e in c:
+        if e.keyword in _METHOD_COMMON:
+            continue
+        if kind is None:
+            if e.keyword not in _METHODS:
+                c.unknown(e, [*_METHODS, *_METHOD_COMMON])
+            kind = e.keyword
+            if kind == "bayes_calibration" and c.next_if("queso") is None:
+                c.fail(e, "bayes_calibration queso (the other samplers are not translated)")
+            continue
+        allowed = {"sampling": _SAMPLING, "local_reliability": _RELIABILITY,
+                   "polynomial_chaos": _PCE, "global_evidence": _EVIDENCE,
+                   "nl2sol": _NL2SOL, "bayes_calibration": _BAYES}[kind]
+        if e.keyword not in allowed:
+            c.what = kind
+            c.unknown(e, allowed)
+        k = e.keyword
+        if k == "seed":
+            seed = _num(c, e, 1, "integer")[0]
+        elif k in ("samples", "chain_samples", "build_samples", "burn_in_samples",
+                   "quadrature_order", "expansion_order", "collocation_points",
+                   "max_iterations", "max_function_evaluations"):
+            opts[k] = _num(c, e, 1, "integer")[0]
+        elif k in ("convergence_tolerance", "collocation_ratio"):
+            opts[k] = _num(c, e, 1)[0]
+        elif k in ("response_levels", "probability_levels"):
+            levels[k] = e
+        elif k in ("num_response_levels", "num_probability_levels"):
+            counts[k[4:]] = _num(c, e, None, "integer")
+        elif k in ("lhs", "random"):
+            opts["design"] = k
+        elif k in ("mh", "metropolis_hastings", "dr", "delayed_rejection", "am",
+                   "adaptive_metropolis", "dram"):
+            opts["sampler"] = {"metropolis_hastings": "mh", "delayed_rejection": "dr",
+                               "adaptive_metropolis": "am"}.get(k, k)
+        elif k in ("prior", "derivatives"):
+            opts["proposal"] = "prior" if k == "prior" else "hessian"
+        elif k in ("mpp_search", "x_taylor_mean", "u_taylor_mean", "x_taylor_mpp",
+                   "u_taylor_mpp", "x_two_point", "u_two_point", "no_approx"):
+            opts["mpp_search"] = True
+        elif k in ("first_order", "second_order", "variance_based_decomp", "gaussian_process",
+                   "emulator"):
+            opts[k] = True
+    if kind is None:
+        raise InputFileError(deck.path, block.line, "a method keyword (" + ", ".join(_METHODS)
+                             + ")")
+    for k, e in levels.items():
+        opts[k] = _levels(c, e, responses, counts.get(k))
+    if kind == "bayes_calibration" and "emulator" in opts and "gaussian_process" not in opts:
+        raise InputFileError(deck.path, block.line, "emulator gaussian_process (other "
+                             "emulators are not translated)")
+    return _Method(kind, opts, block, seed, deck.path)
+
+
+def _step(m: _Method, design_params: list[str]) -> dict:
+    o = m.opts
+    step: dict[str, Any]
+    if m.kind == "sampling":
+        if o.get("variance_based_decomp"):
+            step = {"name": "sensitivity", "type": "sensitivity"}
+        else:
+            step = {"name": "sampling", "type": "sampling"}
+        if "samples" in o:
+            step["n_samples"] = o["samples"]
+        if "design" in o:
+            step["design"] = o["design"]
+        return step
+    if m.kind == "local_reliability":
+        if o.get("mpp_search"):
+            step = {"name": "reliability", "type": "reliability",
+                    "integration": "second_order" if o.get("second_order") else "first_order"}
+        else:
+            step = {"name": "mean_value", "type": "mean_value"}
+        for k in ("response_levels", "probability_levels"):
+            if k in o:
+                step[k] = o[k]
+        return step
+    if m.kind == "polynomial_chaos":
+        step = {"name": "pce", "type": "pce"}
+        if "quadrature_order" in o:
+            step.update(order=max(o["quadrature_order"] - 1, 1), estimator="quadrature")
+        elif "expansion_order" in o:
+            step.update(order=o["expansion_order"], estimator="regression")
+            if "collocation_points" in o:
+                step["n_samples"] = o["collocation_points"]
+            elif "collocation_ratio" in o:
+                step["n_samples"] = -1  # filled in with the dimension
+        else:
+            raise InputFileError(m.path, m.block.line,
+                                 "quadrature_order or expansion_order for polynomial_chaos")
+        return step
+    if m.kind == "global_evidence":
+        step = {"name": "evidence", "type": "evidence"}
+        if "samples" in o:
+            step["n_samples"] = o["samples"]
+        if "response_levels" in o:
+            step["response_levels"] = o["response_levels"]
+        return step
+    if m.kind == "nl2sol":
+        step = {"name": "least_squares", "type": "least_squares", "optimizer": "nl2sol",
+                "data": "calibration"}
+        for dk, sk in (("convergence_tolerance", "tolerance"),
+                       ("max_iterations", "max_iterations"),
+                       ("max_function_evaluations", "max_function_evaluations")):
+            if dk in o:
+                step[sk] = o[dk]
+        if design_params:
+            step["parameters"] = design_params
+        return step
+    step = {"name": "bayes", "type": "bayes_calibration", "data": "calibration",
+            "sampler": o.get("sampler", "dram"),
+            "emulator": "gp" if o.get("emulator") else "none"}
+    burn = o.get("burn_in_samples", 0)
+    n = o.get("chain_samples", o.get("samples"))
+    if n is not None:
+        if n - burn < 10:
+            raise InputFileError(m.path, m.block.line, "chain_samples at least 10 more "
+                                 "than burn_in_samples")
+        step["n_samples"] = n - burn
+    step["burn_in"] = burn
+    if "build_samples" in o:
+        step["n_emulator_samples"] = o["build_samples"]
+    if "proposal" in o:
+        step["proposal"] = o["proposal"]
+    return step
+
+
+def _pointer(block: DeckBlock, key: str) -> str | None:
+    e = block.find(key)
+    return str(e.values[0]) if e and e.values else None
+
+
+def _nested_cuu(deck: Deck) -> tuple[DeckBlock, DeckBlock, DeckBlock, dict] | None:
+    """The thesis's CUU form: (outer method, inner method, the nested model block, mapping)."""
+    nested = [b for b in deck.of("model") if b.find("nested")]
+    if not nested:
+        return None
+    if len(nested) > 1:
+        raise InputFileError(deck.path, nested[1].line, "one nested model (the CUU form)")
+    nb = nested[0]
+    c = _Cursor(deck, nb, "nested model")
+    info: dict[str, Any] = {}
+    for e in c:
+        k = e.keyword
+        if k in ("id_model", "nested", "variables_pointer", "responses_pointer"):
+            info[k] = e.values[0] if e.values else None
+        elif k == "sub_method_pointer":
+            info[k] = _strs(c, e, 1)[0]
+        elif k == "primary_variable_mapping":
+            info[k] = _strs(c, e)
+        elif k == "secondary_variable_mapping":
+            info["secondary"] = _strs(c, e)
+            info["secondary_line"] = e.line
+        elif k == "primary_response_mapping":
+            info[k] = _num(c, e, None)
+        else:
+            c.unknown(e, ["sub_method_pointer", "primary_variable_mapping",
+                          "secondary_variable_mapping", "primary_response_mapping",
+                          "variables_pointer", "responses_pointer", "id_model"])
+    methods = deck.of("method")
+    inner = [m for m in methods if m.id == info.get("sub_method_pointer")]
+    outer = [m for m in methods if _pointer(m, "model_pointer") == nb.id]
+    if len(inner) != 1 or len(outer) != 1:
+        raise InputFileError(deck.path, nb.line, "one outer method whose model_pointer names "
+                             "this nested model and one inner method named by its "
+                             "sub_method_pointer")
+    return outer[0], inner[0], nb, info
+
+
+def _by_id(deck: Deck, kind: str, ident: str | None, line: int) -> DeckBlock:
+    blocks = deck.of(kind)
+    if ident is None:
+        if len(blocks) == 1:
+            return blocks[0]
+        unnamed = [b for b in blocks if b.id is None]
+        if len(unnamed) == 1:
+            return unnamed[0]
+        raise InputFileError(deck.path, line, f"a {kind}s_pointer naming one of the "
+                             f"{len(blocks)} {kind} blocks")
+    for b in blocks:
+        if b.id == ident:
+            return b
+    raise InputFileError(deck.path, line, f"a {kind} block with id_{kind} = '{ident}'")
+
+
+def deck_to_study(deck: Deck, *, name: str | None = None) -> str:
+    """Translate a parsed Dakota deck into the TOML text of a rotoruq study file.
+
+    Parameters
+    ----------
+    deck : from :func:`read_deck` (calibration data files are read relative to its path).
+    name : the study's name (default: the deck file's stem).
+
+    Returns
+    -------
+    str : a study file that :func:`rotoruq.study.schema.load_study` accepts.
+
+    Raises
+    ------
+    InputFileError : naming the deck line of every keyword that is not translated.
+
+    Examples
+    --------
+    >>> d = parse_deck('''method
+    ...   sampling sample_type lhs samples 20 seed 5
+    ... variables
+    ...   normal_uncertain 1 means 0.108 std_deviations 0.0054 descriptors 'cla_m03'
+    ...   continuous_state 1 initial_state 4.0 descriptors 'height_over_radius'
+    ... interface
+    ...   fork analysis_drivers 'rotoruq driver --preset gvpm --set omega=230'
+    ... responses
+    ...   response_functions 1 descriptors 'thrust'
+    ...   no_gradients no_hessians''', "vbd.in")
+    >>> print(deck_to_study(d).split("[[steps]]")[1].strip())
+    name = "sampling"
+    type = "sampling"
+    n_samples = 20
+    design = "lhs"
+    """
+    cuu = _nested_cuu(deck)
+    if cuu is not None:
+        return _cuu_study(deck, cuu, name)
+    methods = deck.of("method")
+    if not methods:
+        raise InputFileError(deck.path, None, "a method block")
+    if len(methods) > 1:
+        raise InputFileError(deck.path, methods[1].line, "one method block (or the nested "
+                             "CUU form: an outer nl2sol on a nested model)")
+    for kind in ("variables", "interface", "responses"):
+        if len(deck.of(kind)) != 1:
+            raise InputFileError(deck.path, None, f"one {kind} block")
+    for b in deck.of("model"):
+        if not b.find("single"):
+            raise InputFileError(deck.path, b.line, "a single model (or the nested CUU form)")
+    _check_environment(deck)
+    resp = _read_responses(deck, deck.of("responses")[0])
+    method = _read_method(deck, methods[0], resp.names)
+    variables = _read_variables(deck, deck.of("variables")[0])
+    drv = _read_interface(deck, deck.of("interface")[0])
+    calibrates_design = method.kind == "nl2sol"
+    params = list(variables.uncertain)
+    fixed = {v.name: v.attrs["initial_state"] for v in variables.state
+             if "initial_state" in v.attrs}
+    design_params: list[str] = []
+    for v in variables.design:
+        if calibrates_design:
+            params.append(v)
+            design_params.append(v.name)
+        else:
+            if "initial_point" not in v.attrs:
+                raise InputFileError(deck.path, v.line, f"initial_point for {v.name!r} (held "
+                                     "fixed there)")
+            fixed[v.name] = v.attrs["initial_point"]
+    if method.kind == "nl2sol" and variables.uncertain:
+        raise InputFileError(deck.path, variables.uncertain[0].line, "continuous_design "
+                             "variables only for nl2sol (they are the calibrated inputs)")
+    for v in variables.state:
+        if "initial_state" not in v.attrs:
+            raise InputFileError(deck.path, v.line, f"initial_state for state {v.name!r}")
+    if method.kind in ("nl2sol", "bayes_calibration") and resp.data is None:
+        raise InputFileError(deck.path, deck.of("responses")[0].line,
+                             "calibration_data_file for " + method.kind)
+    step = _step(method, [drv.mapping.get(n, n) for n in design_params])
+    if step.get("n_samples") == -1:
+        d = len(params)
+        step["n_samples"] = math.ceil(method.opts["collocation_ratio"]
+                                      * math.comb(method.opts["expansion_order"] + d, d))
+    if step["type"] == "evidence":
+        step["intervals"] = {drv.mapping.get(v.name, v.name): [
+            [lo, hi, w] for (lo, hi), w in zip(v.attrs["intervals"], v.attrs["bpa"],
+                                               strict=True)]
+            for v in params if v.group == "continuous_interval_uncertain"}
+    if step["type"] == "bayes_calibration" and resp.noise_std:
+        step["noise_std"] = {drv.mapping.get(r, r): s for r, s in resp.noise_std.items()}
+    return _emit(deck, name, method.seed, drv, resp, params, fixed, [step],
+                 design=set(design_params))
+
+
+def _check_environment(deck: Deck) -> None:
+    for b in deck.of("environment"):
+        c = _Cursor(deck, b, "environment")
+        for e in c:
+            if e.keyword not in ("tabular_data", "tabular_data_file", "output_precision",
+                                 "top_method_pointer", "annotated", "custom_annotated",
+                                 "freeform", "header", "eval_id", "interface_id",
+                                 "results_output", "results_output_file", "graphics",
+                                 "check", "write_restart", "output_file", "error_file"):
+                c.unknown(e, ["tabular_data", "output_precision", "top_method_pointer",
+                              "results_output"])
+
+
+def _cuu_study(deck: Deck, cuu: tuple, name: str | None) -> str:
+    outer_b, inner_b, nb, info = cuu
+    _check_environment(deck)
+    outer_vars = _read_variables(deck, _by_id(deck, "variables",
+                                              _pointer(outer_b, "variables_pointer")
+                                              or info.get("variables_pointer"), nb.line))
+    inner_model = _by_id(deck, "model", _pointer(inner_b, "model_pointer"), inner_b.line)
+    ic = _Cursor(deck, inner_model, "inner model")
+    for e in ic:
+        if e.keyword not in ("id_model", "single", "variables_pointer", "interface_pointer",
+                             "responses_pointer"):
+            ic.unknown(e, ["single", "variables_pointer", "interface_pointer",
+                           "responses_pointer"])
+    inner_vars = _read_variables(deck, _by_id(deck, "variables", _pointer(
+        inner_model, "variables_pointer"), inner_model.line))
+    inner_resp = _read_responses(deck, _by_id(deck, "responses", _pointer(
+        inner_model, "responses_pointer"), inner_model.line))
+    outer_resp = _read_responses(deck, _by_id(deck, "responses", _pointer(
+        outer_b, "responses_pointer") or info.get("responses_pointer"), nb.line))
+    drv = _read_interface(deck, _by_id(deck, "interface", _pointer(
+        inner_model, "interface_pointer"), inner_model.line))
+    outer = _read_method(deck, outer_b, outer_resp.names)
+    inner = _read_method(deck, inner_b, inner_resp.names)
+    if outer.kind != "nl2sol":
+        raise InputFileError(deck.path, outer_b.line, "nl2sol as the outer method of the "
+                             "nested CUU form")
+    inner_name = {"local_reliability": "mean_value", "sampling": "sampling",
+                  "polynomial_chaos": "pce"}.get(inner.kind)
+    if inner_name is None or inner.opts.get("mpp_search"):
+        raise InputFileError(deck.path, inner_b.line, "an inner local_reliability (mean "
+                             "value), sampling or polynomial_chaos method")
+    pvm = info.get("primary_variable_mapping") or []
+    sec = info.get("secondary") or []
+    if len(pvm) != len(outer_vars.design) or len(sec) != len(pvm) or outer_vars.uncertain:
+        raise InputFileError(deck.path, nb.line, "primary_variable_mapping and "
+                             "secondary_variable_mapping naming, for each outer "
+                             "continuous_design variable, an inner variable and "
+                             "'std_deviation' or 'mean'")
+    inner_names = [v.name for v in inner_vars.uncertain]
+    stats_ = set(sec)
+    if not stats_ <= {"std_deviation", "mean"} or any(p not in inner_names for p in pvm):
+        raise InputFileError(deck.path, info.get("secondary_line", nb.line),
+                             "mappings onto the inner uncertain variables "
+                             f"({', '.join(inner_names)}) and their 'mean' or "
+                             "'std_deviation'", " ".join(pvm + sec))
+    unmapped = [n for n in inner_names if n not in pvm]
+    if unmapped:
+        raise InputFileError(deck.path, nb.line, "every inner uncertain variable mapped (the "
+                             "cuu step calibrates all its inputs; hold the others as "
+                             "continuous_state)", ", ".join(unmapped))
+    calibrate = ("mean_std" if stats_ == {"std_deviation", "mean"} else
+                 "std" if stats_ == {"std_deviation"} else "mean")
+    if calibrate == "mean_std" and len(set(pvm)) * 2 != len(pvm):
+        raise InputFileError(deck.path, nb.line, "both mean and std_deviation of every mapped "
+                             "variable (or only one statistic for all)")
+    m = len(inner_resp.names)
+    prm = info.get("primary_response_mapping") or []
+    n_out = len(outer_resp.names)
+    if len(prm) != n_out * 2 * m:
+        raise InputFileError(deck.path, nb.line, f"a primary_response_mapping of {n_out} rows "
+                             f"x {2 * m} columns (mean, std of each inner response)")
+    if outer_resp.data is None or len(next(iter(outer_resp.data.values()))) != 1:
+        raise InputFileError(deck.path, outer_resp.line, "a calibration_data_file with one "
+                             "experiment: the targets of the outer calibration terms")
+    targets: dict[str, list[float]] = {}
+    for row in range(n_out):
+        w = prm[row * 2 * m:(row + 1) * 2 * m]
+        nz = [j for j, v in enumerate(w) if v != 0]
+        if len(nz) != 1 or w[nz[0]] != 1:
+            raise InputFileError(deck.path, nb.line, "rows of primary_response_mapping that "
+                                 "each select one inner statistic with weight 1")
+        r, stat = inner_resp.names[nz[0] // 2], ("mean", "std")[nz[0] % 2]
+        t = targets.setdefault(drv.mapping.get(r, r), [0.0, 0.0])
+        t[0 if stat == "mean" else 1] = outer_resp.data[outer_resp.names[row]][0]
+    for r, (_, s) in targets.items():
+        if s <= 0:
+            raise InputFileError(deck.path, nb.line, f"a std target of {r!r} (the cuu step "
+                                 "takes targets as [mean, std] per response)")
+    step: dict[str, Any] = {"name": "cuu", "type": "cuu",
+                            "parameters": [drv.mapping.get(p, p) for p in dict.fromkeys(pvm)],
+                            "responses": list(targets), "targets": targets,
+                            "calibrate": calibrate, "inner": inner_name, "optimizer": "nl2sol",
+                            "weighting": "absolute"}
+    for dk, sk in (("convergence_tolerance", "tolerance"), ("max_iterations",
+                                                              "max_iterations")):
+        if dk in outer.opts:
+            step[sk] = outer.opts[dk]
+    # start: the outer design variables' initial points are the inner statistics
+    start = {}
+    for v, p, s in zip(outer_vars.design, pvm, sec, strict=True):
+        if "initial_point" in v.attrs:
+            start[(p, s)] = v.attrs["initial_point"]
+    params = []
+    for v in inner_vars.uncertain:
+        v2 = _Var(v.name, v.group, dict(v.attrs), v.line)
+        for (p, s), x0 in start.items():
+            if p == v.name:
+                key = "means" if s == "mean" else "std_deviations"
+                if v.group not in ("normal_uncertain", "lognormal_uncertain"):
+                    raise InputFileError(deck.path, v.line, "a normal or lognormal inner "
+                                         f"variable for a mapped statistic ({v.name!r})")
+                v2.attrs[key] = x0
+        params.append(v2)
+    fixed = {v.name: v.attrs["initial_state"] for v in inner_vars.state}
+    fixed.update({v.name: v.attrs["initial_point"] for v in inner_vars.design})
+    inner_resp.names = list(inner_resp.names)
+    return _emit(deck, name, inner.seed or outer.seed, drv, inner_resp, params, fixed, [step],
+                 design=set())
+
+
+def _toml(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        return repr(int(v)) + ".0" if v.is_integer() and abs(v) < 1e15 else repr(v)
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, Mapping):
+        return "{ " + ", ".join(f"{_key(k)} = {_toml(x)}" for k, x in v.items()) + " }"
+    if isinstance(v, Sequence | np.ndarray):
+        return "[" + ", ".join(_toml(x) for x in v) + "]"
+    raise TypeError(type(v))
+
+
+def _key(k: str) -> str:
+    return k if re.fullmatch(r"[A-Za-z0-9_-]+", k) else _toml(k)
+
+
+def _emit(deck: Deck, name: str | None, seed: int | None, drv: _Driver, resp: _Responses,
+          params: list[_Var], fixed: dict, steps: list[dict], design: set) -> str:
+    name = name or Path(deck.path).stem or "deck"
+    rename = drv.mapping
+    lines = [f"# Translated from the Dakota deck {Path(deck.path).name} by "
+             "'rotoruq dakota import'.", "", "[study]", f"name = {_toml(name)}",
+             f"seed = {seed if seed is not None else 1}", ""]
+    lines.append("[model]")
+    outputs = drv.outputs or [rename.get(r, r) for r in resp.names]
+    if drv.preset is not None:
+        lines.append(f"preset = {_toml(drv.preset)}")
+    else:
+        assert drv.command is not None
+        lines.append(f"command = {_toml(drv.command)}")
+        if drv.parameters_format != "standard":
+            lines.append(f"parameters_format = {_toml(drv.parameters_format)}")
+        for k, v in drv.failure.items():
+            lines.append(f"{k} = {_toml(v)}")
+    lines.append(f"responses = {_toml(outputs)}")
+    allfixed = {rename.get(k, k): float(v) for k, v in fixed.items()}
+    allfixed.update({k: float(v) for k, v in drv.fixed.items()})
+    if allfixed:
+        lines.append(f"fixed = {_toml(allfixed)}")
+    lines.append("")
+    for v in params:
+        pname = rename.get(v.name, v.name)
+        lines.append(f"[parameters.{_key(pname)}]")
+        dist = (_design_distribution(v, deck) if v.name in design
+                else _distribution(v, deck))
+        for k, x in dist.items():
+            lines.append(f"{k} = {_toml(x)}")
+        if pname != v.name:
+            lines.append(f"label = {_toml(v.name)}")
+        lines.append("")
+    if resp.data is not None and any(s.get("data") for s in steps):
+        lines.append("[data.calibration]")
+        for r, col in resp.data.items():
+            lines.append(f"{_key(rename.get(r, r))} = {_toml(col)}")
+        lines.append("")
+    for s in steps:
+        lines.append("[[steps]]")
+        for k, x in s.items():
+            lines.append(f"{_key(k)} = {_toml(x)}")
+        lines.append("")
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------- export
+#: step types the exporter writes as Dakota decks
+EXPORTABLE = ("sampling", "sensitivity", "mean_value", "reliability", "pce", "least_squares",
+              "bayes_calibration", "cuu")
+
+_DAKOTA_DIST = {
+    "normal": ("normal_uncertain", (("means", "mean"), ("std_deviations", "std"))),
+    "truncated_normal": ("normal_uncertain", (("means", "mean"), ("std_deviations", "std"),
+                                              ("lower_bounds", "lower"),
+                                              ("upper_bounds", "upper"))),
+    "lognormal": ("lognormal_uncertain", (("means", "mean"), ("std_deviations", "std"))),
+    "uniform": ("uniform_uncertain", (("lower_bounds", "lower"), ("upper_bounds", "upper"))),
+    "loguniform": ("loguniform_uncertain", (("lower_bounds", "lower"),
+                                            ("upper_bounds", "upper"))),
+    "triangular": ("triangular_uncertain", (("modes", "mode"), ("lower_bounds", "lower"),
+                                            ("upper_bounds", "upper"))),
+    "exponential": ("exponential_uncertain", (("betas", "beta"),)),
+    "beta": ("beta_uncertain", (("alphas", "alpha"), ("betas", "beta"),
+                                ("lower_bounds", "lower"), ("upper_bounds", "upper"))),
+    "gamma": ("gamma_uncertain", (("alphas", "alpha"), ("betas", "beta"))),
+    "gumbel": ("gumbel_uncertain", (("alphas", "alpha"), ("betas", "beta"))),
+    "weibull": ("weibull_uncertain", (("alphas", "alpha"), ("betas", "beta"))),
+}
+
+
+def rotoruq_command() -> str:
+    """How a deck calls rotoruq: the console script next to this Python, else ``python -m``."""
+    script = Path(sys.executable).with_name("rotoruq")
+    return shlex.quote(str(script)) if script.is_file() else \
+        f"{shlex.quote(sys.executable)} -m rotoruq.study.cli"
+
+
+def _fmt(x: float) -> str:
+    return repr(float(x))
+
+
+def study_to_decks(study: Any, *, steps: Sequence[str] | None = None, quick: bool = False,
+                   data_dir: str | os.PathLike | None = None) -> dict[str, str]:
+    """Dakota decks of a study's steps: step name -> deck text.
+
+    Parameters
+    ----------
+    study : a :class:`rotoruq.study.spec.Study` (from :func:`rotoruq.study.schema.load_study`).
+    steps : names of the steps to export (default: every step of a type in
+        :data:`EXPORTABLE`); a named step of another type raises InputFileError.
+    quick : the steps' ``--quick`` sizes.
+    data_dir : where calibration data files (``<step>.dat``) are written for
+        ``least_squares`` and ``bayes_calibration`` steps (default: not written, the deck
+        names them).
+
+    Returns
+    -------
+    dict : step name -> the text of a deck whose ``fork`` interface runs the study's model
+        through ``rotoruq driver`` (or the study's external command).
+
+    Examples
+    --------
+    >>> from rotoruq.study.schema import parse_study
+    >>> s = parse_study('''[study]
+    ... name = "t"
+    ... [model]
+    ... preset = "gvpm"
+    ... responses = ["thrust"]
+    ... fixed = { omega = 224.6375 }
+    ... [parameters.cla_m03]
+    ... distribution = "normal"
+    ... mean = 0.108
+    ... std = 0.0054
+    ... [[steps]]
+    ... name = "mv"
+    ... type = "mean_value"
+    ... ''')
+    >>> print(study_to_decks(s)["mv"].split("method")[1].split("variables")[0].strip())
+    local_reliability
+    """
+    from ..steps import step_type
+
+    out = {}
+    for st in study.steps:
+        if steps is not None and st.name not in steps:
+            continue
+        if steps is None and st.source is not None:
+            continue  # distributions from an earlier step's results: only when asked for
+        if st.type not in EXPORTABLE:
+            if steps is not None:
+                raise InputFileError(None, None, "a step of a type the export writes ("
+                                     + ", ".join(EXPORTABLE) + ")", f"{st.name} ({st.type})")
+            continue
+        opts = dict(st.options)
+        if quick:
+            opts.update(step_type(st.type).quick)
+        try:
+            out[st.name] = _deck_for(study, st, opts, data_dir)
+        except InputFileError as exc:
+            if exc.path != "<string>":
+                raise
+            raise InputFileError(study.path, st.line, f"{exc.expected} in step {st.name!r}",
+                                 exc.found) from None
+    return out
+
+
+def _space_of(study: Any, st: Any) -> tuple[list[str], list[Any]]:
+    if st.source is not None:
+        raise InputFileError(study.path, st.line, f"step {st.name!r} with its distributions "
+                             "in the study file (a 'from' of an earlier step's results is not "
+                             "exported)", ".".join(st.source))
+    names = list(st.parameters or study.parameter_names)
+    specs = {p.name: p for p in study.parameters}
+    specs.update({p.name: p for p in st.distributions})
+    return names, [specs[n] for n in names]
+
+
+def _deck_for(study: Any, st: Any, o: dict, data_dir: Any) -> str:
+    if st.type == "cuu":
+        return _cuu_deck(study, st, o, data_dir)
+    names, specs = _space_of(study, st)
+    responses = list(st.responses or study.model.responses)
+    seed = study.info.seed
+    method, resp_extra = _method_text(st, o, responses, names, seed)
+    if st.type == "least_squares":
+        bounds = [_bounds(spec) for spec in specs]
+        var_lines = [f"  continuous_design = {len(names)}",
+                     "    initial_point = " + " ".join(_fmt(_mean(p)) for p in specs)]
+        for k, j in (("lower_bounds", 0), ("upper_bounds", 1)):
+            if not all(math.isinf(b[j]) for b in bounds):
+                var_lines.append(f"    {k} = " + " ".join(
+                    _fmt(max(min(b[j], 1e30), -1e30)) for b in bounds))
+        var_lines.append("    descriptors = " + " ".join(f"'{n}'" for n in names))
+    else:
+        var_lines = _uncertain_lines(names, specs)
+    fixed = {k: v for k, v in {**study.model.fixed, **st.fixed}.items() if k not in names}
+    var_lines += _state_lines(study, fixed)
+    driver = _driver_line(study, fixed, responses)
+    kind = "calibration_terms" if st.type in ("least_squares", "bayes_calibration") \
+        else "response_functions"
+    grads = ("  numerical_gradients\n    method_source dakota\n    interval_type forward\n"
+             "    fd_step_size = 1e-6") if st.type in ("mean_value", "reliability",
+                                                       "least_squares") else "  no_gradients"
+    data_lines = ""
+    if kind == "calibration_terms":
+        data_lines = _data_text(study, st, o, responses, data_dir)
+    return f"""# Dakota deck of the rotoruq study {study.info.name!r}, step {st.name!r} ({st.type}),
+# written by 'rotoruq dakota export'.
+environment
+  tabular_data
+    tabular_data_file = '{st.name}.dat.tab'
+  output_precision = 16
+method
+{method}
+variables
+{chr(10).join(var_lines)}
+interface
+  fork
+    analysis_drivers = '{driver}'
+    parameters_file = 'params.in'
+    results_file = 'results.out'
+    file_tag
+responses
+  {kind} = {len(responses)}
+    descriptors = {' '.join(f"'{r}'" for r in responses)}
+{data_lines}{resp_extra}{grads}
+  no_hessians
+"""
+
+
+def _state_lines(study: Any, fixed: Mapping) -> list[str]:
+    """An external model's fixed inputs as continuous_state variables (its command reads them
+    from the parameters file; the rotor driver gets them as --set instead)."""
+    if study.model.kind == "preset" or not fixed:
+        return []
+    return [f"  continuous_state = {len(fixed)}",
+            "    initial_state = " + " ".join(_fmt(v) for v in fixed.values()),
+            "    descriptors = " + " ".join(f"'{k}'" for k in fixed)]
+
+
+def _uncertain_lines(names: Sequence[str], specs: Sequence[Any]) -> list[str]:
+    by_kind: dict[str, list[tuple[str, dict]]] = {}
+    for n, spec in zip(names, specs, strict=True):
+        d = _describe(spec)
+        kind = d.pop("kind")
+        if kind not in _DAKOTA_DIST:
+            raise InputFileError(None, None, f"a distribution Dakota's deck can state for "
+                                 f"{n!r} ({', '.join(_DAKOTA_DIST)})", kind)
+        dk, fields = _DAKOTA_DIST[kind]
+        by_kind.setdefault(dk, []).append((n, {a: d[b] for a, b in fields}))
+    out = []
+    for dk, items in by_kind.items():
+        out.append(f"  {dk} = {len(items)}")
+        for k in items[0][1]:
+            vals = [v[k] for _, v in items]
+            if not all(math.isinf(x) for x in vals):
+                out.append(f"    {k} = " + " ".join(_fmt(x) for x in vals))
+        out.append("    descriptors = " + " ".join(f"'{n}'" for n, _ in items))
+    return out
+
+
+def _cuu_deck(study: Any, st: Any, o: dict, data_dir: Any) -> str:
+    """The nested model of the thesis's CUU: an outer nl2sol on the calibrated statistics,
+    mapped onto the inner uncertain variables' means / std deviations, an inner mean value
+    (or LHS, or PCE by quadrature) method. Relative weighting is the same least squares with
+    each mapping row weighted by 1 / |target| and the data t / |t|."""
+    if isinstance(o["targets"], str):
+        raise InputFileError(study.path, st.line, "targets given as numbers in the study file "
+                             "(not from an earlier step)", o["targets"])
+    names, specs = _space_of(study, st)
+    for n, spec in zip(names, specs, strict=True):
+        if spec.kind not in ("normal", "lognormal"):
+            raise InputFileError(study.path, st.line, f"a normal or lognormal {n!r} (Dakota "
+                                 "maps a design variable onto its mean / std_deviation)",
+                                 spec.kind)
+    responses = list(st.responses or study.model.responses)
+    stats_ = {"std": ["std"], "mean": ["mean"], "mean_std": ["mean", "std"]}[o["calibrate"]]
+    outer = [(n, s) for n in names for s in stats_]
+    x0 = [float(getattr(spec.distribution, s)) for spec in specs for s in stats_]
+    rows, data, tnames = [], [], []
+    relative = o.get("weighting", "relative") == "relative"
+    for r, (tm, ts) in o["targets"].items():
+        for s in stats_:
+            t = float(tm if s == "mean" else ts)
+            w = 1.0 / abs(t) if relative and t != 0 else 1.0
+            row = [0.0] * (2 * len(responses))
+            row[2 * responses.index(r) + (0 if s == "mean" else 1)] = w
+            rows.append(row)
+            data.append(t * w)
+            tnames.append(f"{s}_{r}")
+    if data_dir is not None:
+        Path(data_dir, f"{st.name}.dat").write_text(" ".join(_fmt(x) for x in data) + "\n")
+    inner = o.get("inner") or "mean_value"
+    seed = study.info.seed
+    if inner == "mean_value":
+        inner_method = "  local_reliability"
+        inner_grads = ("  numerical_gradients\n    method_source dakota\n"
+                       "    interval_type central\n    fd_step_size = 1e-6")
+    elif inner == "sampling":
+        inner_method = f"  sampling\n    sample_type lhs\n    samples = 200\n    seed = {seed}"
+        inner_grads = "  no_gradients"
+    else:
+        inner_method = "  polynomial_chaos\n    quadrature_order = 3"
+        inner_grads = "  no_gradients"
+    fixed = {k: v for k, v in {**study.model.fixed, **st.fixed}.items() if k not in names}
+    lo = [1e-6 * x if s == "std" else -1e30 for (_, s), x in zip(outer, x0, strict=True)]
+    mapping = "\n".join("      " + " ".join(_fmt(v) for v in row) for row in rows)
+    tol = f"\n    convergence_tolerance = {o['tolerance']!r}" if o.get("tolerance") else ""
+    iters = (f"\n    max_iterations = {o['max_iterations']}" if o.get("max_iterations")
+             else "")
+    return f"""# Dakota deck of the rotoruq study {study.info.name!r}, step {st.name!r} (cuu: nested
+# model, {'relative' if relative else 'absolute'} residuals), written by 'rotoruq dakota export'.
+environment
+  top_method_pointer = 'OUTER'
+  output_precision = 16
+method
+  id_method = 'OUTER'
+  nl2sol{tol}{iters}
+  model_pointer = 'NESTED'
+model
+  id_model = 'NESTED'
+  nested
+    sub_method_pointer = 'INNER'
+    primary_variable_mapping = {' '.join(f"'{n}'" for n, _ in outer)}
+    secondary_variable_mapping = {' '.join("'std_deviation'" if s == "std" else "'mean'"
+                                           for _, s in outer)}
+    primary_response_mapping =
+{mapping}
+  variables_pointer = 'OUTER_V'
+  responses_pointer = 'OUTER_R'
+variables
+  id_variables = 'OUTER_V'
+  continuous_design = {len(outer)}
+    initial_point = {' '.join(_fmt(x) for x in x0)}
+    lower_bounds = {' '.join(_fmt(x) for x in lo)}
+    descriptors = {' '.join(f"'{s}_{n}'" for n, s in outer)}
+responses
+  id_responses = 'OUTER_R'
+  calibration_terms = {len(rows)}
+    descriptors = {' '.join(f"'{t}'" for t in tnames)}
+  calibration_data_file = '{st.name}.dat'
+    freeform
+    num_experiments = 1
+  numerical_gradients
+    method_source dakota
+    interval_type forward
+    fd_step_size = 1e-6
+  no_hessians
+method
+  id_method = 'INNER'
+{inner_method}
+  model_pointer = 'INNER_M'
+model
+  id_model = 'INNER_M'
+  single
+    interface_pointer = 'MODEL'
+  variables_pointer = 'INNER_V'
+  responses_pointer = 'INNER_R'
+variables
+  id_variables = 'INNER_V'
+{chr(10).join(_uncertain_lines(names, specs) + _state_lines(study, fixed))}
+interface
+  id_interface = 'MODEL'
+  fork
+    analysis_drivers = '{_driver_line(study, fixed, responses)}'
+    parameters_file = 'params.in'
+    results_file = 'results.out'
+    file_tag
+responses
+  id_responses = 'INNER_R'
+  response_functions = {len(responses)}
+    descriptors = {' '.join(f"'{r}'" for r in responses)}
+{inner_grads}
+  no_hessians
+"""
+
+
+def _describe(spec: Any) -> dict:
+    return {"kind": spec.kind, **{k: float(v) for k, v in spec.params.items()}}
+
+
+def _mean(spec: Any) -> float:
+    return float(spec.distribution.mean)
+
+
+def _bounds(spec: Any) -> tuple[float, float]:
+    lo, hi = spec.distribution.bounds
+    return float(lo), float(hi)
+
+
+def _driver_line(study: Any, fixed: Mapping, responses: list[str]) -> str:
+    m = study.model
+    if m.kind != "preset":
+        fixed = {}
+    sets = " ".join(f"--set {k}={float(v)!r}" for k, v in fixed.items())
+    if m.kind == "preset":
+        return f"{rotoruq_command()} driver --preset {m.preset} {sets}".strip()
+    assert m.external is not None
+    if m.external.parameters_format != "standard" or m.external.templates:
+        raise InputFileError(None, None, "an external model with standard parameters files "
+                             "and no templates (the exported deck calls its command)")
+    return " ".join(shlex.quote(a) for a in m.external.command)
+
+
+def _levels_text(o: dict, key: str, responses: list[str]) -> str:
+    lv = o.get(key)
+    if not lv:
+        return ""
+    flat, counts = [], []
+    for r in responses:
+        v = np.atleast_1d(lv.get(r, [])) if isinstance(lv, Mapping) else np.atleast_1d(lv)
+        flat += [float(x) for x in v]
+        counts.append(len(v))
+    return (f"\n    {key} = " + " ".join(_fmt(x) for x in flat)
+            + f"\n    num_{key} = " + " ".join(str(c) for c in counts))
+
+
+def _method_text(st: Any, o: dict, responses: list[str], names: list[str],
+                 seed: int) -> tuple[str, str]:
+    t = st.type
+    if t in ("sampling", "sensitivity"):
+        design = o.get("design") or "lhs"
+        note = ""
+        if design not in ("lhs", "random"):
+            # Dakota's sampling has no low-discrepancy sequences: the same estimator on LHS
+            note = (f"    # rotoruq's design '{design}' has no Dakota sample_type: LHS "
+                    "(the same estimator, its own statistical error)\n")
+            design = "lhs"
+        n = o.get("n_samples") or _default(t, "n_samples")
+        vbd = "\n    variance_based_decomp" if t == "sensitivity" else ""
+        return (f"  sampling\n{note}    sample_type {design}\n    samples = {n}\n"
+                f"    seed = {seed}{vbd}", "")
+    if t == "mean_value":
+        return ("  local_reliability" + _levels_text(o, "response_levels", responses)
+                + _levels_text(o, "probability_levels", responses), "")
+    if t == "reliability":
+        integ = o.get("integration") or "first_order"
+        return ("  local_reliability\n    mpp_search no_approx"
+                + _levels_text(o, "response_levels", responses)
+                + _levels_text(o, "probability_levels", responses)
+                + f"\n    integration {integ}", "")
+    if t == "pce":
+        order = o.get("order") or _default(t, "order")
+        est = o.get("estimator") or "quadrature"
+        if est == "quadrature":
+            return (f"  polynomial_chaos\n    quadrature_order = {order + 1}\n"
+                    "    variance_based_decomp", "")
+        if est == "regression":
+            n = o.get("n_samples") or _default(t, "n_samples")
+            return (f"  polynomial_chaos\n    expansion_order = {order}\n"
+                    f"    collocation_points = {n}\n    seed = {seed}\n"
+                    "    variance_based_decomp", "")
+        raise InputFileError(None, None, "a pce step by quadrature or regression", est)
+    if t == "least_squares":
+        lines = ["  nl2sol"]
+        if o.get("tolerance") is not None:
+            lines.append(f"    convergence_tolerance = {o['tolerance']!r}")
+        if o.get("max_iterations") is not None:
+            lines.append(f"    max_iterations = {o['max_iterations']}")
+        if o.get("max_function_evaluations") is not None:
+            lines.append(f"    max_function_evaluations = {o['max_function_evaluations']}")
+        return "\n".join(lines), ""
+    # bayes_calibration
+    sampler = o.get("sampler") or "dram"
+    burn = int(o.get("burn_in") or 0)
+    n = int(o.get("n_samples") or _default(t, "n_samples"))
+    # Dakota 6.24 reads these in this order only (the sampler after the emulator)
+    lines = ["  bayes_calibration queso", f"    chain_samples = {n + burn}", f"    seed = {seed}"]
+    if (o.get("emulator") or "gp") == "gp":
+        ne = o.get("n_emulator_samples") or _default(t, "n_emulator_samples")
+        lines += ["    emulator", "      gaussian_process surfpack",
+                  f"      build_samples = {ne}"]
+    lines.append(f"    {sampler}")
+    lines.append("    proposal_covariance "
+                 + ("prior" if (o.get("proposal") or "hessian") == "prior" else "derivatives"))
+    lines.append(f"    burn_in_samples = {burn}")
+    return "\n".join(lines), ""
+
+
+def _default(step_type_name: str, option: str) -> Any:
+    from ..steps import step_type
+    from ..steps.options import SIGNATURE, signature_default
+
+    st = step_type(step_type_name)
+    opt = st.options[option]
+    if opt.default is SIGNATURE:
+        return signature_default(opt.method or str(st.method), opt.param or option)
+    return opt.default
+
+
+def _data_text(study: Any, st: Any, o: dict, responses: list[str], data_dir: Any) -> str:
+    if st.data is None or st.data not in study.data:
+        raise InputFileError(None, None, f"a data set for step {st.name!r}", str(st.data))
+    rows = np.asarray(study.data[st.data].matrix(responses), float)
+    noise = o.get("noise_std")
+    variance = ""
+    if noise:
+        sd = np.array([float(noise[r]) if isinstance(noise, Mapping) else float(noise)
+                       for r in responses])
+        rows = np.column_stack([rows, np.broadcast_to(sd**2, rows.shape)])
+        variance = "\n    variance_type = 'scalar'"
+    fname = f"{st.name}.dat"
+    if data_dir is not None:
+        text = "\n".join(" ".join(_fmt(x) for x in row) for row in rows) + "\n"
+        Path(data_dir, fname).write_text(text)
+    return (f"  calibration_data_file = '{fname}'\n    freeform\n"
+            f"    num_experiments = {len(rows)}{variance}\n")

@@ -140,6 +140,20 @@ def summary(out: dict) -> str:
             f"({s['min']:.1f}-{s['max']:.1f}, target 3x).")
 
 
+#: Cases the issue requires to be calibrated; ``sparse_mean_only`` must fail (the test can
+#: fail). ``sparse_with_variance`` is reported, not a target: measured, the 12-point GP's own
+#: variance raises coverage but does not calibrate the posterior (see tests/test_sbc.py).
+MUST_PASS = ("no_emulator", "adequate_emulator", "sparse_refined")
+
+
+def meets_targets(out: dict) -> bool:
+    cases = out["cases"]
+    return bool(out["speed"]["ratio_ess_per_s"]["median"] >= 3.0
+                and all(cases[n] is not None and cases[n]["within_issue_bounds"]
+                        for n in MUST_PASS)
+                and not cases["sparse_mean_only"]["within_issue_bounds"])
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--replications", type=int, default=200)
@@ -162,11 +176,7 @@ def main():
            "n_replications": args.replications, "seed": args.seed, "cases": cases,
            "sbc_seconds": time.perf_counter() - t0,
            "speed": speed(args.budget, args.seed, args.repeats)}
-    out["meets_targets"] = bool(
-        out["speed"]["ratio_ess_per_s"]["median"] >= 3.0
-        and all(c["within_issue_bounds"] for n, c in cases.items()
-                if c is not None and n != "sparse_mean_only")
-        and not cases["sparse_mean_only"]["within_issue_bounds"])
+    out["meets_targets"] = meets_targets(out)
     text = json.dumps(out, indent=1)
     print(text)
     if args.out:

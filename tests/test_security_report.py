@@ -180,22 +180,23 @@ def test_show_writes_no_escape_codes(tmp_path, capsys):
     from rotoruq.study.cli import main
 
     esc = ["x\x1b]0;owned\x07", "\x1b[2J\x1b[Hgone", "\x9b31mred", "a\u202eb"]
-    out = _hostile_results(tmp_path, esc, step_name="s\x1b[1A")
+    # (a step name with control characters cannot be saved or loaded any more: rotoruq.safety)
+    out = _hostile_results(tmp_path, esc)
     for extra in ([], ["--csv"]):
         assert main(["show", str(out), *extra]) == 0
         shown = capsys.readouterr().out
         assert "\x1b" not in shown and "\x07" not in shown and "\x9b" not in shown
         assert "\u202e" not in shown
-        assert "\\x1b" in shown
-        if not extra:
+        if not extra:  # the text view shows the study's name and the reasons, escaped
+            assert "\\x1b" in shown
             assert "failed evaluations: 2" in shown and "2 x \\x1b[2J\\x1b[Hgone" in shown
     assert main(["show", str(out), "--json"]) == 0
     js = capsys.readouterr().out
     assert "\x1b" not in js
     data = json.loads(js)
     assert data["study"] == esc[0]  # JSON keeps the exact string, escaped as \u001b
-    assert data["steps"]["s\x1b[1A"]["failed_evaluations"] == {"count": 2,
-                                                               "reasons": {esc[1]: 2}}
+    assert data["steps"]["lhs"]["failed_evaluations"] == {"count": 2,
+                                                          "reasons": {esc[1]: 2}}
     assert main(["show", str(out), "nope"]) == 1
     err = capsys.readouterr().err
-    assert "\x1b" not in err and "s\\x1b[1A" in err
+    assert "\x1b" not in err

@@ -17,7 +17,6 @@ import threading
 from .. import __version__
 from ..errors import RotoruqError
 from ..safety import terminal_text
-from .console import pipe_safe, route_warnings
 
 # Order in which subcommands are listed by --help.
 COMMANDS = ("reproduce", "run", "report", "show", "evaluate", "airfoil", "driver", "export",
@@ -25,6 +24,8 @@ COMMANDS = ("reproduce", "run", "report", "show", "evaluate", "airfoil", "driver
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .console import pipe_safe  # not on the driver's lean path
+
     parser = argparse.ArgumentParser(
         prog="rotoruq",
         description="Verification, validation and calibration under uncertainty of rotor models.",
@@ -86,6 +87,8 @@ def configure_logging(quiet: bool = False, debug: bool = False) -> None:
     """Send the library's log records (the ``rotoruq`` loggers) to stderr as plain lines:
     INFO and above by default, ERROR with ``quiet``, DEBUG with ``debug``; Python warnings as
     one ``warning: ...`` line each (none with ``quiet``)."""
+    from .console import route_warnings
+
     route_warnings(quiet=quiet and not debug)
     root = logging.getLogger("rotoruq")
     for h in [h for h in root.handlers if isinstance(h, _StderrHandler)]:

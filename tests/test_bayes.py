@@ -597,3 +597,32 @@ def test_non_gaussian_priors_are_sampled_exactly_when_data_say_nothing():
     # entropy over-estimates a skewed posterior's entropy, so that KL estimate is slightly < 0
     assert abs(res.kl_divergence) < 0.1
     assert -0.2 < res.kl_divergence_gaussian < 0.0
+
+
+def test_a_slow_model_gets_the_minimal_schedule_and_the_same_chains():
+    """Issue 24: speculative lookahead spends ~2.4x the model runs; for a model slower than
+    SLOW_EVALUATION a point the chains switch to the minimal schedule by themselves. The
+    chain is a function of the seed alone, so it is bitwise the one the fast model gives."""
+    import time
+
+    from rotoruq.methods.mcmc import bayes
+
+    def f(x):
+        return np.column_stack([x[:, 0] + 0.5 * x[:, 1], x[:, 0] * x[:, 1]])
+
+    def slow(x):
+        time.sleep(1.5 * bayes.SLOW_EVALUATION * len(x))
+        return f(x)
+
+    prior = rq.ParameterSpace({"a": rq.Uniform(-1, 1), "b": rq.Uniform(-1, 1)})
+    data = f(np.array([[0.3, -0.4]])) + 0.01
+    kw = dict(noise_std=0.1, n_samples=40, burn_in=0, map_start=False,
+              proposal_covariance="prior", seed=5)
+    fast_run = rq.calibrate_bayes(rq.FunctionModel(f, ["a", "b"], ["y1", "y2"]), data, prior,
+                                  **kw)
+    slow_run = rq.calibrate_bayes(rq.FunctionModel(slow, ["a", "b"], ["y1", "y2"]), data,
+                                  prior, **kw)
+    assert fast_run.evaluations == "speculative" and slow_run.evaluations == "minimal"
+    np.testing.assert_array_equal(slow_run.chains, fast_run.chains)
+    assert slow_run.n_likelihood_evaluations < fast_run.n_likelihood_evaluations
+    assert slow_run.n_likelihood_evaluations <= 2 * 40  # stage 1, and stage 2 when rejected

@@ -69,6 +69,13 @@ log = logging.getLogger(__name__)
 
 # Random stages of a calibration, each with its own child of the call's SeedSequence (spawn
 # key = position here): appending a stage never shifts the numbers of another.
+#: Seconds per model evaluation above which chains on the model itself (no emulator) use the
+#: ``minimal`` evaluation schedule when the sampler is given by name: the chains are the same
+#: (a function of the seed alone), only the number of model runs differs (speculative
+#: lookahead spends ~2.4x the runs to save calls, right for the compiled rotor, wrong for a
+#: solver that runs seconds a point).
+SLOW_EVALUATION = 0.01
+
 _STAGES = ("design", "emulator_fit", "start", "chain_starts", "chains", "predictive",
            "summary", "refine", "self_check")
 
@@ -225,6 +232,9 @@ class BayesResult:
         (rank-normalised split R-hat and its folded form, bulk and tail ESS, MCSE of the mean
         and of the 5 % / 95 % quantiles in parameter units; ``ess`` is the bulk ESS and
         ``rhat`` the larger of the bulk and folded R-hat).
+    evaluations : the chains' evaluation schedule, "speculative" or "minimal" (chosen
+        automatically for a model slower than :data:`SLOW_EVALUATION` s a point when the
+        sampler is given by name; the chains are the same, only the model runs differ).
     self_check : with ``self_check=N``, the simulation-based calibration of this setup
         (:class:`~rotoruq.methods.mcmc.sbc.SBCResult`): does the method recover parameters
         drawn from the prior from data simulated with the stated noise?
@@ -269,6 +279,7 @@ class BayesResult:
     noise_multiplier_chains: np.ndarray | None = None
     diagnostics: dg.ChainDiagnostics | None = None
     self_check: SBCResult | None = None
+    evaluations: str = "speculative"
     _state: tuple | None = field(default=None, repr=False, compare=False)
 
     @property
@@ -447,10 +458,23 @@ class _TrueModel:
         self.names_in = prior.names
         self.names_out = tuple(model.names_out)
         self.n_evaluations = 0
+        self.seconds = 0.0
         self._direct = not hasattr(model, "evaluate")
 
+    @property
+    def seconds_per_evaluation(self) -> float | None:
+        """Measured wall time per evaluated point (None before the first evaluation)."""
+        return self.seconds / self.n_evaluations if self.n_evaluations else None
+
     def __call__(self, theta: np.ndarray) -> np.ndarray:
-        self.n_evaluations += theta.shape[0]
+        t0 = time.perf_counter()
+        try:
+            return self._call(theta)
+        finally:
+            self.n_evaluations += theta.shape[0]
+            self.seconds += time.perf_counter() - t0
+
+    def _call(self, theta: np.ndarray) -> np.ndarray:
         x = theta if self.perm is None else theta[:, self.perm]
         if self._direct:  # a plain batched callable: skip the evaluation layer's bookkeeping
             y = np.asarray(self.model(x), dtype=float)
@@ -705,8 +729,8 @@ def _child(ss: np.random.SeedSequence, i: int) -> np.random.SeedSequence:
                                   pool_size=ss.pool_size)
 
 
-def _sample(truth, gp, pb: _Problem, prior, cfg, emulator_variance, x0, map_start, best_build,
-            proposal_covariance, n_chains, n_samples, burn_in, thin, seeds) -> dict:
+def _sample(truth, gp, pb: _Problem, prior, cfg, auto_schedule, emulator_variance, x0, map_start,
+            best_build, proposal_covariance, n_chains, n_samples, burn_in, thin, seeds) -> dict:
     """Stages 3-5 and the chains on one emulator (or the model): start point, initial
     proposal, chain starts and chains; the chains' kept samples are scaled (n, c, d)."""
     d = prior.dim
@@ -728,12 +752,19 @@ def _sample(truth, gp, pb: _Problem, prior, cfg, emulator_variance, x0, map_star
     state = _chain_starts(post, z0, lp0, L0, n_chains,
                           np.random.default_rng(seeds["chain_starts"]),
                           np.random.default_rng(seeds["chains"]))
+    cost = truth.seconds_per_evaluation
+    if (auto_schedule and gp is None and cfg.evaluations == "speculative" and cost is not None
+            and cost > SLOW_EVALUATION):
+        cfg = dataclasses.replace(cfg, evaluations="minimal")
+        log.info("calibrate_bayes: the model takes %.3g s a point (> %g s): the chains use the "
+                 "minimal evaluation schedule (the same chains, fewer model runs)", cost,
+                 SLOW_EVALUATION)
     post.reset_counts()
     t0, c0 = time.perf_counter(), time.process_time()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ExtrapolationWarning)
         kept, kept_lp = run_chains(post, state, cfg, n_samples, burn_in, thin)
-    return dict(post=post, theta0=theta0, cov_z=cov_z, state=state, kept=kept,
+    return dict(post=post, theta0=theta0, cov_z=cov_z, state=state, kept=kept, cfg=cfg,
                 kept_lp=kept_lp, seconds=time.perf_counter() - t0,
                 cpu_seconds=time.process_time() - c0)
 
@@ -778,7 +809,9 @@ def calibrate_bayes(
         its joint density is the prior and its support bounds the chains.
     sampler : "dram" (default), "am", "dr", "mh", or a :class:`SamplerConfig` with its tuning
         (Dakota DRAM defaults: dr_scale 5, adapt_start 100, adapt_interval 100; pooled
-        adaptation; ``evaluations`` "speculative" or "minimal", see :mod:`.samplers`).
+        adaptation; ``evaluations`` "speculative" or "minimal", see :mod:`.samplers`). By name,
+        the chains on a model slower than :data:`SLOW_EVALUATION` s a point (measured during the
+        start) use the "minimal" schedule; ``BayesResult.evaluations`` says which ran.
     n_samples : kept steps per chain (after burn-in and thinning); each chain takes
         ``burn_in + (n_samples - 1) * thin + 1`` steps. The default with the default burn-in
         is the reference study's 100,000 steps of which 5,000 burn-in.
@@ -864,7 +897,8 @@ def calibrate_bayes(
     ratios: list[np.ndarray] = []
     adequacy = None
     while True:
-        run = _sample(truth, gp, pb, space, cfg, emulator_variance, x0, map_start, best_build,
+        run = _sample(truth, gp, pb, space, cfg, not isinstance(sampler, SamplerConfig),
+                      emulator_variance, x0, map_start, best_build,
                       proposal_covariance, n_chains, n_samples, burn_in, thin, round_seeds)
         post, kept = run["post"], run["kept"]
         if gp is None:
@@ -912,7 +946,7 @@ def calibrate_bayes(
                          "with emulator_variance=False the posterior is over-confident")
                       + ": add build runs (n_emulator_samples) or refine=RefineConfig()",
                       RuntimeWarning, stacklevel=2)
-    theta0, cov_z, state = run["theta0"], run["cov_z"], run["state"]
+    theta0, cov_z, state, cfg = run["theta0"], run["cov_z"], run["state"], run["cfg"]
     kept_lp, t_sampling, cpu_sampling = run["kept_lp"], run["seconds"], run["cpu_seconds"]
     if post.n_extrapolated:
         warnings.warn(f"emulator extrapolated for {post.n_extrapolated} proposals, up to "
@@ -927,7 +961,8 @@ def calibrate_bayes(
         pred = truth(pred_in)
     base = dict(
         map_point=theta0, proposal_covariance=cov_z * np.outer(pb.scale, pb.scale),
-        sampler=cfg.sampler, burn_in=burn_in, thin=thin, n_likelihood_evaluations=post.n_evals,
+        sampler=cfg.sampler, evaluations=cfg.evaluations, burn_in=burn_in, thin=thin,
+        n_likelihood_evaluations=post.n_evals,
         n_evaluations=truth.n_evaluations, n_nan_likelihood=post.n_nan,
         n_out_of_support=post.n_outside, sampling_seconds=t_sampling,
         sampling_cpu_seconds=cpu_sampling, emulator=gp, emulator_loo=loo,
@@ -997,7 +1032,8 @@ def continue_chain(result: BayesResult, n_samples: int, *, seed: SeedLike = None
     lp = np.concatenate([result.log_posterior, kept_lp.T], axis=1)
     base = {k: getattr(result, k) for k in (
         "map_point", "proposal_covariance", "sampler", "burn_in", "thin", "emulator",
-        "emulator_loo", "predictive_inputs", "predictive", "names_out", "emulator_adequacy")}
+        "emulator_loo", "predictive_inputs", "predictive", "names_out", "emulator_adequacy",
+        "evaluations")}
     base.update(
         n_likelihood_evaluations=result.n_likelihood_evaluations + post.n_evals - ev0,
         n_evaluations=result.n_evaluations + (post.n_evals - ev0 if post.gp is None else 0),

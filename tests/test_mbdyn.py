@@ -147,6 +147,9 @@ def test_find_mbdyn_says_what_it_tried(tmp_path, monkeypatch):
     exe.chmod(0o755)
     assert find_mbdyn() == exe  # MBDYN is broken: PATH is next
     assert find_mbdyn(exe) == exe
+    # an explicit path that is not MBDyn is an error, never a fallback to MBDYN or PATH
+    with pytest.raises(MBDynNotFoundError, match=r"--mbdyn=.*elsewhere.* not an executable"):
+        find_mbdyn(tmp_path / "elsewhere")
 
 
 def test_template_fields_are_all_provided():

@@ -44,10 +44,18 @@ class MBDynRun:
 def find_mbdyn(explicit: str | os.PathLike | None = None) -> Path:
     """The MBDyn executable: ``explicit``, else ``$MBDYN``, else ``mbdyn`` on ``PATH``.
 
+    An ``explicit`` path that is not an executable file is an error of its own (the caller
+    asked for that MBDyn: another one found elsewhere would silently answer instead).
     Raises :class:`MBDynNotFoundError` naming what was tried.
     """
+    if explicit:
+        p = Path(explicit).expanduser()
+        if p.is_file() and os.access(p, os.X_OK):
+            return p.absolute()
+        raise MBDynNotFoundError(f"MBDyn executable not found: --mbdyn={str(explicit)!r} is not "
+                                 "an executable file")
     tried = []
-    for source, cand in (("--mbdyn", explicit), ("MBDYN", os.environ.get("MBDYN"))):
+    for source, cand in (("MBDYN", os.environ.get("MBDYN")),):
         if not cand:
             continue
         p = Path(cand).expanduser()

@@ -56,7 +56,7 @@ INTERFACE = f"""interface
 """
 
 
-def setup(tmp_path: Path, deck: str, **files: str) -> Path:
+def _prepare(tmp_path: Path, deck: str, **files: str) -> Path:
     (tmp_path / "driver.py").write_text(DRIVER)
     for name, text in files.items():
         (tmp_path / name.replace("_", ".")).write_text(text)
@@ -204,7 +204,7 @@ variables
 def test_mean_value_deck_imports_runs_exports_and_agrees_with_dakota(tmp_path):
     """Linear responses: first-order mean value is exact, mean (2.5, 7), std
     (hypot(0.3, 0.1), hypot(1.2, 0.2)); rotoruq, the original and the exported deck agree."""
-    setup(tmp_path, MV_DECK.format(interface=INTERFACE))
+    _prepare(tmp_path, MV_DECK.format(interface=INTERFACE))
     study, res = import_and_run(tmp_path, "mean_value")
     mean, std = [2.5, 7.0], [np.hypot(0.3, 0.1), np.hypot(1.2, 0.2)]
     for k, r in enumerate(("y1", "y2")):
@@ -244,7 +244,7 @@ variables
 def test_pce_quadrature_deck_is_exact_on_a_quadratic_in_both_tools(tmp_path):
     """y3 = a^2 + b, a ~ N(2, 0.3), b ~ U(0, 2): mean 4 + 0.09 + 1, variance
     4 mu^2 s^2 + 2 s^4 + 1/3; order 2 by 3-point quadrature is exact."""
-    setup(tmp_path, PCE_DECK.format(interface=INTERFACE))
+    _prepare(tmp_path, PCE_DECK.format(interface=INTERFACE))
     study, res = import_and_run(tmp_path, "pce")
     mean = 4.0 + 0.09 + 1.0
     std = np.sqrt(4 * 4 * 0.09 + 2 * 0.3**4 + 1 / 3)
@@ -287,7 +287,7 @@ variables
 def test_vbd_deck_main_indices_agree_within_statistical_error(tmp_path):
     """y1 = a + b/2: S_a = (1/3) / (1/3 + 1/16) = 0.842, S_b = 0.158 (additive: main =
     total). 100 base samples (400 runs) each side: the estimators err by about 0.1."""
-    setup(tmp_path, VBD_DECK.format(interface=INTERFACE))
+    _prepare(tmp_path, VBD_DECK.format(interface=INTERFACE))
     study, res = import_and_run(tmp_path, "sensitivity")
     exact = {"a": (1 / 3) / (1 / 3 + 1 / 16), "b": (1 / 16) / (1 / 3 + 1 / 16)}
     for p, s in exact.items():
@@ -338,7 +338,7 @@ def test_dram_on_a_gp_emulator_deck_agrees_within_statistical_error(tmp_path):
     """y1 = a + b/2 at b = 1, three observations 2.49, 2.52, 2.46 with variance 0.01, a flat
     prior on [1, 3]: the posterior of a is N(1.99, 0.1 / sqrt(3)). 2500 kept DRAM steps on a
     20-point GP (exact for a linear response) each side."""
-    setup(tmp_path, BAYES_DECK.format(interface=INTERFACE),
+    _prepare(tmp_path, BAYES_DECK.format(interface=INTERFACE),
           data_dat="2.49 0.01\n2.52 0.01\n2.46 0.01\n")
     study, res = import_and_run(tmp_path, "bayes")
     mean, std = 1.99, 0.1 / np.sqrt(3)
@@ -424,7 +424,7 @@ def test_nested_cuu_deck_absolute_weighting_matches_dakota(tmp_path):
     "absolute") finds the same, and so does its exported deck. The exported deck of the
     same study with weighting = "relative" reproduces rotoruq's relative compromise
     (10 + 4) / (100 + 16) in Dakota (mapping rows weighted by 1/|t|)."""
-    deck = setup(tmp_path, CUU_DECK.replace("{interface}", INTERFACE.replace(
+    deck = _prepare(tmp_path, CUU_DECK.replace("{interface}", INTERFACE.replace(
         "interface\n", "interface\n  id_interface = 'I'\n")), targets_dat="0.1 1.0\n")
     study, res = import_and_run(tmp_path, "cuu")
     absolute, relative = 4.1 / 17, 14 / 116
@@ -472,7 +472,7 @@ def test_nl2sol_deck_recovers_the_inputs_in_both_tools(tmp_path):
     """y1 = a + b/2 = 2.5, y2 = 4a - b = 8.2 has the one solution a = 2.2, b = 0.6; the
     design variables start at their initial point (a distribution on the bounds with that
     mean)."""
-    setup(tmp_path, NL2SOL_DECK.format(interface=INTERFACE), data_dat="2.5 8.2\n")
+    _prepare(tmp_path, NL2SOL_DECK.format(interface=INTERFACE), data_dat="2.5 8.2\n")
     study, res = import_and_run(tmp_path, "least_squares")
     spec = load_study(study)
     assert spec.parameter("a").distribution.mean == pytest.approx(1.5)
@@ -513,7 +513,7 @@ def test_reliability_ria_deck_is_exact_on_linear_responses(tmp_path):
     std) exactly: y1 <= 2.2 and y2 <= 6.0."""
     from scipy.stats import norm
 
-    setup(tmp_path, RELIABILITY_DECK.format(interface=INTERFACE))
+    _prepare(tmp_path, RELIABILITY_DECK.format(interface=INTERFACE))
     study, res = import_and_run(tmp_path, "reliability")
     text = study.read_text()
     assert 'response_levels = { y1 = [2.2], y2 = [6.0] }' in text

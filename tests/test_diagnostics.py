@@ -156,6 +156,7 @@ def _posterior(seed=5):
 
 def test_netcdf_round_trips_through_arviz(tmp_path):
     pytest.importorskip("h5netcdf")
+    pytest.importorskip("h5py")  # the netCDF backend (the minimum-versions venv lacks it)
     x, names, lp = _posterior()
     path = write_chains(tmp_path / "post.nc", x, names, lp, attrs={"sampler": "dram", "seed": 4})
     idata = az.from_netcdf(path)
@@ -177,6 +178,7 @@ def test_netcdf_round_trips_through_arviz(tmp_path):
 
 def test_netcdf_without_log_posterior(tmp_path):
     pytest.importorskip("h5netcdf")
+    pytest.importorskip("h5py")  # the netCDF backend (the minimum-versions venv lacks it)
     x, names, _ = _posterior()
     path = write_chains(tmp_path / "post.nc", x, names)
     assert set(az.from_netcdf(path).groups()) == {"posterior"}

@@ -494,7 +494,7 @@ def export_chains(res: StepResult, folder: Path) -> Path | None:
     names = res.columns("chain")
     chains = np.asarray(res.arrays["chain"]).reshape(int(n_chains), -1, len(names))
     lp = res.arrays.get("log_posterior")
-    netcdf = all(importlib.util.find_spec(m) is not None for m in ("xarray", "h5netcdf"))
+    netcdf = all(importlib.util.find_spec(m) is not None for m in ("xarray", "h5netcdf", "h5py"))
     return write_chains(folder / ("chains.nc" if netcdf else "chains.npz"), chains, names,
                         None if lp is None else np.asarray(lp),
                         attrs={"step": res.name, "sampler": str(res.meta.get("options", {})

@@ -158,7 +158,7 @@ def write_chains(
 def _xarray():
     import importlib.util
 
-    missing = [m for m in ("xarray", "h5netcdf") if importlib.util.find_spec(m) is None]
+    missing = [m for m in ("xarray", "h5netcdf", "h5py") if importlib.util.find_spec(m) is None]
     if missing:
         raise ParameterError(
             f"writing or reading netCDF (.nc) needs xarray and h5netcdf (pip install arviz "

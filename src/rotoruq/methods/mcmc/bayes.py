@@ -94,9 +94,7 @@ def _stage_seeds(seed: SeedLike) -> dict[str, np.random.SeedSequence]:
         root = seed
     else:
         root = np.random.SeedSequence(None if seed is None else int(seed))
-    return {name: np.random.SeedSequence(root.entropy, spawn_key=(*root.spawn_key, i),
-                                         pool_size=root.pool_size)
-            for i, name in enumerate(_STAGES)}
+    return {name: _child(root, i) for i, name in enumerate(_STAGES)}
 
 
 class _Posterior:

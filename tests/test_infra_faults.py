@@ -453,3 +453,29 @@ def test_store_fault_on_a_process_pool_is_one_line_and_no_pool_traceback(tmp_pat
     assert proc.stderr == ""  # no concurrent.futures traceback at exit
     st = Store(path)
     assert 0 < st.count() < 20_000 and st.count(status="failed") == 0
+
+
+def test_dask_internal_allexit_is_not_printed_but_other_loop_errors_are(caplog):
+    """distributed's own AllExit, left on the client's loop by a gather whose worker died,
+    never reaches the user's terminal; any other unretrieved task exception still does."""
+    distributed = pytest.importorskip("distributed")
+    from distributed.client import AllExit
+
+    from rotoruq.evaluation.executors import DaskExecutor
+
+    cluster = distributed.LocalCluster(n_workers=0, host="127.0.0.1", dashboard_address=None)
+    ex = DaskExecutor(cluster.scheduler_address)
+    try:
+        loop = ex.client.loop.asyncio_loop
+        caplog.clear()
+        with caplog.at_level("ERROR", logger="asyncio"):
+            loop.call_exception_handler({"message": "Task exception was never retrieved",
+                                         "exception": AllExit()})
+            assert not [r for r in caplog.records if r.name == "asyncio"]
+            loop.call_exception_handler({"message": "Task exception was never retrieved",
+                                         "exception": ValueError("ours")})
+            assert [r.getMessage() for r in caplog.records if r.name == "asyncio"] == [
+                "Task exception was never retrieved"]
+    finally:
+        ex.close()
+        cluster.close()

@@ -355,6 +355,7 @@ class DaskExecutor(Executor):
                     threads_per_worker=self._threads, processes=True,
                     dashboard_address=None)
                 self._client = Client(self._cluster)
+            _quiet_internal_exits(self._client)
         return self._client
 
     @property
@@ -452,6 +453,31 @@ class DaskExecutor(Executor):
 
     def __repr__(self) -> str:
         return f"DaskExecutor(address={self.address!r})"
+
+
+def _quiet_internal_exits(client: Any) -> None:
+    """Keep distributed's internal ``AllExit`` off the user's terminal.
+
+    ``Future.result(timeout=)`` on a worker that dies leaves a gather task behind on the
+    client's event loop; it ends with ``distributed.client.AllExit`` (distributed's own
+    early-exit signal, never an error of ours) and asyncio prints "Task exception was never
+    retrieved" with a traceback when it is collected. The executor has already reported the
+    loss in one line; every other loop error still goes to the previous handler.
+    """
+    loop = getattr(getattr(client, "loop", None), "asyncio_loop", None)
+    if loop is None:  # pragma: no cover - distributed without a tornado IOLoop
+        return
+    previous = loop.get_exception_handler()
+
+    def handler(lp: Any, context: dict[str, Any]) -> None:
+        if type(context.get("exception")).__name__ == "AllExit":
+            return
+        if previous is not None:
+            previous(lp, context)
+        else:
+            lp.default_exception_handler(context)
+
+    loop.set_exception_handler(handler)
 
 
 def make_executor(spec: str | Executor | None, **kwargs: Any) -> Executor:

@@ -357,8 +357,10 @@ def discrepancy_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str
             m = float(rec.measured[j, k])
             if np.isfinite(m) and not rec.band_lower[j, k] <= m <= rec.band_upper[j, k]:
                 w.append(f"{res.name}: held-out {r} at {rec.configuration} = {v:g} ({m:.4g}) "
-                         f"lies outside the {100 * rec.level:g} % band with the discrepancy "
-                         f"[{rec.band_lower[j, k]:.4g}, {rec.band_upper[j, k]:.4g}]")
+                         f"lies outside the {100 * rec.level:g} % band "
+                         + ("with the discrepancy " if rec.kind != "none" else
+                            "(no discrepancy: model + noise) ")
+                         + f"[{rec.band_lower[j, k]:.4g}, {rec.band_upper[j, k]:.4g}]")
     # the parameters' R-hat and ESS are the Bayes step's own warnings; these are the
     # hyperparameters'
     hyper = rec.rhat[len(rec.names_in):]

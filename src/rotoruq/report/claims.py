@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
+
+import numpy as np
 
 from ..results import StepResult
 from .causes import (
@@ -46,7 +48,9 @@ class Claim:
     holds when ``value op threshold``. ours / thesis : k of n items passing. propagation :
     which forward propagation the numbers come from (None when not a forward check).
     reasons : why it does not hold (computed from the run). warnings : diagnostics of the
-    steps it rests on.
+    steps it rests on. beside : the key of the claim that judges the same comparison by the
+    ASME V&V 20 budget, when this one is the thesis's criterion shown beside it (not
+    counted in the verdict).
     """
 
     key: str
@@ -62,6 +66,13 @@ class Claim:
     reasons: tuple[str, ...] = ()
     warnings: tuple[str, ...] = ()
     details: tuple[str, ...] = field(default=())
+    beside: str | None = None
+
+    @property
+    def counted(self) -> bool:
+        """Whether the verdict counts this claim: a claim ``beside`` another is the thesis's
+        own criterion shown next to the V&V 20 claim that judges the same comparison."""
+        return self.beside is None
 
     @property
     def passes(self) -> bool | None:
@@ -94,7 +105,8 @@ def claims_json(claim_list: Sequence[Claim]) -> list[dict]:
     out = []
     for c in claim_list:
         d = asdict(c)
-        d.update(status=c.status, passes=c.passes, thesis_passes=c.thesis_passes)
+        d.update(status=c.status, passes=c.passes, thesis_passes=c.thesis_passes,
+                 counted=c.counted)
         out.append(d)
     return out
 
@@ -266,10 +278,16 @@ def claims(tables: list[ComparedTable], results: Results | None = None,
         rows = _rowlabels(t)
         keys = [src.split("/")[1].split("@")[0] for _, cells in t.ref.rows
                 for _, src in cells[:1] if src is not None]
-        out += _forward_claims(
+        thesis_rule = _forward_claims(
             f"gvpm_within_1std_{where[3:]}", f"GVPM: measured loads within one predictive std "
             f"{where} (table {num})", exp, step, label, rows, keys, 1.0,
             _col(t, 3, "thesis"), lab_e)
+        vv = _vv20_claim(f"gvpm_vv20_{where[3:]}", where, num, t, exp, label, keys, rows,
+                         thesis_rule, lab_e)
+        if vv is not None:
+            thesis_rule = [replace(c, beside=vv.key) for c in thesis_rule]
+            out.append(vv)
+        out += thesis_rule
 
     # GVPM CUU on the commands.
     t = by["4.14"]
@@ -290,6 +308,7 @@ def claims(tables: list[ComparedTable], results: Results | None = None,
     for num, name, resp in (("4.18", "C_T", "ct"), ("4.19", "C_Q", "cq")):
         t = by[num]
         out += _ground_claims(num, name, resp, t, exp, lab_e)
+    out += _heldout_claims(results.get("heldout", {}), labels.get("heldout", {}))
     return [_with_fallback_reason(c) for c in out]
 
 
@@ -487,3 +506,165 @@ def _ground_strength(res: StepResult, resp: str, name: str, prefix: str) -> list
         out.append(f"at 4R, the reference height, the model's {name} is already "
                    f"{m4 / d4:.3f} of the test's ({abs(m4 - d4) / s4:.1f} model std devs off)")
     return out
+
+
+# ----------------------------------------------------------------------- V&V 20 claims
+def _validation(steps: Mapping[str, StepResult], name: str | None = None):
+    """The :class:`~rotoruq.steps.validation.ValidationRecord` of step ``name`` (default: the
+    study's first ``validation`` step), with the step; None when there is none or it cannot
+    be read."""
+    from ..results import RecordError
+    from ..steps.validation import ValidationRecord
+
+    cands = ([steps[name]] if name in steps else []) if name else [
+        s for s in steps.values() if s.type == "validation"]
+    for res in cands:
+        if res.type != "validation":
+            continue
+        try:
+            return res, ValidationRecord.read(res)
+        except RecordError:
+            return None
+    return None
+
+
+def _condition(rec, value: float) -> int | None:
+    hit = np.flatnonzero(np.isclose(rec.conditions, value))
+    return int(hit[0]) if hit.size else None
+
+
+def _budget(rec, p: int, j: int, m: int) -> str:
+    """E and its validation uncertainty, with the largest part of u_val named."""
+    parts = {"u_num": rec.u_num[p, j, m], "u_input": rec.u_input[p, j, m],
+             "u_D": rec.u_data[p, j, m]}
+    top = max(parts, key=lambda k: parts[k])
+    return (f"E = S - D = {rec.comparison_error[p, j, m]:.4g} ({rec.simulation[p, j, m]:.4g} - "
+            f"{rec.data_mean[p, j, m]:.4g}), u_val = {rec.u_val[p, j, m]:.3g} ("
+            + ", ".join(f"{k} {v:.3g}" for k, v in parts.items())
+            + f"; {top} the largest), |E| / u_val = {rec.error_ratio[p, j, m]:.2f}")
+
+
+def _vv20_claim(key: str, where: str, num: str, t: ComparedTable, steps, label: str,
+                keys: Sequence[str], rows: Sequence[str], thesis_rule: Sequence[Claim],
+                labels) -> Claim | None:
+    """The thesis's forward comparison at one height judged by ASME V&V 20: every load's
+    |E| <= k u_val (k the validation step's coverage factor). The thesis's own value uses its
+    table's mean, std and measurement with our stated u_D (the thesis has no u_num)."""
+    found = _validation(steps, "validate") or _validation(steps)
+    if found is None:
+        return None
+    res, rec = found
+    j = _condition(rec, float(label[1:]))
+    pairs = [(lab, r) for lab, r in zip(rows, keys, strict=True) if r in rec.names_out]
+    if j is None or not pairs:
+        return None
+    k, p = rec.coverage_factor, 0
+    ms = [rec.names_out.index(r) for _, r in pairs]
+    ratios = [float(rec.error_ratio[p, j, m]) for m in ms]
+    ok = (lambda v: v <= k)  # noqa: E731
+    th_mean, th_std, th_data = (_col(t, c, "thesis") for c in (0, 1, 2))
+    th_ratio: list[float | None] = []
+    for (lab, _r), m in zip(pairs, ms, strict=True):
+        i = list(rows).index(lab)
+        if None in (th_mean[i], th_std[i], th_data[i]):
+            th_ratio.append(None)
+        else:
+            th_ratio.append(abs(th_mean[i] - th_data[i])
+                            / math.hypot(th_std[i], float(rec.u_data[p, j, m])))
+    reasons = []
+    j4 = _condition(rec, 4.0)
+    for (lab, _r), m, v in zip(pairs, ms, ratios, strict=True):
+        if ok(v):
+            continue
+        why = f"{lab}: {_budget(rec, p, j, m)} > {k:g}: a model error the uncertainties do not "
+        why += (f"hide, about {100 * rec.comparison_error[p, j, m] / rec.data_mean[p, j, m]:+.1f}"
+                " % of the measurement" if rec.data_mean[p, j, m] else "hide")
+        reasons.append(why)
+        if j4 is not None and j4 != j and rec.simulation[p, j4, m] and rec.data_mean[p, j4, m]:
+            ds = rec.simulation[p, j, m] / rec.simulation[p, j4, m] - 1
+            dd = rec.data_mean[p, j, m] / rec.data_mean[p, j4, m] - 1
+            reasons.append(
+                f"{lab}: from 4R to {where[3:]} the model changes by {100 * ds:+.1f} % against "
+                f"the test's {100 * dd:+.1f} % (E {rec.comparison_error[p, j4, m]:.3g} at 4R, "
+                f"{rec.comparison_error[p, j, m]:.3g} at {where[3:]}): model form, not "
+                "calibration, at this height")
+    def area(lab: str, m: int) -> str:
+        a, d = rec.area_metric[p, j, m], rec.data_mean[p, j, m]
+        # a percent of a measurement smaller than its own uncertainty says nothing
+        return f"{lab} {a:.3g}" + (f" ({100 * a / abs(d):.1f} % of D)"
+                                   if abs(d) > rec.u_data[p, j, m] else "")
+
+    details = ["area metric (does not shrink as the spread grows): " + ", ".join(
+        area(lab, m) for (lab, _), m in zip(pairs, ms, strict=True))]
+    for c in thesis_rule:
+        if c.value is not None:
+            details.append(
+                f"the thesis's criterion beside it ({c.metric} <= {c.threshold:g}, "
+                f"{'independent normals' if c.propagation == INDEPENDENT else 'joint'}): "
+                f"{c.value:.2f}, {'holds' if c.passes else 'does not hold'}")
+    if rec.u_num_source:
+        details.append(f"u_num {rec.u_num_source}; u_D the stated measurement uncertainty "
+                       "and the repeats' standard error")
+    return Claim(
+        key, f"GVPM {where}: model and test agree within the validation uncertainty, "
+        f"|E| <= {k:g} u_val for every load (ASME V&V 20 on table {num}'s comparison)",
+        "largest |E| / u_val over the loads (E = S - D, u_val = sqrt(u_num^2 + u_input^2 + "
+        "u_D^2))", "<=", k, _worst(ratios), _worst(th_ratio), _kofn(ratios, ok),
+        _kofn(th_ratio, ok), propagation=JOINT if rec.predictions[p].startswith("joint") else
+        None, reasons=tuple(reasons), warnings=_warnings(steps, [res.name, "bayes"], labels),
+        details=tuple(details))
+
+
+def _heldout_claims(steps: Mapping[str, StepResult], labels) -> list[Claim]:
+    """Beyond the thesis (the ``heldout`` study): calibrated on 4R, 3R and 2R with a
+    discrepancy over H/R, is the held-out 1R prediction right?"""
+    found = _validation(steps, "validate_heldout")
+    if found is None:
+        return []
+    res, rec = found
+    held = np.flatnonzero(rec.held_out > 0)
+    if not held.size or not rec.predictions:
+        return []
+    j, p, k = int(held[0]), 0, rec.coverage_factor
+    at = f"{rec.configuration} = {rec.conditions[j]:g}"
+    names = [labels.get(r, r) for r in rec.names_out]
+    inside = [float(v) for v in rec.inside_band[p, j]]
+    ratios = [float(v) for v in rec.error_ratio[p, j]]
+    pct = f"{100 * rec.level:g} %"
+    others = [(rec, q, kind) for q, kind in enumerate(rec.predictions) if q != p]
+    for name, what in (("validate_no_discrepancy", "calibrated on the same heights without "
+                        "a discrepancy"), ("validate_4r", "the thesis's 4R-only calibration")):
+        f = _validation(steps, name)
+        if f is not None and (jj := _condition(f[1], rec.conditions[j])) is not None:
+            others.append((f[1], -1 - jj, what))
+
+    def beside(field: str, fmt) -> list[str]:
+        out = []
+        for orec, q, kind in others:
+            q, jj = (q, j) if q >= 0 else (0, -1 - q)
+            out.append(f"{kind}: " + ", ".join(
+                f"{n} {fmt(getattr(orec, field)[q, jj, m])}" for m, n in enumerate(names)
+                if m < getattr(orec, field).shape[2]))
+        return out
+
+    band = [f"{n}: measured {rec.data_mean[p, j, m]:.4g}, band [{rec.band_lower[p, j, m]:.4g}, "
+            f"{rec.band_upper[p, j, m]:.4g}] ({rec.predictions[p]})"
+            for m, n in enumerate(names) if not inside[m]]
+    vv = [f"{n}: {_budget(rec, p, j, m)} > {k:g}" for m, n in enumerate(names)
+          if ratios[m] > k]
+    warn = _warnings(steps, [res.name, "bayes_discrepancy"], labels)
+    return [
+        Claim("heldout_1r_band", f"Held-out {at} (beyond the thesis): the measured loads fall "
+              f"inside the {pct} prediction band of the calibration on the other heights with a "
+              "model discrepancy", f"loads outside the {pct} band of a new measurement", "<=",
+              0.0, float(len(inside) - sum(inside)), None, (int(sum(inside)), len(inside)),
+              reasons=tuple(band), warnings=warn,
+              details=tuple(f"inside the band? {s}" for s in beside(
+                  "inside_band", lambda v: "yes" if v else "no"))),
+        Claim("heldout_1r_vv20", f"Held-out {at} (beyond the thesis): |E| <= {k:g} u_val for "
+              "every load with the model discrepancy (ASME V&V 20)",
+              "largest |E| / u_val over the loads", "<=", k, max(ratios), None,
+              _kofn(ratios, lambda v: v <= k), reasons=tuple(vv), warnings=warn,
+              details=tuple(f"|E| / u_val, {s}" for s in beside(
+                  "error_ratio", lambda v: f"{v:.2f}")) + tuple(
+                  f"area metric, {s}" for s in beside("area_metric", lambda v: f"{v:.3g}")))]

@@ -20,7 +20,7 @@ __all__ = ["ComparedCell", "ComparedTable", "compare_tables", "resolve", "REFERE
 
 # The reference studies and the preset each runs; a user's study of the same name but another
 # model gets no thesis rows.
-REFERENCE_STUDIES = {"validation": "bo105", "experiment": "gvpm"}
+REFERENCE_STUDIES = {"validation": "bo105", "experiment": "gvpm", "heldout": "gvpm"}
 
 # Statistics already dimensionless and meaningful near zero: their difference is absolute.
 _ABSOLUTE = {"S", "T", "nstd", "pp_nstd", "skewness", "kurtosis", "acceptance"}

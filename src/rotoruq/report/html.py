@@ -185,7 +185,9 @@ def _claim_row(c: Claim) -> str:
     prop = {INDEPENDENT: "independent normals", JOINT: "joint posterior predictive"}.get(
         c.propagation or "", "")
     return (f"<tr data-claim='{e(c.key)}' data-status='{e(status)}'>"
-            f"<td class=l>{e(c.text)}</td><td class=l>{e(prop)}</td>"
+            f"<td class=l>{e(c.text)}"
+            + (f" <i>(the thesis's criterion, shown beside {e(c.beside)}; not counted)</i>"
+               if c.beside else "") + f"</td><td class=l>{e(prop)}</td>"
             f"<td><span class={_STATUS_CLASS[status]}>{e(status)}</span></td>"
             f"<td>{num(c.value)}</td><td>{e(c.op)} {c.threshold:g}</td><td>{kofn(c.ours)}</td>"
             f"<td>{num(c.thesis_value)}</td><td>{thesis}</td>"
@@ -261,8 +263,9 @@ def _num(v: Any) -> str:
 
 
 def _verdict_counts(claim_list: Sequence[Claim]) -> dict[str, int]:
-    """Number of claims in each state, in the order the first screen shows them."""
-    return {k: sum(c.status == k for c in claim_list) for k, _ in _VERDICTS}
+    """Number of counted claims in each state, in the order the first screen shows them (a
+    thesis's criterion shown beside its V&V 20 claim is not counted)."""
+    return {k: sum(c.status == k for c in claim_list if c.counted) for k, _ in _VERDICTS}
 
 
 def _first_screen(claim_list: list[Claim], studies: Mapping[str, Mapping[str, StepResult]],
@@ -274,16 +277,31 @@ def _first_screen(claim_list: list[Claim], studies: Mapping[str, Mapping[str, St
         attrs = " ".join(f"data-{_STATUS_CLASS[k][3:]}='{v}'" for k, v in n.items())
         parts = ", ".join(f"<span class={_STATUS_CLASS[k]}>{n[k]} {word}</span>"
                           for k, word in _VERDICTS)
-        out.append(f"<p class=counts {attrs}><b>{len(claim_list)} claims of the reference "
+        counted = [c for c in claim_list if c.counted]
+        out.append(f"<p class=counts {attrs}><b>{len(counted)} claims of the reference "
                    f"study</b>: {parts}.</p><ol class=verdict>")
-        for c in claim_list:
+
+        def line(c: Claim) -> str:
             prop = {INDEPENDENT: " (independent normals)", JOINT: " (joint predictive)"}.get(
                 c.propagation or "", "")
             val = "" if c.value is None else f": {fmt(c.value)}, needs {e(c.op)} {c.threshold:g}"
-            out.append(f"<li data-verdict='{e(c.key)}'><span class={_STATUS_CLASS[c.status]}>"
-                       f"{e(c.status)}</span> {e(c.text)}{e(prop)}{val}</li>")
+            return (f"<span class={_STATUS_CLASS[c.status]}>{e(c.status)}</span> "
+                    f"{e(c.text)}{e(prop)}{val}")
+
+        for c in counted:
+            out.append(f"<li data-verdict='{e(c.key)}'>{line(c)}")
+            beside = [b for b in claim_list if b.beside == c.key]
+            if beside:
+                out.append("<ul class=beside>" + "".join(
+                    f"<li data-beside='{e(b.key)}'>the thesis's criterion, not counted: "
+                    f"{line(b)}</li>" for b in beside) + "</ul>")
+            out.append("</li>")
         out.append("</ol><p class=note>Values, thresholds and the reasons computed from this "
-                   "run: <a href='#claims'>the claims table</a>.</p>")
+                   "run: <a href='#claims'>the claims table</a>. Where the thesis judged a "
+                   "comparison by \"within one predictive std\", the verdict judges it by the "
+                   "ASME V&amp;V 20 budget (|E| against u_val) and shows the thesis's criterion "
+                   "beside it: a wider predictive spread passes the thesis's criterion more "
+                   "easily, not the V&amp;V 20 one.</p>")
     else:
         out.append("<p class=counts>No claims: none of these studies is a reference study "
                    "(the thesis's claims are checked on <code>rotoruq reproduce</code>).</p>")

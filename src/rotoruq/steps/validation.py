@@ -168,9 +168,13 @@ def _conditions(ctx: StepContext) -> tuple[str, list[dict[str, float]]]:
 
 
 def predictions_at(ctx: StepContext, configuration: str, points: Sequence[Mapping[str, float]]
-                   ) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
-    """The predictive samples (p, n, c, m) at ``points``, their kinds (see the module) and
-    which points the calibration held out (c,)."""
+                   ) -> tuple[tuple[str, ...], np.ndarray, np.ndarray, dict[str, object]]:
+    """The predictive samples (p, n, c, m) at ``points``, their kinds (see the module), which
+    points the calibration held out (c,) and the draws left out (``{"count", "first"}``).
+
+    A draw the model rejects at any point (a posterior draw outside the model's valid
+    regime, e.g. torsional divergence) is left out at every point, so the samples stay
+    paired across conditions; more than half of them failing is an error."""
     from ..model import evaluate
 
     src = ctx.source
@@ -199,10 +203,11 @@ def predictions_at(ctx: StepContext, configuration: str, points: Sequence[Mappin
         sel = [rec.names_out.index(r) for r in ctx.responses]
         eta = rec.pred_model[:, idx][:, :, sel]
         held = np.array([float(np.any(np.isclose(rec.held_out, at[i]))) for i in idx])
+        none: dict[str, object] = {"count": 0, "first": ""}
         if rec.kind == "none":
-            return (NONE,), eta[None], held
+            return (NONE,), eta[None], held, none
         delta = rec.pred_discrepancy[:, idx][:, :, sel]
-        return (WITH, WITHOUT), np.stack([eta + delta, eta]), held
+        return (WITH, WITHOUT), np.stack([eta + delta, eta]), held, none
     draws = posterior_draws(src, ctx.space.names, n, ctx.rng)
     kind = JOINT
     if draws is None:
@@ -211,15 +216,22 @@ def predictions_at(ctx: StepContext, configuration: str, points: Sequence[Mappin
         draws = np.asarray(sample(_Inputs(ctx.space.names), ctx.space, n,
                                   design=ctx.options["design"], seed=ctx.rng).inputs)
         kind = PRIOR
-    out = []
+    out, bad, first = [], np.zeros(len(draws), dtype=bool), ""
     for pt in points:
         batch = evaluate(ctx.model(pt), draws)
-        if batch.failures:
-            i, why = sorted(batch.failures.items())[0]
-            raise ParameterError(f"step {ctx.name!r}: {len(batch.failures)} predictive "
-                                 f"samples failed at {pt} (first: {why})")
-        out.append(np.asarray(batch.values, dtype=float))
-    return (kind,), np.stack(out, axis=1)[None], np.zeros(len(points))
+        values = np.asarray(batch.values, dtype=float)
+        failed = ~np.all(np.isfinite(values), axis=1)
+        if failed.any() and not first:
+            i = int(np.flatnonzero(failed)[0])
+            first = f"at {dict(pt)}: {batch.failures.get(i, 'NaN output')}"
+        bad |= failed
+        out.append(values)
+    if 2 * bad.sum() > len(draws):
+        raise ParameterError(f"step {ctx.name!r}: {int(bad.sum())} of {len(draws)} predictive "
+                             f"samples failed (first {first})")
+    pred = np.stack(out, axis=1)[~bad]
+    return (kind,), pred[None], np.zeros(len(points)), {"count": int(bad.sum()),
+                                                           "first": first}
 
 
 class _Inputs:
@@ -275,7 +287,7 @@ def run_validation(ctx: StepContext) -> StepResult:
             + " } (a standard uncertainty per response)")
     u_sys = None if usys is None else per_response_values(usys, ctx.responses, "u_systematic")
     u_num, u_num_source = _u_num(ctx, points)
-    kinds, pred, held = predictions_at(ctx, match, points)
+    kinds, pred, held, left_out = predictions_at(ctx, match, points)
     per_cond = [data[which == j] for j in range(len(points))]
     conds = [points[j][match] if match else j for j in range(len(points))]
     fields: dict[str, list] = {}
@@ -314,9 +326,10 @@ def run_validation(ctx: StepContext) -> StepResult:
                     scalars[f"{f}/{r}{lab}{tag}"] = float(getattr(rec, f)[p, j, k])
     arrays, meta = rec.parts()
     return StepResult(ctx.name, ctx.type, scalars, arrays, meta={
-        "n_evaluations": int(pred.shape[1] * pred.shape[2]) if kinds[0] in (JOINT, PRIOR)
+        "n_evaluations": int((pred.shape[1] + int(left_out["count"])) * pred.shape[2])  # type: ignore[call-overload]
+        if kinds[0] in (JOINT, PRIOR)
         else 0,
-        "responses": list(ctx.responses), **meta})
+        "responses": list(ctx.responses), "failed_draws": left_out, **meta})
 
 
 def _fmt_cond(rec: ValidationRecord, j: int) -> str:
@@ -421,6 +434,10 @@ def validation_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]
     comparison the V&V 20 budget rejects."""
     rec = ValidationRecord.read(res)
     w = []
+    left = res.meta.get("failed_draws") or {}
+    if isinstance(left, Mapping) and left.get("count"):
+        w.append(f"{res.name}: {left['count']} of {left['count'] + rec.predictive.shape[1]} "
+                 f"predictive draws left out: the model failed on them ({left.get('first')})")
     k = rec.coverage_factor
     for p, kind in enumerate(rec.predictions):
         for j in range(rec.conditions.size):

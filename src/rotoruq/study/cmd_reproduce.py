@@ -1,5 +1,6 @@
-"""``rotoruq reproduce [validation|experiment|all]``: run the bundled reference study and
-write ``<out>/report/index.html``."""
+"""``rotoruq reproduce [validation|experiment|heldout|all]``: run the bundled reference study
+(the thesis's chapters 3 and 4, then the held-out ground-effect validation) and write
+``<out>/report/index.html``."""
 
 from __future__ import annotations
 
@@ -10,7 +11,8 @@ from pathlib import Path
 
 from ..errors import InputFileError
 
-HELP = "reproduce the reference study (thesis chapters 3 and 4) and write the report"
+HELP = ("reproduce the reference study (thesis chapters 3 and 4, and a held-out validation of "
+        "the ground effect) and write the report")
 
 #: The chapters ``rotoruq reproduce`` runs: the thesis's chapters 3 and 4, then the held-out
 #: validation of the GVPM ground effect with a model discrepancy (beyond the thesis).

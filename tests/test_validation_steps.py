@@ -280,6 +280,8 @@ def test_single_rows_without_a_stated_measurement_uncertainty(tmp_path):
     assert proc.returncode != 0
     assert "single row at height_over_radius = 4, height_over_radius = 1" in proc.stderr
     assert "u_systematic = { thrust = ..., power = ... }" in proc.stderr
+    # found while the step runs (the data decide), named by the file and the step's line
+    assert f"{path.name}, line {line_of(path, '[[steps]]')}: step 'val'" in proc.stderr
 
 
 DRIVER = """\

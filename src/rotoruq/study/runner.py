@@ -457,7 +457,10 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
         )
         log.info("[%s] %s: running %s (%s -> %s)", study.info.name, step.name, step.type,
                  ", ".join(plan.space.names), ", ".join(plan.responses))
-        res, dt = run_step(step_type(step.type).run, ctx)
+        try:
+            res, dt = run_step(step_type(step.type).run, ctx)
+        except ParameterError as exc:
+            raise _at_step(exc, study, step) from exc
         meta = dict(res.meta)
         meta.update(failed_evaluations={"count": sum(failed.values()),
                                         "reasons": dict(failed.most_common(20))})
@@ -477,6 +480,17 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
         seconds[step.name] = dt
         log.info("[%s] %s: done in %.1f s", study.info.name, step.name, dt)
     return StudyRun(study, out, results, tuple(reused), seconds)
+
+
+def _at_step(exc: ParameterError, study: Study, step: StepSpec) -> ParameterError:
+    """A step's bad input found while it runs (e.g. data without repeats and no stated
+    measurement uncertainty), named by the study file and the line of its ``[[steps]]``."""
+    text = str(exc)
+    if str(study.path) in text or step.line is None:
+        return exc
+    named = text.startswith(f"step {step.name!r}")
+    return ParameterError(f"{study.path}, line {step.line}: " + (
+        text if named else f"step {step.name!r}: {text}"))
 
 
 def export_chains(res: StepResult, folder: Path) -> Path | None:

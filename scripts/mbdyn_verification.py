@@ -1,0 +1,590 @@
+"""Verification of the MBDyn GVPM templates against beam theory and the built-in rotor (JSON).
+
+    python scripts/mbdyn_verification.py [--out scripts/results/mbdyn_verification.json]
+    python scripts/mbdyn_verification.py --quick      # shorter MBDyn runs: a smoke run
+    python scripts/mbdyn_verification.py --summary scripts/results/mbdyn_verification.json
+
+About a minute on 2 cores (6 MBDyn runs). Needs MBDyn ($MBDYN, PATH, or
+~/.cache/mbdyn/bin/mbdyn); without it the JSON says ``skipped``.
+
+Sections (each check: MBDyn's value, the reference, the difference and pass/fail against the
+stated tolerance):
+
+- ``frequencies``: the elastic template's first flap, lag and torsion frequencies [/rev] from
+  three free-decay runs in vacuo (the template filled with rho = 1e-6 kg/m^3, the pitch-link
+  damping off, a force or couple on blade 1 held for half a revolution then released; a damped
+  sinusoid fitted to the tip's motion in the hub frame, omega_n = sqrt(omega_d^2 + sigma^2)),
+  against beam theory for the template's EI_y, EI_z, GJ and mass (a finite-element solution of
+  the rotating uniform beam clamped at the hub radius, checked here against the non-rotating
+  cantilever root 1.8751 and the Southwell coefficient 1.193) and against the equivalent
+  hinges of the built-in model (nu_beta^2 = 1 + e S / I + K_b / (I Omega^2), K_b = 4.12 EI/L;
+  nu_theta^2 = 1 + K_theta / (I_p Omega^2)). The rigid template has no blade modes (clamped).
+- ``hover``: the elastic template at the thesis's operating point (commands 5, -1, -1 deg,
+  K_p 15 N/m, 4R): blade 1's tip flap and lag displacement (as equivalent-hinge angles
+  asin(w / L)), its pitch and the 1/rev flap phase lag behind the pitch, against the static
+  deflection of the rotating beam under the lift distribution of MBDyn's own thrust and inflow,
+  the equivalent-hinge moment balance, the weak-axis bending of the pitched blade (lag =
+  -coning tan theta) and the built-in model.
+- ``loads``: thrust and power of the rigid template against the built-in model on identical
+  physics (:func:`rotoruq.mbdyn.rigid_equivalent`), and of the elastic template against the
+  built-in ``gvpm`` preset and against the preset with MBDyn's aerodynamic-centre physics
+  (a.c. on the feathering axis, the table's pitching moment).
+- ``aero_center_offset``: the built-in model's loads, coning, mean pitch and flap phase with the
+  preset's 1 mm, without it, and at the value the bundled airfoil's CM slope gives
+  (x_ac - c/4 = -c dCM/dCL, lift-weighted over the span's Mach numbers).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+RESULTS = Path(__file__).resolve().parent / "results" / "mbdyn_verification.json"
+# thesis section 4.3 operating point, K_p of the thesis's calibration (as benchmarks/mbdyn_parity)
+OP = {"omega": 224.6375, "collective_deg": 5.0, "lateral_deg": -1.0, "longitudinal_deg": -1.0,
+      "k_pitch_link": 15.0, "height_over_radius": 4.0}
+# tolerances [%] (absolute [deg] for the phase): stated once, used by every check
+TOL = {"beam_theory_frequency": 2.0, "beam_theory_lag_frequency": 3.0,
+       "equivalent_hinge_frequency": 5.0, "beam_static_coning": 5.0,
+       "equivalent_hinge_coning": 15.0, "pitched_beam_lag": 10.0, "builtin_lag": 50.0,
+       "identical_physics_loads": 0.5, "elastic_vs_builtin_loads": 5.0,
+       "flap_phase_deg": 10.0}
+#: Southwell coefficient of the first flap mode of a uniform cantilever, no hub offset
+#: (Bramwell, Helicopter Dynamics, table 7.1; Johnson, Rotorcraft Aeromechanics, 1.193)
+SOUTHWELL_1 = 1.193
+CANTILEVER_ROOT = 1.8751040687
+
+
+# --------------------------------------------------------------------------------------------
+# beam theory: the rotating uniform beam by finite elements
+def _hermite(n_el, e, R):
+    """Nodes and element lengths of a uniform mesh on [e, R]."""
+    x = np.linspace(e, R, n_el + 1)
+    return x, np.diff(x)
+
+
+def rotating_beam(ei, m, e, R, omega, n_el=40, inplane=False, load=None):
+    """First bending frequency [rad/s] of a uniform beam clamped at radius ``e``, rotating at
+    ``omega`` (centrifugal tension m Omega^2 (R^2 - x^2) / 2; in plane the -m Omega^2 term
+    too), or with ``load`` (callable: lift per length [N/m] at x) its static tip deflection [m].
+    Hermite cubic elements, 3-point Gauss quadrature of the tension term."""
+    x, h = _hermite(n_el, e, R)
+    ndof = 2 * (n_el + 1)
+    K = np.zeros((ndof, ndof))
+    M = np.zeros((ndof, ndof))
+    f = np.zeros(ndof)
+    gp, gw = np.polynomial.legendre.leggauss(4)
+    for k, hk in enumerate(h):
+        idx = slice(2 * k, 2 * k + 4)
+        ke = ei / hk**3 * np.array([[12, 6 * hk, -12, 6 * hk],
+                                    [6 * hk, 4 * hk**2, -6 * hk, 2 * hk**2],
+                                    [-12, -6 * hk, 12, -6 * hk],
+                                    [6 * hk, 2 * hk**2, -6 * hk, 4 * hk**2]])
+        kg = np.zeros((4, 4))
+        me = np.zeros((4, 4))
+        fe = np.zeros(4)
+        for s, w in zip(0.5 * (gp + 1), 0.5 * gw, strict=True):
+            xs = x[k] + s * hk
+            n = np.array([1 - 3 * s**2 + 2 * s**3, hk * (s - 2 * s**2 + s**3), 3 * s**2 - 2 * s**3,
+                          hk * (-s**2 + s**3)])
+            dn = np.array([-6 * s + 6 * s**2, hk * (1 - 4 * s + 3 * s**2), 6 * s - 6 * s**2,
+                           hk * (-2 * s + 3 * s**2)]) / hk
+            tension = m * omega**2 * (R**2 - xs**2) / 2
+            kg += w * hk * tension * np.outer(dn, dn)
+            me += w * hk * m * np.outer(n, n)
+            if load is not None:
+                fe += w * hk * load(xs) * n
+        K[idx, idx] += ke + kg - (omega**2 * me if inplane else 0.0)
+        M[idx, idx] += me
+        f[idx] += fe
+    free = slice(2, None)  # clamped root: deflection and slope
+    if load is not None:
+        return float(np.linalg.solve(K[free, free], f[free])[-2])
+    from scipy.linalg import eigh
+
+    return float(math.sqrt(eigh(K[free, free], M[free, free], eigvals_only=True)[0]))
+
+
+def rotating_torsion(gj, i_p, prop_ratio, k_root, L, omega, n_el=40):
+    """First torsion frequency [rad/s] of a uniform blade of torsional inertia ``i_p`` [kg m]
+    per length on a root spring ``k_root`` [N m/rad], with the propeller moment
+    prop_ratio * i_p Omega^2 per length (prop_ratio = (J_33 - J_22) / J_11 of the section)."""
+    from scipy.linalg import eigh
+
+    n = n_el + 1
+    h = L / n_el
+    K = np.zeros((n, n))
+    M = np.zeros((n, n))
+    for k in range(n_el):
+        s = slice(k, k + 2)
+        K[s, s] += gj / h * np.array([[1, -1], [-1, 1]])
+        K[s, s] += prop_ratio * i_p * omega**2 * h / 6 * np.array([[2, 1], [1, 2]])
+        M[s, s] += i_p * h / 6 * np.array([[2, 1], [1, 2]])
+    K[0, 0] += k_root
+    return float(math.sqrt(eigh(K, M, eigvals_only=True)[0]))
+
+
+# --------------------------------------------------------------------------------------------
+# MBDyn runs
+def locate_mbdyn():
+    from rotoruq.mbdyn import find_mbdyn
+    from rotoruq.mbdyn.solver import MBDynNotFoundError
+
+    try:
+        return find_mbdyn()
+    except MBDynNotFoundError:
+        default = Path.home() / ".cache" / "mbdyn" / "bin" / "mbdyn"
+        if default.is_file() and os.access(default, os.X_OK):
+            return default
+        raise
+
+
+def run_template(wd: Path, template: str, inputs: dict, settings, mbdyn, extra: str = ""):
+    """Fill a bundled template with node output (orientation matrices) and ``extra`` forces
+    on blade 1, run MBDyn; returns the filled values and the wall time [s]."""
+    from rotoruq.evaluation.templates import fill_template
+    from rotoruq.mbdyn.case import AIRFOIL_FILE, sample_table, template_text, template_values
+    from rotoruq.mbdyn.solver import run_mbdyn
+    from rotoruq.rotor.c81 import write_c81
+    from rotoruq.rotor.model import load_airfoil
+    from rotoruq.rotor.presets import gvpm
+
+    preset = gvpm()
+    text, tpath = template_text(template)
+    values = template_values(preset, inputs, settings)
+    filled = fill_template(text, values, path=tpath)
+    out = "default output: none, induced velocity elements;"
+    if out not in filled:
+        raise RuntimeError(f"template {template}: expected the line {out!r}")
+    filled = filled.replace(out, "default output: none, induced velocity elements, "
+                            "structural nodes;\n    default orientation: orientation matrix;")
+    if extra:
+        filled = filled.replace("    air properties;\n", "    air properties;\n    forces: 1;\n", 1)
+        i = filled.rindex("end: elements;")
+        filled = filled[:i] + "    " + extra + "\n" + filled[i:]
+    wd.mkdir(parents=True, exist_ok=True)
+    write_c81(sample_table(load_airfoil(preset), {}), wd / AIRFOIL_FILE, free_format=True)
+    (wd / "rotor.mbd").write_text(filled)
+    t0 = time.perf_counter()
+    run_mbdyn(wd / "rotor.mbd", wd / "rotor", mbdyn=mbdyn, timeout=settings.timeout)
+    return values, time.perf_counter() - t0
+
+
+def blade1(wd: Path, tip: int = 1006, root: int = 1000):
+    """Blade 1 in the hub frame from the .mov file: tip position (n, 3) [m], tip and root pitch
+    (n,) [rad] (the chord axis's angle to the disk plane)."""
+    a = np.loadtxt(wd / "rotor.mov")
+    hub = a[a[:, 0] == 3]
+    Rh = hub[:, 4:13].reshape(-1, 3, 3)
+    out = {}
+    for name, label in (("tip", tip), ("root", root)):
+        x = a[a[:, 0] == label]
+        Rrel = np.einsum("nji,njk->nik", Rh, x[:, 4:13].reshape(-1, 3, 3))
+        out[name + "_pos"] = np.einsum("nji,nj->ni", Rh, x[:, 1:4])
+        out[name + "_pitch"] = np.arctan2(Rrel[:, 2, 1], Rrel[:, 1, 1])
+    return out
+
+
+def fit_decay(t, y):
+    """Undamped natural frequency [rad/s] and damping ratio of a damped sinusoid fitted to a
+    free decay (least squares on the first 6 periods of the zero-crossing estimate)."""
+    from scipy.optimize import least_squares
+
+    y = y - y[-len(y) // 4:].mean()
+    up = np.flatnonzero((y[:-1] < 0) & (y[1:] >= 0))
+    if len(up) < 2:
+        raise RuntimeError("free decay: fewer than two oscillations recorded")
+    period = float(np.mean(np.diff(t[up])))
+    keep = t <= t[0] + 6 * period
+    tt, yy = t[keep] - t[0], y[keep]
+    w0 = 2 * math.pi / period
+
+    def res(p):
+        a, b, s, w, c = p
+        return np.exp(-s * tt) * (a * np.cos(w * tt) + b * np.sin(w * tt)) + c - yy
+
+    p = least_squares(res, [yy[0], 0.0, 0.1 * w0, w0, 0.0], x_scale="jac").x
+    sigma, wd = p[2], abs(p[3])
+    wn = math.hypot(wd, sigma)
+    return wn, sigma / wn
+
+
+DECAY = {  # force on blade 1 (tip or mid-span), held for half a revolution
+    "flap": "force: 9001, absolute, 1006, position, null, single, 0., 0., 1., "
+            "double step, -1., {t}, 2., 0.;",
+    "lag": "force: 9001, follower, 1006, position, null, single, 0., 1., 0., "
+           "double step, -1., {t}, 20., 0.;",
+    "torsion": "couple: 9001, follower, 1003, single, 1., 0., 0., "
+               "double step, -1., {t}, 0.001, 0.;",
+}
+
+
+def frequencies(mbdyn, tmp: Path, quick: bool) -> dict:
+    from rotoruq.mbdyn import CaseSettings
+    from rotoruq.rotor.geometry import CANTILEVER_SPRING_FACTOR, blade_grid
+    from rotoruq.rotor.presets import gvpm
+
+    p = gvpm()
+    om = OP["omega"]
+    vac = {"omega": om, "collective_deg": 0.0, "lateral_deg": 0.0, "longitudinal_deg": 0.0,
+           "k_pitch_link": OP["k_pitch_link"], "c_pitch_link": 0.0,
+           "height_over_radius": math.inf, "rho": 1e-6}
+    spr = 360
+    settings = CaseSettings(revolutions=2 if quick else 3, steps_per_rev=spr, average=1)
+    t_rel = 0.5 * 2 * math.pi / om
+    e, R, m = p.root_cutout, p.radius, p.blade_mass_per_length
+    L = R - e
+    ei_y, ei_z, gj = p.ei_flap, TEMPLATE_EI_Z, TEMPLATE_GJ
+    chord = p.chord
+    i_p = m * (chord / 4) ** 2  # template: J = M (c/4)^2 about the span, 0.01 J chordwise
+    k_theta = p.feathering_stiffness(OP["k_pitch_link"])
+    beam = {"flap": rotating_beam(ei_y, m, e, R, om) / om,
+            "lag": rotating_beam(ei_z, m, e, R, om, inplane=True) / om,
+            "torsion": rotating_torsion(gj, i_p, 0.99, k_theta, L, om) / om}
+    g = blade_grid(p, 10, 36)
+    k_b = CANTILEVER_SPRING_FACTOR * ei_y / g.blade_length
+    hinge = {"flap": math.sqrt(1 + e * g.S_flap / g.I_flap + k_b / (g.I_flap * om**2)),
+             "lag": math.sqrt((p.k_lag + om**2 * e * g.S_flap) / (g.I_lag * om**2)),
+             "torsion": math.sqrt(1 + k_theta / (p.pitch_inertia * om**2))}
+    self_check = {
+        "nonrotating_root": rotating_beam(1.0, 1.0, 0.0, 1.0, 0.0) ** 0.5,
+        "nonrotating_root_exact": CANTILEVER_ROOT,
+        "southwell_e0": (rotating_beam(1.0, 1.0, 0.0, 1.0, 1.0) ** 2
+                         - rotating_beam(1.0, 1.0, 0.0, 1.0, 0.0) ** 2),
+        "southwell_e0_literature": SOUTHWELL_1,
+    }
+    out: dict = {"inputs": vac, "steps_per_rev": spr, "revolutions": settings.revolutions,
+                 "beam_theory_check": self_check, "modes": {}, "wall_s": 0.0}
+    for mode, force in DECAY.items():
+        wd = tmp / f"decay_{mode}"
+        _, wall = run_template(wd, "elastic", vac, settings, mbdyn, force.format(t=t_rel))
+        out["wall_s"] += wall
+        b = blade1(wd)
+        sig = {"flap": b["tip_pos"][:, 2], "lag": b["tip_pos"][:, 1],
+               "torsion": b["tip_pitch"]}[mode]
+        t = np.arange(len(sig)) * (2 * math.pi / om) / spr
+        after = t > t_rel + 1e-9
+        wn, zeta = fit_decay(t[after], sig[after])
+        nu = wn / om
+        tol_b = TOL["beam_theory_lag_frequency" if mode == "lag" else "beam_theory_frequency"]
+        out["modes"][mode] = {
+            "mbdyn_per_rev": nu, "mbdyn_damping_ratio": zeta,
+            "checks": [check("beam theory", nu, beam[mode], tol_b),
+                       check("built-in equivalent hinge", nu, hinge[mode],
+                             TOL["equivalent_hinge_frequency"])]}
+    return out
+
+
+# the elastic template's section properties not in the preset (elastic.mbd: EI_Z, GJ)
+TEMPLATE_EI_Z = 2.26e3
+TEMPLATE_GJ = 1.0e2
+
+
+def check(reference: str, value: float, ref: float, tol_pct: float) -> dict:
+    """One verification line: relative difference [%] against a tolerance [%]."""
+    diff = 100.0 * (value / ref - 1.0) if ref != 0 else math.inf
+    return {"reference": reference, "value": value, "reference_value": ref,
+            "diff_pct": diff, "tolerance_pct": tol_pct, "passed": bool(abs(diff) <= tol_pct)}
+
+
+def harmonic1(psi, y):
+    """Mean, cosine and sine amplitudes of y(psi) (least squares over whole revolutions)."""
+    A = np.column_stack([np.ones_like(psi), np.cos(psi), np.sin(psi)])
+    return np.linalg.lstsq(A, y, rcond=None)[0]
+
+
+def phase_lag_deg(theta1, beta1):
+    """Lag [deg] of the 1/rev flap behind the 1/rev pitch, both (cos, sin) amplitudes."""
+    d = math.degrees(math.atan2(beta1[1], beta1[0]) - math.atan2(theta1[1], theta1[0]))
+    return (d + 180.0) % 360.0 - 180.0
+
+
+def builtin_state(preset, x: dict) -> dict:
+    import rotoruq as rq
+
+    names = list(x)
+    m = rq.RotorModel(preset, names_in=names, names_out=["thrust", "power", "roll", "pitch"])
+    y = m([[x[n] for n in names]])[0]
+    s = m.last_solution
+    assert s is not None
+    B, T = s.flap[0, 1], s.feather[0, 1]
+    theta1 = (T.real, -T.imag)
+    beta1 = (B.real, -B.imag)
+    return {"thrust": float(y[0]), "power": float(y[1]), "roll": float(y[2]),
+            "pitch": float(y[3]), "coning_deg": float(s.coning_deg[0]),
+            "lag_deg": float(np.rad2deg(s.lag[0, 0].real)),
+            "mean_pitch_deg": float(np.rad2deg(s.feather[0, 0].real)),
+            "flap_phase_lag_deg": phase_lag_deg(theta1, beta1)}
+
+
+def hover_and_loads(mbdyn, tmp: Path, quick: bool) -> tuple[dict, dict, dict]:
+    from rotoruq.mbdyn import CaseSettings, hub_loads, rigid_equivalent
+    from rotoruq.rotor.model import RotorModel
+    from rotoruq.rotor.presets import gvpm
+
+    p = gvpm()
+    om = OP["omega"]
+    revs = 8 if quick else 12
+    settings = CaseSettings(revolutions=revs)
+    wd = tmp / "hover_elastic"
+    vals, wall = run_template(wd, "elastic", OP, settings, mbdyn)
+    loads = hub_loads(wd / "rotor.rot", omega=om, rho=vals["rho"], radius=p.radius,
+                      steps_per_rev=settings.steps_per_rev, revolutions=revs,
+                      joint=wd / "rotor.jnt")
+    b = blade1(wd)
+    n = 2 * settings.steps_per_rev
+    psi = (np.arange(len(b["tip_pitch"])) * 2 * math.pi / settings.steps_per_rev)[-n:]
+    e, R = p.root_cutout, p.radius
+    L = R - e
+    w = harmonic1(psi, b["tip_pos"][-n:, 2])
+    v = harmonic1(psi, b["tip_pos"][-n:, 1])
+    th_root = harmonic1(psi, b["root_pitch"][-n:])
+    th_tip = harmonic1(psi, b["tip_pitch"][-n:])
+    coning = math.degrees(math.asin(w[0] / L))
+    lag = math.degrees(math.asin(v[0] / L))
+    mb = {"thrust": loads.thrust, "power": loads.power, "roll": loads.roll, "pitch": loads.pitch,
+          "inflow_m_s": loads.inflow, "coning_deg": coning, "lag_deg": lag,
+          "root_mean_pitch_deg": math.degrees(th_root[0]),
+          "tip_mean_pitch_deg": math.degrees(th_tip[0]),
+          "flap_phase_lag_deg": phase_lag_deg(th_root[1:], w[1:]),
+          "flap_phase_lag_vs_command_deg": phase_lag_deg(
+              (OP["lateral_deg"], OP["longitudinal_deg"]), w[1:]),
+          "wall_s": wall}
+    # references: the lift of MBDyn's thrust and inflow, ~ (theta Omega r^2 - v r) per length
+    theta = th_root[0]
+    vi = loads.inflow
+
+    def shape(x):
+        return theta * om * x**2 - vi * x
+
+    xs = np.linspace(e, R, 2001)
+    per_blade = loads.thrust / p.n_blades
+    scale = per_blade / np.trapezoid(shape(xs), xs)
+    moment = scale * np.trapezoid(shape(xs) * (xs - e), xs)
+    from rotoruq.rotor.geometry import CANTILEVER_SPRING_FACTOR, blade_grid
+
+    g = blade_grid(p, 10, 36)
+    k_b = CANTILEVER_SPRING_FACTOR * p.ei_flap / L
+    beta_hinge = moment / (k_b + om**2 * (g.I_flap + e * g.S_flap))
+    w_beam = rotating_beam(p.ei_flap, p.blade_mass_per_length, e, R, om,
+                           load=lambda x: scale * shape(x))
+    lag_pitched = -math.degrees(math.atan(math.tan(math.asin(w[0] / L))
+                                          * math.tan(th_tip[0])))
+    fit = builtin_state(p, OP)
+    same = builtin_state(p.replace(aero_center_offset=0.0, pitching_moment=True), OP)
+    hover = {
+        "mbdyn": mb, "builtin_preset": fit, "builtin_mbdyn_aero_physics": same,
+        "checks": {
+            "coning": [
+                check("beam theory: static deflection under MBDyn's lift", coning,
+                      math.degrees(math.asin(w_beam / L)), TOL["beam_static_coning"]),
+                check("equivalent hinge moment balance under MBDyn's lift", coning,
+                      math.degrees(beta_hinge), TOL["equivalent_hinge_coning"]),
+                check("built-in preset (its own thrust)", coning, fit["coning_deg"],
+                      TOL["equivalent_hinge_coning"])],
+            "lag": [
+                check("pitched beam: -coning tan(theta) (weak-axis bending)", lag, lag_pitched,
+                      TOL["pitched_beam_lag"]),
+                check("built-in preset (lag hinge in the disk plane)", lag, fit["lag_deg"],
+                      TOL["builtin_lag"])],
+        },
+    }
+    d_phase = mb["flap_phase_lag_deg"] - fit["flap_phase_lag_deg"]
+    hover["checks"]["flap_phase"] = [{
+        "reference": "built-in preset", "value": mb["flap_phase_lag_deg"],
+        "reference_value": fit["flap_phase_lag_deg"], "diff_deg": d_phase,
+        "tolerance_deg": TOL["flap_phase_deg"],
+        "passed": bool(abs(d_phase) <= TOL["flap_phase_deg"])}]
+    # loads: rigid template vs the built-in model on identical physics, elastic vs built-in
+    rig_in = {"omega": om, "collective_deg": OP["collective_deg"],
+              "height_over_radius": OP["height_over_radius"]}
+    wr = tmp / "hover_rigid"
+    rvals, rwall = run_template(wr, "rigid", rig_in, settings, mbdyn)
+    rl = hub_loads(wr / "rotor.rot", omega=om, rho=rvals["rho"], radius=p.radius,
+                   steps_per_rev=settings.steps_per_rev, revolutions=revs)
+    rb = RotorModel(rigid_equivalent(p), names_in=list(rig_in), names_out=["thrust", "power"])(
+        [list(rig_in.values())])[0]
+    tol_same, tol_el = TOL["identical_physics_loads"], TOL["elastic_vs_builtin_loads"]
+    load_checks = {
+        "rigid": {"inputs": rig_in, "mbdyn": {"thrust": rl.thrust, "power": rl.power},
+                  "wall_s": rwall, "checks": [
+                      check("built-in, identical physics: thrust", rl.thrust, float(rb[0]),
+                            tol_same),
+                      check("built-in, identical physics: power", rl.power, float(rb[1]),
+                            tol_same)]},
+        "elastic": {"inputs": OP, "mbdyn": {"thrust": loads.thrust, "power": loads.power},
+                    "checks": [
+                        check("built-in preset: thrust", loads.thrust, fit["thrust"], tol_el),
+                        check("built-in preset: power", loads.power, fit["power"], tol_el),
+                        check("built-in, MBDyn's a.c. physics: thrust", loads.thrust,
+                              same["thrust"], tol_el),
+                        check("built-in, MBDyn's a.c. physics: power", loads.power,
+                              same["power"], tol_el)]},
+    }
+    return hover, load_checks, {"mbdyn_thrust": loads.thrust, "mbdyn_power": loads.power,
+                                "mbdyn_flap_phase_lag_deg": mb["flap_phase_lag_deg"]}
+
+
+def airfoil_ac_offset() -> dict:
+    """x_ac - c/4 [m] from the bundled table's CM slope: -c dCM/dCL over alpha 0..8 deg at
+    each blade station's Mach number, weighted by the station's lift (~ r^2 dr)."""
+    from rotoruq.rotor.model import load_airfoil
+    from rotoruq.rotor.presets import gvpm
+
+    p = gvpm()
+    af = load_airfoil(p)
+    r = np.linspace(p.root_cutout, p.radius, 9)
+    mach = OP["omega"] * r / p.speed_of_sound
+    alpha = np.linspace(0.0, 8.0, 17)
+    offs = []
+    for mm in mach:
+        cl, _, cm = af.coefficients(alpha, np.full_like(alpha, mm))
+        offs.append(-p.chord * np.polyfit(cl, cm, 1)[0])
+    offs_a = np.asarray(offs)
+    wts = r**2 / np.sum(r**2)
+    mean = float(np.sum(wts * offs_a))
+    return {"x_ac_m": mean, "spread_m": float(np.sqrt(np.sum(wts * (offs_a - mean) ** 2))),
+            "per_station_m": [float(v) for v in offs_a], "mach": [float(v) for v in mach],
+            "alpha_range_deg": [0.0, 8.0]}
+
+
+def ac_offset_study(mb: dict) -> dict:
+    from rotoruq.rotor.presets import gvpm
+
+    p = gvpm()
+    af = airfoil_ac_offset()
+    cases = {"preset (-1 mm)": p.aero_center_offset, "none (0 mm)": 0.0,
+             "airfoil CM slope": af["x_ac_m"]}
+    rows = {}
+    for name, x in cases.items():
+        s = builtin_state(p.replace(aero_center_offset=x), OP)
+        rows[name] = {"aero_center_offset_m": x, **s,
+                      "thrust_vs_mbdyn_pct": 100 * (s["thrust"] / mb["mbdyn_thrust"] - 1),
+                      "power_vs_mbdyn_pct": 100 * (s["power"] / mb["mbdyn_power"] - 1)}
+    return {"airfoil": af, "cases": rows, "mbdyn_elastic": mb}
+
+
+def passed(res: dict) -> tuple[int, int]:
+    """Passed and total checks anywhere in ``res``."""
+    ok = tot = 0
+    stack: list = [res]
+    while stack:
+        x = stack.pop()
+        if isinstance(x, dict):
+            if "passed" in x:
+                tot += 1
+                ok += bool(x["passed"])
+            else:
+                stack.extend(x.values())
+        elif isinstance(x, list):
+            stack.extend(x)
+    return ok, tot
+
+
+# --------------------------------------------------------------------------------------------
+def _row(name, c, unit="", fmt=".4g"):
+    mark = "pass" if c["passed"] else "**fail**"
+    if "diff_deg" in c:
+        return (f"| {name} | {c['value']:{fmt}}{unit} | {c['reference']}: "
+                f"{c['reference_value']:{fmt}}{unit} | {c['diff_deg']:+.1f} deg | "
+                f"{c['tolerance_deg']:g} deg | {mark} |")
+    return (f"| {name} | {c['value']:{fmt}}{unit} | {c['reference']}: {c['reference_value']:{fmt}}"
+            f"{unit} | {c['diff_pct']:+.2f} % | {c['tolerance_pct']:g} % | {mark} |")
+
+
+def summary(res: dict) -> str:
+    """The docs' tables from a saved run."""
+    if "skipped" in res:
+        return f"(the saved run was skipped: {res['skipped']})"
+    lines = ["| quantity | MBDyn | reference | difference | tolerance | |",
+             "|---|---|---|---|---|---|"]
+    fr = res["frequencies"]
+    for mode, v in fr["modes"].items():
+        for c in v["checks"]:
+            lines.append(_row(f"elastic: {mode} frequency [/rev]", c))
+    h = res["hover"]["checks"]
+    for key, unit in (("coning", " deg"), ("lag", " deg")):
+        for c in h[key]:
+            lines.append(_row(f"elastic: {key}", c, unit))
+    for c in h["flap_phase"]:
+        lines.append(_row("elastic: 1/rev flap lag behind pitch", c, " deg", ".1f"))
+    for model in ("rigid", "elastic"):
+        for c in res["loads"][model]["checks"]:
+            what, q = c["reference"].rsplit(": ", 1)
+            lines.append(_row(f"{model}: {q}", {**c, "reference": what},
+                              " N" if q == "thrust" else " W"))
+    ok, tot = passed({k: res[k] for k in ("frequencies", "hover", "loads")})
+    bc = fr["beam_theory_check"]
+    lines += ["", f"{ok} of {tot} checks pass. Beam theory: finite elements of the rotating "
+              f"uniform beam (non-rotating root {bc['nonrotating_root']:.5f}, exact "
+              f"{bc['nonrotating_root_exact']:.5f}; Southwell coefficient at e = 0 "
+              f"{bc['southwell_e0']:.3f}, literature {bc['southwell_e0_literature']}). "
+              f"Free decays in vacuo at {fr['steps_per_rev']} steps per revolution; "
+              f"damping ratios flap {fr['modes']['flap']['mbdyn_damping_ratio']:.3f}, lag "
+              f"{fr['modes']['lag']['mbdyn_damping_ratio']:.3f}, torsion "
+              f"{fr['modes']['torsion']['mbdyn_damping_ratio']:.3f} (beam damping 1e-4 s)."]
+    ac = res["aero_center_offset"]
+    af = ac["airfoil"]
+    lines += ["", "| built-in GVPM, a.c. offset | x_ac [mm] | thrust [N] | power [W] | "
+              "coning [deg] | mean pitch [deg] | flap lag [deg] | thrust / power vs MBDyn |",
+              "|---|---|---|---|---|---|---|---|"]
+    for name, r in ac["cases"].items():
+        lines.append(f"| {name} | {1e3 * r['aero_center_offset_m']:+.2f} | {r['thrust']:.2f} | "
+                     f"{r['power']:.1f} | {r['coning_deg']:.3f} | {r['mean_pitch_deg']:.2f} | "
+                     f"{r['flap_phase_lag_deg']:.1f} | {r['thrust_vs_mbdyn_pct']:+.1f} % / "
+                     f"{r['power_vs_mbdyn_pct']:+.1f} % |")
+    hm = res["hover"]["mbdyn"]
+    lines.append(f"| MBDyn elastic (a.c. on the axis, table CM) | 0 | {hm['thrust']:.2f} | "
+                 f"{hm['power']:.1f} | {hm['coning_deg']:.3f} | {hm['root_mean_pitch_deg']:.2f} | "
+                 f"{hm['flap_phase_lag_deg']:.1f} | - |")
+    lines += ["", f"Airfoil CM slope: x_ac - c/4 = {1e3 * af['x_ac_m']:+.2f} mm (lift-weighted "
+              f"over Mach {af['mach'][0]:.2f}-{af['mach'][-1]:.2f}, spread "
+              f"{1e3 * af['spread_m']:.2f} mm; minus = ahead of the quarter chord)."]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true",
+                    help="shorter MBDyn runs (2-revolution decays, 8-revolution hover)")
+    ap.add_argument("--out", help=f"also write the JSON to this file (the docs read {RESULTS})")
+    ap.add_argument("--summary", help="print the docs' tables from this saved JSON and exit")
+    args = ap.parse_args(argv)
+    if args.summary:
+        with open(args.summary, encoding="utf-8") as fh:
+            print(summary(json.load(fh)))
+        return
+    from rotoruq.mbdyn.solver import MBDynNotFoundError
+
+    try:
+        mbdyn = locate_mbdyn()
+    except MBDynNotFoundError as exc:
+        print(json.dumps({"skipped": str(exc)}))
+        return
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        freq = frequencies(mbdyn, Path(tmp), args.quick)
+        hover, loads, mb = hover_and_loads(mbdyn, Path(tmp), args.quick)
+    res = {"quick": args.quick, "operating_point": OP, "tolerances": TOL,
+           "frequencies": freq, "hover": hover, "loads": loads,
+           "aero_center_offset": ac_offset_study(mb)}
+    ok, tot = passed({k: res[k] for k in ("frequencies", "hover", "loads")})
+    res["passed"], res["checks"] = ok, tot
+    res["wall_s"] = time.perf_counter() - t0
+    text = json.dumps(res, indent=1)
+    print(text)
+    if args.out:
+        with open(args.out, "w", encoding="utf-8") as fh:
+            fh.write(text + "\n")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -4,7 +4,7 @@
     python scripts/mbdyn_verification.py --quick      # shorter MBDyn runs: a smoke run
     python scripts/mbdyn_verification.py --summary scripts/results/mbdyn_verification.json
 
-About a minute on 2 cores (6 MBDyn runs). Needs MBDyn ($MBDYN, PATH, or
+About a minute on 2 cores (8 MBDyn runs). Needs MBDyn ($MBDYN, PATH, or
 ~/.cache/mbdyn/bin/mbdyn); without it the JSON says ``skipped``.
 
 Sections (each check: MBDyn's value, the reference, the difference and pass/fail against the
@@ -24,7 +24,10 @@ stated tolerance):
   asin(w / L)), its pitch and the 1/rev flap phase lag behind the pitch, against the static
   deflection of the rotating beam under the lift distribution of MBDyn's own thrust and inflow,
   the equivalent-hinge moment balance, the weak-axis bending of the pitched blade (lag =
-  -coning tan theta) and the built-in model.
+  -coning tan theta) and the built-in model; the mean pitch in vacuo against the feathering
+  equilibrium sin(theta) = K sin(theta_0) / (K + 0.99 I_p Omega^2), its rise in air (the table's
+  CM zeroed) against the drag acting on the coned blade above the feathering axis, and the
+  1/rev pitch against the swashplate command with and without the table's CM.
 - ``loads``: thrust and power of the rigid template against the built-in model on identical
   physics (:func:`rotoruq.mbdyn.rigid_equivalent`), and of the elastic template against the
   built-in ``gvpm`` preset and against the preset with MBDyn's aerodynamic-centre physics
@@ -56,7 +59,8 @@ TOL = {"beam_theory_frequency": 2.0, "beam_theory_lag_frequency": 3.0,
        "equivalent_hinge_frequency": 5.0, "beam_static_coning": 5.0,
        "equivalent_hinge_coning": 15.0, "pitched_beam_lag": 10.0, "builtin_lag": 50.0,
        "identical_physics_loads": 0.5, "elastic_vs_builtin_loads": 5.0,
-       "flap_phase_deg": 10.0}
+       "flap_phase_deg": 10.0, "pitch_in_vacuo": 1.0, "coning_pitch_moment": 30.0,
+       "pitch_1rev_amplitude": 5.0}
 #: Southwell coefficient of the first flap mode of a uniform cantilever, no hub offset, as
 #: Omega -> 0 (the Rayleigh quotient of the non-rotating mode; Bramwell, Helicopter Dynamics)
 SOUTHWELL_1 = 1.193
@@ -71,16 +75,17 @@ def _hermite(n_el, e, R):
     return x, np.diff(x)
 
 
-def rotating_beam(ei, m, e, R, omega, n_el=40, inplane=False, load=None):
-    """First bending frequency [rad/s] of a uniform beam clamped at radius ``e``, rotating at
-    ``omega`` (centrifugal tension m Omega^2 (R^2 - x^2) / 2; in plane the -m Omega^2 term
-    too), or with ``load`` (callable: lift per length [N/m] at x) its static tip deflection [m].
-    Hermite cubic elements, 3-point Gauss quadrature of the tension term."""
+def beam_matrices(ei, m, e, R, omega, n_el=40, inplane=False, loads=()):
+    """Stiffness K, mass M (free degrees of freedom: the root at radius ``e`` clamped) and the
+    consistent load vector of each callable in ``loads`` (force per length [N/m] at radius x)
+    of a uniform beam rotating at ``omega``: bending EI, centrifugal tension
+    m Omega^2 (R^2 - x^2) / 2, in plane also -m Omega^2. Hermite cubic elements, 4-point Gauss
+    quadrature; degrees of freedom (w, w') per node, the tip's deflection last but one."""
     x, h = _hermite(n_el, e, R)
     ndof = 2 * (n_el + 1)
     K = np.zeros((ndof, ndof))
     M = np.zeros((ndof, ndof))
-    f = np.zeros(ndof)
+    F = np.zeros((len(loads), ndof))
     gp, gw = np.polynomial.legendre.leggauss(4)
     for k, hk in enumerate(h):
         idx = slice(2 * k, 2 * k + 4)
@@ -90,7 +95,6 @@ def rotating_beam(ei, m, e, R, omega, n_el=40, inplane=False, load=None):
                                     [6 * hk, 2 * hk**2, -6 * hk, 4 * hk**2]])
         kg = np.zeros((4, 4))
         me = np.zeros((4, 4))
-        fe = np.zeros(4)
         for s, w in zip(0.5 * (gp + 1), 0.5 * gw, strict=True):
             xs = x[k] + s * hk
             n = np.array([1 - 3 * s**2 + 2 * s**3, hk * (s - 2 * s**2 + s**3), 3 * s**2 - 2 * s**3,
@@ -100,17 +104,32 @@ def rotating_beam(ei, m, e, R, omega, n_el=40, inplane=False, load=None):
             tension = m * omega**2 * (R**2 - xs**2) / 2
             kg += w * hk * tension * np.outer(dn, dn)
             me += w * hk * m * np.outer(n, n)
-            if load is not None:
-                fe += w * hk * load(xs) * n
+            for j, load in enumerate(loads):
+                F[j, idx] += w * hk * load(xs) * n
         K[idx, idx] += ke + kg - (omega**2 * me if inplane else 0.0)
         M[idx, idx] += me
-        f[idx] += fe
     free = slice(2, None)  # clamped root: deflection and slope
+    return K[free, free], M[free, free], F[:, free]
+
+
+def rotating_beam(ei, m, e, R, omega, n_el=40, inplane=False, load=None):
+    """First bending frequency [rad/s] of the uniform beam of :func:`beam_matrices`, or with
+    ``load`` (callable: force per length [N/m] at radius x) its static tip deflection [m]."""
+    K, M, F = beam_matrices(ei, m, e, R, omega, n_el, inplane, () if load is None else (load,))
     if load is not None:
-        return float(np.linalg.solve(K[free, free], f[free])[-2])
+        return float(np.linalg.solve(K, F[0])[-2])
     from scipy.linalg import eigh
 
-    return float(math.sqrt(eigh(K[free, free], M[free, free], eigvals_only=True)[0]))
+    return float(math.sqrt(eigh(K, M, eigvals_only=True)[0]))
+
+
+def coning_moment(ei, m, e, R, omega, lift, inplane, n_el=40):
+    """Moment [N m] about the feathering axis (nose up positive) of the in-plane force per
+    length ``inplane`` [N/m, against the rotation] acting on the blade deflected by ``lift``
+    [N/m]: the integral of inplane(x) w(x) over the span (w from the flapwise static solution),
+    as the consistent load vector of ``inplane`` times the nodal deflections."""
+    K, _, F = beam_matrices(ei, m, e, R, omega, n_el, False, (lift, inplane))
+    return float(F[1] @ np.linalg.solve(K, F[0]))
 
 
 def rotating_torsion(gj, i_p, prop_ratio, k_root, L, omega, n_el=40):
@@ -147,9 +166,13 @@ def locate_mbdyn():
         raise
 
 
-def run_template(wd: Path, template: str, inputs: dict, settings, mbdyn, extra: str = ""):
+def run_template(wd: Path, template: str, inputs: dict, settings, mbdyn, extra: str = "",
+                 table_cm: bool = True):
     """Fill a bundled template with node output (orientation matrices) and ``extra`` forces
-    on blade 1, run MBDyn; returns the filled values and the wall time [s]."""
+    on blade 1 (the c81 table's CM zeroed unless ``table_cm``), run MBDyn; returns the filled
+    values and the wall time [s]."""
+    import dataclasses
+
     from rotoruq.evaluation.templates import fill_template
     from rotoruq.mbdyn.case import AIRFOIL_FILE, sample_table, template_text, template_values
     from rotoruq.mbdyn.solver import run_mbdyn
@@ -171,7 +194,11 @@ def run_template(wd: Path, template: str, inputs: dict, settings, mbdyn, extra: 
         i = filled.rindex("end: elements;")
         filled = filled[:i] + "    " + extra + "\n" + filled[i:]
     wd.mkdir(parents=True, exist_ok=True)
-    write_c81(sample_table(load_airfoil(preset), {}), wd / AIRFOIL_FILE, free_format=True)
+    table = sample_table(load_airfoil(preset), {})
+    if not table_cm:
+        table = dataclasses.replace(table, cm=dataclasses.replace(
+            table.cm, values=np.zeros_like(table.cm.values)))
+    write_c81(table, wd / AIRFOIL_FILE, free_format=True)
     (wd / "rotor.mbd").write_text(filled)
     t0 = time.perf_counter()
     run_mbdyn(wd / "rotor.mbd", wd / "rotor", mbdyn=mbdyn, timeout=settings.timeout)
@@ -295,6 +322,13 @@ def check(reference: str, value: float, ref: float, tol_pct: float) -> dict:
             "diff_pct": diff, "tolerance_pct": tol_pct, "passed": bool(abs(diff) <= tol_pct)}
 
 
+def check_deg(reference: str, value: float, ref: float, tol_deg: float) -> dict:
+    """One verification line on an angle [deg]: difference against a tolerance [deg]."""
+    d = value - ref
+    return {"reference": reference, "value": value, "reference_value": ref, "diff_deg": d,
+            "tolerance_deg": tol_deg, "passed": bool(abs(d) <= tol_deg)}
+
+
 def harmonic1(psi, y):
     """Mean, cosine and sine amplitudes of y(psi) (least squares over whole revolutions)."""
     A = np.column_stack([np.ones_like(psi), np.cos(psi), np.sin(psi)])
@@ -322,7 +356,59 @@ def builtin_state(preset, x: dict) -> dict:
             "pitch": float(y[3]), "coning_deg": float(s.coning_deg[0]),
             "lag_deg": float(np.rad2deg(s.lag[0, 0].real)),
             "mean_pitch_deg": float(np.rad2deg(s.feather[0, 0].real)),
-            "flap_phase_lag_deg": phase_lag_deg(theta1, beta1)}
+            "flap_phase_lag_deg": phase_lag_deg(theta1, beta1),
+            **pitch_response(x, theta1)}
+
+
+def pitch_response(x: dict, theta1) -> dict:
+    """The blade's 1/rev pitch (cos, sin amplitudes [rad]) against the swashplate command of
+    ``x``: amplitude ratio and lag [deg] behind the command."""
+    cmd = (x["lateral_deg"], x["longitudinal_deg"])
+    return {"pitch_1rev_amplitude_ratio": math.degrees(math.hypot(*theta1)) / math.hypot(*cmd),
+            "pitch_1rev_lag_vs_command_deg": phase_lag_deg(cmd, theta1)}
+
+
+def elastic_hover(wd: Path, settings, mbdyn, table_cm: bool = True):
+    """The elastic template at :data:`OP`: hub loads and blade 1's motion (means and 1/rev
+    harmonics over the last two revolutions)."""
+    from rotoruq.mbdyn import hub_loads
+    from rotoruq.rotor.presets import gvpm
+
+    p = gvpm()
+    vals, wall = run_template(wd, "elastic", OP, settings, mbdyn, table_cm=table_cm)
+    loads = hub_loads(wd / "rotor.rot", omega=OP["omega"], rho=vals["rho"], radius=p.radius,
+                      steps_per_rev=settings.steps_per_rev, revolutions=settings.revolutions,
+                      joint=wd / "rotor.jnt")
+    b = blade1(wd)
+    n = 2 * settings.steps_per_rev
+    psi = (np.arange(len(b["tip_pitch"])) * 2 * math.pi / settings.steps_per_rev)[-n:]
+    L = p.radius - p.root_cutout
+    w = harmonic1(psi, b["tip_pos"][-n:, 2])
+    v = harmonic1(psi, b["tip_pos"][-n:, 1])
+    th_root = harmonic1(psi, b["root_pitch"][-n:])
+    th_tip = harmonic1(psi, b["tip_pitch"][-n:])
+    mb = {"thrust": loads.thrust, "power": loads.power, "torque": loads.torque,
+          "roll": loads.roll, "pitch": loads.pitch, "inflow_m_s": loads.inflow,
+          "coning_deg": math.degrees(math.asin(w[0] / L)),
+          "lag_deg": math.degrees(math.asin(v[0] / L)),
+          "root_mean_pitch_deg": math.degrees(th_root[0]),
+          "tip_mean_pitch_deg": math.degrees(th_tip[0]),
+          "flap_phase_lag_deg": phase_lag_deg(th_root[1:], w[1:]),
+          "flap_phase_lag_vs_command_deg": phase_lag_deg(
+              (OP["lateral_deg"], OP["longitudinal_deg"]), w[1:]),
+          **pitch_response(OP, th_root[1:]), "wall_s": wall}
+    return mb, loads, th_root, th_tip, w
+
+
+def vacuum_pitch(mbdyn, tmp: Path) -> float:
+    """Blade 1's mean root pitch [rad] in vacuo (rho 1e-6) at the collective of :data:`OP`."""
+    from rotoruq.mbdyn import CaseSettings
+
+    x = {**OP, "lateral_deg": 0.0, "longitudinal_deg": 0.0, "rho": 1e-6}
+    st = CaseSettings(revolutions=4, average=1)
+    wd = tmp / "vacuum_static"
+    run_template(wd, "elastic", x, st, mbdyn)
+    return float(np.mean(blade1(wd)["root_pitch"][-st.steps_per_rev:]))
 
 
 def hover_and_loads(mbdyn, tmp: Path, quick: bool) -> tuple[dict, dict, dict]:
@@ -334,30 +420,11 @@ def hover_and_loads(mbdyn, tmp: Path, quick: bool) -> tuple[dict, dict, dict]:
     om = OP["omega"]
     revs = 8 if quick else 12
     settings = CaseSettings(revolutions=revs)
-    wd = tmp / "hover_elastic"
-    vals, wall = run_template(wd, "elastic", OP, settings, mbdyn)
-    loads = hub_loads(wd / "rotor.rot", omega=om, rho=vals["rho"], radius=p.radius,
-                      steps_per_rev=settings.steps_per_rev, revolutions=revs,
-                      joint=wd / "rotor.jnt")
-    b = blade1(wd)
-    n = 2 * settings.steps_per_rev
-    psi = (np.arange(len(b["tip_pitch"])) * 2 * math.pi / settings.steps_per_rev)[-n:]
+    mb, loads, th_root, th_tip, w = elastic_hover(tmp / "hover_elastic", settings, mbdyn)
+    nocm = elastic_hover(tmp / "hover_elastic_no_cm", settings, mbdyn, table_cm=False)[0]
     e, R = p.root_cutout, p.radius
     L = R - e
-    w = harmonic1(psi, b["tip_pos"][-n:, 2])
-    v = harmonic1(psi, b["tip_pos"][-n:, 1])
-    th_root = harmonic1(psi, b["root_pitch"][-n:])
-    th_tip = harmonic1(psi, b["tip_pitch"][-n:])
-    coning = math.degrees(math.asin(w[0] / L))
-    lag = math.degrees(math.asin(v[0] / L))
-    mb = {"thrust": loads.thrust, "power": loads.power, "roll": loads.roll, "pitch": loads.pitch,
-          "inflow_m_s": loads.inflow, "coning_deg": coning, "lag_deg": lag,
-          "root_mean_pitch_deg": math.degrees(th_root[0]),
-          "tip_mean_pitch_deg": math.degrees(th_tip[0]),
-          "flap_phase_lag_deg": phase_lag_deg(th_root[1:], w[1:]),
-          "flap_phase_lag_vs_command_deg": phase_lag_deg(
-              (OP["lateral_deg"], OP["longitudinal_deg"]), w[1:]),
-          "wall_s": wall}
+    coning, lag = mb["coning_deg"], mb["lag_deg"]
     # references: the lift of MBDyn's thrust and inflow, ~ (theta Omega r^2 - v r) per length
     theta = th_root[0]
     vi = loads.inflow
@@ -380,6 +447,42 @@ def hover_and_loads(mbdyn, tmp: Path, quick: bool) -> tuple[dict, dict, dict]:
                                           * math.tan(th_tip[0])))
     fit = builtin_state(p, OP)
     same = builtin_state(p.replace(aero_center_offset=0.0, pitching_moment=True), OP)
+    # the feathering equilibrium: in vacuo the link against the propeller moment,
+    # sin(theta) = K sin(theta_0) / (K + P), K = K_p l_h^2 / l_0, P = 0.99 I_p Omega^2
+    # (the template's sections: J_22 = 0.01 J_11); in air without the table's CM the drag
+    # acting on the coned blade above the feathering axis adds a nose-up moment
+    k_theta = p.feathering_stiffness(OP["k_pitch_link"])
+    prop = 0.99 * p.blade_mass_per_length * L * (p.chord / 4) ** 2 * om**2
+    th0 = math.radians(OP["collective_deg"])
+    theta_vac = vacuum_pitch(mbdyn, tmp)
+    theta_closed = math.asin(k_theta * math.sin(th0) / (k_theta + prop))
+    th_nocm = math.radians(nocm["root_mean_pitch_deg"])
+
+    def lift_nocm(x):
+        return th_nocm * om * x**2 - nocm["inflow_m_s"] * x
+
+    lift_scale = nocm["thrust"] / p.n_blades / np.trapezoid(lift_nocm(xs), xs)
+    # in-plane force per length ~ r (induced drag of uniform inflow: ~ lift * v / (Omega r))
+    drag_scale = nocm["torque"] / p.n_blades / np.trapezoid(xs * xs, xs)
+    m_coning = coning_moment(p.ei_flap, p.blade_mass_per_length, e, R, om,
+                             lambda x: lift_scale * lift_nocm(x), lambda x: drag_scale * x)
+    rise_closed = m_coning / ((k_theta + prop) * math.cos(th_nocm))
+    tol_ph = TOL["flap_phase_deg"]
+    pitch_checks = [
+        check("in vacuo: link against propeller moment", math.degrees(theta_vac),
+              math.degrees(theta_closed), TOL["pitch_in_vacuo"]),
+        check("air, no table CM: rise over vacuo, drag on the coned blade",
+              nocm["root_mean_pitch_deg"] - math.degrees(theta_vac), math.degrees(rise_closed),
+              TOL["coning_pitch_moment"]),
+        check("air, no table CM: 1/rev amplitude / command", nocm["pitch_1rev_amplitude_ratio"],
+              1.0, TOL["pitch_1rev_amplitude"]),
+        check_deg("air, no table CM: 1/rev lag behind command",
+                  nocm["pitch_1rev_lag_vs_command_deg"], 0.0, tol_ph),
+        check("air, table CM: 1/rev amplitude / command", mb["pitch_1rev_amplitude_ratio"], 1.0,
+              TOL["pitch_1rev_amplitude"]),
+        check_deg("air, table CM: 1/rev lag behind command", mb["pitch_1rev_lag_vs_command_deg"],
+                  0.0, tol_ph),
+    ]
     hover = {
         "mbdyn": mb, "builtin_preset": fit, "builtin_mbdyn_aero_physics": same,
         "checks": {
@@ -397,12 +500,14 @@ def hover_and_loads(mbdyn, tmp: Path, quick: bool) -> tuple[dict, dict, dict]:
                       TOL["builtin_lag"])],
         },
     }
-    d_phase = mb["flap_phase_lag_deg"] - fit["flap_phase_lag_deg"]
-    hover["checks"]["flap_phase"] = [{
-        "reference": "built-in preset", "value": mb["flap_phase_lag_deg"],
-        "reference_value": fit["flap_phase_lag_deg"], "diff_deg": d_phase,
-        "tolerance_deg": TOL["flap_phase_deg"],
-        "passed": bool(abs(d_phase) <= TOL["flap_phase_deg"])}]
+    hover["checks"]["flap_phase"] = [
+        check_deg("built-in preset", mb["flap_phase_lag_deg"], fit["flap_phase_lag_deg"],
+                  tol_ph),
+        check_deg("MBDyn without the table CM", mb["flap_phase_lag_deg"],
+                  nocm["flap_phase_lag_deg"], tol_ph)]
+    hover["checks"]["pitch"] = pitch_checks
+    hover["mbdyn_no_table_cm"] = nocm
+    hover["mbdyn_in_vacuo_mean_pitch_deg"] = math.degrees(theta_vac)
     # loads: rigid template vs the built-in model on identical physics, elastic vs built-in
     rig_in = {"omega": om, "collective_deg": OP["collective_deg"],
               "height_over_radius": OP["height_over_radius"]}
@@ -516,6 +621,10 @@ def summary(res: dict) -> str:
             lines.append(_row(f"elastic: {key}", c, unit))
     for c in h["flap_phase"]:
         lines.append(_row("elastic: 1/rev flap lag behind pitch", c, " deg", ".1f"))
+    for c in h["pitch"]:
+        case, what = c["reference"].split(": ", 1)
+        unit = "" if "amplitude" in what else " deg"
+        lines.append(_row(f"elastic: pitch, {case}", {**c, "reference": what}, unit, ".3g"))
     for model in ("rigid", "elastic"):
         for c in res["loads"][model]["checks"]:
             what, q = c["reference"].rsplit(": ", 1)
@@ -531,23 +640,27 @@ def summary(res: dict) -> str:
               f"damping ratios flap {fr['modes']['flap']['mbdyn_damping_ratio']:.3f}, lag "
               f"{fr['modes']['lag']['mbdyn_damping_ratio']:.3f}, torsion "
               f"{fr['modes']['torsion']['mbdyn_damping_ratio']:.3f} (beam damping 1e-4 s)."]
-    hm = res["hover"]["mbdyn"]
-    lines += ["", f"MBDyn, blade 1: the 1/rev flap lags the blade's own root pitch by "
-              f"{hm['flap_phase_lag_deg']:.1f} deg and the swashplate command by "
-              f"{hm['flap_phase_lag_vs_command_deg']:.1f} deg."]
     ac = res["aero_center_offset"]
     af = ac["airfoil"]
-    lines += ["", "| built-in GVPM, a.c. offset | x_ac [mm] | thrust [N] | power [W] | "
-              "coning [deg] | mean pitch [deg] | flap lag [deg] | thrust / power vs MBDyn |",
-              "|---|---|---|---|---|---|---|---|"]
+    lines += ["", "| model | x_ac [mm] | thrust [N] | power [W] | roll / pitch [N m] | "
+              "coning [deg] | mean pitch [deg] | 1/rev pitch / command | flap lag behind "
+              "pitch / command [deg] | thrust / power vs MBDyn |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
+
+    def cells(r, mean_pitch):
+        return (f"{r['thrust']:.2f} | {r['power']:.1f} | {r['roll']:+.2f} / {r['pitch']:+.2f} | "
+                f"{r['coning_deg']:.3f} | {mean_pitch:.2f} | "
+                f"{r['pitch_1rev_amplitude_ratio']:.2f}, {r['pitch_1rev_lag_vs_command_deg']:+.0f}"
+                f" deg | {r['flap_phase_lag_deg']:.1f} / "
+                f"{r['flap_phase_lag_deg'] + r['pitch_1rev_lag_vs_command_deg']:.1f}")
+
     for name, r in ac["cases"].items():
-        lines.append(f"| {name} | {1e3 * r['aero_center_offset_m']:+.2f} | {r['thrust']:.2f} | "
-                     f"{r['power']:.1f} | {r['coning_deg']:.3f} | {r['mean_pitch_deg']:.2f} | "
-                     f"{r['flap_phase_lag_deg']:.1f} | {r['thrust_vs_mbdyn_pct']:+.1f} % / "
+        lines.append(f"| built-in, {name} | {1e3 * r['aero_center_offset_m']:+.2f} | "
+                     f"{cells(r, r['mean_pitch_deg'])} | {r['thrust_vs_mbdyn_pct']:+.1f} % / "
                      f"{r['power_vs_mbdyn_pct']:+.1f} % |")
-    lines.append(f"| MBDyn elastic (a.c. on the axis, table CM) | 0 | {hm['thrust']:.2f} | "
-                 f"{hm['power']:.1f} | {hm['coning_deg']:.3f} | {hm['root_mean_pitch_deg']:.2f} | "
-                 f"{hm['flap_phase_lag_deg']:.1f} | - |")
+    for name, r in (("MBDyn elastic (a.c. on the axis, table CM)", res["hover"]["mbdyn"]),
+                    ("MBDyn elastic, table CM zeroed", res["hover"]["mbdyn_no_table_cm"])):
+        lines.append(f"| {name} | 0 | {cells(r, r['root_mean_pitch_deg'])} | - |")
     lines += ["", f"Airfoil CM slope: x_ac - c/4 = {1e3 * af['x_ac_m']:+.2f} mm (lift-weighted "
               f"over Mach {af['mach'][0]:.2f}-{af['mach'][-1]:.2f}, spread "
               f"{1e3 * af['spread_m']:.2f} mm; minus = ahead of the quarter chord)."]

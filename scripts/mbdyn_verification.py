@@ -658,6 +658,12 @@ def summary(res: dict) -> str:
         lines.append(f"| built-in, {name} | {1e3 * r['aero_center_offset_m']:+.2f} | "
                      f"{cells(r, r['mean_pitch_deg'])} | {r['thrust_vs_mbdyn_pct']:+.1f} % / "
                      f"{r['power_vs_mbdyn_pct']:+.1f} % |")
+    r = res["hover"]["builtin_mbdyn_aero_physics"]
+    hm = res["hover"]["mbdyn"]
+    lines.append(f"| built-in, a.c. on the axis, table CM (MBDyn's) | 0 | "
+                 f"{cells(r, r['mean_pitch_deg'])} | "
+                 f"{100 * (r['thrust'] / hm['thrust'] - 1):+.1f} % / "
+                 f"{100 * (r['power'] / hm['power'] - 1):+.1f} % |")
     for name, r in (("MBDyn elastic (a.c. on the axis, table CM)", res["hover"]["mbdyn"]),
                     ("MBDyn elastic, table CM zeroed", res["hover"]["mbdyn_no_table_cm"])):
         lines.append(f"| {name} | 0 | {cells(r, r['root_mean_pitch_deg'])} | - |")

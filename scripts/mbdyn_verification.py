@@ -4,7 +4,7 @@
     python scripts/mbdyn_verification.py --quick      # shorter MBDyn runs: a smoke run
     python scripts/mbdyn_verification.py --summary scripts/results/mbdyn_verification.json
 
-About a minute on 2 cores (8 MBDyn runs). Needs MBDyn ($MBDYN, PATH, or
+About two minutes on 2 cores (9 MBDyn runs). Needs MBDyn ($MBDYN, PATH, or
 ~/.cache/mbdyn/bin/mbdyn); without it the JSON says ``skipped``.
 
 Sections (each check: MBDyn's value, the reference, the difference and pass/fail against the
@@ -19,12 +19,12 @@ stated tolerance):
   cantilever root 1.8751 and the Southwell coefficient 1.193) and against the equivalent
   hinges of the built-in model (nu_beta^2 = 1 + e S / I + K_b / (I Omega^2), K_b = 4.12 EI/L;
   nu_theta^2 = 1 + K_theta / (I_p Omega^2)). The rigid template has no blade modes (clamped).
-- ``hover``: the elastic template at the thesis's operating point (commands 5, -1, -1 deg,
-  K_p 15 N/m, 4R): blade 1's tip flap and lag displacement (as equivalent-hinge angles
-  asin(w / L)), its pitch and the 1/rev flap phase lag behind the pitch, against the static
-  deflection of the rotating beam under the lift distribution of MBDyn's own thrust and inflow,
-  the equivalent-hinge moment balance, the weak-axis bending of the pitched blade (lag =
-  -coning tan theta) and the built-in model; the mean pitch in vacuo against the feathering
+- ``hover``: the elastic template in axisymmetric hover (collective 5 deg, K_p 15 N/m, 4R):
+  blade 1's mean tip flap and lag displacement (as equivalent-hinge angles asin(w / L)) against
+  the static deflection of the rotating beam with pitched principal axes under the lift and
+  drag of MBDyn's own thrust, torque and inflow, the equivalent-hinge moment balance and the
+  built-in model; at the thesis's operating point (cyclic -1, -1 deg) the lag of the 1/rev flap
+  behind the pitch; the mean pitch in vacuo against the feathering
   equilibrium sin(theta) = K sin(theta_0) / (K + 0.99 I_p Omega^2), its rise in air (the table's
   CM zeroed) against the drag acting on the coned blade above the feathering axis, and the
   1/rev pitch against the swashplate command with and without the table's CM.
@@ -121,6 +121,22 @@ def rotating_beam(ei, m, e, R, omega, n_el=40, inplane=False, load=None):
     from scipy.linalg import eigh
 
     return float(math.sqrt(eigh(K, M, eigvals_only=True)[0]))
+
+
+def pitched_beam_static(ei_y, ei_z, m, e, R, omega, theta, lift, drag, n_el=40):
+    """Tip deflections [m] (up, and in plane in the direction of rotation) of the uniform beam
+    of :func:`beam_matrices` pitched by ``theta`` [rad]: bending EI_y about the chord and EI_z
+    about the normal (energy EI_y (w'' cos - v'' sin)^2 + EI_z (w'' sin + v'' cos)^2, halved),
+    under the lift ``lift`` (up) and the drag ``drag`` (against the rotation) per length."""
+    kb, mm, F = beam_matrices(1.0, m, e, R, 0.0, n_el, loads=(lift, drag))
+    kg = beam_matrices(0.0, m, e, R, omega, n_el)[0]
+    c, s = math.cos(theta), math.sin(theta)
+    ww, vv = ei_y * c**2 + ei_z * s**2, ei_y * s**2 + ei_z * c**2
+    wv = (ei_z - ei_y) * s * c
+    K = np.block([[ww * kb + kg, wv * kb], [wv * kb, vv * kb + kg - omega**2 * mm]])
+    u = np.linalg.solve(K, np.concatenate([F[0], -F[1]]))
+    n = kb.shape[0]
+    return float(u[n - 2]), float(u[2 * n - 2])
 
 
 def coning_moment(ei, m, e, R, omega, lift, inplane, n_el=40):
@@ -356,27 +372,32 @@ def builtin_state(preset, x: dict) -> dict:
             "pitch": float(y[3]), "coning_deg": float(s.coning_deg[0]),
             "lag_deg": float(np.rad2deg(s.lag[0, 0].real)),
             "mean_pitch_deg": float(np.rad2deg(s.feather[0, 0].real)),
-            "flap_phase_lag_deg": phase_lag_deg(theta1, beta1),
-            **pitch_response(x, theta1)}
+            **pitch_response(x, theta1, beta1)}
 
 
-def pitch_response(x: dict, theta1) -> dict:
-    """The blade's 1/rev pitch (cos, sin amplitudes [rad]) against the swashplate command of
-    ``x``: amplitude ratio and lag [deg] behind the command."""
+def pitch_response(x: dict, theta1, beta1) -> dict:
+    """The blade's 1/rev pitch and flap (cos, sin amplitudes [rad]) against the swashplate
+    command of ``x``: the flap's lag [deg] behind the pitch, the pitch's amplitude ratio and
+    lag [deg] behind the command (none without cyclic)."""
     cmd = (x["lateral_deg"], x["longitudinal_deg"])
-    return {"pitch_1rev_amplitude_ratio": math.degrees(math.hypot(*theta1)) / math.hypot(*cmd),
+    if math.hypot(*cmd) == 0:
+        return {}
+    return {"flap_phase_lag_deg": phase_lag_deg(theta1, beta1),
+            "flap_phase_lag_vs_command_deg": phase_lag_deg(cmd, beta1),
+            "pitch_1rev_amplitude_ratio": math.degrees(math.hypot(*theta1)) / math.hypot(*cmd),
             "pitch_1rev_lag_vs_command_deg": phase_lag_deg(cmd, theta1)}
 
 
-def elastic_hover(wd: Path, settings, mbdyn, table_cm: bool = True):
-    """The elastic template at :data:`OP`: hub loads and blade 1's motion (means and 1/rev
-    harmonics over the last two revolutions)."""
+def elastic_hover(wd: Path, settings, mbdyn, x: dict | None = None, table_cm: bool = True):
+    """The elastic template at ``x`` (default :data:`OP`): hub loads and blade 1's motion
+    (means and 1/rev harmonics over the last two revolutions)."""
     from rotoruq.mbdyn import hub_loads
     from rotoruq.rotor.presets import gvpm
 
     p = gvpm()
-    vals, wall = run_template(wd, "elastic", OP, settings, mbdyn, table_cm=table_cm)
-    loads = hub_loads(wd / "rotor.rot", omega=OP["omega"], rho=vals["rho"], radius=p.radius,
+    x = OP if x is None else x
+    vals, wall = run_template(wd, "elastic", x, settings, mbdyn, table_cm=table_cm)
+    loads = hub_loads(wd / "rotor.rot", omega=x["omega"], rho=vals["rho"], radius=p.radius,
                       steps_per_rev=settings.steps_per_rev, revolutions=settings.revolutions,
                       joint=wd / "rotor.jnt")
     b = blade1(wd)
@@ -393,10 +414,7 @@ def elastic_hover(wd: Path, settings, mbdyn, table_cm: bool = True):
           "lag_deg": math.degrees(math.asin(v[0] / L)),
           "root_mean_pitch_deg": math.degrees(th_root[0]),
           "tip_mean_pitch_deg": math.degrees(th_tip[0]),
-          "flap_phase_lag_deg": phase_lag_deg(th_root[1:], w[1:]),
-          "flap_phase_lag_vs_command_deg": phase_lag_deg(
-              (OP["lateral_deg"], OP["longitudinal_deg"]), w[1:]),
-          **pitch_response(OP, th_root[1:]), "wall_s": wall}
+          **pitch_response(x, th_root[1:], w[1:]), "wall_s": wall}
     return mb, loads, th_root, th_tip, w
 
 
@@ -420,20 +438,24 @@ def hover_and_loads(mbdyn, tmp: Path, quick: bool) -> tuple[dict, dict, dict]:
     om = OP["omega"]
     revs = 8 if quick else 12
     settings = CaseSettings(revolutions=revs)
-    mb, loads, th_root, th_tip, w = elastic_hover(tmp / "hover_elastic", settings, mbdyn)
+    mb, loads = elastic_hover(tmp / "hover_elastic", settings, mbdyn)[:2]
     nocm = elastic_hover(tmp / "hover_elastic_no_cm", settings, mbdyn, table_cm=False)[0]
+    # statics in axisymmetric hover (the cyclic's 1/rev products move the mean lag)
+    hover0 = {**OP, "lateral_deg": 0.0, "longitudinal_deg": 0.0}
+    mb0, loads0, th_root, th_tip, _ = elastic_hover(tmp / "hover_elastic_axisymmetric",
+                                                    settings, mbdyn, hover0)
     e, R = p.root_cutout, p.radius
     L = R - e
-    coning, lag = mb["coning_deg"], mb["lag_deg"]
+    coning, lag = mb0["coning_deg"], mb0["lag_deg"]
     # references: the lift of MBDyn's thrust and inflow, ~ (theta Omega r^2 - v r) per length
     theta = th_root[0]
-    vi = loads.inflow
+    vi = loads0.inflow
 
     def shape(x):
         return theta * om * x**2 - vi * x
 
     xs = np.linspace(e, R, 2001)
-    per_blade = loads.thrust / p.n_blades
+    per_blade = loads0.thrust / p.n_blades
     scale = per_blade / np.trapezoid(shape(xs), xs)
     moment = scale * np.trapezoid(shape(xs) * (xs - e), xs)
     from rotoruq.rotor.geometry import CANTILEVER_SPRING_FACTOR, blade_grid
@@ -441,11 +463,13 @@ def hover_and_loads(mbdyn, tmp: Path, quick: bool) -> tuple[dict, dict, dict]:
     g = blade_grid(p, 10, 36)
     k_b = CANTILEVER_SPRING_FACTOR * p.ei_flap / L
     beta_hinge = moment / (k_b + om**2 * (g.I_flap + e * g.S_flap))
-    w_beam = rotating_beam(p.ei_flap, p.blade_mass_per_length, e, R, om,
-                           load=lambda x: scale * shape(x))
-    lag_pitched = -math.degrees(math.atan(math.tan(math.asin(w[0] / L))
-                                          * math.tan(th_tip[0])))
+    # in-plane force per length ~ r (induced drag of uniform inflow: ~ lift * v / (Omega r))
+    drag_scale = loads0.torque / p.n_blades / np.trapezoid(xs * xs, xs)
+    w_beam, v_beam = pitched_beam_static(p.ei_flap, TEMPLATE_EI_Z, p.blade_mass_per_length, e, R,
+                                         om, 0.5 * (th_root[0] + th_tip[0]),
+                                         lambda x: scale * shape(x), lambda x: drag_scale * x)
     fit = builtin_state(p, OP)
+    fit0 = builtin_state(p, hover0)
     same = builtin_state(p.replace(aero_center_offset=0.0, pitching_moment=True), OP)
     # the feathering equilibrium: in vacuo the link against the propeller moment,
     # sin(theta) = K sin(theta_0) / (K + P), K = K_p l_h^2 / l_0, P = 0.99 I_p Omega^2
@@ -462,10 +486,9 @@ def hover_and_loads(mbdyn, tmp: Path, quick: bool) -> tuple[dict, dict, dict]:
         return th_nocm * om * x**2 - nocm["inflow_m_s"] * x
 
     lift_scale = nocm["thrust"] / p.n_blades / np.trapezoid(lift_nocm(xs), xs)
-    # in-plane force per length ~ r (induced drag of uniform inflow: ~ lift * v / (Omega r))
-    drag_scale = nocm["torque"] / p.n_blades / np.trapezoid(xs * xs, xs)
+    drag_nocm = nocm["torque"] / p.n_blades / np.trapezoid(xs * xs, xs)
     m_coning = coning_moment(p.ei_flap, p.blade_mass_per_length, e, R, om,
-                             lambda x: lift_scale * lift_nocm(x), lambda x: drag_scale * x)
+                             lambda x: lift_scale * lift_nocm(x), lambda x: drag_nocm * x)
     rise_closed = m_coning / ((k_theta + prop) * math.cos(th_nocm))
     tol_ph = TOL["flap_phase_deg"]
     pitch_checks = [
@@ -487,16 +510,16 @@ def hover_and_loads(mbdyn, tmp: Path, quick: bool) -> tuple[dict, dict, dict]:
         "mbdyn": mb, "builtin_preset": fit, "builtin_mbdyn_aero_physics": same,
         "checks": {
             "coning": [
-                check("beam theory: static deflection under MBDyn's lift", coning,
+                check("beam theory: static deflection under MBDyn's lift and drag", coning,
                       math.degrees(math.asin(w_beam / L)), TOL["beam_static_coning"]),
                 check("equivalent hinge moment balance under MBDyn's lift", coning,
                       math.degrees(beta_hinge), TOL["equivalent_hinge_coning"]),
-                check("built-in preset (its own thrust)", coning, fit["coning_deg"],
+                check("built-in preset (its own thrust)", coning, fit0["coning_deg"],
                       TOL["equivalent_hinge_coning"])],
             "lag": [
-                check("pitched beam: -coning tan(theta) (weak-axis bending)", lag, lag_pitched,
-                      TOL["pitched_beam_lag"]),
-                check("built-in preset (lag hinge in the disk plane)", lag, fit["lag_deg"],
+                check("beam theory: pitched principal axes, MBDyn's lift and drag", lag,
+                      math.degrees(math.asin(v_beam / L)), TOL["pitched_beam_lag"]),
+                check("built-in preset (lag hinge in the disk plane)", lag, fit0["lag_deg"],
                       TOL["builtin_lag"])],
         },
     }
@@ -507,6 +530,8 @@ def hover_and_loads(mbdyn, tmp: Path, quick: bool) -> tuple[dict, dict, dict]:
                   nocm["flap_phase_lag_deg"], tol_ph)]
     hover["checks"]["pitch"] = pitch_checks
     hover["mbdyn_no_table_cm"] = nocm
+    hover["mbdyn_axisymmetric"] = mb0
+    hover["builtin_preset_axisymmetric"] = fit0
     hover["mbdyn_in_vacuo_mean_pitch_deg"] = math.degrees(theta_vac)
     # loads: rigid template vs the built-in model on identical physics, elastic vs built-in
     rig_in = {"omega": om, "collective_deg": OP["collective_deg"],

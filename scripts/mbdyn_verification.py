@@ -60,7 +60,7 @@ TOL = {"beam_theory_frequency": 2.0, "beam_theory_lag_frequency": 3.0,
        "equivalent_hinge_coning": 15.0, "pitched_beam_lag": 10.0, "builtin_lag": 50.0,
        "identical_physics_loads": 0.5, "elastic_vs_builtin_loads": 5.0,
        "flap_phase_deg": 10.0, "pitch_in_vacuo": 1.0, "coning_pitch_moment": 30.0,
-       "pitch_1rev_amplitude": 5.0}
+       "pitch_1rev_amplitude": 5.0, "swashplate_amplitude": 1.0, "swashplate_phase_deg": 1.0}
 #: Southwell coefficient of the first flap mode of a uniform cantilever, no hub offset, as
 #: Omega -> 0 (the Rayleigh quotient of the non-rotating mode; Bramwell, Helicopter Dynamics)
 SOUTHWELL_1 = 1.193
@@ -221,9 +221,9 @@ def run_template(wd: Path, template: str, inputs: dict, settings, mbdyn, extra: 
     return values, time.perf_counter() - t0
 
 
-def blade1(wd: Path, tip: int = 1006, root: int = 1000):
-    """Blade 1 in the hub frame from the .mov file: tip position (n, 3) [m], tip and root pitch
-    (n,) [rad] (the chord axis's angle to the disk plane)."""
+def blade1(wd: Path, tip: int = 1006, root: int = 1000, swashplate: int = 1100):
+    """Blade 1 in the hub frame from the .mov file: tip, root and swashplate-point positions
+    (n, 3) [m], tip and root pitch (n,) [rad] (the chord axis's angle to the disk plane)."""
     a = np.loadtxt(wd / "rotor.mov")
     hub = a[a[:, 0] == 3]
     Rh = hub[:, 4:13].reshape(-1, 3, 3)
@@ -233,6 +233,8 @@ def blade1(wd: Path, tip: int = 1006, root: int = 1000):
         Rrel = np.einsum("nji,njk->nik", Rh, x[:, 4:13].reshape(-1, 3, 3))
         out[name + "_pos"] = np.einsum("nji,nj->ni", Rh, x[:, 1:4])
         out[name + "_pitch"] = np.arctan2(Rrel[:, 2, 1], Rrel[:, 1, 1])
+    x = a[a[:, 0] == swashplate]
+    out["swashplate_pos"] = np.einsum("nji,nj->ni", Rh, x[:, 1:4])
     return out
 
 
@@ -305,7 +307,9 @@ def frequencies(mbdyn, tmp: Path, quick: bool) -> dict:
         "southwell_e0_literature": SOUTHWELL_1,
     }
     out: dict = {"inputs": vac, "steps_per_rev": spr, "revolutions": settings.revolutions,
-                 "beam_theory_check": self_check, "modes": {}, "wall_s": 0.0}
+                 "beam_theory_check": self_check, "modes": {}, "wall_s": 0.0,
+                 "rigid_template": "no blade modes: its blades are aerodynamic bodies clamped "
+                                   "to the hub (no coning, lag or elastic pitch either)"}
     for mode, force in DECAY.items():
         wd = tmp / f"decay_{mode}"
         _, wall = run_template(wd, "elastic", vac, settings, mbdyn, force.format(t=t_rel))
@@ -415,6 +419,14 @@ def elastic_hover(wd: Path, settings, mbdyn, x: dict | None = None, table_cm: bo
           "root_mean_pitch_deg": math.degrees(th_root[0]),
           "tip_mean_pitch_deg": math.degrees(th_tip[0]),
           **pitch_response(x, th_root[1:], w[1:]), "wall_s": wall}
+    if "pitch_1rev_amplitude_ratio" in mb:
+        # the swashplate point rises A_H (sin(theta_0 + theta_1(psi)) - sin(theta_0)): its
+        # 1/rev is the command times A_H cos(theta_0)
+        z = harmonic1(psi, b["swashplate_pos"][-n:, 2])[1:] / (
+            p.pitch_horn_arm * math.cos(math.radians(x["collective_deg"])))
+        sw = pitch_response(x, z, w[1:])
+        mb["swashplate_1rev_amplitude_ratio"] = sw["pitch_1rev_amplitude_ratio"]
+        mb["swashplate_1rev_lag_vs_command_deg"] = sw["pitch_1rev_lag_vs_command_deg"]
     return mb, loads, th_root, th_tip, w
 
 
@@ -492,6 +504,10 @@ def hover_and_loads(mbdyn, tmp: Path, quick: bool) -> tuple[dict, dict, dict]:
     rise_closed = m_coning / ((k_theta + prop) * math.cos(th_nocm))
     tol_ph = TOL["flap_phase_deg"]
     pitch_checks = [
+        check("swashplate: 1/rev amplitude / command", mb["swashplate_1rev_amplitude_ratio"],
+              1.0, TOL["swashplate_amplitude"]),
+        check_deg("swashplate: 1/rev lag behind command",
+                  mb["swashplate_1rev_lag_vs_command_deg"], 0.0, TOL["swashplate_phase_deg"]),
         check("in vacuo: link against propeller moment", math.degrees(theta_vac),
               math.degrees(theta_closed), TOL["pitch_in_vacuo"]),
         check("air, no table CM: rise over vacuo, drag on the coned blade",
@@ -649,7 +665,8 @@ def summary(res: dict) -> str:
     for c in h["pitch"]:
         case, what = c["reference"].split(": ", 1)
         unit = "" if "amplitude" in what else " deg"
-        lines.append(_row(f"elastic: pitch, {case}", {**c, "reference": what}, unit, ".3g"))
+        shown = {**c, "reference": what, "value": round(c["value"], 4) + 0.0}
+        lines.append(_row(f"elastic: pitch, {case}", shown, unit, ".3g"))
     for model in ("rigid", "elastic"):
         for c in res["loads"][model]["checks"]:
             what, q = c["reference"].rsplit(": ", 1)

@@ -90,7 +90,9 @@ def test_quick_run_verifies_the_templates(tmp_path):
     assert all(c["passed"] for c in res["hover"]["checks"]["flap_phase"])
     pitch = {c["reference"]: c for c in res["hover"]["checks"]["pitch"]}
     # the feathering equilibrium in vacuo; without the table's CM the pitch follows the command
-    for key in ("in vacuo: link against propeller moment",
+    for key in ("swashplate: 1/rev amplitude / command",  # the command convention
+                "swashplate: 1/rev lag behind command",
+                "in vacuo: link against propeller moment",
                 "air, no table CM: 1/rev amplitude / command"):
         assert pitch[key]["passed"], pitch[key]
     for c in res["loads"]["rigid"]["checks"]:

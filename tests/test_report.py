@@ -367,6 +367,7 @@ def test_reproduce_quick(tmp_path, capsys):
     assert main(["reproduce", "all", "--quick", "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out  # the same summary as `run`, per chapter
     assert "summary of validation" in out and "summary of experiment" in out
+    assert "summary of heldout" in out  # the held-out ground-effect validation (issue 22)
     page = (tmp_path / "report" / "index.html").read_text()
     for number in ("3.4", "3.9", "3.13", "4.9", "4.12", "4.14", "4.17", "4.19"):
         assert f"Table {number}:" in page
@@ -377,6 +378,16 @@ def test_reproduce_quick(tmp_path, capsys):
         assert {f"gvpm_within_1std_{where}_independent", f"gvpm_within_1std_{where}_joint"} \
             <= keys
     assert {"ge_within_3std_ct_joint", "ge_within_3std_ct_independent"} <= keys
+    # the V&V 20 verdicts with the thesis's criterion beside them, and the held-out 1R claims
+    by = {c["key"]: c for c in data}
+    for where in ("4R", "2R", "1R"):
+        assert by[f"gvpm_vv20_{where}"]["counted"] and by[f"gvpm_vv20_{where}"]["value"]
+        assert by[f"gvpm_within_1std_{where}_joint"]["beside"] == f"gvpm_vv20_{where}"
+    assert {"heldout_1r_band", "heldout_1r_vv20"} <= keys
+    vv = page[page.index("id='vv'"):page.index("id='provenance'")]
+    for step in ("experiment / validate", "heldout / validate_heldout",
+                 "heldout / validate_no_discrepancy"):
+        assert step in vv, step
     assert (tmp_path / "experiment" / "steps" / "bayes" / "chain.npy").is_file()
     assert (tmp_path / "report" / "figures" / "experiment_ground_effect_ct_vs_height.png"
             ).is_file()

@@ -529,9 +529,9 @@ def _check_model_names(ck: Checker, opts: Mapping, models: Mapping[str, ModelSpe
     known = list(models)
     for n in names:
         if n not in known:
-            ck.fail(w + ("models",), f"names of [models.NAME] tables in {what} "
-                    f"({', '.join(known) or 'none defined: add [models.' + str(n) + ']'})"
-                    f"{close_hint(str(n), known)}", str(n))
+            defined = ", ".join(known) or f"none; add a [models.{n}] table"
+            ck.fail(w + ("models",), f"names of [models.NAME] tables in the models of {what} "
+                    f"(defined: {defined}){close_hint(str(n), known)}", str(n))
 
 
 def _check_data_used_once(ck: Checker, raw: list, steps: list[StepSpec], model) -> None:

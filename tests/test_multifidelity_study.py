@@ -5,7 +5,6 @@ its line."""
 
 from __future__ import annotations
 
-import os
 import sqlite3
 import subprocess
 import sys
@@ -19,6 +18,7 @@ from rotoruq.results import load_step
 from rotoruq.rotor.model import RotorModel
 from rotoruq.study.runner import run_study, why_rerun
 from rotoruq.study.schema import load_study
+from test_mbdyn import env_with_mbdyn, needs_mbdyn
 
 CLI = [sys.executable, "-m", "rotoruq.study.cli"]
 STUDIES = Path(__file__).resolve().parents[1] / "src" / "rotoruq" / "studies"
@@ -95,6 +95,7 @@ def test_rotor_study_through_cli_from_a_fresh_folder(tmp_path):
     assert res.scalars["allocation/coarse"] > 10 * res.scalars["allocation/model"]
 
 
+@pytest.mark.slow
 def test_rotor_study_on_dask_by_changing_only_the_executor(tmp_path):
     """The same study file with ``[executor] kind = "dask"`` (a local cluster the run starts):
     it runs, and its estimates are as right as the serial ones."""
@@ -262,17 +263,6 @@ def test_bad_models_input_through_the_cli(tmp_path):
 # the MBDyn study
 
 
-def _mbdyn() -> str | None:
-    from rotoruq.mbdyn import find_mbdyn
-    from rotoruq.mbdyn.solver import MBDynNotFoundError
-
-    try:
-        return str(find_mbdyn())
-    except MBDynNotFoundError:
-        default = Path.home() / ".cache" / "mbdyn" / "bin" / "mbdyn"
-        return str(default) if default.is_file() and os.access(default, os.X_OK) else None
-
-
 def test_bundled_mbdyn_study_parses():
     study = load_study(STUDIES / "mbdyn_multifidelity.toml")
     assert study.model.kind == "external" and "elastic" in study.model.external.command
@@ -282,18 +272,15 @@ def test_bundled_mbdyn_study_parses():
                                                                   ("builtin",)]
 
 
-@pytest.mark.mbdyn
 @pytest.mark.slow
-@pytest.mark.skipif(_mbdyn() is None, reason="MBDyn not found")
+@needs_mbdyn
 def test_mbdyn_study_runs_through_the_cli(tmp_path):
     """`rotoruq run mbdyn_multifidelity --quick` with the real solver: both steps' allocation
     and estimate tables, finite estimates with standard errors, each model's runs (elastic,
     rigid, built-in) in the store under its own identity, as many as the allocation says."""
-    path = os.pathsep.join([str(Path(sys.executable).parent), os.environ.get("PATH", "")])
-    env = {**os.environ, "MBDYN": _mbdyn() or "", "PATH": path}
     out = tmp_path / "out"
     proc = run_cli("run", "mbdyn_multifidelity", "--quick", "--out", str(out), cwd=tmp_path,
-                   env=env, timeout=900)
+                   env=env_with_mbdyn(), timeout=900)
     assert proc.returncode == 0, proc.stderr
     show = run_cli("show", str(out), cwd=tmp_path)
     assert show.stdout.count("Multi-fidelity estimates") == 2

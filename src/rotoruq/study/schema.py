@@ -258,7 +258,7 @@ def _parse_model_table(ck: Checker, t: object, w: tuple, what: str, name: str = 
         opts = ck.value(t, "preset_options", (table, {}), w, what) or {}
         disc = ck.value(t, "discretization", (table, {}), w, what) or {}
         ck.keys(disc, DISCRETIZATION_KEYS, w + ("discretization",), f"{what} discretization")
-        disc = {k: ck.value(disc, k, (integer(1), None), w + ("discretization",),
+        disc = {k: ck.value(disc, k, (integer(1, 1000), None), w + ("discretization",),
                             f"{what} discretization") for k in disc}
         _check_grid(ck, preset, opts, disc, w + ("discretization",))
         spec = ModelSpec("preset", responses, fixed, preset=preset, preset_options=opts,

@@ -52,7 +52,7 @@ from ..results import (
 from ..steps import StepContext, run_step, step_type
 from .lock import results_lock
 from .schema import load_study
-from .spec import StepSpec, Study
+from .spec import ModelSpec, StepSpec, Study
 
 __all__ = ["run_study", "StudyRun", "build_model", "build_model_factory", "step_options",
            "model_record", "why_rerun", "IDENTITY_PARTS"]
@@ -327,6 +327,17 @@ def _named_models(options: Mapping) -> tuple[str, ...]:
     return tuple(names) if isinstance(names, (list, tuple)) else ()
 
 
+def _model_doc(spec: ModelSpec) -> dict:
+    """A model table as its step's identity digests it: the fields added with
+    ``[models.NAME]`` (its name, a rotor's discretization) only where set, so that the
+    fingerprints of steps saved before them still match."""
+    doc = asdict(spec)
+    del doc["name"]
+    if not doc["discretization"]:
+        del doc["discretization"]
+    return doc
+
+
 def _identity_parts(study: Study, step: StepSpec, space: ParameterSpace, fixed, options,
                     data, previous, quick: bool, model_id: str, code: str) -> dict:
     """The parts of a step's identity, each a digest (see :data:`IDENTITY_PARTS`)."""
@@ -335,10 +346,10 @@ def _identity_parts(study: Study, step: StepSpec, space: ParameterSpace, fixed, 
         if isinstance(ref, str) and "." in ref:
             refs.append(ref.split(".")[0])
     spec = {"step": {k: v for k, v in asdict(step).items() if k not in ("line", "index")},
-            "options": options, "model": asdict(study.model),
+            "options": options, "model": _model_doc(study.model),
             "seed": study.info.seed, "index": step.index, "quick": quick}
     if _named_models(options):
-        spec["models"] = {n: asdict(study.model_spec(n)) for n in _named_models(options)}
+        spec["models"] = {n: _model_doc(study.model_spec(n)) for n in _named_models(options)}
     return {
         "spec": _digest(spec),
         "inputs": _digest({"space": [(n, d.describe()) for n, d in

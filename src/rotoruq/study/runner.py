@@ -18,12 +18,14 @@ the evaluation layer provides one, so a changed step still reuses identical eval
 from __future__ import annotations
 
 import hashlib
+import inspect
 import json
 import logging
 import math
 from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -50,14 +52,14 @@ from ..results import (
 from ..steps import StepContext, run_step, step_type
 from .lock import results_lock
 from .schema import load_study
-from .spec import StepSpec, Study
+from .spec import ModelSpec, StepSpec, Study
 
 __all__ = ["run_study", "StudyRun", "build_model", "build_model_factory", "step_options",
            "model_record", "why_rerun", "IDENTITY_PARTS"]
 
 log = logging.getLogger(__name__)
 
-ModelFactory = Callable[[Sequence[str], Sequence[str], Mapping[str, float]], object]
+ModelFactory = Callable[..., Any]
 
 
 @dataclass(frozen=True, eq=False)
@@ -76,31 +78,38 @@ class StudyRun:
 
 
 def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
-                fixed: Mapping[str, float], out: Path | None = None) -> Any:
-    """The study's ``[model]`` for one step (an object of the :class:`rotoruq.model.Model`
-    protocol), without the evaluation store: a
-    :class:`~rotoruq.rotor.model.RotorModel`, or an
+                fixed: Mapping[str, float], out: Path | None = None, *,
+                model: str | None = None) -> Any:
+    """The study's ``[model]`` (or, with ``model=NAME``, its ``[models.NAME]``) for one step
+    (an object of the :class:`rotoruq.model.Model` protocol), without the evaluation store: a
+    :class:`~rotoruq.rotor.model.RotorModel` (at the table's ``discretization``), or an
     :class:`~rotoruq.evaluation.external.ExternalModel` over ``inputs`` plus the fixed inputs
     (written into every parameters file), wrapped so that its inputs are ``inputs``.
 
-    Paths in an external ``[model]`` (words of ``command`` that name files, ``templates``,
+    A named model's own ``fixed`` values take precedence over ``fixed`` (the step's: the
+    study's operating point).
+
+    Paths in an external model (words of ``command`` that name files, ``templates``,
     ``files``) are relative to the study file's folder; ``workdir`` is relative to the results
-    folder ``out`` (default ``out/work``).
+    folder ``out`` (default ``out/work``, ``out/work/NAME`` for a named model).
     """
-    spec = study.model
+    spec = study.model_spec(model)
+    if model is not None:
+        fixed = {**fixed, **spec.fixed}
     if spec.preset is not None:
         from ..rotor.model import RotorModel
         from ..rotor.presets import get_preset
 
         preset = get_preset(spec.preset, **dict(spec.preset_options))
         return RotorModel(preset, names_in=list(inputs), names_out=list(responses),
-                          fixed=dict(fixed))
+                          fixed=dict(fixed), **dict(spec.discretization))
     from ..evaluation.external import ExternalModel
     from ..model import FixedInputs
 
     ext = spec.external
     if ext is None:
-        raise ParameterError(f"{study.path}: [model] needs preset = ... or command = [...]")
+        raise ParameterError(f"{study.path}: {_table(model)} needs preset = ... or "
+                             "command = [...]")
     base = study.path.parent if study.path is not None else Path.cwd()
     out = Path(out) if out is not None else study.info.output
 
@@ -115,34 +124,64 @@ def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
         policy = f"retry:{max(1, ext.retries)}"
     elif ext.failure == "recover":
         if ext.recover is None:
-            raise ParameterError(f"{study.path}: [model] failure = \"recover\" needs "
+            raise ParameterError(f"{study.path}: {_table(model)} failure = \"recover\" needs "
                                  "recover = [one value per response]")
         policy = {"recover": list(ext.recover)}
     else:
         policy = ext.failure
-    workdir = Path(ext.workdir) if ext.workdir else Path("work")
+    workdir = Path(ext.workdir) if ext.workdir else Path("work", *([model] if model else []))
     if not workdir.is_absolute():
         workdir = out / workdir
     names_in = list(inputs) + [n for n in fixed if n not in inputs]
-    model = ExternalModel(
+    ext_model = ExternalModel(
         [near_study(w) for w in ext.command], names_in, list(responses),
         workdir=workdir, template_files=[base / t for t in ext.templates],
         copy_files=[base / f for f in ext.files], parameters_format=ext.parameters_format,
         timeout=ext.timeout, failure_policy=policy,
     )
     fixed_here = {k: v for k, v in fixed.items() if k not in inputs}
-    return FixedInputs(model, fixed_here) if fixed_here else model
+    return FixedInputs(ext_model, fixed_here) if fixed_here else ext_model
+
+
+def _table(model: str | None) -> str:
+    return "[model]" if model is None else f"[models.{model}]"
 
 
 def build_model_factory(study: Study, store_path: Path | None = None,
                         out: Path | None = None) -> ModelFactory:
-    """Model builder for the study's ``[model]`` (see :func:`build_model`), wrapped in the
-    evaluation layer's store-backed Evaluator when a store or a parallel executor is set."""
+    """Model builder ``f(inputs, responses, fixed, model=None)`` for the study's ``[model]``
+    and, by name, its ``[models.NAME]`` (see :func:`build_model`), wrapped in the evaluation
+    layer's store-backed Evaluator when a store or a parallel executor is set. Each model
+    has its own identity in the store (its configuration and code,
+    :func:`~rotoruq.evaluation.identity.model_identity`): one model's runs are never served
+    for another's.
 
-    def base(inputs, responses, fixed):
-        return build_model(study, inputs, responses, fixed, out)
+    Examples
+    --------
+    >>> factory = build_model_factory(load_study("mf.toml"))          # doctest: +SKIP
+    >>> lf = factory(["collective_deg"], ["thrust"], {}, model="coarse")  # doctest: +SKIP
+    """
+
+    def base(inputs, responses, fixed, model=None):
+        return build_model(study, inputs, responses, fixed, out, model=model)
 
     return _with_store(base, study, store_path)
+
+
+def _build(factory: Callable, inputs, responses, fixed, model: str | None):
+    """``factory(inputs, responses, fixed)``, with ``model=`` for a named model: a Python
+    ``model_factory`` that builds only ``[model]`` cannot build a named one."""
+    if model is None:
+        return factory(inputs, responses, fixed)
+    try:
+        params: Mapping[str, inspect.Parameter] = inspect.signature(factory).parameters
+    except (TypeError, ValueError):
+        params = {}
+    if params and "model" not in params and not any(p.kind is p.VAR_KEYWORD
+                                                    for p in params.values()):
+        raise ParameterError(f"the model factory builds only [model]; the named model "
+                             f"{model!r} needs a factory f(inputs, responses, fixed, model=NAME)")
+    return factory(inputs, responses, fixed, model=model)
 
 
 def _with_store(factory: ModelFactory, study: Study, store_path: Path | None) -> ModelFactory:
@@ -161,8 +200,8 @@ def _with_store(factory: ModelFactory, study: Study, store_path: Path | None) ->
     else:
         executor = make_executor("serial")
 
-    def wrapped(inputs, responses, fixed):
-        return Evaluator(factory(inputs, responses, fixed), store=store_path,
+    def wrapped(inputs, responses, fixed, model=None):
+        return Evaluator(_build(factory, inputs, responses, fixed, model), store=store_path,
                          executor=executor, study=study.info.name)
 
     return wrapped
@@ -282,6 +321,23 @@ IDENTITY_PARTS = {
 }
 
 
+def _named_models(options: Mapping) -> tuple[str, ...]:
+    """The ``[models.NAME]`` a step uses: its option ``models`` (a list of names)."""
+    names = options.get("models")
+    return tuple(names) if isinstance(names, (list, tuple)) else ()
+
+
+def _model_doc(spec: ModelSpec) -> dict:
+    """A model table as its step's identity digests it: the fields added with
+    ``[models.NAME]`` (its name, a rotor's discretization) only where set, so that the
+    fingerprints of steps saved before them still match."""
+    doc = asdict(spec)
+    del doc["name"]
+    if not doc["discretization"]:
+        del doc["discretization"]
+    return doc
+
+
 def _identity_parts(study: Study, step: StepSpec, space: ParameterSpace, fixed, options,
                     data, previous, quick: bool, model_id: str, code: str) -> dict:
     """The parts of a step's identity, each a digest (see :data:`IDENTITY_PARTS`)."""
@@ -289,11 +345,13 @@ def _identity_parts(study: Study, step: StepSpec, space: ParameterSpace, fixed, 
     for ref in (step.data, options.get("targets"), options.get("u_num")):
         if isinstance(ref, str) and "." in ref:
             refs.append(ref.split(".")[0])
+    spec = {"step": {k: v for k, v in asdict(step).items() if k not in ("line", "index")},
+            "options": options, "model": _model_doc(study.model),
+            "seed": study.info.seed, "index": step.index, "quick": quick}
+    if _named_models(options):
+        spec["models"] = {n: _model_doc(study.model_spec(n)) for n in _named_models(options)}
     return {
-        "spec": _digest({"step": {k: v for k, v in asdict(step).items()
-                                  if k not in ("line", "index")},
-                         "options": options, "model": asdict(study.model),
-                         "seed": study.info.seed, "index": step.index, "quick": quick}),
+        "spec": _digest(spec),
         "inputs": _digest({"space": [(n, d.describe()) for n, d in
                                      zip(space.names, space.distributions, strict=True)],
                            "fixed": dict(sorted(fixed.items()))}),
@@ -331,8 +389,10 @@ class _FailureCount:
 
 
 def _counting_failures(factory: ModelFactory, counts: Counter[str]) -> ModelFactory:
-    return lambda inputs, responses, fixed: _FailureCount(factory(inputs, responses, fixed),
-                                                         counts)
+    def make(inputs, responses, fixed, model=None):
+        return _FailureCount(_build(factory, inputs, responses, fixed, model), counts)
+
+    return make
 
 
 def _seed(study: Study, step: StepSpec, options) -> np.random.Generator:
@@ -358,7 +418,8 @@ def run_study(
     quick : reduce sample sizes (each step type's ``quick`` bounds and each step's
         ``quick = {...}``).
     model_factory : ``f(inputs, responses, fixed) -> Model`` replacing the ``[model]`` table
-        (for Python models; tests).
+        (for Python models; tests); with a keyword ``model=NAME`` (None for ``[model]``) it
+        also replaces the ``[models.NAME]`` tables.
     only : run only these steps (and load the ones they depend on from earlier runs).
 
     Progress (a line per step, a status line every ``steps.STATUS_INTERVAL`` s while a step
@@ -399,14 +460,18 @@ def _plan_step(study: Study, step: StepSpec, results: Mapping[str, StepResult], 
     space, fixed = _step_space(study, step, results)
     responses = list(step.responses or study.model.responses)
     data, columns = _step_data(study, step, responses, results)
-    key = (tuple(space.names), tuple(responses), tuple(sorted(fixed.items())))
-    if key not in identities:
-        probe = probe_factory(list(space.names), list(responses), dict(fixed))
-        identities[key] = (model_identity(probe), model_code_parts(probe))
-        close = getattr(probe, "close", None)
-        if callable(close):
-            close()
-    model_id, model_code = identities[key]
+    ids, model_code = [], {}
+    for name in (None, *_named_models(options)):
+        key = (name, tuple(space.names), tuple(responses), tuple(sorted(fixed.items())))
+        if key not in identities:
+            probe = _build(probe_factory, list(space.names), list(responses), dict(fixed), name)
+            identities[key] = (model_identity(probe), model_code_parts(probe))
+            close = getattr(probe, "close", None)
+            if callable(close):
+                close()
+        ids.append(identities[key][0] if name is None else f"{name}={identities[key][0]}")
+        model_code.update(identities[key][1])
+    model_id = " + ".join(ids)
     step_code = code_parts([step_type(step.type).run.__module__])
     parts = _identity_parts(study, step, space, fixed, options, data, results, quick,
                             model_id, code_digest(step_code))
@@ -420,7 +485,7 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
         write_bytes(out / "study.toml", study.path.read_bytes())
     store_path = out / study.store.path if study.store.enabled else None
     factory = model_factory or build_model_factory(study, store_path, out)
-    probe_factory = model_factory or (lambda i, r, f: build_model(study, i, r, f, out))
+    probe_factory = model_factory or partial(build_model, study, out=out)
     _write_study_json(study, out, quick)
 
     results: dict[str, StepResult] = {}
@@ -549,7 +614,7 @@ def why_rerun(out: str | Path, model_factory: ModelFactory | None = None
     study = load_study(path)
     quick = bool(info.get("quick", False))
     saved = load_results(out)
-    probe_factory = model_factory or (lambda i, r, f: build_model(study, i, r, f, out))
+    probe_factory = model_factory or partial(build_model, study, out=out)
     identities: dict = {}
     reasons: dict[str, list[str]] = {}
     for step in study.steps:

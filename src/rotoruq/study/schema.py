@@ -57,6 +57,7 @@ from ..errors import InputFileError, ParameterError
 from ..params import DISTRIBUTIONS, make_distribution
 from ..safety import check_name
 from ..steps import StepCheck, StepType, find_step_type, step_type, step_types
+from ..steps.multifidelity import HF_LABEL
 from .datafiles import parse_data
 from .options import (
     REQUIRED,
@@ -85,13 +86,15 @@ from .spec import (
 
 __all__ = ["load_study", "parse_study", "ModelInputs"]
 
-TOP_KEYS = ("study", "model", "parameters", "data", "executor", "store", "steps")
+TOP_KEYS = ("study", "model", "models", "parameters", "data", "executor", "store", "steps")
 STUDY_KEYS = ("name", "seed", "output", "description")
-MODEL_KEYS = (
-    "preset", "preset_options", "responses", "fixed",
-    "command", "files", "templates", "parameters_format", "timeout", "failure", "retries",
-    "recover", "workdir",
-)
+EXTERNAL_KEYS = ("command", "files", "templates", "parameters_format", "timeout", "failure",
+                 "retries", "recover", "workdir")
+MODEL_KEYS = ("preset", "preset_options", "discretization", "responses", "fixed",
+              *EXTERNAL_KEYS)
+# RotorModel's discretization keywords a preset model may set.
+DISCRETIZATION_KEYS = ("n_stations", "n_azimuth", "n_harmonics")
+
 EXECUTOR_KEYS = ("kind", "workers", "scheduler")
 STORE_KEYS = ("enabled", "path")
 PARAM_META = ("distribution", "label", "unit")
@@ -134,8 +137,8 @@ class ModelInputs:
     itself accepts (so ``cla_m075`` is valid exactly when the preset's airfoil has that Mach
     row); an external model accepts any name (its driver gets them all)."""
 
-    def __init__(self, ck: Checker, model: ModelSpec):
-        self.ck, self.model = ck, model
+    def __init__(self, ck: Checker, model: ModelSpec, where: tuple = ("model",)):
+        self.ck, self.model, self.where = ck, model, where
 
     @property
     def names(self) -> tuple[str, ...] | None:
@@ -146,7 +149,7 @@ class ModelInputs:
         try:
             return _rotor_inputs(self.model.preset, opts)
         except (ParameterError, TypeError) as exc:
-            self.ck.fail(("model", "preset_options"), "options of the rotor preset "
+            self.ck.fail(self.where + ("preset_options",), "options of the rotor preset "
                          f"{self.model.preset!r} ({exc})", opts)
 
     def check(self, where: tuple, name: str) -> None:
@@ -198,12 +201,14 @@ def parse_study(text: str, path: str | Path = "<study>") -> Study:
 
     info = _parse_info(ck, doc, base, path)
     model = _parse_model(ck, doc)
+    models = _parse_models(ck, doc, model)
     inputs = ModelInputs(ck, model)
     params = _parse_parameters(ck, doc, inputs)
+    _check_model_inputs(ck, models, model, params)
     data = parse_data(ck, doc, base)
     executor, store = _parse_exec_store(ck, doc)
-    steps = _parse_steps(ck, doc, inputs, params, data)
-    return Study(path, info, model, params, data, executor, store, steps, text)
+    steps = _parse_steps(ck, doc, inputs, params, data, models)
+    return Study(path, info, model, params, data, executor, store, steps, text, models)
 
 
 def _parse_info(ck: Checker, doc: dict, base: Path, path: Path) -> StudyInfo:
@@ -223,19 +228,26 @@ def _parse_info(ck: Checker, doc: dict, base: Path, path: Path) -> StudyInfo:
 def _parse_model(ck: Checker, doc: dict) -> ModelSpec:
     if "model" not in doc:
         ck.fail((), "a [model] table (preset = \"bo105\" or command = [...])")
-    t = ck.table(doc["model"], ("model",), "[model]")
-    ck.keys(t, MODEL_KEYS, ("model",), "[model]")
-    w = ("model",)
-    responses = ck.value(t, "responses", (string_list, REQUIRED), w, "[model]")
-    fixed = ck.value(t, "fixed", (table, {}), w, "[model]") or {}
-    fixed = ck.numbers(fixed, w + ("fixed",), "[model] fixed")
+    return _parse_model_table(ck, doc["model"], ("model",), "[model]")
+
+
+def _parse_model_table(ck: Checker, t: object, w: tuple, what: str, name: str = "",
+                       responses: tuple[str, ...] | None = None) -> ModelSpec:
+    """``[model]``, or a named ``[models.NAME]`` (``name``) whose ``responses`` default to
+    the study's (``responses``)."""
+    t = ck.table(t, w, what)
+    ck.keys(t, MODEL_KEYS, w, what)
+    responses = ck.value(t, "responses", (string_list, REQUIRED if responses is None
+                                          else responses), w, what)
+    fixed = ck.value(t, "fixed", (table, {}), w, what) or {}
+    fixed = ck.numbers(fixed, w + ("fixed",), f"{what} fixed")
     if "preset" in t and "command" in t:
-        ck.fail(w + ("command",), "either preset or command in [model], not both")
+        ck.fail(w + ("command",), f"either preset or command in {what}, not both")
     if "preset" in t:
         from ..rotor.presets import PRESETS
 
-        preset = ck.value(t, "preset", (string(tuple(PRESETS)), None), w, "[model]")
-        for key in MODEL_KEYS[4:]:
+        preset = ck.value(t, "preset", (string(tuple(PRESETS)), None), w, what)
+        for key in EXTERNAL_KEYS:
             if key in t:
                 ck.fail(w + (key,), f"no {key!r} with a rotor preset (it is for external drivers)")
         rotor_responses = _rotor_responses()
@@ -243,33 +255,101 @@ def _parse_model(ck: Checker, doc: dict) -> ModelSpec:
             if r not in rotor_responses:
                 ck.fail(w + ("responses",), f"rotor responses among {', '.join(rotor_responses)}"
                         f"{close_hint(r, rotor_responses)}", r)
-        opts = ck.value(t, "preset_options", (table, {}), w, "[model]") or {}
-        spec = ModelSpec("preset", responses, fixed, preset=preset, preset_options=opts)
-        inputs = ModelInputs(ck, spec)
+        opts = ck.value(t, "preset_options", (table, {}), w, what) or {}
+        disc = ck.value(t, "discretization", (table, {}), w, what) or {}
+        ck.keys(disc, DISCRETIZATION_KEYS, w + ("discretization",), f"{what} discretization")
+        disc = {k: ck.value(disc, k, (integer(1, 1000), None), w + ("discretization",),
+                            f"{what} discretization") for k in disc}
+        _check_grid(ck, preset, opts, disc, w + ("discretization",))
+        spec = ModelSpec("preset", responses, fixed, preset=preset, preset_options=opts,
+                         discretization=disc, name=name)
+        inputs = ModelInputs(ck, spec, w)
         for k in fixed:
             inputs.check(w + ("fixed", k), k)
         return spec
+    if "discretization" in t:
+        ck.fail(w + ("discretization",), "no 'discretization' with an external driver (it is "
+                "for a rotor preset)")
     if "command" not in t:
-        ck.fail(w, "preset = \"bo105\" | \"gvpm\" or command = [\"driver\", ...] in [model]")
-    cmd = ck.value(t, "command", (string_list, None), w, "[model]")
+        ck.fail(w, f"preset = \"bo105\" | \"gvpm\" or command = [\"driver\", ...] in {what}")
+    cmd = ck.value(t, "command", (string_list, None), w, what)
     recover = t.get("recover")
     ext = ExternalSpec(
         command=cmd,
-        files=ck.value(t, "files", (string_list, ()), w, "[model]"),
-        templates=ck.value(t, "templates", (string_list, ()), w, "[model]"),
+        files=ck.value(t, "files", (string_list, ()), w, what),
+        templates=ck.value(t, "templates", (string_list, ()), w, what),
         parameters_format=ck.value(
-            t, "parameters_format", (string(("standard", "aprepro")), "standard"), w, "[model]"
+            t, "parameters_format", (string(("standard", "aprepro")), "standard"), w, what
         ),
         timeout=ck.value(t, "timeout", (number(positive=True, allow_zero=False), None), w,
-                          "[model]"),
+                          what),
         failure=ck.value(t, "failure", (string(("abort", "retry", "recover", "continue")),
-                                         "abort"), w, "[model]"),
-        retries=ck.value(t, "retries", (integer(0), 0), w, "[model]"),
+                                         "abort"), w, what),
+        retries=ck.value(t, "retries", (integer(0), 0), w, what),
         recover=None if recover is None else ck.value(t, "recover", (number_list, None), w,
-                                                       "[model]"),
-        workdir=ck.value(t, "workdir", (string(), None), w, "[model]"),
+                                                       what),
+        workdir=ck.value(t, "workdir", (string(), None), w, what),
     )
-    return ModelSpec("external", responses, fixed, external=ext)
+    return ModelSpec("external", responses, fixed, external=ext, name=name)
+
+
+def _check_grid(ck: Checker, preset: str, opts: Mapping, disc: Mapping[str, int],
+                where: tuple) -> None:
+    """The rotor's own rule on its station and azimuth counts (rotor.geometry.blade_grid)."""
+    from ..rotor.geometry import blade_grid
+    from ..rotor.presets import get_preset
+
+    counts = {k: v for k, v in disc.items() if k in ("n_stations", "n_azimuth")}
+    if not counts:
+        return
+    try:
+        blade_grid(get_preset(preset, **dict(opts)), **counts)
+    except ValueError as exc:
+        ck.fail(where, f"a discretization the rotor accepts ({exc})",
+                ", ".join(f"{k} = {v}" for k, v in counts.items()))
+    except (ParameterError, TypeError):
+        return  # bad preset options: ModelInputs names them
+
+
+def _parse_models(ck: Checker, doc: dict, model: ModelSpec) -> dict[str, ModelSpec]:
+    """``[models.NAME]``: named models (same keys as ``[model]``; ``responses`` default to
+    ``[model]``'s and must include them)."""
+    t = ck.table(doc.get("models", {}), ("models",), "[models]")
+    out = {}
+    for name, spec in t.items():
+        w = ("models", name)
+        if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_\-]*", name) or name == HF_LABEL:
+            ck.fail(w, "a model name made of letters, digits, '_' and '-' (not "
+                    f"{HF_LABEL!r}: the report's name for [model])", repr(name))
+        m = _parse_model_table(ck, spec, w, f"[models.{name}]", name, model.responses)
+        missing = [r for r in model.responses if r not in m.responses]
+        if missing:
+            key = w + ("responses",) if "responses" in spec else w
+            ck.fail(key, f"responses of [models.{name}] that include the study's responses "
+                    f"({', '.join(model.responses)}); missing {', '.join(missing)}",
+                    ", ".join(m.responses))
+        out[name] = m
+    return out
+
+
+def _check_model_inputs(ck: Checker, models: Mapping[str, ModelSpec], model: ModelSpec,
+                        params: tuple[ParameterSpec, ...]) -> None:
+    """A named rotor model takes every study parameter and every input [model] fixes (it is
+    evaluated at the same points); a named model fixes no uncertain input."""
+    for name, m in models.items():
+        w = ("models", name)
+        for p in params:
+            if p.name in m.fixed:
+                ck.fail(w + ("fixed", p.name), f"{p.name!r} either fixed in [models.{name}] or "
+                        "uncertain in [parameters], not both")
+        valid = ModelInputs(ck, m, w).names
+        if valid is None:
+            continue
+        for n in [p.name for p in params] + [k for k in model.fixed if k not in m.fixed]:
+            if n not in valid:
+                ck.fail(w + ("preset",), f"a rotor preset whose model takes every input of the "
+                        f"study ({n!r} is not an input of [models.{name}]: it takes "
+                        f"{', '.join(valid)})", m.preset)
 
 
 def _parse_parameters(ck: Checker, doc: dict, inputs: ModelInputs,
@@ -343,8 +423,8 @@ def _step_options(ck: Checker, s: dict, st: StepType, w: tuple, what: str) -> di
 
 
 def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
-                 params: tuple[ParameterSpec, ...], data: dict[str, DataSet]
-                 ) -> tuple[StepSpec, ...]:
+                 params: tuple[ParameterSpec, ...], data: dict[str, DataSet],
+                 models: Mapping[str, ModelSpec]) -> tuple[StepSpec, ...]:
     model = inputs.model
     raw = doc.get("steps", [])
     if not isinstance(raw, list) or not all(isinstance(s, dict) for s in raw):
@@ -380,6 +460,7 @@ def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
         common = {k: ck.option(s, k, opt, w, what, opt.default)
                   for k, opt in COMMON_STEP_KEYS.items()}
         opts = _step_options(ck, s, st, w, what)
+        _check_model_names(ck, opts, models, w, what)
         quick = common["quick"] or {}
         ck.keys(quick, list(st.options), w + ("quick",), f"quick = {{...}} of {what}")
         quick = {k: ck.option(quick, k, st.options[k], w + ("quick",),
@@ -437,6 +518,20 @@ def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
         ck.fail(("parameters",), "at least one [parameters.NAME] table")
     _check_data_used_once(ck, raw, steps, model)
     return tuple(steps)
+
+
+def _check_model_names(ck: Checker, opts: Mapping, models: Mapping[str, ModelSpec], w: tuple,
+                       what: str) -> None:
+    """A step option ``models`` (a list of names) names ``[models.NAME]`` tables."""
+    names = opts.get("models")
+    if not isinstance(names, (list, tuple)):
+        return
+    known = list(models)
+    for n in names:
+        if n not in known:
+            defined = ", ".join(known) or f"none; add a [models.{n}] table"
+            ck.fail(w + ("models",), f"names of [models.NAME] tables in the models of {what} "
+                    f"(defined: {defined}){close_hint(str(n), known)}", str(n))
 
 
 def _check_data_used_once(ck: Checker, raw: list, steps: list[StepSpec], model) -> None:

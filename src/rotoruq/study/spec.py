@@ -44,7 +44,9 @@ class ExternalSpec:
 
 @dataclass(frozen=True)
 class ModelSpec:
-    """``[model]``: a rotor preset (``kind="preset"``) or an external driver."""
+    """``[model]`` or a named ``[models.NAME]``: a rotor preset (``kind="preset"``, with
+    ``discretization``: the rotor's ``n_stations`` / ``n_azimuth`` / ``n_harmonics`` where
+    given) or an external driver. ``name`` is "" for ``[model]``."""
 
     kind: str
     responses: tuple[str, ...]
@@ -52,6 +54,8 @@ class ModelSpec:
     preset: str | None = None
     preset_options: Mapping[str, Any] = field(default_factory=dict)
     external: ExternalSpec | None = None
+    discretization: Mapping[str, int] = field(default_factory=dict)
+    name: str = ""
 
 
 @dataclass(frozen=True)
@@ -133,7 +137,8 @@ class StepSpec:
 
 @dataclass(frozen=True, eq=False)
 class Study:
-    """A validated study. ``parameters`` is ordered as in the file."""
+    """A validated study. ``parameters`` is ordered as in the file; ``models`` holds the
+    named ``[models.NAME]`` tables (the low-fidelity models of a ``multifidelity`` step)."""
 
     path: Path
     info: StudyInfo
@@ -144,6 +149,7 @@ class Study:
     store: StoreSpec
     steps: tuple[StepSpec, ...]
     text: str = ""
+    models: Mapping[str, ModelSpec] = field(default_factory=dict)
 
     @property
     def parameter_names(self) -> tuple[str, ...]:
@@ -159,6 +165,16 @@ class Study:
         """ParameterSpace of the named parameters (all when None), in the given order."""
         names = self.parameter_names if names_in is None else tuple(names_in)
         return ParameterSpace([(n, self.parameter(n).distribution) for n in names])
+
+    def model_spec(self, name: str | None = None) -> ModelSpec:
+        """``[model]`` (``name`` None) or the named ``[models.NAME]``."""
+        if name is None:
+            return self.model
+        try:
+            return self.models[name]
+        except KeyError:
+            raise ParameterError(f"study {self.info.name!r} has no model {name!r} (named "
+                                 f"models: {', '.join(self.models) or 'none'})") from None
 
     def step(self, name: str) -> StepSpec:
         for s in self.steps:

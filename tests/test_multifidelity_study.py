@@ -1,0 +1,298 @@
+"""Multi-fidelity studies: named ``[models.NAME]`` tables, the runner building them by name,
+the bundled ``multifidelity_rotor`` study through the CLI (serial and on Dask), the bundled
+``mbdyn_multifidelity`` study with the real solver, and every bad ``[models]`` input naming
+its line."""
+
+from __future__ import annotations
+
+import sqlite3
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rotoruq.errors import InputFileError, ParameterError
+from rotoruq.results import load_step
+from rotoruq.rotor.model import RotorModel
+from rotoruq.study.runner import run_study, why_rerun
+from rotoruq.study.schema import load_study
+from test_mbdyn import env_with_mbdyn, needs_mbdyn
+
+CLI = [sys.executable, "-m", "rotoruq.study.cli"]
+STUDIES = Path(__file__).resolve().parents[1] / "src" / "rotoruq" / "studies"
+ROTOR_STUDY = STUDIES / "multifidelity_rotor.toml"
+
+
+def run_cli(*args: str, cwd: Path, env: dict | None = None, timeout: float = 600
+            ) -> subprocess.CompletedProcess:
+    return subprocess.run([*CLI, *args], cwd=cwd, env=env, capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def store_counts(out: Path) -> dict[str, int]:
+    """Successful evaluations in the results folder's store, by model identity."""
+    with sqlite3.connect(out / "evaluations.sqlite") as con:
+        rows = con.execute("SELECT model, COUNT(*) FROM evaluations WHERE status = 'ok' "
+                           "GROUP BY model").fetchall()
+    return dict(rows)
+
+
+def quadrature_moments(responses: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and variance of the study's high-fidelity rotor (GVPM, default grid, H/R = 4) over
+    collective ~ U(4.5, 6.5) deg and cla_m03 ~ N(0.108, 5.4e-3), by a 20 x 20 tensor Gauss rule
+    (Gauss-Legendre x Gauss-Hermite): the responses are smooth in both inputs, so the rule's
+    error is far below the estimator's standard errors."""
+    xl, wl = np.polynomial.legendre.leggauss(20)
+    xh, wh = np.polynomial.hermite_e.hermegauss(20)
+    theta = 5.5 + xl
+    cla = 0.108 + 5.4e-3 * xh
+    w = np.outer(wl / 2.0, wh / np.sqrt(2.0 * np.pi)).ravel()
+    x = np.column_stack([np.repeat(theta, xh.size), np.tile(cla, xl.size)])
+    y = RotorModel("gvpm", names_in=["collective_deg", "cla_m03"], names_out=responses,
+                   fixed={"height_over_radius": 4.0})(x)
+    assert np.all(np.isfinite(y))
+    mean = w @ y
+    return mean, w @ (y - mean) ** 2
+
+
+def check_estimates(res, responses: list[str], k: float = 4.0) -> None:
+    """The step's mean and variance within k of their standard errors of the exact ones."""
+    mean, var = quadrature_moments(responses)
+    for j, r in enumerate(responses):
+        m, se = res.scalars[f"mean/{r}"], res.scalars[f"mean_se/{r}"]
+        v, vse = res.scalars[f"variance/{r}"], res.scalars[f"variance_se/{r}"]
+        assert se > 0 and vse > 0
+        assert abs(m - mean[j]) < k * se, (r, m, mean[j], se)
+        assert abs(v - var[j]) < k * vse, (r, v, var[j], vse)
+
+
+# ------------------------------------------------------------------------------------------
+# the analytic study through the CLI
+
+
+def test_rotor_study_through_cli_from_a_fresh_folder(tmp_path):
+    """`rotoruq run multifidelity_rotor` in an empty folder: the allocation and estimate tables
+    in `rotoruq show` and in the report; mean and variance of thrust and power within 4
+    standard errors of the quadrature answer; each model's runs stored under its own identity,
+    as many as the allocation table says."""
+    out = tmp_path / "out"
+    proc = run_cli("run", "multifidelity_rotor", "--out", str(out), cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    show = run_cli("show", str(out), "multifidelity", cwd=tmp_path)
+    assert show.returncode == 0, show.stderr
+    for text in ("Allocation (mfmc, 20-point pilot)", "Multi-fidelity estimates",
+                 "HF runs plain MC needs (mean)", "coarse"):
+        assert text in show.stdout
+    html = "".join(p.read_text() for p in (out / "report").rglob("*.html"))
+    assert "Allocation (mfmc" in html and "Multi-fidelity estimates" in html
+
+    res = load_step(out / "steps" / "multifidelity")
+    check_estimates(res, ["thrust", "power"])
+    runs = [res.scalars["runs/model"], res.scalars["runs/coarse"]]
+    assert sorted(store_counts(out).values()) == sorted(int(n) for n in runs)
+    assert res.scalars["allocation/coarse"] > 10 * res.scalars["allocation/model"]
+
+
+@pytest.mark.slow
+def test_rotor_study_on_dask_by_changing_only_the_executor(tmp_path):
+    """The same study file with ``[executor] kind = "dask"`` (a local cluster the run starts):
+    it runs, and its estimates are as right as the serial ones."""
+    pytest.importorskip("distributed")
+    study = tmp_path / "mf.toml"
+    study.write_text(ROTOR_STUDY.read_text() + '\n[executor]\nkind = "dask"\n')
+    out = tmp_path / "out"
+    proc = run_cli("run", str(study), "--out", str(out), "--no-report", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    check_estimates(load_step(out / "steps" / "multifidelity"), ["thrust", "power"])
+
+
+# ------------------------------------------------------------------------------------------
+# the runner: named models, identities, factories
+
+
+def small_study(tmp_path: Path, coarse: str = "n_stations = 3, n_azimuth = 6") -> Path:
+    text = ROTOR_STUDY.read_text().replace("n_stations = 3, n_azimuth = 6", coarse)
+    text = text.replace("budget = 200", "budget = 20").replace("n_pilot = 20", "n_pilot = 8")
+    path = tmp_path / "mf.toml"
+    path.write_text(text)
+    return path
+
+
+def test_a_changed_named_model_reruns_the_step_and_keeps_its_own_evaluations(tmp_path):
+    """Changing [models.coarse] changes the step's identity (its spec and its model part);
+    the new coarse model's runs are stored under a new identity, the old ones are not served
+    for it, and [model]'s stored runs are reused."""
+    path = small_study(tmp_path)
+    out = tmp_path / "out"
+    run_study(path, out=out)
+    ids = set(store_counts(out))
+    assert len(ids) == 2
+    assert why_rerun(out)["multifidelity"] == []
+
+    small_study(tmp_path, "n_stations = 4, n_azimuth = 8")
+    reasons = why_rerun(out)["multifidelity"]
+    assert any(r.startswith("spec") for r in reasons) and any(r.startswith("model")
+                                                              for r in reasons), reasons
+    second = run_study(path, out=out)
+    assert second.reused == ()
+    after = store_counts(out)
+    new = set(after) - ids
+    assert len(new) == 1 and len(after) == 3
+    assert after[next(iter(new))] == int(second["multifidelity"].scalars["runs/coarse"])
+
+
+def test_a_python_factory_without_named_models_is_told_so(tmp_path):
+    def factory(inputs, responses, fixed):
+        return RotorModel("gvpm", names_in=list(inputs), names_out=list(responses),
+                          fixed=dict(fixed))
+
+    with pytest.raises(ParameterError, match=r"named model 'coarse' needs a factory "
+                       r"f\(inputs, responses, fixed, model=NAME\)"):
+        run_study(small_study(tmp_path), out=tmp_path / "out", model_factory=factory)
+
+
+def test_named_model_gets_the_study_operating_point_and_its_own_fixed(tmp_path):
+    """A named model inherits [model]'s fixed inputs; its own `fixed` wins over them."""
+    from rotoruq.study.runner import build_model
+
+    text = ROTOR_STUDY.read_text().replace(
+        "discretization = { n_stations = 3, n_azimuth = 6 }",
+        "discretization = { n_stations = 3, n_azimuth = 6 }\nfixed = { rho = 1.1 }")
+    path = tmp_path / "mf.toml"
+    path.write_text(text)
+    study = load_study(path)
+    coarse = build_model(study, ["collective_deg"], ["thrust"],
+                         {"height_over_radius": 4.0, "rho": 1.225}, model="coarse")
+    assert coarse.fixed == {"height_over_radius": 4.0, "rho": 1.1}
+    assert (coarse.grid.r.size, coarse.grid.psi.size) == (3, 6)
+    hf = build_model(study, ["collective_deg"], ["thrust"], {"height_over_radius": 4.0})
+    assert (hf.grid.r.size, hf.grid.psi.size) == (10, 36)
+
+
+# ------------------------------------------------------------------------------------------
+# bad input: the file, the line, what was expected
+
+BASE = """\
+[study]
+name = "mf"
+
+[model]
+preset = "gvpm"
+responses = ["thrust", "power"]
+fixed = { height_over_radius = 4.0 }
+
+[models.coarse]
+preset = "gvpm"
+discretization = { n_stations = 3, n_azimuth = 6 }
+
+[parameters.collective_deg]
+distribution = "uniform"
+lower = 4.5
+upper = 6.5
+
+[[steps]]
+type = "multifidelity"
+models = ["coarse"]
+budget = 10
+"""
+
+
+def line_of(text: str, needle: str) -> int:
+    return next(i for i, line in enumerate(text.splitlines(), 1) if needle in line)
+
+
+@pytest.mark.parametrize("old, new, marker, expected", [
+    ('models = ["coarse"]', 'models = ["coarse", "fine"]', 'models = ["coarse", "fine"]',
+     "names of [models.NAME] tables"),
+    ('discretization = { n_stations = 3, n_azimuth = 6 }',
+     'discretization = { n_stations = 3, n_azimuth = 6 }\nresponses = ["thrust"]',
+     'responses = ["thrust"]', "include the study's responses (thrust, power); missing power"),
+    ('discretization = { n_stations = 3, n_azimuth = 6 }',
+     'discretization = { n_stations = 3, n_azimuth = 6 }\nrespones = ["thrust"]',
+     "respones", "one of the keys of [models.coarse]"),
+    ('discretization = { n_stations = 3, n_azimuth = 6 }',
+     'discretization = { n_stations = 3, n_azimuth = 6 }\nfixed = { collective_deg = 5.0 }',
+     "fixed = { collective_deg", "either fixed in [models.coarse] or uncertain"),
+    ("n_azimuth = 6 }", "n_azimuth = 3 }", "n_azimuth = 3",
+     "a discretization the rotor accepts (need at least 2 stations and 5 azimuth steps)"),
+    ("n_azimuth = 6 }", "n_azimuth = 6, n_radial = 4 }", "n_radial",
+     "one of the keys of [models.coarse] discretization"),
+    ("[models.coarse]", "[models.model]", "[models.model]", "a model name"),
+    ('discretization = { n_stations = 3, n_azimuth = 6 }',
+     'command = ["python", "driver.py"]', 'command = ["python", "driver.py"]',
+     "either preset or command in [models.coarse]"),
+])
+def test_bad_models_input_names_the_line(tmp_path, old, new, marker, expected):
+    text = BASE.replace(old, new, 1)
+    path = tmp_path / "mf.toml"
+    path.write_text(text)
+    with pytest.raises(InputFileError) as info:
+        load_study(path)
+    err = info.value
+    assert err.path == str(path)
+    assert err.line == line_of(text, marker), (err.line, str(err))
+    assert expected in str(err), str(err)
+
+
+def test_a_rotor_named_model_must_take_every_study_input(tmp_path):
+    """An external [model] may take any input; a rotor [models.NAME] is evaluated at the same
+    points and must accept each of them."""
+    text = BASE.replace('preset = "gvpm"\nresponses', 'command = ["python", "solver.py"]\n'
+                        'responses', 1).replace("[parameters.collective_deg]",
+                                                "[parameters.web_thickness]")
+    path = tmp_path / "mf.toml"
+    path.write_text(text)
+    with pytest.raises(InputFileError) as info:
+        load_study(path)
+    assert info.value.line == line_of(text, "[models.coarse]") + 1
+    assert "'web_thickness' is not an input of [models.coarse]" in str(info.value)
+
+
+def test_bad_models_input_through_the_cli(tmp_path):
+    text = BASE.replace('models = ["coarse"]', 'models = ["corse"]')
+    (tmp_path / "mf.toml").write_text(text)
+    proc = run_cli("run", "mf.toml", cwd=tmp_path, timeout=120)
+    assert proc.returncode != 0
+    assert f"mf.toml, line {line_of(text, 'corse')}" in proc.stderr, proc.stderr
+    assert "(defined: coarse) (did you mean 'coarse'?), found 'corse'" in proc.stderr
+
+
+# ------------------------------------------------------------------------------------------
+# the MBDyn study
+
+
+def test_bundled_mbdyn_study_parses():
+    study = load_study(STUDIES / "mbdyn_multifidelity.toml")
+    assert study.model.kind == "external" and "elastic" in study.model.external.command
+    assert study.models["builtin"].preset == "gvpm"
+    assert "rigid" in study.models["rigid"].external.command
+    assert [tuple(s.options["models"]) for s in study.steps] == [("builtin", "rigid"),
+                                                                  ("builtin",)]
+
+
+@pytest.mark.slow
+@needs_mbdyn
+def test_mbdyn_study_runs_through_the_cli(tmp_path):
+    """`rotoruq run mbdyn_multifidelity --quick` with the real solver: both steps' allocation
+    and estimate tables, finite estimates with standard errors, each model's runs (elastic,
+    rigid, built-in) in the store under its own identity, as many as the allocation says."""
+    out = tmp_path / "out"
+    proc = run_cli("run", "mbdyn_multifidelity", "--quick", "--out", str(out), cwd=tmp_path,
+                   env=env_with_mbdyn(), timeout=900)
+    assert proc.returncode == 0, proc.stderr
+    show = run_cli("show", str(out), cwd=tmp_path)
+    assert show.stdout.count("Multi-fidelity estimates") == 2
+    assert "rigid" in show.stdout and "builtin" in show.stdout
+    loads = load_step(out / "steps" / "loads")
+    moments = load_step(out / "steps" / "hub_moments")
+    for res, responses in ((loads, ["thrust", "power"]),
+                           (moments, ["thrust", "power", "roll", "pitch"])):
+        for r in responses:
+            assert np.isfinite(res.scalars[f"mean/{r}"]) and res.scalars[f"mean_se/{r}"] > 0
+        assert res.scalars["correlation/builtin/thrust"] > 0.9
+    runs = [int(res.scalars[f"runs/{m}"]) for res in (loads, moments)
+            for m in res.meta["models"]]
+    # elastic and built-in at two operating points, rigid at one: five identities
+    assert sorted(store_counts(out).values()) == sorted(runs)

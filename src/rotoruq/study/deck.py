@@ -1193,6 +1193,9 @@ def _deck_for(study: Any, st: Any, o: dict, data_dir: Any) -> str:
         var_lines = _uncertain_lines(names, specs)
     fixed = {k: v for k, v in {**study.model.fixed, **st.fixed}.items() if k not in names}
     var_lines += _state_lines(study, fixed)
+    if st.type == "sampling" and o.get("design") == "file":
+        state = list(fixed.values()) if _state_lines(study, fixed) else []
+        method = _given_points_text(o["points"]["file"], names, specs, state)
     driver = _driver_line(study, fixed, responses)
     kind = "calibration_terms" if st.type in ("least_squares", "bayes_calibration") \
         else "response_functions"
@@ -1473,6 +1476,25 @@ def _method_text(st: Any, o: dict, responses: list[str], names: list[str],
                  + ("prior" if (o.get("proposal") or "hessian") == "prior" else "derivatives"))
     lines.append(f"    burn_in_samples = {burn}")
     return "\n".join(lines), ""
+
+
+def _given_points_text(path: str, names: list[str], specs: Sequence[Any],
+                       state: Sequence[float]) -> str:
+    """A ``design = "file"`` sampling step as Dakota's ``list_parameter_study`` over the same
+    points, inline. A parameter study's points give every variable (uncertain, then the
+    state variables' fixed values) by position, in Dakota's own order: uncertain variables
+    grouped by distribution in the order of its variables block (:data:`_GROUPS`), not the
+    deck's."""
+    from ..evaluation.tabular import read_table
+
+    groups = list(_GROUPS)
+    rank = {n: groups.index(_DAKOTA_DIST[_describe(sp)["kind"]][0])
+            for n, sp in zip(names, specs, strict=True)}
+    order = sorted(names, key=lambda n: rank[n])  # stable: deck order within a group
+    x = read_table(path).require(order, "the step's inputs")
+    rows = "\n".join("      " + " ".join(_fmt(v) for v in [*row, *state]) for row in x)
+    return ("  # the given points of " + Path(path).name + "\n  list_parameter_study\n"
+            "    list_of_points =\n" + rows)
 
 
 def _default(step_type_name: str, option: str) -> Any:

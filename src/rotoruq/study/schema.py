@@ -94,7 +94,7 @@ MODEL_KEYS = (
 )
 EXECUTOR_KEYS = ("kind", "workers", "scheduler")
 STORE_KEYS = ("enabled", "path")
-PARAM_META = ("distribution", "label", "unit")
+PARAM_META = ("distribution", "label", "unit", "input")
 
 # Keys every [[steps]] table may have besides its type's options.
 COMMON_STEP_KEYS: dict[str, Option] = {
@@ -273,7 +273,8 @@ def _parse_model(ck: Checker, doc: dict) -> ModelSpec:
 
 
 def _parse_parameters(ck: Checker, doc: dict, inputs: ModelInputs,
-                      where: tuple = ("parameters",)) -> tuple[ParameterSpec, ...]:
+                      where: tuple = ("parameters",), renamed: Mapping[str, str] | None = None
+                      ) -> tuple[ParameterSpec, ...]:
     model = inputs.model
     t = doc.get("parameters", {}) if where == ("parameters",) else doc
     t = ck.table(t, where, "[parameters]")
@@ -281,7 +282,7 @@ def _parse_parameters(ck: Checker, doc: dict, inputs: ModelInputs,
     for name, spec in t.items():
         w = where + (name,)
         spec = ck.table(spec, w, f"[parameters.{name}]")
-        inputs.check(w, name)
+        target = _model_input(ck, t, name, spec, w, inputs, renamed)
         if name in model.fixed and where == ("parameters",):
             ck.fail(w, f"{name!r} either fixed in [model] or uncertain in [parameters], not both")
         if "distribution" not in spec:
@@ -309,8 +310,39 @@ def _parse_parameters(ck: Checker, doc: dict, inputs: ModelInputs,
         out.append(ParameterSpec(
             name, kind.lower(), params, dist, ck.loc.line(*w),
             label=str(spec.get("label", "")), unit=str(spec.get("unit", "")),
+            input=target if target != name else "",
         ))
     return tuple(out)
+
+
+def _model_input(ck: Checker, t: Mapping, name: str, spec: Mapping, w: tuple,
+                 inputs: ModelInputs, renamed: Mapping[str, str] | None) -> str:
+    """The model input parameter ``name`` feeds: ``input = "..."`` in ``[parameters]`` (the
+    study-file form of the driver's ``--map``), else its own name (a step's
+    ``distributions`` follow the study's renaming)."""
+    if renamed is not None:  # a step's distributions
+        if "input" in spec:
+            ck.fail(w + ("input",), f"input = ... only in [parameters.{name}]", spec["input"])
+        target = renamed.get(name, name)
+        inputs.check(w, target)
+        return target
+    if "input" not in spec:
+        inputs.check(w, name)
+        return name
+    target = spec["input"]
+    if not isinstance(target, str) or not target:
+        ck.fail(w + ("input",), "input = \"<model input name>\"", repr(target))
+    inputs.check(w + ("input",), target)
+    for other, ospec in t.items():
+        if other == name:
+            continue
+        theirs = ospec.get("input", other) if isinstance(ospec, dict) else other
+        if target in (other, theirs):
+            ck.fail(w + ("input",), f"a model input that no other parameter feeds "
+                    f"([parameters.{other}] does)", target)
+    if target in inputs.model.fixed:
+        ck.fail(w + ("input",), f"an input not fixed in [model] ({target!r} is)", target)
+    return target
 
 
 def _parse_exec_store(ck: Checker, doc: dict) -> tuple[ExecutorSpec, StoreSpec]:
@@ -428,7 +460,8 @@ def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
         dists: tuple[ParameterSpec, ...] = ()
         if common["distributions"] is not None:
             dists = _parse_parameters(ck, common["distributions"], inputs,
-                                      w + ("distributions",))
+                                      w + ("distributions",),
+                                      {p.name: p.input for p in params if p.input})
         steps.append(StepSpec(
             name=name, type=st.name, index=i, options=opts, source=source, parameters=sel_p,
             distributions=dists,

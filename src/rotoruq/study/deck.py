@@ -1203,7 +1203,12 @@ def _deck_for(study: Any, st: Any, o: dict, data_dir: Any) -> str:
         var_lines.append("    descriptors = " + " ".join(f"'{n}'" for n in names))
     else:
         var_lines = _uncertain_lines(names, specs)
-    fixed = {k: v for k, v in {**study.model.fixed, **st.fixed}.items() if k not in names}
+    renamed = study.renamed_inputs
+    # the study's parameters the step leaves out stay at their means (as the runner holds them)
+    unused = {renamed.get(p.name, p.name): p.distribution.mean for p in study.parameters
+              if p.name not in names}
+    fixed = {k: v for k, v in {**unused, **study.model.fixed, **st.fixed}.items()
+             if k not in names}
     var_lines += _state_lines(study, fixed)
     if st.type == "sampling" and o.get("design") == "file":
         state = list(fixed.values()) if _state_lines(study, fixed) else []

@@ -279,9 +279,10 @@ def test_given_points_in_a_csv_file_in_any_column_order(tmp_path):
 
 
 def test_a_missing_input_column_names_the_file_and_the_input(tmp_path):
+    """Refused when the study is read (the step's inputs are known), before any step runs."""
     path = _points_study(tmp_path, "%eval_id interface a f\n1 NO_ID 0.5 1\n")
     with pytest.raises(InputFileError) as err:
-        _run(path)
+        load_study(path)
     assert err.value.path == str(tmp_path / "p.dat") and err.value.line == 1
     assert "missing: b" in str(err.value)
 

@@ -9,16 +9,25 @@ a Dakota tabular file (annotated or custom_annotated, told by its ``%`` header; 
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from ..evaluation.dakota_files import read_text
-from ..evaluation.tabular import FORMATS, TabularData, parse_csv, parse_tabular, table_format
+from ..evaluation.tabular import (
+    FORMATS,
+    TabularData,
+    parse_csv,
+    parse_tabular,
+    read_table,
+    table_format,
+)
 from .options import Checker, number_list, string, string_list, table
 from .spec import DataSet
 
-__all__ = ["parse_data", "DATA_KEYS", "resolve_data_path", "read_data_file", "points_file"]
+__all__ = ["parse_data", "DATA_KEYS", "resolve_data_path", "read_data_file", "points_file",
+           "points_columns"]
 
 DATA_KEYS = ("file", "format", "select", "columns")
 
@@ -121,3 +130,10 @@ def points_file(ck: Checker, rel: str, base: Path, where: tuple) -> dict[str, st
     read_data_file(ck, fpath, None, None, where)
     return {"file": str(fpath.resolve()),
             "sha256": hashlib.sha256(fpath.read_bytes()).hexdigest()}
+
+
+def points_columns(points: dict[str, str], names: Sequence[str]) -> None:
+    """Check, when the study is read, that a points file (from :func:`points_file`) has a
+    column for each of the step's inputs ``names``: the error names the file, its header line
+    and the missing inputs (the step checks again, and each point's support, when it runs)."""
+    read_table(points["file"]).require(list(names), "the step's inputs")

@@ -57,7 +57,7 @@ from ..errors import InputFileError, ParameterError
 from ..params import DISTRIBUTIONS, make_distribution
 from ..safety import check_name
 from ..steps import StepCheck, StepType, find_step_type, step_type, step_types
-from .datafiles import parse_data, points_file
+from .datafiles import parse_data, points_columns, points_file
 from .options import (
     REQUIRED,
     Checker,
@@ -462,6 +462,9 @@ def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
             dists = _parse_parameters(ck, common["distributions"], inputs,
                                       w + ("distributions",),
                                       {p.name: p.input for p in params if p.input})
+        if isinstance(opts.get("points"), dict) and source is None:  # its inputs are known
+            points_columns(opts["points"], sel_p or [*pnames, *(d.name for d in dists
+                                                                if d.name not in pnames)])
         steps.append(StepSpec(
             name=name, type=st.name, index=i, options=opts, source=source, parameters=sel_p,
             distributions=dists,

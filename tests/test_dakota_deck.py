@@ -171,13 +171,14 @@ def test_rotoruq_driver_line_gives_preset_fixed_and_renamed_inputs():
                "--map b=cla_m02 --map y1=thrust --map y2=power"), "rot.in")
     study = parse_study(deck_to_study(deck), "rot.toml")
     assert study.model.preset == "bo105" and dict(study.model.fixed) == {"omega": 230.0}
-    assert study.parameter_names == ("cla_m03", "cla_m02")
+    # the deck's variables keep their names and feed the inputs --map names (input = ...)
+    assert study.parameter_names == ("a", "b")
+    assert study.renamed_inputs == {"a": "cla_m03", "b": "cla_m02"}
     assert study.model.responses == ("thrust", "power")
-    assert study.parameter("cla_m03").label == "a"
-    # and back: the exported deck drives the same rotor with --set, parameters by name
+    # and back: the exported deck drives the same rotor with --set and the same --map
     text = study_to_decks(study)["mean_value"]
-    assert "driver --preset bo105 --set omega=230.0'" in text
-    assert "descriptors = 'cla_m03' 'cla_m02'" in text
+    assert "driver --preset bo105 --set omega=230.0 --map a=cla_m03 --map b=cla_m02'" in text
+    assert "descriptors = 'a' 'b'" in text
 
 
 # --------------------------------------------------------------------- thesis step shapes

@@ -20,10 +20,15 @@ being Dakota's own. Values are separated by white space; the interface column ho
 a :class:`TabularData`; :func:`write_tabular` writes any of the layouts with 17 significant
 digits, so a float64 survives the round trip. Parsing is linear in the file size and every
 malformed row raises :class:`~rotoruq.errors.InputFileError` naming the file and line.
+
+This module is the one home of reading tables of numbers: :func:`read_table` reads a Dakota
+tabular file or a CSV file (a header row of names, ``#`` comment lines), telling them apart
+by the ``%`` header (a study's ``[data.NAME]`` tables and given points read through it).
 """
 
 from __future__ import annotations
 
+import csv
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -36,10 +41,12 @@ from .dakota_files import check_label, read_text
 from .store import Store
 
 __all__ = ["TabularData", "read_tabular", "parse_tabular", "format_tabular", "write_tabular",
-           "export_store", "LAYOUTS"]
+           "export_store", "LAYOUTS", "FORMATS", "read_table", "parse_csv", "table_format"]
 
 #: the layouts of Dakota's tabular files
 LAYOUTS = ("annotated", "custom_annotated", "freeform")
+#: the formats :func:`read_table` reads
+FORMATS = ("csv", "dakota")
 
 
 @dataclass(frozen=True, eq=False)
@@ -51,7 +58,11 @@ class TabularData:
     values : (n, k) the data columns, float.
     eval_id : (n,) evaluation ids, or None when the file has no such column.
     interface : the interface id of each row, or None when the file has no such column.
-    layout : "annotated" (header with eval_id and interface), "custom_annotated" or "freeform".
+    layout : "annotated" (header with eval_id and interface), "custom_annotated", "freeform"
+        or "csv" (read by :func:`parse_csv`).
+    path : the file read (None for text parsed without one).
+    header_line : the 1-based line of the header (None without a header).
+    lines : (n,) the 1-based line of each row in the file (None when not read from text).
     """
 
     names: tuple[str, ...]
@@ -59,6 +70,9 @@ class TabularData:
     eval_id: np.ndarray | None = None
     interface: tuple[str, ...] | None = None
     layout: str = "annotated"
+    path: str | None = None
+    header_line: int | None = None
+    lines: tuple[int, ...] | None = None
 
     def __len__(self) -> int:
         return int(self.values.shape[0])
@@ -74,6 +88,21 @@ class TabularData:
             raise ParameterError(f"columns {missing} are not in the tabular data; it has "
                                  f"{list(self.names)}")
         return self.values[:, [self.names.index(n) for n in names]]
+
+    def require(self, names: Sequence[str], what: str = "the columns") -> np.ndarray:
+        """The columns ``names`` (n, len(names)); a missing one raises
+        :class:`~rotoruq.errors.InputFileError` naming the file, its header line and the
+        missing names (``what`` says what they are for)."""
+        missing = [n for n in names if n not in self.names]
+        if missing:
+            raise InputFileError(self.path, self.header_line,
+                                 f"a column for each of {what} {', '.join(names)} (missing: "
+                                 f"{', '.join(missing)})", "columns " + " ".join(self.names))
+        return self.columns(names)
+
+    def line(self, row: int) -> int | None:
+        """The file line of row ``row`` (0-based), None when unknown."""
+        return None if self.lines is None else self.lines[row]
 
 
 def _float(word: str, path, lineno: int, what: str) -> float:
@@ -127,6 +156,7 @@ def parse_tabular(text: str, path: str | os.PathLike | None = None, *,
     values = np.empty((len(rows), len(data_names)))
     ids = np.empty(len(rows), dtype=np.int64) if has_id else None
     ifaces = []
+    row_lines = tuple(ln for ln, _ in rows)
     for i, (ln, words) in enumerate(rows):
         if len(words) != width:
             raise InputFileError(path, ln, f"{width} columns ({'eval_id ' if has_id else ''}"
@@ -142,7 +172,87 @@ def parse_tabular(text: str, path: str | os.PathLike | None = None, *,
         values[i] = [_float(w, path, ln, f"a number in column {n!r}")
                      for w, n in zip(words[lead:], data_names, strict=True)]
     return TabularData(tuple(data_names), values, ids, tuple(ifaces) if has_if else None,
-                       layout)
+                       layout, None if path is None else str(path),
+                       head_ln if first[0].startswith("%") else None, row_lines)
+
+
+def parse_csv(text: str, path: str | os.PathLike | None = None) -> TabularData:
+    """Parse a CSV table: a header row of column names, then rows of numbers; blank lines and
+    lines starting with ``#`` are skipped. Every malformed row raises
+    :class:`~rotoruq.errors.InputFileError` naming the file and line.
+
+    Examples
+    --------
+    >>> t = parse_csv("# measured\\nthrust,power\\n1.5,2\\n\\n3,4e1\\n", "m.csv")
+    >>> t.names, t.values.tolist(), t.lines
+    (('thrust', 'power'), [[1.5, 2.0], [3.0, 40.0]], (3, 5))
+    """
+    rows = [(k, next(csv.reader([raw]))) for k, raw in enumerate(text.splitlines(), 1)
+            if raw.strip() and not raw.lstrip().startswith("#")]
+    if len(rows) < 2:
+        raise InputFileError(path, rows[0][0] if rows else 1,
+                             "a header row and at least one data row",
+                             f"{len(rows)} non-comment row(s)")
+    head_ln, header = rows[0][0], [h.strip() for h in rows[0][1]]
+    if len(set(header)) < len(header) or not all(header):
+        raise InputFileError(path, head_ln, "distinct, non-empty column names",
+                             ",".join(header))
+    values = np.empty((len(rows) - 1, len(header)))
+    for i, (ln, row) in enumerate(rows[1:]):
+        if len(row) != len(header):
+            raise InputFileError(path, ln, f"{len(header)} comma-separated values",
+                                 ",".join(row))
+        values[i] = [_float(v, path, ln, f"a number in column {h!r}")
+                     for h, v in zip(header, row, strict=True)]
+    return TabularData(tuple(header), values, layout="csv",
+                       path=None if path is None else str(path), header_line=head_ln,
+                       lines=tuple(ln for ln, _ in rows[1:]))
+
+
+def table_format(text: str) -> str:
+    """"dakota" when the first non-blank line is a Dakota ``%`` header, else "csv" (a
+    freeform Dakota file has no header: name its format)."""
+    first = next((raw.lstrip() for raw in text.splitlines() if raw.strip()), "")
+    return "dakota" if first.startswith("%") else "csv"
+
+
+def read_table(path: str | os.PathLike, *, format: str | None = None,
+               names: Sequence[str] | None = None) -> TabularData:
+    """Read a table of numbers: a Dakota tabular file or a CSV file.
+
+    Parameters
+    ----------
+    path : the file.
+    format : "dakota" or "csv"; None detects it (:func:`table_format`: a ``%`` header is
+        Dakota's).
+    names : Dakota files only: the column names of a file without a header (freeform), else
+        checked against the header (see :func:`read_tabular`).
+
+    Returns
+    -------
+    TabularData
+        ``layout`` is "csv" for a CSV file; ``lines`` give each row's line in the file.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> d = Path(tempfile.mkdtemp())
+    >>> _ = (d / "a.dat").write_text("%eval_id interface x f\\n1 NO_ID 0.5 2\\n")
+    >>> _ = (d / "b.csv").write_text("x,f\\n0.5,2\\n")
+    >>> [read_table(d / n).values.tolist() for n in ("a.dat", "b.csv")]
+    [[[0.5, 2.0]], [[0.5, 2.0]]]
+    """
+    text = read_text(path, "table file")
+    fmt = table_format(text) if format is None else format
+    if fmt not in FORMATS:
+        raise ParameterError(f"format must be one of {FORMATS}, got {format!r}")
+    if fmt == "csv":
+        if names is not None:
+            raise ParameterError("names= is for a Dakota file without a header; a CSV file "
+                                 "names its columns in its header row")
+        return parse_csv(text, path)
+    return parse_tabular(text, path, names=names)
 
 
 def _column_name(name) -> str:

@@ -1,9 +1,17 @@
 """Step type ``sampling``: propagate the input distributions by a sampling design (LHS by
-default), optionally with measurement noise added to the outputs."""
+default), optionally with measurement noise added to the outputs.
+
+``design = "file"`` with ``points = "points.dat"`` evaluates given points instead (a Dakota
+tabular file or a CSV file, read by :func:`rotoruq.evaluation.tabular.read_table`): the
+columns named as the step's inputs, in any order, other columns (``eval_id``, ``interface``,
+responses) ignored; every point must lie in the support of its inputs' distributions.
+"""
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Mapping
+from pathlib import Path
 
 import numpy as np
 
@@ -11,17 +19,78 @@ from ..render.figures import Figure, FigureContext, load_distributions
 from ..render.tables import MOMENTS, StepTable, inputs_table, make_table, moments_rows, responses
 from ..results import StepResult
 from ._common import input_scalars, noise, stats_scalars
-from .base import DESIGNS, StepContext, StepType
+from .base import DESIGNS, StepCheck, StepContext, StepType
 from .forward_check import propagation_warnings
-from .options import SIGNATURE, Option, choice, integer, number_or_table
+from .options import SIGNATURE, Option, choice, integer, number_or_table, string
 
-__all__ = ["STEP", "run_sampling", "sampling_tables", "sampling_figures"]
+__all__ = ["STEP", "run_sampling", "sampling_tables", "sampling_figures", "given_points",
+           "GIVEN"]
 
 _SAMPLE = "rotoruq.methods.sampling:sample"
+#: the ``design`` of a step that evaluates given points (``points = "file"``)
+GIVEN = "file"
+
+
+def given_points(ctx: StepContext) -> tuple[np.ndarray, str]:
+    """The step's given points (n, d), columns in ``ctx.space.names`` order, and the file.
+
+    ``ctx.options["points"]`` is ``{"file": <absolute path>, "sha256": <digest>}`` (the study
+    file's ``points`` resolved when it was read; the digest puts the file's content in the
+    step's fingerprint). Raises :class:`~rotoruq.errors.InputFileError` naming the file and
+    the missing input column, or the line of a point outside its input's support.
+    """
+    from ..errors import InputFileError
+    from ..evaluation.tabular import read_table
+
+    spec = ctx.options["points"]
+    path = Path(spec["file"])
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise InputFileError(path, None, "the points file the study names",
+                             f"{type(exc).__name__}: {exc.strerror or exc}") from None
+    if hashlib.sha256(raw).hexdigest() != spec["sha256"]:
+        raise InputFileError(path, None, "the points file as it was when the study was read "
+                             "(it changed since: run the study again)")
+    table = read_table(path)
+    names = list(ctx.space.names)
+    x = table.require(names, f"the inputs of step {ctx.name!r}:")
+    for j, (name, dist) in enumerate(zip(names, ctx.space.distributions, strict=True)):
+        lo, hi = dist.bounds
+        bad = np.flatnonzero(~((x[:, j] >= lo) & (x[:, j] <= hi)))
+        if bad.size:
+            k = int(bad[0])
+            ident = "" if table.eval_id is None else f", eval_id {int(table.eval_id[k])}"
+            raise InputFileError(
+                path, table.line(k), f"point {k + 1}{ident}: {name} within the support "
+                f"[{lo:g}, {hi:g}] of its {dist.kind} distribution ({bad.size} point(s) "
+                "outside)", repr(float(x[k, j])))
+    return x, str(path)
+
+
+def check_sampling(ck: StepCheck) -> None:
+    """``design = "file"`` needs ``points`` and no ``n_samples``; the other designs need
+    ``n_samples`` and no ``points``."""
+    o = ck.options
+    if o["design"] == GIVEN:
+        if o.get("points") is None:
+            ck.fail((), 'points = "points.dat" (a Dakota tabular or CSV file) with '
+                    'design = "file"')
+        if o.get("n_samples") is not None:
+            ck.fail(("n_samples",), 'no n_samples with design = "file" (the file gives the '
+                    "points)", str(o["n_samples"]))
+        if o.get("propagation", "joint") != "joint":
+            ck.fail(("propagation",), 'no propagation with design = "file"')
+    else:
+        if o.get("points") is not None:
+            ck.fail(("points",), f'design = "file" with points (design is {o["design"]!r})')
+        if o.get("n_samples") is None:
+            ck.fail((), "n_samples = <number of points> in a sampling step")
 
 
 def run_sampling(ctx: StepContext) -> StepResult:
-    """Propagate the step's inputs by a sampling design; with ``from = "<bayes
+    """Propagate the step's inputs by a sampling design, or evaluate given points
+    (``design = "file"``: :func:`given_points`); with ``from = "<bayes
     step>.posterior"`` and ``propagation = "joint"`` (default), the chain's own draws (thinned
     evenly, correlations kept) instead; ``"independent_normals"`` samples the normals of the
     posterior moments (the reference study) and warns with the correlation it drops."""
@@ -31,13 +100,18 @@ def run_sampling(ctx: StepContext) -> StepResult:
 
     o = ctx.options
     propagation = o.get("propagation", "joint")
-    draws = posterior_draws(ctx.source, ctx.space.names, o["n_samples"])
     meta: dict = {}
-    if draws is not None and propagation == "joint":
+    given = o["design"] == GIVEN
+    draws: np.ndarray | None
+    if given:
+        draws, meta["points_file"] = given_points(ctx)
+    else:
+        draws = posterior_draws(ctx.source, ctx.space.names, o["n_samples"])
+    if draws is not None and (given or propagation == "joint"):
         ev = evaluate(ctx.model(), draws)
         inputs, clean = draws, np.array(ev.values, dtype=float)
         n_eval, n_fail = draws.shape[0], int(np.sum(~np.all(np.isfinite(clean), axis=1)))
-        meta["propagation"] = "joint"
+        meta["propagation"] = "given_points" if given else "joint"
     else:
         res = sample(ctx.model(), ctx.space, o["n_samples"], design=o["design"],
                      seed=ctx.rng)
@@ -70,7 +144,13 @@ def sampling_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTabl
                               moments_rows(res, [f"noisy_{r}" for r in resp])))
     out.append(inputs_table(res, labels))
     prop = res.meta.get("propagation")
-    if prop in ("joint", "independent_normals"):
+    if prop == "given_points":
+        n = len(res.arrays["inputs"]) if "inputs" in res.arrays else "the"
+        out[0] = make_table(out[0].title, out[0].columns, out[0].rows,
+                            f"Given points: {n} points read from "
+                            f"{Path(str(res.meta.get('points_file', '?'))).name} (no sampling "
+                            "design).")
+    elif prop in ("joint", "independent_normals"):
         out[0] = make_table(out[0].title, out[0].columns, out[0].rows,
                             "Propagation: " + ("the calibration's chain, thinned (its "
                                                "correlations kept)." if prop == "joint" else
@@ -90,10 +170,12 @@ def sampling_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:
 
 STEP = StepType(
     "sampling", run_sampling, method=_SAMPLE, provides=("samples",),
-    options={"n_samples": Option(integer(1), SIGNATURE),
-             "design": Option(choice(*DESIGNS), SIGNATURE),
+    options={"n_samples": Option(integer(1), None),
+             "design": Option(choice(*DESIGNS, GIVEN), SIGNATURE),
+             "points": Option(string(), None),
              "noise_std": Option(number_or_table, 0.0),
              "propagation": Option(choice("joint", "independent_normals"), "joint")},
     quick={"n_samples": 40},
+    check=check_sampling,
     tables=sampling_tables, figures=sampling_figures, warnings=propagation_warnings,
     modules=("rotoruq.methods.sampling",))

@@ -1,24 +1,40 @@
-"""``[data.NAME]`` tables of a study file: CSV files (bundled ones found in ``rotoruq/data``)
-or inline columns, as :class:`~rotoruq.study.spec.DataSet`."""
+"""``[data.NAME]`` tables of a study file: CSV or Dakota tabular files (bundled ones found in
+``rotoruq/data``) or inline columns, as :class:`~rotoruq.study.spec.DataSet`.
+
+A file is read by :func:`rotoruq.evaluation.tabular.read_table` (the one home of the parsing):
+a Dakota tabular file (annotated or custom_annotated, told by its ``%`` header; freeform with
+``format = "dakota"`` and ``columns = [...]`` naming every column) or a CSV file.
+"""
 
 from __future__ import annotations
 
-import csv
+import hashlib
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputFileError
+from ..evaluation.dakota_files import read_text
+from ..evaluation.tabular import (
+    FORMATS,
+    TabularData,
+    parse_csv,
+    parse_tabular,
+    read_table,
+    table_format,
+)
 from .options import Checker, number_list, string, string_list, table
 from .spec import DataSet
 
-__all__ = ["parse_data", "DATA_KEYS"]
+__all__ = ["parse_data", "DATA_KEYS", "resolve_data_path", "read_data_file", "points_file",
+           "points_columns"]
 
-DATA_KEYS = ("file", "select", "columns")
+DATA_KEYS = ("file", "format", "select", "columns")
 
 
 def parse_data(ck: Checker, doc: dict, base: Path) -> dict[str, DataSet]:
-    """``[data.NAME]`` tables: a CSV file (``file``, ``select``, ``columns``) or inline columns."""
+    """``[data.NAME]`` tables: a CSV or Dakota tabular file (``file``, ``format``, ``select``,
+    ``columns``) or inline columns."""
     t = ck.table(doc.get("data", {}), ("data",), "[data]")
     out = {}
     for name, spec in t.items():
@@ -27,11 +43,14 @@ def parse_data(ck: Checker, doc: dict, base: Path) -> dict[str, DataSet]:
         if "file" in spec:
             ck.keys(spec, DATA_KEYS, w, f"[data.{name}]")
             rel = ck.value(spec, "file", (string(), None), w, f"[data.{name}]")
-            fpath = _resolve_data_path(rel, base)
+            fpath = resolve_data_path(rel, base)
             if fpath is None:
-                ck.fail(w + ("file",), f"an existing CSV file (looked in {base} and the bundled "
-                        "rotoruq/data)", rel)
-            cols = _read_csv(ck, fpath, w)
+                ck.fail(w + ("file",), f"an existing CSV file or Dakota tabular file (looked in "
+                        f"{base} and the bundled rotoruq/data)", rel)
+            fmt = ck.value(spec, "format", (string(FORMATS), None), w, f"[data.{name}]")
+            keep = ck.value(spec, "columns", (string_list, None), w, f"[data.{name}]")
+            tab = read_data_file(ck, fpath, fmt, keep, w)
+            cols = {k: tab.values[:, j] for j, k in enumerate(tab.names)}
             select = ck.value(spec, "select", (table, {}), w, f"[data.{name}]") or {}
             select = ck.numbers(select, w + ("select",), f"[data.{name}] select")
             mask = np.ones(len(next(iter(cols.values()))), bool)
@@ -42,7 +61,6 @@ def parse_data(ck: Checker, doc: dict, base: Path) -> dict[str, DataSet]:
             if not mask.any():
                 ck.fail(w + ("select",), f"a selection matching at least one row of {fpath.name}")
             cols = {k: v[mask] for k, v in cols.items()}
-            keep = ck.value(spec, "columns", (string_list, None), w, f"[data.{name}]")
             if keep is not None:
                 for k in keep:
                     if k not in cols:
@@ -69,7 +87,9 @@ def parse_data(ck: Checker, doc: dict, base: Path) -> dict[str, DataSet]:
     return out
 
 
-def _resolve_data_path(rel: str, base: Path) -> Path | None:
+def resolve_data_path(rel: str, base: Path) -> Path | None:
+    """The file ``rel`` names: relative to the study's folder ``base``, else a bundled data
+    file of ``rotoruq/data``; None when neither exists."""
     p = Path(rel)
     candidates = [p] if p.is_absolute() else [base / p]
     if not p.is_absolute():
@@ -80,24 +100,40 @@ def _resolve_data_path(rel: str, base: Path) -> Path | None:
     return None
 
 
-def _read_csv(ck: Checker, fpath: Path, where: tuple) -> dict[str, np.ndarray]:
-    with fpath.open(newline="", encoding="utf-8") as fh:
-        rows = [r for r in csv.reader(fh) if r and not r[0].lstrip().startswith("#")]
-    if len(rows) < 2:
-        raise InputFileError(fpath, 1, "a header row and at least one data row")
-    header = [h.strip() for h in rows[0]]
-    # line numbers: count comment lines too, so recompute positions from the raw file
-    raw_lines = fpath.read_text(encoding="utf-8").splitlines()
-    data_lines = [i + 1 for i, r in enumerate(raw_lines) if r.strip() and not
-                  r.lstrip().startswith("#")][1:]
-    cols: dict[str, list[float]] = {h: [] for h in header}
-    for row, lineno in zip(rows[1:], data_lines, strict=False):
-        if len(row) != len(header):
-            raise InputFileError(fpath, lineno, f"{len(header)} comma-separated values",
-                                 ",".join(row))
-        for h, v in zip(header, row, strict=True):
-            try:
-                cols[h].append(float(v))
-            except ValueError:
-                raise InputFileError(fpath, lineno, f"a number in column {h!r}", v) from None
-    return {h: np.asarray(v) for h, v in cols.items()}
+def read_data_file(ck: Checker, fpath: Path, fmt: str | None, columns: tuple[str, ...] | None,
+                   where: tuple) -> TabularData:
+    """Read a study's table file (CSV or Dakota tabular; ``fmt`` None: told by a ``%``
+    header). A Dakota file without a header (freeform) takes its column names from
+    ``columns``; without them, the study line ``where`` says so."""
+    text = read_text(fpath, "table file")
+    found = table_format(text)
+    if (fmt or found) == "csv":
+        return parse_csv(text, fpath)
+    if found != "dakota":
+        if columns is None:
+            ck.fail(where, f"columns = [...] naming every column of {fpath.name} (a Dakota "
+                    "tabular file without a '%' header: freeform)")
+        return parse_tabular(text, fpath, names=columns)
+    return parse_tabular(text, fpath)
+
+
+def points_file(ck: Checker, rel: str, base: Path, where: tuple) -> dict[str, str]:
+    """A step's ``points = "file"`` (given points, read by the step when it runs): the file
+    relative to the study's folder, checked now to be a readable table (a Dakota tabular
+    file with its ``%`` header or a CSV file; errors name its line). Returns ``{"file":
+    <absolute path>, "sha256": <digest of its bytes>}``: the digest enters the step's
+    fingerprint, so an edited points file re-runs the step."""
+    fpath = Path(rel) if Path(rel).is_absolute() else base / rel
+    if not fpath.is_file():
+        ck.fail(where, f"an existing points file (a Dakota tabular or CSV file; looked in "
+                f"{base})", rel)
+    read_data_file(ck, fpath, None, None, where)
+    return {"file": str(fpath.resolve()),
+            "sha256": hashlib.sha256(fpath.read_bytes()).hexdigest()}
+
+
+def points_columns(points: dict[str, str], names: Sequence[str]) -> None:
+    """Check, when the study is read, that a points file (from :func:`points_file`) has a
+    column for each of the step's inputs ``names``: the error names the file, its header line
+    and the missing inputs (the step checks again, and each point's support, when it runs)."""
+    read_table(points["file"]).require(list(names), "the step's inputs")

@@ -855,13 +855,13 @@ def deck_to_study(deck: Deck, *, name: str | None = None) -> str:
     if method.kind in ("nl2sol", "bayes_calibration") and resp.data is None:
         raise InputFileError(deck.path, deck.of("responses")[0].line,
                              "calibration_data_file for " + method.kind)
-    step = _step(method, [drv.mapping.get(n, n) for n in design_params])
+    step = _step(method, design_params)
     if step.get("n_samples") == -1:
         d = len(params)
         step["n_samples"] = math.ceil(method.opts["collocation_ratio"]
                                       * math.comb(method.opts["expansion_order"] + d, d))
     if step["type"] == "evidence":
-        step["intervals"] = {drv.mapping.get(v.name, v.name): [
+        step["intervals"] = {v.name: [
             [lo, hi, w] for (lo, hi), w in zip(v.attrs["intervals"], v.attrs["bpa"],
                                                strict=True)]
             for v in params if v.group == "continuous_interval_uncertain"}
@@ -963,7 +963,7 @@ def _cuu_study(deck: Deck, cuu: tuple, name: str | None) -> str:
             raise InputFileError(deck.path, nb.line, f"a std target of {r!r} (the cuu step "
                                  "takes targets as [mean, std] per response)")
     step: dict[str, Any] = {"name": "cuu", "type": "cuu",
-                            "parameters": [drv.mapping.get(p, p) for p in dict.fromkeys(pvm)],
+                            "parameters": list(dict.fromkeys(pvm)),
                             "responses": list(targets), "targets": targets,
                             "calibrate": calibrate, "inner": inner_name, "optimizer": "nl2sol",
                             "weighting": "absolute"}
@@ -992,6 +992,12 @@ def _cuu_study(deck: Deck, cuu: tuple, name: str | None) -> str:
     inner_resp.names = list(inner_resp.names)
     return _emit(deck, name, inner.seed or outer.seed, drv, inner_resp, params, fixed, [step],
                  design=set())
+
+
+def _rotor_input_names(preset: str) -> tuple[str, ...]:
+    from .schema import _rotor_inputs
+
+    return _rotor_inputs(preset, "{}")
 
 
 def _toml(v: Any) -> str:
@@ -1038,15 +1044,21 @@ def _emit(deck: Deck, name: str | None, seed: int | None, drv: _Driver, resp: _R
     if allfixed:
         lines.append(f"fixed = {_toml(allfixed)}")
     lines.append("")
+    known = _rotor_input_names(drv.preset) if drv.preset is not None else None
     for v in params:
-        pname = rename.get(v.name, v.name)
-        lines.append(f"[parameters.{_key(pname)}]")
+        # a deck's variable keeps its name; one the driver renames (--map) feeds that input
+        target = rename.get(v.name, v.name)
+        if known is not None and target not in known:
+            raise InputFileError(deck.path, v.line, f"a variable named as an input of the "
+                                 f"rotor preset {drv.preset!r}, or --map {v.name}=INPUT in "
+                                 "the rotoruq driver string", v.name)
+        lines.append(f"[parameters.{_key(v.name)}]")
+        if target != v.name:
+            lines.append(f"input = {_toml(target)}")
         dist = (_design_distribution(v, deck) if v.name in design
                 else _distribution(v, deck))
         for k, x in dist.items():
             lines.append(f"{k} = {_toml(x)}")
-        if pname != v.name:
-            lines.append(f"label = {_toml(v.name)}")
         lines.append("")
     if resp.data is not None and any(s.get("data") for s in steps):
         lines.append("[data.calibration]")
@@ -1191,9 +1203,17 @@ def _deck_for(study: Any, st: Any, o: dict, data_dir: Any) -> str:
         var_lines.append("    descriptors = " + " ".join(f"'{n}'" for n in names))
     else:
         var_lines = _uncertain_lines(names, specs)
-    fixed = {k: v for k, v in {**study.model.fixed, **st.fixed}.items() if k not in names}
+    renamed = study.renamed_inputs
+    # the study's parameters the step leaves out stay at their means (as the runner holds them)
+    unused = {renamed.get(p.name, p.name): p.distribution.mean for p in study.parameters
+              if p.name not in names}
+    fixed = {k: v for k, v in {**unused, **study.model.fixed, **st.fixed}.items()
+             if k not in names}
     var_lines += _state_lines(study, fixed)
-    driver = _driver_line(study, fixed, responses)
+    if st.type == "sampling" and o.get("design") == "file":
+        state = list(fixed.values()) if _state_lines(study, fixed) else []
+        method = _given_points_text(o["points"]["file"], names, specs, state)
+    driver = _driver_line(study, fixed, responses, names)
     kind = "calibration_terms" if st.type in ("least_squares", "bayes_calibration") \
         else "response_functions"
     grads = ("  numerical_gradients\n    method_source dakota\n    interval_type forward\n"
@@ -1360,7 +1380,7 @@ variables
 interface
   id_interface = 'MODEL'
   fork
-    analysis_drivers = '{_driver_line(study, fixed, responses)}'
+    analysis_drivers = '{_driver_line(study, fixed, responses, names)}'
     parameters_file = 'params.in'
     results_file = 'results.out'
     file_tag
@@ -1386,14 +1406,21 @@ def _bounds(spec: Any) -> tuple[float, float]:
     return float(lo), float(hi)
 
 
-def _driver_line(study: Any, fixed: Mapping, responses: list[str]) -> str:
+def _driver_line(study: Any, fixed: Mapping, responses: list[str],
+                 names: Sequence[str] = ()) -> str:
     m = study.model
     if m.kind != "preset":
         fixed = {}
     sets = " ".join(f"--set {k}={float(v)!r}" for k, v in fixed.items())
+    renamed = {k: v for k, v in getattr(study, "renamed_inputs", {}).items() if k in names}
     if m.kind == "preset":
-        return f"{rotoruq_command()} driver --preset {m.preset} {sets}".strip()
+        maps = "".join(f" --map {k}={v}" for k, v in renamed.items())
+        return f"{rotoruq_command()} driver --preset {m.preset} {sets}{maps}".strip()
     assert m.external is not None
+    if renamed:
+        raise InputFileError(None, None, "parameters named as the external model's inputs "
+                             "(its command reads the deck's names; input = ... is not "
+                             "exported)", ", ".join(renamed))
     if m.external.parameters_format != "standard" or m.external.templates:
         raise InputFileError(None, None, "an external model with standard parameters files "
                              "and no templates (the exported deck calls its command)")
@@ -1473,6 +1500,25 @@ def _method_text(st: Any, o: dict, responses: list[str], names: list[str],
                  + ("prior" if (o.get("proposal") or "hessian") == "prior" else "derivatives"))
     lines.append(f"    burn_in_samples = {burn}")
     return "\n".join(lines), ""
+
+
+def _given_points_text(path: str, names: list[str], specs: Sequence[Any],
+                       state: Sequence[float]) -> str:
+    """A ``design = "file"`` sampling step as Dakota's ``list_parameter_study`` over the same
+    points, inline. A parameter study's points give every variable (uncertain, then the
+    state variables' fixed values) by position, in Dakota's own order: uncertain variables
+    grouped by distribution in the order of its variables block (:data:`_GROUPS`), not the
+    deck's."""
+    from ..evaluation.tabular import read_table
+
+    groups = list(_GROUPS)
+    rank = {n: groups.index(_DAKOTA_DIST[_describe(sp)["kind"]][0])
+            for n, sp in zip(names, specs, strict=True)}
+    order = sorted(names, key=lambda n: rank[n])  # stable: deck order within a group
+    x = read_table(path).require(order, "the step's inputs")
+    rows = "\n".join("      " + " ".join(_fmt(v) for v in [*row, *state]) for row in x)
+    return ("  # the given points of " + Path(path).name + "\n  list_parameter_study\n"
+            "    list_of_points =\n" + rows)
 
 
 def _default(step_type_name: str, option: str) -> Any:

@@ -6,8 +6,9 @@ files outside its own folder. :func:`check_study_paths` checks, naming the study
 - the study name and every step name name one file (:func:`rotoruq.safety.check_name`);
 - ``[study] output`` (unless the command line names the folder), ``[store] path`` (unless the
   command line allows an outside store) and ``[model] workdir`` are relative, without ``..``;
-- ``[model] templates`` and ``files`` and every ``[data.NAME] file`` are relative, without
-  ``..``, and stay inside the study file's folder (symlinks resolved);
+- ``[model] templates`` and ``files``, every ``[data.NAME] file`` and every step's ``points``
+  file are relative, without ``..``, and stay inside the study file's folder (symlinks
+  resolved);
 - with the results folder known, the store and the work directory resolve inside it.
 """
 
@@ -117,3 +118,10 @@ folder, without '..' (a '..' component), found '../../elsewhere'
             rel = check_relative(spec["file"], what=f"[data.{name}] file", path=path, line=line)
             if (base / rel).exists():  # else a bundled data file (rotoruq/data)
                 inside(base, rel, what=f"[data.{name}] file", path=path, line=line)
+    steps = doc.get("steps", [])
+    for i, spec in enumerate(steps if isinstance(steps, list) else []):
+        if isinstance(spec, dict) and isinstance(spec.get("points"), str):
+            line = loc.line("steps", i, "points")
+            rel = check_relative(spec["points"], what="a step's points file", path=path,
+                                 line=line)
+            inside(base, rel, what="a step's points file", path=path, line=line)

@@ -87,12 +87,21 @@ def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
     (written into every parameters file), wrapped so that its inputs are ``inputs``.
 
     A named model's own ``fixed`` values take precedence over ``fixed`` (the step's: the
-    study's operating point).
+    study's operating point). Parameters that feed a model input of another name
+    (``[parameters.kp] input = "k_pitch_link"``) reach it through
+    :class:`~rotoruq.evaluation.renamed.RenamedInputs`.
 
     Paths in an external model (words of ``command`` that name files, ``templates``,
     ``files``) are relative to the study file's folder; ``workdir`` is relative to the results
     folder ``out`` (default ``out/work``, ``out/work/NAME`` for a named model).
     """
+    renamed = study.renamed_inputs
+    if any(n in renamed for n in inputs) or any(k in renamed for k in fixed):
+        from ..evaluation.renamed import RenamedInputs
+
+        inner = build_model(study, [renamed.get(n, n) for n in inputs], responses,
+                            {renamed.get(k, k): v for k, v in fixed.items()}, out, model=model)
+        return RenamedInputs(inner, inputs)
     spec = study.model_spec(model)
     if model is not None:
         fixed = {**fixed, **spec.fixed}

@@ -58,7 +58,7 @@ from ..params import DISTRIBUTIONS, make_distribution
 from ..safety import check_name
 from ..steps import StepCheck, StepType, find_step_type, step_type, step_types
 from ..steps.multifidelity import HF_LABEL
-from .datafiles import parse_data
+from .datafiles import parse_data, points_columns, points_file
 from .options import (
     REQUIRED,
     Checker,
@@ -97,7 +97,7 @@ DISCRETIZATION_KEYS = ("n_stations", "n_azimuth", "n_harmonics")
 
 EXECUTOR_KEYS = ("kind", "workers", "scheduler")
 STORE_KEYS = ("enabled", "path")
-PARAM_META = ("distribution", "label", "unit")
+PARAM_META = ("distribution", "label", "unit", "input")
 
 # Keys every [[steps]] table may have besides its type's options.
 COMMON_STEP_KEYS: dict[str, Option] = {
@@ -207,7 +207,7 @@ def parse_study(text: str, path: str | Path = "<study>") -> Study:
     _check_model_inputs(ck, models, model, params)
     data = parse_data(ck, doc, base)
     executor, store = _parse_exec_store(ck, doc)
-    steps = _parse_steps(ck, doc, inputs, params, data, models)
+    steps = _parse_steps(ck, doc, inputs, params, data, models, base)
     return Study(path, info, model, params, data, executor, store, steps, text, models)
 
 
@@ -353,7 +353,8 @@ def _check_model_inputs(ck: Checker, models: Mapping[str, ModelSpec], model: Mod
 
 
 def _parse_parameters(ck: Checker, doc: dict, inputs: ModelInputs,
-                      where: tuple = ("parameters",)) -> tuple[ParameterSpec, ...]:
+                      where: tuple = ("parameters",), renamed: Mapping[str, str] | None = None
+                      ) -> tuple[ParameterSpec, ...]:
     model = inputs.model
     t = doc.get("parameters", {}) if where == ("parameters",) else doc
     t = ck.table(t, where, "[parameters]")
@@ -361,7 +362,7 @@ def _parse_parameters(ck: Checker, doc: dict, inputs: ModelInputs,
     for name, spec in t.items():
         w = where + (name,)
         spec = ck.table(spec, w, f"[parameters.{name}]")
-        inputs.check(w, name)
+        target = _model_input(ck, t, name, spec, w, inputs, renamed)
         if name in model.fixed and where == ("parameters",):
             ck.fail(w, f"{name!r} either fixed in [model] or uncertain in [parameters], not both")
         if "distribution" not in spec:
@@ -389,8 +390,39 @@ def _parse_parameters(ck: Checker, doc: dict, inputs: ModelInputs,
         out.append(ParameterSpec(
             name, kind.lower(), params, dist, ck.loc.line(*w),
             label=str(spec.get("label", "")), unit=str(spec.get("unit", "")),
+            input=target if target != name else "",
         ))
     return tuple(out)
+
+
+def _model_input(ck: Checker, t: Mapping, name: str, spec: Mapping, w: tuple,
+                 inputs: ModelInputs, renamed: Mapping[str, str] | None) -> str:
+    """The model input parameter ``name`` feeds: ``input = "..."`` in ``[parameters]`` (the
+    study-file form of the driver's ``--map``), else its own name (a step's
+    ``distributions`` follow the study's renaming)."""
+    if renamed is not None:  # a step's distributions
+        if "input" in spec:
+            ck.fail(w + ("input",), f"input = ... only in [parameters.{name}]", spec["input"])
+        target = renamed.get(name, name)
+        inputs.check(w, target)
+        return target
+    if "input" not in spec:
+        inputs.check(w, name)
+        return name
+    target = spec["input"]
+    if not isinstance(target, str) or not target:
+        ck.fail(w + ("input",), "input = \"<model input name>\"", repr(target))
+    inputs.check(w + ("input",), target)
+    for other, ospec in t.items():
+        if other == name:
+            continue
+        theirs = ospec.get("input", other) if isinstance(ospec, dict) else other
+        if target in (other, theirs):
+            ck.fail(w + ("input",), f"a model input that no other parameter feeds "
+                    f"([parameters.{other}] does)", target)
+    if target in inputs.model.fixed:
+        ck.fail(w + ("input",), f"an input not fixed in [model] ({target!r} is)", target)
+    return target
 
 
 def _parse_exec_store(ck: Checker, doc: dict) -> tuple[ExecutorSpec, StoreSpec]:
@@ -424,7 +456,8 @@ def _step_options(ck: Checker, s: dict, st: StepType, w: tuple, what: str) -> di
 
 def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
                  params: tuple[ParameterSpec, ...], data: dict[str, DataSet],
-                 models: Mapping[str, ModelSpec]) -> tuple[StepSpec, ...]:
+                 models: Mapping[str, ModelSpec], base: Path = Path()
+                 ) -> tuple[StepSpec, ...]:
     model = inputs.model
     raw = doc.get("steps", [])
     if not isinstance(raw, list) or not all(isinstance(s, dict) for s in raw):
@@ -461,6 +494,8 @@ def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
                   for k, opt in COMMON_STEP_KEYS.items()}
         opts = _step_options(ck, s, st, w, what)
         _check_model_names(ck, opts, models, w, what)
+        if isinstance(opts.get("points"), str):  # a file of given points, near the study
+            opts["points"] = points_file(ck, opts["points"], base, w + ("points",))
         quick = common["quick"] or {}
         ck.keys(quick, list(st.options), w + ("quick",), f"quick = {{...}} of {what}")
         quick = {k: ck.option(quick, k, st.options[k], w + ("quick",),
@@ -507,7 +542,11 @@ def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
         dists: tuple[ParameterSpec, ...] = ()
         if common["distributions"] is not None:
             dists = _parse_parameters(ck, common["distributions"], inputs,
-                                      w + ("distributions",))
+                                      w + ("distributions",),
+                                      {p.name: p.input for p in params if p.input})
+        if isinstance(opts.get("points"), dict) and source is None:  # its inputs are known
+            points_columns(opts["points"], sel_p or [*pnames, *(d.name for d in dists
+                                                                if d.name not in pnames)])
         steps.append(StepSpec(
             name=name, type=st.name, index=i, options=opts, source=source, parameters=sel_p,
             distributions=dists,

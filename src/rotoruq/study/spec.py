@@ -69,6 +69,7 @@ class ParameterSpec:
     line: int | None = None
     label: str = ""
     unit: str = ""
+    input: str = ""  # the model input it feeds, when its name differs (``input = "..."``)
 
 
 @dataclass(frozen=True, eq=False)
@@ -154,6 +155,11 @@ class Study:
     @property
     def parameter_names(self) -> tuple[str, ...]:
         return tuple(p.name for p in self.parameters)
+
+    @property
+    def renamed_inputs(self) -> dict[str, str]:
+        """Parameter name -> the model input it feeds, for parameters named otherwise."""
+        return {p.name: p.input for p in self.parameters if p.input}
 
     def parameter(self, name: str) -> ParameterSpec:
         for p in self.parameters:

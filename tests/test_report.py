@@ -399,7 +399,7 @@ def test_reproduce_quick(tmp_path, capsys):
     assert "validation_bayes_pairs" in page_figs and "experiment_bayes_pairs" in page_figs
     # the figures are the same bytes whether this process draws them all or shares them
     # with one or two worker processes
-    dirs = [tmp_path / "validation", tmp_path / "experiment"]
+    dirs = [tmp_path / "validation", tmp_path / "experiment", tmp_path / "heldout"]
 
     def report(workers):
         out = tmp_path / f"report_{workers}"

@@ -368,19 +368,28 @@ def test_sigkill_of_the_cli_frees_the_folder_at_once(tmp_path, whole_group):
     assert np.isfinite(outputs(out)).all()
 
 
+def _dask_study(distributed, folder: Path, n: int):
+    """A scheduler on loopback without workers, and test_trust's external study (``n``
+    points, ``failure = "retry"``) on it."""
+    from test_trust import external_study
+
+    cluster = distributed.LocalCluster(n_workers=0, host="127.0.0.1", dashboard_address=None)
+    study = external_study(folder, n=n, executor="dask", failure='failure = "retry"')
+    study.write_text(study.read_text().replace(
+        'kind = "dask"', f'kind = "dask"\nscheduler = "{cluster.scheduler_address}"'))
+    return cluster, study
+
+
 @pytest.mark.slow
 def test_cli_run_losing_the_only_dask_worker_saves_no_step_and_resumes_bitwise(tmp_path):
     """`rotoruq run` on a real scheduler with one worker process: the worker SIGKILLed
     mid-step -> exit 1 with the one-line message, no saved step, no failed evaluation; with a
     new worker the same command finishes, bitwise equal to an uninterrupted run."""
     distributed = pytest.importorskip("distributed")
-    from test_trust import CLI, external_study, outputs
+    from test_trust import CLI, outputs
 
-    cluster = distributed.LocalCluster(n_workers=0, host="127.0.0.1", dashboard_address=None)
+    cluster, study = _dask_study(distributed, tmp_path / "s", n=12)
     address = cluster.scheduler_address
-    study = external_study(tmp_path / "s", n=12, executor="dask", failure='failure = "retry"')
-    study.write_text(study.read_text().replace('kind = "dask"',
-                                               f'kind = "dask"\nscheduler = "{address}"'))
     env = {**os.environ, "PYTHONPATH": SRC, "ROTORUQ_DASK_WORKER_TIMEOUT": "2"}
     out, log = tmp_path / "out", tmp_path / "log"
     workers = [_dask_worker(address, DRIVER_SLEEP="0.3", DRIVER_LOG=str(log))]
@@ -504,13 +513,10 @@ def test_signal_to_a_dask_run_ends_its_drivers_on_the_workers(tmp_path, sig):
     serving (they are the cluster's, not the run's); a driver killed under `retry` is not
     started again."""
     distributed = pytest.importorskip("distributed")
-    from test_trust import CLI, external_study
+    from test_trust import CLI
 
-    cluster = distributed.LocalCluster(n_workers=0, host="127.0.0.1", dashboard_address=None)
+    cluster, study = _dask_study(distributed, tmp_path / "s", n=8)
     address = cluster.scheduler_address
-    study = external_study(tmp_path / "s", n=8, executor="dask", failure='failure = "retry"')
-    study.write_text(study.read_text().replace('kind = "dask"',
-                                               f'kind = "dask"\nscheduler = "{address}"'))
     (tmp_path / "s" / "driver.py").write_text(SLOW_HALF)
     marks = tmp_path / "marks"
     marks.mkdir()

@@ -150,3 +150,21 @@ def test_repair_moves_an_edited_step_aside_and_run_recomputes_it(tmp_path, origi
     _assert_bitwise_equal(_saved(out), before)
     again = cli("repair", out)
     assert "damaged" not in again.stdout and "1 saved step(s) intact" in again.stdout
+
+
+@pytest.mark.xfail(strict=True, reason="needs report/html.py's write_report to read its folders "
+                   "through results.study_infos (a change the lead makes: remove this mark then)")
+def test_report_of_two_folders_of_one_study_name_is_a_clear_error(tmp_path, original):
+    """`rotoruq report A B` where A and B hold one study name: one line naming both
+    study.json files (the report keys its sections by study name: one would be dropped)."""
+    _, orig = original
+    a, b = tmp_path / "a", tmp_path / "b"
+    shutil.copytree(orig, a)
+    shutil.copytree(orig, b)
+    proc = cli("report", a, b, "--out", tmp_path / "report", check=False)
+    assert proc.returncode == 1 and proc.stderr.count("\n") == 1, proc.stderr
+    assert proc.stderr.startswith(f"rotoruq report: error: {b / 'study.json'}: expected a "
+                                  f"study name of its own: study 'ext' is also in "
+                                  f"{a / 'study.json'} (")
+    assert not (tmp_path / "report" / "index.html").exists()
+    assert cli("report", a, a, "--out", tmp_path / "report").returncode == 0  # one folder

@@ -58,7 +58,7 @@ __all__ = ["StepResult", "save_step", "load_step", "load_results", "dist_to_dict
            "dict_to_dist", "IncompleteStepError", "clean_partial_saves", "STUDY_INFO",
            "save_study_info", "load_study_info", "is_study_dir", "SCHEMA_VERSION",
            "StepRecord", "RecordError", "ForeignStepFileError", "DamagedStep",
-           "set_aside_damaged_steps"]
+           "set_aside_damaged_steps", "study_infos"]
 
 #: Version of the saved step format. 1: ``result.json`` records it, and a step may carry a
 #: typed record (:class:`StepRecord`, ``meta["record"]``). A folder saved by a newer format
@@ -632,6 +632,48 @@ def load_study_info(directory: str | Path) -> dict[str, Any]:
     if not isinstance(doc, dict):
         raise ForeignStepFileError(path, "not a JSON object")
     return doc
+
+
+def study_infos(folders: Sequence[str | Path]) -> dict[str, tuple[Path, dict[str, Any]]]:
+    """``study name -> (folder, study.json)`` of study output folders, in the order given (a
+    folder given twice counts once). Two folders of one study name raise
+    :class:`~rotoruq.errors.InputFileError` naming both ``study.json`` files: the report keys
+    its sections by study name, and one of the two would otherwise be dropped in silence.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> a, b = Path(tempfile.mkdtemp()), Path(tempfile.mkdtemp())
+    >>> _ = save_study_info(a, {"name": "ext"}), save_study_info(b, {"name": "ext"})
+    >>> list(study_infos([a, a]))
+    ['ext']
+    >>> study_infos([a, b])  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    rotoruq.errors.InputFileError: .../study.json: expected a study name of its own: study \
+'ext' is also in .../study.json (report the two folders one at a time, or give one study \
+another [study] name and run it again)
+    """
+    from .errors import InputFileError
+
+    found: dict[str, tuple[Path, dict[str, Any]]] = {}
+    seen: set[Path] = set()
+    for folder in map(Path, folders):
+        if folder.resolve() in seen:
+            continue
+        seen.add(folder.resolve())
+        info = load_study_info(folder)
+        name = info.get("name")
+        if not isinstance(name, str):
+            raise ForeignStepFileError(folder / STUDY_INFO, "its 'name' is not a text")
+        if name in found:
+            other = found[name][0] / STUDY_INFO
+            raise InputFileError(folder / STUDY_INFO, None,
+                                 f"a study name of its own: study {name!r} is also in {other} "
+                                 "(report the two folders one at a time, or give one study "
+                                 "another [study] name and run it again)")
+        found[name] = (folder, info)
+    return found
 
 
 def load_results(directory: str | Path) -> dict[str, StepResult]:

@@ -111,10 +111,10 @@ open(results, "w").write(f"{3 * a + 0.1!r} f\n")
 '''
 
 
-def _dask_worker(address: str, **extra: str) -> subprocess.Popen:
+def _dask_worker(address: str, nthreads: int = 1, **extra: str) -> subprocess.Popen:
     env = {**os.environ, "PYTHONPATH": SRC, **extra}  # the drivers run with the worker's env
     return subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address,
-                             "--no-nanny", "--nthreads", "1", "--host", "127.0.0.1",
+                             "--no-nanny", "--nthreads", str(nthreads), "--host", "127.0.0.1",
                              "--no-dashboard"], env=env, stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)
 
@@ -368,19 +368,28 @@ def test_sigkill_of_the_cli_frees_the_folder_at_once(tmp_path, whole_group):
     assert np.isfinite(outputs(out)).all()
 
 
+def _dask_study(distributed, folder: Path, n: int):
+    """A scheduler on loopback without workers, and test_trust's external study (``n``
+    points, ``failure = "retry"``) on it."""
+    from test_trust import external_study
+
+    cluster = distributed.LocalCluster(n_workers=0, host="127.0.0.1", dashboard_address=None)
+    study = external_study(folder, n=n, executor="dask", failure='failure = "retry"')
+    study.write_text(study.read_text().replace(
+        'kind = "dask"', f'kind = "dask"\nscheduler = "{cluster.scheduler_address}"'))
+    return cluster, study
+
+
 @pytest.mark.slow
 def test_cli_run_losing_the_only_dask_worker_saves_no_step_and_resumes_bitwise(tmp_path):
     """`rotoruq run` on a real scheduler with one worker process: the worker SIGKILLed
     mid-step -> exit 1 with the one-line message, no saved step, no failed evaluation; with a
     new worker the same command finishes, bitwise equal to an uninterrupted run."""
     distributed = pytest.importorskip("distributed")
-    from test_trust import CLI, external_study, outputs
+    from test_trust import CLI, outputs
 
-    cluster = distributed.LocalCluster(n_workers=0, host="127.0.0.1", dashboard_address=None)
+    cluster, study = _dask_study(distributed, tmp_path / "s", n=12)
     address = cluster.scheduler_address
-    study = external_study(tmp_path / "s", n=12, executor="dask", failure='failure = "retry"')
-    study.write_text(study.read_text().replace('kind = "dask"',
-                                               f'kind = "dask"\nscheduler = "{address}"'))
     env = {**os.environ, "PYTHONPATH": SRC, "ROTORUQ_DASK_WORKER_TIMEOUT": "2"}
     out, log = tmp_path / "out", tmp_path / "log"
     workers = [_dask_worker(address, DRIVER_SLEEP="0.3", DRIVER_LOG=str(log))]
@@ -479,3 +488,116 @@ def test_dask_internal_allexit_is_not_printed_but_other_loop_errors_are(caplog):
     finally:
         ex.close()
         cluster.close()
+
+
+# The driver of test_trust's external study, run on Dask workers: it records itself (pid -> a)
+# and takes 30 s for a > 0.5 (4 of the 8 LHS points), 0.05 s for the others.
+SLOW_HALF = r'''
+import os, sys, time
+vals = {k.strip(): float(v) for k, v in (ln.split("=") for ln in open("input.txt"))}
+a = vals["a"]
+with open(os.path.join(os.environ["DRIVER_MARKS"], str(os.getpid())), "w") as f:
+    f.write(repr(a))
+time.sleep(30 if a > 0.5 else 0.05)
+open(sys.argv[2], "w").write(f"{2 * a!r} y1\n{a!r} y2\n")
+'''
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, pytest.param(signal.SIGINT,
+                                                                 marks=pytest.mark.slow)],
+                         ids=["SIGTERM", "Ctrl-C"])
+def test_signal_to_a_dask_run_ends_its_drivers_on_the_workers(tmp_path, sig):
+    """SIGTERM (or Ctrl-C) of `rotoruq run` on a Dask cluster of two worker processes whose
+    threads run 30 s drivers: the CLI exits within 5 s, the 4 results it has are stored and
+    nothing else, and 2 s later no driver of the run is left on the workers, which keep
+    serving (they are the cluster's, not the run's); a driver killed under `retry` is not
+    started again."""
+    distributed = pytest.importorskip("distributed")
+    from test_trust import CLI
+
+    cluster, study = _dask_study(distributed, tmp_path / "s", n=8)
+    address = cluster.scheduler_address
+    (tmp_path / "s" / "driver.py").write_text(SLOW_HALF)
+    marks = tmp_path / "marks"
+    marks.mkdir()
+    out = tmp_path / "out"
+    workers = [_dask_worker(address, 4, DRIVER_MARKS=str(marks)) for _ in range(2)]
+
+    def drivers() -> dict[int, float]:
+        return {int(f.name): float(t) for f in marks.iterdir() if (t := f.read_text())}
+
+    try:
+        _wait_for(lambda: len(cluster.scheduler.workers) == 2, 60, "two workers")
+        proc = subprocess.Popen([*CLI, "run", str(study), "--out", str(out), "--no-report"],
+                                env={**os.environ, "PYTHONPATH": SRC},
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            store = out / "evaluations.sqlite"
+            _wait_for(lambda: proc.poll() is not None or (
+                store.exists() and Store(store).count() == 4
+                and sum(a > 0.5 and is_running(p) for p, a in drivers().items()) == 4),
+                120, "4 results stored and 4 slow drivers running")
+            assert proc.poll() is None, proc.communicate()
+            running = drivers()
+            t0 = time.monotonic()
+            proc.send_signal(sig)
+            _, err = proc.communicate(timeout=30)
+            took = time.monotonic() - t0
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+        assert took < 5, f"the run took {took:.1f} s to end"
+        assert proc.returncode == (143 if sig == signal.SIGTERM else 130), err
+        assert ("terminated" if sig == signal.SIGTERM else "interrupted") in err
+        assert "Traceback" not in err
+        time.sleep(2.0)
+        assert [p for p in drivers() if is_running(p)] == []
+        assert drivers() == running  # no driver started after the signal (no retry either)
+        st = Store(store)
+        assert st.count() == 4 and st.count(status="ok") == 4
+        assert sorted(r.inputs[0] for r in st.records()) == sorted(
+            a for a in running.values() if a <= 0.5)
+        assert all(w.poll() is None for w in workers)
+        assert len(cluster.scheduler.workers) == 2 and not cluster.scheduler.tasks
+    finally:
+        for w in workers:
+            w.kill()
+            w.wait(10)
+        cluster.close()
+
+
+def test_stopping_one_run_leaves_the_drivers_of_another_in_the_same_process(tmp_path):
+    """What a Dask worker does for an interrupted run: its drivers are killed and none of
+    them starts again, while another run's driver in the same process goes on."""
+    from rotoruq.evaluation.process_tree import kill_active_trees, owned_by, run_process_tree
+
+    runs: dict[str, object] = {}
+
+    def drive(owner: str) -> None:
+        with owned_by(owner):
+            try:
+                runs[owner] = run_process_tree(
+                    [sys.executable, "-S", "-c", "import time; time.sleep(30)", str(tmp_path)],
+                    cwd=tmp_path, stdout_path=tmp_path / f"{owner}.out",
+                    stderr_path=tmp_path / f"{owner}.err")
+            except InterruptedError as exc:
+                runs[owner] = exc
+
+    threads = {o: threading.Thread(target=drive, args=(o,)) for o in ("a", "b")}
+    for t in threads.values():
+        t.start()
+    _wait_for(lambda: len(_pids_running(str(tmp_path))) >= 2, 10, "two drivers")
+    try:
+        assert kill_active_trees(owner="a", stop=True) == 1
+        threads["a"].join(5)
+        assert runs["a"].returncode == -signal.SIGKILL and not threads["a"].is_alive()
+        again = threading.Thread(target=drive, args=("a",))
+        again.start()
+        again.join(5)
+        assert isinstance(runs["a"], InterruptedError) and "'a' is stopping" in str(runs["a"])
+        assert threads["b"].is_alive() and "b" not in runs
+    finally:
+        kill_active_trees(owner="b")
+        threads["b"].join(5)
+    assert runs["b"].returncode == -signal.SIGKILL

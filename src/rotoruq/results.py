@@ -13,7 +13,9 @@ the step hands to later steps (posterior / calibrated) and JSON metadata. On dis
                                        :func:`rotoruq.study.runner.model_record`)
 
 Saves are atomic (see :func:`save_step`) and loads check every file against the sha256 that
-``result.json`` records, so a half-saved step is never trusted. A results folder may come from
+``result.json`` records, and ``result.json`` itself against its ``checksum`` (the sha256 of its
+canonical form, which holds those of the other files): a half-saved or hand-edited step is never
+trusted, the runner computes it again. A results folder may come from
 someone else: every file is read without following a symlink, arrays never unpickle
 (``allow_pickle=False``), and a file rotoruq did not write (tampered, foreign, pointing
 outside its step folder) raises :class:`ForeignStepFileError` naming it.
@@ -29,6 +31,7 @@ import json
 import math
 import os
 import shutil
+import time
 import uuid
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
@@ -42,6 +45,7 @@ from .errors import RotoruqError
 from .params import Distribution, make_distribution
 from .safety import (
     ForeignFileError,
+    UnsafePathError,
     check_name,
     name_problem,
     no_symlink,
@@ -53,7 +57,8 @@ from .safety import (
 __all__ = ["StepResult", "save_step", "load_step", "load_results", "dist_to_dict",
            "dict_to_dist", "IncompleteStepError", "clean_partial_saves", "STUDY_INFO",
            "save_study_info", "load_study_info", "is_study_dir", "SCHEMA_VERSION",
-           "StepRecord", "RecordError", "ForeignStepFileError"]
+           "StepRecord", "RecordError", "ForeignStepFileError", "DamagedStep",
+           "set_aside_damaged_steps", "study_infos"]
 
 #: Version of the saved step format. 1: ``result.json`` records it, and a step may carry a
 #: typed record (:class:`StepRecord`, ``meta["record"]``). A folder saved by a newer format
@@ -283,7 +288,8 @@ def save_step(result: StepResult, directory: str | Path) -> Path:
     """Write ``result`` under ``directory/steps/<name>/``; returns that folder.
 
     The step is written whole into a temporary folder (every file flushed to disk, then
-    ``result.json`` with the sha256 of every other file), which then replaces the old folder
+    ``result.json`` with the sha256 of every other file and its own ``checksum``, see
+    :func:`load_step`), which then replaces the old folder
     by rename. A reader finds the old step, the new step or none: never a mix. Folders and
     files get the user's umask; ``steps/`` and the old step folder must be real folders
     (:class:`~rotoruq.safety.UnsafePathError` naming a symlink).
@@ -329,6 +335,8 @@ def save_step(result: StepResult, directory: str | Path) -> Path:
             "arrays": sorted(result.arrays),
             "files": files,
         }
+        # the checksum covers the document as a reader parses it back
+        doc["checksum"] = _checksum(json.loads(json.dumps(doc)))
         _write_synced(tmp / "result.json",
                       lambda fh: fh.write(json.dumps(doc, indent=1).encode("utf-8")))
         fsync_dir(tmp)
@@ -344,6 +352,15 @@ def save_step(result: StepResult, directory: str | Path) -> Path:
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
     return folder
+
+
+def _checksum(doc: Mapping[str, Any]) -> str:
+    """sha256 of a ``result.json`` document without its ``checksum``, in a canonical form
+    (sorted keys, no spaces, ASCII): a change of layout keeps it, a change of any value
+    (a number, a type, a file's sha256) does not."""
+    body = {k: v for k, v in doc.items() if k != "checksum"}
+    text = json.dumps(body, sort_keys=True, separators=(",", ":"), ensure_ascii=True)
+    return hashlib.sha256(text.encode("ascii")).hexdigest()
 
 
 class _Hashing(io.RawIOBase):
@@ -401,6 +418,72 @@ def clean_partial_saves(directory: str | Path) -> list[Path]:
     return removed
 
 
+@dataclass(frozen=True, eq=False)
+class DamagedStep:
+    """A saved step that did not load, moved aside by :func:`set_aside_damaged_steps`.
+
+    name : the step's name.
+    problem : why it did not load (the message of its :class:`IncompleteStepError`).
+    moved_to : where its folder is now (``steps/.damaged-<name>.<UTC time>``).
+    """
+
+    name: str
+    problem: str
+    moved_to: Path
+
+
+def set_aside_damaged_steps(directory: str | Path) -> list[DamagedStep]:
+    """Move every saved step of ``directory`` that :func:`load_step` does not accept (missing
+    or changed files, a changed ``result.json``, a file rotoruq did not write) to
+    ``steps/.damaged-<name>.<UTC time>``: never deleted, no longer read (readers skip folders
+    whose name starts with a dot), computed again by the next run. Intact steps stay. Call it
+    only while holding the results folder's lock.
+
+    Returns
+    -------
+    list of DamagedStep
+        The steps moved aside, by name.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> out = Path(tempfile.mkdtemp())
+    >>> step = save_step(StepResult("lhs", "sampling", {"mean/y1": 2.0}), out)
+    >>> set_aside_damaged_steps(out)
+    []
+    >>> _ = (step / "scalars.csv").write_text("key,value")
+    >>> [(d.name, d.moved_to.name.startswith(".damaged-lhs.")) for d in
+    ...  set_aside_damaged_steps(out)]
+    [('lhs', True)]
+    >>> load_results(out)
+    {}
+    """
+    steps = Path(directory) / "steps"
+    if not (steps.is_symlink() or steps.exists()):
+        return []
+    moved: list[DamagedStep] = []
+    stamp = time.strftime("%Y%m%dT%H%M%SZ", time.gmtime())
+    for p in sorted(real_dir(steps).iterdir()):
+        if (p.name.startswith(".") or p.is_symlink() or not p.is_dir()
+                or not os.path.lexists(p / "result.json")):
+            continue
+        try:
+            load_step(p)
+            continue
+        except (IncompleteStepError, UnsafePathError) as exc:
+            problem = str(exc)
+        aside = steps / f".damaged-{p.name}.{stamp}"
+        k = 1
+        while os.path.lexists(aside):
+            k += 1
+            aside = steps / f".damaged-{p.name}.{stamp}-{k}"
+        os.replace(p, aside)
+        moved.append(DamagedStep(p.name, problem, aside))
+    if moved:
+        fsync_dir(steps)
+    return moved
+
+
 # the entries of a step's meta that the runner writes and the report and `show` read
 _META_KINDS: dict[str, type | tuple[type, ...]] = {
     "columns": dict, "seconds": (int, float), "n_evaluations": int, "title": str,
@@ -410,9 +493,27 @@ _META_KINDS: dict[str, type | tuple[type, ...]] = {
 
 
 def load_step(folder: str | Path) -> StepResult:
-    """Read a saved step; raises :class:`IncompleteStepError` when it is not whole,
+    """Read a saved step; raises :class:`IncompleteStepError` when it is not whole or changed
+    since it was saved (a file against the sha256 ``result.json`` records, ``result.json``
+    against its own ``checksum``; a step saved without them counts as not whole),
     :class:`ForeignStepFileError` naming a file rotoruq did not write, and
-    :class:`~rotoruq.safety.UnsafePathError` naming a symlink."""
+    :class:`~rotoruq.safety.UnsafePathError` naming a symlink.
+
+    Examples
+    --------
+    >>> import json, tempfile
+    >>> out = Path(tempfile.mkdtemp())
+    >>> step = save_step(StepResult("lhs", "sampling", {"mean/y1": 2.0}), out)
+    >>> load_step(step).get("mean/y1")
+    2.0
+    >>> doc = json.loads((step / "result.json").read_text())
+    >>> doc["scalars"]["mean/y1"] = 3.0
+    >>> _ = (step / "result.json").write_text(json.dumps(doc))
+    >>> load_step(step)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    rotoruq.results.IncompleteStepError: .../lhs/result.json: changed since the step was saved...
+    """
     folder = Path(folder)
     where = folder / "result.json"
     try:
@@ -426,7 +527,8 @@ def load_step(folder: str | Path) -> StepResult:
     if not isinstance(doc, dict) or not {"name", "type", "scalars"} <= set(doc):
         raise IncompleteStepError(f"{where}: expected a step result with name, type, scalars")
     shapes = {"name": str, "type": str, "scalars": dict, "files": dict, "arrays": list,
-              "meta": dict, "distributions": dict, "fingerprint": str, "schema": int}
+              "meta": dict, "distributions": dict, "fingerprint": str, "schema": int,
+              "checksum": str}
     for key, kind in shapes.items():
         if key in doc and doc[key] is not None and not isinstance(doc[key], kind):
             raise ForeignStepFileError(where, f"{key!r} is a {type(doc[key]).__name__}, "
@@ -471,6 +573,13 @@ def load_step(folder: str | Path) -> StepResult:
         scalars = {k: _unjson_scalar(v) for k, v in doc["scalars"].items()}
     except (TypeError, ValueError) as exc:
         raise ForeignStepFileError(where, f"a scalar that is not a number: {exc}") from None
+    # last, so that a file rotoruq did not write is named as such by the checks above
+    if doc.get("checksum") is None:
+        raise IncompleteStepError(f"{where}: saved without a checksum (by an older rotoruq or "
+                                  "an interrupted save)")
+    if _checksum(doc) != doc["checksum"]:
+        raise IncompleteStepError(f"{where}: changed since the step was saved (its checksum "
+                                  "does not match its contents)")
     return StepResult(
         name=doc["name"],
         type=doc["type"],
@@ -523,6 +632,48 @@ def load_study_info(directory: str | Path) -> dict[str, Any]:
     if not isinstance(doc, dict):
         raise ForeignStepFileError(path, "not a JSON object")
     return doc
+
+
+def study_infos(folders: Sequence[str | Path]) -> dict[str, tuple[Path, dict[str, Any]]]:
+    """``study name -> (folder, study.json)`` of study output folders, in the order given (a
+    folder given twice counts once). Two folders of one study name raise
+    :class:`~rotoruq.errors.InputFileError` naming both ``study.json`` files: the report keys
+    its sections by study name, and one of the two would otherwise be dropped in silence.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> a, b = Path(tempfile.mkdtemp()), Path(tempfile.mkdtemp())
+    >>> _ = save_study_info(a, {"name": "ext"}), save_study_info(b, {"name": "ext"})
+    >>> list(study_infos([a, a]))
+    ['ext']
+    >>> study_infos([a, b])  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    rotoruq.errors.InputFileError: .../study.json: expected a study name of its own: study \
+'ext' is also in .../study.json (report the two folders one at a time, or give one study \
+another [study] name and run it again)
+    """
+    from .errors import InputFileError
+
+    found: dict[str, tuple[Path, dict[str, Any]]] = {}
+    seen: set[Path] = set()
+    for folder in map(Path, folders):
+        if folder.resolve() in seen:
+            continue
+        seen.add(folder.resolve())
+        info = load_study_info(folder)
+        name = info.get("name")
+        if not isinstance(name, str):
+            raise ForeignStepFileError(folder / STUDY_INFO, "its 'name' is not a text")
+        if name in found:
+            other = found[name][0] / STUDY_INFO
+            raise InputFileError(folder / STUDY_INFO, None,
+                                 f"a study name of its own: study {name!r} is also in {other} "
+                                 "(report the two folders one at a time, or give one study "
+                                 "another [study] name and run it again)")
+        found[name] = (folder, info)
+    return found
 
 
 def load_results(directory: str | Path) -> dict[str, StepResult]:

@@ -31,8 +31,10 @@ import concurrent.futures as cf
 import os
 import pickle
 import signal
+import threading
 import time
 import traceback
+import uuid
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Generator, Sequence
 from dataclasses import dataclass
@@ -88,6 +90,23 @@ def _call(payload: bytes, task) -> tuple[Any, str | None, float]:
             _FN_CACHE.clear()
         _FN_CACHE[key] = fn
     return _timed(fn, task)
+
+
+def _call_owned(run: str, payload: bytes, task) -> tuple[Any, str | None, float]:
+    """:func:`_call` on a Dask worker, the drivers it starts marked as the run ``run``'s (so
+    that the run, interrupted, can end them: :func:`_stop_run`)."""
+    from .process_tree import owned_by
+
+    with owned_by(run):
+        return _call(payload, task)
+
+
+def _stop_run(run: str) -> int:
+    """On a Dask worker (``Client.run``): kill the run ``run``'s drivers and start none of
+    its drivers afterwards; the number of driver trees killed."""
+    from .process_tree import kill_active_trees
+
+    return kill_active_trees(owner=run, stop=True)
 
 
 def _timed(fn, task) -> tuple[Any, str | None, float]:
@@ -312,7 +331,17 @@ class DaskExecutor(Executor):
     (Dask runs it on another worker); when no worker is left for ``worker_timeout`` seconds,
     or a task was lost ``resubmits + 1`` times, :meth:`run` raises
     :class:`~rotoruq.errors.InfrastructureError` and nothing is reported for the lost tasks.
+
+    When :meth:`run` is left early (Ctrl-C, SIGTERM, an error), the tasks that finished are
+    delivered first if the interruption came while it waited, then its futures are cancelled
+    and every worker kills the drivers of this run (only this run's: a worker may serve
+    others) and starts none of them afterwards; all within ``STOP_SECONDS`` even when the
+    scheduler does not answer.
     """
+
+    #: seconds that leaving :meth:`run` early may spend on fetching finished results and on
+    #: stopping the workers' drivers, each
+    STOP_SECONDS = 2.0
 
     def __init__(
         self, address: str | None = None, *, client: Any = None, n_workers: int | None = None,
@@ -378,6 +407,7 @@ class DaskExecutor(Executor):
 
         client = self.client
         blob = _dumps(fn)
+        run = uuid.uuid4().hex
         lost_count = [0] * len(tasks)
         futures: dict[Any, int] = {}
 
@@ -385,7 +415,7 @@ class DaskExecutor(Executor):
             # the function travels inside each task's graph, not scattered: scattered data
             # dies with the worker holding it and takes every waiting task with it
             for i in indices:
-                futures[client.submit(_call, blob, tasks[i], pure=False)] = i
+                futures[client.submit(_call_owned, run, blob, tasks[i], pure=False)] = i
 
         submit(list(range(len(tasks))))
         no_worker_since: float | None = None
@@ -437,11 +467,44 @@ class DaskExecutor(Executor):
                             "not run); finished evaluations are saved: resume with "
                             "`rotoruq run` when workers are back"
                             + (f" (last error: {last_error})" if last_error else ""))
+        except KeyboardInterrupt:  # Ctrl-C, SIGTERM while waiting: what finished counts
+            yield from self._finished(futures)
+            raise
         finally:
+            if futures:
+                self._stop(run, [f for f in futures if not f.done()])
+
+    def _finished(self, futures: dict[Any, int]) -> Generator[TaskOutcome]:
+        """The outcomes of the futures that are finished, fetched within ``STOP_SECONDS``
+        (removed from ``futures``)."""
+        end = time.monotonic() + self.STOP_SECONDS
+        for fut, i in list(futures.items()):
+            left = end - time.monotonic()
+            if fut.status != "finished" or left <= 0:
+                continue
             try:
-                client.cancel([f for f in futures if not f.done()])
-            except Exception:  # the scheduler is gone: nothing left to cancel
+                value, error, wall = fut.result(timeout=left)
+            except Exception:  # lost meanwhile: it is simply not delivered
+                continue
+            del futures[fut]
+            yield TaskOutcome(i, value, error, wall)
+
+    def _stop(self, run: str, futures: list[Any]) -> None:
+        """Cancel ``futures`` and have every worker kill the run's drivers, without waiting
+        more than ``STOP_SECONDS`` for an answer (a signal to the run does not wait for a
+        scheduler that is gone)."""
+        client = self.client
+
+        def stop() -> None:
+            try:
+                client.cancel(futures)
+                client.run(_stop_run, run, on_error="ignore")
+            except Exception:  # the scheduler or a worker is gone: nothing left to stop there
                 pass
+
+        t = threading.Thread(target=stop, name="rotoruq-dask-stop", daemon=True)
+        t.start()
+        t.join(self.STOP_SECONDS)
 
     def close(self) -> None:
         if self._client is not None and self._own_client:

@@ -21,6 +21,11 @@ time limit. It is the one place where rotoruq runs a solver, and it guarantees:
   SIGKILL): if the process waiting for it dies, even by SIGKILL, so does the driver. Every
   running tree is listed, so that :func:`kill_active_trees` (called by a process-pool worker
   on SIGTERM or when :func:`watch_parent` sees the run's main process die) ends them all.
+- **Stopped by the run that owns it.** A thread that runs the tasks of one client (a Dask
+  worker's thread runs tasks of whatever run submitted them) marks its drivers with the run's
+  id (:func:`owned_by`); ``kill_active_trees(owner=..., stop=True)``, sent to the workers by a
+  run that is interrupted, ends that run's drivers only and starts none of its drivers
+  afterwards, while the worker goes on serving other runs.
 - **No busy waiting.** The thread sleeps in ``select`` on the output pipes and a pidfd of the
   driver (Linux >= 5.3), so a fast driver is seen to exit at once.
 """
@@ -37,12 +42,13 @@ import sys
 import threading
 import time
 import uuid
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
 __all__ = ["DriverRun", "run_process_tree", "is_running", "kill_active_trees", "watch_parent",
-           "set_parent_death_signal", "TOKEN_VAR", "FILE_TAIL"]
+           "set_parent_death_signal", "owned_by", "TOKEN_VAR", "FILE_TAIL"]
 
 TOKEN_VAR = "ROTORUQ_DRIVER_TOKEN"
 FILE_TAIL = 64 * 1024  # bytes of the end of each stream kept (file and memory)
@@ -52,6 +58,9 @@ _PR_SET_PDEATHSIG = 1
 _ACTIVE: dict[int, _Tree] = {}  # running driver trees of this process, by driver pid
 _ACTIVE_LOCK = threading.Lock()
 _STOPPING = threading.Event()  # set by kill_active_trees(stop=True): no new driver starts
+_OWNER = threading.local()  # .run: the run whose drivers this thread starts (owned_by)
+_STOPPED_OWNERS: dict[str, None] = {}  # runs stopped in this process (oldest dropped first)
+_MAX_STOPPED = 1024
 
 
 def _load_prctl():
@@ -93,10 +102,36 @@ def _driver_preexec(parent: int):
     return preexec
 
 
-def kill_active_trees(*, stop: bool = False) -> int:
+@contextmanager
+def owned_by(run: str) -> Iterator[None]:
+    """Mark the drivers this thread starts meanwhile as the run ``run``'s, so that
+    ``kill_active_trees(owner=run)`` ends them (and only them).
+
+    Examples
+    --------
+    >>> with owned_by("run-1"):
+    ...     kill_active_trees(owner="run-1", stop=True)  # none running; none may start now
+    0
+    >>> with owned_by("run-1"):
+    ...     run_process_tree(["true"], cwd=".", stdout_path=os.devnull,
+    ...                      stderr_path=os.devnull)
+    Traceback (most recent call last):
+    ...
+    InterruptedError: run 'run-1' is stopping: no driver of it is started
+    """
+    before = getattr(_OWNER, "run", None)
+    _OWNER.run = run
+    try:
+        yield
+    finally:
+        _OWNER.run = before
+
+
+def kill_active_trees(*, stop: bool = False, owner: str | None = None) -> int:
     """SIGKILL every driver tree this process is running (drivers, their groups and
-    descendants); returns how many trees there were. With ``stop``, no driver starts in
-    this process afterwards (:func:`run_process_tree` raises ``InterruptedError``).
+    descendants), or with ``owner`` those started under ``owned_by(owner)``; returns how
+    many trees there were. With ``stop``, no driver (of ``owner``) starts in this process
+    afterwards (:func:`run_process_tree` raises ``InterruptedError``).
 
     Examples
     --------
@@ -104,12 +139,24 @@ def kill_active_trees(*, stop: bool = False) -> int:
     0
     """
     with _ACTIVE_LOCK:
-        if stop:
+        if stop and owner is None:
             _STOPPING.set()
-        trees = list(_ACTIVE.values())
+        elif stop and owner is not None:
+            _STOPPED_OWNERS[owner] = None
+            while len(_STOPPED_OWNERS) > _MAX_STOPPED:
+                del _STOPPED_OWNERS[next(iter(_STOPPED_OWNERS))]
+        trees = [t for t in _ACTIVE.values() if owner is None or t.owner == owner]
     for tree in trees:
         tree.kill_all()
     return len(trees)
+
+
+def _refuse_if_stopping(owner: str | None) -> None:
+    """``InterruptedError`` when this process, or the run ``owner``, is stopping."""
+    if _STOPPING.is_set():
+        raise InterruptedError("the run is stopping: no driver is started")
+    if owner is not None and owner in _STOPPED_OWNERS:
+        raise InterruptedError(f"run {owner!r} is stopping: no driver of it is started")
 
 
 def _wait_for_exit(pid: int, poll: float = 0.2) -> None:
@@ -269,8 +316,9 @@ def _pids() -> list[int]:
 class _Tree:
     """The processes of one driver run, recorded as (pid -> start time)."""
 
-    def __init__(self, root: int, token: str):
+    def __init__(self, root: int, token: str, owner: str | None = None):
         self.root = root
+        self.owner = owner
         self.needle = f"{TOKEN_VAR}={token}".encode()
         self.known: dict[int, int] = {}
         self.me = os.getpid()
@@ -378,8 +426,8 @@ def run_process_tree(
     OSError
         When the command cannot be started (no such file, not executable).
     """
-    if _STOPPING.is_set():
-        raise InterruptedError("the run is stopping: no driver is started")
+    owner = getattr(_OWNER, "run", None)
+    _refuse_if_stopping(owner)
     t0 = time.perf_counter()
     token = uuid.uuid4().hex
     # the token goes first: found early in /proc/<pid>/environ, and it replaces the token of
@@ -404,10 +452,10 @@ def run_process_tree(
     for _, w in pipes:
         os.close(w)
     caps = [_Capture(pipes[0][0], files[0], cap), _Capture(pipes[1][0], files[1], cap)]
-    tree = _Tree(proc.pid, token)
+    tree = _Tree(proc.pid, token, owner)
     with _ACTIVE_LOCK:
         _ACTIVE[proc.pid] = tree
-        stopping = _STOPPING.is_set()
+        stopping = _STOPPING.is_set() or (owner is not None and owner in _STOPPED_OWNERS)
     if stopping:  # the stop came while it was starting
         tree.kill_all()
     sel = selectors.DefaultSelector()

@@ -12,6 +12,8 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 HELP = "print the result tables of a study's steps (or export them with --csv / --json)"
@@ -45,7 +47,8 @@ def show_data(results: str | Path, step: str | None = None) -> dict:
     if not is_study_dir(folder):
         raise InputFileError(folder, None, "a study output folder (with study.json)")
     info = load_study_info(folder)
-    steps = load_results(folder)
+    with _damaged_steps_named(folder):
+        steps = load_results(folder)
     if step is not None and step not in steps:
         raise InputFileError(folder, None, f"a saved step named {step!r}; saved steps: "
                              + (", ".join(map(terminal, steps)) or "none"))
@@ -72,12 +75,29 @@ def why_rerun_text(results: str | Path, step: str | None = None) -> str:
     from .runner import why_rerun
 
     lines = []
-    for name, why in why_rerun(results).items():
+    with _damaged_steps_named(Path(results)):
+        reasons = why_rerun(results)
+    for name, why in reasons.items():
         if step is not None and name != step:
             continue
         lines.append(terminal(name) + ": " + ("reused" if not why else "runs again: "
                                               + "; ".join(map(terminal, why))))
     return "\n".join(lines) + "\n"
+
+
+@contextmanager
+def _damaged_steps_named(folder: Path) -> Iterator[None]:
+    """A saved step that is incomplete or changed since it was saved stops ``show`` (its
+    numbers are never shown) with one line that names its file and says what to do."""
+    from ..results import ForeignStepFileError, IncompleteStepError
+
+    try:
+        yield
+    except ForeignStepFileError:
+        raise
+    except IncompleteStepError as exc:
+        raise IncompleteStepError(f"{exc}: not shown; `rotoruq run` computes the step again "
+                                  f"(`rotoruq repair {folder}` moves it aside)") from None
 
 
 def run(args: argparse.Namespace) -> int:

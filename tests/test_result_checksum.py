@@ -152,8 +152,6 @@ def test_repair_moves_an_edited_step_aside_and_run_recomputes_it(tmp_path, origi
     assert "damaged" not in again.stdout and "1 saved step(s) intact" in again.stdout
 
 
-@pytest.mark.xfail(strict=True, reason="needs report/html.py's write_report to read its folders "
-                   "through results.study_infos (a change the lead makes: remove this mark then)")
 def test_report_of_two_folders_of_one_study_name_is_a_clear_error(tmp_path, original):
     """`rotoruq report A B` where A and B hold one study name: one line naming both
     study.json files (the report keys its sections by study name: one would be dropped)."""

@@ -29,7 +29,13 @@ from pathlib import Path
 from typing import Any
 
 from ..render.figures import FigureContext
-from ..results import STUDY_INFO, StepResult, is_study_dir, load_results, load_study_info
+from ..results import (
+    STUDY_INFO,
+    StepResult,
+    is_study_dir,
+    load_results,
+    study_infos,
+)
 from .claims import INDEPENDENT, JOINT, Claim, claims, claims_json
 from .compare import REFERENCE_STUDIES, compare_tables
 from .diagnostics import THRESHOLDS
@@ -404,12 +410,12 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
     studies: dict[str, dict[str, StepResult]] = {}
     infos: dict[str, dict] = {}
     folders: dict[str, str] = {}
-    for d in results_dirs:
-        for folder in find_study_dirs(d):
-            info = load_study_info(folder)
-            studies[info["name"]] = load_results(folder)
-            infos[info["name"]] = info
-            folders[info["name"]] = str(folder)
+    # two folders of one study name: an error naming both, never one dropped in silence
+    found = study_infos([f for d in results_dirs for f in find_study_dirs(d)])
+    for name, (folder, info) in found.items():
+        studies[name] = load_results(folder)
+        infos[name] = info
+        folders[name] = str(folder)
     labels = {n: {k: v.get("label") or k for k, v in i.get("parameters", {}).items()}
               for n, i in infos.items()}
     units = {n: {k: v.get("unit") for k, v in i.get("parameters", {}).items() if v.get("unit")}

@@ -77,16 +77,16 @@ def input_arrays(space: ParameterSpace) -> tuple[np.ndarray, np.ndarray, np.ndar
 
 
 def input_scalars(space: ParameterSpace) -> dict:
-    """``input_mean/``, ``input_std/`` and, for bounded inputs, ``input_lower/``,
-    ``input_upper/`` of each input."""
+    """The flat view of :func:`input_arrays`: ``input_mean/``, ``input_std/`` and, for
+    bounded inputs, ``input_lower/``, ``input_upper/`` of each input."""
+    mean, std, lower, upper = input_arrays(space)
     out = {}
-    for name, d in zip(space.names, space.distributions, strict=True):
-        out[f"input_mean/{name}"] = d.mean
-        out[f"input_std/{name}"] = d.std
-        lo, hi = d.bounds
-        if np.isfinite(lo) and np.isfinite(hi):
-            out[f"input_lower/{name}"] = lo
-            out[f"input_upper/{name}"] = hi
+    for j, name in enumerate(space.names):
+        out[f"input_mean/{name}"] = float(mean[j])
+        out[f"input_std/{name}"] = float(std[j])
+        if not np.isnan(lower[j]):
+            out[f"input_lower/{name}"] = float(lower[j])
+            out[f"input_upper/{name}"] = float(upper[j])
     return out
 
 

@@ -89,3 +89,25 @@ def test_record_round_trips_through_a_results_folder(tmp_path, cls):
     back = cls.read(load_step(tmp_path / "steps" / "s"))
     for f in fields(cls):
         assert _same(getattr(back, f.name), kwargs[f.name]), f.name
+
+
+@pytest.mark.parametrize("kind", ["sampling", "reliability", "evidence", "cuu", "forward_check",
+                                  "multifidelity"])
+def test_a_step_saved_before_its_record_shows_its_flat_view(tmp_path, kind):
+    """A results folder written before the type had a record still reads: the report and
+    ``show`` give its flat scalars with the reason, and its warnings and figures nothing
+    (they have no record to read), instead of failing."""
+    from rotoruq.render.figures import FigureContext
+    from rotoruq.report.steptables import step_tables
+
+    old = StepResult("old", kind, {"mean/y1": 1.5, "std/y1": 0.25},
+                     {"outputs": np.ones((3, 1))},
+                     meta={"responses": ["y1"], "columns": {"outputs": ["y1"]},
+                           "dropped_correlation": ["a", "b", 0.9], "identifiable": False})
+    res = load_step(save_step(old, tmp_path))
+    (table,) = step_tables(res)
+    assert table.rows == (("mean/y1", 1.5), ("std/y1", 0.25))
+    assert f"saved without a {kind.title().replace('_', '')}Record" in table.note
+    st = STEP_TYPES[kind]
+    assert st.warnings is None or st.warnings(res, {}) == []
+    assert st.figures is None or st.figures(res, FigureContext("s", {"old": res})) == []

@@ -41,6 +41,7 @@ from pathlib import Path
 
 import numpy as np
 from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
+from dakota_decks import ISHIGAMI_PCE_DECK  # noqa: E402
 from scipy import stats
 
 import rotoruq as rq
@@ -66,26 +67,6 @@ variables
 interface
   direct
     analysis_driver = 'text_book'
-responses
-  response_functions = 1
-  no_gradients
-  no_hessians
-"""
-
-# Dakota's built-in Ishigami (a = 7, b = 0.1) maps x in [0, 1] to -pi + 2 pi x: the same
-# moments and Sobol' indices as rotoruq's Ishigami on [-pi, pi]^3
-_PCE_INPUT = """method
-  polynomial_chaos
-{method}
-    variance_based_decomp
-variables
-  uniform_uncertain = 3
-    lower_bounds = 0 0 0
-    upper_bounds = 1 1 1
-    descriptors 'x1' 'x2' 'x3'
-interface
-  direct
-    analysis_driver = 'sobol_ishigami'
 responses
   response_functions = 1
   no_gradients
@@ -207,7 +188,7 @@ def _errors(std: float, mn: np.ndarray, tt: np.ndarray) -> tuple[float, float]:
 
 
 def dakota_pce(method: str, work: Path) -> tuple[float, np.ndarray, np.ndarray, float]:
-    (work / "pce.in").write_text(_PCE_INPUT.format(method=method))
+    (work / "pce.in").write_text(ISHIGAMI_PCE_DECK.format(method=method))
     t = time.perf_counter()
     done = subprocess.run(["dakota", "-i", "pce.in"], cwd=work, capture_output=True,
                           text=True, check=True)

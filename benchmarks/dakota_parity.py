@@ -35,24 +35,20 @@ import time
 from pathlib import Path
 
 from _summary import print_saved_summary
+from dakota_decks import (
+    BAYES_DATA,
+    CUU_DECK,
+    CUU_TARGETS,
+    DRIVER,
+    MV_DECK,
+    PCE_DECK,
+    PRECISION,
+    bayes_deck,
+    vbd_deck,
+)
 
 from rotoruq.results import load_step
 from rotoruq.study.deck import rotoruq_command
-
-DRIVER = """\
-import sys
-lines = [ln.split() for ln in open(sys.argv[1]).read().splitlines()]
-n = int(lines[0][0])
-v = {ln[1]: float(ln[0]) for ln in lines[1:n + 1]}
-m = int(lines[n + 1][0])
-# the active set: only the values asked for (Dakota labels the responses of a deck with
-# calibration data 'y1_1', ...)
-labels = [ln[1].split(":", 1)[1].split("_")[0] for ln in lines[n + 2:n + 2 + m]
-          if int(ln[0]) & 1]
-a, b = v["a"], v.get("b", 0.0)
-y = {"y1": a + 0.5 * b, "y2": 4.0 * a - b, "y3": a * a + b}
-open(sys.argv[2], "w").write("".join(f"{y[k]:.17e} {k}\\n" for k in labels))
-"""
 
 IFACE = """interface
 {ident}  fork
@@ -62,160 +58,13 @@ IFACE = """interface
     file_tag
 """
 
-NORMAL_AB = """  normal_uncertain = 2
-    means = 2.0 1.0
-    std_deviations = 0.3 0.2
-    descriptors = 'a' 'b'
-"""
-
+# the decks the tests run too (tests/test_dakota_deck.py), at the benchmark's sizes
 CASES = {
-    "mean_value": ("mean_value", """environment
-  output_precision = 16
-method
-  local_reliability
-variables
-""" + NORMAL_AB + "{iface}" + """responses
-  response_functions = 2
-    descriptors = 'y1' 'y2'
-  numerical_gradients
-    method_source dakota
-    interval_type central
-    fd_step_size = 1e-6
-  no_hessians
-""", {}),
-    "pce_quadrature": ("pce", """environment
-  output_precision = 16
-method
-  polynomial_chaos
-    quadrature_order = 3
-    variance_based_decomp
-variables
-  normal_uncertain = 1
-    means = 2.0
-    std_deviations = 0.3
-    descriptors = 'a'
-  uniform_uncertain = 1
-    lower_bounds = 0.0
-    upper_bounds = 2.0
-    descriptors = 'b'
-{iface}responses
-  response_functions = 1
-    descriptors = 'y3'
-  no_gradients
-  no_hessians
-""", {}),
-    "vbd_sampling": ("sensitivity", """environment
-  output_precision = 16
-method
-  sampling
-    sample_type lhs
-    samples = 200
-    seed = 7
-    variance_based_decomp
-variables
-  uniform_uncertain = 1
-    lower_bounds = 1.0
-    upper_bounds = 3.0
-    descriptors = 'a'
-  normal_uncertain = 1
-    means = 1.0
-    std_deviations = 0.5
-    descriptors = 'b'
-{iface}responses
-  response_functions = 1
-    descriptors = 'y1'
-  no_gradients
-  no_hessians
-""", {}),
-    "dram_gp": ("bayes", """environment
-  output_precision = 16
-method
-  bayes_calibration queso
-    chain_samples = 5000
-    seed = 11
-    emulator
-      gaussian_process surfpack
-      build_samples = 20
-    dram
-    proposal_covariance prior
-    burn_in_samples = 500
-variables
-  uniform_uncertain = 1
-    lower_bounds = 1.0
-    upper_bounds = 3.0
-    descriptors = 'a'
-  continuous_state = 1
-    initial_state = 1.0
-    descriptors = 'b'
-{iface}responses
-  calibration_terms = 1
-    descriptors = 'y1'
-  calibration_data_file = 'data.dat'
-    freeform
-    num_experiments = 3
-    variance_type = 'scalar'
-  no_gradients
-  no_hessians
-""", {"data.dat": "2.49 0.01\n2.52 0.01\n2.46 0.01\n"}),
-    "nested_cuu": ("cuu", """environment
-  top_method_pointer = 'OUTER'
-  output_precision = 16
-method
-  id_method = 'OUTER'
-  nl2sol
-    convergence_tolerance = 1e-10
-  model_pointer = 'NESTED'
-model
-  id_model = 'NESTED'
-  nested
-    sub_method_pointer = 'INNER'
-    primary_variable_mapping = 'a'
-    secondary_variable_mapping = 'std_deviation'
-    primary_response_mapping = 0 1 0 0
-                               0 0 0 1
-  variables_pointer = 'OV'
-  responses_pointer = 'OR'
-variables
-  id_variables = 'OV'
-  continuous_design = 1
-    initial_point 0.3
-    lower_bounds 0.001
-    descriptors 's_a'
-responses
-  id_responses = 'OR'
-  calibration_terms = 2
-    descriptors 't1' 't2'
-  calibration_data_file = 'targets.dat' freeform num_experiments = 1
-  numerical_gradients
-    method_source dakota interval_type forward fd_step_size = 1e-7
-  no_hessians
-method
-  id_method = 'INNER'
-  local_reliability
-  model_pointer = 'INNER_M'
-model
-  id_model = 'INNER_M'
-  single
-    interface_pointer = 'I'
-  variables_pointer = 'IV'
-  responses_pointer = 'IR'
-variables
-  id_variables = 'IV'
-  normal_uncertain = 1
-    means = 2.0
-    std_deviations = 0.3
-    descriptors = 'a'
-  continuous_state = 1
-    initial_state = 1.0
-    descriptors = 'b'
-{iface}responses
-  id_responses = 'IR'
-  response_functions = 2
-    descriptors = 'y1' 'y2'
-  numerical_gradients
-    method_source dakota interval_type central fd_step_size = 1e-6
-  no_hessians
-""", {"targets.dat": "0.1 1.0\n"}),
+    "mean_value": ("mean_value", PRECISION + MV_DECK, {}),
+    "pce_quadrature": ("pce", PRECISION + PCE_DECK, {}),
+    "vbd_sampling": ("sensitivity", PRECISION + vbd_deck(200), {}),
+    "dram_gp": ("bayes", PRECISION + bayes_deck(5000), {"data.dat": BAYES_DATA}),
+    "nested_cuu": ("cuu", CUU_DECK, {"targets.dat": CUU_TARGETS}),
 }
 
 # closed forms of the analytic problem (what both tools should find)
@@ -238,7 +87,7 @@ variables
     means = 0.108 0.1
     std_deviations = 0.0054 0.005
     descriptors = 'cla_m03' 'cla_m02'
-{iface}responses
+{interface}responses
   response_functions = 2
     descriptors = 'thrust' 'power'
   numerical_gradients
@@ -260,7 +109,7 @@ variables
     means = 0.108 0.1
     std_deviations = 0.0054 0.005
     descriptors = 'cla_m03' 'cla_m02'
-{iface}responses
+{interface}responses
   response_functions = 2
     descriptors = 'thrust' 'power'
   no_gradients
@@ -322,7 +171,7 @@ def run_case(case: str, step: str, deck: str, files: dict, work: Path, driver: s
     for name, text in files.items():
         (work / name).write_text(text)
     ident = "  id_interface = 'I'\n" if case == "nested_cuu" else ""
-    (work / "deck.in").write_text(deck.replace("{iface}", IFACE.format(ident=ident,
+    (work / "deck.in").write_text(deck.replace("{interface}", IFACE.format(ident=ident,
                                                                        driver=driver)))
     cli = [sys.executable, "-m", "rotoruq.study.cli"]
     subprocess.run([*cli, "dakota", "import", "deck.in", "-o", "study.toml"], cwd=work,

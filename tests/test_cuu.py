@@ -349,15 +349,20 @@ def test_weighting_relative_and_absolute_closed_forms():
 def test_weighting_is_a_step_option_stated_in_the_table():
     from rotoruq.results import StepResult
     from rotoruq.steps import step_type
-    from rotoruq.steps.cuu import cuu_tables
+    from rotoruq.steps.cuu import CuuRecord, cuu_tables
 
     opt = step_type("cuu").options["weighting"]
     assert opt.check("absolute") == "absolute"
     with pytest.raises(TypeError):
         opt.check("dakota")
-    res = StepResult("cuu", "cuu", {"mean/x": 1.0, "std/x": 0.2, "initial_mean/x": 1.0,
-                                    "initial_std/x": 0.1},
-                     meta={"identifiable": True, "weighting": "absolute"})
-    assert "plain differences s - t, as Dakota" in cuu_tables(res, {})[0].note
-    res_rel = StepResult("cuu", "cuu", dict(res.scalars), meta={"identifiable": True})
-    assert "relative to the targets" in cuu_tables(res_rel, {})[0].note
+
+    def saved(weighting: str) -> StepResult:
+        nan = np.array([np.nan])
+        rec = CuuRecord(("x",), ("y",), np.array([1.0]), np.array([0.1]), np.array([1.0]),
+                        np.array([0.2]), nan, nan, nan, nan, nan, nan, identifiable=True,
+                        diagnostic="", weighting=weighting, condition_number=1.0, message="")
+        arrays, meta = rec.parts()
+        return StepResult("cuu", "cuu", arrays=arrays, meta=meta)
+
+    assert "plain differences s - t, as Dakota" in cuu_tables(saved("absolute"), {})[0].note
+    assert "relative to the targets" in cuu_tables(saved("relative"), {})[0].note

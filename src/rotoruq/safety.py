@@ -10,7 +10,8 @@ symlink planted there, or put escape codes on the user's terminal:
   its folder once resolved (symlinks included);
 - :func:`real_dir`, :func:`no_symlink`, :func:`open_nofollow`, :func:`read_nofollow`: files
   and folders of a results folder, never through a symlink;
-- :func:`terminal_text`: a string with its control characters shown as escapes.
+- :func:`terminal_text`: a string with its control characters shown as escapes (the one
+  escaping of study-supplied text: :mod:`rotoruq.report.escape` builds on it).
 """
 
 from __future__ import annotations
@@ -30,6 +31,8 @@ __all__ = ["UnsafePathError", "ForeignFileError", "check_name", "name_problem",
 # Unicode's bidirectional overrides and isolates reorder what a terminal shows (a name can
 # hide or reverse the text after it); they are format characters, not control ones.
 _BIDI = frozenset("\u061c\u200e\u200f\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069")
+# Controls, lone surrogates (no encoding writes them) and the separators that break a line.
+_CONTROL_CATEGORIES = frozenset({"Cc", "Cs", "Zl", "Zp"})
 
 #: Longest name accepted, in UTF-8 bytes: it must fit in one file name (255 on every common
 #: file system) with the prefixes rotoruq adds (``.tmp-``, ``.old-``, suffixes).
@@ -53,21 +56,21 @@ class ForeignFileError(RotoruqError, ValueError):
 
 
 def is_control(ch: str) -> bool:
-    """Whether the character ``ch`` changes what a terminal shows rather than being shown:
-    C0/C1 controls and DEL (Unicode category Cc), and bidirectional overrides.
+    """Whether the character ``ch`` changes what a terminal or a page shows rather than being
+    shown: C0/C1 controls and DEL (Unicode category Cc), lone surrogates (Cs), the line and
+    paragraph separators (Zl, Zp) and the bidirectional overrides.
 
     Examples
     --------
-    >>> [is_control(c) for c in "a\\x1b\\x7f\\u202e\\u00e9"]
-    [False, True, True, True, False]
+    >>> [is_control(c) for c in "a\\x1b\\x7f\\u202e\\u2028\\u00e9"]
+    [False, True, True, True, True, False]
     """
-    return unicodedata.category(ch) == "Cc" or ch in _BIDI
+    return unicodedata.category(ch) in _CONTROL_CATEGORIES or ch in _BIDI
 
 
 def terminal_text(text: object, *, lines: bool = False) -> str:
     """``str(text)`` with every control character (see :func:`is_control`) shown as an
-    escape (``\\x1b``, ``\\u202e``) and a backslash before a literal ``\\x``/``\\u``, so the
-    result holds no control character and cannot be confused with one that was escaped.
+    escape (``\\x1b``, ``\\u202e``): the result holds no control character.
     Newlines and tabs are escaped too (one study string stays on one line) unless
     ``lines`` is true (a message of several lines).
 

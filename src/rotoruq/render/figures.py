@@ -10,7 +10,7 @@ numbers behind a figure (tables 4.12, 4.16-4.19, the Sobol tables) they are draw
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -290,29 +290,34 @@ def _thesis_prediction(step: str, label: str) -> dict[str, tuple[float, float]]:
     return out
 
 
-def load_distributions(res: StepResult, units=None, thesis: bool = False) -> list[Figure]:
+def load_distributions(name: str, resp: Sequence[str], labels: Sequence[str],
+                       outputs: Sequence[np.ndarray], pp_outputs: Sequence[np.ndarray | None],
+                       measured: np.ndarray | None = None, units=None, thesis: bool = False
+                       ) -> list[Figure]:
     """PDF (histogram + KDE) and empirical CDF of every response at every sweep point, with
     the measured value; the joint posterior predictive beside the independent-normal
     propagation when the step has both, and the thesis's normal N(mean, std) when it prints
-    one."""
+    one.
+
+    name : the step's. resp (m) : response names. labels (P) : each point's label (``""``
+    without a sweep). outputs : P arrays (n, m) of propagated responses; pp_outputs : P
+    arrays (N, m) of the joint posterior predictive, or None. measured (P, m) : the data's
+    mean at each point (NaN: none; None: no data).
+    """
     out = []
-    for label in res.meta.get("labels", [""]) or [""]:
-        arr = f"outputs{label}"
-        if arr not in res.arrays:
-            continue
-        resp = res.columns(arr)
-        pp = res.arrays.get(f"pp_outputs{label}")
-        th = _thesis_prediction(res.name, label) if thesis and label else {}
+    for i, label in enumerate(labels):
+        pp = pp_outputs[i]
+        th = _thesis_prediction(name, label) if thesis and label else {}
         fig, axes = _subplots(2, len(resp), figsize=(3.3 * len(resp) + 0.4, 5.6),
                               squeeze=False)
         for k, r in enumerate(resp):
             series = [("independent normals" if pp is not None else "samples",
-                       np.asarray(res.arrays[arr])[:, k], "C0")]
+                       np.asarray(outputs[i])[:, k], "C0")]
             if pp is not None:
                 series.append(("joint posterior predictive", np.asarray(pp)[:, k], "C1"))
             ax, ax2 = axes[0, k], axes[1, k]
             lo, hi = np.inf, -np.inf
-            for name, v, color in series:
+            for what, v, color in series:
                 v = v[np.isfinite(v)]
                 if v.size < 2:
                     continue
@@ -320,20 +325,20 @@ def load_distributions(res: StepResult, units=None, thesis: bool = False) -> lis
                 ax.hist(v, bins=30, density=True, color=color, alpha=0.3, rasterized=True)
                 if np.std(v) > 0:
                     g = np.linspace(v.min(), v.max(), 200)
-                    ax.plot(g, stats.gaussian_kde(v)(g), color=color, label=name)
+                    ax.plot(g, stats.gaussian_kde(v)(g), color=color, label=what)
                 s = np.sort(v)
                 ax2.step(s, np.arange(1, s.size + 1) / s.size, where="post", color=color,
-                         label=name)
+                         label=what)
             if r in th and th[r][1]:
                 th_mean, th_std = th[r]
                 g = np.linspace(min(lo, th_mean - 3 * th_std), max(hi, th_mean + 3 * th_std), 200)
                 for axis, law in ((ax, stats.norm.pdf), (ax2, stats.norm.cdf)):
                     axis.plot(g, law(g, th_mean, th_std), "k:", lw=1.2,
                               label="thesis N(mean, std)")
-            measured = res.scalars.get(f"data/{r}{label}")
-            if measured is not None:
+            if measured is not None and not np.isnan(measured[i, k]):
                 for a in (ax, ax2):
-                    a.axvline(measured, color="C3", ls="--", lw=1.2, label="measured")
+                    a.axvline(float(measured[i, k]), color="C3", ls="--", lw=1.2,
+                              label="measured")
             u = unit_of(r, units)
             ax.set_ylabel(f"PDF [{per_unit(u)}]", fontsize=8)
             ax2.set_ylabel("CDF [-]", fontsize=8)
@@ -342,22 +347,29 @@ def load_distributions(res: StepResult, units=None, thesis: bool = False) -> lis
                 a.tick_params(labelsize=_TICK)
         _legend_below(fig, axes)
         where = f" at H/R = {label[1:]}" if label else ""
-        fig.suptitle(f"Response distributions{where} ({res.name})", fontsize=10)
-        out.append(Figure(f"{res.name}_loads{label.replace('@', '_h')}",
-                          f"Response PDFs and CDFs{where} ({res.name})", fig))
+        fig.suptitle(f"Response distributions{where} ({name})", fontsize=10)
+        out.append(Figure(f"{name}_loads{label.replace('@', '_h')}",
+                          f"Response PDFs and CDFs{where} ({name})", fig))
     return out
 
 
-def cuu_comparison(res: StepResult, labels, units=None) -> list[Figure]:
-    """Input std devs before/after CUU and output CDFs: initial, calibrated, target."""
-    params = res.meta.get("parameters", [])
-    resp = res.columns("outputs_calibrated") or res.meta.get("responses", [])
+def cuu_comparison(name: str, params: Sequence[str], resp: Sequence[str],
+                   initial_std: np.ndarray, mean: np.ndarray, std: np.ndarray,
+                   target_mean: np.ndarray, target_std: np.ndarray,
+                   samples: Mapping[str, np.ndarray], labels, units=None) -> list[Figure]:
+    """Input std devs before/after CUU and output CDFs: initial, calibrated, target.
+
+    params (d), resp (m) : names; initial_std, mean, std (d,) : each input's std before,
+    mean and std after calibration; target_mean, target_std (m,) : the targets (NaN: none);
+    samples : "initial"/"calibrated" -> (n, m) sampled responses (either may be missing).
+    """
     n = 1 + len(resp)
     fig, axes = _subplots(1, n, figsize=(3.4 * n, 3.6), squeeze=False)
     ax = axes[0, 0]
     x = np.arange(len(params))
-    init = [res.get(f"initial_std/{p}") / abs(res.get(f"mean/{p}") or 1) for p in params]
-    cal = [res.get(f"std/{p}") / abs(res.get(f"mean/{p}") or 1) for p in params]
+    scale = [abs(float(mean[j])) or 1.0 for j in range(len(params))]
+    init = [float(initial_std[j]) / scale[j] for j in range(len(params))]
+    cal = [float(std[j]) / scale[j] for j in range(len(params))]
     ax.bar(x - 0.2, init, 0.4, label="initial input std", color="#9ecae1")
     ax.bar(x + 0.2, cal, 0.4, label="calibrated input std", color="C0")
     ax.set_xticks(x, [(labels or {}).get(p) or p for p in params], rotation=30, fontsize=_TICK)
@@ -366,59 +378,65 @@ def cuu_comparison(res: StepResult, labels, units=None) -> list[Figure]:
     for k, r in enumerate(resp):
         ax = axes[0, k + 1]
         for tag, style in (("initial", ":"), ("calibrated", "-")):
-            arr = res.arrays.get(f"outputs_{tag}")
+            arr = samples.get(tag)
             if arr is None:
                 continue
             v = np.sort(np.asarray(arr)[:, k])
             v = v[np.isfinite(v)]
             ax.plot(v, np.arange(1, v.size + 1) / v.size, style, label=f"{tag} inputs (LHS)")
-        m, s = res.scalars.get(f"target_mean/{r}"), res.scalars.get(f"target_std/{r}")
-        if m is not None and s is not None:
+        m, s = float(target_mean[k]), float(target_std[k])
+        if not (np.isnan(m) or np.isnan(s)):
             g = np.linspace(m - 4 * s, m + 4 * s, 200)
             ax.plot(g, stats.norm.cdf(g, m, s), "k--", lw=1, label="target N(mean, std)")
         ax.set_xlabel(axis_label(r, None, units), fontsize=8)
         ax.set_ylabel("CDF [-]", fontsize=8)
         ax.tick_params(labelsize=_TICK)
     _legend_below(fig, axes)
-    return [Figure(f"{res.name}_cuu", f"Calibration under uncertainty ({res.name})", fig)]
+    return [Figure(f"{name}_cuu", f"Calibration under uncertainty ({name})", fig)]
 
 
-def ground_effect_curves(res: StepResult, thesis: bool = False,
+def ground_effect_curves(name: str, resp: Sequence[str], labels: Sequence[str],
+                         heights: np.ndarray, mean: np.ndarray, std: np.ndarray,
+                         pp_mean: np.ndarray, pp_std: np.ndarray, measured: np.ndarray,
+                         thesis: bool = False,
                          curves: Mapping[str, Mapping[str, list]] | None = None
                          ) -> list[Figure]:
     """C_T/C_T(4R) and C_Q/C_Q(4R) vs H/R: model mean with +-3 std bars under each
     propagation, the thesis's (tables 4.18-4.19), the test points, Cheeseman-Bennett and the
-    (digitized, approximate) Fradenburgh curve for C_T."""
-    sweep = res.meta.get("sweep", {})
-    heights = np.asarray(sweep.get("height_over_radius", []), dtype=float)
+    (digitized, approximate) Fradenburgh curve for C_T.
+
+    name : the step's. resp (m), labels (P) : response names and point labels. heights (P,) :
+    H/R of each point. mean, std (P, m) : the propagated responses' moments; pp_mean, pp_std
+    (P, m) : the joint posterior predictive's (NaN without a chain); measured (P, m) : the
+    data (NaN: none). Responses other than ``ct`` and ``cq`` are not drawn.
+    """
+    heights = np.asarray(heights, dtype=float)
     if heights.size == 0:
         return []
-    labels = res.meta.get("labels", [])
     out = []
     for r, title in (("ct", "thrust"), ("cq", "torque")):
-        if f"mean/{r}{labels[0]}" not in res.scalars:
+        if r not in resp or np.isnan(mean[0, list(resp).index(r)]):
             continue
+        k = list(resp).index(r)
         sym = "C_T" if r == "ct" else "C_Q"
         fig, ax = _subplots(figsize=(7.2, 4.2))
-        series = [("", "model, independent normals (mean +- 3 std)", "C0", 0.0)]
-        if f"pp_mean/{r}{labels[0]}" in res.scalars:
-            series.append(("pp_", "model, joint posterior predictive (mean +- 3 std)", "C1",
-                           0.04))
-        for prefix, name, color, dx in series:
-            mean = np.array([res.get(f"{prefix}mean/{r}{lab}", math.nan) for lab in labels])
-            std = np.array([res.get(f"{prefix}std/{r}{lab}", math.nan) for lab in labels])
-            ax.errorbar(heights + dx, mean, yerr=3 * std, fmt="-s", color=color, capsize=4,
-                        ms=4, label=name)
+        series = [(mean, std, "model, independent normals (mean +- 3 std)", "C0", 0.0)]
+        if not np.isnan(pp_mean[0, k]):
+            series.append((pp_mean, pp_std, "model, joint posterior predictive (mean +- 3 std)",
+                           "C1", 0.04))
+        for m_, s_, what, color, dx in series:
+            ax.errorbar(heights + dx, m_[:, k], yerr=3 * s_[:, k], fmt="-s", color=color,
+                        capsize=4, ms=4, label=what)
         if thesis:
             th_m, th_s = [], []
             for lab in labels:
-                t = _thesis_prediction(res.name, lab).get(r)
+                t = _thesis_prediction(name, lab).get(r)
                 th_m.append(np.nan if t is None else t[0])
                 th_s.append(np.nan if t is None else t[1])
             if np.any(np.isfinite(th_m)):
                 ax.errorbar(heights - 0.04, th_m, yerr=3 * np.asarray(th_s), fmt="--^",
                             color="C7", capsize=3, ms=4, label="thesis (mean +- 3 std)")
-        data = np.array([res.get(f"data/{r}{lab}", math.nan) for lab in labels])
+        data = measured[:, k]
         ax.plot(heights, data, "o", color="k", label="experiment")
         h = np.linspace(0.8, 4.2, 200)
         if r == "ct":
@@ -438,8 +456,8 @@ def ground_effect_curves(res: StepResult, thesis: bool = False,
         ax.grid(alpha=0.3)
         ax.tick_params(labelsize=_TICK)
         fig.legend(loc="outside right upper", **_LEGEND)
-        out.append(Figure(f"{res.name}_{r}_vs_height",
-                          f"Normalised {title} coefficient vs H/R ({res.name})", fig))
+        out.append(Figure(f"{name}_{r}_vs_height",
+                          f"Normalised {title} coefficient vs H/R ({name})", fig))
     return out
 
 

@@ -7,12 +7,14 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+import numpy as np
+
 from ..results import StepResult
 from .figures import UNKNOWN_UNIT, unit_of
 
 __all__ = ["StepTable", "Cell", "make_table", "value", "prefixed", "label", "responses",
-           "parameters", "moments_rows", "inputs_table", "levels_tables", "MOMENTS", "with_unit",
-           "cv_or_none", "CV_MIN_MEAN_OVER_STD"]
+           "parameters", "cell", "moments_rows", "inputs_table", "levels_tables", "MOMENTS",
+           "with_unit", "cv_or_none", "CV_MIN_MEAN_OVER_STD"]
 
 Cell = float | str | None
 
@@ -138,34 +140,43 @@ def parameters(res: StepResult) -> list[str]:
 MOMENTS = ("mean", "std", "skewness", "excess kurtosis")
 
 
-def moments_rows(res: StepResult, names: Sequence[str], suffix: str = "", labels=None):
+def cell(v: float) -> float | None:
+    """A record's number as a table cell: None ("not available") for NaN, the record's mark
+    of a value the step did not compute."""
+    v = float(v)
+    return None if math.isnan(v) else v
+
+
+def moments_rows(names: Sequence[str], moments: np.ndarray, labels=None):
     """Rows name [unit of mean and std], mean, std, skewness, excess kurtosis of ``names``
-    (keys ``mean/<n><suffix>`` and so on)."""
+    from ``moments`` (4, len(names)) in :data:`MOMENTS` order (NaN: not computed)."""
     labels = labels or {}
-    return [[with_unit(n, labels), value(res, f"mean/{n}{suffix}"), value(res, f"std/{n}{suffix}"),
-             value(res, f"skewness/{n}{suffix}"), value(res, f"kurtosis/{n}{suffix}")]
-            for n in names]
+    return [[with_unit(n, labels), *[cell(moments[i, j]) for i in range(4)]]
+            for j, n in enumerate(names)]
 
 
-def inputs_table(res: StepResult, labels) -> StepTable:
-    """The step's input distributions (``input_mean/``, ``input_std/``, bounds)."""
+def inputs_table(names: Sequence[str], mean: np.ndarray, std: np.ndarray, lower: np.ndarray,
+                 upper: np.ndarray, labels) -> StepTable:
+    """The step's input distributions: mean, std and bounds (d,) of each input (NaN bounds:
+    unbounded)."""
     return make_table("Input distributions", ("input", "mean", "std", "lower", "upper"),
-                      [[with_unit(p, labels), value(res, f"input_mean/{p}"),
-                        value(res, f"input_std/{p}"), value(res, f"input_lower/{p}"),
-                        value(res, f"input_upper/{p}")] for p in parameters(res)])
+                      [[with_unit(p, labels), cell(mean[j]), cell(std[j]), cell(lower[j]),
+                        cell(upper[j])] for j, p in enumerate(names)])
 
 
-def levels_tables(res: StepResult, whats: Sequence[str], title: str) -> list[StepTable]:
-    """One table per response of per-level values ``<what>/<response>/<i>``."""
+def levels_tables(names: Sequence[str], quantities: Sequence[str], values: np.ndarray,
+                  counts: np.ndarray, title: str) -> list[StepTable]:
+    """One table per response of per-level values: ``values`` (quantity, response, level)
+    with ``counts`` (quantity, response) levels each (0: the quantity was not computed for
+    that response); rows past a quantity's count are empty cells."""
     out = []
-    for r in responses(res):
-        n = max([int(k.rsplit("/", 1)[1]) + 1 for k in res.scalars
-                 if k.split("/")[0] in whats and k.split("/")[1] == r] or [0])
-        if n == 0:
+    for k, r in enumerate(names):
+        present = [q for q in range(len(quantities)) if counts[q, k] > 0]
+        if not present:
             continue
-        present = [w for w in whats if f"{w}/{r}/0" in res.scalars]
+        n = max(int(counts[q, k]) for q in present)
         out.append(make_table(f"{title}: {with_unit(r)}",
-                              ("level", *[w.replace("_", " ") for w in present]),
-                              [[i + 1, *[value(res, f"{w}/{r}/{i}") for w in present]]
-                               for i in range(n)]))
+                              ("level", *[quantities[q].replace("_", " ") for q in present]),
+                              [[i + 1, *[float(values[q, k, i]) if i < counts[q, k] else None
+                                         for q in present]] for i in range(n)]))
     return out

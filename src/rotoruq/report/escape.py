@@ -22,38 +22,31 @@ from __future__ import annotations
 import hashlib
 import html
 import re
-import unicodedata
+
+from ..safety import terminal_text
 
 __all__ = ["text", "terminal", "slug", "visible", "script_json"]
 
-# Format characters that reorder or hide text (bidi embeddings/overrides/isolates).
-_BIDI = set("\u202a\u202b\u202c\u202d\u202e\u2066\u2067\u2068\u2069\u200e\u200f\u061c")
 _SAFE_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*\Z")
 
-
-def _unsafe(ch: str, keep: str) -> bool:
-    if ch in keep:
-        return False
-    return unicodedata.category(ch) in ("Cc", "Cs", "Zl", "Zp") or ch in _BIDI
+#: ``s`` for a terminal line: :func:`rotoruq.safety.terminal_text` (every control character,
+#: newlines included, escaped).
+terminal = terminal_text
 
 
 def visible(s: object, keep: str = "") -> str:
-    """``s`` as a string with every control character (except those in ``keep``) written as
-    a Python-style escape (``\\x1b``, ``\\u202e``)."""
-    s = str(s)
-    return "".join(ch.encode("unicode_escape").decode("ascii") if _unsafe(ch, keep) else ch
-                   for ch in s)
+    """``s`` as a string with every control character written as an escape (``\\x1b``,
+    ``\\u202e``; :func:`rotoruq.safety.terminal_text`), except tabs and newlines when
+    ``keep`` is ``"\\t\\n"``."""
+    if keep not in ("", "\t\n", "\n\t"):
+        raise ValueError(f"keep: '' or tab and newline, not {keep!r}")
+    return terminal_text(s, lines=bool(keep))
 
 
 def text(s: object) -> str:
     """``s`` for HTML element text or a quoted attribute value: control characters made
     visible, ``& < > " '`` escaped. Tabs and newlines stay (they are whitespace in HTML)."""
     return html.escape(visible(s, keep="\t\n"), quote=True)
-
-
-def terminal(s: object) -> str:
-    """``s`` for a terminal line: every control character, newlines included, escaped."""
-    return visible(s)
 
 
 def slug(s: object) -> str:

@@ -70,6 +70,7 @@ class StepContext:
     targets: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     source: StepResult | None = None
     previous: Mapping[str, StepResult] = field(default_factory=dict)
+    _built: dict[tuple, Any] = field(default_factory=dict, init=False, repr=False)
 
     def observations(self) -> np.ndarray:
         """The step's data (k, m); a step type that needs data declares ``needs_data``."""
@@ -78,9 +79,15 @@ class StepContext:
         return self.data
 
     def model(self, fixed: Mapping[str, float] | None = None) -> Any:
+        """The step's model (inputs ``space.names``, outputs ``responses``) with ``fixed``
+        set over the step's fixed inputs. Built once per set of fixed values: asking again
+        (a sweep point, a verification level seen before) gives the same model."""
         f = dict(self.fixed)
         f.update(fixed or {})
-        return self.make_model(self.space.names, self.responses, f)
+        key = tuple(sorted(f.items()))
+        if key not in self._built:
+            self._built[key] = self.make_model(self.space.names, self.responses, f)
+        return self._built[key]
 
 
 @dataclass(frozen=True, eq=False)

@@ -5,13 +5,15 @@ the initial and the calibrated inputs."""
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..params import ParameterSpace
 from ..render.figures import Figure, FigureContext, cuu_comparison
-from ..render.tables import StepTable, label, make_table, parameters, responses, value
-from ..results import StepResult, dist_to_dict
+from ..render.tables import StepTable, cell, label, make_table
+from ..results import StepRecord, StepResult, dist_to_dict
+from ._common import saved_record
 from .base import DESIGNS, StepCheck, StepContext, StepType
 from .least_squares import LEAST_SQUARES
 from .options import (
@@ -24,9 +26,48 @@ from .options import (
     table_or_string,
 )
 
-__all__ = ["STEP", "run_cuu", "cuu_tables", "cuu_figures", "cuu_warnings"]
+__all__ = ["STEP", "CuuRecord", "run_cuu", "cuu_tables", "cuu_figures", "cuu_warnings"]
 
 _SAMPLE = "rotoruq.methods.sampling:sample"
+
+
+@dataclass(frozen=True, eq=False)
+class CuuRecord(StepRecord):
+    """What a calibration under uncertainty saves: d inputs, m responses.
+
+    names_in (d), names_out (m); initial_mean, initial_std, mean, std (d,) : each input's
+    distribution before and after calibration. target_mean, target_std (m,) : the response
+    targets (NaN: no target). initial_out_mean, initial_out_std, calibrated_out_mean,
+    calibrated_out_std (m,) : the responses' sampled statistics with the initial and the
+    calibrated inputs (NaN without ``verify_samples``; the samples are the arrays
+    ``outputs_initial``, ``outputs_calibrated`` beside the record). identifiable : whether
+    the input statistics are identifiable from the targets; diagnostic : why not, in words;
+    weighting : "relative" or "absolute" residuals; condition_number : of the outer
+    problem's Jacobian; message : the optimizer's.
+    """
+
+    AXES = {**{k: ("input",) for k in ("initial_mean", "initial_std", "mean", "std")},
+            **{k: ("response",) for k in (
+                "target_mean", "target_std", "initial_out_mean", "initial_out_std",
+                "calibrated_out_mean", "calibrated_out_std")}}
+
+    names_in: tuple[str, ...]
+    names_out: tuple[str, ...]
+    initial_mean: np.ndarray
+    initial_std: np.ndarray
+    mean: np.ndarray
+    std: np.ndarray
+    target_mean: np.ndarray
+    target_std: np.ndarray
+    initial_out_mean: np.ndarray
+    initial_out_std: np.ndarray
+    calibrated_out_mean: np.ndarray
+    calibrated_out_std: np.ndarray
+    identifiable: bool
+    diagnostic: str
+    weighting: str
+    condition_number: float
+    message: str
 
 
 def run_cuu(ctx: StepContext) -> StepResult:
@@ -49,55 +90,83 @@ def run_cuu(ctx: StepContext) -> StepResult:
         tolerance=o["tolerance"], seed=ctx.rng,
     )
     cal_space: ParameterSpace = res.space
-    scalars = {}
-    for p in ctx.space.names:
-        scalars[f"initial_mean/{p}"] = ctx.space[p].mean
-        scalars[f"initial_std/{p}"] = ctx.space[p].std
-        scalars[f"mean/{p}"] = cal_space[p].mean
-        scalars[f"std/{p}"] = cal_space[p].std
-    for r, (m, s) in targets.items():
-        scalars[f"target_mean/{r}"] = float(m)
-        scalars[f"target_std/{r}"] = float(s)
+    names, resp = tuple(ctx.space.names), tuple(ctx.responses)
+    m = len(resp)
+    out_stats = {k: np.full(m, np.nan) for k in (
+        "initial_out_mean", "initial_out_std", "calibrated_out_mean", "calibrated_out_std")}
     arrays, columns = {}, {}
     n = o.get("verify_samples", 0)
     if n:
         for tag, space in (("initial", ctx.space), ("calibrated", cal_space)):
             checked = sample(model, space, n, design=o["design"], seed=ctx.rng)
             out = np.asarray(checked.outputs)
-            for k, r in enumerate(ctx.responses):
+            for k in range(m):
                 v = out[:, k][np.isfinite(out[:, k])]
-                scalars[f"{tag}_out_mean/{r}"] = float(np.mean(v))
-                scalars[f"{tag}_out_std/{r}"] = float(np.std(v, ddof=1))
+                out_stats[f"{tag}_out_mean"][k] = float(np.mean(v))
+                out_stats[f"{tag}_out_std"][k] = float(np.std(v, ddof=1))
             arrays[f"outputs_{tag}"] = out
-            columns[f"outputs_{tag}"] = list(ctx.responses)
+            columns[f"outputs_{tag}"] = list(resp)
+    record = CuuRecord(
+        names, resp,
+        np.array([ctx.space[p].mean for p in names], dtype=float),
+        np.array([ctx.space[p].std for p in names], dtype=float),
+        np.array([cal_space[p].mean for p in names], dtype=float),
+        np.array([cal_space[p].std for p in names], dtype=float),
+        np.array([float(targets[r][0]) if r in targets else np.nan for r in resp]),
+        np.array([float(targets[r][1]) if r in targets else np.nan for r in resp]),
+        **out_stats, identifiable=bool(res.identifiable), diagnostic=str(res.diagnostic or ""),
+        weighting=str(res.weighting), condition_number=float(res.condition_number),
+        message=str(res.message or ""))
+    rec_arrays, rec_meta = record.parts()
     calibrated = {p: dist_to_dict(d) for p, d in zip(cal_space.names, cal_space.distributions,
                                                       strict=True)}
-    return StepResult(ctx.name, ctx.type, scalars, arrays, calibrated, meta={
+    return StepResult(ctx.name, ctx.type, cuu_scalars(record, targets), {**arrays, **rec_arrays},
+                      calibrated, meta={
         "columns": columns, "n_evaluations": int(res.n_evaluations),
         "identifiable": bool(res.identifiable), "diagnostic": res.diagnostic,
         "weighting": res.weighting,
-        "condition_number": float(res.condition_number), "message": res.message})
+        "condition_number": float(res.condition_number), "message": res.message, **rec_meta})
+
+
+def cuu_scalars(rec: CuuRecord, targets: Mapping[str, tuple[float, float]]) -> dict[str, float]:
+    """The flat view of ``rec``: ``initial_mean/<input>``, ``initial_std/``, ``mean/``,
+    ``std/``; ``target_mean/<response>``, ``target_std/`` of each target (in ``targets``
+    order); ``initial_out_mean/``, ``initial_out_std/``, ``calibrated_out_mean/``,
+    ``calibrated_out_std/`` when sampled."""
+    out: dict[str, float] = {}
+    for j, p in enumerate(rec.names_in):
+        out[f"initial_mean/{p}"] = float(rec.initial_mean[j])
+        out[f"initial_std/{p}"] = float(rec.initial_std[j])
+        out[f"mean/{p}"] = float(rec.mean[j])
+        out[f"std/{p}"] = float(rec.std[j])
+    for r in targets:
+        k = rec.names_out.index(r)
+        out[f"target_mean/{r}"] = float(rec.target_mean[k])
+        out[f"target_std/{r}"] = float(rec.target_std[k])
+    for tag in ("initial", "calibrated"):
+        mean, std = getattr(rec, f"{tag}_out_mean"), getattr(rec, f"{tag}_out_std")
+        for k, r in enumerate(rec.names_out):
+            if not np.isnan(mean[k]):
+                out[f"{tag}_out_mean/{r}"] = float(mean[k])
+                out[f"{tag}_out_std/{r}"] = float(std[k])
+    return out
 
 
 def cuu_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
-    params = parameters(res)
-    resp = responses(res)
+    rec = CuuRecord.read(res)
     out = [make_table("Inputs: initial and calibrated", (
         "input", "initial mean", "initial std", "calibrated mean", "calibrated std"),
-        [[label(p, labels), value(res, f"initial_mean/{p}"), value(res, f"initial_std/{p}"),
-          value(res, f"mean/{p}"), value(res, f"std/{p}")] for p in params],
-        "Identifiable: " + ("yes" if res.meta.get("identifiable", True) else
-                            f"no ({res.meta.get('diagnostic', '')})")
-        + ". " + _WEIGHTING_NOTE.get(res.meta.get("weighting", "relative"), ""))]
+        [[label(p, labels), cell(rec.initial_mean[j]), cell(rec.initial_std[j]),
+          cell(rec.mean[j]), cell(rec.std[j])] for j, p in enumerate(rec.names_in)],
+        "Identifiable: " + ("yes" if rec.identifiable else f"no ({rec.diagnostic})")
+        + ". " + _WEIGHTING_NOTE.get(rec.weighting, ""))]
     out.append(make_table("Responses: targets and sampled statistics",
                           ("response", "target mean", "target std", "initial mean",
                            "initial std", "calibrated mean", "calibrated std"),
-                          [[r, value(res, f"target_mean/{r}"), value(res, f"target_std/{r}"),
-                            value(res, f"initial_out_mean/{r}"),
-                            value(res, f"initial_out_std/{r}"),
-                            value(res, f"calibrated_out_mean/{r}"),
-                            value(res, f"calibrated_out_std/{r}")]
-                           for r in resp]))
+                          [[r, cell(rec.target_mean[k]), cell(rec.target_std[k]),
+                            cell(rec.initial_out_mean[k]), cell(rec.initial_out_std[k]),
+                            cell(rec.calibrated_out_mean[k]), cell(rec.calibrated_out_std[k])]
+                           for k, r in enumerate(rec.names_out)]))
     return out
 
 
@@ -110,13 +179,21 @@ _WEIGHTING_NOTE = {
 
 def cuu_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:
     """Response distributions with the initial and the calibrated inputs against targets."""
-    return cuu_comparison(res, ctx.labels, ctx.units)
+    rec = saved_record(CuuRecord, res)
+    if rec is None:
+        return []
+    samples = {tag: np.asarray(res.arrays[f"outputs_{tag}"]) for tag in ("initial", "calibrated")
+               if f"outputs_{tag}" in res.arrays}
+    return cuu_comparison(res.name, rec.names_in, rec.names_out, rec.initial_std, rec.mean,
+                          rec.std, rec.target_mean, rec.target_std, samples, ctx.labels,
+                          ctx.units)
 
 
 def cuu_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
     """A calibration under uncertainty whose input std devs are not identifiable."""
-    if res.meta.get("identifiable") is False:
-        diag = res.meta.get("diagnostic") or "the input std devs are not identifiable"
+    rec = saved_record(CuuRecord, res)
+    if rec is not None and not rec.identifiable:
+        diag = rec.diagnostic or "the input std devs are not identifiable"
         return [f"{res.name}: not identifiable: {diag}"]
     return []
 

@@ -4,16 +4,30 @@ interval inputs with basic probability assignments."""
 from __future__ import annotations
 
 from collections.abc import Mapping
-
-import numpy as np
+from dataclasses import dataclass
 
 from ..params import ParameterSpace
-from ..render.tables import StepTable, levels_tables
+from ..render.tables import StepTable
 from ..results import StepResult
+from ._common import LevelsRecord, levels_arrays
 from .base import StepCheck, StepContext, StepType
 from .options import REQUIRED, SIGNATURE, Option, choice, integer, number, table
 
-__all__ = ["STEP", "run_evidence", "evidence_tables"]
+__all__ = ["STEP", "EvidenceRecord", "run_evidence", "evidence_tables", "QUANTITIES"]
+
+#: The per-level quantities an evidence step saves: the levels, cumulative belief and
+#: plausibility of response <= level.
+QUANTITIES = ("response_levels", "cbf", "cpf")
+
+
+@dataclass(frozen=True, eq=False)
+class EvidenceRecord(LevelsRecord):
+    """What an evidence step saves: the :class:`~rotoruq.steps._common.LevelsRecord` of
+    :data:`QUANTITIES`; optimizer : how each cell's extremes were found ("ego",
+    "sampling"); converged : False when EGO stopped at its evaluation budget."""
+
+    optimizer: str
+    converged: bool
 
 
 def run_evidence(ctx: StepContext) -> StepResult:
@@ -32,19 +46,18 @@ def run_evidence(ctx: StepContext) -> StepResult:
     res = evidence(ctx.make_model(space.names, ctx.responses, fixed), space,
                    response_levels=o.get("response_levels"), optimizer=o["optimizer"],
                    n_samples=o["n_samples"], tolerance=o["tolerance"], seed=ctx.rng)
-    scalars = {}
-    for r in ctx.responses:
-        for what in ("response_levels", "cbf", "cpf"):
-            for i, v in enumerate(np.atleast_1d(getattr(res, what).get(r, []))):
-                scalars[f"{what}/{r}/{i}"] = float(v)
-    return StepResult(ctx.name, ctx.type, scalars, meta={
+    record = EvidenceRecord(tuple(ctx.responses), QUANTITIES,
+                            *levels_arrays(res, QUANTITIES, ctx.responses), o["optimizer"],
+                            bool(getattr(res, "converged", True)))
+    arrays, meta = record.parts()
+    return StepResult(ctx.name, ctx.type, record.scalars(), arrays, meta={
         "n_evaluations": int(res.n_evaluations), "optimizer": o["optimizer"],
-        "converged": bool(getattr(res, "converged", True))})
+        "converged": record.converged, **meta})
 
 
 def evidence_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
-    return levels_tables(res, ("response_levels", "cbf", "cpf"),
-                         "Belief (CBF) and plausibility (CPF) of response <= level")
+    return EvidenceRecord.read(res).tables(
+        "Belief (CBF) and plausibility (CPF) of response <= level")
 
 
 def _check_intervals(c: StepCheck) -> None:

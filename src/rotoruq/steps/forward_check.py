@@ -17,14 +17,14 @@ import numpy as np
 from ..errors import ParameterError
 from ..params import ParameterSpace
 from ..render.figures import Figure, FigureContext, ground_effect_curves, load_distributions
-from ..render.tables import StepTable, inputs_table, make_table, responses, value
-from ..results import StepResult
-from ._common import input_scalars, stats_scalars
+from ..render.tables import StepTable, cell, inputs_table, make_table
+from ..results import StepRecord, StepResult
+from ._common import column_moments, input_arrays, input_scalars, saved_record, stats_scalars
 from .base import DESIGNS, StepCheck, StepContext, StepType
 from .options import SIGNATURE, Option, choice, integer, number_list, string, table
 
-__all__ = ["STEP", "SweepPoint", "ForwardCheck", "forward_check", "posterior_draws",
-           "dropped_correlation", "measurement_std", "propagation_warnings",
+__all__ = ["STEP", "SweepPoint", "ForwardCheck", "ForwardCheckRecord", "forward_check",
+           "posterior_draws", "dropped_correlation", "measurement_std", "propagation_warnings",
            "run_forward_check", "forward_check_tables", "forward_check_figures"]
 
 
@@ -63,6 +63,54 @@ class ForwardCheck:
     n_evaluations: int
     normalized: bool
     sweep: Mapping[str, list[float]] = field(default_factory=dict)
+
+
+@dataclass(frozen=True, eq=False)
+class ForwardCheckRecord(StepRecord):
+    """What a forward check saves: P operating points, m responses, d inputs.
+
+    names_in (d), names_out (m); labels (P) : each point's label (``"@<value>"``, ``""``
+    without a sweep); sweep : input -> its P values ({} without one); match : the sweep input
+    that picks the data rows (None without a sweep); normalized : responses divided by the
+    ``normalize_by`` rows' mean. propagation : "sampling", "joint" or "independent_normals";
+    dropped_correlation : (p, q, rho) what independent normals drop (None: nothing).
+    moments (P, 4, m) : mean, std, skewness, excess kurtosis of the propagated responses
+    (``outputs@<label>``). measured, n_repeats, sem (P, m) : the matched data rows' mean,
+    their number and its standard error; nstd (P, m) : |measured - mean| / std. pp_mean,
+    pp_std (P, m) : the joint posterior predictive; pp_noise (P, m) : the calibration's noise
+    std of one measurement; pp_nstd (P, m) : |measured - pp_mean| / predictive std (see
+    :func:`run_forward_check`). NaN: not computed (no matched row, no chain, too few values).
+    input_mean, input_std, input_lower, input_upper (d,) : the input distributions.
+    """
+
+    AXES = {"moments": ("point", "statistic", "response"),
+            **{k: ("point", "response") for k in (
+                "measured", "n_repeats", "sem", "nstd", "pp_mean", "pp_std", "pp_noise",
+                "pp_nstd")},
+            "input_mean": ("input",), "input_std": ("input",), "input_lower": ("input",),
+            "input_upper": ("input",)}
+
+    names_in: tuple[str, ...]
+    names_out: tuple[str, ...]
+    labels: tuple[str, ...]
+    sweep: dict[str, list[float]]
+    match: str | None
+    normalized: bool
+    propagation: str
+    dropped_correlation: tuple[str, str, float] | None
+    moments: np.ndarray
+    measured: np.ndarray
+    n_repeats: np.ndarray
+    sem: np.ndarray
+    nstd: np.ndarray
+    pp_mean: np.ndarray
+    pp_std: np.ndarray
+    pp_noise: np.ndarray
+    pp_nstd: np.ndarray
+    input_mean: np.ndarray
+    input_std: np.ndarray
+    input_lower: np.ndarray
+    input_upper: np.ndarray
 
 
 def posterior_draws(source: StepResult | None, names: Sequence[str], n: int,
@@ -281,13 +329,18 @@ def run_forward_check(ctx: StepContext) -> StepResult:
     src_noise = ctx.source.scalars if ctx.source is not None else {}
     scalars: dict[str, float] = {}
     arrays, columns = {}, {}
-    for pt in fc.points:
+    n_pts, m = len(fc.points), len(ctx.responses)
+    moments = np.full((n_pts, 4, m), np.nan)
+    per = {k: np.full((n_pts, m), np.nan) for k in (
+        "measured", "n_repeats", "sem", "nstd", "pp_mean", "pp_std", "pp_noise", "pp_nstd")}
+    for i, pt in enumerate(fc.points):
         label = pt.label
         joint_out = pt.outputs if joint else pt.pp_outputs
         for k, r in enumerate(ctx.responses):
             noise = float(src_noise.get(f"noise_std/{r}", 0.0)) / abs(pt.scale[k])
             if joint_out is not None:
                 pm, ps = _spread(joint_out[:, k])
+                per["pp_mean"][i, k], per["pp_std"][i, k], per["pp_noise"][i, k] = pm, ps, noise
                 scalars.update({f"pp_mean/{r}{label}": pm, f"pp_std/{r}{label}": ps,
                                 f"pp_noise/{r}{label}": noise})
             if pt.row is not None and r in ctx.data_columns:
@@ -295,56 +348,75 @@ def run_forward_check(ctx: StepContext) -> StepResult:
                 n_rep = int(pt.n_repeats[k]) if pt.n_repeats is not None else 1
                 sem = float(pt.sem[k]) if pt.sem is not None else np.nan
                 mean, std = _spread(pt.outputs[:, k])
+                nstd = abs(measured - mean) / std if std > 0 else np.inf
+                per["measured"][i, k], per["n_repeats"][i, k] = measured, n_rep
+                per["sem"][i, k], per["nstd"][i, k] = sem, nstd
                 scalars[f"data/{r}{label}"] = measured
                 scalars[f"data_n/{r}{label}"] = float(n_rep)
                 if np.isfinite(sem):  # two repeats or more
                     scalars[f"data_sem/{r}{label}"] = sem
-                scalars[f"nstd/{r}{label}"] = abs(measured - mean) / std if std > 0 else np.inf
+                scalars[f"nstd/{r}{label}"] = nstd
                 if joint_out is not None:
-                    tot = float(np.hypot(scalars[f"pp_std/{r}{label}"],
+                    tot = float(np.hypot(per["pp_std"][i, k],
                                          measurement_std(noise, n_rep, sem)))
-                    scalars[f"pp_nstd/{r}{label}"] = (
-                        abs(measured - scalars[f"pp_mean/{r}{label}"]) / tot if tot > 0
-                        else np.inf)
-        scalars.update(stats_scalars(ctx.responses, pt.outputs, label))
+                    pp_nstd = (abs(measured - per["pp_mean"][i, k]) / tot if tot > 0
+                               else np.inf)
+                    per["pp_nstd"][i, k] = scalars[f"pp_nstd/{r}{label}"] = pp_nstd
+        moments[i] = column_moments(pt.outputs)
+        scalars.update(stats_scalars(ctx.responses, pt.outputs, label, moments=moments[i]))
         arrays[f"outputs{label}"] = pt.outputs
         columns[f"outputs{label}"] = list(ctx.responses)
         if pt.pp_outputs is not None:
             arrays[f"pp_outputs{label}"] = pt.pp_outputs
             columns[f"pp_outputs{label}"] = list(ctx.responses)
     scalars.update(input_scalars(ctx.space))
+    propagation = ("joint" if joint else "independent_normals" if draws is not None
+                   else "sampling")
     meta: dict[str, Any] = {
         "columns": columns, "n_evaluations": fc.n_evaluations,
         "labels": [p.label for p in fc.points], "sweep": dict(fc.sweep),
         "normalized": fc.normalized, "joint_predictive": draws is not None,
-        "propagation": ("joint" if joint else "independent_normals" if draws is not None
-                        else "sampling")}
+        "propagation": propagation}
+    dropped = None
     if draws is not None and not joint:
         dropped = dropped_correlation(ctx.source, ctx.space.names)
         if dropped is not None:
             meta["dropped_correlation"] = list(dropped)
-    return StepResult(ctx.name, ctx.type, scalars, arrays, meta=meta)
+    sweep = {k: [float(x) for x in v] for k, v in fc.sweep.items()}
+    in_mean, in_std, in_lower, in_upper = input_arrays(ctx.space)
+    record = ForwardCheckRecord(
+        tuple(ctx.space.names), tuple(ctx.responses), tuple(p.label for p in fc.points),
+        sweep, (o.get("match") or next(iter(sweep))) if sweep else None, fc.normalized,
+        propagation, dropped, moments, measured=per["measured"], n_repeats=per["n_repeats"],
+        sem=per["sem"], nstd=per["nstd"], pp_mean=per["pp_mean"], pp_std=per["pp_std"],
+        pp_noise=per["pp_noise"], pp_nstd=per["pp_nstd"], input_mean=in_mean,
+        input_std=in_std, input_lower=in_lower, input_upper=in_upper)
+    rec_arrays, rec_meta = record.parts()
+    return StepResult(ctx.name, ctx.type, scalars, {**arrays, **rec_arrays},
+                      meta={**meta, **rec_meta})
 
 
 def propagation_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
-    """Independent normals of a correlated posterior (forward checks and sampling steps)."""
-    dropped = res.meta.get("dropped_correlation")
-    if not dropped:
+    """Independent normals of a correlated posterior: a forward check's or a sampling step's
+    record names the largest correlation they drop."""
+    from .sampling import SamplingRecord  # sampling imports this module
+
+    rec = saved_record(ForwardCheckRecord, res) or saved_record(SamplingRecord, res)
+    if rec is None or not rec.dropped_correlation:
         return []
-    p, q, rho = dropped
+    p, q, rho = rec.dropped_correlation
     return [f"{res.name}: propagates independent normals of the posterior "
             f"(propagation = \"independent_normals\"), dropping its correlations; the "
             f"largest: {labels.get(p, p)} / {labels.get(q, q)} rho = {rho:+.2f}"]
 
 
 def forward_check_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
-    resp = responses(res)
+    rec = ForwardCheckRecord.read(res)
     out = []
-    prop = res.meta.get("propagation", "joint" if res.meta.get("joint_predictive")
-                        else "sampling")
+    prop = rec.propagation
     both = prop == "independent_normals"
-    for lab in res.meta.get("labels") or [""]:
-        where = f" at {lab[1:]}" if lab else ""
+    for i, lab in enumerate(rec.labels):
+        where = f" at {rec.match} = {lab[1:]}" if rec.sweep and lab else ""
         if prop == "joint":
             cols = ["response", "joint mean", "joint std", "measured mean", "repeats",
                     "std error of the mean", "noise std", "|measured - mean| / predictive std"]
@@ -355,17 +427,16 @@ def forward_check_tables(res: StepResult, labels: Mapping[str, str]) -> list[Ste
                 cols += ["joint mean", "joint std", "noise std",
                          "|measured - mean| / predictive std"]
         rows = []
-        for r in resp:
-            row = [r, value(res, f"mean/{r}{lab}"), value(res, f"std/{r}{lab}"),
-                   value(res, f"data/{r}{lab}"), value(res, f"data_n/{r}{lab}"),
-                   value(res, f"data_sem/{r}{lab}")]
+        for k, r in enumerate(rec.names_out):
+            row = [r, cell(rec.moments[i, 0, k]), cell(rec.moments[i, 1, k]),
+                   cell(rec.measured[i, k]), cell(rec.n_repeats[i, k]), cell(rec.sem[i, k])]
             if prop == "joint":
-                row += [value(res, f"pp_noise/{r}{lab}"), value(res, f"pp_nstd/{r}{lab}")]
+                row += [cell(rec.pp_noise[i, k]), cell(rec.pp_nstd[i, k])]
             else:
-                row.append(value(res, f"nstd/{r}{lab}"))
+                row.append(cell(rec.nstd[i, k]))
             if both:
-                row += [value(res, f"pp_mean/{r}{lab}"), value(res, f"pp_std/{r}{lab}"),
-                        value(res, f"pp_noise/{r}{lab}"), value(res, f"pp_nstd/{r}{lab}")]
+                row += [cell(rec.pp_mean[i, k]), cell(rec.pp_std[i, k]),
+                        cell(rec.pp_noise[i, k]), cell(rec.pp_nstd[i, k])]
             rows.append(row)
         pred = ("predictive std = sqrt(joint std^2 + s^2), s the std of the measured mean: "
                 "the calibration's noise std / sqrt(repeats), else the repeats' standard "
@@ -377,20 +448,29 @@ def forward_check_tables(res: StepResult, labels: Mapping[str, str]) -> list[Ste
                 "correlations dropped); joint: the chain's draws through the model; "
                 + pred + ".",
                 }.get(prop, "Propagation: LHS of the step's input distributions.")
-        sweep = res.meta.get("sweep") or {}
-        if sweep and lab:
-            match = next(iter(sweep))
-            where = f" at {match} = {lab[1:]}"
         out.append(make_table(f"Propagated responses{where}", cols, rows, note))
-    out.append(inputs_table(res, labels))
+    out.append(inputs_table(rec.names_in, rec.input_mean, rec.input_std, rec.input_lower,
+                            rec.input_upper, labels))
     return out
 
 
 def forward_check_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:
-    """Ground-effect curves of a normalized sweep, else the propagated load distributions."""
-    if res.meta.get("normalized"):
-        return ground_effect_curves(res, thesis=ctx.reference, curves=ctx.curves)
-    return load_distributions(res, ctx.units, thesis=ctx.reference)
+    """Ground-effect curves of a normalized sweep, else the propagated load distributions
+    (the samples: the arrays ``outputs<label>``, ``pp_outputs<label>`` beside the record)."""
+    rec = saved_record(ForwardCheckRecord, res)
+    if rec is None:
+        return []
+    if rec.normalized:
+        heights = np.asarray(rec.sweep.get("height_over_radius", []), dtype=float)
+        return ground_effect_curves(res.name, rec.names_out, rec.labels, heights,
+                                    rec.moments[:, 0], rec.moments[:, 1], rec.pp_mean,
+                                    rec.pp_std, rec.measured, thesis=ctx.reference,
+                                    curves=ctx.curves)
+    outputs = [np.asarray(res.arrays[f"outputs{lab}"]) for lab in rec.labels]
+    pp = [None if f"pp_outputs{lab}" not in res.arrays
+          else np.asarray(res.arrays[f"pp_outputs{lab}"]) for lab in rec.labels]
+    return load_distributions(res.name, rec.names_out, rec.labels, outputs, pp,
+                              rec.measured, ctx.units, thesis=ctx.reference)
 
 
 def _check_sweep(c: StepCheck) -> None:

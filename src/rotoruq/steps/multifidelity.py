@@ -13,10 +13,14 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
 
 from ..errors import ParameterError
-from ..render.tables import StepTable, label, make_table, responses, value
-from ..results import StepResult
+from ..render.tables import StepTable, cell, label, make_table
+from ..results import StepRecord, StepResult
+from ._common import saved_record
 from .base import StepCheck, StepContext, StepType
 from .options import (
     REQUIRED,
@@ -29,12 +33,63 @@ from .options import (
     string_list,
 )
 
-__all__ = ["STEP", "run_multifidelity", "multifidelity_tables", "multifidelity_warnings",
-           "HF_LABEL"]
+__all__ = ["STEP", "MultifidelityRecord", "run_multifidelity", "multifidelity_tables",
+           "multifidelity_warnings", "HF_LABEL"]
 
 _METHOD = "rotoruq.methods.multifidelity:multifidelity_sample"
 #: How the report names the study's own ``[model]`` (the high-fidelity one).
 HF_LABEL = "model"
+
+
+@dataclass(frozen=True, eq=False)
+class MultifidelityRecord(StepRecord):
+    """What a multifidelity step saves: K models (the study's ``[model]`` first, named
+    :data:`HF_LABEL`), m responses, s statistics.
+
+    models (K), names_out (m), statistics (s) : the statistics estimated ("mean",
+    "variance"). estimator : "mfmc", "acvmf" or "acvis"; target : the response the
+    allocation was optimised for. cost (K,) : cost of one run of each model (seconds when
+    ``costs_measured``, else the given cost units); runs (K,) : pilot plus main-phase runs;
+    allocation (K,) : main-phase runs; used (K,) 1.0 / 0.0 : whether the estimator uses the
+    model; correlation (K, m) : pilot correlation with the high-fidelity model. mean, mean_se,
+    variance, variance_se, std (m,) : the estimates and their standard errors.
+    n_equivalent_hf, speedup (s, m) : high-fidelity runs plain Monte Carlo needs for the same
+    standard error, and their cost over this step's. budget, cost_pilot, cost_main : cost of
+    the main phase given and spent, and of the pilot; n_pilot : pilot points.
+    """
+
+    AXES = {**{k: ("model",) for k in ("cost", "runs", "allocation", "used")},
+            "correlation": ("model", "response"),
+            **{k: ("response",) for k in ("mean", "mean_se", "variance", "variance_se", "std")},
+            "n_equivalent_hf": ("statistic", "response"), "speedup": ("statistic", "response")}
+
+    models: tuple[str, ...]
+    names_out: tuple[str, ...]
+    statistics: tuple[str, ...]
+    estimator: str
+    target: str
+    costs_measured: bool
+    cost: np.ndarray
+    runs: np.ndarray
+    allocation: np.ndarray
+    used: np.ndarray
+    correlation: np.ndarray
+    mean: np.ndarray
+    mean_se: np.ndarray
+    variance: np.ndarray
+    variance_se: np.ndarray
+    std: np.ndarray
+    n_equivalent_hf: np.ndarray
+    speedup: np.ndarray
+    budget: float
+    cost_pilot: float
+    cost_main: float
+    n_pilot: int
+
+    def statistic(self, name: str, values: np.ndarray, k: int) -> float:
+        """Row ``name`` of a (s, m) array at response ``k``; NaN when not estimated."""
+        return float(values[self.statistics.index(name), k]) if name in self.statistics \
+            else float("nan")
 
 
 def _low_fidelity(ctx: StepContext, name: str):
@@ -60,54 +115,74 @@ def run_multifidelity(ctx: StepContext) -> StepResult:
     res = multifidelity_sample(models, ctx.space, o["budget"], budget_unit=o["budget_unit"],
                                estimator=o["estimator"], n_pilot=o["n_pilot"], costs=costs,
                                seed=ctx.rng)
-    scalars: dict[str, float] = {"budget": res.budget, "cost_pilot": res.cost_pilot,
-                                 "cost_main": res.cost_main}
-    for k, n in enumerate(names):
-        scalars[f"cost/{n}"] = float(res.costs[k])
-        scalars[f"runs/{n}"] = float(res.allocation[k] + res.n_pilot)
-        scalars[f"allocation/{n}"] = float(res.allocation[k])
-        scalars[f"used/{n}"] = float(k in res.models_used)
-        for j, r in enumerate(ctx.responses):
-            scalars[f"correlation/{n}/{r}"] = float(res.correlation[j, k])
-    for j, r in enumerate(ctx.responses):
-        scalars[f"mean/{r}"] = float(res.mean[j])
-        scalars[f"mean_se/{r}"] = float(res.mean_se[j])
-        scalars[f"variance/{r}"] = float(res.variance[j])
-        scalars[f"variance_se/{r}"] = float(res.variance_se[j])
-        scalars[f"std/{r}"] = float(res.std[j])
-        for s in res.statistics:
-            scalars[f"n_equivalent_hf/{s}/{r}"] = float(res.n_equivalent_hf[s][j])
-            scalars[f"speedup/{s}/{r}"] = float(res.speedup[s][j])
-    return StepResult(ctx.name, ctx.type, scalars, meta={
+    k_models = len(names)
+    record = MultifidelityRecord(
+        names, tuple(ctx.responses), tuple(res.statistics), res.estimator, res.target,
+        bool(res.costs_measured), np.asarray(res.costs, dtype=float)[:k_models],
+        np.asarray(res.allocation, dtype=float) + res.n_pilot,
+        np.asarray(res.allocation, dtype=float),
+        np.array([float(k in res.models_used) for k in range(k_models)]),
+        np.asarray(res.correlation, dtype=float).T, np.asarray(res.mean, dtype=float),
+        np.asarray(res.mean_se, dtype=float), np.asarray(res.variance, dtype=float),
+        np.asarray(res.variance_se, dtype=float), np.asarray(res.std, dtype=float),
+        np.array([np.asarray(res.n_equivalent_hf[s], dtype=float) for s in res.statistics]
+                 ).reshape(len(res.statistics), len(ctx.responses)),
+        np.array([np.asarray(res.speedup[s], dtype=float) for s in res.statistics]
+                 ).reshape(len(res.statistics), len(ctx.responses)),
+        float(res.budget), float(res.cost_pilot), float(res.cost_main), int(res.n_pilot))
+    arrays, meta = record.parts()
+    return StepResult(ctx.name, ctx.type, multifidelity_scalars(record), arrays, meta={
         "models": list(names), "responses": list(ctx.responses), "estimator": res.estimator,
         "target": res.target,
         "n_pilot": res.n_pilot, "costs_measured": res.costs_measured,
-        "n_evaluations": int(res.n_evaluations)})
+        "n_evaluations": int(res.n_evaluations), **meta})
+
+
+def multifidelity_scalars(rec: MultifidelityRecord) -> dict[str, float]:
+    """The flat view of ``rec``: ``budget``, ``cost_pilot``, ``cost_main``; per model
+    ``cost/``, ``runs/``, ``allocation/``, ``used/``, ``correlation/<model>/<response>``; per
+    response ``mean/``, ``mean_se/``, ``variance/``, ``variance_se/``, ``std/`` and
+    ``n_equivalent_hf/<statistic>/``, ``speedup/<statistic>/``."""
+    out: dict[str, float] = {"budget": rec.budget, "cost_pilot": rec.cost_pilot,
+                             "cost_main": rec.cost_main}
+    for k, n in enumerate(rec.models):
+        out[f"cost/{n}"] = float(rec.cost[k])
+        out[f"runs/{n}"] = float(rec.runs[k])
+        out[f"allocation/{n}"] = float(rec.allocation[k])
+        out[f"used/{n}"] = float(rec.used[k])
+        for j, r in enumerate(rec.names_out):
+            out[f"correlation/{n}/{r}"] = float(rec.correlation[k, j])
+    for j, r in enumerate(rec.names_out):
+        for key in ("mean", "mean_se", "variance", "variance_se", "std"):
+            out[f"{key}/{r}"] = float(getattr(rec, key)[j])
+        for i, s in enumerate(rec.statistics):
+            out[f"n_equivalent_hf/{s}/{r}"] = float(rec.n_equivalent_hf[i, j])
+            out[f"speedup/{s}/{r}"] = float(rec.speedup[i, j])
+    return out
 
 
 def multifidelity_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
-    models = list(res.meta.get("models") or [])
-    resp = responses(res)
-    unit = "s" if res.meta.get("costs_measured") else "cost units"
+    rec = MultifidelityRecord.read(res)
+    unit = "s" if rec.costs_measured else "cost units"
     alloc = make_table(
-        f"Allocation ({res.meta.get('estimator', '?')}, {res.meta.get('n_pilot', '?')}-point "
-        "pilot)",
+        f"Allocation ({rec.estimator}, {rec.n_pilot}-point pilot)",
         ("model", f"cost per run [{unit}]", "pilot + main runs",
-         *(f"correlation with HF: {label(r, labels)}" for r in resp)),
-        [[m + ("" if value(res, f"used/{m}") else " (not used)"), value(res, f"cost/{m}"),
-          value(res, f"runs/{m}"), *(value(res, f"correlation/{m}/{r}") for r in resp)]
-         for m in models],
-        note=f"Budget {value(res, 'budget')} {unit} for the main phase (spent "
-             f"{value(res, 'cost_main')}) plus the pilot's {value(res, 'cost_pilot')}.")
+         *(f"correlation with HF: {label(r, labels)}" for r in rec.names_out)),
+        [[m + ("" if rec.used[k] else " (not used)"), cell(rec.cost[k]), cell(rec.runs[k]),
+          *(cell(rec.correlation[k, j]) for j in range(len(rec.names_out)))]
+         for k, m in enumerate(rec.models)],
+        note=f"Budget {rec.budget} {unit} for the main phase (spent "
+             f"{rec.cost_main}) plus the pilot's {rec.cost_pilot}.")
     est = make_table(
         "Multi-fidelity estimates",
         ("response", "mean", "mean std. error", "std", "variance", "variance std. error",
          "HF runs plain MC needs (mean)", "HF runs plain MC needs (variance)",
          "cost saving (mean)"),
-        [[label(r, labels), value(res, f"mean/{r}"), value(res, f"mean_se/{r}"),
-          value(res, f"std/{r}"), value(res, f"variance/{r}"), value(res, f"variance_se/{r}"),
-          value(res, f"n_equivalent_hf/mean/{r}"), value(res, f"n_equivalent_hf/variance/{r}"),
-          value(res, f"speedup/mean/{r}")] for r in resp],
+        [[label(r, labels), cell(rec.mean[k]), cell(rec.mean_se[k]), cell(rec.std[k]),
+          cell(rec.variance[k]), cell(rec.variance_se[k]),
+          cell(rec.statistic("mean", rec.n_equivalent_hf, k)),
+          cell(rec.statistic("variance", rec.n_equivalent_hf, k)),
+          cell(rec.statistic("mean", rec.speedup, k))] for k, r in enumerate(rec.names_out)],
         note="Standard errors predicted from the pilot's covariances and the allocation; "
              "plain MC: the high-fidelity runs whose sample mean (variance) has the same "
              "standard error; cost saving: their cost over this step's (pilot included).")
@@ -115,14 +190,17 @@ def multifidelity_tables(res: StepResult, labels: Mapping[str, str]) -> list[Ste
 
 
 def multifidelity_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
+    rec = saved_record(MultifidelityRecord, res)
+    if rec is None:
+        return []
     out = []
-    for m in res.meta.get("models") or []:
-        if m != HF_LABEL and not value(res, f"used/{m}"):
+    for k, m in enumerate(rec.models):
+        if m != HF_LABEL and not rec.used[k]:
             out.append(f"low-fidelity model {m!r} was left out: its correlation with the "
                        "high-fidelity model does not pay for its cost")
-    for r in responses(res):
-        s = value(res, f"speedup/mean/{r}")
-        if s is not None and s < 1.0:
+    for k, r in enumerate(rec.names_out):
+        s = rec.statistic("mean", rec.speedup, k)
+        if s < 1.0:
             out.append(f"{label(r, labels)}: the multi-fidelity mean costs {1 / s:.2g} times "
                        "what plain Monte Carlo on the high-fidelity model would for the same "
                        "standard error (pilot included)")

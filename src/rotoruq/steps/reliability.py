@@ -4,20 +4,32 @@ levels) with first- or second-order integration."""
 from __future__ import annotations
 
 from collections.abc import Mapping
+from dataclasses import dataclass
 
-import numpy as np
-
-from ..render.tables import StepTable, levels_tables
+from ..render.tables import StepTable
 from ..results import StepResult
+from ._common import LevelsRecord, levels_arrays
 from .base import StepContext, StepType
 from .mean_value import LEVELS
 from .options import SIGNATURE, Option, choice
 
-__all__ = ["STEP", "run_reliability", "reliability_tables", "APPROXIMATIONS"]
+__all__ = ["STEP", "ReliabilityRecord", "run_reliability", "reliability_tables",
+           "APPROXIMATIONS", "QUANTITIES"]
 
 #: ``mpp_search(approximation=)``'s choices (methods.reliability.APPROXIMATIONS; spelled out
 #: so that importing the step types does not import the method and scipy.stats)
 APPROXIMATIONS = ("none", "x_taylor_mean", "u_taylor_mean", "x_taylor_mpp", "u_taylor_mpp")
+
+#: The per-level quantities a reliability step saves (attributes of the method's result).
+QUANTITIES = ("response_levels", "cdf_probability", "cdf_reliability", "generalized_reliability",
+              "probability_levels", "probability_response")
+
+
+@dataclass(frozen=True, eq=False)
+class ReliabilityRecord(LevelsRecord):
+    """What a reliability step saves: the :class:`~rotoruq.steps._common.LevelsRecord` of
+    :data:`QUANTITIES` (RIA: response levels and their CDF probability, reliability and
+    generalized reliability; PMA: probability levels and their response)."""
 
 
 def run_reliability(ctx: StepContext) -> StepResult:
@@ -28,22 +40,15 @@ def run_reliability(ctx: StepContext) -> StepResult:
     res = mpp_search(ctx.model(), ctx.space, response_levels=o.get("response_levels"),
                      probability_levels=o.get("probability_levels"),
                      integration=o["integration"], approximation=o["approximation"])
-    scalars = {}
-    for r in ctx.responses:
-        for what in ("response_levels", "cdf_probability", "cdf_reliability",
-                     "generalized_reliability", "probability_levels", "probability_response"):
-            vals = getattr(res, what, {}).get(r)
-            if vals is not None:
-                for i, v in enumerate(np.atleast_1d(vals)):
-                    scalars[f"{what}/{r}/{i}"] = float(v)
-    return StepResult(ctx.name, ctx.type, scalars, meta={
-        "n_evaluations": int(getattr(res, "n_evaluations", 0))})
+    record = ReliabilityRecord(tuple(ctx.responses), QUANTITIES,
+                               *levels_arrays(res, QUANTITIES, ctx.responses))
+    arrays, meta = record.parts()
+    return StepResult(ctx.name, ctx.type, record.scalars(), arrays, meta={
+        "n_evaluations": int(getattr(res, "n_evaluations", 0)), **meta})
 
 
 def reliability_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
-    return levels_tables(res, ("response_levels", "cdf_probability", "cdf_reliability",
-                               "generalized_reliability", "probability_levels",
-                               "probability_response"), "Reliability (MPP search)")
+    return ReliabilityRecord.read(res).tables("Reliability (MPP search)")
 
 
 STEP = StepType(

@@ -11,20 +11,28 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..render.figures import Figure, FigureContext, load_distributions
-from ..render.tables import MOMENTS, StepTable, inputs_table, make_table, moments_rows, responses
-from ..results import StepResult
-from ._common import input_scalars, noise, stats_scalars
+from ..render.tables import MOMENTS, StepTable, inputs_table, make_table, moments_rows
+from ..results import StepRecord, StepResult
+from ._common import (
+    column_moments,
+    input_arrays,
+    input_scalars,
+    noise,
+    saved_record,
+    stats_scalars,
+)
 from .base import DESIGNS, StepCheck, StepContext, StepType
 from .forward_check import propagation_warnings
 from .options import SIGNATURE, Option, choice, integer, number_or_table, string
 
-__all__ = ["STEP", "run_sampling", "sampling_tables", "sampling_figures", "given_points",
-           "GIVEN"]
+__all__ = ["STEP", "SamplingRecord", "run_sampling", "sampling_tables", "sampling_figures",
+           "given_points", "GIVEN"]
 
 _SAMPLE = "rotoruq.methods.sampling:sample"
 #: the ``design`` of a step that evaluates given points (``points = "file"``)
@@ -88,6 +96,42 @@ def check_sampling(ck: StepCheck) -> None:
             ck.fail((), "n_samples = <number of points> in a sampling step")
 
 
+@dataclass(frozen=True, eq=False)
+class SamplingRecord(StepRecord):
+    """What a sampling step saves: n samples, d inputs, m responses.
+
+    names_in (d), names_out (m); inputs (n, d) the propagated inputs; outputs (n, m) the
+    responses at them, with the added noise (``outputs_clean``, saved beside the record when
+    there is noise, holds them without). moments, noisy_moments (4, m): mean, std (ddof 1),
+    skewness and excess kurtosis of the model's responses and of the noisy ones (NaN: too few
+    finite values). noise_added : whether ``noise_std`` added noise. input_mean, input_std,
+    input_lower, input_upper (d,) : the input distributions (bounds NaN when unbounded).
+    propagation : "sampling" (the step's distributions), "joint" (a calibration's chain),
+    "independent_normals" (normals of its moments) or "given_points" (``design = "file"``);
+    dropped_correlation : (p, q, rho) the
+    largest posterior correlation independent normals drop (None: none dropped).
+    """
+
+    AXES = {"inputs": ("sample", "input"), "outputs": ("sample", "response"),
+            "moments": ("statistic", "response"), "noisy_moments": ("statistic", "response"),
+            "input_mean": ("input",), "input_std": ("input",), "input_lower": ("input",),
+            "input_upper": ("input",)}
+
+    names_in: tuple[str, ...]
+    names_out: tuple[str, ...]
+    inputs: np.ndarray
+    outputs: np.ndarray
+    moments: np.ndarray
+    noisy_moments: np.ndarray
+    noise_added: bool
+    input_mean: np.ndarray
+    input_std: np.ndarray
+    input_lower: np.ndarray
+    input_upper: np.ndarray
+    propagation: str
+    dropped_correlation: tuple[str, str, float] | None
+
+
 def run_sampling(ctx: StepContext) -> StepResult:
     """Propagate the step's inputs by a sampling design, or evaluate given points
     (``design = "file"``: :func:`given_points`); with ``from = "<bayes
@@ -122,50 +166,55 @@ def run_sampling(ctx: StepContext) -> StepResult:
         if dropped is not None:
             meta["dropped_correlation"] = list(dropped)
     noisy = clean + noise(ctx, o.get("noise_std"), clean.shape)
-    scalars = stats_scalars(ctx.responses, clean)
-    scalars.update(stats_scalars([f"noisy_{r}" for r in ctx.responses], noisy))
+    moments, noisy_moments = column_moments(clean), column_moments(noisy)
+    scalars = stats_scalars(ctx.responses, clean, moments=moments)
+    scalars.update(stats_scalars([f"noisy_{r}" for r in ctx.responses], noisy,
+                                 moments=noisy_moments))
     scalars.update(input_scalars(ctx.space))
-    arrays = {"inputs": inputs, "outputs": noisy}
+    dropped = meta.get("dropped_correlation")
+    record = SamplingRecord(
+        tuple(ctx.space.names), tuple(ctx.responses), inputs, noisy, moments, noisy_moments,
+        bool(o.get("noise_std")), *input_arrays(ctx.space), meta["propagation"],
+        None if dropped is None else (str(dropped[0]), str(dropped[1]), float(dropped[2])))
+    arrays, rec_meta = record.parts()
     columns = {"inputs": list(ctx.space.names), "outputs": list(ctx.responses)}
     if o.get("noise_std"):
         arrays["outputs_clean"] = clean
         columns["outputs_clean"] = list(ctx.responses)
     return StepResult(ctx.name, ctx.type, scalars, arrays, meta={
-        "columns": columns, "n_evaluations": n_eval, "failures": n_fail, **meta})
+        "columns": columns, "n_evaluations": n_eval, "failures": n_fail, **meta, **rec_meta})
 
 
 def sampling_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
-    resp = res.columns("outputs") or responses(res)
+    rec = SamplingRecord.read(res)
+    note = {"joint": "Propagation: the calibration's chain, thinned (its correlations kept).",
+            "independent_normals": "Propagation: independent normals of the posterior's "
+                                   "means and stds (correlations dropped)."
+            }.get(rec.propagation, "")
     out = [make_table("Response statistics (model outputs)", ("response", *MOMENTS),
-                      moments_rows(res, resp))]
-    if "outputs_clean" in res.arrays:
+                      moments_rows(rec.names_out, rec.moments), note)]
+    if rec.noise_added:
         out.append(make_table("Response statistics with the added noise",
                               ("response", *MOMENTS),
-                              moments_rows(res, [f"noisy_{r}" for r in resp])))
-    out.append(inputs_table(res, labels))
-    prop = res.meta.get("propagation")
-    if prop == "given_points":
-        n = len(res.arrays["inputs"]) if "inputs" in res.arrays else "the"
+                              moments_rows([f"noisy_{r}" for r in rec.names_out],
+                                           rec.noisy_moments)))
+    out.append(inputs_table(rec.names_in, rec.input_mean, rec.input_std, rec.input_lower,
+                            rec.input_upper, labels))
+    if rec.propagation == "given_points":
         out[0] = make_table(out[0].title, out[0].columns, out[0].rows,
-                            f"Given points: {n} points read from "
+                            f"Given points: {rec.inputs.shape[0]} points read from "
                             f"{Path(str(res.meta.get('points_file', '?'))).name} (no sampling "
                             "design).")
-    elif prop in ("joint", "independent_normals"):
-        out[0] = make_table(out[0].title, out[0].columns, out[0].rows,
-                            "Propagation: " + ("the calibration's chain, thinned (its "
-                                               "correlations kept)." if prop == "joint" else
-                                               "independent normals of the posterior's "
-                                               "means and stds (correlations dropped)."))
     return out
 
 
 def sampling_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:
     """Distributions of the sampled responses."""
-    if "outputs" not in res.arrays:
+    rec = saved_record(SamplingRecord, res)
+    if rec is None:
         return []
-    return load_distributions(StepResult(
-        res.name, res.type, res.scalars, {"outputs": res.arrays["outputs"]},
-        meta={"columns": {"outputs": res.columns("outputs")}, "labels": [""]}), ctx.units)
+    return load_distributions(res.name, rec.names_out, [""], [rec.outputs], [None],
+                              units=ctx.units)
 
 
 STEP = StepType(

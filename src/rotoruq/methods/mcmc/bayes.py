@@ -39,6 +39,7 @@ from ...model import (
 from ...params import ParameterSpace
 from ..surrogate import ExtrapolationWarning, GaussianProcess, LeaveOneOut
 from . import diagnostics as dg
+from ._emulator import fit_on_prior
 from ._kernels import (
     add_loglik_rows,
     add_loglik_var_rows,
@@ -579,19 +580,12 @@ def _build_emulator(emulator, prior: ParameterSpace, truth: _TrueModel, pb: _Pro
             raise ModelShapeError(f"fitted emulator has {gp.n_inputs} inputs and "
                                   f"{gp.n_outputs} outputs; need {d} and {m}")
     else:
-        gp = copy.copy(emulator)
-        if gp.seed is None:
-            gp.seed = seeds["emulator_fit"]
-        Xb = prior.draw(int(n_emulator_samples), design="lhs",
-                        seed=np.random.default_rng(seeds["design"]))
-        Yb = truth(Xb)[:, pb.resp_idx]
-        ok = np.all(np.isfinite(Yb), 1)
-        if ok.sum() < d + 2:
-            raise EvaluationError(f"only {int(ok.sum())} of {len(Xb)} emulator build "
-                                  "evaluations succeeded")
-        gp.fit(Xb[ok], Yb[ok])
-        lp_build = LogPrior(prior)(Xb[ok]) + pb.lik(Yb[ok])
-        best_build = Xb[ok][int(np.argmax(lp_build))]
+        build = fit_on_prior(emulator, prior, lambda x: truth(x)[:, pb.resp_idx],
+                             n_emulator_samples, design_seed=seeds["design"],
+                             fit_seed=seeds["emulator_fit"])
+        gp = build.gp
+        lp_build = LogPrior(prior)(build.inputs) + pb.lik(build.outputs)
+        best_build = build.inputs[int(np.argmax(lp_build))]
     loo = gp.loo()
     log.info("emulator LOO: RMSE %s, Q2 %s", np.array2string(loo.rmse, precision=4),
              np.array2string(loo.q2, precision=4))

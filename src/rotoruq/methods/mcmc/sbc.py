@@ -15,7 +15,6 @@ noise of each replication, the emulator design and fit, and each replication's c
 
 from __future__ import annotations
 
-import copy
 import inspect
 import math
 import time
@@ -33,6 +32,7 @@ from ...model import Model, align_inputs, evaluate
 from ...params import ParameterSpace
 from ..surrogate import GaussianProcess
 from . import diagnostics as dg
+from ._emulator import fit_on_prior
 from .bayes import BayesResult, calibrate_bayes, continue_chain
 
 __all__ = ["SBCResult", "simulation_based_calibration"]
@@ -288,19 +288,11 @@ def simulation_based_calibration(
     if calibrate is None and emulator is not None:
         gp = emulator
         if not _is_fitted(gp):
-            gp = copy.copy(emulator)
             s_design, s_fit = s_emulator.spawn(2)
-            if gp.seed is None:
-                gp.seed = np.random.default_rng(s_fit)
-            X = prior.draw(int(n_emulator_samples), design="lhs",
-                           seed=np.random.default_rng(s_design))
-            Y = truth(X)
-            n_evaluations += X.shape[0]
-            ok = np.all(np.isfinite(Y), 1)
-            if ok.sum() < d + 2:
-                raise EvaluationError(f"only {int(ok.sum())} of {len(X)} emulator build "
-                                      "evaluations succeeded")
-            gp.fit(X[ok], Y[ok])
+            build = fit_on_prior(emulator, prior, truth, n_emulator_samples,
+                                 design_seed=s_design, fit_seed=np.random.default_rng(s_fit))
+            gp = build.gp
+            n_evaluations += build.n_evaluations
 
     # no MAP pre-solve by default: its finite-difference L-BFGS-B costs 20x the chain here,
     # while a burn-in of half the kept steps forgets the start at a fraction of that

@@ -296,3 +296,32 @@ def test_mbdyn_study_runs_through_the_cli(tmp_path):
             for m in res.meta["models"]]
     # elastic and built-in at two operating points, rigid at one: five identities
     assert sorted(store_counts(out).values()) == sorted(runs)
+
+
+def test_measured_costs_of_a_pilot_served_from_the_store_are_the_models_costs(tmp_path):
+    """A re-run whose pilot the store serves measures each model's cost from the seconds the
+    stored runs took (not the lookup's), so the allocation does not change."""
+    import time
+
+    from rotoruq.evaluation.evaluator import Evaluator
+    from rotoruq.methods.multifidelity import multifidelity_sample
+    from rotoruq.model import FunctionModel
+    from rotoruq.params import Normal, ParameterSpace
+
+    def slow(per_row, shift):
+        def f(x):
+            time.sleep(per_row * len(x))
+            return np.column_stack([x[:, 0] + shift * x[:, 1] ** 2])
+        return f
+
+    space = ParameterSpace([("a", Normal(0, 1)), ("b", Normal(0, 1))])
+    costs = []
+    for _ in range(2):
+        models = [Evaluator(FunctionModel(slow(p, s), ["a", "b"], ["y"]), store=tmp_path / "s.db",
+                            model_id=f"m{k}")
+                  for k, (p, s) in enumerate(((0.004, 0.3), (0.0004, 0.25)))]
+        res = multifidelity_sample(models, space, 40, budget_unit="hf_runs", n_pilot=12, seed=3)
+        costs.append(np.asarray(res.costs))
+    # first run: measured; second: all pilot rows from the store, same costs within timing noise
+    assert costs[0][0] > 0.002 and costs[0][1] < costs[0][0] / 3
+    assert np.all(costs[1] / costs[0] > 0.5) and np.all(costs[1] / costs[0] < 2.0), costs

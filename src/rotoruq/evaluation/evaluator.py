@@ -46,7 +46,9 @@ class EvalStats:
 
     n_samples : rows asked for; n_reused : rows found in the store; n_evaluations : distinct
     points run (model evaluations spent); n_duplicates : rows that repeated another row of the
-    batch; n_failed : rows that failed; wall_time : seconds.
+    batch; n_failed : rows that failed; wall_time : seconds. stored_wall_time : seconds the
+    reused rows took when they were first run (as the store recorded them), so a cost
+    measured on a batch served from the store is still the model's cost.
     """
 
     n_samples: int
@@ -55,6 +57,7 @@ class EvalStats:
     n_duplicates: int
     n_failed: int
     wall_time: float
+    stored_wall_time: float = 0.0
 
 
 class _ChunkTask:
@@ -189,7 +192,7 @@ class Evaluator:
         values = np.full((n, m), np.nan)
         failures: dict[int, str] = {}
         done = np.zeros(n, dtype=bool)
-        reused = 0
+        reused, stored_wall = 0, 0.0
         if self.store is not None and n:
             statuses = ("ok", "recovered", "failed") if self.reuse_failed else ("ok", "recovered")
             found = self.store.lookup(x, study=self.study, model=self.model_id,
@@ -203,6 +206,7 @@ class Evaluator:
                     failures[i] = f"(stored) {rec.error}"
                 done[i] = True
                 reused += 1
+                stored_wall += float(rec.wall_time or 0.0)
         # distinct missing points, each with the rows that share it
         keys = canonical_keys(x) if n else []
         groups: dict[str, list[int]] = {}
@@ -216,7 +220,7 @@ class Evaluator:
             if i not in failures and not np.all(np.isfinite(values[i])):
                 failures[i] = "non-finite response"
         self.last_stats = EvalStats(n, reused, len(firsts), int((~done).sum()) - len(firsts),
-                                    len(failures), time.perf_counter() - t0)
+                                    len(failures), time.perf_counter() - t0, stored_wall)
         return EvalBatch(values, failures)
 
     def _run(self, x, firsts, row_groups, values, failures) -> int:

@@ -149,9 +149,28 @@ def _check_models(models: Sequence[Model], space: ParameterSpace) -> tuple[str, 
 
 def _timed(model: Model, space: ParameterSpace, x: np.ndarray
            ) -> tuple[np.ndarray, dict, float]:
+    """Values, failures and the model's seconds for the batch ``x``.
+
+    The first point runs on its own, untimed, when there are three or more: what a model
+    does once (loading compiled kernels, starting workers) is not a per-run cost and would
+    otherwise fall on whichever model the pilot runs first; the time of the others is scaled
+    to the whole batch. Points a store served count with the seconds they took when they
+    were run (``last_stats.stored_wall_time`` of an evaluator), not the lookup's."""
+    n = len(x)
+    head = 1 if n >= 3 else 0
+    if head:
+        first = eval_space(model, space, x[:head])
     t0 = time.perf_counter()
-    batch = eval_space(model, space, x)
-    return batch.values, batch.failures, time.perf_counter() - t0
+    batch = eval_space(model, space, x[head:])
+    wall = time.perf_counter() - t0
+    stats = getattr(model, "last_stats", None)
+    if stats is not None and getattr(stats, "n_samples", None) == n - head:
+        wall += float(getattr(stats, "stored_wall_time", 0.0) or 0.0)
+    if not head:
+        return batch.values, batch.failures, wall
+    values = np.vstack([first.values, batch.values])
+    failures = {**first.failures, **{i + head: why for i, why in batch.failures.items()}}
+    return values, failures, wall * n / (n - head)
 
 
 def _sample_moments(Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -18,7 +18,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import tempfile
 import time
 from pathlib import Path
@@ -26,7 +25,6 @@ from pathlib import Path
 import numpy as np
 
 from rotoruq.mbdyn import CaseSettings, find_mbdyn, rigid_equivalent, run_case
-from rotoruq.mbdyn.solver import MBDynNotFoundError
 from rotoruq.rotor.model import RotorModel
 from rotoruq.rotor.presets import get_preset
 
@@ -37,13 +35,7 @@ CASES = {
 
 
 def locate_mbdyn() -> Path:
-    try:
-        return find_mbdyn()
-    except MBDynNotFoundError:
-        default = Path.home() / ".cache" / "mbdyn" / "bin" / "mbdyn"
-        if default.is_file() and os.access(default, os.X_OK):
-            return default
-        raise
+    return find_mbdyn(build_prefix=True)
 
 
 def parity(mbdyn: Path, settings: CaseSettings) -> tuple[dict, list[float]]:

@@ -31,7 +31,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import tempfile
 import time
 from pathlib import Path
@@ -40,7 +39,7 @@ import numpy as np
 
 import rotoruq as rq
 from rotoruq.mbdyn import CaseSettings, find_mbdyn, run_case
-from rotoruq.mbdyn.solver import MBDynError, MBDynNotFoundError
+from rotoruq.mbdyn.solver import MBDynError
 from rotoruq.rotor.model import RotorModel
 from rotoruq.rotor.presets import get_preset
 
@@ -51,13 +50,7 @@ SPACE = rq.ParameterSpace({"collective_deg": rq.Uniform(4.5, 6.5),
 
 
 def locate_mbdyn() -> Path:
-    try:
-        return find_mbdyn()
-    except MBDynNotFoundError:
-        default = Path.home() / ".cache" / "mbdyn" / "bin" / "mbdyn"
-        if default.is_file() and os.access(default, os.X_OK):
-            return default
-        raise
+    return find_mbdyn(build_prefix=True)
 
 
 class MBDynModel:

@@ -42,7 +42,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
 import tempfile
 import time
@@ -171,15 +170,8 @@ def rotating_torsion(gj, i_p, prop_ratio, k_root, L, omega, n_el=40):
 # MBDyn runs
 def locate_mbdyn():
     from rotoruq.mbdyn import find_mbdyn
-    from rotoruq.mbdyn.solver import MBDynNotFoundError
 
-    try:
-        return find_mbdyn()
-    except MBDynNotFoundError:
-        default = Path.home() / ".cache" / "mbdyn" / "bin" / "mbdyn"
-        if default.is_file() and os.access(default, os.X_OK):
-            return default
-        raise
+    return find_mbdyn(build_prefix=True)
 
 
 def run_template(wd: Path, template: str, inputs: dict, settings, mbdyn, extra: str = "",

@@ -201,17 +201,7 @@ def test_mbdyn_driver_fails_into_dakota_recover(tmp_path):
     assert read_tabular(tmp_path / "tabular.dat")["thrust"].tolist() == [7.0]
 
 
-def _mbdyn() -> str | None:
-    from rotoruq.mbdyn import MBDynNotFoundError, find_mbdyn
-
-    try:
-        return str(find_mbdyn())
-    except MBDynNotFoundError:
-        default = Path.home() / ".cache" / "mbdyn" / "bin" / "mbdyn"
-        return str(default) if default.is_file() and os.access(default, os.X_OK) else None
-
-
-MBDYN = _mbdyn()
+from test_mbdyn import MBDYN  # noqa: E402  (one home for finding MBDyn in the tests)
 
 
 @pytest.mark.mbdyn

@@ -48,10 +48,9 @@ STUDIES = Path(__file__).resolve().parents[1] / "src" / "rotoruq" / "studies"
 
 def _mbdyn_or_none() -> str | None:
     try:
-        return str(find_mbdyn())
+        return str(find_mbdyn(build_prefix=True))
     except MBDynNotFoundError:
-        default = Path.home() / ".cache" / "mbdyn" / "bin" / "mbdyn"
-        return str(default) if default.is_file() and os.access(default, os.X_OK) else None
+        return None
 
 
 MBDYN = _mbdyn_or_none()
@@ -150,6 +149,16 @@ def test_find_mbdyn_says_what_it_tried(tmp_path, monkeypatch):
     # an explicit path that is not MBDyn is an error, never a fallback to MBDYN or PATH
     with pytest.raises(MBDynNotFoundError, match=r"--mbdyn=.*elsewhere.* not an executable"):
         find_mbdyn(tmp_path / "elsewhere")
+    # the build tool's prefix comes last, and only when asked for
+    exe.unlink()
+    built = tmp_path / "prefix" / "bin" / "mbdyn"
+    built.parent.mkdir(parents=True)
+    built.write_text("#!/bin/sh\n")
+    built.chmod(0o755)
+    monkeypatch.setenv("MBDYN_PREFIX", str(tmp_path / "prefix"))
+    with pytest.raises(MBDynNotFoundError, match=r"PATH \(not found\)\. Install"):
+        find_mbdyn()
+    assert find_mbdyn(build_prefix=True) == built
 
 
 def test_template_fields_are_all_provided():

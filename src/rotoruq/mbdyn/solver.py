@@ -41,8 +41,18 @@ class MBDynRun:
     output: str
 
 
-def find_mbdyn(explicit: str | os.PathLike | None = None) -> Path:
-    """The MBDyn executable: ``explicit``, else ``$MBDYN``, else ``mbdyn`` on ``PATH``.
+def build_prefix_mbdyn() -> Path:
+    """Where an MBDyn built by the project's build tool (``tools/build-mbdyn PREFIX``) lives:
+    ``$MBDYN_PREFIX/bin/mbdyn``, the prefix ``~/.cache/mbdyn`` by default (as ``.ci/run``)."""
+    prefix = os.environ.get("MBDYN_PREFIX") or str(Path.home() / ".cache" / "mbdyn")
+    return Path(prefix).expanduser() / "bin" / "mbdyn"
+
+
+def find_mbdyn(explicit: str | os.PathLike | None = None, *,
+               build_prefix: bool = False) -> Path:
+    """The MBDyn executable: ``explicit``, else ``$MBDYN``, else ``mbdyn`` on ``PATH``, else
+    (with ``build_prefix``, as the benchmarks, scripts and tests do) the build tool's
+    install (:func:`build_prefix_mbdyn`).
 
     An ``explicit`` path that is not an executable file is an error of its own (the caller
     asked for that MBDyn: another one found elsewhere would silently answer instead).
@@ -66,6 +76,11 @@ def find_mbdyn(explicit: str | os.PathLike | None = None) -> Path:
     if on_path:
         return Path(on_path)
     tried.append("'mbdyn' on PATH (not found)")
+    if build_prefix:
+        built = build_prefix_mbdyn()
+        if built.is_file() and os.access(built, os.X_OK):
+            return built.absolute()
+        tried.append(f"the build tool's {str(built)!r} (not found)")
     raise MBDynNotFoundError(
         "MBDyn executable not found; tried " + ", ".join(tried) + ". Install MBDyn and set the "
         "MBDYN environment variable, pass --mbdyn PATH to the driver, or put mbdyn on PATH")

@@ -622,7 +622,9 @@ def test_bad_distribution():
                                            "u_two_point"])
 def test_re_expansion_converges_where_the_limit_state_curves_more_than_the_sphere(approximation):
     # a = 3 + k (b - c)^2 / 2 with k beta = 1.5: plain AMV+ re-expansion (the HL-RF fixed
-    # point) oscillates about the MPP and stopped at beta = 2.30, not converged
+    # point) oscillates about the MPP and stopped at beta = 2.30, not converged (Dakota 6.24's
+    # x_taylor_mpp / u_taylor_mpp: 'maximum number of limit state approximation cycles
+    # exceeded' after 130 evaluations; its two-point searches reach beta = 3.0089887)
     from rotoruq.methods.reliability import mpp_search
 
     k, c = 0.5, 0.3

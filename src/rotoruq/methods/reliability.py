@@ -612,13 +612,13 @@ def _probe_start(um, k, name, score):
     return pts[ok[np.argmin([score(v[i]) for i in ok])]]
 
 
-def _ria(um, k, z, tol, max_iter, name, start=None):
+def _ria(um, k, z, tol, max_iter, name, u_start=None):
     """min |u| subject to G(u) = z by the improved HL-RF iteration (Zhang and Der Kiureghian
     1995): the HL-RF direction, a step chosen by Armijo backtracking on the merit function
     0.5 |u|^2 + c |G - z| (c > |u| / |grad G|), non-finite trial points rejected (the step is
     halved). Converged when the MPP (KKT) conditions hold: the point is on the limit state
     (|G - z| / |grad G| <= tol max(1, |u|)) and u is parallel to grad G (the component of u
-    orthogonal to grad G <= sqrt(tol) max(1, |u|)). ``start``: the first iterate (default
+    orthogonal to grad G <= sqrt(tol) max(1, |u|)). ``u_start``: the first iterate (default
     the origin; an approximation's search starts at its expansion point, so that it finds the
     MPP of the limit state there rather than a far branch of the approximation).
 
@@ -629,8 +629,8 @@ def _ria(um, k, z, tol, max_iter, name, start=None):
     g0 = um.value_grad(u)[0][k]
     if g0 == z:
         return u, True, g0
-    if start is not None and np.any(start):
-        u = np.asarray(start, dtype=float).copy()
+    if u_start is not None and np.any(u_start):
+        u = np.asarray(u_start, dtype=float).copy()
     elif um.flat(u, k):
         u = _probe_start(um, k, name, lambda v: abs(v - z))
     for _ in range(max_iter):
@@ -950,7 +950,7 @@ def mpp_search(
                 res_ria: list = []
 
                 def ria_search(sur, k=k, z=z, res_ria=res_ria, name=name):
-                    u, conv, g0 = _ria(sur, k, z, tol, max_iter, name, start=sur.u0)
+                    u, conv, g0 = _ria(sur, k, z, tol, max_iter, name, u_start=sur.u0)
                     res_ria.append(g0)
                     return u, conv
 

@@ -242,25 +242,10 @@ def pce(work: Path | None) -> dict:
     return out
 
 
-def pce_omp(seeds: int, work: Path | None) -> dict:
-    """Regression PCE of order 9 on 240 points: sparse (OMP, cross-validated) and full least
-    squares, per seed; Dakota's ``orthogonal_matching_pursuit cross_validation`` beside."""
-    space, model = _ishigami_space_model()
-    out: dict = {"order": OMP_ORDER, "n_samples": OMP_SAMPLES}
-    sides: dict[str, list] = {"rotoruq_omp": [], "rotoruq_least_squares": [], "dakota_omp": []}
-    for s in range(seeds):
-        for solver in ("omp", "least_squares"):
-            t = time.perf_counter()
-            r = polynomial_chaos(model, space, OMP_ORDER, estimator="regression", solver=solver,
-                                 n_samples=OMP_SAMPLES, seed=s)
-            wall = time.perf_counter() - t
-            sides[f"rotoruq_{solver}"].append((*_errors(r.std[0], r.main[0], r.total[0]), wall))
-        if work is not None:
-            std, mn, tt, wall = dakota_pce(
-                f"    expansion_order = {OMP_ORDER}\n    collocation_points = {OMP_SAMPLES}\n"
-                f"    orthogonal_matching_pursuit\n    cross_validation\n    seed = {s + 1}",
-                work)
-            sides["dakota_omp"].append((*_errors(std, mn, tt), wall))
+def _per_seed_errors(sides: dict[str, list]) -> dict:
+    """Mean and max over seeds of each side's (std error, Sobol' error, wall) rows; None for
+    a side without runs (no Dakota)."""
+    out: dict = {}
     for side, runs in sides.items():
         if not runs:
             out[side] = None
@@ -270,6 +255,34 @@ def pce_omp(seeds: int, work: Path | None) -> dict:
                      "sobol_max_abs_error": _summary_of(list(a[:, 1])),
                      "wall_s": float(a[:, 2].mean())}
     return out
+
+
+def _regression_errors(model, space, solver: str, seed: int) -> tuple[float, float, float]:
+    """rotoruq's regression chaos of order OMP_ORDER on OMP_SAMPLES points: (std error,
+    Sobol' error, wall)."""
+    t = time.perf_counter()
+    r = polynomial_chaos(model, space, OMP_ORDER, estimator="regression", solver=solver,
+                         n_samples=OMP_SAMPLES, seed=seed)
+    wall = time.perf_counter() - t
+    return (*_errors(r.std[0], r.main[0], r.total[0]), wall)
+
+
+def pce_omp(seeds: int, work: Path | None) -> dict:
+    """Regression PCE of order 9 on 240 points: sparse (OMP, cross-validated) and full least
+    squares, per seed; Dakota's ``orthogonal_matching_pursuit cross_validation`` beside."""
+    space, model = _ishigami_space_model()
+    out: dict = {"order": OMP_ORDER, "n_samples": OMP_SAMPLES}
+    sides: dict[str, list] = {"rotoruq_omp": [], "rotoruq_least_squares": [], "dakota_omp": []}
+    for s in range(seeds):
+        for solver in ("omp", "least_squares"):
+            sides[f"rotoruq_{solver}"].append(_regression_errors(model, space, solver, s))
+        if work is not None:
+            std, mn, tt, wall = dakota_pce(
+                f"    expansion_order = {OMP_ORDER}\n    collocation_points = {OMP_SAMPLES}\n"
+                f"    orthogonal_matching_pursuit\n    cross_validation\n    seed = {s + 1}",
+                work)
+            sides["dakota_omp"].append((*_errors(std, mn, tt), wall))
+    return {**out, **_per_seed_errors(sides)}
 
 
 LARS = {"lars": "least_angle_regression", "lasso": "least_absolute_shrinkage"}
@@ -283,26 +296,14 @@ def pce_lars(seeds: int, work: Path | None) -> dict:
     sides: dict[str, list] = {f"{tool}_{k}": [] for k in LARS for tool in ("rotoruq", "dakota")}
     for s in range(seeds):
         for solver, keyword in LARS.items():
-            t = time.perf_counter()
-            r = polynomial_chaos(model, space, OMP_ORDER, estimator="regression", solver=solver,
-                                 n_samples=OMP_SAMPLES, seed=s)
-            wall = time.perf_counter() - t
-            sides[f"rotoruq_{solver}"].append((*_errors(r.std[0], r.main[0], r.total[0]), wall))
+            sides[f"rotoruq_{solver}"].append(_regression_errors(model, space, solver, s))
             if work is not None:
                 std, mn, tt, wall = dakota_pce(
                     f"    expansion_order = {OMP_ORDER}\n    collocation_points = "
                     f"{OMP_SAMPLES}\n    {keyword}\n    cross_validation\n    seed = {s + 1}",
                     work)
                 sides[f"dakota_{solver}"].append((*_errors(std, mn, tt), wall))
-    for side, runs in sides.items():
-        if not runs:
-            out[side] = None
-            continue
-        a = np.array(runs)
-        out[side] = {"std_abs_error": _summary_of(list(a[:, 0])),
-                     "sobol_max_abs_error": _summary_of(list(a[:, 1])),
-                     "wall_s": float(a[:, 2].mean())}
-    return out
+    return {**out, **_per_seed_errors(sides)}
 
 
 def summary(r: dict) -> str:

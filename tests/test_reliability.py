@@ -308,8 +308,9 @@ def test_failed_evaluations_shorten_the_step():
     model = rq.FunctionModel(f, ["a", "b"], ["g"])
     r = mpp_search(model, space, response_levels=[8.0])
     assert r.converged
-    # exact MPP: min a^2 + b^2 on a = 12 - 0.2 b^2 -> b = 0 (kappa 0.4 < 1 / 12)
-    assert r.cdf_reliability["g"][0] == pytest.approx(12.0, abs=1e-6)
+    # exact MPP: min a^2 + b^2 = (12 - 0.2 b^2)^2 + b^2 on a = 12 - 0.2 b^2 -> b^2 = 47.5,
+    # a = 2.5 (b = 0, beta 12, is a saddle there: curvature 0.4 > 1 / 12)
+    assert r.cdf_reliability["g"][0] == pytest.approx(np.sqrt(2.5**2 + 47.5), abs=1e-6)
 
 
 def test_constant_response_is_an_error_not_p_half():
@@ -638,3 +639,26 @@ def test_re_expansion_converges_where_the_limit_state_curves_more_than_the_spher
     assert r.converged
     # the approximations stop when the estimate moves less than sqrt(tolerance) |u|
     assert r.cdf_reliability["g"][0] == pytest.approx(np.sqrt(ref.fun), rel=1e-5)
+
+
+@pytest.mark.parametrize("approximation", ["none", "x_two_point", "u_two_point"])
+def test_ria_leaves_the_saddle_a_symmetric_response_leads_to(approximation):
+    # the cubic at z = -500 has two mirror MPPs (beta 3.823); from the means the search runs
+    # down the diagonal a = b to a saddle of |u| on the limit state (beta 4.589), where the
+    # MPP conditions hold too (Dakota 6.24's no_approx and x_taylor_mpp report it)
+    from rotoruq.methods.reliability import mpp_search
+
+    space, model, *_ = _cubic()
+    z = -500.0
+
+    def beta2(x1):
+        return ((x1 - 10) / 5) ** 2 + ((np.cbrt(z + 18 - x1**3) - 10) / 5) ** 2
+
+    grid = np.linspace(-30, 30, 60001)
+    x0 = grid[np.argmin(beta2(grid))]
+    ref = optimize.minimize_scalar(beta2, bounds=(x0 - 1e-3, x0 + 1e-3), method="bounded",
+                                   options={"xatol": 1e-12})
+    assert np.sqrt(ref.fun) < 3.83 and np.sqrt(beta2(np.array([-6.22])))[0] > 4.58
+    r = mpp_search(model, space, response_levels=[z], approximation=approximation)
+    assert r.converged
+    assert r.cdf_reliability["g"][0] == pytest.approx(np.sqrt(ref.fun), rel=1e-6)

@@ -633,6 +633,7 @@ def _ria(um, k, z, tol, max_iter, name, u_start=None):
         u = np.asarray(u_start, dtype=float).copy()
     elif um.flat(u, k):
         u = _probe_start(um, k, name, lambda v: abs(v - z))
+    side, probes = (1.0 if g0 > z else -1.0), 3
     for _ in range(max_iter):
         G, grad = um.value_grad(u)
         g, gv = G[k] - z, grad[k]
@@ -642,7 +643,17 @@ def _ria(um, k, z, tol, max_iter, name, u_start=None):
         scale = max(1.0, float(np.linalg.norm(u)))
         perp = u - (u @ gv) / gn**2 * gv
         if abs(g) / gn <= tol * scale and np.linalg.norm(perp) <= np.sqrt(tol) * scale:
-            return u, True, g0
+            # a KKT point may be a saddle of |u| on the limit state (symmetric responses
+            # lead there from the origin): if the beta-sphere crosses the limit state near it,
+            # restart from the crossing probe
+            b = float(np.linalg.norm(u))
+            better = (_escape_saddle(um, k, u, b, side, side * z)
+                      if probes > 0 and b > 0 else None)
+            if better is None:
+                return u, True, g0
+            probes -= 1
+            u = better
+            continue
         u_hl = ((gv @ u - g) / gn**2) * gv
         step = u_hl - u
         c = _merit_weight(u, g, gv)
@@ -741,7 +752,9 @@ def _pma(um, k, beta, tol, max_iter, name):
 def _escape_saddle(um, k, u, b, sign, f0, angle=0.05):
     """A stationary point of G on the sphere may be a saddle or a maximum (symmetric
     responses put the AMV start exactly there): probe +-``angle`` radians along each tangent
-    direction (2(d-1) evaluations, one batch) and return the best probe if it is lower."""
+    direction (2(d-1) evaluations, one batch) and return the best probe if sign G is lower
+    than f0 there (PMA: f0 = sign G(u); RIA: f0 = sign z, a probe beyond the limit state on
+    the beta-sphere)."""
     d = u.size
     if d < 2:
         return None

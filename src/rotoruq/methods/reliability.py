@@ -100,6 +100,14 @@ class MeanValueResult:
         return stats.norm.cdf((np.asarray(z, dtype=float) - self.mean[k]) / self.std[k])
 
 
+def _distribution(distribution: str) -> str:
+    """'cdf' or 'ccdf' (any case), else a ParameterError."""
+    d = str(distribution).lower()
+    if d not in ("cdf", "ccdf"):
+        raise ParameterError(f"distribution must be 'cdf' or 'ccdf', got {distribution!r}")
+    return d
+
+
 def _levels(response_levels, probability_levels, reliability_levels, names_out):
     """Response, probability and reliability levels per response (probabilities checked)."""
     rl = levels_per_response(response_levels, names_out, "response_levels")
@@ -148,9 +156,7 @@ def mean_value_from_gradient(
     corr = np.eye(d) if correlation is None else np.asarray(correlation, dtype=float)
     if corr.shape != (d, d):
         raise ParameterError(f"correlation must have shape ({d}, {d}), got {corr.shape}")
-    distribution = distribution.lower()
-    if distribution not in ("cdf", "ccdf"):
-        raise ParameterError(f"distribution must be 'cdf' or 'ccdf', got {distribution!r}")
+    distribution = _distribution(distribution)
     sg = grad * std[None, :]  # (m, d): s_i dg/dx_i
     rsg = sg @ corr.T  # (m, d): (R s g)_i
     cov_out = sg @ corr @ sg.T
@@ -269,13 +275,18 @@ class MPPResult:
     """Result of :func:`mpp_search` (all dicts keyed by response name).
 
     Forward (RIA) mapping, arrays over ``response_levels[name]``:
-    ``cdf_probability`` P(g <= z) and ``ccdf_probability``; ``cdf_reliability`` the FORM
-    index beta_cdf (signed distance of the MPP); ``generalized_reliability`` -Phi^-1(p_cdf)
-    (differs from beta_cdf with SORM); ``mpp_u`` / ``mpp_x`` (k, d) most probable points;
-    ``curvatures`` (k, d-1) principal curvatures (SORM only, else NaN).
+    ``cdf_probability`` P(g <= z) and ``ccdf_probability`` P(g > z) (the smaller of the two
+    is computed directly, so a tail probability keeps its relative precision);
+    ``cdf_reliability`` the FORM index beta_cdf (signed distance of the MPP) and
+    ``ccdf_reliability`` = -beta_cdf; ``generalized_reliability`` -Phi^-1(p_cdf) and
+    ``ccdf_generalized_reliability`` -Phi^-1(p_ccdf) (they differ from the FORM indices with
+    SORM); ``mpp_u`` / ``mpp_x`` (k, d) most probable points; ``curvatures`` (k, d-1)
+    principal curvatures (SORM only, else NaN).
     Inverse (PMA) mapping: ``probability_response`` / ``reliability_response`` response
-    levels for ``probability_levels`` / ``reliability_levels`` (CDF sense; first-order, or
-    second-order levels with ``integration="second_order"``); ``pma_mpp_x`` their MPPs.
+    levels for ``probability_levels`` / ``reliability_levels``, read in the sense of
+    ``distribution`` ("cdf": P(g <= z) = p, beta_cdf = beta; "ccdf": P(g > z) = p,
+    beta_ccdf = beta; first-order, or second-order levels with
+    ``integration="second_order"``); ``pma_mpp_x`` their MPPs.
     ``converged``: every RIA and PMA search met the MPP (KKT) conditions.
     """
 
@@ -297,6 +308,9 @@ class MPPResult:
     pma_mpp_x: dict
     n_evaluations: int
     converged: bool
+    ccdf_reliability: dict = field(default_factory=dict)
+    ccdf_generalized_reliability: dict = field(default_factory=dict)
+    distribution: str = "cdf"
 
 
 class DegenerateResponseError(RotoruqError, ValueError):
@@ -383,8 +397,10 @@ class _UModel:
 
 
 #: Dakota's ``mpp_search`` options: a first-order Taylor series of the response in x or u at
-#: the means (AMV) or re-expanded at every new MPP estimate (AMV+); "none": the true model.
-APPROXIMATIONS = ("none", "x_taylor_mean", "u_taylor_mean", "x_taylor_mpp", "u_taylor_mpp")
+#: the means (AMV) or re-expanded at every new MPP estimate (AMV+), the two-point adaptive
+#: nonlinear approximation (TANA-3) through the last two MPP estimates; "none": the true model.
+APPROXIMATIONS = ("none", "x_taylor_mean", "u_taylor_mean", "x_taylor_mpp", "u_taylor_mpp",
+                  "x_two_point", "u_two_point")
 
 
 class _TaylorU(_UModel):
@@ -424,22 +440,150 @@ class _TaylorU(_UModel):
         return self.g0[None, :] + (u - self.u0) @ self.grad0.T
 
 
-def _approximate(truth, approximation, search, u_start, tol, max_iter):
-    """MPP by ``search(um) -> (u, converged)`` on Taylor series of the truth: once at u_start
-    (AMV) or re-expanded at each new MPP estimate until it moves less than sqrt(tol)
-    max(1, |u|) (AMV+). Returns (u, converged, true response values at u or None)."""
-    tay = _TaylorU(truth, approximation.startswith("x_"))
+#: TANA exponents are bounded to +-_TANA_P_MAX (Dakota's bound; Xu and Grandhi use 5)
+_TANA_P_MAX = 10.0
+
+
+class _TanaU(_TaylorU):
+    """Two-point adaptive nonlinear approximation TANA-3 (Xu and Grandhi 1998, Dakota's
+    ``x_two_point`` / ``u_two_point``) of the true model through the last two expansion points
+    y1, y2 (x or u coordinates, shifted by an offset o so that s = y + o > 0):
+
+    ``g~(y) = g2 + sum_i dg2_i s2_i^(1 - p_i) / p_i (s_i^p_i - s2_i^p_i)
+    + eps(y) / 2 sum_i (s_i^p_i - s2_i^p_i)^2``,
+    ``eps(y) = H / (sum_i (s_i^p_i - s1_i^p_i)^2 + sum_i (s_i^p_i - s2_i^p_i)^2)``.
+
+    The exponents p_i make the gradient at y1 match in each input
+    (``p_i = 1 + ln(dg1_i / dg2_i) / ln(s1_i / s2_i)``), H the value at y1; g~ equals g and its
+    gradient at y2 and g at y1. A response of the form ``c + sum_i a_i s_i^q_i`` is reproduced
+    exactly. Before the second expansion it is the first-order Taylor series at y2. Where the
+    exponents are undefined (a gradient changes sign, or y1_i = y2_i) p_i is +1 or -1, the
+    one that reproduces dg1_i better. The offset is 0 where both points are positive,
+    ``-2 min(y1_i, y2_i)`` where one is negative (0.1 at 0); a point evaluated below it
+    lowers the offset and refits (Dakota's safeguards).
+    """
+
+    def __init__(self, truth: _UModel, space_x: bool):
+        super().__init__(truth, space_x)
+        self.prev: tuple | None = None
+
+    def _y(self, u: np.ndarray) -> np.ndarray:
+        return self.space.from_u(u) if self.space_x else u
+
+    def expand(self, u0: np.ndarray) -> np.ndarray:
+        if hasattr(self, "g0"):
+            self.prev = (self._y(self.u0[None, :])[0], self.g0, self.grad0)
+        g = super().expand(u0)
+        if self.prev is not None:
+            self.lo = np.minimum(self.prev[0], self._y(self.u0[None, :])[0])
+            self._fit()
+        return g
+
+    def _offset(self) -> np.ndarray:
+        lo = self.lo
+        return np.where(np.abs(lo) < 1e-10, 0.1, np.where(lo < 0, -2.0 * lo, 0.0))
+
+    def _fit(self) -> None:
+        assert self.prev is not None
+        y1, g1, dg1 = self.prev
+        y2, g2, dg2 = self._y(self.u0[None, :])[0], self.g0, self.grad0
+        off = self._offset()
+        s1, s2 = y1 + off, y2 + off
+        tiny = np.finfo(float).tiny
+        with np.errstate(divide="ignore", invalid="ignore"):
+            gr = np.where(np.abs(dg2) > tiny, dg1 / dg2, -1.0)  # (m, d)
+            pr = np.broadcast_to(np.where(np.abs(s2) > tiny, s1 / s2, -1.0), gr.shape)
+            p = 1.0 + np.log(gr) / np.log(pr)
+        bad = (gr < tiny) | (pr < tiny) | (np.abs(np.log(np.abs(pr))) < tiny) | ~np.isfinite(p)
+        bad |= np.abs(p) < 1e-8
+        with np.errstate(divide="ignore", invalid="ignore"):
+            err_minus = np.abs((s2 / s1) ** 2 * dg2 - dg1)
+        p = np.where(bad, np.where(err_minus < np.abs(dg2 - dg1), -1.0, 1.0), p)
+        p = np.clip(p, -_TANA_P_MAX, _TANA_P_MAX)
+        self.p, self.s1, self.s2, self.off = p, s1, s2, off
+        self.coef = dg2 * s2 ** (1.0 - p) / p  # (m, d)
+        self.H = 2.0 * (g1 - g2 - np.sum(self.coef * (s1**p - s2**p), axis=1))
+        self._cache.clear()
+
+    def values(self, u):
+        if self.prev is None:
+            return super().values(u)
+        y = self._y(np.atleast_2d(u))
+        low = np.any(y + self.off <= 0, axis=0) & np.all(np.isfinite(y), axis=0)
+        if np.any(low):
+            self.lo = np.where(low, np.minimum(self.lo, y.min(axis=0)), self.lo)
+            self._fit()
+        s = (y + self.off)[:, None, :]  # (n, 1, d)
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            sp = s**self.p
+            d1 = sp - self.s1**self.p
+            d2 = sp - self.s2**self.p
+            lin = np.sum(self.coef * d2, axis=2)
+            q1, q2 = np.sum(d1 * d1, axis=2), np.sum(d2 * d2, axis=2)
+            eps = np.where(q1 + q2 > 0, self.H / (q1 + q2), 0.0)
+        return self.g0[None, :] + lin + 0.5 * eps * q2
+
+
+def _approximate(truth, approximation, search, u_start, tol, max_iter, merit=None):
+    """MPP by ``search(um) -> (u, converged)`` on approximations of the truth: a Taylor series
+    once at u_start (AMV), or re-expanded at each new MPP estimate (AMV+; TANA through the
+    last two) until the estimate moves less than sqrt(tol) max(1, |u|). Returns (u, converged,
+    true response values at u or None).
+
+    ``merit(um, u)``, given, returns the merit function phi(v, G) of the expansion point u
+    (value and gradient of the truth there): a new estimate where phi has not decreased is
+    replaced by a shorter move from the last accepted one (halved, one true evaluation a
+    trial, until phi decreases). Plain re-expansion is a fixed-point iteration that leaves an
+    MPP where the limit state curves more than the beta-sphere (the HL-RF instability); this
+    is the improved HL-RF remedy, free while the full moves are accepted."""
+    kind = _TanaU if approximation.endswith("_two_point") else _TaylorU
+    tay = kind(truth, approximation.startswith("x_"))
     tay.expand(u_start)
     u, conv = search(tay)
     if approximation.endswith("_mean"):
         return u, conv, None
+    phi, u_acc, m_acc = None, u, np.inf
     for _ in range(max_iter):
         g = tay.expand(u)
+        if merit is not None:
+            if phi is not None and not phi(u, g) < m_acc:
+                step = 0.5 * (u - u_acc)
+                for _ in range(30):
+                    gt = truth.values(u_acc + step)[0]
+                    if np.all(np.isfinite(gt)) and phi(u_acc + step, gt) < m_acc:
+                        break
+                    step = 0.5 * step
+                u = u_acc + step
+                continue
+            phi, u_acc = merit(tay, u), u
+            m_acc = phi(u, g)
         u_new, conv = search(tay)
         if np.linalg.norm(u_new - u) <= np.sqrt(tol) * max(1.0, float(np.linalg.norm(u))):
             return u, conv, g
         u = u_new
     return u, False, None
+
+
+def _ria_merit(k, z):
+    """``merit`` of :func:`_approximate` for RIA: 0.5 |u|^2 + c |G_k - z| with the weight c of
+    the improved HL-RF iteration (:func:`_merit_weight`) at the accepted point."""
+
+    def at(um, u):
+        G, grad = um.value_grad(u)
+        c = _merit_weight(u, G[k] - z, grad[k])
+        return lambda v, Gv: 0.5 * float(v @ v) + c * abs(Gv[k] - z)
+
+    return at
+
+
+def _merit_weight(u, g, gv):
+    """Weight c of |G - z| in the improved HL-RF merit 0.5 |u|^2 + c |G - z| at u (g = G - z,
+    gv = grad G): c > |u| / |grad G| makes the HL-RF direction a descent direction."""
+    gn = float(np.linalg.norm(gv))
+    if gn == 0.0:
+        return 0.0
+    u_hl = ((gv @ u - g) / gn**2) * gv
+    return 2.0 * max(float(np.linalg.norm(u)) / gn, 0.5 * float(u_hl @ u_hl) / max(abs(g), 1e-300))
 
 
 def _tangent_basis(alpha):
@@ -468,13 +612,15 @@ def _probe_start(um, k, name, score):
     return pts[ok[np.argmin([score(v[i]) for i in ok])]]
 
 
-def _ria(um, k, z, tol, max_iter, name):
+def _ria(um, k, z, tol, max_iter, name, u_start=None):
     """min |u| subject to G(u) = z by the improved HL-RF iteration (Zhang and Der Kiureghian
     1995): the HL-RF direction, a step chosen by Armijo backtracking on the merit function
     0.5 |u|^2 + c |G - z| (c > |u| / |grad G|), non-finite trial points rejected (the step is
     halved). Converged when the MPP (KKT) conditions hold: the point is on the limit state
     (|G - z| / |grad G| <= tol max(1, |u|)) and u is parallel to grad G (the component of u
-    orthogonal to grad G <= sqrt(tol) max(1, |u|)).
+    orthogonal to grad G <= sqrt(tol) max(1, |u|)). ``u_start``: the first iterate (default
+    the origin; an approximation's search starts at its expansion point, so that it finds the
+    MPP of the limit state there rather than a far branch of the approximation).
 
     Returns (u, converged, G(0)).
     """
@@ -483,8 +629,11 @@ def _ria(um, k, z, tol, max_iter, name):
     g0 = um.value_grad(u)[0][k]
     if g0 == z:
         return u, True, g0
-    if um.flat(u, k):
+    if u_start is not None and np.any(u_start):
+        u = np.asarray(u_start, dtype=float).copy()
+    elif um.flat(u, k):
         u = _probe_start(um, k, name, lambda v: abs(v - z))
+    side, probes = (1.0 if g0 > z else -1.0), 3
     for _ in range(max_iter):
         G, grad = um.value_grad(u)
         g, gv = G[k] - z, grad[k]
@@ -494,10 +643,20 @@ def _ria(um, k, z, tol, max_iter, name):
         scale = max(1.0, float(np.linalg.norm(u)))
         perp = u - (u @ gv) / gn**2 * gv
         if abs(g) / gn <= tol * scale and np.linalg.norm(perp) <= np.sqrt(tol) * scale:
-            return u, True, g0
+            # a KKT point may be a saddle of |u| on the limit state (symmetric responses
+            # lead there from the origin): if the beta-sphere crosses the limit state near it,
+            # restart from the crossing probe
+            b = float(np.linalg.norm(u))
+            better = (_escape_saddle(um, k, u, b, side, side * z)
+                      if probes > 0 and b > 0 else None)
+            if better is None:
+                return u, True, g0
+            probes -= 1
+            u = better
+            continue
         u_hl = ((gv @ u - g) / gn**2) * gv
         step = u_hl - u
-        c = 2.0 * max(np.linalg.norm(u) / gn, 0.5 * (u_hl @ u_hl) / max(abs(g), 1e-300))
+        c = _merit_weight(u, g, gv)
         merit = 0.5 * (u @ u) + c * abs(g)
         slope = u @ step - c * abs(g)  # directional derivative of the merit along step
         lam, accepted = 1.0, False
@@ -593,7 +752,9 @@ def _pma(um, k, beta, tol, max_iter, name):
 def _escape_saddle(um, k, u, b, sign, f0, angle=0.05):
     """A stationary point of G on the sphere may be a saddle or a maximum (symmetric
     responses put the AMV start exactly there): probe +-``angle`` radians along each tangent
-    direction (2(d-1) evaluations, one batch) and return the best probe if it is lower."""
+    direction (2(d-1) evaluations, one batch) and return the best probe if sign G is lower
+    than f0 there (PMA: f0 = sign G(u); RIA: f0 = sign z, a probe beyond the limit state on
+    the beta-sphere)."""
     d = u.size
     if d < 2:
         return None
@@ -703,6 +864,7 @@ def mpp_search(
     tolerance: float = 1e-10,
     max_iterations: int = 200,
     approximation: str = "none",
+    distribution: str = "cdf",
 ) -> MPPResult:
     """Most probable point searches in u-space (Nataf) with FORM or SORM integration.
 
@@ -714,15 +876,20 @@ def mpp_search(
     in u-space.
 
     PMA (eq. 2.11): for each reliability level beta (CDF sense; probability levels are turned
-    into ``beta = -Phi^-1(p)``), ``min G(u)`` (beta > 0) or ``max G(u)`` (beta < 0) on the
-    sphere ``u^T u = beta^2`` by AMV+ steps along great circles with backtracking; the optimum
-    is the response level. With ``integration="second_order"`` the levels are second-order
-    (as Dakota's PMA SORM): the radius is iterated until the SORM probability of the region
-    beyond the MPP equals the target ``Phi(-|beta|)`` (reliability levels are then read as
-    generalized reliability indices).
+    into ``beta = -Phi^-1(p)``; with ``distribution="ccdf"`` both are read in the
+    complementary sense, P(g > z) = p and beta_ccdf = -beta_cdf), ``min G(u)`` (beta > 0)
+    or ``max G(u)`` (beta < 0) on the sphere ``u^T u = beta^2`` by AMV+ steps along great
+    circles with backtracking; the optimum is the response level. With
+    ``integration="second_order"`` the levels are second-order (as Dakota's PMA SORM): the
+    radius is iterated until the SORM probability of the region beyond the MPP equals the
+    target ``Phi(-|beta|)`` (reliability levels are then read as generalized reliability
+    indices).
 
     Convergence is judged on the MPP conditions (see ``_ria``/``_pma``): ``tolerance`` bounds
     the relative constraint residual and ``sqrt(tolerance)`` the misalignment of u and grad G.
+    A point meeting them where the beta-sphere crosses the limit state 0.05 rad away (a saddle
+    of |u| on the limit state, where symmetric responses lead) is left through the crossing
+    probe (2(d - 1) evaluations per level; PMA probes likewise for a saddle of G).
     ``converged`` is False when any level misses them within ``max_iterations`` iterations.
 
     Gradients: central finite differences in u-space, each gradient one batched model call
@@ -738,8 +905,17 @@ def mpp_search(
     "x_taylor_mpp" / "u_taylor_mpp" (AMV+) re-expand at each new MPP estimate until it stops
     moving (sqrt(tolerance)), 2d + 1 evaluations per expansion. AMV's probabilities are
     approximate (exact for a response linear in the expansion space); ``n_evaluations``
-    counts what the approximation spent. RIA's SORM curvatures come from the true model at
-    the approximate MPP; second-order PMA levels are only computed without approximation.
+    counts what the approximation spent. "x_two_point" / "u_two_point" (TANA) search on the
+    two-point adaptive nonlinear approximation TANA-3 through the last two MPP estimates
+    (the first-order Taylor series at the means before the second), re-expanded as AMV+ until
+    the estimate stops moving; same cost per expansion, fewer expansions where the response
+    is nonlinear in the expansion space (exact from the second expansion on for a sum of
+    powers of the inputs). RIA's SORM curvatures come from the true model at the approximate
+    MPP; second-order PMA levels are only computed without approximation.
+
+    ``distribution`` ("cdf" or "ccdf", Dakota's ``distribution cumulative / complementary``)
+    says how probability and reliability levels are read; both probabilities and both
+    reliability indices of the response levels are always reported.
 
     Examples
     --------
@@ -751,6 +927,7 @@ def mpp_search(
     (2.12132034, 5)
     """
     tol, max_iter = tolerance, max_iterations
+    distribution = _distribution(distribution)
     integration = integration.lower()
     if integration not in ("first_order", "second_order", "form", "sorm"):
         raise ParameterError(
@@ -780,7 +957,7 @@ def mpp_search(
     for k, name in enumerate(names_out):
         zs = rl[name]
         n = zs.size
-        p_cdf, b_cdf, gbeta = np.empty(n), np.empty(n), np.empty(n)
+        p_cdf, p_ccdf, b_cdf = np.empty(n), np.empty(n), np.empty(n)
         mu, kap = np.empty((n, d)), np.full((n, max(d - 1, 0)), np.nan)
         for j, z in enumerate(zs):
             if approximation == "none":
@@ -789,12 +966,12 @@ def mpp_search(
                 res_ria: list = []
 
                 def ria_search(sur, k=k, z=z, res_ria=res_ria, name=name):
-                    u, conv, g0 = _ria(sur, k, z, tol, max_iter, name)
+                    u, conv, g0 = _ria(sur, k, z, tol, max_iter, name, u_start=sur.u0)
                     res_ria.append(g0)
                     return u, conv
 
                 u, conv, _ = _approximate(um, approximation, ria_search, _u_start(space),
-                                          tol, max_iter)
+                                          tol, max_iter, merit=_ria_merit(k, z))
                 gmean = res_ria[0]  # the first expansion is at the means
             ok &= conv
             if not conv:
@@ -806,14 +983,18 @@ def mpp_search(
             if second and d > 1 and beta > 0:
                 kap[j] = _curvatures(um, u, k, s)
                 p_region = sorm_probability(beta, kap[j], sorm)
-            p_cdf[j] = p_region if s > 0 else 1.0 - p_region
-            gbeta[j] = -stats.norm.ppf(p_cdf[j])
+            # the region beyond the limit state is the CDF side when it excludes the origin
+            p_cdf[j], p_ccdf[j] = (p_region, 1.0 - p_region) if s > 0 else (1.0 - p_region,
+                                                                             p_region)
             mu[j] = u
-        out["p"][name], out["pc"][name] = p_cdf, 1.0 - p_cdf
+        gbeta = np.where(p_cdf < 0.5, stats.norm.isf(p_cdf), -stats.norm.isf(p_ccdf))
+        out["p"][name], out["pc"][name] = p_cdf, p_ccdf
         out["b"][name], out["gb"][name] = b_cdf, gbeta
         out["mu"][name], out["kap"][name] = mu, kap
         out["mx"][name] = space.from_u(mu) if n else np.empty((0, d))
-        levels = {"pr": -stats.norm.ppf(pl[name]), "br": bl[name]}
+        # PMA searches take CDF indices: a CCDF level beta_ccdf is beta_cdf = -beta_ccdf
+        sense = 1.0 if distribution == "cdf" else -1.0
+        levels = {"pr": sense * stats.norm.isf(pl[name]), "br": sense * bl[name]}
         pmx = []
         for key, betas in levels.items():
             zz = np.empty(betas.size)
@@ -855,6 +1036,9 @@ def mpp_search(
         pma_mpp_x=out["pmx"],
         n_evaluations=um.n_eval,
         converged=bool(ok),
+        ccdf_reliability={k: -v for k, v in out["b"].items()},
+        ccdf_generalized_reliability={k: -v for k, v in out["gb"].items()},
+        distribution=distribution,
     )
 
 

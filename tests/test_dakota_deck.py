@@ -436,3 +436,21 @@ def test_nested_cuu_forms_not_translated_name_their_line(tmp_path, old, new, lin
     with pytest.raises(InputFileError) as err:
         deck_to_study(parse_deck(text.replace(old, new), tmp_path / "cuu.in"))
     assert f"cuu.in, line {line}:" in str(err.value) and expected in str(err.value)
+
+
+def test_mpp_search_and_distribution_keywords_import_and_export(tmp_path):
+    """``mpp_search x_two_point`` and ``distribution complementary`` become the reliability
+    step's ``approximation`` and ``distribution`` options, and are written back on export."""
+    deck = parse_deck(RELIABILITY_DECK.replace("mpp_search no_approx", "mpp_search x_two_point\n"
+                                               "    distribution complementary")
+                      .format(interface=INTERFACE), tmp_path / "rel.in")
+    study = parse_study(deck_to_study(deck), tmp_path / "rel.toml")
+    opts = study.steps[0].options
+    assert (study.steps[0].type, opts["approximation"], opts["distribution"]) == (
+        "reliability", "x_two_point", "ccdf")
+    text = next(iter(study_to_decks(study).values()))
+    assert "mpp_search x_two_point\n    distribution complementary" in text
+    plain = parse_study(deck_to_study(parse_deck(RELIABILITY_DECK.format(interface=INTERFACE),
+                                                 tmp_path / "p.in")), tmp_path / "p.toml")
+    assert plain.steps[0].options["approximation"] == "none"
+    assert "mpp_search no_approx" in next(iter(study_to_decks(plain).values()))

@@ -662,3 +662,48 @@ def test_ria_leaves_the_saddle_a_symmetric_response_leads_to(approximation):
     r = mpp_search(model, space, response_levels=[z], approximation=approximation)
     assert r.converged
     assert r.cdf_reliability["g"][0] == pytest.approx(np.sqrt(ref.fun), rel=1e-6)
+
+
+def test_tana_ccdf_and_lars_chaos_from_a_study_file(tmp_path):
+    """The study-file path of the new options: a reliability step with Dakota's
+    ``x_two_point`` search and ``distribution = "ccdf"``, a chaos step with ``solver =
+    "lars"``, on a linear model whose answers are closed forms."""
+    import math
+
+    from scipy.stats import norm
+
+    from rotoruq.methods.pce import SOLVERS
+    from rotoruq.steps import pce
+    from rotoruq.study.runner import run_study
+    from test_runner import STUDY, linear_factory
+
+    assert tuple(pce.SOLVERS) == tuple(SOLVERS)
+    head = STUDY[:STUDY.index("[[steps]]")]
+    path = tmp_path / "s.toml"
+    path.write_text(head + """
+[[steps]]
+name = "rel"
+type = "reliability"
+responses = ["y1"]
+approximation = "x_two_point"
+distribution = "ccdf"
+response_levels = { y1 = [8.5, 9.8] }
+
+[[steps]]
+name = "chaos"
+type = "pce"
+responses = ["y1"]
+estimator = "regression"
+order = 2
+n_samples = 30
+solver = "lars"
+""")
+    run = run_study(path, out=tmp_path / "out", model_factory=linear_factory())
+    # y1 = 2 a + 3 b + 1, a ~ N(1, 0.1), b ~ N(2, 0.2): N(9, 0.4)
+    sd = math.sqrt(0.4)
+    rec = run["rel"]
+    for i, z in enumerate((8.5, 9.8)):
+        assert math.isclose(rec.get(f"ccdf_probability/y1/{i}"), norm.sf((z - 9.0) / sd),
+                            rel_tol=1e-6), rec.scalars
+    assert math.isclose(run["chaos"].get("mean/y1"), 9.0, rel_tol=1e-10)
+    assert math.isclose(run["chaos"].get("std/y1"), sd, rel_tol=1e-8)

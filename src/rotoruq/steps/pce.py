@@ -15,7 +15,11 @@ from ._sobol import sensitivity_figures, sobol_warnings
 from .base import StepCheck, StepContext, StepType
 from .options import SIGNATURE, Option, choice, integer
 
-__all__ = ["STEP", "PceRecord", "run_pce", "pce_tables"]
+__all__ = ["STEP", "PceRecord", "run_pce", "pce_tables", "SOLVERS"]
+
+#: ``polynomial_chaos(solver=)``'s choices (methods.pce.SOLVERS; spelled out so that importing
+#: the step types does not import the method)
+SOLVERS = ("least_squares", "omp", "lars", "lasso")
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,7 +48,7 @@ def run_pce(ctx: StepContext) -> StepResult:
 
     o = ctx.options
     res = polynomial_chaos(ctx.model(), ctx.space, o["order"], estimator=o["estimator"],
-                           n_samples=o["n_samples"], seed=ctx.rng)
+                           n_samples=o["n_samples"], solver=o["solver"], seed=ctx.rng)
     scalars = {}
     for k, r in enumerate(ctx.responses):
         scalars[f"mean/{r}"] = float(res.mean[k])
@@ -85,6 +89,7 @@ STEP = StepType(
     "pce", run_pce, method="rotoruq.methods.pce:polynomial_chaos",
     options={"order": Option(integer(1), SIGNATURE),
              "estimator": Option(choice("quadrature", "sparse_grid", "regression"), SIGNATURE),
-             "n_samples": Option(integer(1), SIGNATURE)},
+             "n_samples": Option(integer(1), SIGNATURE),
+             "solver": Option(choice(*SOLVERS), SIGNATURE)},
     quick={"n_samples": 40}, check=_check_pce,
     tables=pce_tables, figures=sensitivity_figures, warnings=sobol_warnings)

@@ -541,6 +541,7 @@ _SAMPLING = ("sample_type", "lhs", "random", "samples", "seed", "fixed_seed",
              "variance_based_decomp", "output", "silent", "quiet", "normal", "verbose")
 _RELIABILITY = ("mpp_search", "x_taylor_mean", "u_taylor_mean", "x_taylor_mpp",
                 "u_taylor_mpp", "x_two_point", "u_two_point", "no_approx", "integration",
+                "distribution", "cumulative", "complementary",
                 "first_order", "second_order", "response_levels", "probability_levels",
                 "num_response_levels", "num_probability_levels", "compute", "probabilities",
                 "reliabilities", "output", "silent", "quiet", "normal", "verbose")
@@ -633,6 +634,10 @@ def _read_method(deck: Deck, block: DeckBlock, responses: list[str]) -> _Method:
         elif k in ("mpp_search", "x_taylor_mean", "u_taylor_mean", "x_taylor_mpp",
                    "u_taylor_mpp", "x_two_point", "u_two_point", "no_approx"):
             opts["mpp_search"] = True
+            if k != "mpp_search":  # the search itself: rotoruq's option of the same name
+                opts["approximation"] = "none" if k == "no_approx" else k
+        elif k in ("cumulative", "complementary"):
+            opts["distribution"] = "cdf" if k == "cumulative" else "ccdf"
         elif k in ("first_order", "second_order", "variance_based_decomp", "gaussian_process",
                    "emulator"):
             opts[k] = True
@@ -664,6 +669,9 @@ def _step(m: _Method, design_params: list[str]) -> dict:
         if o.get("mpp_search"):
             step = {"name": "reliability", "type": "reliability",
                     "integration": "second_order" if o.get("second_order") else "first_order"}
+            for k in ("approximation", "distribution"):
+                if k in o:
+                    step[k] = o[k]
         else:
             step = {"name": "mean_value", "type": "mean_value"}
         for k in ("response_levels", "probability_levels"):
@@ -1460,7 +1468,11 @@ def _method_text(st: Any, o: dict, responses: list[str], names: list[str],
                 + _levels_text(o, "probability_levels", responses), "")
     if t == "reliability":
         integ = o.get("integration") or "first_order"
-        return ("  local_reliability\n    mpp_search no_approx"
+        approx = o.get("approximation") or "none"
+        dist = ("\n    distribution complementary" if o.get("distribution") == "ccdf"
+                else "")
+        return ("  local_reliability\n    mpp_search "
+                + ("no_approx" if approx == "none" else approx) + dist
                 + _levels_text(o, "response_levels", responses)
                 + _levels_text(o, "probability_levels", responses)
                 + f"\n    integration {integ}", "")

@@ -676,10 +676,15 @@ another [study] name and run it again)
     return found
 
 
-def load_results(directory: str | Path) -> dict[str, StepResult]:
+def load_results(directory: str | Path, *, incomplete: dict[str, str] | None = None
+                 ) -> dict[str, StepResult]:
     """All saved steps of one study output directory, in the order they were run. Every
     step folder must be a real folder (a symlink raises
-    :class:`~rotoruq.safety.UnsafePathError` naming it)."""
+    :class:`~rotoruq.safety.UnsafePathError` naming it).
+
+    A step that does not load (:class:`IncompleteStepError`: a checksum that does not match,
+    a file missing) raises, unless ``incomplete`` is a dict: the step is then left out and
+    ``incomplete[name]`` says why (what ``rotoruq run`` would do: run it again)."""
     directory = Path(directory)
     order = load_study_info(directory).get("steps", [])
     if not isinstance(order, list):
@@ -694,4 +699,12 @@ def load_results(directory: str | Path) -> dict[str, StepResult]:
             if p.is_dir() and os.path.lexists(p / "result.json"):
                 found[p.name] = p
     names = [n for n in order if n in found] + sorted(set(found) - set(order))
-    return {n: load_step(found[n]) for n in names}
+    if incomplete is None:
+        return {n: load_step(found[n]) for n in names}
+    out: dict[str, StepResult] = {}
+    for n in names:
+        try:
+            out[n] = load_step(found[n])
+        except IncompleteStepError as exc:
+            incomplete[n] = str(exc)
+    return out

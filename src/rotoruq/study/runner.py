@@ -622,11 +622,15 @@ def why_rerun(out: str | Path, model_factory: ModelFactory | None = None
                              "study.toml it copies)")
     study = load_study(path)
     quick = bool(info.get("quick", False))
-    saved = load_results(out)
+    damaged: dict[str, str] = {}
+    saved = load_results(out, incomplete=damaged)
     probe_factory = model_factory or partial(build_model, study, out=out)
     identities: dict = {}
     reasons: dict[str, list[str]] = {}
     for step in study.steps:
+        if step.name in damaged:
+            reasons[step.name] = [f"its saved result is incomplete ({damaged[step.name]})"]
+            continue
         if any(r not in saved for r in ([step.source[0]] if step.source else [])):
             reasons[step.name] = ["a step it takes from has no saved result"]
             continue

@@ -528,9 +528,13 @@ def test_signal_to_a_dask_run_ends_its_drivers_on_the_workers(tmp_path, sig):
 
     try:
         _wait_for(lambda: len(cluster.scheduler.workers) == 2, 60, "two workers")
+        # a terminal's Ctrl-C reaches a foreground CLI whose SIGINT is the default; a test run
+        # started in the background (`cmd &` in a script) would hand down SIGINT ignored, and
+        # Python keeps an ignored SIGINT ignored
         proc = subprocess.Popen([*CLI, "run", str(study), "--out", str(out), "--no-report"],
                                 env={**os.environ, "PYTHONPATH": SRC},
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
         try:
             store = out / "evaluations.sqlite"
             _wait_for(lambda: proc.poll() is not None or (

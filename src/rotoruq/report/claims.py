@@ -631,21 +631,19 @@ def _heldout_claims(steps: Mapping[str, StepResult], labels) -> list[Claim]:
     inside = [float(v) for v in rec.inside_band[p, j]]
     ratios = [float(v) for v in rec.error_ratio[p, j]]
     pct = f"{100 * rec.level:g} %"
-    others = [(rec, q, kind) for q, kind in enumerate(rec.predictions) if q != p]
+    # (record, prediction, condition, what): the other predictions of the held-out loads
+    others = [(rec, q, j, kind) for q, kind in enumerate(rec.predictions) if q != p]
     for name, what in (("validate_no_discrepancy", "calibrated on the same heights without "
                         "a discrepancy"), ("validate_4r", "the thesis's 4R-only calibration")):
         f = _validation(steps, name)
         if f is not None and (jj := _condition(f[1], rec.conditions[j])) is not None:
-            others.append((f[1], -1 - jj, what))
+            others.append((f[1], 0, jj, what))
 
     def beside(field: str, fmt) -> list[str]:
-        out = []
-        for orec, q, kind in others:
-            q, jj = (q, j) if q >= 0 else (0, -1 - q)
-            out.append(f"{kind}: " + ", ".join(
-                f"{n} {fmt(getattr(orec, field)[q, jj, m])}" for m, n in enumerate(names)
-                if m < getattr(orec, field).shape[2]))
-        return out
+        return [f"{what}: " + ", ".join(
+            f"{names[m]} {fmt(getattr(orec, field)[q, jj, orec.names_out.index(r)])}"
+            for m, r in enumerate(rec.names_out) if r in orec.names_out)
+            for orec, q, jj, what in others]
 
     band = [f"{n}: measured {rec.data_mean[p, j, m]:.4g}, band [{rec.band_lower[p, j, m]:.4g}, "
             f"{rec.band_upper[p, j, m]:.4g}] ({rec.predictions[p]})"

@@ -638,3 +638,23 @@ def test_mbdyn_driver_honours_the_asv_without_running_mbdyn(tmp_path, monkeypatc
     write_parameters("p.in", {"collective_deg": 5.0}, ["lift"])
     assert main(["--mbdyn", missing, "p.in", "r.out"]) == 1
     assert read_results("r.out").failed and "not MBDyn hub loads" in capsys.readouterr().err
+
+
+def test_export_picks_one_of_two_models_that_share_their_inputs(tmp_path, capsys):
+    """Two steps asking one model for different responses store two models with the same
+    inputs: --outputs picks one (the error says so)."""
+    from rotoruq.evaluation.store import NewRecord, Store
+    from rotoruq.evaluation.tabular import read_tabular
+    from rotoruq.study.cli import main
+
+    s = Store(tmp_path / "e.sqlite")
+    s.add([NewRecord(np.array([1.0, 2.0]), np.array([3.0, 4.0]))], study="s", model="m1",
+          names_in=["a", "b"], names_out=["f", "g"])
+    s.add([NewRecord(np.array([5.0, 6.0]), np.array([7.0]))], study="s", model="m2",
+          names_in=["a", "b"], names_out=["f"])
+    dat = tmp_path / "t.dat"
+    assert main(["export", str(s.path), "--dakota-tabular", str(dat), "--inputs", "a,b"]) == 1
+    assert "(--inputs, --outputs)" in capsys.readouterr().err
+    assert main(["export", str(s.path), "--dakota-tabular", str(dat), "--outputs", "f"]) == 0
+    t = read_tabular(dat)
+    assert t.names == ("a", "b", "f") and t.values.tolist() == [[5.0, 6.0, 7.0]]

@@ -376,7 +376,8 @@ def export_store(store: Store | str | os.PathLike, path: str | os.PathLike, *,
                  columns: Sequence[str] | None = None, fixed: Mapping[str, float] | None = None,
                  inputs_only: bool = False, interface: str | None = "NO_ID",
                  layout: str = "annotated", study: str | None = None,
-                 inputs: Sequence[str] | None = None, include_failed: bool = False) -> Path:
+                 inputs: Sequence[str] | None = None, outputs: Sequence[str] | None = None,
+                 include_failed: bool = False) -> Path:
     """Write a store's evaluations as a Dakota tabular file, columns named and ordered.
 
     Dakota reads a points file by position, so the columns must be in the order of the deck's
@@ -396,8 +397,9 @@ def export_store(store: Store | str | os.PathLike, path: str | os.PathLike, *,
     interface : the interface id of the rows (``NO_ID`` is Dakota's default; None for none).
     layout : "annotated", "custom_annotated" or "freeform" (see :func:`write_tabular`).
     study : only the evaluations of this study name.
-    inputs : the input names of the evaluations to export, when the store holds evaluations
-        of several models (the error lists them).
+    inputs, outputs : the input (and response) names of the evaluations to export, when the
+        store holds evaluations of several models (the error lists them; two steps of one
+        study asking the same model for different responses differ only by ``outputs``).
     include_failed : failed evaluations as rows of ``nan`` responses (default: left out).
 
     Returns
@@ -425,17 +427,19 @@ def export_store(store: Store | str | os.PathLike, path: str | os.PathLike, *,
     groups: dict[tuple, list] = {}
     for r in recs:
         groups.setdefault((r.names_in, r.names_out), []).append(r)
-    if inputs is not None:
-        groups = {k: v for k, v in groups.items() if sorted(k[0]) == sorted(inputs)}
+    for names, at in ((inputs, 0), (outputs, 1)):
+        if names is not None:
+            groups = {k: v for k, v in groups.items() if sorted(k[at]) == sorted(names)}
     where = f" of study {study!r}" if study else ""
     if not groups:
         raise ParameterError(f"no evaluations{where} to export from {st.path}"
-                             + (f" with inputs {list(inputs)}" if inputs is not None else ""))
+                             + (f" with inputs {list(inputs)}" if inputs is not None else "")
+                             + (f" with outputs {list(outputs)}" if outputs is not None else ""))
     if len(groups) > 1:
         listing = "; ".join(f"{len(v)} with inputs {','.join(k[0])} -> {','.join(k[1])}"
                             for k, v in groups.items())
         raise ParameterError(f"the store holds evaluations of several models ({listing}): "
-                             "choose one by its inputs")
+                             "choose one by its inputs and outputs (--inputs, --outputs)")
     (names_in, names_out), rows = next(iter(groups.items()))
     fixed = {str(k): float(v) for k, v in (fixed or {}).items() if k not in names_in}
     table: dict[str, np.ndarray] = {n: np.array([r.inputs[i] for r in rows])

@@ -31,6 +31,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--inputs", metavar="NAME[,NAME...]",
                         help="the evaluations of the model with these inputs, when the store "
                              "holds several")
+    parser.add_argument("--outputs", metavar="NAME[,NAME...]",
+                        help="the evaluations of the model with these responses, when the "
+                             "store holds several (e.g. two steps asking one model for "
+                             "different responses)")
     parser.add_argument("--include-failed", action="store_true",
                         help="failed evaluations as rows of nan responses")
 
@@ -65,6 +69,7 @@ def run(args: argparse.Namespace) -> int:
     path = export_store(store, args.dakota_tabular, columns=_names(args.columns), fixed=fixed,
                         inputs_only=args.inputs_only, interface=args.interface or None,
                         layout=args.layout, inputs=_names(args.inputs),
+                        outputs=_names(args.outputs),
                         include_failed=args.include_failed)
     print(path)
     return 0

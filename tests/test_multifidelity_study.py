@@ -298,6 +298,38 @@ def test_mbdyn_study_runs_through_the_cli(tmp_path):
     assert sorted(store_counts(out).values()) == sorted(runs)
 
 
+@pytest.mark.slow
+@needs_mbdyn
+def test_mbdyn_study_on_dask_by_changing_only_the_executor(tmp_path):
+    """The bundled MBDyn study with only ``[executor]`` changed to a Dask local cluster (the
+    run starts it; MBDyn's drivers run on its workers), ``--quick``: both steps done, the
+    same runs stored as the allocation says, and the report shows the allocation (adapted
+    correlations), the estimates with standard errors and the HF runs plain MC needs."""
+    pytest.importorskip("distributed")
+    text = (STUDIES / "mbdyn_multifidelity.toml").read_text()
+    assert text.count('kind = "processes"') == 1
+    study = tmp_path / "mbdyn_mf_dask.toml"
+    study.write_text(text.replace('kind = "processes"', 'kind = "dask"'))
+    out = tmp_path / "out"
+    proc = run_cli("run", str(study), "--quick", "--out", str(out), cwd=tmp_path,
+                   env=env_with_mbdyn(), timeout=900)
+    assert proc.returncode == 0, proc.stderr
+    loads = load_step(out / "steps" / "loads")
+    moments = load_step(out / "steps" / "hub_moments")
+    for res in (loads, moments):
+        assert res.meta["record"]["fields"]["adapt"] == "linear"
+        for r in ("thrust", "power"):
+            assert np.isfinite(res.scalars[f"mean/{r}"]) and res.scalars[f"mean_se/{r}"] > 0
+            assert res.scalars[f"n_equivalent_hf/mean/{r}"] > 0
+    runs = [int(res.scalars[f"runs/{m}"]) for res in (loads, moments)
+            for m in res.meta["models"]]
+    assert sorted(store_counts(out).values()) == sorted(runs)
+    html = "".join(p.read_text() for p in (out / "report").rglob("*.html"))
+    for text in ("Allocation (mfmc", "adapted (own)", "Multi-fidelity estimates",
+                 "mean std. error", "HF runs plain MC needs (mean)"):
+        assert text in html, text
+
+
 def test_measured_costs_of_a_pilot_served_from_the_store_are_the_models_costs(tmp_path):
     """A re-run whose pilot the store serves measures each model's cost from the seconds the
     stored runs took (not the lookup's), so the allocation does not change."""

@@ -56,6 +56,7 @@ _LAZY: dict[str, str] = {
     "evidence": ".methods.evidence",
     "CoKriging": ".methods.cokriging",
     "MultifidelityResult": ".methods.multifidelity",
+    "LinearAdaptation": ".methods.multifidelity",
     "multifidelity_sample": ".methods.multifidelity",
     "PCEResult": ".methods.pce",
     "polynomial_chaos": ".methods.pce",
@@ -269,6 +270,7 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
         simulation_based_calibration as simulation_based_calibration,
     )
     from .methods.multifidelity import (
+        LinearAdaptation as LinearAdaptation,
         MultifidelityResult as MultifidelityResult,
     )
     from .methods.multifidelity import (

@@ -51,7 +51,9 @@ class MultifidelityRecord(StepRecord):
     allocation was optimised for. cost (K,) : cost of one run of each model (seconds when
     ``costs_measured``, else the given cost units); runs (K,) : pilot plus main-phase runs;
     allocation (K,) : main-phase runs; used (K,) 1.0 / 0.0 : whether the estimator uses the
-    model; correlation (K, m) : pilot correlation with the high-fidelity model. mean, mean_se,
+    model; correlation (K, m) : pilot correlation with the high-fidelity model (of the
+    adapted models, leave-one-out, when ``adapt`` is "linear"); correlation_unadapted (K, m) :
+    the models' own. adapt : "none" or "linear". mean, mean_se,
     variance, variance_se, std (m,) : the estimates and their standard errors.
     n_equivalent_hf, speedup (s, m) : high-fidelity runs plain Monte Carlo needs for the same
     standard error, and their cost over this step's. budget, cost_pilot, cost_main : cost of
@@ -60,6 +62,7 @@ class MultifidelityRecord(StepRecord):
 
     AXES = {**{k: ("model",) for k in ("cost", "runs", "allocation", "used")},
             "correlation": ("model", "response"),
+            "correlation_unadapted": ("model", "response"),
             **{k: ("response",) for k in ("mean", "mean_se", "variance", "variance_se", "std")},
             "n_equivalent_hf": ("statistic", "response"), "speedup": ("statistic", "response")}
 
@@ -85,6 +88,8 @@ class MultifidelityRecord(StepRecord):
     cost_pilot: float
     cost_main: float
     n_pilot: int
+    adapt: str
+    correlation_unadapted: np.ndarray
 
     def statistic(self, name: str, values: np.ndarray, k: int) -> float:
         """Row ``name`` of a (s, m) array at response ``k``; NaN when not estimated."""
@@ -114,7 +119,7 @@ def run_multifidelity(ctx: StepContext) -> StepResult:
                              f"per model ({', '.join(names)})")
     res = multifidelity_sample(models, ctx.space, o["budget"], budget_unit=o["budget_unit"],
                                estimator=o["estimator"], n_pilot=o["n_pilot"], costs=costs,
-                               seed=ctx.rng)
+                               adapt=o["adapt"], seed=ctx.rng)
     k_models = len(names)
     record = MultifidelityRecord(
         names, tuple(ctx.responses), tuple(res.statistics), res.estimator, res.target,
@@ -129,7 +134,8 @@ def run_multifidelity(ctx: StepContext) -> StepResult:
                  ).reshape(len(res.statistics), len(ctx.responses)),
         np.array([np.asarray(res.speedup[s], dtype=float) for s in res.statistics]
                  ).reshape(len(res.statistics), len(ctx.responses)),
-        float(res.budget), float(res.cost_pilot), float(res.cost_main), int(res.n_pilot))
+        float(res.budget), float(res.cost_pilot), float(res.cost_main), int(res.n_pilot),
+        res.adapt, np.asarray(res.correlation_unadapted, dtype=float).T)
     arrays, meta = record.parts()
     return StepResult(ctx.name, ctx.type, multifidelity_scalars(record), arrays, meta={
         "models": list(names), "responses": list(ctx.responses), "estimator": res.estimator,
@@ -164,15 +170,28 @@ def multifidelity_scalars(rec: MultifidelityRecord) -> dict[str, float]:
 def multifidelity_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
     rec = MultifidelityRecord.read(res)
     unit = "s" if rec.costs_measured else "cost units"
+    adapted = rec.adapt != "none"
+    corr_cols = [f"correlation with HF: {label(r, labels)}" for r in rec.names_out]
+    if adapted:
+        corr_cols = [f"correlation with HF, adapted (own): {label(r, labels)}"
+                     for r in rec.names_out]
+
+    def corr(k: int, j: int) -> str:
+        if not adapted or k == 0:
+            return cell(rec.correlation[k, j])
+        return f"{cell(rec.correlation[k, j])} ({cell(rec.correlation_unadapted[k, j])})"
+
     alloc = make_table(
         f"Allocation ({rec.estimator}, {rec.n_pilot}-point pilot)",
-        ("model", f"cost per run [{unit}]", "pilot + main runs",
-         *(f"correlation with HF: {label(r, labels)}" for r in rec.names_out)),
+        ("model", f"cost per run [{unit}]", "pilot + main runs", *corr_cols),
         [[m + ("" if rec.used[k] else " (not used)"), cell(rec.cost[k]), cell(rec.runs[k]),
-          *(cell(rec.correlation[k, j]) for j in range(len(rec.names_out)))]
+          *(corr(k, j) for j in range(len(rec.names_out)))]
          for k, m in enumerate(rec.models)],
         note=f"Budget {rec.budget} {unit} for the main phase (spent "
-             f"{rec.cost_main}) plus the pilot's {rec.cost_pilot}.")
+             f"{rec.cost_main}) plus the pilot's {rec.cost_pilot}."
+             + (" Low-fidelity models adapted on the pilot (a linear map of their response "
+                "and the inputs); their correlation is the adapted model's leave-one-out one, "
+                "the model's own in brackets." if adapted else ""))
     est = make_table(
         "Multi-fidelity estimates",
         ("response", "mean", "mean std. error", "std", "variance", "variance std. error",
@@ -223,6 +242,7 @@ STEP = StepType(
              "budget_unit": Option(choice("cost", "hf_runs"), SIGNATURE),
              "estimator": Option(choice("mfmc", "acvmf", "acvis"), SIGNATURE),
              "n_pilot": Option(integer(4), SIGNATURE),
+             "adapt": Option(choice("none", "linear"), SIGNATURE),
              "costs": Option(number_list, None)},
     quick={"n_pilot": 10}, check=_check,
     tables=multifidelity_tables, warnings=multifidelity_warnings,

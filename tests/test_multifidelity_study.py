@@ -325,7 +325,8 @@ def test_mbdyn_study_on_dask_by_changing_only_the_executor(tmp_path):
             for m in res.meta["models"]]
     assert sorted(store_counts(out).values()) == sorted(runs)
     html = "".join(p.read_text() for p in (out / "report").rglob("*.html"))
-    for text in ("Allocation (mfmc", "adapted (own)", "Multi-fidelity estimates",
+    for text in ("Allocation (mfmc", "correlation with HF, adapted", "correlation with HF, own",
+                 "Multi-fidelity estimates",
                  "mean std. error", "HF runs plain MC needs (mean)"):
         assert text in html, text
 

@@ -271,6 +271,8 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     )
     from .methods.multifidelity import (
         LinearAdaptation as LinearAdaptation,
+    )
+    from .methods.multifidelity import (
         MultifidelityResult as MultifidelityResult,
     )
     from .methods.multifidelity import (

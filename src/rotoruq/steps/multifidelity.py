@@ -171,27 +171,24 @@ def multifidelity_tables(res: StepResult, labels: Mapping[str, str]) -> list[Ste
     rec = MultifidelityRecord.read(res)
     unit = "s" if rec.costs_measured else "cost units"
     adapted = rec.adapt != "none"
-    corr_cols = [f"correlation with HF: {label(r, labels)}" for r in rec.names_out]
+    n_out = len(rec.names_out)
+    corr_cols = [f"correlation with HF{', adapted' if adapted else ''}: {label(r, labels)}"
+                 for r in rec.names_out]
     if adapted:
-        corr_cols = [f"correlation with HF, adapted (own): {label(r, labels)}"
-                     for r in rec.names_out]
-
-    def corr(k: int, j: int) -> str:
-        if not adapted or k == 0:
-            return cell(rec.correlation[k, j])
-        return f"{cell(rec.correlation[k, j])} ({cell(rec.correlation_unadapted[k, j])})"
-
+        corr_cols += [f"correlation with HF, own: {label(r, labels)}" for r in rec.names_out]
     alloc = make_table(
         f"Allocation ({rec.estimator}, {rec.n_pilot}-point pilot)",
         ("model", f"cost per run [{unit}]", "pilot + main runs", *corr_cols),
         [[m + ("" if rec.used[k] else " (not used)"), cell(rec.cost[k]), cell(rec.runs[k]),
-          *(corr(k, j) for j in range(len(rec.names_out)))]
+          *(cell(rec.correlation[k, j]) for j in range(n_out)),
+          *((cell(rec.correlation_unadapted[k, j]) for j in range(n_out)) if adapted else ())]
          for k, m in enumerate(rec.models)],
         note=f"Budget {rec.budget} {unit} for the main phase (spent "
              f"{rec.cost_main}) plus the pilot's {rec.cost_pilot}."
              + (" Low-fidelity models adapted on the pilot (a linear map of their response "
-                "and the inputs); their correlation is the adapted model's leave-one-out one, "
-                "the model's own in brackets." if adapted else ""))
+                "and the inputs): the estimator uses the adapted model's correlation "
+                "(leave-one-out on the pilot); the model's own is beside it."
+                if adapted else ""))
     est = make_table(
         "Multi-fidelity estimates",
         ("response", "mean", "mean std. error", "std", "variance", "variance std. error",

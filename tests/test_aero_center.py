@@ -96,6 +96,10 @@ def test_mbdyn_calibration_is_seeded_and_rejects_the_tuned_value():
     assert lo <= prior["mean_m"] <= hi and not lo <= -1e-3 <= hi
     assert a["offset"]["std_over_prior_std"] < 0.6
     assert a["log10_likelihood_ratio_-1mm_vs_airfoil"] < -5
+    # without the prior the answer stands: MBDyn's loads alone put the offset inside the
+    # posterior's interval, and -1 mm far outside their own
+    lk = a["likelihood_only"]
+    assert lo <= lk["max_m"] <= hi and lk["interval_m"][0] > -1e-3
 
 
 @pytest.mark.slow

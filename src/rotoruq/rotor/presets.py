@@ -190,9 +190,12 @@ def gvpm(**overrides) -> RotorPreset:
       2.4 % chord): the one property set to reproduce the reference study's behaviour. It is
       the feathering coupling that makes lateral cyclic drive roll and longitudinal drive
       pitch (thesis table 4.6) and K_p act on the hub moments (table 4.9); without it the
-      flap response lags the cyclic by about 40 deg and the axes are rotated. It is consistent
-      with the bundled low-Re table, whose CM slope between 4 and 10 deg puts the aerodynamic
-      centre about 2 mm ahead of the quarter chord. README "Rotor model" gives its effect.
+      flap response lags the cyclic by about 40 deg and the axes are rotated. It is tuned, not
+      measured: the bundled table's CM slope over 0-8 deg (lift-weighted) puts the
+      aerodynamic centre 0.19 mm ahead (spread 0.44 mm; about 2 mm over 4-10 deg), the GVPM
+      4R loads cannot tell the values apart, and MBDyn's elastic loads put it near -0.2 mm
+      (``scripts/aero_center_calibration.py``; docs/tutorials/mbdyn.md,
+      "aero_center_offset").
     - no airfoil table pitching moment (``pitching_moment=False``): MBDyn's NACA 0012 table
       that the thesis used has CM = 0 for |alpha| <= 10 deg, while the bundled low-Re table's
       CM there is non-monotonic (-0.03..0.03, NeuralFoil confidence 0.83 at Re 5e4); ``cm0``

@@ -44,9 +44,11 @@ class Block:
 
 
 def blocks(docs: Path = DOCS) -> list[Block]:
-    """Every generated block of every Markdown page under ``docs`` (build output excluded)."""
+    """Every generated block of every Markdown page under ``docs`` (build output excluded),
+    and of README.md when ``docs`` is the project's."""
     found = []
-    for page in sorted(docs.rglob("*.md")):
+    pages = sorted(docs.rglob("*.md")) + ([ROOT / "README.md"] if docs == DOCS else [])
+    for page in pages:
         if "_build" in page.parts:
             continue
         for m in BLOCK.finditer(page.read_text(encoding="utf-8")):

@@ -224,3 +224,15 @@ def test_bad_input_raises_clear_errors():
     broken = rq.FunctionModel(lambda x: np.full(len(x), np.nan), SPACE.names, ["y"])
     with pytest.raises(EvaluationError, match="pilot"):
         rq.multifidelity_sobol([broken, models[1]], SPACE, 100, costs=COSTS[:2], n_pilot=5)
+
+
+def test_failed_runs_leave_the_pilot_and_stop_the_main_phase():
+    def flaky(x):
+        y = _ishigami(*LADDER[1])(x)
+        return np.where(x[:, 0] > 2.5, np.nan, y)  # fails on ~10 % of the points
+
+    models = [_models()[0], rq.FunctionModel(flaky, SPACE.names, ["y"])]
+    with pytest.warns(RuntimeWarning, match="left out of the pilot statistics"), \
+            pytest.raises(EvaluationError, match=r"models\[1\] failed"):
+        rq.multifidelity_sobol(models, SPACE, 200, budget_unit="hf_runs", costs=COSTS[:2],
+                               n_pilot=40, seed=0)

@@ -58,6 +58,8 @@ _LAZY: dict[str, str] = {
     "MultifidelityResult": ".methods.multifidelity",
     "LinearAdaptation": ".methods.multifidelity",
     "multifidelity_sample": ".methods.multifidelity",
+    "MultifidelitySobolResult": ".methods.multifidelity_sobol",
+    "multifidelity_sobol": ".methods.multifidelity_sobol",
     "PCEResult": ".methods.pce",
     "polynomial_chaos": ".methods.pce",
     "MeanValueResult": ".methods.reliability",
@@ -277,6 +279,12 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     )
     from .methods.multifidelity import (
         multifidelity_sample as multifidelity_sample,
+    )
+    from .methods.multifidelity_sobol import (
+        MultifidelitySobolResult as MultifidelitySobolResult,
+    )
+    from .methods.multifidelity_sobol import (
+        multifidelity_sobol as multifidelity_sobol,
     )
     from .methods.pce import (
         PCEResult as PCEResult,

@@ -1,6 +1,9 @@
 """Step type ``multifidelity``: mean and variance of the study's model (the high-fidelity one)
 from few of its runs and many runs of cheaper models, by multifidelity Monte Carlo or
-approximate control variates (:func:`rotoruq.methods.multifidelity.multifidelity_sample`).
+approximate control variates (:func:`rotoruq.methods.multifidelity.multifidelity_sample`);
+with ``sobol = true`` also its Sobol' main and total indices
+(:func:`rotoruq.methods.multifidelity_sobol.multifidelity_sobol`, a budget of its own on top,
+the costs the first pilot measured).
 
 The high-fidelity model is the study's ``[model]``; ``models`` names the low-fidelity ones,
 each built by the study's model factory as ``make_model(inputs, responses, fixed,
@@ -26,6 +29,7 @@ from .options import (
     REQUIRED,
     SIGNATURE,
     Option,
+    boolean,
     choice,
     integer,
     number,
@@ -58,13 +62,23 @@ class MultifidelityRecord(StepRecord):
     n_equivalent_hf, speedup (s, m) : high-fidelity runs plain Monte Carlo needs for the same
     standard error, and their cost over this step's. budget, cost_pilot, cost_main : cost of
     the main phase given and spent, and of the pilot; n_pilot : pilot points.
+    names_in (d) : the inputs. sobol : whether the Sobol' indices were estimated (their
+    arrays are NaN otherwise); sobol_main, sobol_main_se, sobol_total, sobol_total_se,
+    sobol_n_equivalent_hf_main, sobol_n_equivalent_hf_total (m, d) : the indices, their
+    standard errors and the high-fidelity runs plain pick-and-freeze needs for the same
+    standard errors; sobol_allocation (K,) : main-phase base samples (d + 2 runs each);
+    sobol_cost (1,) : the cost of the Sobol' pilot and main phase.
     """
 
     AXES = {**{k: ("model",) for k in ("cost", "runs", "allocation", "used")},
             "correlation": ("model", "response"),
             "correlation_unadapted": ("model", "response"),
             **{k: ("response",) for k in ("mean", "mean_se", "variance", "variance_se", "std")},
-            "n_equivalent_hf": ("statistic", "response"), "speedup": ("statistic", "response")}
+            "n_equivalent_hf": ("statistic", "response"), "speedup": ("statistic", "response"),
+            **{f"sobol_{k}": ("response", "input") for k in (
+                "main", "main_se", "total", "total_se", "n_equivalent_hf_main",
+                "n_equivalent_hf_total")},
+            "sobol_allocation": ("model",), "sobol_cost": ("cost",)}
 
     models: tuple[str, ...]
     names_out: tuple[str, ...]
@@ -90,6 +104,16 @@ class MultifidelityRecord(StepRecord):
     n_pilot: int
     adapt: str
     correlation_unadapted: np.ndarray
+    names_in: tuple[str, ...]
+    sobol: bool
+    sobol_main: np.ndarray
+    sobol_main_se: np.ndarray
+    sobol_total: np.ndarray
+    sobol_total_se: np.ndarray
+    sobol_n_equivalent_hf_main: np.ndarray
+    sobol_n_equivalent_hf_total: np.ndarray
+    sobol_allocation: np.ndarray
+    sobol_cost: np.ndarray
 
     def statistic(self, name: str, values: np.ndarray, k: int) -> float:
         """Row ``name`` of a (s, m) array at response ``k``; NaN when not estimated."""
@@ -117,10 +141,29 @@ def run_multifidelity(ctx: StepContext) -> StepResult:
     if costs is not None and len(costs) != len(models):
         raise ParameterError(f"step {ctx.name!r}: costs has {len(costs)} values; it needs one "
                              f"per model ({', '.join(names)})")
+    rng_moments, rng_sobol = ctx.rng.spawn(2) if o["sobol"] else (ctx.rng, None)
     res = multifidelity_sample(models, ctx.space, o["budget"], budget_unit=o["budget_unit"],
                                estimator=o["estimator"], n_pilot=o["n_pilot"], costs=costs,
-                               adapt=o["adapt"], seed=ctx.rng)
+                               adapt=o["adapt"], seed=rng_moments)
     k_models = len(names)
+    d, m = ctx.space.dim, len(ctx.responses)
+    nan = np.full((m, d), np.nan)
+    sob = {"main": nan, "main_se": nan, "total": nan, "total_se": nan,
+           "n_equivalent_hf_main": nan, "n_equivalent_hf_total": nan}
+    sob_alloc, sob_cost, n_sobol_evals = np.zeros(k_models), np.array([0.0]), 0
+    if o["sobol"]:
+        from ..methods.multifidelity_sobol import multifidelity_sobol
+
+        sr = multifidelity_sobol(models, ctx.space, o["budget"], budget_unit=o["budget_unit"],
+                                 estimator=o["estimator"], n_pilot=o["n_pilot"],
+                                 costs=[float(c) for c in res.costs], seed=rng_sobol)
+        sob = {k: np.asarray(v, dtype=float) for k, v in (
+            ("main", sr.main), ("main_se", sr.main_se), ("total", sr.total),
+            ("total_se", sr.total_se), ("n_equivalent_hf_main", sr.n_equivalent_hf["main"]),
+            ("n_equivalent_hf_total", sr.n_equivalent_hf["total"]))}
+        sob_alloc = np.asarray(sr.allocation, dtype=float)
+        sob_cost = np.array([sr.cost_pilot + sr.cost_main])
+        n_sobol_evals = int(sr.n_evaluations)
     record = MultifidelityRecord(
         names, tuple(ctx.responses), tuple(res.statistics), res.estimator, res.target,
         bool(res.costs_measured), np.asarray(res.costs, dtype=float)[:k_models],
@@ -135,13 +178,16 @@ def run_multifidelity(ctx: StepContext) -> StepResult:
         np.array([np.asarray(res.speedup[s], dtype=float) for s in res.statistics]
                  ).reshape(len(res.statistics), len(ctx.responses)),
         float(res.budget), float(res.cost_pilot), float(res.cost_main), int(res.n_pilot),
-        res.adapt, np.asarray(res.correlation_unadapted, dtype=float).T)
+        res.adapt, np.asarray(res.correlation_unadapted, dtype=float).T,
+        tuple(ctx.space.names), bool(o["sobol"]),
+        sob["main"], sob["main_se"], sob["total"], sob["total_se"],
+        sob["n_equivalent_hf_main"], sob["n_equivalent_hf_total"], sob_alloc, sob_cost)
     arrays, meta = record.parts()
     return StepResult(ctx.name, ctx.type, multifidelity_scalars(record), arrays, meta={
         "models": list(names), "responses": list(ctx.responses), "estimator": res.estimator,
         "target": res.target,
         "n_pilot": res.n_pilot, "costs_measured": res.costs_measured,
-        "n_evaluations": int(res.n_evaluations), **meta})
+        "n_evaluations": int(res.n_evaluations) + n_sobol_evals, **meta})
 
 
 def multifidelity_scalars(rec: MultifidelityRecord) -> dict[str, float]:
@@ -164,6 +210,10 @@ def multifidelity_scalars(rec: MultifidelityRecord) -> dict[str, float]:
         for i, s in enumerate(rec.statistics):
             out[f"n_equivalent_hf/{s}/{r}"] = float(rec.n_equivalent_hf[i, j])
             out[f"speedup/{s}/{r}"] = float(rec.speedup[i, j])
+        if rec.sobol:
+            for i, x in enumerate(rec.names_in):
+                for key in ("main", "main_se", "total", "total_se"):
+                    out[f"sobol_{key}/{r}/{x}"] = float(getattr(rec, f"sobol_{key}")[j, i])
     return out
 
 
@@ -202,7 +252,26 @@ def multifidelity_tables(res: StepResult, labels: Mapping[str, str]) -> list[Ste
         note="Standard errors predicted from the pilot's covariances and the allocation; "
              "plain MC: the high-fidelity runs whose sample mean (variance) has the same "
              "standard error; cost saving: their cost over this step's (pilot included).")
-    return [alloc, est]
+    tables = [alloc, est]
+    if rec.sobol:
+        tables.append(make_table(
+            f"Sobol' indices (multi-fidelity, {rec.estimator})",
+            ("response", "input", "main", "main std. error", "total", "total std. error",
+             "HF runs plain pick-freeze needs (main)", "HF runs plain pick-freeze needs "
+             "(total)"),
+            [[label(r, labels), label(x, labels), cell(rec.sobol_main[j, i]),
+              cell(rec.sobol_main_se[j, i]), cell(rec.sobol_total[j, i]),
+              cell(rec.sobol_total_se[j, i]), cell(rec.sobol_n_equivalent_hf_main[j, i]),
+              cell(rec.sobol_n_equivalent_hf_total[j, i])]
+             for j, r in enumerate(rec.names_out) for i, x in enumerate(rec.names_in)],
+            note="Pick-freeze base samples per model (d + 2 runs each): "
+                 + ", ".join(f"{m} {int(rec.sobol_allocation[k])}"
+                             for k, m in enumerate(rec.models))
+                 + f"; cost {cell(rec.sobol_cost[0])} {unit} (its own pilot included, on top "
+                 "of the moments'). The indices are ratios of unbiased estimates (bias "
+                 "O(1/N), below the standard errors); standard errors by the delta method "
+                 "from the pilot's moments."))
+    return tables
 
 
 def multifidelity_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
@@ -240,7 +309,9 @@ STEP = StepType(
              "estimator": Option(choice("mfmc", "acvmf", "acvis"), SIGNATURE),
              "n_pilot": Option(integer(4), SIGNATURE),
              "adapt": Option(choice("none", "linear"), SIGNATURE),
+             "sobol": Option(boolean, False),
              "costs": Option(number_list, None)},
     quick={"n_pilot": 10}, check=_check,
     tables=multifidelity_tables, warnings=multifidelity_warnings,
-    modules=("rotoruq.methods.multifidelity", "rotoruq.methods.acv"))
+    modules=("rotoruq.methods.multifidelity", "rotoruq.methods.multifidelity_sobol",
+             "rotoruq.methods.acv"))

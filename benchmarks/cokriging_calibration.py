@@ -141,29 +141,31 @@ def rotor(n_hf: list[int], n_low: int, n_samples: int, n_exact: int) -> dict:
     return out
 
 
+def _compare(by_n_hf: dict, fmt) -> str:
+    """'; '-joined ``fmt(co-kriging row, GP row)`` per HF design size, prefixed by it."""
+    return "; ".join(f"{n} HF runs: " + fmt(row["cokriging"], row["gp"])
+                     for n, row in sorted(by_n_hf.items(), key=lambda kv: int(kv[0])))
+
+
 def summary(out: dict) -> str:
     a = out["analytic"]
-    parts = []
-    for n, row in sorted(a["by_n_hf"].items(), key=lambda kv: int(kv[0])):
-        ck, gp = row["cokriging"], row["gp"]
-        parts.append(f"{n} HF runs: {ck['median_mean_error_in_std']:.2f} against "
-                     f"{gp['median_mean_error_in_std']:.2f} (std ratio "
-                     f"{ck['median_std_ratio']:.2f} against {gp['median_std_ratio']:.2f})")
     text = (f"Analytic pair, co-kriging with {a['n_low']} LF runs against a GP on the same "
             f"HF runs, posterior mean error in exact posterior stds (medians over "
-            f"{a['seeds']} datasets): " + "; ".join(parts) + ".")
+            f"{a['seeds']} datasets): " + _compare(a["by_n_hf"], lambda ck, gp: (
+                f"{ck['median_mean_error_in_std']:.2f} against "
+                f"{gp['median_mean_error_in_std']:.2f} (std ratio "
+                f"{ck['median_std_ratio']:.2f} against {gp['median_std_ratio']:.2f})")) + ".")
     r = out.get("rotor")
     if r:
-        parts = []
-        for n, row in sorted(r["by_n_hf"].items(), key=lambda kv: int(kv[0])):
-            ck, gp = row["cokriging"], row["gp"]
-            parts.append(f"{n} HF runs: {ck['mean_error_in_std']:.2f} against "
-                         f"{gp['mean_error_in_std']:.2f} ({ck['seconds']:.1f} s against "
-                         f"{gp['seconds']:.1f} s)")
-            cost = (ck["microseconds_per_likelihood"], gp["microseconds_per_likelihood"])
+        last = r["by_n_hf"][max(r["by_n_hf"], key=int)]
         text += (f" GVPM rotor, HF at 10 stations x 36 steps, {r['n_low']} LF runs at 3 x 6: "
-                 + "; ".join(parts) + f". The co-kriging chains cost {cost[0]:.0f} us per "
-                 f"likelihood evaluation against {cost[1]:.0f} us for the GP's compiled kernel.")
+                 + _compare(r["by_n_hf"], lambda ck, gp: (
+                     f"{ck['mean_error_in_std']:.2f} against {gp['mean_error_in_std']:.2f} "
+                     f"({ck['seconds']:.1f} s against {gp['seconds']:.1f} s)"))
+                 + f". The co-kriging chains cost "
+                 f"{last['cokriging']['microseconds_per_likelihood']:.0f} us per likelihood "
+                 f"evaluation against {last['gp']['microseconds_per_likelihood']:.0f} us for "
+                 "the GP's compiled kernel.")
     return text
 
 

@@ -250,3 +250,18 @@ def test_bad_input_is_a_clear_error():
         rq.calibrate_bayes(HF, data, PRIOR, emulator=fitted, refine=RefineConfig(), **kw)
     with pytest.raises(ParameterError, match="GaussianProcess or CoKriging"):
         rq.calibrate_bayes(HF, data, PRIOR, emulator=HF, **kw)
+
+
+def test_noise_multipliers_and_continue_chain_run_on_the_cokriging(pair):
+    """The multiplier route (the Python log posterior with noise multipliers) and
+    continue_chain take the co-kriging as they take a GP: the fitted emulator as given (no
+    build runs), its counts carried."""
+    ck = pair[0].emulator
+    res = _calibrate(ck, noise_multipliers="one", n_samples=800)
+    assert res.noise_multiplier_chains is not None and res.n_evaluations == 0
+    assert res.n_low_fidelity_evaluations == (0,)
+    m, s = _exact(_data())
+    assert abs(res.mean[0] - m) < 0.5 * s
+    more = rq.continue_chain(pair[0], 200)
+    assert more.chains.shape[1] == pair[0].chains.shape[1] + 200
+    assert more.n_low_fidelity_evaluations == (30,) and more.emulator is ck

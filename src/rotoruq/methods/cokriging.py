@@ -87,7 +87,17 @@ class CoKriging:
 
     def design_sizes(self, n_high: int) -> tuple[int, ...]:
         """Runs of each low-fidelity model (cheapest first) in a nested design around
-        ``n_high`` high-fidelity points: ``n_low``, or four times ``n_high``."""
+        ``n_high`` high-fidelity points: ``n_low``, or four times ``n_high``.
+
+        Examples
+        --------
+        >>> from rotoruq.model import FunctionModel
+        >>> lf = FunctionModel(lambda x: 0.5 * x, ["a"], ["y"])
+        >>> CoKriging(low_fidelity=[lf, lf], n_low=[60, 20]).design_sizes(10)
+        (60, 20)
+        >>> CoKriging(low_fidelity=lf).design_sizes(10)
+        (40,)
+        """
         if not self.low_fidelity:
             raise ParameterError("CoKriging has no low-fidelity model: give "
                                  "CoKriging(low_fidelity=model_lf, n_low=...)")
@@ -146,7 +156,7 @@ class CoKriging:
 
     @property
     def training_data(self) -> list[tuple[np.ndarray, np.ndarray]]:
-        """Each level's (X (n_t, d), Y (n_t, m)) as fitted, the cheapest first."""
+        """Each level's (X (n_t, d), Y (n_t, m)) as fitted, the cheapest first (copies)."""
         self._check_fitted()
         return [(x.copy(), y.copy()) for x, y in self._data]
 

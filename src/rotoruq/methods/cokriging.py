@@ -15,20 +15,24 @@ response) minimises the delta GP's leave-one-out error (closed form, Dubrule 198
 ``|rho| <= 3 max(std(y_t) / std(mean_{t-1}), |least-squares slope|)`` (a grid, then Brent).
 On points of level t that are not level-(t-1) points the previous level enters by its
 posterior mean (exact for nested designs, where that mean interpolates the data).
+
+As the emulator of :func:`~rotoruq.methods.mcmc.calibrate_bayes`, a CoKriging names its
+cheaper models (``low_fidelity``) and their design sizes (``n_low``); the calibration builds
+the nested design and fits it (:func:`rotoruq.methods.mcmc._emulator.fit_on_prior`).
 """
 
 from __future__ import annotations
 
 import warnings
 from collections.abc import Mapping, Sequence
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from scipy import optimize
 
 from .._rng import SeedLike, as_seed_sequence
 from ..errors import ModelShapeError, ParameterError
-from .surrogate import GaussianProcess
+from .surrogate import ExtrapolationWarning, GaussianProcess, LeaveOneOut
 
 __all__ = ["CoKriging", "CoKrigingModel"]
 
@@ -41,6 +45,14 @@ class CoKriging:
     gp_options : keyword arguments of every level's
         :class:`~rotoruq.methods.surrogate.GaussianProcess` (trend, kernel, nugget,
         n_restarts...); ``seed`` is set here.
+    low_fidelity : a Model or a sequence of Models, the cheapest first, for
+        :func:`~rotoruq.methods.mcmc.calibrate_bayes` to build this emulator from (their
+        inputs those of the calibrated model, their responses including the observed ones,
+        by name). Not needed for :meth:`fit` on your own runs.
+    n_low : runs of each low-fidelity model in the calibration's nested design: an int for
+        all, or one per model (cheapest first, non-increasing). Each must be at least the
+        high-fidelity design (``n_emulator_samples``), whose points every cheaper design
+        holds. None: four times the high-fidelity design.
     seed : int or Generator for the GPs' random starts (one stream per level and response).
 
     Examples
@@ -60,14 +72,42 @@ class CoKriging:
     """
 
     def __init__(self, gp_options: Mapping[str, Any] | None = None, *,
+                 low_fidelity: Any = None, n_low: int | Sequence[int] | None = None,
                  seed: SeedLike = None) -> None:
         self.gp_options = dict(gp_options or {})
         if "seed" in self.gp_options:
             raise ParameterError("give the seed to CoKriging(seed=...), not in gp_options")
         GaussianProcess(**self.gp_options)  # checks the options now, not at fit
+        self.low_fidelity = _as_models(low_fidelity)
+        self.n_low = _as_n_low(n_low, len(self.low_fidelity))
         self.seed = seed
         self._levels: list[list[GaussianProcess]] = []
         self._rho: np.ndarray | None = None
+        self._data: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def design_sizes(self, n_high: int) -> tuple[int, ...]:
+        """Runs of each low-fidelity model (cheapest first) in a nested design around
+        ``n_high`` high-fidelity points: ``n_low``, or four times ``n_high``.
+
+        Examples
+        --------
+        >>> from rotoruq.model import FunctionModel
+        >>> lf = FunctionModel(lambda x: 0.5 * x, ["a"], ["y"])
+        >>> CoKriging(low_fidelity=[lf, lf], n_low=[60, 20]).design_sizes(10)
+        (60, 20)
+        >>> CoKriging(low_fidelity=lf).design_sizes(10)
+        (40,)
+        """
+        if not self.low_fidelity:
+            raise ParameterError("CoKriging has no low-fidelity model: give "
+                                 "CoKriging(low_fidelity=model_lf, n_low=...)")
+        sizes = self.n_low or (4 * int(n_high),) * len(self.low_fidelity)
+        if min(sizes) < n_high:
+            raise ParameterError(f"n_low={list(sizes)} is smaller than the high-fidelity "
+                                 f"design ({n_high} runs, n_emulator_samples): the co-kriging "
+                                 "design is nested, every cheaper design holds the "
+                                 "high-fidelity points")
+        return sizes
 
     # --- fitting ---------------------------------------------------------------------------
     def fit(self, X: Sequence[Any], Y: Sequence[Any]) -> CoKriging:
@@ -111,7 +151,14 @@ class CoKriging:
             levels.append(gps)
         self._levels, self._rho = levels, rho
         self._d, self._m = d, m
+        self._data = list(zip(Xs, Ys, strict=True))
         return self
+
+    @property
+    def training_data(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Each level's (X (n_t, d), Y (n_t, m)) as fitted, the cheapest first (copies)."""
+        self._check_fitted()
+        return [(x.copy(), y.copy()) for x, y in self._data]
 
     def _gp(self, seed) -> GaussianProcess:
         return GaussianProcess(**self.gp_options, seed=seed)
@@ -169,34 +216,99 @@ class CoKriging:
             raise ParameterError("CoKriging is not fitted: call fit([X_lf, X_hf], [Y_lf, Y_hf])")
 
     @staticmethod
-    def _predict_levels(levels, rho, X, return_var: bool):
-        mean = var = None
+    def _predict_levels(levels, rho, X, return_var: bool, return_grad: bool = False):
+        mean = var = grad = None
         for t, gps in enumerate(levels):
-            out = [gp.predict(X, return_var=return_var, warn_distance=None) for gp in gps]
-            mu = np.column_stack([o[0] if return_var else o for o in out])
+            out = [gp.predict(X, return_var=return_var, return_grad=return_grad,
+                              warn_distance=None) for gp in gps]
+            if not (return_var or return_grad):
+                out = [(o,) for o in out]
+            mu = np.column_stack([o[0] for o in out])
             v = np.column_stack([o[1] for o in out]) if return_var else None
+            g = np.concatenate([o[-1] for o in out], axis=1) if return_grad else None
             if t == 0:
-                mean, var = mu, v
+                mean, var, grad = mu, v, g
             else:
                 mean = rho[t - 1] * mean + mu
                 if return_var:
                     var = rho[t - 1] ** 2 * var + v
-        return mean, var
+                if return_grad:
+                    grad = rho[t - 1][None, :, None] * grad + g
+        return mean, var, grad
 
-    def predict(self, X, return_var: bool = True):
+    def predict(self, X, return_var: bool = True, return_grad: bool = False,
+                warn_distance: float | None = None):
         """Predict the highest-fidelity response at points X (n, d).
 
-        Returns ``mean`` (n, m), and ``var`` (n, m) (the recursive posterior variance, without
-        the uncertainty of rho) when ``return_var``, like
-        :meth:`~rotoruq.methods.surrogate.GaussianProcess.predict`.
+        Returns ``mean`` (n, m), then ``var`` (n, m) (the recursive posterior variance,
+        without the uncertainty of rho) when ``return_var``, then ``grad`` (n, m, d) (d mean /
+        d x) when ``return_grad``, like
+        :meth:`~rotoruq.methods.surrogate.GaussianProcess.predict`; warns
+        :class:`~rotoruq.methods.surrogate.ExtrapolationWarning` for points farther than
+        ``warn_distance`` box-widths outside the high-fidelity runs' box (None: no check).
         """
         self._check_fitted()
         X = np.atleast_2d(np.asarray(X, dtype=float))
         if X.shape[1] != self._d:
             raise ModelShapeError(f"CoKriging trained on {self._d} inputs, got points of "
                                   f"shape {X.shape}")
-        mean, var = self._predict_levels(self._levels, self._rho, X, return_var)
-        return (mean, var) if return_var else mean
+        if warn_distance is not None:
+            dist = self.extrapolation_distance(X)
+            if dist.size and dist.max() > warn_distance:
+                warnings.warn(f"CoKriging asked to extrapolate: {int((dist > warn_distance).sum())}"
+                              f" point(s) outside the high-fidelity runs' box, the farthest at "
+                              f"{dist.max():.3g} box-widths", ExtrapolationWarning, stacklevel=2)
+        mean, var, grad = self._predict_levels(self._levels, self._rho, X, return_var,
+                                               return_grad)
+        out = [mean] + ([var] if return_var else []) + ([grad] if return_grad else [])
+        return out[0] if len(out) == 1 else tuple(out)
+
+    # the emulator interface of calibrate_bayes: compiled per-level GPs, no checks
+    def _mean_fast(self, X: np.ndarray) -> np.ndarray:
+        """Mean, X (k, d) -> (k, m), through each level's compiled GP means."""
+        mean = None
+        for t, gps in enumerate(self._levels):
+            mu = np.hstack([gp._mean_fast(X) for gp in gps])
+            mean = mu if t == 0 else cast(np.ndarray, self._rho)[t - 1] * mean + mu
+        return cast(np.ndarray, mean)
+
+    def _mean_var_fast(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Mean and recursive variance, X (k, d) -> (k, m), (k, m), compiled per level."""
+        mean = var = None
+        rho = cast(np.ndarray, self._rho)
+        for t, gps in enumerate(self._levels):
+            mv = [gp._mean_var_fast(X) for gp in gps]
+            mu, v = np.hstack([a for a, _ in mv]), np.hstack([b for _, b in mv])
+            if t == 0:
+                mean, var = mu, v
+            else:
+                mean, var = rho[t - 1] * mean + mu, rho[t - 1] ** 2 * var + v
+        return cast(np.ndarray, mean), cast(np.ndarray, var)
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """Box of the high-fidelity runs (the level known least widely), shape (d, 2)."""
+        self._check_fitted()
+        return self._levels[-1][0].bounds
+
+    def extrapolation_distance(self, X) -> np.ndarray:
+        """Euclidean distance (n,) of points outside :attr:`bounds`, in box-widths."""
+        self._check_fitted()
+        return self._levels[-1][0].extrapolation_distance(X)
+
+    def loo(self) -> LeaveOneOut:
+        """Leave-one-out errors at the high-fidelity runs, the levels below held fixed: the
+        top level's discrepancy GP's closed-form LOO (Dubrule 1983). With nested designs
+        the levels below interpolate their runs at these points, so this is the error of
+        predicting a high-fidelity run from the others and all cheaper runs."""
+        self._check_fitted()
+        y = self._data[-1][1]
+        errs = np.column_stack([gp.loo().errors[:, 0] for gp in self._levels[-1]])
+        rmse = np.sqrt((errs**2).mean(0))
+        ystd = y.std(0)
+        q2 = 1.0 - (errs**2).sum(0) / ((y - y.mean(0)) ** 2).sum(0).clip(1e-300)
+        return LeaveOneOut(errors=errs, rmse=rmse, nrmse=rmse / np.where(ystd > 0, ystd, 1.0),
+                           q2=q2)
 
     def as_model(self, names_in: Sequence[str], names_out: Sequence[str] | None = None
                  ) -> CoKrigingModel:
@@ -214,6 +326,36 @@ class CoKriging:
         if not self._levels:
             return f"CoKriging({self.gp_options}, unfitted)"
         return f"CoKriging({len(self._levels)} levels, rho={np.round(self.rho, 4).tolist()})"
+
+
+def _as_models(low_fidelity: Any) -> tuple[Any, ...]:
+    if low_fidelity is None:
+        return ()
+    models = (low_fidelity,) if hasattr(low_fidelity, "names_in") else tuple(low_fidelity)
+    for i, mdl in enumerate(models):
+        if not (hasattr(mdl, "names_in") and hasattr(mdl, "names_out") and callable(mdl)):
+            raise ParameterError(f"low_fidelity[{i}] is not a Model (names_in, names_out, "
+                                 f"batched __call__): {mdl!r}")
+    if not models:
+        raise ParameterError("low_fidelity is an empty sequence: give one or more Models")
+    return models
+
+
+def _as_n_low(n_low: int | Sequence[int] | None, n_models: int) -> tuple[int, ...] | None:
+    if n_low is None:
+        return None
+    if not n_models:
+        raise ParameterError("n_low is the design size of the low-fidelity models: give "
+                             "low_fidelity= too")
+    sizes = (int(n_low),) * n_models if isinstance(n_low, (int, np.integer)) else tuple(
+        int(n) for n in n_low)
+    if len(sizes) != n_models:
+        raise ParameterError(f"n_low has {len(sizes)} sizes for {n_models} low-fidelity "
+                             "models: give one per model (cheapest first) or one int")
+    if min(sizes) < 3 or any(a < b for a, b in zip(sizes[:-1], sizes[1:], strict=True)):
+        raise ParameterError(f"n_low={list(sizes)}: each at least 3, and non-increasing from "
+                             "the cheapest model (nested designs)")
+    return sizes
 
 
 class CoKrigingModel:

@@ -5,7 +5,9 @@
 chain start, an initial proposal covariance from the Gauss-Newton Hessian of the misfit plus the
 prior (eqs. 2.25-2.27) and the MH / DR / AM / DRAM samplers of :mod:`.samplers`. With
 ``emulator=GaussianProcess(...)`` the model is replaced by a Kriging surrogate fitted on an LHS
-design drawn from the prior (the reference study's workflow: 500 rotor runs, 100,000 samples).
+design drawn from the prior (the reference study's workflow: 500 rotor runs, 100,000 samples);
+with ``emulator=CoKriging(low_fidelity=..., n_low=...)`` by a multi-fidelity one that learns the
+model from its runs and many runs of cheaper models (:mod:`rotoruq.methods.cokriging`).
 """
 
 from __future__ import annotations
@@ -37,9 +39,10 @@ from ...model import (
     model_gradient,
 )
 from ...params import ParameterSpace
+from ..cokriging import CoKriging
 from ..surrogate import ExtrapolationWarning, GaussianProcess, LeaveOneOut
 from . import diagnostics as dg
-from ._emulator import fit_on_prior
+from ._emulator import Emulator, fit_on_prior
 from ._kernels import (
     add_loglik_rows,
     add_loglik_var_rows,
@@ -101,13 +104,14 @@ def _stage_seeds(seed: SeedLike) -> dict[str, np.random.SeedSequence]:
 class _Posterior:
     """Batched log posterior in scaled coordinates, counting what it evaluates.
 
-    With an emulator and a prior of uniform / normal marginals the whole log posterior is
-    compiled (:func:`._kernels.emulator_logpost`): ``compiled`` then holds its arrays and
-    counters for :func:`run_chains`, and this object evaluates through the same kernel.
+    With a GaussianProcess emulator and a prior of uniform / normal marginals the whole log
+    posterior is compiled (:func:`._kernels.emulator_logpost`): ``compiled`` then holds its
+    arrays and counters for :func:`run_chains`, and this object evaluates through the same
+    kernel. A CoKriging takes the Python route with its levels' compiled GPs.
     """
 
     def __init__(self, forward, loglik: GaussianLikelihood, logprior: LogPrior,
-                 center: np.ndarray, scale: np.ndarray, gp: GaussianProcess | None,
+                 center: np.ndarray, scale: np.ndarray, gp: Emulator | None,
                  emulator_variance: bool = False, noise: _Problem | None = None):
         self.forward, self.loglik, self.logprior = forward, loglik, logprior
         self.center = np.ascontiguousarray(center, dtype=float)
@@ -118,7 +122,7 @@ class _Posterior:
         self.cnt = np.zeros(5)
         self.compiled = None
         self.noise = noise  # noise multipliers: the Python route below
-        if gp is not None and logprior.compiled and noise is None:
+        if isinstance(gp, GaussianProcess) and logprior.compiled and noise is None:
             cg = gp.compiled(variance=self.emulator_variance)
             self.compiled = ((self.center, self.scale, logprior.pack, cg.mean_pack, loglik.pack,
                               cg.var_pack, self.emulator_variance), self.cnt)
@@ -220,7 +224,11 @@ class BayesResult:
     n_out_of_support : proposals rejected outside the prior support (not evaluated).
     sampling_seconds, sampling_cpu_seconds : wall and CPU time of the chains (the CPU time is
         what the chains cost on a machine shared with other jobs).
-    emulator, emulator_loo : the fitted GP and its leave-one-out quality (None without one).
+    emulator, emulator_loo : the fitted GP or CoKriging and its leave-one-out quality (None
+        without one; a CoKriging's at its high-fidelity runs, :meth:`CoKriging.loo`).
+    n_low_fidelity_evaluations : with a CoKriging emulator, runs of each low-fidelity model
+        (cheapest first; build and refinement); ``n_evaluations`` counts the calibrated
+        (high-fidelity) model's runs only.
     emulator_adequacy : the emulator's error against the noise over the build design and the
         posterior, and the runs added by refinement (:class:`EmulatorAdequacy`).
     noise_multiplier_names, noise_multiplier_chains : with ``noise_multipliers``, the
@@ -267,7 +275,7 @@ class BayesResult:
     n_nan_likelihood: int
     n_out_of_support: int
     sampling_seconds: float
-    emulator: GaussianProcess | None = None
+    emulator: Emulator | None = None
     sampling_cpu_seconds: float = 0.0
     emulator_loo: LeaveOneOut | None = None
     predictive_inputs: np.ndarray | None = None
@@ -279,6 +287,7 @@ class BayesResult:
     diagnostics: dg.ChainDiagnostics | None = None
     self_check: SBCResult | None = None
     evaluations: str = "speculative"
+    n_low_fidelity_evaluations: tuple[int, ...] = ()
     _state: tuple | None = field(default=None, repr=False, compare=False)
 
     @property
@@ -566,30 +575,100 @@ def _setup(model, data, prior, names_out, noise_std, noise_covariance, noise_mul
 
 def _build_emulator(emulator, prior: ParameterSpace, truth: _TrueModel, pb: _Problem,
                     n_emulator_samples: int, seeds: dict[str, np.random.SeedSequence]):
-    """Stage 2: fit (or check) the GP emulator of the observed responses on an LHS design of
-    the prior; returns (gp, leave-one-out, best build point or None).
+    """Stage 2: fit (or check) the emulator of the observed responses on an LHS design of
+    the prior; returns (emulator, leave-one-out, best build point or None, low-fidelity
+    models: (_TrueModel, response columns) per CoKriging level below the truth).
 
     An unfitted emulator is copied before fitting (the caller's object stays unfitted, so a
     second call with it fits afresh); a copy without a seed gets the call's
     ``emulator_fit`` seed, so its restarts are reproducible too."""
-    if not isinstance(emulator, GaussianProcess):
-        raise ParameterError("emulator must be a rotoruq GaussianProcess")
+    if not isinstance(emulator, (GaussianProcess, CoKriging)):
+        raise ParameterError("emulator must be a rotoruq GaussianProcess or CoKriging, got "
+                             f"{type(emulator).__name__}")
     gp, best_build, d, m = emulator, None, prior.dim, len(pb.names_out)
-    if gp._fits:
+    lf = _low_fidelity(emulator, prior, truth, pb) if isinstance(emulator, CoKriging) else []
+    if _is_fitted(gp):
         if gp.n_inputs != d or gp.n_outputs != m:
             raise ModelShapeError(f"fitted emulator has {gp.n_inputs} inputs and "
                                   f"{gp.n_outputs} outputs; need {d} and {m}")
     else:
+        if isinstance(emulator, CoKriging):
+            emulator.design_sizes(int(n_emulator_samples))  # bad sizes fail before any run
         build = fit_on_prior(emulator, prior, lambda x: truth(x)[:, pb.resp_idx],
                              n_emulator_samples, design_seed=seeds["design"],
-                             fit_seed=seeds["emulator_fit"])
+                             fit_seed=seeds["emulator_fit"],
+                             low_fidelity=[_columns(t, i) for t, i in lf])
         gp = build.gp
         lp_build = LogPrior(prior)(build.inputs) + pb.lik(build.outputs)
         best_build = build.inputs[int(np.argmax(lp_build))]
     loo = gp.loo()
     log.info("emulator LOO: RMSE %s, Q2 %s", np.array2string(loo.rmse, precision=4),
              np.array2string(loo.q2, precision=4))
-    return gp, loo, best_build
+    return gp, loo, best_build, lf
+
+
+def _columns(model: _TrueModel, idx: np.ndarray):
+    """The observed responses ``idx`` of a model on prior-ordered points, (k, d) -> (k, m)."""
+    return lambda x: model(x)[:, idx]
+
+
+def _is_fitted(emulator: Emulator) -> bool:
+    if isinstance(emulator, GaussianProcess):
+        return bool(emulator._fits)
+    return bool(emulator._levels)
+
+
+def _low_fidelity(ck: CoKriging, prior: ParameterSpace, truth: _TrueModel, pb: _Problem
+                  ) -> list[tuple[_TrueModel, np.ndarray]]:
+    """The low-fidelity models of a CoKriging emulator on the calibrated parameters, each
+    with the columns of the observed responses; an error names what differs from the model.
+    """
+    if not ck.low_fidelity and not _is_fitted(ck):
+        raise ParameterError("a CoKriging emulator needs its low-fidelity model(s): "
+                             "CoKriging(low_fidelity=model_lf, n_low=...), or fit it first on "
+                             "your own runs")
+    hf_in = tuple(truth.model.names_in)
+    out = []
+    for t, mdl in enumerate(ck.low_fidelity):
+        lf_in, lf_out = tuple(mdl.names_in), tuple(mdl.names_out)
+        if set(lf_in) != set(hf_in):
+            raise ParameterError(f"low-fidelity model {t} ({mdl!r}) has inputs {list(lf_in)}; "
+                                 f"the calibrated model has {list(hf_in)}: co-kriging needs "
+                                 "the same inputs")
+        missing = [r for r in pb.names_out if r not in lf_out]
+        if missing:
+            raise ParameterError(f"low-fidelity model {t} ({mdl!r}) has no responses "
+                                 f"{missing} (it has {list(lf_out)}); co-kriging needs every "
+                                 f"calibrated response {list(pb.names_out)}")
+        out.append((_TrueModel(mdl, prior),
+                    np.array([lf_out.index(r) for r in pb.names_out])))
+    return out
+
+
+def _refit(gp: Emulator, truth: _TrueModel, lf, pb: _Problem, new_x: np.ndarray,
+           seed: np.random.SeedSequence) -> Emulator:
+    """A copy of the emulator refitted with model runs at ``new_x`` added (failed runs left
+    out); a CoKriging also gets runs of every low-fidelity model there (nested designs)."""
+    runs = [truth(new_x)[:, pb.resp_idx]]
+    if isinstance(gp, CoKriging):
+        runs = [t(new_x)[:, i] for t, i in lf] + runs
+        data = gp.training_data
+    else:
+        data = [(gp._X, gp._Y)]
+    X, Y = [], []
+    for (x0, y0), y in zip(data, runs, strict=True):
+        ok = np.all(np.isfinite(y), 1)
+        X.append(np.vstack([x0, new_x[ok]]))
+        Y.append(np.vstack([y0, y[ok]]))
+    gp = copy.copy(gp)
+    gp.seed = seed
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # jitter notes of near points
+        if isinstance(gp, CoKriging):
+            gp.fit(X, Y)
+        else:
+            gp.fit(X[0], Y[0])
+    return gp
 
 
 def _start_point(post: _Posterior, prior: ParameterSpace, pb: _Problem, x0, map_start: bool,
@@ -771,7 +850,7 @@ def calibrate_bayes(
     burn_in: int | None = None,
     thin: int = 1,
     n_chains: int = 1,
-    emulator: GaussianProcess | None = None,
+    emulator: GaussianProcess | CoKriging | None = None,
     n_emulator_samples: int = 500,
     emulator_variance: bool = True,
     refine: RefineConfig | None = None,
@@ -814,7 +893,16 @@ def calibrate_bayes(
     emulator : an unfitted GaussianProcess (fitted here on ``n_emulator_samples`` LHS points
         from the prior, evaluated through :func:`rotoruq.model.evaluate`) or a fitted one
         (inputs in ``prior.names`` order, outputs the calibrated responses). None: the chains
-        call the model itself.
+        call the model itself. Or a :class:`~rotoruq.methods.cokriging.CoKriging`: unfitted
+        with ``low_fidelity=`` (cheaper Models with the model's inputs and the calibrated
+        responses, cheapest first) and ``n_low=``, it is fitted on a nested design: the
+        ``n_emulator_samples`` LHS points of a GaussianProcess with the same seed (runs of
+        ``model``) and, for each cheaper model, those points plus LHS points of the prior up
+        to its ``n_low`` (its runs, through :func:`rotoruq.model.evaluate`, failed ones left
+        out; counted in ``BayesResult.n_low_fidelity_evaluations``). Its recursive
+        predictive mean and variance enter the likelihood as a GP's do; ``refine`` adds runs
+        of every model at the picked points. Fitted (inputs in prior order, outputs the
+        calibrated responses), it is used as given.
     emulator_variance : with an emulator, add its Kriging variance at theta to the noise
         variance of each response (Higdon et al. 2004): the emulator's error, one per response
         and shared by all experiments, is integrated out, so the log-determinant depends on
@@ -875,14 +963,17 @@ def calibrate_bayes(
     truth = _TrueModel(model, prior)
     d = prior.dim
 
-    gp, loo, best_build = None, None, None
-    if emulator is not None:
-        gp, loo, best_build = _build_emulator(emulator, prior, truth, pb, n_emulator_samples,
-                                              seeds)
-    elif refine is not None:
-        raise ParameterError("refine= refines an emulator: pass emulator=GaussianProcess(...)")
+    gp, loo, best_build, lf = None, None, None, []
     if refine is not None and not isinstance(refine, RefineConfig):
         raise ParameterError(f"refine must be a RefineConfig or None, got {refine!r}")
+    if emulator is not None:
+        if refine is not None and isinstance(emulator, CoKriging) and not emulator.low_fidelity:
+            raise ParameterError("refine= with a CoKriging emulator adds runs of every "
+                                 "fidelity: give its models, CoKriging(low_fidelity=...)")
+        gp, loo, best_build, lf = _build_emulator(emulator, prior, truth, pb,
+                                                  n_emulator_samples, seeds)
+    elif refine is not None:
+        raise ParameterError("refine= refines an emulator: pass emulator=GaussianProcess(...)")
 
     round_seeds = {k: seeds[k] for k in ("start", "chain_starts", "chains")}
     runs_added: list[int] = []
@@ -914,15 +1005,8 @@ def calibrate_bayes(
         k = len(runs_added) + 1
         rs = _child(seeds["refine"], k)
         new_x = pick_runs(draws, var, noise_sd, min(refine.batch, budget))
-        new_y = truth(new_x)[:, pb.resp_idx]
-        ok = np.all(np.isfinite(new_y), 1)
         runs_added.append(len(new_x))
-        X, Y = np.vstack([gp._X, new_x[ok]]), np.vstack([gp._Y, new_y[ok]])
-        gp = copy.copy(gp)
-        gp.seed = _child(rs, 0)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)  # jitter notes of near points
-            gp.fit(X, Y)
+        gp = _refit(gp, truth, lf, pb, new_x, _child(rs, 0))
         loo = gp.loo()
         best_build = None
         round_seeds = {key: _child(rs, i + 1) for i, key in enumerate(round_seeds)}
@@ -960,6 +1044,7 @@ def calibrate_bayes(
         sampling_cpu_seconds=cpu_sampling, emulator=gp, emulator_loo=loo,
         predictive_inputs=pred_in, predictive=pred, names_out=truth.names_out,
         emulator_adequacy=adequacy, _state=(post, state, cfg),
+        n_low_fidelity_evaluations=tuple(t.n_evaluations for t, _ in lf),
     )
     res = _summarize(space.names, kept.transpose(1, 0, 2), kept_lp.T, post, state, base,
                      seeds["summary"])
@@ -995,7 +1080,9 @@ def _self_check(model, prior: ParameterSpace, pb: _Problem, gp, cfg: SamplerConf
         std = std[0]
     return simulation_based_calibration(
         model, prior, noise_std=std, n_replications=n_replications,
-        n_experiments=pb.lik.data.shape[0], emulator=gp, names_out=pb.names_out, seed=seed,
+        n_experiments=pb.lik.data.shape[0],
+        emulator=gp,  # type: ignore[arg-type]  # sbc uses a fitted emulator as given
+        names_out=pb.names_out, seed=seed,
         sampler=cfg, emulator_variance=emulator_variance)
 
 
@@ -1025,7 +1112,7 @@ def continue_chain(result: BayesResult, n_samples: int, *, seed: SeedLike = None
     base = {k: getattr(result, k) for k in (
         "map_point", "proposal_covariance", "sampler", "burn_in", "thin", "emulator",
         "emulator_loo", "predictive_inputs", "predictive", "names_out", "emulator_adequacy",
-        "evaluations")}
+        "evaluations", "n_low_fidelity_evaluations")}
     base.update(
         n_likelihood_evaluations=result.n_likelihood_evaluations + post.n_evals - ev0,
         n_evaluations=result.n_evaluations + (post.n_evals - ev0 if post.gp is None else 0),

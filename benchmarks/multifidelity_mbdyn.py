@@ -4,8 +4,10 @@ model, the built-in rotor and MBDyn's rigid-blade rotor as the low-fidelity ones
 Inputs (``--case narrow``, the study's): collective U(4.5, 6.5) deg and the lift slope
 ``cla_m03`` N(0.108, 5.4e-3) 1/deg, hover at 4R, the GVPM rotor speed. ``--case wide`` adds the
 pitch-link stiffness U(8, 14) (the feathering system the models treat differently) and the air
-density U(1.15, 1.25) kg/m^3, and widens the collective to U(3, 8) deg. Responses: thrust and
-power.
+density U(1.15, 1.25) kg/m^3, and widens the collective to U(3, 8) deg; ``--case cyclic`` is
+the narrow box with 1 deg of each cyclic and the hub moments added to the responses. MBDyn's
+rigid rotor takes part in the narrow case only (its template has no pitch link nor
+swashplate). Responses: thrust and power (and roll, pitch).
 
 ``--adapt linear`` (default) adapts the cheap models to the elastic one on the pilot
 (``rq.multifidelity_sample(adapt="linear")``); the same runs (MBDyn's served from memory, the
@@ -36,6 +38,10 @@ GaussianProcess on the same high-fidelity runs; the last 8 are the holdout.
 
 Needs MBDyn ($MBDYN, PATH, or ~/.cache/mbdyn/bin/mbdyn). Run (about 5 minutes on 2 cores):
 python benchmarks/multifidelity_mbdyn.py > benchmarks/results/multifidelity_mbdyn.json
+python benchmarks/multifidelity_mbdyn.py --case wide --pilot 24 \
+    > benchmarks/results/multifidelity_mbdyn_wide.json
+python benchmarks/multifidelity_mbdyn.py --case cyclic \
+    > benchmarks/results/multifidelity_mbdyn_cyclic.json
 """
 
 from __future__ import annotations

@@ -114,6 +114,14 @@ def _multifidelity(seed):
                                    50.0, n_pilot=20, costs=[1.0, 0.05, 0.01], seed=seed)
 
 
+def _multifidelity_sobol(seed):
+    models = [rq.FunctionModel(lambda x, p=p: x[:, 0] ** p + 0.5 * x[:, 1], ["a", "b"], ["y"])
+              for p in (3, 2)]
+    space = rq.ParameterSpace({"a": rq.Uniform(0.0, 1.0), "b": rq.Uniform(0.0, 1.0)})
+    return rq.multifidelity_sobol(models, space, 200.0, n_pilot=20, costs=[1.0, 0.05],
+                                  seed=seed)
+
+
 def _cokriging(seed):
     x_lo = np.linspace(0.0, 1.0, 11)[:, None]
     x_hi = x_lo[::3]
@@ -141,6 +149,10 @@ CASES: dict[str, tuple[str, Callable[[int], object]]] = {
     "GaussianProcess": ("GaussianProcess", _gp),
     "CoKriging": ("CoKriging", _cokriging),
     "multifidelity_sample": ("multifidelity_sample", _multifidelity),
+    "multifidelity_sample_adapted": ("multifidelity_sample", lambda s: rq.multifidelity_sample(
+        _ladder(), rq.ParameterSpace({"x": rq.Uniform(0.0, 1.0)}), 50.0, n_pilot=20,
+        costs=[1.0, 0.05, 0.01], adapt="linear", seed=s)),
+    "multifidelity_sobol": ("multifidelity_sobol", _multifidelity_sobol),
     "simulation_based_calibration": ("simulation_based_calibration", _sbc),
     "calibrate_with_discrepancy": ("calibrate_with_discrepancy", _discrepancy),
     "predict_with_discrepancy": ("predict_with_discrepancy", lambda s: rq.predict_with_discrepancy(

@@ -257,13 +257,26 @@ def summary(out: dict) -> str:
         f"on the inputs alone (leave-one-out linear regression on the pilot's elastic runs, no "
         f"cheap model) would save {each(lin, 'fewer_hf_runs_mean')} for the mean")
     beaten = [q for q in names if lin[q]["fewer_hf_runs_mean"] > r[q]["fewer_hf_runs_mean"]]
-    if beaten:
-        r2 = fmt(f"{lin[q]['r2_loo']:.4f}" for q in beaten)
-        text += (f": for {', '.join(beaten)} the elastic rotor is so nearly linear in these "
-                 f"inputs (leave-one-out R^2 {r2}) that a regression on them beats the "
-                 "multi-fidelity estimator.")
-    else:
-        text += ": the cheap model brings more than the inputs' linear trend."
+    linear = [q for q in beaten if lin[q]["r2_loo"] >= 0.95]
+    clauses = []
+    if linear:
+        r2 = fmt(f"{lin[q]['r2_loo']:.4f}" for q in linear)
+        clauses.append(f"for {', '.join(linear)} the elastic rotor is so nearly linear in "
+                       f"these inputs (leave-one-out R^2 {r2}) that a regression on them beats "
+                       "the multi-fidelity estimator")
+    rest = [q for q in beaten if q not in linear]
+    if rest:
+        r2 = fmt(f"{lin[q]['r2_loo']:.2f}" for q in rest)
+        rho_a = fmt(f"{r[q]['correlation_with_elastic']['builtin']:.2f}" for q in rest)
+        clauses.append(f"for {', '.join(rest)} neither pays much: the response is not linear "
+                       f"in the inputs (R^2 {r2}) and the adapted built-in rotor correlates at "
+                       f"{rho_a} only")
+    worse = [q for q in names if r[q]["fewer_hf_runs_mean"] < 1]
+    if worse:
+        clauses.append(f"for {', '.join(worse)} the multi-fidelity mean costs more than plain "
+                       f"Monte Carlo: the allocation served the target ({names[0]})")
+    text += (": " + "; ".join(clauses) + "." if clauses
+             else ": the cheap model brings more than the inputs' linear trend.")
     return text
 
 

@@ -15,8 +15,8 @@ from ..render.tables import StepTable, levels_tables
 from ..results import RecordError, StepRecord, StepResult
 from .base import StepContext
 
-__all__ = ["column_moments", "stats_scalars", "input_arrays", "input_scalars", "noise",
-           "per_response", "saved_record", "MOMENT_KEYS", "LevelsRecord", "levels_arrays"]
+__all__ = ["named_model", "column_moments", "stats_scalars", "input_arrays", "input_scalars",
+           "noise", "per_response", "saved_record", "MOMENT_KEYS", "LevelsRecord", "levels_arrays"]
 
 R = TypeVar("R", bound=StepRecord)
 
@@ -109,6 +109,23 @@ def noise(ctx: StepContext, noise_std, shape) -> np.ndarray:
     else:
         sd = np.full(shape[1], float(noise_std))
     return ctx.rng.normal(size=shape) * sd
+
+
+def named_model(ctx: StepContext, name: str):
+    """The study's ``[models.NAME]`` model ``name`` on the step's inputs, responses and fixed
+    inputs (``ctx.make_model(..., model=NAME)``); a clear error when the runner's factory
+    builds only ``[model]``."""
+    import inspect
+
+    from ..errors import ParameterError
+
+    params = inspect.signature(ctx.make_model).parameters
+    if "model" not in params and not any(p.kind is p.VAR_KEYWORD for p in params.values()):
+        raise ParameterError(
+            f"step {ctx.name!r}: the model {name!r} needs a model factory that builds named "
+            "models (make_model(inputs, responses, fixed, model=NAME)); this study runner "
+            "builds only [model]")
+    return ctx.make_model(ctx.space.names, ctx.responses, dict(ctx.fixed), model=name)
 
 
 def per_response(value, responses):

@@ -36,7 +36,7 @@ from ..render.figures import (
 )
 from ..render.tables import StepTable, label, make_table, parameters, prefixed, value
 from ..results import StepRecord, StepResult, dict_to_dist, dist_to_dict
-from ._common import input_scalars, per_response
+from ._common import input_scalars, named_model, per_response
 from ._discrepancy import (
     check_discrepancy,
     discrepancy_option,
@@ -233,11 +233,17 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
         from ._discrepancy import run_discrepancy
         return run_discrepancy(ctx)
     o = ctx.options
-    emulator = None
+    emulator: Any = None
     if o["emulator"] == "gp":
         from ..methods.surrogate import GaussianProcess
 
         emulator = GaussianProcess(trend=o["trend"])
+    elif o["emulator"] == "cokriging":
+        from ..methods.cokriging import CoKriging
+
+        emulator = CoKriging({"trend": o["trend"]},
+                             low_fidelity=[named_model(ctx, n) for n in o["models"]],
+                             n_low=o["n_low"])
     sd = per_response(o.get("noise_std"), ctx.responses)
     multipliers = o.get("noise_multipliers")
     mult_prior = tuple(o.get("noise_multiplier_prior") or (1.0, 1.0))
@@ -286,6 +292,16 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
             scalars[f"posterior_ratio/{r}"] = float(post_ratio[k])
             scalars[f"loo_ratio/{r}"] = float(loo_ratio[k])
         scalars["runs_added"] = float(ad.n_added)
+    if o["emulator"] == "cokriging":
+        from ..methods.cokriging import CoKriging
+
+        assert isinstance(res.emulator, CoKriging)
+        rho = np.asarray(res.emulator.rho, dtype=float)  # (levels - 1, m)
+        for k, n in enumerate(o["models"]):
+            scalars[f"low_fidelity_runs/{n}"] = float(res.n_low_fidelity_evaluations[k])
+            above = o["models"][k + 1] if k + 1 < len(o["models"]) else "model"
+            for j, r in enumerate(res.names_out):
+                scalars[f"cokriging_rho/{above}/{r}"] = float(rho[k, j])
     sbc = res.self_check
     if sbc is not None:
         for j, p in enumerate(names):
@@ -384,6 +400,11 @@ def bayes_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
             rows_noise.append([f"emulator leave-one-out Q2 of {r}", value(res, f"loo_q2/{r}")])
     if "runs_added" in res.scalars:
         rows_noise.append(["model runs added by refinement", value(res, "runs_added")])
+    for key, v in prefixed(res, "low_fidelity_runs/").items():
+        rows_noise.append([f"co-kriging: runs of the low-fidelity model {key}", v])
+    for key, v in prefixed(res, "cokriging_rho/").items():
+        level, r = key.split("/", 1)
+        rows_noise.append([f"co-kriging: scale rho of {level} on the level below, {r}", v])
     out.append(make_table("Noise model and emulator adequacy", ("quantity", "value"),
                           rows_noise,
                           f"Noise model: {res.meta.get('noise_model', 'not recorded')}. The "
@@ -571,6 +592,20 @@ def _check_bayes(c: StepCheck) -> None:
                    "cannot simulate data with a calibrated noise)")
     if o["refine"] is not None and o["emulator"] == "none":
         c.fail(("refine",), 'emulator = "gp" with refine (it refines the emulator)')
+    if o["emulator"] == "cokriging":
+        if not o.get("models"):
+            c.fail(("emulator",), 'models = ["NAME", ...] with emulator = "cokriging" (the '
+                   "low-fidelity [models.NAME] the co-kriging emulator learns from, cheapest "
+                   "first)", "no models")
+        n_low, n_hf = o.get("n_low"), o["n_emulator_samples"]
+        if n_low is not None and n_low < n_hf:
+            c.fail(("n_low",), f"at least n_emulator_samples ({n_hf}): the low-fidelity "
+                   "design contains the high-fidelity one", str(n_low))
+    else:
+        for key, why in (("models", "low-fidelity models"), ("n_low", "a low-fidelity design")):
+            if o.get(key) is not None:
+                c.fail((key,), f'emulator = "cokriging" with {key} ({why} are for '
+                       "co-kriging)", f'emulator = "{o["emulator"]}"')
 
 
 def _check(c: StepCheck) -> None:
@@ -596,7 +631,9 @@ STEP = StepType(
              "n_samples": Option(integer(10), SIGNATURE),
              "burn_in": Option(integer(0), SIGNATURE),
              "n_chains": Option(integer(1), 4),
-             "emulator": Option(choice("gp", "none"), "gp"),
+             "emulator": Option(choice("gp", "cokriging", "none"), "gp"),
+             "models": Option(string_list, None),
+             "n_low": Option(integer(3), None),
              "trend": Option(choice("constant", "linear", "reduced_quadratic", "quadratic"),
                              SIGNATURE, method="rotoruq.methods.surrogate:GaussianProcess"),
              "n_emulator_samples": Option(integer(2), SIGNATURE),

@@ -14,7 +14,6 @@ plain Monte Carlo would need for the same standard errors.
 
 from __future__ import annotations
 
-import inspect
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -23,7 +22,7 @@ import numpy as np
 from ..errors import ParameterError
 from ..render.tables import StepTable, cell, label, make_table
 from ..results import StepRecord, StepResult
-from ._common import saved_record
+from ._common import named_model, saved_record
 from .base import StepCheck, StepContext, StepType
 from .options import (
     REQUIRED,
@@ -121,22 +120,12 @@ class MultifidelityRecord(StepRecord):
             else float("nan")
 
 
-def _low_fidelity(ctx: StepContext, name: str):
-    params = inspect.signature(ctx.make_model).parameters
-    if "model" not in params and not any(p.kind is p.VAR_KEYWORD for p in params.values()):
-        raise ParameterError(
-            f"step {ctx.name!r}: the low-fidelity model {name!r} needs a model factory that "
-            "builds named models (make_model(inputs, responses, fixed, model=NAME)); this "
-            "study runner builds only [model]")
-    return ctx.make_model(ctx.space.names, ctx.responses, dict(ctx.fixed), model=name)
-
-
 def run_multifidelity(ctx: StepContext) -> StepResult:
     from ..methods.multifidelity import multifidelity_sample
 
     o = ctx.options
     names = (HF_LABEL, *o["models"])
-    models = [ctx.model()] + [_low_fidelity(ctx, n) for n in o["models"]]
+    models = [ctx.model()] + [named_model(ctx, n) for n in o["models"]]
     costs = o.get("costs")
     if costs is not None and len(costs) != len(models):
         raise ParameterError(f"step {ctx.name!r}: costs has {len(costs)} values; it needs one "

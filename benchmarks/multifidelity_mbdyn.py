@@ -330,35 +330,26 @@ def main() -> dict:
         spent_hf_runs = (res.cost_pilot + res.cost_main) / w_hf
         out = {}
         for j, r in enumerate(responses):
+            n_eq = {s: float(res.n_equivalent_hf[s][j]) for s in ("mean", "variance")}
             out[r] = {
                 "mean": float(res.mean[j]), "mean_se": float(res.mean_se[j]),
                 "std": float(res.std[j]),
+                "std_se": (float(res.variance_se[j] / (2 * res.std[j])) if res.std[j] > 0
+                           else None),
                 "correlation_with_elastic": dict(zip(models, map(float, res.correlation[j]),
                                                      strict=True)),
-                "fewer_hf_runs_mean": float(res.n_equivalent_hf["mean"][j] / spent_hf_runs),
-                "fewer_hf_runs_variance": float(res.n_equivalent_hf["variance"][j]
-                                                / spent_hf_runs)}
+                "correlation_with_elastic_unadapted": dict(zip(
+                    models, map(float, res.correlation_unadapted[j]), strict=True)),
+                "plain_mc_hf_runs_for_mean_se": n_eq["mean"],
+                "plain_mc_hf_runs_for_variance_se": n_eq["variance"],
+                "fewer_hf_runs_mean": n_eq["mean"] / spent_hf_runs,
+                "fewer_hf_runs_variance": n_eq["variance"] / spent_hf_runs}
         return {"adapt": res.adapt, "allocation_main": dict(zip(
             models, map(int, res.allocation), strict=True)),
             "spent_in_hf_runs": spent_hf_runs, "responses": out}
 
-    spent_hf_runs = (res.cost_pilot + res.cost_main) / w_hf
-    per_response = {}
-    for j, r in enumerate(responses):
-        per_response[r] = {
-            "mean": float(res.mean[j]), "mean_se": float(res.mean_se[j]),
-            "std": float(res.std[j]),
-            "std_se": float(res.variance_se[j] / (2 * res.std[j])) if res.std[j] > 0 else None,
-            "correlation_with_elastic": dict(zip(models, map(float, res.correlation[j]),
-                                                 strict=True)),
-            "correlation_with_elastic_unadapted": dict(zip(
-                models, map(float, res.correlation_unadapted[j]), strict=True)),
-            "plain_mc_hf_runs_for_mean_se": float(res.n_equivalent_hf["mean"][j]),
-            "plain_mc_hf_runs_for_variance_se": float(res.n_equivalent_hf["variance"][j]),
-            "fewer_hf_runs_mean": float(res.n_equivalent_hf["mean"][j] / spent_hf_runs),
-            "fewer_hf_runs_variance": float(res.n_equivalent_hf["variance"][j]
-                                            / spent_hf_runs),
-        }
+    main_est = estimates(res)
+    spent_hf_runs, per_response = main_est["spent_in_hf_runs"], main_est["responses"]
     out = {
         "case": args.case, "inputs": list(space.names), "fixed": extra_fixed,
         "adapt": res.adapt,

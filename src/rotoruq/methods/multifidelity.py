@@ -229,6 +229,31 @@ def _check_models(models: Sequence[Model], space: ParameterSpace) -> tuple[str, 
     return names_out
 
 
+def _check_common(models: Sequence[Model], space: ParameterSpace, estimator: str,
+                  budget_unit: str, target: str | None, n_pilot, costs, pilot_unit: str = ""
+                  ) -> tuple[tuple[str, ...], int, np.ndarray | None]:
+    """The checks :func:`multifidelity_sample` and ``multifidelity_sobol`` share: the
+    responses, the target's index and the given costs (None when measured)."""
+    if estimator not in ESTIMATORS:
+        raise ParameterError(f"unknown estimator {estimator!r}; valid: {', '.join(ESTIMATORS)}")
+    if budget_unit not in BUDGET_UNITS:
+        raise ParameterError(f"budget_unit must be one of {BUDGET_UNITS}, got {budget_unit!r}")
+    names_out = _check_models(models, space)
+    target = names_out[0] if target is None else target
+    if target not in names_out:
+        raise ParameterError(f"target {target!r} is not a response; valid: {list(names_out)}")
+    if isinstance(n_pilot, bool) or not isinstance(n_pilot, int | np.integer) or n_pilot < 4:
+        raise ParameterError(f"n_pilot must be an integer >= 4{pilot_unit}, got {n_pilot!r}")
+    w_given = None
+    if costs is not None:
+        w_given = np.asarray(costs, dtype=float)
+        K = len(models)
+        if w_given.shape != (K,) or not np.all(np.isfinite(w_given)) or np.any(w_given <= 0):
+            raise ParameterError(f"costs must be {K} positive numbers (one per model), "
+                                 f"got {costs!r}")
+    return names_out, names_out.index(target), w_given
+
+
 def _timed(model: Model, space: ParameterSpace, x: np.ndarray
            ) -> tuple[np.ndarray, dict, float]:
     """Values, failures and the model's seconds for the batch ``x``.
@@ -347,36 +372,23 @@ def multifidelity_sample(
     >>> res.allocation.tolist(), bool(abs(res.mean[0] - 1 / 6) < 4 * res.mean_se[0])
     ([51, 4888], True)
     """
-    if estimator not in ESTIMATORS:
-        raise ParameterError(f"unknown estimator {estimator!r}; valid: {', '.join(ESTIMATORS)}")
     stats_asked = tuple(statistics)
     bad = [s for s in stats_asked if s not in STATISTICS]
     if bad or not stats_asked:
         raise ParameterError(f"statistics must be a non-empty subset of {STATISTICS}, "
                              f"got {list(statistics)}")
-    names_out = _check_models(models, space)
+    names_out, jt, w_given = _check_common(models, space, estimator, budget_unit, target,
+                                           n_pilot, costs)
+    target = names_out[jt]
     K, m = len(models), len(names_out)
-    target = names_out[0] if target is None else target
-    if target not in names_out:
-        raise ParameterError(f"target {target!r} is not a response; valid: {list(names_out)}")
-    jt = names_out.index(target)
-    if isinstance(n_pilot, bool) or not isinstance(n_pilot, int | np.integer) or n_pilot < 4:
-        raise ParameterError(f"n_pilot must be an integer >= 4, got {n_pilot!r}")
     if adapt not in ADAPTATIONS:
         raise ParameterError(f"adapt must be one of {ADAPTATIONS}, got {adapt!r}")
     if adapt == "linear" and n_pilot < space.dim + 5:
         raise ParameterError(f"adapt='linear' fits {space.dim + 2} coefficients per model on "
                              f"the pilot: n_pilot must be >= {space.dim + 5} (d + 5), got "
                              f"{n_pilot}")
-    if budget_unit not in BUDGET_UNITS:
-        raise ParameterError(f"budget_unit must be one of {BUDGET_UNITS}, got {budget_unit!r}")
     if (budget is None) == (allocation is None):
         raise ParameterError("give either a budget or an allocation (evaluations per model)")
-    if costs is not None:
-        w_given = np.asarray(costs, dtype=float)
-        if w_given.shape != (K,) or not np.all(np.isfinite(w_given)) or np.any(w_given <= 0):
-            raise ParameterError(f"costs must be {K} positive numbers (one per model), "
-                                 f"got {costs!r}")
     ss = as_seed_sequence(seed)
     s_pilot, s_main = ss.spawn(2)
 
@@ -397,7 +409,7 @@ def multifidelity_sample(
         warnings.warn(f"multifidelity pilot: {int((~ok).sum())} of {n_pilot} points failed on "
                       "some model and are left out of the pilot statistics", RuntimeWarning,
                       stacklevel=2)
-    w = w_given if costs is not None else wall_pilot / n_pilot
+    w = w_given if w_given is not None else wall_pilot / n_pilot
     cov, m22 = _sample_moments(Yp[ok])
     correlation_unadapted = _correlation(cov)
     adaptation = None

@@ -66,7 +66,6 @@ from ..errors import EvaluationError, ParameterError
 from ..model import Model
 from ..params import ParameterSpace
 from .acv import (
-    ESTIMATORS,
     Allocation,
     SampleSets,
     allocate,
@@ -74,7 +73,7 @@ from .acv import (
     optimal_weights,
     sample_sets,
 )
-from .multifidelity import BUDGET_UNITS, _check_models, _sample_moments, _timed
+from .multifidelity import _check_common, _correlation, _sample_moments, _timed
 from .sensitivity import _BASE_TERMS, _PER_INPUT, _row_terms, pick_freeze_design
 
 __all__ = ["MultifidelitySobolResult", "multifidelity_sobol"]
@@ -320,26 +319,14 @@ def multifidelity_sobol(
     >>> bool(np.all(np.abs(res.total - [0.2, 0.8]) < 4 * res.total_se))
     True
     """
-    if estimator not in ESTIMATORS:
-        raise ParameterError(f"unknown estimator {estimator!r}; valid: {', '.join(ESTIMATORS)}")
-    if budget_unit not in BUDGET_UNITS:
-        raise ParameterError(f"budget_unit must be one of {BUDGET_UNITS}, got {budget_unit!r}")
-    names_out = _check_models(models, space)
+    names_out, jt, w_given = _check_common(models, space, estimator, budget_unit, target,
+                                           n_pilot, costs, " (base samples)")
+    target = names_out[jt]
     K, m, d = len(models), len(names_out), space.dim
-    target = names_out[0] if target is None else target
-    if target not in names_out:
-        raise ParameterError(f"target {target!r} is not a response; valid: {list(names_out)}")
-    jt = names_out.index(target)
-    if isinstance(n_pilot, bool) or not isinstance(n_pilot, int | np.integer) or n_pilot < 4:
-        raise ParameterError(f"n_pilot must be an integer >= 4 (base samples), got {n_pilot!r}")
     if isinstance(budget, bool) or not isinstance(budget, int | float | np.number) \
             or not np.isfinite(budget) or budget <= 0:
         raise ParameterError(f"budget must be a positive number, got {budget!r}")
-    if costs is not None:
-        w_given = np.asarray(costs, dtype=float)
-        if w_given.shape != (K,) or not np.all(np.isfinite(w_given)) or np.any(w_given <= 0):
-            raise ParameterError(f"costs must be {K} positive numbers (one per model), "
-                                 f"got {costs!r}")
+    if w_given is not None:
         if budget_unit == "cost" and budget < 2 * (d + 2) * w_given[0]:
             raise ParameterError(
                 f"budget {budget:g} is below two high-fidelity base samples, 2 (d + 2) = "
@@ -372,7 +359,7 @@ def multifidelity_sobol(
         warnings.warn(f"multifidelity_sobol pilot: {int((~ok).sum())} of {n_p} base samples "
                       "failed on some model and are left out of the pilot statistics",
                       RuntimeWarning, stacklevel=2)
-    w = w_given if costs is not None else wall_pilot / (n_p * (d + 2))
+    w = w_given if w_given is not None else wall_pilot / (n_p * (d + 2))
     budget_cost = float(budget) * float(w[0]) if budget_unit == "hf_runs" else float(budget)
     if budget_cost < 2 * (d + 2) * w[0]:
         raise ParameterError(
@@ -395,9 +382,7 @@ def multifidelity_sobol(
         hf_terms = T[:, 0, :].mean(axis=0)
         moments.append(_Moments(terms=c4, cov=cov_y[j], m22=m22_y[j],
                                 variance=float(cov_y[j, 0, 0]), numerators=hf_terms[1:]))
-    sd_y = np.sqrt(np.einsum("jkk->jk", cov_y))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        correlation = cov_y[:, 0, :] / (sd_y[:, :1] * sd_y)
+    correlation = _correlation(cov_y)
 
     # allocation: each term's optimum is a candidate; keep the one with the least index variance
     w_base = (d + 2) * w

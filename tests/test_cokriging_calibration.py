@@ -155,6 +155,26 @@ def test_coverage_of_the_cokriging_calibration_by_simulation_based_calibration(p
     assert abs(sc.coverage_90[0] - 0.9) <= 3 * sc.coverage_90_se
 
 
+def test_sbc_builds_an_unfitted_cokriging_on_its_nested_design():
+    """simulation_based_calibration with an unfitted CoKriging: built once from the prior on
+    6 HF and 30 LF runs (only the HF runs counted), then the verdict passes and the 90 %
+    coverage is within three binomial standard errors; without a cheap model, a clear error
+    before any run."""
+    ck = rq.CoKriging(low_fidelity=LF, n_low=30)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        sc = rq.simulation_based_calibration(HF, PRIOR, noise_std=NOISE, n_replications=40,
+                                             n_experiments=3, n_draws=19, n_samples=600,
+                                             emulator=ck, n_emulator_samples=6, seed=5)
+    assert not ck._levels  # the caller's emulator stays unfitted
+    assert sc.n_evaluations == 40 + 6
+    assert sc.passed, sc.reason
+    assert abs(sc.coverage_90[0] - 0.9) <= 3 * sc.coverage_90_se
+    with pytest.raises(ParameterError, match="needs its low-fidelity model"):
+        rq.simulation_based_calibration(HF, PRIOR, noise_std=NOISE, n_replications=4,
+                                        emulator=rq.CoKriging(), seed=1)
+
+
 def test_same_seed_same_result_bitwise():
     ck = rq.CoKriging(low_fidelity=LF, n_low=12)
     kw = dict(n_samples=300, n_emulator_samples=5)

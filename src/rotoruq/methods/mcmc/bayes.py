@@ -1081,7 +1081,7 @@ def _self_check(model, prior: ParameterSpace, pb: _Problem, gp, cfg: SamplerConf
     return simulation_based_calibration(
         model, prior, noise_std=std, n_replications=n_replications,
         n_experiments=pb.lik.data.shape[0],
-        emulator=gp,  # type: ignore[arg-type]  # sbc uses a fitted emulator as given
+        emulator=gp,  # fitted: sbc uses it as given
         names_out=pb.names_out, seed=seed,
         sampler=cfg, emulator_variance=emulator_variance)
 

@@ -30,10 +30,11 @@ from ..._rng import SeedLike, as_seed_sequence
 from ...errors import EvaluationError, ModelShapeError, ParameterError
 from ...model import Model, align_inputs, evaluate
 from ...params import ParameterSpace
+from ..cokriging import CoKriging
 from ..surrogate import GaussianProcess
 from . import diagnostics as dg
 from ._emulator import fit_on_prior
-from .bayes import BayesResult, calibrate_bayes, continue_chain
+from .bayes import BayesResult, _is_fitted, calibrate_bayes, continue_chain
 
 __all__ = ["SBCResult", "simulation_based_calibration"]
 
@@ -176,7 +177,7 @@ def simulation_based_calibration(
     calibrate: Callable[..., Any] | None = None,
     n_draws: int = 99,
     n_samples: int = 2000,
-    emulator: GaussianProcess | None = None,
+    emulator: GaussianProcess | CoKriging | None = None,
     n_emulator_samples: int = 500,
     names_out: Sequence[str] | None = None,
     alpha: float = 0.01,
@@ -212,7 +213,10 @@ def simulation_based_calibration(
     emulator : with the default calibration, a GaussianProcess built ONCE from the prior (on
         ``n_emulator_samples`` LHS points of the true model; an unfitted GP without its own
         seed gets one spawned here) and used as fitted in every replication (the emulator does
-        not depend on the data). A fitted GP is used as given.
+        not depend on the data). A fitted GP is used as given. An unfitted
+        :class:`~rotoruq.methods.cokriging.CoKriging` with ``low_fidelity`` models is built the
+        same way on its nested design (its cheap models' runs are not counted in
+        ``n_evaluations``).
     names_out : model responses that the data observe (default all).
     alpha : the uniformity test fails when the chi-square p-value <= alpha (per parameter).
     coverage_tolerance : a coverage fails when it is more than this many binomial standard
@@ -270,9 +274,26 @@ def simulation_based_calibration(
         raise ParameterError(f"noise_std must be finite and > 0, got {noise_std!r}")
     perm = align_inputs(model, prior.names)
 
-    def truth(theta: np.ndarray) -> np.ndarray:
-        x = theta if perm is None else theta[:, perm]
-        return np.asarray(evaluate(model, x).values, dtype=float)[:, cols]
+    def observed(mdl: Model, perm_m: np.ndarray | None, cols_m: np.ndarray):
+        def f(theta: np.ndarray) -> np.ndarray:
+            x = theta if perm_m is None else theta[:, perm_m]
+            return np.asarray(evaluate(mdl, x).values, dtype=float)[:, cols_m]
+        return f
+
+    truth = observed(model, perm, cols)
+    low_fidelity = []
+    if isinstance(emulator, CoKriging) and not _is_fitted(emulator):
+        if not emulator.low_fidelity:
+            raise ParameterError("an unfitted CoKriging emulator needs its low-fidelity "
+                                 "model(s): CoKriging(low_fidelity=model_lf, n_low=...)")
+        emulator.design_sizes(int(n_emulator_samples))  # bad sizes fail before any run
+        for t, mdl in enumerate(emulator.low_fidelity):
+            missing = [n for n in obs if n not in tuple(mdl.names_out)]
+            if missing:
+                raise ParameterError(f"low-fidelity model {t} has no responses {missing}; "
+                                     f"co-kriging needs every observed response {list(obs)}")
+            low_fidelity.append(observed(mdl, align_inputs(mdl, prior.names), np.array(
+                [tuple(mdl.names_out).index(n) for n in obs])))
 
     ss = as_seed_sequence(seed)
     s_theta, s_emulator, *s_reps = ss.spawn(2 + n_replications)
@@ -290,7 +311,8 @@ def simulation_based_calibration(
         if not _is_fitted(gp):
             s_design, s_fit = s_emulator.spawn(2)
             build = fit_on_prior(emulator, prior, truth, n_emulator_samples,
-                                 design_seed=s_design, fit_seed=np.random.default_rng(s_fit))
+                                 design_seed=s_design, fit_seed=np.random.default_rng(s_fit),
+                                 low_fidelity=low_fidelity)
             gp = build.gp
             n_evaluations += build.n_evaluations
 
@@ -346,14 +368,6 @@ def simulation_based_calibration(
         ess=ess, n_autocorrelated=n_short, alpha=float(alpha),
         coverage_tolerance=float(coverage_tolerance), passed=passed, reason=reason,
         n_evaluations=n_evaluations, seconds=time.perf_counter() - t_start)
-
-
-def _is_fitted(gp: GaussianProcess) -> bool:
-    try:
-        gp.n_inputs  # noqa: B018  (raises on an unfitted GP)
-    except ParameterError:
-        return False
-    return True
 
 
 def _takes_seed(func: Callable[..., Any]) -> bool:

@@ -128,26 +128,24 @@ class MBDynModel:
 def inputs_only(res) -> dict:
     """HF-run saving of a control variate on the inputs alone (known means, no cheap model):
     1 / (1 - R^2) of the elastic response's leave-one-out regression on the pilot's inputs,
-    linear and (where the pilot has more points than terms + 2) quadratic."""
+    linear and (where the pilot has more points than terms + 2) quadratic. The regression is
+    :class:`rotoruq.LinearAdaptation` of a cheap model that knows nothing (a constant)."""
     X, Y = res.pilot_inputs, res.pilot_outputs[:, 0, :]
     ok = np.all(np.isfinite(Y), axis=1)
     X, Y = X[ok], Y[ok]
+    n, d = X.shape
     z = (X - X.mean(0)) / X.std(0)
-    n, d = z.shape
     quad = np.column_stack([z[:, i] * z[:, j] for i in range(d) for j in range(i, d)])
-    designs = {"linear": np.column_stack([np.ones(n), z])}
+    features = {"linear": z}
     if n >= 1 + d + quad.shape[1] + 2:
-        designs["quadratic"] = np.column_stack([designs["linear"], quad])
+        features["quadratic"] = np.column_stack([z, quad])
+    nothing = np.stack([Y, np.zeros_like(Y)], axis=1)  # (n, 2, m): HF and the constant
     out = {}
-    for name, A in designs.items():
-        pinv = np.linalg.pinv(A)
-        h = np.einsum("ij,ji->i", A, pinv)
-        row = {}
-        for j, r in enumerate(res.names_out):
-            e = (Y[:, j] - A @ (pinv @ Y[:, j])) / (1 - h)
-            r2 = 1 - np.sum(e**2) / np.sum((Y[:, j] - Y[:, j].mean()) ** 2)
-            row[r] = {"r2_loo": float(r2), "fewer_hf_runs_mean": float(1 / max(1 - r2, 1e-12))}
-        out[name] = row
+    for name, f in features.items():
+        r2 = rq.LinearAdaptation.fit(f, nothing)[0].r2_loo[1]
+        out[name] = {r: {"r2_loo": float(r2[j]),
+                         "fewer_hf_runs_mean": float(1 / max(1 - r2[j], 1e-12))}
+                     for j, r in enumerate(res.names_out)}
     return out
 
 
@@ -182,30 +180,28 @@ def larger_budgets(res, budgets=(20.0, 50.0, 100.0, 200.0)) -> dict:
     """What the pilot predicts at larger budgets (in elastic runs, the pilot's cost on top):
     the same allocation rule and estimator on the pilot's covariances, no further runs."""
     from rotoruq.methods.acv import allocate, estimator_variance
+    from rotoruq.methods.multifidelity import _plain_variance_runs, _sample_moments
 
     ok = np.all(np.isfinite(res.pilot_outputs), axis=(1, 2))
     Y = res.pilot_outputs[ok]
     if res.adapt == "linear":  # the leave-one-out adapted values, as the estimator uses
         Y = rq.LinearAdaptation.fit(res.pilot_inputs[ok], Y)[1]
-    d = Y - Y.mean(axis=0)
+    covs, m22s = _sample_moments(Y)  # (m, K, K) each, as the estimator computes them
     w = np.asarray(res.costs)
     out = {}
     for b in budgets:
         row = {}
         for j, r in enumerate(res.names_out):
-            cov = np.cov(Y[:, :, j], rowvar=False)
-            m22 = np.einsum("nk,nl->kl", d[:, :, j] ** 2, d[:, :, j] ** 2) / len(Y)
+            cov, m22 = covs[j], m22s[j]
             plan = allocate(cov, w, b * w[0], estimator=res.estimator)
             sub = np.ix_(plan.models, plan.models)
             spent = (res.cost_pilot + plan.cost) / w[0]
             v_mean = estimator_variance(res.estimator, plan.n_samples, "mean", cov[sub])
             v_var = estimator_variance(res.estimator, plan.n_samples, "variance", cov[sub],
                                        m22[sub])
-            s2, mu4 = cov[0, 0], m22[0, 0]
-            qa, qb, qc = v_var, -(v_var + mu4 - s2**2), mu4 - 3 * s2**2
-            n_var = (-qb + np.sqrt(max(qb * qb - 4 * qa * qc, 0.0))) / (2 * qa)
+            n_var = _plain_variance_runs(v_var, cov[0, 0], m22[0, 0])
             row[r] = {"hf_runs_main": int(plan.n_samples[0]), "spent_in_hf_runs": spent,
-                      "fewer_hf_runs_mean": float(s2 / v_mean / spent),
+                      "fewer_hf_runs_mean": float(cov[0, 0] / v_mean / spent),
                       "fewer_hf_runs_variance": float(n_var / spent)}
         out[f"budget_{b:g}"] = row
     return out

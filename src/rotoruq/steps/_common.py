@@ -3,6 +3,7 @@ summary, added measurement noise, per-response noise levels, and a saved record 
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TypeVar
@@ -10,6 +11,7 @@ from typing import TypeVar
 import numpy as np
 from scipy import stats
 
+from ..errors import ParameterError
 from ..params import ParameterSpace
 from ..render.tables import StepTable, levels_tables
 from ..results import RecordError, StepRecord, StepResult
@@ -115,10 +117,6 @@ def named_model(ctx: StepContext, name: str):
     """The study's ``[models.NAME]`` model ``name`` on the step's inputs, responses and fixed
     inputs (``ctx.make_model(..., model=NAME)``); a clear error when the runner's factory
     builds only ``[model]``."""
-    import inspect
-
-    from ..errors import ParameterError
-
     params = inspect.signature(ctx.make_model).parameters
     if "model" not in params and not any(p.kind is p.VAR_KEYWORD for p in params.values()):
         raise ParameterError(

@@ -222,8 +222,8 @@ def multifidelity_tables(res: StepResult, labels: Mapping[str, str]) -> list[Ste
           *(cell(rec.correlation[k, j]) for j in range(n_out)),
           *((cell(rec.correlation_unadapted[k, j]) for j in range(n_out)) if adapted else ())]
          for k, m in enumerate(rec.models)],
-        note=f"Budget {rec.budget} {unit} for the main phase (spent "
-             f"{rec.cost_main}) plus the pilot's {rec.cost_pilot}."
+        note=f"Budget {rec.budget:.4g} {unit} for the main phase (spent "
+             f"{rec.cost_main:.4g}) plus the pilot's {rec.cost_pilot:.4g}."
              + (" Low-fidelity models adapted on the pilot (a linear map of their response "
                 "and the inputs): the estimator uses the adapted model's correlation "
                 "(leave-one-out on the pilot); the model's own is beside it."
@@ -258,8 +258,8 @@ def multifidelity_tables(res: StepResult, labels: Mapping[str, str]) -> list[Ste
                              for k, m in enumerate(rec.models))
                  + f"; cost {cell(rec.sobol_cost[0])} {unit} (its own pilot included, on top "
                  "of the moments'). The indices are ratios of unbiased estimates (bias "
-                 "O(1/N), below the standard errors); standard errors by the delta method "
-                 "from the pilot's moments."))
+                 "O(1/N) in the HF base samples); standard errors by the delta method from "
+                 "the pilot's moments."))
     return tables
 
 

@@ -28,6 +28,7 @@ again on a fresh pool or another worker, and when that is not possible ``run`` r
 from __future__ import annotations
 
 import concurrent.futures as cf
+import logging
 import os
 import pickle
 import signal
@@ -518,15 +519,40 @@ class DaskExecutor(Executor):
         return f"DaskExecutor(address={self.address!r})"
 
 
+class _SyncCancelBug(logging.Filter):
+    """Drop tornado's report of distributed's ``sync()`` cancel bug, and nothing else.
+
+    Ctrl-C (or SIGTERM) that lands while the client waits in ``distributed.utils.sync``
+    before the loop has started the call queues ``cancel``, which reads the call's future
+    before it exists: tornado logs ``NameError: cannot access free variable 'future'`` with a
+    traceback from ``distributed/utils.py`` (distributed 2026.8 and earlier). The interrupt is
+    already handled and reported by the CLI in one line; any other callback error still shows.
+    """
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        exc = record.exc_info[1] if record.exc_info else None
+        if not isinstance(exc, NameError) or exc.__traceback__ is None:
+            return True
+        last = traceback.extract_tb(exc.__traceback__)[-1]
+        return not (last.name == "cancel"
+                    and last.filename.replace(os.sep, "/").endswith("distributed/utils.py"))
+
+
+_SYNC_CANCEL_BUG = _SyncCancelBug()
+
+
 def _quiet_internal_exits(client: Any) -> None:
-    """Keep distributed's internal ``AllExit`` off the user's terminal.
+    """Keep distributed's internal exits off the user's terminal.
 
     ``Future.result(timeout=)`` on a worker that dies leaves a gather task behind on the
     client's event loop; it ends with ``distributed.client.AllExit`` (distributed's own
     early-exit signal, never an error of ours) and asyncio prints "Task exception was never
     retrieved" with a traceback when it is collected. The executor has already reported the
-    loss in one line; every other loop error still goes to the previous handler.
+    loss in one line; every other loop error still goes to the previous handler. The same
+    holds for the NameError of distributed's ``sync`` when it is interrupted
+    (:class:`_SyncCancelBug`).
     """
+    logging.getLogger("tornado.application").addFilter(_SYNC_CANCEL_BUG)  # a set: idempotent
     loop = getattr(getattr(client, "loop", None), "asyncio_loop", None)
     if loop is None:  # pragma: no cover - distributed without a tornado IOLoop
         return

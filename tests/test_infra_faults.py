@@ -503,6 +503,8 @@ if sys.argv[1] == "rotoruq":
     client = DaskExecutor(cluster.scheduler_address).client
 else:
     client = distributed.Client(cluster.scheduler_address)
+# a test run started in the background inherits SIGINT ignored, and Python keeps it so
+signal.signal(signal.SIGINT, signal.default_int_handler)
 client.loop.add_callback(time.sleep, 1.0)
 threading.Timer(0.3, signal.pthread_kill, (threading.get_ident(), signal.SIGINT)).start()
 async def nothing():

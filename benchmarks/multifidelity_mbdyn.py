@@ -61,6 +61,7 @@ from rotoruq.mbdyn import CaseSettings, find_mbdyn, run_case
 from rotoruq.mbdyn.solver import MBDynError
 from rotoruq.rotor.model import RotorModel
 from rotoruq.rotor.presets import get_preset
+from rotoruq.steps.multifidelity import why_dearer
 
 RESPONSES = ("thrust", "power")
 FIXED = {"height_over_radius": 4.0, "omega": 224.6375}
@@ -263,14 +264,27 @@ def summary(out: dict) -> str:
     rest = [q for q in beaten if q not in linear]
     if rest:
         r2 = fmt(f"{lin[q]['r2_loo']:.2f}" for q in rest)
-        rho_a = fmt(f"{r[q]['correlation_with_elastic']['builtin']:.2f}" for q in rest)
+        def builtin(q: str) -> str:
+            rho = f"{r[q]['correlation_with_elastic']['builtin']:.2f}"
+            if (r[q].get("adapted") or {}).get("builtin", True):
+                return f"{rho} (adapted)"
+            return f"{rho} (as evaluated: its linear adaptation correlated worse on the pilot)"
+
         clauses.append(f"for {', '.join(rest)} neither pays much: the response is not linear "
-                       f"in the inputs (R^2 {r2}) and the adapted built-in rotor correlates at "
-                       f"{rho_a} only")
-    worse = [q for q in names if r[q]["fewer_hf_runs_mean"] < 1]
-    if worse:
-        clauses.append(f"for {', '.join(worse)} the multi-fidelity mean costs more than plain "
-                       f"Monte Carlo: the allocation served the target ({names[0]})")
+                       f"in the inputs (R^2 {r2}) and the built-in rotor correlates at "
+                       f"{fmt(builtin(q) for q in rest)} only")
+    used = [k for k, n in out["allocation_main"].items() if n > 0 and k != "mbdyn_elastic"]
+    target = out.get("target", names[0])  # the estimator's default: the first response
+    for q in names:
+        if r[q]["fewer_hf_runs_mean"] < 1:
+            why = why_dearer(
+                main=r[q]["plain_mc_hf_runs_for_mean_se"] * costs["mbdyn_elastic"]
+                / out["cost_main_s"],
+                pilot_share=out["cost_pilot_s"] / (out["cost_pilot_s"] + out["cost_main_s"]),
+                rho=max((abs(r[q]["correlation_with_elastic"][k]) for k in used), default=0.0),
+                target=None if q == target else target)
+            clauses.append(f"for {q} the multi-fidelity mean costs more than plain Monte "
+                           f"Carlo: {why}")
     text += (": " + "; ".join(clauses) + "." if clauses
              else ": the cheap model brings more than the inputs' linear trend.")
     return text
@@ -336,6 +350,8 @@ def main() -> dict:
                                                      strict=True)),
                 "correlation_with_elastic_unadapted": dict(zip(
                     models, map(float, res.correlation_unadapted[j]), strict=True)),
+                "adapted": (dict(zip(models, map(bool, res.adaptation.adapted[:, j]),
+                                     strict=True)) if res.adaptation is not None else None),
                 "plain_mc_hf_runs_for_mean_se": n_eq["mean"],
                 "plain_mc_hf_runs_for_variance_se": n_eq["variance"],
                 "fewer_hf_runs_mean": n_eq["mean"] / spent_hf_runs,
@@ -349,7 +365,8 @@ def main() -> dict:
     out = {
         "case": args.case, "inputs": list(space.names), "fixed": extra_fixed,
         "adapt": res.adapt,
-        "estimator": res.estimator, "n_pilot": res.n_pilot, "budget_hf_runs": args.budget,
+        "estimator": res.estimator, "target": res.target, "n_pilot": res.n_pilot,
+        "budget_hf_runs": args.budget,
         "elastic_revolutions": args.elastic_revolutions,
         "rigid_revolutions": args.rigid_revolutions,
         "cost_per_run_s": dict(zip(models, map(float, res.costs), strict=True)),

@@ -367,6 +367,26 @@ def test_linear_adaptation_fits_a_linear_error_exactly_and_reports_loo():
     assert ad.r2_loo[1, 0] == pytest.approx(1.0) and np.all(np.isnan(ad.coef[0]))
 
 
+def test_adaptation_is_kept_only_where_it_correlates_better_than_the_model_itself():
+    """Eight inputs, 13 pilot points: a cheap model whose error is small but not linear in the
+    inputs correlates at 0.993 as it is; the 10-coefficient fit leaves it at R^2 0.92 out of
+    sample, so it is kept as evaluated (identity map, its own pilot values), while the other
+    response, whose error is linear, is adapted exactly."""
+    rng = np.random.default_rng(3)
+    x = rng.random((13, 8))
+    hf = np.sin(2 * np.pi * x[:, 0])
+    lf = np.stack([hf + 0.15 * np.cos(5 * x[:, 1] * x[:, 2]), hf - 2 * x[:, 3]], axis=1)
+    Y = np.stack([np.stack([hf, hf + x[:, 3]], axis=1), lf], axis=1)
+    ad, loo = rq.LinearAdaptation.fit(x, Y)
+    assert ad.adapted.tolist() == [[False, False], [False, True]]
+    assert ad.r2_loo[1, 0] < np.corrcoef(hf, lf[:, 0])[0, 1] ** 2
+    np.testing.assert_array_equal(ad.coef[1, 0], [0.0, 1.0] + [0.0] * 8)
+    np.testing.assert_array_equal(loo[:, 1, 0], lf[:, 0])
+    np.testing.assert_array_equal(ad.apply(1, x, lf)[:, 0], lf[:, 0])
+    np.testing.assert_allclose(loo[:, 1, 1], Y[:, 0, 1], atol=1e-10)
+    np.testing.assert_array_equal(loo[:, 0], Y[:, 0])
+
+
 def test_adapted_estimators_are_unbiased_and_their_predicted_se_holds():
     """200 seeds, each with its own pilot (so its own adaptation and allocation): the mean of
     the estimates is within 3.5 standard errors of the exact mean and variance, and the

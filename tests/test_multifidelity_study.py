@@ -95,6 +95,48 @@ def test_rotor_study_through_cli_from_a_fresh_folder(tmp_path):
     assert res.scalars["allocation/coarse"] > 10 * res.scalars["allocation/model"]
 
 
+def test_a_dearer_mean_is_explained_by_what_the_run_measured(tmp_path):
+    """A 60-point pilot before a 10-run budget: the multi-fidelity mean costs more than plain
+    Monte Carlo, and the CLI's warning gives the cause from the saved record (the main phase's
+    own saving and the pilot's share of the cost); with the main phase losing too (the same
+    record with a poor cheap model), the cause is the correlation, and for a response other
+    than the target, the allocation's target."""
+    from dataclasses import replace
+
+    from rotoruq.steps.multifidelity import MultifidelityRecord, multifidelity_warnings
+
+    study = tmp_path / "mf.toml"
+    study.write_text(ROTOR_STUDY.read_text().replace("budget = 200", "budget = 10")
+                     .replace("n_pilot = 20", "n_pilot = 60"))
+    out = tmp_path / "out"
+    proc = run_cli("run", str(study), "--out", str(out), "--no-report", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    res = load_step(out / "steps" / "multifidelity")
+    rec = MultifidelityRecord.read(res)
+    for j, r in enumerate(rec.names_out):
+        n_eq = rec.n_equivalent_hf[rec.statistics.index("mean"), j]
+        saving = n_eq * rec.cost[0] / (rec.cost_pilot + rec.cost_main)
+        main = n_eq * rec.cost[0] / rec.cost_main
+        share = rec.cost_pilot / (rec.cost_pilot + rec.cost_main)
+        assert saving < 1 < main and share > 0.8
+        assert (f"{r}: the multi-fidelity mean costs {1 / saving:.2g} times what plain Monte "
+                "Carlo on the high-fidelity model would for the same standard error (pilot "
+                f"included): the main phase alone saves {main:.2g}x, and the pilot is "
+                f"{share:.0%} of the step's cost") in proc.stdout
+
+    poor = replace(rec, n_equivalent_hf=rec.n_equivalent_hf * 0.1,
+                   correlation=np.array([[1.0, 1.0], [0.3, -0.45]]))
+    arrays, meta = poor.parts()
+    said = multifidelity_warnings(replace(res, arrays=arrays, meta={**res.meta, **meta}), {})
+    main = rec.n_equivalent_hf[0] * 0.1 * rec.cost[0] / rec.cost_main
+    assert said[0].endswith(f"the main phase alone costs {1 / main[0]:.2g}x plain Monte Carlo: "
+                            "the cheap models used correlate with it at |rho| <= 0.30 on the "
+                            "pilot")
+    assert said[1].endswith(f"the main phase alone costs {1 / main[1]:.2g}x plain Monte Carlo: "
+                            "the cheap models used correlate with it at |rho| <= 0.45 on the "
+                            "pilot, and the allocation was made for thrust")
+
+
 @pytest.mark.slow
 def test_rotor_study_on_dask_by_changing_only_the_executor(tmp_path):
     """The same study file with ``[executor] kind = "dask"`` (a local cluster the run starts):

@@ -19,7 +19,10 @@ map). It pays where the two models weigh the inputs differently: a low-fidelity 
 error is mostly linear in the inputs becomes far more correlated, and the variance estimator,
 which needs the squared deviations to correlate, gains most. The correlations that set the
 allocation, the weights and the standard errors are computed from leave-one-out adapted
-values on the pilot, so the fit's optimism does not enter them.
+values on the pilot, so the fit's optimism does not enter them. Where that leave-one-out
+correlation is no better than the model's own (a small pilot, a response the cheap model gets
+nearly right with an error not linear in the inputs), the model is kept as evaluated for that
+response: a choice made on the pilot alone, so unbiasedness holds.
 """
 
 from __future__ import annotations
@@ -61,10 +64,14 @@ class LinearAdaptation:
     Attributes
     ----------
     coef : (K, m, d + 2) per model and response: intercept, slope on the model's own response,
-        slopes on the standardised inputs; NaN in row 0 (the high-fidelity model).
+        slopes on the standardised inputs (``[0, 1, 0, ...]``, the model as evaluated, where
+        ``adapted`` is False); NaN in row 0 (the high-fidelity model).
     center, scale : (d,) the pilot's input means and standard deviations (z = (x - center) /
         scale; scale 1 where an input is constant on the pilot).
-    r2_loo : (K, m) leave-one-out R^2 of the high-fidelity response by the adapted model.
+    r2_loo : (K, m) leave-one-out R^2 of the high-fidelity response by the linear fit.
+    adapted : (K, m) True where the fit is used: its leave-one-out correlation with the
+        high-fidelity response beats the model's own correlation on the pilot (a fit to few
+        points can correlate worse than the model it adapts); False in row 0.
 
     Examples
     --------
@@ -80,12 +87,14 @@ class LinearAdaptation:
     center: np.ndarray
     scale: np.ndarray
     r2_loo: np.ndarray
+    adapted: np.ndarray
 
     @classmethod
     def fit(cls, x: np.ndarray, Y: np.ndarray) -> tuple[LinearAdaptation, np.ndarray]:
         """Least squares on pilot points ``x`` (n, d) with every model's values ``Y``
         (n, K, m); returns the adaptation and ``Y`` with each low-fidelity model replaced by
-        its leave-one-out adapted values (the high-fidelity column unchanged)."""
+        its leave-one-out adapted values where the fit is used (``adapted``; the
+        high-fidelity column and the models kept as evaluated unchanged)."""
         n, K, m = Y.shape
         center = x.mean(axis=0)
         scale = x.std(axis=0)
@@ -106,7 +115,16 @@ class LinearAdaptation:
                 loo[:, k, j] = Y[:, 0, j] - e_loo
                 ss = np.sum((Y[:, 0, j] - Y[:, 0, j].mean()) ** 2)
                 r2[k, j] = 1.0 - np.sum(e_loo**2) / ss if ss > 0 else np.nan
-        return cls(coef, center, scale, r2), loo
+        # the control variate's weight rescales either: compare |correlation| (a model that
+        # is constant on the pilot has NaN and is adapted)
+        fit, own = (np.abs(_correlation(_sample_moments(v)[0])).T for v in (loo, Y))
+        adapted = ~(fit <= own)
+        adapted[0] = False
+        loo = np.where(adapted[None], loo, Y)
+        identity = np.zeros(x.shape[1] + 2)
+        identity[1] = 1.0
+        coef[1:][~adapted[1:]] = identity
+        return cls(coef, center, scale, r2, adapted), loo
 
     def apply(self, k: int, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Model ``k``'s adapted values at points ``x`` (n, d) from its values ``y`` (n, m)."""

@@ -37,7 +37,7 @@ from .options import (
 )
 
 __all__ = ["STEP", "MultifidelityRecord", "run_multifidelity", "multifidelity_tables",
-           "multifidelity_warnings", "HF_LABEL"]
+           "multifidelity_warnings", "HF_LABEL", "why_dearer"]
 
 _METHOD = "rotoruq.methods.multifidelity:multifidelity_sample"
 #: How the report names the study's own ``[model]`` (the high-fidelity one).
@@ -277,8 +277,41 @@ def multifidelity_warnings(res: StepResult, labels: Mapping[str, str]) -> list[s
         if s < 1.0:
             out.append(f"{label(r, labels)}: the multi-fidelity mean costs {1 / s:.2g} times "
                        "what plain Monte Carlo on the high-fidelity model would for the same "
-                       "standard error (pilot included)")
+                       f"standard error (pilot included): {_why_dearer(rec, k, labels)}")
     return out
+
+
+def _why_dearer(rec: MultifidelityRecord, k: int, labels: Mapping[str, str]) -> str:
+    lf = [i for i, m in enumerate(rec.models) if m != HF_LABEL and rec.used[i]]
+    return why_dearer(
+        main=rec.statistic("mean", rec.n_equivalent_hf, k) * rec.cost[0] / rec.cost_main,
+        pilot_share=rec.cost_pilot / (rec.cost_pilot + rec.cost_main),
+        rho=max((abs(rec.correlation[i, k]) for i in lf), default=0.0),
+        target=None if rec.names_out[k] == rec.target else label(rec.target, labels))
+
+
+def why_dearer(main: float, pilot_share: float, rho: float, target: str | None) -> str:
+    """Why a multi-fidelity mean costs more than plain Monte Carlo, from the run's numbers.
+
+    Parameters
+    ----------
+    main : the main phase's own saving (plain-MC cost of the same standard error over the
+        main phase's cost, pilot left out).
+    pilot_share : the pilot's fraction of the cost, pilot included.
+    rho : the largest |correlation| of a used cheap model with the response on the pilot.
+    target : the response the allocation was made for, when it is another one.
+
+    Examples
+    --------
+    >>> why_dearer(2.5, 0.89, 0.99, None)
+    "the main phase alone saves 2.5x, and the pilot is 89% of the step's cost"
+    """
+    if main >= 1.0:
+        return (f"the main phase alone saves {main:.2g}x, and the pilot is {pilot_share:.0%} "
+                "of the step's cost")
+    why = (f"the main phase alone costs {1 / main:.2g}x plain Monte Carlo: the cheap models "
+           f"used correlate with it at |rho| <= {rho:.2f} on the pilot")
+    return why + (f", and the allocation was made for {target}" if target else "")
 
 
 def _check(c: StepCheck) -> None:

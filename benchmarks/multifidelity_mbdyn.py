@@ -177,6 +177,23 @@ def cokriging_holdout(res, builtin, n_lf: int, seed: int, space=SPACE) -> dict:
     return out
 
 
+def squared_deviation_correlation(out: dict, used: list[str]) -> dict[str, float]:
+    """Per response, the largest |correlation| on the pilot between the elastic rotor's squared
+    deviations and a used cheap model's (as the estimator used it: leave-one-out adapted
+    values where ``adapt`` kept the fit), what the variance's control variate needs."""
+    names = list(out["pilot"]["outputs"])
+    Y = np.stack([np.asarray(out["pilot"]["outputs"][k]) for k in names], axis=1)
+    x = np.asarray(out["pilot"]["inputs"])
+    ok = np.all(np.isfinite(Y), axis=(1, 2))
+    Y, x = Y[ok], x[ok]
+    if out["adapt"] == "linear":
+        Y = rq.LinearAdaptation.fit(x, Y)[1]
+    d2 = (Y - Y.mean(axis=0)) ** 2
+    return {q: max((abs(np.corrcoef(d2[:, 0, j], d2[:, names.index(k), j])[0, 1])
+                    for k in used), default=0.0)
+            for j, q in enumerate(out["responses"])}
+
+
 def larger_budgets(res, budgets=(20.0, 50.0, 100.0, 200.0)) -> dict:
     """What the pilot predicts at larger budgets (in elastic runs, the pilot's cost on top):
     the same allocation rule and estimator on the pilot's covariances, no further runs."""
@@ -275,15 +292,19 @@ def summary(out: dict) -> str:
                        f"{fmt(builtin(q) for q in rest)} only")
     used = [k for k, n in out["allocation_main"].items() if n > 0 and k != "mbdyn_elastic"]
     target = out.get("target", names[0])  # the estimator's default: the first response
+    rho_used = {"mean": {q: max((abs(r[q]["correlation_with_elastic"][k]) for k in used),
+                                default=0.0) for q in names},
+                "variance": squared_deviation_correlation(out, used)}
     for q in names:
-        if r[q]["fewer_hf_runs_mean"] < 1:
+        for stat, of in (("mean", "it"), ("variance", "its squared deviations")):
+            if r[q][f"fewer_hf_runs_{stat}"] >= 1:
+                continue
             why = why_dearer(
-                main=r[q]["plain_mc_hf_runs_for_mean_se"] * costs["mbdyn_elastic"]
+                main=r[q][f"plain_mc_hf_runs_for_{stat}_se"] * costs["mbdyn_elastic"]
                 / out["cost_main_s"],
                 pilot_share=out["cost_pilot_s"] / (out["cost_pilot_s"] + out["cost_main_s"]),
-                rho=max((abs(r[q]["correlation_with_elastic"][k]) for k in used), default=0.0),
-                target=None if q == target else target)
-            clauses.append(f"for {q} the multi-fidelity mean costs more than plain Monte "
+                rho=rho_used[stat][q], target=None if q == target else target, of=of)
+            clauses.append(f"for {q} the multi-fidelity {stat} costs more than plain Monte "
                            f"Carlo: {why}")
     text += (": " + "; ".join(clauses) + "." if clauses
              else ": the cheap model brings more than the inputs' linear trend.")

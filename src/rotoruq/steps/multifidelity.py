@@ -290,27 +290,34 @@ def _why_dearer(rec: MultifidelityRecord, k: int, labels: Mapping[str, str]) -> 
         target=None if rec.names_out[k] == rec.target else label(rec.target, labels))
 
 
-def why_dearer(main: float, pilot_share: float, rho: float, target: str | None) -> str:
-    """Why a multi-fidelity mean costs more than plain Monte Carlo, from the run's numbers.
+def why_dearer(main: float, pilot_share: float, rho: float, target: str | None,
+               of: str = "it") -> str:
+    """Why a multi-fidelity estimate costs more than plain Monte Carlo, from the run's numbers.
 
     Parameters
     ----------
     main : the main phase's own saving (plain-MC cost of the same standard error over the
         main phase's cost, pilot left out).
     pilot_share : the pilot's fraction of the cost, pilot included.
-    rho : the largest |correlation| of a used cheap model with the response on the pilot.
+    rho : the largest |correlation| on the pilot of a used cheap model with what the
+        estimator's control variate needs: the response for a mean, its squared deviations
+        for a variance.
     target : the response the allocation was made for, when it is another one.
+    of : how the sentence names what ``rho`` correlates ("it": the response).
 
     Examples
     --------
     >>> why_dearer(2.5, 0.89, 0.99, None)
     "the main phase alone saves 2.5x, and the pilot is 89% of the step's cost"
+    >>> print(why_dearer(0.5, 0.3, 0.42, "thrust", of="its squared deviations"))
+    the main phase alone costs 2x plain Monte Carlo: the cheap models used correlate with its
+    squared deviations at |rho| <= 0.42 on the pilot, and the allocation was made for thrust
     """
     if main >= 1.0:
         return (f"the main phase alone saves {main:.2g}x, and the pilot is {pilot_share:.0%} "
                 "of the step's cost")
     why = (f"the main phase alone costs {1 / main:.2g}x plain Monte Carlo: the cheap models "
-           f"used correlate with it at |rho| <= {rho:.2f} on the pilot")
+           f"used correlate with {of} at |rho| <= {rho:.2f} on the pilot")
     return why + (f", and the allocation was made for {target}" if target else "")
 
 

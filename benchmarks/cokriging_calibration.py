@@ -38,24 +38,33 @@ from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.p
 
 import rotoruq as rq
 
+# The analytic pair (also tests/test_cokriging_calibration.py's): noise std, quadrature grid.
 NOISE = 0.01
 GRID = np.linspace(0.0, 1.0, 200_001)
 
 
-def _hf(t):
+def hf_response(t):
+    """The analytic pair's high-fidelity response (t in [0, 1])."""
     return 2.0 * t + 0.1 * np.sin(6.0 * np.pi * t)
 
 
-def _lf(t):
-    return 0.8 * _hf(t) + 0.3 * (t - 0.5)
+def lf_response(t):
+    """The analytic pair's low-fidelity response: scaled and biased."""
+    return 0.8 * hf_response(t) + 0.3 * (t - 0.5)
 
 
-def _exact_1d(data: np.ndarray) -> tuple[float, float]:
-    ll = -0.5 * (((data[:, 0][None, :] - _hf(GRID)[:, None]) / NOISE) ** 2).sum(1)
-    w = np.exp(ll - ll.max())
+def grid_moments(loglik: np.ndarray) -> tuple[float, float]:
+    """Mean and std of t under a log-likelihood (flat prior) given on ``GRID``."""
+    w = np.exp(loglik - loglik.max())
     w /= w.sum()
     mean = float((w * GRID).sum())
     return mean, float(np.sqrt((w * (GRID - mean) ** 2).sum()))
+
+
+def exact_posterior(data: np.ndarray) -> tuple[float, float]:
+    """Posterior mean and std of t on the high-fidelity model itself, data (n_exp, 1)."""
+    r = data[:, 0][None, :] - hf_response(GRID)[:, None]
+    return grid_moments(-0.5 * ((r / NOISE) ** 2).sum(1))
 
 
 def _calibrate(model, data, prior, emulator, noise, **kw) -> tuple[rq.BayesResult, float]:
@@ -83,16 +92,16 @@ def _row(res: rq.BayesResult, wall: float, mean: np.ndarray, std: np.ndarray) ->
 
 def analytic(n_hf: list[int], n_low: int, seeds: int, n_samples: int) -> dict:
     prior = rq.ParameterSpace({"t": rq.Uniform(0.0, 1.0)})
-    hf = rq.FunctionModel(lambda x: _hf(x[:, :1]), ["t"], ["y"])
-    lf = rq.FunctionModel(lambda x: _lf(x[:, :1]), ["t"], ["y"])
+    hf = rq.FunctionModel(lambda x: hf_response(x[:, :1]), ["t"], ["y"])
+    lf = rq.FunctionModel(lambda x: lf_response(x[:, :1]), ["t"], ["y"])
     out: dict = {"n_low": n_low, "seeds": seeds, "by_n_hf": {}}
     for n in n_hf:
         rows: dict[str, list] = {"cokriging": [], "gp": []}
         for s in range(seeds):
             rng = np.random.default_rng(1000 + s)
             theta = rng.uniform(0.0, 1.0)
-            data = _hf(np.array([theta])) + NOISE * rng.standard_normal((3, 1))
-            m, sd = _exact_1d(data)
+            data = hf_response(np.array([theta])) + NOISE * rng.standard_normal((3, 1))
+            m, sd = exact_posterior(data)
             kw = dict(n_emulator_samples=n, n_samples=n_samples, n_chains=2, seed=s)
             for name, em in (("cokriging", rq.CoKriging(low_fidelity=lf, n_low=n_low)),
                              ("gp", rq.GaussianProcess())):

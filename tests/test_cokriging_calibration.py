@@ -10,7 +10,9 @@ error far below the tolerances).
 
 from __future__ import annotations
 
+import sys
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,41 +22,26 @@ import rotoruq as rq
 from rotoruq.errors import ParameterError
 from rotoruq.methods.mcmc.adequacy import RefineConfig
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from cokriging_calibration import (  # noqa: E402  (the analytic pair has one home)
+    GRID,
+    NOISE,
+    exact_posterior,
+    grid_moments,
+    hf_response,
+    lf_response,
+)
+
 pytestmark = pytest.mark.filterwarnings("ignore::rotoruq.methods.surrogate.ExtrapolationWarning")
 
 PRIOR = rq.ParameterSpace({"t": rq.Uniform(0.0, 1.0)})
-NOISE = 0.01
-GRID = np.linspace(0.0, 1.0, 200_001)
-
-
-def _hf(t):
-    return 2.0 * t + 0.1 * np.sin(6.0 * np.pi * t)
-
-
-def _lf(t):
-    return 0.8 * _hf(t) + 0.3 * (t - 0.5)
-
-
-HF = rq.FunctionModel(lambda x: _hf(x[:, :1]), ["t"], ["y"])
-LF = rq.FunctionModel(lambda x: _lf(x[:, :1]), ["t"], ["y"])
+HF = rq.FunctionModel(lambda x: hf_response(x[:, :1]), ["t"], ["y"])
+LF = rq.FunctionModel(lambda x: lf_response(x[:, :1]), ["t"], ["y"])
 
 
 def _data(theta=0.37, n_exp=3, seed=1):
     rng = np.random.default_rng(seed)
-    return _hf(np.array([theta])) + NOISE * rng.standard_normal((n_exp, 1))
-
-
-def _grid_moments(loglik):
-    w = np.exp(loglik - loglik.max())
-    w /= w.sum()
-    mean = float((w * GRID).sum())
-    return mean, float(np.sqrt((w * (GRID - mean) ** 2).sum()))
-
-
-def _exact(data):
-    """Posterior mean and std on the model itself (uniform prior: the likelihood)."""
-    r = data[:, 0][None, :] - _hf(GRID)[:, None]
-    return _grid_moments(-0.5 * ((r / NOISE) ** 2).sum(1))
+    return hf_response(np.array([theta])) + NOISE * rng.standard_normal((n_exp, 1))
 
 
 def _emulated(ck, data, variance):
@@ -67,7 +54,7 @@ def _emulated(ck, data, variance):
     r = data[:, 0][None, :] - mean[:, None]
     ll = -0.5 * ((r**2).sum(1) - var * r.sum(1) ** 2 / (s2 + n * var)) / s2 \
         - 0.5 * np.log1p(n * var / s2)
-    return _grid_moments(ll)
+    return grid_moments(ll)
 
 
 def _calibrate(emulator, data=None, **kw):
@@ -91,7 +78,7 @@ def test_cokriging_posterior_is_the_exact_one_and_a_gp_on_the_same_runs_is_not(p
     mean and its std within 10 %; the GP's mean on the same six runs is more than 5 exact
     stds off (and 20x the co-kriging's error)."""
     ck, gp = pair
-    m, s = _exact(_data())
+    m, s = exact_posterior(_data())
     err_ck, err_gp = abs(ck.mean[0] - m) / s, abs(gp.mean[0] - m) / s
     assert err_ck < 0.2, (ck.mean, m, s)
     assert ck.std[0] == pytest.approx(s, rel=0.1)
@@ -100,7 +87,7 @@ def test_cokriging_posterior_is_the_exact_one_and_a_gp_on_the_same_runs_is_not(p
     (x_lf, _), (x_hf, y_hf) = ck.emulator.training_data
     np.testing.assert_array_equal(x_hf, gp.emulator._X)
     assert x_lf.shape == (30, 1) and all(np.any(np.all(x_lf == x, 1)) for x in x_hf)
-    np.testing.assert_array_equal(y_hf, _hf(x_hf))
+    np.testing.assert_array_equal(y_hf, hf_response(x_hf))
     assert ck.n_evaluations == 6 and ck.n_low_fidelity_evaluations == (30,)
     assert gp.n_low_fidelity_evaluations == ()
     # LOO at the HF runs and the adequacy see a near-exact emulator
@@ -202,16 +189,16 @@ def test_refinement_adds_runs_of_both_models_and_meets_the_target():
     assert x_hf.shape[0] == 4 + ad.n_added and x_lf.shape[0] == 8 + ad.n_added
     assert res.n_evaluations == 4 + ad.n_added
     assert res.n_low_fidelity_evaluations == (8 + ad.n_added,)
-    m, s = _exact(_data())
+    m, s = exact_posterior(_data())
     assert abs(res.mean[0] - m) < 0.3 * s and res.std[0] == pytest.approx(s, rel=0.15)
 
 
 def test_failed_low_fidelity_runs_are_left_out_and_counted():
     """LF runs failing (NaN) above t = 0.8 are left out of its level; all are counted; two
     LF models (a ladder) nest their designs."""
-    holes = rq.FunctionModel(lambda x: np.where(x[:, :1] > 0.8, np.nan, _lf(x[:, :1])),
+    holes = rq.FunctionModel(lambda x: np.where(x[:, :1] > 0.8, np.nan, lf_response(x[:, :1])),
                              ["t"], ["y"])
-    cheap = rq.FunctionModel(lambda x: 0.5 * _hf(x[:, :1]), ["t"], ["y"])
+    cheap = rq.FunctionModel(lambda x: 0.5 * hf_response(x[:, :1]), ["t"], ["y"])
     res = _calibrate(rq.CoKriging(low_fidelity=[cheap, holes], n_low=[24, 12]),
                      n_samples=300)
     (x0, _), (x1, y1), (x2, _) = res.emulator.training_data
@@ -226,8 +213,9 @@ def test_predict_gradient_and_the_fast_path_match_predict():
     (1e-4: truncation and round-off of h = 1e-4); the chains' compiled mean and variance
     against predict (round-off of an interpolating GP's solves: 1e-8 of the response's
     range, 1e-5 of the largest variance)."""
-    ck = rq.CoKriging(seed=0).fit([np.linspace(0, 1, 15)[:, None], np.linspace(0, 1, 5)[:, None]],
-                                  [_lf(np.linspace(0, 1, 15)), _hf(np.linspace(0, 1, 5))])
+    t_lf, t_hf = np.linspace(0, 1, 15), np.linspace(0, 1, 5)
+    ck = rq.CoKriging(seed=0).fit([t_lf[:, None], t_hf[:, None]],
+                                  [lf_response(t_lf), hf_response(t_hf)])
     x = np.array([[0.21], [0.64]])
     h = 1e-4
     _, grad = ck.predict(x, return_var=False, return_grad=True)
@@ -263,9 +251,9 @@ def test_bad_input_is_a_clear_error():
         rq.CoKriging(low_fidelity=[LF, LF], n_low=[10, 20])
     with pytest.raises(ParameterError, match="not a Model"):
         rq.CoKriging(low_fidelity=[np.sin])
-    fitted = rq.CoKriging(seed=0).fit([np.linspace(0, 1, 9)[:, None],
-                                       np.linspace(0, 1, 5)[:, None]],
-                                      [_lf(np.linspace(0, 1, 9)), _hf(np.linspace(0, 1, 5))])
+    t_lf, t_hf = np.linspace(0, 1, 9), np.linspace(0, 1, 5)
+    fitted = rq.CoKriging(seed=0).fit([t_lf[:, None], t_hf[:, None]],
+                                      [lf_response(t_lf), hf_response(t_hf)])
     with pytest.raises(ParameterError, match="refine= with a CoKriging"):
         rq.calibrate_bayes(HF, data, PRIOR, emulator=fitted, refine=RefineConfig(), **kw)
     with pytest.raises(ParameterError, match="GaussianProcess or CoKriging"):
@@ -280,7 +268,7 @@ def test_noise_multipliers_and_continue_chain_run_on_the_cokriging(pair):
     res = _calibrate(ck, noise_multipliers="one", n_samples=800)
     assert res.noise_multiplier_chains is not None and res.n_evaluations == 0
     assert res.n_low_fidelity_evaluations == (0,)
-    m, s = _exact(_data())
+    m, s = exact_posterior(_data())
     assert abs(res.mean[0] - m) < 0.5 * s
     more = rq.continue_chain(pair[0], 200)
     assert more.chains.shape[1] == pair[0].chains.shape[1] + 200

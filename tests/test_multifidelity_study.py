@@ -137,6 +137,34 @@ def test_a_dearer_mean_is_explained_by_what_the_run_measured(tmp_path):
                             "pilot, and the allocation was made for thrust")
 
 
+def test_the_allocation_note_names_the_responses_kept_as_evaluated(tmp_path):
+    """With adapt = "linear", the allocation table's note lists the (model, response) pairs
+    whose adaptation was not used, read from the saved record: none on the bundled study
+    (the coarse grid's adaptation helps both responses), and power when its correlation is
+    the model's own."""
+    from dataclasses import replace
+
+    from rotoruq.steps.multifidelity import MultifidelityRecord, multifidelity_tables
+
+    study = tmp_path / "mf.toml"
+    study.write_text(ROTOR_STUDY.read_text().replace("n_pilot = 20",
+                                                     'n_pilot = 20\nadapt = "linear"'))
+    out = tmp_path / "out"
+    proc = run_cli("run", str(study), "--out", str(out), "--no-report", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    show = run_cli("show", str(out), "multifidelity", cwd=tmp_path)
+    assert "the model's own is beside it.)" in show.stdout and "Kept as" not in show.stdout
+    res = load_step(out / "steps" / "multifidelity")
+    rec = MultifidelityRecord.read(res)
+    assert np.all(rec.correlation[1] != rec.correlation_unadapted[1])
+    corr = rec.correlation.copy()
+    corr[1, 1] = rec.correlation_unadapted[1, 1]
+    arrays, meta = replace(rec, correlation=corr).parts()
+    note = multifidelity_tables(replace(res, arrays=arrays, meta={**res.meta, **meta}), {})[0]
+    assert ("Kept as evaluated (the adaptation correlated worse, leave-one-out): coarse for "
+            "power.") in str(note.note)
+
+
 @pytest.mark.slow
 def test_rotor_study_on_dask_by_changing_only_the_executor(tmp_path):
     """The same study file with ``[executor] kind = "dask"`` (a local cluster the run starts):

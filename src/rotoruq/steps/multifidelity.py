@@ -227,7 +227,7 @@ def multifidelity_tables(res: StepResult, labels: Mapping[str, str]) -> list[Ste
              + (" Low-fidelity models adapted on the pilot (a linear map of their response "
                 "and the inputs): the estimator uses the adapted model's correlation "
                 "(leave-one-out on the pilot); the model's own is beside it."
-                if adapted else ""))
+                + _kept_as_evaluated(rec, labels) if adapted else ""))
     est = make_table(
         "Multi-fidelity estimates",
         ("response", "mean", "mean std. error", "std", "variance", "variance std. error",
@@ -261,6 +261,16 @@ def multifidelity_tables(res: StepResult, labels: Mapping[str, str]) -> list[Ste
                  "O(1/N) in the HF base samples); standard errors by the delta method from "
                  "the pilot's moments."))
     return tables
+
+
+def _kept_as_evaluated(rec: MultifidelityRecord, labels: Mapping[str, str]) -> str:
+    """The note's sentence on the (model, response) pairs whose adaptation was not used (their
+    pilot values, and so their correlation, are the model's own, bitwise)."""
+    kept = [f"{m} for {label(r, labels)}" for k, m in enumerate(rec.models) if m != HF_LABEL
+            for j, r in enumerate(rec.names_out)
+            if rec.correlation[k, j] == rec.correlation_unadapted[k, j]]
+    return (" Kept as evaluated (the adaptation correlated worse, leave-one-out): "
+            + ", ".join(kept) + "." if kept else "")
 
 
 def multifidelity_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:

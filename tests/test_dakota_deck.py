@@ -142,13 +142,14 @@ responses
 
 
 @pytest.mark.parametrize("where, text, line, expected", [
-    ("method", "sampling samples 10 response_levels 1 2", 2,
+    ("method", "sampling samples 10 refinement_samples 5", 2,
      "a sampling keyword rotoruq translates (sample_type,"),
-    ("method", "multi_start", 2, "a method keyword rotoruq translates"),
+    ("method", "multi_start", 2, "a method rotoruq translates"),
     ("method", "sampling sample_type incremental_lhs", 2, "'incremental_lhs' is not translated"),
-    ("variables", "  uncertain_correlation_matrix 1 0 0 1\n", 8, "'uncertain_correlation_matrix'"),
+    ("variables", "  uncertain_correlation_matrix 1 0 0\n", 8,
+     "an uncertain_correlation_matrix of 2 x 2 values"),
     ("variables", "  discrete_design_range 1\n", 8, "'discrete_design_range' is not"),
-    ("interface", "deactivate active_set_vector", 11, "'deactivate' is not translated"),
+    ("interface", "analysis_components 'c'", 11, "'analysis_components' is not translated"),
     ("responses", "metadata 'seconds'", 15, "'metadata' is not translated"),
     ("driver", "rotoruq driver --preset gvpm --bogus 3", 10, "not --bogus 3"),
 ])

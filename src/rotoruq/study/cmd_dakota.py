@@ -30,11 +30,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..atomic import write_text
-    from .deck import EXPORTABLE, deck_to_study, read_deck, study_to_decks
+    from .deck import EXPORTABLE, read_deck, study_to_decks, translate_deck
 
     if args.action == "import":
-        text = deck_to_study(read_deck(args.deck), name=args.name)
-        write_text(args.output, text)
+        tr = translate_deck(read_deck(args.deck), name=args.name)
+        write_text(args.output, tr.text)
+        if tr.ignored:
+            print(f"note: {args.deck.name}: kept out of the study (they shape what Dakota "
+                  f"itself writes or how it schedules, not a computed number): {tr.ignored}",
+                  file=sys.stderr)
+        for note in tr.notes:
+            print(f"note: {args.deck.name}: {note}", file=sys.stderr)
         print(args.output)
         return 0
     from ..errors import InputFileError

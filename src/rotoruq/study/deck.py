@@ -57,11 +57,13 @@ import numpy as np
 
 from ..errors import InputFileError
 
-__all__ = ["DeckEntry", "DeckBlock", "Deck", "parse_deck", "read_deck", "deck_to_study",
+__all__ = ["DeckEntry", "DeckBlock", "Deck", "DeckProblems", "DeckTranslation", "parse_deck",
+           "read_deck", "deck_to_study", "translate_deck", "OUTPUT_ONLY",
            "study_to_decks", "EXPORTABLE"]
 
 BLOCKS = ("environment", "method", "model", "variables", "interface", "responses")
-# Dakota's aliases of the keywords translated here -> the name used below
+# Dakota's aliases (and its older method names) of the keywords read here -> the name used
+# below. Variable attributes also take the group's prefix (``nuv_means``, ``lnuv_zetas``...).
 ALIASES = {"descriptor": "descriptors", "analysis_driver": "analysis_drivers",
            "num_response_functions": "response_functions",
            "least_squares_terms": "calibration_terms",
@@ -69,7 +71,42 @@ ALIASES = {"descriptor": "descriptors", "analysis_driver": "analysis_drivers",
            "num_calibration_terms": "calibration_terms",
            "least_squares_data_file": "calibration_data_file",
            "interval_probs": "interval_probabilities",
-           "secondary_variable_mappings": "secondary_variable_mapping"}
+           "iuv_interval_probs": "interval_probabilities",
+           "range_probabilities": "interval_probabilities",
+           "range_probs": "interval_probabilities",
+           "interval_uncertain": "continuous_interval_uncertain",
+           "secondary_variable_mappings": "secondary_variable_mapping",
+           "response_descriptors": "descriptors",
+           "experiment_variance_type": "variance_type",
+           "least_squares_weights": "weights", "calibration_weights": "weights",
+           "asynch": "asynchronous",
+           "fd_gradient_step_size": "fd_step_size",
+           "tabular_graphics_data": "tabular_data", "tabular_graphics_file": "tabular_data_file",
+           "method_pointer": "top_method_pointer",
+           "nond_sampling": "sampling", "nond_local_reliability": "local_reliability",
+           "nond_polynomial_chaos": "polynomial_chaos",
+           "nond_global_evidence": "global_evidence",
+           "nond_bayes_calibration": "bayes_calibration",
+           "initial_samples": "samples", "kriging": "gaussian_process",
+           "huv_bin_abscissas": "abscissas", "huv_bin_counts": "counts",
+           "huv_bin_ordinates": "ordinates", "huv_bin_descriptors": "descriptors",
+           "num_pairs": "pairs_per_variable", "expansion_samples": "samples_on_emulator",
+           "iuv_num_intervals": "num_intervals"}
+for _prefix, _attrs in {
+        "nuv": ("means", "std_deviations", "lower_bounds", "upper_bounds", "descriptors"),
+        "lnuv": ("means", "std_deviations", "lambdas", "zetas", "error_factors",
+                 "lower_bounds", "upper_bounds", "descriptors"),
+        "uuv": ("lower_bounds", "upper_bounds", "descriptors"),
+        "luuv": ("lower_bounds", "upper_bounds", "descriptors"),
+        "tuv": ("modes", "lower_bounds", "upper_bounds", "descriptors"),
+        "euv": ("betas", "descriptors"),
+        "buv": ("alphas", "betas", "lower_bounds", "upper_bounds", "descriptors"),
+        "gauv": ("alphas", "betas", "descriptors"), "guuv": ("alphas", "betas", "descriptors"),
+        "fuv": ("alphas", "betas", "descriptors"), "wuv": ("alphas", "betas", "descriptors"),
+        "iuv": ("descriptors",),
+        "cdv": ("initial_point", "lower_bounds", "upper_bounds", "descriptors"),
+        "csv": ("initial_state", "lower_bounds", "upper_bounds", "descriptors")}.items():
+    ALIASES.update({f"{_prefix}_{a}": a for a in _attrs})
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eEdD][+-]?\d+)?$")
 _TOKEN = re.compile(r"""'[^']*'|"[^"]*"|=|[^\s=,'"]+""")  # commas separate, as blanks
 
@@ -187,11 +224,129 @@ def read_deck(path: str | os.PathLike) -> Deck:
 
 
 # --------------------------------------------------------------------------- import
-class _Cursor:
-    """Walks a block's entries; every entry must be taken by the translator."""
+#: Keywords that only shape Dakota's own output, restart file, bookkeeping or scheduling:
+#: accepted where Dakota accepts them and listed in one note (a rotoruq run keeps its own
+#: store, report and executor). Nothing here changes a computed number.
+OUTPUT_ONLY: dict[str, frozenset[str]] = {
+    "environment": frozenset((
+        "tabular_data", "tabular_data_file", "annotated", "custom_annotated", "freeform",
+        "header", "eval_id", "interface_id", "output_precision", "results_output",
+        "results_output_file", "hdf5", "text", "model_selection", "interface_selection",
+        "graphics", "check", "output_file", "error_file", "read_restart", "write_restart",
+        "stop_restart", "pre_run", "run", "post_run", "input", "output", "utype",
+        "augment_utype", "none", "all", "top_method_pointer", "interfaces", "solution",
+        "models", "surrogate")),
+    "method": frozenset((
+        "output", "silent", "quiet", "normal", "verbose", "debug", "final_moments",
+        "standard", "central", "none", "speculative", "id_method", "model_pointer")),
+    "interface": frozenset((
+        "id_interface", "fork", "system", "direct", "parameters_file", "results_file",
+        "file_tag", "file_save", "work_directory", "named", "directory_tag", "directory_save",
+        "link_files", "copy_files", "replace", "verbatim", "labeled", "allow_existing_results",
+        "asynchronous", "evaluation_concurrency", "analysis_concurrency",
+        "local_evaluation_scheduling", "dedicated", "static", "dynamic",
+        "evaluation_scheduling", "evaluation_servers", "analysis_servers",
+        "analysis_scheduling", "processors_per_evaluation", "processors_per_analysis",
+        "deactivate", "active_set_vector", "evaluation_cache", "restart_file",
+        "strict_cache_equality", "cache_tolerance", "peer", "master", "batch", "size",
+        "input_filter", "output_filter")),
+    "responses": frozenset(("id_responses", "no_hessians", "method_source", "dakota",
+                            "vendor", "interval_type", "forward", "central",
+                            "fd_step_size", "absolute", "bounds", "relative")),
+    "variables": frozenset(("id_variables",)),
+    "model": frozenset(("id_model", "single", "variables_pointer", "interface_pointer",
+                        "responses_pointer")),
+}
 
-    def __init__(self, deck: Deck, block: DeckBlock, what: str):
+#: What an ignored keyword is, for the note (keywords not listed: "Dakota's output").
+_IGNORED_WHAT = {"evaluation_concurrency": "Dakota's scheduling",
+                 "asynchronous": "Dakota's scheduling", "batch": "Dakota's scheduling",
+                 "deactivate": "Dakota's cache and restart", "restart_file": "Dakota's restart",
+                 "read_restart": "Dakota's restart", "write_restart": "Dakota's restart",
+                 "fork": "the interface kind", "system": "the interface kind",
+                 "direct": "the interface kind", "work_directory": "Dakota's file handling",
+                 "file_tag": "Dakota's file handling", "file_save": "Dakota's file handling",
+                 "parameters_file": "Dakota's file handling",
+                 "results_file": "Dakota's file handling",
+                 "id_method": "block ids", "id_model": "block ids", "id_variables": "block ids",
+                 "id_interface": "block ids", "id_responses": "block ids",
+                 "model_pointer": "block ids", "top_method_pointer": "block ids",
+                 "variables_pointer": "block ids", "interface_pointer": "block ids",
+                 "responses_pointer": "block ids", "single": "the model kind"}
+
+
+class DeckProblems(InputFileError):
+    """Every problem of a Dakota deck at once: ``problems`` holds one
+    :class:`~rotoruq.errors.InputFileError` per problem (file, line, what was expected and
+    found); the message lists them in line order. With one problem the message is that
+    problem's own."""
+
+    def __init__(self, path: str, problems: Sequence[InputFileError]):
+        self.problems = sorted(problems, key=lambda p: (p.line or 0))
+        first = self.problems[0]
+        super().__init__(first.path, first.line, first.expected, first.found)
+        if len(self.problems) > 1:
+            lines = [f"{path}: {len(self.problems)} problems, each with its line:"]
+            for p in self.problems:
+                msg = str(p)
+                lines.append("  " + (msg[len(p.path) + 2:] if msg.startswith(p.path) else msg))
+            self.args = ("\n".join(lines),)
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
+class _Tx:
+    """A translation's problems and ignored keywords, collected over the whole deck."""
+
+    def __init__(self, deck: Deck):
+        self.deck = deck
+        self.problems: list[InputFileError] = []
+        self.ignored: list[DeckEntry] = []
+        self.notes: list[str] = []
+
+    def problem(self, line: int | None, expected: str, found: str | None = None) -> None:
+        self.problems.append(InputFileError(self.deck.path, line, expected, found))
+
+    def guard(self, fn: Any, *args: Any, default: Any = None) -> Any:
+        """``fn(*args)``; a problem it raises is recorded and ``default`` returned."""
+        try:
+            return fn(*args)
+        except DeckProblems as exc:
+            self.problems.extend(exc.problems)
+        except InputFileError as exc:
+            self.problems.append(exc)
+        return default
+
+    def done(self) -> None:
+        if self.problems:
+            seen, unique = set(), []
+            for p in self.problems:
+                key = (p.line, p.expected, p.found)
+                if key not in seen:
+                    seen.add(key)
+                    unique.append(p)
+            raise DeckProblems(self.deck.path, unique)
+
+    def ignored_note(self) -> str:
+        """One line per kind of ignored keyword, with the deck lines."""
+        groups: dict[str, list[str]] = {}
+        for e in self.ignored:
+            what = _IGNORED_WHAT.get(e.keyword, "Dakota's output")
+            if what in ("block ids", "the interface kind", "the model kind"):
+                continue
+            groups.setdefault(what, []).append(f"{e.keyword} (line {e.line})")
+        return "; ".join(f"{what}: {', '.join(dict.fromkeys(v))}" for what, v in groups.items())
+
+
+class _Cursor:
+    """Walks a block's entries; every entry must be taken by the translator. An unknown
+    keyword is recorded as a problem (or, when it only shapes Dakota's own output, as
+    ignored) and the walk goes on, so a deck's problems are all reported at once."""
+
+    def __init__(self, deck: Deck, block: DeckBlock, what: str, tx: _Tx | None = None):
         self.deck, self.block, self.what = deck, block, what
+        self.tx = tx if tx is not None else _Tx(deck)
         self.i = 0
 
     def __iter__(self) -> Iterator[DeckEntry]:
@@ -213,9 +368,16 @@ class _Cursor:
     def fail(self, e: DeckEntry, expected: str) -> Any:
         raise InputFileError(self.deck.path, e.line, expected, e.keyword)
 
-    def unknown(self, e: DeckEntry, known: Sequence[str]) -> Any:
-        return self.fail(e, f"a {self.what} keyword rotoruq translates ("
-                         + ", ".join(known) + f"); '{e.keyword}' is not translated")
+    def unknown(self, e: DeckEntry, known: Sequence[str]) -> None:
+        if e.keyword in OUTPUT_ONLY.get(self.block.kind, ()):
+            self.tx.ignored.append(e)
+            return
+        listed = [k for k in known if k not in OUTPUT_ONLY.get(self.block.kind, ())]
+        self.tx.problem(e.line, (f"a {self.what} keyword rotoruq translates ("
+                                 + ", ".join(listed) + ")" if listed else
+                                 f"a {self.what} keyword rotoruq reads (those that shape "
+                                 "Dakota's own output)") + f"; '{e.keyword}' is not translated",
+                        e.keyword)
 
 
 def _num(c: _Cursor, e: DeckEntry, n: int | None = 1, kind: str = "number") -> list:
@@ -237,24 +399,47 @@ def _strs(c: _Cursor, e: DeckEntry, n: int | None = None) -> list[str]:
     return vals
 
 
-# variables: group keyword -> (default descriptor prefix, its attributes)
+# variables: group keyword -> (default descriptor prefix, its attributes), in Dakota's own
+# order of variable types (the order of its correlation matrix and of a parameter study's
+# points: design, aleatory uncertain by type, epistemic, state)
 _GROUPS: dict[str, tuple[str, tuple[str, ...]]] = {
-    "normal_uncertain": ("nuv", ("means", "std_deviations", "lower_bounds", "upper_bounds")),
-    "lognormal_uncertain": ("lnuv", ("means", "std_deviations")),
-    "uniform_uncertain": ("uuv", ("lower_bounds", "upper_bounds")),
-    "loguniform_uncertain": ("luuv", ("lower_bounds", "upper_bounds")),
-    "triangular_uncertain": ("tuv", ("modes", "lower_bounds", "upper_bounds")),
-    "exponential_uncertain": ("euv", ("betas",)),
-    "beta_uncertain": ("buv", ("alphas", "betas", "lower_bounds", "upper_bounds")),
-    "gamma_uncertain": ("gauv", ("alphas", "betas")),
-    "gumbel_uncertain": ("guuv", ("alphas", "betas")),
-    "weibull_uncertain": ("wuv", ("alphas", "betas")),
+    "continuous_design": ("cdv", ("initial_point", "lower_bounds", "upper_bounds",
+                                  "scale_types", "scales")),
+    "normal_uncertain": ("nuv", ("means", "std_deviations", "lower_bounds", "upper_bounds",
+                                 "initial_point")),
+    "lognormal_uncertain": ("lnuv", ("means", "std_deviations", "lambdas", "zetas",
+                                     "error_factors", "lower_bounds", "upper_bounds",
+                                     "initial_point")),
+    "uniform_uncertain": ("uuv", ("lower_bounds", "upper_bounds", "initial_point")),
+    "loguniform_uncertain": ("luuv", ("lower_bounds", "upper_bounds", "initial_point")),
+    "triangular_uncertain": ("tuv", ("modes", "lower_bounds", "upper_bounds",
+                                     "initial_point")),
+    "exponential_uncertain": ("euv", ("betas", "initial_point")),
+    "beta_uncertain": ("buv", ("alphas", "betas", "lower_bounds", "upper_bounds",
+                               "initial_point")),
+    "gamma_uncertain": ("gauv", ("alphas", "betas", "initial_point")),
+    "gumbel_uncertain": ("guuv", ("alphas", "betas", "initial_point")),
+    "frechet_uncertain": ("fuv", ("alphas", "betas", "initial_point")),
+    "weibull_uncertain": ("wuv", ("alphas", "betas", "initial_point")),
+    "histogram_bin_uncertain": ("hbuv", ("pairs_per_variable", "abscissas", "counts",
+                                         "ordinates", "initial_point")),
     "continuous_interval_uncertain": ("ciuv", ("num_intervals", "interval_probabilities",
-                                               "interval_probs", "lower_bounds",
-                                               "upper_bounds")),
+                                               "lower_bounds", "upper_bounds",
+                                               "initial_point")),
     "continuous_state": ("csv", ("initial_state", "lower_bounds", "upper_bounds")),
-    "continuous_design": ("cdv", ("initial_point", "lower_bounds", "upper_bounds")),
 }
+#: the aleatory uncertain types, in Dakota's order (its correlation matrix's order)
+_ALEATORY = tuple(g for g in _GROUPS if g.endswith("_uncertain")
+                  and g != "continuous_interval_uncertain")
+# attributes whose values are split over the variables by a count (histograms, intervals)
+_SPLIT = {"pairs_per_variable": ("abscissas", "counts", "ordinates"),
+          "num_intervals": ("interval_probabilities", "lower_bounds", "upper_bounds")}
+
+
+def _is_group(keyword: str) -> bool:
+    """A keyword that opens a group of variables in Dakota's grammar (translated or not)."""
+    return (keyword in _GROUPS or keyword.endswith(("_uncertain", "_uncertain_set"))
+            or keyword.startswith(("continuous_", "discrete_")))
 
 
 @dataclass
@@ -270,52 +455,76 @@ class _Vars:
     uncertain: list[_Var] = field(default_factory=list)
     state: list[_Var] = field(default_factory=list)
     design: list[_Var] = field(default_factory=list)
+    correlation: tuple[list[float], int] | None = None  # (values, line)
+    active: DeckEntry | None = None
 
 
-def _read_variables(deck: Deck, block: DeckBlock) -> _Vars:
-    c = _Cursor(deck, block, "variables")
+def _read_variables(deck: Deck, block: DeckBlock, tx: _Tx | None = None) -> _Vars:
+    c = _Cursor(deck, block, "variables", tx)
     out = _Vars()
     for e in c:
-        if e.keyword == "id_variables":
+        if e.keyword in ("id_variables", "mixed", "relaxed"):
+            continue
+        if e.keyword == "uncertain_correlation_matrix":
+            out.correlation = (_num(c, e, None), e.line)
+            continue
+        if e.keyword == "active":
+            a = c.next_if("all", "design", "uncertain", "aleatory", "epistemic", "state")
+            out.active = a if a is not None and a.keyword in ("all", "design", "state") \
+                else None
             continue
         if e.keyword not in _GROUPS:
-            c.unknown(e, ["id_variables", *_GROUPS])
-        n = _num(c, e, 1, "integer")[0]
-        prefix, attrs = _GROUPS[e.keyword]
-        got: dict[str, list] = {}
-        names = [f"{prefix}_{i + 1}" for i in range(n)]
-        while (a := c.next_if("descriptors", *attrs)) is not None:
-            if a.keyword == "descriptors":
-                names = _strs(c, a, n)
-            elif a.keyword == "num_intervals":
-                got[a.keyword] = _num(c, a, n, "integer")
-            else:
-                got["interval_probabilities" if a.keyword == "interval_probs"
-                    else a.keyword] = _num(c, a, None)
-        if e.keyword != "continuous_interval_uncertain":
-            for k, v in got.items():
-                if len(v) != n:
-                    c.fail(e, f"{n} values of {k} (one per variable)")
-        target = (out.state if e.keyword == "continuous_state" else
-                  out.design if e.keyword == "continuous_design" else out.uncertain)
-        if e.keyword == "continuous_interval_uncertain":
-            counts = got.get("num_intervals", [1] * n)
-            lo, hi = got.get("lower_bounds", []), got.get("upper_bounds", [])
-            probs = got.get("interval_probabilities", [1.0 / k for k in counts for _ in range(k)])
-            if not (len(lo) == len(hi) == len(probs) == sum(counts)):
-                c.fail(e, f"{sum(counts)} lower_bounds, upper_bounds and "
-                       "interval_probabilities (num_intervals in all)")
-            k0 = 0
-            for i, name in enumerate(names):
-                k1 = k0 + counts[i]
-                target.append(_Var(name, e.keyword, {
-                    "intervals": [[lo[j], hi[j]] for j in range(k0, k1)],
-                    "bpa": probs[k0:k1]}, e.line))
-                k0 = k1
+            c.unknown(e, ["id_variables", *_GROUPS, "uncertain_correlation_matrix", "active"])
+            if _is_group(e.keyword):  # its attributes go with it, not listed again
+                while (a := c.peek()) is not None and not _is_group(a.keyword) \
+                        and a.keyword not in ("uncertain_correlation_matrix", "active"):
+                    c.i += 1
             continue
-        for i, name in enumerate(names):
-            target.append(_Var(name, e.keyword, {k: v[i] for k, v in got.items()}, e.line))
+        c.tx.guard(_read_group, c, e, out)
     return out
+
+
+def _read_group(c: _Cursor, e: DeckEntry, out: _Vars) -> None:
+    n = _num(c, e, 1, "integer")[0]
+    prefix, attrs = _GROUPS[e.keyword]
+    got: dict[str, list] = {}
+    names = [f"{prefix}_{i + 1}" for i in range(n)]
+    while (a := c.next_if("descriptors", *attrs)) is not None:
+        if a.keyword == "descriptors":
+            names = _strs(c, a, n)
+        elif a.keyword in _SPLIT:
+            got[a.keyword] = _num(c, a, n, "integer")
+        else:
+            got[a.keyword] = _num(c, a, None)
+    target = (out.state if e.keyword == "continuous_state" else
+              out.design if e.keyword == "continuous_design" else out.uncertain)
+    split = next((s for s in _SPLIT if e.keyword.startswith(
+        "histogram" if s == "pairs_per_variable" else "continuous_interval")), None)
+    if split is not None:
+        counts = got.get(split)
+        if counts is None:
+            first = next((got[k] for k in _SPLIT[split] if k in got), [])
+            if len(first) % n:
+                c.fail(e, f"{split} for {n} variables whose values do not split evenly")
+            counts = [len(first) // n] * n if split == "pairs_per_variable" else [1] * n
+        per: dict[str, list[list[float]]] = {}
+        for k in _SPLIT[split]:
+            if k in got:
+                if len(got[k]) != sum(counts):
+                    c.fail(e, f"{sum(counts)} values of {k} ({split} in all)")
+                bounds = np.cumsum([0, *counts])
+                per[k] = [got[k][bounds[i]:bounds[i + 1]] for i in range(n)]
+        for i, name in enumerate(names):
+            attrs_i = {k: v[i] for k, v in per.items()}
+            if "initial_point" in got:
+                attrs_i["initial_point"] = got["initial_point"][i]
+            target.append(_Var(name, e.keyword, attrs_i, e.line))
+        return
+    for k, v in got.items():
+        if len(v) != n:
+            c.fail(e, f"{n} values of {k} (one per variable)")
+    for i, name in enumerate(names):
+        target.append(_Var(name, e.keyword, {k: v[i] for k, v in got.items()}, e.line))
 
 
 def _distribution(v: _Var, deck: Deck) -> dict:
@@ -335,8 +544,19 @@ def _distribution(v: _Var, deck: Deck) -> dict:
         return {"distribution": "truncated_normal", "mean": mean, "std": std,
                 "lower": lo, "upper": hi}
     if g == "lognormal_uncertain":
-        mean, std = need("means", "std_deviations")
-        return {"distribution": "lognormal", "mean": mean, "std": std}
+        if "lambdas" in a or "zetas" in a:
+            lam, zeta = need("lambdas", "zetas")
+            out = {"distribution": "lognormal", "lambda": lam, "zeta": zeta}
+        elif "error_factors" in a:
+            mean, ef = need("means", "error_factors")
+            out = {"distribution": "lognormal", "mean": mean, "error_factor": ef}
+        else:
+            mean, std = need("means", "std_deviations")
+            out = {"distribution": "lognormal", "mean": mean, "std": std}
+        lo, hi = a.get("lower_bounds", 0.0), a.get("upper_bounds", math.inf)
+        if lo > 0.0 or not math.isinf(hi):
+            out.update(lower=lo, upper=hi)
+        return out
     if g in ("uniform_uncertain", "loguniform_uncertain"):
         lo, hi = need("lower_bounds", "upper_bounds")
         return {"distribution": g.split("_")[0], "lower": lo, "upper": hi}
@@ -348,17 +568,33 @@ def _distribution(v: _Var, deck: Deck) -> dict:
     if g == "beta_uncertain":
         al, be, lo, hi = need("alphas", "betas", "lower_bounds", "upper_bounds")
         return {"distribution": "beta", "alpha": al, "beta": be, "lower": lo, "upper": hi}
+    if g == "histogram_bin_uncertain":
+        x = need("abscissas")[0]
+        if "counts" in a:
+            counts = list(a["counts"])
+        else:
+            y = need("ordinates")[0]
+            if len(y) != len(x):
+                raise InputFileError(deck.path, v.line, f"as many ordinates as abscissas for "
+                                     f"{v.name!r}")
+            # a density height per bin -> the bin's mass (Dakota normalises both forms)
+            counts = [y[i] * (x[i + 1] - x[i]) for i in range(len(x) - 1)] + [0.0]
+        if len(counts) != len(x):
+            raise InputFileError(deck.path, v.line, f"as many counts as abscissas for "
+                                 f"{v.name!r} (the last count is 0)")
+        return {"distribution": "histogram_bin", "abscissas": list(x), "counts": counts}
     if g == "continuous_interval_uncertain":
         # the evidence step takes the cells; the parameter is their hull
-        return {"distribution": "uniform", "lower": min(lo for lo, _ in a["intervals"]),
-                "upper": max(hi for _, hi in a["intervals"])}
+        lo, hi = need("lower_bounds", "upper_bounds")
+        return {"distribution": "uniform", "lower": min(lo), "upper": max(hi)}
     al, be = need("alphas", "betas")
     return {"distribution": g.split("_")[0], "alpha": al, "beta": be}
 
 
-def _design_distribution(v: _Var, deck: Deck) -> dict:
-    """A calibrated design variable as a distribution whose mean is its initial point and
-    whose support its bounds (rotoruq's least squares starts at the means, within supports)."""
+def _design_distribution(v: _Var, deck: Deck) -> tuple[dict, float | None]:
+    """A calibrated design variable: the uniform distribution on its bounds (the support the
+    least-squares step searches) and its initial point, when it is not the midpoint (the
+    step's ``start``)."""
     a = v.attrs
     lo, hi = a.get("lower_bounds", -math.inf), a.get("upper_bounds", math.inf)
     x0 = a.get("initial_point")
@@ -366,15 +602,13 @@ def _design_distribution(v: _Var, deck: Deck) -> dict:
         if x0 is None:
             raise InputFileError(deck.path, v.line, f"initial_point or both bounds for "
                                  f"continuous_design {v.name!r}")
-        return {"distribution": "normal", "mean": x0, "std": abs(x0) * 0.1 or 1.0}
+        return {"distribution": "normal", "mean": x0, "std": abs(x0) * 0.1 or 1.0}, None
+    if x0 is not None and not lo <= x0 <= hi:
+        raise InputFileError(deck.path, v.line, f"an initial_point of {v.name!r} within its "
+                             f"bounds [{lo!r}, {hi!r}]", repr(x0))
     if x0 is None or math.isclose(x0, 0.5 * (lo + hi), rel_tol=1e-12, abs_tol=1e-300):
-        return {"distribution": "uniform", "lower": lo, "upper": hi}
-    mode = 3.0 * x0 - lo - hi  # a triangular whose mean is the initial point
-    if not lo <= mode <= hi:
-        raise InputFileError(deck.path, v.line, f"an initial_point of {v.name!r} within the "
-                             "middle third of its bounds (rotoruq starts at the mean of a "
-                             "distribution on the bounds)", repr(x0))
-    return {"distribution": "triangular", "mode": mode, "lower": lo, "upper": hi}
+        x0 = None
+    return {"distribution": "uniform", "lower": lo, "upper": hi}, x0
 
 
 @dataclass
@@ -384,74 +618,113 @@ class _Responses:
     data: dict | None = None
     noise_std: dict | None = None
     line: int = 0
+    gradients: str = "none"  # none | numerical | analytic
+    weights: list[float] | None = None
 
 
-_RESP_SKIP = ("id_responses", "no_gradients", "analytic_gradients", "no_hessians",
-              "numerical_gradients", "method_source", "dakota", "vendor", "interval_type",
-              "forward", "central", "fd_step_size", "fd_gradient_step_size")
+_RESP_KEYS = ("response_functions", "calibration_terms", "descriptors", "calibration_data_file",
+              "no_gradients", "numerical_gradients", "analytic_gradients", "weights",
+              "scalar_responses", "scalar_calibration_terms")
+_DATA_KEYS = ("freeform", "annotated", "custom_annotated", "header", "eval_id", "interface_id",
+              "num_experiments", "variance_type", "num_config_variables")
 
 
-def _read_responses(deck: Deck, block: DeckBlock) -> _Responses:
-    c = _Cursor(deck, block, "responses")
+def _read_responses(deck: Deck, block: DeckBlock, tx: _Tx | None = None) -> _Responses:
+    c = _Cursor(deck, block, "responses", tx)
     out = _Responses([], "", line=block.line)
+    descriptors: DeckEntry | None = None
+    data: tuple[DeckEntry, str, list[DeckEntry]] | None = None
     for e in c:
         if e.keyword in ("response_functions", "calibration_terms"):
             n = _num(c, e, 1, "integer")[0]
             out.kind = e.keyword
             prefix = "response_fn" if e.keyword == "response_functions" else "least_sq_term"
             out.names = [f"{prefix}_{i + 1}" for i in range(n)]
-            if (d := c.next_if("descriptors")) is not None:
-                out.names = _strs(c, d, n)
+        elif e.keyword in ("scalar_responses", "scalar_calibration_terms"):
+            if out.kind and _num(c, e, 1, "integer")[0] != len(out.names):
+                c.fail(e, f"{len(out.names)} scalar responses (field responses are not "
+                       "translated)")
+        elif e.keyword == "descriptors":
+            descriptors = e
         elif e.keyword == "calibration_data_file":
-            fname = _strs(c, e, 1)[0]
-            layout, n_exp, variance = "annotated", 1, "none"
-            while (a := c.next_if("freeform", "annotated", "custom_annotated", "header",
-                                  "eval_id", "interface_id", "num_experiments",
-                                  "variance_type", "num_config_variables")) is not None:
-                if a.keyword in ("freeform", "annotated", "custom_annotated"):
-                    layout = a.keyword
-                elif a.keyword == "num_experiments":
-                    n_exp = _num(c, a, 1, "integer")[0]
-                elif a.keyword == "variance_type":
-                    variance = _strs(c, a, 1)[0]
-                    if variance not in ("none", "scalar"):
-                        c.fail(a, "variance_type 'none' or 'scalar' (one noise std per "
-                               "response)")
-                elif a.keyword == "num_config_variables" and _num(c, a, 1, "integer")[0]:
-                    c.fail(a, "num_config_variables 0 (configuration variables are not "
-                           "translated: give them as a [data] column and a sweep)")
-            out.data, out.noise_std = _calibration_data(c, e, fname, layout, n_exp, variance,
-                                                        out.names)
-        elif e.keyword not in _RESP_SKIP:
-            c.unknown(e, ["response_functions", "calibration_terms", "descriptors",
-                          "calibration_data_file", *_RESP_SKIP])
+            opts = []
+            while (a := c.next_if(*_DATA_KEYS)) is not None:
+                opts.append(a)
+            data = (e, _strs(c, e, 1)[0], opts)
+        elif e.keyword in ("no_gradients", "numerical_gradients", "analytic_gradients"):
+            out.gradients = e.keyword.split("_")[0]
+        elif e.keyword == "weights":
+            out.weights = _num(c, e, None)
+        else:
+            c.unknown(e, _RESP_KEYS)
     if not out.names:
         raise InputFileError(deck.path, block.line, "response_functions = N or "
                              "calibration_terms = N in the responses block")
+    if descriptors is not None:
+        out.names = _strs(c, descriptors, len(out.names))
+    if out.weights is not None and len(out.weights) != len(out.names):
+        raise InputFileError(deck.path, block.line, f"{len(out.names)} weights (one per "
+                             "calibration term)")
+    if data is not None:
+        e, fname, opts = data
+        layout, n_exp, variance = "annotated", 1, ["none"]
+        for a in opts:
+            if a.keyword in ("freeform", "annotated", "custom_annotated"):
+                layout = a.keyword
+            elif a.keyword == "num_experiments":
+                n_exp = _num(c, a, 1, "integer")[0]
+            elif a.keyword == "variance_type":
+                variance = _strs(c, a)
+                if any(v not in ("none", "scalar") for v in variance) \
+                        or len(variance) not in (1, len(out.names)):
+                    c.fail(a, "variance_type 'none' or 'scalar', once or per response "
+                           "(one noise std per response)")
+            elif a.keyword == "num_config_variables" and _num(c, a, 1, "integer")[0]:
+                c.fail(a, "num_config_variables 0 (configuration variables are not "
+                       "translated: give them as a [data] column and a sweep)")
+        if len(variance) == 1:
+            variance = variance * len(out.names)
+        out.data, out.noise_std = _calibration_data(c, e, fname, layout, n_exp, variance,
+                                                    out.names)
     return out
 
 
 def _calibration_data(c: _Cursor, e: DeckEntry, fname: str, layout: str, n_exp: int,
-                      variance: str, names: list[str]) -> tuple[dict, dict | None]:
+                      variance: list[str], names: list[str]) -> tuple[dict, dict | None]:
+    """Read a calibration data file as Dakota does: a freeform file is a stream of numbers
+    (any number per line), n_exp experiments of the responses' values, then a variance per
+    response whose variance_type is 'scalar'; an annotated file has a header line and
+    ``eval_id`` (and, with custom_annotated, what its options say) before each row."""
     path = Path(c.deck.path).parent / fname
     if not path.is_file():
         c.fail(e, f"an existing calibration data file ({path})")
-    rows = [ln.split() for ln in path.read_text().splitlines() if ln.strip()
-            and not ln.lstrip().startswith("#")]
-    if layout != "freeform":
-        rows = rows[1:]
+    text = [ln for ln in path.read_text().splitlines()
+            if ln.strip() and not ln.lstrip().startswith("#")]
     m = len(names)
-    width = m * (2 if variance == "scalar" else 1)
+    n_var = sum(v == "scalar" for v in variance)
+    width = m + n_var
+    if layout == "freeform":
+        toks = " ".join(text).split()
+    else:
+        rows = [ln.split() for ln in text[1:]]  # the header line
+        toks = [tok for r in rows[:n_exp] for tok in r[-width:]]
     try:
-        vals = np.array([[float(v) for v in r[-width:]] for r in rows[:n_exp]])
+        flat = [float(v) for v in toks]
     except ValueError:
-        c.fail(e, f"{n_exp} rows of numbers in {fname}")
-    if vals.shape != (n_exp, width):
-        c.fail(e, f"{n_exp} rows of {width} numbers in {fname} ({layout})")
+        c.fail(e, f"numbers in {fname}")
+    if len(flat) < n_exp * width:
+        c.fail(e, f"{n_exp} experiments of {width} numbers in {fname} ({layout}; found "
+               f"{len(flat)} numbers)")
+    vals = np.array(flat[:n_exp * width]).reshape(n_exp, width)
     data = {r: [float(v) for v in vals[:, j]] for j, r in enumerate(names)}
     noise = None
-    if variance == "scalar":
-        noise = {r: float(np.sqrt(np.mean(vals[:, m + j]))) for j, r in enumerate(names)}
+    if n_var:
+        k = m
+        noise = {}
+        for j, r in enumerate(names):
+            if variance[j] == "scalar":
+                noise[r] = float(np.sqrt(np.mean(vals[:, k])))
+                k += 1
     return data, noise
 
 
@@ -459,25 +732,37 @@ def _calibration_data(c: _Cursor, e: DeckEntry, fname: str, layout: str, n_exp: 
 class _Driver:
     preset: str | None = None
     command: list[str] | None = None
+    function: str | None = None
     fixed: dict = field(default_factory=dict)
     mapping: dict = field(default_factory=dict)
     outputs: list[str] = field(default_factory=list)
     parameters_format: str = "standard"
     failure: dict = field(default_factory=dict)
+    gradients: str | None = None
 
 
-_IF_SKIP = ("id_interface", "fork", "system", "parameters_file", "results_file", "file_tag",
-            "file_save", "work_directory", "named", "directory_tag", "directory_save",
-            "standard", "asynchronous", "evaluation_concurrency", "link_files", "copy_files",
-            "verbatim", "labeled")
+_IF_KEYS = ("analysis_drivers", "aprepro", "failure_capture", "fork", "system", "direct")
 
 
-def _read_interface(deck: Deck, block: DeckBlock) -> _Driver:
-    c = _Cursor(deck, block, "interface")
+def _dakota_functions() -> Mapping[str, Any]:
+    """Dakota's built-in test functions rotoruq has (name -> info)."""
+    try:
+        from ..testfunctions import FUNCTIONS
+    except ImportError:  # pragma: no cover - the module ships with rotoruq
+        return {}
+    return FUNCTIONS
+
+
+def _read_interface(deck: Deck, block: DeckBlock, tx: _Tx | None = None) -> _Driver:
+    c = _Cursor(deck, block, "interface", tx)
     drv = _Driver()
     seen = None
+    kind = "fork"
     for e in c:
-        if e.keyword in ("analysis_drivers", "analysis_driver"):
+        if e.keyword in ("fork", "system", "direct"):
+            kind = e.keyword
+            c.tx.ignored.append(e)
+        elif e.keyword == "analysis_drivers":
             strs = _strs(c, e)
             if len(strs) != 1:
                 c.fail(e, "one analysis driver (several drivers per evaluation are not "
@@ -494,13 +779,37 @@ def _read_interface(deck: Deck, block: DeckBlock) -> _Driver:
                            {"failure": "recover", "recover": _num(c, a, None)}
                            if a.keyword == "recover" else
                            {"failure": "retry", "retries": _num(c, a, 1, "integer")[0]})
-        elif e.keyword not in _IF_SKIP:
-            c.unknown(e, ["analysis_drivers", "aprepro", "failure_capture", *_IF_SKIP])
+        elif e.keyword in ("python", "matlab", "scilab", "plugin", "grid"):
+            c.fail(e, "a fork, system or direct interface (Dakota's " + e.keyword
+                   + " interface runs code inside Dakota)")
+        else:
+            c.unknown(e, _IF_KEYS)
     if seen is None:
         raise InputFileError(deck.path, block.line, "analysis_drivers = '...' in the "
-                             "interface block (fork or system)")
-    _parse_driver(c, seen[1], seen[0], drv)
+                             "interface block")
+    text, e = seen
+    functions = _dakota_functions()
+    if kind == "direct":
+        if text not in functions:
+            c.fail(e, "one of Dakota's test functions rotoruq has for a direct interface ("
+                   + ", ".join(sorted(functions)) + f"); '{text}' is not one")
+        drv.function = text
+        return drv
+    argv = shlex.split(text)
+    if len(argv) == 1 and argv[0] in functions and not _program_exists(deck, argv[0]):
+        # Dakota's test suite runs its test functions as programs of the same name
+        drv.function = argv[0]
+        c.tx.notes.append(f"the {kind} driver '{argv[0]}' (line {e.line}) is not a program "
+                          "here: Dakota's test function of that name, built in")
+        return drv
+    _parse_driver(c, e, text, drv)
     return drv
+
+
+def _program_exists(deck: Deck, name: str) -> bool:
+    import shutil
+
+    return (Path(deck.path).parent / name).exists() or shutil.which(name) is not None
 
 
 def _parse_driver(c: _Cursor, e: DeckEntry, text: str, drv: _Driver) -> None:
@@ -537,29 +846,33 @@ def _parse_driver(c: _Cursor, e: DeckEntry, text: str, drv: _Driver) -> None:
 
 
 # methods -------------------------------------------------------------------------------
+_LEVELS = ("response_levels", "probability_levels", "reliability_levels",
+           "gen_reliability_levels")
+_LEVEL_KEYS = (*_LEVELS, *(f"num_{k}" for k in _LEVELS), "compute", "probabilities",
+               "reliabilities", "gen_reliabilities", "distribution", "cumulative",
+               "complementary")
 _SAMPLING = ("sample_type", "lhs", "random", "samples", "seed", "fixed_seed",
-             "variance_based_decomp", "output", "silent", "quiet", "normal", "verbose")
+             "variance_based_decomp", *_LEVEL_KEYS)
 _RELIABILITY = ("mpp_search", "x_taylor_mean", "u_taylor_mean", "x_taylor_mpp",
                 "u_taylor_mpp", "x_two_point", "u_two_point", "no_approx", "integration",
-                "distribution", "cumulative", "complementary",
-                "first_order", "second_order", "response_levels", "probability_levels",
-                "num_response_levels", "num_probability_levels", "compute", "probabilities",
-                "reliabilities", "output", "silent", "quiet", "normal", "verbose")
-_PCE = ("quadrature_order", "expansion_order", "collocation_points", "collocation_ratio",
-        "seed", "variance_based_decomp", "askey", "least_squares", "output", "silent",
-        "quiet", "normal", "verbose")
-_EVIDENCE = ("lhs", "samples", "seed", "response_levels", "num_response_levels", "output",
-             "silent", "quiet", "normal", "verbose")
-_NL2SOL = ("convergence_tolerance", "max_iterations", "max_function_evaluations", "output",
-           "silent", "quiet", "normal", "verbose")
+                "first_order", "second_order", *_LEVEL_KEYS)
+_PCE = ("quadrature_order", "dimension_preference", "expansion_order", "collocation_points",
+        "collocation_ratio", "seed", "fixed_seed", "variance_based_decomp", "askey",
+        "least_squares", "svd", "samples_on_emulator", "samples", "sample_type", "lhs",
+        "random", "normalized", "nested", "non_nested", *_LEVEL_KEYS)
+_EVIDENCE = ("sample_type", "lhs", "random", "samples", "seed", *_LEVEL_KEYS)
+_NL2SOL = ("convergence_tolerance", "max_iterations", "max_function_evaluations")
 _BAYES = ("queso", "mh", "metropolis_hastings", "dr", "delayed_rejection", "am",
           "adaptive_metropolis", "dram", "chain_samples", "samples", "burn_in_samples",
           "seed", "emulator", "gaussian_process", "surfpack", "build_samples",
-          "proposal_covariance", "prior", "derivatives", "output", "silent", "quiet",
-          "normal", "verbose")
+          "proposal_covariance", "prior", "derivatives")
 _METHOD_COMMON = ("id_method", "model_pointer")
 _METHODS = ("sampling", "local_reliability", "polynomial_chaos", "global_evidence", "nl2sol",
             "bayes_calibration")
+#: Dakota's other iterators, named in the message when a deck asks for one
+_ALLOWED = {"sampling": _SAMPLING, "local_reliability": _RELIABILITY,
+            "polynomial_chaos": _PCE, "global_evidence": _EVIDENCE, "nl2sol": _NL2SOL,
+            "bayes_calibration": _BAYES}
 
 
 @dataclass
@@ -589,67 +902,99 @@ def _levels(c: _Cursor, e: DeckEntry, names: list[str], counts: list[int] | None
     return out
 
 
-def _read_method(deck: Deck, block: DeckBlock, responses: list[str]) -> _Method:
-    c = _Cursor(deck, block, "method")
-    kind, opts, seed = None, {}, None
+def _read_method(deck: Deck, block: DeckBlock, responses: list[str],
+                 tx: _Tx | None = None) -> _Method:
+    c = _Cursor(deck, block, "method", tx)
+    # the method's keyword may follow its options (Dakota reads a block in any order)
+    head = next((e for e in block.entries if e.keyword in _METHODS), None)
+    if head is None:
+        other = next((e for e in block.entries if e.keyword not in _METHOD_COMMON
+                      and e.keyword not in OUTPUT_ONLY["method"]), None)
+        raise InputFileError(deck.path, other.line if other else block.line,
+                             "a method rotoruq translates (" + ", ".join(_METHODS) + ")",
+                             other.keyword if other else None)
+    kind = head.keyword
+    c.what = kind
+    opts: dict[str, Any] = {}
+    seed = None
     levels: dict[str, DeckEntry] = {}
     counts: dict[str, list[int]] = {}
+    allowed = _ALLOWED[kind]
     for e in c:
-        if e.keyword in _METHOD_COMMON:
+        if e is head or e.keyword in _METHOD_COMMON:
             continue
-        if kind is None:
-            if e.keyword not in _METHODS:
-                c.unknown(e, [*_METHODS, *_METHOD_COMMON])
-            kind = e.keyword
-            if kind == "bayes_calibration" and c.next_if("queso") is None:
-                c.fail(e, "bayes_calibration queso (the other samplers are not translated)")
-            continue
-        allowed = {"sampling": _SAMPLING, "local_reliability": _RELIABILITY,
-                   "polynomial_chaos": _PCE, "global_evidence": _EVIDENCE,
-                   "nl2sol": _NL2SOL, "bayes_calibration": _BAYES}[kind]
         if e.keyword not in allowed:
-            c.what = kind
             c.unknown(e, allowed)
-        k = e.keyword
-        if k == "seed":
-            seed = _num(c, e, 1, "integer")[0]
-        elif k in ("samples", "chain_samples", "build_samples", "burn_in_samples",
-                   "quadrature_order", "expansion_order", "collocation_points",
-                   "max_iterations", "max_function_evaluations"):
-            opts[k] = _num(c, e, 1, "integer")[0]
-        elif k in ("convergence_tolerance", "collocation_ratio"):
-            opts[k] = _num(c, e, 1)[0]
-        elif k in ("response_levels", "probability_levels"):
-            levels[k] = e
-        elif k in ("num_response_levels", "num_probability_levels"):
-            counts[k[4:]] = _num(c, e, None, "integer")
-        elif k in ("lhs", "random"):
-            opts["design"] = k
-        elif k in ("mh", "metropolis_hastings", "dr", "delayed_rejection", "am",
-                   "adaptive_metropolis", "dram"):
-            opts["sampler"] = {"metropolis_hastings": "mh", "delayed_rejection": "dr",
-                               "adaptive_metropolis": "am"}.get(k, k)
-        elif k in ("prior", "derivatives"):
-            opts["proposal"] = "prior" if k == "prior" else "hessian"
-        elif k in ("mpp_search", "x_taylor_mean", "u_taylor_mean", "x_taylor_mpp",
-                   "u_taylor_mpp", "x_two_point", "u_two_point", "no_approx"):
-            opts["mpp_search"] = True
-            if k != "mpp_search":  # the search itself: rotoruq's option of the same name
-                opts["approximation"] = "none" if k == "no_approx" else k
-        elif k in ("cumulative", "complementary"):
-            opts["distribution"] = "cdf" if k == "cumulative" else "ccdf"
-        elif k in ("first_order", "second_order", "variance_based_decomp", "gaussian_process",
-                   "emulator"):
-            opts[k] = True
-    if kind is None:
-        raise InputFileError(deck.path, block.line, "a method keyword (" + ", ".join(_METHODS)
-                             + ")")
+            continue
+        c.tx.guard(_method_entry, c, e, kind, opts, levels, counts)
+        if e.keyword == "seed":
+            seed = opts.pop("seed", None)
+    if kind == "bayes_calibration" and "queso" not in opts.get("_seen", ()):
+        c.tx.problem(head.line, "bayes_calibration queso (the other samplers are not "
+                     "translated)", kind)
+    opts.pop("_seen", None)
     for k, e in levels.items():
-        opts[k] = _levels(c, e, responses, counts.get(k))
+        if len(responses):
+            opts[k] = c.tx.guard(_levels, c, e, responses, counts.get(k), default={})
     if kind == "bayes_calibration" and "emulator" in opts and "gaussian_process" not in opts:
         raise InputFileError(deck.path, block.line, "emulator gaussian_process (other "
                              "emulators are not translated)")
     return _Method(kind, opts, block, seed, deck.path)
+
+
+def _method_entry(c: _Cursor, e: DeckEntry, kind: str, opts: dict, levels: dict,
+                  counts: dict) -> None:
+    k = e.keyword
+    opts.setdefault("_seen", set()).add(k)
+    if k == "seed":
+        opts["seed"] = _num(c, e, 1, "integer")[0]
+    elif k == "samples" and kind == "polynomial_chaos":
+        opts["samples_on_emulator"] = _num(c, e, 1, "integer")[0]
+    elif k in ("samples", "chain_samples", "build_samples", "burn_in_samples",
+               "quadrature_order", "expansion_order", "collocation_points",
+               "max_iterations", "max_function_evaluations", "samples_on_emulator"):
+        opts[k] = _num(c, e, 1, "integer")[0]
+    elif k in ("convergence_tolerance", "collocation_ratio"):
+        opts[k] = _num(c, e, 1)[0]
+    elif k == "dimension_preference":
+        pref = _num(c, e, None)
+        if len(set(pref)) > 1:
+            c.fail(e, "equal dimension_preference values (an anisotropic quadrature is not "
+                   "translated)")
+    elif k in _LEVELS:
+        levels[k] = e
+    elif k.startswith("num_") and k[4:] in _LEVELS:
+        counts[k[4:]] = _num(c, e, None, "integer")
+    elif k in ("lhs", "random"):
+        opts["design"] = k
+    elif k in ("mh", "metropolis_hastings", "dr", "delayed_rejection", "am",
+               "adaptive_metropolis", "dram"):
+        opts["sampler"] = {"metropolis_hastings": "mh", "delayed_rejection": "dr",
+                           "adaptive_metropolis": "am"}.get(k, k)
+    elif k in ("prior", "derivatives"):
+        opts["proposal"] = "prior" if k == "prior" else "hessian"
+    elif k in ("mpp_search", "x_taylor_mean", "u_taylor_mean", "x_taylor_mpp",
+               "u_taylor_mpp", "x_two_point", "u_two_point", "no_approx"):
+        opts["mpp_search"] = True
+        if k != "mpp_search":  # the search itself: rotoruq's option of the same name
+            opts["approximation"] = "none" if k == "no_approx" else k
+    elif k in ("cumulative", "complementary"):
+        opts["distribution"] = "cdf" if k == "cumulative" else "ccdf"
+    elif k in ("probabilities", "reliabilities", "gen_reliabilities"):
+        opts["compute"] = k
+    elif k in ("first_order", "second_order", "variance_based_decomp", "gaussian_process",
+               "emulator"):
+        opts[k] = True
+
+
+def _level_options(o: dict) -> dict:
+    """The level mappings a method block asks for, as step options."""
+    out = {k: o[k] for k in _LEVELS if o.get(k)}
+    if out or "distribution" in o:
+        for k in ("distribution", "compute"):
+            if k in o:
+                out[k] = o[k]
+    return out
 
 
 def _step(m: _Method, design_params: list[str]) -> dict:
@@ -664,19 +1009,21 @@ def _step(m: _Method, design_params: list[str]) -> dict:
             step["n_samples"] = o["samples"]
         if "design" in o:
             step["design"] = o["design"]
+        if step["type"] == "sampling":
+            step.update(_level_options(o))
+        elif _level_options(o):
+            raise InputFileError(m.path, m.block.line, "no level mappings with "
+                                 "variance_based_decomp (the sensitivity step has none)")
         return step
     if m.kind == "local_reliability":
         if o.get("mpp_search"):
             step = {"name": "reliability", "type": "reliability",
                     "integration": "second_order" if o.get("second_order") else "first_order"}
-            for k in ("approximation", "distribution"):
-                if k in o:
-                    step[k] = o[k]
+            if "approximation" in o:
+                step["approximation"] = o["approximation"]
         else:
             step = {"name": "mean_value", "type": "mean_value"}
-        for k in ("response_levels", "probability_levels"):
-            if k in o:
-                step[k] = o[k]
+        step.update(_level_options(o))
         return step
     if m.kind == "polynomial_chaos":
         step = {"name": "pce", "type": "pce"}
@@ -691,17 +1038,18 @@ def _step(m: _Method, design_params: list[str]) -> dict:
         else:
             raise InputFileError(m.path, m.block.line,
                                  "quadrature_order or expansion_order for polynomial_chaos")
+        if "samples_on_emulator" in o:
+            step["expansion_samples"] = o["samples_on_emulator"]
+        step.update(_level_options(o))
         return step
     if m.kind == "global_evidence":
         step = {"name": "evidence", "type": "evidence"}
         if "samples" in o:
             step["n_samples"] = o["samples"]
-        if "response_levels" in o:
-            step["response_levels"] = o["response_levels"]
+        step.update(_level_options(o))
         return step
     if m.kind == "nl2sol":
-        step = {"name": "least_squares", "type": "least_squares", "optimizer": "nl2sol",
-                "data": "calibration"}
+        step = {"name": "least_squares", "type": "least_squares", "optimizer": "nl2sol"}
         for dk, sk in (("convergence_tolerance", "tolerance"),
                        ("max_iterations", "max_iterations"),
                        ("max_function_evaluations", "max_function_evaluations")):
@@ -820,101 +1168,229 @@ def deck_to_study(deck: Deck, *, name: str | None = None) -> str:
     n_samples = 20
     design = "lhs"
     """
-    cuu = _nested_cuu(deck)
+    return translate_deck(deck, name=name).text
+
+
+@dataclass(frozen=True)
+class DeckTranslation:
+    """A Dakota deck translated into a study file.
+
+    Attributes
+    ----------
+    text : str
+        The study file's TOML text.
+    ignored : str
+        The keywords that only shape Dakota's own output (or its scheduling, cache and
+        restart), each with its deck line, grouped by what they do; "" when none.
+    notes : tuple of str
+        Other things a user should know about the translation (a test program taken as the
+        built-in function of the same name...).
+    """
+
+    text: str
+    ignored: str = ""
+    notes: tuple[str, ...] = ()
+
+
+def translate_deck(deck: Deck, *, name: str | None = None) -> DeckTranslation:
+    """Translate a parsed Dakota deck; every problem of the deck is reported at once.
+
+    Parameters
+    ----------
+    deck : from :func:`read_deck`.
+    name : the study's name (default: the deck file's stem).
+
+    Returns
+    -------
+    DeckTranslation
+
+    Raises
+    ------
+    DeckProblems
+        Listing each keyword that is not translated, and each malformed value, with its
+        line (an :class:`~rotoruq.errors.InputFileError`).
+
+    Examples
+    --------
+    >>> d = parse_deck('''environment
+    ...   graphics
+    ...   tabular_data
+    ... method
+    ...   sampling samples 20 seed 5
+    ...   output verbose
+    ... variables
+    ...   uniform_uncertain 2 lower_bounds -2 -2 upper_bounds 2 2 descriptors 'x1' 'x2'
+    ... interface
+    ...   direct analysis_drivers 'rosenbrock'
+    ... responses
+    ...   response_functions 1 no_gradients no_hessians''', "rosen.in")
+    >>> tr = translate_deck(d)
+    >>> tr.ignored
+    "Dakota's output: graphics (line 2), tabular_data (line 3), output (line 6), verbose (line 6)"
+    >>> print(tr.text.split("[model]")[1].split("[parameters")[0].strip())
+    function = "rosenbrock"
+    responses = ["response_fn_1"]
+    """
+    tx = _Tx(deck)
+    cuu = tx.guard(_nested_cuu, deck)
     if cuu is not None:
-        return _cuu_study(deck, cuu, name)
+        text = tx.guard(_cuu_study, deck, cuu, name, tx)
+        tx.done()
+        return DeckTranslation(text, tx.ignored_note(), tuple(tx.notes))
     methods = deck.of("method")
+    method_block: DeckBlock | None = methods[0] if methods else None
     if not methods:
-        raise InputFileError(deck.path, None, "a method block")
-    if len(methods) > 1:
-        raise InputFileError(deck.path, methods[1].line, "one method block (or the nested "
-                             "CUU form: an outer nl2sol on a nested model)")
+        tx.problem(None, "a method block")
+    elif len(methods) > 1:
+        top = next((b for b in deck.of("environment")
+                    for e in b.entries if e.keyword == "top_method_pointer"), None)
+        tx.problem(methods[1].line, "one method block (or the nested CUU form: an outer "
+                   "nl2sol on a nested model)" + (" (top_method_pointer names a method that "
+                                                  "calls others)" if top else ""))
     for kind in ("variables", "interface", "responses"):
         if len(deck.of(kind)) != 1:
-            raise InputFileError(deck.path, None, f"one {kind} block")
+            blocks = deck.of(kind)
+            tx.problem(blocks[1].line if len(blocks) > 1 else None, f"one {kind} block")
     for b in deck.of("model"):
         if not b.find("single"):
-            raise InputFileError(deck.path, b.line, "a single model (or the nested CUU form)")
-    _check_environment(deck)
-    resp = _read_responses(deck, deck.of("responses")[0])
-    method = _read_method(deck, methods[0], resp.names)
-    variables = _read_variables(deck, deck.of("variables")[0])
-    drv = _read_interface(deck, deck.of("interface")[0])
+            kinds = [e.keyword for e in b.entries if e.keyword in (
+                "surrogate", "nested", "hierarchical", "random_field", "active_subspace",
+                "adapted_basis")]
+            tx.problem(b.line, "a single model (or the nested CUU form)",
+                       kinds[0] if kinds else None)
+        else:
+            c = _Cursor(deck, b, "model", tx)
+            for e in c:
+                c.unknown(e, ["single"])
+    _check_environment(deck, tx)
+
+    def one(kind: str) -> DeckBlock | None:
+        blocks = deck.of(kind)
+        return blocks[0] if blocks else None
+
+    rb, vb, ib = one("responses"), one("variables"), one("interface")
+    resp = tx.guard(_read_responses, deck, rb, tx) if rb else None
+    method = (tx.guard(_read_method, deck, method_block, resp.names if resp else [], tx)
+              if method_block is not None else None)
+    variables = tx.guard(_read_variables, deck, vb, tx) if vb else None
+    drv = tx.guard(_read_interface, deck, ib, tx) if ib else None
+    if None in (resp, method, variables, drv):
+        tx.done()
+        raise InputFileError(deck.path, None, "a method, variables, interface and responses "
+                             "block")  # pragma: no cover - done() raised the reason
+    assert resp is not None and method is not None and variables is not None \
+        and drv is not None
+    text = tx.guard(_single_study, deck, name, resp, method, variables, drv, tx)
+    tx.done()
+    return DeckTranslation(text, tx.ignored_note(), tuple(tx.notes))
+
+
+def _single_study(deck: Deck, name: str | None, resp: _Responses, method: _Method,
+                  variables: _Vars, drv: _Driver, tx: _Tx) -> str:
     calibrates_design = method.kind == "nl2sol"
     params = list(variables.uncertain)
     fixed = {v.name: v.attrs["initial_state"] for v in variables.state
              if "initial_state" in v.attrs}
     design_params: list[str] = []
+    if variables.active is not None and (variables.state or variables.design) \
+            and not calibrates_design:
+        tx.problem(variables.active.line, "active uncertain (rotoruq holds state and "
+                   "design variables fixed in a UQ method)", f"active {variables.active.keyword}")
     for v in variables.design:
         if calibrates_design:
             params.append(v)
             design_params.append(v.name)
         else:
             if "initial_point" not in v.attrs:
-                raise InputFileError(deck.path, v.line, f"initial_point for {v.name!r} (held "
-                                     "fixed there)")
+                lo, hi = v.attrs.get("lower_bounds"), v.attrs.get("upper_bounds")
+                if lo is None or hi is None:
+                    tx.problem(v.line, f"initial_point or bounds for {v.name!r} (held fixed "
+                               "there)")
+                    continue
+                # Dakota's default initial point of a bounded design variable: the midpoint
+                v.attrs["initial_point"] = 0.5 * (lo + hi) if lo > -1e30 and hi < 1e30 \
+                    else (0.0 if lo <= 0.0 <= hi else lo if lo > 0 else hi)
             fixed[v.name] = v.attrs["initial_point"]
     if method.kind == "nl2sol" and variables.uncertain:
-        raise InputFileError(deck.path, variables.uncertain[0].line, "continuous_design "
-                             "variables only for nl2sol (they are the calibrated inputs)")
+        tx.problem(variables.uncertain[0].line, "continuous_design variables only for nl2sol "
+                   "(they are the calibrated inputs)")
     for v in variables.state:
         if "initial_state" not in v.attrs:
-            raise InputFileError(deck.path, v.line, f"initial_state for state {v.name!r}")
-    if method.kind in ("nl2sol", "bayes_calibration") and resp.data is None:
-        raise InputFileError(deck.path, deck.of("responses")[0].line,
-                             "calibration_data_file for " + method.kind)
+            lo, hi = v.attrs.get("lower_bounds"), v.attrs.get("upper_bounds")
+            if lo is not None and hi is not None:
+                fixed[v.name] = 0.5 * (lo + hi)  # Dakota's default initial state
+            else:
+                fixed[v.name] = 0.0 if not (lo or hi) else (lo if lo is not None else hi)
+    if method.kind == "bayes_calibration" and resp.data is None:
+        tx.problem(deck.of("responses")[0].line, "calibration_data_file for " + method.kind)
     step = _step(method, design_params)
+    if method.kind == "nl2sol":
+        if resp.data is not None:
+            step["data"] = "calibration"
+        if resp.weights is not None:
+            step["weights"] = {drv.mapping.get(r, r): w for r, w in zip(
+                resp.names, resp.weights, strict=True)}
     if step.get("n_samples") == -1:
         d = len(params)
         step["n_samples"] = math.ceil(method.opts["collocation_ratio"]
                                       * math.comb(method.opts["expansion_order"] + d, d))
     if step["type"] == "evidence":
-        step["intervals"] = {v.name: [
-            [lo, hi, w] for (lo, hi), w in zip(v.attrs["intervals"], v.attrs["bpa"],
-                                               strict=True)]
-            for v in params if v.group == "continuous_interval_uncertain"}
+        step["intervals"] = {}
+        for v in params:
+            if v.group != "continuous_interval_uncertain":
+                continue
+            lo, hi = v.attrs["lower_bounds"], v.attrs["upper_bounds"]
+            probs = v.attrs.get("interval_probabilities", [1.0 / len(lo)] * len(lo))
+            step["intervals"][v.name] = [[a, b, w] for a, b, w in zip(lo, hi, probs,
+                                                                      strict=True)]
+    elif any(v.group == "continuous_interval_uncertain" for v in params):
+        v = next(v for v in params if v.group == "continuous_interval_uncertain")
+        tx.problem(v.line, "interval (epistemic) variables only with global_evidence",
+                   "continuous_interval_uncertain")
     if step["type"] == "bayes_calibration" and resp.noise_std:
         step["noise_std"] = {drv.mapping.get(r, r): s for r, s in resp.noise_std.items()}
+    if resp.gradients == "analytic" and drv.command is not None \
+            and method.kind in ("local_reliability", "nl2sol"):
+        drv.gradients = "analytic"
+    tx.done()
+    order = None
+    if drv.function is not None:
+        every = [*variables.design, *variables.uncertain, *variables.state]
+        order = [v.name for v in _dakota_order(every)]
     return _emit(deck, name, method.seed, drv, resp, params, fixed, [step],
-                 design=set(design_params))
+                 design=set(design_params), correlation=variables.correlation, order=order)
 
 
-def _check_environment(deck: Deck) -> None:
+def _check_environment(deck: Deck, tx: _Tx | None = None) -> None:
     for b in deck.of("environment"):
-        c = _Cursor(deck, b, "environment")
+        c = _Cursor(deck, b, "environment", tx)
         for e in c:
-            if e.keyword not in ("tabular_data", "tabular_data_file", "output_precision",
-                                 "top_method_pointer", "annotated", "custom_annotated",
-                                 "freeform", "header", "eval_id", "interface_id",
-                                 "results_output", "results_output_file", "graphics",
-                                 "check", "write_restart", "output_file", "error_file"):
-                c.unknown(e, ["tabular_data", "output_precision", "top_method_pointer",
-                              "results_output"])
+            c.unknown(e, [])
 
 
-def _cuu_study(deck: Deck, cuu: tuple, name: str | None) -> str:
+def _cuu_study(deck: Deck, cuu: tuple, name: str | None, tx: _Tx) -> str:
     outer_b, inner_b, nb, info = cuu
-    _check_environment(deck)
+    _check_environment(deck, tx)
     outer_vars = _read_variables(deck, _by_id(deck, "variables",
                                               _pointer(outer_b, "variables_pointer")
-                                              or info.get("variables_pointer"), nb.line))
+                                              or info.get("variables_pointer"), nb.line), tx)
     inner_model = _by_id(deck, "model", _pointer(inner_b, "model_pointer"), inner_b.line)
-    ic = _Cursor(deck, inner_model, "inner model")
+    ic = _Cursor(deck, inner_model, "inner model", tx)
     for e in ic:
         if e.keyword not in ("id_model", "single", "variables_pointer", "interface_pointer",
                              "responses_pointer"):
             ic.unknown(e, ["single", "variables_pointer", "interface_pointer",
                            "responses_pointer"])
     inner_vars = _read_variables(deck, _by_id(deck, "variables", _pointer(
-        inner_model, "variables_pointer"), inner_model.line))
+        inner_model, "variables_pointer"), inner_model.line), tx)
     inner_resp = _read_responses(deck, _by_id(deck, "responses", _pointer(
-        inner_model, "responses_pointer"), inner_model.line))
+        inner_model, "responses_pointer"), inner_model.line), tx)
     outer_resp = _read_responses(deck, _by_id(deck, "responses", _pointer(
-        outer_b, "responses_pointer") or info.get("responses_pointer"), nb.line))
+        outer_b, "responses_pointer") or info.get("responses_pointer"), nb.line), tx)
     drv = _read_interface(deck, _by_id(deck, "interface", _pointer(
-        inner_model, "interface_pointer"), inner_model.line))
-    outer = _read_method(deck, outer_b, outer_resp.names)
-    inner = _read_method(deck, inner_b, inner_resp.names)
+        inner_model, "interface_pointer"), inner_model.line), tx)
+    outer = _read_method(deck, outer_b, outer_resp.names, tx)
+    inner = _read_method(deck, inner_b, inner_resp.names, tx)
     if outer.kind != "nl2sol":
         raise InputFileError(deck.path, outer_b.line, "nl2sol as the outer method of the "
                              "nested CUU form")
@@ -998,6 +1474,7 @@ def _cuu_study(deck: Deck, cuu: tuple, name: str | None) -> str:
     fixed = {v.name: v.attrs["initial_state"] for v in inner_vars.state}
     fixed.update({v.name: v.attrs["initial_point"] for v in inner_vars.design})
     inner_resp.names = list(inner_resp.names)
+    tx.done()
     return _emit(deck, name, inner.seed or outer.seed, drv, inner_resp, params, fixed, [step],
                  design=set())
 
@@ -1028,8 +1505,17 @@ def _key(k: str) -> str:
     return k if re.fullmatch(r"[A-Za-z0-9_-]+", k) else _toml(k)
 
 
+def _dakota_order(variables: Sequence[_Var]) -> list[_Var]:
+    """Variables in the order Dakota hands them to a direct function and to its correlation
+    matrix: by type (:data:`_GROUPS`), deck order within a type."""
+    groups = list(_GROUPS)
+    return sorted(variables, key=lambda v: groups.index(v.group))
+
+
 def _emit(deck: Deck, name: str | None, seed: int | None, drv: _Driver, resp: _Responses,
-          params: list[_Var], fixed: dict, steps: list[dict], design: set) -> str:
+          params: list[_Var], fixed: dict, steps: list[dict], design: set,
+          correlation: tuple[list[float], int] | None = None,
+          order: Sequence[str] | None = None) -> str:
     name = name or Path(deck.path).stem or "deck"
     rename = drv.mapping
     lines = [f"# Translated from the Dakota deck {Path(deck.path).name} by "
@@ -1039,6 +1525,10 @@ def _emit(deck: Deck, name: str | None, seed: int | None, drv: _Driver, resp: _R
     outputs = drv.outputs or [rename.get(r, r) for r in resp.names]
     if drv.preset is not None:
         lines.append(f"preset = {_toml(drv.preset)}")
+    elif drv.function is not None:
+        lines.append(f"function = {_toml(drv.function)}")
+        if order is not None:
+            lines.append(f"inputs = {_toml(list(order))}")
     else:
         assert drv.command is not None
         lines.append(f"command = {_toml(drv.command)}")
@@ -1046,6 +1536,8 @@ def _emit(deck: Deck, name: str | None, seed: int | None, drv: _Driver, resp: _R
             lines.append(f"parameters_format = {_toml(drv.parameters_format)}")
         for k, v in drv.failure.items():
             lines.append(f"{k} = {_toml(v)}")
+        if drv.gradients is not None:
+            lines.append(f"gradients = {_toml(drv.gradients)}")
     lines.append(f"responses = {_toml(outputs)}")
     allfixed = {rename.get(k, k): float(v) for k, v in fixed.items()}
     allfixed.update({k: float(v) for k, v in drv.fixed.items()})
@@ -1053,6 +1545,7 @@ def _emit(deck: Deck, name: str | None, seed: int | None, drv: _Driver, resp: _R
         lines.append(f"fixed = {_toml(allfixed)}")
     lines.append("")
     known = _rotor_input_names(drv.preset) if drv.preset is not None else None
+    start: dict[str, float] = {}
     for v in params:
         # a deck's variable keeps its name; one the driver renames (--map) feeds that input
         target = rename.get(v.name, v.name)
@@ -1063,17 +1556,38 @@ def _emit(deck: Deck, name: str | None, seed: int | None, drv: _Driver, resp: _R
         lines.append(f"[parameters.{_key(v.name)}]")
         if target != v.name:
             lines.append(f"input = {_toml(target)}")
-        dist = (_design_distribution(v, deck) if v.name in design
-                else _distribution(v, deck))
+        if v.name in design:
+            dist, x0 = _design_distribution(v, deck)
+            if x0 is not None:
+                start[v.name] = x0
+        else:
+            dist = _distribution(v, deck)
         for k, x in dist.items():
             lines.append(f"{k} = {_toml(x)}")
         lines.append("")
+    if correlation is not None:
+        values, line = correlation
+        aleatory = [v for v in _dakota_order(params) if v.group in _ALEATORY]
+        n = len(aleatory)
+        if len(values) != n * n:
+            raise InputFileError(deck.path, line, f"an uncertain_correlation_matrix of {n} x "
+                                 f"{n} values (the aleatory uncertain variables, in Dakota's "
+                                 f"order: {', '.join(v.name for v in aleatory)})",
+                                 f"{len(values)} values")
+        matrix = np.asarray(values, float).reshape(n, n)
+        if not np.array_equal(matrix, np.eye(n)):
+            lines.append("[correlation]")
+            lines.append(f"parameters = {_toml([v.name for v in aleatory])}")
+            lines.append(f"matrix = {_toml([list(map(float, r)) for r in matrix])}")
+            lines.append("")
     if resp.data is not None and any(s.get("data") for s in steps):
         lines.append("[data.calibration]")
         for r, col in resp.data.items():
             lines.append(f"{_key(rename.get(r, r))} = {_toml(col)}")
         lines.append("")
     for s in steps:
+        if start and s["type"] == "least_squares":
+            s = {**s, "start": start}
         lines.append("[[steps]]")
         for k, x in s.items():
             lines.append(f"{_key(k)} = {_toml(x)}")

@@ -108,6 +108,7 @@ for _prefix, _attrs in {
         "csv": ("initial_state", "lower_bounds", "upper_bounds", "descriptors")}.items():
     ALIASES.update({f"{_prefix}_{a}": a for a in _attrs})
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eEdD][+-]?\d+)?$")
+_REPEAT = re.compile(r"^(\d+)\*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eEdD][+-]?\d+)?)$")
 _TOKEN = re.compile(r"""'[^']*'|"[^"]*"|=|[^\s=,'"]+""")  # commas separate, as blanks
 
 
@@ -185,11 +186,14 @@ def parse_deck(text: str, path: str | os.PathLike = "<deck>") -> Deck:
         for tok in toks:
             if tok == "=":
                 continue
-            if tok[0] in "'\"" or _NUMBER.match(tok):
+            rep = _REPEAT.match(tok)
+            if tok[0] in "'\"" or _NUMBER.match(tok) or rep:
                 if not entries:
                     raise InputFileError(path, no, "a keyword before a value", tok)
                 last = entries[-1]
-                entries[-1] = DeckEntry(last.keyword, last.values + (_value(tok),), last.line)
+                # Dakota's N*value: the value N times
+                vals = (_value(rep[2]),) * int(rep[1]) if rep else (_value(tok),)
+                entries[-1] = DeckEntry(last.keyword, last.values + vals, last.line)
                 continue
             word = tok.lower()
             if word in BLOCKS:
@@ -407,7 +411,8 @@ _GROUPS: dict[str, tuple[str, tuple[str, ...]]] = {
                                   "scale_types", "scales")),
     "normal_uncertain": ("nuv", ("means", "std_deviations", "lower_bounds", "upper_bounds",
                                  "initial_point")),
-    "lognormal_uncertain": ("lnuv", ("means", "std_deviations", "lambdas", "zetas",
+    "lognormal_uncertain": ("lnuv", ("parameters", "option_1", "option_2", "option_3",
+                                     "means", "std_deviations", "lambdas", "zetas",
                                      "error_factors", "lower_bounds", "upper_bounds",
                                      "initial_point")),
     "uniform_uncertain": ("uuv", ("lower_bounds", "upper_bounds", "initial_point")),
@@ -492,6 +497,8 @@ def _read_group(c: _Cursor, e: DeckEntry, out: _Vars) -> None:
     while (a := c.next_if("descriptors", *attrs)) is not None:
         if a.keyword == "descriptors":
             names = _strs(c, a, n)
+        elif a.keyword in ("parameters", "option_1", "option_2", "option_3"):
+            continue  # Dakota 6.24's lognormal form choice: the keywords that follow say it
         elif a.keyword in _SPLIT:
             got[a.keyword] = _num(c, a, n, "integer")
         else:
@@ -1598,7 +1605,7 @@ def _emit(deck: Deck, name: str | None, seed: int | None, drv: _Driver, resp: _R
 # --------------------------------------------------------------------------- export
 #: step types the exporter writes as Dakota decks
 EXPORTABLE = ("sampling", "sensitivity", "mean_value", "reliability", "pce", "least_squares",
-              "bayes_calibration", "cuu")
+              "bayes_calibration", "cuu", "evidence")
 
 _DAKOTA_DIST = {
     "normal": ("normal_uncertain", (("means", "mean"), ("std_deviations", "std"))),
@@ -1723,6 +1730,11 @@ def _deck_for(study: Any, st: Any, o: dict, data_dir: Any) -> str:
                 var_lines.append(f"    {k} = " + " ".join(
                     _fmt(max(min(b[j], 1e30), -1e30)) for b in bounds))
         var_lines.append("    descriptors = " + " ".join(f"'{n}'" for n in names))
+    elif st.type == "evidence":
+        cells = o["intervals"]
+        var_lines = _interval_lines(cells)
+        # the study's other parameters stay at their means, as the step holds them
+        names = list(cells)
     else:
         var_lines = _uncertain_lines(names, specs)
     renamed = study.renamed_inputs
@@ -1766,6 +1778,17 @@ responses
 {data_lines}{resp_extra}{grads}
   no_hessians
 """
+
+
+def _interval_lines(cells: Mapping[str, Sequence[Sequence[float]]]) -> list[str]:
+    """An evidence step's cells as Dakota's continuous_interval_uncertain variables."""
+    flat = [c for n in cells for c in cells[n]]
+    return [f"  continuous_interval_uncertain = {len(cells)}",
+            "    num_intervals = " + " ".join(str(len(cells[n])) for n in cells),
+            "    interval_probabilities = " + " ".join(_fmt(c[2]) for c in flat),
+            "    lower_bounds = " + " ".join(_fmt(c[0]) for c in flat),
+            "    upper_bounds = " + " ".join(_fmt(c[1]) for c in flat),
+            "    descriptors = " + " ".join(f"'{n}'" for n in cells)]
 
 
 def _state_lines(study: Any, fixed: Mapping) -> list[str]:
@@ -1962,6 +1985,18 @@ def _levels_text(o: dict, key: str, responses: list[str]) -> str:
             + f"\n    num_{key} = " + " ".join(str(c) for c in counts))
 
 
+def _mappings_text(o: dict, responses: list[str]) -> str:
+    """A step's level mappings as a Dakota method block's keywords."""
+    text = "".join(_levels_text(o, k, responses) for k in _LEVELS)
+    if not text:
+        return ""
+    if o.get("compute") and o.get("response_levels"):
+        text += f"\n    compute {o['compute']}"
+    if o.get("distribution") == "ccdf":
+        text += "\n    distribution complementary"
+    return text
+
+
 def _method_text(st: Any, o: dict, responses: list[str], names: list[str],
                  seed: int) -> tuple[str, str]:
     t = st.type
@@ -1976,32 +2011,36 @@ def _method_text(st: Any, o: dict, responses: list[str], names: list[str],
         n = o.get("n_samples") or _default(t, "n_samples")
         vbd = "\n    variance_based_decomp" if t == "sensitivity" else ""
         return (f"  sampling\n{note}    sample_type {design}\n    samples = {n}\n"
-                f"    seed = {seed}{vbd}", "")
+                f"    seed = {seed}{vbd}" + _mappings_text(o, responses), "")
     if t == "mean_value":
-        return ("  local_reliability" + _levels_text(o, "response_levels", responses)
-                + _levels_text(o, "probability_levels", responses), "")
+        return ("  local_reliability" + _mappings_text(o, responses), "")
     if t == "reliability":
         integ = o.get("integration") or "first_order"
         approx = o.get("approximation") or "none"
-        dist = ("\n    distribution complementary" if o.get("distribution") == "ccdf"
-                else "")
         return ("  local_reliability\n    mpp_search "
-                + ("no_approx" if approx == "none" else approx) + dist
-                + _levels_text(o, "response_levels", responses)
-                + _levels_text(o, "probability_levels", responses)
-                + f"\n    integration {integ}", "")
+                + ("no_approx" if approx == "none" else approx)
+                + _mappings_text(o, responses) + f"\n    integration {integ}", "")
     if t == "pce":
         order = o.get("order") or _default(t, "order")
         est = o.get("estimator") or "quadrature"
         if est == "quadrature":
             return (f"  polynomial_chaos\n    quadrature_order = {order + 1}\n"
-                    "    variance_based_decomp", "")
+                    "    variance_based_decomp" + _pce_samples_text(o, seed)
+                    + _mappings_text(o, responses), "")
         if est == "regression":
             n = o.get("n_samples") or _default(t, "n_samples")
             return (f"  polynomial_chaos\n    expansion_order = {order}\n"
                     f"    collocation_points = {n}\n    seed = {seed}\n"
-                    "    variance_based_decomp", "")
+                    "    variance_based_decomp" + _pce_samples_text(o, None)
+                    + _mappings_text(o, responses), "")
         raise InputFileError(None, None, "a pce step by quadrature or regression", est)
+    if t == "evidence":
+        n = o.get("n_samples") or _default(t, "n_samples")
+        opt = o.get("optimizer") or _default(t, "optimizer")
+        # rotoruq's "sampling" optimizer is Dakota's lhs; its "ego" Dakota's ego
+        how = ("    lhs\n" f"    samples = {n}\n" if opt == "sampling" else "    ego\n")
+        return ("  global_evidence\n" + how + f"    seed = {seed}"
+                + _mappings_text(o, responses), "")
     if t == "least_squares":
         lines = ["  nl2sol"]
         if o.get("tolerance") is not None:
@@ -2026,6 +2065,14 @@ def _method_text(st: Any, o: dict, responses: list[str], names: list[str],
                  + ("prior" if (o.get("proposal") or "hessian") == "prior" else "derivatives"))
     lines.append(f"    burn_in_samples = {burn}")
     return "\n".join(lines), ""
+
+
+def _pce_samples_text(o: dict, seed: int | None) -> str:
+    n = o.get("expansion_samples")
+    if not n:
+        return ""
+    return f"\n    samples_on_emulator = {n}" + (f"\n    seed = {seed}" if seed is not None
+                                                    else "")
 
 
 def _given_points_text(path: str, names: list[str], specs: Sequence[Any],

@@ -2122,3 +2122,48 @@ def _data_text(study: Any, st: Any, o: dict, responses: list[str], data_dir: Any
         Path(data_dir, fname).write_text(text)
     return (f"  calibration_data_file = '{fname}'\n    freeform\n"
             f"    num_experiments = {len(rows)}{variance}\n")
+
+
+# --------------------------------------------------------------------------- the table
+#: What each translated method becomes (the step type :func:`_step` writes).
+METHOD_STEPS = {"sampling": "`sampling` step (`sensitivity` with `variance_based_decomp`)",
+                "local_reliability": "`mean_value` step (`reliability` with an MPP search)",
+                "polynomial_chaos": "`pce` step (quadrature or regression)",
+                "global_evidence": "`evidence` step",
+                "nl2sol": "`least_squares` step, `optimizer = \"nl2sol\"`",
+                "bayes_calibration": "`bayes_calibration` step (QUESO's samplers)"}
+#: What each translated variable type becomes.
+VARIABLE_KINDS = {g: ("fixed input (its `initial_state`)" if g == "continuous_state" else
+                      "calibrated input of `least_squares`, else a fixed input"
+                      if g == "continuous_design" else
+                      "interval cells of the `evidence` step"
+                      if g == "continuous_interval_uncertain" else
+                      f"`distribution = \"{g.removesuffix('_uncertain')}\"`")
+                  for g in _GROUPS}
+
+
+def keyword_table() -> str:
+    """The "Coming from Dakota" tables (Markdown), generated from the translator's own lists:
+    the methods and variable types translated and to what, each method's keywords, the
+    keywords accepted and ignored (Dakota's output, scheduling, cache), and the aliases read.
+
+    Examples
+    --------
+    >>> "| `sampling` |" in keyword_table()
+    True
+    """
+    rows = ["| Dakota method | becomes | keywords read |", "|---|---|---|"]
+    for m, step in METHOD_STEPS.items():
+        keys = ", ".join(f"`{k}`" for k in _ALLOWED[m])
+        rows.append(f"| `{m}` | {step} | {keys} |")
+    rows += ["", "| Dakota variables | becomes | attributes read |", "|---|---|---|"]
+    for g, what in VARIABLE_KINDS.items():
+        attrs = ", ".join(f"`{a}`" for a in ("descriptors", *_GROUPS[g][1]))
+        rows.append(f"| `{g}` | {what} | {attrs} |")
+    rows.append("| `uncertain_correlation_matrix` | the `[correlation]` table | |")
+    rows += ["", "| block | read and left out (one note lists them) |", "|---|---|"]
+    for block, words in OUTPUT_ONLY.items():
+        rows.append(f"| `{block}` | " + ", ".join(f"`{w}`" for w in sorted(words)) + " |")
+    rows += ["", "| alias | read as |", "|---|---|"]
+    rows += [f"| `{a}` | `{k}` |" for a, k in sorted(ALIASES.items())]
+    return "\n".join(rows)

@@ -25,8 +25,10 @@ _LAZY: dict[str, str] = {
     "evaluate": ".model",
     "Beta": ".params",
     "Exponential": ".params",
+    "Frechet": ".params",
     "Gamma": ".params",
     "Gumbel": ".params",
+    "HistogramBin": ".params",
     "Interval": ".params",
     "LogNormal": ".params",
     "LogUniform": ".params",
@@ -411,6 +413,12 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     )
     from .params import (
         Weibull as Weibull,
+    )
+    from .params import (
+        Frechet as Frechet,
+    )
+    from .params import (
+        HistogramBin as HistogramBin,
     )
     from .params import (
         make_distribution as make_distribution,

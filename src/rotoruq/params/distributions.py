@@ -474,11 +474,11 @@ class LogNormal(Distribution):
     def ppf(self, q: Any) -> np.ndarray:
         if self._log is None:
             return self.dist.ppf(q)
-        return np.exp(self._log.ppf(q))
+        return np.clip(np.exp(self._log.ppf(q)), self.lower, self.upper)
 
     def isf(self, q: Any) -> np.ndarray:
         if self._log is not None:
-            return np.exp(self._log.isf(q))
+            return np.clip(np.exp(self._log.isf(q)), self.lower, self.upper)
         return np.exp(self._log_mean + self._log_std * stats.norm.isf(q))
 
     def pdf(self, x: Any) -> np.ndarray:

@@ -180,7 +180,7 @@ def test_cdf_equals_dakota_form_transform(case, tmp_path):
     tables = re.findall(r"Cumulative Distribution Function \(CDF\) for response_fn_\d+:\n"
                         r".*\n.*\n\s+(\S+)", out)
     reached = [float(v) for v in tables]
-    blocks = re.findall(r"Final point \(u-space\)\s*=\s*\n((?:\s+\S+\n){%d})" % n, out)
+    blocks = re.findall(r"Final point \(u-space\)\s*=\s*\n((?:\s+\S+\n){" + str(n) + "})", out)
     assert len(reached) == n and len(blocks) == n, out[-3000:]
     for k, (d, x, block) in enumerate(zip(dists, reached, blocks, strict=True)):
         u = float(block.split()[k])

@@ -382,10 +382,16 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
         Exponential as Exponential,
     )
     from .params import (
+        Frechet as Frechet,
+    )
+    from .params import (
         Gamma as Gamma,
     )
     from .params import (
         Gumbel as Gumbel,
+    )
+    from .params import (
+        HistogramBin as HistogramBin,
     )
     from .params import (
         Interval as Interval,
@@ -413,12 +419,6 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     )
     from .params import (
         Weibull as Weibull,
-    )
-    from .params import (
-        Frechet as Frechet,
-    )
-    from .params import (
-        HistogramBin as HistogramBin,
     )
     from .params import (
         make_distribution as make_distribution,

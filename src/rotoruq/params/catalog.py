@@ -40,8 +40,8 @@ def distribution_keys(kind: str) -> tuple[str, ...]:
     """The parameter keys of a distribution in study files and :meth:`Distribution.describe`
     (its fields, ``lambda_`` spelled ``lambda``), for a key of :data:`DISTRIBUTIONS`.
 
-    Example
-    -------
+    Examples
+    --------
     >>> distribution_keys("lognormal")
     ('mean', 'std', 'lambda', 'zeta', 'error_factor', 'lower', 'upper')
     """

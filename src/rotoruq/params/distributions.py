@@ -345,8 +345,8 @@ class LogNormal(Distribution):
     lognormal (Dakota's convention, as for :class:`TruncatedNormal`) and :attr:`moments` are
     those of the truncated variable. :meth:`describe` gives the form that was given.
 
-    Example
-    -------
+    Examples
+    --------
     >>> d = LogNormal(lambda_=0.0, zeta=0.5)
     >>> round(d.mean, 6), round(d.std, 6)
     (1.133148, 0.603901)
@@ -649,8 +649,8 @@ class Frechet(_DerivedMoments):
     Mean ``beta Gamma(1 - 1/alpha)``, variance ``beta^2 (Gamma(1 - 2/alpha) - Gamma(1 -
     1/alpha)^2)``: ``alpha > 2`` (a finite std, which every rotoruq method needs).
 
-    Example
-    -------
+    Examples
+    --------
     >>> d = Frechet(alpha=3.0, beta=2.0)
     >>> round(d.mean, 6), round(float(d.cdf(2.0)), 6)          # 2 Gamma(2/3), exp(-1)
     (2.708236, 0.367879)
@@ -712,8 +712,8 @@ class HistogramBin(_DerivedMoments):
     Counts and ordinates are >= 0 with a positive total. :meth:`describe` gives the form
     that was given.
 
-    Example
-    -------
+    Examples
+    --------
     >>> d = HistogramBin(abscissas=[0.0, 1.0, 3.0], counts=[1.0, 1.0, 0.0])
     >>> d.mean, float(d.cdf(1.0)), float(d.pdf(2.0))
     (1.25, 0.5, 0.25)

@@ -64,7 +64,7 @@ class ParameterSpec:
 
     name: str
     kind: str
-    params: Mapping[str, float]
+    params: Mapping[str, Any]  # numbers; a histogram's abscissas, counts: tuples of numbers
     distribution: Distribution
     line: int | None = None
     label: str = ""
@@ -80,8 +80,8 @@ class CorrelationSpec:
     parameters : the names, in the order of the rows of ``matrix``. matrix : (k, k) rows,
     symmetric, unit diagonal, positive definite. line : of the ``[correlation]`` table.
 
-    Example
-    -------
+    Examples
+    --------
     >>> c = CorrelationSpec(("a", "b"), ((1.0, 0.3), (0.3, 1.0)))
     >>> c.matrix_for(("b", "x", "a"))
     array([[1. , 0. , 0.3],

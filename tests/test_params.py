@@ -112,6 +112,14 @@ TAIL_CASES = {
                        U_TAIL[U_TAIL > -8]),
     # both bounds > 0: resolvable only to |u| ~ 8 in either tail (see above)
     "loguniform": (rq.LogUniform(0.1, 10.0), U_TAIL[np.abs(U_TAIL) < 8]),
+    "lognormal_lambda_zeta": (rq.LogNormal(lambda_=0.3, zeta=0.8), U_TAIL),
+    "lognormal_error_factor": (rq.LogNormal(mean=2.0, error_factor=3.0), U_TAIL),
+    "lognormal_bounded_upper": (rq.LogNormal(2.0, 0.5, upper=3.0), U_TAIL[U_TAIL < 8]),
+    "frechet": (rq.Frechet(3.0, 2.0), U_TAIL),
+    "histogram_bin_lower": (rq.HistogramBin([0.0, 1.0, 3.0], [2.0, 1.0, 0.0]),
+                            U_TAIL[U_TAIL < 8]),
+    "histogram_bin_upper": (rq.HistogramBin([-3.0, -1.0, 0.0], ordinates=[1.0, 2.0]),
+                            U_TAIL[U_TAIL > -8]),
 }
 
 

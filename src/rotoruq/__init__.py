@@ -25,8 +25,10 @@ _LAZY: dict[str, str] = {
     "evaluate": ".model",
     "Beta": ".params",
     "Exponential": ".params",
+    "Frechet": ".params",
     "Gamma": ".params",
     "Gumbel": ".params",
+    "HistogramBin": ".params",
     "Interval": ".params",
     "LogNormal": ".params",
     "LogUniform": ".params",
@@ -380,10 +382,16 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
         Exponential as Exponential,
     )
     from .params import (
+        Frechet as Frechet,
+    )
+    from .params import (
         Gamma as Gamma,
     )
     from .params import (
         Gumbel as Gumbel,
+    )
+    from .params import (
+        HistogramBin as HistogramBin,
     )
     from .params import (
         Interval as Interval,

@@ -4,13 +4,15 @@ method draws points from and transforms into (:mod:`.space`)."""
 
 from __future__ import annotations
 
-from .catalog import DISTRIBUTIONS, make_distribution
+from .catalog import DISTRIBUTIONS, distribution_keys, make_distribution
 from .distributions import (
     Beta,
     Distribution,
     Exponential,
+    Frechet,
     Gamma,
     Gumbel,
+    HistogramBin,
     LogNormal,
     LogUniform,
     Normal,
@@ -37,6 +39,8 @@ __all__ = [
     "Gumbel",
     "Weibull",
     "Triangular",
+    "Frechet",
+    "HistogramBin",
     "Interval",
     "ParameterSpace",
     "DESIGNS",
@@ -47,5 +51,6 @@ __all__ = [
     "nataf_correlation",
     "nataf_model",
     "make_distribution",
+    "distribution_keys",
     "DISTRIBUTIONS",
 ]

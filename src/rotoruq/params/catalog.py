@@ -12,7 +12,7 @@ from . import distributions as dist
 from .distributions import Distribution
 from .interval import Interval
 
-__all__ = ["DISTRIBUTIONS", "make_distribution"]
+__all__ = ["DISTRIBUTIONS", "distribution_keys", "make_distribution"]
 
 DISTRIBUTIONS: dict[str, type[Distribution]] = {
     "normal": dist.Normal,
@@ -26,14 +26,35 @@ DISTRIBUTIONS: dict[str, type[Distribution]] = {
     "gumbel": dist.Gumbel,
     "weibull": dist.Weibull,
     "triangular": dist.Triangular,
+    "frechet": dist.Frechet,
+    "histogram_bin": dist.HistogramBin,
     "interval": Interval,
 }
 
 
+def _key(kind: str) -> str:
+    return kind.strip().lower().replace("-", "_").replace(" ", "_")
+
+
+def distribution_keys(kind: str) -> tuple[str, ...]:
+    """The parameter keys of a distribution in study files and :meth:`Distribution.describe`
+    (its fields, ``lambda_`` spelled ``lambda``), for a key of :data:`DISTRIBUTIONS`.
+
+    Examples
+    --------
+    >>> distribution_keys("lognormal")
+    ('mean', 'std', 'lambda', 'zeta', 'error_factor', 'lower', 'upper')
+    """
+    cls = DISTRIBUTIONS[_key(kind)]
+    return tuple(n.rstrip("_") for n in inspect.signature(cls).parameters)
+
+
 def make_distribution(kind: str, **params: Any) -> Distribution:
     """Build a distribution from its name (a key of :data:`DISTRIBUTIONS`) and its parameters
-    under their field names (``mean``, ``std``, ``lower``, ``upper``, ``mode``, ``alpha``,
-    ``beta``, ``intervals``, ``bpa``).
+    under their study-file names (:func:`distribution_keys`: ``mean``, ``std``, ``lower``,
+    ``upper``, ``mode``, ``alpha``, ``beta``, ``lambda``, ``zeta``, ``error_factor``,
+    ``abscissas``, ``counts``, ``ordinates``, ``intervals``, ``bpa``; ``lambda_`` is accepted
+    for ``lambda``).
 
     An unknown kind or parameter raises :class:`~rotoruq.errors.ParameterError` naming the
     valid ones.
@@ -47,7 +68,7 @@ def make_distribution(kind: str, **params: Any) -> Distribution:
     >>> make_distribution(**u.describe()).describe()         # describe() rebuilds it
     {'kind': 'uniform', 'lower': 0.0, 'upper': 3.0}
     """
-    key = kind.strip().lower().replace("-", "_").replace(" ", "_")
+    key = _key(kind)
     if key not in DISTRIBUTIONS:
         close = difflib.get_close_matches(key, DISTRIBUTIONS, n=1)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
@@ -55,10 +76,12 @@ def make_distribution(kind: str, **params: Any) -> Distribution:
             f"unknown distribution {kind!r}{hint}; valid: {', '.join(sorted(DISTRIBUTIONS))}"
         )
     cls = DISTRIBUTIONS[key]
+    params = {("lambda_" if k == "lambda" else k): v for k, v in params.items()}
     try:
         return cls(**params)
     except TypeError as exc:
-        names = list(inspect.signature(cls).parameters)
+        names = distribution_keys(key)
         raise ParameterError(
-            f"distribution {kind!r} takes {', '.join(names)}; got {', '.join(params)}"
+            f"distribution {kind!r} takes {', '.join(names)}; got "
+            f"{', '.join(k.rstrip('_') for k in params)}"
         ) from exc

@@ -133,6 +133,10 @@ class StepType:
         shows a key/value table, no figures, no warnings).
     modules : the modules whose code computes this type's numbers (its own module and its
         methods'); their source enters the step's fingerprint (:func:`step_code_version`).
+    correlated : the type's method honours a correlated input space (``ParameterSpace``
+        with a ``correlation``: a study file's ``[correlation]`` table). A type without it
+        refuses correlated inputs (the study file fails naming the step and the table)
+        instead of ignoring the correlation.
     """
 
     name: str
@@ -147,6 +151,7 @@ class StepType:
     figures: FiguresHook | None = None
     warnings: WarningsHook | None = None
     modules: tuple[str, ...] = ()
+    correlated: bool = False
 
     def default(self, key: str) -> Any:
         """Default of option ``key``: its own, or its method parameter's (:data:`REQUIRED`

@@ -74,4 +74,4 @@ def mean_value_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTa
 
 STEP = StepType(
     "mean_value", run_mean_value, method="rotoruq.methods.reliability:mean_value",
-    options=dict(LEVELS), tables=mean_value_tables)
+    options=dict(LEVELS), tables=mean_value_tables, correlated=True)

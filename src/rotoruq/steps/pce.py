@@ -86,7 +86,7 @@ def _check_pce(c: StepCheck) -> None:
 
 
 STEP = StepType(
-    "pce", run_pce, method="rotoruq.methods.pce:polynomial_chaos",
+    "pce", run_pce, method="rotoruq.methods.pce:polynomial_chaos", correlated=True,
     options={"order": Option(integer(1), SIGNATURE),
              "estimator": Option(choice("quadrature", "sparse_grid", "regression"), SIGNATURE),
              "n_samples": Option(integer(1), SIGNATURE),

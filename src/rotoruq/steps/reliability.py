@@ -60,6 +60,7 @@ def reliability_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepT
 
 STEP = StepType(
     "reliability", run_reliability, method="rotoruq.methods.reliability:mpp_search",
+    correlated=True,
     options={"integration": Option(choice("first_order", "second_order"), SIGNATURE),
              "approximation": Option(choice(*APPROXIMATIONS), SIGNATURE),
              "distribution": Option(choice("cdf", "ccdf"), SIGNATURE),

@@ -218,7 +218,7 @@ def sampling_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:
 
 
 STEP = StepType(
-    "sampling", run_sampling, method=_SAMPLE, provides=("samples",),
+    "sampling", run_sampling, method=_SAMPLE, provides=("samples",), correlated=True,
     options={"n_samples": Option(integer(1), None),
              "design": Option(choice(*DESIGNS, GIVEN), SIGNATURE),
              "points": Option(string(), None),

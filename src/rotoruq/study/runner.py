@@ -267,7 +267,17 @@ def _step_space(study: Study, step: StepSpec, previous: Mapping[str, StepResult]
     fixed.update(step.fixed)
     for n in names:
         fixed.pop(n, None)
-    return ParameterSpace(dists), fixed
+    corr = None
+    if study.correlation is not None:  # not for distributions taken from an earlier step
+        corr = study.correlation.matrix_for(names, [n for n in names if n in own or
+                                                    n not in source])
+        if corr is not None and not step_type(step.type).correlated:
+            raise ParameterError(
+                f"step {step.name!r} (line {step.line}): a {step.type} step assumes independent "
+                f"inputs, and the [correlation] table (line {study.correlation.line}) "
+                "correlates its parameters; list uncorrelated ones with parameters = [...] or "
+                "drop the correlation")
+    return ParameterSpace(dists, correlation=corr), fixed
 
 
 def _step_data(study: Study, step: StepSpec, responses, previous):
@@ -322,7 +332,7 @@ def _digest(obj: Any) -> str:
 #: RESULTS --why-rerun`` names the part that changed).
 IDENTITY_PARTS = {
     "spec": "the step's table in the study file, its options, seed, position or --quick",
-    "inputs": "the step's input distributions or fixed inputs",
+    "inputs": "the step's input distributions, their correlation or fixed inputs",
     "data": "the step's data",
     "model": "the model (its configuration or the code computing its answers)",
     "code": "the code computing the step (its step module and methods)",
@@ -363,7 +373,10 @@ def _identity_parts(study: Study, step: StepSpec, space: ParameterSpace, fixed, 
         "spec": _digest(spec),
         "inputs": _digest({"space": [(n, d.describe()) for n, d in
                                      zip(space.names, space.distributions, strict=True)],
-                           "fixed": dict(sorted(fixed.items()))}),
+                           "fixed": dict(sorted(fixed.items())),
+                           # only when correlated: the fingerprints of independent inputs stay
+                           **({} if space.correlation is None else
+                              {"correlation": np.asarray(space.correlation).tolist()})}),
         "data": _digest(None if data is None else np.asarray(data).tolist()),
         "model": model_id,
         "code": code,

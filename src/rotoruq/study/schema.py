@@ -44,7 +44,6 @@ the expected form for every problem; unknown keys come with the closest valid ke
 
 from __future__ import annotations
 
-import inspect
 import json
 import re
 import tomllib
@@ -53,8 +52,10 @@ from functools import lru_cache
 from pathlib import Path
 from typing import NoReturn
 
+import numpy as np
+
 from ..errors import InputFileError, ParameterError
-from ..params import DISTRIBUTIONS, make_distribution
+from ..params import DISTRIBUTIONS, ParameterSpace, distribution_keys, make_distribution
 from ..safety import check_name
 from ..steps import StepCheck, StepType, find_step_type, step_type, step_types
 from ..steps.multifidelity import HF_LABEL
@@ -73,6 +74,7 @@ from .options import (
     table,
 )
 from .spec import (
+    CorrelationSpec,
     DataSet,
     ExecutorSpec,
     ExternalSpec,
@@ -86,7 +88,9 @@ from .spec import (
 
 __all__ = ["load_study", "parse_study", "ModelInputs"]
 
-TOP_KEYS = ("study", "model", "models", "parameters", "data", "executor", "store", "steps")
+TOP_KEYS = ("study", "model", "models", "parameters", "correlation", "data", "executor", "store",
+            "steps")
+CORRELATION_KEYS = ("parameters", "matrix")
 STUDY_KEYS = ("name", "seed", "output", "description")
 EXTERNAL_KEYS = ("command", "files", "templates", "parameters_format", "timeout", "failure",
                  "retries", "recover", "workdir")
@@ -98,6 +102,15 @@ DISCRETIZATION_KEYS = ("n_stations", "n_azimuth", "n_harmonics")
 EXECUTOR_KEYS = ("kind", "workers", "scheduler")
 STORE_KEYS = ("enabled", "path")
 PARAM_META = ("distribution", "label", "unit", "input")
+# [parameters.NAME] keys whose value is a list of numbers (a histogram's bins)
+LIST_PARAMS = ("abscissas", "counts", "ordinates")
+# the forms a distribution may be given in, when not simply all of its keys
+DISTRIBUTION_FORMS = {
+    "lognormal": "mean = <number>, std = <number> | mean = <number>, error_factor = <number> "
+                 "| lambda = <number>, zeta = <number>; optional lower, upper",
+    "histogram_bin": "abscissas = [<n + 1 numbers>], counts = [<n numbers>, 0] | "
+                     "ordinates = [<n numbers>, 0]",
+}
 
 # Keys every [[steps]] table may have besides its type's options.
 COMMON_STEP_KEYS: dict[str, Option] = {
@@ -207,8 +220,11 @@ def parse_study(text: str, path: str | Path = "<study>") -> Study:
     _check_model_inputs(ck, models, model, params)
     data = parse_data(ck, doc, base)
     executor, store = _parse_exec_store(ck, doc)
+    correlation = _parse_correlation(ck, doc, params)
     steps = _parse_steps(ck, doc, inputs, params, data, models, base)
-    return Study(path, info, model, params, data, executor, store, steps, text, models)
+    _check_correlated_steps(ck, steps, correlation)
+    return Study(path, info, model, params, data, executor, store, steps, text, models,
+                 correlation=correlation)
 
 
 def _parse_info(ck: Checker, doc: dict, base: Path, path: Path) -> StudyInfo:
@@ -372,27 +388,42 @@ def _parse_parameters(ck: Checker, doc: dict, inputs: ModelInputs,
             ck.fail(w + ("distribution",),
                     f"a distribution among {', '.join(sorted(DISTRIBUTIONS))}"
                     f"{close_hint(str(kind).lower(), list(DISTRIBUTIONS))}", repr(kind))
-        cls = DISTRIBUTIONS[kind.lower()]
-        fields = [p for p in inspect.signature(cls).parameters]
+        fields = list(distribution_keys(kind))
         aliases = {"mu": "mean", "sigma": "std"}
         allowed = list(PARAM_META) + [aliases.get(f, f) for f in fields] + fields
         ck.keys(spec, allowed, w, f"[parameters.{name}] ({kind})")
         params = {k: v for k, v in spec.items() if k not in PARAM_META}
+        lists = {k: _number_list(ck, params.pop(k), w + (k,), f"[parameters.{name}] {k}")
+                 for k in LIST_PARAMS if k in params}
         params = ck.numbers(params, w, f"[parameters.{name}]")
         try:
-            dist = make_distribution(kind, **params)
+            dist = make_distribution(kind, **params, **lists)
         except ParameterError as exc:
-            bad = next((k for k in ("std", "sigma", "lower", "upper") if k in params), None)
+            bad = next((k for k in ("std", "sigma", "zeta", "error_factor", "lower", "upper",
+                                    "counts", "ordinates", "abscissas") if k in spec), None)
             where = w + (bad,) if bad else w
-            form = ", ".join(f"{aliases.get(f, f)} = <number>" for f in fields)
+            form = _distribution_form(kind.lower(), fields)
             ck.fail(where, f"a valid {kind} distribution ({form}): {exc}",
-                    ", ".join(f"{k} = {v:g}" for k, v in params.items()))
+                    ", ".join([f"{k} = {v:g}" for k, v in params.items()]
+                              + [f"{k} = {list(v)}" for k, v in lists.items()]))
         out.append(ParameterSpec(
-            name, kind.lower(), params, dist, ck.loc.line(*w),
+            name, kind.lower(), {**params, **lists}, dist, ck.loc.line(*w),
             label=str(spec.get("label", "")), unit=str(spec.get("unit", "")),
             input=target if target != name else "",
         ))
     return tuple(out)
+
+
+def _distribution_form(kind: str, fields: list[str]) -> str:
+    """How a distribution is written in ``[parameters.NAME]`` (for messages)."""
+    return DISTRIBUTION_FORMS.get(kind, ", ".join(f"{f} = <number>" for f in fields))
+
+
+def _number_list(ck: Checker, value: object, where: tuple, what: str) -> tuple[float, ...]:
+    if (not isinstance(value, list) or not value
+            or any(isinstance(v, bool) or not isinstance(v, int | float) for v in value)):
+        ck.fail(where, f"a list of numbers for {what}", repr(value))
+    return tuple(float(v) for v in value)
 
 
 def _model_input(ck: Checker, t: Mapping, name: str, spec: Mapping, w: tuple,
@@ -423,6 +454,99 @@ def _model_input(ck: Checker, t: Mapping, name: str, spec: Mapping, w: tuple,
     if target in inputs.model.fixed:
         ck.fail(w + ("input",), f"an input not fixed in [model] ({target!r} is)", target)
     return target
+
+
+def _parse_correlation(ck: Checker, doc: dict, params: tuple[ParameterSpec, ...]
+                       ) -> CorrelationSpec | None:
+    """``[correlation]``: ``parameters = [names of [parameters.NAME]]`` and ``matrix`` (their
+    x-space correlation: symmetric, unit diagonal, positive definite, reachable with their
+    marginals through the Nataf model)."""
+    if "correlation" not in doc:
+        return None
+    w = ("correlation",)
+    what = "[correlation]"
+    t = ck.table(doc["correlation"], w, what)
+    ck.keys(t, CORRELATION_KEYS, w, what)
+    for key in CORRELATION_KEYS:
+        if key not in t:
+            ck.fail(w, f"{key} = [...] in {what} (parameters = [\"a\", \"b\"], matrix = "
+                    "[[1.0, 0.3], [0.3, 1.0]])")
+    names = ck.value(t, "parameters", (string_list, REQUIRED), w, what)
+    known = [p.name for p in params]
+    for n in names:
+        if n not in known:
+            ck.fail(w + ("parameters",), f"names of [parameters.NAME] tables in the parameters "
+                    f"of {what} ({', '.join(known) or 'none defined'}){close_hint(n, known)}", n)
+        if names.count(n) > 1:
+            ck.fail(w + ("parameters",), f"each parameter once in the parameters of {what}", n)
+    if len(names) < 2:
+        ck.fail(w + ("parameters",), f"at least two parameters in {what}", repr(list(names)))
+    rows = t["matrix"]
+    k = len(names)
+    where = w + ("matrix",)
+    if (not isinstance(rows, list) or len(rows) != k
+            or any(not isinstance(r, list) or len(r) != k for r in rows)):
+        ck.fail(where, f"a {k} x {k} matrix (a list of {k} rows of {k} numbers, one per "
+                f"parameter of {what})", _shape(rows))
+    for row in rows:
+        for v in row:
+            if isinstance(v, bool) or not isinstance(v, int | float) or not np.isfinite(v):
+                ck.fail(where, f"numbers in the matrix of {what}", repr(v))
+    r = np.array(rows, dtype=float)
+    for i, j in zip(*np.nonzero(r != r.T), strict=True):
+        ck.fail(where, f"a symmetric matrix in {what}: row {i + 1}, column {j + 1} "
+                f"({names[i]}, {names[j]}) is {r[i, j]:g} but ({names[j]}, {names[i]}) is "
+                f"{r[j, i]:g}")
+    for i in range(k):
+        if r[i, i] != 1.0:
+            ck.fail(where, f"a unit diagonal in the matrix of {what} (a correlation matrix)",
+                    f"{r[i, i]:g} for {names[i]}")
+    off = np.abs(r - np.eye(k)).max()
+    lam = float(np.linalg.eigvalsh(r).min())
+    if off >= 1.0 or lam <= 1e-12:
+        ck.fail(where, f"a positive definite matrix in {what} (correlations strictly between "
+                "-1 and 1 that are consistent with each other)",
+                f"smallest eigenvalue {lam:.3g}")
+    spec = CorrelationSpec(tuple(names), tuple(tuple(row) for row in r.tolist()),
+                           ck.loc.line(*w))
+    by_name = {p.name: p.distribution for p in params}
+    try:
+        ParameterSpace([(n, by_name[n]) for n in names], correlation=r)
+    except ParameterError as exc:
+        ck.fail(where, f"correlations the marginals of {', '.join(names)} can reach (Nataf): "
+                f"{exc}")
+    return spec
+
+
+def _shape(rows: object) -> str:
+    if not isinstance(rows, list):
+        return repr(rows)
+    return f"{len(rows)} rows of " + ", ".join(
+        str(len(r)) if isinstance(r, list) else repr(r) for r in rows)
+
+
+def _check_correlated_steps(ck: Checker, steps: tuple[StepSpec, ...],
+                            correlation: CorrelationSpec | None) -> None:
+    """A step whose type ignores correlated inputs (``StepType.correlated`` False) may not
+    get two correlated parameters of ``[correlation]`` (steps taking their distributions
+    ``from`` an earlier step are checked when they run)."""
+    if correlation is None:
+        return
+    for st in steps:
+        typ = step_type(st.type)
+        if typ.correlated or st.source is not None:
+            continue
+        names = list(st.parameters) if st.parameters is not None else [
+            *correlation.parameters, *(d.name for d in st.distributions)]
+        if correlation.matrix_for(names) is not None:
+            ok = ", ".join(sorted(t.name for t in step_types().values() if t.correlated))
+            ck.fail(("steps", st.index, "type"),
+                    f"a step type that honours correlated inputs ({ok}) for step {st.name!r}: "
+                    f"a {typ.name} step assumes independent inputs, and the [correlation] table "
+                    f"(line {correlation.line}) correlates its parameters "
+                    f"{', '.join(n for n in correlation.parameters if n in names)}; list "
+                    "uncorrelated ones with parameters = [...] or drop the correlation",
+                    typ.name)
 
 
 def _parse_exec_store(ck: Checker, doc: dict) -> tuple[ExecutorSpec, StoreSpec]:

@@ -14,7 +14,7 @@ from ..errors import ParameterError
 from ..params import Distribution, ParameterSpace
 
 __all__ = ["Study", "StudyInfo", "ModelSpec", "ExternalSpec", "ParameterSpec", "DataSet",
-           "ExecutorSpec", "StoreSpec", "StepSpec"]
+           "ExecutorSpec", "StoreSpec", "StepSpec", "CorrelationSpec"]
 
 
 @dataclass(frozen=True)
@@ -64,12 +64,51 @@ class ParameterSpec:
 
     name: str
     kind: str
-    params: Mapping[str, float]
+    params: Mapping[str, Any]  # numbers; a histogram's abscissas, counts: tuples of numbers
     distribution: Distribution
     line: int | None = None
     label: str = ""
     unit: str = ""
     input: str = ""  # the model input it feeds, when its name differs (``input = "..."``)
+
+
+@dataclass(frozen=True)
+class CorrelationSpec:
+    """``[correlation]``: the x-space (Pearson) correlation of some parameters, as Dakota's
+    ``uncertain_correlation_matrix``; parameters not listed are independent of all others.
+
+    parameters : the names, in the order of the rows of ``matrix``. matrix : (k, k) rows,
+    symmetric, unit diagonal, positive definite. line : of the ``[correlation]`` table.
+
+    Examples
+    --------
+    >>> c = CorrelationSpec(("a", "b"), ((1.0, 0.3), (0.3, 1.0)))
+    >>> c.matrix_for(("b", "x", "a"))
+    array([[1. , 0. , 0.3],
+           [0. , 1. , 0. ],
+           [0.3, 0. , 1. ]])
+    >>> c.matrix_for(("a", "x")) is None      # no correlated pair among these
+    True
+    """
+
+    parameters: tuple[str, ...]
+    matrix: tuple[tuple[float, ...], ...]
+    line: int | None = None
+
+    def matrix_for(self, names: Sequence[str], correlated: Sequence[str] | None = None
+                   ) -> np.ndarray | None:
+        """The correlation matrix (d, d) of ``names`` (identity outside the listed pairs), or
+        None when no two of them are correlated. ``correlated``: the names the correlation
+        applies to (default all of ``names``)."""
+        names = list(names)
+        keep = set(names if correlated is None else correlated)
+        r = np.eye(len(names))
+        idx = {n: i for i, n in enumerate(self.parameters)}
+        for a, na in enumerate(names):
+            for b, nb in enumerate(names):
+                if a != b and na in idx and nb in idx and na in keep and nb in keep:
+                    r[a, b] = self.matrix[idx[na]][idx[nb]]
+        return None if np.array_equal(r, np.eye(len(names))) else r
 
 
 @dataclass(frozen=True, eq=False)
@@ -139,7 +178,8 @@ class StepSpec:
 @dataclass(frozen=True, eq=False)
 class Study:
     """A validated study. ``parameters`` is ordered as in the file; ``models`` holds the
-    named ``[models.NAME]`` tables (the low-fidelity models of a ``multifidelity`` step)."""
+    named ``[models.NAME]`` tables (the low-fidelity models of a ``multifidelity`` step);
+    ``correlation`` the ``[correlation]`` table (None: independent parameters)."""
 
     path: Path
     info: StudyInfo
@@ -151,6 +191,7 @@ class Study:
     steps: tuple[StepSpec, ...]
     text: str = ""
     models: Mapping[str, ModelSpec] = field(default_factory=dict)
+    correlation: CorrelationSpec | None = None
 
     @property
     def parameter_names(self) -> tuple[str, ...]:
@@ -168,9 +209,12 @@ class Study:
         raise ParameterError(f"study {self.info.name!r} has no parameter {name!r}")
 
     def space(self, names_in: Sequence[str] | None = None) -> ParameterSpace:
-        """ParameterSpace of the named parameters (all when None), in the given order."""
+        """ParameterSpace of the named parameters (all when None), in the given order, with
+        their ``[correlation]``."""
         names = self.parameter_names if names_in is None else tuple(names_in)
-        return ParameterSpace([(n, self.parameter(n).distribution) for n in names])
+        corr = None if self.correlation is None else self.correlation.matrix_for(names)
+        return ParameterSpace([(n, self.parameter(n).distribution) for n in names],
+                              correlation=corr)
 
     def model_spec(self, name: str | None = None) -> ModelSpec:
         """``[model]`` (``name`` None) or the named ``[models.NAME]``."""

@@ -549,8 +549,9 @@ def _sobol_g_function(x, m, comp, grad):
         return y[:, None], None
     g = np.zeros((n, 1, d))
     for i in range(d):
-        others = 2.0 * np.prod(np.delete(fac, i, axis=1), axis=1)
+        # d/dx_i of 2 |4 x_i - 2| / (1 + a_i) is +-8 / (1 + a_i); 0 at the kink, as Dakota
         slope = np.where(4.0 * x[:, i] > 2.0, 8.0, -8.0) / (1.0 + a[i])
+        others = np.prod(np.delete(fac, i, axis=1), axis=1)
         g[:, 0, i] = np.where(4.0 * x[:, i] == 2.0, 0.0, slope * others)
     return y[:, None], g
 

@@ -27,7 +27,7 @@ building a model.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -119,86 +119,113 @@ class DakotaFunction:
     """One of Dakota's test functions as a batched model (build it with
     :func:`dakota_function`).
 
-    ``names_in`` are the deck's variables (in the deck's order), ``names_out`` its responses;
-    ``model(x)`` maps ``x`` (n, d) to (n, m) and, when Dakota has one, ``model.gradient(x)``
-    gives (n, m, d). A point where Dakota's function is undefined (a damped oscillator that is
-    not under-damped) is a NaN row, a failure of that point only.
+    ``variables`` are the deck's continuous variables (in the deck's order) and ``responses``
+    its responses. The model's own inputs ``names_in`` are ``inputs`` (default: the variables
+    not in ``fixed``, any order) and its outputs ``names_out`` are ``outputs`` (default: all
+    responses); ``fixed`` gives the values of the other variables. ``model(x)`` maps ``x``
+    (n, len(names_in)) to (n, len(names_out)) and, when Dakota has one, ``model.gradient(x)``
+    gives (n, len(names_out), len(names_in)). A point where Dakota's function is undefined
+    (a damped oscillator that is not under-damped) is a NaN row, a failure of that point only.
     """
 
-    def __init__(self, name: str, names_in: Sequence[str], names_out: Sequence[str],
-                 components: Sequence[str] = ()) -> None:
+    def __init__(self, name: str, variables: Sequence[str], responses: Sequence[str],
+                 components: Sequence[str] = (), *, fixed: Mapping[str, float] | None = None,
+                 inputs: Sequence[str] | None = None,
+                 outputs: Sequence[str] | None = None) -> None:
         info = _info(name)
         self.name = name
         self.info = info
-        self.names_in = tuple(str(n) for n in names_in)
-        self.names_out = tuple(str(n) for n in names_out)
+        self.variables = tuple(str(n) for n in variables)
+        self.responses = tuple(str(n) for n in responses)
         self.components = tuple(str(c) for c in components)
-        for problem in (info.input_problem(self.names_in),
-                        info.response_problem(len(self.names_in), len(self.names_out)),
+        for problem in (info.input_problem(self.variables),
+                        info.response_problem(len(self.variables), len(self.responses)),
                         info.component_problem(self.components)):
             if problem is not None:
                 raise ParameterError(f"Dakota test function {name!r}: expected {problem}; "
-                                     f"got inputs {list(self.names_in)} and "
-                                     f"{len(self.names_out)} response(s)"
+                                     f"got variables {list(self.variables)} and "
+                                     f"{len(self.responses)} response(s)"
                                      + (f", components {list(self.components)}"
                                         if self.components else ""))
+        self.fixed = {str(k): float(v) for k, v in (fixed or {}).items()}
+        self.names_in = tuple(str(n) for n in inputs) if inputs is not None else tuple(
+            v for v in self.variables if v not in self.fixed)
+        self.names_out = tuple(str(n) for n in outputs) if outputs is not None else (
+            self.responses)
+        unknown = [n for n in (*self.names_in, *self.fixed) if n not in self.variables]
+        unset = [v for v in self.variables if v not in self.names_in and v not in self.fixed]
+        if unknown or unset or len(set(self.names_in)) < len(self.names_in):
+            raise ParameterError(f"Dakota test function {name!r} of the variables "
+                                 f"{list(self.variables)}: inputs {list(self.names_in)} and "
+                                 f"fixed {sorted(self.fixed)} must give each variable once"
+                                 + (f"; not variables: {unknown}" if unknown else "")
+                                 + (f"; without a value: {unset}" if unset else ""))
+        bad = [r for r in self.names_out if r not in self.responses]
+        if bad:
+            raise ParameterError(f"Dakota test function {name!r}: outputs {bad} are not among "
+                                 f"its responses {list(self.responses)}")
+        self._in = np.array([self.variables.index(n) for n in self.names_in], dtype=int)
+        self._out = np.array([self.responses.index(r) for r in self.names_out], dtype=int)
         self._component = self.components[0] if self.components else (
             info.components[0] if info.components else "")
-        # label functions: the column of each of the function's own variables (None: Dakota's
-        # local default value)
+        # the deck's column of each of the function's own variables (label functions), None
+        # for Dakota's local default value (cantilever's w, t)
         self._order: tuple[int | None, ...] | None = None
         if info.labels:
-            full = info.labels[0]
-            self._order = tuple(self.names_in.index(v) if v in self.names_in else None
-                                for v in full)
+            self._order = tuple(self.variables.index(v) if v in self.variables else None
+                                for v in info.labels[0])
         if info.has_gradient:
             self.gradient = self._gradient
 
     def _own(self, x: np.ndarray) -> np.ndarray:
-        """Points (n, d) in the deck's order -> the function's own variables."""
-        if self._order is None:
-            return x
-        cols = [x[:, i] if i is not None else np.full(len(x), _LABEL_DEFAULTS[self.name])
-                for i in self._order]
-        return np.column_stack(cols)
-
-    def __call__(self, x: np.ndarray) -> np.ndarray:
-        x = self._points(x)
-        y, _ = _KERNELS[self.name](self._own(x), len(self.names_out), self._component, False)
-        return y
-
-    def _gradient(self, x: np.ndarray) -> np.ndarray:
-        """Analytic gradient (n, m, d) in the deck's variable order."""
-        x = self._points(x)
-        _, g = _KERNELS[self.name](self._own(x), len(self.names_out), self._component, True)
-        assert g is not None
-        if self._order is None:
-            return g
-        out = np.zeros((len(x), len(self.names_out), len(self.names_in)))
-        for k, i in enumerate(self._order):
-            if i is not None:
-                out[:, :, i] = g[:, :, k]
-        return out
-
-    def _points(self, x: np.ndarray) -> np.ndarray:
+        """Points (n, len(names_in)) -> the function's own variables, in its order."""
         x = np.atleast_2d(np.asarray(x, dtype=float))
         if x.ndim != 2 or x.shape[1] != len(self.names_in):
             raise ParameterError(f"{self!r}: points of shape (n, {len(self.names_in)}) "
                                  f"expected, got {x.shape}")
-        return x
+        full = np.empty((len(x), len(self.variables)))
+        full[:, self._in] = x
+        for k, v in self.fixed.items():
+            full[:, self.variables.index(k)] = v
+        if self._order is None:
+            return full
+        return np.column_stack([full[:, i] if i is not None else
+                                np.full(len(x), _LABEL_DEFAULTS[self.name])
+                                for i in self._order])
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        y, _ = _KERNELS[self.name](self._own(x), len(self.responses), self._component, False)
+        return y[:, self._out]
+
+    def _gradient(self, x: np.ndarray) -> np.ndarray:
+        """Analytic gradient (n, len(names_out), len(names_in))."""
+        own = self._own(x)
+        _, g = _KERNELS[self.name](own, len(self.responses), self._component, True)
+        assert g is not None
+        if self._order is not None:  # back to the deck's variable order
+            deck = np.zeros((len(own), len(self.responses), len(self.variables)))
+            for k, i in enumerate(self._order):
+                if i is not None:
+                    deck[:, :, i] = g[:, :, k]
+            g = deck
+        return g[:, self._out][:, :, self._in]
 
     def identity(self) -> dict:
-        """The function's name, components and the deck's input and response names."""
+        """The function, its components, the deck's variables and responses, what is fixed."""
         return {"function": self.name, "components": list(self.components),
-                "in": list(self.names_in), "out": list(self.names_out)}
+                "variables": list(self.variables), "responses": list(self.responses),
+                "fixed": dict(sorted(self.fixed.items()))}
 
     def __repr__(self) -> str:
         comp = f", components={list(self.components)}" if self.components else ""
-        return f"DakotaFunction({self.name!r}, in={self.names_in}, out={self.names_out}{comp})"
+        return (f"DakotaFunction({self.name!r}, in={self.names_in}, out={self.names_out}"
+                f"{comp})")
 
 
 def dakota_function(name: str, names_in: Sequence[str], names_out: Sequence[str],
-                    components: Sequence[str] = ()) -> DakotaFunction:
+                    components: Sequence[str] = (), *, fixed: Mapping[str, float] | None = None,
+                    inputs: Sequence[str] | None = None,
+                    outputs: Sequence[str] | None = None) -> DakotaFunction:
     """The model of Dakota's direct test function ``name``.
 
     Parameters
@@ -215,12 +242,19 @@ def dakota_function(name: str, names_in: Sequence[str], names_out: Sequence[str]
     components : sequence of str, optional
         Dakota's ``analysis_components`` (``gerstner``: ``iso1`` ... ``aniso3``; ``genz``:
         ``os1`` ... ``cp3``).
+    fixed : mapping of str to float, optional
+        Values of variables that are not inputs of the model.
+    inputs : sequence of str, optional
+        The model's inputs, in any order (default: the variables not in ``fixed``).
+    outputs : sequence of str, optional
+        The responses the model returns, a subset of ``names_out`` in any order (default:
+        all). Their number does not change what the function computes.
 
     Returns
     -------
     DakotaFunction
         ``model(x (n, d)) -> (n, m)``; ``model.gradient(x) -> (n, m, d)`` where Dakota has an
-        analytic gradient.
+        analytic gradient (d inputs, m outputs).
 
     Raises
     ------
@@ -238,8 +272,13 @@ def dakota_function(name: str, names_in: Sequence[str], names_out: Sequence[str]
     array([[ 4. , 32. ],
            [ 4. , -0.5],
            [-0.5,  6. ]])
+    >>> c1 = dakota_function("text_book", ["x1", "x2"], ["f", "c1", "c2"], fixed={"x1": 2.0},
+    ...                      outputs=["c1"])
+    >>> c1.names_in, c1(np.array([[3.0]]))
+    (('x2',), array([[2.5]]))
     """
-    return DakotaFunction(name, names_in, names_out, components)
+    return DakotaFunction(name, names_in, names_out, components, fixed=fixed, inputs=inputs,
+                          outputs=outputs)
 
 
 def _info(name: str) -> FunctionInfo:

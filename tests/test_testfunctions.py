@@ -214,3 +214,69 @@ def test_the_public_name():
 
 ROOT = Path(__file__).resolve().parents[1]
 ROTORUQ = [sys.executable, "-m", "rotoruq.study.cli"]
+
+STUDY = """\
+[study]
+name = "rosen"
+seed = 5
+
+[model]
+function = "rosenbrock"
+responses = ["f"]
+
+[parameters.x1]
+distribution = "uniform"
+lower = -2.0
+upper = 2.0
+
+[parameters.x2]
+distribution = "normal"
+mean = 1.0
+std = 0.5
+
+[[steps]]
+name = "lhs"
+type = "sampling"
+n_samples = 30
+"""
+
+
+def _cli(*args) -> subprocess.CompletedProcess:
+    return subprocess.run([*ROTORUQ, *map(str, args)], capture_output=True, text=True,
+                          timeout=300)
+
+
+def test_a_study_of_a_dakota_function_through_the_cli(tmp_path):
+    from rotoruq.results import load_results
+
+    (tmp_path / "rosen.toml").write_text(STUDY)
+    proc = _cli("run", tmp_path / "rosen.toml", "--out", tmp_path / "out", "--no-report")
+    assert proc.returncode == 0, proc.stderr
+    res = load_results(tmp_path / "out")["lhs"]
+    x = np.column_stack([res.column("inputs", n) for n in ("x1", "x2")])
+    y = res.column("outputs", "f")
+    assert len(y) == 30
+    np.testing.assert_array_equal(y, dakota_function("rosenbrock", ["x1", "x2"], ["f"])(x)[:, 0])
+
+
+@pytest.mark.parametrize("edit, line, message", [
+    (('function = "rosenbrock"', 'function = "rosenbrok"'), 6,
+     "expected 'function' of [model] to be one of 'text_book', 'text_book1', "),
+    (('responses = ["f"]', 'responses = ["f", "g", "h"]'), 7,
+     "expected 1 (objective) or 2 (least-squares residuals) responses for 'rosenbrock' (with "
+     "2 variables), found '3: f, g, h'"),
+    (("[parameters.x2]", "[parameters.x3]"), 6,
+     "expected the variables of 'rosenbrock' named as Dakota reads them (by descriptor): x1, "
+     "x2 (its variables are the study's parameters, then the fixed inputs), found 'x1, x3'"),
+    (('function = "rosenbrock"', 'function = "log_ratio"\nfixed = { c = 1.0 }'), 6,
+     "expected 2 variables for 'log_ratio'"),
+    (('function = "rosenbrock"', 'function = "gerstner"\ncomponents = ["iso7"]'), 7,
+     "expected one analysis component of 'gerstner': iso1, iso2"),
+    (('function = "rosenbrock"', 'function = "rosenbrock"\npreset = "gvpm"'), 6,
+     "expected one of preset, command or function in [model], not preset and function"),
+])
+def test_a_bad_function_model_is_an_error_naming_file_and_line(tmp_path, edit, line, message):
+    (tmp_path / "bad.toml").write_text(STUDY.replace(*edit))
+    proc = _cli("run", tmp_path / "bad.toml", "--out", tmp_path / "out", "--no-report")
+    assert proc.returncode != 0
+    assert f"bad.toml, line {line}: {message}" in proc.stderr, proc.stderr

@@ -280,3 +280,19 @@ def test_a_bad_function_model_is_an_error_naming_file_and_line(tmp_path, edit, l
     proc = _cli("run", tmp_path / "bad.toml", "--out", tmp_path / "out", "--no-report")
     assert proc.returncode != 0
     assert f"bad.toml, line {line}: {message}" in proc.stderr, proc.stderr
+
+
+def function_table() -> str:
+    """The docs' table of the test functions (docs/tutorials/dakota.md), from the registry."""
+    rows = ["| function | variables | responses | gradient | components |",
+            "|---|---|---|---|---|"]
+    for f in FUNCTIONS.values():
+        rows.append(f"| `{f.name}` | {f.inputs} | {f.responses} | "
+                    f"{'analytic' if f.has_gradient else 'none'} | "
+                    f"{', '.join(f.components) or '—'} |")
+    return "\n".join(rows)
+
+
+def test_the_docs_table_is_the_registry():
+    text = (ROOT / "docs" / "tutorials" / "dakota.md").read_text(encoding="utf-8")
+    assert function_table() in text

@@ -775,7 +775,12 @@ FUNCTIONS: dict[str, FunctionInfo] = {f.name: f for f in (
                  "(>= 1)", False),
 )}
 
-_ANY = (lambda d: d >= 1)
+
+
+def _ANY(d: int) -> bool:
+    return d >= 1
+
+
 _INPUT_COUNTS: dict[str, Callable[[int], bool]] = {
     "text_book": _ANY, "text_book1": _ANY, "text_book2": _ANY, "text_book3": _ANY,
     "text_book_ouu": lambda d: d >= 4 and d % 2 == 0,
@@ -791,7 +796,12 @@ _INPUT_COUNTS: dict[str, Callable[[int], bool]] = {
     "bayes_linear": lambda d: 1 <= d <= 500, "genz": _ANY,
     "damped_oscillator": lambda d: 1 <= d <= 6,
 }
-_ONE = (lambda d: (1,))
+
+
+def _ONE(d: int) -> tuple[int, ...]:
+    return (1,)
+
+
 _RESPONSE_COUNTS: dict[str, Callable[[int], tuple[int, ...] | None]] = {
     "text_book": lambda d: (1, 2, 3), "text_book1": lambda d: (1, 2, 3),
     "text_book2": lambda d: (2, 3), "text_book3": lambda d: (3,),

@@ -77,12 +77,12 @@ from .spec import (
     ExecutorSpec,
     ExternalSpec,
     ModelSpec,
-    function_variables,
     ParameterSpec,
     StepSpec,
     StoreSpec,
     Study,
     StudyInfo,
+    function_variables,
 )
 
 __all__ = ["load_study", "parse_study", "ModelInputs"]

@@ -38,7 +38,7 @@ import pytest
 SRC = Path(__file__).resolve().parents[1] / "src" / "rotoruq"
 
 BOTTOM = {"errors", "_rng", "atomic", "safety"}
-UNITS = {"model", "params"}
+UNITS = {"model", "params", "testfunctions"}
 ALLOWED: dict[str, set[str]] = {
     "errors": set(),
     "_rng": {"errors"},
@@ -46,6 +46,7 @@ ALLOWED: dict[str, set[str]] = {
     "safety": {"errors"},
     "model": BOTTOM,
     "params": BOTTOM,
+    "testfunctions": BOTTOM,
     "rotor": BOTTOM | UNITS,
     "methods": BOTTOM | UNITS,
     "evaluation": BOTTOM | UNITS,

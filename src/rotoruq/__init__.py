@@ -129,6 +129,9 @@ _LAZY: dict[str, str] = {
     "why_rerun": ".study.runner",
     "Study": ".study.spec",
     "load_study": ".study.schema",
+    "FUNCTIONS": ".testfunctions",
+    "DakotaFunction": ".testfunctions",
+    "dakota_function": ".testfunctions",
 }
 # public submodules
 _SUBMODULES: dict[str, str] = {"errors": ".errors", "presets": ".rotor.presets"}
@@ -498,4 +501,13 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     )
     from .study.spec import (
         Study as Study,
+    )
+    from .testfunctions import (
+        FUNCTIONS as FUNCTIONS,
+    )
+    from .testfunctions import (
+        DakotaFunction as DakotaFunction,
+    )
+    from .testfunctions import (
+        dakota_function as dakota_function,
     )

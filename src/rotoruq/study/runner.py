@@ -52,7 +52,7 @@ from ..results import (
 from ..steps import StepContext, run_step, step_type
 from .lock import results_lock
 from .schema import load_study
-from .spec import ModelSpec, StepSpec, Study
+from .spec import ModelSpec, StepSpec, Study, function_variables
 
 __all__ = ["run_study", "StudyRun", "build_model", "build_model_factory", "step_options",
            "model_record", "why_rerun", "IDENTITY_PARTS"]
@@ -84,7 +84,9 @@ def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
     (an object of the :class:`rotoruq.model.Model` protocol), without the evaluation store: a
     :class:`~rotoruq.rotor.model.RotorModel` (at the table's ``discretization``), or an
     :class:`~rotoruq.evaluation.external.ExternalModel` over ``inputs`` plus the fixed inputs
-    (written into every parameters file), wrapped so that its inputs are ``inputs``.
+    (written into every parameters file), wrapped so that its inputs are ``inputs``, or one of
+    Dakota's test functions (:func:`~rotoruq.testfunctions.dakota_function`) whose variables
+    are :func:`~rotoruq.study.spec.function_variables`.
 
     A named model's own ``fixed`` values take precedence over ``fixed`` (the step's: the
     study's operating point). Parameters that feed a model input of another name
@@ -112,6 +114,13 @@ def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
         preset = get_preset(spec.preset, **dict(spec.preset_options))
         return RotorModel(preset, names_in=list(inputs), names_out=list(responses),
                           fixed=dict(fixed), **dict(spec.discretization))
+    if spec.function is not None:
+        from ..testfunctions import dakota_function
+
+        variables = function_variables(spec, study.parameters, study.model if model else None)
+        return dakota_function(spec.function, variables, spec.responses, spec.components,
+                               fixed={k: v for k, v in fixed.items() if k not in inputs},
+                               inputs=list(inputs), outputs=list(responses))
     from ..evaluation.external import ExternalModel
     from ..model import FixedInputs
 

@@ -84,6 +84,7 @@ from .spec import (
     StoreSpec,
     Study,
     StudyInfo,
+    function_variables,
 )
 
 __all__ = ["load_study", "parse_study", "ModelInputs"]
@@ -95,7 +96,7 @@ STUDY_KEYS = ("name", "seed", "output", "description")
 EXTERNAL_KEYS = ("command", "files", "templates", "parameters_format", "timeout", "failure",
                  "retries", "recover", "workdir")
 MODEL_KEYS = ("preset", "preset_options", "discretization", "responses", "fixed",
-              *EXTERNAL_KEYS)
+              "function", "components", *EXTERNAL_KEYS)
 # RotorModel's discretization keywords a preset model may set.
 DISCRETIZATION_KEYS = ("n_stations", "n_azimuth", "n_harmonics")
 
@@ -218,6 +219,7 @@ def parse_study(text: str, path: str | Path = "<study>") -> Study:
     inputs = ModelInputs(ck, model)
     params = _parse_parameters(ck, doc, inputs)
     _check_model_inputs(ck, models, model, params)
+    _check_function_models(ck, model, models, params)
     data = parse_data(ck, doc, base)
     executor, store = _parse_exec_store(ck, doc)
     correlation = _parse_correlation(ck, doc, params)
@@ -259,6 +261,15 @@ def _parse_model_table(ck: Checker, t: object, w: tuple, what: str, name: str = 
     fixed = ck.numbers(fixed, w + ("fixed",), f"{what} fixed")
     if "preset" in t and "command" in t:
         ck.fail(w + ("command",), f"either preset or command in {what}, not both")
+    if "function" in t and ("preset" in t or "command" in t):
+        other = "preset" if "preset" in t else "command"
+        ck.fail(w + ("function",), f"one of preset, command or function in {what}, not "
+                f"{other} and function")
+    if "components" in t and "function" not in t:
+        ck.fail(w + ("components",), "no 'components' without function = \"...\" (they are "
+                "a Dakota test function's analysis_components)")
+    if "function" in t:
+        return _parse_function_model(ck, t, w, what, name, responses, fixed)
     if "preset" in t:
         from ..rotor.presets import PRESETS
 
@@ -287,7 +298,8 @@ def _parse_model_table(ck: Checker, t: object, w: tuple, what: str, name: str = 
         ck.fail(w + ("discretization",), "no 'discretization' with an external driver (it is "
                 "for a rotor preset)")
     if "command" not in t:
-        ck.fail(w, f"preset = \"bo105\" | \"gvpm\" or command = [\"driver\", ...] in {what}")
+        ck.fail(w, f"preset = \"bo105\" | \"gvpm\", command = [\"driver\", ...] or "
+                f"function = \"text_book\" (a Dakota test function) in {what}")
     cmd = ck.value(t, "command", (string_list, None), w, what)
     recover = t.get("recover")
     ext = ExternalSpec(
@@ -307,6 +319,47 @@ def _parse_model_table(ck: Checker, t: object, w: tuple, what: str, name: str = 
         workdir=ck.value(t, "workdir", (string(), None), w, what),
     )
     return ModelSpec("external", responses, fixed, external=ext, name=name)
+
+
+def _parse_function_model(ck: Checker, t: dict, w: tuple, what: str, name: str,
+                          responses: tuple[str, ...], fixed: Mapping[str, float]) -> ModelSpec:
+    """``function = "text_book"``: one of Dakota's test functions (rotoruq.testfunctions);
+    its variables and responses are checked once the parameters are known
+    (:func:`_check_function_models`)."""
+    from ..testfunctions import FUNCTIONS
+
+    fn = ck.value(t, "function", (string(tuple(FUNCTIONS)), None), w, what)
+    for key in (*EXTERNAL_KEYS, "preset_options", "discretization"):
+        if key in t:
+            ck.fail(w + (key,), f"no {key!r} with a Dakota test function (function = ...)")
+    comps = tuple(ck.value(t, "components", (string_list, ()), w, what))
+    problem = FUNCTIONS[fn].component_problem(comps)
+    if problem is not None:
+        ck.fail(w + ("components",), problem, ", ".join(comps))
+    return ModelSpec("function", responses, fixed, function=fn, components=comps, name=name)
+
+
+def _check_function_models(ck: Checker, model: ModelSpec, models: Mapping[str, ModelSpec],
+                           params: tuple[ParameterSpec, ...]) -> None:
+    """A Dakota test function takes the study's parameters and fixed inputs as its variables
+    (by position, or by name for those Dakota reads by descriptor) and gives as many responses
+    as it can for them."""
+    from ..testfunctions import FUNCTIONS
+
+    for spec in (model, *models.values()):
+        if spec.function is None:
+            continue
+        w = ("models", spec.name) if spec.name else ("model",)
+        info = FUNCTIONS[spec.function]
+        variables = function_variables(spec, params, model if spec.name else None)
+        problem = info.input_problem(variables)
+        if problem is not None:
+            ck.fail(w + ("function",), f"{problem} (its variables are the study's parameters, "
+                    "then the fixed inputs)", ", ".join(variables) or "no variables")
+        problem = info.response_problem(len(variables), len(spec.responses))
+        if problem is not None:
+            ck.fail(w + ("responses",), problem,
+                    f"{len(spec.responses)}: {', '.join(spec.responses)}")
 
 
 def _check_grid(ck: Checker, preset: str, opts: Mapping, disc: Mapping[str, int],

@@ -14,7 +14,7 @@ from ..errors import ParameterError
 from ..params import Distribution, ParameterSpace
 
 __all__ = ["Study", "StudyInfo", "ModelSpec", "ExternalSpec", "ParameterSpec", "DataSet",
-           "ExecutorSpec", "StoreSpec", "StepSpec", "CorrelationSpec"]
+           "ExecutorSpec", "StoreSpec", "StepSpec", "CorrelationSpec", "function_variables"]
 
 
 @dataclass(frozen=True)
@@ -46,7 +46,9 @@ class ExternalSpec:
 class ModelSpec:
     """``[model]`` or a named ``[models.NAME]``: a rotor preset (``kind="preset"``, with
     ``discretization``: the rotor's ``n_stations`` / ``n_azimuth`` / ``n_harmonics`` where
-    given) or an external driver. ``name`` is "" for ``[model]``."""
+    given), an external driver (``kind="external"``) or one of Dakota's test functions
+    (``kind="function"``: ``function``, its ``analysis_components`` in ``components``; its
+    variables are :func:`function_variables`). ``name`` is "" for ``[model]``."""
 
     kind: str
     responses: tuple[str, ...]
@@ -56,6 +58,22 @@ class ModelSpec:
     external: ExternalSpec | None = None
     discretization: Mapping[str, int] = field(default_factory=dict)
     name: str = ""
+    function: str | None = None
+    components: tuple[str, ...] = ()
+
+
+def function_variables(model: ModelSpec, parameters: Sequence[ParameterSpec],
+                       main: ModelSpec | None = None) -> tuple[str, ...]:
+    """The variables of a Dakota test function model, in the order the function takes them
+    (Dakota hands most of them over by position): the study's parameters in file order (by
+    the model input each feeds), then the inputs ``[model]`` fixes (``main``, for a named
+    model) and the model's own fixed inputs, in file order."""
+    names: list[str] = []
+    for n in [p.input or p.name for p in parameters] + [
+            *(main.fixed if main is not None else ()), *model.fixed]:
+        if n not in names:
+            names.append(n)
+    return tuple(names)
 
 
 @dataclass(frozen=True)

@@ -109,6 +109,7 @@ for _prefix, _attrs in {
     ALIASES.update({f"{_prefix}_{a}": a for a in _attrs})
 _NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eEdD][+-]?\d+)?$")
 _REPEAT = re.compile(r"^(\d+)\*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eEdD][+-]?\d+)?)$")
+_STAR = re.compile(r"(?<![\w.])(\d+)\s*\*\s*(?=[+-]?[\d.])")
 _TOKEN = re.compile(r"""'[^']*'|"[^"]*"|=|[^\s=,'"]+""")  # commas separate, as blanks
 
 
@@ -180,6 +181,9 @@ def parse_deck(text: str, path: str | os.PathLike = "<deck>") -> Deck:
     kind, start, entries = None, 0, []  # type: ignore[var-annotated]
     for no, raw in enumerate(text.splitlines(), 1):
         line = _strip_comment(raw)
+        # N * value with blanks around the star (outside quotes): one N*value token
+        parts = re.split(r"""('[^']*'|"[^"]*")""", line)
+        line = "".join(s if i % 2 else _STAR.sub(r"\1*", s) for i, s in enumerate(parts))
         toks = _TOKEN.findall(line)
         if line.count("'") % 2 or line.count('"') % 2:
             raise InputFileError(path, no, "a closed quoted string", raw.strip())
@@ -242,7 +246,10 @@ OUTPUT_ONLY: dict[str, frozenset[str]] = {
         "models", "surrogate")),
     "method": frozenset((
         "output", "silent", "quiet", "normal", "verbose", "debug", "final_moments",
-        "standard", "central", "none", "speculative", "id_method", "model_pointer")),
+        "standard", "central", "none", "speculative", "id_method", "model_pointer",
+        "std_regression_coeffs", "tolerance_intervals", "coverage", "confidence_level",
+        "posterior_stats", "kl_divergence", "mutual_info", "export_chain_points_file",
+        "export_expansion_file", "export_approx_points_file")),
     "interface": frozenset((
         "id_interface", "fork", "system", "direct", "parameters_file", "results_file",
         "file_tag", "file_save", "work_directory", "named", "directory_tag", "directory_save",
@@ -740,6 +747,7 @@ class _Driver:
     preset: str | None = None
     command: list[str] | None = None
     function: str | None = None
+    components: list[str] = field(default_factory=list)
     fixed: dict = field(default_factory=dict)
     mapping: dict = field(default_factory=dict)
     outputs: list[str] = field(default_factory=list)
@@ -748,7 +756,8 @@ class _Driver:
     gradients: str | None = None
 
 
-_IF_KEYS = ("analysis_drivers", "aprepro", "failure_capture", "fork", "system", "direct")
+_IF_KEYS = ("analysis_drivers", "analysis_components", "aprepro", "failure_capture", "fork",
+            "system", "direct")
 
 
 def _dakota_functions() -> Mapping[str, Any]:
@@ -777,6 +786,8 @@ def _read_interface(deck: Deck, block: DeckBlock, tx: _Tx | None = None) -> _Dri
             seen = (strs[0], e)
         elif e.keyword == "aprepro":
             drv.parameters_format = "aprepro"
+        elif e.keyword == "analysis_components":
+            drv.components = _strs(c, e)
         elif e.keyword == "failure_capture":
             a = c.next_if("abort", "recover", "retry", "continuation")
             if a is None or a.keyword == "continuation":
@@ -802,6 +813,9 @@ def _read_interface(deck: Deck, block: DeckBlock, tx: _Tx | None = None) -> _Dri
                    + ", ".join(sorted(functions)) + f"); '{text}' is not one")
         drv.function = text
         return drv
+    if drv.components:
+        c.fail(e, "analysis_components only with one of Dakota's test functions (a fork or "
+               "system driver reads its own options)")
     argv = shlex.split(text)
     if len(argv) == 1 and argv[0] in functions and not _program_exists(deck, argv[0]):
         # Dakota's test suite runs its test functions as programs of the same name
@@ -858,8 +872,9 @@ _LEVELS = ("response_levels", "probability_levels", "reliability_levels",
 _LEVEL_KEYS = (*_LEVELS, *(f"num_{k}" for k in _LEVELS), "compute", "probabilities",
                "reliabilities", "gen_reliabilities", "distribution", "cumulative",
                "complementary")
-_SAMPLING = ("sample_type", "lhs", "random", "samples", "seed", "fixed_seed",
-             "variance_based_decomp", *_LEVEL_KEYS)
+_SAMPLING = ("sample_type", "lhs", "random", "low_discrepancy", "rank_1_lattice",
+             "digital_net", "sobol", "samples", "seed", "fixed_seed", "variance_based_decomp",
+             *_LEVEL_KEYS)
 _RELIABILITY = ("mpp_search", "x_taylor_mean", "u_taylor_mean", "x_taylor_mpp",
                 "u_taylor_mpp", "x_two_point", "u_two_point", "no_approx", "integration",
                 "first_order", "second_order", *_LEVEL_KEYS)
@@ -974,6 +989,14 @@ def _method_entry(c: _Cursor, e: DeckEntry, kind: str, opts: dict, levels: dict,
         counts[k[4:]] = _num(c, e, None, "integer")
     elif k in ("lhs", "random"):
         opts["design"] = k
+    elif k in ("low_discrepancy", "rank_1_lattice", "digital_net", "sobol"):
+        # Dakota's sequences (a rank-1 lattice by default) are not rotoruq's: a scrambled
+        # Sobol' sequence is the same kind of estimator on other points, as LHS is
+        opts["design"] = "sobol"
+        if k != "sobol":
+            c.tx.notes.append(f"sample_type {k} (line {e.line}): rotoruq's scrambled Sobol' "
+                              "sequence (a low-discrepancy design on other points than "
+                              "Dakota's)")
     elif k in ("mh", "metropolis_hastings", "dr", "delayed_rejection", "am",
                "adaptive_metropolis", "dram"):
         opts["sampler"] = {"metropolis_hastings": "mh", "delayed_rejection": "dr",
@@ -1360,12 +1383,25 @@ def _single_study(deck: Deck, name: str | None, resp: _Responses, method: _Metho
             and method.kind in ("local_reliability", "nl2sol"):
         drv.gradients = "analytic"
     tx.done()
-    order = None
     if drv.function is not None:
-        every = [*variables.design, *variables.uncertain, *variables.state]
-        order = [v.name for v in _dakota_order(every)]
+        # Dakota hands a direct function its variables by type (design, uncertain, state);
+        # a study hands it the parameters, then the fixed inputs: the same order when the
+        # parameters are written in Dakota's order and the fixed inputs follow them
+        params = _dakota_order(params)
+        info = _dakota_functions()[drv.function]
+        dakota = [v.name for v in _dakota_order(
+            [*variables.design, *variables.uncertain, *variables.state])]
+        ours = [v.name for v in params] + [n for n in fixed if n not in
+                                           {v.name for v in params}]
+        if not info.labels and dakota != ours:
+            tx.problem(variables.design[0].line if variables.design else None,
+                       f"design variables held fixed after the uncertain ones for "
+                       f"'{drv.function}' (it takes its variables by position, design "
+                       "first in Dakota; rotoruq hands it the parameters first)",
+                       " ".join(dakota))
+        tx.done()
     return _emit(deck, name, method.seed, drv, resp, params, fixed, [step],
-                 design=set(design_params), correlation=variables.correlation, order=order)
+                 design=set(design_params), correlation=variables.correlation)
 
 
 def _check_environment(deck: Deck, tx: _Tx | None = None) -> None:
@@ -1521,8 +1557,7 @@ def _dakota_order(variables: Sequence[_Var]) -> list[_Var]:
 
 def _emit(deck: Deck, name: str | None, seed: int | None, drv: _Driver, resp: _Responses,
           params: list[_Var], fixed: dict, steps: list[dict], design: set,
-          correlation: tuple[list[float], int] | None = None,
-          order: Sequence[str] | None = None) -> str:
+          correlation: tuple[list[float], int] | None = None) -> str:
     name = name or Path(deck.path).stem or "deck"
     rename = drv.mapping
     lines = [f"# Translated from the Dakota deck {Path(deck.path).name} by "
@@ -1534,8 +1569,8 @@ def _emit(deck: Deck, name: str | None, seed: int | None, drv: _Driver, resp: _R
         lines.append(f"preset = {_toml(drv.preset)}")
     elif drv.function is not None:
         lines.append(f"function = {_toml(drv.function)}")
-        if order is not None:
-            lines.append(f"inputs = {_toml(list(order))}")
+        if drv.components:
+            lines.append(f"components = {_toml(drv.components)}")
     else:
         assert drv.command is not None
         lines.append(f"command = {_toml(drv.command)}")

@@ -292,18 +292,32 @@ def evidence_mappings(cell_min: ArrayLike, cell_max: ArrayLike, bpa: ArrayLike,
         "plausibility_gen_response")}
     for k, r in enumerate(request.names_out):
         lo, hi = lo_all[:, k], hi_all[:, k]
-        # Dakota's complementary step functions: values sorted, BPA at and above each
+        # Dakota's complementary step functions: each cell's min (belief) and max
+        # (plausibility) sorted, with the BPA of the cells from there on, summed and
+        # subtracted in Dakota's order (a step lands where Dakota's rounding puts it)
         o_lo, o_hi = np.argsort(lo, kind="stable"), np.argsort(hi, kind="stable")
         bel_val, pl_val = lo[o_lo], hi[o_hi]
-        bel_fn = w.sum() - np.concatenate([[0.0], np.cumsum(w[o_lo])[:-1]])
-        pl_fn = w.sum() - np.concatenate([[0.0], np.cumsum(w[o_hi])[:-1]])
+        total = 0.0
+        for v in w:
+            total += float(v)
+        bel_fn, pl_fn = np.empty(w.size), np.empty(w.size)
+        b_tot = p_tot = total
+        for i in range(w.size):
+            bel_fn[i], pl_fn[i] = b_tot, p_tot
+            b_tot -= float(w[o_lo[i]])
+            p_tot -= float(w[o_hi[i]])
         z = request.levels["response"][r]
-        if cdf:
-            bel = np.array([(w * (hi < v)).sum() for v in z])
-            pl = np.array([(w * (lo < v)).sum() for v in z])
-        else:
-            bel = np.array([(w * (lo >= v)).sum() for v in z])
-            pl = np.array([(w * (hi >= v)).sum() for v in z])
+
+        def at(val: np.ndarray, fn: np.ndarray, beyond: float, complement: bool
+               ) -> np.ndarray:
+            idx = np.minimum(np.searchsorted(val, z, side="left"), val.size - 1)
+            got = 1.0 - fn[idx] if complement else fn[idx]
+            return np.where(z > val[-1], beyond, got)
+
+        if cdf:  # Bel(g < z), Pl(g < z)
+            bel, pl = at(pl_val, pl_fn, 1.0, True), at(bel_val, bel_fn, 1.0, True)
+        else:  # Bel(g >= z), Pl(g >= z)
+            bel, pl = at(bel_val, bel_fn, 0.0, False), at(pl_val, pl_fn, 0.0, False)
         if request.compute == "gen_reliabilities":
             bel, pl = _gen_beta(bel), _gen_beta(pl)
         out["response_levels"][r], out["belief"][r], out["plausibility"][r] = z, bel, pl

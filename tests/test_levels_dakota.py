@@ -321,16 +321,21 @@ def test_evidence_mappings_of_dakotas_cells_match_dakota(tmp_path, distribution,
 STUDY = """\
 [study]
 name = "levels"
-output = "out"
 seed = 5
 
 [model]
-command = "{python} driver.py {{params}} {{results}}"
+command = ["{python}", "driver.py", "{{params}}", "{{results}}"]
 responses = ["y1", "y2"]
 
-[parameters]
-a = {{ dist = "normal", mean = 2.0, std = 0.3 }}
-b = {{ dist = "normal", mean = 1.0, std = 0.2 }}
+[parameters.a]
+distribution = "normal"
+mean = 2.0
+std = 0.3
+
+[parameters.b]
+distribution = "normal"
+mean = 1.0
+std = 0.2
 
 [[steps]]
 name = "mc"
@@ -364,7 +369,7 @@ def folder(tmp_path):
 
 def test_a_study_with_level_options_runs_and_show_prints_the_mappings(folder):
     (folder / "study.toml").write_text(STUDY.format(python=sys.executable))
-    run = cli("run", "study.toml", cwd=folder)
+    run = cli("run", "study.toml", "--out", "out", cwd=folder)
     assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
     show = cli("show", "out", cwd=folder)
     assert show.returncode == 0, show.stderr

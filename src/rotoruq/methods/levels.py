@@ -308,8 +308,8 @@ def evidence_mappings(cell_min: ArrayLike, cell_max: ArrayLike, bpa: ArrayLike,
             p_tot -= float(w[o_hi[i]])
         z = request.levels["response"][r]
 
-        def at(val: np.ndarray, fn: np.ndarray, beyond: float, complement: bool
-               ) -> np.ndarray:
+        def at(val: np.ndarray, fn: np.ndarray, beyond: float, complement: bool,
+               z: np.ndarray = z) -> np.ndarray:
             idx = np.minimum(np.searchsorted(val, z, side="left"), val.size - 1)
             got = 1.0 - fn[idx] if complement else fn[idx]
             return np.where(z > val[-1], beyond, got)

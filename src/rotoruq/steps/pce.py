@@ -118,14 +118,16 @@ def _check_pce(c: StepCheck) -> None:
                "and sparse grids choose their own points)", str(c.options["n_samples"]))
     check_levels(c)
     o = c.options
-    numerical = [k for k in ("probability_levels", "gen_reliability_levels") if o.get(k)]
-    if o.get("response_levels") and o.get("compute", "probabilities") != "reliabilities":
-        numerical.insert(0, f"response_levels with compute = {o.get('compute', 'probabilities')!r}")
+    numerical = [k for k in ("response_levels", "probability_levels",
+                             "gen_reliability_levels") if o.get(k)
+                 and (k != "response_levels" or o.get("compute") != "reliabilities")]
     if numerical and not o.get("expansion_samples"):
-        c.fail((), f"expansion_samples = N (samples of the expansion) for {', '.join(numerical)}"
-               " (as Dakota, which needs samples on the expansion for these; without them only"
-               " compute = \"reliabilities\" and reliability_levels, from the expansion's "
-               "moments)")
+        what = [f"response_levels with compute = {o.get('compute')!r}" if k == "response_levels"
+                else k for k in numerical]
+        c.fail((numerical[0],), f"expansion_samples = N (samples of the expansion) for "
+               f"{', '.join(what)} (as Dakota, which needs samples on the expansion for these; "
+               "without them only compute = \"reliabilities\" and reliability_levels, from "
+               "the expansion's moments)")
     if o.get("expansion_samples") and not numerical:
         c.fail(("expansion_samples",), "expansion_samples only with probability or "
                "generalized reliability mappings (levels that need them)",

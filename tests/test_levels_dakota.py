@@ -353,6 +353,33 @@ type = "mean_value"
 response_levels = {{ y1 = [2.0, 2.5] }}
 compute = "reliabilities"
 probability_levels = {{ y2 = [0.1] }}
+
+[[steps]]
+name = "chaos"
+type = "pce"
+order = 2
+estimator = "quadrature"
+response_levels = {{ y1 = [2.5] }}
+gen_reliability_levels = {{ y2 = [1.0] }}
+reliability_levels = {{ y2 = [1.0] }}
+expansion_samples = 200
+
+[[steps]]
+name = "form"
+type = "reliability"
+response_levels = {{ y1 = [2.2] }}
+reliability_levels = {{ y2 = [1.0] }}
+distribution = "ccdf"
+
+[[steps]]
+name = "ds"
+type = "evidence"
+intervals = {{ a = [[1.5, 2.0, 0.4], [2.0, 2.5, 0.6]], b = [[0.0, 1.0, 1.0]] }}
+optimizer = "sampling"
+n_samples = 20
+response_levels = {{ y1 = [2.0, 2.5] }}
+probability_levels = {{ y1 = [0.5] }}
+distribution = "ccdf"
 """
 
 
@@ -392,6 +419,24 @@ def test_a_study_with_level_options_runs_and_show_prints_the_mappings(folder):
     mv = MeanValueRecord.read(load_step(folder / "out" / "steps" / "mv"))
     np.testing.assert_allclose(mv.level_mappings[0, :2, 2],
                                (mv.mean[0] - np.array([2.0, 2.5])) / mv.std[0], rtol=1e-12)
+    from scipy.stats import norm
+
+    from rotoruq.steps.evidence import EvidenceRecord
+    from rotoruq.steps.pce import PceRecord
+    from rotoruq.steps.reliability import ReliabilityRecord
+
+    pce = PceRecord.read(load_step(folder / "out" / "steps" / "chaos"))
+    assert pce.expansion_samples == 200
+    # y2 (linear): reliability level 1 -> mean - std; gen. reliability 1 -> a sample quantile
+    assert pce.level_mappings[1, 0, 0] == pytest.approx(pce.mean[1] - pce.std[1], rel=1e-10)
+    assert pce.level_mappings[1, 1, 0] == pytest.approx(pce.mean[1] - pce.std[1], rel=0.1)
+    form = ReliabilityRecord.read(load_step(folder / "out" / "steps" / "form"))
+    sd1, sd2 = np.hypot(0.3, 0.1), np.hypot(1.2, 0.2)
+    assert form.level_mappings[0, 0, 1] == pytest.approx(norm.sf((2.2 - 2.5) / sd1), rel=1e-6)
+    assert form.level_mappings[1, 0, 0] == pytest.approx(7.0 + sd2, rel=1e-6)  # CCDF
+    ds = EvidenceRecord.read(load_step(folder / "out" / "steps" / "ds"))
+    assert "ccbf" in ds.quantities and "belief_response" in ds.quantities
+    assert "Complementary belief (CCBF)" in text
 
 
 @pytest.mark.parametrize("step,bad,expected", [

@@ -23,7 +23,8 @@ def _records() -> list[type[StepRecord]]:
     while todo:
         cls = todo.pop()
         todo.extend(cls.__subclasses__())
-        if cls.__module__.startswith("rotoruq.steps") and cls.__name__ != "LevelsRecord":
+        if cls.__module__.startswith("rotoruq.steps") and cls.__name__ not in (
+                "LevelsRecord", "MappingsRecord"):
             out.append(cls)
     return sorted(out, key=lambda c: c.__name__)
 

@@ -34,7 +34,7 @@ import shutil
 import time
 import uuid
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, fields
+from dataclasses import MISSING, dataclass, field, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Self
 
@@ -220,6 +220,9 @@ class StepRecord:
             raise foreign(f"its {cls.__name__} has no fields")
         kwargs: dict[str, Any] = {}
         for f in fields(cls):
+            if (f.default is not MISSING or f.default_factory is not MISSING) and (
+                    f.name not in (res.arrays if f.name in cls.AXES else saved)):
+                continue  # a field added since (with its default): a record saved before it
             if f.name in cls.AXES:
                 if f.name not in res.arrays:
                     raise foreign(f"its {cls.__name__} lacks the array {f.name!r}")

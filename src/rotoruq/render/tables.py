@@ -13,7 +13,8 @@ from ..results import StepResult
 from .figures import UNKNOWN_UNIT, unit_of
 
 __all__ = ["StepTable", "Cell", "make_table", "value", "prefixed", "label", "responses",
-           "parameters", "cell", "moments_rows", "inputs_table", "levels_tables", "MOMENTS",
+           "parameters", "cell", "moments_rows", "inputs_table", "levels_tables",
+           "level_mapping_tables", "LEVEL_COLUMNS", "MOMENTS",
            "with_unit", "cv_or_none", "CV_MIN_MEAN_OVER_STD"]
 
 Cell = float | str | None
@@ -179,4 +180,29 @@ def levels_tables(names: Sequence[str], quantities: Sequence[str], values: np.nd
                               ("level", *[quantities[q].replace("_", " ") for q in present]),
                               [[i + 1, *[float(values[q, k, i]) if i < counts[q, k] else None
                                          for q in present]] for i in range(n)]))
+    return out
+
+
+#: Dakota's headings of a level mapping's columns (methods.levels.COLUMNS; spelled out so that
+#: rendering does not import the methods).
+LEVEL_COLUMNS = ("Response Level", "Probability Level", "Reliability Index",
+                 "General Rel Index")
+
+
+def level_mapping_tables(names: Sequence[str], values: np.ndarray, kinds: np.ndarray,
+                         distribution: str, note: str = "") -> list[StepTable]:
+    """Dakota's "Level mappings" tables, one per response with levels: ``values`` (response,
+    level, column) rows of response level, probability, reliability and generalized
+    reliability index (NaN: not computed, an empty cell), ``kinds`` (response, level) the
+    requested column of each row (-1 past the response's count); ``distribution`` "cdf" or
+    "ccdf" names the table as Dakota does."""
+    what = ("Cumulative Distribution Function (CDF)" if distribution == "cdf" else
+            "Complementary Cumulative Distribution Function (CCDF)")
+    out = []
+    for k, r in enumerate(names):
+        rows = [[None if math.isnan(v) else float(v) for v in values[k, i]]
+                for i in range(kinds.shape[1]) if kinds[k, i] >= 0]
+        if rows:
+            out.append(make_table(f"Level mappings: {what} for {with_unit(r)}",
+                                  LEVEL_COLUMNS, rows, note))
     return out

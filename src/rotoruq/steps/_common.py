@@ -5,20 +5,23 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
-from typing import TypeVar
+from dataclasses import dataclass, field
+from typing import Any, TypeVar
 
 import numpy as np
 from scipy import stats
 
 from ..errors import ParameterError
 from ..params import ParameterSpace
-from ..render.tables import StepTable, levels_tables
+from ..render.tables import StepTable, level_mapping_tables, levels_tables
 from ..results import RecordError, StepRecord, StepResult
-from .base import StepContext
+from .base import StepCheck, StepContext
+from .options import SIGNATURE, Option, choice, table
 
 __all__ = ["named_model", "column_moments", "stats_scalars", "input_arrays", "input_scalars",
-           "noise", "per_response", "saved_record", "MOMENT_KEYS", "LevelsRecord", "levels_arrays"]
+           "noise", "per_response", "saved_record", "MOMENT_KEYS", "LevelsRecord", "levels_arrays",
+           "LEVEL_OPTIONS", "LEVEL_TABLES", "MAPPING_AXES", "MappingsRecord", "check_levels",
+           "level_request_of", "mapping_fields", "mapping_scalars"]
 
 R = TypeVar("R", bound=StepRecord)
 
@@ -179,3 +182,128 @@ def levels_arrays(result: object, quantities: Sequence[str], responses: Sequence
         for k, a in enumerate(row):
             values[i, k, :a.size] = a
     return values, counts
+
+
+# ---------------------------------------------------------------------------------------------
+# Level mappings (Dakota's response / probability / reliability / generalized reliability
+# levels): the options, their study-file check, the record fields and tables
+# ---------------------------------------------------------------------------------------------
+_LEVELS = "rotoruq.methods.levels:level_request"
+#: The level tables (response -> list of numbers) a step type with level mappings takes.
+LEVEL_TABLES = ("response_levels", "probability_levels", "reliability_levels",
+                "gen_reliability_levels")
+#: The options of level mappings: the four level tables, ``distribution`` (what a probability
+#: is: ``"cdf"`` P(g <= z) or ``"ccdf"`` P(g > z)) and ``compute`` (what response levels map
+#: to), defaults from :func:`rotoruq.methods.levels.level_request`.
+LEVEL_OPTIONS = {
+    **{k: Option(table, SIGNATURE, method=_LEVELS) for k in LEVEL_TABLES},
+    "distribution": Option(choice("cdf", "ccdf"), SIGNATURE, method=_LEVELS),
+    "compute": Option(choice("probabilities", "reliabilities", "gen_reliabilities"), SIGNATURE,
+                      method=_LEVELS)}
+#: The mapping keys on the flat view, in :data:`rotoruq.methods.levels.KINDS` order.
+_COLUMN_KEYS = ("response", "probability", "reliability", "gen_reliability")
+
+
+def check_levels(c: StepCheck, tables: Sequence[str] = LEVEL_TABLES,
+                 compute: Sequence[str] = ("probabilities", "reliabilities",
+                                           "gen_reliabilities")) -> None:
+    """The study-file check of level mappings: each of ``tables`` keyed by the step's
+    responses with a list of numbers (probabilities in [0, 1]); ``compute`` one of
+    ``compute`` and, other than probabilities, with response levels."""
+    o = c.options
+    allowed = tuple(c.responses or c.model.responses)
+    for key in LEVEL_TABLES:
+        tbl = o.get(key)
+        if tbl is None:
+            continue
+        if key not in tables:
+            c.fail((key,), f"no {key} in a step of this type (it takes "
+                   f"{', '.join(tables)})", key)
+        for r, v in tbl.items():
+            if r not in allowed:
+                c.fail((key, r), f"{key} keyed by the step's responses ({', '.join(allowed)})",
+                       r)
+            vals = v if isinstance(v, list) else [v]
+            if not vals or not all(isinstance(x, int | float) and not isinstance(x, bool)
+                                   and np.isfinite(x) for x in vals):
+                c.fail((key, r), f"{r} = [level, ...], a list of finite numbers", repr(v))
+            if key == "probability_levels" and any(not 0 <= x <= 1 for x in vals):
+                c.fail((key, r), "probability levels from 0 to 1", repr(v))
+    comp = o.get("compute", "probabilities")
+    if comp not in compute:
+        c.fail(("compute",), f"compute = {' or '.join(repr(x) for x in compute)} in a step of "
+               "this type", comp)
+    if comp != "probabilities" and o.get("response_levels") is None:
+        c.fail(("compute",), "compute with response_levels (it says what response levels map "
+               "to)", comp)
+
+
+def level_request_of(ctx: StepContext) -> Any:
+    """The step's :class:`~rotoruq.methods.levels.LevelRequest` from its level options, None
+    when it asks for no level."""
+    from ..methods.levels import level_request
+
+    o = ctx.options
+    if all(o.get(k) is None for k in LEVEL_TABLES):
+        return None
+    return level_request(ctx.responses, **{k: o.get(k) for k in LEVEL_TABLES},
+                         distribution=o.get("distribution", "cdf"),
+                         compute=o.get("compute", "probabilities"))
+
+
+#: Axis names of the level mapping arrays of a :class:`MappingsRecord`.
+MAPPING_AXES = {"level_mappings": ("response", "level", "column"),
+                "level_kinds": ("response", "level")}
+
+
+def _no_mappings() -> np.ndarray:
+    return np.zeros((0, 0, 4))
+
+
+def _no_kinds() -> np.ndarray:
+    return np.zeros((0, 0), dtype=int)
+
+
+@dataclass(frozen=True, eq=False)
+class MappingsRecord(StepRecord):
+    """Base of the records of step types with level mappings (keyword fields, so a subclass
+    declares its own fields as before; a record saved before they existed reads as none).
+
+    level_mappings (m, L, 4) : each response's rows of response level, probability,
+    reliability and generalized reliability index, as Dakota prints them (NaN: not
+    computed); level_kinds (m, L) : the requested column of each row (0 response, 1
+    probability, 2 reliability, 3 generalized reliability level; -1 past its count);
+    level_distribution : "cdf" or "ccdf"; level_compute : what response levels map to.
+    """
+
+    level_mappings: np.ndarray = field(default_factory=_no_mappings, kw_only=True)
+    level_kinds: np.ndarray = field(default_factory=_no_kinds, kw_only=True)
+    level_distribution: str = field(default="cdf", kw_only=True)
+    level_compute: str = field(default="probabilities", kw_only=True)
+
+    def mapping_tables(self, names_out: Sequence[str], note: str = "") -> list[StepTable]:
+        """Dakota's "Level mappings" tables of the record (none without levels)."""
+        if self.level_kinds.size == 0:
+            return []
+        return level_mapping_tables(names_out, self.level_mappings, self.level_kinds,
+                                    self.level_distribution, note)
+
+
+def mapping_fields(mappings: Any) -> dict[str, Any]:
+    """The :class:`MappingsRecord` keyword fields of a
+    :class:`~rotoruq.methods.levels.LevelMappings` (none for None)."""
+    if mappings is None:
+        return {}
+    values, kinds = mappings.arrays()
+    return {"level_mappings": values, "level_kinds": kinds,
+            "level_distribution": mappings.distribution, "level_compute": mappings.compute}
+
+
+def mapping_scalars(mappings: Any) -> dict[str, float]:
+    """The flat view of level mappings: ``level/<response>/<row>/<column>`` of every computed
+    cell (columns ``response``, ``probability``, ``reliability``, ``gen_reliability``)."""
+    if mappings is None:
+        return {}
+    return {f"level/{r}/{i}/{c}": float(v)
+            for r in mappings.names_out for i, row in enumerate(mappings.table[r])
+            for c, v in zip(_COLUMN_KEYS, row, strict=True) if not np.isnan(v)}

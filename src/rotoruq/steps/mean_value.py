@@ -9,28 +9,34 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..render.tables import StepTable, label, make_table
-from ..results import StepRecord, StepResult
-from ._common import input_scalars
+from ..results import StepResult
+from ._common import (
+    LEVEL_OPTIONS,
+    MAPPING_AXES,
+    MappingsRecord,
+    check_levels,
+    input_scalars,
+    level_request_of,
+    mapping_fields,
+    mapping_scalars,
+)
 from .base import StepContext, StepType
-from .options import SIGNATURE, Option, table
 
-__all__ = ["STEP", "MeanValueRecord", "run_mean_value", "mean_value_tables", "LEVELS"]
-
-#: The ``response_levels`` / ``probability_levels`` options (mean value, reliability).
-LEVELS = {"response_levels": Option(table, SIGNATURE),
-          "probability_levels": Option(table, SIGNATURE)}
+__all__ = ["STEP", "MeanValueRecord", "run_mean_value", "mean_value_tables"]
 
 
 @dataclass(frozen=True, eq=False)
-class MeanValueRecord(StepRecord):
+class MeanValueRecord(MappingsRecord):
     """What a mean-value step saves: m responses, d inputs.
 
     names_in (d), names_out (m); mean, std (m,) first-order moments; importance (m, d) each
-    input's share of the first-order variance; gradient (m, d) at the input means.
+    input's share of the first-order variance; gradient (m, d) at the input means; the level
+    mappings (:class:`~rotoruq.steps._common.MappingsRecord`) through the normal of those
+    moments, every column of every row (Dakota's mean value method).
     """
 
     AXES = {"mean": ("response",), "std": ("response",), "importance": ("response", "input"),
-            "gradient": ("response", "input")}
+            "gradient": ("response", "input"), **MAPPING_AXES}
 
     names_in: tuple[str, ...]
     names_out: tuple[str, ...]
@@ -41,11 +47,12 @@ class MeanValueRecord(StepRecord):
 
 
 def run_mean_value(ctx: StepContext) -> StepResult:
+    from ..methods.levels import moment_mappings
     from ..methods.reliability import mean_value
 
-    o = ctx.options
-    res = mean_value(ctx.model(), ctx.space, response_levels=o.get("response_levels"),
-                     probability_levels=o.get("probability_levels"))
+    res = mean_value(ctx.model(), ctx.space)
+    request = level_request_of(ctx)
+    mappings = None if request is None else moment_mappings(res.mean, res.std, request)
     scalars = {}
     for k, r in enumerate(ctx.responses):
         scalars[f"mean/{r}"] = float(res.mean[k])
@@ -53,9 +60,11 @@ def run_mean_value(ctx: StepContext) -> StepResult:
         for j, p in enumerate(ctx.space.names):
             scalars[f"importance/{r}/{p}"] = float(res.importance[k, j])
     scalars.update(input_scalars(ctx.space))
+    scalars.update(mapping_scalars(mappings))
     record = MeanValueRecord(tuple(ctx.space.names), tuple(ctx.responses),
                              np.asarray(res.mean, dtype=float), np.asarray(res.std, dtype=float),
-                             np.asarray(res.importance, dtype=float), np.asarray(res.gradient))
+                             np.asarray(res.importance, dtype=float), np.asarray(res.gradient),
+                             **mapping_fields(mappings))
     arrays, meta = record.parts()
     return StepResult(ctx.name, ctx.type, scalars, arrays,
                       meta={"n_evaluations": int(res.n_evaluations), **meta})
@@ -69,9 +78,12 @@ def mean_value_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTa
             make_table("Importance factors", ("input", *rec.names_out),
                        [[label(p, labels), *[float(v) for v in rec.importance[:, j]]]
                         for j, p in enumerate(rec.names_in)],
-                       "Share of each input in the first-order variance.")]
+                       "Share of each input in the first-order variance."),
+            *rec.mapping_tables(rec.names_out, "Through the normal of the first-order mean "
+                                "and std (Dakota's mean value method).")]
 
 
 STEP = StepType(
     "mean_value", run_mean_value, method="rotoruq.methods.reliability:mean_value",
-    options=dict(LEVELS), tables=mean_value_tables, correlated=True)
+    options=dict(LEVEL_OPTIONS), check=check_levels, tables=mean_value_tables,
+    modules=("rotoruq.methods.levels",), correlated=True)

@@ -9,8 +9,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..render.tables import StepTable, label, make_table
-from ..results import StepRecord, StepResult
-from ._common import input_scalars
+from ..results import StepResult
+from ._common import (
+    LEVEL_OPTIONS,
+    MAPPING_AXES,
+    MappingsRecord,
+    check_levels,
+    input_scalars,
+    level_request_of,
+    mapping_fields,
+    mapping_scalars,
+)
 from ._sobol import sensitivity_figures, sobol_warnings
 from .base import StepCheck, StepContext, StepType
 from .options import SIGNATURE, Option, choice, integer
@@ -23,15 +32,19 @@ SOLVERS = ("least_squares", "omp", "lars", "lasso")
 
 
 @dataclass(frozen=True, eq=False)
-class PceRecord(StepRecord):
+class PceRecord(MappingsRecord):
     """What a pce step saves: m responses, d inputs.
 
     names_in (d), names_out (m); mean, std (m,) of the expansion; main, total (m, d) Sobol
-    indices read from its coefficients.
+    indices read from its coefficients; the level mappings
+    (:class:`~rotoruq.steps._common.MappingsRecord`) as Dakota's expansion methods compute
+    them: reliabilities from the expansion's mean and std, probabilities and generalized
+    reliabilities from ``expansion_samples`` samples of the expansion; expansion_samples :
+    how many (0: none drawn).
     """
 
     AXES = {"mean": ("response",), "std": ("response",), "main": ("response", "input"),
-            "total": ("response", "input")}
+            "total": ("response", "input"), **MAPPING_AXES}
 
     names_in: tuple[str, ...]
     names_out: tuple[str, ...]
@@ -39,16 +52,30 @@ class PceRecord(StepRecord):
     std: np.ndarray
     main: np.ndarray
     total: np.ndarray
+    expansion_samples: int = 0
 
 
 def run_pce(ctx: StepContext) -> StepResult:
     """Polynomial chaos of total order ``order`` by ``estimator`` (quadrature, sparse grid,
-    or regression on ``n_samples`` LHS points)."""
+    or regression on ``n_samples`` LHS points); level mappings as Dakota's expansion
+    methods: reliabilities from the expansion's moments, probabilities and generalized
+    reliabilities from ``expansion_samples`` LHS samples of the expansion (drawn after the
+    fit from the step's generator)."""
+    from ..methods.levels import sample_mappings
     from ..methods.pce import polynomial_chaos
+    from ..methods.sampling import sample
 
     o = ctx.options
     res = polynomial_chaos(ctx.model(), ctx.space, o["order"], estimator=o["estimator"],
                            n_samples=o["n_samples"], solver=o["solver"], seed=ctx.rng)
+    request = level_request_of(ctx)
+    n_exp = int(o.get("expansion_samples") or 0)
+    on_expansion = None
+    if request is not None and n_exp and request.needs_samples():
+        on_expansion = np.asarray(sample(res.as_model(), ctx.space, n_exp,
+                                         seed=ctx.rng).outputs, dtype=float)
+    mappings = None if request is None else sample_mappings(
+        on_expansion, request, mean=np.asarray(res.mean), std=np.asarray(res.std))
     scalars = {}
     for k, r in enumerate(ctx.responses):
         scalars[f"mean/{r}"] = float(res.mean[k])
@@ -57,9 +84,11 @@ def run_pce(ctx: StepContext) -> StepResult:
             scalars[f"S/{r}/{p}"] = float(res.main[k, j])
             scalars[f"T/{r}/{p}"] = float(res.total[k, j])
     scalars.update(input_scalars(ctx.space))
+    scalars.update(mapping_scalars(mappings))
     record = PceRecord(tuple(ctx.space.names), tuple(ctx.responses),
                        np.asarray(res.mean, dtype=float), np.asarray(res.std, dtype=float),
-                       np.asarray(res.main), np.asarray(res.total))
+                       np.asarray(res.main), np.asarray(res.total),
+                       0 if on_expansion is None else n_exp, **mapping_fields(mappings))
     arrays, meta = record.parts()
     return StepResult(ctx.name, ctx.type, scalars, arrays, meta={
         "inputs": list(ctx.space.names), "responses": list(ctx.responses),
@@ -76,6 +105,10 @@ def pce_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
                               ("input", "main S", "total T"),
                               [[label(p, labels), float(rec.main[k, j]), float(rec.total[k, j])]
                                for j, p in enumerate(rec.names_in)]))
+    out.extend(rec.mapping_tables(rec.names_out, (
+        f"Probabilities from {rec.expansion_samples} samples of the expansion; reliabilities "
+        "from its mean and std." if rec.expansion_samples else
+        "Projection of the expansion's mean and std (no samples of the expansion).")))
     return out
 
 
@@ -83,6 +116,22 @@ def _check_pce(c: StepCheck) -> None:
     if c.options["n_samples"] is not None and c.options["estimator"] != "regression":
         c.fail(("n_samples",), "n_samples only with estimator = \"regression\" (quadrature "
                "and sparse grids choose their own points)", str(c.options["n_samples"]))
+    check_levels(c)
+    o = c.options
+    numerical = [k for k in ("response_levels", "probability_levels",
+                             "gen_reliability_levels") if o.get(k)
+                 and (k != "response_levels" or o.get("compute") != "reliabilities")]
+    if numerical and not o.get("expansion_samples"):
+        what = [f"response_levels with compute = {o.get('compute')!r}" if k == "response_levels"
+                else k for k in numerical]
+        c.fail((numerical[0],), f"expansion_samples = N (samples of the expansion) for "
+               f"{', '.join(what)} (as Dakota, which needs samples on the expansion for these; "
+               "without them only compute = \"reliabilities\" and reliability_levels, from "
+               "the expansion's moments)")
+    if o.get("expansion_samples") and not numerical:
+        c.fail(("expansion_samples",), "expansion_samples only with probability or "
+               "generalized reliability mappings (levels that need them)",
+               str(o["expansion_samples"]))
 
 
 STEP = StepType(
@@ -90,6 +139,9 @@ STEP = StepType(
     options={"order": Option(integer(1), SIGNATURE),
              "estimator": Option(choice("quadrature", "sparse_grid", "regression"), SIGNATURE),
              "n_samples": Option(integer(1), SIGNATURE),
-             "solver": Option(choice(*SOLVERS), SIGNATURE)},
+             "solver": Option(choice(*SOLVERS), SIGNATURE),
+             "expansion_samples": Option(integer(2), None),
+             **LEVEL_OPTIONS},
     quick={"n_samples": 40}, check=_check_pce,
-    tables=pce_tables, figures=sensitivity_figures, warnings=sobol_warnings)
+    tables=pce_tables, figures=sensitivity_figures, warnings=sobol_warnings,
+    modules=("rotoruq.methods.levels", "rotoruq.methods.sampling"))

@@ -18,11 +18,18 @@ import numpy as np
 
 from ..render.figures import Figure, FigureContext, load_distributions
 from ..render.tables import MOMENTS, StepTable, inputs_table, make_table, moments_rows
-from ..results import StepRecord, StepResult
+from ..results import StepResult
 from ._common import (
+    LEVEL_OPTIONS,
+    MAPPING_AXES,
+    MappingsRecord,
+    check_levels,
     column_moments,
     input_arrays,
     input_scalars,
+    level_request_of,
+    mapping_fields,
+    mapping_scalars,
     noise,
     saved_record,
     stats_scalars,
@@ -94,10 +101,11 @@ def check_sampling(ck: StepCheck) -> None:
             ck.fail(("points",), f'design = "file" with points (design is {o["design"]!r})')
         if o.get("n_samples") is None:
             ck.fail((), "n_samples = <number of points> in a sampling step")
+    check_levels(ck)
 
 
 @dataclass(frozen=True, eq=False)
-class SamplingRecord(StepRecord):
+class SamplingRecord(MappingsRecord):
     """What a sampling step saves: n samples, d inputs, m responses.
 
     names_in (d), names_out (m); inputs (n, d) the propagated inputs; outputs (n, m) the
@@ -109,13 +117,15 @@ class SamplingRecord(StepRecord):
     propagation : "sampling" (the step's distributions), "joint" (a calibration's chain),
     "independent_normals" (normals of its moments) or "given_points" (``design = "file"``);
     dropped_correlation : (p, q, rho) the
-    largest posterior correlation independent normals drop (None: none dropped).
+    largest posterior correlation independent normals drop (None: none dropped). The level
+    mappings (:class:`~rotoruq.steps._common.MappingsRecord`) of the saved ``outputs`` (with
+    the noise), as Dakota's sampling computes them.
     """
 
     AXES = {"inputs": ("sample", "input"), "outputs": ("sample", "response"),
             "moments": ("statistic", "response"), "noisy_moments": ("statistic", "response"),
             "input_mean": ("input",), "input_std": ("input",), "input_lower": ("input",),
-            "input_upper": ("input",)}
+            "input_upper": ("input",), **MAPPING_AXES}
 
     names_in: tuple[str, ...]
     names_out: tuple[str, ...]
@@ -138,6 +148,7 @@ def run_sampling(ctx: StepContext) -> StepResult:
     step>.posterior"`` and ``propagation = "joint"`` (default), the chain's own draws (thinned
     evenly, correlations kept) instead; ``"independent_normals"`` samples the normals of the
     posterior moments (the reference study) and warns with the correlation it drops."""
+    from ..methods.levels import sample_mappings
     from ..methods.sampling import sample
     from ..model import evaluate
     from .forward_check import dropped_correlation, posterior_draws
@@ -171,11 +182,15 @@ def run_sampling(ctx: StepContext) -> StepResult:
     scalars.update(stats_scalars([f"noisy_{r}" for r in ctx.responses], noisy,
                                  moments=noisy_moments))
     scalars.update(input_scalars(ctx.space))
+    request = level_request_of(ctx)
+    mappings = None if request is None else sample_mappings(noisy, request)
+    scalars.update(mapping_scalars(mappings))
     dropped = meta.get("dropped_correlation")
     record = SamplingRecord(
         tuple(ctx.space.names), tuple(ctx.responses), inputs, noisy, moments, noisy_moments,
         bool(o.get("noise_std")), *input_arrays(ctx.space), meta["propagation"],
-        None if dropped is None else (str(dropped[0]), str(dropped[1]), float(dropped[2])))
+        None if dropped is None else (str(dropped[0]), str(dropped[1]), float(dropped[2])),
+        **mapping_fields(mappings))
     arrays, rec_meta = record.parts()
     columns = {"inputs": list(ctx.space.names), "outputs": list(ctx.responses)}
     if o.get("noise_std"):
@@ -205,6 +220,8 @@ def sampling_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTabl
                             f"Given points: {rec.inputs.shape[0]} points read from "
                             f"{Path(str(res.meta.get('points_file', '?'))).name} (no sampling "
                             "design).")
+    out.extend(rec.mapping_tables(rec.names_out, "From the samples (Dakota's sampling "
+                                  "conventions); reliabilities from the sample mean and std."))
     return out
 
 
@@ -223,8 +240,9 @@ STEP = StepType(
              "design": Option(choice(*DESIGNS, GIVEN), SIGNATURE),
              "points": Option(string(), None),
              "noise_std": Option(number_or_table, 0.0),
-             "propagation": Option(choice("joint", "independent_normals"), "joint")},
+             "propagation": Option(choice("joint", "independent_normals"), "joint"),
+             **LEVEL_OPTIONS},
     quick={"n_samples": 40},
     check=check_sampling,
     tables=sampling_tables, figures=sampling_figures, warnings=propagation_warnings,
-    modules=("rotoruq.methods.sampling",))
+    modules=("rotoruq.methods.sampling", "rotoruq.methods.levels"))

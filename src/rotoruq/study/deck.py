@@ -90,7 +90,7 @@ ALIASES = {"descriptor": "descriptors", "analysis_driver": "analysis_drivers",
            "initial_samples": "samples", "kriging": "gaussian_process",
            "huv_bin_abscissas": "abscissas", "huv_bin_counts": "counts",
            "huv_bin_ordinates": "ordinates", "huv_bin_descriptors": "descriptors",
-           "num_pairs": "pairs_per_variable", "expansion_samples": "samples_on_emulator",
+           "num_pairs": "pairs_per_variable",
            "iuv_num_intervals": "num_intervals"}
 for _prefix, _attrs in {
         "nuv": ("means", "std_deviations", "lower_bounds", "upper_bounds", "descriptors"),

@@ -527,7 +527,7 @@ def calibrate(
     x0: ArrayLike | None = None,
     bounds: tuple[ArrayLike, ArrayLike] | Mapping[str, tuple[float, float]] | None = None,
     noise_std: ArrayLike | None = None,
-    weights: ArrayLike | None = None,
+    residual_weights: ArrayLike | None = None,
     fixed: Mapping[str, float | Sequence[float]] | None = None,
     optimizer: str = "nl2sol",
     gradient: GradientOption = "auto",
@@ -553,7 +553,7 @@ def calibrate(
     noise_std : float, (m,) or (n_exp, m), optional
         Standard deviations of the observations (data units); residuals are divided by them
         and the parameter covariance takes the noise as known.
-    weights : float, (m,) or (n_exp, m), optional
+    residual_weights : float, (m,) or (n_exp, m), optional
         Dakota's calibration-term ``weights``: ``w_i`` multiplies the squared residual, so
         residual and gradient are scaled by ``sqrt(w_i)`` (as Dakota's weighting of primary
         responses). Weights >= 0; unlike ``noise_std`` they leave the residual variance
@@ -606,14 +606,16 @@ def calibrate(
         )
     inputs = _experiment_inputs(model, names, dict(fixed or {}), n_exp)
     noise = _noise_per_observation(noise_std, data.shape)
+    weights = residual_weights
     if weights is not None:
         w = np.asarray(weights, dtype=float)
         if w.size and (np.any(~np.isfinite(w)) or np.any(w < 0)):
-            raise ParameterError(f"weights must be finite and >= 0, got {w.ravel().tolist()}")
+            raise ParameterError(f"residual_weights must be finite and >= 0, got "
+                                 f"{w.ravel().tolist()}")
         try:
             sw = np.sqrt(np.broadcast_to(w, data.shape)).ravel()
         except ValueError:
-            raise ParameterError(f"weights must be a scalar, ({m},) or {data.shape}, got "
+            raise ParameterError(f"residual_weights must be a scalar, ({m},) or {data.shape}, got "
                                  f"{w.shape}") from None
         # w r^2 = (r / (1/sqrt(w)))^2; noise_std's known-noise covariance is not implied
         scale = sw if noise is None else sw / noise

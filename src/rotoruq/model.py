@@ -6,6 +6,8 @@ A model maps a batch of input points to a batch of responses::
     model.names_out  -> tuple of m response names
     model(x)         -> array (n, m) for x of shape (n, d)
     model.gradient(x)             (optional) -> array (n, m, d)
+    model.evaluate_gradient(x)    (optional, with gradient) -> Gradient: values and gradient
+                                  from one evaluation per point, failures with reasons
     model.evaluate(x)             (optional) -> EvalBatch with per-row failure reasons
 
 A failed point returns NaN in its row and a reason in ``EvalBatch.failures``; it never raises
@@ -176,6 +178,8 @@ class FixedInputs:
             self.run_one = self._run_one
         if has_gradient(model):
             self.gradient = self._gradient
+            if callable(getattr(model, "evaluate_gradient", None)):
+                self.evaluate_gradient = self._evaluate_gradient
 
     def full(self, x: np.ndarray) -> np.ndarray:
         """Points (n, len(names_in)) -> the wrapped model's points with the fixed columns."""
@@ -199,6 +203,11 @@ class FixedInputs:
         if g.ndim == 2:  # one response: (n, d)
             g = g[:, None, :]
         return g[:, :, self._free]
+
+    def _evaluate_gradient(self, x: np.ndarray) -> Gradient:
+        g = self.model.evaluate_gradient(self.full(x))
+        return Gradient(g.values, np.asarray(g.gradient)[:, :, self._free],
+                        np.asarray(g.steps)[:, self._free], g.n_evaluations, dict(g.failures))
 
     @property
     def failure_policy(self):
@@ -441,7 +450,10 @@ def model_gradient(
     x : (n, d) or (d,) points, columns ordered as ``names_in`` (default ``model.names_in``).
     gradient : "auto" (the model's own gradient if it has one, else finite differences),
         "analytic", "finite_difference" (central, :func:`finite_difference`) or a callable
-        ``g(x: (n, d)) -> (n, m, d)`` in the order of ``names_in``.
+        ``g(x: (n, d)) -> (n, m, d)`` in the order of ``names_in``. A model's own gradient
+        comes from its ``evaluate_gradient`` when it has one (an external driver's analytic
+        gradients: values and gradient from ONE evaluation per point), else from
+        ``evaluate`` then ``gradient``.
     fd_step, scale : see :func:`finite_difference`.
 
     Returns a :class:`Gradient` with ``gradient`` (n, m, d) in the order of ``names_in``.
@@ -458,6 +470,22 @@ def model_gradient(
 
     if mode == "finite_difference":
         return finite_difference(run, x2, fd_step=fd_step, scale=scale)
+    joint = None if callable(mode) else getattr(model, "evaluate_gradient", None)
+    if callable(joint):
+        got = joint(x2 if perm is None else x2[:, perm])
+        values, g = np.asarray(got.values, dtype=float), np.asarray(got.gradient, dtype=float)
+        if values.shape != (n, m) or g.shape != (n, m, d):
+            raise ModelShapeError(f"evaluate_gradient of {model!r} gave values {values.shape} "
+                                  f"and gradient {g.shape}; expected ({n}, {m}) and "
+                                  f"({n}, {m}, {d})")
+        if perm is not None:
+            g = g[:, :, np.argsort(perm)]
+        failures = dict(got.failures)
+        for i in np.flatnonzero(~(np.all(np.isfinite(g), axis=(1, 2))
+                                  & np.all(np.isfinite(values), axis=1))):
+            failures.setdefault(int(i), "non-finite gradient")
+        return Gradient(values=values, gradient=g, steps=np.zeros((n, d)), n_evaluations=n,
+                        failures=failures)
     batch = run(x2)
     if callable(mode):
         g = np.asarray(mode(x2), dtype=float)

@@ -702,6 +702,7 @@ def parse_results(
     names_out: Sequence[str] | None = None,
     asv: Sequence[int] | None = None,
     n_dvv: int | None = None,
+    by_position: bool = False,
 ) -> ResultsFile:
     """Parse the text of a results file.
 
@@ -713,6 +714,10 @@ def parse_results(
     asv : active set codes per response (default: values only, i.e. all 1). Used to check
         how many values, gradients and Hessians the file must hold.
     n_dvv : number of derivative variables (length of each gradient).
+    by_position : read the values in file order whatever their labels say, as Dakota does
+        (its own test drivers label every value ``g``), instead of refusing labels that are
+        neither ``names_out`` nor a permutation of it; ``names_out`` of the result then keeps
+        the file's labels, for the caller to compare. The number of values is still checked.
     """
     toks = _tokens(text, path)
     if toks and toks[0][1].lower().startswith("fail"):
@@ -804,7 +809,7 @@ def parse_results(
             if sorted(lab or "" for lab in labs) == sorted(wanted) and None not in labs:
                 order = [labs.index(n) for n in wanted]
                 vals, labs = vals[order], tuple(wanted)
-            else:
+            elif not by_position:
                 ln = toks[0][0]
                 raise InputFileError(path, ln, f"response labels {wanted}", str(list(labs)))
     return ResultsFile(vals, labs, g, h, False)
@@ -816,6 +821,7 @@ def read_results(
     names_out: Sequence[str] | None = None,
     asv: Sequence[int] | None = None,
     n_dvv: int | None = None,
+    by_position: bool = False,
 ) -> ResultsFile:
     """Read and parse a results file (see :func:`parse_results` for the checks).
 
@@ -833,4 +839,4 @@ def read_results(
     if not path.is_file():
         raise InputFileError(path, None, "a results file written by the driver", "no file")
     return parse_results(read_text(path, "Dakota results file"), path, names_out=names_out,
-                         asv=asv, n_dvv=n_dvv)
+                         asv=asv, n_dvv=n_dvv, by_position=by_position)

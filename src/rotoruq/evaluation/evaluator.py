@@ -15,6 +15,12 @@ be handed an Evaluator instead of the raw model. For a batch it
 
 A study killed at any point and run again therefore resumes: finished evaluations are read
 back, never repeated.
+
+A model whose evaluations also give gradients (``evaluate_gradient``: an external driver with
+``gradients="analytic"``) has them stored the same way, one row per point and run under the
+model's identity with ``#gradient`` appended (outputs: the m values, then the m x d gradient,
+row by row), so a resumed gradient-based method (NL2SOL, mean value, FORM) does not ask the
+driver again either.
 """
 
 from __future__ import annotations
@@ -30,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import EvaluationError, ModelShapeError, ParameterError
-from ..model import EvalBatch, Model, evaluate, has_gradient
+from ..model import EvalBatch, Gradient, Model, evaluate, has_gradient
 from .executors import Executor, make_executor
 from .external import RunResult, _abort_message
 from .identity import model_identity
@@ -149,11 +155,63 @@ class Evaluator:
                 f"study={self.study!r})")
 
     def __getattr__(self, name):
-        # forward an analytic gradient (not stored) so has_gradient(evaluator) is truthful
+        # forward an analytic gradient so has_gradient(evaluator) is truthful: stored when it
+        # comes with the values of one run (evaluate_gradient), else the model's own
         model = self.__dict__.get("model")
-        if name == "gradient" and model is not None and has_gradient(model):
-            return model.gradient
+        if name in ("gradient", "evaluate_gradient") and model is not None \
+                and has_gradient(model):
+            if callable(getattr(model, "evaluate_gradient", None)):
+                if name == "evaluate_gradient":
+                    return self._evaluate_gradient
+                return lambda x: self._evaluate_gradient(x).gradient
+            if name == "gradient":
+                return model.gradient
         raise AttributeError(name)
+
+    def _evaluate_gradient(self, x: np.ndarray) -> Gradient:
+        """Values and gradients at ``x`` (n, d): stored ones reused, the others from the
+        model's ``evaluate_gradient`` one point at a time, each committed as it finishes."""
+        x = np.atleast_2d(np.asarray(x, dtype=float))
+        n, d, m = x.shape[0], len(self.names_in), len(self.names_out)
+        values, grads = np.full((n, m), np.nan), np.full((n, m, d), np.nan)
+        failures: dict[int, str] = {}
+        key = self.model_id + "#gradient"
+        names = self.names_out + tuple(f"d{r}/d{p}" for r in self.names_out
+                                       for p in self.names_in)
+        done = np.zeros(n, dtype=bool)
+        if self.store is not None and n:
+            found = self.store.lookup(x, study=self.study, model=key, tolerance=self.tolerance,
+                                      statuses=("ok",))
+            for i, rec in enumerate(found):
+                if rec is not None and rec.outputs is not None \
+                        and rec.outputs.shape == (m + m * d,):
+                    values[i], grads[i] = rec.outputs[:m], rec.outputs[m:].reshape(m, d)
+                    done[i] = True
+        keys = canonical_keys(x) if n else []
+        groups: dict[str, list[int]] = {}
+        for i in np.flatnonzero(~done).tolist():
+            groups.setdefault(keys[i], []).append(i)
+        model: Any = self.model  # evaluate_gradient: an optional member
+        for rows in groups.values():
+            started, t0 = time.time(), time.perf_counter()
+            got = model.evaluate_gradient(x[rows[0]][None, :])
+            wall = time.perf_counter() - t0
+            v, g = np.asarray(got.values, dtype=float)[0], np.asarray(got.gradient, dtype=float)[0]
+            reason = got.failures.get(0)
+            if reason is None and not (np.all(np.isfinite(v)) and np.all(np.isfinite(g))):
+                reason = "non-finite value or gradient"
+            if self.store is not None:
+                out = None if reason is not None else np.concatenate([v, g.ravel()])
+                self.store.add([NewRecord(x[rows[0]], out, "failed" if reason else "ok", reason,
+                                          wall_time=wall, started=started)],
+                               study=self.study, model=key, names_in=self.names_in,
+                               names_out=names, run_id=self.run_id)
+            for i in rows:
+                values[i], grads[i] = v, g
+                if reason is not None:
+                    failures[i] = reason
+        return Gradient(values=values, gradient=grads, steps=np.zeros((n, d)),
+                        n_evaluations=len(groups), failures=failures)
 
     def close(self) -> None:
         """Shut down the executor if this Evaluator created it, and close the store."""

@@ -21,6 +21,19 @@ For each input point, :class:`ExternalModel`
    results file that is not UTF-8 or is malformed, a ``fail`` marker, or a non-finite value
    (NaN, inf). Every failure goes through the failure policy.
 
+Values are read **by position**, as Dakota reads them: a results file whose labels are not
+the response names (Dakota's own test drivers label every value ``g``) is read in order, with
+one warning per model naming the labels that disagree (a permutation of the names is put in
+order); a file with the wrong *number* of values is a failed evaluation naming the file and
+line.
+
+Analytic gradients (``gradients="analytic"``): the model then has ``gradient(x)`` and
+``evaluate_gradient(x)``, each ONE run of the driver per point with active set code 3
+(value and gradient) for every response and the derivative variables in the DVV block; the
+results file holds the values, then one ``[ g_1 ... g_p ]`` per response (p derivative
+variables). A driver that writes no gradients when asked fails the evaluation, naming the
+results file and line. Methods reach them through :func:`rotoruq.model.model_gradient`.
+
 Failure policies (``failure_policy``):
 
 - ``"continue"`` (default): the row is NaN and the reason goes to ``EvalBatch.failures``, as for
@@ -43,6 +56,7 @@ from __future__ import annotations
 import hashlib
 import itertools
 import json
+import logging
 import os
 import shlex
 import shutil
@@ -59,13 +73,20 @@ import numpy as np
 
 from ..atomic import make_temp_dir
 from ..errors import EvaluationError, InputFileError, ParameterError, RotoruqError
-from ..model import EvalBatch
+from ..model import EvalBatch, Gradient
 from .dakota_files import check_label, read_results, read_text, write_parameters
 from .identity import file_sha256
 from .process_tree import run_process_tree
 from .templates import check_template, fill_template
 
-__all__ = ["ExternalModel", "RunResult", "FailurePolicy", "parse_failure_policy"]
+__all__ = ["ExternalModel", "RunResult", "FailurePolicy", "parse_failure_policy", "GRADIENTS",
+           "warn_once"]
+
+log = logging.getLogger(__name__)
+
+#: the ``gradients`` an external model takes: finite differences of its values (rotoruq's, in
+#: the methods), or the driver's own through the file contract
+GRADIENTS = ("finite_difference", "analytic")
 
 _TAIL = 8192  # bytes of stdout/stderr kept with a failed evaluation
 STDOUT_FILE, STDERR_FILE = "rotoruq.stdout", "rotoruq.stderr"
@@ -119,6 +140,10 @@ class RunResult:
     error : failure reason, None on success.
     status : "ok", "failed" or "recovered".
     stdout, stderr : solver output (last 8 KiB), filled on failure only.
+    gradient : (m, d) derivatives of the responses by the inputs when the run asked for them
+        (columns of inputs outside the derivative variables NaN); None otherwise.
+    note : a remark on a successful run worth one warning per model (the results file's
+        labels differ from the response names and were read by position), else None.
     """
 
     values: np.ndarray
@@ -131,6 +156,24 @@ class RunResult:
     eval_id: str
     attempts: int
     workdir: str | None
+    gradient: np.ndarray | None = None
+    note: str | None = None
+
+
+_WARNED: set[str] = set()  # notes already logged by this process (one warning per model)
+_WARNED_LOCK = threading.Lock()
+
+
+def warn_once(note: str | None) -> None:
+    """Log ``note`` (a :class:`RunResult`'s remark, e.g. results read by position) as a
+    warning the first time this process sees it: one line per model, not per evaluation."""
+    if not note:
+        return
+    with _WARNED_LOCK:
+        if note in _WARNED:
+            return
+        _WARNED.add(note)
+    log.warning("%s", note)
 
 
 def _tail(b: bytes | None) -> str:
@@ -197,6 +240,11 @@ class ExternalModel:
     asv : active set code written for every response (1: values only).
     output_cap : bytes of the start of stdout and of stderr kept in the work directory files
         (the last 64 KiB are kept too); default 10 MiB.
+    gradients : "finite_difference" (default: the model has no gradient; methods difference
+        its values) or "analytic": the driver computes them (Dakota's ``analytic_gradients``);
+        ``gradient(x)`` and ``evaluate_gradient(x)`` then run it once per point with ASV 3.
+    derivative_variables : the inputs written to the DVV block of a gradient run (default all
+        ``names_in``); the gradient columns of the others are NaN.
     """
 
     def __init__(
@@ -221,6 +269,8 @@ class ExternalModel:
         analysis_components: Sequence[tuple[str, str]] = (),
         asv: int = 1,
         output_cap: int = 10 * 2**20,
+        gradients: str = "finite_difference",
+        derivative_variables: Sequence[str] | None = None,
     ):
         command = shlex.split(command) if isinstance(command, str) else [str(c) for c in command]
         if not command:
@@ -285,6 +335,19 @@ class ExternalModel:
         self.output_cap = int(output_cap)
         if self.output_cap < 0:
             raise ParameterError(f"output_cap must be >= 0 bytes, got {output_cap!r}")
+        if gradients not in GRADIENTS:
+            raise ParameterError(f"gradients must be one of {', '.join(map(repr, GRADIENTS))}, "
+                                 f"got {gradients!r}")
+        self.gradients = gradients
+        dvv = self.names_in if derivative_variables is None else tuple(derivative_variables)
+        unknown = [n for n in dvv if n not in self.names_in]
+        if unknown or len(set(dvv)) != len(dvv) or not dvv:
+            raise ParameterError(f"derivative_variables must be distinct inputs among "
+                                 f"{list(self.names_in)}, got {list(dvv)}")
+        self.derivative_variables = tuple(n for n in self.names_in if n in dvv)
+        if gradients == "analytic":
+            self.gradient = self._gradient
+            self.evaluate_gradient = self._evaluate_gradient
         self._token = uuid.uuid4().hex[:12]
         self._identity: dict | None = None
         self._counter = itertools.count(1)
@@ -297,7 +360,8 @@ class ExternalModel:
         the first word, becomes ``{"path", "sha256"}`` of its bytes, so editing the driver
         script changes the identity), the sha256 of every template, copied and linked file
         (directories: of all files inside, by relative path), the names, parameters format,
-        file names, analysis components, ASV, extra environment and failure policy. Not
+        file names, analysis components, ASV, extra environment, failure policy and, for
+        ``gradients="analytic"``, the gradients and derivative variables. Not
         included: the timeout, work directories and output cap (they do not change a
         successful answer). Files are hashed on the first call only.
         """
@@ -333,6 +397,9 @@ class ExternalModel:
                 "failure_policy": {"kind": p.kind, "retries": p.retries,
                                    "recover": None if p.recover is None else list(p.recover)},
             }
+            if self.gradients != "finite_difference":  # absent by default: stored runs stay
+                ident["gradients"] = self.gradients
+                ident["derivative_variables"] = list(self.derivative_variables)
             json.dumps(ident)  # JSON-serializable by construction; fail here if not
             self._identity = ident
         return self._identity
@@ -343,14 +410,17 @@ class ExternalModel:
 
     def __getstate__(self):
         d = self.__dict__.copy()
-        d.pop("_lock", None)
-        d.pop("_counter", None)
+        for k in ("_lock", "_counter", "gradient", "evaluate_gradient"):
+            d.pop(k, None)
         return d
 
     def __setstate__(self, d):
         self.__dict__.update(d)
         self._lock = threading.Lock()
         self._counter = itertools.count(1)
+        if self.__dict__.get("gradients") == "analytic":
+            self.gradient = self._gradient
+            self.evaluate_gradient = self._evaluate_gradient
 
     def __repr__(self) -> str:
         return f"ExternalModel({' '.join(self.command)!r}, in={self.names_in})"
@@ -406,17 +476,20 @@ class ExternalModel:
         for p, text in self._templates:
             (wd / p.name).write_text(fill_template(text, values, path=p))
 
-    def _run_once(self, x: np.ndarray, eval_id: str, wd: Path
-                  ) -> tuple[np.ndarray | None, str | None, str, str]:
-        """One attempt in the (empty) work directory ``wd``: (values, error, stdout, stderr)."""
+    def _run_once(self, x: np.ndarray, eval_id: str, wd: Path, gradient: bool = False
+                  ) -> _Attempt:
+        """One attempt in the (empty) work directory ``wd``; with ``gradient``, values and
+        gradients (ASV 3, the derivative variables in the DVV)."""
         values = dict(zip(self.names_in, (float(v) for v in x), strict=True))
+        asv = 3 if gradient else self.asv
         try:
             self._prepare(wd, values)
             write_parameters(wd / self.parameters_file, values, list(self.names_out),
-                             asv=self.asv, analysis_components=self.analysis_components,
-                             eval_id=eval_id, format=self.parameters_format)
+                             asv=asv, analysis_components=self.analysis_components,
+                             eval_id=eval_id, format=self.parameters_format,
+                             dvv=list(self.derivative_variables))
         except (OSError, RotoruqError) as exc:
-            return None, f"could not prepare the work directory: {exc}", "", ""
+            return _Attempt(None, f"could not prepare the work directory: {exc}")
         argv = self._argv(wd, eval_id)
         env = {**os.environ, **self.env}
         try:
@@ -424,48 +497,78 @@ class ExternalModel:
                                    stdout_path=wd / STDOUT_FILE, stderr_path=wd / STDERR_FILE,
                                    cap=self.output_cap)
         except OSError as exc:
-            return None, f"could not start {argv[0]!r}: {exc}", "", ""
+            return _Attempt(None, f"could not start {argv[0]!r}: {exc}")
         out_s, err_s = _tail(run.stdout), _tail(run.stderr)
         if run.timed_out:
             extra = f" and {run.leftovers} other processes" if run.leftovers else ""
-            return (None, f"timed out after {self.timeout:g} s (driver{extra} killed)", out_s,
-                    err_s)
+            return _Attempt(None, f"timed out after {self.timeout:g} s (driver{extra} killed)",
+                            out_s, err_s)
         if run.returncode != 0:
             rc = run.returncode
             sig = (f" (signal {signal.Signals(-rc).name})"
                    if rc < 0 and -rc in signal.valid_signals() else "")
             last = err_s.strip().splitlines()[-1:] if err_s.strip() else []
             why = f": {last[0][:200]}" if last else ""
-            return None, f"driver exited with status {rc}{sig}{why}", out_s, err_s
+            return _Attempt(None, f"driver exited with status {rc}{sig}{why}", out_s, err_s)
         try:
             size = (wd / self.results_file).stat().st_size
         except OSError:
             size = 0  # missing: read_results says so
         if size > MAX_RESULTS_BYTES:
-            return (None, f"bad results file: {size} bytes (more than {MAX_RESULTS_BYTES}; "
-                    "not read)", out_s, err_s)
+            return _Attempt(None, f"bad results file: {size} bytes (more than "
+                            f"{MAX_RESULTS_BYTES}; not read)", out_s, err_s)
+        m = len(self.names_out)
         try:
-            res = read_results(wd / self.results_file, names_out=self.names_out,
-                               asv=[1] * len(self.names_out))
+            res = read_results(wd / self.results_file, names_out=self.names_out, asv=[asv] * m,
+                               n_dvv=len(self.derivative_variables), by_position=True)
         except InputFileError as exc:
-            return None, f"bad results file: {exc}", out_s, err_s
+            hint = ""
+            if gradient:
+                hint = (f" (gradients = \"analytic\": the driver is asked for values and "
+                        f"gradients, ASV 3, and must write the {m} values, then {m} gradients "
+                        f"'[ ... ]' of {len(self.derivative_variables)} entries each, by the "
+                        f"derivative variables {', '.join(self.derivative_variables)})")
+            return _Attempt(None, f"bad results file: {exc}{hint}", out_s, err_s)
         if res.failed:
-            return None, "driver reported failure (fail marker in results file)", out_s, err_s
+            return _Attempt(None, "driver reported failure (fail marker in results file)",
+                            out_s, err_s)
         bad = [f"{n}={v!r}" for n, v in zip(self.names_out, res.values.tolist(), strict=True)
                if not np.isfinite(v)]
         if bad:
-            return None, f"non-finite response in results file: {', '.join(bad)}", out_s, err_s
-        return res.values, None, out_s, err_s
+            return _Attempt(None, f"non-finite response in results file: {', '.join(bad)}",
+                            out_s, err_s)
+        grad = None
+        if gradient:
+            assert res.gradients is not None  # read_results checked there are m of them
+            grad = np.full((m, len(self.names_in)), np.nan)
+            grad[:, [self.names_in.index(n) for n in self.derivative_variables]] = res.gradients
+            if not np.all(np.isfinite(res.gradients)):
+                return _Attempt(None, "non-finite gradient in results file", out_s, err_s)
+        note = None
+        if any(lab is not None for lab in res.names_out) and \
+                tuple(res.names_out) != self.names_out:
+            differ = [f"{lab or '(none)'} for {n}" for lab, n in
+                      zip(res.names_out, self.names_out, strict=True) if lab != n]
+            note = (f"the results files of {' '.join(self.command)!r} label the values "
+                    f"{', '.join(differ)}; rotoruq reads them by position, as Dakota does "
+                    "(check that the driver writes the responses in the order "
+                    f"{', '.join(self.names_out)})")
+        return _Attempt(res.values, None, out_s, err_s, grad, note)
 
     def next_eval_id(self) -> str:
         with self._lock:
             return str(next(self._counter))
 
-    def run_one(self, x: np.ndarray, eval_id: str | int | None = None) -> RunResult:
-        """Run one evaluation (with retries per the policy) and return its :class:`RunResult`.
+    def run_one(self, x: np.ndarray, eval_id: str | int | None = None, *,
+                gradient: bool = False) -> RunResult:
+        """Run one evaluation (with retries per the policy) and return its :class:`RunResult`;
+        with ``gradient`` (a model with ``gradients="analytic"``), values and gradients.
 
         Never raises for a solver failure: the failure is described in the result.
         """
+        if gradient and self.gradients != "analytic":
+            raise ParameterError(f"model {self.name!r} has gradients = {self.gradients!r}: "
+                                 "its driver is not asked for gradients")
         eval_id = self.next_eval_id() if eval_id is None else str(eval_id)
         check_label(eval_id, "eval_id")
         x = np.asarray(x, dtype=float).ravel()
@@ -483,10 +586,11 @@ class ExternalModel:
             try:
                 wd = self._make_workdir(eval_id, wd)
             except OSError as exc:  # disk full, no permission: a failure like any other
-                vals, error, out, err = None, f"could not make a work directory: {exc}", "", ""
+                got = _Attempt(None, f"could not make a work directory: {exc}")
                 wd = None
             else:
-                vals, error, out, err = self._run_once(x, eval_id, wd)
+                got = self._run_once(x, eval_id, wd, gradient)
+            error, out, err = got.error, got.stdout, got.stderr
             if error is None or attempts >= tries:
                 break
         wall = time.perf_counter() - t0
@@ -496,8 +600,8 @@ class ExternalModel:
             shutil.rmtree(wd, ignore_errors=True)
         m = len(self.names_out)
         if error is None:
-            return RunResult(np.asarray(vals, float), None, "ok", None, None, wall, started,
-                             eval_id, attempts, str(wd) if keep else None)
+            return RunResult(np.asarray(got.values, float), None, "ok", None, None, wall, started,
+                             eval_id, attempts, str(wd) if keep else None, got.gradient, got.note)
         if attempts > 1:
             error = f"{error} (after {attempts} attempts)"
         where = f" [work directory {wd}]" if keep else ""
@@ -517,6 +621,7 @@ class ExternalModel:
         failures: dict[int, str] = {}
         for i, row in enumerate(x):
             r = self.run_one(row)
+            warn_once(r.note)
             values[i] = r.values
             if r.status == "failed":
                 if self.policy.kind == "abort":
@@ -524,8 +629,45 @@ class ExternalModel:
                 failures[i] = r.error or "failed"
         return EvalBatch(values, failures)
 
+    def _evaluate_gradient(self, x: np.ndarray) -> Gradient:
+        """Values (n, m) and gradients (n, m, d) from one driver run per point (ASV 3); a failed
+        run is a NaN row with its reason in ``failures`` (the "abort" policy raises). Use
+        :class:`~rotoruq.evaluation.evaluator.Evaluator` to keep them in a store."""
+        x = np.atleast_2d(np.asarray(x, dtype=float))
+        n, m, d = len(x), len(self.names_out), len(self.names_in)
+        values, grads = np.full((n, m), np.nan), np.full((n, m, d), np.nan)
+        failures: dict[int, str] = {}
+        for i, row in enumerate(x):
+            r = self.run_one(row, gradient=True)
+            warn_once(r.note)
+            values[i] = r.values
+            if r.gradient is not None:
+                grads[i] = r.gradient
+            if r.status != "ok":  # a recovered run has values, not a gradient
+                if self.policy.kind == "abort":
+                    raise EvaluationError(_abort_message(r, self.names_in, row))
+                failures[i] = r.error or "failed"
+        return Gradient(values=values, gradient=grads, steps=np.zeros((n, d)), n_evaluations=n,
+                        failures=failures)
+
+    def _gradient(self, x: np.ndarray) -> np.ndarray:
+        """Gradients (n, m, d) of the responses by the inputs, one driver run per point."""
+        return self._evaluate_gradient(x).gradient
+
     def __call__(self, x: np.ndarray) -> np.ndarray:
         return self.evaluate(x).values
+
+
+@dataclass(frozen=True, eq=False)
+class _Attempt:
+    """What one attempt of an evaluation gave (see :meth:`ExternalModel._run_once`)."""
+
+    values: np.ndarray | None
+    error: str | None
+    stdout: str = ""
+    stderr: str = ""
+    gradient: np.ndarray | None = None
+    note: str | None = None
 
 
 def _abort_message(r: RunResult, names_in, x) -> str:

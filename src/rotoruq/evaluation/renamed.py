@@ -46,6 +46,8 @@ class RenamedInputs:
             self.run_one = inner.run_one
         if has_gradient(inner):
             self.gradient = inner.gradient
+            if callable(getattr(inner, "evaluate_gradient", None)):
+                self.evaluate_gradient = inner.evaluate_gradient
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         return self.evaluate(x).values

@@ -422,6 +422,8 @@ def export_store(store: Store | str | os.PathLike, path: str | os.PathLike, *,
     """
     st = store if isinstance(store, Store) else Store(store)
     recs = st.records(study=study)
+    if outputs is None:  # a driver's stored gradients (model "<id>#gradient") only on request
+        recs = [r for r in recs if not r.model.endswith("#gradient")]
     if not include_failed:
         recs = [r for r in recs if r.outputs is not None and r.status != "failed"]
     groups: dict[tuple, list] = {}

@@ -13,7 +13,7 @@ An analytic ``gradient(X)`` takes ``(k, p)`` and returns ``(k, n_res, p)``.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
@@ -379,14 +379,21 @@ class CalibrationResult:
     names_in : calibrated input names, in the order of ``x``.
     x : (p,) best parameter values.
     parameters : mapping name -> best value.
-    residuals : (n_exp, m) model minus data at ``x`` (unscaled, in the units of the data).
-    cost : ``1/2 sum (r / noise_std)^2`` at ``x`` (``noise_std`` 1 when not given).
+    residuals : (n_exp, m) model minus data at ``x`` (unscaled, in the units of the data);
+        without data, the model's responses (the residuals themselves), n_exp = 1.
+    cost : ``1/2 sum w (r / noise_std)^2`` at ``x`` (``noise_std`` and the weights ``w`` 1
+        when not given).
     covariance, std, confidence_intervals : from the Jacobian at ``x`` (see
         :class:`LeastSquaresResult`).
     iterations : outer iterations.
     n_evaluations : model evaluations (points) used, Jacobian differences included.
+    n_gradient_evaluations : analytic Jacobians the solver used (points); 0 with finite
+        differences. With a model whose evaluations return their gradient too
+        (``evaluate_gradient``: an external driver's own gradients) every evaluation asks for
+        both, as Dakota's NL2SOL does, and these Jacobians cost no run of their own.
     converged, message : from the solver. optimizer : the solver used.
     least_squares : the full :class:`LeastSquaresResult`.
+    residual_model : True when there were no data: the responses were the residuals.
     """
 
     names_in: tuple[str, ...]
@@ -403,6 +410,8 @@ class CalibrationResult:
     message: str
     optimizer: str
     least_squares: LeastSquaresResult
+    n_gradient_evaluations: int = 0
+    residual_model: bool = False
 
 
 def _observations(data, names_out: tuple[str, ...]) -> np.ndarray:
@@ -512,12 +521,13 @@ def _noise_per_observation(noise_std, shape: tuple[int, int]) -> np.ndarray | No
 
 def calibrate(
     model: Model,
-    data: ArrayLike,
+    data: ArrayLike | None,
     parameters: Sequence[str] | ParameterSpace,
     *,
     x0: ArrayLike | None = None,
     bounds: tuple[ArrayLike, ArrayLike] | Mapping[str, tuple[float, float]] | None = None,
     noise_std: ArrayLike | None = None,
+    residual_weights: ArrayLike | None = None,
     fixed: Mapping[str, float | Sequence[float]] | None = None,
     optimizer: str = "nl2sol",
     gradient: GradientOption = "auto",
@@ -529,9 +539,11 @@ def calibrate(
     ----------
     model : Model
         Any object of the rotoruq Model protocol (``names_in``, ``names_out``, batched call).
-    data : array_like (n_exp, m) or (m,)
+    data : array_like (n_exp, m) or (m,), or None
         Observations of all ``m`` responses (columns in ``model.names_out`` order), one row per
-        experiment (replicates, or different conditions given through ``fixed``).
+        experiment (replicates, or different conditions given through ``fixed``). None: the
+        model's responses ARE the residuals (Dakota's ``calibration_terms`` without a
+        calibration data file), driven toward zero: ``1/2 sum_i r_i^2`` is minimized.
     parameters : list of input names, or ParameterSpace
         The calibrated inputs. A ParameterSpace supplies starting values (its means) and bounds
         (its supports) unless ``x0``/``bounds`` are given.
@@ -541,6 +553,11 @@ def calibrate(
     noise_std : float, (m,) or (n_exp, m), optional
         Standard deviations of the observations (data units); residuals are divided by them
         and the parameter covariance takes the noise as known.
+    residual_weights : float, (m,) or (n_exp, m), optional
+        Dakota's calibration-term ``weights``: ``w_i`` multiplies the squared residual, so
+        residual and gradient are scaled by ``sqrt(w_i)`` (as Dakota's weighting of primary
+        responses). Weights >= 0; unlike ``noise_std`` they leave the residual variance
+        estimated.
     fixed : mapping name -> value or (n_exp,) values, optional
         The other model inputs, held fixed; an array gives one value per experiment.
     optimizer : "nl2sol" (default), "trf" or "lm".
@@ -571,10 +588,17 @@ def calibrate(
     from ..model import check_gradient_option
 
     names_out = tuple(model.names_out)
-    data = _observations(data, names_out)
+    residual_model = data is None
+    data = (np.zeros((1, len(names_out))) if residual_model
+            else _observations(data, names_out))
     n_exp, m = data.shape
     names, start, box = _calibrated(parameters, x0, bounds)
     p = len(names)
+    if residual_model and m < p:
+        raise ParameterError(
+            f"{p} parameters {names} cannot be calibrated on the model's {m} responses "
+            f"{names_out} taken as residuals: the least-squares problem is underdetermined"
+        )
     if n_exp * m < p:
         raise ParameterError(
             f"{p} parameters {names} cannot be calibrated on {n_exp * m} observations: "
@@ -582,24 +606,90 @@ def calibrate(
         )
     inputs = _experiment_inputs(model, names, dict(fixed or {}), n_exp)
     noise = _noise_per_observation(noise_std, data.shape)
-
-    def residual(X: np.ndarray) -> np.ndarray:
-        values = evaluate(model, inputs(X)).values
-        return values.reshape(X.shape[0], n_exp * m) - data.ravel()[None, :]
+    weights = residual_weights
+    if weights is not None:
+        w = np.asarray(weights, dtype=float)
+        if w.size and (np.any(~np.isfinite(w)) or np.any(w < 0)):
+            raise ParameterError(f"residual_weights must be finite and >= 0, got "
+                                 f"{w.ravel().tolist()}")
+        try:
+            sw = np.sqrt(np.broadcast_to(w, data.shape)).ravel()
+        except ValueError:
+            raise ParameterError(f"residual_weights must be a scalar, ({m},) or {data.shape}, got "
+                                 f"{w.shape}") from None
+        # w r^2 = (r / (1/sqrt(w)))^2; noise_std's known-noise covariance is not implied
+        scale = sw if noise is None else sw / noise
+    else:
+        scale = None if noise is None else 1.0 / noise
 
     mode = check_gradient_option(gradient, model)
+    # a model whose one evaluation gives values and gradient (an external driver's own
+    # gradients): every residual evaluation asks for both, as Dakota's NL2SOL does with
+    # analytic gradients (speculative gradients), and the Jacobian at an accepted point is
+    # the one already returned: no second run of the model there
+    joint = (getattr(model, "evaluate_gradient", None)
+             if mode != "finite_difference" and not callable(mode) else None)
+    seen: dict[bytes, tuple[np.ndarray, np.ndarray | None]] = {}  # point -> (R, G) unscaled
+    failure: list[str] = []  # the last reason a residual evaluation failed
+
+    def raw_residual(X: np.ndarray) -> np.ndarray:
+        P = inputs(X)
+        if callable(joint):
+            got = joint(P)
+            values, G = np.asarray(got.values, dtype=float), np.asarray(got.gradient, float)
+            reasons = got.failures
+        else:
+            batch = evaluate(model, P)
+            values, G, reasons = batch.values, None, batch.failures
+        if reasons:
+            failure[:] = [next(iter(reasons.values()))]
+        R = values.reshape(X.shape[0], n_exp * m) - data.ravel()[None, :]
+        for k in range(X.shape[0]):
+            g = None if G is None else G[k * n_exp:(k + 1) * n_exp]
+            seen[X[k].tobytes()] = (R[k], g)
+        return R
+
+    def residual(X: np.ndarray) -> np.ndarray:
+        R = raw_residual(X)
+        return R if weights is None or scale is None else R * scale
+
     jac: Callable[[np.ndarray], np.ndarray] | str = "finite_difference"
     if mode != "finite_difference":
         model_grad = mode if callable(mode) else cast(Any, model).gradient
         cols = [list(model.names_in).index(n) for n in names]
 
         def jac(X: np.ndarray) -> np.ndarray:
-            G = np.asarray(model_grad(inputs(X)), dtype=float)  # (k*n_exp, m, d)
-            return G.reshape(G.shape[0], m, -1)[:, :, cols].reshape(X.shape[0], n_exp * m, p)
+            known = [seen.get(x.tobytes(), (None, None))[1] for x in X]
+            if all(g is not None for g in known):
+                G = np.concatenate(cast(list, known))
+            elif callable(joint):
+                got = joint(inputs(X))
+                if got.failures:
+                    i, why = next(iter(got.failures.items()))
+                    raise EvaluationError(f"the model's gradient failed at {names} = "
+                                          f"{X[i // n_exp].tolist()}: {why}")
+                G = np.asarray(got.gradient, dtype=float)
+            else:
+                G = np.asarray(model_grad(inputs(X)), dtype=float)  # (k*n_exp, m, d)
+            if not np.all(np.isfinite(G)):
+                raise EvaluationError(f"the model's gradient is not finite at {names} = "
+                                      f"{X.tolist()}")
+            J = G.reshape(G.shape[0], m, -1)[:, :, cols].reshape(X.shape[0], n_exp * m, p)
+            return J if weights is None or scale is None else J * scale[None, :, None]
 
-    ls = least_squares(residual, start, gradient=jac, bounds=box, optimizer=optimizer,
-                       noise_std=noise, **options)
-    r = residual(ls.x[None, :])[0].reshape(n_exp, m)
+    try:
+        ls = least_squares(residual, start, gradient=jac, bounds=box, optimizer=optimizer,
+                           noise_std=noise if weights is None else None, **options)
+    except EvaluationError as exc:
+        if failure and failure[0] not in str(exc):  # say why the model failed
+            raise EvaluationError(f"{exc}: {failure[0]}") from exc
+        raise
+    if weights is not None and noise is not None:  # the noise is known: covariance (J^T J)^-1
+        cov, std, ci = _covariance(ls.jacobian, ls.cost, ls.residuals.size, p, True,
+                                   ls.confidence, ls.x)
+        ls = replace(ls, covariance=cov, std=std, confidence_intervals=ci)
+    at = seen.get(ls.x.tobytes())  # the optimum was evaluated: not run again
+    r = (raw_residual(ls.x[None, :])[0] if at is None else at[0]).reshape(n_exp, m)
     return CalibrationResult(
         names_in=names, x=ls.x,
         parameters={n: float(v) for n, v in zip(names, ls.x, strict=True)},
@@ -607,4 +697,6 @@ def calibrate(
         confidence_intervals=ls.confidence_intervals, iterations=ls.iterations,
         n_evaluations=ls.n_evaluations * n_exp, converged=ls.converged, message=ls.message,
         optimizer=ls.optimizer, least_squares=ls,
+        n_gradient_evaluations=ls.n_gradient_evaluations * n_exp,
+        residual_model=residual_model,
     )

@@ -124,6 +124,8 @@ class StepType:
     provides : attributes later steps may take (``"posterior"``, ``"calibrated"``,
         ``"samples"``) through ``from = "step.ATTR"`` / ``data = "step.ATTR"``.
     needs_data : the step takes observations (the study's only data set when it names none).
+    data_optional : with ``needs_data``, a study without any data set runs the step without
+        data (``ctx.data`` None; ``least_squares``: the responses are the residuals).
     quick : option -> upper bound under ``--quick``.
     check : extra validation ``check(StepCheck)`` after the options are read.
     tables(result, labels) -> list of :class:`~rotoruq.render.tables.StepTable`;
@@ -145,6 +147,7 @@ class StepType:
     method: str | None = None
     provides: tuple[str, ...] = ()
     needs_data: bool = False
+    data_optional: bool = False
     quick: Mapping[str, int] = field(default_factory=dict)
     check: Callable[[StepCheck], None] | None = None
     tables: TablesHook | None = None

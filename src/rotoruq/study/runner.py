@@ -155,7 +155,8 @@ def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
         [near_study(w) for w in ext.command], names_in, list(responses),
         workdir=workdir, template_files=[base / t for t in ext.templates],
         copy_files=[base / f for f in ext.files], parameters_format=ext.parameters_format,
-        timeout=ext.timeout, failure_policy=policy,
+        timeout=ext.timeout, failure_policy=policy, gradients=ext.gradients,
+        derivative_variables=list(inputs) or None,
     )
     fixed_here = {k: v for k, v in fixed.items() if k not in inputs}
     return FixedInputs(ext_model, fixed_here) if fixed_here else ext_model
@@ -363,6 +364,8 @@ def _model_doc(spec: ModelSpec) -> dict:
     del doc["name"]
     if not doc["discretization"]:
         del doc["discretization"]
+    if doc["external"] is not None and doc["external"]["gradients"] == "finite_difference":
+        del doc["external"]["gradients"]
     return doc
 
 
@@ -406,6 +409,15 @@ class _FailureCount:
 
         if name == "gradient" and not has_gradient(self._model):
             raise AttributeError(name)
+        if name == "evaluate_gradient":  # a driver's gradient runs fail like any evaluation
+            joint = getattr(self._model, name)
+
+            def counted(x):
+                got = joint(x)
+                self._counts.update(got.failures.values())
+                return got
+
+            return counted
         return getattr(self._model, name)
 
     def evaluate(self, x):

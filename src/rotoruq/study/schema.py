@@ -94,7 +94,7 @@ TOP_KEYS = ("study", "model", "models", "parameters", "correlation", "data", "ex
 CORRELATION_KEYS = ("parameters", "matrix")
 STUDY_KEYS = ("name", "seed", "output", "description")
 EXTERNAL_KEYS = ("command", "files", "templates", "parameters_format", "timeout", "failure",
-                 "retries", "recover", "workdir")
+                 "retries", "recover", "workdir", "gradients")
 MODEL_KEYS = ("preset", "preset_options", "discretization", "responses", "fixed",
               "function", "components", *EXTERNAL_KEYS)
 # RotorModel's discretization keywords a preset model may set.
@@ -317,6 +317,8 @@ def _parse_model_table(ck: Checker, t: object, w: tuple, what: str, name: str = 
         recover=None if recover is None else ck.value(t, "recover", (number_list, None), w,
                                                        what),
         workdir=ck.value(t, "workdir", (string(), None), w, what),
+        gradients=ck.value(t, "gradients", (string(("finite_difference", "analytic")),
+                                                  "finite_difference"), w, what),
     )
     return ModelSpec("external", responses, fixed, external=ext, name=name)
 
@@ -694,7 +696,7 @@ def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
         elif st.needs_data:
             if len(data) == 1:
                 data_ref = next(iter(data))
-            else:
+            elif not (st.data_optional and not data):
                 ck.fail(w, f"data = \"NAME\" in {what} (data sets: {', '.join(data) or 'none'})")
         sel_p = common["parameters"]
         known = pnames + [n for other in raw if isinstance(other.get("distributions"), dict)

@@ -40,6 +40,7 @@ class ExternalSpec:
     retries: int = 0
     recover: tuple[float, ...] | None = None
     workdir: str | None = None
+    gradients: str = "finite_difference"
 
 
 @dataclass(frozen=True)

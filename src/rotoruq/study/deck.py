@@ -1358,7 +1358,7 @@ def _single_study(deck: Deck, name: str | None, resp: _Responses, method: _Metho
         if resp.data is not None:
             step["data"] = "calibration"
         if resp.weights is not None:
-            step["weights"] = {drv.mapping.get(r, r): w for r, w in zip(
+            step["residual_weights"] = {drv.mapping.get(r, r): w for r, w in zip(
                 resp.names, resp.weights, strict=True)}
     if step.get("n_samples") == -1:
         d = len(params)
@@ -1629,7 +1629,7 @@ def _emit(deck: Deck, name: str | None, seed: int | None, drv: _Driver, resp: _R
         lines.append("")
     for s in steps:
         if start and s["type"] == "least_squares":
-            s = {**s, "start": start}
+            s = {**s, "x0": start}
         lines.append("[[steps]]")
         for k, x in s.items():
             lines.append(f"{_key(k)} = {_toml(x)}")

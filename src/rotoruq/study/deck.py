@@ -1119,7 +1119,7 @@ def _nested_cuu(deck: Deck) -> tuple[DeckBlock, DeckBlock, DeckBlock, dict] | No
     if len(nested) > 1:
         raise InputFileError(deck.path, nested[1].line, "one nested model (the CUU form)")
     nb = nested[0]
-    c = _Cursor(deck, nb, "nested model")
+    c = _Cursor(deck, nb, "nested model")  # its own problems: the nested form stops here
     info: dict[str, Any] = {}
     for e in c:
         k = e.keyword
@@ -1138,6 +1138,7 @@ def _nested_cuu(deck: Deck) -> tuple[DeckBlock, DeckBlock, DeckBlock, dict] | No
             c.unknown(e, ["sub_method_pointer", "primary_variable_mapping",
                           "secondary_variable_mapping", "primary_response_mapping",
                           "variables_pointer", "responses_pointer", "id_model"])
+    c.tx.done()
     methods = deck.of("method")
     inner = [m for m in methods if m.id == info.get("sub_method_pointer")]
     outer = [m for m in methods if _pointer(m, "model_pointer") == nb.id]
@@ -1263,6 +1264,8 @@ def translate_deck(deck: Deck, *, name: str | None = None) -> DeckTranslation:
     """
     tx = _Tx(deck)
     cuu = tx.guard(_nested_cuu, deck)
+    if cuu is None and any(b.find("nested") for b in deck.of("model")):
+        tx.done()  # the nested form's own problems: nothing else to read
     if cuu is not None:
         text = tx.guard(_cuu_study, deck, cuu, name, tx)
         tx.done()
@@ -2022,13 +2025,10 @@ def _levels_text(o: dict, key: str, responses: list[str]) -> str:
 
 def _mappings_text(o: dict, responses: list[str]) -> str:
     """A step's level mappings as a Dakota method block's keywords."""
-    text = "".join(_levels_text(o, k, responses) for k in _LEVELS)
-    if not text:
-        return ""
+    text = "\n    distribution complementary" if o.get("distribution") == "ccdf" else ""
+    text += "".join(_levels_text(o, k, responses) for k in _LEVELS)
     if o.get("compute") and o.get("response_levels"):
         text += f"\n    compute {o['compute']}"
-    if o.get("distribution") == "ccdf":
-        text += "\n    distribution complementary"
     return text
 
 

@@ -198,6 +198,9 @@ class Server:
         if self._socket_is_ours():
             with contextlib.suppress(OSError):
                 os.unlink(self.path)
+        if self.lock_fd >= 0:  # a new server may start now (busy workers finish meanwhile)
+            os.close(self.lock_fd)
+            self.lock_fd = -1
         for pid in self.workers:
             with contextlib.suppress(OSError):
                 os.kill(pid, signal.SIGTERM)
@@ -350,6 +353,23 @@ def _env_number(name: str, default: float) -> float:
         return default
 
 
+def _lock(path: str, wait: float = 40.0) -> int | None:
+    """The server's lock on ``<socket>.lock``, else ``None`` when another server holds it and
+    serves (its socket exists). A server that is stopping has removed its socket already: wait
+    for it to let go (at most ``wait`` seconds)."""
+    fd = os.open(path + ".lock", os.O_RDWR | os.O_CREAT, 0o600)
+    deadline = time.monotonic() + wait
+    while True:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return fd
+        except BlockingIOError:
+            if os.path.exists(path) or time.monotonic() > deadline:
+                os.close(fd)
+                return None
+            time.sleep(0.05)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     workers = max(1, int(args.workers if args.workers is not None
@@ -367,11 +387,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"rotoruq serve: error: {exc}", file=sys.stderr)
         return 1
     path = client.socket_path(folder)
-    lock_fd = os.open(path + ".lock", os.O_RDWR | os.O_CREAT, 0o600)
-    try:
-        fcntl.flock(lock_fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except BlockingIOError:
-        os.close(lock_fd)
+    lock_fd = _lock(path)
+    if lock_fd is None:
         if not args.detach:
             print(f"rotoruq serve: a server is running already on {path}", file=sys.stderr)
         return 0

@@ -10,12 +10,22 @@ from ``getrusage(RUSAGE_CHILDREN)``):
   process of its own. Inside it the split is timed with ``time.process_time``: import, kernel
   load + first evaluation, a second (warm) evaluation;
 - ``driver``: ``rotoruq driver params.in results.out`` on the same point (the console script
-  next to this interpreter, else ``python -m rotoruq.study.cli``).
+  next to this interpreter, else ``python -m rotoruq.study.cli``), in process
+  (``ROTORUQ_DRIVER_SERVER=0``);
+- ``warm``: the same command on the warm path, answered by a driver server (started before
+  the repeats, in a socket folder of this run, stopped at the end). The client's CPU is
+  measured as above; the server's (its master and workers, from ``/proc/<pid>/stat``) is read
+  before and after all warm calls and divided by their number: ``warm_total_cpu_s`` = client +
+  server share. The server's start (imports, kernels, one call) is reported apart.
+
+The children run with Python's bytecode cache allowed (``PYTHONDONTWRITEBYTECODE`` removed from
+their environment), as an installed package has it; the first, untimed call writes it.
 
 Medians over ``--repeat`` repeats. ``driver_overhead_s`` = driver - model: what the driver adds
 beyond the model (reading and writing the files, argument parsing, the modules it imports that
 the model does not); the kernel load counts as model time. Target: < 0.1 s.
 ``in_process_eval_s`` is the warm evaluation (what ``rotoruq run`` pays per point, unbatched).
+Target of the warm path (issue 32): at most 0.05 s of client CPU per call.
 
     python benchmarks/driver_overhead.py [--repeat 7] [--summary saved.json]
 """
@@ -35,8 +45,14 @@ from pathlib import Path
 from _summary import print_saved_summary
 
 from rotoruq.evaluation.dakota_files import read_results, write_parameters
+from rotoruq.study import cmd_serve
+from rotoruq.study import driver_client as client
 
 POINT = {"collective_deg": 8.0}
+# the children: bytecode cache allowed (as an installed package has it), warm path off unless
+# asked for
+ENV = {**{k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"},
+       client.SWITCH: "0"}
 OUTPUTS = ["thrust", "torque"]
 
 MODEL = f"""
@@ -73,13 +89,25 @@ def driver_command() -> list[str]:
     return [sys.executable, "-m", "rotoruq.study.cli", "driver"]
 
 
-def cpu_of(cmd: list[str], cwd: Path) -> tuple[float, str]:
+def cpu_of(cmd: list[str], cwd: Path, env: dict | None = None) -> tuple[float, str]:
     """CPU seconds (user + system) of a child process, and its stdout."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     out = subprocess.run(cmd, cwd=cwd, check=True, capture_output=True, text=True,
-                         env=os.environ.copy()).stdout
+                         env=env or ENV).stdout
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime), out
+
+
+def server_cpu(folder: str) -> tuple[float, int]:
+    """CPU seconds (user + system) of the server's master and workers so far, and its calls."""
+    state = cmd_serve.status(folder)
+    assert state is not None, "the driver server does not answer"
+    tick = os.sysconf("SC_CLK_TCK")
+    total = 0.0
+    for pid in [state["pid"], *state["worker_pids"].split(",")]:
+        fields = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()
+        total += (int(fields[11]) + int(fields[12])) / tick  # utime, stime
+    return total, int(state["calls"])
 
 
 def main() -> None:
@@ -94,16 +122,30 @@ def main() -> None:
     write_parameters(work / "params.in", POINT, OUTPUTS)
     drv = driver_command()
     cpu_of(drv + ["params.in", "results.out"], work)  # numba cache warm, files in the OS cache
+    folder = tempfile.mkdtemp(prefix="rq-bench-")
+    warm_env = {**ENV, client.SWITCH: "1", client.DIR_VAR: folder,
+                client.WORKERS_VAR: str(os.cpu_count() or 1)}
+    os.environ[client.DIR_VAR] = folder  # for cmd_serve.status / stop in this process
+    start_cpu, _ = cpu_of(drv + ["params.in", "results_warm.out"], work, warm_env)
+    server_start_cpu, _ = server_cpu(folder)
     runs: dict[str, list[float]] = {"bare": [], "model": [], "driver": [], "import": [],
-                                    "kernel_first_eval": [], "warm_eval": []}
+                                    "kernel_first_eval": [], "warm_eval": [], "warm": []}
+    server_before = server_cpu(folder)
     for _ in range(args.repeat):
+        runs["warm"].append(cpu_of(drv + ["params.in", "results_warm.out"], work,
+                                   warm_env)[0])
         runs["bare"].append(cpu_of([sys.executable, "-c", "pass"], work)[0])
         t, out = cpu_of([sys.executable, "-c", MODEL], work)
         runs["model"].append(t)
         for key, v in zip(("import", "kernel_first_eval", "warm_eval"), out.split(), strict=True):
             runs[key].append(float(v))
         runs["driver"].append(cpu_of(drv + ["params.in", "results.out"], work)[0])
+    server_after = server_cpu(folder)
+    cmd_serve.stop(folder)
+    served = server_after[1] - server_before[1]
+    server_share = (server_after[0] - server_before[0]) / max(served, 1)
     res = read_results(work / "results.out", names_out=OUTPUTS)
+    same = (work / "results.out").read_bytes() == (work / "results_warm.out").read_bytes()
     loaded = set(cpu_of([sys.executable, "-c", LOADED], work)[1].split())
     med = {k: statistics.median(v) for k, v in runs.items()}
     out = {
@@ -126,6 +168,21 @@ def main() -> None:
         "driver_loads_scipy_stats": "scipy.stats" in loaded,
         "driver_rotoruq_modules": sum(1 for m in loaded if m.startswith("rotoruq")),
         "results_ok": bool(not res.failed and len(res.values) == len(OUTPUTS)),
+        "warm_path": {
+            "client_cpu_s": round(med["warm"], 4),
+            "server_cpu_per_call_s": round(server_share, 4),
+            "warm_total_cpu_s": round(med["warm"] + server_share, 4),
+            "calls_served": served,
+            "server_workers": int(warm_env[client.WORKERS_VAR]),
+            "first_call_client_cpu_s": round(start_cpu, 4),
+            "server_start_cpu_s": round(server_start_cpu, 4),
+            "results_equal_in_process": bool(same),
+            "target_client_cpu_s": 0.05,
+            "meets_target": bool(med["warm"] <= 0.05),
+            "client_over_bare_s": round(med["warm"] - med["bare"], 4),
+            "speedup_total": round(med["driver"] / (med["warm"] + server_share), 1),
+        },
+        "bytecode_cached": "PYTHONDONTWRITEBYTECODE" not in ENV,
         "cpus": os.cpu_count(),
     }
     print(json.dumps(out, indent=1))
@@ -139,7 +196,22 @@ def summary(d: dict) -> str:
             f"{d['bare_python_cpu_s']:.3f} s: the driver adds {d['driver_overhead_s']:.3f} s "
             f"beyond the model (target < {d['target_overhead_s']} s; medians of "
             f"{d['repeats']}). In process, the warm evaluation costs "
-            f"{1e3 * d['in_process_eval_s']:.2f} ms.")
+            f"{1e3 * d['in_process_eval_s']:.2f} ms." + warm_summary(d))
+
+
+def warm_summary(d: dict) -> str:
+    w = d.get("warm_path")
+    if not w:
+        return ""
+    return (f" On the warm path (a driver server holds the model) a call costs the client "
+            f"{w['client_cpu_s']:.3f} s of CPU (target <= {w['target_client_cpu_s']} s: "
+            f"{'met' if w['meets_target'] else 'NOT met'}; {w['client_over_bare_s']:.3f} s "
+            f"beyond a bare interpreter) and the server {w['server_cpu_per_call_s']:.3f} s, "
+            f"{w['warm_total_cpu_s']:.3f} s in all, {w['speedup_total']:g}x less than in "
+            f"process; its results file is "
+            f"{'byte for byte' if w['results_equal_in_process'] else 'NOT'} the in-process "
+            f"one. Starting the server "
+            f"(imports, kernels, first call) costs {w['server_start_cpu_s']:.2f} s of CPU, once.")
 
 
 if __name__ == "__main__":

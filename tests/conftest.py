@@ -2,10 +2,15 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+# every `rotoruq driver` of the tests runs in process (no driver server left behind);
+# tests/test_driver_server.py switches the warm path on, each test with a folder of its own
+os.environ["ROTORUQ_DRIVER_SERVER"] = "0"
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared"

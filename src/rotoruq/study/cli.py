@@ -7,23 +7,26 @@ present are simply not offered.
 
 from __future__ import annotations
 
-import argparse
-import importlib
-import logging
-import signal
+import os
 import sys
-import threading
 
 from .. import __version__
-from ..errors import RotoruqError
-from ..safety import terminal_text
+
+# Everything else is imported when used: a ``rotoruq driver`` call answered by the driver
+# server loads nothing beyond this module, the package root and ``driver_client``.
+TYPE_CHECKING = False  # typing.TYPE_CHECKING without importing typing
+if TYPE_CHECKING:
+    import argparse
 
 # Order in which subcommands are listed by --help.
 COMMANDS = ("reproduce", "run", "report", "show", "evaluate", "airfoil", "driver", "export",
-            "dakota", "repair")
+            "serve", "dakota", "repair")
 
 
 def build_parser() -> argparse.ArgumentParser:
+    import argparse
+    import importlib
+
     from .console import pipe_safe  # not on the driver's lean path
 
     parser = argparse.ArgumentParser(
@@ -58,6 +61,18 @@ def _on_sigterm(signum, frame):
 
 
 def main(argv: list[str] | None = None) -> int:
+    words = _driver_argv(list(sys.argv[1:] if argv is None else argv))
+    if (words is not None and not {"-h", "--help"} & set(words)
+            and os.environ.get("ROTORUQ_DRIVER_SERVER", "1") != "0"):
+        # the warm path: a running driver server answers (None: run the driver here)
+        from .driver_client import call
+
+        status = call(words)
+        if status is not None:
+            return status
+    import signal
+    import threading
+
     if threading.current_thread() is not threading.main_thread():
         return _main(argv)
     previous = signal.signal(signal.SIGTERM, _on_sigterm)
@@ -65,36 +80,6 @@ def main(argv: list[str] | None = None) -> int:
         return _main(argv)
     finally:
         signal.signal(signal.SIGTERM, previous)
-
-
-class _StderrHandler(logging.StreamHandler):
-    """Progress lines of the ``rotoruq`` loggers on the current ``sys.stderr``."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.setFormatter(logging.Formatter("%(message)s"))
-
-    @property  # type: ignore[override]  # follow sys.stderr when a caller swaps it
-    def stream(self):  # noqa: D102
-        return sys.stderr
-
-    @stream.setter
-    def stream(self, value) -> None:
-        pass
-
-
-def configure_logging(quiet: bool = False, debug: bool = False) -> None:
-    """Send the library's log records (the ``rotoruq`` loggers) to stderr as plain lines:
-    INFO and above by default, ERROR with ``quiet``, DEBUG with ``debug``; Python warnings as
-    one ``warning: ...`` line each (none with ``quiet``)."""
-    from .console import route_warnings
-
-    route_warnings(quiet=quiet and not debug)
-    root = logging.getLogger("rotoruq")
-    for h in [h for h in root.handlers if isinstance(h, _StderrHandler)]:
-        root.removeHandler(h)
-    root.addHandler(_StderrHandler())
-    root.setLevel(logging.DEBUG if debug else logging.ERROR if quiet else logging.INFO)
 
 
 def _driver_argv(argv: list[str]) -> list[str] | None:
@@ -113,6 +98,10 @@ def _main(argv: list[str] | None) -> int:
         from .cmd_driver import main as driver_main
 
         return driver_main(words)
+    from ..errors import RotoruqError
+    from ..safety import terminal_text
+    from .console import configure_logging
+
     parser = build_parser()
     args = parser.parse_args(argv)
     configure_logging(quiet=args.quiet, debug=args.debug)

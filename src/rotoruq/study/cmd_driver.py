@@ -50,8 +50,9 @@ def make_model(args: argparse.Namespace, names_in: list[str], names_out: list[st
     return RotorModel(args.preset, names_in=names_in, names_out=names_out, fixed=fixed)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run the driver on a command line (without the ``driver`` word); see the module."""
+def main(argv: list[str] | None = None, make_model: _driver.MakeModel = make_model) -> int:
+    """Run the driver on a command line (without the ``driver`` word); see the module.
+    ``make_model`` is the driver server's hook (it keeps the models it makes)."""
     return _driver.main(argv, make_model, program=PROGRAM, description=HELP,
                         add_model_arguments=_model_arguments)
 

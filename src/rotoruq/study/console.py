@@ -142,3 +142,31 @@ def _silence_stdout() -> None:
         os.close(devnull)
     except (OSError, ValueError, AttributeError):  # stdout is no real file (a test's buffer)
         pass
+
+
+class _StderrHandler(logging.StreamHandler):
+    """Progress lines of the ``rotoruq`` loggers on the current ``sys.stderr``."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.setFormatter(logging.Formatter("%(message)s"))
+
+    @property  # type: ignore[override]  # follow sys.stderr when a caller swaps it
+    def stream(self):  # noqa: D102
+        return sys.stderr
+
+    @stream.setter
+    def stream(self, value) -> None:
+        pass
+
+
+def configure_logging(quiet: bool = False, debug: bool = False) -> None:
+    """Send the library's log records (the ``rotoruq`` loggers) to stderr as plain lines:
+    INFO and above by default, ERROR with ``quiet``, DEBUG with ``debug``; Python warnings as
+    one ``warning: ...`` line each (none with ``quiet``)."""
+    route_warnings(quiet=quiet and not debug)
+    root = logging.getLogger("rotoruq")
+    for h in [h for h in root.handlers if isinstance(h, _StderrHandler)]:
+        root.removeHandler(h)
+    root.addHandler(_StderrHandler())
+    root.setLevel(logging.DEBUG if debug else logging.ERROR if quiet else logging.INFO)

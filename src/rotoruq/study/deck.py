@@ -283,7 +283,13 @@ _IGNORED_WHAT = {"evaluation_concurrency": "Dakota's scheduling",
                  "id_interface": "block ids", "id_responses": "block ids",
                  "model_pointer": "block ids", "top_method_pointer": "block ids",
                  "variables_pointer": "block ids", "interface_pointer": "block ids",
-                 "responses_pointer": "block ids", "single": "the model kind"}
+                 "responses_pointer": "block ids", "single": "the model kind",
+                 **dict.fromkeys(("method_source", "dakota", "vendor", "interval_type",
+                                  "forward", "central", "fd_step_size"),
+                                 "Dakota's finite-difference settings (rotoruq takes the "
+                                 "model's analytic gradient, else its own central "
+                                 "differences)"),
+                 "no_hessians": "Hessians (none is used)"}
 
 
 class DeckProblems(InputFileError):
@@ -1662,7 +1668,14 @@ _DAKOTA_DIST = {
     "gamma": ("gamma_uncertain", (("alphas", "alpha"), ("betas", "beta"))),
     "gumbel": ("gumbel_uncertain", (("alphas", "alpha"), ("betas", "beta"))),
     "weibull": ("weibull_uncertain", (("alphas", "alpha"), ("betas", "beta"))),
+    "frechet": ("frechet_uncertain", (("alphas", "alpha"), ("betas", "beta"))),
+    "histogram_bin": ("histogram_bin_uncertain", (("abscissas", "abscissas"),
+                                                  ("counts", "counts"))),
 }
+# a lognormal's three forms (Dakota's option_1 .. option_3), one for a whole group
+_LOGNORMAL_FORMS = ((("means", "mean"), ("std_deviations", "std")),
+                    (("means", "mean"), ("error_factors", "error_factor")),
+                    (("lambdas", "lambda"), ("zetas", "zeta")))
 
 
 def rotoruq_command() -> str:
@@ -1774,7 +1787,7 @@ def _deck_for(study: Any, st: Any, o: dict, data_dir: Any) -> str:
         # the study's other parameters stay at their means, as the step holds them
         names = list(cells)
     else:
-        var_lines = _uncertain_lines(names, specs)
+        var_lines = _uncertain_lines(names, specs, getattr(study, "correlation", None))
     renamed = study.renamed_inputs
     # the study's parameters the step leaves out stay at their means (as the runner holds them)
     unused = {renamed.get(p.name, p.name): p.distribution.mean for p in study.parameters
@@ -1785,12 +1798,12 @@ def _deck_for(study: Any, st: Any, o: dict, data_dir: Any) -> str:
     if st.type == "sampling" and o.get("design") == "file":
         state = list(fixed.values()) if _state_lines(study, fixed) else []
         method = _given_points_text(o["points"]["file"], names, specs, state)
-    driver = _driver_line(study, fixed, responses, names)
+    driver = (_driver_line(study, fixed, responses, names)
+              if study.model.kind != "function" else None)
     kind = "calibration_terms" if st.type in ("least_squares", "bayes_calibration") \
         else "response_functions"
-    grads = ("  numerical_gradients\n    method_source dakota\n    interval_type forward\n"
-             "    fd_step_size = 1e-6") if st.type in ("mean_value", "reliability",
-                                                       "least_squares") else "  no_gradients"
+    grads = _gradients_text(study) if st.type in ("mean_value", "reliability",
+                                                  "least_squares") else "  no_gradients"
     data_lines = ""
     if kind == "calibration_terms":
         data_lines = _data_text(study, st, o, responses, data_dir)
@@ -1804,18 +1817,65 @@ method
 {method}
 variables
 {chr(10).join(var_lines)}
-interface
-  fork
-    analysis_drivers = '{driver}'
-    parameters_file = 'params.in'
-    results_file = 'results.out'
-    file_tag
-responses
+{_interface_text(study, fixed, responses, names, specs, driver)}responses
   {kind} = {len(responses)}
     descriptors = {' '.join(f"'{r}'" for r in responses)}
 {data_lines}{resp_extra}{grads}
   no_hessians
 """
+
+
+def _gradients_text(study: Any) -> str:
+    """The responses' gradient keywords: a test function's own analytic gradient where it has
+    one (as the study uses it), else Dakota's forward differences."""
+    m = study.model
+    if m.kind == "function" and _dakota_functions()[m.function].has_gradient:
+        return "  analytic_gradients"
+    if m.kind == "external" and getattr(m.external, "gradients", None) == "analytic":
+        return "  analytic_gradients"
+    return ("  numerical_gradients\n    method_source dakota\n    interval_type forward\n"
+            "    fd_step_size = 1e-6")
+
+
+def _interface_text(study: Any, fixed: Mapping, responses: list[str], names: Sequence[str],
+                    specs: Sequence[Any], driver: str | None, ident: str | None = None) -> str:
+    """The interface block: ``direct`` for one of Dakota's test functions, else ``fork``
+    running the study's model (``rotoruq driver`` or the external command)."""
+    head = f"  id_interface = '{ident}'\n" if ident else ""
+    m = study.model
+    if m.kind == "function":
+        _check_function_order(study, names, specs, fixed)
+        comps = ("    analysis_components = " + " ".join(f"'{c}'" for c in m.components)
+                 + "\n") if m.components else ""
+        return (f"interface\n{head}  direct\n    analysis_drivers = '{m.function}'\n"
+                + comps)
+    if driver is None:
+        driver = _driver_line(study, fixed, responses, list(names))
+    return (f"interface\n{head}  fork\n    analysis_drivers = '{driver}'\n"
+            "    parameters_file = 'params.in'\n    results_file = 'results.out'\n"
+            "    file_tag\n")
+
+
+def _check_function_order(study: Any, names: Sequence[str], specs: Sequence[Any],
+                          fixed: Mapping) -> None:
+    """Dakota hands a direct function its variables by type (uncertain in its type order,
+    then state); the study hands them in its own order. A function that takes them by
+    position is exported only where the two orders agree."""
+    from .spec import function_variables
+
+    m = study.model
+    if _dakota_functions()[m.function].labels:
+        return  # read by label, in any order
+    groups = list(_GROUPS)
+    kinds = {n: _DAKOTA_DIST[_describe(s)["kind"]][0] for n, s in zip(names, specs,
+                                                                     strict=True)}
+    dakota = sorted(names, key=lambda n: groups.index(kinds[n])) + list(fixed)
+    ours = [n for n in function_variables(m, study.parameters) if n in dakota]
+    if ours != dakota:
+        raise InputFileError(None, None, f"the parameters of a '{m.function}' study in "
+                             "Dakota's order of variable types, then the fixed inputs (the "
+                             "function takes them by position; Dakota orders them "
+                             f"{' '.join(dakota)})", " ".join(ours))
 
 
 def _interval_lines(cells: Mapping[str, Sequence[Sequence[float]]]) -> list[str]:
@@ -1839,7 +1899,10 @@ def _state_lines(study: Any, fixed: Mapping) -> list[str]:
             "    descriptors = " + " ".join(f"'{k}'" for k in fixed)]
 
 
-def _uncertain_lines(names: Sequence[str], specs: Sequence[Any]) -> list[str]:
+def _uncertain_lines(names: Sequence[str], specs: Sequence[Any],
+                     correlation: Any = None) -> list[str]:
+    """Dakota's uncertain variable groups for these parameters (in Dakota's order of types),
+    with the ``uncertain_correlation_matrix`` of a correlated study."""
     by_kind: dict[str, list[tuple[str, dict]]] = {}
     for n, spec in zip(names, specs, strict=True):
         d = _describe(spec)
@@ -1847,16 +1910,53 @@ def _uncertain_lines(names: Sequence[str], specs: Sequence[Any]) -> list[str]:
         if kind not in _DAKOTA_DIST:
             raise InputFileError(None, None, f"a distribution Dakota's deck can state for "
                                  f"{n!r} ({', '.join(_DAKOTA_DIST)})", kind)
-        dk, fields = _DAKOTA_DIST[kind]
-        by_kind.setdefault(dk, []).append((n, {a: d[b] for a, b in fields}))
-    out = []
-    for dk, items in by_kind.items():
+        by_kind.setdefault(_DAKOTA_DIST[kind][0], []).append((n, d))
+    groups = list(_GROUPS)
+    out, order = [], []
+    for dk in sorted(by_kind, key=groups.index):
+        items = by_kind[dk]
+        order += [n for n, _ in items]
         out.append(f"  {dk} = {len(items)}")
-        for k in items[0][1]:
-            vals = [v[k] for _, v in items]
-            if not all(math.isinf(x) for x in vals):
-                out.append(f"    {k} = " + " ".join(_fmt(x) for x in vals))
+        if dk == "lognormal_uncertain":
+            fields: tuple = next((f for f in _LOGNORMAL_FORMS
+                                  if all(all(b in d for _, b in f) for _, d in items)),
+                                 _LOGNORMAL_FORMS[2])
+            out.append("    parameters option_" + str(_LOGNORMAL_FORMS.index(fields) + 1))
+            for _, d in items:  # a group of mixed forms: by lambda and zeta
+                if "lambda" not in d:
+                    dist = d.get("_dist")
+                    d.setdefault("lambda", getattr(dist, "lambda_", math.nan))
+                    d.setdefault("zeta", getattr(dist, "zeta", math.nan))
+            fields = fields + (("lower_bounds", "lower"), ("upper_bounds", "upper"))
+        else:
+            fields = _DAKOTA_DIST[next(k for k, v in _DAKOTA_DIST.items() if v[0] == dk)][1]
+        if dk == "histogram_bin_uncertain":
+            out.append("    pairs_per_variable = " + " ".join(str(len(d["abscissas"]))
+                                                            for _, d in items))
+            for key in ("abscissas", "counts"):
+                flat = []
+                for _, d in items:
+                    v = list(d[key])
+                    flat += v + ([0.0] if key == "counts" and len(v) < len(d["abscissas"])
+                                 else [])
+                out.append(f"    {key} = " + " ".join(_fmt(x) for x in flat))
+        else:
+            for a, b in fields:
+                vals = [d.get(b, math.inf if a == "upper_bounds" else
+                              0.0 if a == "lower_bounds" else math.nan) for _, d in items]
+                if a in ("lower_bounds", "upper_bounds") and all(
+                        math.isinf(x) or (a == "lower_bounds" and dk.startswith("lognormal")
+                                          and x == 0.0) for x in vals):
+                    continue
+                if not all(math.isinf(x) for x in vals):
+                    out.append(f"    {a} = " + " ".join(_fmt(x) for x in vals))
         out.append("    descriptors = " + " ".join(f"'{n}'" for n, _ in items))
+    if correlation is not None:
+        aleatory = [n for n in order]
+        matrix = correlation.matrix_for(tuple(aleatory))
+        if matrix is not None:
+            out.append("  uncertain_correlation_matrix =")
+            out += ["    " + " ".join(_fmt(x) for x in row) for row in matrix]
     return out
 
 
@@ -1960,14 +2060,7 @@ model
 variables
   id_variables = 'INNER_V'
 {chr(10).join(_uncertain_lines(names, specs) + _state_lines(study, fixed))}
-interface
-  id_interface = 'MODEL'
-  fork
-    analysis_drivers = '{_driver_line(study, fixed, responses, names)}'
-    parameters_file = 'params.in'
-    results_file = 'results.out'
-    file_tag
-responses
+{_interface_text(study, fixed, responses, names, specs, None, "MODEL")}responses
   id_responses = 'INNER_R'
   response_functions = {len(responses)}
     descriptors = {' '.join(f"'{r}'" for r in responses)}
@@ -1977,7 +2070,10 @@ responses
 
 
 def _describe(spec: Any) -> dict:
-    return {"kind": spec.kind, **{k: float(v) for k, v in spec.params.items()}}
+    out: dict[str, Any] = {"kind": spec.kind, "_dist": spec.distribution}
+    for k, v in spec.params.items():
+        out[k] = [float(x) for x in v] if isinstance(v, tuple | list) else float(v)
+    return out
 
 
 def _mean(spec: Any) -> float:

@@ -375,6 +375,11 @@ def test_reproduce_quick(tmp_path, capsys):
         assert f"Table {number}:" in page
     data = json.loads((tmp_path / "report" / "claims.json").read_text())
     assert_claims_truthful(data)
+    # the same claims, numbers and verdicts as before the reference study became an
+    # application (rotoruq.reference, issue 33)
+    from test_reference_app import assert_same_claims
+
+    assert_same_claims(data)
     keys = {c["key"] for c in data}
     for where in ("4R", "2R", "1R"):  # the 4R and IGE claims under both propagations
         assert {f"gvpm_within_1std_{where}_independent", f"gvpm_within_1std_{where}_joint"} \

@@ -163,7 +163,7 @@ def test_an_application_adds_to_the_report_through_the_hook(tmp_path):
 
 @pytest.mark.parametrize("head, expected", [
     ('name = "validation"\nreference = "nope"', 'one of: "thesis"'),
-    ('name = "mine"\nreference = "thesis"', "not on a study named 'mine'"),
+    ('name = "mine"\nreference = "thesis"', "a study named 'mine'"),
     ('name = "experiment"\nreference = "thesis"', 'only with preset = "gvpm"'),
     ('name = "validation"\nreference = 3', "a string"),
 ])

@@ -36,15 +36,15 @@ def is_reference(info: Mapping[str, Any]) -> bool:
     return name in STUDIES and (preset is None or STUDIES[name] == preset)
 
 
-def declaration_error(name: str, preset: str | None) -> str | None:
+def declaration_error(name: str, preset: str | None) -> tuple[str, str] | None:
     """What is wrong with a study file declaring ``reference = "thesis"`` with this study name
-    and model preset (None: nothing)."""
+    and model preset, as (expected, found); None: nothing."""
     if name not in STUDIES:
         return (f"reference = \"{NAME}\" only on the reference's studies ("
                 + ", ".join(f"{n} on the {p} preset" for n, p in STUDIES.items())
-                + f"), not on a study named {name!r}; leave reference out for a study of "
-                "your own")
+                + "); leave reference out for a study of your own",
+                f"a study named {name!r}")
     if preset != STUDIES[name]:
         return (f"reference = \"{NAME}\" on study {name!r} only with preset = "
-                f"\"{STUDIES[name]}\" (found {preset or 'an external model'})")
+                f"\"{STUDIES[name]}\"", f"preset = {preset!r}" if preset else "an external model")
     return None

@@ -242,7 +242,7 @@ def _parse_reference(ck: Checker, t: dict, name: str, model: object) -> str | No
     preset = model.get("preset") if isinstance(model, dict) else None
     wrong = declaration_error(name, preset if isinstance(preset, str) else None)
     if wrong:
-        ck.fail(("study", "reference"), wrong, f"reference = {ref!r}")
+        ck.fail(("study", "reference"), *wrong)
     return ref
 
 

@@ -30,6 +30,7 @@ from ..params import Normal, ParameterSpace
 from ..render.figures import (
     Figure,
     FigureContext,
+    beside_truth,
     chain_traces,
     pair_plot,
     prior_posterior,
@@ -197,7 +198,7 @@ def noise_model_text(noise_std: Mapping[str, float] | None, multipliers, prior,
     if emulator:
         text += ("; the emulator's Kriging variance added to the noise variance"
                  if emulator_variance else
-                 "; the emulator's mean only (its error ignored, as in the reference thesis)")
+                 "; the emulator's mean only (its error ignored)")
     return text
 
 
@@ -440,14 +441,17 @@ def bayes_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
 
 
 def bayes_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:
-    """Prior/posterior densities, chain traces and a pair plot of a Bayes step's chain; in the
-    reference validation study, the ``truth`` sampling step's distributions are drawn too."""
+    """Prior/posterior densities, chain traces and a pair plot of a Bayes step's chain. When the
+    report's application names the sampling step whose input distributions generated the
+    (synthetic) data of this calibration (``ctx.beside["truth"]``, e.g. the reference study's
+    ``truth`` step), those data-generating densities are drawn beside the posterior."""
     if "chain" not in res.arrays:
         return []
     truth = None
-    if ctx.reference and ctx.study == "validation" and "truth" in ctx.steps:
+    source = beside_truth(ctx, res.name)
+    if source is not None and source in ctx.steps:
         truth = {p: dict_to_dist(d) for p, d in
-                 ctx.steps["truth"].meta.get("input_distributions", {}).items()}
+                 ctx.steps[source].meta.get("input_distributions", {}).items()}
     figs = prior_posterior(res, ctx.labels, ctx.units, truth or None)
     figs += chain_traces(res, ctx.labels, ctx.units)
     if len(res.columns("chain")) > 1:
@@ -511,7 +515,7 @@ def bayes_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
         w.append(f"{name}: no noise model given: unit data variance for every response")
     if "emulator's mean only" in str(res.meta.get("noise_model", "")):
         w.append(f"{name}: the emulator's own error is not in the likelihood "
-                 "(emulator_variance = false, as the reference thesis)")
+                 "(emulator_variance = false)")
     if res.meta.get("reuse_data"):
         w.append(f"{name}: calibrates data an earlier step calibrated too (reuse_data = "
                  "true): the data count twice and the posterior is too narrow")

@@ -10,14 +10,12 @@ import time
 from pathlib import Path
 
 from ..errors import InputFileError
+from ..reference.studies import CHAPTERS
 
 HELP = ("reproduce the reference study (thesis chapters 3 and 4, and a held-out validation of "
         "the ground effect) and write the report")
 
-#: The chapters ``rotoruq reproduce`` runs: the thesis's chapters 3 and 4, then the held-out
-#: validation of the GVPM ground effect with a model discrepancy (beyond the thesis).
-CHAPTERS = {"validation": "validation.toml", "experiment": "experiment.toml",
-            "heldout": "heldout.toml"}
+__all__ = ["CHAPTERS", "reproduce", "studies_dir"]
 
 
 def studies_dir() -> Path:
@@ -55,8 +53,8 @@ def reproduce(which: str = "all", out: str | Path = "rotoruq-results",
 
 
 def _reproduce(which: str, out: Path, quick: bool) -> dict:
-    from ..report.html import write_report
     from ..results import is_study_dir
+    from .cmd_report import write
     from .runner import run_study
 
     names = list(CHAPTERS) if which == "all" else [which]
@@ -66,8 +64,7 @@ def _reproduce(which: str, out: Path, quick: bool) -> dict:
         runs[name] = run_study(studies_dir() / CHAPTERS[name], out=out / name, quick=quick)
         seconds[name] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    index = write_report([out / n for n in CHAPTERS if is_study_dir(out / n)],
-                         out / "report")
+    index = write([out / n for n in CHAPTERS if is_study_dir(out / n)], out / "report")
     seconds["report"] = time.perf_counter() - t0
     return {"report": str(index), "seconds": seconds, "runs": runs}
 

@@ -49,9 +49,9 @@ def run(args: argparse.Namespace) -> int:
         say = (lambda line: None) if getattr(args, "quiet", False) else print
         say(f"results: {result.out}")
         if not args.no_report:
-            from ..report.html import write_report
+            from .cmd_report import write
 
-            index = write_report([result.out], Path(result.out) / "report")
+            index = write([result.out], Path(result.out) / "report")
             say(f"report: {index}")
     say(summary(result))
     return 0

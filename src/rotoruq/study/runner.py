@@ -733,6 +733,7 @@ def _write_study_json(study: Study, out: Path, quick: bool) -> None:
     doc = {
         "name": study.info.name,
         "description": study.info.description,
+        "reference": study.info.reference,
         "seed": study.info.seed,
         "quick": quick,
         "study_file": str(study.path.resolve()) if study.path.is_file() else None,

@@ -92,7 +92,7 @@ __all__ = ["load_study", "parse_study", "ModelInputs"]
 TOP_KEYS = ("study", "model", "models", "parameters", "correlation", "data", "executor", "store",
             "steps")
 CORRELATION_KEYS = ("parameters", "matrix")
-STUDY_KEYS = ("name", "seed", "output", "description")
+STUDY_KEYS = ("name", "seed", "output", "description", "reference")
 EXTERNAL_KEYS = ("command", "files", "templates", "parameters_format", "timeout", "failure",
                  "retries", "recover", "workdir", "gradients")
 MODEL_KEYS = ("preset", "preset_options", "discretization", "responses", "fixed",
@@ -237,10 +237,31 @@ def _parse_info(ck: Checker, doc: dict, base: Path, path: Path) -> StudyInfo:
     seed = ck.value(t, "seed", (integer(), 1), ("study",), "[study]")
     out = ck.value(t, "output", (string(), f"rotoruq-results/{name}"), ("study",), "[study]")
     desc = ck.value(t, "description", (string(), ""), ("study",), "[study]")
+    ref = _parse_reference(ck, t, name, doc.get("model"))
     out_path = Path(out)
     if not out_path.is_absolute():
         out_path = base / out_path
-    return StudyInfo(name, seed, out_path, desc)
+    return StudyInfo(name, seed, out_path, desc, ref)
+
+
+def _parse_reference(ck: Checker, t: dict, name: str, model: object) -> str | None:
+    """``[study] reference``: the study is one of a reference's (:mod:`rotoruq.reference`)
+    only when it says so; its name and preset must then be one of the reference's studies."""
+    from ..reference import NAMES
+    from ..reference.studies import declaration_error
+
+    if "reference" not in t:
+        return None
+    ref = ck.value(t, "reference", (string(), None), ("study",), "[study]")
+    if ref not in NAMES:
+        ck.fail(("study", "reference"), "reference = one of: " + ", ".join(
+            f'"{n}"' for n in NAMES) + " (or no reference key: a study of your own)",
+                repr(ref))
+    preset = model.get("preset") if isinstance(model, dict) else None
+    wrong = declaration_error(name, preset if isinstance(preset, str) else None)
+    if wrong:
+        ck.fail(("study", "reference"), *wrong)
+    return ref
 
 
 def _parse_model(ck: Checker, doc: dict) -> ModelSpec:

@@ -19,12 +19,14 @@ __all__ = ["Study", "StudyInfo", "ModelSpec", "ExternalSpec", "ParameterSpec", "
 
 @dataclass(frozen=True)
 class StudyInfo:
-    """``[study]``: name, seed (int), output directory (absolute), free-text description."""
+    """``[study]``: name, seed (int), output directory (absolute), free-text description, and
+    the reference it belongs to (``reference = "thesis"``; None: a study of the user's own)."""
 
     name: str
     seed: int
     output: Path
     description: str = ""
+    reference: str | None = None
 
 
 @dataclass(frozen=True)

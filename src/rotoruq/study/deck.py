@@ -884,7 +884,8 @@ _SAMPLING = ("sample_type", "lhs", "random", "low_discrepancy", "rank_1_lattice"
 _RELIABILITY = ("mpp_search", "x_taylor_mean", "u_taylor_mean", "x_taylor_mpp",
                 "u_taylor_mpp", "x_two_point", "u_two_point", "no_approx", "integration",
                 "first_order", "second_order", *_LEVEL_KEYS)
-_PCE = ("quadrature_order", "dimension_preference", "expansion_order", "collocation_points",
+_PCE = ("quadrature_order", "dimension_preference", "expansion_order", "expansion_samples",
+        "collocation_points",
         "collocation_ratio", "seed", "fixed_seed", "variance_based_decomp", "askey",
         "least_squares", "svd", "samples_on_emulator", "samples", "sample_type", "lhs",
         "random", "normalized", "nested", "non_nested", *_LEVEL_KEYS)
@@ -985,10 +986,9 @@ def _method_entry(c: _Cursor, e: DeckEntry, kind: str, opts: dict, levels: dict,
     elif k in ("convergence_tolerance", "collocation_ratio"):
         opts[k] = _num(c, e, 1)[0]
     elif k == "dimension_preference":
-        pref = _num(c, e, None)
-        if len(set(pref)) > 1:
-            c.fail(e, "equal dimension_preference values (an anisotropic quadrature is not "
-                   "translated)")
+        opts["dimension_preference"] = (_num(c, e, None), e.line)
+    elif k == "expansion_samples":
+        opts["expansion_samples"] = _num(c, e, 1, "integer")[0]
     elif k in _LEVELS:
         levels[k] = e
     elif k.startswith("num_") and k[4:] in _LEVELS:
@@ -1065,6 +1065,10 @@ def _step(m: _Method, design_params: list[str]) -> dict:
         step = {"name": "pce", "type": "pce"}
         if "quadrature_order" in o:
             step.update(order=max(o["quadrature_order"] - 1, 1), estimator="quadrature")
+        elif "expansion_order" in o and "expansion_samples" in o:
+            # coefficients by sampling projection (Dakota's expectation approach)
+            step.update(order=o["expansion_order"], estimator="sampling",
+                        n_samples=o["expansion_samples"])
         elif "expansion_order" in o:
             step.update(order=o["expansion_order"], estimator="regression")
             if "collocation_points" in o:
@@ -1074,9 +1078,13 @@ def _step(m: _Method, design_params: list[str]) -> dict:
         else:
             raise InputFileError(m.path, m.block.line,
                                  "quadrature_order or expansion_order for polynomial_chaos")
-        if "samples_on_emulator" in o:
-            step["expansion_samples"] = o["samples_on_emulator"]
-        step.update(_level_options(o))
+        levels = _level_options(o)
+        numerical = [k for k in ("response_levels", "probability_levels",
+                                 "gen_reliability_levels") if levels.get(k) and (
+            k != "response_levels" or levels.get("compute") != "reliabilities")]
+        if "samples_on_emulator" in o and numerical:  # Dakota draws them for these only
+            step["samples_on_expansion"] = o["samples_on_emulator"]
+        step.update(levels)
         return step
     if m.kind == "global_evidence":
         step = {"name": "evidence", "type": "evidence"}
@@ -1386,6 +1394,18 @@ def _single_study(deck: Deck, name: str | None, resp: _Responses, method: _Metho
         v = next(v for v in params if v.group == "continuous_interval_uncertain")
         tx.problem(v.line, "interval (epistemic) variables only with global_evidence",
                    "continuous_interval_uncertain")
+    if "dimension_preference" in method.opts and step["type"] == "pce":
+        pref, line = method.opts["dimension_preference"]
+        ordered = _dakota_order(params)
+        if len(pref) != len(ordered):
+            tx.problem(line, f"{len(ordered)} dimension_preference values (one per uncertain "
+                       "variable)", f"{len(pref)} values")
+        elif "quadrature_order" not in method.opts:
+            tx.problem(line, "dimension_preference with quadrature_order (an anisotropic "
+                       "expansion order is not translated)", "dimension_preference")
+        else:
+            step["dimension_preference"] = {v.name: float(x) for v, x in zip(ordered, pref,
+                                                                               strict=True)}
     if step["type"] == "bayes_calibration" and resp.noise_std:
         step["noise_std"] = {drv.mapping.get(r, r): s for r, s in resp.noise_std.items()}
     if resp.gradients == "analytic" and drv.command is not None \
@@ -1772,6 +1792,15 @@ def _deck_for(study: Any, st: Any, o: dict, data_dir: Any) -> str:
     responses = list(st.responses or study.model.responses)
     seed = study.info.seed
     method, resp_extra = _method_text(st, o, responses, names, seed)
+    if st.type == "pce" and o.get("dimension_preference"):
+        groups = list(_GROUPS)
+        kind = {n: _DAKOTA_DIST[_describe(s)["kind"]][0] for n, s in zip(names, specs,
+                                                                        strict=True)}
+        ordered = sorted(names, key=lambda n: groups.index(kind[n]))
+        pref = o["dimension_preference"]
+        method = method.replace("    variance_based_decomp", "    dimension_preference = "
+                                + " ".join(_fmt(pref.get(n, 1.0)) for n in ordered)
+                                + "\n    variance_based_decomp", 1)
     if st.type == "least_squares":
         bounds = [_bounds(spec) for spec in specs]
         var_lines = [f"  continuous_design = {len(names)}",
@@ -2158,6 +2187,12 @@ def _method_text(st: Any, o: dict, responses: list[str], names: list[str],
             return (f"  polynomial_chaos\n    quadrature_order = {order + 1}\n"
                     "    variance_based_decomp" + _pce_samples_text(o, seed)
                     + _mappings_text(o, responses), "")
+        if est == "sampling":
+            n = o.get("n_samples") or _default(t, "n_samples")
+            return (f"  polynomial_chaos\n    expansion_order = {order}\n"
+                    f"    expansion_samples = {n}\n    seed = {seed}\n"
+                    "    variance_based_decomp" + _pce_samples_text(o, None)
+                    + _mappings_text(o, responses), "")
         if est == "regression":
             n = o.get("n_samples") or _default(t, "n_samples")
             return (f"  polynomial_chaos\n    expansion_order = {order}\n"
@@ -2199,7 +2234,7 @@ def _method_text(st: Any, o: dict, responses: list[str], names: list[str],
 
 
 def _pce_samples_text(o: dict, seed: int | None) -> str:
-    n = o.get("expansion_samples")
+    n = o.get("samples_on_expansion")
     if not n:
         return ""
     return f"\n    samples_on_emulator = {n}" + (f"\n    seed = {seed}" if seed is not None

@@ -79,7 +79,7 @@ def tensor_indices(d: int, p: int | Sequence[int]) -> np.ndarray:
     >>> tensor_indices(2, (2, 0)).tolist()
     [[0, 0], [1, 0], [2, 0]]
     """
-    degrees = [int(p)] * d if np.ndim(p) == 0 else [int(v) for v in p]  # type: ignore[arg-type]
+    degrees = [int(p)] * d if isinstance(p, int | np.integer) else [int(v) for v in p]
     out = list(itertools.product(*[range(k + 1) for k in degrees]))
     out.sort(key=lambda a: (sum(a), tuple(-v for v in a)))
     return np.array(out, dtype=int).reshape(-1, d)

@@ -1794,9 +1794,9 @@ def _deck_for(study: Any, st: Any, o: dict, data_dir: Any) -> str:
     method, resp_extra = _method_text(st, o, responses, names, seed)
     if st.type == "pce" and o.get("dimension_preference"):
         groups = list(_GROUPS)
-        kind = {n: _DAKOTA_DIST[_describe(s)["kind"]][0] for n, s in zip(names, specs,
-                                                                        strict=True)}
-        ordered = sorted(names, key=lambda n: groups.index(kind[n]))
+        kinds = {n: _DAKOTA_DIST[_describe(s)["kind"]][0] for n, s in zip(names, specs,
+                                                                         strict=True)}
+        ordered = sorted(names, key=lambda n: groups.index(kinds[n]))
         pref = o["dimension_preference"]
         method = method.replace("    variance_based_decomp", "    dimension_preference = "
                                 + " ".join(_fmt(pref.get(n, 1.0)) for n in ordered)

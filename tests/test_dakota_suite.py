@@ -240,6 +240,32 @@ def test_every_imported_deck_exports_decks_dakota_check_accepts(tmp_path):
 
 
 @needs_dakota
+@pytest.mark.parametrize("deck", PCE_DECKS)
+def test_a_pce_deck_round_trips_with_the_same_numbers(deck, tmp_path):
+    """Import, run, export, run the exported deck in Dakota: the same moments."""
+    steps, original = _run(deck, tmp_path)
+    work = tmp_path / "suite"
+    proc = subprocess.run([sys.executable, "-m", "rotoruq.study.cli", "dakota", "export",
+                           "study.toml", "-o", "exported.in"], cwd=work, capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    out = subprocess.run([DAKOTA, "-i", "exported.in"], cwd=work, capture_output=True,  # type: ignore
+                         text=True, timeout=600)
+    assert out.returncode == 0, out.stdout[-2000:] + out.stderr[-2000:]
+
+    def moments(text: str) -> list[float]:
+        return [float(v) for ln in text.splitlines() if ln.strip().startswith("expansion:")
+                for v in ln.split()[1:3]]
+
+    assert moments(out.stdout) == pytest.approx(moments(original), rel=1e-10)
+    res = load_step(steps / "pce")
+    mine = [v for r in sorted({k.split("/", 1)[1] for k in res.scalars
+                               if k.startswith("mean/")}, key=lambda r: out.stdout.find(r))
+            for v in (res.get(f"mean/{r}"), res.get(f"std/{r}"))]
+    assert mine == pytest.approx(moments(out.stdout)[:len(mine)], rel=1e-10)
+
+
+@needs_dakota
 @pytest.mark.parametrize("deck", MV_DECKS)
 def test_a_mean_value_deck_round_trips_with_the_same_numbers(deck, tmp_path):
     """Import, run in rotoruq, export, run the exported deck in Dakota: Dakota's numbers on

@@ -168,6 +168,18 @@ def _run(deck: str, tmp_path: Path) -> tuple[Path, str]:
     return work / "out" / "steps", out.stdout
 
 
+def _export_and_run(work: Path) -> subprocess.CompletedProcess:
+    """``rotoruq dakota export`` of the imported study, and Dakota on the exported deck."""
+    proc = subprocess.run([sys.executable, "-m", "rotoruq.study.cli", "dakota", "export",
+                           "study.toml", "-o", "exported.in"], cwd=work, capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    out = subprocess.run([DAKOTA, "-i", "exported.in"], cwd=work, capture_output=True,  # type: ignore
+                         text=True, timeout=600)
+    assert out.returncode == 0, out.stdout[-2000:] + out.stderr[-2000:]
+    return out
+
+
 def _numbers(pattern: str, text: str) -> list[float]:
     return [float(v) for v in re.findall(pattern, text)]
 
@@ -244,14 +256,7 @@ def test_every_imported_deck_exports_decks_dakota_check_accepts(tmp_path):
 def test_a_pce_deck_round_trips_with_the_same_numbers(deck, tmp_path):
     """Import, run, export, run the exported deck in Dakota: the same moments."""
     steps, original = _run(deck, tmp_path)
-    work = tmp_path / "suite"
-    proc = subprocess.run([sys.executable, "-m", "rotoruq.study.cli", "dakota", "export",
-                           "study.toml", "-o", "exported.in"], cwd=work, capture_output=True,
-                          text=True, timeout=300)
-    assert proc.returncode == 0, proc.stderr
-    out = subprocess.run([DAKOTA, "-i", "exported.in"], cwd=work, capture_output=True,  # type: ignore
-                         text=True, timeout=600)
-    assert out.returncode == 0, out.stdout[-2000:] + out.stderr[-2000:]
+    out = _export_and_run(tmp_path / "suite")
 
     def moments(text: str) -> list[float]:
         return [float(v) for ln in text.splitlines() if ln.strip().startswith("expansion:")
@@ -271,14 +276,7 @@ def test_a_mean_value_deck_round_trips_with_the_same_numbers(deck, tmp_path):
     """Import, run in rotoruq, export, run the exported deck in Dakota: Dakota's numbers on
     its own deck and on the exported one agree with rotoruq's."""
     steps, original = _run(deck, tmp_path)
-    work = tmp_path / "suite"
-    proc = subprocess.run([sys.executable, "-m", "rotoruq.study.cli", "dakota", "export",
-                           "study.toml", "-o", "exported.in"], cwd=work, capture_output=True,
-                          text=True, timeout=300)
-    assert proc.returncode == 0, proc.stderr
-    out = subprocess.run([DAKOTA, "-i", "exported.in"], cwd=work, capture_output=True,  # type: ignore
-                         text=True, timeout=600)
-    assert out.returncode == 0, out.stdout[-2000:] + out.stderr[-2000:]
+    out = _export_and_run(tmp_path / "suite")
     pattern = r"Approximate (?:Mean Response|Standard Deviation of Response)\s*=\s*(\S+)"
     ours = _numbers(pattern, out.stdout)
     theirs = _numbers(pattern, original)

@@ -2187,19 +2187,17 @@ def _method_text(st: Any, o: dict, responses: list[str], names: list[str],
             return (f"  polynomial_chaos\n    quadrature_order = {order + 1}\n"
                     "    variance_based_decomp" + _pce_samples_text(o, seed)
                     + _mappings_text(o, responses), "")
-        if est == "sampling":
-            n = o.get("n_samples") or _default(t, "n_samples")
+        if est in ("sampling", "regression"):
+            # the method's default: twice the terms of the total-order basis
+            n = (o.get("n_samples") or _default(t, "n_samples")
+                 or 2 * math.comb(order + len(names), len(names)))
+            key = "expansion_samples" if est == "sampling" else "collocation_points"
             return (f"  polynomial_chaos\n    expansion_order = {order}\n"
-                    f"    expansion_samples = {n}\n    seed = {seed}\n"
+                    f"    {key} = {n}\n    seed = {seed}\n"
                     "    variance_based_decomp" + _pce_samples_text(o, None)
                     + _mappings_text(o, responses), "")
-        if est == "regression":
-            n = o.get("n_samples") or _default(t, "n_samples")
-            return (f"  polynomial_chaos\n    expansion_order = {order}\n"
-                    f"    collocation_points = {n}\n    seed = {seed}\n"
-                    "    variance_based_decomp" + _pce_samples_text(o, None)
-                    + _mappings_text(o, responses), "")
-        raise InputFileError(None, None, "a pce step by quadrature or regression", est)
+        raise InputFileError(None, None, "a pce step by quadrature, regression or sampling",
+                             est)
     if t == "evidence":
         n = o.get("n_samples") or _default(t, "n_samples")
         opt = o.get("optimizer") or _default(t, "optimizer")

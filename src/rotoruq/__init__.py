@@ -97,6 +97,9 @@ _PUBLIC: dict[str, str] = {
     "BayesResult": ".methods.mcmc",
     "calibrate_bayes": ".methods.mcmc",
     "continue_chain": ".methods.mcmc",
+    "ChainOptions": ".methods.mcmc",
+    "EmulatorOptions": ".methods.mcmc",
+    "NoiseModel": ".methods.mcmc",
     "SBCResult": ".methods.mcmc.sbc",
     "simulation_based_calibration": ".methods.mcmc.sbc",
     "Discrepancy": ".methods.mcmc.discrepancy",
@@ -193,6 +196,9 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     from .methods.least_squares import calibrate as calibrate
     from .methods.least_squares import least_squares as least_squares
     from .methods.mcmc import BayesResult as BayesResult
+    from .methods.mcmc import ChainOptions as ChainOptions
+    from .methods.mcmc import EmulatorOptions as EmulatorOptions
+    from .methods.mcmc import NoiseModel as NoiseModel
     from .methods.mcmc import calibrate_bayes as calibrate_bayes
     from .methods.mcmc import continue_chain as continue_chain
     from .methods.mcmc.discrepancy import Discrepancy as Discrepancy

@@ -62,8 +62,8 @@ def _calibrate(emulator, data=None, **kw):
     opts.update(kw)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # emulator error over the posterior
-        return rq.calibrate_bayes(HF, _data() if data is None else data, PRIOR,
-                                  emulator=emulator, **opts)
+        return rq.calibrate_bayes(HF, _data() if data is None else data, PRIOR, emulator=emulator,
+                                  **opts)
 
 
 @pytest.fixture(scope="module")
@@ -240,11 +240,9 @@ def test_bad_input_is_a_clear_error():
         rq.calibrate_bayes(HF, data, PRIOR, emulator=rq.CoKriging(low_fidelity=other_in), **kw)
     other_out = rq.FunctionModel(lambda x: x[:, :1], ["t"], ["thrust"])
     with pytest.raises(ParameterError, match=r"no responses \['y'\]"):
-        rq.calibrate_bayes(HF, data, PRIOR, emulator=rq.CoKriging(low_fidelity=other_out),
-                           **kw)
+        rq.calibrate_bayes(HF, data, PRIOR, emulator=rq.CoKriging(low_fidelity=other_out), **kw)
     with pytest.raises(ParameterError, match="smaller than the high-fidelity design"):
-        rq.calibrate_bayes(HF, data, PRIOR, emulator=rq.CoKriging(low_fidelity=LF, n_low=5),
-                           **kw)
+        rq.calibrate_bayes(HF, data, PRIOR, emulator=rq.CoKriging(low_fidelity=LF, n_low=5), **kw)
     with pytest.raises(ParameterError, match="give low_fidelity= too"):
         rq.CoKriging(n_low=10)
     with pytest.raises(ParameterError, match="non-increasing"):
@@ -255,7 +253,9 @@ def test_bad_input_is_a_clear_error():
     fitted = rq.CoKriging(seed=0).fit([t_lf[:, None], t_hf[:, None]],
                                       [lf_response(t_lf), hf_response(t_hf)])
     with pytest.raises(ParameterError, match="refine= with a CoKriging"):
-        rq.calibrate_bayes(HF, data, PRIOR, emulator=fitted, refine=RefineConfig(), **kw)
+        rq.calibrate_bayes(HF, data, PRIOR,
+                           emulator=rq.EmulatorOptions(fitted, refine=RefineConfig()),
+                           **kw)
     with pytest.raises(ParameterError, match="GaussianProcess or CoKriging"):
         rq.calibrate_bayes(HF, data, PRIOR, emulator=HF, **kw)
 

@@ -74,7 +74,7 @@ def _sample(seed):
 
 def _bayes_emulated(seed):
     # the README's example: an unseeded GaussianProcess() handed to calibrate_bayes(seed=)
-    return _bayes(seed, emulator=rq.GaussianProcess(), n_emulator_samples=30)
+    return _bayes(seed, emulator=rq.EmulatorOptions(rq.GaussianProcess(), n_emulator_samples=30))
 
 
 def _sbc(seed):

@@ -164,7 +164,7 @@ def legacy_keywords(function: str, legacy: Mapping[str, Any],
     return out
 
 
-def with_fields(record: Any, cls: type, fields: Mapping[str, Any] | None, what: str) -> Any:
+def with_fields(record: Any, cls: type[Any], fields: Mapping[str, Any] | None, what: str) -> Any:
     """``record`` (an instance of ``cls`` or None: the defaults) with ``fields`` replaced;
     raises :class:`ParameterError` when ``record`` is something else."""
     if record is None:

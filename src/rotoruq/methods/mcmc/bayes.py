@@ -978,6 +978,9 @@ def calibrate_bayes(
     chains = with_fields(chains, ChainOptions, flat.get("chains"), "chains")
     if isinstance(emulator, GaussianProcess | CoKriging):
         emulator = EmulatorOptions(emulator)
+    elif emulator is not None and not isinstance(emulator, EmulatorOptions):
+        raise ParameterError(f"emulator must be a GaussianProcess or CoKriging (or their "
+                             f"EmulatorOptions), got {type(emulator).__name__}")
     if emulator is None:  # the emulator's options without an emulator change nothing
         emulator_opts = EmulatorOptions(None, **flat.get("emulator", {}))  # type: ignore[arg-type]
     else:

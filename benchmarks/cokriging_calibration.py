@@ -71,7 +71,9 @@ def _calibrate(model, data, prior, emulator, noise, **kw) -> tuple[rq.BayesResul
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # extrapolation / adequacy notes: measured below
-        res = rq.calibrate_bayes(model, data, prior, emulator=emulator, noise_std=noise, **kw)
+        res = rq.calibrate_bayes(model, data, prior, emulator=emulator,
+                                 noise=rq.NoiseModel(noise_std=noise),
+                                 **kw)
     return res, time.perf_counter() - t0
 
 

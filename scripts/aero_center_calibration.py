@@ -129,7 +129,7 @@ def _chains(quick: bool) -> dict:
 def _calibrate(model, data, space, noise, quick, seed):
     import rotoruq as rq
 
-    return rq.calibrate_bayes(model, data, space, noise_std=noise, seed=seed,
+    return rq.calibrate_bayes(model, data, space, noise=rq.NoiseModel(noise_std=noise), seed=seed,
                               **_chains(quick))
 
 

@@ -228,7 +228,7 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
     the reference study does (its table 4.15), for steps that ask for independent normals."""
     import warnings
 
-    from ..methods.mcmc import calibrate_bayes
+    from ..methods.mcmc import ChainOptions, EmulatorOptions, NoiseModel, calibrate_bayes
 
     if ctx.options.get("discrepancy") is not None:  # Kennedy-O'Hagan: steps/_discrepancy.py
         from ._discrepancy import run_discrepancy
@@ -251,12 +251,17 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         res = calibrate_bayes(
-            ctx.model(), ctx.observations(), ctx.space, sampler=o["sampler"], emulator=emulator,
-            n_emulator_samples=o["n_emulator_samples"], n_samples=o["n_samples"],
-            burn_in=o["burn_in"], n_chains=o["n_chains"], noise_std=sd,
-            emulator_variance=o["emulator_variance"], refine=_refine_config(o.get("refine")),
-            noise_multipliers=multipliers, noise_multiplier_prior=mult_prior,
-            self_check=o["self_check"], proposal_covariance=o["proposal"], seed=ctx.rng,
+            ctx.model(), ctx.observations(), ctx.space,
+            noise=NoiseModel(noise_std=sd, noise_multipliers=multipliers,
+                             noise_multiplier_prior=mult_prior),
+            chains=ChainOptions(sampler=o["sampler"], n_samples=o["n_samples"],
+                                burn_in=o["burn_in"], n_chains=o["n_chains"],
+                                proposal_covariance=o["proposal"]),
+            emulator=None if emulator is None else EmulatorOptions(
+                emulator, n_emulator_samples=o["n_emulator_samples"],
+                emulator_variance=o["emulator_variance"],
+                refine=_refine_config(o.get("refine"))),
+            self_check=o["self_check"], seed=ctx.rng,
         )
     names = tuple(res.names_in)
     d = len(names)
@@ -628,27 +633,32 @@ def _warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
                                           if is_discrepancy(res) else [])
 
 
+# the option records of calibrate_bayes whose fields give the SIGNATURE defaults
+_CHAINS = "rotoruq.methods.mcmc.options:ChainOptions"
+_EMULATOR = "rotoruq.methods.mcmc.options:EmulatorOptions"
+_NOISE = "rotoruq.methods.mcmc.options:NoiseModel"
+
 STEP = StepType(
     "bayes_calibration", run_bayes_calibration, check=_check,
     method="rotoruq.methods.mcmc:calibrate_bayes", provides=("posterior",), needs_data=True,
-    options={"sampler": Option(choice("dram", "mh", "dr", "am"), SIGNATURE),
-             "n_samples": Option(integer(10), SIGNATURE),
-             "burn_in": Option(integer(0), SIGNATURE),
+    options={"sampler": Option(choice("dram", "mh", "dr", "am"), SIGNATURE, method=_CHAINS),
+             "n_samples": Option(integer(10), SIGNATURE, method=_CHAINS),
+             "burn_in": Option(integer(0), SIGNATURE, method=_CHAINS),
              "n_chains": Option(integer(1), 4),
              "emulator": Option(choice("gp", "cokriging", "none"), "gp"),
              "models": Option(string_list, None),
              "n_low": Option(integer(3), None),
              "trend": Option(choice("constant", "linear", "reduced_quadratic", "quadratic"),
                              SIGNATURE, method="rotoruq.methods.surrogate:GaussianProcess"),
-             "n_emulator_samples": Option(integer(2), SIGNATURE),
-             "emulator_variance": Option(boolean, SIGNATURE),
+             "n_emulator_samples": Option(integer(2), SIGNATURE, method=_EMULATOR),
+             "emulator_variance": Option(boolean, SIGNATURE, method=_EMULATOR),
              "refine": Option(_refine, None),
              "noise_std": Option(number_or_table, None),
              "noise_multipliers": Option(_multipliers, None),
-             "noise_multiplier_prior": Option(_prior_pair, SIGNATURE),
+             "noise_multiplier_prior": Option(_prior_pair, SIGNATURE, method=_NOISE),
              "self_check": Option(integer(0), SIGNATURE),
              "reuse_data": Option(boolean, False),
-             "proposal": Option(choice("hessian", "prior"), SIGNATURE,
+             "proposal": Option(choice("hessian", "prior"), SIGNATURE, method=_CHAINS,
                                 param="proposal_covariance"),
              "discrepancy": Option(discrepancy_option, None),
              "configuration": Option(string(), None),

@@ -55,7 +55,7 @@ from .schema import load_study
 from .spec import ModelSpec, StepSpec, Study, function_variables
 
 __all__ = ["run_study", "StudyRun", "build_model", "build_model_factory", "step_options",
-           "model_record", "why_rerun", "IDENTITY_PARTS"]
+           "model_record", "why_rerun", "IDENTITY_PARTS", "step_code_parts"]
 
 log = logging.getLogger(__name__)
 
@@ -497,6 +497,20 @@ class _Planned:
     step_code: dict
 
 
+def step_code_parts(type_name: str) -> dict[str, str]:
+    """The code part of the fingerprint of a step of type ``type_name``: :func:`code_parts` of
+    its :attr:`~rotoruq.steps.base.StepType.code_modules` (its module, the modules it lists in
+    ``modules``, and what they import within rotoruq).
+
+    Examples
+    --------
+    >>> parts = step_code_parts("pce")
+    >>> "rotoruq/steps/pce.py" in parts, "rotoruq/methods/levels.py" in parts
+    (True, True)
+    """
+    return code_parts(step_type(type_name).code_modules)
+
+
 def _plan_step(study: Study, step: StepSpec, results: Mapping[str, StepResult], quick: bool,
                probe_factory: Callable, identities: dict) -> _Planned:
     options = step_options(step, quick)
@@ -515,7 +529,7 @@ def _plan_step(study: Study, step: StepSpec, results: Mapping[str, StepResult], 
         ids.append(identities[key][0] if name is None else f"{name}={identities[key][0]}")
         model_code.update(identities[key][1])
     model_id = " + ".join(ids)
-    step_code = code_parts([step_type(step.type).run.__module__])
+    step_code = step_code_parts(step.type)
     parts = _identity_parts(study, step, space, fixed, options, data, results, quick,
                             model_id, code_digest(step_code))
     return _Planned(step, options, space, fixed, responses, data, columns, parts,

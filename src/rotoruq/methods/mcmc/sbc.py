@@ -35,6 +35,13 @@ from ..surrogate import GaussianProcess
 from . import diagnostics as dg
 from ._emulator import fit_on_prior
 from .bayes import BayesResult, _is_fitted, calibrate_bayes, continue_chain
+from .options import (
+    LEGACY_KEYWORDS,
+    ChainOptions,
+    EmulatorOptions,
+    NoiseModel,
+    legacy_keywords,
+)
 
 __all__ = ["SBCResult", "simulation_based_calibration"]
 
@@ -222,7 +229,8 @@ def simulation_based_calibration(
     coverage_tolerance : a coverage fails when it is more than this many binomial standard
         errors from its nominal rate.
     seed : int, SeedSequence, Generator or None; the same seed gives bitwise the same result.
-    **options : further keyword arguments of :func:`calibrate_bayes` (default calibration).
+    **options : further options of :func:`calibrate_bayes` (default calibration), flat: the
+        fields of its option records by name (``sampler=``, ``emulator_variance=``, ...).
 
     Returns
     -------
@@ -320,6 +328,11 @@ def simulation_based_calibration(
     # while a burn-in of half the kept steps forgets the start at a fraction of that
     bayes_options = {"n_samples": int(n_samples), "burn_in": int(n_samples) // 2,
                      "map_start": False, **options}
+    # the flat options of calibrate_bayes into the fields of its option records
+    records = legacy_keywords("simulation_based_calibration", {
+        k: v for k, v in bayes_options.items() if k in LEGACY_KEYWORDS}, LEGACY_KEYWORDS,
+        warn=False)
+    rest = {k: v for k, v in bayes_options.items() if k not in LEGACY_KEYWORDS}
     takes_seed = calibrate is not None and _takes_seed(calibrate)
     ranks = np.empty((n_replications, d), dtype=int)
     z = np.empty((n_replications, d))
@@ -333,8 +346,12 @@ def simulation_based_calibration(
         eps = np.random.default_rng(s_noise).standard_normal((n_experiments, m))
         data = clean[i] + noise * eps
         if calibrate is None:
-            res = calibrate_bayes(model, data, prior, noise_std=noise, names_out=list(obs),
-                                  emulator=gp, seed=s_cal, **bayes_options)
+            res = calibrate_bayes(model, data, prior, names_out=list(obs),
+                                  noise=NoiseModel(noise_std=noise, **records.get("noise", {})),
+                                  chains=ChainOptions(**records.get("chains", {})),
+                                  emulator=None if gp is None else EmulatorOptions(
+                                      gp, **records.get("emulator", {})),
+                                  seed=s_cal, **rest)
             for k, s_k in enumerate(s_more.spawn(3)):
                 if dg.effective_sample_size(res.chains).min() >= n_draws:
                     break

@@ -92,7 +92,7 @@ __all__ = ["load_study", "parse_study", "ModelInputs"]
 TOP_KEYS = ("study", "model", "models", "parameters", "correlation", "data", "executor", "store",
             "steps")
 CORRELATION_KEYS = ("parameters", "matrix")
-STUDY_KEYS = ("name", "seed", "output", "description", "reference")
+STUDY_KEYS = ("name", "seed", "output", "description", "reference", "max_failed_share")
 EXTERNAL_KEYS = ("command", "files", "templates", "parameters_format", "timeout", "failure",
                  "retries", "recover", "workdir", "gradients")
 MODEL_KEYS = ("preset", "preset_options", "discretization", "responses", "fixed",
@@ -238,10 +238,14 @@ def _parse_info(ck: Checker, doc: dict, base: Path, path: Path) -> StudyInfo:
     out = ck.value(t, "output", (string(), f"rotoruq-results/{name}"), ("study",), "[study]")
     desc = ck.value(t, "description", (string(), ""), ("study",), "[study]")
     ref = _parse_reference(ck, t, name, doc.get("model"))
+    share = ck.value(t, "max_failed_share", (number(positive=True), 0.5), ("study",), "[study]")
+    if share > 1:
+        ck.fail(("study", "max_failed_share"), "a share of failed evaluations from 0 to 1 "
+                "(0.5: more than half of a step's evaluations failed is an error)", str(share))
     out_path = Path(out)
     if not out_path.is_absolute():
         out_path = base / out_path
-    return StudyInfo(name, seed, out_path, desc, ref)
+    return StudyInfo(name, seed, out_path, desc, ref, share)
 
 
 def _parse_reference(ck: Checker, t: dict, name: str, model: object) -> str | None:

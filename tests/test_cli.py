@@ -3,7 +3,8 @@ subprocess: the compile notice, library warnings as one line each, ``--quiet``, 
 quiet pipes, the run summary, ``evaluate``'s exit status and fixed inputs, and units in tables
 and figure axes; failures a user sees (exit code 3 with the first failure's message, ``--only``
 on a fresh folder, data files checked when the study is read, bundled study names, global
-flags after the subcommand, ``python -m rotoruq``, exported decks' names and driver line). (``reproduce`` prints the same summary: tests/test_report.py's slow
+flags after the subcommand, ``python -m rotoruq``, exported decks' names and driver line).
+(``reproduce`` prints the same summary: tests/test_report.py's slow
 ``test_reproduce_quick`` runs it.)"""
 
 from __future__ import annotations

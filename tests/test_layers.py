@@ -19,6 +19,7 @@ subpackage it reaches. A lower layer must never import a higher one:
                                     application: its claims, thesis tables, reference figures,
                                     studies; never rotor, methods, study)
     study                           everything
+    __main__                        + study (``python -m rotoruq``: the CLI's ``main``)
 
 No generic layer (render, steps, report, results, methods, ...) imports ``reference``: the
 report takes an application object from its caller (``report/application.py``), so a user's
@@ -65,6 +66,7 @@ ALLOWED: dict[str, set[str]] = {
     "reference": BOTTOM | UNITS | {"evaluation", "results", "render", "steps", "report"},
     "study": BOTTOM | UNITS | {"rotor", "methods", "evaluation", "mbdyn", "results", "render",
                                "steps", "report", "reference"},
+    "__main__": {"study"},
 }
 # The application on top of the toolkit: only the study layer (and the CLI in it) imports it.
 APPLICATIONS = {"reference"}
@@ -333,6 +335,12 @@ def test_import_rotoruq_loads_nothing_until_a_name_is_used():
     # a name loads its own module (and what that imports), nothing else
     units = {_unit(m) for m in _loaded_after("import rotoruq; rotoruq.ParameterSpace")}
     assert units == {"", "errors", "_rng", "params"}, units
+
+
+def test_python_m_rotoruq_is_as_light_as_the_console_script():
+    # ``python -m rotoruq driver ...`` reaches the driver client before any heavy import
+    assert _loaded_after("import rotoruq.__main__") == [
+        "rotoruq", "rotoruq.__main__", "rotoruq.study", "rotoruq.study.cli"]
 
 
 def test_every_public_name_resolves_lazily():

@@ -70,7 +70,7 @@ def _reproduce(which: str, out: Path, quick: bool) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .cmd_run import summary
+    from .cmd_run import EXIT_FAILED_EVALUATIONS, exit_status, summary
 
     result = reproduce(args.which, args.out, args.quick)
     if args.json:
@@ -81,4 +81,5 @@ def run(args: argparse.Namespace) -> int:
         print(f"report: {result['report']}")
         for res in result["runs"].values():
             print(summary(res))
-    return 0
+    codes = [exit_status(res, "reproduce") for res in result["runs"].values()]
+    return EXIT_FAILED_EVALUATIONS if any(codes) else 0

@@ -1699,10 +1699,30 @@ _LOGNORMAL_FORMS = ((("means", "mean"), ("std_deviations", "std")),
 
 
 def rotoruq_command() -> str:
-    """How a deck calls rotoruq: the console script next to this Python, else ``python -m``."""
+    """How a deck calls rotoruq: plain ``rotoruq`` when the ``rotoruq`` found on ``PATH`` is
+    this installation's console script (the deck then runs on another machine or venv with
+    rotoruq on its PATH), else the absolute path of this installation's script, else
+    ``<python> -m rotoruq``. ``rotoruq dakota export`` says in a comment which it wrote."""
+    import shutil
+
     script = Path(sys.executable).with_name("rotoruq")
+    found = shutil.which("rotoruq")
+    if found is not None and script.is_file():
+        try:
+            same = os.path.samefile(found, script)
+        except OSError:
+            same = False
+        if not same:  # another folder's script that starts this very Python
+            try:
+                with open(found, "rb") as fh:
+                    first = fh.readline(4096).decode("utf-8", "replace")
+                same = first.startswith("#!") and first[2:].strip() == sys.executable
+            except OSError:
+                same = False
+        if same:
+            return "rotoruq"
     return shlex.quote(str(script)) if script.is_file() else \
-        f"{shlex.quote(sys.executable)} -m rotoruq.study.cli"
+        f"{shlex.quote(sys.executable)} -m rotoruq"
 
 
 def _fmt(x: float) -> str:

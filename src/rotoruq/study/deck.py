@@ -261,7 +261,7 @@ OUTPUT_ONLY: dict[str, frozenset[str]] = {
         "deactivate", "active_set_vector", "evaluation_cache", "restart_file",
         "strict_cache_equality", "cache_tolerance", "peer", "master", "batch", "size",
         "input_filter", "output_filter")),
-    "responses": frozenset(("id_responses", "no_hessians", "method_source", "dakota",
+    "responses": frozenset(("id_responses", "method_source", "dakota",
                             "vendor", "interval_type", "forward", "central",
                             "fd_step_size", "absolute", "bounds", "relative")),
     "variables": frozenset(("id_variables",)),
@@ -288,8 +288,7 @@ _IGNORED_WHAT = {"evaluation_concurrency": "Dakota's scheduling",
                                   "forward", "central", "fd_step_size"),
                                  "Dakota's finite-difference settings (rotoruq takes the "
                                  "model's analytic gradient, else its own central "
-                                 "differences)"),
-                 "no_hessians": "Hessians (none is used)"}
+                                 "differences)")}
 
 
 class DeckProblems(InputFileError):
@@ -643,7 +642,8 @@ class _Responses:
 
 
 _RESP_KEYS = ("response_functions", "calibration_terms", "descriptors", "calibration_data_file",
-              "no_gradients", "numerical_gradients", "analytic_gradients", "weights",
+              "no_gradients", "numerical_gradients", "analytic_gradients", "no_hessians",
+              "weights",
               "scalar_responses", "scalar_calibration_terms")
 _DATA_KEYS = ("freeform", "annotated", "custom_annotated", "header", "eval_id", "interface_id",
               "num_experiments", "variance_type", "num_config_variables")
@@ -671,6 +671,8 @@ def _read_responses(deck: Deck, block: DeckBlock, tx: _Tx | None = None) -> _Res
             while (a := c.next_if(*_DATA_KEYS)) is not None:
                 opts.append(a)
             data = (e, _strs(c, e, 1)[0], opts)
+        elif e.keyword == "no_hessians":
+            continue  # as rotoruq: no Hessian is asked for
         elif e.keyword in ("no_gradients", "numerical_gradients", "analytic_gradients"):
             out.gradients = e.keyword.split("_")[0]
         elif e.keyword == "weights":

@@ -17,12 +17,19 @@ one by one, so that a stale result names what changed.
 :func:`stale` recomputes the digests: the modules whose code changed since the measurement,
 each with the files that changed. The docs show it under every number printed from the JSON
 (``docs/_ext/generated_blocks.py``, at build time) and ``tests/test_benchmark_provenance.py``
-lists it.
+lists it. A change reviewed as unable to move the numbers (a refactoring with bitwise identical
+results) is accepted explicitly, in the JSON, with its reason::
+
+    python benchmarks/_provenance.py --accept benchmarks/results/gp_fit.json --reason "..."
+
+which records the code's digests now and keeps the measurement's commit, with an
+``accepted`` entry (commit, date, reason, modules) that the diff shows to the reviewer.
 """
 
 from __future__ import annotations
 
 import datetime
+import os
 import subprocess
 import sys
 from collections.abc import Iterable
@@ -53,7 +60,7 @@ def _relative(path: Path) -> str:
 def provenance(script: str | Path | None = None, *, modules: Iterable[str] = ()) -> dict:
     """The ``provenance`` block of a benchmark's JSON, computed now (call it when the run
     starts or ends, before the code could change): the git commit, whether the source or the
-    script differed from it, and the digests of the rotoruq modules ``script`` (default: the
+    script differed from it, the load average (timings on a shared machine), and the digests of the rotoruq modules ``script`` (default: the
     running ``__main__``) imports, plus ``modules`` (code a script reaches otherwise, e.g.
     through a subprocess running the CLI)."""
     path = (ROOT / script).resolve() if script else _script()
@@ -62,7 +69,7 @@ def provenance(script: str | Path | None = None, *, modules: Iterable[str] = ())
     dirty = bool(_git("status", "--porcelain", "--", "src", rel))
     return {"commit": _git("rev-parse", "HEAD") or "unknown", "dirty": dirty,
             "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-            "script": rel,
+            "script": rel, "load": [round(v, 2) for v in os.getloadavg()],
             "modules": identity.module_digests(mods),
             "files": identity.code_parts(mods, every_layer=True)}
 
@@ -136,3 +143,52 @@ def reconstruct(json_path: str | Path, script: str | Path, *, modules: Iterable[
             identity._closure.cache_clear()
     return {"commit": commit, "dirty": False, "date": date, "script": script_rel,
             "reconstructed": True, "modules": digests, "files": files}
+
+
+def accept(json_path: str | Path, reason: str) -> dict[str, list[str]]:
+    """Accept, after review, the changes :func:`stale` reports for ``json_path``: its
+    provenance takes the code's digests now (the measurement's commit and date stay) and an
+    ``accepted`` entry with the commit, the date, ``reason`` and the modules. Returns what was
+    accepted (empty: nothing was stale)."""
+    import json
+    import re
+
+    path = ROOT / json_path
+    text = path.read_text(encoding="utf-8")
+    doc = json.loads(text)
+    prov = doc.get("provenance")
+    changed = stale(prov)
+    if not changed:
+        return {}
+    if "(no provenance)" in changed:
+        raise ValueError(f"{json_path} records no provenance: there is nothing to accept")
+    if not reason.strip():
+        raise ValueError("an acceptance needs its reason")
+    mods = list(prov["modules"])
+    prov["modules"] = identity.module_digests(mods)
+    prov["files"] = identity.code_parts(mods, every_layer=True)
+    prov.setdefault("accepted", []).append({
+        "commit": _git("rev-parse", "HEAD") or "unknown",
+        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "reason": reason, "modules": sorted(changed)})
+    m = re.match(r'\{\n( +)"', text)
+    path.write_text(json.dumps(doc, indent=len(m.group(1)) if m else 1) + "\n", encoding="utf-8")
+    return changed
+
+
+if __name__ == "__main__":
+    import argparse
+
+    ap = argparse.ArgumentParser(description="stale saved results; accept a reviewed change")
+    ap.add_argument("json", nargs="*", help="saved results (default: every one under "
+                    "benchmarks/results and scripts/results)")
+    ap.add_argument("--accept", action="store_true", help="accept the changes (needs --reason)")
+    ap.add_argument("--reason", default="")
+    args = ap.parse_args()
+    paths = args.json or sorted(_relative(p) for d in ("benchmarks", "scripts")
+                                for p in (ROOT / d / "results").glob("*.json"))
+    for j in paths:
+        if args.accept:
+            print(f"{j}: accepted changes to {', '.join(accept(j, args.reason)) or 'nothing'}")
+        elif note := stale_note(j):
+            print(note)

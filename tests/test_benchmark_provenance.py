@@ -117,3 +117,20 @@ def test_docs_build_puts_a_box_under_a_stale_block(tmp_path, monkeypatch):
     assert built.endswith(":::\n\nmore\n"), built
     # the page itself is never rewritten with the box: the block check compares page and JSON
     assert generated_blocks.BLOCK.search(built)["body"] == "numbers\n"
+
+
+def test_a_reviewed_change_is_accepted_in_the_json(tmp_path, monkeypatch):
+    result = _fresh(tmp_path)
+    doc = json.loads(result.read_text())
+    measured = doc["provenance"]["commit"]
+    doc["provenance"]["modules"]["rotoruq.methods.sampling"] = "0" * 16
+    result.write_text(json.dumps(doc, indent=1))
+    with pytest.raises(ValueError, match="reason"):
+        _provenance.accept(result, " ")
+    assert _provenance.accept(result, "a refactoring, bitwise identical") == {
+        "rotoruq.methods.sampling": ["(files it no longer imports)"]}
+    prov = json.loads(result.read_text())["provenance"]
+    assert prov["commit"] == measured and _provenance.stale(prov) == {}
+    assert prov["accepted"][0]["reason"] == "a refactoring, bitwise identical"
+    assert prov["accepted"][0]["modules"] == ["rotoruq.methods.sampling"]
+    assert _provenance.accept(result, "again") == {}

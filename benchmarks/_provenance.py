@@ -60,9 +60,9 @@ def _relative(path: Path) -> str:
 def provenance(script: str | Path | None = None, *, modules: Iterable[str] = ()) -> dict:
     """The ``provenance`` block of a benchmark's JSON, computed now (call it when the run
     starts or ends, before the code could change): the git commit, whether the source or the
-    script differed from it, the load average (timings on a shared machine), and the digests of the rotoruq modules ``script`` (default: the
-    running ``__main__``) imports, plus ``modules`` (code a script reaches otherwise, e.g.
-    through a subprocess running the CLI)."""
+    script differed from it, the load average (timings on a shared machine), and the digests
+    of the rotoruq modules ``script`` (default: the running ``__main__``) imports, plus
+    ``modules`` (code a script reaches otherwise, e.g. through a subprocess running the CLI)."""
     path = (ROOT / script).resolve() if script else _script()
     mods = set(identity.script_modules(path)) | set(modules)
     rel = _relative(path)

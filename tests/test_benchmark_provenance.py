@@ -26,7 +26,8 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 import _provenance  # noqa: E402
 import generated_blocks  # noqa: E402
 
-QUOTED = sorted({j for b in generated_blocks.blocks() for j in generated_blocks.results_of(b.command)})
+QUOTED = sorted({j for b in generated_blocks.blocks()
+                 for j in generated_blocks.results_of(b.command)})
 
 
 def _script_of(result: str) -> Path:

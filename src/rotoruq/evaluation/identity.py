@@ -190,7 +190,8 @@ def script_modules(path: str | Path) -> list[str]:
     --------
     >>> import tempfile, pathlib
     >>> p = pathlib.Path(tempfile.mkdtemp()) / "bench.py"
-    >>> _ = p.write_text("import rotoruq as rq\\nfrom rotoruq.methods.pce import polynomial_chaos\\n"
+    >>> _ = p.write_text("import rotoruq as rq\\n"
+    ...                  "from rotoruq.methods.pce import polynomial_chaos\\n"
     ...                  "rq.sample(None, None)\\n")
     >>> script_modules(p)
     ['rotoruq.methods.pce', 'rotoruq.methods.sampling']

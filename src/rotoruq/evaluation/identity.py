@@ -181,6 +181,21 @@ def code_digest(parts: Mapping[str, str]) -> str:
     return digest(dict(parts))[:16]
 
 
+def _lazy_names() -> dict[str, str]:
+    """The package root's table of lazily loaded public names (``_LAZY``: name -> module
+    relative to the package), read from its source like every import here, never imported."""
+    for node in ast.parse((_PACKAGE / "__init__.py").read_text(encoding="utf-8")).body:
+        if isinstance(node, ast.AnnAssign):
+            target, value = node.target, node.value
+        elif isinstance(node, ast.Assign):
+            target, value = node.targets[0], node.value
+        else:
+            continue
+        if isinstance(target, ast.Name) and target.id == "_LAZY" and value is not None:
+            return dict(ast.literal_eval(value))
+    return {}
+
+
 def script_modules(path: str | Path) -> list[str]:
     """The rotoruq modules a script outside the package imports: its import statements, and
     the public names it reads from the package root (``import rotoruq as rq; rq.sample``:
@@ -196,8 +211,7 @@ def script_modules(path: str | Path) -> list[str]:
     >>> script_modules(p)
     ['rotoruq.methods.pce', 'rotoruq.methods.sampling']
     """
-    from .. import _LAZY
-
+    lazy = _lazy_names()
     path = Path(path)
     tree = ast.parse(path.read_text(encoding="utf-8"))
     roots = {a.asname or a.name for node in ast.walk(tree) if isinstance(node, ast.Import)
@@ -209,8 +223,8 @@ def script_modules(path: str | Path) -> list[str]:
     out = set()
     for name in names:
         head, _, last = name.rpartition(".")
-        if head == "rotoruq" and last in _LAZY:
-            name = "rotoruq" + _LAZY[last]
+        if head == "rotoruq" and last in lazy:
+            name = "rotoruq" + lazy[last]
         if name != "rotoruq" and _module_file(name) is not None:
             out.add(name)
     return sorted(out)

@@ -185,6 +185,8 @@ def _lazy_names() -> dict[str, str]:
     """The package root's table of lazily loaded public names (``_LAZY``: name -> module
     relative to the package), read from its source like every import here, never imported."""
     for node in ast.parse((_PACKAGE / "__init__.py").read_text(encoding="utf-8")).body:
+        target: ast.expr
+        value: ast.expr | None
         if isinstance(node, ast.AnnAssign):
             target, value = node.target, node.value
         elif isinstance(node, ast.Assign):

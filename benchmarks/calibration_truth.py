@@ -34,6 +34,7 @@ import time
 import warnings
 
 import numpy as np
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
 
 import rotoruq as rq
@@ -194,6 +195,7 @@ def main():
            "sbc_seconds": time.perf_counter() - t0,
            "speed": _speed_or_why(args)}
     out["meets_targets"] = meets_targets(out)
+    out["provenance"] = provenance()
     text = json.dumps(out, indent=1)
     print(text)
     if args.out:

@@ -41,6 +41,7 @@ import time
 import warnings
 
 import numpy as np
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
 
 import rotoruq as rq
@@ -346,6 +347,7 @@ def main():
     out["meets_targets"] = bool(
         out["one_chain"]["ratio_ess_per_s"]["median"] >= 3.0
         and out["emulator"]["one_chain_s"]["median"] < 3.0)
+    out["provenance"] = provenance()
     text = json.dumps(out, indent=1)
     print(text)
     if args.out:

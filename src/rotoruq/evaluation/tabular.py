@@ -38,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputFileError, ParameterError
-from .dakota_files import check_label, read_text
+from .dakota_files import _is_number, check_label, read_text
 from .store import Store
 
 __all__ = ["TabularData", "read_tabular", "parse_tabular", "format_tabular", "write_tabular",
@@ -294,14 +294,6 @@ def _column_name(name) -> str:
     return name
 
 
-def _is_number(word: str) -> bool:
-    try:
-        float(word)
-    except ValueError:
-        return False
-    return True
-
-
 def read_tabular(path: str | os.PathLike, *, names: Sequence[str] | None = None
                  ) -> TabularData:
     """Read a Dakota tabular file (annotated, custom_annotated or freeform; detected).
@@ -384,6 +376,7 @@ def write_tabular(path: str | os.PathLike, names: Sequence[str], values: np.ndar
     Returns
     -------
     Path
+        ``path``, written through a temporary file beside it and renamed.
 
     Examples
     --------
@@ -435,6 +428,7 @@ def export_store(store: Store | str | os.PathLike, path: str | os.PathLike, *,
     Returns
     -------
     Path
+        ``path``, one row per exported evaluation (written by :func:`write_tabular`).
 
     Examples
     --------

@@ -182,8 +182,8 @@ def code_digest(parts: Mapping[str, str]) -> str:
 
 
 def _lazy_names() -> dict[str, str]:
-    """The package root's table of lazily loaded public names (``_LAZY``: name -> module
-    relative to the package), read from its source like every import here, never imported."""
+    """The package root's one list of public names (``_PUBLIC``: name -> module relative to
+    the package), read from its source like every import here, never imported."""
     for node in ast.parse((_PACKAGE / "__init__.py").read_text(encoding="utf-8")).body:
         target: ast.expr
         value: ast.expr | None
@@ -193,7 +193,7 @@ def _lazy_names() -> dict[str, str]:
             target, value = node.targets[0], node.value
         else:
             continue
-        if isinstance(target, ast.Name) and target.id == "_LAZY" and value is not None:
+        if isinstance(target, ast.Name) and target.id == "_PUBLIC" and value is not None:
             return dict(ast.literal_eval(value))
     return {}
 

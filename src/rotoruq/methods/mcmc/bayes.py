@@ -1125,3 +1125,61 @@ def continue_chain(result: BayesResult, n_samples: int, *, seed: SeedLike = None
     res = _split_multipliers(res, len(result.names_in))
     return dataclasses.replace(res, diagnostics=dg.diagnose(res.chains),
                                self_check=result.self_check)
+
+
+#: calibrate_bayes keywords a self-check replication may set and :class:`_CheckChains` runs
+CHECK_OPTIONS = frozenset({"sampler", "emulator_variance", "n_samples", "burn_in", "thin",
+                           "n_chains", "map_start", "proposal_covariance"})
+
+
+class _CheckChains:
+    """The chains of one self-check replication on a fitted emulator: the stages of
+    :func:`calibrate_bayes` up to its chains, without the summary (moments, KL divergence,
+    R-hat, the emulator's adequacy over the posterior) that the self-check never reads;
+    :meth:`extend` takes the steps of :func:`continue_chain`. ``chains`` (c, n, d), parameter
+    units, are bitwise those of ``calibrate_bayes(...).chains`` and of the continued results
+    for the same arguments and seeds; ``n_evaluations`` their true-model evaluations."""
+
+    def __init__(self, model: Model, data: np.ndarray, prior: ParameterSpace, gp: Emulator, *,
+                 noise_std: ArrayLike, names_out: Sequence[str], seed: SeedLike,
+                 sampler: str | SamplerConfig = "dram", emulator_variance: bool = True,
+                 n_samples: int = 95_000, burn_in: int | None = None, thin: int = 1,
+                 n_chains: int = 1, map_start: bool = True,
+                 proposal_covariance: str | ArrayLike = "hessian"):
+        seeds = _stage_seeds(seed)
+        cfg = _as_sampler(sampler)
+        n_samples, thin, n_chains = int(n_samples), int(thin), int(n_chains)
+        burn_in = n_samples // 19 if burn_in is None else int(burn_in)
+        if n_samples < 1 or thin < 1 or n_chains < 1 or burn_in < 0:
+            raise ParameterError(f"need n_samples >= 1, burn_in >= 0, thin >= 1 and "
+                                 f"n_chains >= 1; got {n_samples}, {burn_in}, {thin}, "
+                                 f"{n_chains}")
+        pb = _setup(model, data, prior, names_out, noise_std, None)
+        if gp.n_inputs != prior.dim or gp.n_outputs != len(pb.names_out):
+            raise ModelShapeError(f"fitted emulator has {gp.n_inputs} inputs and "
+                                  f"{gp.n_outputs} outputs; need {prior.dim} and "
+                                  f"{len(pb.names_out)}")
+        truth = _TrueModel(model, prior)
+        run = _sample(truth, gp, pb, pb.space, cfg, not isinstance(sampler, SamplerConfig),
+                      emulator_variance, None, map_start, None, proposal_covariance, n_chains,
+                      n_samples, burn_in, thin,
+                      {k: seeds[k] for k in ("start", "chain_starts", "chains")})
+        self.post, self.state, self.cfg, self.thin = run["post"], run["state"], run["cfg"], thin
+        if self.post.n_extrapolated:
+            warnings.warn(f"emulator extrapolated for {self.post.n_extrapolated} proposals, up "
+                          f"to {self.post.max_extrapolation:.3g} box-widths outside its "
+                          "training box", ExtrapolationWarning, stacklevel=2)
+        self.chains = self.post.center + self.post.scale * run["kept"].transpose(1, 0, 2)
+        self.n_evaluations = truth.n_evaluations
+
+    def extend(self, n_samples: int, seed: SeedLike) -> None:
+        """``n_samples`` more kept steps per chain, as ``continue_chain(result, n_samples,
+        seed=seed)``."""
+        post, state = self.post, self.state
+        ev0 = post.n_evals
+        state.reseed(as_generator(seed))
+        kept = run_chains(post, state, self.cfg, int(n_samples), 0, self.thin)[0]
+        z_old = (self.chains - post.center) / post.scale
+        chains_z = np.concatenate([z_old, kept.transpose(1, 0, 2)], axis=1)
+        self.chains = post.center + post.scale * chains_z
+        self.n_evaluations += post.n_evals - ev0 if post.gp is None else 0

@@ -36,7 +36,7 @@ from ..render.figures import (
 )
 from ..render.tables import StepTable, label, make_table, parameters, prefixed, value
 from ..results import StepRecord, StepResult, dict_to_dist, dist_to_dict
-from ._common import input_scalars, named_model, per_response
+from ._common import deferred_writes, input_scalars, named_model, per_response
 from ._discrepancy import (
     check_discrepancy,
     discrepancy_option,
@@ -247,10 +247,11 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
     sd = per_response(o.get("noise_std"), ctx.responses)
     multipliers = o.get("noise_multipliers")
     mult_prior = tuple(o.get("noise_multiplier_prior") or (1.0, 1.0))
-    with warnings.catch_warnings(record=True) as caught:
+    model = ctx.model()
+    with warnings.catch_warnings(record=True) as caught, deferred_writes(model):
         warnings.simplefilter("always")
         res = calibrate_bayes(
-            ctx.model(), ctx.observations(), ctx.space, sampler=o["sampler"], emulator=emulator,
+            model, ctx.observations(), ctx.space, sampler=o["sampler"], emulator=emulator,
             n_emulator_samples=o["n_emulator_samples"], n_samples=o["n_samples"],
             burn_in=o["burn_in"], n_chains=o["n_chains"], noise_std=sd,
             emulator_variance=o["emulator_variance"], refine=_refine_config(o.get("refine")),

@@ -19,7 +19,8 @@ from ..results import RecordError, StepRecord, StepResult
 from .base import StepCheck, StepContext
 from .options import SIGNATURE, Option, choice, table
 
-__all__ = ["named_model", "deferred_writes", "column_moments", "stats_scalars", "input_arrays", "input_scalars",
+__all__ = ["named_model", "deferred_writes", "column_moments", "stats_scalars", "input_arrays",
+           "input_scalars",
            "noise", "per_response", "saved_record", "MOMENT_KEYS", "LevelsRecord", "levels_arrays",
            "LEVEL_OPTIONS", "LEVEL_TABLES", "MAPPING_AXES", "MappingsRecord", "check_levels",
            "level_request_of", "mapping_fields", "mapping_scalars"]

@@ -220,6 +220,42 @@ def _first_of_each_kind(caught) -> list[str]:
     return list(out.values())
 
 
+class _StoredSelfChecks:
+    """Self-checks kept in the study's store (its ``computed`` table, kind "self_check"),
+    under their setup's key (:func:`rotoruq.methods.mcmc.sbc.setup_key`) joined with the
+    digest of the code that computes them: a step whose data changed, or another step of
+    the same setup, reuses the self-check instead of running it again."""
+
+    def __init__(self, store):
+        from ..evaluation.identity import code_digest, code_parts
+
+        self.store = store
+        self.code = code_digest(code_parts(["rotoruq.methods.mcmc.sbc"]))
+
+    def get(self, key: str, /):
+        import io
+
+        from ..methods.mcmc.sbc import SBCResult
+
+        blob = self.store.get_computed("self_check", f"{key}|{self.code}")
+        if blob is None:
+            return None
+        with np.load(io.BytesIO(blob), allow_pickle=False) as npz:
+            arrays = dict(npz)
+        caught = arrays.pop("_warnings").reshape(-1, 2)
+        return (SBCResult.from_arrays(arrays),
+                tuple((str(c), str(m)) for c, m in caught))
+
+    def __setitem__(self, key: str, value, /) -> None:
+        import io
+
+        result, caught = value
+        buf = io.BytesIO()
+        np.savez(buf, _warnings=np.array(caught, dtype=str).reshape(-1, 2),
+                 **result.to_arrays())
+        self.store.put_computed("self_check", f"{key}|{self.code}", buf.getvalue())
+
+
 def run_bayes_calibration(ctx: StepContext) -> StepResult:
     """Bayes calibration (DRAM on a GP emulator by default, several chains advanced together).
     The chains are saved (later forward checks and sampling steps propagate their joint
@@ -257,6 +293,8 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
             emulator_variance=o["emulator_variance"], refine=_refine_config(o.get("refine")),
             noise_multipliers=multipliers, noise_multiplier_prior=mult_prior,
             self_check=o["self_check"], proposal_covariance=o["proposal"], seed=ctx.rng,
+            self_check_cache=(_StoredSelfChecks(ctx.store) if o["self_check"] and ctx.store
+                              is not None else None),
         )
     names = tuple(res.names_in)
     d = len(names)

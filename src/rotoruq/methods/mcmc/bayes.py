@@ -21,7 +21,7 @@ import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -66,9 +66,20 @@ from .samplers import SamplerConfig, SamplerState, run_chains
 if TYPE_CHECKING:
     from .sbc import SBCResult
 
-__all__ = ["calibrate_bayes", "continue_chain", "BayesResult"]
+__all__ = ["calibrate_bayes", "continue_chain", "BayesResult", "SelfCheckCache"]
 
 log = logging.getLogger(__name__)
+
+
+class SelfCheckCache(Protocol):
+    """Where :func:`calibrate_bayes` keeps self-checks by the identity of their setup (a
+    dict will do): each as (result, the warnings its replications raised, as
+    ``("module:qualname", message)`` pairs, raised again when it is reused)."""
+
+    def get(self, key: str, /) -> tuple[SBCResult, tuple[tuple[str, str], ...]] | None: ...
+
+    def __setitem__(self, key: str, value: tuple[SBCResult, tuple[tuple[str, str], ...]],
+                    /) -> None: ...
 
 
 # Random stages of a calibration, each with its own child of the call's SeedSequence (spawn
@@ -864,6 +875,7 @@ def calibrate_bayes(
     x0: ArrayLike | None = None,
     posterior_predictive: int = 0,
     self_check: int = 0,
+    self_check_cache: SelfCheckCache | None = None,
     seed: SeedLike = None,
 ) -> BayesResult:
     """Bayesian calibration of the parameters ``prior`` of ``model`` to ``data``.
@@ -938,6 +950,12 @@ def calibrate_bayes(
         with the same emulator, sampler and emulator variance, short chains) and stores the
         verdict in ``BayesResult.self_check``. Needs ``noise_std`` (not a covariance) and no
         noise multipliers. 0 (default): no self-check.
+    self_check_cache : a mapping in which the self-check is looked up before it runs and
+        stored after, under :func:`~rotoruq.methods.mcmc.sbc.setup_key` of its setup (the
+        true model as this call sees it, prior, fitted emulator, sampler, noise, counts,
+        seed; never the data, which the self-check does not use): two calls with the same
+        setup share one. A cache kept across runs must also tell the code apart (the study
+        runner's does). None: always computed.
     seed : int, SeedSequence or Generator. Every random stage (emulator design, GP
         restarts of an unseeded emulator, MAP starts, chain starts, chains, posterior
         predictive draws, the KL subsample) has its own child of
@@ -1053,7 +1071,7 @@ def calibrate_bayes(
     if self_check:
         res = dataclasses.replace(res, self_check=_self_check(
             model, prior, pb, gp, cfg, emulator_variance, noise_std, noise_covariance,
-            int(self_check), seeds["self_check"]))
+            int(self_check), seeds["self_check"], self_check_cache))
     log.info("calibrate_bayes: %d chains x %d kept steps in %.2f s (total %.2f s)", n_chains,
              n_samples, t_sampling, time.perf_counter() - t_start)
     return res
@@ -1061,9 +1079,11 @@ def calibrate_bayes(
 
 def _self_check(model, prior: ParameterSpace, pb: _Problem, gp, cfg: SamplerConfig,
                 emulator_variance: bool, noise_std, noise_covariance, n_replications: int,
-                seed: np.random.SeedSequence) -> SBCResult:
-    """Simulation-based calibration of the setup of one :func:`calibrate_bayes` call."""
-    from .sbc import simulation_based_calibration
+                seed: np.random.SeedSequence,
+                cache: SelfCheckCache | None = None) -> SBCResult:
+    """Simulation-based calibration of the setup of one :func:`calibrate_bayes` call, from
+    ``cache`` when it holds one of the same setup."""
+    from .sbc import setup_key, simulation_based_calibration
 
     if pb.groups is not None:
         raise ParameterError("self_check with noise_multipliers: the replications would need "
@@ -1078,12 +1098,45 @@ def _self_check(model, prior: ParameterSpace, pb: _Problem, gp, cfg: SamplerConf
             raise ParameterError("self_check simulates data with one noise std per response; "
                                  "this call's noise_std differs between experiments")
         std = std[0]
-    return simulation_based_calibration(
-        model, prior, noise_std=std, n_replications=n_replications,
-        n_experiments=pb.lik.data.shape[0],
-        emulator=gp,  # fitted: sbc uses it as given
-        names_out=pb.names_out, seed=seed,
-        sampler=cfg, emulator_variance=emulator_variance)
+    settings = dict(noise_std=std, n_replications=n_replications,
+                    n_experiments=pb.lik.data.shape[0],
+                    names_out=pb.names_out, sampler=cfg, emulator_variance=emulator_variance)
+    key = None
+    if cache is not None:
+        model_key = (f"{type(model).__module__}.{type(model).__qualname__}|"
+                     f"{getattr(model, 'model_id', '')}|{tuple(model.names_in)}|"
+                     f"{tuple(model.names_out)}")
+        key = setup_key(model_key, prior, gp, seed, **settings)
+        hit = None if key is None else cache.get(key)
+        if hit is not None:
+            log.info("self-check reused (setup %s)", key)
+            for category, message in hit[1]:  # what its replications warned, as they did
+                warnings.warn(message, _warning_class(category), stacklevel=3)
+            return hit[0]
+    if cache is None or key is None:
+        return simulation_based_calibration(model, prior, emulator=gp,  # fitted: as given
+                                            seed=seed, **settings)
+    with warnings.catch_warnings(record=True) as caught:
+        out = simulation_based_calibration(model, prior, emulator=gp, seed=seed, **settings)
+    for w in caught:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    cache[key] = (out, tuple((f"{w.category.__module__}:{w.category.__qualname__}",
+                              str(w.message)) for w in caught))
+    return out
+
+
+def _warning_class(name: str) -> type[Warning]:
+    """The warning category ``module:qualname`` (UserWarning when there is none)."""
+    import importlib
+
+    module, _, qualname = name.partition(":")
+    try:
+        obj: Any = importlib.import_module(module)
+        for part in qualname.split("."):
+            obj = getattr(obj, part)
+    except (ImportError, AttributeError):
+        return UserWarning
+    return obj if isinstance(obj, type) and issubclass(obj, Warning) else UserWarning
 
 
 def continue_chain(result: BayesResult, n_samples: int, *, seed: SeedLike = None) -> BayesResult:

@@ -15,10 +15,12 @@ noise of each replication, the emulator design and fit, and each replication's c
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import inspect
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -43,7 +45,7 @@ from .bayes import (
     continue_chain,
 )
 
-__all__ = ["SBCResult", "simulation_based_calibration"]
+__all__ = ["SBCResult", "simulation_based_calibration", "setup_key"]
 
 COVERAGE_LEVELS = (0.5, 0.9)
 
@@ -106,6 +108,24 @@ class SBCResult:
     @property
     def n_replications(self) -> int:
         return int(self.ranks.shape[0])
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """Every field as a numpy array (numbers 0-d, texts as unicode), for ``np.savez``;
+        :meth:`from_arrays` gives the result back, bitwise."""
+        return {f.name: np.asarray(getattr(self, f.name)) for f in dataclasses.fields(self)}
+
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray]) -> SBCResult:
+        """The result :meth:`to_arrays` wrote."""
+        kinds = {"names_in": lambda a: tuple(str(v) for v in a), "reason": str,
+                 "passed": bool, "n_draws": int, "n_autocorrelated": int,
+                 "n_evaluations": int}
+        out = {}
+        for f in dataclasses.fields(cls):
+            a = np.asarray(arrays[f.name])
+            out[f.name] = kinds[f.name](a) if f.name in kinds else (
+                float(a) if a.ndim == 0 else a)
+        return cls(**out)
 
     def summary(self) -> str:
         """A plain-text table: p-value, z-score spread and coverages per parameter."""
@@ -393,6 +413,61 @@ def simulation_based_calibration(
         ess=ess, n_autocorrelated=n_short, alpha=float(alpha),
         coverage_tolerance=float(coverage_tolerance), passed=passed, reason=reason,
         n_evaluations=n_evaluations, seconds=time.perf_counter() - t_start)
+
+
+def setup_key(model_key: str, prior: ParameterSpace, emulator: Any, seed: SeedLike,
+              **settings: Any) -> str | None:
+    """The identity of a self-check's setup: a digest of everything that changes its answer
+    and nothing else (not the data it checks): ``model_key`` (the true model the
+    replications simulate from, and the code, as the caller identifies them), the prior,
+    the fitted emulator's training data and hyperparameters, the seed and ``settings`` (the
+    remaining arguments of :func:`simulation_based_calibration`: counts, noise, sampler,
+    ...). None when the setup cannot be identified (an unfitted emulator or a co-kriging
+    one, a seed that is not a SeedSequence or an int)."""
+    if isinstance(seed, np.random.SeedSequence):
+        seed_doc: Any = [repr(seed.entropy), list(seed.spawn_key), seed.pool_size]
+    elif isinstance(seed, int | np.integer):
+        seed_doc = int(seed)
+    else:
+        return None
+    if not isinstance(emulator, GaussianProcess) or not _is_fitted(emulator):
+        return None
+    h = hashlib.sha256()
+
+    def add(obj: Any) -> None:
+        if isinstance(obj, np.ndarray):
+            a = np.ascontiguousarray(obj)
+            h.update(f"{a.dtype.str}{a.shape}".encode())
+            h.update(a.tobytes())
+        elif dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+            add(type(obj).__qualname__)
+            for f in dataclasses.fields(obj):
+                add(f.name)
+                add(getattr(obj, f.name))
+        elif isinstance(obj, list | tuple):
+            h.update(b"[")
+            for v in obj:
+                add(v)
+            h.update(b"]")
+        elif isinstance(obj, dict):
+            for k in sorted(obj):
+                add(k)
+                add(obj[k])
+        else:
+            h.update(repr(obj).encode())
+        h.update(b"\0")
+
+    add(["sbc-setup-1", model_key, seed_doc])
+    add([(n, type(d).__qualname__, d.describe()) for n, d in
+         zip(prior.names, prior.distributions, strict=True)])
+    add(None if prior.correlation is None else np.asarray(prior.correlation, dtype=float))
+    gp = emulator
+    add([type(gp).__qualname__, {k: v for k, v in vars(gp).items()
+                                 if not k.startswith("_") and k != "seed"}])
+    add([gp._X, gp._Y, list(gp._fits)])
+    add({k: (np.asarray(v, dtype=float) if isinstance(v, np.ndarray | list) else v)
+         for k, v in settings.items()})
+    return h.hexdigest()[:32]
 
 
 def _takes_seed(func: Callable[..., Any]) -> bool:

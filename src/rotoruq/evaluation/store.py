@@ -168,7 +168,7 @@ def _dumps(a) -> str | None:
     if a is None:
         return None
     # json writes floats with repr (exact round trip); NaN/inf as bare words Python reads back
-    return json.dumps([float(v) for v in np.ravel(a)])
+    return json.dumps(np.ravel(np.asarray(a, dtype=float)).tolist())
 
 
 @dataclass(frozen=True, eq=False)
@@ -368,10 +368,10 @@ class Store:
                f"VALUES ({', '.join('?' * len(_COLUMNS))})")
 
         def ins(con):
-            ids = []
-            for row in rows:
-                ids.append(con.execute(sql, row).lastrowid)
-            return ids
+            # one statement for the batch; inside the transaction the ids are consecutive
+            con.executemany(sql, rows)
+            last = int(con.execute("SELECT last_insert_rowid()").fetchone()[0])
+            return list(range(last - len(rows) + 1, last + 1))
 
         return self._write(ins)
 

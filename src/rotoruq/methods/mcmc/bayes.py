@@ -815,6 +815,21 @@ def _sample(truth, gp, pb: _Problem, prior, cfg, auto_schedule, emulator_varianc
             best_build, proposal_covariance, n_chains, n_samples, burn_in, thin, seeds) -> dict:
     """Stages 3-5 and the chains on one emulator (or the model): start point, initial
     proposal, chain starts and chains; the chains' kept samples are scaled (n, c, d)."""
+    run = _prepare(truth, gp, pb, prior, cfg, auto_schedule, emulator_variance, x0, map_start,
+                   best_build, proposal_covariance, n_chains, seeds)
+    t0, c0 = time.perf_counter(), time.process_time()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExtrapolationWarning)
+        kept, kept_lp = run_chains(run["post"], run["state"], run["cfg"], n_samples, burn_in,
+                                   thin)
+    return dict(run, kept=kept, kept_lp=kept_lp, seconds=time.perf_counter() - t0,
+                cpu_seconds=time.process_time() - c0)
+
+
+def _prepare(truth, gp, pb: _Problem, prior, cfg, auto_schedule, emulator_variance, x0,
+             map_start, best_build, proposal_covariance, n_chains, seeds) -> dict:
+    """Stages 3-5 of :func:`_sample`: the posterior, the start point, the initial proposal
+    and the chains' starting state (and the evaluation schedule), ready to run."""
     d = prior.dim
     if gp is not None:
         forward = gp._mean_fast
@@ -842,13 +857,7 @@ def _sample(truth, gp, pb: _Problem, prior, cfg, auto_schedule, emulator_varianc
                  "minimal evaluation schedule (the same chains, fewer model runs)", cost,
                  SLOW_EVALUATION)
     post.reset_counts()
-    t0, c0 = time.perf_counter(), time.process_time()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ExtrapolationWarning)
-        kept, kept_lp = run_chains(post, state, cfg, n_samples, burn_in, thin)
-    return dict(post=post, theta0=theta0, cov_z=cov_z, state=state, kept=kept, cfg=cfg,
-                kept_lp=kept_lp, seconds=time.perf_counter() - t0,
-                cpu_seconds=time.process_time() - c0)
+    return dict(post=post, theta0=theta0, cov_z=cov_z, state=state, cfg=cfg)
 
 
 def calibrate_bayes(
@@ -1189,6 +1198,8 @@ class _CheckChains:
     """The chains of one self-check replication on a fitted emulator: the stages of
     :func:`calibrate_bayes` up to its chains, without the summary (moments, KL divergence,
     R-hat, the emulator's adequacy over the posterior) that the self-check never reads;
+    built, the chains are ready to start (start point, proposal, chain starts); :meth:`run`
+    runs them and :meth:`warn` gives the warning calibrate_bayes gives after them;
     :meth:`extend` takes the steps of :func:`continue_chain`. ``chains`` (c, n, d), parameter
     units, are bitwise those of ``calibrate_bayes(...).chains`` and of the continued results
     for the same arguments and seeds; ``n_evaluations`` their true-model evaluations."""
@@ -1212,27 +1223,54 @@ class _CheckChains:
             raise ModelShapeError(f"fitted emulator has {gp.n_inputs} inputs and "
                                   f"{gp.n_outputs} outputs; need {prior.dim} and "
                                   f"{len(pb.names_out)}")
-        truth = _TrueModel(model, prior)
-        run = _sample(truth, gp, pb, pb.space, cfg, not isinstance(sampler, SamplerConfig),
-                      emulator_variance, None, map_start, None, proposal_covariance, n_chains,
-                      n_samples, burn_in, thin,
-                      {k: seeds[k] for k in ("start", "chain_starts", "chains")})
+        self.truth = _TrueModel(model, prior)
+        run = _prepare(self.truth, gp, pb, pb.space, cfg, not isinstance(sampler, SamplerConfig),
+                       emulator_variance, None, map_start, None, proposal_covariance, n_chains,
+                       {k: seeds[k] for k in ("start", "chain_starts", "chains")})
         self.post, self.state, self.cfg, self.thin = run["post"], run["state"], run["cfg"], thin
-        if self.post.n_extrapolated:
-            warnings.warn(f"emulator extrapolated for {self.post.n_extrapolated} proposals, up "
-                          f"to {self.post.max_extrapolation:.3g} box-widths outside its "
-                          "training box", ExtrapolationWarning, stacklevel=2)
-        self.chains = self.post.center + self.post.scale * run["kept"].transpose(1, 0, 2)
-        self.n_evaluations = truth.n_evaluations
+        self.n_samples, self.burn_in = n_samples, burn_in
+        self.chains = np.empty((n_chains, 0, prior.dim))
+        self._extrapolated = (0, 0.0)
+
+    @property
+    def compiled(self) -> bool:
+        """The chains run in compiled code alone (no Python model, nothing that warns): they
+        may run on a thread of their own."""
+        return self.post.compiled is not None
+
+    def run(self) -> None:
+        """The chains (:func:`calibrate_bayes`'s n_samples, burn_in); then ``chains``."""
+        if self.compiled:
+            kept = run_chains(self.post, self.state, self.cfg, self.n_samples, self.burn_in,
+                              self.thin)[0]
+        else:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", ExtrapolationWarning)
+                kept = run_chains(self.post, self.state, self.cfg, self.n_samples, self.burn_in,
+                                  self.thin)[0]
+        self.chains = self.post.center + self.post.scale * kept.transpose(1, 0, 2)
+        self._extrapolated = (self.post.n_extrapolated, self.post.max_extrapolation)
+
+    def warn(self) -> None:
+        """The warning :func:`calibrate_bayes` gives after its chains (extrapolation; counted
+        by :meth:`run`, not by later extensions)."""
+        n, far = self._extrapolated
+        if n:
+            warnings.warn(f"emulator extrapolated for {n} proposals, up to {far:.3g} "
+                          "box-widths outside its training box", ExtrapolationWarning,
+                          stacklevel=2)
+
+    @property
+    def n_evaluations(self) -> int:
+        """True-model evaluations (the chains run on the emulator: none of theirs)."""
+        return self.truth.n_evaluations
 
     def extend(self, n_samples: int, seed: SeedLike) -> None:
         """``n_samples`` more kept steps per chain, as ``continue_chain(result, n_samples,
         seed=seed)``."""
         post, state = self.post, self.state
-        ev0 = post.n_evals
         state.reseed(as_generator(seed))
         kept = run_chains(post, state, self.cfg, int(n_samples), 0, self.thin)[0]
         z_old = (self.chains - post.center) / post.scale
         chains_z = np.concatenate([z_old, kept.transpose(1, 0, 2)], axis=1)
         self.chains = post.center + post.scale * chains_z
-        self.n_evaluations += post.n_evals - ev0 if post.gp is None else 0

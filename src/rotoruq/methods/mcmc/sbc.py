@@ -20,10 +20,13 @@ import hashlib
 import inspect
 import math
 import time
+import warnings
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy import stats
@@ -357,36 +360,20 @@ def simulation_based_calibration(
     n_short = 0
     # on a fitted emulator the replications run the chains alone (no posterior summary nor
     # diagnostics, which the self-check never reads): the same chains, bitwise
-    lean = calibrate is None and gp is not None and set(bayes_options) <= CHECK_OPTIONS
+    lean = None
+    if calibrate is None and gp is not None and set(bayes_options) <= CHECK_OPTIONS:
+        lean = _replications(model, prior, gp, clean, noise, obs, s_reps, n_experiments,
+                             n_draws, bayes_options)
     for i, s_rep in enumerate(s_reps):
-        s_noise, s_cal, s_more = s_rep.spawn(3)
-        eps = np.random.default_rng(s_noise).standard_normal((n_experiments, m))
-        data = clean[i] + noise * eps
         ess_i = None
-        if calibrate is None:
-            res: Any
-            if lean:
-                assert gp is not None
-                res = _CheckChains(model, data, prior, gp, noise_std=noise, names_out=list(obs),
-                                   seed=s_cal, **bayes_options)
-            else:
-                res = calibrate_bayes(model, data, prior, noise_std=noise, names_out=list(obs),
-                                      emulator=gp, seed=s_cal, **bayes_options)
-            for k, s_k in enumerate(s_more.spawn(3)):
-                ess_i = dg.effective_sample_size(res.chains)
-                if ess_i.min() >= n_draws:
-                    break
-                n_more = int(bayes_options["n_samples"]) * 2**k
-                if lean:
-                    res.extend(n_more, s_k)
-                else:
-                    res = continue_chain(res, n_more, seed=s_k)
-                ess_i = None
-            n_evaluations += res.n_evaluations
-            draws = res.chains
+        if lean is not None:
+            draws, ess_i, n_ev = lean[i]
+            n_evaluations += n_ev
         else:
-            out = calibrate(data, seed=s_cal) if takes_seed else calibrate(data)
-            draws = _as_draws(out, d)
+            draws, ess_i, n_ev = _replication(model, prior, gp, clean[i], noise, obs, s_rep,
+                                              n_experiments, n_draws, calibrate, takes_seed,
+                                              bayes_options, d)
+            n_evaluations += n_ev
         if ess_i is None:  # the chains changed since their ESS was computed
             ess_i = dg.effective_sample_size(draws)
         ess[i] = float(ess_i.min())
@@ -468,6 +455,87 @@ def setup_key(model_key: str, prior: ParameterSpace, emulator: Any, seed: SeedLi
     add({k: (np.asarray(v, dtype=float) if isinstance(v, np.ndarray | list) else v)
          for k, v in settings.items()})
     return h.hexdigest()[:32]
+
+
+def _replication(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarray,
+                 noise: np.ndarray, obs: tuple[str, ...], s_rep: np.random.SeedSequence,
+                 n_experiments: int, n_draws: int, calibrate: Callable[..., Any] | None,
+                 takes_seed: bool, options: dict, d: int
+                 ) -> tuple[np.ndarray, np.ndarray | None, int]:
+    """One replication through ``calibrate`` or :func:`calibrate_bayes`: posterior draws
+    (c, n, d), their ESS when it was computed (else None) and true-model evaluations."""
+    s_noise, s_cal, s_more = s_rep.spawn(3)
+    eps = np.random.default_rng(s_noise).standard_normal((n_experiments, len(obs)))
+    data = clean + noise * eps
+    if calibrate is not None:
+        out = calibrate(data, seed=s_cal) if takes_seed else calibrate(data)
+        return _as_draws(out, d), None, 0
+    res = calibrate_bayes(model, data, prior, noise_std=noise, names_out=list(obs),
+                          emulator=gp, seed=s_cal, **options)
+    for k, s_k in enumerate(s_more.spawn(3)):
+        ess = dg.effective_sample_size(res.chains)
+        if ess.min() >= n_draws:
+            return res.chains, ess, res.n_evaluations
+        res = continue_chain(res, int(options["n_samples"]) * 2**k, seed=s_k)
+    return res.chains, None, res.n_evaluations
+
+
+def _replications(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarray,
+                  noise: np.ndarray, obs: tuple[str, ...], s_reps: list, n_experiments: int,
+                  n_draws: int, options: dict) -> list[tuple[np.ndarray, np.ndarray, int]]:
+    """The default calibration of every replication on the fitted emulator ``gp``: posterior
+    draws (c, n, d), their ESS (d,) and true-model evaluations, per replication.
+
+    Each replication's chains are continued (up to 3 times) while their ESS stays below
+    ``n_draws``, as with :func:`continue_chain`. Replications are independent: when every
+    one runs in compiled code alone they run on ``numba.get_num_threads()`` threads, each
+    from its own seeds, so the numbers do not depend on the thread count. The warnings come
+    in the order of a one-by-one run (each replication's start, then its chains').
+    """
+    m = len(obs)
+    reps, more, caught = [], [], []
+    for i, s_rep in enumerate(s_reps):
+        s_noise, s_cal, s_more = s_rep.spawn(3)
+        eps = np.random.default_rng(s_noise).standard_normal((n_experiments, m))
+        with warnings.catch_warnings(record=True) as got:
+            reps.append(_CheckChains(model, clean[i] + noise * eps, prior, gp, noise_std=noise,
+                                     names_out=list(obs), seed=s_cal, **options))
+        caught.append(got)
+        more.append(s_more.spawn(3))
+    n_samples = int(options["n_samples"])
+
+    def chains(i: int, emit: bool) -> np.ndarray:
+        rep = reps[i]
+        if emit:
+            _warn_again(caught[i])
+        rep.run()
+        if emit:
+            rep.warn()
+        for k, s_k in enumerate(more[i]):
+            ess = dg.effective_sample_size(rep.chains)
+            if ess.min() >= n_draws:
+                return ess
+            rep.extend(n_samples * 2**k, s_k)
+        return dg.effective_sample_size(rep.chains)
+
+    n_threads = min(numba.get_num_threads(), len(reps))
+    if all(r.compiled for r in reps):  # nothing warns while they run: any order will do
+        if n_threads > 1:
+            with ThreadPoolExecutor(n_threads) as pool:
+                ess = list(pool.map(chains, range(len(reps)), [False] * len(reps)))
+        else:
+            ess = [chains(i, False) for i in range(len(reps))]
+        for got, rep in zip(caught, reps, strict=True):
+            _warn_again(got)
+            rep.warn()
+    else:
+        ess = [chains(i, True) for i in range(len(reps))]
+    return [(r.chains, e, r.n_evaluations) for r, e in zip(reps, ess, strict=True)]
+
+
+def _warn_again(caught: list) -> None:
+    for w in caught:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
 
 def _takes_seed(func: Callable[..., Any]) -> bool:

@@ -218,6 +218,7 @@ def test_replications_on_an_emulator_are_the_chains_of_calibrate_bayes():
               map_start=False, sampler="dram", emulator_variance=False)
     seed = np.random.SeedSequence(11)
     lean = bayes._CheckChains(Nonlinear(), data, PRIOR, gp, seed=seed, **kw)
+    lean.run()
     full = calibrate_bayes(Nonlinear(), data, PRIOR, emulator=gp, seed=seed, **kw)
     np.testing.assert_array_equal(lean.chains, full.chains)
     for k, s_k in enumerate(np.random.SeedSequence(12).spawn(2)):

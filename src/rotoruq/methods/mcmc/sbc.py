@@ -120,10 +120,10 @@ class SBCResult:
     @classmethod
     def from_arrays(cls, arrays: Mapping[str, np.ndarray]) -> SBCResult:
         """The result :meth:`to_arrays` wrote."""
-        kinds = {"names_in": lambda a: tuple(str(v) for v in a), "reason": str,
-                 "passed": bool, "n_draws": int, "n_autocorrelated": int,
-                 "n_evaluations": int}
-        out = {}
+        kinds: dict[str, Callable[[np.ndarray], Any]] = {
+            "names_in": lambda a: tuple(str(v) for v in a), "reason": str, "passed": bool,
+            "n_draws": int, "n_autocorrelated": int, "n_evaluations": int}
+        out: dict[str, Any] = {}
         for f in dataclasses.fields(cls):
             a = np.asarray(arrays[f.name])
             out[f.name] = kinds[f.name](a) if f.name in kinds else (

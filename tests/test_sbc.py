@@ -228,6 +228,23 @@ def test_replications_on_an_emulator_are_the_chains_of_calibrate_bayes():
     np.testing.assert_array_equal(dg.effective_sample_size(lean.chains), full.ess)
 
 
+def test_replications_give_the_same_bits_on_any_number_of_threads():
+    import numba
+
+    kw = dict(n_replications=6, n_samples=150, n_draws=19, emulator=rq.GaussianProcess(),
+              n_emulator_samples=15)
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = _sbc(seed=3, **kw)
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+        many = _sbc(seed=3, **kw)
+    finally:
+        numba.set_num_threads(before)
+    for f in ("theta_true", "ranks", "posterior_mean", "posterior_std", "ess", "p_value"):
+        np.testing.assert_array_equal(getattr(one, f), getattr(many, f))
+
+
 def test_self_check_is_reused_by_its_setup_not_its_data(tmp_path):
     """Two calls with the same setup and other data share one self-check (from a dict or
     the store); another seed or prior computes its own; the result is bitwise the one

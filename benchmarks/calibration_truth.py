@@ -34,11 +34,12 @@ import time
 import warnings
 
 import numpy as np
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
 
 import rotoruq as rq
 from rotoruq.methods import mcmc
-from rotoruq.methods.mcmc import calibrate_bayes
+from rotoruq.methods.mcmc import ChainOptions, EmulatorOptions, NoiseModel, calibrate_bayes
 
 NOISE = 0.05
 PRIOR = rq.ParameterSpace({n: rq.Uniform(-1.0, 1.0) for n in "abc"})
@@ -58,7 +59,10 @@ class Nonlinear:
 
 def _cases() -> dict[str, dict | None]:
     """Case name -> extra keywords of simulation_based_calibration (None: not available)."""
-    kw = inspect.signature(calibrate_bayes).parameters
+    kw = set(inspect.signature(calibrate_bayes).parameters)
+    records = getattr(mcmc, "EmulatorOptions", None)  # the emulator's options since 0.2
+    if records is not None:
+        kw |= {f.name for f in dataclasses.fields(records)}
     has_var, has_refine = "emulator_variance" in kw, "refine" in kw
     config = getattr(mcmc, "RefineConfig", None)
     refine = config() if config is not None else True
@@ -83,8 +87,9 @@ def _refinement_record(opts: dict, seed: int) -> dict:
     rest = {k: v for k, v in opts.items() if k not in ("emulator", "n_emulator_samples")}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = calibrate_bayes(Nonlinear(), data, PRIOR, emulator=gp, noise_std=NOISE,
-                              n_samples=2000, burn_in=1000, seed=seed, **rest)
+        res = calibrate_bayes(Nonlinear(), data, PRIOR, emulator=EmulatorOptions(gp, **rest),
+                              noise=NoiseModel(noise_std=NOISE),
+                              chains=ChainOptions(n_samples=2000, burn_in=1000), seed=seed)
     out = {}
     for f in dataclasses.fields(res):
         if any(w in f.name for w in ("refine", "ratio", "added")):
@@ -121,7 +126,8 @@ def speed(budget: int, seed: int, repeats: int) -> dict:
     model, space, data = make_problem(0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        calibrate_bayes(model, data, space, n_samples=300, seed=0)  # load compiled kernels
+        # load compiled kernels
+        calibrate_bayes(model, data, space, chains=ChainOptions(n_samples=300), seed=0)
         return one_chain(model, space, data, budget, seed, repeats)
 
 
@@ -189,6 +195,7 @@ def main():
            "sbc_seconds": time.perf_counter() - t0,
            "speed": _speed_or_why(args)}
     out["meets_targets"] = meets_targets(out)
+    out["provenance"] = provenance()
     text = json.dumps(out, indent=1)
     print(text)
     if args.out:

@@ -34,6 +34,7 @@ import time
 import warnings
 
 import numpy as np
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
 
 import rotoruq as rq
@@ -71,7 +72,9 @@ def _calibrate(model, data, prior, emulator, noise, **kw) -> tuple[rq.BayesResul
     t0 = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # extrapolation / adequacy notes: measured below
-        res = rq.calibrate_bayes(model, data, prior, emulator=emulator, noise_std=noise, **kw)
+        res = rq.calibrate_bayes(model, data, prior, emulator=emulator,
+                                 noise=rq.NoiseModel(noise_std=noise),
+                                 **kw)
     return res, time.perf_counter() - t0
 
 
@@ -204,6 +207,7 @@ def main() -> dict:
                              args.rotor_exact_samples)
     out["seconds"] = round(time.perf_counter() - t0, 1)
     out["summary"] = summary(out)
+    out["provenance"] = provenance()
     print(json.dumps(out, indent=2))
     return out
 

@@ -44,6 +44,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
 from dakota_decks import ISHIGAMI_PCE_DECK  # noqa: E402
 from scipy import stats
@@ -374,6 +375,7 @@ def main() -> dict:
             "pce_ishigami_omp": pce_omp(args.seeds, work),
             "pce_ishigami_lars": pce_lars(args.seeds, work),
         }
+    out["provenance"] = provenance()
     print(json.dumps(out, indent=2))
     return out
 

@@ -34,6 +34,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 from _summary import print_saved_summary
 from dakota_decks import (
     BAYES_DATA,
@@ -231,6 +232,7 @@ def main() -> None:
                 out["cases"][case] = run_case(
                     case, step, deck.replace("{n}", str(args.rotor_samples)), files,
                     Path(tmp) / case, rotoruq_command() + ROTOR_DRIVER)
+    out["provenance"] = provenance(modules=["rotoruq.study.cli"])
     print(json.dumps(out, indent=1))
 
 

@@ -52,6 +52,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
 from scipy import integrate, stats
 
@@ -567,6 +568,7 @@ def main() -> None:
                "evidence": evidence_rows(args.seeds, work), "mpp": mpp_rows(work),
                "tana": tana_rows(work), "ccdf": ccdf_rows(work),
                "refinement": refinement_rows(args.seeds, work, args.mm_seeds)}
+    res["provenance"] = provenance()
     print(json.dumps(res, indent=1))
 
 

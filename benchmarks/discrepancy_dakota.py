@@ -35,6 +35,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 from scipy import stats
 
 import rotoruq as rq
@@ -208,6 +209,7 @@ def main() -> None:
         "theta without discrepancy, then fits a maximum-likelihood GP to the residuals at the "
         "chain mean: its corrected variance is the GP variance plus the largest data variance, "
         "without theta's uncertainty, and theta keeps the bias of the discrepancy-free fit")
+    out["provenance"] = provenance()
     print(json.dumps(out, indent=1))
 
 

@@ -22,6 +22,7 @@ import time
 from importlib import resources
 
 import numpy as np
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 
 import rotoruq as rq
 from rotoruq.methods.mcmc.discrepancy import Discrepancy, calibrate_with_discrepancy
@@ -99,6 +100,7 @@ def main() -> None:
             "n_evaluations": res.n_evaluations,
             "wall_seconds": round(time.perf_counter() - t0, 1),
         }
+    out["provenance"] = provenance()
     print(json.dumps(out, indent=1))
 
 

@@ -42,6 +42,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 from _summary import print_saved_summary
 
 from rotoruq.evaluation.dakota_files import read_results, write_parameters
@@ -185,6 +186,7 @@ def main() -> None:
         "bytecode_cached": "PYTHONDONTWRITEBYTECODE" not in ENV,
         "cpus": os.cpu_count(),
     }
+    out["provenance"] = provenance(modules=["rotoruq.study.cli", "rotoruq.rotor.model"])
     print(json.dumps(out, indent=1))
 
 

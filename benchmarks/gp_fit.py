@@ -38,6 +38,7 @@ import time
 import warnings
 
 import numpy as np
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
 from scipy.stats import qmc
 
@@ -160,6 +161,7 @@ def main():
         row["quadratic_error_over_reduced"] = (row["rotoruq_quadratic"]["holdout_nrmse"]
                                                / row["rotoruq_reduced_quadratic"]["holdout_nrmse"])
         out[name] = row
+    out["provenance"] = provenance()
     text = json.dumps(out, indent=2)
     print(text)
     if args.out:

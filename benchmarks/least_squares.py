@@ -31,6 +31,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 from scipy import optimize
 
 from rotoruq.methods.least_squares import least_squares
@@ -186,6 +187,7 @@ def main() -> dict:
 
 if __name__ == "__main__":
     result = main()
+    result["provenance"] = provenance()
     # one line per problem keeps the output readable while staying valid JSON
     lines = [f" {json.dumps(k)}: {json.dumps(v)}" for k, v in result["problems"].items()]
     rest = {k: v for k, v in result.items() if k != "problems"}

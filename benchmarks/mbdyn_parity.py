@@ -23,6 +23,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 
 from rotoruq.mbdyn import CaseSettings, find_mbdyn, rigid_equivalent, run_case
 from rotoruq.rotor.model import RotorModel
@@ -202,6 +203,7 @@ def main() -> None:
     }
     if args.elastic:
         res["elastic"] = elastic(mbdyn, CaseSettings(revolutions=args.elastic_revolutions))
+    res["provenance"] = provenance()
     print(markdown(res) if args.markdown else json.dumps(res, indent=2))
 
 

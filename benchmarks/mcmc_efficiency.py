@@ -41,10 +41,18 @@ import time
 import warnings
 
 import numpy as np
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
 
 import rotoruq as rq
-from rotoruq.methods.mcmc import SamplerConfig, calibrate_bayes, effective_sample_size
+from rotoruq.methods.mcmc import (
+    ChainOptions,
+    EmulatorOptions,
+    NoiseModel,
+    SamplerConfig,
+    calibrate_bayes,
+    effective_sample_size,
+)
 from rotoruq.methods.surrogate import GaussianProcess
 
 T = np.linspace(0.0, 10.0, 200)
@@ -90,8 +98,11 @@ def ess_min(chains: np.ndarray, drop: float | int = 0.1) -> float:
 def run_ours(model, space, data, budget, n_chains, seed, **kw):
     t0 = time.perf_counter()
     sampler = SamplerConfig("dram", dr_scale=DR_SCALE, adapt_interval=ADAPT_INTERVAL)
-    res = calibrate_bayes(model, data, space, sampler=sampler, n_samples=budget // n_chains,
-                          burn_in=0, n_chains=n_chains, noise_std=SIGMA, seed=seed, **kw)
+    res = calibrate_bayes(model, data, space,
+                          chains=ChainOptions(sampler=sampler, n_samples=budget // n_chains,
+                                              burn_in=0,
+                                              n_chains=n_chains),
+                          noise=NoiseModel(noise_std=SIGMA), seed=seed, **kw)
     wall = time.perf_counter() - t0
     ess = ess_min(res.chains)
     return res, {"chain_s": res.sampling_seconds, "chain_cpu_s": res.sampling_cpu_seconds,
@@ -236,15 +247,21 @@ def emulator(seed, repeats, steps=100_000, burn=5000):
            "gp_fit_s": time.perf_counter() - t0, "loo_q2": gp.loo().q2.tolist()}
     bounds = space.bounds
     # first call in a process: load (or compile) the kernels for this posterior's types
-    first = calibrate_bayes(model, data, space, emulator=gp, n_samples=200, burn_in=0,
-                            noise_std=0.5, emulator_variance=False, seed=seed)
-    calibrate_bayes(model, data, space, emulator=gp, n_samples=200, burn_in=0, noise_std=0.5,
+    first = calibrate_bayes(model, data, space,
+                            emulator=EmulatorOptions(gp, emulator_variance=False),
+                            chains=ChainOptions(n_samples=200, burn_in=0),
+                            noise=NoiseModel(noise_std=0.5),
+                            seed=seed)
+    calibrate_bayes(model, data, space, emulator=gp, chains=ChainOptions(n_samples=200, burn_in=0),
+                    noise=NoiseModel(noise_std=0.5),
                     seed=seed)  # the variance kernel's load
     out["first_call_chain_s"] = first.sampling_seconds
     ratios, ratios_cpu, ours_s, ours_cpu = [], [], [], []
     for r in range(repeats):
-        res = calibrate_bayes(model, data, space, emulator=gp, n_samples=steps - burn,
-                              burn_in=burn, noise_std=0.5, emulator_variance=False,
+        res = calibrate_bayes(model, data, space,
+                              emulator=EmulatorOptions(gp, emulator_variance=False),
+                              chains=ChainOptions(n_samples=steps - burn, burn_in=burn),
+                              noise=NoiseModel(noise_std=0.5),
                               seed=seed + r)
         ess = float(res.ess.min())
         ours = {"chain_s": res.sampling_seconds, "chain_cpu_s": res.sampling_cpu_seconds,
@@ -259,11 +276,14 @@ def emulator(seed, repeats, steps=100_000, burn=5000):
         ratios.append(ours["ess_per_s"] / pym["ess_per_s"])
         ratios_cpu.append(_cpu_ratio(ours, pym))
         out["last_run"] = {"rotoruq_dram": ours, "pymcmcstat_dram": pym}
-    four = calibrate_bayes(model, data, space, emulator=gp, n_samples=steps // 4 - burn // 4,
-                           burn_in=burn // 4, n_chains=4, noise_std=0.5,
-                           emulator_variance=False, seed=seed)
-    var_runs = [calibrate_bayes(model, data, space, emulator=gp, n_samples=steps - burn,
-                                burn_in=burn, noise_std=0.5, seed=seed + r)
+    four = calibrate_bayes(model, data, space,
+                           emulator=EmulatorOptions(gp, emulator_variance=False),
+                           chains=ChainOptions(n_samples=steps // 4 - burn // 4, burn_in=burn // 4,
+                                               n_chains=4),
+                           noise=NoiseModel(noise_std=0.5), seed=seed)
+    var_runs = [calibrate_bayes(model, data, space, emulator=gp,
+                                chains=ChainOptions(n_samples=steps - burn, burn_in=burn),
+                                noise=NoiseModel(noise_std=0.5), seed=seed + r)
                 for r in range(repeats)]
     out["with_emulator_variance"] = {
         "one_chain_s": _spread([v.sampling_seconds for v in var_runs]),
@@ -315,7 +335,8 @@ def main():
         return
     model, space, data = make_problem(0)
     warnings.simplefilter("ignore")
-    calibrate_bayes(model, data, space, n_samples=300, seed=0)  # load compiled kernels
+    # load compiled kernels
+    calibrate_bayes(model, data, space, chains=ChainOptions(n_samples=300), seed=0)
     out = {"problem": "4 parameters, 200 observations, y = a exp(-b t) + c sin(w t)",
            "budget_samples": args.budget, "repeats": args.repeats,
            "one_chain": one_chain(model, space, data, args.budget, args.seed, args.repeats),
@@ -326,6 +347,7 @@ def main():
     out["meets_targets"] = bool(
         out["one_chain"]["ratio_ess_per_s"]["median"] >= 3.0
         and out["emulator"]["one_chain_s"]["median"] < 3.0)
+    out["provenance"] = provenance()
     text = json.dumps(out, indent=1)
     print(text)
     if args.out:

@@ -36,6 +36,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
 
 import rotoruq as rq
@@ -210,6 +211,7 @@ def main() -> dict:
                 out["dakota"][est]["ratio_rotoruq_to_dakota_mean_variance"] = (
                     out["rotoruq"][est]["mean_estimate"]["variance"]
                     / out["dakota"][est]["mean_estimate"]["variance"])
+    out["provenance"] = provenance()
     print(json.dumps(out, indent=2))
     return out
 

@@ -54,6 +54,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
 
 import rotoruq as rq
@@ -413,6 +414,7 @@ def main() -> dict:
         "note": (f"standard errors and plain-MC counts predicted from the {res.n_pilot}-point "
                  "pilot's covariances"),
     }
+    out["provenance"] = provenance()
     print(json.dumps(out, indent=2, default=lambda v: None if isinstance(v, float)
                      and math.isnan(v) else v))
     return out

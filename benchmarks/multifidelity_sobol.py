@@ -32,6 +32,7 @@ import json
 import time
 
 import numpy as np
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
 
 import rotoruq as rq
@@ -234,6 +235,7 @@ def main() -> dict:
     if not args.no_rotor:
         out["rotor"] = rotor(args.rotor_seeds, args.rotor_budget, args.rotor_pilot,
                              args.rotor_reference)
+    out["provenance"] = provenance()
     print(json.dumps(out, indent=2))
     return out
 

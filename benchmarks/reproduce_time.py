@@ -26,6 +26,7 @@ import time
 import traceback
 
 import numpy as np
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
 
 TARGET_SECONDS = 30.0
@@ -134,6 +135,7 @@ def main() -> None:
     result["out"] = out_root
     if args.report_repeats > 0 and runs[-1]["dirs"]:
         result["report_workers"] = report_workers(runs[-1]["dirs"], args.report_repeats)
+    result["provenance"] = provenance(modules=["rotoruq.study.cli"])
     text = json.dumps(result, indent=1)
     print(text)
     if args.json:

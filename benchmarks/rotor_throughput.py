@@ -44,6 +44,7 @@ from pathlib import Path
 
 import numba
 import numpy as np
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 
 from rotoruq.rotor._reference import solve_hover_reference
 from rotoruq.rotor.model import RotorModel
@@ -256,6 +257,7 @@ def main() -> None:
         "gvpm_batch_1": out["summary"]["gvpm"]["batch_1"]["compiled"][0] >= 2000,
         "bo105_batch_1000": med["bo105"] >= 7000,
     }
+    out["provenance"] = provenance()
     text = json.dumps(out, indent=1)
     OUT.parent.mkdir(parents=True, exist_ok=True)
     OUT.write_text(text + "\n")

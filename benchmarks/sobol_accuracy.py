@@ -48,6 +48,7 @@ import time
 import warnings
 
 import numpy as np
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
 from scipy import stats
 
@@ -299,6 +300,7 @@ def main():
         "interval_cost": interval_cost(args.repeats),
     }
     out["seconds"] = round(time.perf_counter() - t0, 1)
+    out["provenance"] = provenance()
     print(json.dumps(out, indent=1))
 
 

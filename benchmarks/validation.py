@@ -43,6 +43,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
 
 import rotoruq as rq
@@ -229,6 +230,7 @@ def main() -> None:
     res = run()
     if not args.no_heldout:
         res["heldout"] = heldout(Path(args.heldout) if args.heldout else None)
+    res["provenance"] = provenance()
     text = json.dumps(res, indent=2)
     print(text)
     if args.out:

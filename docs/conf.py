@@ -26,6 +26,7 @@ extensions = [
     "numpydoc",
     "public_api",
     "plain_docstrings",
+    "generated_blocks",
 ]
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 exclude_patterns = ["_build", "Thumbs.db", ".DS_Store"]

@@ -37,9 +37,11 @@ def main(argv: list[str] | None = None) -> None:
     clean = model([[TRUTH[n] for n in prior.names]])                      # (1, 2)
     data = clean + np.random.default_rng(data_seed).normal(0.0, NOISE_STD, (4, 2))  # (4, 2)
 
-    post = rq.calibrate_bayes(model, data, prior, noise_std=NOISE_STD,
-                              emulator=rq.GaussianProcess(trend="reduced_quadratic"),
-                              n_emulator_samples=n_emulator, n_samples=n_steps,
+    post = rq.calibrate_bayes(model, data, prior, noise=rq.NoiseModel(noise_std=NOISE_STD),
+                              emulator=rq.EmulatorOptions(
+                                  rq.GaussianProcess(trend="reduced_quadratic"),
+                                  n_emulator_samples=n_emulator),
+                              chains=rq.ChainOptions(n_samples=n_steps),
                               seed=np.random.default_rng(calibration_seed))
     print(f"emulator leave-one-out Q2: {post.emulator_loo.q2}")
     print("input           truth     posterior mean  std       ESS")

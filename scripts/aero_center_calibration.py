@@ -129,7 +129,7 @@ def _chains(quick: bool) -> dict:
 def _calibrate(model, data, space, noise, quick, seed):
     import rotoruq as rq
 
-    return rq.calibrate_bayes(model, data, space, noise_std=noise, seed=seed,
+    return rq.calibrate_bayes(model, data, space, noise=rq.NoiseModel(noise_std=noise), seed=seed,
                               **_chains(quick))
 
 
@@ -395,6 +395,10 @@ def main(argv: list[str] | None = None) -> None:
            "mbdyn_elastic": mbdyn_elastic(prior, args.quick), "table_4_6": table_4_6(prior),
            "table_4_9": table_4_9(prior, args.quick)}
     res["wall_s"] = time.perf_counter() - t0
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from _provenance import provenance  # the one helper every benchmark uses
+
+    res["provenance"] = provenance()
     text = json.dumps(res, indent=1)
     print(text)
     if args.out:

@@ -735,6 +735,10 @@ def main(argv: list[str] | None = None) -> None:
     ok, tot = passed({k: res[k] for k in ("frequencies", "hover", "loads")})
     res["passed"], res["checks"] = ok, tot
     res["wall_s"] = time.perf_counter() - t0
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from _provenance import provenance  # the one helper every benchmark uses
+
+    res["provenance"] = provenance()
     text = json.dumps(res, indent=1)
     print(text)
     if args.out:

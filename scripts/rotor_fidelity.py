@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -260,6 +262,10 @@ def main(argv: list[str] | None = None) -> None:
         "bo105_geometry": bo105_geometry(),
         "ground_effect": ground_effect(),
     }
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from _provenance import provenance  # the one helper every benchmark uses
+
+    out["provenance"] = provenance()
     text = json.dumps(out, indent=1)
     print(text)
     if args.out:

@@ -9,7 +9,14 @@ import pytest
 
 import rotoruq as rq
 from rotoruq.errors import ModelShapeError, ParameterError
-from rotoruq.methods.mcmc import SamplerConfig, calibrate_bayes, continue_chain
+from rotoruq.methods.mcmc import (
+    ChainOptions,
+    EmulatorOptions,
+    NoiseModel,
+    SamplerConfig,
+    calibrate_bayes,
+    continue_chain,
+)
 from rotoruq.methods.mcmc.bayes import _Posterior
 from rotoruq.methods.surrogate import ExtrapolationWarning, GaussianProcess
 
@@ -48,8 +55,10 @@ def linear_problem(with_gradient=True, permute=False):
 @pytest.mark.parametrize("method", ["dram", "mh"])
 def test_linear_gaussian_posterior_matches_closed_form(method):
     model, space, mean, cov = linear_problem()
-    res = calibrate_bayes(model, DATA, space, sampler=method, n_samples=4500, burn_in=500,
-                          n_chains=4, noise_std=NOISE, seed=1)
+    res = calibrate_bayes(model, DATA, space,
+                          chains=ChainOptions(sampler=method, n_samples=4500, burn_in=500,
+                                              n_chains=4),
+                          noise=NoiseModel(noise_std=NOISE), seed=1)
     assert res.chains.shape == (4, 4500, 3)
     sd = np.sqrt(np.diag(cov))
     assert np.all(np.abs(res.mean - mean) < 4.5 * sd / np.sqrt(res.ess))
@@ -80,28 +89,34 @@ def test_linear_gaussian_posterior_matches_closed_form(method):
 
 def test_finite_difference_jacobian_and_permuted_inputs_agree():
     model, space, mean, cov = linear_problem(with_gradient=False, permute=True)
-    res = calibrate_bayes(model, DATA, space, n_samples=2850, burn_in=150, n_chains=4,
-                          noise_std=NOISE, seed=2)
+    res = calibrate_bayes(model, DATA, space,
+                          chains=ChainOptions(n_samples=2850, burn_in=150, n_chains=4),
+                          noise=NoiseModel(noise_std=NOISE), seed=2)
     np.testing.assert_allclose(res.proposal_covariance, 2.38**2 / 3 * cov, rtol=1e-3)
     assert np.all(np.abs(res.mean - mean) < 4.5 * np.sqrt(np.diag(cov) / res.ess))
 
 
 def test_same_seed_same_chains():
     model, space, *_ = linear_problem()
-    a = calibrate_bayes(model, DATA, space, n_samples=475, burn_in=25, n_chains=2,
-                        noise_std=NOISE, seed=7)
-    b = calibrate_bayes(model, DATA, space, n_samples=475, burn_in=25, n_chains=2,
-                        noise_std=NOISE, seed=7)
+    a = calibrate_bayes(model, DATA, space,
+                        chains=ChainOptions(n_samples=475, burn_in=25, n_chains=2),
+                        noise=NoiseModel(noise_std=NOISE), seed=7)
+    b = calibrate_bayes(model, DATA, space,
+                        chains=ChainOptions(n_samples=475, burn_in=25, n_chains=2),
+                        noise=NoiseModel(noise_std=NOISE), seed=7)
     np.testing.assert_array_equal(a.chains, b.chains)
     # one chain: the evaluation schedule changes the number of model runs, not the chain
-    one = [calibrate_bayes(model, DATA, space, n_samples=760, burn_in=40, noise_std=NOISE,
-                           seed=8, sampler=SamplerConfig(evaluations=ev))
+    one = [calibrate_bayes(model, DATA, space,
+                           chains=ChainOptions(n_samples=760, burn_in=40,
+                                               sampler=SamplerConfig(evaluations=ev)),
+                           noise=NoiseModel(noise_std=NOISE), seed=8)
            for ev in ("speculative", "minimal")]
     np.testing.assert_array_equal(one[0].chains, one[1].chains)
     assert one[0].acceptance_rate == one[1].acceptance_rate
     assert one[1].n_likelihood_evaluations < one[0].n_likelihood_evaluations
     with pytest.raises(ParameterError, match="unknown evaluations schedule"):
-        calibrate_bayes(model, DATA, space, n_samples=10, sampler=SamplerConfig(evaluations="all"))
+        calibrate_bayes(model, DATA, space,
+                        chains=ChainOptions(n_samples=10, sampler=SamplerConfig(evaluations="all")))
 
 
 def test_readme_example_is_bitwise_reproducible():
@@ -116,9 +131,12 @@ def test_readme_example_is_bitwise_reproducible():
     gp = rq.GaussianProcess(trend="reduced_quadratic")
 
     def run(seed):
-        return rq.calibrate_bayes(model, data, prior=space, sampler="dram", noise_std=0.1,
-                                  emulator=gp, n_emulator_samples=30, n_samples=400,
-                                  burn_in=50, n_chains=4, posterior_predictive=20, seed=seed)
+        return rq.calibrate_bayes(model, data, prior=space,
+                                  chains=ChainOptions(sampler="dram", n_samples=400, burn_in=50,
+                                                      n_chains=4),
+                                  noise=NoiseModel(noise_std=0.1),
+                                  emulator=EmulatorOptions(gp, n_emulator_samples=30),
+                                  posterior_predictive=20, seed=seed)
 
     a, b = run(1), run(1)
     assert not gp._fits and a.emulator is not gp
@@ -144,8 +162,9 @@ def test_banana_posterior_moments():
     space = rq.ParameterSpace({"a": rq.Uniform(-6, 6), "c": rq.Uniform(-40, 10)})
     model = rq.FunctionModel(lambda x: np.column_stack([x[:, 0], x[:, 1] + x[:, 0] ** 2]),
                              ["a", "c"], ["q1", "q2"])
-    res = calibrate_bayes(model, [0.0, 0.0], space, noise_std=[1.0, 0.5],
-                          n_samples=19000, burn_in=1000, n_chains=8, seed=3)
+    res = calibrate_bayes(model, [0.0, 0.0], space, noise=NoiseModel(noise_std=[1.0, 0.5]),
+                          chains=ChainOptions(n_samples=19000, burn_in=1000, n_chains=8),
+                          seed=3)
     se = res.std / np.sqrt(res.ess)
     assert abs(res.mean[0]) < 4.5 * se[0]
     assert abs(res.mean[1] + 1.0) < 4.5 * se[1]
@@ -171,10 +190,14 @@ def test_emulator_workflow_matches_the_true_model():
     space = rq.ParameterSpace({"k": rq.Uniform(0.0, 2.0), "c": rq.Uniform(0.0, 2.0)})
     truth = np.array([[1.2, 0.7]])
     data = model(truth) + np.random.default_rng(4).normal(0, 0.1, (20, 2))
-    kw = dict(noise_std=0.1, n_samples=3800, burn_in=200, n_chains=4, seed=5)
+    kw = dict(noise=NoiseModel(noise_std=0.1),
+              chains=ChainOptions(n_samples=3800, burn_in=200, n_chains=4), seed=5)
     direct = calibrate_bayes(model, data, space, **kw)
-    emu = calibrate_bayes(model, data, space, emulator=GaussianProcess(
-        trend="reduced_quadratic", seed=0), n_emulator_samples=60, posterior_predictive=50, **kw)
+    emu = calibrate_bayes(model, data, space,
+                          emulator=EmulatorOptions(
+                              GaussianProcess(trend="reduced_quadratic", seed=0),
+                              n_emulator_samples=60),
+                          posterior_predictive=50, **kw)
     assert emu.emulator is not None and emu.emulator_loo.q2.min() > 0.999
     se = np.sqrt(direct.std**2 / direct.ess + emu.std**2 / emu.ess)
     assert np.all(np.abs(emu.mean - direct.mean) < 4.5 * se)
@@ -308,18 +331,24 @@ def test_refinement_brings_the_emulator_error_below_target_and_the_posterior_hom
     from rotoruq.methods.mcmc import RefineConfig
 
     model, space, data = _three_output_problem()
-    kw = dict(noise_std=0.05, n_samples=1500, burn_in=300, n_chains=4, seed=3)
+    kw = dict(noise=NoiseModel(noise_std=0.05),
+              chains=ChainOptions(n_samples=1500, burn_in=300, n_chains=4), seed=3)
     direct = calibrate_bayes(model, data, space, **kw)
     with pytest.warns(RuntimeWarning, match="emulator error over the posterior"):
-        sparse = calibrate_bayes(model, data, space, emulator=GaussianProcess(trend="linear"),
-                                 n_emulator_samples=10, **kw)
+        sparse = calibrate_bayes(model, data, space,
+                                 emulator=EmulatorOptions(GaussianProcess(trend="linear"),
+                                                          n_emulator_samples=10),
+                                 **kw)
     ad = sparse.emulator_adequacy
     assert ad.runs_added == () and np.all(ad.loo_ratio > 0)
     np.testing.assert_allclose(ad.noise_std, 0.05 / np.sqrt(3))
     assert ad.posterior_ratio.max() > 0.3
     cfg = RefineConfig(n_samples=40, target_ratio=0.1, batch=5)
-    ref = calibrate_bayes(model, data, space, emulator=GaussianProcess(trend="linear"),
-                          n_emulator_samples=10, refine=cfg, **kw)
+    ref = calibrate_bayes(model, data, space,
+                          emulator=EmulatorOptions(GaussianProcess(trend="linear"),
+                                                   n_emulator_samples=10,
+                                                   refine=cfg),
+                          **kw)
     ra = ref.emulator_adequacy
     assert 1 <= len(ra.runs_added) and ra.n_added <= 40
     assert np.all(ra.posterior_ratio < 0.1) and ra.target_ratio == 0.1
@@ -333,8 +362,9 @@ def test_refinement_brings_the_emulator_error_below_target_and_the_posterior_hom
     z_sparse = np.abs(sparse.mean - direct.mean) / direct.std
     z_ref = np.abs(ref.mean - direct.mean) / direct.std
     assert z_ref.max() < z_sparse.max()
-    with pytest.raises(ParameterError, match="refines an emulator"):
-        calibrate_bayes(model, data, space, refine=cfg, n_samples=10)
+    with (pytest.raises(ParameterError, match="refines an emulator"),
+          pytest.warns(DeprecationWarning, match="pass emulator=EmulatorOptions")):
+        calibrate_bayes(model, data, space, refine=cfg, chains=ChainOptions(n_samples=10))
     with pytest.raises(ParameterError, match="target_ratio"):
         RefineConfig(target_ratio=0.0)
 
@@ -349,23 +379,28 @@ def test_noise_multiplier_learns_an_understated_noise(tmp_path):
     model, space, _ = _three_output_problem()
     truth = np.array([1.1, 0.6])
     y0 = model(truth[None])
-    kw = dict(noise_std=0.05, n_samples=1000, burn_in=200, n_chains=4)
+    kw = dict(chains=ChainOptions(n_samples=1000, burn_in=200, n_chains=4))
     lam_cover, th_cover, fixed_cover = 0, np.zeros(2), np.zeros(2)
     for s in range(8):
         data = y0 + np.random.default_rng(100 + s).normal(0, 0.1, (10, 3))
-        r = calibrate_bayes(model, data, space, noise_multipliers="one", seed=s, **kw)
+        r = calibrate_bayes(model, data, space,
+                            noise=NoiseModel(noise_std=0.05, noise_multipliers="one"), seed=s,
+                            **kw)
         assert r.chains.shape == (4, 1000, 2) and r.noise_multiplier_chains.shape == (4, 1000, 1)
         _, _, lo, hi = r.noise_multiplier_summary(0.9)["noise_multiplier"]
         lam_cover += lo <= 4.0 <= hi
         ci = r.credible_interval(0.9)
         th_cover += (ci[:, 0] <= truth) & (truth <= ci[:, 1])
-        ci = calibrate_bayes(model, data, space, seed=s, **kw).credible_interval(0.9)
+        ci = calibrate_bayes(model, data, space, noise=NoiseModel(noise_std=0.05), seed=s,
+                             **kw).credible_interval(0.9)
         fixed_cover += (ci[:, 0] <= truth) & (truth <= ci[:, 1])
     assert lam_cover >= 6 and np.all(th_cover >= 6), (lam_cover, th_cover)
     assert fixed_cover.sum() < th_cover.sum()
     sd = np.array([0.1, 0.05, 0.05])
     data = y0 + np.random.default_rng(7).normal(0, 1, (30, 3)) * sd
-    r = calibrate_bayes(model, data, space, noise_multipliers="per_response", seed=1, **kw)
+    r = calibrate_bayes(model, data, space,
+                        noise=NoiseModel(noise_std=0.05, noise_multipliers="per_response"),
+                        seed=1, **kw)
     summ = r.noise_multiplier_summary(0.99)
     assert r.noise_multiplier_names == ("noise_multiplier:y1", "noise_multiplier:y2",
                                         "noise_multiplier:y3")
@@ -408,9 +443,12 @@ def test_noise_multipliers_with_an_emulator_and_named_responses():
     """The multiplier route also runs on an emulator (with its variance) and on a subset
     of responses: the unnamed responses keep their stated noise."""
     model, space, data = _three_output_problem()
-    r = calibrate_bayes(model, data, space, emulator=GaussianProcess(trend="linear"),
-                        n_emulator_samples=30, noise_std=0.05, noise_multipliers=["y2"],
-                        n_samples=300, burn_in=50, seed=2)
+    r = calibrate_bayes(model, data, space,
+                        emulator=EmulatorOptions(GaussianProcess(trend="linear"),
+                                                 n_emulator_samples=30),
+                        noise=NoiseModel(noise_std=0.05, noise_multipliers=["y2"]),
+                        chains=ChainOptions(n_samples=300, burn_in=50),
+                        seed=2)
     assert r.noise_multiplier_names == ("noise_multiplier:y2",)
     assert r.noise_multiplier_chains.shape == (1, 300, 1) and r.chains.shape == (1, 300, 2)
     assert np.all(r.noise_multiplier_chains > 0)
@@ -420,30 +458,40 @@ def test_noise_multipliers_with_an_emulator_and_named_responses():
 def test_noise_multiplier_bad_input():
     model, space, data = _three_output_problem()
     with pytest.raises(ParameterError, match=r"responses \['y3'\] that have no data"):
-        calibrate_bayes(model, data[:, :2], space, names_out=["y1", "y2"], noise_std=0.05,
-                        noise_multipliers=["y3"], n_samples=10)
+        calibrate_bayes(model, data[:, :2], space, names_out=["y1", "y2"],
+                        noise=NoiseModel(noise_std=0.05, noise_multipliers=["y3"]),
+                        chains=ChainOptions(n_samples=10))
     with pytest.raises(ParameterError, match="noise_std must be finite and > 0"):
-        calibrate_bayes(model, data, space, noise_std=[0.05, 0.0, 0.05],
-                        noise_multipliers="one", n_samples=10)
+        calibrate_bayes(model, data, space,
+                        noise=NoiseModel(noise_std=[0.05, 0.0, 0.05], noise_multipliers="one"),
+                        chains=ChainOptions(n_samples=10))
     with pytest.raises(ParameterError, match="need independent noise"):
-        calibrate_bayes(model, data, space, noise_covariance=np.eye(3),
-                        noise_multipliers="one", n_samples=10)
+        calibrate_bayes(model, data, space,
+                        noise=NoiseModel(noise_covariance=np.eye(3), noise_multipliers="one"),
+                        chains=ChainOptions(n_samples=10))
     with pytest.raises(ParameterError, match="noise_multipliers must be one of"):
-        calibrate_bayes(model, data, space, noise_multipliers="each", n_samples=10)
+        calibrate_bayes(model, data, space, noise=NoiseModel(noise_multipliers="each"),
+                        chains=ChainOptions(n_samples=10))
     with pytest.raises(ParameterError, match=r"\(alpha, beta\) must be > 0"):
-        calibrate_bayes(model, data, space, noise_multipliers="one",
-                        noise_multiplier_prior=(0.0, 1.0), n_samples=10)
+        calibrate_bayes(model, data, space,
+                        noise=NoiseModel(noise_multipliers="one",
+                                         noise_multiplier_prior=(0.0, 1.0)),
+                        chains=ChainOptions(n_samples=10))
     with pytest.raises(ParameterError, match="no noise multipliers"):
-        calibrate_bayes(model, data, space, noise_std=0.05, n_samples=20).noise_multiplier_summary()
+        calibrate_bayes(model, data, space, noise=NoiseModel(noise_std=0.05),
+                        chains=ChainOptions(n_samples=20)).noise_multiplier_summary()
 
 
-def _emulator_result(prior=None, **kw):
+def _emulator_result(prior=None, emulator=None, emulator_variance=True, **chains):
     model = smooth_model()
     space = prior or rq.ParameterSpace({"k": rq.Uniform(0.0, 2.0), "c": rq.Uniform(0.0, 2.0)})
     data = model(np.array([[1.2, 0.7]])) + np.random.default_rng(4).normal(0, 0.1, (20, 2))
-    kw.setdefault("emulator", GaussianProcess(trend="linear", seed=0))
-    return calibrate_bayes(model, data, space, n_emulator_samples=40, noise_std=0.1, seed=6,
-                           **kw)
+    gp = emulator or GaussianProcess(trend="linear", seed=0)
+    return calibrate_bayes(model, data, space,
+                           emulator=EmulatorOptions(gp, n_emulator_samples=40,
+                                                    emulator_variance=emulator_variance),
+                           noise=NoiseModel(noise_std=0.1), chains=ChainOptions(**chains),
+                           seed=6)
 
 
 def test_compiled_emulator_posterior_equals_the_python_one():
@@ -493,8 +541,9 @@ def test_emulator_extrapolation_is_warned_with_distance():
     gp = GaussianProcess(trend="linear", seed=0).fit(X, model(X))
     wide = rq.ParameterSpace({"k": rq.Normal(1.0, 1.0), "c": rq.Normal(0.7, 1.0)})
     with pytest.warns(ExtrapolationWarning, match=r"box-widths outside its training box"):
-        calibrate_bayes(model, [2.0, 1.0], wide, emulator=gp, noise_std=2.0,
-                        n_samples=570, burn_in=30, seed=1)
+        calibrate_bayes(model, [2.0, 1.0], wide, emulator=gp, noise=NoiseModel(noise_std=2.0),
+                        chains=ChainOptions(n_samples=570, burn_in=30),
+                        seed=1)
 
 
 def test_nan_likelihoods_are_rejected_and_counted():
@@ -505,17 +554,18 @@ def test_nan_likelihoods_are_rejected_and_counted():
 
     model = rq.FunctionModel(f, ["a", "b"], ["s", "d"])
     space = rq.ParameterSpace({"a": rq.Uniform(0, 1), "b": rq.Uniform(0, 1)})
-    res = calibrate_bayes(model, [1.0, 0.1], space, noise_std=np.sqrt(0.3),
-                          n_samples=1900, burn_in=100,
-                          n_chains=2, seed=2)
+    res = calibrate_bayes(model, [1.0, 0.1], space, noise=NoiseModel(noise_std=np.sqrt(0.3)),
+                          chains=ChainOptions(n_samples=1900, burn_in=100, n_chains=2),
+                          seed=2)
     assert res.n_nan_likelihood > 0
     assert np.all(res.chains[..., 0] <= 0.6)
 
 
 def test_continue_chain_and_export(tmp_path):
     model, space, mean, cov = linear_problem()
-    res = calibrate_bayes(model, DATA, space, n_samples=1000, burn_in=200, n_chains=2,
-                          noise_std=NOISE, seed=3)
+    res = calibrate_bayes(model, DATA, space,
+                          chains=ChainOptions(n_samples=1000, burn_in=200, n_chains=2),
+                          noise=NoiseModel(noise_std=NOISE), seed=3)
     more = continue_chain(res, 1000)
     assert more.chains.shape == (2, 2000, 3)
     np.testing.assert_array_equal(more.chains[:, :1000], res.chains)
@@ -540,9 +590,10 @@ def test_continue_chain_and_export(tmp_path):
 def test_data_with_wrong_number_of_responses():
     model, space, *_ = linear_problem()
     with pytest.raises(ModelShapeError, match=r"data has 3 column\(s\) but 4 response"):
-        calibrate_bayes(model, np.zeros((5, 3)), space, n_samples=10)
+        calibrate_bayes(model, np.zeros((5, 3)), space, chains=ChainOptions(n_samples=10))
     with pytest.raises(ParameterError, match="not outputs of the model"):
-        calibrate_bayes(model, np.zeros((5, 1)), space, names_out=["thrust"], n_samples=10)
+        calibrate_bayes(model, np.zeros((5, 1)), space, names_out=["thrust"],
+                        chains=ChainOptions(n_samples=10))
 
 
 def test_non_positive_definite_covariance():
@@ -550,9 +601,11 @@ def test_non_positive_definite_covariance():
     bad = np.eye(4)
     bad[0, 1] = bad[1, 0] = 2.0
     with pytest.raises(ParameterError, match="not positive definite"):
-        calibrate_bayes(model, DATA, space, noise_covariance=bad, n_samples=10)
+        calibrate_bayes(model, DATA, space, noise=NoiseModel(noise_covariance=bad),
+                        chains=ChainOptions(n_samples=10))
     with pytest.raises(ParameterError, match="proposal_covariance is not positive definite"):
-        calibrate_bayes(model, DATA, space, proposal_covariance=-np.eye(3), n_samples=10)
+        calibrate_bayes(model, DATA, space,
+                        chains=ChainOptions(proposal_covariance=-np.eye(3), n_samples=10))
 
 
 def test_infinite_support_prior_without_start_point():
@@ -564,31 +617,35 @@ def test_infinite_support_prior_without_start_point():
     model = rq.FunctionModel(f, ["kp"], ["m"])
     space = rq.ParameterSpace({"kp": rq.Normal(0.0, 1.0)})
     with pytest.raises(ParameterError, match=r"\['kp'\] have infinite prior support.*x0="):
-        calibrate_bayes(model, [6.0], space, n_samples=95, burn_in=5)
-    res = calibrate_bayes(model, [6.0], space, x0=[6.0], n_samples=285, burn_in=15, seed=0)
+        calibrate_bayes(model, [6.0], space, chains=ChainOptions(n_samples=95, burn_in=5))
+    res = calibrate_bayes(model, [6.0], space,
+                          chains=ChainOptions(x0=[6.0], n_samples=285, burn_in=15),
+                          seed=0)
     assert np.all(res.chains >= 5.0)
     with pytest.raises(ParameterError, match="zero posterior density"):
-        calibrate_bayes(model, [6.0], space, x0=[1.0], n_samples=95, burn_in=5)
+        calibrate_bayes(model, [6.0], space, chains=ChainOptions(x0=[1.0], n_samples=95, burn_in=5))
 
 
 def test_bad_sampler_arguments():
     model, space, *_ = linear_problem()
     with pytest.raises(ParameterError, match="unknown MCMC sampler"):
-        calibrate_bayes(model, DATA, space, sampler="nuts", n_samples=10)
+        calibrate_bayes(model, DATA, space, chains=ChainOptions(sampler="nuts", n_samples=10))
     with pytest.raises(ParameterError, match="burn_in"):
-        calibrate_bayes(model, DATA, space, n_samples=10, burn_in=-1)
+        calibrate_bayes(model, DATA, space, chains=ChainOptions(n_samples=10, burn_in=-1))
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         with pytest.raises(ParameterError, match="ParameterSpace"):
-            calibrate_bayes(model, DATA, {"t0": rq.Normal(0, 1)}, n_samples=10)
+            calibrate_bayes(model, DATA, {"t0": rq.Normal(0, 1)}, chains=ChainOptions(n_samples=10))
 
 
 def test_non_gaussian_priors_are_sampled_exactly_when_data_say_nothing():
     """Uninformative data (huge variance): the posterior is the prior (Beta, LogNormal)."""
     space = rq.ParameterSpace({"p": rq.Beta(2.0, 3.0), "s": rq.LogNormal(2.0, 0.5)})
     model = rq.FunctionModel(lambda x: x[:, :1] + 0.0 * x[:, 1:], ["p", "s"], ["y"])
-    res = calibrate_bayes(model, [0.4], space, noise_std=1e4, n_samples=5700, burn_in=300,
-                          n_chains=8, proposal_covariance="prior", seed=4)
+    res = calibrate_bayes(model, [0.4], space, noise=NoiseModel(noise_std=1e4),
+                          chains=ChainOptions(n_samples=5700, burn_in=300, n_chains=8,
+                                              proposal_covariance="prior"),
+                          seed=4)
     se = res.std / np.sqrt(res.ess)
     assert np.all(np.abs(res.mean - space.mean) < 4.5 * se)
     assert np.all(np.abs(res.std / space.std - 1) < 4.5 * np.sqrt(1.0 / res.ess) + 0.02)
@@ -616,8 +673,9 @@ def test_a_slow_model_gets_the_minimal_schedule_and_the_same_chains():
 
     prior = rq.ParameterSpace({"a": rq.Uniform(-1, 1), "b": rq.Uniform(-1, 1)})
     data = f(np.array([[0.3, -0.4]])) + 0.01
-    kw = dict(noise_std=0.1, n_samples=40, burn_in=0, map_start=False,
-              proposal_covariance="prior", seed=5)
+    kw = dict(noise=NoiseModel(noise_std=0.1), seed=5,
+              chains=ChainOptions(n_samples=40, burn_in=0, map_start=False,
+                                  proposal_covariance="prior"))
     fast_run = rq.calibrate_bayes(rq.FunctionModel(f, ["a", "b"], ["y1", "y2"]), data, prior,
                                   **kw)
     slow_run = rq.calibrate_bayes(rq.FunctionModel(slow, ["a", "b"], ["y1", "y2"]), data,
@@ -626,3 +684,35 @@ def test_a_slow_model_gets_the_minimal_schedule_and_the_same_chains():
     np.testing.assert_array_equal(slow_run.chains, fast_run.chains)
     assert slow_run.n_likelihood_evaluations < fast_run.n_likelihood_evaluations
     assert slow_run.n_likelihood_evaluations <= 2 * 40  # stage 1, and stage 2 when rejected
+
+
+def test_the_flat_keywords_of_0_1_still_work_for_one_release():
+    """calibrate_bayes takes its options as three records; the flat keywords of rotoruq 0.1
+    give bitwise the same result with a DeprecationWarning naming the record field; an unknown
+    keyword is a TypeError with the closest name."""
+    import inspect
+
+    assert len(inspect.signature(calibrate_bayes).parameters) <= 12
+    model, space, *_ = linear_problem()
+    new = calibrate_bayes(model, DATA, space, noise=NoiseModel(noise_std=NOISE),
+                          chains=ChainOptions(n_samples=200, burn_in=20, n_chains=2,
+                                              sampler="am"), seed=3)
+    with pytest.warns(DeprecationWarning) as caught:
+        old = calibrate_bayes(model, DATA, space, noise_std=NOISE, n_samples=200, burn_in=20,
+                              n_chains=2, sampler="am", seed=3)
+    said = {str(w.message) for w in caught}
+    assert ("calibrate_bayes(burn_in=...) is deprecated and will be removed in the next "
+            "release: pass chains=ChainOptions(burn_in=...)") in said
+    assert any("pass noise=NoiseModel(noise_std=...)" in m for m in said)
+    assert all(w.filename == __file__ for w in caught)  # the warning points at the caller
+    np.testing.assert_array_equal(old.chains, new.chains)
+    # a flat keyword overrides that field of the record given
+    with pytest.warns(DeprecationWarning, match="ChainOptions"):
+        mixed = calibrate_bayes(model, DATA, space, noise=NoiseModel(noise_std=NOISE),
+                                chains=ChainOptions(n_samples=200, burn_in=0, n_chains=2,
+                                                    sampler="am"), burn_in=20, seed=3)
+    np.testing.assert_array_equal(mixed.chains, new.chains)
+    with pytest.raises(TypeError, match="'n_sample'.*did you mean 'n_samples'"):
+        calibrate_bayes(model, DATA, space, n_sample=10)
+    with pytest.raises(ParameterError, match="chains must be a ChainOptions"):
+        calibrate_bayes(model, DATA, space, chains=100)

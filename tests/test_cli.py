@@ -1,7 +1,10 @@
 """The command line a new user meets in the first hour, each behaviour through ``rotoruq`` in a
 subprocess: the compile notice, library warnings as one line each, ``--quiet``, ``--version``,
 quiet pipes, the run summary, ``evaluate``'s exit status and fixed inputs, and units in tables
-and figure axes. (``reproduce`` prints the same summary: tests/test_report.py's slow
+and figure axes; failures a user sees (exit code 3 with the first failure's message, ``--only``
+on a fresh folder, data files checked when the study is read, bundled study names, global
+flags after the subcommand, ``python -m rotoruq``, exported decks' names and driver line).
+(``reproduce`` prints the same summary: tests/test_report.py's slow
 ``test_reproduce_quick`` runs it.)"""
 
 from __future__ import annotations
@@ -155,8 +158,9 @@ def test_library_warnings_are_one_line_each(tmp_path):
     assert not any(".py:" in ln or "numpy" in ln for ln in lines), loud.stderr
     quiet = subprocess.run([sys.executable, "-c", code, "--quiet"], capture_output=True,
                            text=True, timeout=120)
-    assert "warning:" not in quiet.stderr, quiet.stderr
-    # the error itself is still said with --quiet
+    # --quiet hides progress only: warnings and errors are still said
+    assert sum(ln.startswith("warning: Mean of empty slice")
+               for ln in quiet.stderr.splitlines()) == 1, quiet.stderr
     assert "rotoruq report: error:" in quiet.stderr
 
 
@@ -257,3 +261,236 @@ def test_a_broken_pipe_that_is_not_stdout_is_an_error():
 
     with pytest.raises(BrokenPipeError):
         pipe_safe(run)(None)
+
+
+# --- failures a user sees, and the command line (issue 36) -------------------------------
+
+def _study(d, text: str, name: str = "s.toml"):
+    (d / name).write_text(text)
+    return d / name
+
+
+def test_a_run_whose_evaluations_all_fail_exits_3_and_says_why_even_quiet(tmp_path, warm):
+    # 95 deg of collective is no rotor state: every evaluation fails; --quiet after the
+    # subcommand keeps the warning and the reason, hides the progress and the summary
+    study = _study(tmp_path, TINY.replace("collective_deg = 5.0", "collective_deg = 95.0")
+                   .replace("n_samples = 40", "n_samples = 8"))
+    proc = cli("run", study, "--out", tmp_path / "out", "--no-report", "--quiet")
+    assert proc.returncode == 3, proc.stderr
+    assert proc.stdout == ""
+    assert "rotoruq run: error: step 'lhs': none of its 8 evaluations succeeded; first " \
+           "failure: blade pitch command" in proc.stderr
+    assert "exceeds 90 deg" in proc.stderr and "exit code 3" in proc.stderr
+    assert "warning: sample (lhs): 8 of 8 evaluations failed" in proc.stderr
+    assert "running" not in proc.stderr  # no progress chatter
+    # the saved failures say the same when reused, and the summary gives the first reason
+    again = cli("run", study, "--out", tmp_path / "out", "--no-report")
+    assert again.returncode == 3
+    assert "x first failed evaluation: blade pitch command" in again.stdout
+    assert "none of its 8 evaluations succeeded" in again.stderr
+
+
+PARTIAL = """\
+[study]
+name = "part"
+seed = 3
+{extra}
+[model]
+preset = "gvpm"
+responses = ["thrust"]
+
+[parameters.collective_deg]
+distribution = "uniform"
+lower = 4.0
+upper = 94.0
+
+[[steps]]
+name = "lhs"
+type = "sampling"
+n_samples = 10
+"""
+
+
+def test_a_failure_share_above_the_threshold_exits_3(tmp_path, warm):
+    # 8 of the 10 collectives from 4 to 94 deg fail (deep stall, > 90 deg)
+    study = _study(tmp_path, PARTIAL.format(extra=""))
+    proc = cli("run", study, "--out", tmp_path / "out", "--no-report")
+    assert proc.returncode == 3, proc.stderr
+    assert "step 'lhs': 8 of 10 evaluations failed (80%, above the 50% allowed by " \
+           "max_failed_share); first failure: " in proc.stderr
+    assert cli("run", study, "--out", tmp_path / "out", "--no-report",
+               "--max-failed-share", "0.9").returncode == 0
+    assert cli("run", study, "--out", tmp_path / "out", "--no-report",
+               "--max-failed-share", "2").returncode == 2  # a share is 0 to 1
+    lenient = _study(tmp_path, PARTIAL.format(extra="max_failed_share = 0.85\n"), "l.toml")
+    assert cli("run", lenient, "--out", tmp_path / "out", "--no-report").returncode == 0
+    wrong = _study(tmp_path, PARTIAL.format(extra="max_failed_share = 50\n"), "w.toml")
+    bad = cli("run", wrong, "--out", tmp_path / "out2")
+    assert bad.returncode == 1 and "w.toml, line 4: expected a share" in bad.stderr
+
+
+def test_only_runs_what_it_names_and_skips_the_rest(tmp_path, warm):
+    study = _study(tmp_path, TINY.replace("n_samples = 40", "n_samples = 6") + """
+[[steps]]
+name = "sobol"
+type = "sensitivity"
+n_samples = 8
+""")
+    out = tmp_path / "fresh"
+    proc = cli("run", study, "--only", "lhs", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(p.name for p in (out / "steps").iterdir()) == ["lhs"]
+    assert (out / "report" / "index.html").is_file()
+    assert "sobol                skipped (not in --only, no saved result)" in proc.stdout
+    # a name that is no step: the steps, and the closest
+    typo = cli("run", study, "--only", "sobl", "--out", out)
+    assert typo.returncode == 1
+    assert "--only sobl: no such step" in typo.stderr and "did you mean 'sobol'?" in typo.stderr
+    # the named step runs, the saved one is reused
+    both = cli("run", study, "--only", "sobol", "--out", out, "--no-report")
+    assert both.returncode == 0, both.stderr
+    assert "lhs: reused" in both.stderr and "sobol: running" in both.stderr
+
+
+def test_only_a_step_whose_source_is_missing_says_what_to_add(tmp_path, warm):
+    # `cal` calibrates on `lhs`'s samples: --only cal in a fresh folder cannot run it
+    study = _study(tmp_path, TINY.replace("n_samples = 40", "n_samples = 6") + """
+[[steps]]
+name = "cal"
+type = "least_squares"
+data = "lhs.samples"
+responses = ["thrust"]
+""")
+    proc = cli("run", study, "--only", "cal", "--out", tmp_path / "o")
+    assert proc.returncode == 1, proc.stderr
+    assert "step 'lhs' has no saved result, and 'cal' (in --only) takes from it: add it, " \
+           "--only lhs cal" in proc.stderr
+    assert not (tmp_path / "o" / "steps" / "lhs").exists()
+
+
+DATA_STUDY = TINY.replace("n_samples = 40", "n_samples = 6") + """
+[data.measured]
+file = "m.csv"
+{extra}
+[[steps]]
+name = "fwd"
+type = "forward_check"
+data = "measured"
+responses = ["thrust"]
+n_samples = 6
+sweep = { collective_deg = [5.0] }
+"""
+CSV = "# measured\ncollective_deg,thrust,roll\n5.0,25.7,-0.04\n5.0,{v},-0.03\n6.0,27.1,-0.05\n"
+
+
+@pytest.mark.parametrize("value, expected", [
+    ("nan", "m.csv, line 4: expected a number in column 'thrust' that is finite (nan and inf "
+            "are refused: set allow_nonfinite = true in [data.measured]"),
+    ("-inf", "m.csv, line 4: expected a number in column 'thrust' that is finite"),
+    ("1e400", "m.csv, line 4: expected a number in column 'thrust' within float range"),
+    ("1" * 20000, "m.csv, line 4: expected a number in column 'thrust' of at most 100 "
+                  "characters, found '11111111111111111111... (20000 characters)'"),
+])
+def test_measured_numbers_are_checked_when_the_study_is_read(tmp_path, value, expected):
+    (tmp_path / "m.csv").write_text(CSV.format(v=value))
+    study = _study(tmp_path, DATA_STUDY.replace("{extra}", ""))
+    proc = cli("run", study, "--out", tmp_path / "out")
+    assert proc.returncode == 1
+    assert expected in proc.stderr, proc.stderr
+    assert not (tmp_path / "out" / "steps").exists()  # before any step ran
+
+
+def test_nonfinite_data_allowed_explicitly(tmp_path, warm):
+    (tmp_path / "m.csv").write_text(CSV.format(v="nan"))
+    study = _study(tmp_path, DATA_STUDY.replace("{extra}", "allow_nonfinite = true\n"))
+    proc = cli("run", study, "--out", tmp_path / "out", "--no-report", "--only", "fwd")
+    assert proc.returncode == 0, proc.stderr
+    shown = cli("show", tmp_path / "out", "fwd", "--json")
+    assert shown.returncode == 0, shown.stderr
+    # the nan row is left out: one repeat of 25.7 at 5 deg
+    assert "25.7" in shown.stdout
+    # inline columns: the same rule
+    inline = _study(tmp_path, DATA_STUDY.replace('file = "m.csv"', "thrust = [25.7, nan]\n"
+                                                 "collective_deg = [5.0, 5.0]")
+                    .replace("{extra}", ""), "i.toml")
+    proc = cli("run", inline, "--out", tmp_path / "o2")
+    assert proc.returncode == 1
+    assert "i.toml, line 22: expected finite numbers in column 'thrust'" in proc.stderr
+
+
+def test_a_missing_column_or_an_empty_select_is_said_before_any_step_runs(tmp_path):
+    (tmp_path / "m.csv").write_text(CSV.format(v="25.9").replace("thrust", "thrst"))
+    study = _study(tmp_path, DATA_STUDY.replace("{extra}", ""))
+    proc = cli("run", study, "--out", tmp_path / "out")
+    assert proc.returncode == 1
+    line = study.read_text().splitlines().index('data = "measured"') + 1
+    assert (f"s.toml, line {line}: expected data 'measured' (m.csv) to have the columns step 'fwd' "
+            "(forward_check) reads: thrust, collective_deg; it has collective_deg, thrst, roll, "
+            "found 'no column thrust'") in proc.stderr, proc.stderr
+    assert not (tmp_path / "out" / "steps").exists()
+    (tmp_path / "m.csv").write_text(CSV.format(v="25.9"))
+    study = _study(tmp_path, DATA_STUDY.replace("{extra}", "select = { collective_deg = 7.0 }\n"))
+    proc = cli("run", study, "--out", tmp_path / "out")
+    assert proc.returncode == 1
+    assert ("expected a selection matching at least one row of m.csv (collective_deg has 5, "
+            "6), found 'collective_deg = 7'") in proc.stderr, proc.stderr
+
+
+def test_bundled_names_help_and_did_you_mean(tmp_path):
+    from rotoruq.study.cmd_run import bundled_studies
+
+    names = bundled_studies()
+    assert {"quick", "validation", "experiment", "heldout"} <= set(names) and len(names) >= 8
+    help_text = " ".join(cli("run", "--help").stdout.split())
+    assert all(n in help_text for n in names), help_text
+    proc = cli("run", "quik")
+    assert proc.returncode == 1
+    assert "(did you mean 'quick'?)" in proc.stderr and "mbdyn_rigid" in proc.stderr
+
+
+def test_global_flags_before_or_after_the_subcommand_and_python_m(tmp_path):
+    d = tmp_path / "nothing"
+    d.mkdir()
+    for args in (["--quiet", "report", d], ["report", d, "--quiet"], ["report", d, "-q"],
+                 ["report", d, "--verbose"], ["-v", "report", d]):
+        proc = cli(*args)
+        assert proc.returncode == 1 and "rotoruq report: error:" in proc.stderr, args
+    both = cli("report", d, "-q", "-v")
+    assert both.returncode == 2 and "--quiet and --verbose" in both.stderr
+    # python -m rotoruq is the same command
+    mod = subprocess.run([sys.executable, "-m", "rotoruq", "--version"], capture_output=True,
+                         text=True, timeout=120)
+    assert mod.returncode == 0 and mod.stdout.strip() == f"rotoruq {__version__}"
+    # and it stays light: the driver's words are found after the global flags
+    from rotoruq.study.cli import _driver_argv
+
+    assert _driver_argv(["-q", "--debug", "driver", "p", "r"]) == ["p", "r"]
+
+
+def test_exported_decks_are_named_step_in_with_a_portable_driver(tmp_path):
+    study = _study(tmp_path, TINY + """
+[[steps]]
+name = "sobol"
+type = "sensitivity"
+n_samples = 8
+""")
+    proc = subprocess.run([*CLI, "dakota", "export", study, "--out", "decks"], cwd=tmp_path,
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(p.name for p in (tmp_path / "decks").iterdir()) == ["lhs.in", "sobol.in"]
+    deck = (tmp_path / "decks" / "lhs.in").read_text()
+    venv_bin = os.path.dirname(sys.executable)
+    here = {**os.environ, "PATH": venv_bin + os.pathsep + os.environ.get("PATH", "")}
+    elsewhere = {**os.environ, "PATH": "/usr/bin:/bin"}
+    for env, line, note in ((here, "analysis_drivers = 'rotoruq driver --preset gvpm",
+                             "# driver: 'rotoruq' as found on PATH"),
+                            (elsewhere, f"analysis_drivers = '{venv_bin}/rotoruq driver",
+                             "# driver: this installation's rotoruq by absolute path")):
+        if not os.path.isfile(os.path.join(venv_bin, "rotoruq")):
+            pytest.skip("no rotoruq console script beside this Python")
+        proc = subprocess.run([*CLI, "dakota", "export", study, "-o", "d.in", "--step", "lhs"],
+                              cwd=tmp_path, capture_output=True, text=True, timeout=120,
+                              env=env)
+        assert proc.returncode == 0, proc.stderr
+        deck = (tmp_path / "d.in").read_text()
+        assert line in deck and deck.startswith(note), deck[:400]

@@ -57,13 +57,20 @@ def _emulated(ck, data, variance):
     return grid_moments(ll)
 
 
-def _calibrate(emulator, data=None, **kw):
-    opts = dict(noise_std=NOISE, n_samples=4000, n_chains=2, n_emulator_samples=6, seed=3)
-    opts.update(kw)
+def _calibrate(emulator, data=None, seed=3, self_check=0, **fields):
+    """calibrate_bayes with the fields of its option records given flat (test shorthand)."""
+    from rotoruq.methods.mcmc.options import LEGACY_KEYWORDS, legacy_keywords
+
+    flat = dict(noise_std=NOISE, n_samples=4000, n_chains=2, n_emulator_samples=6)
+    flat.update(fields)
+    rec = legacy_keywords("_calibrate", flat, LEGACY_KEYWORDS, warn=False)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # emulator error over the posterior
         return rq.calibrate_bayes(HF, _data() if data is None else data, PRIOR,
-                                  emulator=emulator, **opts)
+                                  noise=rq.NoiseModel(**rec["noise"]),
+                                  chains=rq.ChainOptions(**rec["chains"]),
+                                  emulator=rq.EmulatorOptions(emulator, **rec["emulator"]),
+                                  self_check=self_check, seed=seed)
 
 
 @pytest.fixture(scope="module")
@@ -230,20 +237,25 @@ def test_predict_gradient_and_the_fast_path_match_predict():
     assert ref_var.max() > 0
 
 
+def _six(emulator):
+    return rq.EmulatorOptions(emulator, n_emulator_samples=6)
+
+
 def test_bad_input_is_a_clear_error():
     data = _data()
-    kw = dict(noise_std=NOISE, n_samples=50, n_emulator_samples=6)
+    kw = dict(noise=rq.NoiseModel(noise_std=NOISE), chains=rq.ChainOptions(n_samples=50))
     with pytest.raises(ParameterError, match="needs its low-fidelity model"):
-        rq.calibrate_bayes(HF, data, PRIOR, emulator=rq.CoKriging(), **kw)
+        rq.calibrate_bayes(HF, data, PRIOR, emulator=_six(rq.CoKriging()), **kw)
     other_in = rq.FunctionModel(lambda x: x[:, :1], ["s"], ["y"])
     with pytest.raises(ParameterError, match=r"low-fidelity model 0 .* inputs \['s'\]"):
-        rq.calibrate_bayes(HF, data, PRIOR, emulator=rq.CoKriging(low_fidelity=other_in), **kw)
+        rq.calibrate_bayes(HF, data, PRIOR, emulator=_six(rq.CoKriging(low_fidelity=other_in)),
+                           **kw)
     other_out = rq.FunctionModel(lambda x: x[:, :1], ["t"], ["thrust"])
     with pytest.raises(ParameterError, match=r"no responses \['y'\]"):
-        rq.calibrate_bayes(HF, data, PRIOR, emulator=rq.CoKriging(low_fidelity=other_out),
+        rq.calibrate_bayes(HF, data, PRIOR, emulator=_six(rq.CoKriging(low_fidelity=other_out)),
                            **kw)
     with pytest.raises(ParameterError, match="smaller than the high-fidelity design"):
-        rq.calibrate_bayes(HF, data, PRIOR, emulator=rq.CoKriging(low_fidelity=LF, n_low=5),
+        rq.calibrate_bayes(HF, data, PRIOR, emulator=_six(rq.CoKriging(low_fidelity=LF, n_low=5)),
                            **kw)
     with pytest.raises(ParameterError, match="give low_fidelity= too"):
         rq.CoKriging(n_low=10)
@@ -255,7 +267,10 @@ def test_bad_input_is_a_clear_error():
     fitted = rq.CoKriging(seed=0).fit([t_lf[:, None], t_hf[:, None]],
                                       [lf_response(t_lf), hf_response(t_hf)])
     with pytest.raises(ParameterError, match="refine= with a CoKriging"):
-        rq.calibrate_bayes(HF, data, PRIOR, emulator=fitted, refine=RefineConfig(), **kw)
+        rq.calibrate_bayes(HF, data, PRIOR,
+                           emulator=rq.EmulatorOptions(fitted, n_emulator_samples=6,
+                                                       refine=RefineConfig()),
+                           **kw)
     with pytest.raises(ParameterError, match="GaussianProcess or CoKriging"):
         rq.calibrate_bayes(HF, data, PRIOR, emulator=HF, **kw)
 

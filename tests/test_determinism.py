@@ -34,8 +34,9 @@ def _quadratic():
 def _bayes(seed, **kw):
     model, space = _quadratic()
     data = np.array([[0.8, 0.2], [0.7, 0.25], [0.9, 0.15]])
-    return rq.calibrate_bayes(model, data, space, n_samples=300, burn_in=20, n_chains=2,
-                              noise_std=[0.1, 0.05], seed=seed, **kw)
+    return rq.calibrate_bayes(model, data, space,
+                              chains=rq.ChainOptions(n_samples=300, burn_in=20, n_chains=2),
+                              noise=rq.NoiseModel(noise_std=[0.1, 0.05]), seed=seed, **kw)
 
 
 def _gp(seed):
@@ -73,7 +74,7 @@ def _sample(seed):
 
 def _bayes_emulated(seed):
     # the README's example: an unseeded GaussianProcess() handed to calibrate_bayes(seed=)
-    return _bayes(seed, emulator=rq.GaussianProcess(), n_emulator_samples=30)
+    return _bayes(seed, emulator=rq.EmulatorOptions(rq.GaussianProcess(), n_emulator_samples=30))
 
 
 def _sbc(seed):

@@ -11,11 +11,19 @@ subpackage it reaches. A lower layer must never import a higher one:
     evaluation                      + model, params, atomic   (never methods, rotor, study, ...)
     mbdyn                           + rotor, evaluation (an external solver of the rotor)
     results                         + evaluation (the results format, below study and report)
-    render                          + results (table and figure primitives, thesis numbers)
+    render                          + results (table and figure primitives)
     steps                           + methods, evaluation, results, render (one module per
                                     step type: options, adapter, tables, figures, warnings)
     report                          + results, render, steps, evaluation (never rotor, study)
+    reference                       + report, steps, render, results (the reference study as an
+                                    application: its claims, thesis tables, reference figures,
+                                    studies; never rotor, methods, study)
     study                           everything
+    __main__                        + study (``python -m rotoruq``: the CLI's ``main``)
+
+No generic layer (render, steps, report, results, methods, ...) imports ``reference``: the
+report takes an application object from its caller (``report/application.py``), so a user's
+report never depends on the reference study's code.
 
 No module may, at import, write into another layer's globals (assign or delete an attribute or
 an item of a name imported from another layer, or call something of another layer for its
@@ -55,9 +63,13 @@ ALLOWED: dict[str, set[str]] = {
     "render": BOTTOM | UNITS | {"evaluation", "results"},
     "steps": BOTTOM | UNITS | {"methods", "evaluation", "results", "render"},
     "report": BOTTOM | UNITS | {"evaluation", "results", "render", "steps"},
+    "reference": BOTTOM | UNITS | {"evaluation", "results", "render", "steps", "report"},
     "study": BOTTOM | UNITS | {"rotor", "methods", "evaluation", "mbdyn", "results", "render",
-                               "steps", "report"},
+                               "steps", "report", "reference"},
+    "__main__": {"study"},
 }
+# The application on top of the toolkit: only the study layer (and the CLI in it) imports it.
+APPLICATIONS = {"reference"}
 
 # Violations that other branches of issue 14 remove in parallel: (importing module, imported
 # unit). The lead empties this list when merging them; an entry that no longer occurs fails.
@@ -142,6 +154,18 @@ def layer_violations() -> dict[tuple[str, str], list[str]]:
 def test_every_module_belongs_to_a_layer():
     units = {_unit(_module_name(p)) for p in _sources()}
     assert units <= set(ALLOWED), f"modules outside every layer: {units - set(ALLOWED)}"
+
+
+def test_generic_layers_never_import_the_reference_application():
+    """render, steps, report, results, methods, ... import nothing of ``rotoruq.reference``
+    (not even inside a function): the report gets an application object from its caller."""
+    for unit, allowed in ALLOWED.items():
+        if unit != "study":
+            assert not allowed & APPLICATIONS or unit in APPLICATIONS, unit
+    found = [f"{path.relative_to(SRC.parent)}:{line} imports {target}"
+             for path in _sources() if _unit(_module_name(path)) not in APPLICATIONS | {"study"}
+             for line, target in rotoruq_imports(path) if _unit(target) in APPLICATIONS]
+    assert not found, "generic code imports the reference application:\n" + "\n".join(found)
 
 
 def test_no_lower_layer_imports_a_higher_one():
@@ -311,6 +335,12 @@ def test_import_rotoruq_loads_nothing_until_a_name_is_used():
     # a name loads its own module (and what that imports), nothing else
     units = {_unit(m) for m in _loaded_after("import rotoruq; rotoruq.ParameterSpace")}
     assert units == {"", "errors", "_rng", "params"}, units
+
+
+def test_python_m_rotoruq_is_as_light_as_the_console_script():
+    # ``python -m rotoruq driver ...`` reaches the driver client before any heavy import
+    assert _loaded_after("import rotoruq.__main__") == [
+        "rotoruq", "rotoruq.__main__", "rotoruq.study", "rotoruq.study.cli"]
 
 
 def test_every_public_name_resolves_lazily():

@@ -362,7 +362,7 @@ estimator = "quadrature"
 response_levels = {{ y1 = [2.5] }}
 gen_reliability_levels = {{ y2 = [1.0] }}
 reliability_levels = {{ y2 = [1.0] }}
-expansion_samples = 200
+samples_on_expansion = 200
 
 [[steps]]
 name = "form"
@@ -426,7 +426,7 @@ def test_a_study_with_level_options_runs_and_show_prints_the_mappings(folder):
     from rotoruq.steps.reliability import ReliabilityRecord
 
     pce = PceRecord.read(load_step(folder / "out" / "steps" / "chaos"))
-    assert pce.expansion_samples == 200
+    assert pce.samples_on_expansion == 200
     # y2 (linear): reliability level 1 -> mean - std; gen. reliability 1 -> a sample quantile
     assert pce.level_mappings[1, 0, 0] == pytest.approx(pce.mean[1] - pce.std[1], rel=1e-10)
     assert pce.level_mappings[1, 1, 0] == pytest.approx(pce.mean[1] - pce.std[1], rel=0.1)
@@ -448,7 +448,7 @@ def test_a_study_with_level_options_runs_and_show_prints_the_mappings(folder):
      "probability levels from 0 to 1"),
     ('type = "pce"\norder = 2\n', "probability_levels = { y1 = [1.5] }",
      "probability levels from 0 to 1"),
-    ('type = "pce"\norder = 2\n', "probability_levels = { y1 = [0.5] }", "expansion_samples"),
+    ('type = "pce"\norder = 2\n', "probability_levels = { y1 = [0.5] }", "samples_on_expansion"),
     ('type = "reliability"\n', 'reliability_levels = { y1 = ["x"] }', "list of finite numbers"),
 ])
 def test_bad_level_options_name_the_file_line_and_option(folder, step, bad, expected):

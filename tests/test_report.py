@@ -13,9 +13,9 @@ import pytest
 
 import rotoruq
 from rotoruq.params import Normal, ParameterSpace
-from rotoruq.render.reference import TABLES, table
-from rotoruq.report.claims import INDEPENDENT, JOINT, Claim, claims
-from rotoruq.report.compare import ComparedCell, compare_tables, resolve
+from rotoruq.reference.claims import INDEPENDENT, JOINT, Claim, claims
+from rotoruq.reference.compare import ComparedCell, compare_tables, resolve
+from rotoruq.reference.tables import TABLES, table
 from rotoruq.report.diagnostics import step_warnings
 from rotoruq.report.html import write_report
 from rotoruq.results import StepResult, save_step
@@ -229,8 +229,9 @@ def _fake_reference(tmp_path):
     rng = np.random.default_rng(0)
     exp = tmp_path / "experiment"
     exp.mkdir()
-    (exp / "study.json").write_text(json.dumps({"name": "experiment", "steps": [
-        "bayes", "forward_4r"], "model": {"preset": "gvpm"}}))
+    (exp / "study.json").write_text(json.dumps({"name": "experiment", "reference": "thesis",
+                                               "steps": ["bayes", "forward_4r"],
+                                               "model": {"preset": "gvpm"}}))
     names = ["k_pitch_link", "collective_deg"]
     z = rng.normal(size=(4000, 1))
     chain = np.hstack([15 + 2 * z, 5.4 - 0.3 * z + 0.05 * rng.normal(size=(4000, 1))])
@@ -250,8 +251,9 @@ def _fake_reference(tmp_path):
                                "responses": ["thrust"]}), exp)
     val = tmp_path / "validation"
     val.mkdir()
-    (val / "study.json").write_text(json.dumps({"name": "validation", "steps": [
-        "sens_mixed"], "model": {"preset": "bo105"}}))
+    (val / "study.json").write_text(json.dumps({"name": "validation", "reference": "thesis",
+                                               "steps": ["sens_mixed"],
+                                               "model": {"preset": "bo105"}}))
     s = {f"S/thrust/{p}": v for p, v in (("cla_m03", 0.5), ("cla_m06", 0.3), ("cla_m05", 0.2),
                                           ("k_flap", 0.07))}
     save_step(StepResult("sens_mixed", "sensitivity", s, meta={
@@ -373,6 +375,11 @@ def test_reproduce_quick(tmp_path, capsys):
         assert f"Table {number}:" in page
     data = json.loads((tmp_path / "report" / "claims.json").read_text())
     assert_claims_truthful(data)
+    # the same claims, numbers and verdicts as before the reference study became an
+    # application (rotoruq.reference, issue 33)
+    from test_reference_app import assert_same_claims
+
+    assert_same_claims(data)
     keys = {c["key"] for c in data}
     for where in ("4R", "2R", "1R"):  # the 4R and IGE claims under both propagations
         assert {f"gvpm_within_1std_{where}_independent", f"gvpm_within_1std_{where}_joint"} \
@@ -424,8 +431,8 @@ def test_report_never_rebuilds_the_model(tmp_path):
     import rotoruq
     from rotoruq.rotor.presets import get_preset
 
-    report_src = Path(rotoruq.__file__).parent / "report"
-    for f in report_src.glob("*.py"):
+    package = Path(rotoruq.__file__).parent
+    for f in [*(package / "report").glob("*.py"), *(package / "reference").glob("*.py")]:
         for node in ast.walk(ast.parse(f.read_text())):
             if isinstance(node, ast.ImportFrom):
                 assert not (node.module or "").startswith(("rotor", "study")), f
@@ -433,7 +440,8 @@ def test_report_never_rebuilds_the_model(tmp_path):
                     ("rotoruq.rotor", "rotoruq.study"))), f
     study = tmp_path / "experiment.toml"
     study.write_text(
-        '[study]\nname = "experiment"\n\n[model]\npreset = "gvpm"\nresponses = ["thrust"]\n'
+        '[study]\nname = "experiment"\nreference = "thesis"\n\n[model]\npreset = "gvpm"\n'
+        'responses = ["thrust"]\n'
         'fixed = { collective_deg = 5.4, height_over_radius = 4.0 }\n\n'
         '[parameters.cla_m03]\ndistribution = "normal"\nmean = 0.108\nstd = 5.4e-3\n\n'
         '[[steps]]\nname = "mv"\ntype = "mean_value"\n')

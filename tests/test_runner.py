@@ -475,3 +475,37 @@ def test_editing_a_method_reruns_only_its_steps(tmp_path):
     again = load_results(out)["chaos"]
     assert again.fingerprint != first["chaos"].fingerprint
     assert again.scalars == first["chaos"].scalars
+
+
+def test_the_modules_a_step_type_lists_enter_its_fingerprint_only(tmp_path, monkeypatch):
+    """``StepType.modules`` is true: a module listed by one step type (and not imported by its
+    adapter) is in that type's code part; editing it changes that type's step code and no
+    other type's."""
+    import dataclasses
+
+    from rotoruq.evaluation.identity import code_digest
+    from rotoruq.steps import step_type as registered
+    from rotoruq.study import runner
+
+    for name in ("helper_a", "helper_b"):
+        (tmp_path / f"{name}.py").write_text(f'"""{name}."""\nK = 1\n')
+    monkeypatch.syspath_prepend(str(tmp_path))
+    types = {"a": dataclasses.replace(registered("mean_value"), name="a", modules=("helper_a",)),
+             "b": dataclasses.replace(registered("mean_value"), name="b", modules=("helper_b",)),
+             "c": dataclasses.replace(registered("mean_value"), name="c", modules=())}
+    monkeypatch.setattr(runner, "step_type", types.__getitem__)
+    before = {k: runner.step_code_parts(k) for k in types}
+    assert [k for k in before["a"] if "helper" in k] == [str(tmp_path / "helper_a.py")]
+    assert not [k for k in before["c"] if "helper" in k]
+    assert before["c"]["rotoruq/steps/mean_value.py"] == before["a"]["rotoruq/steps/mean_value.py"]
+    (tmp_path / "helper_a.py").write_text('"""helper_a, edited."""\nK = 2\n')
+    after = {k: runner.step_code_parts(k) for k in types}
+    assert code_digest(after["a"]) != code_digest(before["a"])
+    assert code_digest(after["b"]) == code_digest(before["b"])
+    assert code_digest(after["c"]) == code_digest(before["c"])
+    # the built-in types' lists are in their code parts
+    monkeypatch.undo()
+    for st in (registered(n) for n in ("pce", "multifidelity", "reliability")):
+        parts = runner.step_code_parts(st.name)
+        for module in st.modules:
+            assert "rotoruq/" + module.split(".", 1)[1].replace(".", "/") + ".py" in parts

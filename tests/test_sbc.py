@@ -214,12 +214,16 @@ def test_replications_on_an_emulator_are_the_chains_of_calibrate_bayes():
     gp = rq.GaussianProcess(trend="linear", seed=3).fit(
         PRIOR.draw(30, design="lhs", seed=3), Nonlinear()(PRIOR.draw(30, design="lhs", seed=3)))
     data = Nonlinear()(np.array([[0.1, -0.2, 0.3]])) + 0.01
-    kw = dict(noise_std=0.1, names_out=list(Nonlinear.names_out), n_samples=120, burn_in=60,
-              map_start=False, sampler="dram", emulator_variance=False)
+    kw = dict(n_samples=120, burn_in=60, map_start=False, sampler="dram")
     seed = np.random.SeedSequence(11)
-    lean = bayes._CheckChains(Nonlinear(), data, PRIOR, gp, seed=seed, **kw)
+    lean = bayes._CheckChains(Nonlinear(), data, PRIOR, gp, seed=seed, noise_std=0.1,
+                              names_out=list(Nonlinear.names_out), emulator_variance=False,
+                              **kw)
     lean.run()
-    full = calibrate_bayes(Nonlinear(), data, PRIOR, emulator=gp, seed=seed, **kw)
+    full = calibrate_bayes(Nonlinear(), data, PRIOR, names_out=list(Nonlinear.names_out),
+                           noise=mcmc.NoiseModel(noise_std=0.1), chains=mcmc.ChainOptions(**kw),
+                           emulator=mcmc.EmulatorOptions(gp, emulator_variance=False),
+                           seed=seed)
     np.testing.assert_array_equal(lean.chains, full.chains)
     for k, s_k in enumerate(np.random.SeedSequence(12).spawn(2)):
         lean.extend(120 * 2**k, s_k)
@@ -256,7 +260,8 @@ def test_self_check_is_reused_by_its_setup_not_its_data(tmp_path):
     gp = rq.GaussianProcess(trend="linear", seed=3).fit(
         PRIOR.draw(30, design="lhs", seed=3), Nonlinear()(PRIOR.draw(30, design="lhs", seed=3)))
     y = Nonlinear()(np.array([[0.1, -0.2, 0.3], [0.0, 0.4, -0.5]]))
-    kw = dict(noise_std=0.1, emulator=gp, n_samples=400, self_check=4, map_start=False)
+    kw = dict(noise=mcmc.NoiseModel(noise_std=0.1), emulator=gp, self_check=4,
+              chains=mcmc.ChainOptions(n_samples=400, map_start=False))
 
     def run(data, seed=5, cache=None):
         with warnings.catch_warnings():

@@ -11,8 +11,8 @@ import re
 
 import numpy as np
 
-from rotoruq.report.claims import claims
-from rotoruq.report.compare import compare_tables
+from rotoruq.reference.claims import claims
+from rotoruq.reference.compare import compare_tables
 from rotoruq.results import StepResult, save_step
 from rotoruq.steps.validation import JOINT, NONE, WITH, WITHOUT, ValidationRecord
 from rotoruq.study.cli import main
@@ -135,8 +135,10 @@ def _heldout(folder, inside_power: bool):
     delta = np.array([[0.0, 0.0], [0.2, 5.0], [1.0, 25.0], [2.8, 98.0 if inside_power else 30]])
     u = np.array([0.9, 20.0])
     folder.mkdir(parents=True)
-    (folder / "study.json").write_text(json.dumps({"name": "heldout", "steps": [
-        "validate_heldout", "validate_no_discrepancy"], "model": {"preset": "gvpm"}}))
+    (folder / "study.json").write_text(json.dumps({
+        "name": "heldout", "reference": "thesis", "steps": ["validate_heldout",
+                                                            "validate_no_discrepancy"],
+        "model": {"preset": "gvpm"}}))
     tp = ("thrust", "power")
     _save(_record((WITH, WITHOUT), conds, np.stack([eta + delta, eta]), data, u, held=held,
                   names=tp), "validate_heldout", folder)

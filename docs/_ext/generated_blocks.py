@@ -11,6 +11,15 @@ deterministic. ``python docs/_ext/generated_blocks.py`` rewrites every block fro
 ``--check`` only reports the blocks that differ (``tests/test_docs.py`` runs the check).
 Commands run in this process (``runpy``, with the script's folder on ``sys.path`` as for
 ``python script.py``) from the repository root, so the imports are paid once.
+
+Each saved JSON records what it measured (``provenance``: the commit and the digests of the
+rotoruq modules the benchmark imports; ``benchmarks/_provenance.py``). When the docs are built
+(this module is a Sphinx extension), every block whose JSON measured code that has changed
+since gets a warning box under it: ``stale: ... measured at <commit> before changes to
+<modules>``. The box is computed at build time and never written into the page, so the
+check above stays a comparison of the page with the JSON, and CI stays green while the box
+stays visible until the benchmark is run again. ``python docs/_ext/generated_blocks.py
+--stale`` lists the stale JSONs.
 """
 
 from __future__ import annotations
@@ -101,8 +110,60 @@ def regenerate(page: Path) -> str:
     return BLOCK.sub(sub, page.read_text(encoding="utf-8"))
 
 
+def results_of(command: str) -> list[str]:
+    """The saved JSON files a block's command prints from: its ``.json`` arguments, or the
+    benchmark's default ``benchmarks/results/<name>.json`` when it names none."""
+    argv = shlex.split(command)
+    named = [a for a in argv[2:] if a.endswith(".json")]
+    default = f"benchmarks/results/{Path(argv[1]).stem}.json"
+    return named or ([default] if (ROOT / default).is_file() else [])
+
+
+def _provenance():
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        import _provenance
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+    return _provenance
+
+
+def stale_notes(command: str) -> list[str]:
+    """``stale: ...`` lines for the JSONs ``command`` prints from (none when each measured
+    the code as it is now)."""
+    prov = _provenance()
+    return [n for n in (prov.stale_note(j) for j in results_of(command)) if n]
+
+
+def with_stale_notes(text: str) -> str:
+    """``text`` (a page) with a warning box after every generated block whose JSON is stale."""
+    def sub(m: re.Match) -> str:
+        notes = stale_notes(m["cmd"])
+        if not notes:
+            return m[0]
+        box = "\n:::{warning}\n" + "\n\n".join(notes) + "\n:::\n"
+        return m[0] + "\n" + _indent(box, m["indent"]).rstrip("\n")
+    return BLOCK.sub(sub, text)
+
+
+def _source_read(app, docname: str, source: list[str]) -> None:
+    if "<!-- generated:" in source[0]:
+        source[0] = with_stale_notes(source[0])
+
+
+def setup(app) -> dict:
+    """Sphinx extension: the stale notes under the generated blocks, at build time."""
+    app.connect("source-read", _source_read)
+    return {"parallel_read_safe": True}
+
+
 def main(argv: list[str] | None = None) -> int:
     args = sys.argv[1:] if argv is None else argv
+    if "--stale" in args:
+        for b in blocks():
+            for note in stale_notes(b.command):
+                print(f"{b.page.relative_to(ROOT)}: {note}")
+        return 0
     stale = []
     for page in sorted({b.page for b in blocks()}):
         text = regenerate(page)

@@ -9,6 +9,7 @@ and a removed one disappears (``tests/test_docs.py`` checks the page against ``_
 from __future__ import annotations
 
 import importlib
+import inspect
 from pathlib import Path
 
 #: subpackages whose ``__all__`` is part of the public API
@@ -35,7 +36,9 @@ def api_page() -> str:
     """The reST text of the API page."""
     rq = importlib.import_module("rotoruq")
     by_module: dict[str, list[str]] = {}
-    for name, rel in rq._LAZY.items():  # defining module of each lazily loaded public name
+    for name, rel in rq._PUBLIC.items():  # defining module of each lazily loaded public name
+        if rel.rpartition(".")[2] == name and inspect.ismodule(getattr(rq, name)):
+            continue  # a public submodule (named below)
         by_module.setdefault("rotoruq" + rel, []).append(name)
     lines = HEADER.splitlines()
     lines += ["", "Top level: ``import rotoruq as rq``", "-" * 35, "",

@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ["code_version", "code_parts", "code_digest", "model_code_parts", "EPOCHS",
-           "digest", "file_sha256", "model_identity"]
+           "digest", "file_sha256", "model_identity", "script_modules", "module_digests"]
 
 _PACKAGE = Path(__file__).resolve().parent.parent
 # Folders whose code cannot change a model's answer or a step's numbers.
@@ -141,13 +141,14 @@ def _unit(name: str) -> str:
 
 
 @lru_cache(maxsize=256)
-def _closure(roots: tuple[str, ...]) -> tuple[tuple[str, Path], ...]:
+def _closure(roots: tuple[str, ...],
+             skip: frozenset[str] = _NOT_COMPUTING) -> tuple[tuple[str, Path], ...]:
     seen: dict[str, Path] = {}
     todo = list(roots)
     while todo:
         name = todo.pop()
         # the package root only re-exports names lazily: it computes nothing
-        if name in seen or name == "rotoruq" or _unit(name) in _NOT_COMPUTING:
+        if name in seen or name == "rotoruq" or _unit(name) in skip:
             continue
         path = _module_file(name)
         if path is None:
@@ -164,11 +165,12 @@ def _label(path: Path) -> str:
         return path.as_posix()
 
 
-def code_parts(modules: Iterable[str]) -> dict[str, str]:
+def code_parts(modules: Iterable[str], *, every_layer: bool = False) -> dict[str, str]:
     """What of rotoruq's code computes the answer of ``modules``, part by part.
 
     The source files ``modules`` import, transitively, within rotoruq (the report, the
-    drawing primitives and the study layer excepted), each as ``"rotoruq/<path>": sha256``;
+    drawing primitives and the study layer excepted, unless ``every_layer``: what a benchmark
+    of the CLI or the report exercises), each as ``"rotoruq/<path>": sha256``;
     the airfoil data files when the rotor is among them; and ``"epoch:<layer>"`` for every
     layer they touch (:data:`EPOCHS`). A plugin's module outside rotoruq enters by its file.
 
@@ -181,7 +183,8 @@ def code_parts(modules: Iterable[str]) -> dict[str, str]:
     >>> parts["epoch:methods"]
     '1'
     """
-    files = _closure(tuple(sorted(set(modules))))
+    skip = frozenset() if every_layer else _NOT_COMPUTING
+    files = _closure(tuple(sorted(set(modules))), skip)
     out = {_label(p): file_sha256(p)[:16] for _, p in files}
     units = {_unit(n) for n, _ in files} - {""}
     if "rotor" in units:
@@ -195,6 +198,70 @@ def code_parts(modules: Iterable[str]) -> dict[str, str]:
 def code_digest(parts: Mapping[str, str]) -> str:
     """One digest of :func:`code_parts`."""
     return digest(dict(parts))[:16]
+
+
+def _lazy_names() -> dict[str, str]:
+    """The package root's table of lazily loaded public names (``_LAZY``: name -> module
+    relative to the package), read from its source like every import here, never imported."""
+    for node in ast.parse((_PACKAGE / "__init__.py").read_text(encoding="utf-8")).body:
+        target: ast.expr
+        value: ast.expr | None
+        if isinstance(node, ast.AnnAssign):
+            target, value = node.target, node.value
+        elif isinstance(node, ast.Assign):
+            target, value = node.targets[0], node.value
+        else:
+            continue
+        if isinstance(target, ast.Name) and target.id == "_LAZY" and value is not None:
+            return dict(ast.literal_eval(value))
+    return {}
+
+
+def script_modules(path: str | Path) -> list[str]:
+    """The rotoruq modules a script outside the package imports: its import statements, and
+    the public names it reads from the package root (``import rotoruq as rq; rq.sample``:
+    ``rotoruq.methods.sampling``, through the root's table of lazily loaded names).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> p = pathlib.Path(tempfile.mkdtemp()) / "bench.py"
+    >>> _ = p.write_text("import rotoruq as rq\\n"
+    ...                  "from rotoruq.methods.pce import polynomial_chaos\\n"
+    ...                  "rq.sample(None, None)\\n")
+    >>> script_modules(p)
+    ['rotoruq.methods.pce', 'rotoruq.methods.sampling']
+    """
+    lazy = _lazy_names()
+    path = Path(path)
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    roots = {a.asname or a.name for node in ast.walk(tree) if isinstance(node, ast.Import)
+             for a in node.names if a.name == "rotoruq"}
+    names = _imports(path, "__main__")
+    names |= {f"rotoruq.{node.attr}" for node in ast.walk(tree)
+              if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+              and node.value.id in roots}
+    out = set()
+    for name in names:
+        head, _, last = name.rpartition(".")
+        if head == "rotoruq" and last in lazy:
+            name = "rotoruq" + lazy[last]
+        if name != "rotoruq" and _module_file(name) is not None:
+            out.add(name)
+    return sorted(out)
+
+
+def module_digests(modules: Iterable[str], *, every_layer: bool = True) -> dict[str, str]:
+    """One :func:`code_digest` per module: of the code it imports, transitively
+    (:func:`code_parts`, by default through every layer), keyed by the module's name.
+
+    Examples
+    --------
+    >>> d = module_digests(["rotoruq.methods.pce"])
+    >>> list(d), len(d["rotoruq.methods.pce"])
+    (['rotoruq.methods.pce'], 16)
+    """
+    return {m: code_digest(code_parts([m], every_layer=every_layer)) for m in sorted(set(modules))}
 
 
 def model_code_parts(model: Any) -> dict[str, str]:

@@ -29,6 +29,7 @@ by the ``%`` header (a study's ``[data.NAME]`` tables and given points read thro
 from __future__ import annotations
 
 import csv
+import math
 import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -37,7 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputFileError, ParameterError
-from .dakota_files import check_label, read_text
+from .dakota_files import _is_number, check_label, read_text
 from .store import Store
 
 __all__ = ["TabularData", "read_tabular", "parse_tabular", "format_tabular", "write_tabular",
@@ -47,6 +48,10 @@ __all__ = ["TabularData", "read_tabular", "parse_tabular", "format_tabular", "wr
 LAYOUTS = ("annotated", "custom_annotated", "freeform")
 #: the formats :func:`read_table` reads
 FORMATS = ("csv", "dakota")
+#: the longest word read as a number where numbers are checked (``strict``): a float64 needs
+#: at most 24 characters; a longer word is a pasted mistake, not a measurement
+MAX_NUMBER_CHARS = 100
+_NONFINITE = {"nan", "inf", "infinity"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -105,16 +110,32 @@ class TabularData:
         return None if self.lines is None else self.lines[row]
 
 
-def _float(word: str, path, lineno: int, what: str) -> float:
+def _float(word: str, path, lineno: int, what: str, strict: bool = False,
+           nonfinite: str | None = None) -> float:
+    """``word`` as a float. ``strict``: a word longer than :data:`MAX_NUMBER_CHARS` and a
+    number beyond float range (``1e400``) are refused; a written ``nan`` or ``inf`` too,
+    unless ``nonfinite`` is None (else it is the hint the error ends with)."""
+    if strict and len(word) > MAX_NUMBER_CHARS:
+        raise InputFileError(path, lineno, f"{what} of at most {MAX_NUMBER_CHARS} characters",
+                             f"{word[:20]}... ({len(word)} characters)")
     try:
-        return float(word)
+        v = float(word)
     except ValueError:
         raise InputFileError(path, lineno, what, word) from None
+    if strict and not math.isfinite(v):
+        if word.strip().lstrip("+-").lower() not in _NONFINITE:
+            raise InputFileError(path, lineno, f"{what} within float range (magnitude below "
+                                 "1.8e308)", word)
+        if nonfinite is not None:
+            raise InputFileError(path, lineno, f"{what} that is finite{nonfinite}", word)
+    return v
 
 
 def parse_tabular(text: str, path: str | os.PathLike | None = None, *,
-                  names: Sequence[str] | None = None) -> TabularData:
-    """Parse the text of a tabular file (the layout is detected; see :func:`read_tabular`)."""
+                  names: Sequence[str] | None = None, strict: bool = False,
+                  nonfinite: str | None = None) -> TabularData:
+    """Parse the text of a tabular file (the layout is detected; see :func:`read_tabular`).
+    ``strict``, ``nonfinite``: see :func:`parse_csv`."""
     lines = [(k, raw.split()) for k, raw in enumerate(text.splitlines(), 1) if raw.strip()]
     if not lines:
         raise InputFileError(path, None, "a Dakota tabular file", "an empty file")
@@ -169,23 +190,32 @@ def parse_tabular(text: str, path: str | os.PathLike | None = None, *,
             ids[i] = int(w)
         if has_if:
             ifaces.append(words[int(has_id)])
-        values[i] = [_float(w, path, ln, f"a number in column {n!r}")
+        values[i] = [_float(w, path, ln, f"a number in column {n!r}", strict, nonfinite)
                      for w, n in zip(words[lead:], data_names, strict=True)]
     return TabularData(tuple(data_names), values, ids, tuple(ifaces) if has_if else None,
                        layout, None if path is None else str(path),
                        head_ln if first[0].startswith("%") else None, row_lines)
 
 
-def parse_csv(text: str, path: str | os.PathLike | None = None) -> TabularData:
+def parse_csv(text: str, path: str | os.PathLike | None = None, *, strict: bool = False,
+              nonfinite: str | None = None) -> TabularData:
     """Parse a CSV table: a header row of column names, then rows of numbers; blank lines and
     lines starting with ``#`` are skipped. Every malformed row raises
     :class:`~rotoruq.errors.InputFileError` naming the file and line.
+
+    ``strict`` (measured data): a number beyond float range (``1e400``) or longer than
+    :data:`MAX_NUMBER_CHARS` characters is refused, and so is a written ``nan`` or ``inf``
+    unless ``nonfinite`` is None (else the error ends with it: how to allow them).
 
     Examples
     --------
     >>> t = parse_csv("# measured\\nthrust,power\\n1.5,2\\n\\n3,4e1\\n", "m.csv")
     >>> t.names, t.values.tolist(), t.lines
     (('thrust', 'power'), [[1.5, 2.0], [3.0, 40.0]], (3, 5))
+    >>> parse_csv("thrust\\n1e400\\n", "m.csv", strict=True)
+    Traceback (most recent call last):
+    ...
+    rotoruq.errors.InputFileError: m.csv, line 2: expected a number ... float range ...
     """
     rows = [(k, next(csv.reader([raw]))) for k, raw in enumerate(text.splitlines(), 1)
             if raw.strip() and not raw.lstrip().startswith("#")]
@@ -202,7 +232,7 @@ def parse_csv(text: str, path: str | os.PathLike | None = None) -> TabularData:
         if len(row) != len(header):
             raise InputFileError(path, ln, f"{len(header)} comma-separated values",
                                  ",".join(row))
-        values[i] = [_float(v, path, ln, f"a number in column {h!r}")
+        values[i] = [_float(v, path, ln, f"a number in column {h!r}", strict, nonfinite)
                      for h, v in zip(header, row, strict=True)]
     return TabularData(tuple(header), values, layout="csv",
                        path=None if path is None else str(path), header_line=head_ln,
@@ -262,14 +292,6 @@ def _column_name(name) -> str:
         raise ParameterError(f"column name {name!r} must be a non-empty word without white "
                              "space or control characters, not starting with '%'")
     return name
-
-
-def _is_number(word: str) -> bool:
-    try:
-        float(word)
-    except ValueError:
-        return False
-    return True
 
 
 def read_tabular(path: str | os.PathLike, *, names: Sequence[str] | None = None
@@ -354,6 +376,7 @@ def write_tabular(path: str | os.PathLike, names: Sequence[str], values: np.ndar
     Returns
     -------
     Path
+        ``path``, written through a temporary file beside it and renamed.
 
     Examples
     --------
@@ -405,6 +428,7 @@ def export_store(store: Store | str | os.PathLike, path: str | os.PathLike, *,
     Returns
     -------
     Path
+        ``path``, one row per exported evaluation (written by :func:`write_tabular`).
 
     Examples
     --------

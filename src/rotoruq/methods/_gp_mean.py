@@ -148,6 +148,24 @@ def _corr(h2: float, kernel: int) -> float:
     return (1.0 + s + s * s / 3.0) * math.exp(-s)
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _scale_to_output(xs, ie, o, xe) -> None:
+    """xe (d,) = the scaled point xs times output o's inverse length-scales ie[o]."""
+    for a in range(xs.shape[0]):
+        xe[a] = xs[a] * ie[o, a]
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _sq_distance(xe, Xe, o, i) -> float:
+    """|xe - Xe[o, i]|^2, summed over the inputs in order (no reassociation: the mean and
+    the mean with variance give the same bits)."""
+    h2 = 0.0
+    for a in range(xe.shape[0]):
+        u = xe[a] - Xe[o, i, a]
+        h2 += u * u
+    return h2
+
+
 @nb.njit(cache=True, nogil=True)
 def gp_mean_into(theta, pack, xs, xe, out) -> None:
     """GP mean at one point theta (d,) into out (m,); xs, xe : (d,) work arrays. On return
@@ -157,15 +175,10 @@ def gp_mean_into(theta, pack, xs, xe, out) -> None:
     for a in range(d):
         xs[a] = (theta[a] - lo[a]) / span[a]
     for o in range(m):
-        for a in range(d):
-            xe[a] = xs[a] * ie[o, a]
+        _scale_to_output(xs, ie, o, xe)
         acc = 0.0
         for i in range(n):
-            h2 = 0.0
-            for a in range(d):
-                u = xe[a] - Xe[o, i, a]
-                h2 += u * u
-            acc += alpha[o, i] * _corr(h2, kernel)
+            acc += alpha[o, i] * _corr(_sq_distance(xe, Xe, o, i), kernel)
         for q in range(bi.shape[0]):
             f = beta[o, q]
             if bi[q] >= 0:
@@ -229,15 +242,10 @@ def gp_mean_var_into(theta, pack, vpack, xs, xe, r, g, u, out, var) -> None:
             f *= xs[bj[q]] - 0.5
         g[q] = f
     for o in range(m):
-        for a in range(d):
-            xe[a] = xs[a] * ie[o, a]
+        _scale_to_output(xs, ie, o, xe)
         acc = 0.0
         for i in range(n):
-            h2 = 0.0
-            for a in range(d):
-                w = xe[a] - Xe[o, i, a]
-                h2 += w * w
-            r[i] = _corr(h2, kernel)
+            r[i] = _corr(_sq_distance(xe, Xe, o, i), kernel)
             acc += alpha[o, i] * r[i]
         for q in range(p):
             acc += beta[o, q] * g[q]

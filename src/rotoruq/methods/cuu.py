@@ -515,7 +515,7 @@ def _identifiability(J, x, labels, n_targets, tol):
         return sv, cond, False, (
             f"{p} calibrated statistics but only {n_targets} targets: infinitely many "
             "combinations match the targets equally well and the values found depend on the "
-            "start (thesis table 3.10). Calibrate at most as many statistics as targets, or "
+            "start. Calibrate at most as many statistics as targets, or "
             "add targets"
             + (f"; {', '.join(weak)} barely affect the targets" if weak else "")
         )
@@ -530,7 +530,7 @@ def _identifiability(J, x, labels, n_targets, tol):
             f"practically unidentifiable: the scaled outer Jacobian has condition number "
             f"{cond:.3g} (> 1/{tol:g}); the targets hardly depend on {worst}{extra}, so its "
             "calibrated value is not determined by the data. Calibrate variables of comparable "
-            "sensitivity together (thesis section 3.5) or hold the weak one fixed"
+            "sensitivity together or hold the weak one fixed"
         )
     return sv, cond, True, (
         f"identifiable: scaled outer Jacobian condition number {cond:.3g}"

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -52,7 +53,7 @@ __all__ = [
     "SOLVERS",
 ]
 
-ESTIMATORS = ("quadrature", "sparse_grid", "regression")
+ESTIMATORS = ("quadrature", "sparse_grid", "regression", "sampling")
 TRUNCATIONS = ("tensor", "total_order", "hyperbolic")
 """Basis truncations of :func:`polynomial_chaos`."""
 SOLVERS = ("least_squares", "omp", "lars", "lasso")
@@ -67,16 +68,19 @@ def total_order_indices(d: int, p: int) -> np.ndarray:
     return np.array(out, dtype=int).reshape(-1, d)
 
 
-def tensor_indices(d: int, p: int) -> np.ndarray:
+def tensor_indices(d: int, p: int | Sequence[int]) -> np.ndarray:
     """Multi-indices with every degree <= p (the tensor basis), shape ((p + 1)^d, d), sorted
-    by total degree.
+    by total degree; ``p`` may give each input its own degree.
 
     Examples
     --------
     >>> tensor_indices(2, 1).tolist()
     [[0, 0], [1, 0], [0, 1], [1, 1]]
+    >>> tensor_indices(2, (2, 0)).tolist()
+    [[0, 0], [1, 0], [2, 0]]
     """
-    out = list(itertools.product(range(p + 1), repeat=d))
+    degrees = [int(p)] * d if isinstance(p, int | np.integer) else [int(v) for v in p]
+    out = list(itertools.product(*[range(k + 1) for k in degrees]))
     out.sort(key=lambda a: (sum(a), tuple(-v for v in a)))
     return np.array(out, dtype=int).reshape(-1, d)
 
@@ -501,18 +505,20 @@ def _lars(psi: np.ndarray, y: np.ndarray, lasso: bool = False) -> tuple[np.ndarr
     return coef, float(best_loo)
 
 
-def _tensor_projection(germs, nq: int, alpha: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """Projection coefficients (N, m) of ``values`` (nq^d, m), given on the tensor Gauss grid
-    of :func:`_tensor_grid`, onto the basis terms ``alpha`` (N, d).
+def _tensor_projection(germs, nq: Sequence[int], alpha: np.ndarray,
+                       values: np.ndarray) -> np.ndarray:
+    """Projection coefficients (N, m) of ``values`` (prod(nq), m), given on the tensor Gauss
+    grid of :func:`_tensor_grid` with ``nq[j]`` points along input j, onto the basis terms
+    ``alpha`` (N, d).
 
     One 1-D projection per axis (O(nq^d d p) work) instead of the (nq^d, N) design matrix,
     which for a tensor basis would be square in the grid size.
     """
-    d, m = len(germs), values.shape[1]
+    m = values.shape[1]
     pmax = int(alpha.max()) if alpha.size else 0
-    t = values.reshape((nq,) * d + (m,))
+    t = values.reshape(tuple(nq) + (m,))
     for j, g in enumerate(germs):
-        nodes, wj = g.gauss(nq)
+        nodes, wj = g.gauss(nq[j])
         proj = (g.basis(pmax, nodes) * wj[:, None]).T  # (pmax + 1, nq)
         t = np.moveaxis(np.tensordot(proj, t, axes=([1], [j])), 0, j)
     return t[tuple(alpha.T)]
@@ -530,6 +536,7 @@ def polynomial_chaos(
     truncation: str | None = None,
     q_norm: float = 0.5,
     solver: str = "least_squares",
+    dimension_preference: Sequence[float] | None = None,
     seed: SeedLike = None,
 ) -> PCEResult:
     """Fit an order-``order`` polynomial chaos expansion of every response.
@@ -546,8 +553,14 @@ def polynomial_chaos(
         for the other estimators) or "hyperbolic" (``||alpha||_q <= p`` with ``q_norm``).
     q_norm : q in (0, 1] of the hyperbolic truncation.
     estimator : "quadrature" (tensor Gauss rule, ``quadrature_points`` per input, default p + 1),
-        "sparse_grid" (Smolyak level p over Gauss rules of 1..p+1 points) or "regression"
-        (least squares on ``n_samples`` LHS points, default 2 N_T).
+        "sparse_grid" (Smolyak level p over Gauss rules of 1..p+1 points), "regression"
+        (least squares on ``n_samples`` LHS points, default 2 N_T) or "sampling" (each
+        coefficient the sample mean of y times its orthonormal basis term over ``n_samples``
+        LHS points, default 2 N_T: Dakota's ``expansion_samples``).
+    dimension_preference : (d,) positive, "quadrature" only: an anisotropic tensor grid as
+        Dakota's ``dimension_preference`` makes it: the most preferred input gets the
+        ``quadrature_points``, input i ``int(quadrature_points * pref_i / max pref)`` (at
+        least 1), and the tensor basis its degree ``points - 1`` per input.
     basis : "askey" (table 2.1 where it applies, Hermite in u-space otherwise) or "hermite"
         (Hermite in u-space for every input).
     solver : "regression" only: "least_squares" (all terms; needs n_samples >= N), or a sparse
@@ -589,14 +602,28 @@ def polynomial_chaos(
     if solver not in SOLVERS:
         raise ParameterError(f"unknown solver {solver!r}; valid: {', '.join(SOLVERS)}")
     if solver != "least_squares" and estimator != "regression":
+        # (estimator "sampling" projects; it has no solver)
         raise ParameterError(f"solver {solver!r} needs estimator 'regression'")
     if truncation is None:
         truncation = "tensor" if estimator == "quadrature" else "total_order"
     if truncation == "tensor" and estimator == "sparse_grid":
         raise ParameterError("a sparse grid cannot resolve the tensor basis; use truncation "
                              "'total_order' or 'hyperbolic' with estimator 'sparse_grid'")
+    points: list[int] | None = None
+    if dimension_preference is not None:
+        pref = np.asarray(dimension_preference, dtype=float)
+        if estimator != "quadrature" or truncation != "tensor":
+            raise ParameterError("dimension_preference needs estimator 'quadrature' with the "
+                                 "tensor truncation")
+        if pref.shape != (d,) or not np.all(np.isfinite(pref)) or np.any(pref <= 0):
+            raise ParameterError(f"dimension_preference needs {d} positive numbers (one per "
+                                 f"input), got {list(np.atleast_1d(pref))}")
+        nq0 = int(quadrature_points or order + 1)
+        top = int(np.argmax(pref))  # the first of equal maxima, as Dakota
+        points = [nq0 if i == top else max(1, int(nq0 * pref[i] / pref[top]))
+                  for i in range(d)]
     if truncation == "tensor":
-        alpha = tensor_indices(d, order)
+        alpha = tensor_indices(d, order if points is None else [n - 1 for n in points])
     elif truncation == "total_order":
         alpha = total_order_indices(d, order)
     elif truncation == "hyperbolic":
@@ -610,14 +637,15 @@ def polynomial_chaos(
             raise ParameterError(
                 f"a tensor basis of degree {order} per input needs quadrature_points >= "
                 f"{order + 1}, got {nq}")
-        xi, w = _tensor_grid(germs, [nq] * d)
+        npts = points if points is not None else [nq] * d
+        xi, w = _tensor_grid(germs, npts)
         batch = eval_space(model, space, _xi_to_x(space, germs, xi))
         if batch.failures:
             raise ParameterError(
                 f"{len(batch.failures)} quadrature evaluations failed; projection needs all "
                 "points (use estimator='regression')"
             )
-        coef = _tensor_projection(germs, nq, alpha, batch.values)
+        coef = _tensor_projection(germs, npts, alpha, batch.values)
         n_eval = xi.shape[0]
     elif estimator == "sparse_grid":
         terms = _smolyak_terms(d, order)
@@ -638,10 +666,10 @@ def polynomial_chaos(
             inside = np.all(alpha <= np.array(npts) - 1, axis=1)
             coef[inside] += c * (_design_matrix(germs, alpha[inside], xi).T @ (w[:, None] * y))
         n_eval = uniq.shape[0]
-    else:  # regression
+    else:  # regression, or projection by sampling
         default_n = 2 * alpha.shape[0] if solver == "least_squares" else alpha.shape[0]
         n = int(n_samples or default_n)
-        if solver == "least_squares" and n < alpha.shape[0]:
+        if solver == "least_squares" and estimator == "regression" and n < alpha.shape[0]:
             raise ParameterError(f"regression needs n_samples >= N_T = {alpha.shape[0]}, got {n}"
                                  " (or a sparse solver: 'omp', 'lars', 'lasso')")
         if n < 4:
@@ -653,7 +681,10 @@ def polynomial_chaos(
         nan_rows_warning(n_dropped, n, "polynomial_chaos regression")
         psi = _design_matrix(germs, alpha, _x_to_xi(space, germs, x[ok]))
         yv = batch.values[ok]
-        if solver == "least_squares":
+        if estimator == "sampling":
+            # the projection <y, psi_k> of the orthonormal basis by its sample mean
+            coef = psi.T @ yv / psi.shape[0]
+        elif solver == "least_squares":
             coef = np.linalg.lstsq(psi, yv, rcond=None)[0]
         else:
             coef = np.zeros((alpha.shape[0], m))

@@ -535,8 +535,25 @@ class LogUniform(_DerivedMoments):
         _freeze(self, stats.loguniform(self.lower, self.upper))
 
 
+class _MirroredTail(_DerivedMoments):
+    """A distribution on [lower, upper] whose upper tail is read from ``_mirror``, the
+    standardized distribution of (upper - x) / width (Beta(beta, alpha) for a Beta, the
+    mirrored triangle for a Triangular): accurate where 1 - cdf would cancel."""
+
+    lower: float
+    upper: float
+    _mirror: Any
+
+    def sf(self, x: Any) -> np.ndarray:
+        w = self.upper - self.lower
+        return self._mirror.cdf(np.clip((self.upper - np.asarray(x, dtype=float)) / w, 0, 1))
+
+    def isf(self, q: Any) -> np.ndarray:
+        return self.upper - (self.upper - self.lower) * self._mirror.ppf(q)
+
+
 @dataclass(frozen=True)
-class Beta(_DerivedMoments):
+class Beta(_MirroredTail):
     """Beta(alpha, beta) scaled to [lower, upper]."""
 
     alpha: float
@@ -551,14 +568,6 @@ class Beta(_DerivedMoments):
         lo, hi = _ordered(self.lower, self.upper, "Beta")
         _freeze(self, stats.beta(self.alpha, self.beta, loc=lo, scale=hi - lo))
         object.__setattr__(self, "_mirror", stats.beta(self.beta, self.alpha))
-
-    # upper tail through the mirrored Beta(beta, alpha) of (upper - x) / width
-    def sf(self, x: Any) -> np.ndarray:
-        w = self.upper - self.lower
-        return self._mirror.cdf(np.clip((self.upper - np.asarray(x, dtype=float)) / w, 0, 1))
-
-    def isf(self, q: Any) -> np.ndarray:
-        return self.upper - (self.upper - self.lower) * self._mirror.ppf(q)
 
 
 @dataclass(frozen=True)
@@ -612,7 +621,7 @@ class Weibull(_DerivedMoments):
 
 
 @dataclass(frozen=True)
-class Triangular(_DerivedMoments):
+class Triangular(_MirroredTail):
     """Triangular on [lower, upper] with mode ``mode``."""
 
     mode: float
@@ -630,14 +639,6 @@ class Triangular(_DerivedMoments):
             )
         _freeze(self, stats.triang((self.mode - lo) / (hi - lo), loc=lo, scale=hi - lo))
         object.__setattr__(self, "_mirror", stats.triang((hi - self.mode) / (hi - lo)))
-
-    # upper tail through the mirrored triangle of (upper - x) / width
-    def sf(self, x: Any) -> np.ndarray:
-        w = self.upper - self.lower
-        return self._mirror.cdf(np.clip((self.upper - np.asarray(x, dtype=float)) / w, 0, 1))
-
-    def isf(self, q: Any) -> np.ndarray:
-        return self.upper - (self.upper - self.lower) * self._mirror.ppf(q)
 
 
 @dataclass(frozen=True)

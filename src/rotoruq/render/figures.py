@@ -3,8 +3,10 @@ pyplot, so a notebook's backend is left alone; files are written through Agg).
 
 Every function returns a list of :class:`Figure` (name, caption, matplotlib figure); the
 report renders each once, as PNG, writes it to ``figures/`` and embeds the same bytes. Every
-axis is labelled with its unit, legends sit outside the data, and where the thesis prints the
-numbers behind a figure (tables 4.12, 4.16-4.19, the Sobol tables) they are drawn beside ours.
+axis is labelled with its unit and legends sit outside the data. Where an application hands
+the report published numbers behind a figure (:attr:`FigureContext.beside`: Sobol indices,
+predictive means and std devs, the data-generating distributions of a synthetic calibration),
+they are drawn beside the run's.
 """
 
 from __future__ import annotations
@@ -19,11 +21,11 @@ from scipy import stats
 
 from ..params import Distribution
 from ..results import StepResult, dict_to_dist
-from .reference import TABLES
 
 __all__ = ["Figure", "FigureContext", "tornado", "prior_posterior", "chain_traces",
            "pair_plot", "load_distributions", "cuu_comparison", "ground_effect_curves",
-           "UNITS", "axis_label", "unit_of", "per_unit", "thesis_sobol"]
+           "UNITS", "axis_label", "unit_of", "per_unit", "beside_label", "beside_sobol",
+           "beside_predictions", "beside_truth"]
 
 # Units of the rotoruq vocabulary (DESIGN.md section 3); a study file's ``unit`` overrides.
 UNITS = {
@@ -48,7 +50,13 @@ class FigureContext:
 
     study : the study's name. steps : every saved step of the study (name -> result).
     labels, units : display label and unit per input/response name.
-    reference : the study is a reference study (thesis numbers are drawn beside ours).
+    beside : numbers an application (:mod:`rotoruq.report.application`) has the figures draw
+        beside the run's, as plain data (it crosses to the figure worker as JSON), or None:
+        ``label`` (the legend's name of their source, e.g. ``"thesis"``); ``sobol``: step ->
+        response -> input -> main index; ``predictions``: step -> sweep label (``"@4"``) ->
+        response -> [mean, std]; ``truth``: calibration step -> the sampling step whose
+        input distributions generated its (synthetic) data. Read them with
+        :func:`beside_sobol`, :func:`beside_predictions`, :func:`beside_truth`.
     curves : reference curves the run recorded (``study.json`` ``model.curves``).
     """
 
@@ -56,8 +64,37 @@ class FigureContext:
     steps: Mapping[str, StepResult]
     labels: Mapping[str, str] = field(default_factory=dict)
     units: Mapping[str, str] = field(default_factory=dict)
-    reference: bool = False
+    beside: Mapping[str, Any] | None = None
     curves: Mapping[str, Any] = field(default_factory=dict)
+
+
+def beside_sobol(ctx: FigureContext, step: str) -> dict[tuple[str, str], float] | None:
+    """(response, input) -> the main index ``ctx.beside`` gives for ``step``, or None."""
+    table = ((ctx.beside or {}).get("sobol") or {}).get(step)
+    if not table:
+        return None
+    return {(r, p): v for r, row in table.items() for p, v in row.items()}
+
+
+def beside_predictions(ctx: FigureContext, step: str
+                       ) -> dict[str, dict[str, tuple[float, float]]] | None:
+    """Sweep label -> response -> (mean, std) ``ctx.beside`` gives for ``step``, or None."""
+    table = ((ctx.beside or {}).get("predictions") or {}).get(step)
+    if not table:
+        return None
+    return {lab: {r: (float(v[0]), float(v[1])) for r, v in row.items()}
+            for lab, row in table.items()}
+
+
+def beside_truth(ctx: FigureContext, step: str) -> str | None:
+    """The sampling step whose input distributions generated the data ``step`` calibrates on,
+    as ``ctx.beside`` gives it, or None."""
+    return ((ctx.beside or {}).get("truth") or {}).get(step)
+
+
+def beside_label(ctx: FigureContext) -> str:
+    """The legend's name of the numbers drawn beside the run's (``""``: none)."""
+    return str((ctx.beside or {}).get("label") or "")
 
 
 @dataclass
@@ -135,15 +172,18 @@ def _legend_below(fig, axes) -> None:
                    **_LEGEND)
 
 
-def tornado(res: StepResult, labels, units=None, thesis: dict | None = None) -> list[Figure]:
+def tornado(res: StepResult, labels, units=None, beside: dict | None = None,
+            beside_name: str = "") -> list[Figure]:
     """Horizontal bars of the main and total Sobol indices per response, with their bootstrap
-    intervals; the thesis's main indices beside ours when a thesis table maps this step."""
+    intervals; ``beside``: (response, input) -> another source's main index (named
+    ``beside_name`` in the legend), drawn beside the run's."""
     inputs, responses = res.meta["inputs"], res.meta["responses"]
     k = len(responses)
     fig, axes = _subplots(1, k, figsize=(3.4 * k + 1.8, 0.5 * len(inputs) + 2.0),
                           sharey=True, squeeze=False)
     y = np.arange(len(inputs))
-    h = 0.28 if thesis else 0.4
+    h = 0.28 if beside else 0.4
+    ours = " (ours)" if beside else ""
     for a, r in enumerate(responses):
         ax = axes[0, a]
         s = np.array([res.get(f"S/{r}/{p}", math.nan) for p in inputs])
@@ -156,13 +196,14 @@ def tornado(res: StepResult, labels, units=None, thesis: dict | None = None) -> 
                 return None
             return np.vstack([np.maximum(v - lo, 0), np.maximum(hi - v, 0)])
 
-        ax.barh(y + h, s, height=h, color="#1f77b4", label="main S_i (ours)",
+        ax.barh(y + h, s, height=h, color="#1f77b4", label=f"main S_i{ours}",
                 xerr=err("S", s), error_kw={"lw": 0.8})
-        ax.barh(y, t, height=h, color="#9ecae1", label="total T_i (ours)",
+        ax.barh(y, t, height=h, color="#9ecae1", label=f"total T_i{ours}",
                 xerr=err("T", t), error_kw={"lw": 0.8})
-        if thesis:
-            th = [thesis.get((r, p), np.nan) for p in inputs]
-            ax.barh(y - h, th, height=h, color="#d62728", alpha=0.7, label="main S_i (thesis)")
+        if beside:
+            th = [beside.get((r, p), np.nan) for p in inputs]
+            ax.barh(y - h, th, height=h, color="#d62728", alpha=0.7,
+                    label=f"main S_i ({beside_name})")
         neg = res.get(f"negligible/{r}", math.nan) == 1
         ax.set_title(f"{r}" + (" (negligible variance)" if neg else ""), fontsize=9)
         lo = min(0.0, float(np.nanmin(np.r_[s, t, 0.0])) * 1.1)
@@ -275,29 +316,15 @@ def pair_plot(res: StepResult, labels, units=None) -> list[Figure]:
                    f"({res.name})", fig)]
 
 
-def _thesis_prediction(step: str, label: str) -> dict[str, tuple[float, float]]:
-    """response -> (mean, std) the thesis prints for this forward step and sweep point."""
-    out: dict[str, tuple[float, float]] = {}
-    for t in TABLES:
-        for _, cells in t.rows:
-            if len(cells) < 2:
-                continue
-            (m, src), (s, _src2) = cells[0], cells[1]
-            if (src and src.startswith(f"{step}:mean/") and src.endswith(label)
-                    and m is not None and s is not None):
-                r = src.split("/", 1)[1][: len(src.split("/", 1)[1]) - len(label)]
-                out[r] = (m, s)
-    return out
-
-
 def load_distributions(name: str, resp: Sequence[str], labels: Sequence[str],
                        outputs: Sequence[np.ndarray], pp_outputs: Sequence[np.ndarray | None],
-                       measured: np.ndarray | None = None, units=None, thesis: bool = False
-                       ) -> list[Figure]:
+                       measured: np.ndarray | None = None, units=None,
+                       beside: Mapping[str, Mapping[str, tuple[float, float]]] | None = None,
+                       beside_name: str = "") -> list[Figure]:
     """PDF (histogram + KDE) and empirical CDF of every response at every sweep point, with
     the measured value; the joint posterior predictive beside the independent-normal
-    propagation when the step has both, and the thesis's normal N(mean, std) when it prints
-    one.
+    propagation when the step has both, and another source's normal N(mean, std) where
+    ``beside`` (sweep label -> response -> (mean, std), named ``beside_name``) gives one.
 
     name : the step's. resp (m) : response names. labels (P) : each point's label (``""``
     without a sweep). outputs : P arrays (n, m) of propagated responses; pp_outputs : P
@@ -307,7 +334,7 @@ def load_distributions(name: str, resp: Sequence[str], labels: Sequence[str],
     out = []
     for i, label in enumerate(labels):
         pp = pp_outputs[i]
-        th = _thesis_prediction(name, label) if thesis and label else {}
+        th = (beside or {}).get(label, {}) if label else {}
         fig, axes = _subplots(2, len(resp), figsize=(3.3 * len(resp) + 0.4, 5.6),
                               squeeze=False)
         for k, r in enumerate(resp):
@@ -334,7 +361,7 @@ def load_distributions(name: str, resp: Sequence[str], labels: Sequence[str],
                 g = np.linspace(min(lo, th_mean - 3 * th_std), max(hi, th_mean + 3 * th_std), 200)
                 for axis, law in ((ax, stats.norm.pdf), (ax2, stats.norm.cdf)):
                     axis.plot(g, law(g, th_mean, th_std), "k:", lw=1.2,
-                              label="thesis N(mean, std)")
+                              label=f"{beside_name} N(mean, std)")
             if measured is not None and not np.isnan(measured[i, k]):
                 for a in (ax, ax2):
                     a.axvline(float(measured[i, k]), color="C3", ls="--", lw=1.2,
@@ -398,12 +425,14 @@ def cuu_comparison(name: str, params: Sequence[str], resp: Sequence[str],
 def ground_effect_curves(name: str, resp: Sequence[str], labels: Sequence[str],
                          heights: np.ndarray, mean: np.ndarray, std: np.ndarray,
                          pp_mean: np.ndarray, pp_std: np.ndarray, measured: np.ndarray,
-                         thesis: bool = False,
+                         beside: Mapping[str, Mapping[str, tuple[float, float]]] | None = None,
+                         beside_name: str = "",
                          curves: Mapping[str, Mapping[str, list]] | None = None
                          ) -> list[Figure]:
     """C_T/C_T(4R) and C_Q/C_Q(4R) vs H/R: model mean with +-3 std bars under each
-    propagation, the thesis's (tables 4.18-4.19), the test points, Cheeseman-Bennett and the
-    (digitized, approximate) Fradenburgh curve for C_T.
+    propagation, another source's where ``beside`` (sweep label -> response -> (mean, std),
+    named ``beside_name``) gives them, the test points, Cheeseman-Bennett and the (digitized,
+    approximate) Fradenburgh curve for C_T.
 
     name : the step's. resp (m), labels (P) : response names and point labels. heights (P,) :
     H/R of each point. mean, std (P, m) : the propagated responses' moments; pp_mean, pp_std
@@ -427,15 +456,15 @@ def ground_effect_curves(name: str, resp: Sequence[str], labels: Sequence[str],
         for m_, s_, what, color, dx in series:
             ax.errorbar(heights + dx, m_[:, k], yerr=3 * s_[:, k], fmt="-s", color=color,
                         capsize=4, ms=4, label=what)
-        if thesis:
+        if beside:
             th_m, th_s = [], []
             for lab in labels:
-                t = _thesis_prediction(name, lab).get(r)
+                t = beside.get(lab, {}).get(r)
                 th_m.append(np.nan if t is None else t[0])
                 th_s.append(np.nan if t is None else t[1])
             if np.any(np.isfinite(th_m)):
                 ax.errorbar(heights - 0.04, th_m, yerr=3 * np.asarray(th_s), fmt="--^",
-                            color="C7", capsize=3, ms=4, label="thesis (mean +- 3 std)")
+                            color="C7", capsize=3, ms=4, label=f"{beside_name} (mean +- 3 std)")
         data = measured[:, k]
         ax.plot(heights, data, "o", color="k", label="experiment")
         h = np.linspace(0.8, 4.2, 200)
@@ -459,17 +488,3 @@ def ground_effect_curves(name: str, resp: Sequence[str], labels: Sequence[str],
         out.append(Figure(f"{name}_{r}_vs_height",
                           f"Normalised {title} coefficient vs H/R ({name})", fig))
     return out
-
-
-def thesis_sobol(step: str, study: str) -> dict | None:
-    """(response, input) -> thesis main index for the step, from the reference tables."""
-    out = {}
-    for t in TABLES:
-        if t.study != study:
-            continue
-        for _, cells in t.rows:
-            for value, src in cells:
-                if src and src.startswith(f"{step}:S/"):
-                    _, r, p = src.split(":", 1)[1].split("/")
-                    out[(r, p)] = value
-    return out or None

@@ -1,13 +1,16 @@
 """The report: one self-contained HTML page (figures embedded as base64 PNG), every figure as
-a PNG and an SVG file, every table as CSV and the claims as JSON; printed from a browser, the
-page makes a clean PDF (print CSS).
+a PNG and an SVG file, every table as CSV; printed from a browser, the page makes a clean PDF
+(print CSS).
 
 ``write_report([results_dir, ...], report_dir)`` reads saved study outputs (see
 :mod:`rotoruq.results`) and writes ``report_dir/index.html``,
-``figures/<study>_<figure>.png`` and ``.svg``, ``tables/`` and ``claims.json``. It only reads
-results: ``rotoruq report RESULTS`` rebuilds it at any time. A reference study
-(``validation`` on the bo105 preset, ``experiment`` on gvpm) gets the thesis's tables beside
-ours and the claims; every study gets a table per step.
+``figures/<study>_<figure>.png`` and ``.svg`` and ``tables/``. It only reads results:
+``rotoruq report RESULTS`` rebuilds it at any time. Every study gets a table per step, its
+figures and a first screen with a verdict computed from the run (validation comparisons
+within their uncertainty, failed self-checks, failed evaluations, diagnostic warnings). An
+application built on rotoruq adds its own findings through ``application=``
+(:mod:`rotoruq.report.application`): the reference study's claims, for instance, come from
+:mod:`rotoruq.reference`, which this module never imports.
 """
 
 from __future__ import annotations
@@ -36,17 +39,16 @@ from ..results import (
     load_results,
     study_infos,
 )
-from .claims import INDEPENDENT, JOINT, Claim, claims, claims_json
-from .compare import REFERENCE_STUDIES, compare_tables
-from .diagnostics import THRESHOLDS
-from .escape import script_json, slug
+from .application import Addition, Application, ReportData, Section
+from .diagnostics import step_warnings
+from .escape import slug
 from .escape import text as e
 from .hooks import rendering
 from .provenance import failed_evaluations, git_commit
 from .steptables import step_tables, table_csv
-from .tables import fmt, step_table_html, table_html, write_csv
+from .tables import fmt, step_table_html
 
-__all__ = ["write_report", "find_study_dirs", "is_reference"]
+__all__ = ["write_report", "find_study_dirs"]
 
 log = logging.getLogger(__name__)
 
@@ -80,23 +82,12 @@ print-color-adjust:exact}
 }
 """
 
-_STATUS_CLASS = {"holds": "st-holds", "holds, with a warning": "st-warn",
-                 "does not hold": "st-fails", "not checked": "st-na"}
-
-
 def find_study_dirs(root: str | Path) -> list[Path]:
     """Study output folders under ``root`` (``root`` itself when it is one)."""
     root = Path(root)
     if is_study_dir(root):
         return [root]
     return sorted(p.parent for p in root.glob(f"*/{STUDY_INFO}"))
-
-
-def is_reference(info: dict) -> bool:
-    """A study of the reference thesis: its name and its model preset both match."""
-    preset = (info.get("model") or {}).get("preset")
-    name = info.get("name")
-    return name in REFERENCE_STUDIES and (preset is None or REFERENCE_STUDIES[name] == preset)
 
 
 def _recorded(info: dict, what: str) -> dict:
@@ -157,70 +148,18 @@ _PARALLEL_MIN_STEPS = 6
 
 
 def draw_step(hook: Callable, steps: Mapping[str, StepResult], step: str, study: str,
-              labels: Mapping[str, str], units: Mapping[str, str], reference: bool,
-              curves: Mapping[str, Any]) -> list[_Rendered]:
+              labels: Mapping[str, str], units: Mapping[str, str],
+              beside: Mapping[str, Any] | None, curves: Mapping[str, Any]) -> list[_Rendered]:
     """Draw and render one step's figures (in this process or in the figure worker)."""
     from .plots import step_figures
 
-    ctx = FigureContext(study, steps, labels, units, reference, curves)
+    ctx = FigureContext(study, steps, labels, units, beside, curves)
     return _render(step_figures(hook, steps[step], ctx))
 
 
 def _anchor(*parts: str) -> str:
     """An id from study-supplied names: each part through :func:`~.escape.slug`."""
     return "-".join(slug(p) for p in parts)
-
-
-def _claim_row(c: Claim) -> str:
-    def kofn(v):
-        return "-" if v is None else f"{v[0]} of {v[1]}"
-
-    def num(v):
-        return "-" if v is None else fmt(v)
-
-    status = c.status
-    thesis = ("-" if c.thesis_passes is None else
-              ("holds" if c.thesis_passes else "does not hold"))
-    why = "".join(f"<li>{e(r)}</li>" for r in c.reasons)
-    why += "".join(f"<li>note: {e(d)}</li>" for d in c.details)
-    why = f"<ul class=why>{why}</ul>" if why else ""
-    if c.warnings:
-        why += (f"<details><summary>{len(c.warnings)} warning(s) from the steps it rests on"
-                "</summary><ul class=why>"
-                + "".join(f"<li>{e(w)}</li>" for w in c.warnings) + "</ul></details>")
-    prop = {INDEPENDENT: "independent normals", JOINT: "joint posterior predictive"}.get(
-        c.propagation or "", "")
-    return (f"<tr data-claim='{e(c.key)}' data-status='{e(status)}'>"
-            f"<td class=l>{e(c.text)}"
-            + (f" <i>(the thesis's criterion, shown beside {e(c.beside)}; not counted)</i>"
-               if c.beside else "") + f"</td><td class=l>{e(prop)}</td>"
-            f"<td><span class={_STATUS_CLASS[status]}>{e(status)}</span></td>"
-            f"<td>{num(c.value)}</td><td>{e(c.op)} {c.threshold:g}</td><td>{kofn(c.ours)}</td>"
-            f"<td>{num(c.thesis_value)}</td><td>{thesis}</td>"
-            f"<td class=l>{why}</td></tr>")
-
-
-def _claims_section(claim_list: list[Claim]) -> str:
-    head = ("<tr><th class=l>claim</th><th class=l>propagation</th><th>ours</th>"
-            "<th>our value</th><th>threshold</th><th>ours k of n</th><th>thesis value</th>"
-            "<th>thesis</th><th class=l>why (computed from this run)</th></tr>")
-    data = script_json(claims_json(claim_list))
-    t = THRESHOLDS
-    return (
-        "<table id='claims-table'>" + head + "".join(_claim_row(c) for c in claim_list)
-        + "</table>"
-        "<p class=note>A claim reads <i>holds</i> only when its value passes its threshold; "
-        "<i>holds, with a warning</i> when it passes but a step it rests on has a diagnostic "
-        f"warning (ESS below {t['ess_min']:g}, R-hat above {t['rhat_max']}, emulator "
-        f"leave-one-out Q2 below {t['loo_q2_min']}, a posterior piling up against a prior "
-        f"bound (more than {100 * t['pileup_max']:g} % of the chain in its outer 5 %), a "
-        f"parameter the data do not inform (posterior std above {t['std_ratio_max']} x the "
-        "prior's), a non-identifiable CUU). Forward checks after a calibration are evaluated "
-        f"under two propagations: <b>independent normals</b> ({e(INDEPENDENT)}) "
-        f"and the <b>joint posterior predictive</b> ({e(JOINT)}, the measurement "
-        "compared with the model spread plus the calibration's noise). They differ when the "
-        "posterior is correlated: independent normals ignore the correlation.</p>"
-        f"<script type='application/json' id='claims-data'>{data}</script>")
 
 
 def _steps_summary(steps: dict[str, StepResult], anchors: dict[str, str]) -> str:
@@ -257,10 +196,6 @@ def _noise_note(steps: dict[str, StepResult]) -> str:
 CSP = ("default-src 'none'; img-src data:; style-src 'unsafe-inline'; script-src 'none'; "
        "base-uri 'none'; form-action 'none'")
 
-_VERDICTS = (("holds", "hold"), ("holds, with a warning", "hold with a warning"),
-             ("does not hold", "do not hold"), ("not checked", "not checked"))
-
-
 def _num(v: Any) -> str:
     """A saved number for the page (anything else escaped as text)."""
     if isinstance(v, int | float) and not isinstance(v, bool):
@@ -268,53 +203,103 @@ def _num(v: Any) -> str:
     return e("-" if v is None else v)
 
 
-def _verdict_counts(claim_list: Sequence[Claim]) -> dict[str, int]:
-    """Number of counted claims in each state, in the order the first screen shows them (a
-    thesis's criterion shown beside its V&V 20 claim is not counted)."""
-    return {k: sum(c.status == k for c in claim_list if c.counted) for k, _ in _VERDICTS}
-
-
-def _first_screen(claim_list: list[Claim], studies: Mapping[str, Mapping[str, StepResult]],
-                  infos: Mapping[str, dict], labels: Mapping[str, Mapping[str, str]]) -> str:
-    """The verdict (counts, one line per claim), the V&V table and the provenance."""
-    out = ["<section class=first id='verdict'><h2>Verdict</h2>"]
-    if claim_list:
-        n = _verdict_counts(claim_list)
-        attrs = " ".join(f"data-{_STATUS_CLASS[k][3:]}='{v}'" for k, v in n.items())
-        parts = ", ".join(f"<span class={_STATUS_CLASS[k]}>{n[k]} {word}</span>"
-                          for k, word in _VERDICTS)
-        counted = [c for c in claim_list if c.counted]
-        out.append(f"<p class=counts {attrs}><b>{len(counted)} claims of the reference "
-                   f"study</b>: {parts}.</p><ol class=verdict>")
-
-        def line(c: Claim) -> str:
-            prop = {INDEPENDENT: " (independent normals)", JOINT: " (joint predictive)"}.get(
-                c.propagation or "", "")
-            val = "" if c.value is None else f": {fmt(c.value)}, needs {e(c.op)} {c.threshold:g}"
-            return (f"<span class={_STATUS_CLASS[c.status]}>{e(c.status)}</span> "
-                    f"{e(c.text)}{e(prop)}{val}")
-
-        for c in counted:
-            out.append(f"<li data-verdict='{e(c.key)}'>{line(c)}")
-            beside = [b for b in claim_list if b.beside == c.key]
-            if beside:
-                out.append("<ul class=beside>" + "".join(
-                    f"<li data-beside='{e(b.key)}'>the thesis's criterion, not counted: "
-                    f"{line(b)}</li>" for b in beside) + "</ul>")
-            out.append("</li>")
-        out.append("</ol><p class=note>Values, thresholds and the reasons computed from this "
-                   "run: <a href='#claims'>the claims table</a>. Where the thesis judged a "
-                   "comparison by \"within one predictive std\", the verdict judges it by the "
-                   "ASME V&amp;V 20 budget (|E| against u_val) and shows the thesis's criterion "
-                   "beside it: a wider predictive spread passes the thesis's criterion more "
-                   "easily, not the V&amp;V 20 one.</p>")
-    else:
-        out.append("<p class=counts>No claims: none of these studies is a reference study "
-                   "(the thesis's claims are checked on <code>rotoruq reproduce</code>).</p>")
-    out.append(_vv_section(studies, labels))
-    out.append(_provenance(studies, infos))
-    out.append("</section>")
+def _first_screen(studies: Mapping[str, Mapping[str, StepResult]], infos: Mapping[str, dict],
+                  labels: Mapping[str, Mapping[str, str]], extra: str = "") -> str:
+    """The verdict (the run's own, then an application's), the V&V table and the
+    provenance."""
+    out = ["<section class=first id='verdict'><h2>Verdict</h2>", run_verdict(studies, labels),
+           extra, _vv_section(studies, labels), _provenance(studies, infos), "</section>"]
     return "".join(out)
+
+
+def _validation_counts(res: StepResult) -> tuple[int, int, float] | None:
+    """(comparisons with |E| <= k u_val, comparisons, k) of a ``validation`` step's record
+    (every prediction, condition and response with a finite ratio); None when unreadable."""
+    import numpy as np
+
+    from ..results import RecordError
+    from ..steps.validation import ValidationRecord
+
+    try:
+        rec = ValidationRecord.read(res)
+    except (RecordError, KeyError, ValueError):
+        return None
+    ratio = np.asarray(rec.error_ratio, dtype=float)
+    ratio = ratio[np.isfinite(ratio)]
+    k = float(rec.coverage_factor)
+    return int(np.sum(ratio <= k)), int(ratio.size), k
+
+
+def run_verdict(studies: Mapping[str, Mapping[str, StepResult]],
+                labels: Mapping[str, Mapping[str, str]] | None = None) -> str:
+    """The report's own verdict, computed from the saved steps: how many validation
+    comparisons lie within k u_val (ASME V&V 20, as each ``validation`` step records them),
+    which self-checks (simulation-based calibration) failed, how many model evaluations
+    failed, and which steps carry diagnostic warnings."""
+    labels = labels or {}
+    items = []
+    within = total = 0
+    per_step = []
+    for study, steps in studies.items():
+        for s in steps.values():
+            if s.type != "validation":
+                continue
+            got = _validation_counts(s)
+            if got is None:
+                per_step.append(f"{study} / {s.name}: record not readable")
+                continue
+            w, n, k = got
+            within, total = within + w, total + n
+            per_step.append(f"{study} / {s.name}: {w} of {n} within {k:g} u_val")
+    if per_step:
+        items.append(f"<li data-check='validation' data-within='{within}' "
+                     f"data-comparisons='{total}'><b>Validation</b>: {within} of {total} "
+                     "comparisons with data lie within their validation uncertainty "
+                     f"(|E| &lt;= k u_val, E = S - D): {e('; '.join(per_step))}.</li>")
+    else:
+        items.append("<li data-check='validation' data-within='0' data-comparisons='0'>"
+                     "<b>Validation</b>: no <code>validation</code> step, so no comparison "
+                     "with data is judged.</li>")
+    checked, failed = [], []
+    for study, steps in studies.items():
+        for s in steps.values():
+            if "self_check_passed" in s.scalars:
+                checked.append(f"{study} / {s.name}")
+                if not s.get("self_check_passed"):
+                    failed.append(f"{study} / {s.name}")
+    if checked:
+        what = (f"{len(failed)} of {len(checked)} failed: {', '.join(failed)}" if failed
+                else f"all {len(checked)} passed")
+        items.append(f"<li data-check='self-check' data-failed='{len(failed)}' "
+                     f"data-checked='{len(checked)}'><b>Self-checks</b> (simulation-based "
+                     f"calibration): {e(what)}.</li>")
+    else:
+        items.append("<li data-check='self-check' data-failed='0' data-checked='0'>"
+                     "<b>Self-checks</b> (simulation-based calibration): none ran.</li>")
+    n_failed, recorded, unrecorded, where = 0, 0, 0, []
+    for study, steps in studies.items():
+        for s in steps.values():
+            fails = failed_evaluations(s)
+            if fails is None:
+                unrecorded += 1
+                continue
+            recorded += 1
+            n_failed += fails[0]
+            if fails[0]:
+                where.append(f"{study} / {s.name} {fails[0]}")
+    items.append(f"<li data-check='failed-evaluations' data-failed='{n_failed}'><b>Failed "
+                 f"evaluations</b>: {n_failed} in the {recorded} steps that record them"
+                 + (f" ({e(', '.join(where))})" if where else "")
+                 + (f"; {unrecorded} steps do not record them" if unrecorded else "")
+                 + ".</li>")
+    warned = [f"{study} / {s.name}" for study, steps in studies.items()
+              for s in steps.values() if step_warnings(s, labels.get(study))]
+    n_steps = sum(len(steps) for steps in studies.values())
+    items.append(f"<li data-check='warnings' data-steps='{len(warned)}'><b>Diagnostic "
+                 f"warnings</b>: {len(warned)} of {n_steps} steps"
+                 + (f" ({e(', '.join(warned))}; see each step's table)" if warned else "")
+                 + ".</li>")
+    return "<ul class=run-verdict>" + "".join(items) + "</ul>"
 
 
 def _vv_section(studies: Mapping[str, Mapping[str, StepResult]],
@@ -389,15 +374,21 @@ def _figure_html(f: _Rendered, key: str) -> str:
 
 
 def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
-                 title: str | None = None, *, workers: int | None = None) -> Path:
+                 title: str | None = None, *, workers: int | None = None,
+                 application: Application | None = None) -> Path:
     """Write the report of the given study output folders; returns ``index.html``.
 
-    title : page title (default: the reference study's when one is present, else the
-        studies' names). Progress (a line per study and per figure batch) goes to the
+    title : page title (default: the application's when it gives one, else the studies'
+        names). Progress (a line per study and per figure batch) goes to the
         ``rotoruq.report.html`` logger at INFO.
     workers : processes that draw the figures (each figure is drawn once, as PNG and SVG). Default:
         two when the machine has two or more cores and at least six steps have figures,
         else one (this process). The page and every file are the same whatever the count.
+
+    application : what an application built on rotoruq adds (see
+        :class:`rotoruq.report.application.Application`): for the studies it ``covers``, its
+        title, verdict, sections, files and the numbers the figures draw beside the run's.
+        None: the report of the run alone.
 
     The report only reads what the runs recorded (step results and ``study.json``, which
     holds the model's properties and reference curves): it never builds or runs a model.
@@ -420,22 +411,25 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
               for n, i in infos.items()}
     units = {n: {k: v.get("unit") for k, v in i.get("parameters", {}).items() if v.get("unit")}
              for n, i in infos.items()}
-    reference = [n for n, i in infos.items() if is_reference(i)]
+    covered = ([n for n, i in infos.items() if application.covers(i)]
+               if application is not None else [])
+    beside = {n: application.beside(n, infos[n]) for n in covered} if application else {}
     # figures first: a worker process draws them while this one builds the tables
     drawing = _FigureDrawing(studies, folders, [
         _Job(study, name, hook, (labels.get(study, {}), units.get(study, {}),
-                                 study in reference, _recorded(infos[study], "curves")))
+                                 beside.get(study), _recorded(infos[study], "curves")))
         for study, steps in studies.items() for name, res in steps.items()
         if (hook := rendering(res.type).figures) is not None], workers)
     drawn: dict[tuple[str, str], list[_Rendered]] | None = None
     try:
-        ref_results = {n: studies[n] for n in reference}
-        values = {n: _recorded(infos[n], "values") for n in reference}
-        tables = compare_tables(ref_results, values)
-        claim_list = claims(tables, ref_results, labels, values) if reference else []
+        added = Addition()
+        if application is not None and covered:
+            added = application.build(ReportData({n: studies[n] for n in covered},
+                                                 {n: infos[n] for n in covered},
+                                                 {n: labels[n] for n in covered}))
         if title is None:
-            if reference:
-                title = "rotoruq: reproduction of the reference study"
+            if added.title:
+                title = added.title
             else:
                 title = "rotoruq: " + ", ".join(
                     f"{n}" + (f" ({infos[n].get('description')})" if infos[n].get("description")
@@ -448,16 +442,26 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
             toc.append((level, anchor, text))
             body.append(f"<h{level} id='{anchor}'>{e(text)}</h{level}>")
 
+        def section(sec: Section) -> None:
+            heading(sec.level, sec.title, sec.anchor)
+            if sec.html:
+                body.append(sec.html)
+
         quick = [n for n, i in infos.items() if i.get("quick")]
         first = ""
         if quick:
             first = (f"<p><b>Quick run</b> ({e(', '.join(quick))}): small samples; the "
                      "numbers show the pipeline works, not the converged values.</p>")
-        first += _first_screen(claim_list, studies, infos, labels)
-        if claim_list:
-            heading(2, "Claims of the reference study: values, thresholds, reasons", "claims")
-            body.append(_claims_section(claim_list))
-            (report_dir / "claims.json").write_text(json.dumps(claims_json(claim_list), indent=1))
+        first += _first_screen(studies, infos, labels, added.verdict)
+        for sec in added.sections:
+            section(sec)
+        for rel, text in added.files.items():
+            path = (report_dir / rel).resolve()
+            if not path.is_relative_to(report_dir.resolve()):
+                raise ValueError(f"an application's file outside the report folder: {rel!r}")
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with path.open("w", newline="") as fh:
+                fh.write(text)
 
         unrendered = sorted({s.type for steps in studies.values() for s in steps.values()
                              if rendering(s.type).tables is None})
@@ -481,21 +485,8 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
                     (tab_dir / f"{slug(name)}_{slug(s.name)}_{k + 1}.csv").write_text(
                         table_csv(t))
                     body.append(step_table_html(t))
-            if name in reference:
-                mine = [t for t in tables if t.ref.study == name]
-                heading(3, "Thesis tables beside ours", _anchor(sid, "thesis"))
-                body.append("<p class=note>Differences: in the thesis's standard deviations "
-                            "(\u03c3) for means with a printed std; absolute for indices, "
-                            "std-dev counts and shape moments or where the thesis value is near "
-                            "zero; relative (%) otherwise. Colour of our value: "
-                            "<span style='background:#e5f5e0'>&nbsp;agrees&nbsp;</span> (within "
-                            "10 %, 1 σ or 0.05 absolute), "
-                            "<span style='background:#fee8c8'>&nbsp;differs&nbsp;</span>, "
-                            "uncoloured: nothing to compare.</p>")
-                for ct in mine:
-                    write_csv(ct, tab_dir)
-                    heading(4, f"Table {ct.ref.number}: {ct.ref.caption}", f"table-{ct.ref.number}")
-                    body.append(table_html(ct))
+            for sec in added.study_sections.get(name, ()):
+                section(sec)
             t0 = time.perf_counter()
             if drawn is None:
                 drawn = drawing.finish()
@@ -537,7 +528,7 @@ class _Job:
     study: str
     step: str
     hook: Callable
-    context: tuple  # FigureContext's labels, units, reference, curves
+    context: tuple  # FigureContext's labels, units, beside, curves
 
 
 class _FigureDrawing:

@@ -5,6 +5,7 @@ renderers live with their step type in :mod:`rotoruq.steps`, the drawing primiti
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 
 from ..render.figures import Figure, FigureContext, _subplots
 from ..results import StepResult
@@ -14,14 +15,15 @@ __all__ = ["figures_for_study", "step_figures"]
 
 
 def figures_for_study(study: str, steps: Mapping[str, StepResult], labels: Mapping[str, str],
-                      units: Mapping[str, str] | None = None, reference: bool = False,
+                      units: Mapping[str, str] | None = None,
+                      beside: Mapping[str, Any] | None = None,
                       curves: Mapping[str, Mapping[str, list]] | None = None
                       ) -> list[Figure]:
     """All figures for one study's saved steps, in step order: each step's type's ``figures``
-    renderer (:mod:`rotoruq.report.hooks`). ``reference``: the study is a reference study,
-    so the thesis's numbers are drawn beside ours. ``curves``: reference curves the run
-    recorded (``study.json`` ``model.curves``)."""
-    ctx = FigureContext(study, steps, labels, units or {}, reference, curves or {})
+    renderer (:mod:`rotoruq.report.hooks`). ``beside``: numbers an application has drawn
+    beside the run's (:attr:`rotoruq.render.figures.FigureContext.beside`). ``curves``:
+    reference curves the run recorded (``study.json`` ``model.curves``)."""
+    ctx = FigureContext(study, steps, labels, units or {}, beside, curves or {})
     figs: list[Figure] = []
     for res in steps.values():
         hook = rendering(res.type).figures

@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 
-from ..render.figures import Figure, FigureContext, thesis_sobol, tornado
+from ..render.figures import Figure, FigureContext, beside_label, beside_sobol, tornado
 from ..render.tables import prefixed
 from ..results import StepResult
 
@@ -15,11 +15,11 @@ __all__ = ["sensitivity_figures", "sobol_warnings"]
 
 
 def sensitivity_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:
-    """Tornado of main/total indices (sensitivity and pce steps), with the thesis's beside."""
+    """Tornado of main/total indices (sensitivity and pce steps), with the main indices the
+    report's application gives for this step beside them (``ctx.beside``)."""
     if "inputs" not in res.meta:
         return []
-    return tornado(res, ctx.labels, ctx.units,
-                   thesis_sobol(res.name, ctx.study) if ctx.reference else None)
+    return tornado(res, ctx.labels, ctx.units, beside_sobol(ctx, res.name), beside_label(ctx))
 
 
 def sobol_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:

@@ -137,8 +137,12 @@ class StepType:
         (context: :class:`~rotoruq.render.figures.FigureContext`);
     warnings(result, labels) -> list of warning sentences. Each may be None (the report then
         shows a key/value table, no figures, no warnings).
-    modules : the modules whose code computes this type's numbers (its own module and its
-        methods'); their source enters the step's fingerprint (:func:`step_code_version`).
+    modules : modules whose code computes this type's numbers beyond what the type's own
+        module imports (its adapter's imports, also those inside functions, are followed
+        already): each, and what it imports within rotoruq, enters the code part of the
+        step's fingerprint (:attr:`code_modules`, read by ``study.runner``), so an edit of one
+        re-runs the steps of the types that list it and no other. A plugin lists its own
+        helper modules here by import name.
     correlated : the type's method honours a correlated input space (``ParameterSpace``
         with a ``correlation``: a study file's ``[correlation]`` table). A type without it
         refuses correlated inputs (the study file fails naming the step and the table)
@@ -159,6 +163,19 @@ class StepType:
     warnings: WarningsHook | None = None
     modules: tuple[str, ...] = ()
     correlated: bool = False
+
+    @property
+    def code_modules(self) -> tuple[str, ...]:
+        """The modules whose source, with what each imports within rotoruq, is the code part
+        of this type's fingerprint: the adapter's module, then :attr:`modules`.
+
+        Examples
+        --------
+        >>> from rotoruq.steps import step_type
+        >>> step_type("mean_value").code_modules
+        ('rotoruq.steps.mean_value', 'rotoruq.methods.levels')
+        """
+        return (self.run.__module__, *self.modules)
 
     def default(self, key: str) -> Any:
         """Default of option ``key``: its own, or its method parameter's (:data:`REQUIRED`

@@ -30,6 +30,7 @@ from ..params import Normal, ParameterSpace
 from ..render.figures import (
     Figure,
     FigureContext,
+    beside_truth,
     chain_traces,
     pair_plot,
     prior_posterior,
@@ -197,7 +198,7 @@ def noise_model_text(noise_std: Mapping[str, float] | None, multipliers, prior,
     if emulator:
         text += ("; the emulator's Kriging variance added to the noise variance"
                  if emulator_variance else
-                 "; the emulator's mean only (its error ignored, as in the reference thesis)")
+                 "; the emulator's mean only (its error ignored)")
     return text
 
 
@@ -263,7 +264,7 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
     the reference study does (its table 4.15), for steps that ask for independent normals."""
     import warnings
 
-    from ..methods.mcmc import calibrate_bayes
+    from ..methods.mcmc import ChainOptions, EmulatorOptions, NoiseModel, calibrate_bayes
 
     if ctx.options.get("discrepancy") is not None:  # Kennedy-O'Hagan: steps/_discrepancy.py
         from ._discrepancy import run_discrepancy
@@ -287,12 +288,17 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
     with warnings.catch_warnings(record=True) as caught, deferred_writes(model):
         warnings.simplefilter("always")
         res = calibrate_bayes(
-            model, ctx.observations(), ctx.space, sampler=o["sampler"], emulator=emulator,
-            n_emulator_samples=o["n_emulator_samples"], n_samples=o["n_samples"],
-            burn_in=o["burn_in"], n_chains=o["n_chains"], noise_std=sd,
-            emulator_variance=o["emulator_variance"], refine=_refine_config(o.get("refine")),
-            noise_multipliers=multipliers, noise_multiplier_prior=mult_prior,
-            self_check=o["self_check"], proposal_covariance=o["proposal"], seed=ctx.rng,
+            model, ctx.observations(), ctx.space,
+            noise=NoiseModel(noise_std=sd, noise_multipliers=multipliers,
+                             noise_multiplier_prior=mult_prior),
+            chains=ChainOptions(sampler=o["sampler"], n_samples=o["n_samples"],
+                                burn_in=o["burn_in"], n_chains=o["n_chains"],
+                                proposal_covariance=o["proposal"]),
+            emulator=None if emulator is None else EmulatorOptions(
+                emulator, n_emulator_samples=o["n_emulator_samples"],
+                emulator_variance=o["emulator_variance"],
+                refine=_refine_config(o.get("refine"))),
+            self_check=o["self_check"], seed=ctx.rng,
             self_check_cache=(_StoredSelfChecks(ctx.store) if o["self_check"] and ctx.store
                               is not None else None),
         )
@@ -479,14 +485,17 @@ def bayes_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
 
 
 def bayes_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:
-    """Prior/posterior densities, chain traces and a pair plot of a Bayes step's chain; in the
-    reference validation study, the ``truth`` sampling step's distributions are drawn too."""
+    """Prior/posterior densities, chain traces and a pair plot of a Bayes step's chain. When the
+    report's application names the sampling step whose input distributions generated the
+    (synthetic) data of this calibration (``ctx.beside["truth"]``, e.g. the reference study's
+    ``truth`` step), those data-generating densities are drawn beside the posterior."""
     if "chain" not in res.arrays:
         return []
     truth = None
-    if ctx.reference and ctx.study == "validation" and "truth" in ctx.steps:
+    source = beside_truth(ctx, res.name)
+    if source is not None and source in ctx.steps:
         truth = {p: dict_to_dist(d) for p, d in
-                 ctx.steps["truth"].meta.get("input_distributions", {}).items()}
+                 ctx.steps[source].meta.get("input_distributions", {}).items()}
     figs = prior_posterior(res, ctx.labels, ctx.units, truth or None)
     figs += chain_traces(res, ctx.labels, ctx.units)
     if len(res.columns("chain")) > 1:
@@ -550,7 +559,7 @@ def bayes_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
         w.append(f"{name}: no noise model given: unit data variance for every response")
     if "emulator's mean only" in str(res.meta.get("noise_model", "")):
         w.append(f"{name}: the emulator's own error is not in the likelihood "
-                 "(emulator_variance = false, as the reference thesis)")
+                 "(emulator_variance = false)")
     if res.meta.get("reuse_data"):
         w.append(f"{name}: calibrates data an earlier step calibrated too (reuse_data = "
                  "true): the data count twice and the posterior is too narrow")
@@ -663,27 +672,32 @@ def _warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
                                           if is_discrepancy(res) else [])
 
 
+# the option records of calibrate_bayes whose fields give the SIGNATURE defaults
+_CHAINS = "rotoruq.methods.mcmc.options:ChainOptions"
+_EMULATOR = "rotoruq.methods.mcmc.options:EmulatorOptions"
+_NOISE = "rotoruq.methods.mcmc.options:NoiseModel"
+
 STEP = StepType(
     "bayes_calibration", run_bayes_calibration, check=_check,
     method="rotoruq.methods.mcmc:calibrate_bayes", provides=("posterior",), needs_data=True,
-    options={"sampler": Option(choice("dram", "mh", "dr", "am"), SIGNATURE),
-             "n_samples": Option(integer(10), SIGNATURE),
-             "burn_in": Option(integer(0), SIGNATURE),
+    options={"sampler": Option(choice("dram", "mh", "dr", "am"), SIGNATURE, method=_CHAINS),
+             "n_samples": Option(integer(10), SIGNATURE, method=_CHAINS),
+             "burn_in": Option(integer(0), SIGNATURE, method=_CHAINS),
              "n_chains": Option(integer(1), 4),
              "emulator": Option(choice("gp", "cokriging", "none"), "gp"),
              "models": Option(string_list, None),
              "n_low": Option(integer(3), None),
              "trend": Option(choice("constant", "linear", "reduced_quadratic", "quadratic"),
                              SIGNATURE, method="rotoruq.methods.surrogate:GaussianProcess"),
-             "n_emulator_samples": Option(integer(2), SIGNATURE),
-             "emulator_variance": Option(boolean, SIGNATURE),
+             "n_emulator_samples": Option(integer(2), SIGNATURE, method=_EMULATOR),
+             "emulator_variance": Option(boolean, SIGNATURE, method=_EMULATOR),
              "refine": Option(_refine, None),
              "noise_std": Option(number_or_table, None),
              "noise_multipliers": Option(_multipliers, None),
-             "noise_multiplier_prior": Option(_prior_pair, SIGNATURE),
+             "noise_multiplier_prior": Option(_prior_pair, SIGNATURE, method=_NOISE),
              "self_check": Option(integer(0), SIGNATURE),
              "reuse_data": Option(boolean, False),
-             "proposal": Option(choice("hessian", "prior"), SIGNATURE,
+             "proposal": Option(choice("hessian", "prior"), SIGNATURE, method=_CHAINS,
                                 param="proposal_covariance"),
              "discrepancy": Option(discrepancy_option, None),
              "configuration": Option(string(), None),

@@ -16,7 +16,14 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..params import ParameterSpace
-from ..render.figures import Figure, FigureContext, ground_effect_curves, load_distributions
+from ..render.figures import (
+    Figure,
+    FigureContext,
+    beside_label,
+    beside_predictions,
+    ground_effect_curves,
+    load_distributions,
+)
 from ..render.tables import StepTable, cell, inputs_table, make_table
 from ..results import StepRecord, StepResult
 from ._common import column_moments, input_arrays, input_scalars, saved_record, stats_scalars
@@ -444,7 +451,7 @@ def forward_check_tables(res: StepResult, labels: Mapping[str, str]) -> list[Ste
         note = {"joint": "Propagation: the calibration's chain, thinned (its correlations "
                          "kept), through the model; " + pred + ".",
                 "independent_normals": "Propagation: mean/std from LHS of independent "
-                "normals with the posterior's means and stds (the thesis's method, its "
+                "normals with the posterior's means and stds (their "
                 "correlations dropped); joint: the chain's draws through the model; "
                 + pred + ".",
                 }.get(prop, "Propagation: LHS of the step's input distributions.")
@@ -464,13 +471,17 @@ def forward_check_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:
         heights = np.asarray(rec.sweep.get("height_over_radius", []), dtype=float)
         return ground_effect_curves(res.name, rec.names_out, rec.labels, heights,
                                     rec.moments[:, 0], rec.moments[:, 1], rec.pp_mean,
-                                    rec.pp_std, rec.measured, thesis=ctx.reference,
+                                    rec.pp_std, rec.measured,
+                                    beside=beside_predictions(ctx, res.name),
+                                    beside_name=beside_label(ctx),
                                     curves=ctx.curves)
     outputs = [np.asarray(res.arrays[f"outputs{lab}"]) for lab in rec.labels]
     pp = [None if f"pp_outputs{lab}" not in res.arrays
           else np.asarray(res.arrays[f"pp_outputs{lab}"]) for lab in rec.labels]
     return load_distributions(res.name, rec.names_out, rec.labels, outputs, pp,
-                              rec.measured, ctx.units, thesis=ctx.reference)
+                              rec.measured, ctx.units,
+                              beside=beside_predictions(ctx, res.name),
+                              beside_name=beside_label(ctx))
 
 
 def _check_sweep(c: StepCheck) -> None:

@@ -360,7 +360,7 @@ def validation_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTa
             f"V&V 20 comparison error ({kind})",
             ("condition", "response", "S", "D", "E = S - D", "u_num", "u_input", "u_D",
              "u_val", f"E +- {k:g} u_val", "|E| / u_val", "area metric", "area / |D|",
-             f"thesis: |S - D| / std (within {rec.n_sigma:g} sigma)",
+             f"|S - D| / predictive std (within {rec.n_sigma:g} sigma)",
              f"D in {100 * rec.level:g} % band"), rows,
             f"S: mean of the predictions ({kind}); D: mean of the repeats ("
             f"{int(rec.n_repeats.min())} to {int(rec.n_repeats.max())} per condition); "
@@ -368,7 +368,7 @@ def validation_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTa
             f"; the model error lies in E +- {k:g} u_val; |E| / u_val > {k:g}: a model error the "
             "uncertainties do not hide. Area metric: between the predictive and the data's "
             "empirical CDFs (Ferson et al. 2008), it does not shrink as the spread grows; "
-            "the thesis's criterion (distance in predictive std) beside it. Band: of a new "
+            "the distance in predictive std devs beside it. Band: of a new "
             "measurement (prediction plus N(0, u_D^2))."))
     held = [j for j in range(rec.conditions.size) if rec.held_out[j]]
     if held:
@@ -444,7 +444,7 @@ def validation_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]
             for m, r in enumerate(rec.names_out):
                 ratio = float(rec.error_ratio[p, j, m])
                 if ratio > k:
-                    extra = ("; the thesis's criterion passes it "
+                    extra = (f"; the within-{rec.n_sigma:g}-sigma criterion passes it "
                              f"({rec.sigma_distance[p, j, m]:.2f} sigma)"
                              if rec.within_n_sigma[p, j, m] else "")
                     w.append(f"{res.name}: {r} at {_fmt_cond(rec, j)} ({kind}): model error "

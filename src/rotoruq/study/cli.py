@@ -3,6 +3,17 @@
 Each subcommand lives in its own module ``rotoruq.study.cmd_<name>`` that defines
 ``HELP`` (one line), ``add_arguments(parser)`` and ``run(args) -> int``. Modules that are not
 present are simply not offered.
+
+Exit codes (every subcommand):
+
+    0  done
+    1  an error in the input (a study file, a data file, a results folder) or the system
+    2  a usage error (argparse) or an internal error (a bug: please report it)
+    3  ``run``/``reproduce``: the results are written, but a step had no successful
+       evaluation or more failed evaluations than ``[study] max_failed_share`` allows
+    130, 143  interrupted (Ctrl-C), terminated (SIGTERM)
+
+``--quiet``, ``--verbose`` and ``--debug`` are accepted before or after the subcommand.
 """
 
 from __future__ import annotations
@@ -22,6 +33,25 @@ if TYPE_CHECKING:
 COMMANDS = ("reproduce", "run", "report", "show", "evaluate", "airfoil", "driver", "export",
             "serve", "dakota", "repair")
 
+#: The exit code of a run whose results are written but whose evaluations failed (a step
+#: without a successful evaluation, or a failure share above the study's threshold).
+EXIT_FAILED_EVALUATIONS = 3
+
+#: Flags accepted before or after the subcommand (the driver's lean path skips them too).
+GLOBAL_FLAGS = ("--quiet", "-q", "--verbose", "-v", "--debug")
+
+
+def _add_global_flags(parser: argparse.ArgumentParser, default: object) -> None:
+    """--quiet, --verbose and --debug on the main parser (``default`` False) and on each
+    subcommand (``default`` SUPPRESS: a flag given before the subcommand is kept)."""
+    parser.add_argument("-q", "--quiet", action="store_true", default=default,
+                        help="warnings, errors and failed evaluations only: no progress "
+                             "lines or summary")
+    parser.add_argument("-v", "--verbose", action="store_true", default=default,
+                        help="also the library's debug messages")
+    parser.add_argument("--debug", action="store_true", default=default,
+                        help="--verbose, and the full traceback of an error")
+
 
 def build_parser() -> argparse.ArgumentParser:
     import argparse
@@ -33,10 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
         prog="rotoruq",
         description="Verification, validation and calibration under uncertainty of rotor models.",
     )
-    parser.add_argument("--debug", action="store_true",
-                        help="show debug messages and the full traceback of an error")
-    parser.add_argument("--quiet", action="store_true",
-                        help="errors only: no progress, warnings or summary")
+    _add_global_flags(parser, False)
     parser.add_argument("--version", action="version", version=f"rotoruq {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
@@ -48,6 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
             raise
         p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
         mod.add_arguments(p)
+        _add_global_flags(p, argparse.SUPPRESS)
         p.set_defaults(_run=pipe_safe(mod.run))
     return parser
 
@@ -85,7 +113,7 @@ def main(argv: list[str] | None = None) -> int:
 def _driver_argv(argv: list[str]) -> list[str] | None:
     """The driver's own words when the command is ``driver`` (after any global flags)."""
     k = 0
-    while k < len(argv) and argv[k] in ("--quiet", "--debug"):
+    while k < len(argv) and argv[k] in GLOBAL_FLAGS:
         k += 1
     return argv[k + 1 :] if argv[k : k + 1] == ["driver"] else None
 
@@ -104,7 +132,9 @@ def _main(argv: list[str] | None) -> int:
 
     parser = build_parser()
     args = parser.parse_args(argv)
-    configure_logging(quiet=args.quiet, debug=args.debug)
+    if args.quiet and (args.verbose or args.debug):
+        parser.error("--quiet and --verbose/--debug: choose one")
+    configure_logging(quiet=args.quiet, debug=args.debug, verbose=args.verbose)
     if not getattr(args, "_run", None):
         parser.print_help()
         return 2

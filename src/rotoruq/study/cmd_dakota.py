@@ -20,8 +20,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     imp.add_argument("--name", help="the study's name (default: the deck's file stem)")
     exp = sub.add_parser("export", help="a study's steps -> Dakota decks")
     exp.add_argument("study", type=Path, help="the study file")
-    exp.add_argument("-o", "--output", type=Path, required=True, metavar="DECK.in",
-                     help="the deck to write; with several steps DECK.<step>.in each")
+    exp.add_argument("-o", "--output", type=Path, required=True, metavar="DECK.in|FOLDER",
+                     help="the deck to write, with several steps DECK.<step>.in each; or a "
+                          "folder (an existing one, or a name without a suffix): "
+                          "FOLDER/<step>.in")
     exp.add_argument("--step", action="append", default=None, metavar="NAME",
                      help="export this step (repeatable; default: every step the export "
                           "supports)")
@@ -48,17 +50,36 @@ def run(args: argparse.Namespace) -> int:
 
     study = load_study(args.study)
     out: Path = args.output
-    out.parent.mkdir(parents=True, exist_ok=True)
-    decks = study_to_decks(study, steps=args.step, quick=args.quick, data_dir=out.parent)
+    folder = out.is_dir() or not out.suffix
+    (out if folder else out.parent).mkdir(parents=True, exist_ok=True)
+    decks = study_to_decks(study, steps=args.step, quick=args.quick,
+                           data_dir=out if folder else out.parent)
     if not decks:
         raise InputFileError(args.study, None, "a step of a type the export writes ("
                              + ", ".join(EXPORTABLE) + ")", "none")
     skipped = [s.name for s in study.steps if s.name not in decks and args.step is None]
     for name, text in decks.items():
-        path = out if len(decks) == 1 else out.with_name(f"{out.stem}.{name}{out.suffix}")
-        write_text(path, text)
+        path = (out / f"{name}.in" if folder else out if len(decks) == 1
+                else out.with_name(f"{out.stem}.{name}{out.suffix}"))
+        write_text(path, _driver_note(text) + text)
         print(path)
     if skipped:
         print(f"not exported (a type without a Dakota deck, or distributions from an "
               f"earlier step's results): {', '.join(skipped)}", file=sys.stderr)
     return 0
+
+
+def _driver_note(text: str) -> str:
+    """A comment saying how the deck's ``analysis_drivers`` line calls rotoruq (see
+    :func:`~rotoruq.study.deck.rotoruq_command`); empty for a deck without the driver."""
+    from .deck import rotoruq_command
+
+    cmd = rotoruq_command()
+    if f"'{cmd} driver" not in text:
+        return ""
+    if cmd == "rotoruq":
+        return ("# driver: 'rotoruq' as found on PATH (here this installation); on another "
+                "machine or venv, rotoruq must be on PATH\n")
+    return (f"# driver: this installation's rotoruq by absolute path ({cmd}): the 'rotoruq' "
+            "on PATH is another installation or none; put it on PATH and export again to get "
+            "a portable deck\n")

@@ -8,6 +8,16 @@ from pathlib import Path
 HELP = "rebuild the HTML report from saved study results"
 
 
+def write(results_dirs, out, **kwargs) -> Path:
+    """The report of saved study results; a study that declares a reference
+    (``[study] reference = "thesis"``) gets that reference's claims, tables and figures
+    (:mod:`rotoruq.reference`)."""
+    from ..reference import application_for
+    from ..report.html import write_report
+
+    return write_report(results_dirs, out, application=application_for(results_dirs), **kwargs)
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("results", nargs="+",
                         help="study output folder(s), or a folder holding several")
@@ -16,13 +26,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from ..errors import InputFileError
-    from ..report.html import find_study_dirs, write_report
+    from ..report.html import find_study_dirs
 
     if not any(find_study_dirs(r) for r in args.results):
         raise InputFileError(args.results[0], None,
                              "a study output folder (with study.json) or a folder of them")
     out = Path(args.out) if args.out else Path(args.results[0]) / "report"
-    index = write_report(args.results, out)
+    index = write(args.results, out)
     if not getattr(args, "quiet", False):
         print(f"report: {index}")
     return 0

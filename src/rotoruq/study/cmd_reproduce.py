@@ -10,14 +10,12 @@ import time
 from pathlib import Path
 
 from ..errors import InputFileError
+from ..reference.studies import CHAPTERS
 
 HELP = ("reproduce the reference study (thesis chapters 3 and 4, and a held-out validation of "
         "the ground effect) and write the report")
 
-#: The chapters ``rotoruq reproduce`` runs: the thesis's chapters 3 and 4, then the held-out
-#: validation of the GVPM ground effect with a model discrepancy (beyond the thesis).
-CHAPTERS = {"validation": "validation.toml", "experiment": "experiment.toml",
-            "heldout": "heldout.toml"}
+__all__ = ["CHAPTERS", "reproduce", "studies_dir"]
 
 
 def studies_dir() -> Path:
@@ -55,8 +53,8 @@ def reproduce(which: str = "all", out: str | Path = "rotoruq-results",
 
 
 def _reproduce(which: str, out: Path, quick: bool) -> dict:
-    from ..report.html import write_report
     from ..results import is_study_dir
+    from .cmd_report import write
     from .runner import run_study
 
     names = list(CHAPTERS) if which == "all" else [which]
@@ -66,14 +64,13 @@ def _reproduce(which: str, out: Path, quick: bool) -> dict:
         runs[name] = run_study(studies_dir() / CHAPTERS[name], out=out / name, quick=quick)
         seconds[name] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    index = write_report([out / n for n in CHAPTERS if is_study_dir(out / n)],
-                         out / "report")
+    index = write([out / n for n in CHAPTERS if is_study_dir(out / n)], out / "report")
     seconds["report"] = time.perf_counter() - t0
     return {"report": str(index), "seconds": seconds, "runs": runs}
 
 
 def run(args: argparse.Namespace) -> int:
-    from .cmd_run import summary
+    from .cmd_run import EXIT_FAILED_EVALUATIONS, exit_status, summary
 
     result = reproduce(args.which, args.out, args.quick)
     if args.json:
@@ -84,4 +81,5 @@ def run(args: argparse.Namespace) -> int:
         print(f"report: {result['report']}")
         for res in result["runs"].values():
             print(summary(res))
-    return 0
+    codes = [exit_status(res, "reproduce") for res in result["runs"].values()]
+    return EXIT_FAILED_EVALUATIONS if any(codes) else 0

@@ -46,13 +46,14 @@ def route_warnings(quiet: bool = False) -> None:
     Parameters
     ----------
     quiet : bool
-        Print no warnings (the CLI's ``--quiet``: errors only).
+        Print no warnings (for a caller that wants errors only; the CLI's ``--quiet`` keeps
+        warnings).
 
     Examples
     --------
     >>> saved = warnings.showwarning
     >>> route_warnings(quiet=True)
-    >>> warnings.warn("not printed: --quiet")
+    >>> warnings.warn("not printed: quiet")
     >>> warnings.showwarning = saved
     """
     logger = logging.getLogger(WARNINGS_LOGGER)
@@ -160,13 +161,15 @@ class _StderrHandler(logging.StreamHandler):
         pass
 
 
-def configure_logging(quiet: bool = False, debug: bool = False) -> None:
+def configure_logging(quiet: bool = False, debug: bool = False, verbose: bool = False) -> None:
     """Send the library's log records (the ``rotoruq`` loggers) to stderr as plain lines:
-    INFO and above by default, ERROR with ``quiet``, DEBUG with ``debug``; Python warnings as
-    one ``warning: ...`` line each (none with ``quiet``)."""
-    route_warnings(quiet=quiet and not debug)
+    INFO and above by default (progress), WARNING and above with ``quiet`` (the CLI's
+    ``--quiet`` hides progress only), DEBUG with ``verbose`` or ``debug``; Python warnings
+    as one ``warning: ...`` line each, also with ``quiet``."""
+    route_warnings(quiet=False)
     root = logging.getLogger("rotoruq")
     for h in [h for h in root.handlers if isinstance(h, _StderrHandler)]:
         root.removeHandler(h)
     root.addHandler(_StderrHandler())
-    root.setLevel(logging.DEBUG if debug else logging.ERROR if quiet else logging.INFO)
+    root.setLevel(logging.DEBUG if debug or verbose else logging.WARNING if quiet
+                  else logging.INFO)

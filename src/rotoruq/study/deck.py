@@ -261,7 +261,7 @@ OUTPUT_ONLY: dict[str, frozenset[str]] = {
         "deactivate", "active_set_vector", "evaluation_cache", "restart_file",
         "strict_cache_equality", "cache_tolerance", "peer", "master", "batch", "size",
         "input_filter", "output_filter")),
-    "responses": frozenset(("id_responses", "no_hessians", "method_source", "dakota",
+    "responses": frozenset(("id_responses", "method_source", "dakota",
                             "vendor", "interval_type", "forward", "central",
                             "fd_step_size", "absolute", "bounds", "relative")),
     "variables": frozenset(("id_variables",)),
@@ -283,7 +283,12 @@ _IGNORED_WHAT = {"evaluation_concurrency": "Dakota's scheduling",
                  "id_interface": "block ids", "id_responses": "block ids",
                  "model_pointer": "block ids", "top_method_pointer": "block ids",
                  "variables_pointer": "block ids", "interface_pointer": "block ids",
-                 "responses_pointer": "block ids", "single": "the model kind"}
+                 "responses_pointer": "block ids", "single": "the model kind",
+                 **dict.fromkeys(("method_source", "dakota", "vendor", "interval_type",
+                                  "forward", "central", "fd_step_size"),
+                                 "Dakota's finite-difference settings (rotoruq takes the "
+                                 "model's analytic gradient, else its own central "
+                                 "differences)")}
 
 
 class DeckProblems(InputFileError):
@@ -637,7 +642,8 @@ class _Responses:
 
 
 _RESP_KEYS = ("response_functions", "calibration_terms", "descriptors", "calibration_data_file",
-              "no_gradients", "numerical_gradients", "analytic_gradients", "weights",
+              "no_gradients", "numerical_gradients", "analytic_gradients", "no_hessians",
+              "weights",
               "scalar_responses", "scalar_calibration_terms")
 _DATA_KEYS = ("freeform", "annotated", "custom_annotated", "header", "eval_id", "interface_id",
               "num_experiments", "variance_type", "num_config_variables")
@@ -665,6 +671,8 @@ def _read_responses(deck: Deck, block: DeckBlock, tx: _Tx | None = None) -> _Res
             while (a := c.next_if(*_DATA_KEYS)) is not None:
                 opts.append(a)
             data = (e, _strs(c, e, 1)[0], opts)
+        elif e.keyword == "no_hessians":
+            continue  # as rotoruq: no Hessian is asked for
         elif e.keyword in ("no_gradients", "numerical_gradients", "analytic_gradients"):
             out.gradients = e.keyword.split("_")[0]
         elif e.keyword == "weights":
@@ -878,7 +886,8 @@ _SAMPLING = ("sample_type", "lhs", "random", "low_discrepancy", "rank_1_lattice"
 _RELIABILITY = ("mpp_search", "x_taylor_mean", "u_taylor_mean", "x_taylor_mpp",
                 "u_taylor_mpp", "x_two_point", "u_two_point", "no_approx", "integration",
                 "first_order", "second_order", *_LEVEL_KEYS)
-_PCE = ("quadrature_order", "dimension_preference", "expansion_order", "collocation_points",
+_PCE = ("quadrature_order", "dimension_preference", "expansion_order", "expansion_samples",
+        "collocation_points",
         "collocation_ratio", "seed", "fixed_seed", "variance_based_decomp", "askey",
         "least_squares", "svd", "samples_on_emulator", "samples", "sample_type", "lhs",
         "random", "normalized", "nested", "non_nested", *_LEVEL_KEYS)
@@ -979,10 +988,9 @@ def _method_entry(c: _Cursor, e: DeckEntry, kind: str, opts: dict, levels: dict,
     elif k in ("convergence_tolerance", "collocation_ratio"):
         opts[k] = _num(c, e, 1)[0]
     elif k == "dimension_preference":
-        pref = _num(c, e, None)
-        if len(set(pref)) > 1:
-            c.fail(e, "equal dimension_preference values (an anisotropic quadrature is not "
-                   "translated)")
+        opts["dimension_preference"] = (_num(c, e, None), e.line)
+    elif k == "expansion_samples":
+        opts["expansion_samples"] = _num(c, e, 1, "integer")[0]
     elif k in _LEVELS:
         levels[k] = e
     elif k.startswith("num_") and k[4:] in _LEVELS:
@@ -1059,6 +1067,10 @@ def _step(m: _Method, design_params: list[str]) -> dict:
         step = {"name": "pce", "type": "pce"}
         if "quadrature_order" in o:
             step.update(order=max(o["quadrature_order"] - 1, 1), estimator="quadrature")
+        elif "expansion_order" in o and "expansion_samples" in o:
+            # coefficients by sampling projection (Dakota's expectation approach)
+            step.update(order=o["expansion_order"], estimator="sampling",
+                        n_samples=o["expansion_samples"])
         elif "expansion_order" in o:
             step.update(order=o["expansion_order"], estimator="regression")
             if "collocation_points" in o:
@@ -1068,9 +1080,13 @@ def _step(m: _Method, design_params: list[str]) -> dict:
         else:
             raise InputFileError(m.path, m.block.line,
                                  "quadrature_order or expansion_order for polynomial_chaos")
-        if "samples_on_emulator" in o:
-            step["expansion_samples"] = o["samples_on_emulator"]
-        step.update(_level_options(o))
+        levels = _level_options(o)
+        numerical = [k for k in ("response_levels", "probability_levels",
+                                 "gen_reliability_levels") if levels.get(k) and (
+            k != "response_levels" or levels.get("compute") != "reliabilities")]
+        if "samples_on_emulator" in o and numerical:  # Dakota draws them for these only
+            step["samples_on_expansion"] = o["samples_on_emulator"]
+        step.update(levels)
         return step
     if m.kind == "global_evidence":
         step = {"name": "evidence", "type": "evidence"}
@@ -1380,6 +1396,18 @@ def _single_study(deck: Deck, name: str | None, resp: _Responses, method: _Metho
         v = next(v for v in params if v.group == "continuous_interval_uncertain")
         tx.problem(v.line, "interval (epistemic) variables only with global_evidence",
                    "continuous_interval_uncertain")
+    if "dimension_preference" in method.opts and step["type"] == "pce":
+        pref, line = method.opts["dimension_preference"]
+        ordered = _dakota_order(params)
+        if len(pref) != len(ordered):
+            tx.problem(line, f"{len(ordered)} dimension_preference values (one per uncertain "
+                       "variable)", f"{len(pref)} values")
+        elif "quadrature_order" not in method.opts:
+            tx.problem(line, "dimension_preference with quadrature_order (an anisotropic "
+                       "expansion order is not translated)", "dimension_preference")
+        else:
+            step["dimension_preference"] = {v.name: float(x) for v, x in zip(ordered, pref,
+                                                                               strict=True)}
     if step["type"] == "bayes_calibration" and resp.noise_std:
         step["noise_std"] = {drv.mapping.get(r, r): s for r, s in resp.noise_std.items()}
     if resp.gradients == "analytic" and drv.command is not None \
@@ -1662,14 +1690,41 @@ _DAKOTA_DIST = {
     "gamma": ("gamma_uncertain", (("alphas", "alpha"), ("betas", "beta"))),
     "gumbel": ("gumbel_uncertain", (("alphas", "alpha"), ("betas", "beta"))),
     "weibull": ("weibull_uncertain", (("alphas", "alpha"), ("betas", "beta"))),
+    "frechet": ("frechet_uncertain", (("alphas", "alpha"), ("betas", "beta"))),
+    "histogram_bin": ("histogram_bin_uncertain", (("abscissas", "abscissas"),
+                                                  ("counts", "counts"))),
 }
+# a lognormal's three forms (Dakota's option_1 .. option_3), one for a whole group
+_LOGNORMAL_FORMS = ((("means", "mean"), ("std_deviations", "std")),
+                    (("means", "mean"), ("error_factors", "error_factor")),
+                    (("lambdas", "lambda"), ("zetas", "zeta")))
 
 
 def rotoruq_command() -> str:
-    """How a deck calls rotoruq: the console script next to this Python, else ``python -m``."""
+    """How a deck calls rotoruq: plain ``rotoruq`` when the ``rotoruq`` found on ``PATH`` is
+    this installation's console script (the deck then runs on another machine or venv with
+    rotoruq on its PATH), else the absolute path of this installation's script, else
+    ``<python> -m rotoruq``. ``rotoruq dakota export`` says in a comment which it wrote."""
+    import shutil
+
     script = Path(sys.executable).with_name("rotoruq")
+    found = shutil.which("rotoruq")
+    if found is not None and script.is_file():
+        try:
+            same = os.path.samefile(found, script)
+        except OSError:
+            same = False
+        if not same:  # another folder's script that starts this very Python
+            try:
+                with open(found, "rb") as fh:
+                    first = fh.readline(4096).decode("utf-8", "replace")
+                same = first.startswith("#!") and first[2:].strip() == sys.executable
+            except OSError:
+                same = False
+        if same:
+            return "rotoruq"
     return shlex.quote(str(script)) if script.is_file() else \
-        f"{shlex.quote(sys.executable)} -m rotoruq.study.cli"
+        f"{shlex.quote(sys.executable)} -m rotoruq"
 
 
 def _fmt(x: float) -> str:
@@ -1759,6 +1814,15 @@ def _deck_for(study: Any, st: Any, o: dict, data_dir: Any) -> str:
     responses = list(st.responses or study.model.responses)
     seed = study.info.seed
     method, resp_extra = _method_text(st, o, responses, names, seed)
+    if st.type == "pce" and o.get("dimension_preference"):
+        groups = list(_GROUPS)
+        kinds = {n: _DAKOTA_DIST[_describe(s)["kind"]][0] for n, s in zip(names, specs,
+                                                                         strict=True)}
+        ordered = sorted(names, key=lambda n: groups.index(kinds[n]))
+        pref = o["dimension_preference"]
+        method = method.replace("    variance_based_decomp", "    dimension_preference = "
+                                + " ".join(_fmt(pref.get(n, 1.0)) for n in ordered)
+                                + "\n    variance_based_decomp", 1)
     if st.type == "least_squares":
         bounds = [_bounds(spec) for spec in specs]
         var_lines = [f"  continuous_design = {len(names)}",
@@ -1774,7 +1838,7 @@ def _deck_for(study: Any, st: Any, o: dict, data_dir: Any) -> str:
         # the study's other parameters stay at their means, as the step holds them
         names = list(cells)
     else:
-        var_lines = _uncertain_lines(names, specs)
+        var_lines = _uncertain_lines(names, specs, getattr(study, "correlation", None))
     renamed = study.renamed_inputs
     # the study's parameters the step leaves out stay at their means (as the runner holds them)
     unused = {renamed.get(p.name, p.name): p.distribution.mean for p in study.parameters
@@ -1785,12 +1849,12 @@ def _deck_for(study: Any, st: Any, o: dict, data_dir: Any) -> str:
     if st.type == "sampling" and o.get("design") == "file":
         state = list(fixed.values()) if _state_lines(study, fixed) else []
         method = _given_points_text(o["points"]["file"], names, specs, state)
-    driver = _driver_line(study, fixed, responses, names)
+    driver = (_driver_line(study, fixed, responses, names)
+              if study.model.kind != "function" else None)
     kind = "calibration_terms" if st.type in ("least_squares", "bayes_calibration") \
         else "response_functions"
-    grads = ("  numerical_gradients\n    method_source dakota\n    interval_type forward\n"
-             "    fd_step_size = 1e-6") if st.type in ("mean_value", "reliability",
-                                                       "least_squares") else "  no_gradients"
+    grads = _gradients_text(study) if st.type in ("mean_value", "reliability",
+                                                  "least_squares") else "  no_gradients"
     data_lines = ""
     if kind == "calibration_terms":
         data_lines = _data_text(study, st, o, responses, data_dir)
@@ -1804,18 +1868,65 @@ method
 {method}
 variables
 {chr(10).join(var_lines)}
-interface
-  fork
-    analysis_drivers = '{driver}'
-    parameters_file = 'params.in'
-    results_file = 'results.out'
-    file_tag
-responses
+{_interface_text(study, fixed, responses, names, specs, driver)}responses
   {kind} = {len(responses)}
     descriptors = {' '.join(f"'{r}'" for r in responses)}
 {data_lines}{resp_extra}{grads}
   no_hessians
 """
+
+
+def _gradients_text(study: Any) -> str:
+    """The responses' gradient keywords: a test function's own analytic gradient where it has
+    one (as the study uses it), else Dakota's forward differences."""
+    m = study.model
+    if m.kind == "function" and _dakota_functions()[m.function].has_gradient:
+        return "  analytic_gradients"
+    if m.kind == "external" and getattr(m.external, "gradients", None) == "analytic":
+        return "  analytic_gradients"
+    return ("  numerical_gradients\n    method_source dakota\n    interval_type forward\n"
+            "    fd_step_size = 1e-6")
+
+
+def _interface_text(study: Any, fixed: Mapping, responses: list[str], names: Sequence[str],
+                    specs: Sequence[Any], driver: str | None, ident: str | None = None) -> str:
+    """The interface block: ``direct`` for one of Dakota's test functions, else ``fork``
+    running the study's model (``rotoruq driver`` or the external command)."""
+    head = f"  id_interface = '{ident}'\n" if ident else ""
+    m = study.model
+    if m.kind == "function":
+        _check_function_order(study, names, specs, fixed)
+        comps = ("    analysis_components = " + " ".join(f"'{c}'" for c in m.components)
+                 + "\n") if m.components else ""
+        return (f"interface\n{head}  direct\n    analysis_drivers = '{m.function}'\n"
+                + comps)
+    if driver is None:
+        driver = _driver_line(study, fixed, responses, list(names))
+    return (f"interface\n{head}  fork\n    analysis_drivers = '{driver}'\n"
+            "    parameters_file = 'params.in'\n    results_file = 'results.out'\n"
+            "    file_tag\n")
+
+
+def _check_function_order(study: Any, names: Sequence[str], specs: Sequence[Any],
+                          fixed: Mapping) -> None:
+    """Dakota hands a direct function its variables by type (uncertain in its type order,
+    then state); the study hands them in its own order. A function that takes them by
+    position is exported only where the two orders agree."""
+    from .spec import function_variables
+
+    m = study.model
+    if _dakota_functions()[m.function].labels:
+        return  # read by label, in any order
+    groups = list(_GROUPS)
+    kinds = {n: _DAKOTA_DIST[_describe(s)["kind"]][0] for n, s in zip(names, specs,
+                                                                     strict=True)}
+    dakota = sorted(names, key=lambda n: groups.index(kinds[n])) + list(fixed)
+    ours = [n for n in function_variables(m, study.parameters) if n in dakota]
+    if ours != dakota:
+        raise InputFileError(None, None, f"the parameters of a '{m.function}' study in "
+                             "Dakota's order of variable types, then the fixed inputs (the "
+                             "function takes them by position; Dakota orders them "
+                             f"{' '.join(dakota)})", " ".join(ours))
 
 
 def _interval_lines(cells: Mapping[str, Sequence[Sequence[float]]]) -> list[str]:
@@ -1839,7 +1950,10 @@ def _state_lines(study: Any, fixed: Mapping) -> list[str]:
             "    descriptors = " + " ".join(f"'{k}'" for k in fixed)]
 
 
-def _uncertain_lines(names: Sequence[str], specs: Sequence[Any]) -> list[str]:
+def _uncertain_lines(names: Sequence[str], specs: Sequence[Any],
+                     correlation: Any = None) -> list[str]:
+    """Dakota's uncertain variable groups for these parameters (in Dakota's order of types),
+    with the ``uncertain_correlation_matrix`` of a correlated study."""
     by_kind: dict[str, list[tuple[str, dict]]] = {}
     for n, spec in zip(names, specs, strict=True):
         d = _describe(spec)
@@ -1847,16 +1961,53 @@ def _uncertain_lines(names: Sequence[str], specs: Sequence[Any]) -> list[str]:
         if kind not in _DAKOTA_DIST:
             raise InputFileError(None, None, f"a distribution Dakota's deck can state for "
                                  f"{n!r} ({', '.join(_DAKOTA_DIST)})", kind)
-        dk, fields = _DAKOTA_DIST[kind]
-        by_kind.setdefault(dk, []).append((n, {a: d[b] for a, b in fields}))
-    out = []
-    for dk, items in by_kind.items():
+        by_kind.setdefault(_DAKOTA_DIST[kind][0], []).append((n, d))
+    groups = list(_GROUPS)
+    out, order = [], []
+    for dk in sorted(by_kind, key=groups.index):
+        items = by_kind[dk]
+        order += [n for n, _ in items]
         out.append(f"  {dk} = {len(items)}")
-        for k in items[0][1]:
-            vals = [v[k] for _, v in items]
-            if not all(math.isinf(x) for x in vals):
-                out.append(f"    {k} = " + " ".join(_fmt(x) for x in vals))
+        if dk == "lognormal_uncertain":
+            fields: tuple = next((f for f in _LOGNORMAL_FORMS
+                                  if all(all(b in d for _, b in f) for _, d in items)),
+                                 _LOGNORMAL_FORMS[2])
+            out.append("    parameters option_" + str(_LOGNORMAL_FORMS.index(fields) + 1))
+            for _, d in items:  # a group of mixed forms: by lambda and zeta
+                if "lambda" not in d:
+                    dist = d.get("_dist")
+                    d.setdefault("lambda", getattr(dist, "lambda_", math.nan))
+                    d.setdefault("zeta", getattr(dist, "zeta", math.nan))
+            fields = fields + (("lower_bounds", "lower"), ("upper_bounds", "upper"))
+        else:
+            fields = _DAKOTA_DIST[next(k for k, v in _DAKOTA_DIST.items() if v[0] == dk)][1]
+        if dk == "histogram_bin_uncertain":
+            out.append("    pairs_per_variable = " + " ".join(str(len(d["abscissas"]))
+                                                            for _, d in items))
+            for key in ("abscissas", "counts"):
+                flat = []
+                for _, d in items:
+                    v = list(d[key])
+                    flat += v + ([0.0] if key == "counts" and len(v) < len(d["abscissas"])
+                                 else [])
+                out.append(f"    {key} = " + " ".join(_fmt(x) for x in flat))
+        else:
+            for a, b in fields:
+                vals = [d.get(b, math.inf if a == "upper_bounds" else
+                              0.0 if a == "lower_bounds" else math.nan) for _, d in items]
+                if a in ("lower_bounds", "upper_bounds") and all(
+                        math.isinf(x) or (a == "lower_bounds" and dk.startswith("lognormal")
+                                          and x == 0.0) for x in vals):
+                    continue
+                if not all(math.isinf(x) for x in vals):
+                    out.append(f"    {a} = " + " ".join(_fmt(x) for x in vals))
         out.append("    descriptors = " + " ".join(f"'{n}'" for n, _ in items))
+    if correlation is not None:
+        aleatory = [n for n in order]
+        matrix = correlation.matrix_for(tuple(aleatory))
+        if matrix is not None:
+            out.append("  uncertain_correlation_matrix =")
+            out += ["    " + " ".join(_fmt(x) for x in row) for row in matrix]
     return out
 
 
@@ -1960,14 +2111,7 @@ model
 variables
   id_variables = 'INNER_V'
 {chr(10).join(_uncertain_lines(names, specs) + _state_lines(study, fixed))}
-interface
-  id_interface = 'MODEL'
-  fork
-    analysis_drivers = '{_driver_line(study, fixed, responses, names)}'
-    parameters_file = 'params.in'
-    results_file = 'results.out'
-    file_tag
-responses
+{_interface_text(study, fixed, responses, names, specs, None, "MODEL")}responses
   id_responses = 'INNER_R'
   response_functions = {len(responses)}
     descriptors = {' '.join(f"'{r}'" for r in responses)}
@@ -1977,7 +2121,10 @@ responses
 
 
 def _describe(spec: Any) -> dict:
-    return {"kind": spec.kind, **{k: float(v) for k, v in spec.params.items()}}
+    out: dict[str, Any] = {"kind": spec.kind, "_dist": spec.distribution}
+    for k, v in spec.params.items():
+        out[k] = [float(x) for x in v] if isinstance(v, tuple | list) else float(v)
+    return out
 
 
 def _mean(spec: Any) -> float:
@@ -2062,13 +2209,17 @@ def _method_text(st: Any, o: dict, responses: list[str], names: list[str],
             return (f"  polynomial_chaos\n    quadrature_order = {order + 1}\n"
                     "    variance_based_decomp" + _pce_samples_text(o, seed)
                     + _mappings_text(o, responses), "")
-        if est == "regression":
-            n = o.get("n_samples") or _default(t, "n_samples")
+        if est in ("sampling", "regression"):
+            # the method's default: twice the terms of the total-order basis
+            n = (o.get("n_samples") or _default(t, "n_samples")
+                 or 2 * math.comb(order + len(names), len(names)))
+            key = "expansion_samples" if est == "sampling" else "collocation_points"
             return (f"  polynomial_chaos\n    expansion_order = {order}\n"
-                    f"    collocation_points = {n}\n    seed = {seed}\n"
+                    f"    {key} = {n}\n    seed = {seed}\n"
                     "    variance_based_decomp" + _pce_samples_text(o, None)
                     + _mappings_text(o, responses), "")
-        raise InputFileError(None, None, "a pce step by quadrature or regression", est)
+        raise InputFileError(None, None, "a pce step by quadrature, regression or sampling",
+                             est)
     if t == "evidence":
         n = o.get("n_samples") or _default(t, "n_samples")
         opt = o.get("optimizer") or _default(t, "optimizer")
@@ -2103,7 +2254,7 @@ def _method_text(st: Any, o: dict, responses: list[str], names: list[str],
 
 
 def _pce_samples_text(o: dict, seed: int | None) -> str:
-    n = o.get("expansion_samples")
+    n = o.get("samples_on_expansion")
     if not n:
         return ""
     return f"\n    samples_on_emulator = {n}" + (f"\n    seed = {seed}" if seed is not None

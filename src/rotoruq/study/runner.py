@@ -50,12 +50,13 @@ from ..results import (
     save_study_info,
 )
 from ..steps import StepContext, run_step, step_type
+from ..steps.options import close_hint
 from .lock import results_lock
 from .schema import load_study
 from .spec import ModelSpec, StepSpec, Study, function_variables
 
 __all__ = ["run_study", "StudyRun", "build_model", "build_model_factory", "step_options",
-           "model_record", "why_rerun", "IDENTITY_PARTS"]
+           "model_record", "why_rerun", "IDENTITY_PARTS", "step_code_parts", "step_references"]
 
 log = logging.getLogger(__name__)
 
@@ -72,6 +73,8 @@ class StudyRun:
     results: Mapping[str, StepResult]
     reused: tuple[str, ...] = ()
     seconds: Mapping[str, float] = field(default_factory=dict)
+    #: steps neither named by ``only`` nor needed by one it names, without a saved result
+    skipped: tuple[str, ...] = ()
 
     def __getitem__(self, name: str) -> StepResult:
         return self.results[name]
@@ -463,7 +466,9 @@ def run_study(
     model_factory : ``f(inputs, responses, fixed) -> Model`` replacing the ``[model]`` table
         (for Python models; tests); with a keyword ``model=NAME`` (None for ``[model]``) it
         also replaces the ``[models.NAME]`` tables.
-    only : run only these steps (and load the ones they depend on from earlier runs).
+    only : run only these steps; the others are loaded from an earlier run where saved
+        (whatever their fingerprint), else skipped (:attr:`StudyRun.skipped`). A step one of
+        them takes from must be saved or named too.
 
     Progress (a line per step, a status line every ``steps.STATUS_INTERVAL`` s while a step
     runs) goes to the ``rotoruq.study`` loggers at INFO; the CLI shows it on stderr.
@@ -497,6 +502,20 @@ class _Planned:
     step_code: dict
 
 
+def step_code_parts(type_name: str) -> dict[str, str]:
+    """The code part of the fingerprint of a step of type ``type_name``: :func:`code_parts` of
+    its :attr:`~rotoruq.steps.base.StepType.code_modules` (its module, the modules it lists in
+    ``modules``, and what they import within rotoruq).
+
+    Examples
+    --------
+    >>> parts = step_code_parts("pce")
+    >>> "rotoruq/steps/pce.py" in parts, "rotoruq/methods/levels.py" in parts
+    (True, True)
+    """
+    return code_parts(step_type(type_name).code_modules)
+
+
 def _plan_step(study: Study, step: StepSpec, results: Mapping[str, StepResult], quick: bool,
                probe_factory: Callable, identities: dict) -> _Planned:
     options = step_options(step, quick)
@@ -515,7 +534,7 @@ def _plan_step(study: Study, step: StepSpec, results: Mapping[str, StepResult], 
         ids.append(identities[key][0] if name is None else f"{name}={identities[key][0]}")
         model_code.update(identities[key][1])
     model_id = " + ".join(ids)
-    step_code = code_parts([step_type(step.type).run.__module__])
+    step_code = step_code_parts(step.type)
     parts = _identity_parts(study, step, space, fixed, options, data, results, quick,
                             model_id, code_digest(step_code))
     return _Planned(step, options, space, fixed, responses, data, columns, parts,
@@ -537,27 +556,35 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
     _write_study_json(study, out, quick)
 
     results: dict[str, StepResult] = {}
-    reused, seconds = [], {}
+    reused, seconds, skipped = [], {}, []
     identities: dict = {}
+    needed = _needed_by(study, only)
     for step in study.steps:
-        plan = _plan_step(study, step, results, quick, probe_factory, identities)
-        fp = plan.fingerprint
         folder = out / "steps" / step.name
-        if (folder / "result.json").is_file():
-            try:
-                saved = load_step(folder)
-            except IncompleteStepError as exc:
-                log.warning("[%s] %s: saved result is incomplete (%s); running it again",
-                            study.info.name, step.name, exc)
-                saved = None
-            if saved is not None and (saved.fingerprint == fp
-                                      or (only is not None and step.name not in only)):
+        if only is not None and step.name not in only:
+            saved = _saved(study, step, folder)
+            if saved is not None:
                 results[step.name] = saved
                 reused.append(step.name)
                 log.info("[%s] %s: reused (%s)", study.info.name, step.name, step.type)
-                continue
-        if only is not None and step.name not in only:
-            raise ParameterError(f"step {step.name!r} has no saved result to reuse; run it")
+            elif step.name in needed:
+                users = ", ".join(needed[step.name])
+                raise ParameterError(
+                    f"step {step.name!r} has no saved result, and {users} (in --only) takes "
+                    f"from it: add it, --only {' '.join([step.name, *only])}")
+            else:
+                skipped.append(step.name)
+                log.info("[%s] %s: skipped (not in --only, no saved result)", study.info.name,
+                         step.name)
+            continue
+        plan = _plan_step(study, step, results, quick, probe_factory, identities)
+        fp = plan.fingerprint
+        saved = _saved(study, step, folder)
+        if saved is not None and saved.fingerprint == fp:
+            results[step.name] = saved
+            reused.append(step.name)
+            log.info("[%s] %s: reused (%s)", study.info.name, step.name, step.type)
+            continue
         failed: Counter[str] = Counter()
         ctx = StepContext(
             name=step.name, type=step.type, options=plan.options, space=plan.space,
@@ -576,7 +603,9 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
             raise _at_step(exc, study, step) from exc
         meta = dict(res.meta)
         meta.update(failed_evaluations={"count": sum(failed.values()),
-                                        "reasons": dict(failed.most_common(20))})
+                                        "reasons": dict(failed.most_common(20)),
+                                        # the first failure met (a Counter keeps that order)
+                                        "first": next(iter(failed), None)})
         meta.update(seconds=dt, title=step.title, parameters=list(plan.space.names),
                     responses=list(plan.responses), fixed=plan.fixed, options=plan.options,
                     source=".".join(step.source) if step.source else None,
@@ -592,7 +621,55 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
         results[step.name] = res
         seconds[step.name] = dt
         log.info("[%s] %s: done in %.1f s", study.info.name, step.name, dt)
-    return StudyRun(study, out, results, tuple(reused), seconds)
+    return StudyRun(study, out, results, tuple(reused), seconds, tuple(skipped))
+
+
+def _saved(study: Study, step: StepSpec, folder: Path) -> StepResult | None:
+    """The step's saved result, None when there is none or it is incomplete (a warning)."""
+    if not (folder / "result.json").is_file():
+        return None
+    try:
+        return load_step(folder)
+    except IncompleteStepError as exc:
+        log.warning("[%s] %s: saved result is incomplete (%s); running it again",
+                    study.info.name, step.name, exc)
+        return None
+
+
+def step_references(study: Study, step: StepSpec) -> list[str]:
+    """The earlier steps ``step`` takes from: its ``from``, a ``data = "STEP.samples"`` and
+    any option naming ``"STEP.ATTR"`` (``targets``, ``u_num``, ...)."""
+    names = {s.name for s in study.steps}
+    refs = [step.source[0]] if step.source else []
+    for ref in (step.data, *step.options.values()):
+        if isinstance(ref, str) and "." in ref and ref.split(".")[0] in names:
+            refs.append(ref.split(".")[0])
+    return [r for r in dict.fromkeys(refs) if r != step.name]
+
+
+def _needed_by(study: Study, only: Sequence[str] | None) -> dict[str, list[str]]:
+    """Steps not in ``only`` that a step in it takes from, directly or through another:
+    {needed step: [steps of ``only`` needing it]}. Unknown names in ``only`` are an error."""
+    if only is None:
+        return {}
+    names = [s.name for s in study.steps]
+    for n in only:
+        if n not in names:
+            raise ParameterError(f"--only {n}: no such step in {study.path} (its steps: "
+                                 f"{', '.join(names)}){close_hint(n, names)}")
+    by_name = {s.name: s for s in study.steps}
+    needed: dict[str, list[str]] = {}
+    for n in only:
+        todo, seen = list(step_references(study, by_name[n])), set()
+        while todo:
+            r = todo.pop()
+            if r in seen:
+                continue
+            seen.add(r)
+            if r not in only:
+                needed.setdefault(r, []).append(repr(n))
+            todo.extend(step_references(study, by_name[r]))
+    return needed
 
 
 def _at_step(exc: ParameterError, study: Study, step: StepSpec) -> ParameterError:
@@ -738,6 +815,7 @@ def _write_study_json(study: Study, out: Path, quick: bool) -> None:
     doc = {
         "name": study.info.name,
         "description": study.info.description,
+        "reference": study.info.reference,
         "seed": study.info.seed,
         "quick": quick,
         "study_file": str(study.path.resolve()) if study.path.is_file() else None,

@@ -47,7 +47,7 @@ from __future__ import annotations
 import json
 import re
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from functools import lru_cache
 from pathlib import Path
 from typing import NoReturn
@@ -92,7 +92,7 @@ __all__ = ["load_study", "parse_study", "ModelInputs"]
 TOP_KEYS = ("study", "model", "models", "parameters", "correlation", "data", "executor", "store",
             "steps")
 CORRELATION_KEYS = ("parameters", "matrix")
-STUDY_KEYS = ("name", "seed", "output", "description")
+STUDY_KEYS = ("name", "seed", "output", "description", "reference", "max_failed_share")
 EXTERNAL_KEYS = ("command", "files", "templates", "parameters_format", "timeout", "failure",
                  "retries", "recover", "workdir", "gradients")
 MODEL_KEYS = ("preset", "preset_options", "discretization", "responses", "fixed",
@@ -237,10 +237,35 @@ def _parse_info(ck: Checker, doc: dict, base: Path, path: Path) -> StudyInfo:
     seed = ck.value(t, "seed", (integer(), 1), ("study",), "[study]")
     out = ck.value(t, "output", (string(), f"rotoruq-results/{name}"), ("study",), "[study]")
     desc = ck.value(t, "description", (string(), ""), ("study",), "[study]")
+    ref = _parse_reference(ck, t, name, doc.get("model"))
+    share = ck.value(t, "max_failed_share", (number(positive=True), 0.5), ("study",), "[study]")
+    if share > 1:
+        ck.fail(("study", "max_failed_share"), "a share of failed evaluations from 0 to 1 "
+                "(0.5: more than half of a step's evaluations failed is an error)", str(share))
     out_path = Path(out)
     if not out_path.is_absolute():
         out_path = base / out_path
-    return StudyInfo(name, seed, out_path, desc)
+    return StudyInfo(name, seed, out_path, desc, ref, share)
+
+
+def _parse_reference(ck: Checker, t: dict, name: str, model: object) -> str | None:
+    """``[study] reference``: the study is one of a reference's (:mod:`rotoruq.reference`)
+    only when it says so; its name and preset must then be one of the reference's studies."""
+    from ..reference import NAMES
+    from ..reference.studies import declaration_error
+
+    if "reference" not in t:
+        return None
+    ref = ck.value(t, "reference", (string(), None), ("study",), "[study]")
+    if ref not in NAMES:
+        ck.fail(("study", "reference"), "reference = one of: " + ", ".join(
+            f'"{n}"' for n in NAMES) + " (or no reference key: a study of your own)",
+                repr(ref))
+    preset = model.get("preset") if isinstance(model, dict) else None
+    wrong = declaration_error(name, preset if isinstance(preset, str) else None)
+    if wrong:
+        ck.fail(("study", "reference"), *wrong)
+    return ref
 
 
 def _parse_model(ck: Checker, doc: dict) -> ModelSpec:
@@ -723,6 +748,9 @@ def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
             dists = _parse_parameters(ck, common["distributions"], inputs,
                                       w + ("distributions",),
                                       {p.name: p.input for p in params if p.input})
+        if data_ref in data:
+            _check_data_columns(ck, w + (("data",) if "data" in s else ()), st, opts,
+                                data[data_ref], sel_r, model.responses, what)
         if isinstance(opts.get("points"), dict) and source is None:  # its inputs are known
             points_columns(opts["points"], sel_p or [*pnames, *(d.name for d in dists
                                                                 if d.name not in pnames)])
@@ -736,6 +764,41 @@ def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
         ck.fail(("parameters",), "at least one [parameters.NAME] table")
     _check_data_used_once(ck, raw, steps, model)
     return tuple(steps)
+
+
+def _check_data_columns(ck: Checker, where: tuple, st: StepType, opts: Mapping,
+                        data: DataSet, responses: tuple[str, ...] | None,
+                        model_responses: Sequence[str], what: str) -> None:
+    """The columns a step reads from its ``[data.NAME]`` table are there, when the study is
+    read (not after the steps before it ran): its responses (a ``forward_check`` compares
+    those the data has, at least one), the column matching its conditions (``match``, else
+    the first key of ``sweep`` or ``conditions``), ``normalize_by``'s, a discrepancy's
+    ``configuration`` and the columns of ``couple``. The error names the file and the columns
+    it has."""
+    cols = list(data.columns)
+    used = list(responses or model_responses)
+    need: list[str] = []
+    if st.name != "forward_check" or responses is not None:
+        need += used
+    elif used and not any(r in cols for r in used):
+        need += used
+    grid = opts.get("sweep") or opts.get("conditions")
+    match = opts.get("match") or (next(iter(grid)) if isinstance(grid, Mapping) and grid
+                                  else None)
+    if isinstance(match, str) and isinstance(grid, Mapping):
+        need.append(match)
+    if isinstance(opts.get("normalize_by"), Mapping):
+        need += list(opts["normalize_by"])
+    if opts.get("discrepancy") and isinstance(opts.get("configuration"), str):
+        need.append(opts["configuration"])
+    if isinstance(opts.get("couple"), Mapping):
+        need += [c for c in opts["couple"].values() if isinstance(c, str)]
+    missing = [c for c in dict.fromkeys(need) if c not in cols]
+    if missing:
+        source = data.source if data.source == "inline" else Path(data.source).name
+        ck.fail(where, f"data {data.name!r} ({source}) to have the columns {what} reads: "
+                f"{', '.join(dict.fromkeys(need))}; it has {', '.join(cols)}",
+                "no column " + ", ".join(missing))
 
 
 def _check_model_names(ck: Checker, opts: Mapping, models: Mapping[str, ModelSpec], w: tuple,

@@ -19,12 +19,17 @@ __all__ = ["Study", "StudyInfo", "ModelSpec", "ExternalSpec", "ParameterSpec", "
 
 @dataclass(frozen=True)
 class StudyInfo:
-    """``[study]``: name, seed (int), output directory (absolute), free-text description."""
+    """``[study]``: name, seed (int), output directory (absolute), free-text description, the
+    reference it belongs to (``reference = "thesis"``; None: a study of the user's own), and
+    the share of failed evaluations a step may have before ``rotoruq run`` exits with code 3
+    (``max_failed_share``, 0 to 1; a step without a successful evaluation always does)."""
 
     name: str
     seed: int
     output: Path
     description: str = ""
+    reference: str | None = None
+    max_failed_share: float = 0.5
 
 
 @dataclass(frozen=True)

@@ -60,6 +60,14 @@ from .adequacy import (
 )
 from .likelihood import GaussianLikelihood
 from .noise import extended_prior, multiplier_groups, noise_loglik
+from .options import (
+    LEGACY_KEYWORDS,
+    ChainOptions,
+    EmulatorOptions,
+    NoiseModel,
+    legacy_keywords,
+    with_fields,
+)
 from .proposals import LogPrior, hessian_covariance, prior_scales
 from .samplers import SamplerConfig, SamplerState, run_chains
 
@@ -865,27 +873,15 @@ def calibrate_bayes(
     data: ArrayLike,
     prior: ParameterSpace,
     *,
-    sampler: str | SamplerConfig = "dram",
-    n_samples: int = 95_000,
-    burn_in: int | None = None,
-    thin: int = 1,
-    n_chains: int = 1,
-    emulator: GaussianProcess | CoKriging | None = None,
-    n_emulator_samples: int = 500,
-    emulator_variance: bool = True,
-    refine: RefineConfig | None = None,
-    noise_multipliers: str | Sequence[str] | None = None,
-    noise_multiplier_prior: tuple[float, float] = (1.0, 1.0),
-    noise_std: ArrayLike | None = None,
-    noise_covariance: ArrayLike | None = None,
     names_out: Sequence[str] | None = None,
-    proposal_covariance: str | ArrayLike = "hessian",
-    map_start: bool = True,
-    x0: ArrayLike | None = None,
+    noise: NoiseModel | None = None,
+    chains: ChainOptions | None = None,
+    emulator: GaussianProcess | CoKriging | EmulatorOptions | None = None,
     posterior_predictive: int = 0,
     self_check: int = 0,
     self_check_cache: SelfCheckCache | None = None,
     seed: SeedLike = None,
+    **legacy: Any,
 ) -> BayesResult:
     """Bayesian calibration of the parameters ``prior`` of ``model`` to ``data``.
 
@@ -899,59 +895,69 @@ def calibrate_bayes(
         (m,) for one experiment.
     prior : ParameterSpace of the calibrated parameters (names matched to ``model.names_in``);
         its joint density is the prior and its support bounds the chains.
-    sampler : "dram" (default), "am", "dr", "mh", or a :class:`SamplerConfig` with its tuning
-        (Dakota DRAM defaults: dr_scale 5, adapt_start 100, adapt_interval 100; pooled
-        adaptation; ``evaluations`` "speculative" or "minimal", see :mod:`.samplers`). By name,
-        the chains on a model slower than :data:`SLOW_EVALUATION` s a point (measured during the
-        start) use the "minimal" schedule; ``BayesResult.evaluations`` says which ran.
-    n_samples : kept steps per chain (after burn-in and thinning); each chain takes
-        ``burn_in + (n_samples - 1) * thin + 1`` steps. The default with the default burn-in
-        is the reference study's 100,000 steps of which 5,000 burn-in.
-    burn_in : steps dropped at the start of each chain (default ``n_samples // 19``, 5 % of
-        the steps). thin : keep every ``thin``-th step after that.
-    n_chains : chains advanced together; every step evaluates the likelihood of all of them in
-        one batched call.
-    emulator : an unfitted GaussianProcess (fitted here on ``n_emulator_samples`` LHS points
-        from the prior, evaluated through :func:`rotoruq.model.evaluate`) or a fitted one
-        (inputs in ``prior.names`` order, outputs the calibrated responses). None: the chains
-        call the model itself. Or a :class:`~rotoruq.methods.cokriging.CoKriging`: unfitted
-        with ``low_fidelity=`` (cheaper Models with the model's inputs and the calibrated
-        responses, cheapest first) and ``n_low=``, it is fitted on a nested design: the
-        ``n_emulator_samples`` LHS points of a GaussianProcess with the same seed (runs of
-        ``model``) and, for each cheaper model, those points plus LHS points of the prior up
-        to its ``n_low`` (its runs, through :func:`rotoruq.model.evaluate`, failed ones left
-        out; counted in ``BayesResult.n_low_fidelity_evaluations``). Its recursive
-        predictive mean and variance enter the likelihood as a GP's do; ``refine`` adds runs
-        of every model at the picked points. Fitted (inputs in prior order, outputs the
-        calibrated responses), it is used as given.
-    emulator_variance : with an emulator, add its Kriging variance at theta to the noise
-        variance of each response (Higdon et al. 2004): the emulator's error, one per response
-        and shared by all experiments, is integrated out, so the log-determinant depends on
-        theta and a sparse emulator widens the posterior instead of making it over-confident.
-        False: the GP mean only (the reference thesis). Each evaluation then costs ``n^2 / 2``
-        multiply-adds per response for ``n`` build points, against ``n d`` for the mean.
-    refine : RefineConfig(n_samples=, target_ratio=, batch=) to refine the emulator over the
-        posterior: after the chains, ``batch`` model runs at the posterior draws where the
-        emulator's Kriging std relative to the noise std is largest, a refit and new chains,
-        until every response's ratio (:class:`EmulatorAdequacy` ``posterior_ratio``) is
-        below ``target_ratio`` or ``n_samples`` runs were added. None: no refinement (the
-        ratio is still measured, and warned on above :data:`.adequacy.WARN_RATIO`).
-    noise_multipliers : calibrate the noise too (Dakota's ``calibrate_error_multipliers``):
-        "one", "per_response", "per_experiment" or a list of observed responses; each
-        multiplies the stated noise variance of its observations and is sampled with the
-        parameters (:mod:`.noise`). Needs independent noise (``noise_std``).
-    noise_multiplier_prior : (alpha, beta) of each multiplier's inverse-gamma prior
-        (default (1, 1): weak, median 1.44).
-    noise_std : standard deviation of the data noise (data units): scalar, (m,) per response
-        or (n_exp, m) per observation. noise_covariance : instead, a full (m, m) or
-        (n_exp, m, m) covariance. Neither: unit variance (Dakota's default).
     names_out : names of the model responses that ``data`` observes (default all, in order).
-    proposal_covariance : "hessian" (inverse Gauss-Newton Hessian of the negative log posterior
-        at the start, eqs. 2.25-2.27, times 2.38^2/d), "prior" (prior variances times 2.38^2/d)
-        or a (d, d) array in parameter units used as given.
-    map_start : start the chains at the maximum a posteriori point (L-BFGS-B from ``x0``, or
-        from the best build sample / the prior mean).
-    x0 : (d,) start point (parameter units).
+    noise : :class:`~rotoruq.methods.mcmc.options.NoiseModel` (default: unit variance).
+
+        - ``noise_std``: standard deviation of the data noise (data units): scalar, (m,) per
+          response or (n_exp, m) per observation. ``noise_covariance``: instead, a full
+          (m, m) or (n_exp, m, m) covariance. Neither: unit variance (Dakota's default).
+        - ``noise_multipliers``: calibrate the noise too (Dakota's
+          ``calibrate_error_multipliers``): "one", "per_response", "per_experiment" or a list
+          of observed responses; each multiplies the stated noise variance of its observations
+          and is sampled with the parameters (:mod:`.noise`). Needs ``noise_std``.
+        - ``noise_multiplier_prior``: (alpha, beta) of each multiplier's inverse-gamma prior
+          (default (1, 1): weak, median 1.44).
+    chains : :class:`~rotoruq.methods.mcmc.options.ChainOptions` (default: its defaults).
+
+        - ``sampler``: "dram" (default), "am", "dr", "mh", or a :class:`SamplerConfig` with its
+          tuning (Dakota DRAM defaults: dr_scale 5, adapt_start 100, adapt_interval 100; pooled
+          adaptation; ``evaluations`` "speculative" or "minimal", see :mod:`.samplers`). By
+          name, the chains on a model slower than :data:`SLOW_EVALUATION` s a point (measured
+          during the start) use the "minimal" schedule; ``BayesResult.evaluations`` says which
+          ran.
+        - ``n_samples``: kept steps per chain (after burn-in and thinning); each chain takes
+          ``burn_in + (n_samples - 1) * thin + 1`` steps. The default with the default burn-in
+          is the reference study's 100,000 steps of which 5,000 burn-in.
+        - ``burn_in``: steps dropped at the start of each chain (default ``n_samples // 19``,
+          5 % of the steps). ``thin``: keep every ``thin``-th step after that.
+        - ``n_chains``: chains advanced together; every step evaluates the likelihood of all of
+          them in one batched call.
+        - ``proposal_covariance``: "hessian" (inverse Gauss-Newton Hessian of the negative log
+          posterior at the start, eqs. 2.25-2.27, times 2.38^2/d), "prior" (prior variances
+          times 2.38^2/d) or a (d, d) array in parameter units used as given.
+        - ``map_start``: start the chains at the maximum a posteriori point (L-BFGS-B from
+          ``x0``, or from the best build sample / the prior mean). ``x0``: (d,) start point
+          (parameter units).
+    emulator : None (the chains call the model itself), a GaussianProcess or CoKriging (its
+        options at their defaults), or :class:`~rotoruq.methods.mcmc.options.EmulatorOptions`:
+
+        - ``emulator``: an unfitted GaussianProcess (fitted here on ``n_emulator_samples`` LHS
+          points from the prior, evaluated through :func:`rotoruq.model.evaluate`) or a fitted
+          one (inputs in ``prior.names`` order, outputs the calibrated responses). Or a
+          :class:`~rotoruq.methods.cokriging.CoKriging`: unfitted with ``low_fidelity=``
+          (cheaper Models with the model's inputs and the calibrated responses, cheapest
+          first) and ``n_low=``, it is fitted on a nested design: the ``n_emulator_samples``
+          LHS points of a GaussianProcess with the same seed (runs of ``model``) and, for each
+          cheaper model, those points plus LHS points of the prior up to its ``n_low`` (its
+          runs, through :func:`rotoruq.model.evaluate`, failed ones left out; counted in
+          ``BayesResult.n_low_fidelity_evaluations``). Its recursive predictive mean and
+          variance enter the likelihood as a GP's do; ``refine`` adds runs of every model at
+          the picked points. Fitted (inputs in prior order, outputs the calibrated responses),
+          it is used as given.
+        - ``emulator_variance``: add the emulator's Kriging variance at theta to the noise
+          variance of each response (Higdon et al. 2004): the emulator's error, one per
+          response and shared by all experiments, is integrated out, so the log-determinant
+          depends on theta and a sparse emulator widens the posterior instead of making it
+          over-confident. False: the GP mean only (the reference thesis). Each evaluation then
+          costs ``n^2 / 2`` multiply-adds per response for ``n`` build points, against ``n d``
+          for the mean.
+        - ``refine``: RefineConfig(n_samples=, target_ratio=, batch=) to refine the emulator
+          over the posterior: after the chains, ``batch`` model runs at the posterior draws
+          where the emulator's Kriging std relative to the noise std is largest, a refit and
+          new chains, until every response's ratio (:class:`EmulatorAdequacy`
+          ``posterior_ratio``) is below ``target_ratio`` or ``n_samples`` runs were added.
+          None: no refinement (the ratio is still measured, and warned on above
+          :data:`.adequacy.WARN_RATIO`).
     posterior_predictive : number of posterior draws pushed through the true model.
     self_check : N > 0 runs N replications of simulation-based calibration of this very
         setup (:func:`~rotoruq.methods.mcmc.sbc.simulation_based_calibration`: parameters
@@ -971,12 +977,50 @@ def calibrate_bayes(
         ``numpy.random.SeedSequence(seed)``: the same seed gives bitwise the same result.
         The caller's emulator is not modified (an unfitted one is fitted as a copy, in
         ``BayesResult.emulator``).
+    **legacy : the flat keyword arguments of rotoruq 0.1 (``n_samples=``, ``burn_in=``,
+        ``noise_std=``, ``n_emulator_samples=``, ...; :data:`.options.LEGACY_KEYWORDS`),
+        accepted for one release with a ``DeprecationWarning`` naming the record field that
+        replaces each; they override that field of the record given.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> import rotoruq as rq
+    >>> from rotoruq.methods.mcmc import ChainOptions, NoiseModel
+    >>> line = rq.FunctionModel(lambda x: x[:, :1] * [[1.0, 2.0]], ["a"], ["y1", "y2"])
+    >>> prior = rq.ParameterSpace({"a": rq.Uniform(0.0, 4.0)})
+    >>> post = rq.calibrate_bayes(line, [[1.0, 2.0], [1.2, 1.8]], prior,
+    ...                           noise=NoiseModel(noise_std=0.5),
+    ...                           chains=ChainOptions(n_samples=400, n_chains=2), seed=1)
+    >>> post.chains.shape
+    (2, 400, 1)
 
     Returns
     -------
     BayesResult
     """
     t_start = time.perf_counter()
+    flat = legacy_keywords("calibrate_bayes", legacy, LEGACY_KEYWORDS)
+    noise = with_fields(noise, NoiseModel, flat.get("noise"), "noise")
+    chains = with_fields(chains, ChainOptions, flat.get("chains"), "chains")
+    if isinstance(emulator, GaussianProcess | CoKriging):
+        emulator = EmulatorOptions(emulator)
+    elif emulator is not None and not isinstance(emulator, EmulatorOptions):
+        raise ParameterError(f"emulator must be a GaussianProcess or CoKriging (or their "
+                             f"EmulatorOptions), got {type(emulator).__name__}")
+    if emulator is None:  # the emulator's options without an emulator change nothing
+        emulator_opts = EmulatorOptions(None, **flat.get("emulator", {}))  # type: ignore[arg-type]
+    else:
+        emulator_opts = with_fields(emulator, EmulatorOptions, flat.get("emulator"), "emulator")
+    sampler, n_samples, burn_in, thin, n_chains = (
+        chains.sampler, chains.n_samples, chains.burn_in, chains.thin, chains.n_chains)
+    proposal_covariance, map_start, x0 = (
+        chains.proposal_covariance, chains.map_start, chains.x0)
+    noise_std, noise_covariance = noise.noise_std, noise.noise_covariance
+    noise_multipliers, noise_multiplier_prior = (
+        noise.noise_multipliers, noise.noise_multiplier_prior)
+    surrogate, n_emulator_samples = emulator_opts.emulator, emulator_opts.n_emulator_samples
+    emulator_variance, refine = emulator_opts.emulator_variance, emulator_opts.refine
     seeds = _stage_seeds(seed)
     cfg = _as_sampler(sampler)
     n_samples, thin, n_chains = int(n_samples), int(thin), int(n_chains)
@@ -993,14 +1037,16 @@ def calibrate_bayes(
     gp, loo, best_build, lf = None, None, None, []
     if refine is not None and not isinstance(refine, RefineConfig):
         raise ParameterError(f"refine must be a RefineConfig or None, got {refine!r}")
-    if emulator is not None:
-        if refine is not None and isinstance(emulator, CoKriging) and not emulator.low_fidelity:
+    if surrogate is not None:
+        if (refine is not None and isinstance(surrogate, CoKriging)
+                and not surrogate.low_fidelity):
             raise ParameterError("refine= with a CoKriging emulator adds runs of every "
                                  "fidelity: give its models, CoKriging(low_fidelity=...)")
-        gp, loo, best_build, lf = _build_emulator(emulator, prior, truth, pb,
+        gp, loo, best_build, lf = _build_emulator(surrogate, prior, truth, pb,
                                                   n_emulator_samples, seeds)
     elif refine is not None:
-        raise ParameterError("refine= refines an emulator: pass emulator=GaussianProcess(...)")
+        raise ParameterError("refine= refines an emulator: pass "
+                             "emulator=EmulatorOptions(GaussianProcess(), refine=...)")
 
     round_seeds = {k: seeds[k] for k in ("start", "chain_starts", "chains")}
     runs_added: list[int] = []
@@ -1047,7 +1093,8 @@ def calibrate_bayes(
                       + ("its variance is in the likelihood, so the posterior is wider than "
                          "the data alone would give" if emulator_variance else
                          "with emulator_variance=False the posterior is over-confident")
-                      + ": add build runs (n_emulator_samples) or refine=RefineConfig()",
+                      + ": add build runs (EmulatorOptions n_emulator_samples) or "
+                        "EmulatorOptions(refine=RefineConfig())",
                       RuntimeWarning, stacklevel=2)
     theta0, cov_z, state, cfg = run["theta0"], run["cov_z"], run["state"], run["cfg"]
     kept_lp, t_sampling, cpu_sampling = run["kept_lp"], run["seconds"], run["cpu_seconds"]

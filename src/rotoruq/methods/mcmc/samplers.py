@@ -47,7 +47,7 @@ EVALUATIONS = ("speculative", "minimal")
 
 @dataclass(frozen=True)
 class SamplerConfig:
-    """An MCMC sampler and its tuning (pass it as ``calibrate_bayes(sampler=...)``).
+    """An MCMC sampler and its tuning (``calibrate_bayes(chains=ChainOptions(sampler=...))``).
 
     sampler : "mh", "dr", "am" or "dram". dr_scale : stage-2 proposal scale divisor (5).
     adapt_start, adapt_interval : AM adaptation from step 100, every 100 steps. scale :

@@ -47,6 +47,13 @@ from .bayes import (
     calibrate_bayes,
     continue_chain,
 )
+from .options import (
+    LEGACY_KEYWORDS,
+    ChainOptions,
+    EmulatorOptions,
+    NoiseModel,
+    legacy_keywords,
+)
 
 __all__ = ["SBCResult", "simulation_based_calibration", "setup_key"]
 
@@ -252,7 +259,8 @@ def simulation_based_calibration(
     coverage_tolerance : a coverage fails when it is more than this many binomial standard
         errors from its nominal rate.
     seed : int, SeedSequence, Generator or None; the same seed gives bitwise the same result.
-    **options : further keyword arguments of :func:`calibrate_bayes` (default calibration).
+    **options : further options of :func:`calibrate_bayes` (default calibration), flat: the
+        fields of its option records by name (``sampler=``, ``emulator_variance=``, ...).
 
     Returns
     -------
@@ -350,6 +358,11 @@ def simulation_based_calibration(
     # while a burn-in of half the kept steps forgets the start at a fraction of that
     bayes_options = {"n_samples": int(n_samples), "burn_in": int(n_samples) // 2,
                      "map_start": False, **options}
+    # the flat options of calibrate_bayes into the fields of its option records
+    records = legacy_keywords("simulation_based_calibration", {
+        k: v for k, v in bayes_options.items() if k in LEGACY_KEYWORDS}, LEGACY_KEYWORDS,
+        warn=False)
+    rest = {k: v for k, v in bayes_options.items() if k not in LEGACY_KEYWORDS}
     takes_seed = calibrate is not None and _takes_seed(calibrate)
     ranks = np.empty((n_replications, d), dtype=int)
     z = np.empty((n_replications, d))
@@ -372,7 +385,7 @@ def simulation_based_calibration(
         else:
             draws, ess_i, n_ev = _replication(model, prior, gp, clean[i], noise, obs, s_rep,
                                               n_experiments, n_draws, calibrate, takes_seed,
-                                              bayes_options, d)
+                                              bayes_options, records, rest, d)
             n_evaluations += n_ev
         if ess_i is None:  # the chains changed since their ESS was computed
             ess_i = dg.effective_sample_size(draws)
@@ -460,7 +473,7 @@ def setup_key(model_key: str, prior: ParameterSpace, emulator: Any, seed: SeedLi
 def _replication(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarray,
                  noise: np.ndarray, obs: tuple[str, ...], s_rep: np.random.SeedSequence,
                  n_experiments: int, n_draws: int, calibrate: Callable[..., Any] | None,
-                 takes_seed: bool, options: dict, d: int
+                 takes_seed: bool, options: dict, records: dict, rest: dict, d: int
                  ) -> tuple[np.ndarray, np.ndarray | None, int]:
     """One replication through ``calibrate`` or :func:`calibrate_bayes`: posterior draws
     (c, n, d), their ESS when it was computed (else None) and true-model evaluations."""
@@ -470,8 +483,12 @@ def _replication(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarray
     if calibrate is not None:
         out = calibrate(data, seed=s_cal) if takes_seed else calibrate(data)
         return _as_draws(out, d), None, 0
-    res = calibrate_bayes(model, data, prior, noise_std=noise, names_out=list(obs),
-                          emulator=gp, seed=s_cal, **options)
+    res = calibrate_bayes(model, data, prior, names_out=list(obs),
+                          noise=NoiseModel(noise_std=noise, **records.get("noise", {})),
+                          chains=ChainOptions(**records.get("chains", {})),
+                          emulator=None if gp is None else EmulatorOptions(
+                              gp, **records.get("emulator", {})),
+                          seed=s_cal, **rest)
     for k, s_k in enumerate(s_more.spawn(3)):
         ess = dg.effective_sample_size(res.chains)
         if ess.min() >= n_draws:

@@ -17,6 +17,7 @@ from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
+from ..report.diagnostics import PILEUP_MAX, STD_RATIO_MAX, step_warnings, strong_correlations
 from ..results import StepResult
 from .causes import (
     calibration_design,
@@ -27,7 +28,6 @@ from .causes import (
     target_consistency,
 )
 from .compare import ComparedTable
-from .diagnostics import PILEUP_MAX, STD_RATIO_MAX, step_warnings, strong_correlations
 
 __all__ = ["Claim", "claims", "claims_json", "INDEPENDENT", "JOINT"]
 
@@ -184,7 +184,7 @@ def claims(tables: list[ComparedTable], results: Results | None = None,
            model_values: Mapping[str, Mapping[str, float]] | None = None) -> list[Claim]:
     """The reference study's main claims, on our results and on the thesis's numbers.
 
-    ``tables`` are the compared thesis tables (:func:`rotoruq.report.compare.compare_tables`);
+    ``tables`` are the compared thesis tables (:func:`rotoruq.reference.compare.compare_tables`);
     ``results`` (study -> step -> result) supplies the diagnostics and the joint posterior
     predictive; ``labels`` (study -> parameter -> label) names parameters in the reasons;
     ``model_values`` (study -> the preset numbers ``study.json`` recorded) give the blade

@@ -1,6 +1,6 @@
 """Our values beside the thesis's: resolve every reference cell against saved results and
 express each difference in the unit a reader needs (see :attr:`ComparedCell.diff_kind`).
-The reference study's claims are checked in :mod:`rotoruq.report.claims`."""
+The reference study's claims are checked in :mod:`rotoruq.reference.claims`."""
 
 from __future__ import annotations
 
@@ -13,14 +13,15 @@ from pathlib import Path
 
 import numpy as np
 
-from ..render.reference import TABLES, ReferenceTable
+from ..report.tables import fmt
 from ..results import StepResult
+from .studies import STUDIES
+from .tables import TABLES, ReferenceTable
 
 __all__ = ["ComparedCell", "ComparedTable", "compare_tables", "resolve", "REFERENCE_STUDIES"]
 
-# The reference studies and the preset each runs; a user's study of the same name but another
-# model gets no thesis rows.
-REFERENCE_STUDIES = {"validation": "bo105", "experiment": "gvpm", "heldout": "gvpm"}
+# The reference studies and the preset each runs (kept under its former name).
+REFERENCE_STUDIES = STUDIES
 
 # Statistics already dimensionless and meaningful near zero: their difference is absolute.
 _ABSOLUTE = {"S", "T", "nstd", "pp_nstd", "skewness", "kurtosis", "acceptance"}
@@ -84,8 +85,6 @@ class ComparedCell:
         return self.diff
 
     def diff_text(self) -> str:
-        from .tables import fmt
-
         k, v = self.diff_kind, self.diff_value
         if v is None:
             return fmt(None)
@@ -122,7 +121,7 @@ def _measurements() -> dict[str, np.ndarray]:
 
 def resolve(source: str | None, steps: Mapping[str, StepResult],
             model_values: Mapping[str, float] | None = None) -> float | None:
-    """Value of a reference cell's source (see :mod:`rotoruq.render.reference`).
+    """Value of a reference cell's source (see :mod:`rotoruq.reference.tables`).
 
     ``model_values`` are the model properties the run recorded (``study.json`` ``model.values``:
     preset fields and nominal airfoil coefficients); a ``model:PRESET:NAME`` cell reads them,

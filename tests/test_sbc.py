@@ -205,6 +205,91 @@ def test_same_seed_same_result_bitwise():
     assert not np.array_equal(r1.posterior_mean, r3.posterior_mean)
 
 
+def test_replications_on_an_emulator_are_the_chains_of_calibrate_bayes():
+    """The replications run their chains alone (no summary): bitwise the chains
+    calibrate_bayes and continue_chain give, ESS-driven continuations included."""
+    from rotoruq.methods.mcmc import bayes, continue_chain
+    from rotoruq.methods.mcmc import diagnostics as dg
+
+    gp = rq.GaussianProcess(trend="linear", seed=3).fit(
+        PRIOR.draw(30, design="lhs", seed=3), Nonlinear()(PRIOR.draw(30, design="lhs", seed=3)))
+    data = Nonlinear()(np.array([[0.1, -0.2, 0.3]])) + 0.01
+    kw = dict(n_samples=120, burn_in=60, map_start=False, sampler="dram")
+    seed = np.random.SeedSequence(11)
+    lean = bayes._CheckChains(Nonlinear(), data, PRIOR, gp, seed=seed, noise_std=0.1,
+                              names_out=list(Nonlinear.names_out), emulator_variance=False,
+                              **kw)
+    lean.run()
+    full = calibrate_bayes(Nonlinear(), data, PRIOR, names_out=list(Nonlinear.names_out),
+                           noise=mcmc.NoiseModel(noise_std=0.1), chains=mcmc.ChainOptions(**kw),
+                           emulator=mcmc.EmulatorOptions(gp, emulator_variance=False),
+                           seed=seed)
+    np.testing.assert_array_equal(lean.chains, full.chains)
+    for k, s_k in enumerate(np.random.SeedSequence(12).spawn(2)):
+        lean.extend(120 * 2**k, s_k)
+        full = continue_chain(full, 120 * 2**k, seed=s_k)
+        np.testing.assert_array_equal(lean.chains, full.chains)
+    np.testing.assert_array_equal(dg.effective_sample_size(lean.chains), full.ess)
+
+
+def test_replications_give_the_same_bits_on_any_number_of_threads():
+    import numba
+
+    kw = dict(n_replications=6, n_samples=150, n_draws=19, emulator=rq.GaussianProcess(),
+              n_emulator_samples=15)
+    before = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = _sbc(seed=3, **kw)
+        numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+        many = _sbc(seed=3, **kw)
+    finally:
+        numba.set_num_threads(before)
+    for f in ("theta_true", "ranks", "posterior_mean", "posterior_std", "ess", "p_value"):
+        np.testing.assert_array_equal(getattr(one, f), getattr(many, f))
+
+
+def test_self_check_is_reused_by_its_setup_not_its_data(tmp_path):
+    """Two calls with the same setup and other data share one self-check (from a dict or
+    the store); another seed or prior computes its own; the result is bitwise the one
+    computed afresh."""
+    from rotoruq.evaluation.store import Store
+    from rotoruq.methods.mcmc.sbc import setup_key
+    from rotoruq.steps.bayes_calibration import _StoredSelfChecks
+
+    gp = rq.GaussianProcess(trend="linear", seed=3).fit(
+        PRIOR.draw(30, design="lhs", seed=3), Nonlinear()(PRIOR.draw(30, design="lhs", seed=3)))
+    y = Nonlinear()(np.array([[0.1, -0.2, 0.3], [0.0, 0.4, -0.5]]))
+    kw = dict(noise=mcmc.NoiseModel(noise_std=0.1), emulator=gp, self_check=4,
+              chains=mcmc.ChainOptions(n_samples=400, map_start=False))
+
+    def run(data, seed=5, cache=None):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return calibrate_bayes(Nonlinear(), data, PRIOR, seed=seed, self_check_cache=cache,
+                                   **kw).self_check
+
+    fresh = run(y[:1])
+    for cache in ({}, _StoredSelfChecks(Store(tmp_path / "e.db"))):
+        first = run(y[:1], cache=cache)
+        again = run(y[1:], cache=cache)
+        for r in (first, again):
+            for f in ("theta_true", "ranks", "rank_histogram", "p_value", "coverage_90",
+                      "posterior_mean", "ess"):
+                np.testing.assert_array_equal(getattr(r, f), getattr(fresh, f))
+            assert (r.passed, r.reason, r.names_in) == (fresh.passed, fresh.reason,
+                                                        fresh.names_in)
+        assert not np.array_equal(run(y[1:], seed=6, cache=cache).theta_true,
+                                  fresh.theta_true)
+    other = rq.ParameterSpace({n: rq.Uniform(-1.0, 1.1) for n in "abc"})
+    ss = np.random.SeedSequence(1)
+    assert setup_key("m", PRIOR, gp, ss, n=1) == setup_key("m", PRIOR, gp, ss, n=1)
+    assert len({setup_key("m", PRIOR, gp, ss, n=1), setup_key("m", other, gp, ss, n=1),
+                setup_key("m2", PRIOR, gp, ss, n=1), setup_key("m", PRIOR, gp, ss, n=2),
+                setup_key("m", PRIOR, gp, np.random.SeedSequence(2), n=1)}) == 5
+    assert setup_key("m", PRIOR, rq.GaussianProcess(), ss) is None  # unfitted
+
+
 @pytest.mark.parametrize("kw, match", [
     ({"noise_std": 0.0}, "noise_std must be finite and > 0"),
     ({"noise_std": [0.1, -0.1, 0.1, 0.1]}, "noise_std must be finite and > 0"),

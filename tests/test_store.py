@@ -107,6 +107,40 @@ def test_store_pickles_and_reopens(tmp_path):
     assert st2.count() == 1
 
 
+def test_add_returns_consecutive_ids_and_computed_values_round_trip(tmp_path):
+    st = Store(tmp_path / "e.db")
+    recs = [NewRecord(np.array([float(i)]), np.array([i * 2.0])) for i in range(5)]
+    assert st.add(recs[:2], **KW) == [1, 2]
+    assert st.add(recs[2:], **KW) == [3, 4, 5]
+    assert [r.outputs[0] for r in st.records()] == [0.0, 2.0, 4.0, 6.0, 8.0]
+    assert st.get_computed("self_check", "k") is None
+    st.put_computed("self_check", "k", b"\x00one")
+    st.put_computed("self_check", "k", b"two")  # replaced
+    assert Store(tmp_path / "e.db").get_computed("self_check", "k") == b"two"
+    assert st.get_computed("other", "k") is None
+
+
+def test_deferred_writes_commit_on_leaving_the_block_also_on_error(tmp_path):
+    m = FunctionModel(lambda x: x * 2.0, ["a"], ["y"])
+    ev = Evaluator(m, store=tmp_path / "e.db", study="st")
+    with ev.deferred_writes(seconds=3600.0):
+        for i in range(3):
+            ev.evaluate(np.array([[float(i)], [i + 0.5]]))
+        assert ev.store.count() == 0  # nothing committed yet
+    assert ev.store.count() == 6
+    with pytest.raises(RuntimeError), ev.deferred_writes(seconds=3600.0):
+        ev.evaluate(np.array([[7.0]]))
+        raise RuntimeError("the chain failed")
+    assert ev.store.count() == 7
+    with ev.deferred_writes(seconds=0.0):  # every batch committed at once
+        ev.evaluate(np.array([[8.0]]))
+        assert ev.store.count() == 8
+    ev.evaluate(np.array([[9.0]]))  # outside the block: committed at once, as always
+    assert ev.store.count() == 9
+    assert Evaluator(m, store=tmp_path / "e.db", study="st").evaluate(
+        np.array([[0.5], [7.0]])).values.tolist() == [[1.0], [14.0]]
+
+
 def test_evaluator_reuses_identical_inputs_across_runs(tmp_path):
     calls = []
 

@@ -10,11 +10,13 @@ be handed an Evaluator instead of the raw model. For a batch it
    vectorized internal models in chunks (several per worker, so progress and crash safety
    have a fine grain), external models (:class:`~rotoruq.evaluation.external.ExternalModel`)
    one task per evaluation;
-3. commits each result to the store as soon as its task finishes;
+3. commits each result to the store as soon as its task finishes (inside
+   :meth:`Evaluator.deferred_writes`, at most every ``seconds``: a Markov chain's thousands of
+   small batches then cost one transaction a second, not one each);
 4. returns the whole batch, in order, with failures reported per row.
 
 A study killed at any point and run again therefore resumes: finished evaluations are read
-back, never repeated.
+back, never repeated (inside ``deferred_writes``, those of its last ``seconds`` are run again).
 
 A model whose evaluations also give gradients (``evaluate_gradient``: an external driver with
 ``gradients="analytic"``) has them stored the same way, one row per point and run under the
@@ -30,6 +32,8 @@ import os
 import time
 import uuid
 import weakref
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Any
 
@@ -44,6 +48,11 @@ from .progress import Progress
 from .store import NewRecord, Store, canonical_keys, open_store
 
 __all__ = ["Evaluator", "EvalStats", "model_identity"]
+
+
+#: fewest points of a chunk of a vectorized model on one process (the model's per-call cost
+#: is paid once for a small batch; larger batches still commit in four chunks)
+MIN_CHUNK = 16
 
 
 @dataclass(frozen=True, eq=False)
@@ -149,6 +158,9 @@ class Evaluator:
         self.external = callable(getattr(model, "run_one", None))
         self.last_stats: EvalStats | None = None
         self._next_eval = 1
+        self._defer: float | None = None  # deferred_writes: seconds between commits
+        self._pending: list[NewRecord] = []
+        self._committed = 0.0
 
     def __repr__(self) -> str:
         return (f"Evaluator({self.model!r}, store={self.store!r}, executor={self.executor!r}, "
@@ -291,8 +303,11 @@ class Evaluator:
             policy = getattr(self.model, "failure_policy", None)
             abort = getattr(policy, "kind", policy) == "abort"
         else:
-            size = self.chunk_size or max(1, math.ceil(len(firsts) /
-                                                       (4 * max(1, self.executor.n_workers))))
+            workers = max(1, self.executor.n_workers)
+            # one process: no chunk below MIN_CHUNK points (a chain's batch of a few points
+            # in one call of the model, not one per point or two)
+            size = self.chunk_size or max(1 if workers > 1 else MIN_CHUNK,
+                                          math.ceil(len(firsts) / (4 * workers)))
             spans = [list(range(s, min(s + size, len(firsts))))
                      for s in range(0, len(firsts), size)]
             tasks = [pts[s[0] : s[-1] + 1] for s in spans]
@@ -307,10 +322,7 @@ class Evaluator:
             for out in outcomes:
                 span = spans[out.index]
                 recs, fails = self._records(out, pts, span)
-                if self.store is not None:
-                    self.store.add(recs, study=self.study, model=self.model_id,
-                                   names_in=self.names_in, names_out=self.names_out,
-                                   run_id=self.run_id)
+                self._commit(recs)
                 for j, rec in zip(span, recs, strict=True):
                     for i in row_groups[j]:
                         if rec.outputs is not None:
@@ -330,6 +342,44 @@ class Evaluator:
             outcomes.close()  # cancels tasks not yet started
             bar.close()
         return n_failed
+
+    @contextmanager
+    def deferred_writes(self, seconds: float = 1.0) -> Iterator[Evaluator]:
+        """Within the block, commit finished evaluations to the store at most every
+        ``seconds`` (wall time) instead of after every task, and everything left on leaving
+        it (also on an error). For callers that evaluate a few points at a time thousands
+        of times (a Markov chain on the model itself): the store stays the record of what
+        was computed, a process killed inside the block loses at most its last ``seconds``
+        of evaluations. Points evaluated but not yet committed are not found by lookups
+        (they are evaluated again, to the same values)."""
+        outer = self._defer
+        self._defer = float(seconds)
+        self._committed = time.monotonic()
+        try:
+            yield self
+        finally:
+            self._defer = outer
+            self._commit_pending()
+
+    def _commit(self, recs: list[NewRecord]) -> None:
+        if self.store is None:
+            return
+        if self._defer is None:
+            self.store.add(recs, study=self.study, model=self.model_id,
+                           names_in=self.names_in, names_out=self.names_out,
+                           run_id=self.run_id)
+            return
+        self._pending.extend(recs)
+        if time.monotonic() - self._committed >= self._defer:
+            self._commit_pending()
+
+    def _commit_pending(self) -> None:
+        recs, self._pending = self._pending, []
+        self._committed = time.monotonic()
+        if recs and self.store is not None:
+            self.store.add(recs, study=self.study, model=self.model_id,
+                           names_in=self.names_in, names_out=self.names_out,
+                           run_id=self.run_id)
 
     def _records(self, out, pts, span) -> tuple[list[NewRecord], dict[int, str]]:
         """Store records and failure reasons (by position in ``pts``) of one task outcome."""

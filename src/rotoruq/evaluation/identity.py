@@ -97,10 +97,29 @@ def _package_of(path: Path, name: str) -> str:
 
 
 def _imports(path: Path, name: str) -> set[str]:
-    """rotoruq modules ``path`` (module ``name``) imports, anywhere in the file."""
-    package = _package_of(path, name)
+    """rotoruq modules ``path`` (module ``name``) imports, anywhere in the file (parsed once
+    per content: keyed by the module and the sha256 of the file's bytes, never by its
+    time stamp, whose granularity may hide an edit)."""
+    text = path.read_bytes()
+    return set(_parsed_imports(name, _package_of(path, name), hashlib.sha256(text).digest(),
+                               text))
+
+
+def _parsed_imports(name: str, package: str, sha: bytes, text: bytes) -> frozenset[str]:
+    key = (name, package, sha)
+    hit = _IMPORTS.get(key)
+    if hit is None:
+        hit = _IMPORTS[key] = frozenset(_parse_imports(text.decode("utf-8"), package))
+    return hit
+
+
+#: _parse_imports by (module, package, sha256 of the source)
+_IMPORTS: dict[tuple[str, str, bytes], frozenset[str]] = {}
+
+
+def _parse_imports(source: str, package: str) -> set[str]:
     out = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+    for node in ast.walk(ast.parse(source)):
         if isinstance(node, ast.Import):
             out |= {a.name for a in node.names if a.name.split(".")[0] == "rotoruq"}
         elif isinstance(node, ast.ImportFrom):

@@ -68,6 +68,13 @@ CREATE TABLE IF NOT EXISTS evaluations (
     attempts  INTEGER
 );
 CREATE INDEX IF NOT EXISTS evaluations_lookup ON evaluations (study, model, key);
+CREATE TABLE IF NOT EXISTS computed (
+    kind      TEXT NOT NULL,
+    key       TEXT NOT NULL,
+    value     BLOB NOT NULL,
+    finished  REAL NOT NULL,
+    PRIMARY KEY (kind, key)
+);
 """
 
 _COLUMNS = ("study", "run_id", "model", "key", "names_in", "names_out", "inputs", "outputs",
@@ -161,7 +168,7 @@ def _dumps(a) -> str | None:
     if a is None:
         return None
     # json writes floats with repr (exact round trip); NaN/inf as bare words Python reads back
-    return json.dumps([float(v) for v in np.ravel(a)])
+    return json.dumps(np.ravel(np.asarray(a, dtype=float)).tolist())
 
 
 @dataclass(frozen=True, eq=False)
@@ -361,10 +368,10 @@ class Store:
                f"VALUES ({', '.join('?' * len(_COLUMNS))})")
 
         def ins(con):
-            ids = []
-            for row in rows:
-                ids.append(con.execute(sql, row).lastrowid)
-            return ids
+            # one statement for the batch; inside the transaction the ids are consecutive
+            con.executemany(sql, rows)
+            last = int(con.execute("SELECT last_insert_rowid()").fetchone()[0])
+            return list(range(last - len(rows) + 1, last + 1))
 
         return self._write(ins)
 
@@ -450,6 +457,24 @@ class Store:
         q = "SELECT COUNT(*) FROM evaluations" + (" WHERE " + " AND ".join(where) if where
                                                    else "")
         return int(self._con().execute(q, args).fetchone()[0])
+
+    @_guarded
+    def put_computed(self, kind: str, key: str, value: bytes) -> None:
+        """Keep ``value``, a piece computed once and reused by the identity of its setup
+        (``kind``, e.g. "self_check", and ``key``, a digest of everything its answer depends
+        on); an earlier value under the same key is replaced."""
+        def ins(con):
+            con.execute("INSERT OR REPLACE INTO computed (kind, key, value, finished) "
+                        "VALUES (?, ?, ?, ?)", (kind, key, sqlite3.Binary(value), time.time()))
+
+        self._write(ins)
+
+    @_guarded
+    def get_computed(self, kind: str, key: str) -> bytes | None:
+        """The value :meth:`put_computed` kept under (``kind``, ``key``), or None."""
+        row = self._con().execute("SELECT value FROM computed WHERE kind = ? AND key = ?",
+                                  (kind, key)).fetchone()
+        return None if row is None else bytes(row[0])
 
     @_guarded
     def max_id(self) -> int:

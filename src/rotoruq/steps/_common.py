@@ -4,7 +4,8 @@ summary, added measurement noise, per-response noise levels, and a saved record 
 from __future__ import annotations
 
 import inspect
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
@@ -18,7 +19,8 @@ from ..results import RecordError, StepRecord, StepResult
 from .base import StepCheck, StepContext
 from .options import SIGNATURE, Option, choice, table
 
-__all__ = ["named_model", "column_moments", "stats_scalars", "input_arrays", "input_scalars",
+__all__ = ["named_model", "deferred_writes", "column_moments", "stats_scalars", "input_arrays",
+           "input_scalars",
            "noise", "per_response", "saved_record", "MOMENT_KEYS", "LevelsRecord", "levels_arrays",
            "LEVEL_OPTIONS", "LEVEL_TABLES", "MAPPING_AXES", "MappingsRecord", "check_levels",
            "level_request_of", "mapping_fields", "mapping_scalars"]
@@ -114,6 +116,17 @@ def noise(ctx: StepContext, noise_std, shape) -> np.ndarray:
     else:
         sd = np.full(shape[1], float(noise_std))
     return ctx.rng.normal(size=shape) * sd
+
+
+@contextmanager
+def deferred_writes(model: Any, seconds: float = 1.0) -> Iterator[None]:
+    """Within the block, a store-backed ``model`` commits its evaluations at most every
+    ``seconds`` (:meth:`rotoruq.evaluation.evaluator.Evaluator.deferred_writes`): for a
+    Markov chain on the model itself, thousands of calls of a few points each. Any other
+    model is used as it is."""
+    defer = getattr(model, "deferred_writes", None)
+    with defer(seconds) if callable(defer) else nullcontext():
+        yield
 
 
 def named_model(ctx: StepContext, name: str):

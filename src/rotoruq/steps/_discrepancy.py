@@ -25,7 +25,7 @@ from ..errors import ParameterError
 from ..params import Normal
 from ..render.tables import StepTable, label, make_table
 from ..results import StepRecord, StepResult, dist_to_dict
-from ._common import input_scalars, per_response
+from ._common import deferred_writes, input_scalars, per_response
 from .base import StepCheck, StepContext
 
 __all__ = ["DiscrepancyRecord", "run_discrepancy", "discrepancy_tables",
@@ -192,7 +192,7 @@ def _coupled_model(ctx: StepContext, configuration: str, couple: Mapping[str, st
         extra = [np.interp(z[:, -1], xs, v) for v in coupled.values()]
         return np.asarray(inner(np.column_stack([z, *extra]) if extra else z), dtype=float)
 
-    return FunctionModel(f, [*ctx.space.names, configuration], list(ctx.responses))
+    return FunctionModel(f, [*ctx.space.names, configuration], list(ctx.responses)), inner
 
 
 def run_discrepancy(ctx: StepContext) -> StepResult:
@@ -215,7 +215,7 @@ def run_discrepancy(ctx: StepContext) -> StepResult:
         spec["amplitude_scale"] = tuple(float(amp[r]) for r in ctx.responses)
     kind = spec.get("kind", "gp")
     form = None if kind == "none" else Discrepancy(**spec)
-    model = _coupled_model(ctx, configuration, o.get("couple") or {})
+    model, inner = _coupled_model(ctx, configuration, o.get("couple") or {})
     x = np.asarray(ctx.data_columns[configuration], dtype=float)
     y = ctx.observations()
     predict = np.asarray(o.get("predict_at") or [], dtype=float)
@@ -227,12 +227,13 @@ def run_discrepancy(ctx: StepContext) -> StepResult:
                              "configuration; nothing is left to calibrate on")
     at = np.unique(np.concatenate([x[~held], predict]))
     n_samples = max(2, int(o["n_samples"]) // N_CHAINS)
-    res = calibrate_with_discrepancy(
-        model, y[~held], ctx.space, configurations=x[~held], configuration_name=configuration,
-        discrepancy=form, noise_std=per_response(o.get("noise_std"), ctx.responses),
-        names_out=ctx.responses, sampler=o["sampler"], n_samples=n_samples,
-        burn_in=int(o["burn_in"]) // N_CHAINS, n_chains=N_CHAINS, n_draws=N_DRAWS,
-        predict_at=at, seed=ctx.rng)
+    with deferred_writes(inner):
+        res = calibrate_with_discrepancy(
+            model, y[~held], ctx.space, configurations=x[~held], configuration_name=configuration,
+            discrepancy=form, noise_std=per_response(o.get("noise_std"), ctx.responses),
+            names_out=ctx.responses, sampler=o["sampler"], n_samples=n_samples,
+            burn_in=int(o["burn_in"]) // N_CHAINS, n_chains=N_CHAINS, n_draws=N_DRAWS,
+            predict_at=at, seed=ctx.rng)
     p = res.prediction
     assert p is not None
     lo, hi = p.interval(BAND_LEVEL)

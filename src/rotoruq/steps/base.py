@@ -55,6 +55,9 @@ class StepContext:
         its chain for the joint posterior predictive.
     previous : the saved results of the steps before this one, by name (references such as
         ``u_num = "verify.u_num"``).
+    store : the study's evaluation store (:class:`rotoruq.evaluation.store.Store`; None
+        without one), which also keeps pieces computed once and reused by the identity of
+        their setup (a Bayes step's self-check: ``Store.get_computed`` / ``put_computed``).
     """
 
     name: str
@@ -70,6 +73,7 @@ class StepContext:
     targets: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     source: StepResult | None = None
     previous: Mapping[str, StepResult] = field(default_factory=dict)
+    store: Any = None
     _built: dict[tuple, Any] = field(default_factory=dict, init=False, repr=False)
 
     def observations(self) -> np.ndarray:

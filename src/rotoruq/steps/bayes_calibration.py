@@ -37,7 +37,7 @@ from ..render.figures import (
 )
 from ..render.tables import StepTable, label, make_table, parameters, prefixed, value
 from ..results import StepRecord, StepResult, dict_to_dist, dist_to_dict
-from ._common import input_scalars, named_model, per_response
+from ._common import deferred_writes, input_scalars, named_model, per_response
 from ._discrepancy import (
     check_discrepancy,
     discrepancy_option,
@@ -221,6 +221,42 @@ def _first_of_each_kind(caught) -> list[str]:
     return list(out.values())
 
 
+class _StoredSelfChecks:
+    """Self-checks kept in the study's store (its ``computed`` table, kind "self_check"),
+    under their setup's key (:func:`rotoruq.methods.mcmc.sbc.setup_key`) joined with the
+    digest of the code that computes them: a step whose data changed, or another step of
+    the same setup, reuses the self-check instead of running it again."""
+
+    def __init__(self, store):
+        from ..evaluation.identity import code_digest, code_parts
+
+        self.store = store
+        self.code = code_digest(code_parts(["rotoruq.methods.mcmc.sbc"]))
+
+    def get(self, key: str, /):
+        import io
+
+        from ..methods.mcmc.sbc import SBCResult
+
+        blob = self.store.get_computed("self_check", f"{key}|{self.code}")
+        if blob is None:
+            return None
+        with np.load(io.BytesIO(blob), allow_pickle=False) as npz:
+            arrays = dict(npz)
+        caught = arrays.pop("_warnings").reshape(-1, 2)
+        return (SBCResult.from_arrays(arrays),
+                tuple((str(c), str(m)) for c, m in caught))
+
+    def __setitem__(self, key: str, value, /) -> None:
+        import io
+
+        result, caught = value
+        buf = io.BytesIO()
+        np.savez(buf, _warnings=np.array(caught, dtype=str).reshape(-1, 2),
+                 **result.to_arrays())
+        self.store.put_computed("self_check", f"{key}|{self.code}", buf.getvalue())
+
+
 def run_bayes_calibration(ctx: StepContext) -> StepResult:
     """Bayes calibration (DRAM on a GP emulator by default, several chains advanced together).
     The chains are saved (later forward checks and sampling steps propagate their joint
@@ -248,10 +284,11 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
     sd = per_response(o.get("noise_std"), ctx.responses)
     multipliers = o.get("noise_multipliers")
     mult_prior = tuple(o.get("noise_multiplier_prior") or (1.0, 1.0))
-    with warnings.catch_warnings(record=True) as caught:
+    model = ctx.model()
+    with warnings.catch_warnings(record=True) as caught, deferred_writes(model):
         warnings.simplefilter("always")
         res = calibrate_bayes(
-            ctx.model(), ctx.observations(), ctx.space,
+            model, ctx.observations(), ctx.space,
             noise=NoiseModel(noise_std=sd, noise_multipliers=multipliers,
                              noise_multiplier_prior=mult_prior),
             chains=ChainOptions(sampler=o["sampler"], n_samples=o["n_samples"],
@@ -262,6 +299,8 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
                 emulator_variance=o["emulator_variance"],
                 refine=_refine_config(o.get("refine"))),
             self_check=o["self_check"], seed=ctx.rng,
+            self_check_cache=(_StoredSelfChecks(ctx.store) if o["self_check"] and ctx.store
+                              is not None else None),
         )
     names = tuple(res.names_in)
     d = len(names)

@@ -547,6 +547,11 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
         write_bytes(out / "study.toml", study.path.read_bytes())
     store_path = out / study.store.path if study.store.enabled else None
     factory = model_factory or build_model_factory(study, store_path, out)
+    computed_store = None
+    if store_path is not None:
+        from ..evaluation.store import Store
+
+        computed_store = Store(store_path)
     probe_factory = model_factory or partial(build_model, study, out=out)
     _write_study_json(study, out, quick)
 
@@ -588,7 +593,7 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
             rng=_seed(study, step, plan.options), data=plan.data, data_columns=plan.columns,
             targets=_step_targets(step, plan.options, results),
             source=results[step.source[0]] if step.source else None,
-            previous=dict(results),
+            previous=dict(results), store=computed_store,
         )
         log.info("[%s] %s: running %s (%s -> %s)", study.info.name, step.name, step.type,
                  ", ".join(plan.space.names), ", ".join(plan.responses))

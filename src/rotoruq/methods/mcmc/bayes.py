@@ -21,7 +21,7 @@ import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -74,9 +74,20 @@ from .samplers import SamplerConfig, SamplerState, run_chains
 if TYPE_CHECKING:
     from .sbc import SBCResult
 
-__all__ = ["calibrate_bayes", "continue_chain", "BayesResult"]
+__all__ = ["calibrate_bayes", "continue_chain", "BayesResult", "SelfCheckCache"]
 
 log = logging.getLogger(__name__)
+
+
+class SelfCheckCache(Protocol):
+    """Where :func:`calibrate_bayes` keeps self-checks by the identity of their setup (a
+    dict will do): each as (result, the warnings its replications raised, as
+    ``("module:qualname", message)`` pairs, raised again when it is reused)."""
+
+    def get(self, key: str, /) -> tuple[SBCResult, tuple[tuple[str, str], ...]] | None: ...
+
+    def __setitem__(self, key: str, value: tuple[SBCResult, tuple[tuple[str, str], ...]],
+                    /) -> None: ...
 
 
 # Random stages of a calibration, each with its own child of the call's SeedSequence (spawn
@@ -812,6 +823,21 @@ def _sample(truth, gp, pb: _Problem, prior, cfg, auto_schedule, emulator_varianc
             best_build, proposal_covariance, n_chains, n_samples, burn_in, thin, seeds) -> dict:
     """Stages 3-5 and the chains on one emulator (or the model): start point, initial
     proposal, chain starts and chains; the chains' kept samples are scaled (n, c, d)."""
+    run = _prepare(truth, gp, pb, prior, cfg, auto_schedule, emulator_variance, x0, map_start,
+                   best_build, proposal_covariance, n_chains, seeds)
+    t0, c0 = time.perf_counter(), time.process_time()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExtrapolationWarning)
+        kept, kept_lp = run_chains(run["post"], run["state"], run["cfg"], n_samples, burn_in,
+                                   thin)
+    return dict(run, kept=kept, kept_lp=kept_lp, seconds=time.perf_counter() - t0,
+                cpu_seconds=time.process_time() - c0)
+
+
+def _prepare(truth, gp, pb: _Problem, prior, cfg, auto_schedule, emulator_variance, x0,
+             map_start, best_build, proposal_covariance, n_chains, seeds) -> dict:
+    """Stages 3-5 of :func:`_sample`: the posterior, the start point, the initial proposal
+    and the chains' starting state (and the evaluation schedule), ready to run."""
     d = prior.dim
     if gp is not None:
         forward = gp._mean_fast
@@ -839,13 +865,7 @@ def _sample(truth, gp, pb: _Problem, prior, cfg, auto_schedule, emulator_varianc
                  "minimal evaluation schedule (the same chains, fewer model runs)", cost,
                  SLOW_EVALUATION)
     post.reset_counts()
-    t0, c0 = time.perf_counter(), time.process_time()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ExtrapolationWarning)
-        kept, kept_lp = run_chains(post, state, cfg, n_samples, burn_in, thin)
-    return dict(post=post, theta0=theta0, cov_z=cov_z, state=state, kept=kept, cfg=cfg,
-                kept_lp=kept_lp, seconds=time.perf_counter() - t0,
-                cpu_seconds=time.process_time() - c0)
+    return dict(post=post, theta0=theta0, cov_z=cov_z, state=state, cfg=cfg)
 
 
 def calibrate_bayes(
@@ -859,6 +879,7 @@ def calibrate_bayes(
     emulator: GaussianProcess | CoKriging | EmulatorOptions | None = None,
     posterior_predictive: int = 0,
     self_check: int = 0,
+    self_check_cache: SelfCheckCache | None = None,
     seed: SeedLike = None,
     **legacy: Any,
 ) -> BayesResult:
@@ -944,6 +965,12 @@ def calibrate_bayes(
         with the same emulator, sampler and emulator variance, short chains) and stores the
         verdict in ``BayesResult.self_check``. Needs ``noise_std`` (not a covariance) and no
         noise multipliers. 0 (default): no self-check.
+    self_check_cache : a mapping in which the self-check is looked up before it runs and
+        stored after, under :func:`~rotoruq.methods.mcmc.sbc.setup_key` of its setup (the
+        true model as this call sees it, prior, fitted emulator, sampler, noise, counts,
+        seed; never the data, which the self-check does not use): two calls with the same
+        setup share one. A cache kept across runs must also tell the code apart (the study
+        runner's does). None: always computed.
     seed : int, SeedSequence or Generator. Every random stage (emulator design, GP
         restarts of an unseeded emulator, MAP starts, chain starts, chains, posterior
         predictive draws, the KL subsample) has its own child of
@@ -1100,7 +1127,7 @@ def calibrate_bayes(
     if self_check:
         res = dataclasses.replace(res, self_check=_self_check(
             model, prior, pb, gp, cfg, emulator_variance, noise_std, noise_covariance,
-            int(self_check), seeds["self_check"]))
+            int(self_check), seeds["self_check"], self_check_cache))
     log.info("calibrate_bayes: %d chains x %d kept steps in %.2f s (total %.2f s)", n_chains,
              n_samples, t_sampling, time.perf_counter() - t_start)
     return res
@@ -1108,9 +1135,11 @@ def calibrate_bayes(
 
 def _self_check(model, prior: ParameterSpace, pb: _Problem, gp, cfg: SamplerConfig,
                 emulator_variance: bool, noise_std, noise_covariance, n_replications: int,
-                seed: np.random.SeedSequence) -> SBCResult:
-    """Simulation-based calibration of the setup of one :func:`calibrate_bayes` call."""
-    from .sbc import simulation_based_calibration
+                seed: np.random.SeedSequence,
+                cache: SelfCheckCache | None = None) -> SBCResult:
+    """Simulation-based calibration of the setup of one :func:`calibrate_bayes` call, from
+    ``cache`` when it holds one of the same setup."""
+    from .sbc import setup_key, simulation_based_calibration
 
     if pb.groups is not None:
         raise ParameterError("self_check with noise_multipliers: the replications would need "
@@ -1125,12 +1154,45 @@ def _self_check(model, prior: ParameterSpace, pb: _Problem, gp, cfg: SamplerConf
             raise ParameterError("self_check simulates data with one noise std per response; "
                                  "this call's noise_std differs between experiments")
         std = std[0]
-    return simulation_based_calibration(
-        model, prior, noise_std=std, n_replications=n_replications,
-        n_experiments=pb.lik.data.shape[0],
-        emulator=gp,  # fitted: sbc uses it as given
-        names_out=pb.names_out, seed=seed,
-        sampler=cfg, emulator_variance=emulator_variance)
+    settings = dict(noise_std=std, n_replications=n_replications,
+                    n_experiments=pb.lik.data.shape[0],
+                    names_out=pb.names_out, sampler=cfg, emulator_variance=emulator_variance)
+    key = None
+    if cache is not None:
+        model_key = (f"{type(model).__module__}.{type(model).__qualname__}|"
+                     f"{getattr(model, 'model_id', '')}|{tuple(model.names_in)}|"
+                     f"{tuple(model.names_out)}")
+        key = setup_key(model_key, prior, gp, seed, **settings)
+        hit = None if key is None else cache.get(key)
+        if hit is not None:
+            log.info("self-check reused (setup %s)", key)
+            for category, message in hit[1]:  # what its replications warned, as they did
+                warnings.warn(message, _warning_class(category), stacklevel=3)
+            return hit[0]
+    if cache is None or key is None:
+        return simulation_based_calibration(model, prior, emulator=gp,  # fitted: as given
+                                            seed=seed, **settings)
+    with warnings.catch_warnings(record=True) as caught:
+        out = simulation_based_calibration(model, prior, emulator=gp, seed=seed, **settings)
+    for w in caught:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    cache[key] = (out, tuple((f"{w.category.__module__}:{w.category.__qualname__}",
+                              str(w.message)) for w in caught))
+    return out
+
+
+def _warning_class(name: str) -> type[Warning]:
+    """The warning category ``module:qualname`` (UserWarning when there is none)."""
+    import importlib
+
+    module, _, qualname = name.partition(":")
+    try:
+        obj: Any = importlib.import_module(module)
+        for part in qualname.split("."):
+            obj = getattr(obj, part)
+    except (ImportError, AttributeError):
+        return UserWarning
+    return obj if isinstance(obj, type) and issubclass(obj, Warning) else UserWarning
 
 
 def continue_chain(result: BayesResult, n_samples: int, *, seed: SeedLike = None) -> BayesResult:
@@ -1172,3 +1234,90 @@ def continue_chain(result: BayesResult, n_samples: int, *, seed: SeedLike = None
     res = _split_multipliers(res, len(result.names_in))
     return dataclasses.replace(res, diagnostics=dg.diagnose(res.chains),
                                self_check=result.self_check)
+
+
+#: calibrate_bayes keywords a self-check replication may set and :class:`_CheckChains` runs
+CHECK_OPTIONS = frozenset({"sampler", "emulator_variance", "n_samples", "burn_in", "thin",
+                           "n_chains", "map_start", "proposal_covariance"})
+
+
+class _CheckChains:
+    """The chains of one self-check replication on a fitted emulator: the stages of
+    :func:`calibrate_bayes` up to its chains, without the summary (moments, KL divergence,
+    R-hat, the emulator's adequacy over the posterior) that the self-check never reads;
+    built, the chains are ready to start (start point, proposal, chain starts); :meth:`run`
+    runs them and :meth:`warn` gives the warning calibrate_bayes gives after them;
+    :meth:`extend` takes the steps of :func:`continue_chain`. ``chains`` (c, n, d), parameter
+    units, are bitwise those of ``calibrate_bayes(...).chains`` and of the continued results
+    for the same arguments and seeds; ``n_evaluations`` their true-model evaluations."""
+
+    def __init__(self, model: Model, data: np.ndarray, prior: ParameterSpace, gp: Emulator, *,
+                 noise_std: ArrayLike, names_out: Sequence[str], seed: SeedLike,
+                 sampler: str | SamplerConfig = "dram", emulator_variance: bool = True,
+                 n_samples: int = 95_000, burn_in: int | None = None, thin: int = 1,
+                 n_chains: int = 1, map_start: bool = True,
+                 proposal_covariance: str | ArrayLike = "hessian"):
+        seeds = _stage_seeds(seed)
+        cfg = _as_sampler(sampler)
+        n_samples, thin, n_chains = int(n_samples), int(thin), int(n_chains)
+        burn_in = n_samples // 19 if burn_in is None else int(burn_in)
+        if n_samples < 1 or thin < 1 or n_chains < 1 or burn_in < 0:
+            raise ParameterError(f"need n_samples >= 1, burn_in >= 0, thin >= 1 and "
+                                 f"n_chains >= 1; got {n_samples}, {burn_in}, {thin}, "
+                                 f"{n_chains}")
+        pb = _setup(model, data, prior, names_out, noise_std, None)
+        if gp.n_inputs != prior.dim or gp.n_outputs != len(pb.names_out):
+            raise ModelShapeError(f"fitted emulator has {gp.n_inputs} inputs and "
+                                  f"{gp.n_outputs} outputs; need {prior.dim} and "
+                                  f"{len(pb.names_out)}")
+        self.truth = _TrueModel(model, prior)
+        run = _prepare(self.truth, gp, pb, pb.space, cfg, not isinstance(sampler, SamplerConfig),
+                       emulator_variance, None, map_start, None, proposal_covariance, n_chains,
+                       {k: seeds[k] for k in ("start", "chain_starts", "chains")})
+        self.post, self.state, self.cfg, self.thin = run["post"], run["state"], run["cfg"], thin
+        self.n_samples, self.burn_in = n_samples, burn_in
+        self.chains = np.empty((n_chains, 0, prior.dim))
+        self._extrapolated = (0, 0.0)
+
+    @property
+    def compiled(self) -> bool:
+        """The chains run in compiled code alone (no Python model, nothing that warns): they
+        may run on a thread of their own."""
+        return self.post.compiled is not None
+
+    def run(self) -> None:
+        """The chains (:func:`calibrate_bayes`'s n_samples, burn_in); then ``chains``."""
+        if self.compiled:
+            kept = run_chains(self.post, self.state, self.cfg, self.n_samples, self.burn_in,
+                              self.thin)[0]
+        else:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", ExtrapolationWarning)
+                kept = run_chains(self.post, self.state, self.cfg, self.n_samples, self.burn_in,
+                                  self.thin)[0]
+        self.chains = self.post.center + self.post.scale * kept.transpose(1, 0, 2)
+        self._extrapolated = (self.post.n_extrapolated, self.post.max_extrapolation)
+
+    def warn(self) -> None:
+        """The warning :func:`calibrate_bayes` gives after its chains (extrapolation; counted
+        by :meth:`run`, not by later extensions)."""
+        n, far = self._extrapolated
+        if n:
+            warnings.warn(f"emulator extrapolated for {n} proposals, up to {far:.3g} "
+                          "box-widths outside its training box", ExtrapolationWarning,
+                          stacklevel=2)
+
+    @property
+    def n_evaluations(self) -> int:
+        """True-model evaluations (the chains run on the emulator: none of theirs)."""
+        return self.truth.n_evaluations
+
+    def extend(self, n_samples: int, seed: SeedLike) -> None:
+        """``n_samples`` more kept steps per chain, as ``continue_chain(result, n_samples,
+        seed=seed)``."""
+        post, state = self.post, self.state
+        state.reseed(as_generator(seed))
+        kept = run_chains(post, state, self.cfg, int(n_samples), 0, self.thin)[0]
+        z_old = (self.chains - post.center) / post.scale
+        chains_z = np.concatenate([z_old, kept.transpose(1, 0, 2)], axis=1)
+        self.chains = post.center + post.scale * chains_z

@@ -65,7 +65,11 @@ def _rank_normalise(x: np.ndarray) -> np.ndarray:
     """Pooled ranks per parameter mapped to normal scores (Blom's offset 3/8), same shape."""
     m, n, d = x.shape
     rank = stats.rankdata(x.reshape(m * n, d), method="average", axis=0)
-    return stats.norm.ppf((rank - 0.375) / (m * n + 0.25)).reshape(m, n, d)
+    # stats.norm.ppf without its argument checks: ndtri(q) * 1 + 0 into a C-ordered array
+    # (the FFT of the ESS depends on the layout in its last bits)
+    z = np.empty(rank.shape)
+    z[...] = special.ndtri((rank - 0.375) / (m * n + 0.25)) + 0.0
+    return z.reshape(m, n, d)
 
 
 def _rhat_core(x: np.ndarray) -> np.ndarray:

@@ -15,13 +15,18 @@ noise of each replication, the emulator design and fit, and each replication's c
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import inspect
 import math
 import time
-from collections.abc import Callable, Sequence
+import warnings
+from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy import stats
@@ -34,7 +39,14 @@ from ..cokriging import CoKriging
 from ..surrogate import GaussianProcess
 from . import diagnostics as dg
 from ._emulator import fit_on_prior
-from .bayes import BayesResult, _is_fitted, calibrate_bayes, continue_chain
+from .bayes import (
+    CHECK_OPTIONS,
+    BayesResult,
+    _CheckChains,
+    _is_fitted,
+    calibrate_bayes,
+    continue_chain,
+)
 from .options import (
     LEGACY_KEYWORDS,
     ChainOptions,
@@ -43,7 +55,7 @@ from .options import (
     legacy_keywords,
 )
 
-__all__ = ["SBCResult", "simulation_based_calibration"]
+__all__ = ["SBCResult", "simulation_based_calibration", "setup_key"]
 
 COVERAGE_LEVELS = (0.5, 0.9)
 
@@ -106,6 +118,24 @@ class SBCResult:
     @property
     def n_replications(self) -> int:
         return int(self.ranks.shape[0])
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """Every field as a numpy array (numbers 0-d, texts as unicode), for ``np.savez``;
+        :meth:`from_arrays` gives the result back, bitwise."""
+        return {f.name: np.asarray(getattr(self, f.name)) for f in dataclasses.fields(self)}
+
+    @classmethod
+    def from_arrays(cls, arrays: Mapping[str, np.ndarray]) -> SBCResult:
+        """The result :meth:`to_arrays` wrote."""
+        kinds: dict[str, Callable[[np.ndarray], Any]] = {
+            "names_in": lambda a: tuple(str(v) for v in a), "reason": str, "passed": bool,
+            "n_draws": int, "n_autocorrelated": int, "n_evaluations": int}
+        out: dict[str, Any] = {}
+        for f in dataclasses.fields(cls):
+            a = np.asarray(arrays[f.name])
+            out[f.name] = kinds[f.name](a) if f.name in kinds else (
+                float(a) if a.ndim == 0 else a)
+        return cls(**out)
 
     def summary(self) -> str:
         """A plain-text table: p-value, z-score spread and coverages per parameter."""
@@ -341,27 +371,25 @@ def simulation_based_calibration(
     covered = np.zeros((len(COVERAGE_LEVELS), n_replications, d), dtype=bool)
     ess = np.empty(n_replications)
     n_short = 0
+    # on a fitted emulator the replications run the chains alone (no posterior summary nor
+    # diagnostics, which the self-check never reads): the same chains, bitwise
+    lean = None
+    if calibrate is None and gp is not None and set(bayes_options) <= CHECK_OPTIONS:
+        lean = _replications(model, prior, gp, clean, noise, obs, s_reps, n_experiments,
+                             n_draws, bayes_options)
     for i, s_rep in enumerate(s_reps):
-        s_noise, s_cal, s_more = s_rep.spawn(3)
-        eps = np.random.default_rng(s_noise).standard_normal((n_experiments, m))
-        data = clean[i] + noise * eps
-        if calibrate is None:
-            res = calibrate_bayes(model, data, prior, names_out=list(obs),
-                                  noise=NoiseModel(noise_std=noise, **records.get("noise", {})),
-                                  chains=ChainOptions(**records.get("chains", {})),
-                                  emulator=None if gp is None else EmulatorOptions(
-                                      gp, **records.get("emulator", {})),
-                                  seed=s_cal, **rest)
-            for k, s_k in enumerate(s_more.spawn(3)):
-                if dg.effective_sample_size(res.chains).min() >= n_draws:
-                    break
-                res = continue_chain(res, int(bayes_options["n_samples"]) * 2**k, seed=s_k)
-            n_evaluations += res.n_evaluations
-            draws = res.chains
+        ess_i = None
+        if lean is not None:
+            draws, ess_i, n_ev = lean[i]
+            n_evaluations += n_ev
         else:
-            out = calibrate(data, seed=s_cal) if takes_seed else calibrate(data)
-            draws = _as_draws(out, d)
-        ess[i] = float(dg.effective_sample_size(draws).min())
+            draws, ess_i, n_ev = _replication(model, prior, gp, clean[i], noise, obs, s_rep,
+                                              n_experiments, n_draws, calibrate, takes_seed,
+                                              bayes_options, records, rest, d)
+            n_evaluations += n_ev
+        if ess_i is None:  # the chains changed since their ESS was computed
+            ess_i = dg.effective_sample_size(draws)
+        ess[i] = float(ess_i.min())
         n_short += bool(ess[i] < n_draws)
         flat = draws.reshape(-1, d)
         thinned = _thin(draws, n_draws)
@@ -385,6 +413,146 @@ def simulation_based_calibration(
         ess=ess, n_autocorrelated=n_short, alpha=float(alpha),
         coverage_tolerance=float(coverage_tolerance), passed=passed, reason=reason,
         n_evaluations=n_evaluations, seconds=time.perf_counter() - t_start)
+
+
+def setup_key(model_key: str, prior: ParameterSpace, emulator: Any, seed: SeedLike,
+              **settings: Any) -> str | None:
+    """The identity of a self-check's setup: a digest of everything that changes its answer
+    and nothing else (not the data it checks): ``model_key`` (the true model the
+    replications simulate from, and the code, as the caller identifies them), the prior,
+    the fitted emulator's training data and hyperparameters, the seed and ``settings`` (the
+    remaining arguments of :func:`simulation_based_calibration`: counts, noise, sampler,
+    ...). None when the setup cannot be identified (an unfitted emulator or a co-kriging
+    one, a seed that is not a SeedSequence or an int)."""
+    if isinstance(seed, np.random.SeedSequence):
+        seed_doc: Any = [repr(seed.entropy), list(seed.spawn_key), seed.pool_size]
+    elif isinstance(seed, int | np.integer):
+        seed_doc = int(seed)
+    else:
+        return None
+    if not isinstance(emulator, GaussianProcess) or not _is_fitted(emulator):
+        return None
+    h = hashlib.sha256()
+
+    def add(obj: Any) -> None:
+        if isinstance(obj, np.ndarray):
+            a = np.ascontiguousarray(obj)
+            h.update(f"{a.dtype.str}{a.shape}".encode())
+            h.update(a.tobytes())
+        elif dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+            add(type(obj).__qualname__)
+            for f in dataclasses.fields(obj):
+                add(f.name)
+                add(getattr(obj, f.name))
+        elif isinstance(obj, list | tuple):
+            h.update(b"[")
+            for v in obj:
+                add(v)
+            h.update(b"]")
+        elif isinstance(obj, dict):
+            for k in sorted(obj):
+                add(k)
+                add(obj[k])
+        else:
+            h.update(repr(obj).encode())
+        h.update(b"\0")
+
+    add(["sbc-setup-1", model_key, seed_doc])
+    add([(n, type(d).__qualname__, d.describe()) for n, d in
+         zip(prior.names, prior.distributions, strict=True)])
+    add(None if prior.correlation is None else np.asarray(prior.correlation, dtype=float))
+    gp = emulator
+    add([type(gp).__qualname__, {k: v for k, v in vars(gp).items()
+                                 if not k.startswith("_") and k != "seed"}])
+    add([gp._X, gp._Y, list(gp._fits)])
+    add({k: (np.asarray(v, dtype=float) if isinstance(v, np.ndarray | list) else v)
+         for k, v in settings.items()})
+    return h.hexdigest()[:32]
+
+
+def _replication(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarray,
+                 noise: np.ndarray, obs: tuple[str, ...], s_rep: np.random.SeedSequence,
+                 n_experiments: int, n_draws: int, calibrate: Callable[..., Any] | None,
+                 takes_seed: bool, options: dict, records: dict, rest: dict, d: int
+                 ) -> tuple[np.ndarray, np.ndarray | None, int]:
+    """One replication through ``calibrate`` or :func:`calibrate_bayes`: posterior draws
+    (c, n, d), their ESS when it was computed (else None) and true-model evaluations."""
+    s_noise, s_cal, s_more = s_rep.spawn(3)
+    eps = np.random.default_rng(s_noise).standard_normal((n_experiments, len(obs)))
+    data = clean + noise * eps
+    if calibrate is not None:
+        out = calibrate(data, seed=s_cal) if takes_seed else calibrate(data)
+        return _as_draws(out, d), None, 0
+    res = calibrate_bayes(model, data, prior, names_out=list(obs),
+                          noise=NoiseModel(noise_std=noise, **records.get("noise", {})),
+                          chains=ChainOptions(**records.get("chains", {})),
+                          emulator=None if gp is None else EmulatorOptions(
+                              gp, **records.get("emulator", {})),
+                          seed=s_cal, **rest)
+    for k, s_k in enumerate(s_more.spawn(3)):
+        ess = dg.effective_sample_size(res.chains)
+        if ess.min() >= n_draws:
+            return res.chains, ess, res.n_evaluations
+        res = continue_chain(res, int(options["n_samples"]) * 2**k, seed=s_k)
+    return res.chains, None, res.n_evaluations
+
+
+def _replications(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarray,
+                  noise: np.ndarray, obs: tuple[str, ...], s_reps: list, n_experiments: int,
+                  n_draws: int, options: dict) -> list[tuple[np.ndarray, np.ndarray, int]]:
+    """The default calibration of every replication on the fitted emulator ``gp``: posterior
+    draws (c, n, d), their ESS (d,) and true-model evaluations, per replication.
+
+    Each replication's chains are continued (up to 3 times) while their ESS stays below
+    ``n_draws``, as with :func:`continue_chain`. Replications are independent: when every
+    one runs in compiled code alone they run on ``numba.get_num_threads()`` threads, each
+    from its own seeds, so the numbers do not depend on the thread count. The warnings come
+    in the order of a one-by-one run (each replication's start, then its chains').
+    """
+    m = len(obs)
+    reps, more, caught = [], [], []
+    for i, s_rep in enumerate(s_reps):
+        s_noise, s_cal, s_more = s_rep.spawn(3)
+        eps = np.random.default_rng(s_noise).standard_normal((n_experiments, m))
+        with warnings.catch_warnings(record=True) as got:
+            reps.append(_CheckChains(model, clean[i] + noise * eps, prior, gp, noise_std=noise,
+                                     names_out=list(obs), seed=s_cal, **options))
+        caught.append(got)
+        more.append(s_more.spawn(3))
+    n_samples = int(options["n_samples"])
+
+    def chains(i: int, emit: bool) -> np.ndarray:
+        rep = reps[i]
+        if emit:
+            _warn_again(caught[i])
+        rep.run()
+        if emit:
+            rep.warn()
+        for k, s_k in enumerate(more[i]):
+            ess = dg.effective_sample_size(rep.chains)
+            if ess.min() >= n_draws:
+                return ess
+            rep.extend(n_samples * 2**k, s_k)
+        return dg.effective_sample_size(rep.chains)
+
+    n_threads = min(numba.get_num_threads(), len(reps))
+    if all(r.compiled for r in reps):  # nothing warns while they run: any order will do
+        if n_threads > 1:
+            with ThreadPoolExecutor(n_threads) as pool:
+                ess = list(pool.map(chains, range(len(reps)), [False] * len(reps)))
+        else:
+            ess = [chains(i, False) for i in range(len(reps))]
+        for got, rep in zip(caught, reps, strict=True):
+            _warn_again(got)
+            rep.warn()
+    else:
+        ess = [chains(i, True) for i in range(len(reps))]
+    return [(r.chains, e, r.n_evaluations) for r, e in zip(reps, ess, strict=True)]
+
+
+def _warn_again(caught: list) -> None:
+    for w in caught:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
 
 def _takes_seed(func: Callable[..., Any]) -> bool:

@@ -119,8 +119,11 @@ def _chromium(tmp_path, *args: str) -> subprocess.CompletedProcess:
 
 
 def test_first_screen_shows_the_verdict_and_every_figure_is_svg(tmp_path):
+    from rotoruq.reference import application_for
+
     exp, val = _fake_reference(tmp_path)
-    index = write_report([exp, val], tmp_path / "report")
+    index = write_report([exp, val], tmp_path / "report",
+                         application=application_for([exp, val]))
     claims = json.loads((tmp_path / "report" / "claims.json").read_text())
     probe = index.with_name("probe.html")
     probe.write_text(index.read_text().replace("<head>", "<head>" + FIRST_SCREEN_PROBE, 1))

@@ -271,7 +271,7 @@ def test_option_defaults_are_the_methods(tmp_path):
         for key, opt in st.options.items():
             if opt.default is SIGNATURE:
                 signature_default(opt.method or st.method, opt.param or key)  # no LookupError
-    from rotoruq.methods.mcmc import calibrate_bayes
+    from rotoruq.methods.mcmc import ChainOptions, calibrate_bayes
     from rotoruq.methods.sensitivity import sobol_indices
 
     text = VALID + '\n[[steps]]\nname = "sens"\ntype = "sensitivity"\nn_samples = 64\n'
@@ -282,12 +282,13 @@ def test_option_defaults_are_the_methods(tmp_path):
     assert sens["design"] == sig[opts["design"].param or "design"].default
     assert sens["estimator"] == sig[opts["estimator"].param or "estimator"].default
     bayes = study.step("bayes").options
-    sig = inspect.signature(calibrate_bayes).parameters
-    opts = STEP_TYPES["bayes_calibration"].options
+    # calibrate_bayes takes its chain settings as a ChainOptions record (issue 33)
+    chains = ChainOptions()
+    assert "chains" in inspect.signature(calibrate_bayes).parameters
     assert bayes["burn_in"] == 100  # given in the file
     no_burn = load_study(write(tmp_path, VALID.replace("burn_in = 100\n", "")))
-    assert no_burn.step("bayes").options["burn_in"] == sig["burn_in"].default
-    assert bayes["sampler"] == sig[opts["sampler"].param or "sampler"].default
+    assert no_burn.step("bayes").options["burn_in"] == chains.burn_in
+    assert bayes["sampler"] == chains.sampler
     # a method parameter without default is required in the study file
     assert STEP_TYPES["pce"].default("order") is REQUIRED
     err = error_of(tmp_path, VALID + '\n[[steps]]\nname = "pc"\ntype = "pce"\n')

@@ -29,12 +29,7 @@ from rotoruq.study.schema import parse_study
 CLI = [sys.executable, "-m", "rotoruq.study.cli"]
 EXPECTED_CLAIMS = Path(__file__).parent / "data" / "reference_quick_claims.json"
 
-DRIVER = r'''
-import sys
-vals = {k.strip(): float(v) for k, v in (line.split("=") for line in open("input.txt"))}
-a, b = vals["a"], vals["b"]
-open(sys.argv[2], "w").write(f"{2 * a + b!r} y1\n")
-'''
+from test_security import DRIVER  # noqa: E402 (one external driver for both)
 
 # An external solver's study that happens to be called "validation", with one sampling step.
 EXTERNAL = """\

@@ -351,7 +351,7 @@ def test_sobol_step_reports_variance_and_flags_negligible(tmp_path):
     assert s.get("out_var/y1") == pytest.approx(0.4, rel=0.05)
     assert s.get("out_cv/y1") == pytest.approx(np.sqrt(0.4) / 8, rel=0.05)
     assert s.get("negligible/y1") == 0.0
-    assert s.get("S_lo/y1/b") <= s.get("S/y1/b") <= s.get("S_hi/y1/b")
+    assert s.get("S_ci/y1/b/lo") <= s.get("S/y1/b") <= s.get("S_ci/y1/b/hi")
     assert not step_warnings(s)
     tiny = StepResult("x", "sensitivity", {"negligible/thrust": 1.0, "out_std/thrust": 0.03,
                                            "out_cv/thrust": 1.5e-5})

@@ -28,7 +28,14 @@ from test_trust import cli, external_study
 
 
 def _edit_mean(doc: dict) -> None:
-    doc["scalars"]["mean/y1"] = doc["scalars"]["mean/y1"] + 1e-12
+    """A number moved by 1e-12: a scalar, or (a step whose numbers are its record) the mean
+    of an input distribution, from which its flat view derives ``input_mean/``."""
+    if "mean/y1" in doc["scalars"]:
+        doc["scalars"]["mean/y1"] = doc["scalars"]["mean/y1"] + 1e-12
+        return
+    dist = next(iter(doc["meta"]["input_distributions"].values()))
+    key = next(k for k, v in dist.items() if isinstance(v, float))
+    dist[key] += 1e-12
 
 
 EDITS = {

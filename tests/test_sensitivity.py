@@ -292,4 +292,4 @@ n_samples = 32
     for p, exact in (("a", 4 / 13), ("b", 9 / 13)):
         assert s.get(f"S/y/{p}") == pytest.approx(exact, abs=0.03)
         assert s.get(f"T/y/{p}") == pytest.approx(exact, abs=0.03)
-        assert s.get(f"S_lo/y/{p}") <= s.get(f"S/y/{p}") <= s.get(f"S_hi/y/{p}")
+        assert s.get(f"S_ci/y/{p}/lo") <= s.get(f"S/y/{p}") <= s.get(f"S_ci/y/{p}/hi")

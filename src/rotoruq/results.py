@@ -1,16 +1,23 @@
 """The saved form of a step's outcome, shared by the runner (writes) and the report (reads).
 
-A :class:`StepResult` is method-agnostic: flat named scalars (``"mean/thrust"``,
-``"S/thrust/cla_m03"``, ``"nstd/power@2"``), named arrays (samples, chains), the distributions
-the step hands to later steps (posterior / calibrated) and JSON metadata. On disk::
+A step saves its numbers once, as a typed record (:class:`StepRecord`: named arrays with
+their axis names, names, plain numbers). A :class:`StepResult` holds that record's arrays and
+description, the other arrays of the step (samples, chains), the distributions it hands to
+later steps (posterior / calibrated) and JSON metadata. Its flat view
+(:attr:`StepResult.scalars`: ``"mean/thrust"``, ``"S/thrust/cla_m03"``, ``"nstd/power@2"``)
+is derived from the record's own axis names (:func:`flat_view`), never written by hand. On
+disk::
 
-    <out>/steps/<name>/result.json     name, type, fingerprint, scalars, distributions, meta
-    <out>/steps/<name>/scalars.csv     key,value
+    <out>/steps/<name>/result.json     name, type, fingerprint, record, distributions, meta
     <out>/steps/<name>/<array>.npy     every array, plus <array>.csv when it has named columns
     <out>/study.json                   the study: name, description, seed, quick, step order,
                                        parameters (labels, units) and the model's record
                                        (``model.values``, ``model.curves``; see
                                        :func:`rotoruq.study.runner.model_record`)
+
+``rotoruq show --csv`` writes the flat view. Folders saved by earlier versions (schema 1,
+flat scalars in ``result.json`` and ``scalars.csv``) still load; their scalars are read as
+saved.
 
 Saves are atomic (see :func:`save_step`) and loads check every file against the sha256 that
 ``result.json`` records, and ``result.json`` itself against its ``checksum`` (the sha256 of its
@@ -23,7 +30,6 @@ outside its step folder) raises :class:`ForeignStepFileError` naming it.
 
 from __future__ import annotations
 
-import csv
 import difflib
 import hashlib
 import io
@@ -61,9 +67,11 @@ __all__ = ["StepResult", "save_step", "load_step", "load_results", "dist_to_dict
            "set_aside_damaged_steps", "study_infos"]
 
 #: Version of the saved step format. 1: ``result.json`` records it, and a step may carry a
-#: typed record (:class:`StepRecord`, ``meta["record"]``). A folder saved by a newer format
-#: is refused with the version it needs; older ones load (without records).
-SCHEMA_VERSION = 1
+#: typed record (:class:`StepRecord`, ``meta["record"]``). 2: the record is the saved form;
+#: ``result.json`` keeps as ``scalars`` only numbers outside it, the flat view is derived
+#: (:func:`flat_view`) and ``scalars.csv`` is no longer written. A folder saved by a newer
+#: format is refused with the version it needs; older ones load.
+SCHEMA_VERSION = 2
 
 #: The file of a study output folder that describes the study (see the module docstring).
 STUDY_INFO = "study.json"
@@ -73,8 +81,11 @@ STUDY_INFO = "study.json"
 class StepResult:
     """Outcome of one study step.
 
-    scalars : flat mapping key -> float. Key forms: ``stat/name`` (e.g. ``mean/thrust``),
-        ``index/response/input`` (``S/thrust/cla_m03``) and ``...@label`` for a sweep point.
+    scalars : flat mapping key -> float: the view of the step's record derived by
+        :func:`flat_view` (the keys given here are kept beside it: numbers outside any
+        record, or the scalars of a folder saved before records). Key forms:
+        ``stat/name`` (e.g. ``mean/thrust``), ``index/response/input``
+        (``S/thrust/cla_m03``) and ``...@label`` for a sweep point.
     arrays : name -> ndarray (e.g. ``inputs`` (n, d), ``outputs`` (n, m), ``chain`` (N, d)).
     distributions : parameter name -> distribution description (``{"kind": "normal",
         "mu": ..., "sigma": ...}``) offered to later steps as ``posterior``/``calibrated``.
@@ -89,6 +100,18 @@ class StepResult:
     distributions: Mapping[str, dict] = field(default_factory=dict)
     meta: Mapping[str, Any] = field(default_factory=dict)
     fingerprint: str = ""
+
+    def __post_init__(self) -> None:
+        derived = flat_view(self.meta, self.arrays)
+        if derived:
+            object.__setattr__(self, "scalars", {**derived, **self.scalars})
+
+    def own_scalars(self) -> dict[str, float]:
+        """The scalars that the flat view of the record does not give (what ``result.json``
+        keeps as ``scalars``)."""
+        derived = flat_view(self.meta, self.arrays)
+        return {k: v for k, v in self.scalars.items()
+                if k not in derived or not _same(derived[k], v)}
 
     def get(self, key: str, default: float | None = None) -> float:
         """Scalar ``key``. A key the step did not save raises ``KeyError`` naming the closest
@@ -123,6 +146,98 @@ class StepResult:
 
     def distribution_objects(self) -> dict[str, Distribution]:
         return {k: dict_to_dist(v) for k, v in self.distributions.items()}
+
+
+def _same(a: float, b: float) -> bool:
+    a, b = float(a), float(b)
+    return a == b or (math.isnan(a) and math.isnan(b))
+
+
+def _part(label: str) -> str:
+    # a sweep point (``@2``) or a grid (``#0``) joins its key without a slash, as in
+    # ``nstd/power@2``
+    return label if label[:1] in "@#" else "/" + label
+
+
+def flat_view(meta: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> dict[str, float]:
+    """The flat scalars of a step, derived from its saved record and its inputs.
+
+    Each array field of the record (``meta["record"]``) gives one key per element: the
+    field's flat name (:attr:`StepRecord.FLAT`, else the field name; ``""``: the labels
+    alone) followed by the label of the element on each axis (:attr:`StepRecord.LABELS`:
+    the names field of that axis, or the labels themselves; the index when the axis has
+    none). A NaN element (not computed) has no key. Plain numbers of the record give one
+    key each. The input distributions the runner records
+    (``meta["input_distributions"]``) give ``input_mean/``, ``input_std/`` and, when both
+    bounds are finite, ``input_lower/`` and ``input_upper/`` of each input.
+
+    Parameters
+    ----------
+    meta : mapping
+        A step's ``meta`` (its ``"record"`` entry as written by :meth:`StepRecord.parts`).
+    arrays : mapping of str to ndarray
+        The step's arrays (the record's array fields among them).
+
+    Returns
+    -------
+    dict of str to float
+        Key -> value; empty when the step has neither a record nor input distributions.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> meta = {"record": {"type": "R", "version": 1, "fields": {"names_out": ["T", "P"],
+    ...         "names_in": ["a"], "confidence": 0.9},
+    ...         "axes": {"S": ["response", "input"]}, "labels": {}, "flat": {}}}
+    >>> flat_view(meta, {"S": np.array([[0.25], [0.5]])})
+    {'S/T/a': 0.25, 'S/P/a': 0.5, 'confidence': 0.9}
+    """
+    out: dict[str, float] = {}
+    rec = meta.get("record")
+    if isinstance(rec, Mapping) and isinstance(rec.get("fields"), Mapping):
+        plain = rec["fields"]
+        labels = {**_DEFAULT_LABELS, **(rec.get("labels") or {})}
+        flat = rec.get("flat") or {}
+        for name, axes in (rec.get("axes") or {}).items():
+            key = flat.get(name, name)
+            if key is None or name not in arrays:
+                continue
+            arr = np.asarray(arrays[name])
+            if arr.dtype.kind not in "biuf" or arr.ndim != len(axes):
+                continue
+            names = []
+            for axis, n in zip(axes, arr.shape, strict=True):
+                lab = labels.get(axis)
+                lab = plain.get(lab) if isinstance(lab, str) else lab
+                names.append([_part(str(x)) for x in lab] if isinstance(lab, list | tuple)
+                             and len(lab) == n else [f"/{j}" for j in range(n)])
+            for idx in np.ndindex(arr.shape):
+                v = float(arr[idx])
+                if not math.isnan(v):  # not computed (a level past its count, no emulator)
+                    k = key + "".join(names[a][i] for a, i in enumerate(idx))
+                    out[k if key else k.lstrip("/")] = v
+        for name, v in plain.items():
+            key = flat.get(name, name)
+            if key and isinstance(v, int | float) and not math.isnan(v):  # a bool: 0 or 1
+                out[key] = float(v)
+    dists = meta.get("input_distributions")
+    if isinstance(dists, Mapping):
+        for p, d in dists.items():
+            try:
+                dist = dict_to_dist(d)
+            except Exception:  # noqa: BLE001 - a description this version cannot rebuild
+                continue
+            out[f"input_mean/{p}"], out[f"input_std/{p}"] = float(dist.mean), float(dist.std)
+            lo, hi = dist.bounds
+            if np.isfinite(lo) and np.isfinite(hi):
+                out[f"input_lower/{p}"], out[f"input_upper/{p}"] = float(lo), float(hi)
+    return out
+
+
+#: The axis names every record labels the same way (a record's :attr:`StepRecord.LABELS`
+#: adds to them): inputs and parameters by ``names_in``, responses by ``names_out``.
+_DEFAULT_LABELS: dict[str, Any] = {"input": "names_in", "parameter": "names_in",
+                                   "response": "names_out", "bound": ["lo", "hi"]}
 
 
 class RecordError(RotoruqError, LookupError):
@@ -163,6 +278,12 @@ class StepRecord:
 
     #: field -> axis names of an array field (its dimensions, in order).
     AXES: ClassVar[Mapping[str, tuple[str, ...]]] = {}
+    #: axis -> the field that names its elements, or the names themselves (added to
+    #: ``input``/``parameter`` -> ``names_in``, ``response`` -> ``names_out``, ``bound`` ->
+    #: ``lo``, ``hi``); the keys of the flat view (:func:`flat_view`).
+    LABELS: ClassVar[Mapping[str, str | tuple[str, ...]]] = {}
+    #: field -> its name in the flat view when not its own (None: left out of the view).
+    FLAT: ClassVar[Mapping[str, str | None]] = {}
     #: Version of this record type; :meth:`read` refuses newer saved ones.
     VERSION: ClassVar[int] = 1
 
@@ -191,9 +312,35 @@ class StepRecord:
                 arrays[f.name] = v
             else:
                 plain[f.name] = list(v) if isinstance(v, tuple) else v
-        return arrays, {"record": {"type": type(self).__name__, "version": self.VERSION,
-                                   "fields": plain,
-                                   "axes": {k: list(a) for k, a in self.AXES.items()}}}
+        return arrays, {"record": {
+            "type": type(self).__name__, "version": self.VERSION, "fields": plain,
+            "axes": {k: list(a) for k, a in self.AXES.items()},
+            "labels": {k: (v if isinstance(v, str) else list(v))
+                       for k, v in self.LABELS.items()},
+            "flat": dict(self.FLAT)}}
+
+    def index(self, axis: str, label: str) -> int:
+        """Position of ``label`` on ``axis`` (see :attr:`LABELS`); a label the record does
+        not hold raises ``KeyError`` naming those it does.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from dataclasses import dataclass
+        >>> @dataclass(frozen=True, eq=False)
+        ... class MomentsRecord(StepRecord):
+        ...     AXES = {"mean": ("response",)}
+        ...     names_out: tuple[str, ...]
+        ...     mean: np.ndarray
+        >>> MomentsRecord(("thrust", "power"), np.zeros(2)).index("response", "power")
+        1
+        """
+        lab = {**_DEFAULT_LABELS, **self.LABELS}.get(axis)
+        names = list(getattr(self, lab) if isinstance(lab, str) else lab or ())
+        if label not in names:
+            raise KeyError(f"{type(self).__name__}: no {axis} {label!r} (it has "
+                           f"{', '.join(map(str, names)) or 'none'})")
+        return names.index(label)
 
     @classmethod
     def read(cls, res: StepResult) -> Self:
@@ -312,15 +459,6 @@ def save_step(result: StepResult, directory: str | Path) -> Path:
         def put(name: str, write) -> None:
             files[name] = _write_synced(tmp / name, write)
 
-        def put_csv(fh):
-            text = io.StringIO(newline="")
-            w = csv.writer(text)
-            w.writerow(["key", "value"])
-            for k, v in result.scalars.items():
-                w.writerow([k, repr(float(v))])
-            fh.write(text.getvalue().encode())
-
-        put("scalars.csv", put_csv)
         for name, arr in result.arrays.items():
             arr = np.asarray(arr)
             put(f"{name}.npy", lambda fh, arr=arr: np.save(fh, arr))
@@ -332,7 +470,7 @@ def save_step(result: StepResult, directory: str | Path) -> Path:
             "name": result.name,
             "type": result.type,
             "fingerprint": result.fingerprint,
-            "scalars": _jsonable(dict(result.scalars)),
+            "scalars": _jsonable(result.own_scalars()),
             "distributions": _jsonable(dict(result.distributions)),
             "meta": _jsonable(dict(result.meta)),
             "arrays": sorted(result.arrays),
@@ -454,7 +592,7 @@ def set_aside_damaged_steps(directory: str | Path) -> list[DamagedStep]:
     >>> step = save_step(StepResult("lhs", "sampling", {"mean/y1": 2.0}), out)
     >>> set_aside_damaged_steps(out)
     []
-    >>> _ = (step / "scalars.csv").write_text("key,value")
+    >>> _ = (step / "result.json").write_text("{}")
     >>> [(d.name, d.moved_to.name.startswith(".damaged-lhs.")) for d in
     ...  set_aside_damaged_steps(out)]
     [('lhs', True)]

@@ -11,7 +11,6 @@ they are drawn beside the run's.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -22,7 +21,7 @@ from scipy import stats
 from ..params import Distribution
 from ..results import StepResult, dict_to_dist
 
-__all__ = ["Figure", "FigureContext", "tornado", "prior_posterior", "chain_traces",
+__all__ = ["Figure", "FigureContext", "tornado", "SobolIndices", "prior_posterior", "chain_traces",
            "pair_plot", "load_distributions", "cuu_comparison", "ground_effect_curves",
            "UNITS", "axis_label", "unit_of", "per_unit", "beside_label", "beside_sobol",
            "beside_predictions", "beside_truth"]
@@ -172,12 +171,13 @@ def _legend_below(fig, axes) -> None:
                    **_LEGEND)
 
 
-def tornado(res: StepResult, labels, units=None, beside: dict | None = None,
-            beside_name: str = "") -> list[Figure]:
-    """Horizontal bars of the main and total Sobol indices per response, with their bootstrap
-    intervals; ``beside``: (response, input) -> another source's main index (named
-    ``beside_name`` in the legend), drawn beside the run's."""
-    inputs, responses = res.meta["inputs"], res.meta["responses"]
+def tornado(res: StepResult, sobol: SobolIndices, labels, units=None,
+            beside: dict | None = None, beside_name: str = "") -> list[Figure]:
+    """Horizontal bars of the main and total Sobol indices per response of step ``res``,
+    with their bootstrap intervals when ``sobol`` has them; ``beside``: (response, input) ->
+    another source's main index (named ``beside_name`` in the legend), drawn beside the
+    run's."""
+    inputs, responses = list(sobol.names_in), list(sobol.names_out)
     k = len(responses)
     fig, axes = _subplots(1, k, figsize=(3.4 * k + 1.8, 0.5 * len(inputs) + 2.0),
                           sharey=True, squeeze=False)
@@ -186,25 +186,26 @@ def tornado(res: StepResult, labels, units=None, beside: dict | None = None,
     ours = " (ours)" if beside else ""
     for a, r in enumerate(responses):
         ax = axes[0, a]
-        s = np.array([res.get(f"S/{r}/{p}", math.nan) for p in inputs])
-        t = np.array([res.get(f"T/{r}/{p}", math.nan) for p in inputs])
+        s = np.asarray(sobol.main[a], dtype=float)
+        t = np.asarray(sobol.total[a], dtype=float)
 
-        def err(kind, v, r=r):
-            lo = np.array([res.get(f"{kind}_lo/{r}/{p}", math.nan) for p in inputs])
-            hi = np.array([res.get(f"{kind}_hi/{r}/{p}", math.nan) for p in inputs])
+        def err(ci, v, a=a):
+            if ci is None:
+                return None
+            lo, hi = np.asarray(ci[a, :, 0]), np.asarray(ci[a, :, 1])
             if not np.all(np.isfinite(lo)):
                 return None
             return np.vstack([np.maximum(v - lo, 0), np.maximum(hi - v, 0)])
 
         ax.barh(y + h, s, height=h, color="#1f77b4", label=f"main S_i{ours}",
-                xerr=err("S", s), error_kw={"lw": 0.8})
+                xerr=err(sobol.main_ci, s), error_kw={"lw": 0.8})
         ax.barh(y, t, height=h, color="#9ecae1", label=f"total T_i{ours}",
-                xerr=err("T", t), error_kw={"lw": 0.8})
+                xerr=err(sobol.total_ci, t), error_kw={"lw": 0.8})
         if beside:
             th = [beside.get((r, p), np.nan) for p in inputs]
             ax.barh(y - h, th, height=h, color="#d62728", alpha=0.7,
                     label=f"main S_i ({beside_name})")
-        neg = res.get(f"negligible/{r}", math.nan) == 1
+        neg = sobol.negligible is not None and bool(sobol.negligible[a])
         ax.set_title(f"{r}" + (" (negligible variance)" if neg else ""), fontsize=9)
         lo = min(0.0, float(np.nanmin(np.r_[s, t, 0.0])) * 1.1)
         ax.set_xlim(lo, max(1.0, float(np.nanmax(np.r_[s, t, 0.0])) * 1.05))
@@ -218,6 +219,24 @@ def tornado(res: StepResult, labels, units=None, beside: dict | None = None,
     fig.suptitle(f"Sensitivity indices: {res.meta.get('title') or res.name}", fontsize=10)
     return [Figure(f"{res.name}_tornado", f"Sobol indices with bootstrap intervals "
                    f"({res.name})", fig)]
+
+
+@dataclass(frozen=True)
+class SobolIndices:
+    """What :func:`tornado` draws: d inputs, m responses.
+
+    names_in (d), names_out (m); main, total (m, d) Sobol indices; main_ci, total_ci
+    (m, d, 2) their intervals (None: none); negligible (m,) whether each response's variance
+    is negligible (None: not known).
+    """
+
+    names_in: tuple[str, ...]
+    names_out: tuple[str, ...]
+    main: np.ndarray
+    total: np.ndarray
+    main_ci: np.ndarray | None = None
+    total_ci: np.ndarray | None = None
+    negligible: np.ndarray | None = None
 
 
 def prior_posterior(res: StepResult, labels, units=None,

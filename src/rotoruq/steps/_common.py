@@ -23,7 +23,8 @@ __all__ = ["named_model", "deferred_writes", "column_moments", "stats_scalars", 
            "input_scalars",
            "noise", "per_response", "saved_record", "MOMENT_KEYS", "LevelsRecord", "levels_arrays",
            "LEVEL_OPTIONS", "LEVEL_TABLES", "MAPPING_AXES", "MappingsRecord", "check_levels",
-           "level_request_of", "mapping_fields", "mapping_scalars"]
+           "level_request_of", "mapping_fields", "MAPPING_FLAT",
+           "MAPPING_LABELS"]
 
 R = TypeVar("R", bound=StepRecord)
 
@@ -161,17 +162,14 @@ class LevelsRecord(StepRecord):
     """
 
     AXES = {"values": ("quantity", "response", "level"), "counts": ("quantity", "response")}
+    # the flat view: ``<quantity>/<response>/<level index>``
+    FLAT = {"values": "", "counts": None}
+    LABELS = {"quantity": "quantities"}
 
     names_out: tuple[str, ...]
     quantities: tuple[str, ...]
     values: np.ndarray
     counts: np.ndarray
-
-    def scalars(self) -> dict[str, float]:
-        """The flat view: ``<quantity>/<response>/<level index>``."""
-        return {f"{q}/{r}/{i}": float(self.values[a, k, i])
-                for k, r in enumerate(self.names_out) for a, q in enumerate(self.quantities)
-                for i in range(int(self.counts[a, k]))}
 
     def tables(self, title: str) -> list[StepTable]:
         """One table per response of its levels."""
@@ -267,6 +265,10 @@ def level_request_of(ctx: StepContext) -> Any:
 #: Axis names of the level mapping arrays of a :class:`MappingsRecord`.
 MAPPING_AXES = {"level_mappings": ("response", "level", "column"),
                 "level_kinds": ("response", "level")}
+#: Their flat view: ``level/<response>/<row>/<column>`` of every computed cell (columns
+#: ``response``, ``probability``, ``reliability``, ``gen_reliability``).
+MAPPING_FLAT = {"level_mappings": "level", "level_kinds": None}
+MAPPING_LABELS = {"column": _COLUMN_KEYS}
 
 
 def _no_mappings() -> np.ndarray:
@@ -312,11 +314,3 @@ def mapping_fields(mappings: Any) -> dict[str, Any]:
             "level_distribution": mappings.distribution, "level_compute": mappings.compute}
 
 
-def mapping_scalars(mappings: Any) -> dict[str, float]:
-    """The flat view of level mappings: ``level/<response>/<row>/<column>`` of every computed
-    cell (columns ``response``, ``probability``, ``reliability``, ``gen_reliability``)."""
-    if mappings is None:
-        return {}
-    return {f"level/{r}/{i}/{c}": float(v)
-            for r in mappings.names_out for i, row in enumerate(mappings.table[r])
-            for c, v in zip(_COLUMN_KEYS, row, strict=True) if not np.isnan(v)}

@@ -4,28 +4,82 @@ that each one's fingerprint covers its own method only."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 
-from ..render.figures import Figure, FigureContext, beside_label, beside_sobol, tornado
-from ..render.tables import prefixed
-from ..results import StepResult
+import numpy as np
 
-__all__ = ["sensitivity_figures", "sobol_warnings"]
+from ..render.figures import (
+    Figure,
+    FigureContext,
+    SobolIndices,
+    beside_label,
+    beside_sobol,
+    tornado,
+)
+from ..results import RecordError, StepResult
+
+__all__ = ["sensitivity_figures", "sobol_warnings", "NEGLIGIBLE_CV", "spread", "sobol_of"]
+
+# A response whose std is below this fraction of |mean| has negligible variance: its Sobol
+# indices split up numerical noise and mean nothing physically.
+NEGLIGIBLE_CV = 1e-4
+
+
+def spread(mean: np.ndarray, std: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(cv, negligible)`` (m,) of responses with means ``mean`` and stds ``std``: the
+    coefficient of variation std / |mean| (inf at a zero mean) and whether it is below
+    :data:`NEGLIGIBLE_CV`.
+
+    Examples
+    --------
+    >>> cv, neg = spread(np.array([100.0, 2.0]), np.array([1e-3, 0.5]))
+    >>> cv.tolist(), neg.tolist()
+    ([1e-05, 0.25], [True, False])
+    """
+    mean, std = np.asarray(mean, dtype=float), np.asarray(std, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cv = np.where(mean != 0, std / np.abs(mean), np.inf)
+    return cv, cv < NEGLIGIBLE_CV
+
+
+def sobol_of(res: StepResult) -> tuple[SobolIndices, np.ndarray, np.ndarray] | None:
+    """The Sobol indices of a sensitivity or pce step with each response's std and CV
+    ``(indices, std, cv)``; None for a step saved without its record."""
+    from .pce import PceRecord
+    from .sensitivity import SensitivityRecord
+
+    try:
+        if res.type == "pce":
+            pce = PceRecord.read(res)
+            std = np.asarray(pce.std, dtype=float)
+            cv, neg = spread(pce.mean, std)
+            return SobolIndices(pce.names_in, pce.names_out, pce.main, pce.total,
+                                negligible=neg), std, cv
+        rec = SensitivityRecord.read(res)
+    except RecordError:
+        return None
+    std = np.sqrt(np.maximum(rec.variance, 0.0))
+    cv, neg = spread(rec.mean, std)
+    return SobolIndices(rec.names_in, rec.names_out, rec.main, rec.total, rec.main_ci,
+                        rec.total_ci, neg), std, cv
 
 
 def sensitivity_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:
     """Tornado of main/total indices (sensitivity and pce steps), with the main indices the
     report's application gives for this step beside them (``ctx.beside``)."""
-    if "inputs" not in res.meta:
+    got = sobol_of(res)
+    if got is None:
         return []
-    return tornado(res, ctx.labels, ctx.units, beside_sobol(ctx, res.name), beside_label(ctx))
+    return tornado(res, got[0], ctx.labels, ctx.units, beside_sobol(ctx, res.name),
+                   beside_label(ctx))
 
 
 def sobol_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
     """Sobol indices of a response with negligible variance (sensitivity, pce)."""
-    return [f"{res.name}: {r} has negligible variance (std "
-            f"{res.get(f'out_std/{r}', math.nan):.3g}, {res.get(f'out_cv/{r}', math.nan):.1e} of "
+    got = sobol_of(res)
+    if got is None:
+        return []
+    sobol, std, cv = got
+    return [f"{res.name}: {r} has negligible variance (std {std[k]:.3g}, {cv[k]:.1e} of "
             "its mean): its Sobol indices split up numerical noise"
-            for r, flag in prefixed(res, "negligible/").items() if flag]
-
+            for k, r in enumerate(sobol.names_out) if sobol.negligible[k]]

@@ -86,7 +86,7 @@ def run_evidence(ctx: StepContext) -> StepResult:
                             values[keep], counts[keep], o["optimizer"],
                             bool(getattr(res, "converged", True)))
     arrays, meta = record.parts()
-    return StepResult(ctx.name, ctx.type, record.scalars(), arrays, meta={
+    return StepResult(ctx.name, ctx.type, {}, arrays, meta={
         "n_evaluations": int(res.n_evaluations), "optimizer": o["optimizer"],
         "converged": record.converged, **meta})
 

@@ -13,12 +13,12 @@ from ..results import StepResult
 from ._common import (
     LEVEL_OPTIONS,
     MAPPING_AXES,
+    MAPPING_FLAT,
+    MAPPING_LABELS,
     MappingsRecord,
     check_levels,
-    input_scalars,
     level_request_of,
     mapping_fields,
-    mapping_scalars,
 )
 from .base import StepContext, StepType
 
@@ -37,6 +37,8 @@ class MeanValueRecord(MappingsRecord):
 
     AXES = {"mean": ("response",), "std": ("response",), "importance": ("response", "input"),
             "gradient": ("response", "input"), **MAPPING_AXES}
+    FLAT = {"gradient": None, **MAPPING_FLAT}
+    LABELS = MAPPING_LABELS
 
     names_in: tuple[str, ...]
     names_out: tuple[str, ...]
@@ -53,20 +55,12 @@ def run_mean_value(ctx: StepContext) -> StepResult:
     res = mean_value(ctx.model(), ctx.space)
     request = level_request_of(ctx)
     mappings = None if request is None else moment_mappings(res.mean, res.std, request)
-    scalars = {}
-    for k, r in enumerate(ctx.responses):
-        scalars[f"mean/{r}"] = float(res.mean[k])
-        scalars[f"std/{r}"] = float(res.std[k])
-        for j, p in enumerate(ctx.space.names):
-            scalars[f"importance/{r}/{p}"] = float(res.importance[k, j])
-    scalars.update(input_scalars(ctx.space))
-    scalars.update(mapping_scalars(mappings))
     record = MeanValueRecord(tuple(ctx.space.names), tuple(ctx.responses),
                              np.asarray(res.mean, dtype=float), np.asarray(res.std, dtype=float),
                              np.asarray(res.importance, dtype=float), np.asarray(res.gradient),
                              **mapping_fields(mappings))
     arrays, meta = record.parts()
-    return StepResult(ctx.name, ctx.type, scalars, arrays,
+    return StepResult(ctx.name, ctx.type, {}, arrays,
                       meta={"n_evaluations": int(res.n_evaluations), **meta})
 
 

@@ -13,12 +13,12 @@ from ..results import StepResult
 from ._common import (
     LEVEL_OPTIONS,
     MAPPING_AXES,
+    MAPPING_FLAT,
+    MAPPING_LABELS,
     MappingsRecord,
     check_levels,
-    input_scalars,
     level_request_of,
     mapping_fields,
-    mapping_scalars,
 )
 from ._sobol import sensitivity_figures, sobol_warnings
 from .base import StepCheck, StepContext, StepType
@@ -45,6 +45,8 @@ class PceRecord(MappingsRecord):
 
     AXES = {"mean": ("response",), "std": ("response",), "main": ("response", "input"),
             "total": ("response", "input"), **MAPPING_AXES}
+    FLAT = {"main": "S", "total": "T", **MAPPING_FLAT}
+    LABELS = MAPPING_LABELS
 
     names_in: tuple[str, ...]
     names_out: tuple[str, ...]
@@ -79,21 +81,12 @@ def run_pce(ctx: StepContext) -> StepResult:
                                          seed=ctx.rng).outputs, dtype=float)
     mappings = None if request is None else sample_mappings(
         on_expansion, request, mean=np.asarray(res.mean), std=np.asarray(res.std))
-    scalars = {}
-    for k, r in enumerate(ctx.responses):
-        scalars[f"mean/{r}"] = float(res.mean[k])
-        scalars[f"std/{r}"] = float(res.std[k])
-        for j, p in enumerate(ctx.space.names):
-            scalars[f"S/{r}/{p}"] = float(res.main[k, j])
-            scalars[f"T/{r}/{p}"] = float(res.total[k, j])
-    scalars.update(input_scalars(ctx.space))
-    scalars.update(mapping_scalars(mappings))
     record = PceRecord(tuple(ctx.space.names), tuple(ctx.responses),
                        np.asarray(res.mean, dtype=float), np.asarray(res.std, dtype=float),
                        np.asarray(res.main), np.asarray(res.total),
                        0 if on_expansion is None else n_exp, **mapping_fields(mappings))
     arrays, meta = record.parts()
-    return StepResult(ctx.name, ctx.type, scalars, arrays, meta={
+    return StepResult(ctx.name, ctx.type, {}, arrays, meta={
         "inputs": list(ctx.space.names), "responses": list(ctx.responses),
         "n_evaluations": int(res.n_evaluations), **meta})
 

@@ -106,7 +106,7 @@ def run_reliability(ctx: StepContext) -> StepResult:
                                *levels_arrays(res, quantities, ctx.responses),
                                **mapping_fields(mappings))
     arrays, meta = record.parts()
-    return StepResult(ctx.name, ctx.type, record.scalars(), arrays, meta={
+    return StepResult(ctx.name, ctx.type, {}, arrays, meta={
         "n_evaluations": int(getattr(res, "n_evaluations", 0)), **meta})
 
 

@@ -22,17 +22,17 @@ from ..results import StepResult
 from ._common import (
     LEVEL_OPTIONS,
     MAPPING_AXES,
+    MAPPING_FLAT,
+    MAPPING_LABELS,
+    MOMENT_KEYS,
     MappingsRecord,
     check_levels,
     column_moments,
     input_arrays,
-    input_scalars,
     level_request_of,
     mapping_fields,
-    mapping_scalars,
     noise,
     saved_record,
-    stats_scalars,
 )
 from .base import DESIGNS, StepCheck, StepContext, StepType
 from .forward_check import propagation_warnings
@@ -126,6 +126,11 @@ class SamplingRecord(MappingsRecord):
             "moments": ("statistic", "response"), "noisy_moments": ("statistic", "response"),
             "input_mean": ("input",), "input_std": ("input",), "input_lower": ("input",),
             "input_upper": ("input",), **MAPPING_AXES}
+    # the flat view: ``mean/thrust`` (model outputs), ``noisy/mean/thrust`` (with the noise),
+    # the level mappings; not the samples
+    FLAT = {"inputs": None, "outputs": None, "moments": "", "noisy_moments": "noisy",
+            **MAPPING_FLAT}
+    LABELS = {"statistic": MOMENT_KEYS, **MAPPING_LABELS}
 
     names_in: tuple[str, ...]
     names_out: tuple[str, ...]
@@ -178,13 +183,8 @@ def run_sampling(ctx: StepContext) -> StepResult:
             meta["dropped_correlation"] = list(dropped)
     noisy = clean + noise(ctx, o.get("noise_std"), clean.shape)
     moments, noisy_moments = column_moments(clean), column_moments(noisy)
-    scalars = stats_scalars(ctx.responses, clean, moments=moments)
-    scalars.update(stats_scalars([f"noisy_{r}" for r in ctx.responses], noisy,
-                                 moments=noisy_moments))
-    scalars.update(input_scalars(ctx.space))
     request = level_request_of(ctx)
     mappings = None if request is None else sample_mappings(noisy, request)
-    scalars.update(mapping_scalars(mappings))
     dropped = meta.get("dropped_correlation")
     record = SamplingRecord(
         tuple(ctx.space.names), tuple(ctx.responses), inputs, noisy, moments, noisy_moments,
@@ -196,7 +196,7 @@ def run_sampling(ctx: StepContext) -> StepResult:
     if o.get("noise_std"):
         arrays["outputs_clean"] = clean
         columns["outputs_clean"] = list(ctx.responses)
-    return StepResult(ctx.name, ctx.type, scalars, arrays, meta={
+    return StepResult(ctx.name, ctx.type, {}, arrays, meta={
         "columns": columns, "n_evaluations": n_eval, "failures": n_fail, **meta, **rec_meta})
 
 

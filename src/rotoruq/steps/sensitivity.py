@@ -3,37 +3,19 @@ output spread that says whether they mean anything."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..render.tables import StepTable, cv_or_none, label, make_table, with_unit
 from ..results import StepRecord, StepResult
-from ._common import input_scalars
-from ._sobol import sensitivity_figures, sobol_warnings
+from ._sobol import NEGLIGIBLE_CV, sensitivity_figures, sobol_warnings, spread
 from .base import DESIGNS, StepContext, StepType
 from .options import SIGNATURE, Option, choice, integer
 
 __all__ = ["STEP", "SensitivityRecord", "run_sensitivity", "sensitivity_tables",
-           "sensitivity_figures", "sobol_warnings", "output_spread_scalars", "NEGLIGIBLE_CV"]
-
-# A response whose std is below this fraction of |mean| has negligible variance: its Sobol
-# indices split up numerical noise and mean nothing physically.
-NEGLIGIBLE_CV = 1e-4
-
-
-def output_spread_scalars(responses: Sequence[str], mean, variance) -> dict:
-    """``out_mean``, ``out_var``, ``out_std``, ``out_cv`` (std / |mean|) per response and
-    ``negligible/<r>`` = 1 when the CV is below :data:`NEGLIGIBLE_CV`."""
-    out = {}
-    for k, r in enumerate(responses):
-        m, v = float(mean[k]), float(variance[k])
-        sd = float(np.sqrt(max(v, 0.0)))
-        cv = sd / abs(m) if m != 0 else np.inf
-        out.update({f"out_mean/{r}": m, f"out_var/{r}": v, f"out_std/{r}": sd,
-                    f"out_cv/{r}": cv, f"negligible/{r}": float(cv < NEGLIGIBLE_CV)})
-    return out
+           "sensitivity_figures", "sobol_warnings", "NEGLIGIBLE_CV"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -48,6 +30,8 @@ class SensitivityRecord(StepRecord):
     AXES = {"main": ("response", "input"), "total": ("response", "input"),
             "main_ci": ("response", "input", "bound"), "total_ci": ("response", "input", "bound"),
             "mean": ("response",), "variance": ("response",)}
+    FLAT = {"main": "S", "total": "T", "main_ci": "S_ci", "total_ci": "T_ci",
+            "mean": "out_mean", "variance": "out_var"}
 
     names_in: tuple[str, ...]
     names_out: tuple[str, ...]
@@ -68,21 +52,13 @@ def run_sensitivity(ctx: StepContext) -> StepResult:
     o = ctx.options
     res = sobol_indices(ctx.model(), ctx.space, o["n_samples"], estimator=o["estimator"],
                         design=o["design"], seed=ctx.rng)
-    main, total = np.asarray(res.main), np.asarray(res.total)
-    main_ci, total_ci = np.asarray(res.main_ci), np.asarray(res.total_ci)
-    scalars = output_spread_scalars(ctx.responses, res.mean, res.variance)
-    for k, r in enumerate(ctx.responses):
-        for j, p in enumerate(ctx.space.names):
-            scalars[f"S/{r}/{p}"] = float(main[k, j])
-            scalars[f"T/{r}/{p}"] = float(total[k, j])
-            scalars[f"S_lo/{r}/{p}"], scalars[f"S_hi/{r}/{p}"] = map(float, main_ci[k, j])
-            scalars[f"T_lo/{r}/{p}"], scalars[f"T_hi/{r}/{p}"] = map(float, total_ci[k, j])
-    scalars.update(input_scalars(ctx.space))
-    record = SensitivityRecord(tuple(ctx.space.names), tuple(ctx.responses), main, total,
-                               main_ci, total_ci, np.asarray(res.mean, dtype=float),
+    record = SensitivityRecord(tuple(ctx.space.names), tuple(ctx.responses),
+                               np.asarray(res.main), np.asarray(res.total),
+                               np.asarray(res.main_ci), np.asarray(res.total_ci),
+                               np.asarray(res.mean, dtype=float),
                                np.asarray(res.variance, dtype=float), float(res.confidence))
     arrays, meta = record.parts()
-    return StepResult(ctx.name, ctx.type, scalars, arrays, meta={
+    return StepResult(ctx.name, ctx.type, {}, arrays, meta={
         "inputs": list(ctx.space.names), "responses": list(ctx.responses),
         "confidence": float(res.confidence),
         "n_evaluations": int(getattr(res, "n_evaluations", 0)), **meta})
@@ -92,8 +68,7 @@ def sensitivity_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepT
     rec = SensitivityRecord.read(res)
     conf = rec.confidence
     std = np.sqrt(np.maximum(rec.variance, 0.0))
-    cv = [s / abs(m) if m != 0 else np.inf for s, m in zip(std, rec.mean, strict=True)]
-    negligible = [c < NEGLIGIBLE_CV for c in cv]
+    negligible = spread(rec.mean, std)[1]
     out = [make_table("Output spread", ("response", "mean", "variance", "std",
                                         "CV = std / |mean| [-]", "negligible variance"),
                       [[with_unit(r, labels), float(rec.mean[k]), float(rec.variance[k]),

@@ -145,7 +145,14 @@ class StepResult:
         return np.asarray(self.arrays[array])[:, cols.index(name)]
 
     def distribution_objects(self) -> dict[str, Distribution]:
+        """The distributions the step hands to later steps, by parameter name."""
         return {k: dict_to_dist(v) for k, v in self.distributions.items()}
+
+    def input_distributions(self) -> dict[str, Distribution]:
+        """The distributions of the step's inputs as the runner recorded them, by name
+        (empty for a step saved without them)."""
+        return {k: dict_to_dist(v)
+                for k, v in (self.meta.get("input_distributions") or {}).items()}
 
 
 def _same(a: float, b: float) -> bool:

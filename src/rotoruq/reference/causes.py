@@ -16,6 +16,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from ..results import StepResult
+from ..steps._sobol import sobol_of
 
 __all__ = ["local_effects", "negative_pitch_span", "sensitivity_causes", "model_form_gap",
            "sweep_growth", "target_consistency", "input_recovery", "calibration_design"]
@@ -132,17 +133,21 @@ def sensitivity_causes(sens: StepResult, steps: Steps, response: str, claimed: s
     """Why ``claimed`` is not the largest main index of ``response``: the dominant input,
     the local effect of +1 std of each input, and, for lift slopes of a twisted rotor blade,
     the span where the pitch (hence the angle of attack) is negative."""
-    inputs = [k.split("/")[2] for k in sens.scalars if k.startswith(f"S/{response}/")]
-    if not inputs:
+    got = sobol_of(sens)
+    if got is None or response not in got[0].names_out:
         return []
-    main = {p: sens.get(f"S/{response}/{p}") for p in inputs}
+    sobol, std, _ = got
+    k = sobol.names_out.index(response)
+    inputs = list(sobol.names_in)
+    main = {p: float(sobol.main[k, j]) for j, p in enumerate(inputs)}
     top = max(main, key=lambda p: main[p])
     out = [f"{_lab(labels, top)} dominates (S = {main[top]:.3f} against "
            f"{main.get(claimed, math.nan):.3f} for {_lab(labels, claimed)})"]
-    if sens.scalars.get(f"negligible/{response}") == 1:
-        out.append(f"the {response} variance is negligible (std "
-                   f"{sens.get(f'out_std/{response}', math.nan):.3g}), the indices split noise")
-    stds = {p: sens.get(f"input_std/{p}", math.nan) for p in inputs}
+    if sobol.negligible is not None and sobol.negligible[k]:
+        out.append(f"the {response} variance is negligible (std {std[k]:.3g}), the indices "
+                   "split noise")
+    dists = sens.input_distributions()
+    stds = {p: dists[p].std if p in dists else math.nan for p in inputs}
     fx = local_effects(steps, inputs, response, stds)
     signs: dict[str, float] = {}
     if fx is not None:

@@ -168,10 +168,11 @@ def gvpm(**overrides) -> RotorPreset:
     """The GVPM scaled rotor of the thesis's experimental chapter (thesis table 4.2).
 
     Given by the thesis: 4 untwisted rectangular blades, R 0.485 m, hub radius 0.06 m, span
-    0.425 m, chord 0.042 m, NACA 0012, EI_y 7 N m^2, pitch-link stiffness 10 N/m and damping
-    0.05 N s/m, Omega from v_tip = 108.9 m/s, Glauert/linear inflow (here: uniform plus the
-    steady first-harmonic Pitt-Peters inflow, which reduces to uniform without cyclic),
-    collective/lateral/longitudinal 5, -1, -1 deg (the sensitivity study's operating point).
+    0.425 m, chord 0.042 m, NACA 0012, EI_y 7 N m^2, pitch-link stiffness 10 (N per unit
+    strain here; the thesis prints N/m) and damping 0.05 N s/m, Omega from v_tip = 108.9
+    m/s, Glauert/linear inflow (here: uniform plus the steady first-harmonic Pitt-Peters
+    inflow, which reduces to uniform without cyclic), collective/lateral/longitudinal 5, -1,
+    -1 deg (the sensitivity study's operating point).
 
     Chosen (the thesis does not give them):
     - blade mass 25 g (carbon-fibre blade), i.e. 0.0588 kg/m uniform from the hub radius.

@@ -224,6 +224,41 @@ def test_user_study_report_is_its_own(tmp_path):
             assert re.search(r"\[[^\]]+\]", lab), lab
 
 
+def test_an_unchanged_report_takes_its_figures_from_the_cache(tmp_path, caplog):
+    """A second report of the same results draws nothing: the figures come from the cache,
+    byte for byte; a damaged entry or another context (a label) draws them again."""
+    import logging
+
+    run = _run(tmp_path)
+
+    def report(folder):
+        caplog.clear()
+        with caplog.at_level(logging.INFO, logger="rotoruq.report.html"):
+            index = write_report([run.out], tmp_path / folder)
+        hits = [r.getMessage() for r in caplog.records if "from the cache" in r.getMessage()]
+        figs = {p.name: p.read_bytes() for p in (tmp_path / folder / "figures").iterdir()}
+        page = re.sub(r"Generated \S+ from [^<]*", "", index.read_text())
+        return hits[0], figs, page
+
+    first = report("r")
+    assert first[0].startswith("report: 0 of ")
+    n = int(first[0].split(" of ")[1].split()[0])
+    assert n >= 2
+    second = report("r")
+    assert second[0] == f"report: {n} of {n} figure jobs from the cache of earlier reports"
+    assert second[1] == first[1] and second[2] == first[2]
+    cache = tmp_path / "r" / ".figure-cache"
+    assert len(list(cache.iterdir())) == n
+    # a damaged entry is drawn again, to the same bytes
+    victim = next(iter(sorted(cache.glob("*/0.png"))))
+    victim.write_bytes(b"not a png")
+    third = report("r")
+    assert third[0] == f"report: {n - 1} of {n} figure jobs from the cache of earlier reports"
+    assert third[1] == first[1]
+    # a report elsewhere has its own cache
+    assert report("elsewhere")[0].startswith("report: 0 of ")
+
+
 def _fake_reference(tmp_path):
     """Saved results of both reference studies, with values that pass, fail and warn."""
     rng = np.random.default_rng(0)

@@ -414,12 +414,29 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
     covered = ([n for n, i in infos.items() if application.covers(i)]
                if application is not None else [])
     beside = {n: application.beside(n, infos[n]) for n in covered} if application else {}
-    # figures first: a worker process draws them while this one builds the tables
-    drawing = _FigureDrawing(studies, folders, [
-        _Job(study, name, hook, (labels.get(study, {}), units.get(study, {}),
-                                 beside.get(study), _recorded(infos[study], "curves")))
-        for study, steps in studies.items() for name, res in steps.items()
-        if (hook := rendering(res.type).figures) is not None], workers)
+    # figures first: a worker process draws them while this one builds the tables; the
+    # figures of steps whose study, context and drawing code did not change come from the
+    # cache of the earlier reports
+    from ._figworker import hook_name
+    from .figcache import FigureCache
+
+    cache = FigureCache(report_dir)
+    jobs = [_Job(study, name, hook, (labels.get(study, {}), units.get(study, {}),
+                                     beside.get(study), _recorded(infos[study], "curves")))
+            for study, steps in studies.items() for name, res in steps.items()
+            if (hook := rendering(res.type).figures) is not None]
+    keys, cached = {}, {}
+    for j in jobs:
+        keys[j.study, j.step] = key = cache.key(
+            j.study, j.step, hook_name(j.hook),
+            {n: r.fingerprint for n, r in studies[j.study].items()}, j.context)
+        hit = cache.get(key, _Rendered)
+        if hit is not None:
+            cached[j.study, j.step] = hit
+    log.info("report: %d of %d figure jobs from the cache of earlier reports", len(cached),
+             len(jobs))
+    drawing = _FigureDrawing(studies, folders,
+                             [j for j in jobs if (j.study, j.step) not in cached], workers)
     drawn: dict[tuple[str, str], list[_Rendered]] | None = None
     try:
         added = Addition()
@@ -490,6 +507,10 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
             t0 = time.perf_counter()
             if drawn is None:
                 drawn = drawing.finish()
+                for job_key, figs_of in drawn.items():
+                    cache.put(keys.get(job_key), figs_of)
+                drawn.update(cached)
+                cache.prune()
             figs = [f for step in steps for f in drawn.get((name, step), [])]
             if figs:
                 heading(3, "Figures", _anchor(sid, "figures"))

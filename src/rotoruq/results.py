@@ -259,9 +259,9 @@ class StepRecord:
     A subclass declares its fields: arrays (``np.ndarray``, each with its axis names in
     :attr:`AXES`), names (``tuple[str, ...]``) and plain numbers or text. :meth:`parts` gives
     the arrays and the ``meta["record"]`` entry of a :class:`StepResult`; :meth:`read` builds
-    the record back from a saved result. The flat scalars of the result stay as its flat view
-    (``rotoruq show --csv``, the reference tables). Reading an unknown attribute raises with
-    the closest field names.
+    the record back from a saved result; :func:`flat_view` derives the result's flat scalars
+    from the saved record (``rotoruq show --csv``, the reference tables). Reading an unknown
+    attribute raises with the closest field names.
 
     Examples
     --------
@@ -275,8 +275,8 @@ class StepRecord:
     >>> rec = MomentsRecord(("thrust",), np.array([1.5]))
     >>> arrays, meta = rec.parts()
     >>> back = MomentsRecord.read(StepResult("m", "moments", arrays=arrays, meta=meta))
-    >>> back.names_out, back.mean.tolist()
-    (('thrust',), [1.5])
+    >>> back.names_out, back.mean.tolist(), back.index("response", "thrust")
+    (('thrust',), [1.5], 0)
     >>> back.maen
     Traceback (most recent call last):
     ...
@@ -327,21 +327,9 @@ class StepRecord:
             "flat": dict(self.FLAT)}}
 
     def index(self, axis: str, label: str) -> int:
-        """Position of ``label`` on ``axis`` (see :attr:`LABELS`); a label the record does
-        not hold raises ``KeyError`` naming those it does.
-
-        Examples
-        --------
-        >>> import numpy as np
-        >>> from dataclasses import dataclass
-        >>> @dataclass(frozen=True, eq=False)
-        ... class MomentsRecord(StepRecord):
-        ...     AXES = {"mean": ("response",)}
-        ...     names_out: tuple[str, ...]
-        ...     mean: np.ndarray
-        >>> MomentsRecord(("thrust", "power"), np.zeros(2)).index("response", "power")
-        1
-        """
+        """Position of ``label`` on ``axis`` (see :attr:`LABELS`; an example in the class's
+        docstring); a label the record does not hold raises ``KeyError`` naming those it
+        does."""
         lab = {**_DEFAULT_LABELS, **self.LABELS}.get(axis)
         names = list(getattr(self, lab) if isinstance(lab, str) else lab or ())
         if label not in names:

@@ -6,8 +6,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
+import os
 import time
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from typing import Any
 
 from ..errors import InputFileError
 from ..reference.studies import CHAPTERS
@@ -38,31 +42,80 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--json", action="store_true",
                         help="print the report's path and the seconds per chapter as JSON "
                         "instead of the summary")
+    parser.add_argument("--jobs", type=int, default=None,
+                        help="chapters run at once, each in its own process (default: one "
+                        "per core, at most one per chapter); the numbers are the same at any "
+                        "count")
 
 
 def reproduce(which: str = "all", out: str | Path = "rotoruq-results",
-              quick: bool = False) -> dict:
+              quick: bool = False, jobs: int | None = None) -> dict:
     """Run the chapters, write the report; returns ``{"report": path, "seconds": {...},
     "runs": {chapter: StudyRun}}``. Holds ``out`` (and so each chapter's folder in it) for the
-    whole run."""
+    whole run.
+
+    The chapters are independent studies (each its own folder, store and seed): with
+    ``jobs`` > 1 (default: the machine's cores, at most the chapters asked for) they run at
+    once in worker processes and give the same results, bit for bit, as one after the other.
+    ``seconds`` holds each chapter's own time and ``"wall"``, the time until the last
+    chapter ended.
+    """
     from .lock import results_lock
 
     out = Path(out)
+    if jobs is not None and (isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1):
+        raise ValueError(f"jobs must be an integer >= 1, got {jobs!r}")
     with results_lock(out, "reproduce"):
-        return _reproduce(which, out, quick)
+        return _reproduce(which, out, quick, jobs)
 
 
-def _reproduce(which: str, out: Path, quick: bool) -> dict:
-    from ..results import is_study_dir
-    from .cmd_report import write
+def _chapter(name: str, out: Path, quick: bool) -> tuple[Any, float]:
     from .runner import run_study
 
+    t0 = time.perf_counter()
+    run = run_study(studies_dir() / CHAPTERS[name], out=out / name, quick=quick)
+    return run, time.perf_counter() - t0
+
+
+def _console_level() -> int | None:
+    """The level of the progress lines this process prints (None: it prints none)."""
+    from .console import printing_level
+
+    return printing_level()
+
+
+def _child_logging(level: int | None) -> None:
+    """A chapter's worker prints its progress lines as this process does."""
+    if level is not None:
+        import logging
+
+        from .console import configure_logging
+
+        configure_logging()
+        logging.getLogger("rotoruq").setLevel(level)
+
+
+def _reproduce(which: str, out: Path, quick: bool, jobs: int | None) -> dict:
+    from ..results import is_study_dir
+    from .cmd_report import write
+
     names = list(CHAPTERS) if which == "all" else [which]
-    seconds, runs = {}, {}
-    for name in names:
-        t0 = time.perf_counter()
-        runs[name] = run_study(studies_dir() / CHAPTERS[name], out=out / name, quick=quick)
-        seconds[name] = time.perf_counter() - t0
+    jobs = min(jobs or os.cpu_count() or 1, len(names))
+    seconds: dict[str, float] = {}
+    runs: dict[str, Any] = {}
+    t0 = time.perf_counter()
+    if jobs == 1:
+        for name in names:
+            runs[name], seconds[name] = _chapter(name, out, quick)
+    else:
+        # spawned, not forked: a fork would copy this process's threads' locks (BLAS, numba)
+        ctx = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_child_logging,
+                                 initargs=(_console_level(),)) as pool:
+            futures = {name: pool.submit(_chapter, name, out, quick) for name in names}
+            for name in names:  # in order: the first failure raised is the first chapter's
+                runs[name], seconds[name] = futures[name].result()
+    seconds["wall"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     index = write([out / n for n in CHAPTERS if is_study_dir(out / n)], out / "report")
     seconds["report"] = time.perf_counter() - t0
@@ -72,7 +125,7 @@ def _reproduce(which: str, out: Path, quick: bool) -> dict:
 def run(args: argparse.Namespace) -> int:
     from .cmd_run import EXIT_FAILED_EVALUATIONS, exit_status, summary
 
-    result = reproduce(args.which, args.out, args.quick)
+    result = reproduce(args.which, args.out, args.quick, args.jobs)
     if args.json:
         print(json.dumps({"report": result["report"], "seconds": result["seconds"]}, indent=1))
     elif not getattr(args, "quiet", False):

@@ -173,3 +173,13 @@ def configure_logging(quiet: bool = False, debug: bool = False, verbose: bool = 
     root.addHandler(_StderrHandler())
     root.setLevel(logging.DEBUG if debug or verbose else logging.WARNING if quiet
                   else logging.INFO)
+
+
+def printing_level() -> int | None:
+    """The level from which the ``rotoruq`` loggers print to stderr after
+    :func:`configure_logging` (None when it was not called in this process): what a worker
+    process passes on so that it prints the same lines."""
+    root = logging.getLogger("rotoruq")
+    if not any(isinstance(h, _StderrHandler) for h in root.handlers):
+        return None
+    return root.level

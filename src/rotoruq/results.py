@@ -216,8 +216,14 @@ def flat_view(meta: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> dict
             for axis, n in zip(axes, arr.shape, strict=True):
                 lab = labels.get(axis)
                 lab = plain.get(lab) if isinstance(lab, str) else lab
-                names.append([_part(str(x)) for x in lab] if isinstance(lab, list | tuple)
-                             and len(lab) == n else [f"/{j}" for j in range(n)])
+                if isinstance(lab, list | tuple):
+                    if len(lab) != n:
+                        break  # labels that do not fit (a record not written by rotoruq)
+                    names.append([_part(str(x)) for x in lab])
+                else:
+                    names.append([f"/{j}" for j in range(n)])
+            if len(names) != arr.ndim:
+                continue
             for idx in np.ndindex(arr.shape):
                 v = float(arr[idx])
                 if not math.isnan(v):  # not computed (a level past its count, no emulator)
@@ -319,6 +325,15 @@ class StepRecord:
                 arrays[f.name] = v
             else:
                 plain[f.name] = list(v) if isinstance(v, tuple) else v
+        labels = {**_DEFAULT_LABELS, **self.LABELS}
+        for name, arr in arrays.items():
+            for axis, n in zip(self.AXES[name], arr.shape, strict=True):
+                lab = labels.get(axis)
+                lab = plain.get(lab) if isinstance(lab, str) else lab
+                if isinstance(lab, list | tuple) and len(lab) != n:
+                    raise ValueError(f"{type(self).__name__}.{name}: its {axis} axis has {n} "
+                                     f"elements but {len(lab)} labels ({labels[axis]!r}); "
+                                     "give the axis its own name (LABELS)")
         return arrays, {"record": {
             "type": type(self).__name__, "version": self.VERSION, "fields": plain,
             "axes": {k: list(a) for k, a in self.AXES.items()},

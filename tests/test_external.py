@@ -15,9 +15,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from rotoruq._options import fields_of
 from rotoruq.errors import EvaluationError, InputFileError, ParameterError
 from rotoruq.evaluation.evaluator import Evaluator
-from rotoruq.evaluation.external import ExternalModel
+from rotoruq.evaluation.external import ExternalModel, FileContract, WorkDirectory
 from rotoruq.evaluation.process_tree import is_running as alive
 from rotoruq.evaluation.store import Store
 from rotoruq.model import evaluate
@@ -116,8 +117,13 @@ def driver(tmp_path):
 
 
 def model(driver, tmp_path, **kw):
-    kw.setdefault("workdir", tmp_path / "work")
-    return ExternalModel([sys.executable, "-S", str(driver)], ["kind", "a"], ["f"], **kw)
+    """The test driver as an ExternalModel working in ``tmp_path/work``; the fields of its
+    WorkDirectory and FileContract records may be given flat here (``tag=False``)."""
+    work = {k: kw.pop(k) for k in fields_of(WorkDirectory)[1:] if k in kw}
+    contract = {k: kw.pop(k) for k in fields_of(FileContract) if k in kw}
+    return ExternalModel([sys.executable, "-S", str(driver)], ["kind", "a"], ["f"],
+                         workdir=WorkDirectory(kw.pop("workdir", tmp_path / "work"), **work),
+                         contract=FileContract(**contract), **kw)
 
 
 @pytest.mark.parametrize("fmt", ["standard", "aprepro"])
@@ -250,7 +256,7 @@ def test_values_and_arguments_never_pass_through_a_shell(driver, tmp_path):
 
 def test_string_command_and_configuration_errors(driver, tmp_path):
     m = ExternalModel(f"{sys.executable} -S {driver}", ["kind", "a"], ["f"],
-                      workdir=tmp_path / "w", tag=False)
+                      workdir=WorkDirectory(tmp_path / "w", tag=False))
     np.testing.assert_array_equal(m(np.array([[0.0, 1.5], [0.0, 2.5]]))[:, 0], [3.0, 5.0])
     with pytest.raises(ParameterError, match="retry"):
         model(driver, tmp_path, failure_policy="retry:x")
@@ -505,12 +511,14 @@ def test_output_goes_to_capped_files_not_memory(tmp_path):
 @pytest.mark.parametrize("bad", ["", "..", "a\nb", "a/b", "a\\b", "../x", "a b", "x..y", "{a}",
                                  "a=b", "tab\t"])
 def test_names_are_validated(driver, tmp_path, bad):
-    for kw in ({"names_in": [bad, "a"]}, {"names_out": [bad]}, {"name": bad},
-               {"parameters_file": bad}, {"results_file": bad}):
-        args = {"names_in": ["kind", "a"], "names_out": ["f"], **kw}
+    for kw in ({"names_in": [bad, "a"]}, {"names_out": [bad]},
+               {"workdir": WorkDirectory(tmp_path / "w", name=bad)},
+               {"contract": FileContract(parameters_file=bad)},
+               {"contract": FileContract(results_file=bad)}):
+        args = {"names_in": ["kind", "a"], "names_out": ["f"], "workdir": tmp_path / "w", **kw}
         with pytest.raises(ParameterError):
             ExternalModel([sys.executable, str(driver)], args.pop("names_in"),
-                          args.pop("names_out"), workdir=tmp_path / "w", **args)
+                          args.pop("names_out"), **args)
     with pytest.raises(ParameterError):
         model(driver, tmp_path).run_one(np.array([0.0, 1.0]), eval_id=bad or "..")
 
@@ -522,7 +530,7 @@ def test_model_named_dotdot_never_deletes_outside_its_work_directory(driver, tmp
     precious.write_text("years of work\n")
     with pytest.raises(ParameterError, match="'..'"):
         ExternalModel([sys.executable, str(driver)], ["kind", "a"], ["f"],
-                      workdir=base / "work", name="..", tag=False)
+                      workdir=WorkDirectory(base / "work", name="..", tag=False))
     assert precious.read_text() == "years of work\n"
 
 
@@ -558,11 +566,11 @@ def test_parameters_file_cannot_be_forged_through_a_label(tmp_path):
 CONCURRENT = r'''
 import os, sys
 import numpy as np
-from rotoruq.evaluation.external import ExternalModel
+from rotoruq.evaluation.external import ExternalModel, WorkDirectory
 from rotoruq.evaluation.process_tree import is_running as alive
 driver, work, who = sys.argv[1:4]
-m = ExternalModel([sys.executable, "-S", driver], ["a"], ["f"], workdir=work,
-                  keep_workdirs=sys.argv[4] == "keep")
+m = ExternalModel([sys.executable, "-S", driver], ["a"], ["f"],
+                  workdir=WorkDirectory(work, keep_workdirs=sys.argv[4] == "keep"))
 a = np.arange(8.0) + (100.0 if who == "B" else 0.0)
 b = m.evaluate(a[:, None])
 assert not b.failures, b.failures
@@ -606,6 +614,59 @@ def test_two_processes_share_a_base_folder_without_collisions(tmp_path, keep):
         assert dirs == []
 
 
+def test_the_flat_keywords_of_0_1_still_work_for_one_release(driver, tmp_path):
+    """ExternalModel takes its work directory and file options as two records; the flat
+    keywords of rotoruq 0.1 make the same model (same identity, same runs, bitwise) with a
+    DeprecationWarning naming the record field; an unknown keyword is a TypeError with the
+    closest name."""
+    import inspect
+
+    assert len(inspect.signature(ExternalModel).parameters) <= 12
+    tpl = tmp_path / "solver.inp"
+    tpl.write_text("c = {a:.17g}\n")
+    cmd = [sys.executable, "-S", str(driver)]
+    new = ExternalModel(cmd, ["kind", "a"], ["f"],
+                        workdir=WorkDirectory(tmp_path / "new", name="run", keep_workdirs=True,
+                                              template_files=[tpl]),
+                        contract=FileContract(parameters_format="aprepro",
+                                              parameters_file="in.txt",
+                                              analysis_components=[("solver", "mesh")]))
+    with pytest.warns(DeprecationWarning) as caught:
+        old = ExternalModel(cmd, ["kind", "a"], ["f"], workdir=tmp_path / "old", name="run",
+                            keep_workdirs=True, template_files=[tpl],
+                            parameters_format="aprepro", parameters_file="in.txt",
+                            analysis_components=[("solver", "mesh")])
+    said = {str(w.message) for w in caught}
+    assert ("ExternalModel(keep_workdirs=...) is deprecated and will be removed in the next "
+            "release: pass workdir=WorkDirectory(keep_workdirs=...)") in said
+    assert ("ExternalModel(parameters_format=...) is deprecated and will be removed in the "
+            "next release: pass contract=FileContract(parameters_format=...)") in said
+    assert len(said) == 6
+    assert all(w.filename == __file__ for w in caught)  # the warning points at the caller
+    assert old.identity() == new.identity()
+    for attr in ("name", "tag", "keep_workdirs", "template_files", "copy_files", "link_files",
+                 "parameters_format", "parameters_file", "results_file", "asv",
+                 "analysis_components"):
+        assert getattr(old, attr) == getattr(new, attr), attr
+    x = np.array([0.0, 0.1])
+    r_old, r_new = old.run_one(x, eval_id="1"), new.run_one(x, eval_id="1")
+    np.testing.assert_array_equal(r_old.values, r_new.values)
+    assert r_old.values[0] == 3 * 0.1
+    assert (Path(r_old.workdir) / "in.txt").read_bytes() == (
+        Path(r_new.workdir) / "in.txt").read_bytes()
+    # a flat keyword overrides that field of the record given
+    with pytest.warns(DeprecationWarning, match="WorkDirectory"):
+        mixed = ExternalModel(cmd, ["kind", "a"], ["f"],
+                              workdir=WorkDirectory(tmp_path / "w", name="one"), name="two")
+    assert mixed.name == "two" and mixed.workdir == tmp_path / "w"
+    with pytest.raises(TypeError, match="'keep_workdir'.*did you mean 'keep_workdirs'"):
+        ExternalModel(cmd, ["kind", "a"], ["f"], keep_workdir=True)
+    with pytest.raises(ParameterError, match="contract must be a FileContract"):
+        ExternalModel(cmd, ["kind", "a"], ["f"], contract={"asv": 1})
+    with pytest.raises(ParameterError, match="workdir must be a path or a WorkDirectory"):
+        ExternalModel(cmd, ["kind", "a"], ["f"], workdir=3)
+
+
 def test_identity_covers_what_changes_answers(driver, tmp_path):
     tpl = tmp_path / "solver.inp"
     tpl.write_text("c = {a}\n")
@@ -625,7 +686,7 @@ def test_identity_covers_what_changes_answers(driver, tmp_path):
     assert ident["command"][0]["sha256"]  # the interpreter itself
     changed = {
         "names_in": ExternalModel([sys.executable, "-S", str(driver)], ["kind", "b"], ["f"],
-                                  workdir=tmp_path / "work", copy_files=[data]),
+                                  workdir=WorkDirectory(tmp_path / "work", copy_files=[data])),
         "failure_policy": make(failure_policy="retry:2"),
         "env": make(env={"OMP_NUM_THREADS": "1"}),
         "parameters_format": make(parameters_format="aprepro"),
@@ -655,7 +716,8 @@ def test_template_fields_are_checked_when_the_model_is_made(driver, tmp_path):
     assert err.value.line == 2
     tpl.write_text("c = {a}\nd = {c0}\ne = {h = 2}\n")
     m = ExternalModel([sys.executable, "-S", str(driver)], ["kind", "a", "c0"], ["f"],
-                      workdir=tmp_path / "work", template_files=[tpl], keep_workdirs=True)
+                      workdir=WorkDirectory(tmp_path / "work", template_files=[tpl],
+                                            keep_workdirs=True))
     r = m.run_one(np.array([0.0, 1.5, 0.25]))
     assert (Path(r.workdir) / "solver.inp").read_text() == "c = 1.5\nd = 0.25\ne = 2\n"
     tpl.write_bytes(b"c = {a}\n\xff\n")

@@ -8,7 +8,7 @@ import pytest
 from scipy import stats
 
 from rotoruq.errors import EvaluationError, ModelShapeError, ParameterError
-from rotoruq.methods.least_squares import calibrate, least_squares
+from rotoruq.methods.least_squares import Convergence, calibrate, least_squares
 from rotoruq.methods.mgh_problems import (
     bard,
     box3d,
@@ -34,7 +34,7 @@ PROBLEMS = {
 @pytest.mark.parametrize("name", list(PROBLEMS))
 def test_mgh_problems_reach_published_minimum(name):
     fun, x0, fstar, xstar = PROBLEMS[name]
-    res = least_squares(fun, x0, tolerance=1e-10)
+    res = least_squares(fun, x0, convergence=Convergence(tolerance=1e-10))
     assert res.converged, res.message
     sumsq = 2 * res.cost
     if fstar == 0.0:
@@ -50,8 +50,9 @@ def test_mgh_problems_reach_published_minimum(name):
 
 
 def test_bard_minimizer_matches_scipy_trf_and_fd_counts():
-    res = least_squares(bard, [1, 1, 1], tolerance=1e-12)
-    ref = least_squares(bard, [1, 1, 1], optimizer="trf", tolerance=1e-14)
+    res = least_squares(bard, [1, 1, 1], convergence=Convergence(tolerance=1e-12))
+    ref = least_squares(bard, [1, 1, 1], optimizer="trf",
+                        convergence=Convergence(tolerance=1e-14))
     np.testing.assert_allclose(res.x, ref.x, rtol=1e-5)
     assert ref.optimizer == "trf" and ref.n_evaluations > 0
     assert res == res and res != ref  # results compare by identity (eq=False), never raise
@@ -60,7 +61,8 @@ def test_bard_minimizer_matches_scipy_trf_and_fd_counts():
 
 
 def test_large_residual_problem_uses_augmented_model():
-    res = least_squares(brown_dennis, [25.0, 5.0, -5.0, -1.0], tolerance=1e-10)
+    res = least_squares(brown_dennis, [25.0, 5.0, -5.0, -1.0],
+                        convergence=Convergence(tolerance=1e-10))
     assert "augmented" in res.models
 
 
@@ -82,7 +84,7 @@ def test_analytic_jacobian_accepted_and_counted():
 def test_bounds_active_at_solution():
     # unconstrained minimum at (1, 1); with x1 <= 0.5 the bound is active
     res = least_squares(rosenbrock, [-1.2, 1.0], bounds=([-2, -2], [0.5, 2]),
-                        tolerance=1e-12)
+                        convergence=Convergence(tolerance=1e-12))
     assert res.converged
     assert res.x[0] == pytest.approx(0.5, abs=1e-12)
     assert res.x[1] == pytest.approx(0.25, abs=1e-6)  # x2 = x1^2 minimizes the first residual
@@ -96,7 +98,8 @@ def test_linear_regression_covariance_and_confidence_intervals():
     A = np.column_stack([np.ones_like(t), t])
     y = A @ [1.0, 2.0] + 0.1 * rng.standard_normal(t.size)
 
-    res = least_squares(lambda X: X @ A.T - y, [0.0, 0.0], tolerance=1e-12)
+    res = least_squares(lambda X: X @ A.T - y, [0.0, 0.0],
+                        convergence=Convergence(tolerance=1e-12))
     beta, *_ = np.linalg.lstsq(A, y, rcond=None)
     np.testing.assert_allclose(res.x, beta, rtol=1e-7)
     s2 = np.sum((A @ beta - y) ** 2) / (t.size - 2)
@@ -107,7 +110,7 @@ def test_linear_regression_covariance_and_confidence_intervals():
                                rtol=1e-5)
     # with known data variances the covariance is (A^T W A)^-1
     resw = least_squares(lambda X: X @ A.T - y, [0.0, 0.0], noise_std=np.full(t.size, 0.1),
-                         tolerance=1e-12)
+                         convergence=Convergence(tolerance=1e-12))
     np.testing.assert_allclose(resw.covariance, np.linalg.inv(100 * A.T @ A), rtol=1e-5)
 
 
@@ -123,7 +126,7 @@ def test_nan_residual_shrinks_the_trust_region():
         r[X[:, 0] > 3] = np.nan
         return r
 
-    res = least_squares(fun, [-5.0], tolerance=1e-12)
+    res = least_squares(fun, [-5.0], convergence=Convergence(tolerance=1e-12))
     assert res.converged, res.message
     assert res.x[0] == pytest.approx(1.5, abs=1e-7)
     tried = np.concatenate(calls)[:, 0]
@@ -145,7 +148,8 @@ def test_bad_inputs():
 
 
 def test_max_function_evaluations_respected():
-    res = least_squares(brown_dennis, [25.0, 5.0, -5.0, -1.0], max_function_evaluations=20)
+    res = least_squares(brown_dennis, [25.0, 5.0, -5.0, -1.0],
+                        convergence=Convergence(max_function_evaluations=20))
     assert not res.converged
     assert res.status == "max_function_evaluations"
     assert res.n_evaluations <= 20
@@ -167,7 +171,7 @@ def exponential_fit(X):
 
 
 def _tight(fun, x0):
-    return least_squares(fun, x0, tolerance=1e-14, x_tolerance=1e-15)
+    return least_squares(fun, x0, convergence=Convergence(tolerance=1e-14, x_tolerance=1e-15))
 
 
 def test_relative_function_convergence_is_as_accurate_as_dakota():
@@ -225,18 +229,67 @@ def test_false_convergence_on_non_smooth_residuals():
 
 
 def test_x_tolerance_controls_x_convergence():
-    loose = least_squares(exponential_fit, [1.0, 0.5], x_tolerance=1e-2, absolute_tolerance=0.0)
-    tight = least_squares(exponential_fit, [1.0, 0.5], x_tolerance=1e-12,
-                          absolute_tolerance=0.0)
+    loose = least_squares(exponential_fit, [1.0, 0.5],
+                          convergence=Convergence(x_tolerance=1e-2, absolute_tolerance=0.0))
+    tight = least_squares(exponential_fit, [1.0, 0.5],
+                          convergence=Convergence(x_tolerance=1e-12, absolute_tolerance=0.0))
     assert loose.status in ("x", "relative_function_and_x")
     assert loose.iterations < tight.iterations
 
 
 def test_max_iterations_counts_accepted_steps():
-    res = least_squares(rosenbrock, [-1.2, 1.0], max_iterations=3)
+    res = least_squares(rosenbrock, [-1.2, 1.0], convergence=Convergence(max_iterations=3))
     assert res.status == "max_iterations" and res.iterations == 3
     assert len(res.history) == 4  # the start and one cost per accepted step
     assert np.all(np.diff(res.history) < 0)
+
+
+def test_the_flat_keywords_of_0_1_still_work_for_one_release():
+    """least_squares takes its stopping rules as a Convergence record; the flat keywords of
+    rotoruq 0.1 give bitwise the same result with a DeprecationWarning naming the record field;
+    an unknown keyword is a TypeError with the closest name."""
+    import inspect
+    import warnings
+
+    assert len(inspect.signature(least_squares).parameters) <= 12
+    new = least_squares(brown_dennis, [25.0, 5.0, -5.0, -1.0],
+                        convergence=Convergence(tolerance=1e-10, x_tolerance=1e-9,
+                                                max_function_evaluations=200))
+    with pytest.warns(DeprecationWarning) as caught:
+        old = least_squares(brown_dennis, [25.0, 5.0, -5.0, -1.0], tolerance=1e-10,
+                            x_tolerance=1e-9, max_function_evaluations=200)
+    said = {str(w.message) for w in caught}
+    assert ("least_squares(tolerance=...) is deprecated and will be removed in the next "
+            "release: pass convergence=Convergence(tolerance=...)") in said
+    assert len(said) == 3
+    assert all(w.filename == __file__ for w in caught)  # the warning points at the caller
+    for field in ("x", "residuals", "jacobian", "covariance", "history"):
+        np.testing.assert_array_equal(getattr(old, field), getattr(new, field))
+    assert (old.cost, old.iterations, old.n_evaluations, old.status) == (
+        new.cost, new.iterations, new.n_evaluations, new.status)
+    # a flat keyword overrides that field of the record given
+    with pytest.warns(DeprecationWarning, match="Convergence"):
+        mixed = least_squares(brown_dennis, [25.0, 5.0, -5.0, -1.0],
+                              convergence=Convergence(tolerance=1.0, x_tolerance=1e-9,
+                                                      max_function_evaluations=200),
+                              tolerance=1e-10)
+    np.testing.assert_array_equal(mixed.x, new.x)
+    with pytest.raises(TypeError, match="'max_iteration'.*did you mean 'max_iterations'"):
+        least_squares(rosenbrock, [-1.2, 1.0], max_iteration=3)
+    with pytest.raises(ParameterError, match="convergence must be a Convergence"):
+        least_squares(rosenbrock, [-1.2, 1.0], convergence={"tolerance": 1e-3})
+    # calibrate and calibrate_under_uncertainty take the fields flat (a study step's options),
+    # without a warning, gathered into the same record
+    model = FunctionModel(lambda x: x[:, :1] * np.array([[1.0, 2.0, 3.0]]), ["k"],
+                          ["y1", "y2", "y3"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DeprecationWarning)
+        flat = calibrate(model, [2.4, 5.1, 7.4], ["k"], x0=[1.0], tolerance=1e-12,
+                         max_iterations=7)
+    rec = calibrate(model, [2.4, 5.1, 7.4], ["k"], x0=[1.0],
+                    convergence=Convergence(tolerance=1e-12, max_iterations=7))
+    np.testing.assert_array_equal(flat.x, rec.x)
+    assert flat.least_squares.history.tolist() == rec.least_squares.history.tolist()
 
 
 # --- calibrate --------------------------------------------------------------------------------
@@ -276,7 +329,8 @@ def test_calibrate_with_parameter_space_and_per_experiment_conditions():
     shifts = np.array([0.0, 0.5, 1.0])
     data = 2.0 * np.exp(-0.4 * (t[None, :] + shifts[:, None]))
     space = ParameterSpace({"a": Uniform(1.0, 5.0), "b": Normal(0.3, 0.1)})
-    res = calibrate(model, data, space, fixed={"c": shifts}, tolerance=1e-12)
+    res = calibrate(model, data, space, fixed={"c": shifts},
+                    convergence=Convergence(tolerance=1e-12))
     np.testing.assert_allclose(res.x, [2.0, 0.4], rtol=1e-6)
     assert res.cost < 1e-14
 
@@ -308,7 +362,8 @@ def test_scipy_lm_through_same_interface_and_batched_fd_calls():
         sizes.append(X.shape[0])
         return jennrich_sampson(X)
 
-    res = least_squares(fun, [0.3, 0.4], optimizer="lm", tolerance=1e-10)
+    res = least_squares(fun, [0.3, 0.4], optimizer="lm",
+                        convergence=Convergence(tolerance=1e-10))
     assert res.optimizer == "lm" and res.converged
     assert 2 * res.cost == pytest.approx(124.362, rel=1e-5)
     assert res.n_evaluations == sum(sizes)

@@ -271,7 +271,7 @@ open(results, "w").write(f"{(sum(f) - 0.5 * (f[0] + f[-1])) / n!r} integral\n")
 
 
 def test_verify_discretization_of_an_external_solver_through_a_template_field(tmp_path):
-    from rotoruq.evaluation.external import ExternalModel
+    from rotoruq.evaluation.external import ExternalModel, WorkDirectory
     from rotoruq.model import FixedInputs
 
     solver = tmp_path / "solver.py"
@@ -281,8 +281,8 @@ def test_verify_discretization_of_an_external_solver_through_a_template_field(tm
 
     def factory(n):
         model = ExternalModel([sys.executable, "-S", str(solver)], ["a", "n_intervals"],
-                              ["integral"], workdir=tmp_path / "work",
-                              template_files=[template])
+                              ["integral"],
+                              workdir=WorkDirectory(tmp_path / "work", template_files=[template]))
         return FixedInputs(model, {"n_intervals": n})
 
     res = verify_discretization(factory, [40, 20, 10], [[1.0]], ratio=2.0, formal_order=2.0)

@@ -117,12 +117,15 @@ _PUBLIC: dict[str, str] = {
     "calibrate_under_uncertainty": ".methods.cuu",
     "check_cuu": ".methods.cuu",
     "CalibrationResult": ".methods.least_squares",
+    "Convergence": ".methods.least_squares",
     "LeastSquaresResult": ".methods.least_squares",
     "calibrate": ".methods.least_squares",
     "least_squares": ".methods.least_squares",
     "DaskExecutor": ".evaluation",
     "Evaluator": ".evaluation",
     "ExternalModel": ".evaluation",
+    "FileContract": ".evaluation",
+    "WorkDirectory": ".evaluation",
     "ProcessExecutor": ".evaluation",
     "SerialExecutor": ".evaluation",
     "Store": ".evaluation",
@@ -173,9 +176,11 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     from .evaluation import DaskExecutor as DaskExecutor
     from .evaluation import Evaluator as Evaluator
     from .evaluation import ExternalModel as ExternalModel
+    from .evaluation import FileContract as FileContract
     from .evaluation import ProcessExecutor as ProcessExecutor
     from .evaluation import SerialExecutor as SerialExecutor
     from .evaluation import Store as Store
+    from .evaluation import WorkDirectory as WorkDirectory
     from .evaluation import fill_template as fill_template
     from .evaluation import read_parameters as read_parameters
     from .evaluation import read_results as read_results
@@ -192,6 +197,7 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     from .methods.importance import ImportanceSamplingResult as ImportanceSamplingResult
     from .methods.importance import importance_sampling as importance_sampling
     from .methods.least_squares import CalibrationResult as CalibrationResult
+    from .methods.least_squares import Convergence as Convergence
     from .methods.least_squares import LeastSquaresResult as LeastSquaresResult
     from .methods.least_squares import calibrate as calibrate
     from .methods.least_squares import least_squares as least_squares

@@ -11,7 +11,7 @@ from .dakota_files import (
 )
 from .evaluator import EvalStats, Evaluator, as_evaluator
 from .executors import DaskExecutor, Executor, ProcessExecutor, SerialExecutor, make_executor
-from .external import ExternalModel
+from .external import ExternalModel, FileContract, WorkDirectory
 from .store import EvalRecord, Store
 from .templates import fill_template, fill_template_file
 
@@ -31,6 +31,8 @@ __all__ = [
     "SerialExecutor",
     "make_executor",
     "ExternalModel",
+    "FileContract",
+    "WorkDirectory",
     "EvalRecord",
     "Store",
     "fill_template",

@@ -47,8 +47,12 @@ Failure policies (``failure_policy``):
 Names: input and response labels, the model ``name`` and the file names must be
 non-empty, without white space, control characters, path separators, ``..``, braces, ``=``
 or quotes (:func:`~rotoruq.evaluation.dakota_files.check_label`). rotoruq deletes only work
-directories it made: per-evaluation directories it created itself, and with ``tag=False`` a
-directory holding its ``.rotoruq-workdir`` marker.
+directories it made: per-evaluation directories it created itself, and with
+``WorkDirectory(tag=False)`` a directory holding its ``.rotoruq-workdir`` marker.
+
+Options: where the evaluations run is a :class:`WorkDirectory` (Dakota's ``work_directory``),
+the files exchanged with the driver a :class:`FileContract` (``parameters_file``,
+``results_file``, ``aprepro``, the active set vector, ``analysis_components``).
 """
 
 from __future__ import annotations
@@ -71,6 +75,7 @@ from typing import Any
 
 import numpy as np
 
+from .._options import fields_of, legacy_keywords, legacy_mapping, with_fields
 from ..atomic import make_temp_dir
 from ..errors import EvaluationError, InputFileError, ParameterError, RotoruqError
 from ..model import EvalBatch, Gradient
@@ -79,8 +84,8 @@ from .identity import file_sha256
 from .process_tree import run_process_tree
 from .templates import check_template, fill_template
 
-__all__ = ["ExternalModel", "RunResult", "FailurePolicy", "parse_failure_policy", "GRADIENTS",
-           "warn_once"]
+__all__ = ["ExternalModel", "WorkDirectory", "FileContract", "RunResult", "FailurePolicy",
+           "parse_failure_policy", "GRADIENTS", "warn_once", "LEGACY_KEYWORDS"]
 
 log = logging.getLogger(__name__)
 
@@ -92,6 +97,94 @@ _TAIL = 8192  # bytes of stdout/stderr kept with a failed evaluation
 STDOUT_FILE, STDERR_FILE = "rotoruq.stdout", "rotoruq.stderr"
 MARKER = ".rotoruq-workdir"  # in a tag=False work directory: rotoruq made it, may empty it
 MAX_RESULTS_BYTES = 256 * 2**20  # a results file larger than this is a failure, not read
+
+
+@dataclass(frozen=True, eq=False)
+class WorkDirectory:
+    """Where each evaluation of an :class:`ExternalModel` runs, what is put there, and what is
+    kept (Dakota's ``work_directory`` with ``named``, ``directory_tag``, ``directory_save``,
+    ``copy_files`` and ``link_files``; rotoruq fills templates too).
+
+    Parameters
+    ----------
+    base : str or path-like
+        Base directory of the work directories (default ``./rotoruq_work``, relative to the
+        current directory when the model is made); created if missing, never deleted.
+    name : str
+        Name (prefix) of the work directories (Dakota's ``named``): each evaluation gets
+        ``<base>/<name>.<pid>.<token>.<eval_id>`` while ``tag`` is True.
+    tag : bool
+        Dakota's ``directory_tag``, default True: one directory per evaluation. False: one
+        directory ``<base>/<name>``, emptied before each run (not for parallel use), which
+        rotoruq only empties if it made it (it holds a ``.rotoruq-workdir`` marker).
+    keep_workdirs : True, False or "failed"
+        Dakota's ``directory_save``: keep every work directory (True), none (False), or the
+        failed evaluations' only ("failed", the default).
+    template_files : sequence of paths
+        Files filled with :func:`~rotoruq.evaluation.templates.fill_template` into the work
+        directory (same base name); read, checked and hashed once, when the model is made.
+    copy_files, link_files : sequences of paths
+        Files or directories copied / symbolically linked into the work directory.
+
+    Examples
+    --------
+    >>> wd = WorkDirectory("runs", name="case", keep_workdirs=True)
+    >>> wd.tag, wd.copy_files
+    (True, ())
+    >>> m = ExternalModel(["solver"], ["a"], ["f"], workdir=wd)  # nothing runs yet
+    >>> m.workdir.name, m.name, m.keep_workdirs
+    ('runs', 'case', True)
+    """
+
+    base: str | os.PathLike = "rotoruq_work"
+    name: str = "eval"
+    tag: bool = True
+    keep_workdirs: bool | str = "failed"
+    template_files: Sequence[str | os.PathLike] = ()
+    copy_files: Sequence[str | os.PathLike] = ()
+    link_files: Sequence[str | os.PathLike] = ()
+
+
+@dataclass(frozen=True, eq=False)
+class FileContract:
+    """The files an :class:`ExternalModel` and its driver exchange: Dakota's
+    ``parameters_file``, ``results_file`` and parameters format (``aprepro``), and what the
+    parameters file asks for (active set vector, analysis components).
+
+    Parameters
+    ----------
+    parameters_format : "standard" or "aprepro"
+        Format of the parameters file (Dakota's default standard format, or ``aprepro``).
+    parameters_file, results_file : str
+        File names inside the work directory (default ``params.in`` and ``results.out``).
+    asv : int
+        Active set code written for every response, 0..7 (1, the default: values only); a
+        gradient run (``gradients="analytic"``) writes 3.
+    analysis_components : sequence of (component, driver) pairs
+        Dakota's ``analysis_components``, written to the parameters file.
+
+    Examples
+    --------
+    >>> FileContract(parameters_format="aprepro").results_file
+    'results.out'
+    >>> m = ExternalModel(["solver"], ["a"], ["f"], contract=FileContract(parameters_file="in.txt"))
+    >>> m.parameters_file, m.results_file
+    ('in.txt', 'results.out')
+    """
+
+    parameters_format: str = "standard"
+    parameters_file: str = "params.in"
+    results_file: str = "results.out"
+    asv: int = 1
+    analysis_components: Sequence[tuple[str, str]] = ()
+
+
+#: The flat keyword arguments of ExternalModel before its option records (deprecated, accepted
+#: for one release): old name -> (parameter, record class name, field).
+LEGACY_KEYWORDS: Mapping[str, tuple[str, str, str]] = {
+    **legacy_mapping("workdir", WorkDirectory, fields_of(WorkDirectory)[1:]),
+    **legacy_mapping("contract", FileContract),
+}
 
 
 @dataclass(frozen=True)
@@ -220,24 +313,17 @@ class ExternalModel:
         The command runs in the work directory; words that name existing files relative to
         the current directory (a driver script) are made absolute when the model is made.
     names_in, names_out : variable and response labels (the labels of the Dakota files).
-    workdir : base directory of the work directories (default ``./rotoruq_work``); it is
-        created if missing and never deleted.
-    name : prefix of the work directories: each evaluation gets
-        ``<name>.<pid>.<token>.<eval_id>`` (tag) unless ``tag=False``: then one directory
-        ``<name>``, emptied before each run (not for parallel use), which rotoruq only
-        empties if it made it (it holds a ``.rotoruq-workdir`` marker).
-    template_files : files filled with :func:`~rotoruq.evaluation.templates.fill_template`
-        into the work directory (same base name). Read, checked and hashed once, when the
-        model is made.
-    copy_files, link_files : files or directories copied / symlinked into the work directory.
-    parameters_format : "standard" or "aprepro".
-    parameters_file, results_file : file names inside the work directory.
+    workdir : :class:`WorkDirectory`, or a path: the base directory of the work directories
+        (``WorkDirectory(base=path)``; default ``./rotoruq_work``). Where each evaluation
+        runs, the files put there (templates, copied and linked files) and which directories
+        are kept.
+    contract : :class:`FileContract`
+        The parameters and results files (names, ``parameters_format``), the active set code
+        and the analysis components (default: Dakota's standard ``params.in`` and
+        ``results.out``, values only).
     timeout : seconds per run (None: no limit).
     failure_policy : "continue", "abort", "retry:N" or {"recover": values}.
-    keep_workdirs : True (keep all), False (remove all) or "failed" (keep failed ones only).
     env : extra environment variables for the command.
-    analysis_components : (component, driver) pairs written to the parameters file.
-    asv : active set code written for every response (1: values only).
     output_cap : bytes of the start of stdout and of stderr kept in the work directory files
         (the last 64 KiB are kept too); default 10 MiB.
     gradients : "finite_difference" (default: the model has no gradient; methods difference
@@ -245,6 +331,26 @@ class ExternalModel:
         ``gradient(x)`` and ``evaluate_gradient(x)`` then run it once per point with ASV 3.
     derivative_variables : the inputs written to the DVV block of a gradient run (default all
         ``names_in``); the gradient columns of the others are NaN.
+    **legacy : the flat keyword arguments of rotoruq 0.1, fields of the records
+        (:data:`LEGACY_KEYWORDS`): ``name``, ``tag``, ``keep_workdirs``, ``template_files``,
+        ``copy_files``, ``link_files`` (of :class:`WorkDirectory`) and ``parameters_format``,
+        ``parameters_file``, ``results_file``, ``asv``, ``analysis_components`` (of
+        :class:`FileContract`): accepted for one release with a ``DeprecationWarning`` (a flat
+        keyword overrides that field of the record given).
+
+    Examples
+    --------
+    A driver run in ``runs/case.<pid>.<token>.<eval_id>``, reading an aprepro parameters file
+    (``driver.py`` is the user's script; making the model runs nothing):
+
+    >>> import rotoruq as rq
+    >>> solver = rq.ExternalModel(
+    ...     ["python", "driver.py"], ["a", "b"], ["f"],
+    ...     workdir=rq.WorkDirectory("runs", name="case", keep_workdirs=True),
+    ...     contract=rq.FileContract(parameters_format="aprepro"),
+    ...     timeout=600, failure_policy="retry:2")
+    >>> solver.workdir.name, solver.parameters_format, solver.policy.retries
+    ('runs', 'aprepro', 2)
     """
 
     def __init__(
@@ -253,25 +359,30 @@ class ExternalModel:
         names_in: Sequence[str],
         names_out: Sequence[str],
         *,
-        workdir: str | os.PathLike = "rotoruq_work",
-        name: str = "eval",
-        tag: bool = True,
-        template_files: Sequence[str | os.PathLike] = (),
-        copy_files: Sequence[str | os.PathLike] = (),
-        link_files: Sequence[str | os.PathLike] = (),
-        parameters_format: str = "standard",
-        parameters_file: str = "params.in",
-        results_file: str = "results.out",
+        workdir: str | os.PathLike | WorkDirectory = "rotoruq_work",
+        contract: FileContract | None = None,
         timeout: float | None = None,
         failure_policy: str | Mapping[str, Any] | FailurePolicy = "continue",
-        keep_workdirs: bool | str = "failed",
         env: Mapping[str, str] | None = None,
-        analysis_components: Sequence[tuple[str, str]] = (),
-        asv: int = 1,
         output_cap: int = 10 * 2**20,
         gradients: str = "finite_difference",
         derivative_variables: Sequence[str] | None = None,
+        **legacy: Any,
     ):
+        flat = legacy_keywords("ExternalModel", legacy, LEGACY_KEYWORDS)
+        if not isinstance(workdir, WorkDirectory):
+            if not isinstance(workdir, str | os.PathLike):
+                raise ParameterError(f"workdir must be a path or a WorkDirectory, got "
+                                     f"{workdir!r}")
+            workdir = WorkDirectory(workdir)
+        wd_opts = with_fields(workdir, WorkDirectory, flat.get("workdir"), "workdir")
+        files = with_fields(contract, FileContract, flat.get("contract"), "contract")
+        name, tag, keep_workdirs = wd_opts.name, wd_opts.tag, wd_opts.keep_workdirs
+        template_files, copy_files, link_files = (
+            wd_opts.template_files, wd_opts.copy_files, wd_opts.link_files)
+        parameters_format, parameters_file, results_file = (
+            files.parameters_format, files.parameters_file, files.results_file)
+        asv, analysis_components = files.asv, files.analysis_components
         command = shlex.split(command) if isinstance(command, str) else [str(c) for c in command]
         if not command:
             raise ParameterError("command is empty")
@@ -286,7 +397,7 @@ class ExternalModel:
             raise ParameterError(f"duplicate input names in {self.names_in}")
         if len(set(self.names_out)) != len(self.names_out):
             raise ParameterError(f"duplicate response names in {self.names_out}")
-        self.workdir = Path(workdir).absolute()
+        self.workdir = Path(wd_opts.base).absolute()
         self.name = _file_name(name, "model name")
         self.tag = bool(tag)
         self.template_files = [Path(p).absolute() for p in template_files]

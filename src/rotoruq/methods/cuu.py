@@ -81,7 +81,7 @@ from ..model import (
 )
 from ..params import LogNormal, Normal, ParameterSpace, Uniform, unit_design
 from ._common import eval_space
-from .least_squares import LeastSquaresResult, least_squares
+from .least_squares import LeastSquaresResult, least_squares, solver_options
 from .reliability import mean_value_from_gradient
 
 __all__ = ["CUUResult", "CUUCheck", "calibrate_under_uncertainty", "check_cuu", "INNERS",
@@ -607,8 +607,11 @@ def calibrate_under_uncertainty(
     identifiability_tolerance : flag when the smallest scaled singular value is below this fraction
         of the largest.
     seed : seed of the inner sampling design (common random numbers across outer iterations).
-    **outer_options : passed to :func:`least_squares` (max_iterations,
-        max_function_evaluations, tolerance (Dakota default 1e-4), ...).
+    **outer_options : passed to :func:`least_squares`: ``convergence`` (a
+        :class:`~rotoruq.methods.least_squares.Convergence`), ``initial_radius``,
+        ``confidence``; the fields of the Convergence may be given flat here
+        (``max_iterations``, ``max_function_evaluations``, ``tolerance`` (Dakota default
+        1e-4), ..., as a study file's ``cuu`` step gives them).
 
     Returns
     -------
@@ -672,7 +675,8 @@ def calibrate_under_uncertainty(
         raise EvaluationError("the inner method returned NaN statistics at the starting point")
     jac = method.outer_jacobian()
     ls = least_squares(residual, x0, gradient=jac if jac is not None else "finite_difference",
-                       bounds=(lo, hi), optimizer=optimizer, fd_step=fd_step, **outer_options)
+                       bounds=(lo, hi), optimizer=optimizer, fd_step=fd_step,
+                       **solver_options("calibrate_under_uncertainty", outer_options))
     mean1, std1 = statistics(ls.x[None, :])
     mu, sd = prob.moments(ls.x[None, :])
     sv, cond, ok, diag = _identifiability(ls.jacobian, ls.x, labels, len(tgt),

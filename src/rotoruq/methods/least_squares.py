@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy import optimize, stats
 
+from .._options import legacy_keywords, legacy_mapping, with_fields
 from ..errors import EvaluationError, ModelShapeError, ParameterError
 from ..model import FD_STEP, GradientOption, Model, evaluate, finite_difference
 from .nl2sol import CONVERGED, NL2SOLOptions, nl2sol
@@ -27,9 +28,91 @@ from .nl2sol import CONVERGED, NL2SOLOptions, nl2sol
 if TYPE_CHECKING:
     from ..params import ParameterSpace
 
-__all__ = ["LeastSquaresResult", "least_squares", "CalibrationResult", "calibrate"]
+__all__ = ["Convergence", "LeastSquaresResult", "least_squares", "CalibrationResult",
+           "calibrate", "LEGACY_KEYWORDS"]
 
 OPTIMIZERS = ("nl2sol", "trf", "lm")
+
+
+@dataclass(frozen=True)
+class Convergence:
+    """When the least-squares iteration stops: its limits and convergence tolerances.
+
+    Dakota's NL2SOL controls, with Dakota's defaults; the field names are the keys of a study
+    file's ``least_squares`` step (``max_iterations``, ``max_function_evaluations``,
+    ``tolerance``). All tolerances are relative (dimensionless) except ``absolute_tolerance``,
+    which is in units of the cost ``f = 1/2 sum (r / noise_std)^2``.
+
+    Parameters
+    ----------
+    max_iterations : int
+        Trust-region iterations (trial steps); Dakota's ``max_iterations``, default 100.
+    max_function_evaluations : int
+        Residual evaluations (points), Jacobian finite differences included; Dakota's
+        ``max_function_evaluations``, default 1000.
+    tolerance : float
+        Relative function convergence (NL2SOL's rfctol, Dakota's ``convergence_tolerance``,
+        default 1e-4): stop when at most that fraction of ``f`` can still be gained. Passed as
+        ``ftol`` to scipy's ``trf`` and ``lm``.
+    x_tolerance : float
+        Relative step size for x-convergence (NL2SOL's xctol, Dakota's ``x_conv_tol``; 1e-5 is
+        what Dakota derives from its default ``function_precision`` 1e-10). Passed as ``xtol``
+        to scipy.
+    absolute_tolerance : float
+        Stop when ``f`` falls below it (NL2SOL's afctol, Dakota's ``absolute_conv_tol``,
+        default 1e-20).
+    singular_tolerance, singular_radius : float
+        Singular convergence (NL2SOL's sctol and lmaxs, Dakota's ``singular_conv_tol`` and
+        ``singular_radius``; 1e-10 and 1): stop when no step of scaled length
+        ``singular_radius`` is predicted to reduce ``f`` by more than
+        ``singular_tolerance * f`` (a rank-deficient Jacobian).
+    false_convergence_tolerance : float
+        False convergence (NL2SOL's xftol, Dakota's ``false_conv_tol``, 1e-8): a step of
+        relative size below it that still fails to reduce ``f`` (noisy residuals or a wrong
+        Jacobian).
+
+    Only ``max_function_evaluations``, ``tolerance`` and ``x_tolerance`` apply to scipy's
+    optimizers.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> Convergence(tolerance=1e-10).max_iterations
+    100
+    >>> t = np.linspace(0.0, 1.0, 5)
+    >>> fit = least_squares(lambda p: p[:, :1] + p[:, 1:] * t - (1.0 + 2.0 * t), [0.0, 0.0],
+    ...                     convergence=Convergence(max_iterations=20, tolerance=1e-10))
+    >>> fit.converged
+    True
+    """
+
+    max_iterations: int = 100
+    max_function_evaluations: int = 1000
+    tolerance: float = 1e-4
+    x_tolerance: float = 1e-5
+    absolute_tolerance: float = 1e-20
+    singular_tolerance: float = 1e-10
+    singular_radius: float = 1.0
+    false_convergence_tolerance: float = 1e-8
+
+
+#: The flat keyword arguments of least_squares before its option record (deprecated, accepted
+#: for one release): old name -> (parameter, record class name, field).
+LEGACY_KEYWORDS: Mapping[str, tuple[str, str, str]] = legacy_mapping("convergence", Convergence)
+
+
+def solver_options(function: str, options: Mapping[str, Any]) -> dict[str, Any]:
+    """The keyword options of :func:`least_squares` that ``function`` (:func:`calibrate`,
+    :func:`~rotoruq.methods.cuu.calibrate_under_uncertainty`) passes on, with the fields of
+    :class:`Convergence` given flat (as a study file's step gives them) gathered into its
+    ``convergence`` record: no deprecation there, these entry points take them flat."""
+    options = dict(options)
+    flat = {k: options.pop(k) for k in list(options) if k in LEGACY_KEYWORDS}
+    if flat:
+        fields = legacy_keywords(function, flat, LEGACY_KEYWORDS, warn=False)["convergence"]
+        options["convergence"] = with_fields(options.get("convergence"), Convergence, fields,
+                                             "convergence")
+    return options
 
 
 @dataclass(frozen=True, eq=False)
@@ -198,18 +281,12 @@ def least_squares(
     gradient: GradientOption = "auto",
     bounds: tuple[ArrayLike, ArrayLike] | None = None,
     optimizer: str = "nl2sol",
-    max_iterations: int = 100,
-    max_function_evaluations: int = 1000,
-    tolerance: float = 1e-4,
-    x_tolerance: float = 1e-5,
-    absolute_tolerance: float = 1e-20,
-    singular_tolerance: float = 1e-10,
-    singular_radius: float = 1.0,
-    false_convergence_tolerance: float = 1e-8,
+    convergence: Convergence | None = None,
     noise_std: ArrayLike | None = None,
     fd_step: float = FD_STEP,
     initial_radius: float | None = 1.0,
     confidence: float = 0.95,
+    **legacy: Any,
 ) -> LeastSquaresResult:
     """Minimize ``1/2 sum_i (r_i(x) / noise_std_i)^2``.
 
@@ -229,19 +306,10 @@ def least_squares(
     bounds : (lower, upper), optional
         Scalars or arrays (p,); use ``+-inf`` for no bound. ``optimizer="lm"`` takes no bounds.
     optimizer : "nl2sol" (default, :mod:`.nl2sol`), "trf" or "lm" (scipy).
-    max_iterations, max_function_evaluations, tolerance :
-        Dakota's defaults 100, 1000 and 1e-4. ``tolerance`` is NL2SOL's relative function
-        tolerance (stop when at most that fraction of ``f`` can still be gained); for scipy it
-        is passed as ``ftol``. Evaluations count points, Jacobian differences included.
-    x_tolerance : relative step size for x-convergence (NL2SOL's xctol; 1e-5 is what Dakota
-        derives from its default ``function_precision`` 1e-10).
-    absolute_tolerance : stop when ``f`` falls below it (NL2SOL's afctol).
-    singular_tolerance, singular_radius : singular convergence (NL2SOL's sctol and lmaxs):
-        stop when no step of scaled length ``singular_radius`` is predicted to reduce ``f`` by
-        more than ``singular_tolerance * f`` (a rank-deficient Jacobian).
-    false_convergence_tolerance : false convergence (NL2SOL's xftol; Dakota's 1e-8): a step of
-        relative size below it that still fails to reduce ``f`` (noisy residuals or a wrong
-        Jacobian).
+    convergence : :class:`Convergence`, optional
+        The iteration limits and convergence tolerances (default: Dakota's, ``max_iterations``
+        100, ``max_function_evaluations`` 1000, ``tolerance`` 1e-4, ...). Evaluations count
+        points, Jacobian differences included.
     noise_std : scalar or array_like (n_res,), optional
         Standard deviations of the data behind each residual (residual units). With them the
         covariance is ``(J^T W J)^-1``, ``W = diag(1 / noise_std^2)`` (noise known); without,
@@ -249,6 +317,10 @@ def least_squares(
     initial_radius : scaled trust radius ``||D s||`` of the first step (NL2SOL's lmax0,
         default 1; None: ``100 ||D x0||``, or 100 when ``x0 = 0``, as MINPACK).
     confidence : level of the returned confidence intervals.
+    **legacy : the flat keyword arguments of rotoruq 0.1 (``max_iterations=``,
+        ``tolerance=``, ``x_tolerance=``, ...; :data:`LEGACY_KEYWORDS`), the fields of
+        :class:`Convergence`: accepted for one release with a ``DeprecationWarning`` (a flat
+        keyword overrides that field of ``convergence``).
 
     Returns
     -------
@@ -258,6 +330,7 @@ def least_squares(
     ------
     EvaluationError when the residual is not finite at ``x0``.
     ParameterError for bad options.
+    TypeError for an unknown keyword argument.
 
     Examples
     --------
@@ -269,7 +342,20 @@ def least_squares(
     >>> res = least_squares(lambda p: p[:, :1] + p[:, 1:] * t - (1.0 + 2.0 * t), [0.0, 0.0])
     >>> res.converged, np.round(res.x, 8).tolist()
     (True, [1.0, 2.0])
+
+    Tighter tolerances:
+
+    >>> fit = least_squares(lambda p: p[:, :1] + p[:, 1:] * t - (1.0 + 2.0 * t), [0.0, 0.0],
+    ...                     convergence=Convergence(tolerance=1e-12, x_tolerance=1e-12))
+    >>> fit.status in ("relative_function", "x", "relative_function_and_x",
+    ...                "absolute_function")
+    True
     """
+    flat = legacy_keywords("least_squares", legacy, LEGACY_KEYWORDS)
+    conv = with_fields(convergence, Convergence, flat.get("convergence"), "convergence")
+    max_iterations, max_function_evaluations = conv.max_iterations, conv.max_function_evaluations
+    tolerance, x_tolerance = conv.tolerance, conv.x_tolerance
+    false_convergence_tolerance = conv.false_convergence_tolerance
     optimizer = optimizer.lower()
     start = _check_solver_options(x0, optimizer, max_iterations, max_function_evaluations,
                                   tolerance, confidence)
@@ -302,9 +388,9 @@ def least_squares(
     options = NL2SOLOptions(max_iterations=max_iterations,
                             max_function_evaluations=max_function_evaluations,
                             tolerance=tolerance, x_tolerance=x_tolerance,
-                            absolute_tolerance=absolute_tolerance,
-                            singular_tolerance=singular_tolerance,
-                            singular_radius=singular_radius,
+                            absolute_tolerance=conv.absolute_tolerance,
+                            singular_tolerance=conv.singular_tolerance,
+                            singular_radius=conv.singular_radius,
                             false_convergence_tolerance=false_convergence_tolerance,
                             initial_radius=initial_radius)
     out = nl2sol(res.one, jac_at, start, r0, lower, upper, options, lambda: res.n_points,
@@ -565,8 +651,10 @@ def calibrate(
         differences, all columns of a Jacobian in one model batch), "analytic",
         "finite_difference", or a callable ``g(x: (n, d)) -> (n, m, d)`` in
         ``model.names_in`` order.
-    **options : passed to :func:`least_squares` (max_iterations, max_function_evaluations,
-        tolerance, fd_step, ...).
+    **options : passed to :func:`least_squares`: ``convergence`` (a :class:`Convergence`),
+        ``fd_step``, ``initial_radius``, ``confidence``; the fields of :class:`Convergence`
+        may be given flat here (``max_iterations=``, ``tolerance=``, ..., as a study file's
+        step gives them), gathered into its ``convergence``.
 
     Returns
     -------
@@ -679,7 +767,8 @@ def calibrate(
 
     try:
         ls = least_squares(residual, start, gradient=jac, bounds=box, optimizer=optimizer,
-                           noise_std=noise if weights is None else None, **options)
+                           noise_std=noise if weights is None else None,
+                           **solver_options("calibrate", options))
     except EvaluationError as exc:
         if failure and failure[0] not in str(exc):  # say why the model failed
             raise EvaluationError(f"{exc}: {failure[0]}") from exc

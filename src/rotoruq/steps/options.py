@@ -7,10 +7,12 @@ key, the table and the line.
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import importlib
 import inspect
 import math
+import typing
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from functools import cache
@@ -60,12 +62,52 @@ def _signature(target: str) -> inspect.Signature:
     return inspect.signature(getattr(importlib.import_module(module), name))
 
 
+@cache
+def _record_defaults(target: str) -> dict[str, list[Any]]:
+    """field -> defaults of that field in the option records (dataclasses) that the
+    parameters of ``target`` take, read from their annotations (``convergence: Convergence |
+    None``); an annotation that does not resolve at run time is skipped."""
+    module_name, name = target.split(":")
+    module = importlib.import_module(module_name)
+    space = vars(module)
+    out: dict[str, list[Any]] = {}
+    for p in _signature(target).parameters.values():
+        ann = p.annotation
+        if isinstance(ann, str):
+            try:
+                ann = eval(ann, space)  # what typing.get_type_hints does, one parameter
+            except Exception:  # an annotation for type checkers only
+                continue
+        for cls in (*typing.get_args(ann), ann):
+            if isinstance(cls, type) and dataclasses.is_dataclass(cls):
+                for f in dataclasses.fields(cls):
+                    if f.default is not dataclasses.MISSING:
+                        out.setdefault(f.name, []).append(f.default)
+    return out
+
+
 def signature_default(target: str, param: str) -> Any:
-    """Default of parameter ``param`` of ``target`` (``"module:function"``); :data:`REQUIRED`
-    when it has none. Raises ``LookupError`` when the function has no such parameter."""
+    """Default of parameter ``param`` of ``target`` (``"module:function"``), or of the field
+    ``param`` of the option record one of its parameters takes (``least_squares(convergence=
+    Convergence(tolerance=...))``); :data:`REQUIRED` when it has none. Raises ``LookupError``
+    when the function has no such parameter or record field, or records disagree on it.
+
+    Examples
+    --------
+    >>> signature_default("rotoruq.methods.least_squares:least_squares", "optimizer")
+    'nl2sol'
+    >>> signature_default("rotoruq.methods.least_squares:least_squares", "tolerance")
+    0.0001
+    """
     params = _signature(target).parameters
     if param not in params:
-        raise LookupError(f"{target} has no parameter {param!r} (it has {', '.join(params)})")
+        found = _record_defaults(target).get(param, [])
+        if found and all(d == found[0] for d in found):
+            return found[0]
+        why = "option records disagree on" if found else "has no parameter"
+        fields = list(_record_defaults(target))
+        also = f"; its option records: {', '.join(fields)}" if fields else ""
+        raise LookupError(f"{target} {why} {param!r} (it has {', '.join(params)}{also})")
     default = params[param].default
     return REQUIRED if default is inspect.Parameter.empty else default
 

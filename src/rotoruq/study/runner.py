@@ -124,7 +124,7 @@ def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
         return dakota_function(spec.function, variables, spec.responses, spec.components,
                                fixed={k: v for k, v in fixed.items() if k not in inputs},
                                inputs=list(inputs), outputs=list(responses))
-    from ..evaluation.external import ExternalModel
+    from ..evaluation.external import ExternalModel, FileContract, WorkDirectory
     from ..model import FixedInputs
 
     ext = spec.external
@@ -156,8 +156,9 @@ def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
     names_in = list(inputs) + [n for n in fixed if n not in inputs]
     ext_model = ExternalModel(
         [near_study(w) for w in ext.command], names_in, list(responses),
-        workdir=workdir, template_files=[base / t for t in ext.templates],
-        copy_files=[base / f for f in ext.files], parameters_format=ext.parameters_format,
+        workdir=WorkDirectory(workdir, template_files=[base / t for t in ext.templates],
+                              copy_files=[base / f for f in ext.files]),
+        contract=FileContract(parameters_format=ext.parameters_format),
         timeout=ext.timeout, failure_policy=policy, gradients=ext.gradients,
         derivative_variables=list(inputs) or None,
     )

@@ -16,16 +16,13 @@ True
 
 from __future__ import annotations
 
-import dataclasses
-import difflib
-import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from numpy.typing import ArrayLike
 
-from ...errors import ParameterError
+from ..._options import fields_of, legacy_keywords, legacy_mapping, with_fields
 
 if TYPE_CHECKING:
     from ..cokriging import CoKriging
@@ -34,7 +31,7 @@ if TYPE_CHECKING:
     from .samplers import SamplerConfig
 
 __all__ = ["ChainOptions", "EmulatorOptions", "NoiseModel", "LEGACY_KEYWORDS",
-           "legacy_keywords"]
+           "legacy_keywords", "with_fields"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -122,54 +119,11 @@ class NoiseModel:
     noise_multiplier_prior: tuple[float, float] = (1.0, 1.0)
 
 
-def _fields(cls: type) -> tuple[str, ...]:
-    return tuple(f.name for f in dataclasses.fields(cls))
-
-
 #: The flat keyword arguments of calibrate_bayes before its option records (deprecated,
 #: accepted for one release): old name -> (parameter, record class name, field).
 LEGACY_KEYWORDS: Mapping[str, tuple[str, str, str]] = {
-    **{f: ("chains", "ChainOptions", f) for f in _fields(ChainOptions)},
-    **{f: ("emulator", "EmulatorOptions", f) for f in _fields(EmulatorOptions)[1:]},
-    **{f: ("noise", "NoiseModel", f) for f in _fields(NoiseModel)},
+    **legacy_mapping("chains", ChainOptions),
+    **legacy_mapping("emulator", EmulatorOptions, fields_of(EmulatorOptions)[1:]),
+    **legacy_mapping("noise", NoiseModel),
 }
 
-
-def legacy_keywords(function: str, legacy: Mapping[str, Any],
-                    mapping: Mapping[str, tuple[str, str, str]], *, warn: bool = True,
-                    stacklevel: int = 3) -> dict[str, dict[str, Any]]:
-    """Sort the deprecated flat keyword arguments ``legacy`` of ``function`` into the fields of
-    its option records: ``{parameter: {field: value}}``.
-
-    Each known one gives a ``DeprecationWarning`` naming its new place (``warn``); an unknown
-    one raises ``TypeError`` as Python does, with the closest name.
-
-    Examples
-    --------
-    >>> legacy_keywords("calibrate_bayes", {"burn_in": 0}, LEGACY_KEYWORDS, warn=False)
-    {'chains': {'burn_in': 0}}
-    """
-    out: dict[str, dict[str, Any]] = {}
-    for key, value in legacy.items():
-        if key not in mapping:
-            close = difflib.get_close_matches(key, list(mapping), n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise TypeError(f"{function}() got an unexpected keyword argument {key!r}{hint}")
-        param, record, field = mapping[key]
-        if warn:
-            warnings.warn(f"{function}({key}=...) is deprecated and will be removed in the next "
-                          f"release: pass {param}={record}({field}=...)",
-                          DeprecationWarning, stacklevel=stacklevel)
-        out.setdefault(param, {})[field] = value
-    return out
-
-
-def with_fields(record: Any, cls: type[Any], fields: Mapping[str, Any] | None, what: str) -> Any:
-    """``record`` (an instance of ``cls`` or None: the defaults) with ``fields`` replaced;
-    raises :class:`ParameterError` when ``record`` is something else."""
-    if record is None:
-        record = cls(**(fields or {}))
-        return record
-    if not isinstance(record, cls):
-        raise ParameterError(f"{what} must be a {cls.__name__} or None, got {record!r}")
-    return dataclasses.replace(record, **fields) if fields else record

@@ -31,9 +31,16 @@ def ishigami(x: np.ndarray, a: float = 7.0, b: float = 0.1) -> np.ndarray:
 def pytest_collection_modifyitems(config, items):
     """Tests that run the ``dakota`` executable (their skip condition names it) get the marker
     ``dakota``: they compare our numbers with Dakota's, which the minimum-versions lane of
-    .ci/run need not repeat (they already ran at the current versions)."""
+    .ci/run need not repeat (they already ran at the current versions).
+
+    The test files holding ``slow`` or ``mbdyn`` tests run first, each file's tests in their
+    own order: with ``-n auto`` (pytest-xdist) the minutes-long tests start at once instead
+    of leaving one worker alone with them at the end."""
     for item in items:
         for mark in item.iter_markers("skipif"):
             if "'dakota' executable" in str(mark.kwargs.get("reason", "")):
                 item.add_marker(pytest.mark.dakota)
                 break
+    heavy = {item.path for item in items
+             if item.get_closest_marker("slow") or item.get_closest_marker("mbdyn")}
+    items.sort(key=lambda item: item.path not in heavy)  # stable: the order within kept

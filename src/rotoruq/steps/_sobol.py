@@ -82,4 +82,5 @@ def sobol_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
     sobol, std, cv = got
     return [f"{res.name}: {r} has negligible variance (std {std[k]:.3g}, {cv[k]:.1e} of "
             "its mean): its Sobol indices split up numerical noise"
-            for k, r in enumerate(sobol.names_out) if sobol.negligible[k]]
+            for k, r in enumerate(sobol.names_out)
+            if sobol.negligible is not None and sobol.negligible[k]]

@@ -373,9 +373,11 @@ def _cuu_reasons(res: StepResult | None, labels) -> list[str]:
         return []
     out = []
     if not rec.identifiable:
+        # a saved record holds an infinite condition number as "inf", a NaN as null
+        cond = math.nan if rec.condition_number is None else float(rec.condition_number)
         out.append("the calibration is not identifiable: "
                    f"{rec.diagnostic or 'singular sensitivity matrix'} "
-                   f"(condition number {rec.condition_number:.3g})")
+                   f"(condition number {cond:.3g})")
     for j, p in enumerate(rec.names_in):
         v, new = float(rec.initial_std[j]), float(rec.std[j])
         if v > 0 and math.isfinite(new) and abs(new / v - 1) > 0.5:

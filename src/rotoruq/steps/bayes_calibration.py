@@ -263,11 +263,14 @@ class BayesRecord(StepRecord):
 
     def completed(self) -> BayesRecord:
         """This record with the arrays an older version did not save (read empty) NaN in
-        their shape."""
-        return BayesRecord.partial(self.names_in, self.names_out, **{
-            f.name: getattr(self, f.name) for f in fields(self)
-            if f.name not in ("names_in", "names_out") and not (
-                f.default_factory is _empty and np.size(getattr(self, f.name)) == 0)})
+        their shape, and a NaN number saved (as JSON null) NaN again."""
+        given = {f.name: getattr(self, f.name) for f in fields(self)
+                 if f.name not in ("names_in", "names_out") and not (
+                     f.default_factory is _empty and np.size(getattr(self, f.name)) == 0)}
+        for k in ("acceptance", "kl_divergence"):
+            if given[k] is None:
+                given[k] = math.nan
+        return BayesRecord.partial(self.names_in, self.names_out, **given)
 
 
 def noise_model_text(noise_std: Mapping[str, float] | None, multipliers, prior,
@@ -486,7 +489,8 @@ def read_posterior(res: StepResult) -> BayesRecord:
             rec.names_in, rec.names_out, n_chains=int(rec.chains.shape[0]),
             n_draws=int(rec.chains.shape[1]), mean=rec.mean, std=rec.std,
             ess=rec.ess[:d], rhat=rec.rhat[:d], noise_std=rec.noise_std,
-            noise_model=rec.noise_model, acceptance=rec.acceptance_rate, **added)
+            noise_model=rec.noise_model, acceptance=(
+                math.nan if rec.acceptance_rate is None else rec.acceptance_rate), **added)
     return BayesRecord.read(res).completed()
 
 

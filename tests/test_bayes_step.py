@@ -5,6 +5,7 @@ in closed form."""
 
 from __future__ import annotations
 
+import json
 import textwrap
 from pathlib import Path
 
@@ -109,6 +110,39 @@ def test_chains_diagnostics_and_export_match_the_closed_form(tmp_path):
     titles = [t.title for t in bayes_tables(res, {})]
     assert "Convergence (4 chains)" in titles
     assert "Noise model and emulator adequacy" in titles
+    # the flat view keeps the keys of the step's numbers, derived from the record
+    assert res.get("mean/a") == rec.mean[0] and res.get("corr/a/b") == rec.correlation[0, 1]
+    assert res.get("noise_std/y2") == S and res.get("skewness/b") == rec.skewness[1]
+    assert res.get("map/a") == rec.map_point[0] and res.get("std_ratio/b") == rec.std_ratio[1]
+    assert res.get("input_std/a") == 1.0 and res.get("n_chains") == 4
+    assert not json.loads((tmp_path / "out" / "steps" / "bayes" / "result.json").read_text(
+    ))["scalars"]
+
+
+def test_a_calibration_saved_before_its_record_still_reads(tmp_path):
+    """Bayes and CUU steps saved with flat scalars only (by a rotoruq before their records)
+    load; their tables show the flat view with the reason; warnings, reasons, the noise note
+    and the self-check verdict have nothing to read and say nothing."""
+    from rotoruq.reference.causes import calibration_design, input_recovery, target_consistency
+    from rotoruq.report.html import run_verdict
+    from rotoruq.report.steptables import step_tables
+    from rotoruq.results import StepResult, load_step, save_step
+    from rotoruq.steps.bayes_calibration import strong_correlations
+
+    bayes = load_step(save_step(StepResult("bayes", "bayes_calibration", {
+        "mean/a": 1.0, "std_ratio/a": 0.95, "pileup_hi/a": 0.4, "corr/a/b": 0.9,
+        "noise_std/y1": 0.2, "self_check_passed": 0.0}, {"data": np.arange(6.0)[:, None]},
+        meta={"columns": {"data": ["y1"]}}), tmp_path))
+    (table,) = step_tables(bayes)
+    assert ("mean/a", 1.0) in table.rows and "saved without a BayesRecord" in table.note
+    assert bayes_warnings(bayes, {}) == [] and strong_correlations(bayes) == []
+    assert calibration_design(bayes) == []
+    assert "data-failed='0' data-checked='0'" in run_verdict({"s": {"bayes": bayes}})
+    cuu = load_step(save_step(StepResult("cuu", "cuu", {
+        "std/a": 0.1, "target_std/y1": 1.0, "target_std/y2": 2.0},
+        {"outputs_calibrated": np.arange(8.0).reshape(4, 2)},
+        meta={"columns": {"outputs_calibrated": ["y1", "y2"]}}), tmp_path))
+    assert target_consistency(cuu, {}) == [] and input_recovery(cuu, bayes, {}) == ({}, [])
 
 
 def test_same_seed_same_chains_bitwise(tmp_path):

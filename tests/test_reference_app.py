@@ -99,13 +99,15 @@ def _validation_step(folder, ratios, k=2.0):
 
 
 def test_the_run_verdict_counts_what_the_steps_record(tmp_path):
+    from test_report import bayes_step
+
     folder = tmp_path / "mine"
     folder.mkdir()
     (folder / "study.json").write_text(json.dumps({"name": "mine", "steps": [
         "validate", "bayes", "lhs"]}))
     _validation_step(folder, [0.5, 1.9, 2.5, 3.0])
-    save_step(StepResult("bayes", "bayes_calibration", {"self_check_passed": 0.0}, meta={
-        "record": {"fields": {"self_check_reason": "ranks not uniform"}}}), folder)
+    save_step(bayes_step({"self_check_passed": False, "self_check_reason": "ranks not uniform"}),
+              folder)
     save_step(StepResult("lhs", "sampling", {}, meta={"failed_evaluations": {
         "count": 3, "reasons": {"solver diverged": 3}}}), folder)
     from rotoruq.results import load_results

@@ -20,7 +20,10 @@ from rotoruq.report.diagnostics import step_warnings
 from rotoruq.report.html import write_report
 from rotoruq.results import StepResult, save_step
 from rotoruq.steps import StepContext
+from rotoruq.steps.bayes_calibration import BayesRecord
+from rotoruq.steps.cuu import CuuRecord
 from rotoruq.steps.forward_check import run_forward_check
+from rotoruq.steps.sensitivity import SensitivityRecord
 from rotoruq.study.cli import main
 from rotoruq.study.runner import run_study
 from test_runner import STUDY, linear_factory
@@ -88,12 +91,55 @@ def test_differences_in_the_unit_a_reader_needs():
     assert t.rows[0][1][0].sigma == 3.5505
 
 
+def bayes_step(values, name="bayes", arrays=None, **meta) -> StepResult:
+    """A Bayes step whose record holds ``values`` (its flat-view keys, ``"ess/a"``,
+    ``"corr/a/b"``, ``"noise_std/thrust"``, or a field of the record, ``"self_check_passed"``)
+    and nothing else; its parameters and responses are those the keys name."""
+    field_of = {v: k for k, v in BayesRecord.FLAT.items() if v}
+    parsed = []
+    names: dict[str, list[str]] = {"parameter": [], "response": []}
+    for key, v in values.items():
+        head, *labs = key.split("/")
+        f = field_of.get(head, head)
+        axes = BayesRecord.AXES.get(f, ())
+        for a, lab in zip(axes, labs, strict=True):
+            if lab not in names[a]:
+                names[a].append(lab)
+        parsed.append((f, axes, labs, v))
+    blank = BayesRecord.partial(names["parameter"], names["response"])
+    given = {}
+    for f, axes, labs, v in parsed:
+        if not axes:
+            given[f] = v
+            continue
+        arr = given.setdefault(f, getattr(blank, f).copy())
+        at = tuple(names[a].index(lab) for a, lab in zip(axes, labs, strict=True))
+        arr[at] = arr[at[::-1]] = v  # a correlation is symmetric
+    rec_arrays, rec_meta = BayesRecord.partial(names["parameter"], names["response"],
+                                               **given).parts()
+    return StepResult(name, "bayes_calibration", {}, {**(arrays or {}), **rec_arrays},
+                      meta={**rec_meta, **meta})
+
+
+def sensitivity_step(name, main, out_std, out_mean, input_dists=None, **meta) -> StepResult:
+    """A sensitivity step of one response whose main (and total) indices are ``main``
+    (response -> input -> S) with the output std and mean given."""
+    (resp, by_input), = main.items()
+    s = np.array([list(by_input.values())])
+    rec = SensitivityRecord(tuple(by_input), (resp,), s, s, np.full(s.shape + (2,), np.nan),
+                            np.full(s.shape + (2,), np.nan), np.array([out_mean]),
+                            np.array([out_std**2]), 0.95)
+    arrays, rec_meta = rec.parts()
+    dists = {p: d.describe() for p, d in (input_dists or {}).items()}
+    return StepResult(name, "sensitivity", {}, arrays,
+                      meta={**rec_meta, "input_distributions": dists, **meta})
+
+
 def _exp(scalars_fwd, bayes_scalars=None, **fwd_meta):
     steps = {"forward_4r": StepResult("forward_4r", "forward_check", scalars_fwd,
                                       meta=fwd_meta)}
     if bayes_scalars is not None:
-        steps["bayes"] = StepResult("bayes", "bayes_calibration", bayes_scalars,
-                                    meta={"noise_model": "noise_std per response"})
+        steps["bayes"] = bayes_step({**bayes_scalars, "noise_model": "noise_std per response"})
     return {"experiment": steps}
 
 
@@ -163,18 +209,19 @@ def test_both_propagations_are_claimed_with_their_numbers():
 
 
 def test_non_holding_claims_carry_diagnostic_reasons():
+    nan = np.full(2, np.nan)
+    cuu = CuuRecord(("k_flap",), ("thrust", "torque"), np.full(1, np.nan), np.array([1800.0]),
+                    np.full(1, np.nan), np.array([1.8e-3]), nan, nan, nan, nan, nan,
+                    np.array([30.0, 2.1]), identifiable=False,
+                    diagnostic="4 statistics, 2 targets", weighting="relative",
+                    condition_number=np.inf, message="")
+    cuu_arrays, cuu_meta = cuu.parts()
     val = {
-        "sens_mixed": StepResult("sens_mixed", "sensitivity", {
-            "S/thrust/cla_m03": 0.1, "S/thrust/cla_m06": 0.8, "S/thrust/cla_m05": 0.05,
-            "S/thrust/k_flap": 0.01, "negligible/thrust": 1.0, "out_std/thrust": 0.03,
-            "out_cv/thrust": 1.5e-5}),
+        "sens_mixed": sensitivity_step("sens_mixed", {"thrust": {
+            "cla_m03": 0.1, "cla_m06": 0.8, "cla_m05": 0.05, "k_flap": 0.01}}, 0.03, 2000.0),
         "cuu_truth_mixed": StepResult("cuu_truth_mixed", "sampling", {
             "std/thrust": 11.4, "std/torque": 2.1}),
-        "cuu_mixed": StepResult("cuu_mixed", "cuu", {
-            "calibrated_out_std/thrust": 30.0, "calibrated_out_std/torque": 2.1,
-            "initial_std/k_flap": 1800.0, "std/k_flap": 1.8e-3},
-            meta={"identifiable": False, "diagnostic": "4 statistics, 2 targets",
-                  "condition_number": "inf"}),
+        "cuu_mixed": StepResult("cuu_mixed", "cuu", {}, cuu_arrays, meta=cuu_meta),
     }
     res = {"validation": val}
     cl = claims(compare_tables(res), res, {"validation": {"cla_m06": "C_La(0.6)",
@@ -272,8 +319,7 @@ def _fake_reference(tmp_path):
     chain = np.hstack([15 + 2 * z, 5.4 - 0.3 * z + 0.05 * rng.normal(size=(4000, 1))])
     bscal = {"ess/k_pitch_link": 80.0, "rhat/k_pitch_link": 1.0, "std_ratio/collective_deg":
              0.3, "corr/k_pitch_link/collective_deg": -0.87}
-    save_step(StepResult("bayes", "bayes_calibration", bscal, {"chain": chain},
-                         meta={"columns": {"chain": names}}), exp)
+    save_step(bayes_step(bscal, arrays={"chain": chain}, columns={"chain": names}), exp)
     scalars = {"mean/thrust@4": 26.0, "std/thrust@4": 3.0, "data/thrust@4": 25.6849,
                "nstd/thrust@4": abs(25.6849 - 26.0) / 3.0}
     for r, (m, s, d) in {"roll": (0.0, 0.5, -0.0388), "pitch": (-0.2, 0.5, -0.2371),
@@ -551,27 +597,33 @@ _VAL_IN = ["cla_m03", "cla_m05", "cla_m06", "k_flap"]
 _LOADS = ["thrust", "roll", "pitch", "power"]
 
 
+def _normals(inputs, x):
+    """The normal distribution of each input with its samples' mean and std."""
+    return {p: Normal(float(x[:, j].mean()), float(x[:, j].std(ddof=1)))
+            for j, p in enumerate(inputs)}
+
+
 def _sampling(name, inputs, outputs, x, y):
-    s = {f"input_std/{p}": float(x[:, j].std(ddof=1)) for j, p in enumerate(inputs)}
-    s |= {f"input_mean/{p}": float(x[:, j].mean()) for j, p in enumerate(inputs)}
-    s |= {f"mean/{r}": float(y[:, k].mean()) for k, r in enumerate(outputs)}
+    s = {f"mean/{r}": float(y[:, k].mean()) for k, r in enumerate(outputs)}
     s |= {f"std/{r}": float(y[:, k].std(ddof=1)) for k, r in enumerate(outputs)}
-    return StepResult(name, "sampling", s, {"inputs": x, "outputs": y},
-                      meta={"columns": {"inputs": inputs, "outputs": outputs}})
+    return StepResult(name, "sampling", s, {"inputs": x, "outputs": y}, meta={
+        "columns": {"inputs": inputs, "outputs": outputs},
+        "input_distributions": {p: d.describe() for p, d in _normals(inputs, x).items()}})
 
 
 def _cuu(name, params, truth_std, cal_std, targets, y, truth_step):
-    s = {f"std/{p}": v for p, v in zip(params, cal_std, strict=True)}
-    s |= {f"initial_std/{p}": v for p, v in zip(params, truth_std, strict=True)}
-    s |= {f"mean/{p}": 1.0 for p in params}
     outs = list(targets)
-    s |= {f"target_std/{r}": targets[r] for r in outs}
-    s |= {f"calibrated_out_std/{r}": float(y[:, k].std(ddof=1)) for k, r in enumerate(outs)}
-    s |= {f"calibrated_out_mean/{r}": float(y[:, k].mean()) for k, r in enumerate(outs)}
-    s |= {f"initial_out_std/{r}": targets[r] for r in outs}
-    return StepResult(name, "cuu", s, {"outputs_calibrated": y}, meta={
+    d, none = len(params), np.full(len(outs), np.nan)
+    rec = CuuRecord(
+        tuple(params), tuple(outs), np.full(d, np.nan), np.asarray(truth_std, float),
+        np.ones(d), np.asarray(cal_std, float), none,
+        np.array([targets[r] for r in outs]), none, np.array([targets[r] for r in outs]),
+        y.mean(axis=0), y.std(axis=0, ddof=1), identifiable=True, diagnostic="",
+        weighting="relative", condition_number=1.0, message="")
+    arrays, meta = rec.parts()
+    return StepResult(name, "cuu", {}, {"outputs_calibrated": y, **arrays}, meta={
         "columns": {"outputs_calibrated": outs}, "options": {"targets": f"{truth_step}.samples"},
-        "identifiable": True})
+        **meta})
 
 
 def _reference_set(seed, slopes, collective, scatter, ge_gain, power_per_thrust):
@@ -592,18 +644,18 @@ def _reference_set(seed, slopes, collective, scatter, ge_gain, power_per_thrust)
     eff = np.asarray(slopes)
     var = eff**2 / np.sum(eff**2)
     val = {
-        "sens_mixed": StepResult("sens_mixed", "sensitivity", {
-            **{f"S/thrust/{p}": float(v) for p, v in zip(_VAL_IN, var, strict=True)},
-            **{f"input_std/{p}": float(s) for p, s in zip(_VAL_IN, std, strict=True)},
-            "out_std/thrust": float(np.sqrt(np.sum(eff**2)))},
-            meta={"fixed": {"collective_deg": collective}}),
+        "sens_mixed": sensitivity_step(
+            "sens_mixed", {"thrust": {p: float(v) for p, v in zip(_VAL_IN, var, strict=True)}},
+            float(np.sqrt(np.sum(eff**2))), 2000.0,
+            {p: Normal(float(m), float(s)) for p, m, s in zip(_VAL_IN, mean, std, strict=True)},
+            fixed={"collective_deg": collective}),
         "truth": _sampling("truth", _VAL_IN, ["thrust", "torque"], x, noisy),
-        "bayes": StepResult("bayes", "bayes_calibration", {
+        "bayes": bayes_step({
             **{f"mean/{p}": float(m * (1.05 + 0.05 * seed)) for p, m in zip(
                 _VAL_IN, mean, strict=True)},
             **{f"std/{p}": float(s) for p, s in zip(_VAL_IN, std, strict=True)},
             "noise_std/thrust": 0.5, "noise_std/torque": 0.5},
-            {"data": noisy}, meta={"columns": {"data": ["thrust", "torque"]}}),
+            arrays={"data": noisy}, columns={"data": ["thrust", "torque"]}),
     }
     for step, params in (("mixed", _VAL_IN), ("aero", _VAL_IN[:3])):
         xs = mean[:len(params)] + std[:len(params)] * rng.normal(size=(80, len(params)))

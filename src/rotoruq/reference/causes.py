@@ -16,7 +16,10 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from ..results import StepResult
+from ..steps._common import saved_record
 from ..steps._sobol import sobol_of
+from ..steps.bayes_calibration import posterior_record
+from ..steps.cuu import CuuRecord
 
 __all__ = ["local_effects", "negative_pitch_span", "sensitivity_causes", "model_form_gap",
            "sweep_growth", "target_consistency", "input_recovery", "calibration_design"]
@@ -236,16 +239,22 @@ def sweep_growth(base: StepResult | None, res: StepResult, resp: Sequence[str], 
             "that no calibration at 4R can close")
 
 
+def _finite(v: float) -> float | None:
+    return float(v) if math.isfinite(v) else None
+
+
 def target_consistency(cuu: StepResult, labels: Mapping[str, str]) -> list[str]:
     """Pairs of targeted responses that the model moves together (|corr| >= 0.95 over the
     calibrated samples): the std ratio their targets imply against the model's slope
     d(b)/d(a) along the calibrated inputs. When they differ no input spread matches both."""
+    rec = saved_record(CuuRecord, cuu)
     cols = _columns(cuu, "outputs_calibrated")
-    if "outputs_calibrated" not in cuu.arrays or len(cols) < 2:
+    if rec is None or "outputs_calibrated" not in cuu.arrays or len(cols) < 2:
         return []
     y = np.asarray(cuu.arrays["outputs_calibrated"], dtype=float)
     y = y[np.all(np.isfinite(y), axis=1)]
-    tgt = {r: cuu.scalars.get(f"target_std/{r}") for r in cols}
+    k = {r: rec.names_out.index(r) for r in cols if r in rec.names_out}
+    tgt = {r: _finite(rec.target_std[k[r]]) if r in k else None for r in cols}
     out = []
     for i, a in enumerate(cols):
         for j in range(i + 1, len(cols)):
@@ -260,33 +269,29 @@ def target_consistency(cuu: StepResult, labels: Mapping[str, str]) -> list[str]:
             implied = sb / sa
             if abs(implied / abs(slope) - 1) <= _RATIO_TOL:
                 continue
-            inputs = ", ".join(_lab(labels, p) for p in _params(cuu))
+            inputs = ", ".join(_lab(labels, p) for p in rec.names_in)
             out.append(
                 f"the targets imply std({b}) / std({a}) = {implied:.3g}, the model's "
                 f"d{b}/d{a} along the calibrated inputs is {slope:.3g} (corr {corr:+.3f} over "
                 f"{len(y)} samples): no spread of {inputs} "
-                f"matches both (calibrated std {cuu.get(f'calibrated_out_std/{a}', math.nan):.3g}"
-                f" and {cuu.get(f'calibrated_out_std/{b}', math.nan):.3g} against targets "
+                f"matches both (calibrated std {rec.calibrated_out_std[k[a]]:.3g}"
+                f" and {rec.calibrated_out_std[k[b]]:.3g} against targets "
                 f"{sa:.3g} and {sb:.3g})")
     return out
 
 
-def _params(cuu: StepResult) -> list[str]:
-    return [k.split("/", 1)[1] for k in cuu.scalars if k.startswith("std/")]
-
-
 def input_recovery(cuu: StepResult, truth: StepResult | None, labels: Mapping[str, str]
                    ) -> tuple[dict[str, float], list[str]]:
-    """Calibrated input std / true input std for each calibrated input whose true spread the
-    step that made the targets saved (``input_std/<name>``), and sentences for the inputs
-    outside a factor 2."""
-    if truth is None:
+    """Calibrated input std / true input std for each calibrated input whose true
+    distribution the step that made the targets recorded, and sentences for the inputs
+    outside a factor 2 (none for a CUU saved without its record)."""
+    rec = saved_record(CuuRecord, cuu)
+    if truth is None or rec is None:
         return {}, []
-    ratios = {}
-    for p in _params(cuu):
-        true = truth.scalars.get(f"input_std/{p}")
-        if true:
-            ratios[p] = cuu.get(f"std/{p}") / true
+    dists = truth.input_distributions()
+    cal = {p: float(rec.std[j]) for j, p in enumerate(rec.names_in)}
+    true = {p: float(dists[p].std) for p in rec.names_in if p in dists}
+    ratios = {p: cal[p] / true[p] for p in rec.names_in if true.get(p)}
     alive = [_lab(labels, p) for p, r in ratios.items() if r >= 1e-3]
 
     def collapse(p: str) -> str:
@@ -294,8 +299,8 @@ def input_recovery(cuu: StepResult, truth: StepResult | None, labels: Mapping[st
         return ("; the spread collapsed" + (f": the output std devs come from {', '.join(others)}"
                                            if others else "") if ratios[p] < 1e-3 else "")
 
-    out = [f"{_lab(labels, p)}: calibrated std {cuu.get(f'std/{p}'):.3g} against the true "
-           f"{truth.get(f'input_std/{p}'):.3g} (x{r:.2g}{collapse(p)})"
+    out = [f"{_lab(labels, p)}: calibrated std {cal[p]:.3g} against the true "
+           f"{true[p]:.3g} (x{r:.2g}{collapse(p)})"
            for p, r in ratios.items() if not 0.5 <= r <= 2.0]
     return ratios, out
 
@@ -307,21 +312,23 @@ def calibration_design(bayes: StepResult) -> list[str]:
 
     Examples
     --------
+    >>> from rotoruq.steps.bayes_calibration import BayesRecord
     >>> data = np.array([[2100.0], [2200.0], [2300.0]])
-    >>> b = StepResult("bayes", "bayes_calibration", {"noise_std/thrust": 0.5},
-    ...                {"data": data}, meta={"columns": {"data": ["thrust"]}})
+    >>> arrays, meta = BayesRecord.partial(("a",), ("thrust",),
+    ...                                    noise_std=np.array([0.5])).parts()
+    >>> b = StepResult("bayes", "bayes_calibration", {}, {"data": data, **arrays}, meta=meta)
     >>> calibration_design(b)[0][:57]
     'the 3 data points scatter (std) by thrust 100 against 0.5'
     """
+    rec = posterior_record(bayes)
     data = bayes.arrays.get("data")
-    cols = _columns(bayes, "data") or list(bayes.meta.get("responses") or [])
-    if data is None or len(data) < 2 or len(cols) != np.shape(data)[1]:
+    if rec is None or data is None or len(data) < 2 or len(rec.names_out) != np.shape(data)[1]:
         return []
     parts = []
-    for j, r in enumerate(cols):
-        noise = bayes.scalars.get(f"noise_std/{r}")
+    for j, r in enumerate(rec.names_out):
+        noise = float(rec.noise_std[j])
         scatter = float(np.std(np.asarray(data, dtype=float)[:, j], ddof=1))
-        if noise and scatter > 3 * noise:
+        if noise > 0 and scatter > 3 * noise:
             parts.append(f"{r} {scatter:.3g} against {noise:.3g} (x{scatter / noise:.0f})")
     if not parts:
         return []

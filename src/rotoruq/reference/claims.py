@@ -19,6 +19,9 @@ import numpy as np
 
 from ..report.diagnostics import PILEUP_MAX, STD_RATIO_MAX, step_warnings, strong_correlations
 from ..results import StepResult
+from ..steps._common import saved_record
+from ..steps.bayes_calibration import posterior_record
+from ..steps.cuu import CuuRecord
 from .causes import (
     calibration_design,
     input_recovery,
@@ -151,18 +154,18 @@ def _bayes_reasons(steps: Mapping[str, StepResult], bayes: str, labels,
                    correlations: bool = False) -> list[str]:
     """Posterior diagnostics that explain a miss: pile-up, identifiability, correlation."""
     res = steps.get(bayes)
-    if res is None:
+    rec = None if res is None else posterior_record(res)
+    if res is None or rec is None:
         return []
     out = []
-    for side, word in (("lo", "lower"), ("hi", "upper")):
-        for k, v in res.scalars.items():
-            if k.startswith(f"pileup_{side}/") and v > PILEUP_MAX:
-                p = k.split("/", 1)[1]
+    for word, pile in (("lower", rec.pileup_lo), ("upper", rec.pileup_hi)):
+        for j, p in enumerate(rec.names_in):
+            if pile[j] > PILEUP_MAX:
                 out.append(f"the posterior of {labels.get(p, p)} piles up against its prior's "
-                           f"{word} bound ({100 * v:.0f} % of the chain in the outer 5 %, "
-                           f"skewness {res.get(f'skewness/{p}', math.nan):+.2f})")
-    weak = [labels.get(k.split("/", 1)[1], k.split("/", 1)[1])
-            for k, v in res.scalars.items() if k.startswith("std_ratio/") and v > STD_RATIO_MAX]
+                           f"{word} bound ({100 * pile[j]:.0f} % of the chain in the outer 5 %, "
+                           f"skewness {rec.skewness[j]:+.2f})")
+    weak = [labels.get(p, p) for p, v in zip(rec.names_in, rec.std_ratio, strict=True)
+            if v > STD_RATIO_MAX]
     if weak:
         out.append(f"the data barely inform {', '.join(weak)} (posterior std above "
                    f"{STD_RATIO_MAX} x the prior's): the posterior is mostly prior")
@@ -365,20 +368,21 @@ def _with_fallback_reason(c: Claim) -> Claim:
 
 
 def _cuu_reasons(res: StepResult | None, labels) -> list[str]:
-    if res is None:
+    rec = None if res is None else saved_record(CuuRecord, res)
+    if rec is None:
         return []
     out = []
-    if res.meta.get("identifiable") is False:
+    if not rec.identifiable:
+        # a saved record holds an infinite condition number as "inf", a NaN as null
+        cond = math.nan if rec.condition_number is None else float(rec.condition_number)
         out.append("the calibration is not identifiable: "
-                   f"{res.meta.get('diagnostic') or 'singular sensitivity matrix'} "
-                   f"(condition number {float(res.meta.get('condition_number') or 'nan'):.3g})")
-    for k, v in res.scalars.items():
-        if k.startswith("initial_std/"):
-            p = k.split("/", 1)[1]
-            new = res.get(f"std/{p}", math.nan)
-            if v > 0 and math.isfinite(new) and abs(new / v - 1) > 0.5:
-                out.append(f"{labels.get(p, p)} std driven from {v:.4g} to {new:.4g} "
-                           f"({100 * (new / v - 1):+.0f} %)")
+                   f"{rec.diagnostic or 'singular sensitivity matrix'} "
+                   f"(condition number {cond:.3g})")
+    for j, p in enumerate(rec.names_in):
+        v, new = float(rec.initial_std[j]), float(rec.std[j])
+        if v > 0 and math.isfinite(new) and abs(new / v - 1) > 0.5:
+            out.append(f"{labels.get(p, p)} std driven from {v:.4g} to {new:.4g} "
+                       f"({100 * (new / v - 1):+.0f} %)")
     return out
 
 

@@ -39,6 +39,7 @@ from ..results import (
     load_results,
     study_infos,
 )
+from ..steps.bayes_calibration import posterior_record
 from .application import Addition, Application, ReportData, Section
 from .diagnostics import step_warnings
 from .escape import slug
@@ -178,13 +179,11 @@ def _steps_summary(steps: dict[str, StepResult], anchors: dict[str, str]) -> str
 def _noise_note(steps: dict[str, StepResult]) -> str:
     parts = []
     for s in steps.values():
-        if s.type != "bayes_calibration":
-            continue
-        noise = {k.split("/", 1)[1]: v for k, v in s.scalars.items()
-                 if k.startswith("noise_std/")}
-        if noise:
-            what = ", ".join(f"{r} {fmt(v)}" for r, v in noise.items())
-            parts.append(f"{e(s.name)}: {e(s.meta.get('noise_model'))} ({e(what)})")
+        rec = posterior_record(s) if s.type == "bayes_calibration" else None
+        if rec is not None and rec.names_out:
+            what = ", ".join(f"{r} {fmt(float(v))}"
+                             for r, v in zip(rec.names_out, rec.noise_std, strict=True))
+            parts.append(f"{e(s.name)}: {e(rec.noise_model)} ({e(what)})")
     if not parts:
         return ""
     return ("<p class=note><b>Noise model of the calibrations</b> (data std devs in response "
@@ -263,9 +262,10 @@ def run_verdict(studies: Mapping[str, Mapping[str, StepResult]],
     checked, failed = [], []
     for study, steps in studies.items():
         for s in steps.values():
-            if "self_check_passed" in s.scalars:
+            rec = posterior_record(s) if s.type == "bayes_calibration" else None
+            if rec is not None and rec.self_check_passed is not None:
                 checked.append(f"{study} / {s.name}")
-                if not s.get("self_check_passed"):
+                if not rec.self_check_passed:
                     failed.append(f"{study} / {s.name}")
     if checked:
         what = (f"{len(failed)} of {len(checked)} failed: {', '.join(failed)}" if failed

@@ -17,7 +17,7 @@ predictions there are out-of-sample. Predictions are made at the data's configur
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -25,7 +25,7 @@ from ..errors import ParameterError
 from ..params import Normal
 from ..render.tables import StepTable, label, make_table
 from ..results import StepRecord, StepResult, dist_to_dict
-from ._common import deferred_writes, input_scalars, per_response
+from ._common import deferred_writes, per_response
 from .base import StepCheck, StepContext
 
 __all__ = ["DiscrepancyRecord", "run_discrepancy", "discrepancy_tables",
@@ -97,6 +97,10 @@ def is_discrepancy(res: StepResult) -> bool:
     return isinstance(rec, Mapping) and rec.get("type") == "DiscrepancyRecord"
 
 
+def _empty() -> np.ndarray:
+    return np.zeros(0)
+
+
 @dataclass(frozen=True, eq=False)
 class DiscrepancyRecord(StepRecord):
     """What a Bayes step with a discrepancy saves: d parameters, h hyperparameters,
@@ -114,6 +118,17 @@ class DiscrepancyRecord(StepRecord):
     measurement's noise at posterior draws. band_lower, band_upper, band_lower_without,
     band_upper_without (q, m) : the :data:`BAND_LEVEL` band of a new measurement with and
     without the discrepancy. measured (q, m) : the data's mean there (NaN: no data).
+    acceptance_rate; level : :data:`BAND_LEVEL`.
+    quantities (d + h) : names_in + hyper_names, the labels of ``ess`` and ``rhat``.
+    map_point (d) : the chains' start. std_ratio, prior_z, pileup_lo, pileup_hi (d) : the
+    chain against the prior (:func:`~rotoruq.steps.bayes_calibration.chain_diagnostics`);
+    correlation (d, d) : the parameters' posterior correlation. noise_model : in words.
+    prediction_labels (q) : ``@<configuration>`` of each prediction; inside_band (m, q) :
+    1.0 / 0.0 whether the measured mean lies in the band with the discrepancy (NaN: no data).
+
+    The flat view: ``mean/<p>``, ``ess/<p or hyperparameter>``, ``map/<p>``,
+    ``corr/<p>/<q>``, ``noise_std/<r>``, ``inside_band/<r>@<configuration>``, ...; not the
+    chains, the prediction draws or the bands.
     """
 
     AXES = {"chains": ("chain", "sample", "parameter"),
@@ -131,7 +146,16 @@ class DiscrepancyRecord(StepRecord):
             "band_lower": ("prediction", "response"), "band_upper": ("prediction", "response"),
             "band_lower_without": ("prediction", "response"),
             "band_upper_without": ("prediction", "response"),
-            "measured": ("prediction", "response")}
+            "measured": ("prediction", "response"),
+            **{k: ("parameter",) for k in ("map_point", "std_ratio", "prior_z", "pileup_lo",
+                                            "pileup_hi")},
+            "correlation": ("parameter", "parameter"), "inside_band": ("response", "prediction")}
+    FLAT = {**{k: None for k in (
+        "chains", "hyper_chains", "data_configurations", "held_out", "predict_configurations",
+        "pred_model", "pred_discrepancy", "pred_noise", "band_lower", "band_upper",
+        "band_lower_without", "band_upper_without", "measured")},
+        "acceptance_rate": "acceptance", "map_point": "map", "correlation": "corr"}
+    LABELS = {"quantity": "quantities", "prediction": "prediction_labels"}
 
     kind: str
     configuration: str
@@ -164,6 +188,17 @@ class DiscrepancyRecord(StepRecord):
     measured: np.ndarray
     acceptance_rate: float
     level: float
+    # added since the first records: an older record reads them empty
+    quantities: tuple[str, ...] = ()
+    map_point: np.ndarray = field(default_factory=_empty)
+    std_ratio: np.ndarray = field(default_factory=_empty)
+    prior_z: np.ndarray = field(default_factory=_empty)
+    pileup_lo: np.ndarray = field(default_factory=_empty)
+    pileup_hi: np.ndarray = field(default_factory=_empty)
+    correlation: np.ndarray = field(default_factory=_empty)
+    noise_model: str = ""
+    prediction_labels: tuple[str, ...] = ()
+    inside_band: np.ndarray = field(default_factory=_empty)
 
 
 def _coupled_model(ctx: StepContext, configuration: str, couple: Mapping[str, str]):
@@ -243,9 +278,18 @@ def run_discrepancy(ctx: StepContext) -> StepResult:
         rows = np.isclose(x, v)
         if rows.any():
             measured[j] = y[rows].mean(axis=0)
+    inside = np.full((len(ctx.responses), at.size), np.nan)
+    for k in range(len(ctx.responses)):
+        for j in range(at.size):
+            if np.isfinite(measured[j, k]):
+                inside[k, j] = float(lo[j, k] <= measured[j, k] <= hi[j, k])
+    from .bayes_calibration import chain_diagnostics  # it imports this module
+
+    chain = res.samples
+    names_in, hyper = tuple(res.names_in), tuple(res.hyper_names)
     rec = DiscrepancyRecord(
-        kind=kind, configuration=configuration, names_in=tuple(res.names_in),
-        names_out=tuple(res.names_out), hyper_names=tuple(res.hyper_names),
+        kind=kind, configuration=configuration, names_in=names_in,
+        names_out=tuple(res.names_out), hyper_names=hyper,
         chains=res.chains, hyper_chains=res.hyper_chains, mean=res.mean, std=res.std,
         std_ratio_to_prior=res.std_ratio_to_prior,
         std_without_discrepancy=res.std_without_discrepancy,
@@ -256,34 +300,20 @@ def run_discrepancy(ctx: StepContext) -> StepResult:
         held_out=np.unique(x[held]), predict_configurations=at, pred_model=p.model_draws,
         pred_discrepancy=p.discrepancy_draws, pred_noise=p.noise_draws, band_lower=lo,
         band_upper=hi, band_lower_without=lo_w, band_upper_without=hi_w, measured=measured,
-        acceptance_rate=float(res.acceptance_rate), level=BAND_LEVEL)
+        acceptance_rate=float(res.acceptance_rate), level=BAND_LEVEL,
+        quantities=names_in + hyper, map_point=np.asarray(res.map_point, dtype=float),
+        **chain_diagnostics(names_in, chain, ctx.space),
+        correlation=np.atleast_2d(np.corrcoef(np.asarray(chain, dtype=float), rowvar=False)),
+        noise_model="noise_std per response" if o.get("noise_std") is not None
+        else "pooled from the repeats",
+        prediction_labels=tuple(f"@{v:g}" for v in at), inside_band=inside)
     arrays, meta = rec.parts()
-    chain = res.samples
-    scalars = input_scalars(ctx.space)
-    for j, name in enumerate(res.names_in):
-        scalars[f"mean/{name}"] = float(res.mean[j])
-        scalars[f"std/{name}"] = float(res.std[j])
-        scalars[f"ess/{name}"] = float(res.ess[j])
-        scalars[f"rhat/{name}"] = float(res.rhat[j])
-        scalars[f"map/{name}"] = float(res.map_point[j])
-        scalars[f"std_ratio/{name}"] = float(res.std_ratio_to_prior[j])
-    scalars["acceptance"] = float(res.acceptance_rate)
-    from .bayes_calibration import chain_diagnostic_scalars  # it imports this module
-
-    scalars.update(chain_diagnostic_scalars(res.names_in, chain, ctx.space))
-    for k, r in enumerate(ctx.responses):
-        scalars[f"noise_std/{r}"] = float(res.noise_std[k])
-        for j, v in enumerate(at):
-            inside = (lo[j, k] <= measured[j, k] <= hi[j, k]) if np.isfinite(
-                measured[j, k]) else np.nan
-            scalars[f"inside_band/{r}@{v:g}"] = float(inside)
-    posterior = {n: dist_to_dict(Normal(scalars[f"mean/{n}"], scalars[f"std/{n}"]))
-                 for n in res.names_in}
+    posterior = {n: dist_to_dict(Normal(float(res.mean[j]), float(res.std[j])))
+                 for j, n in enumerate(names_in)}
     arrays.update(chain=chain, data=np.asarray(y))
-    return StepResult(ctx.name, ctx.type, scalars, arrays, posterior, meta={
-        **meta, "columns": {"chain": list(res.names_in), "data": list(ctx.responses)},
-        "n_evaluations": int(res.n_evaluations), "noise_model": "noise_std per response"
-        if o.get("noise_std") is not None else "pooled from the repeats",
+    return StepResult(ctx.name, ctx.type, {}, arrays, posterior, meta={
+        **meta, "columns": {"chain": list(names_in), "data": list(ctx.responses)},
+        "n_evaluations": int(res.n_evaluations), "noise_model": rec.noise_model,
         "prior": {n: dist_to_dict(d) for n, d in zip(ctx.space.names, ctx.space.distributions,
                                                       strict=True)}})
 

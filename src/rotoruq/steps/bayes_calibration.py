@@ -20,8 +20,9 @@ Thresholds of its warnings (stated in the report):
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -35,10 +36,11 @@ from ..render.figures import (
     pair_plot,
     prior_posterior,
 )
-from ..render.tables import StepTable, label, make_table, parameters, prefixed, value
-from ..results import StepRecord, StepResult, dict_to_dist, dist_to_dict
-from ._common import deferred_writes, input_scalars, named_model, per_response
+from ..render.tables import StepTable, cell, label, make_table
+from ..results import RecordError, StepRecord, StepResult, dist_to_dict
+from ._common import deferred_writes, named_model, per_response
 from ._discrepancy import (
+    DiscrepancyRecord,
     check_discrepancy,
     discrepancy_option,
     discrepancy_tables,
@@ -61,8 +63,8 @@ from .options import (
 )
 
 __all__ = ["STEP", "BayesRecord", "run_bayes_calibration", "noise_model_text",
-           "chain_diagnostic_scalars", "bayes_tables", "bayes_figures", "bayes_warnings",
-           "strong_correlations", "THRESHOLDS",
+           "chain_diagnostics", "read_posterior", "posterior_record", "bayes_tables",
+           "bayes_figures", "bayes_warnings", "strong_correlations", "THRESHOLDS",
            "ESS_MIN", "RHAT_MAX", "LOO_Q2_MIN", "PILEUP_MAX", "STD_RATIO_MAX", "PRIOR_Z_MAX",
            "CORR_MAX", "POSTERIOR_RATIO_MAX"]
 
@@ -81,34 +83,45 @@ THRESHOLDS = {"ess_min": ESS_MIN, "rhat_max": RHAT_MAX, "loo_q2_min": LOO_Q2_MIN
               "posterior_ratio_max": POSTERIOR_RATIO_MAX}
 
 
-def chain_diagnostic_scalars(names: Sequence[str], chain: np.ndarray,
-                             prior: ParameterSpace) -> dict:
-    """Diagnostics of a posterior sample ``chain`` (N, d) against its ``prior``:
+def chain_diagnostics(names: Sequence[str], chain: np.ndarray,
+                      prior: ParameterSpace) -> dict[str, np.ndarray]:
+    """Diagnostics (d,) of a posterior sample ``chain`` (N, d) of parameters ``names``
+    against their ``prior``, NaN where they do not apply:
 
-    ``std_ratio/p`` posterior std / prior std (near 1: the data do not inform p);
-    ``prior_z/p`` (posterior mean - prior mean) / prior std (beyond 3: the posterior left the
-    prior's bulk); ``pileup_lo/p``, ``pileup_hi/p`` fraction of the chain in the outer 5 % of
-    a bounded prior's range at each end (0.05 for a flat posterior; much more: the posterior
-    piles up against the bound); ``corr/p/q`` posterior correlation.
+    ``std_ratio`` posterior std / prior std (near 1: the data do not inform the parameter);
+    ``prior_z`` (posterior mean - prior mean) / prior std (beyond 3: the posterior left the
+    prior's bulk); ``pileup_lo``, ``pileup_hi`` fraction of the chain in the outer 5 % of a
+    bounded prior's range at each end (0.05 for a flat posterior; much more: the posterior
+    piles up against the bound).
+
+    Examples
+    --------
+    >>> from rotoruq.params import Uniform
+    >>> out = chain_diagnostics(["a"], np.array([[0.01], [0.02], [0.5], [0.99]]),
+    ...                         ParameterSpace({"a": Uniform(0.0, 1.0)}))
+    >>> out["pileup_lo"].tolist(), out["pileup_hi"].tolist()
+    ([0.5], [0.25])
     """
-    out = {}
     chain = np.asarray(chain, dtype=float)
+    out = {k: np.full(len(names), np.nan)
+           for k in ("std_ratio", "prior_z", "pileup_lo", "pileup_hi")}
     for j, p in enumerate(names):
-        d = prior[p]
-        x = chain[:, j]
-        out[f"std_ratio/{p}"] = float(np.std(x, ddof=1) / d.std) if d.std > 0 else np.nan
-        out[f"prior_z/{p}"] = float((np.mean(x) - d.mean) / d.std) if d.std > 0 else np.nan
-        lo, hi = d.bounds
+        dist, x = prior[p], chain[:, j]
+        if dist.std > 0:
+            out["std_ratio"][j] = float(np.std(x, ddof=1) / dist.std)
+            out["prior_z"][j] = float((np.mean(x) - dist.mean) / dist.std)
+        lo, hi = dist.bounds
         if np.isfinite(lo) and np.isfinite(hi) and hi > lo:
             band = 0.05 * (hi - lo)
-            out[f"pileup_lo/{p}"] = float(np.mean(x < lo + band))
-            out[f"pileup_hi/{p}"] = float(np.mean(x > hi - band))
-    if chain.shape[1] > 1:
-        c = np.corrcoef(chain, rowvar=False)
-        for i, p in enumerate(names):
-            for j in range(i + 1, len(names)):
-                out[f"corr/{p}/{names[j]}"] = float(c[i, j])
+            out["pileup_lo"][j] = float(np.mean(x < lo + band))
+            out["pileup_hi"][j] = float(np.mean(x > hi - band))
     return out
+
+
+def _empty() -> np.ndarray:
+    # the value :meth:`StepRecord.read` gives a field added since a record was saved;
+    # :func:`read_posterior` reads it as NaN (not computed) in its shape
+    return np.zeros(0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -118,22 +131,36 @@ class BayesRecord(StepRecord):
 
     names_in (d), names_out (m), multiplier_names (k). n_chains, n_draws : the chains' shape
     (the saved ``chain`` array is (n_chains * n_draws, d), chain after chain).
-    mean, std (d,) posterior moments; correlation (d, d).
-    rhat_bulk, rhat_folded : rank-normalised split R-hat; ess_bulk, ess_tail : effective
-    sample sizes (draws); mcse_mean, mcse_q05, mcse_q95 : Monte Carlo standard errors of the
-    mean and of the 5 % / 95 % quantiles (parameter units) (Vehtari et al. 2021).
+    mean, std, skewness, kurtosis (excess) (d,) posterior moments; correlation (d, d);
+    map_point (d,) the chains' start (the MAP pre-solve).
+    ess, rhat (d,) : the bulk effective sample size and the larger of the bulk and folded
+    R-hat; rhat_bulk, rhat_folded : rank-normalised split R-hat; ess_bulk, ess_tail :
+    effective sample sizes (draws); mcse_mean, mcse_q05, mcse_q95 : Monte Carlo standard
+    errors of the mean and of the 5 % / 95 % quantiles (parameter units) (Vehtari et al.
+    2021; NaN without the diagnostics).
+    std_ratio, prior_z, pileup_lo, pileup_hi (d,) : the chain against the prior
+    (:func:`chain_diagnostics`). kl_divergence : KL(posterior || prior) [nats].
     noise_std (m,) stated noise std of each response (data units; ones for unit variance).
     noise_model : the noise model in words. emulator_variance : the emulator's Kriging
     variance is in the likelihood. posterior_ratio, loo_ratio (m,) : the emulator's RMS
     Kriging std over the posterior and its leave-one-out RMSE, each over the noise std of the
-    experiments' mean (NaN without an emulator); runs_added : model runs added by each
-    refinement round; target_ratio : refinement target (None without refinement).
+    experiments' mean; loo_q2, loo_nrmse (m,) : its leave-one-out Q^2 and normalised RMSE
+    (all NaN without an emulator); runs_added : model runs added by each refinement round;
+    target_ratio : refinement target (None without refinement).
+    low_fidelity_models (l) : a co-kriging emulator's low-fidelity models, cheapest first;
+    low_fidelity_runs (l,) : the runs of each; cokriging_levels (l) : the level above each
+    (the next model, the calibrated ``"model"`` last); cokriging_rho (l, m) : the scale of
+    each level on the one below (zero-length without co-kriging).
     sbc_rank_histogram (d, bins), sbc_p_value, sbc_coverage_50, sbc_coverage_90 (d,) : the
     self-check (simulation-based calibration; zero-length without one); self_check_passed
     (None without one) and self_check_reason.
     multiplier_mean, multiplier_std, multiplier_lower, multiplier_upper (k,) : posterior of
     the noise variance multipliers (mean, std, 95 % equal-tailed interval).
     acceptance : fraction of chain steps that moved.
+
+    The flat view keeps the keys the step has always had: ``mean/<p>``, ``map/<p>``,
+    ``corr/<p>/<q>``, ``noise_std/<r>``, ``cokriging_rho/<level>/<r>``,
+    ``multiplier_mean/<name>``, ...
     """
 
     AXES = {"mean": ("parameter",), "std": ("parameter",),
@@ -146,7 +173,15 @@ class BayesRecord(StepRecord):
             "sbc_rank_histogram": ("parameter", "bin"), "sbc_p_value": ("parameter",),
             "sbc_coverage_50": ("parameter",), "sbc_coverage_90": ("parameter",),
             "multiplier_mean": ("multiplier",), "multiplier_std": ("multiplier",),
-            "multiplier_lower": ("multiplier",), "multiplier_upper": ("multiplier",)}
+            "multiplier_lower": ("multiplier",), "multiplier_upper": ("multiplier",),
+            **{k: ("parameter",) for k in ("skewness", "kurtosis", "ess", "rhat", "map_point",
+                                            "std_ratio", "prior_z", "pileup_lo",
+                                            "pileup_hi")},
+            "loo_q2": ("response",), "loo_nrmse": ("response",),
+            "low_fidelity_runs": ("low_fidelity",), "cokriging_rho": ("level", "response")}
+    FLAT = {"correlation": "corr", "map_point": "map", "sbc_rank_histogram": None}
+    LABELS = {"multiplier": "multiplier_names", "low_fidelity": "low_fidelity_models",
+              "level": "cokriging_levels"}
 
     names_in: tuple[str, ...]
     names_out: tuple[str, ...]
@@ -181,6 +216,61 @@ class BayesRecord(StepRecord):
     multiplier_lower: np.ndarray
     multiplier_upper: np.ndarray
     acceptance: float
+    # added since the first records: an older record reads them empty (see _empty)
+    skewness: np.ndarray = field(default_factory=_empty)
+    kurtosis: np.ndarray = field(default_factory=_empty)
+    ess: np.ndarray = field(default_factory=_empty)
+    rhat: np.ndarray = field(default_factory=_empty)
+    map_point: np.ndarray = field(default_factory=_empty)
+    std_ratio: np.ndarray = field(default_factory=_empty)
+    prior_z: np.ndarray = field(default_factory=_empty)
+    pileup_lo: np.ndarray = field(default_factory=_empty)
+    pileup_hi: np.ndarray = field(default_factory=_empty)
+    kl_divergence: float = math.nan
+    loo_q2: np.ndarray = field(default_factory=_empty)
+    loo_nrmse: np.ndarray = field(default_factory=_empty)
+    low_fidelity_models: tuple[str, ...] = ()
+    low_fidelity_runs: np.ndarray = field(default_factory=_empty)
+    cokriging_levels: tuple[str, ...] = ()
+    cokriging_rho: np.ndarray = field(default_factory=_empty)
+
+    @classmethod
+    def partial(cls, names_in: Sequence[str], names_out: Sequence[str],
+                **given: Any) -> BayesRecord:
+        """A record of which only ``given`` (field -> value) is known: every other array
+        NaN (not computed) in its shape, no multipliers, co-kriging, refinement or
+        self-check, one chain.
+
+        Examples
+        --------
+        >>> rec = BayesRecord.partial(("a", "b"), ("thrust",), ess=np.array([80.0, 900.0]))
+        >>> rec.ess.tolist(), rec.rhat.shape, rec.correlation.shape, rec.multiplier_mean.size
+        ([80.0, 900.0], (2,), (2, 2), 0)
+        """
+        plain: dict[str, Any] = {
+            "multiplier_names": (), "n_chains": 1, "n_draws": 0, "noise_model": "",
+            "emulator_variance": False, "runs_added": (), "target_ratio": None,
+            "self_check_passed": None, "self_check_reason": "", "acceptance": math.nan,
+            "kl_divergence": math.nan, "low_fidelity_models": (), "cokriging_levels": (),
+            **given}
+        size = {"parameter": len(names_in), "response": len(names_out),
+                "multiplier": len(plain["multiplier_names"]),
+                "low_fidelity": len(plain["low_fidelity_models"]),
+                "level": len(plain["cokriging_levels"])}
+        arrays: dict[str, Any] = {k: np.full([size.get(a, 0) for a in axes], np.nan)
+                                  for k, axes in cls.AXES.items() if k not in given}
+        return cls(names_in=tuple(names_in), names_out=tuple(names_out), **plain, **arrays)
+
+    def completed(self) -> BayesRecord:
+        """This record with the arrays an older version did not save (read empty) NaN in
+        their shape, and a NaN number saved (as JSON null) NaN again."""
+        given = {f.name: getattr(self, f.name) for f in fields(self)
+                 if f.name not in ("names_in", "names_out") and not (
+                     f.default_factory is _empty and np.size(getattr(self, f.name)) == 0)}
+        for k in ("acceptance", "kl_divergence"):
+            if given[k] is None:
+                given[k] = math.nan
+        return BayesRecord.partial(self.names_in, self.names_out, **given)
 
 
 def noise_model_text(noise_std: Mapping[str, float] | None, multipliers, prior,
@@ -303,63 +393,29 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
                               is not None else None),
         )
     names = tuple(res.names_in)
-    d = len(names)
+    d, m = len(names), len(ctx.responses)
     chains = np.asarray(res.chains, dtype=float)
     chain = chains.reshape(-1, d)
-    scalars = input_scalars(ctx.space)
     dg = res.diagnostics
-    for j, p in enumerate(names):
-        for what in ("mean", "std", "skewness", "kurtosis", "ess", "rhat"):
-            scalars[f"{what}/{p}"] = float(np.asarray(getattr(res, what))[j])
-        scalars[f"map/{p}"] = float(res.map_point[j])
-        if dg is not None:
-            for what in ("rhat_bulk", "rhat_folded", "ess_tail", "mcse_mean"):
-                scalars[f"{what}/{p}"] = float(np.asarray(getattr(dg, what))[j])
-    scalars["acceptance"] = float(res.acceptance_rate)
-    scalars["kl_divergence"] = float(res.kl_divergence)
-    scalars["n_chains"] = float(chains.shape[0])
-    scalars.update(chain_diagnostic_scalars(names, chain, ctx.space))
     loo = getattr(res, "emulator_loo", None)
-    if loo is not None:
-        for k, r in enumerate(ctx.responses):
-            scalars[f"loo_q2/{r}"] = float(np.asarray(loo.q2)[k])
-            scalars[f"loo_nrmse/{r}"] = float(np.asarray(loo.nrmse)[k])
-    m = len(ctx.responses)
     noise = (np.ones(m) if sd is None else
              np.broadcast_to(np.asarray(sd, dtype=float), (m,)).copy())
-    for r, v in zip(ctx.responses, noise, strict=True):
-        scalars[f"noise_std/{r}"] = float(v)
     ad = res.emulator_adequacy
     post_ratio = np.full(m, np.nan) if ad is None else np.asarray(ad.posterior_ratio, float)
     loo_ratio = np.full(m, np.nan) if ad is None else np.asarray(ad.loo_ratio, float)
-    if ad is not None:
-        for k, r in enumerate(ctx.responses):
-            scalars[f"posterior_ratio/{r}"] = float(post_ratio[k])
-            scalars[f"loo_ratio/{r}"] = float(loo_ratio[k])
-        scalars["runs_added"] = float(ad.n_added)
+    lf_models: tuple[str, ...] = ()
+    lf_runs, rho = np.zeros(0, dtype=int), np.zeros((0, m))
     if o["emulator"] == "cokriging":
         from ..methods.cokriging import CoKriging
 
         assert isinstance(res.emulator, CoKriging)
+        lf_models = tuple(o["models"])
+        lf_runs = np.asarray(res.n_low_fidelity_evaluations, dtype=int)
         rho = np.asarray(res.emulator.rho, dtype=float)  # (levels - 1, m)
-        for k, n in enumerate(o["models"]):
-            scalars[f"low_fidelity_runs/{n}"] = float(res.n_low_fidelity_evaluations[k])
-            above = o["models"][k + 1] if k + 1 < len(o["models"]) else "model"
-            for j, r in enumerate(res.names_out):
-                scalars[f"cokriging_rho/{above}/{r}"] = float(rho[k, j])
     sbc = res.self_check
-    if sbc is not None:
-        for j, p in enumerate(names):
-            scalars[f"sbc_p_value/{p}"] = float(sbc.p_value[j])
-            scalars[f"sbc_coverage_50/{p}"] = float(sbc.coverage_50[j])
-            scalars[f"sbc_coverage_90/{p}"] = float(sbc.coverage_90[j])
-        scalars["self_check_passed"] = float(sbc.passed)
     mnames: tuple[str, ...] = tuple(res.noise_multiplier_names or ())
     msum = res.noise_multiplier_summary() if mnames else {}
     mstats = np.array([msum[n] for n in mnames], dtype=float).reshape(len(mnames), 4)
-    for n, (mean, std, lo, hi) in msum.items():
-        scalars[f"multiplier_mean/{n}"], scalars[f"multiplier_std/{n}"] = mean, std
-        scalars[f"multiplier_lower/{n}"], scalars[f"multiplier_upper/{n}"] = lo, hi
     noise_dict = None if sd is None else dict(zip(ctx.responses, map(float, noise),
                                                   strict=True))
     text = noise_model_text(noise_dict, multipliers, mult_prior, emulator is not None,
@@ -386,10 +442,20 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
         self_check_reason="" if sbc is None else str(sbc.reason),
         multiplier_mean=mstats[:, 0], multiplier_std=mstats[:, 1],
         multiplier_lower=mstats[:, 2], multiplier_upper=mstats[:, 3],
-        acceptance=float(res.acceptance_rate))
+        acceptance=float(res.acceptance_rate),
+        skewness=np.asarray(res.skewness, float), kurtosis=np.asarray(res.kurtosis, float),
+        ess=np.asarray(res.ess, float), rhat=np.asarray(res.rhat, float),
+        map_point=np.asarray(res.map_point, float),
+        **chain_diagnostics(names, chain, ctx.space),
+        kl_divergence=float(res.kl_divergence),
+        loo_q2=np.full(m, np.nan) if loo is None else np.asarray(loo.q2, float),
+        loo_nrmse=np.full(m, np.nan) if loo is None else np.asarray(loo.nrmse, float),
+        low_fidelity_models=lf_models, low_fidelity_runs=lf_runs,
+        # the level above each low-fidelity model: the next one, the calibrated model last
+        cokriging_levels=(*lf_models[1:], "model") if lf_models else (), cokriging_rho=rho)
     rec_arrays, rec_meta = record.parts()
-    posterior = {p: dist_to_dict(Normal(scalars[f"mean/{p}"], scalars[f"std/{p}"]))
-                 for p in names}
+    posterior = {p: dist_to_dict(Normal(float(record.mean[j]), float(record.std[j])))
+                 for j, p in enumerate(names)}
     arrays = {"chain": chain, "log_posterior": np.asarray(res.log_posterior, dtype=float),
               "data": np.asarray(ctx.data), **rec_arrays}
     columns = {"chain": list(names), "data": list(ctx.responses)}
@@ -397,7 +463,7 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
         arrays["multiplier_chain"] = np.asarray(res.noise_multiplier_chains,
                                                 dtype=float).reshape(-1, len(mnames))
         columns["multiplier_chain"] = list(mnames)
-    return StepResult(ctx.name, ctx.type, scalars, arrays, posterior, meta={
+    return StepResult(ctx.name, ctx.type, {}, arrays, posterior, meta={
         "columns": columns, "n_evaluations": int(res.n_evaluations),
         "noise_model": text, "n_chains": int(chains.shape[0]),
         "reuse_data": bool(o.get("reuse_data")),
@@ -406,79 +472,113 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
                                                       strict=True)}, **rec_meta})
 
 
+def read_posterior(res: StepResult) -> BayesRecord:
+    """The posterior summary of a Bayes step as a :class:`BayesRecord`, what its tables,
+    warnings and the reference study's reasons read; a step calibrated with a discrepancy
+    gives what its :class:`~rotoruq.steps._discrepancy.DiscrepancyRecord` holds of it (the
+    rest NaN). :class:`~rotoruq.results.RecordError` for a step saved without its record."""
+    if is_discrepancy(res):
+        rec = DiscrepancyRecord.read(res)
+        d = len(rec.names_in)
+        added = {k: v for k, v in (
+            ("map_point", rec.map_point), ("std_ratio", rec.std_ratio),
+            ("prior_z", rec.prior_z), ("pileup_lo", rec.pileup_lo),
+            ("pileup_hi", rec.pileup_hi), ("correlation", rec.correlation))
+            if np.size(v)}  # an older record saved none of these
+        return BayesRecord.partial(
+            rec.names_in, rec.names_out, n_chains=int(rec.chains.shape[0]),
+            n_draws=int(rec.chains.shape[1]), mean=rec.mean, std=rec.std,
+            ess=rec.ess[:d], rhat=rec.rhat[:d], noise_std=rec.noise_std,
+            noise_model=rec.noise_model, acceptance=(
+                math.nan if rec.acceptance_rate is None else rec.acceptance_rate), **added)
+    return BayesRecord.read(res).completed()
+
+
+def posterior_record(res: StepResult) -> BayesRecord | None:
+    """:func:`read_posterior`, None for a step saved without its record (its warnings and
+    the reasons that read it have nothing to say)."""
+    try:
+        return read_posterior(res)
+    except RecordError:
+        return None
+
+
 def bayes_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
-    names = res.columns("chain") or parameters(res)
-    rows = [[label(p, labels), value(res, f"input_mean/{p}"), value(res, f"input_std/{p}"),
-             value(res, f"mean/{p}"), value(res, f"std/{p}"), value(res, f"skewness/{p}"),
-             value(res, f"kurtosis/{p}"), value(res, f"std_ratio/{p}"),
-             value(res, f"pileup_lo/{p}"), value(res, f"pileup_hi/{p}")]
-            for p in names]
+    rec = read_posterior(res)
+    names, resp = rec.names_in, rec.names_out
+    prior = res.input_distributions()
+
+    def prior_moment(p: str, what: str) -> float | None:
+        return float(getattr(prior[p], what)) if p in prior else None
+
+    rows = [[label(p, labels), prior_moment(p, "mean"), prior_moment(p, "std"),
+             *[cell(getattr(rec, f)[j]) for f in ("mean", "std", "skewness", "kurtosis",
+                                                   "std_ratio", "pileup_lo", "pileup_hi")]]
+            for j, p in enumerate(names)]
     out = [make_table("Prior and posterior", (
         "parameter", "prior mean", "prior std", "posterior mean", "posterior std", "skewness",
         "excess kurtosis", "post/prior std", "outer 5 % low", "outer 5 % high"), rows,
         "post/prior std near 1: the data do not inform the parameter; outer 5 %: "
         "fraction of the chain in the outer 5 % of a bounded prior's range (0.05 when "
         "flat).")]
-    n_chains = int(res.meta.get("n_chains", 1))
+    n_chains = rec.n_chains
     out.append(make_table(f"Convergence ({n_chains} chain{'s' if n_chains > 1 else ''})", (
         "parameter", "R-hat", "R-hat bulk", "R-hat folded", "ESS bulk", "ESS tail",
         "MCSE of the mean"),
-        [[label(p, labels), value(res, f"rhat/{p}"), value(res, f"rhat_bulk/{p}"),
-          value(res, f"rhat_folded/{p}"), value(res, f"ess/{p}"), value(res, f"ess_tail/{p}"),
-          value(res, f"mcse_mean/{p}")] for p in names],
+        [[label(p, labels), *[cell(getattr(rec, f)[j]) for f in (
+            "rhat", "rhat_bulk", "rhat_folded", "ess", "ess_tail", "mcse_mean")]]
+         for j, p in enumerate(names)],
         f"Rank-normalised split R-hat (bulk and folded; R-hat is the larger, above "
         f"{RHAT_MAX} the chains have not mixed), bulk and tail effective sample sizes and the "
         "Monte Carlo standard error of the posterior mean (Vehtari et al. 2021, arviz's "
         "definitions)."))
-    resp = res.columns("data")
     rows_noise: list[list[Any]] = [
-        ["acceptance rate", value(res, "acceptance")],
-        ["KL divergence posterior || prior [nats]", value(res, "kl_divergence")],
-        *[[f"noise std of {r}", value(res, f"noise_std/{r}")] for r in resp]]
-    for r in resp:
-        if f"posterior_ratio/{r}" in res.scalars:
+        ["acceptance rate", cell(rec.acceptance)],
+        ["KL divergence posterior || prior [nats]", cell(rec.kl_divergence)],
+        *[[f"noise std of {r}", cell(rec.noise_std[k])] for k, r in enumerate(resp)]]
+    for k, r in enumerate(resp):
+        if np.isfinite(rec.posterior_ratio[k]):
             rows_noise += [[f"emulator std / noise std over the posterior, {r}",
-                            value(res, f"posterior_ratio/{r}")],
+                            float(rec.posterior_ratio[k])],
                            [f"emulator leave-one-out RMSE / noise std, {r}",
-                            value(res, f"loo_ratio/{r}")]]
-        if f"loo_q2/{r}" in res.scalars:
-            rows_noise.append([f"emulator leave-one-out Q2 of {r}", value(res, f"loo_q2/{r}")])
-    if "runs_added" in res.scalars:
-        rows_noise.append(["model runs added by refinement", value(res, "runs_added")])
-    for key, v in prefixed(res, "low_fidelity_runs/").items():
-        rows_noise.append([f"co-kriging: runs of the low-fidelity model {key}", v])
-    for key, v in prefixed(res, "cokriging_rho/").items():
-        level, r = key.split("/", 1)
-        rows_noise.append([f"co-kriging: scale rho of {level} on the level below, {r}", v])
+                            cell(rec.loo_ratio[k])]]
+        if np.isfinite(rec.loo_q2[k]):
+            rows_noise.append([f"emulator leave-one-out Q2 of {r}", float(rec.loo_q2[k])])
+    if np.isfinite(rec.posterior_ratio).any():  # an emulator whose adequacy was measured
+        rows_noise.append(["model runs added by refinement", float(sum(rec.runs_added))])
+    for n, runs in zip(rec.low_fidelity_models, rec.low_fidelity_runs, strict=True):
+        rows_noise.append([f"co-kriging: runs of the low-fidelity model {n}", float(runs)])
+    for a, level in enumerate(rec.cokriging_levels):
+        for k, r in enumerate(resp):
+            rows_noise.append([f"co-kriging: scale rho of {level} on the level below, {r}",
+                               float(rec.cokriging_rho[a, k])])
     out.append(make_table("Noise model and emulator adequacy", ("quantity", "value"),
                           rows_noise,
-                          f"Noise model: {res.meta.get('noise_model', 'not recorded')}. The "
+                          f"Noise model: {rec.noise_model or 'not recorded'}. The "
                           "emulator is adequate when its error over the posterior is a small "
                           f"fraction of the noise (warned above {POSTERIOR_RATIO_MAX})."))
-    mult = prefixed(res, "multiplier_mean/")
-    if mult:
+    if rec.multiplier_names:
         out.append(make_table("Noise variance multipliers (posterior)", (
             "multiplier", "mean", "std", "2.5 %", "97.5 %"),
-            [[n, v, value(res, f"multiplier_std/{n}"), value(res, f"multiplier_lower/{n}"),
-              value(res, f"multiplier_upper/{n}")] for n, v in mult.items()],
+            [[n, *[float(getattr(rec, f"multiplier_{f}")[i])
+                   for f in ("mean", "std", "lower", "upper")]]
+             for i, n in enumerate(rec.multiplier_names)],
             "Each multiplies the stated noise variance of its observations; 1: the stated "
             "noise is right."))
-    if "self_check_passed" in res.scalars:
-        reason = res.meta.get("record", {}).get("fields", {}).get("self_check_reason", "")
-        verdict = "passed" if res.get("self_check_passed") else "FAILED"
+    if rec.self_check_passed is not None:
+        verdict = "passed" if rec.self_check_passed else "FAILED"
         out.append(make_table(f"Self-check (simulation-based calibration): {verdict}", (
             "parameter", "rank uniformity p-value", "50 % coverage", "90 % coverage"),
-            [[label(p, labels), value(res, f"sbc_p_value/{p}"),
-              value(res, f"sbc_coverage_50/{p}"), value(res, f"sbc_coverage_90/{p}")]
-             for p in names],
+            [[label(p, labels), *[cell(getattr(rec, f"sbc_{f}")[j])
+                                  for f in ("p_value", "coverage_50", "coverage_90")]]
+             for j, p in enumerate(names)],
             "Parameters drawn from the prior, data simulated with the stated noise, "
             "calibrated the same way (Talts et al. 2018): uniform ranks and nominal "
-            f"coverages mean the posterior is calibrated. {reason}"))
+            f"coverages mean the posterior is calibrated. {rec.self_check_reason}"))
     if len(names) > 1:
-        idx = {p: i for i, p in enumerate(names)}
-        mat = [[label(p, labels)] + [1.0 if p == q else value(
-            res, f"corr/{p}/{q}" if idx[p] < idx[q] else f"corr/{q}/{p}") for q in names]
-            for p in names]
+        mat = [[label(p, labels)] + [1.0 if i == j else cell(
+            rec.correlation[min(i, j), max(i, j)]) for j in range(len(names))]
+            for i, p in enumerate(names)]
         out.append(make_table("Posterior correlation",
                               ("", *[label(q, labels) for q in names]), mat))
     return out
@@ -494,8 +594,7 @@ def bayes_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:
     truth = None
     source = beside_truth(ctx, res.name)
     if source is not None and source in ctx.steps:
-        truth = {p: dict_to_dist(d) for p, d in
-                 ctx.steps[source].meta.get("input_distributions", {}).items()}
+        truth = ctx.steps[source].input_distributions()
     figs = prior_posterior(res, ctx.labels, ctx.units, truth or None)
     figs += chain_traces(res, ctx.labels, ctx.units)
     if len(res.columns("chain")) > 1:
@@ -507,57 +606,62 @@ def bayes_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:
 def strong_correlations(res: StepResult, labels: Mapping[str, str] | None = None,
                         limit: float = CORR_MAX) -> list[tuple[str, str, float]]:
     """Posterior correlations with |rho| > ``limit``: (label p, label q, rho), strongest
-    first."""
+    first (none for a step saved without its record)."""
+    rec = posterior_record(res)
+    if rec is None:
+        return []
     labels = labels or {}
-    out = []
-    for key, rho in prefixed(res, "corr/").items():
-        p, q = key.split("/")
-        if abs(rho) > limit:
-            out.append((label(p, labels), label(q, labels), rho))
+    names = rec.names_in
+    out = [(label(p, labels), label(names[j], labels), float(rec.correlation[i, j]))
+           for i, p in enumerate(names) for j in range(i + 1, len(names))
+           if abs(rec.correlation[i, j]) > limit]
     return sorted(out, key=lambda t: -abs(t[2]))
 
 
 def bayes_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
-    """MCMC mixing, emulator quality, prior-bound pile-up, identifiability, noise model."""
+    """MCMC mixing, emulator quality, prior-bound pile-up, identifiability, noise model
+    (none for a step saved without its record)."""
+    rec = posterior_record(res)
+    if rec is None:
+        return []
     w: list[str] = []
     name = res.name
 
-    def listed(prefix, bad, fmt):
-        hits = [(p, v) for p, v in prefixed(res, prefix).items() if bad(v)]
-        return ", ".join(f"{label(p, labels)} ({fmt(v)})" for p, v in hits)
+    def listed(values, bad, fmt, names=rec.names_in):
+        return ", ".join(f"{label(p, labels)} ({fmt(v)})"
+                         for p, v in zip(names, map(float, values), strict=True) if bad(v))
 
-    if low := listed("ess/", lambda v: v < ESS_MIN, lambda v: f"{v:.0f}"):
+    if low := listed(rec.ess, lambda v: v < ESS_MIN, lambda v: f"{v:.0f}"):
         w.append(f"{name}: low bulk effective sample size (below {ESS_MIN:.0f}): {low}")
-    if low := listed("ess_tail/", lambda v: v < ESS_MIN, lambda v: f"{v:.0f}"):
+    if low := listed(rec.ess_tail, lambda v: v < ESS_MIN, lambda v: f"{v:.0f}"):
         w.append(f"{name}: low tail effective sample size (below {ESS_MIN:.0f}): the "
                  f"credible intervals are noisy: {low}")
-    if high := listed("rhat/", lambda v: v > RHAT_MAX, lambda v: f"{v:.3f}"):
+    if high := listed(rec.rhat, lambda v: v > RHAT_MAX, lambda v: f"{v:.3f}"):
         w.append(f"{name}: chains not mixed (rank-normalised R-hat above {RHAT_MAX}): {high}")
-    if poor := listed("posterior_ratio/", lambda v: v > POSTERIOR_RATIO_MAX,
-                      lambda v: f"{v:.2f}"):
+    if poor := listed(rec.posterior_ratio, lambda v: v > POSTERIOR_RATIO_MAX,
+                      lambda v: f"{v:.2f}", rec.names_out):
         w.append(f"{name}: emulator error over the posterior above {POSTERIOR_RATIO_MAX} of "
                  f"the noise std: {poor}; add n_emulator_samples or refine = {{...}}")
-    if "self_check_passed" in res.scalars and not res.get("self_check_passed"):
-        reason = res.meta.get("record", {}).get("fields", {}).get("self_check_reason", "")
+    if rec.self_check_passed is False:
         w.append(f"{name}: the self-check (simulation-based calibration) FAILED: the "
-                 f"posterior is not calibrated: {reason}")
-    for side, word in (("lo", "lower"), ("hi", "upper")):
-        for p, f in prefixed(res, f"pileup_{side}/").items():
+                 f"posterior is not calibrated: {rec.self_check_reason}")
+    for word, pile in (("lower", rec.pileup_lo), ("upper", rec.pileup_hi)):
+        for p, f in zip(rec.names_in, map(float, pile), strict=True):
             if f > PILEUP_MAX:
                 w.append(f"{name}: {label(p, labels)} piles up against its prior's {word} "
                          f"bound ({100 * f:.0f} % of the chain in the outer 5 % of the "
                          "range)")
-    if weak := listed("std_ratio/", lambda v: v > STD_RATIO_MAX, lambda v: f"{v:.2f}"):
+    if weak := listed(rec.std_ratio, lambda v: v > STD_RATIO_MAX, lambda v: f"{v:.2f}"):
         w.append(f"{name}: not identifiable from these data (posterior std / prior std "
                  f"above {STD_RATIO_MAX}): {weak}")
-    if far := listed("prior_z/", lambda v: abs(v) > PRIOR_Z_MAX, lambda v: f"{v:+.1f}"):
+    if far := listed(rec.prior_z, lambda v: abs(v) > PRIOR_Z_MAX, lambda v: f"{v:+.1f}"):
         w.append(f"{name}: the posterior left the prior's bulk (prior std devs from the "
                  f"prior mean): {far}")
     for msg in res.meta.get("warnings", []) or []:
         w.append(f"{name}: {msg}")
-    if str(res.meta.get("noise_model", "")).startswith("unit"):
+    if rec.noise_model.startswith("unit"):
         w.append(f"{name}: no noise model given: unit data variance for every response")
-    if "emulator's mean only" in str(res.meta.get("noise_model", "")):
+    if "emulator's mean only" in rec.noise_model:
         w.append(f"{name}: the emulator's own error is not in the likelihood "
                  "(emulator_variance = false)")
     if res.meta.get("reuse_data"):

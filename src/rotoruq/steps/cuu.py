@@ -43,7 +43,8 @@ class CuuRecord(StepRecord):
     ``outputs_initial``, ``outputs_calibrated`` beside the record). identifiable : whether
     the input statistics are identifiable from the targets; diagnostic : why not, in words;
     weighting : "relative" or "absolute" residuals; condition_number : of the outer
-    problem's Jacobian; message : the optimizer's.
+    problem's Jacobian; message : the optimizer's. The flat view: ``<field>/<input>``,
+    ``<field>/<response>`` (``calibrated_out_std/thrust``), leaving out what is NaN.
     """
 
     AXES = {**{k: ("input",) for k in ("initial_mean", "initial_std", "mean", "std")},
@@ -120,36 +121,11 @@ def run_cuu(ctx: StepContext) -> StepResult:
     rec_arrays, rec_meta = record.parts()
     calibrated = {p: dist_to_dict(d) for p, d in zip(cal_space.names, cal_space.distributions,
                                                       strict=True)}
-    return StepResult(ctx.name, ctx.type, cuu_scalars(record, targets), {**arrays, **rec_arrays},
-                      calibrated, meta={
+    return StepResult(ctx.name, ctx.type, {}, {**arrays, **rec_arrays}, calibrated, meta={
         "columns": columns, "n_evaluations": int(res.n_evaluations),
         "identifiable": bool(res.identifiable), "diagnostic": res.diagnostic,
         "weighting": res.weighting,
         "condition_number": float(res.condition_number), "message": res.message, **rec_meta})
-
-
-def cuu_scalars(rec: CuuRecord, targets: Mapping[str, tuple[float, float]]) -> dict[str, float]:
-    """The flat view of ``rec``: ``initial_mean/<input>``, ``initial_std/``, ``mean/``,
-    ``std/``; ``target_mean/<response>``, ``target_std/`` of each target (in ``targets``
-    order); ``initial_out_mean/``, ``initial_out_std/``, ``calibrated_out_mean/``,
-    ``calibrated_out_std/`` when sampled."""
-    out: dict[str, float] = {}
-    for j, p in enumerate(rec.names_in):
-        out[f"initial_mean/{p}"] = float(rec.initial_mean[j])
-        out[f"initial_std/{p}"] = float(rec.initial_std[j])
-        out[f"mean/{p}"] = float(rec.mean[j])
-        out[f"std/{p}"] = float(rec.std[j])
-    for r in targets:
-        k = rec.names_out.index(r)
-        out[f"target_mean/{r}"] = float(rec.target_mean[k])
-        out[f"target_std/{r}"] = float(rec.target_std[k])
-    for tag in ("initial", "calibrated"):
-        mean, std = getattr(rec, f"{tag}_out_mean"), getattr(rec, f"{tag}_out_std")
-        for k, r in enumerate(rec.names_out):
-            if not np.isnan(mean[k]):
-                out[f"{tag}_out_mean/{r}"] = float(mean[k])
-                out[f"{tag}_out_std/{r}"] = float(std[k])
-    return out
 
 
 def cuu_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:

@@ -35,10 +35,11 @@ class LeastSquaresRecord(StepRecord):
 
     names_in (d); x (d,) the optimum; std (d,) its linearised std; residuals (k, m) the
     residuals there, per experiment and response; cost (of the scaled residuals); converged,
-    message.
+    message. The flat view: ``value/<input>``, ``std/<input>``, ``cost``, ``converged``.
     """
 
     AXES = {"x": ("input",), "std": ("input",), "residuals": ("experiment", "response")}
+    FLAT = {"x": "value", "residuals": None}
 
     names_in: tuple[str, ...]
     x: np.ndarray
@@ -100,15 +101,11 @@ def run_least_squares(ctx: StepContext) -> StepResult:
         max_function_evaluations=o["max_function_evaluations"],
         tolerance=o["tolerance"],
     )
-    scalars = {}
     calibrated = {}
     for j, p in enumerate(res.names_in):
-        scalars[f"value/{p}"] = float(res.x[j])
         s = float(res.std[j])
-        scalars[f"std/{p}"] = s
         sd_p = s if np.isfinite(s) and s > 0 else ctx.space[p].std
         calibrated[p] = dist_to_dict(Normal(float(res.x[j]), sd_p))
-    scalars["cost"] = float(res.cost)
     record = LeastSquaresRecord(tuple(res.names_in), np.asarray(res.x, dtype=float),
                                 np.asarray(res.std, dtype=float), np.asarray(res.residuals),
                                 float(res.cost), bool(res.converged), str(res.message))
@@ -118,7 +115,7 @@ def run_least_squares(ctx: StepContext) -> StepResult:
                    "iterations": int(res.iterations)}
     if res.residual_model:
         extra["residual_model"] = True
-    return StepResult(ctx.name, ctx.type, scalars, arrays, calibrated, meta={
+    return StepResult(ctx.name, ctx.type, {}, arrays, calibrated, meta={
         "n_evaluations": int(res.n_evaluations), "converged": bool(res.converged),
         "message": res.message, **extra, **meta})
 

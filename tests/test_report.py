@@ -23,6 +23,7 @@ from rotoruq.steps import StepContext
 from rotoruq.steps.bayes_calibration import BayesRecord
 from rotoruq.steps.cuu import CuuRecord
 from rotoruq.steps.forward_check import run_forward_check
+from rotoruq.steps._sobol import spread
 from rotoruq.steps.sensitivity import SensitivityRecord
 from rotoruq.study.cli import main
 from rotoruq.study.runner import run_study
@@ -430,13 +431,14 @@ def test_sobol_step_reports_variance_and_flags_negligible(tmp_path):
     s = run_study(p, model_factory=linear_factory(), only=None)["sobol"]
     # y1 = 2a + 3b: Var = 4 * 0.01 + 9 * 0.04 = 0.4 exactly; CV = sqrt(0.4) / 8
     assert s.get("out_var/y1") == pytest.approx(0.4, rel=0.05)
-    assert s.get("out_cv/y1") == pytest.approx(np.sqrt(0.4) / 8, rel=0.05)
-    assert s.get("negligible/y1") == 0.0
+    rec = SensitivityRecord.read(s)
+    cv, negligible = spread(rec.mean, np.sqrt(rec.variance))
+    assert cv[0] == pytest.approx(np.sqrt(0.4) / 8, rel=0.05) and not negligible[0]
     assert s.get("S_ci/y1/b/lo") <= s.get("S/y1/b") <= s.get("S_ci/y1/b/hi")
     assert not step_warnings(s)
-    tiny = StepResult("x", "sensitivity", {"negligible/thrust": 1.0, "out_std/thrust": 0.03,
-                                           "out_cv/thrust": 1.5e-5})
+    tiny = sensitivity_step("x", {"thrust": {"a": 0.5}}, out_std=0.03, out_mean=2000.0)
     assert "negligible variance" in step_warnings(tiny)[0]
+    assert "std 0.03, 1.5e-05 of its mean" in step_warnings(tiny)[0]
 
 
 def test_report_cli_rejects_empty_folder(tmp_path, capsys):

@@ -20,10 +20,10 @@ from rotoruq.report.diagnostics import step_warnings
 from rotoruq.report.html import write_report
 from rotoruq.results import StepResult, save_step
 from rotoruq.steps import StepContext
+from rotoruq.steps._sobol import spread
 from rotoruq.steps.bayes_calibration import BayesRecord
 from rotoruq.steps.cuu import CuuRecord
 from rotoruq.steps.forward_check import run_forward_check
-from rotoruq.steps._sobol import spread
 from rotoruq.steps.sensitivity import SensitivityRecord
 from rotoruq.study.cli import main
 from rotoruq.study.runner import run_study

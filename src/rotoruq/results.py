@@ -327,6 +327,8 @@ class StepRecord:
                 plain[f.name] = list(v) if isinstance(v, tuple) else v
         labels = {**_DEFAULT_LABELS, **self.LABELS}
         for name, arr in arrays.items():
+            if arr.size == 0:  # none (a level mapping not asked for): nothing to label
+                continue
             for axis, n in zip(self.AXES[name], arr.shape, strict=True):
                 lab = labels.get(axis)
                 lab = plain.get(lab) if isinstance(lab, str) else lab

@@ -388,8 +388,8 @@ def test_cli_progress_is_logging(tmp_path):
     loud = subprocess.run([*cli, "run", str(study), "--out", str(tmp_path / "a"), "--no-report"],
                           capture_output=True, text=True, timeout=300)
     assert loud.returncode == 0, loud.stderr
-    assert "[mv] mv: running mean_value (cla_m03 -> thrust)" in loud.stderr
-    assert "[mv] mv: done in" in loud.stderr
+    assert "[mv] 1/1 mv: running mean_value (cla_m03 -> thrust)" in loud.stderr
+    assert "[mv] 1/1 mv: done in" in loud.stderr
     quiet = subprocess.run([*cli, "--quiet", "run", str(study), "--out", str(tmp_path / "b"),
                             "--no-report"], capture_output=True, text=True, timeout=300)
     assert quiet.returncode == 0, quiet.stderr

@@ -560,14 +560,17 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
     reused, seconds, skipped = [], {}, []
     identities: dict = {}
     needed = _needed_by(study, only)
-    for step in study.steps:
+    n_steps = len(study.steps)
+    for i_step, step in enumerate(study.steps, 1):
+        # "[study] 3/12 sobol": where the run is, on every progress line of the step
+        at = f"[{study.info.name}] {i_step}/{n_steps} {step.name}"
         folder = out / "steps" / step.name
         if only is not None and step.name not in only:
             saved = _saved(study, step, folder)
             if saved is not None:
                 results[step.name] = saved
                 reused.append(step.name)
-                log.info("[%s] %s: reused (%s)", study.info.name, step.name, step.type)
+                log.info("%s: reused (%s)", at, step.type)
             elif step.name in needed:
                 users = ", ".join(needed[step.name])
                 raise ParameterError(
@@ -575,8 +578,7 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
                     f"from it: add it, --only {' '.join([step.name, *only])}")
             else:
                 skipped.append(step.name)
-                log.info("[%s] %s: skipped (not in --only, no saved result)", study.info.name,
-                         step.name)
+                log.info("%s: skipped (not in --only, no saved result)", at)
             continue
         plan = _plan_step(study, step, results, quick, probe_factory, identities)
         fp = plan.fingerprint
@@ -584,7 +586,7 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
         if saved is not None and saved.fingerprint == fp:
             results[step.name] = saved
             reused.append(step.name)
-            log.info("[%s] %s: reused (%s)", study.info.name, step.name, step.type)
+            log.info("%s: reused (%s)", at, step.type)
             continue
         failed: Counter[str] = Counter()
         ctx = StepContext(
@@ -596,8 +598,8 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
             source=results[step.source[0]] if step.source else None,
             previous=dict(results), store=computed_store,
         )
-        log.info("[%s] %s: running %s (%s -> %s)", study.info.name, step.name, step.type,
-                 ", ".join(plan.space.names), ", ".join(plan.responses))
+        log.info("%s: running %s (%s -> %s)", at, step.type, ", ".join(plan.space.names),
+                 ", ".join(plan.responses))
         try:
             res, dt = run_step(step_type(step.type).run, ctx)
         except ParameterError as exc:
@@ -621,7 +623,7 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
         export_chains(res, save_step(res, out))
         results[step.name] = res
         seconds[step.name] = dt
-        log.info("[%s] %s: done in %.1f s", study.info.name, step.name, dt)
+        log.info("%s: done in %.1f s", at, dt)
     return StudyRun(study, out, results, tuple(reused), seconds, tuple(skipped))
 
 

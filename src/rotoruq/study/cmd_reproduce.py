@@ -130,9 +130,9 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps({"report": result["report"], "seconds": result["seconds"]}, indent=1))
     elif not getattr(args, "quiet", False):
         for res in result["runs"].values():
-            print(f"results: {res.out}")
-        print(f"report: {result['report']}")
-        for res in result["runs"].values():
             print(summary(res))
+        for res in result["runs"].values():
+            print(f"results: {res.out}")
+        print(f"report: {result['report']}")  # last: what the user opens next
     codes = [exit_status(res, "reproduce") for res in result["runs"].values()]
     return EXIT_FAILED_EVALUATIONS if any(codes) else 0

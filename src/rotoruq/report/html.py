@@ -41,13 +41,13 @@ from ..results import (
 )
 from ..steps.bayes_calibration import posterior_record
 from .application import Addition, Application, ReportData, Section
-from .diagnostics import step_warnings
 from .escape import slug
 from .escape import text as e
 from .hooks import rendering
 from .provenance import failed_evaluations, git_commit
 from .steptables import step_tables, table_csv
 from .tables import fmt, step_table_html
+from .verdict import verdict_lines
 
 __all__ = ["write_report", "find_study_dirs"]
 
@@ -211,94 +211,15 @@ def _first_screen(studies: Mapping[str, Mapping[str, StepResult]], infos: Mappin
     return "".join(out)
 
 
-def _validation_counts(res: StepResult) -> tuple[int, int, float] | None:
-    """(comparisons with |E| <= k u_val, comparisons, k) of a ``validation`` step's record
-    (every prediction, condition and response with a finite ratio); None when unreadable."""
-    import numpy as np
-
-    from ..results import RecordError
-    from ..steps.validation import ValidationRecord
-
-    try:
-        rec = ValidationRecord.read(res)
-    except (RecordError, KeyError, ValueError):
-        return None
-    ratio = np.asarray(rec.error_ratio, dtype=float)
-    ratio = ratio[np.isfinite(ratio)]
-    k = float(rec.coverage_factor)
-    return int(np.sum(ratio <= k)), int(ratio.size), k
-
-
 def run_verdict(studies: Mapping[str, Mapping[str, StepResult]],
                 labels: Mapping[str, Mapping[str, str]] | None = None) -> str:
-    """The report's own verdict, computed from the saved steps: how many validation
-    comparisons lie within k u_val (ASME V&V 20, as each ``validation`` step records them),
-    which self-checks (simulation-based calibration) failed, how many model evaluations
-    failed, and which steps carry diagnostic warnings."""
-    labels = labels or {}
+    """The report's own verdict as an HTML list (:func:`~.verdict.verdict_lines`), each item
+    carrying its counts as ``data-`` attributes."""
     items = []
-    within = total = 0
-    per_step = []
-    for study, steps in studies.items():
-        for s in steps.values():
-            if s.type != "validation":
-                continue
-            got = _validation_counts(s)
-            if got is None:
-                per_step.append(f"{study} / {s.name}: record not readable")
-                continue
-            w, n, k = got
-            within, total = within + w, total + n
-            per_step.append(f"{study} / {s.name}: {w} of {n} within {k:g} u_val")
-    if per_step:
-        items.append(f"<li data-check='validation' data-within='{within}' "
-                     f"data-comparisons='{total}'><b>Validation</b>: {within} of {total} "
-                     "comparisons with data lie within their validation uncertainty "
-                     f"(|E| &lt;= k u_val, E = S - D): {e('; '.join(per_step))}.</li>")
-    else:
-        items.append("<li data-check='validation' data-within='0' data-comparisons='0'>"
-                     "<b>Validation</b>: no <code>validation</code> step, so no comparison "
-                     "with data is judged.</li>")
-    checked, failed = [], []
-    for study, steps in studies.items():
-        for s in steps.values():
-            rec = posterior_record(s) if s.type == "bayes_calibration" else None
-            if rec is not None and rec.self_check_passed is not None:
-                checked.append(f"{study} / {s.name}")
-                if not rec.self_check_passed:
-                    failed.append(f"{study} / {s.name}")
-    if checked:
-        what = (f"{len(failed)} of {len(checked)} failed: {', '.join(failed)}" if failed
-                else f"all {len(checked)} passed")
-        items.append(f"<li data-check='self-check' data-failed='{len(failed)}' "
-                     f"data-checked='{len(checked)}'><b>Self-checks</b> (simulation-based "
-                     f"calibration): {e(what)}.</li>")
-    else:
-        items.append("<li data-check='self-check' data-failed='0' data-checked='0'>"
-                     "<b>Self-checks</b> (simulation-based calibration): none ran.</li>")
-    n_failed, recorded, unrecorded, where = 0, 0, 0, []
-    for study, steps in studies.items():
-        for s in steps.values():
-            fails = failed_evaluations(s)
-            if fails is None:
-                unrecorded += 1
-                continue
-            recorded += 1
-            n_failed += fails[0]
-            if fails[0]:
-                where.append(f"{study} / {s.name} {fails[0]}")
-    items.append(f"<li data-check='failed-evaluations' data-failed='{n_failed}'><b>Failed "
-                 f"evaluations</b>: {n_failed} in the {recorded} steps that record them"
-                 + (f" ({e(', '.join(where))})" if where else "")
-                 + (f"; {unrecorded} steps do not record them" if unrecorded else "")
-                 + ".</li>")
-    warned = [f"{study} / {s.name}" for study, steps in studies.items()
-              for s in steps.values() if step_warnings(s, labels.get(study))]
-    n_steps = sum(len(steps) for steps in studies.values())
-    items.append(f"<li data-check='warnings' data-steps='{len(warned)}'><b>Diagnostic "
-                 f"warnings</b>: {len(warned)} of {n_steps} steps"
-                 + (f" ({e(', '.join(warned))}; see each step's table)" if warned else "")
-                 + ".</li>")
+    for line in verdict_lines(studies, labels):
+        attrs = "".join(f" data-{k}='{v}'" for k, v in line.counts.items())
+        items.append(f"<li data-check='{line.check}'{attrs}><b>{e(line.title)}</b>: "
+                     f"{e(line.text)}</li>")
     return "<ul class=run-verdict>" + "".join(items) + "</ul>"
 
 

@@ -123,7 +123,7 @@ def _reproduce(which: str, out: Path, quick: bool, jobs: int | None) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .cmd_run import EXIT_FAILED_EVALUATIONS, exit_status, summary
+    from .cmd_run import EXIT_FAILED_EVALUATIONS, exit_status, summary, verdict
 
     result = reproduce(args.which, args.out, args.quick, args.jobs)
     if args.json:
@@ -131,6 +131,7 @@ def run(args: argparse.Namespace) -> int:
     elif not getattr(args, "quiet", False):
         for res in result["runs"].values():
             print(summary(res))
+        print(verdict(*result["runs"].values()))
         for res in result["runs"].values():
             print(f"results: {res.out}")
         print(f"report: {result['report']}")  # last: what the user opens next

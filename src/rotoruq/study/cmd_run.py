@@ -80,14 +80,27 @@ def run(args: argparse.Namespace) -> int:
     with results_lock(out, "run"):  # the run and its report, one at a time per folder
         result = run_study(study, out=out, quick=args.quick, only=args.only)
         say = (lambda line: None) if getattr(args, "quiet", False) else print
-        say(f"results: {result.out}")
+        index = None
         if not args.no_report and result.results:
             from .cmd_report import write
 
             index = write([result.out], Path(result.out) / "report")
-            say(f"report: {index}")
     say(summary(result))
+    say(verdict(result))
+    say(f"results: {result.out}")
+    if index is not None:
+        say(f"report: {index}")  # last: what the user opens next
     return exit_status(result, "run", args.max_failed_share)
+
+
+def verdict(*results) -> str:
+    """The run's own verdict (:func:`rotoruq.report.verdict.verdict_text`) over the studies
+    of ``results`` (:class:`~rotoruq.study.runner.StudyRun` each), for the terminal."""
+    from ..report.verdict import verdict_text
+
+    labels = {r.study.info.name: {p.name: p.label or p.name for p in r.study.parameters}
+              for r in results}
+    return verdict_text({r.study.info.name: r.results for r in results}, labels)
 
 
 def exit_status(result, command: str, share: float | None = None) -> int:

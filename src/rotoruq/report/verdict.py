@@ -1,0 +1,150 @@
+"""A run's own verdict, computed from its saved steps: the first thing the report shows and the
+last thing ``rotoruq run`` prints.
+
+Four lines, each with the counts it rests on: validation comparisons within k u_val (ASME
+V&V 20, as each ``validation`` step records them), self-checks (simulation-based calibration)
+that failed, failed model evaluations, steps with diagnostic warnings.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..results import RecordError, StepResult
+from ..steps.bayes_calibration import posterior_record
+from .diagnostics import step_warnings
+from .provenance import failed_evaluations
+
+__all__ = ["VerdictLine", "verdict_lines", "verdict_text"]
+
+Studies = Mapping[str, Mapping[str, StepResult]]
+
+
+@dataclass(frozen=True)
+class VerdictLine:
+    """One line of a run's verdict.
+
+    check : what it judges (``"validation"``, ``"self-check"``, ``"failed-evaluations"``,
+        ``"warnings"``). title : its name for a reader. text : the finding in words, with
+        the steps it concerns. counts : the numbers it rests on (e.g. ``within``,
+        ``comparisons``).
+    """
+
+    check: str
+    title: str
+    text: str
+    counts: dict[str, int] = field(default_factory=dict)
+
+
+def _validation_counts(res: StepResult) -> tuple[int, int, float] | None:
+    """(comparisons with |E| <= k u_val, comparisons, k) of a ``validation`` step's record
+    (every prediction, condition and response with a finite ratio); None when unreadable."""
+    from ..steps.validation import ValidationRecord
+
+    try:
+        rec = ValidationRecord.read(res)
+    except (RecordError, KeyError, ValueError):
+        return None
+    ratio = np.asarray(rec.error_ratio, dtype=float)
+    ratio = ratio[np.isfinite(ratio)]
+    k = float(rec.coverage_factor)
+    return int(np.sum(ratio <= k)), int(ratio.size), k
+
+
+def verdict_lines(studies: Studies, labels: Mapping[str, Mapping[str, str]] | None = None
+                  ) -> list[VerdictLine]:
+    """The verdict of the saved steps of ``studies`` (study -> step name -> result).
+
+    Parameters
+    ----------
+    studies : mapping
+        Study name -> its saved steps by name.
+    labels : mapping, optional
+        Study name -> parameter name -> label (for the steps' warnings).
+
+    Returns
+    -------
+    list of VerdictLine
+        Validation, self-checks, failed evaluations and diagnostic warnings, in that order.
+
+    Examples
+    --------
+    >>> [line.text for line in verdict_lines({})][0]
+    'no validation step, so no comparison with data is judged.'
+    """
+    labels = labels or {}
+    lines = []
+    within = total = 0
+    per_step = []
+    for study, steps in studies.items():
+        for s in steps.values():
+            if s.type != "validation":
+                continue
+            got = _validation_counts(s)
+            if got is None:
+                per_step.append(f"{study} / {s.name}: record not readable")
+                continue
+            w, n, k = got
+            within, total = within + w, total + n
+            per_step.append(f"{study} / {s.name}: {w} of {n} within {k:g} u_val")
+    counts = {"within": within, "comparisons": total}
+    if per_step:
+        lines.append(VerdictLine("validation", "Validation", (
+            f"{within} of {total} comparisons with data lie within their validation "
+            f"uncertainty (|E| <= k u_val, E = S - D): {'; '.join(per_step)}."), counts))
+    else:
+        lines.append(VerdictLine("validation", "Validation", "no validation step, so no "
+                                 "comparison with data is judged.", counts))
+    checked, failed = [], []
+    for study, steps in studies.items():
+        for s in steps.values():
+            rec = posterior_record(s) if s.type == "bayes_calibration" else None
+            if rec is not None and rec.self_check_passed is not None:
+                checked.append(f"{study} / {s.name}")
+                if not rec.self_check_passed:
+                    failed.append(f"{study} / {s.name}")
+    what = ((f"{len(failed)} of {len(checked)} failed: {', '.join(failed)}" if failed
+             else f"all {len(checked)} passed") if checked else "none ran")
+    lines.append(VerdictLine("self-check", "Self-checks (simulation-based calibration)",
+                             f"{what}.", {"failed": len(failed), "checked": len(checked)}))
+    n_failed, recorded, unrecorded, where = 0, 0, 0, []
+    for study, steps in studies.items():
+        for s in steps.values():
+            fails = failed_evaluations(s)
+            if fails is None:
+                unrecorded += 1
+                continue
+            recorded += 1
+            n_failed += fails[0]
+            if fails[0]:
+                where.append(f"{study} / {s.name} {fails[0]}")
+    lines.append(VerdictLine(
+        "failed-evaluations", "Failed evaluations",
+        f"{n_failed} in the {recorded} steps that record them"
+        + (f" ({', '.join(where)})" if where else "")
+        + (f"; {unrecorded} steps do not record them" if unrecorded else "") + ".",
+        {"failed": n_failed}))
+    warned = [f"{study} / {s.name}" for study, steps in studies.items()
+              for s in steps.values() if step_warnings(s, labels.get(study))]
+    n_steps = sum(len(steps) for steps in studies.values())
+    lines.append(VerdictLine(
+        "warnings", "Diagnostic warnings", f"{len(warned)} of {n_steps} steps"
+        + (f" ({', '.join(warned)}; see each step's table)" if warned else "") + ".",
+        {"steps": len(warned)}))
+    return lines
+
+
+def verdict_text(studies: Studies, labels: Mapping[str, Mapping[str, str]] | None = None
+                 ) -> str:
+    """The verdict as plain lines for a terminal (``title: text`` each).
+
+    Examples
+    --------
+    >>> print(verdict_text({}).splitlines()[1])
+    verdict: Self-checks (simulation-based calibration): none ran.
+    """
+    return "\n".join(f"verdict: {line.title}: {line.text}"
+                     for line in verdict_lines(studies, labels))

@@ -5,8 +5,12 @@ from __future__ import annotations
 
 import base64
 import json
+import math
 import operator
 import re
+import types
+import typing
+from dataclasses import MISSING, fields
 
 import numpy as np
 import pytest
@@ -349,14 +353,40 @@ def test_report_claims_cannot_lie(tmp_path):
     assert links and set(links) <= ids
 
 
+def blank_record(cls, sizes, **given):
+    """A ``cls`` record with the fields ``given`` and every other one blank: arrays of NaN
+    over axes of ``sizes`` (axis -> length, 0 for any other), no names, no text, zero
+    counts, None where a field may be None; a field with a default keeps it."""
+    hints = typing.get_type_hints(cls)
+    kwargs = dict(given)
+    for f in fields(cls):
+        if f.name in given or f.default is not MISSING or f.default_factory is not MISSING:
+            continue
+        hint = hints[f.name]
+        if f.name in cls.AXES:
+            kwargs[f.name] = np.full([sizes.get(a, 0) for a in cls.AXES[f.name]], np.nan)
+        elif typing.get_origin(hint) is tuple:
+            kwargs[f.name] = ()
+        elif typing.get_origin(hint) in (typing.Union, types.UnionType):
+            kwargs[f.name] = None
+        else:
+            kwargs[f.name] = {str: "", int: 0, float: math.nan, bool: False}[hint]
+    return cls(**kwargs)
+
+
 def test_joint_posterior_predictive_keeps_correlations():
     """y1 = 2a + 3b + c with a chain on the line 2a + 3b = 8: the joint predictive of y1 has
     zero spread (to rounding), independent normals of the same marginals do not."""
     rng = np.random.default_rng(1)
     z = rng.normal(size=20000)
     chain = np.column_stack([1 + 0.1 * z, 2 - 0.2 / 3 * z])
-    source = StepResult("bayes", "bayes_calibration", {"noise_std/y1": 0.5},
-                        {"chain": chain}, meta={"columns": {"chain": ["a", "b"]}})
+    from rotoruq.steps.bayes_calibration import BayesRecord
+
+    arrays, meta = blank_record(BayesRecord, {"parameter": 2, "response": 1},
+                                names_in=("a", "b"), names_out=("y1",),
+                                noise_std=np.array([0.5])).parts()
+    source = StepResult("bayes", "bayes_calibration", {}, {"chain": chain, **arrays},
+                        meta={"columns": {"chain": ["a", "b"]}, **meta})
     sa, sb = chain.std(ddof=1, axis=0)
     space = ParameterSpace({"a": Normal(chain[:, 0].mean(), sa),
                             "b": Normal(chain[:, 1].mean(), sb)})

@@ -5,8 +5,12 @@ from __future__ import annotations
 
 import base64
 import json
+import math
 import operator
 import re
+import types
+import typing
+from dataclasses import MISSING, fields
 
 import numpy as np
 import pytest
@@ -136,9 +140,49 @@ def sensitivity_step(name, main, out_std, out_mean, input_dists=None, **meta) ->
                       meta={**rec_meta, "input_distributions": dists, **meta})
 
 
+# a forward check's statistics in its flat view -> its record's array (a moment: its row)
+_FORWARD_FIELDS = {"data": "measured", "data_n": "n_repeats", "data_sem": "sem", "nstd": "nstd",
+                   "pp_mean": "pp_mean", "pp_std": "pp_std", "pp_noise": "pp_noise",
+                   "pp_nstd": "pp_nstd"}
+
+
+def forward_result(name, values, arrays=None, **meta):
+    """A forward-check step over a sweep of height_over_radius whose record holds ``values``
+    (its flat view: ``"nstd/thrust@4"`` -> number; NaN where not given), with ``arrays`` and
+    ``meta`` beside."""
+    from rotoruq.steps._common import MOMENT_KEYS
+    from rotoruq.steps.forward_check import ForwardCheckRecord
+
+    keys = [(k.split("/")[0], *k.split("/")[1].split("@")) for k in values]
+    resp = list(dict.fromkeys(r for _, r, _ in keys))
+    labels = list(dict.fromkeys(f"@{h}" for _, _, h in keys))
+    moments = np.full((len(labels), 4, len(resp)), np.nan)
+    per = {f: np.full((len(labels), len(resp)), np.nan) for f in _FORWARD_FIELDS.values()}
+    for (stat, r, h), v in zip(keys, values.values(), strict=True):
+        i, k = labels.index(f"@{h}"), resp.index(r)
+        if stat in MOMENT_KEYS:
+            moments[i, MOMENT_KEYS.index(stat), k] = v
+        else:
+            per[_FORWARD_FIELDS[stat]][i, k] = v
+    joint = not np.all(np.isnan(per["pp_mean"]))
+    rec = ForwardCheckRecord(
+        (), tuple(resp), tuple(labels), {"height_over_radius": [float(h[1:]) for h in labels]},
+        "height_over_radius", False, "independent_normals" if joint else "sampling", None,
+        moments, **per, input_mean=np.zeros(0), input_std=np.zeros(0),
+        input_lower=np.zeros(0), input_upper=np.zeros(0))
+    rec_arrays, rec_meta = rec.parts()
+    return StepResult(name, "forward_check", {}, {**(arrays or {}), **rec_arrays},
+                      meta={**meta, **rec_meta})
+
+
+def test_a_forward_result_built_here_has_the_flat_view_it_was_given():
+    values = {"mean/thrust@4": 26.0, "data/thrust@4": 25.7, "nstd/power@2": 0.5,
+              "pp_std/power@2": 0.62}
+    assert forward_result("fwd", values).scalars == {**values, "normalized": 0.0}
+
+
 def _exp(scalars_fwd, bayes_scalars=None, **fwd_meta):
-    steps = {"forward_4r": StepResult("forward_4r", "forward_check", scalars_fwd,
-                                      meta=fwd_meta)}
+    steps = {"forward_4r": forward_result("forward_4r", scalars_fwd, **fwd_meta)}
     if bayes_scalars is not None:
         steps["bayes"] = bayes_step({**bayes_scalars, "noise_model": "noise_std per response"})
     return {"experiment": steps}
@@ -327,10 +371,10 @@ def _fake_reference(tmp_path):
                          "power": (300.0, 20.0, 350.9062)}.items():
         scalars.update({f"mean/{r}@4": m, f"std/{r}@4": s, f"data/{r}@4": d,
                         f"nstd/{r}@4": abs(d - m) / s})
-    arr = rng.normal(26.0, 3.0, (50, 1))
-    save_step(StepResult("forward_4r", "forward_check", scalars, {"outputs@4": arr},
-                         meta={"columns": {"outputs@4": ["thrust"]}, "labels": ["@4"],
-                               "responses": ["thrust"]}), exp)
+    loads = ["thrust", "roll", "pitch", "power"]
+    arr = rng.normal([26.0, 0.0, -0.2, 300.0], [3.0, 0.5, 0.5, 20.0], (50, 4))
+    save_step(forward_result("forward_4r", scalars, {"outputs@4": arr},
+                             columns={"outputs@4": loads}, responses=loads), exp)
     val = tmp_path / "validation"
     val.mkdir()
     (val / "study.json").write_text(json.dumps({"name": "validation", "reference": "thesis",
@@ -391,14 +435,40 @@ def test_report_claims_cannot_lie(tmp_path):
     assert links and set(links) <= ids
 
 
+def blank_record(cls, sizes, **given):
+    """A ``cls`` record with the fields ``given`` and every other one blank: arrays of NaN
+    over axes of ``sizes`` (axis -> length, 0 for any other), no names, no text, zero
+    counts, None where a field may be None; a field with a default keeps it."""
+    hints = typing.get_type_hints(cls)
+    kwargs = dict(given)
+    for f in fields(cls):
+        if f.name in given or f.default is not MISSING or f.default_factory is not MISSING:
+            continue
+        hint = hints[f.name]
+        if f.name in cls.AXES:
+            kwargs[f.name] = np.full([sizes.get(a, 0) for a in cls.AXES[f.name]], np.nan)
+        elif typing.get_origin(hint) is tuple:
+            kwargs[f.name] = ()
+        elif typing.get_origin(hint) in (typing.Union, types.UnionType):
+            kwargs[f.name] = None
+        else:
+            kwargs[f.name] = {str: "", int: 0, float: math.nan, bool: False}[hint]
+    return cls(**kwargs)
+
+
 def test_joint_posterior_predictive_keeps_correlations():
     """y1 = 2a + 3b + c with a chain on the line 2a + 3b = 8: the joint predictive of y1 has
     zero spread (to rounding), independent normals of the same marginals do not."""
     rng = np.random.default_rng(1)
     z = rng.normal(size=20000)
     chain = np.column_stack([1 + 0.1 * z, 2 - 0.2 / 3 * z])
-    source = StepResult("bayes", "bayes_calibration", {"noise_std/y1": 0.5},
-                        {"chain": chain}, meta={"columns": {"chain": ["a", "b"]}})
+    from rotoruq.steps.bayes_calibration import BayesRecord
+
+    arrays, meta = blank_record(BayesRecord, {"parameter": 2, "response": 1},
+                                names_in=("a", "b"), names_out=("y1",),
+                                noise_std=np.array([0.5])).parts()
+    source = StepResult("bayes", "bayes_calibration", {}, {"chain": chain, **arrays},
+                        meta={"columns": {"chain": ["a", "b"]}, **meta})
     sa, sb = chain.std(ddof=1, axis=0)
     space = ParameterSpace({"a": Normal(chain[:, 0].mean(), sa),
                             "b": Normal(chain[:, 1].mean(), sb)})
@@ -689,7 +759,7 @@ def _reference_set(seed, slopes, collective, scatter, ge_gain, power_per_thrust)
                     s |= {f"{pre}mean/{r}{lab}": m, f"{pre}std/{r}{lab}": sd,
                           f"{pre}nstd/{r}{lab}": abs(d - m) / sd}
                 s[f"data/{r}{lab}"] = d
-        return StepResult(name, "forward_check", s, meta={"parameters": ["k_pitch_link"]})
+        return forward_result(name, s, parameters=["k_pitch_link"])
 
     g = np.array([1.0, 1.0 + ge_gain / 3, 1.0 + ge_gain])
     exp = {"forward_4r": forward("forward_4r", ["@4"], [1.0]),
@@ -703,8 +773,7 @@ def _reference_set(seed, slopes, collective, scatter, ge_gain, power_per_thrust)
                 ge |= {f"{pre}mean/{resp}{h}": m, f"{pre}std/{resp}{h}": 0.01,
                        f"{pre}nstd/{resp}{h}": abs(d - m) / 0.01}
             ge[f"data/{resp}{h}"] = d
-    exp["ground_effect"] = StepResult("ground_effect", "forward_check", ge,
-                                      meta={"parameters": ["k_pitch_link"]})
+    exp["ground_effect"] = forward_result("ground_effect", ge, parameters=["k_pitch_link"])
     coll = rng.normal(size=80)
     yc = np.column_stack([26.0 + coll, 0.01 * seed * rng.normal(size=80),
                           0.01 * seed * rng.normal(size=80),

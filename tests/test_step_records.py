@@ -93,7 +93,8 @@ def test_record_round_trips_through_a_results_folder(tmp_path, cls):
 
 
 @pytest.mark.parametrize("kind", ["sampling", "reliability", "evidence", "cuu", "least_squares",
-                                  "forward_check", "multifidelity"])
+                                  "forward_check", "multifidelity", "validation",
+                                  "verification"])
 def test_a_step_saved_before_its_record_shows_its_flat_view(tmp_path, kind):
     """A results folder written before the type had a record still reads: the report and
     ``show`` give its flat scalars with the reason, and its warnings and figures nothing

@@ -162,8 +162,12 @@ def _same(a: float, b: float) -> bool:
 
 def _part(label: str) -> str:
     # a sweep point (``@2``) or a grid (``#0``) joins its key without a slash, as in
-    # ``nstd/power@2``
+    # ``nstd/power@2``; so does an empty label (a step without a sweep): ``nstd/power``
     return label if label[:1] in "@#" else "/" + label
+
+
+def _suffix(part: str) -> bool:
+    return part.startswith(("@", "#"))
 
 
 def flat_view(meta: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> dict[str, float]:
@@ -173,7 +177,10 @@ def flat_view(meta: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> dict
     field's flat name (:attr:`StepRecord.FLAT`, else the field name; ``""``: the labels
     alone) followed by the label of the element on each axis (:attr:`StepRecord.LABELS`:
     the names field of that axis, or the labels themselves; the index when the axis has
-    none). A NaN element (not computed) has no key. Plain numbers of the record give one
+    none). A label starting with ``@`` (a sweep point) or ``#`` (a grid) ends the key,
+    joined without a slash, whatever the place of its axis (``nstd/power@2`` of an array
+    over (point, response)); an empty label adds nothing. A NaN element (not computed) has
+    no key. Plain numbers of the record give one
     key each. The input distributions the runner records
     (``meta["input_distributions"]``) give ``input_mean/``, ``input_std/`` and, when both
     bounds are finite, ``input_lower/`` and ``input_upper/`` of each input.
@@ -198,6 +205,11 @@ def flat_view(meta: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> dict
     ...         "axes": {"S": ["response", "input"]}, "labels": {}, "flat": {}}}
     >>> flat_view(meta, {"S": np.array([[0.25], [0.5]])})
     {'S/T/a': 0.25, 'S/P/a': 0.5, 'confidence': 0.9}
+    >>> meta = {"record": {"type": "R", "version": 1, "fields": {"names_out": ["T"],
+    ...         "labels": ["@4", "@2"]}, "axes": {"nstd": ["point", "response"]},
+    ...         "labels": {"point": "labels"}, "flat": {}}}
+    >>> flat_view(meta, {"nstd": np.array([[0.5], [np.nan]])})
+    {'nstd/T@4': 0.5}
     """
     out: dict[str, float] = {}
     rec = meta.get("record")
@@ -227,7 +239,9 @@ def flat_view(meta: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> dict
             for idx in np.ndindex(arr.shape):
                 v = float(arr[idx])
                 if not math.isnan(v):  # not computed (a level past its count, no emulator)
-                    k = key + "".join(names[a][i] for a, i in enumerate(idx))
+                    # the sweep point or grid ends the key whatever the place of its axis
+                    k = key + "".join(sorted((names[a][i] for a, i in enumerate(idx)),
+                                             key=_suffix))
                     out[k if key else k.lstrip("/")] = v
         for name, v in plain.items():
             key = flat.get(name, name)

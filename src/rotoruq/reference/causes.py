@@ -20,6 +20,7 @@ from ..steps._common import saved_record
 from ..steps._sobol import sobol_of
 from ..steps.bayes_calibration import posterior_record
 from ..steps.cuu import CuuRecord
+from ..steps.forward_check import ForwardCheckRecord
 
 __all__ = ["local_effects", "negative_pitch_span", "sensitivity_causes", "model_form_gap",
            "sweep_growth", "target_consistency", "input_recovery", "calibration_design"]
@@ -184,15 +185,19 @@ def sensitivity_causes(sens: StepResult, steps: Steps, response: str, claimed: s
     return out
 
 
-def model_form_gap(res: StepResult, resp: str, labels_h: Sequence[str], prefix: str,
+def model_form_gap(res: StepResult, resp: str, labels_h: Sequence[str], joint: bool,
                    labels: Mapping[str, str]) -> list[str]:
     """A sweep whose miss grows while the model's spread does not: measured - model at
-    each point against the model std (``prefix`` "" or "pp_" for the joint predictive)."""
+    each point of forward-check step ``res`` against the model std (``joint``: of the joint
+    posterior predictive)."""
+    rec = saved_record(ForwardCheckRecord, res)
+    if rec is None:
+        return []
+    mean, std, _ = rec.prediction(joint)
     pts = []
     for h in labels_h:
-        d, m = res.scalars.get(f"data/{resp}{h}"), res.scalars.get(f"{prefix}mean/{resp}{h}")
-        s = res.scalars.get(f"{prefix}std/{resp}{h}")
-        if d is not None and m is not None and s is not None:
+        d, m, s = (rec.at(v, h, resp) for v in (rec.measured, mean, std))
+        if not any(map(math.isnan, (d, m, s))):
             pts.append((h, d - m, s))
     if len(pts) < 2:
         return []
@@ -213,17 +218,23 @@ def model_form_gap(res: StepResult, resp: str, labels_h: Sequence[str], prefix: 
 
 
 def sweep_growth(base: StepResult | None, res: StepResult, resp: Sequence[str], at: str,
-                 rows: Sequence[str], prefix: str) -> str:
-    """How much the model's and the test's loads change from the 4R reference point to
-    ``at`` (a model-form measure: the ground-effect model's strength)."""
-    if base is None:
+                 rows: Sequence[str], joint: bool) -> str:
+    """How much the model's and the test's loads change from the 4R reference point of
+    forward-check step ``base`` to ``at`` of forward-check step ``res`` (a model-form
+    measure: the ground-effect model's strength); ``joint``: of the joint posterior
+    predictive."""
+    ref = None if base is None else saved_record(ForwardCheckRecord, base)
+    rec = saved_record(ForwardCheckRecord, res)
+    if ref is None or rec is None:
         return ""
+    mean0, std0, _ = ref.prediction(joint)
+    mean1 = rec.prediction(joint)[0]
     parts: list[str] = []
     weaker: list[bool] = []
     for lab, r in zip(rows, resp, strict=True):
-        m0, m1 = base.get(f"{prefix}mean/{r}@4", nan), res.get(f"{prefix}mean/{r}{at}", nan)
-        d0, d1 = base.get(f"data/{r}@4", nan), res.get(f"data/{r}{at}", nan)
-        s0 = base.get(f"{prefix}std/{r}@4", nan)
+        m0, m1 = ref.at(mean0, "@4", r), rec.at(mean1, at, r)
+        d0, d1 = ref.at(ref.measured, "@4", r), rec.at(rec.measured, at, r)
+        s0 = ref.at(std0, "@4", r)
         if (not all(map(math.isfinite, (m0, m1, d0, d1, s0))) or m0 == 0 or abs(d0) < 3 * s0
                 or abs(d1 / d0 - 1) < 0.02):
             continue  # a reference near zero (within 3 std devs) makes a percentage meaningless

@@ -22,6 +22,7 @@ from ..results import StepResult
 from ..steps._common import saved_record
 from ..steps.bayes_calibration import posterior_record
 from ..steps.cuu import CuuRecord
+from ..steps.forward_check import ForwardCheckRecord
 from .causes import (
     calibration_design,
     input_recovery,
@@ -386,39 +387,51 @@ def _cuu_reasons(res: StepResult | None, labels) -> list[str]:
     return out
 
 
+def _forward(steps: Mapping[str, StepResult], name: str) -> ForwardCheckRecord | None:
+    """The record of forward-check step ``name``; None when the study has no such step or it
+    was saved before its type had one."""
+    res = steps.get(name)
+    return None if res is None else saved_record(ForwardCheckRecord, res)
+
+
+def _computed(v: float) -> float | None:
+    return None if math.isnan(v) else v
+
+
 def _forward_claims(key, text, steps, step, label, rows, resp, limit, thesis_vals, labels
                     ) -> list[Claim]:
     """The same claim under the independent-normal propagation and the joint posterior
     predictive (when the step computed it)."""
-    res = steps.get(step)
+    rec = _forward(steps, step)
     out = []
-    for prop, prefix, tag in ((INDEPENDENT, "", "independent"), (JOINT, "pp_", "joint")):
-        if res is None:
-            vals = [None] * len(resp)
-        else:
-            vals = [res.scalars.get(f"{prefix}nstd/{r}{label}") for r in resp]
-            if prefix and all(v is None for v in vals):
-                continue  # no chain: the joint predictive was not computed
-        vals = [None if v is None or not math.isfinite(v) else float(v) for v in vals]
+    for prop, joint, tag in ((INDEPENDENT, False, "independent"), (JOINT, True, "joint")):
+        vals: list[float | None] = [None] * len(resp)
         reasons: list[str] = []
-        for lab, r, v in zip(rows, resp, vals, strict=True):
-            if v is not None and v > limit:
-                reasons.append(
-                    f"{lab}: {v:.2f} std devs "
-                    f"(mean {res.get(f'{prefix}mean/{r}{label}', math.nan):.4g}"
-                    f", measured {res.get(f'data/{r}{label}', math.nan):.4g}, std "
-                    f"{res.get(f'{prefix}std/{r}{label}', math.nan):.3g})")
+        if rec is not None:
+            mean, std, nstd = rec.prediction(joint)
+            raw = [rec.at(nstd, label, r) for r in resp]
+            if joint and all(math.isnan(v) for v in raw):
+                continue  # no chain: the joint predictive was not computed
+            vals = [v if math.isfinite(v) else None for v in raw]
+            for lab, r, v in zip(rows, resp, vals, strict=True):
+                if v is not None and v > limit:
+                    reasons.append(
+                        f"{lab}: {v:.2f} std devs (mean {rec.at(mean, label, r):.4g}, "
+                        f"measured {rec.at(rec.measured, label, r):.4g}, std "
+                        f"{rec.at(std, label, r):.3g})")
         if reasons and label != "@4":
             missed = [(lab, r) for lab, r, v in zip(rows, resp, vals, strict=True)
                       if v is not None and v > limit]
-            reasons.append(sweep_growth(steps.get("forward_4r"), res, [r for _, r in missed],
-                                        label, [lab for lab, _ in missed], prefix))
+            reasons.append(sweep_growth(steps.get("forward_4r"), steps[step],
+                                        [r for _, r in missed], label,
+                                        [lab for lab, _ in missed], joint))
         if reasons:
-            reasons += _bayes_reasons(steps, "bayes", labels, correlations=not prefix)
+            reasons += _bayes_reasons(steps, "bayes", labels, correlations=not joint)
         details: tuple[str, ...] = ()
-        if res is not None and any(f"pp_std/{r}{label}" in res.scalars for r in resp):
-            details = (_spread_contrast(res, resp, label),)
-        thesis = thesis_vals if not prefix else [None] * len(resp)
+        if rec is not None and any(not math.isnan(rec.at(rec.pp_std, label, r))
+                                   for r in resp):
+            details = (_spread_contrast(rec, resp, label),)
+        thesis = thesis_vals if not joint else [None] * len(resp)
         out.append(Claim(
             f"{key}_{tag}", text, "largest |measured - mean| / std over the loads", "<=",
             limit, _worst(vals), _worst(thesis), _kofn(vals, lambda v: v <= limit),
@@ -429,11 +442,11 @@ def _forward_claims(key, text, steps, step, label, rows, resp, limit, thesis_val
     return out
 
 
-def _spread_contrast(res: StepResult, resp, label) -> str:
+def _spread_contrast(rec: ForwardCheckRecord, resp, label) -> str:
     """Why the two propagations differ: their predictive std side by side."""
     parts = []
     for r in resp:
-        a, b = res.get(f"std/{r}{label}", math.nan), res.get(f"pp_std/{r}{label}", math.nan)
+        a, b = rec.at(rec.moments[:, 1], label, r), rec.at(rec.pp_std, label, r)
         if math.isfinite(a) and math.isfinite(b):
             parts.append(f"{r} {b:.3g} (independent normals: {a:.3g})")
     if not parts:
@@ -445,19 +458,29 @@ def _spread_contrast(res: StepResult, resp, label) -> str:
 
 def _ground_claims(num, name, resp, t: ComparedTable, exp, labels) -> list[Claim]:
     res = exp.get("ground_effect")
+    rec = _forward(exp, "ground_effect")
     heights = ["@4", "@3", "@2", "@1"]
     fig = 5 if name == "C_T" else 6
     out = []
-    for prop, prefix, tag in ((INDEPENDENT, "", "independent"), (JOINT, "pp_", "joint")):
-        if prefix and (res is None or f"pp_mean/{resp}@4" not in res.scalars):
+    for prop, joint, tag in ((INDEPENDENT, False, "independent"), (JOINT, True, "joint")):
+        if joint and (rec is None or math.isnan(rec.at(rec.pp_mean, "@4", resp))):
             continue
-        if res is None:
-            means = nstd = [None] * 4
-        else:
-            means = [res.scalars.get(f"{prefix}mean/{resp}{h}") for h in heights]
-            nstd = [res.scalars.get(f"{prefix}nstd/{resp}{h}") for h in heights]
+        means: list[float | None] = [None] * 4
+        nstd: list[float | None] = [None] * 4
+        within: list[str] = []
+        if rec is not None:
+            mean, std, dist = rec.prediction(joint)
+            means = [_computed(rec.at(mean, h, resp)) for h in heights]
+            nstd = [_computed(rec.at(dist, h, resp)) for h in heights]
+            within = [f"{h[1:]}R: measured {rec.at(rec.measured, h, resp):.4f}, model "
+                      f"{rec.at(mean, h, resp):.4f} +- {rec.at(std, h, resp):.3g} ({v:.2f} "
+                      "std devs)" for h, v in zip(heights, nstd, strict=True)
+                      if v is not None and v > 3.0]
+            if within and res is not None:
+                within += _ground_strength(rec, resp, name, joint)
+                within += model_form_gap(res, resp, heights, joint, labels)
         th_means = _col(t, 0, "thesis")
-        th_nstd = _col(t, 3, "thesis") if not prefix else [None] * 4
+        th_nstd = _col(t, 3, "thesis") if not joint else [None] * 4
 
         def growth(m):
             if any(v is None for v in m):
@@ -469,7 +492,7 @@ def _ground_claims(num, name, resp, t: ComparedTable, exp, labels) -> list[Claim
         if g is not None and g <= 0 and res is not None:
             reasons.append(f"model {name} ratio at 4R, 2R, 1R: {means[0]:.4f}, {means[2]:.4f}, "
                            f"{means[3]:.4f}")
-            reasons += model_form_gap(res, resp, heights, prefix, labels)
+            reasons += model_form_gap(res, resp, heights, joint, labels)
         out.append(Claim(
             f"ge_growth_{resp}_{tag}", f"Ground effect: model {name} ratio grows from 4R to 2R "
             f"to 1R (table {num})", "smallest step of the mean ratio (2R - 4R, 1R - 2R)", ">",
@@ -477,30 +500,24 @@ def _ground_claims(num, name, resp, t: ComparedTable, exp, labels) -> list[Claim
             None if growth(th_means) is None else (int(growth(th_means) > 0), 1),
             propagation=prop, reasons=tuple(reasons),
             warnings=_warnings(exp, ["bayes"], labels)))
-        reasons = [f"{h[1:]}R: measured {res.get(f'data/{resp}{h}', math.nan):.4f}, model "
-                   f"{res.get(f'{prefix}mean/{resp}{h}', math.nan):.4f} +- "
-                   f"{res.get(f'{prefix}std/{resp}{h}', math.nan):.3g} ({v:.2f} std devs)"
-                   for h, v in zip(heights, nstd, strict=True) if v is not None and v > 3.0]
-        if reasons and res is not None:
-            reasons += _ground_strength(res, resp, name, prefix)
-            reasons += model_form_gap(res, resp, heights, prefix, labels)
         out.append(Claim(
             f"ge_within_3std_{resp}_{tag}", f"Ground effect: measured {name} ratio within 3 "
             f"model std devs at every height (table {num}, figure 4.3{fig})",
             "largest |measured - mean| / std over the heights", "<=", 3.0,
             _worst(nstd), _worst(th_nstd), _kofn(nstd, lambda v: v <= 3.0),
-            _kofn(th_nstd, lambda v: v <= 3.0), propagation=prop, reasons=tuple(reasons),
+            _kofn(th_nstd, lambda v: v <= 3.0), propagation=prop, reasons=tuple(within),
             warnings=_warnings(exp, ["bayes"], labels)))
     return out
 
 
-def _ground_strength(res: StepResult, resp: str, name: str, prefix: str) -> list[str]:
+def _ground_strength(rec: ForwardCheckRecord, resp: str, name: str, joint: bool
+                     ) -> list[str]:
     """The ground-effect model's strength against the test's: the ratio 1R / 4R of each, and
     the model at the reference height (where the ratios are normalised by the test)."""
-    nan = math.nan
-    m4, m1 = res.get(f"{prefix}mean/{resp}@4", nan), res.get(f"{prefix}mean/{resp}@1", nan)
-    d4, d1 = res.get(f"data/{resp}@4", nan), res.get(f"data/{resp}@1", nan)
-    s4 = res.get(f"{prefix}std/{resp}@4", nan)
+    mean, std, _ = rec.prediction(joint)
+    m4, m1 = rec.at(mean, "@4", resp), rec.at(mean, "@1", resp)
+    d4, d1 = rec.at(rec.measured, "@4", resp), rec.at(rec.measured, "@1", resp)
+    s4 = rec.at(std, "@4", resp)
     out = []
     if all(map(math.isfinite, (m4, m1, d4, d1))) and m4 and d4:
         out.append(f"model {name}(1R) / {name}(4R) = {m1 / m4:.3f} against the test's "

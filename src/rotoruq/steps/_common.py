@@ -15,12 +15,11 @@ from scipy import stats
 from ..errors import ParameterError
 from ..params import ParameterSpace
 from ..render.tables import StepTable, level_mapping_tables, levels_tables
-from ..results import RecordError, StepRecord, StepResult
+from ..results import RecordError, StepRecord, StepResult, flat_view
 from .base import StepCheck, StepContext
 from .options import SIGNATURE, Option, choice, table
 
-__all__ = ["named_model", "deferred_writes", "column_moments", "stats_scalars", "input_arrays",
-           "input_scalars",
+__all__ = ["named_model", "deferred_writes", "column_moments", "input_arrays", "input_scalars",
            "noise", "per_response", "saved_record", "MOMENT_KEYS", "LevelsRecord", "levels_arrays",
            "LEVEL_OPTIONS", "LEVEL_TABLES", "MAPPING_AXES", "MappingsRecord", "check_levels",
            "level_request_of", "mapping_fields", "MAPPING_FLAT",
@@ -58,17 +57,6 @@ def column_moments(values: np.ndarray) -> np.ndarray:
     return out
 
 
-def stats_scalars(prefix_names: Sequence[str], values: np.ndarray, suffix: str = "",
-                  moments: np.ndarray | None = None) -> dict:
-    """The flat view of :func:`column_moments` (or of ``moments``, its result for
-    ``values``): ``mean/<name><suffix>``, ``std/...``, ``skewness/...``, ``kurtosis/...`` of
-    each column, leaving out what it could not compute."""
-    mom = column_moments(values) if moments is None else moments
-    return {f"{key}/{name}{suffix}": float(mom[i, j])
-            for j, name in enumerate(prefix_names)
-            for i, key in enumerate(MOMENT_KEYS) if not np.isnan(mom[i, j])}
-
-
 def input_arrays(space: ParameterSpace) -> tuple[np.ndarray, np.ndarray, np.ndarray,
                                                  np.ndarray]:
     """Mean, std, lower and upper bound (d,) of each input distribution (bounds NaN unless
@@ -85,17 +73,11 @@ def input_arrays(space: ParameterSpace) -> tuple[np.ndarray, np.ndarray, np.ndar
 
 
 def input_scalars(space: ParameterSpace) -> dict:
-    """The flat view of :func:`input_arrays`: ``input_mean/``, ``input_std/`` and, for
-    bounded inputs, ``input_lower/``, ``input_upper/`` of each input."""
-    mean, std, lower, upper = input_arrays(space)
-    out = {}
-    for j, name in enumerate(space.names):
-        out[f"input_mean/{name}"] = float(mean[j])
-        out[f"input_std/{name}"] = float(std[j])
-        if not np.isnan(lower[j]):
-            out[f"input_lower/{name}"] = float(lower[j])
-            out[f"input_upper/{name}"] = float(upper[j])
-    return out
+    """The flat view of the input distributions of ``space``, as :func:`~rotoruq.results.
+    flat_view` derives it from those the runner records: ``input_mean/``, ``input_std/`` and,
+    for bounded inputs, ``input_lower/``, ``input_upper/`` of each input."""
+    return flat_view({"input_distributions": {
+        n: d.describe() for n, d in zip(space.names, space.distributions, strict=True)}}, {})
 
 
 def saved_record(kind: type[R], res: StepResult) -> R | None:

@@ -80,7 +80,9 @@ def sobol_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
     if got is None:
         return []
     sobol, std, cv = got
+    negligible = sobol.negligible
+    if negligible is None:
+        return []
     return [f"{res.name}: {r} has negligible variance (std {std[k]:.3g}, {cv[k]:.1e} of "
             "its mean): its Sobol indices split up numerical noise"
-            for k, r in enumerate(sobol.names_out)
-            if sobol.negligible is not None and sobol.negligible[k]]
+            for k, r in enumerate(sobol.names_out) if negligible[k]]

@@ -26,8 +26,10 @@ from ..render.figures import (
 )
 from ..render.tables import StepTable, cell, inputs_table, make_table
 from ..results import StepRecord, StepResult
-from ._common import column_moments, input_arrays, input_scalars, saved_record, stats_scalars
+from ._common import MOMENT_KEYS, column_moments, input_arrays, saved_record
+from ._discrepancy import DiscrepancyRecord
 from .base import DESIGNS, StepCheck, StepContext, StepType
+from .bayes_calibration import BayesRecord
 from .options import SIGNATURE, Option, choice, integer, number_list, string, table
 
 __all__ = ["STEP", "SweepPoint", "ForwardCheck", "ForwardCheckRecord", "forward_check",
@@ -88,6 +90,11 @@ class ForwardCheckRecord(StepRecord):
     std of one measurement; pp_nstd (P, m) : |measured - pp_mean| / predictive std (see
     :func:`run_forward_check`). NaN: not computed (no matched row, no chain, too few values).
     input_mean, input_std, input_lower, input_upper (d,) : the input distributions.
+
+    Its flat view: ``mean/thrust@4`` (and ``std/``, ``skewness/``, ``kurtosis/``), ``data/``
+    (measured), ``data_n/`` (n_repeats), ``data_sem/`` (sem), ``nstd/``, ``pp_mean/``,
+    ``pp_std/``, ``pp_noise/``, ``pp_nstd/`` of each computed response and point (no
+    ``@<value>`` without a sweep).
     """
 
     AXES = {"moments": ("point", "statistic", "response"),
@@ -96,6 +103,8 @@ class ForwardCheckRecord(StepRecord):
                 "pp_nstd")},
             "input_mean": ("input",), "input_std": ("input",), "input_lower": ("input",),
             "input_upper": ("input",)}
+    FLAT = {"moments": "", "measured": "data", "n_repeats": "data_n", "sem": "data_sem"}
+    LABELS = {"point": "labels", "statistic": MOMENT_KEYS}
 
     names_in: tuple[str, ...]
     names_out: tuple[str, ...]
@@ -118,6 +127,45 @@ class ForwardCheckRecord(StepRecord):
     input_std: np.ndarray
     input_lower: np.ndarray
     input_upper: np.ndarray
+
+    def prediction(self, joint: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(mean, std, nstd)`` (P, m) of one propagation: the sampled one (the moments of
+        ``outputs<label>`` and ``nstd``) or, ``joint``, the joint posterior predictive
+        (``pp_mean``, ``pp_std``, ``pp_nstd``)."""
+        if joint:
+            return self.pp_mean, self.pp_std, self.pp_nstd
+        return self.moments[:, 0], self.moments[:, 1], self.nstd
+
+    def at(self, values: np.ndarray, label: str, response: str) -> float:
+        """The element of ``values`` (P, m), one of the record's arrays over points and
+        responses, at point ``label`` (``"@4"``) and ``response``; NaN where the record has
+        no such point or response (as where it computed none).
+
+        Examples
+        --------
+        >>> nan = np.full((2, 1), np.nan)
+        >>> rec = ForwardCheckRecord(
+        ...     ("a",), ("y",), ("@4", "@2"), {"h": [4.0, 2.0]}, "h", False, "sampling", None,
+        ...     np.full((2, 4, 1), np.nan), np.array([[1.0], [2.0]]), nan, nan, nan, nan,
+        ...     nan, nan, nan, *[np.zeros(1)] * 4)
+        >>> rec.at(rec.measured, "@2", "y"), rec.at(rec.measured, "@1", "y")
+        (2.0, nan)
+        """
+        if label not in self.labels or response not in self.names_out:
+            return float("nan")
+        return float(values[self.labels.index(label), self.names_out.index(response)])
+
+
+def calibration_noise(source: StepResult | None) -> dict[str, float]:
+    """Response -> the noise std of one measurement that the calibration ``source`` (a Bayes
+    step, with or without a discrepancy) stated or pooled; empty for another step or one
+    saved without its record."""
+    if source is None:
+        return {}
+    rec = saved_record(BayesRecord, source) or saved_record(DiscrepancyRecord, source)
+    if rec is None:
+        return {}
+    return {r: float(v) for r, v in zip(rec.names_out, rec.noise_std, strict=True)}
 
 
 def posterior_draws(source: StepResult | None, names: Sequence[str], n: int,
@@ -333,8 +381,7 @@ def run_forward_check(ctx: StepContext) -> StepResult:
                            normalize_by=o.get("normalize_by"), draws=draws, draws_only=joint)
     except ParameterError as exc:
         raise ParameterError(f"step {ctx.name!r}: {exc}") from None
-    src_noise = ctx.source.scalars if ctx.source is not None else {}
-    scalars: dict[str, float] = {}
+    src_noise = calibration_noise(ctx.source)
     arrays, columns = {}, {}
     n_pts, m = len(fc.points), len(ctx.responses)
     moments = np.full((n_pts, 4, m), np.nan)
@@ -344,39 +391,29 @@ def run_forward_check(ctx: StepContext) -> StepResult:
         label = pt.label
         joint_out = pt.outputs if joint else pt.pp_outputs
         for k, r in enumerate(ctx.responses):
-            noise = float(src_noise.get(f"noise_std/{r}", 0.0)) / abs(pt.scale[k])
+            noise = src_noise.get(r, 0.0) / abs(pt.scale[k])
             if joint_out is not None:
                 pm, ps = _spread(joint_out[:, k])
                 per["pp_mean"][i, k], per["pp_std"][i, k], per["pp_noise"][i, k] = pm, ps, noise
-                scalars.update({f"pp_mean/{r}{label}": pm, f"pp_std/{r}{label}": ps,
-                                f"pp_noise/{r}{label}": noise})
             if pt.row is not None and r in ctx.data_columns:
                 measured = float(pt.measured[k])
                 n_rep = int(pt.n_repeats[k]) if pt.n_repeats is not None else 1
                 sem = float(pt.sem[k]) if pt.sem is not None else np.nan
                 mean, std = _spread(pt.outputs[:, k])
-                nstd = abs(measured - mean) / std if std > 0 else np.inf
                 per["measured"][i, k], per["n_repeats"][i, k] = measured, n_rep
-                per["sem"][i, k], per["nstd"][i, k] = sem, nstd
-                scalars[f"data/{r}{label}"] = measured
-                scalars[f"data_n/{r}{label}"] = float(n_rep)
-                if np.isfinite(sem):  # two repeats or more
-                    scalars[f"data_sem/{r}{label}"] = sem
-                scalars[f"nstd/{r}{label}"] = nstd
+                per["sem"][i, k] = sem
+                per["nstd"][i, k] = abs(measured - mean) / std if std > 0 else np.inf
                 if joint_out is not None:
                     tot = float(np.hypot(per["pp_std"][i, k],
                                          measurement_std(noise, n_rep, sem)))
-                    pp_nstd = (abs(measured - per["pp_mean"][i, k]) / tot if tot > 0
-                               else np.inf)
-                    per["pp_nstd"][i, k] = scalars[f"pp_nstd/{r}{label}"] = pp_nstd
+                    per["pp_nstd"][i, k] = (abs(measured - per["pp_mean"][i, k]) / tot
+                                            if tot > 0 else np.inf)
         moments[i] = column_moments(pt.outputs)
-        scalars.update(stats_scalars(ctx.responses, pt.outputs, label, moments=moments[i]))
         arrays[f"outputs{label}"] = pt.outputs
         columns[f"outputs{label}"] = list(ctx.responses)
         if pt.pp_outputs is not None:
             arrays[f"pp_outputs{label}"] = pt.pp_outputs
             columns[f"pp_outputs{label}"] = list(ctx.responses)
-    scalars.update(input_scalars(ctx.space))
     propagation = ("joint" if joint else "independent_normals" if draws is not None
                    else "sampling")
     meta: dict[str, Any] = {
@@ -399,7 +436,7 @@ def run_forward_check(ctx: StepContext) -> StepResult:
         pp_noise=per["pp_noise"], pp_nstd=per["pp_nstd"], input_mean=in_mean,
         input_std=in_std, input_lower=in_lower, input_upper=in_upper)
     rec_arrays, rec_meta = record.parts()
-    return StepResult(ctx.name, ctx.type, scalars, {**arrays, **rec_arrays},
+    return StepResult(ctx.name, ctx.type, {}, {**arrays, **rec_arrays},
                       meta={**meta, **rec_meta})
 
 

@@ -67,6 +67,12 @@ class MultifidelityRecord(StepRecord):
     standard errors and the high-fidelity runs plain pick-and-freeze needs for the same
     standard errors; sobol_allocation (K,) : main-phase base samples (d + 2 runs each);
     sobol_cost (1,) : the cost of the Sobol' pilot and main phase.
+
+    Its flat view: ``budget``, ``cost_pilot``, ``cost_main``; per model ``cost/``, ``runs/``,
+    ``allocation/``, ``used/``, ``correlation/<model>/<response>``; per response ``mean/``,
+    ``mean_se/``, ``variance/``, ``variance_se/``, ``std/`` and
+    ``n_equivalent_hf/<statistic>/``, ``speedup/<statistic>/``; with ``sobol``,
+    ``sobol_main/<response>/<input>`` and the other Sobol' arrays.
     """
 
     AXES = {**{k: ("model",) for k in ("cost", "runs", "allocation", "used")},
@@ -78,6 +84,7 @@ class MultifidelityRecord(StepRecord):
                 "main", "main_se", "total", "total_se", "n_equivalent_hf_main",
                 "n_equivalent_hf_total")},
             "sobol_allocation": ("model",), "sobol_cost": ("cost",)}
+    LABELS = {"model": "models", "statistic": "statistics"}
 
     models: tuple[str, ...]
     names_out: tuple[str, ...]
@@ -172,38 +179,11 @@ def run_multifidelity(ctx: StepContext) -> StepResult:
         sob["main"], sob["main_se"], sob["total"], sob["total_se"],
         sob["n_equivalent_hf_main"], sob["n_equivalent_hf_total"], sob_alloc, sob_cost)
     arrays, meta = record.parts()
-    return StepResult(ctx.name, ctx.type, multifidelity_scalars(record), arrays, meta={
+    return StepResult(ctx.name, ctx.type, {}, arrays, meta={
         "models": list(names), "responses": list(ctx.responses), "estimator": res.estimator,
         "target": res.target,
         "n_pilot": res.n_pilot, "costs_measured": res.costs_measured,
         "n_evaluations": int(res.n_evaluations) + n_sobol_evals, **meta})
-
-
-def multifidelity_scalars(rec: MultifidelityRecord) -> dict[str, float]:
-    """The flat view of ``rec``: ``budget``, ``cost_pilot``, ``cost_main``; per model
-    ``cost/``, ``runs/``, ``allocation/``, ``used/``, ``correlation/<model>/<response>``; per
-    response ``mean/``, ``mean_se/``, ``variance/``, ``variance_se/``, ``std/`` and
-    ``n_equivalent_hf/<statistic>/``, ``speedup/<statistic>/``."""
-    out: dict[str, float] = {"budget": rec.budget, "cost_pilot": rec.cost_pilot,
-                             "cost_main": rec.cost_main}
-    for k, n in enumerate(rec.models):
-        out[f"cost/{n}"] = float(rec.cost[k])
-        out[f"runs/{n}"] = float(rec.runs[k])
-        out[f"allocation/{n}"] = float(rec.allocation[k])
-        out[f"used/{n}"] = float(rec.used[k])
-        for j, r in enumerate(rec.names_out):
-            out[f"correlation/{n}/{r}"] = float(rec.correlation[k, j])
-    for j, r in enumerate(rec.names_out):
-        for key in ("mean", "mean_se", "variance", "variance_se", "std"):
-            out[f"{key}/{r}"] = float(getattr(rec, key)[j])
-        for i, s in enumerate(rec.statistics):
-            out[f"n_equivalent_hf/{s}/{r}"] = float(rec.n_equivalent_hf[i, j])
-            out[f"speedup/{s}/{r}"] = float(rec.speedup[i, j])
-        if rec.sobol:
-            for i, x in enumerate(rec.names_in):
-                for key in ("main", "main_se", "total", "total_se"):
-                    out[f"sobol_{key}/{r}/{x}"] = float(getattr(rec, f"sobol_{key}")[j, i])
-    return out
 
 
 def multifidelity_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:

@@ -20,7 +20,7 @@ What is refined:
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -28,6 +28,7 @@ import numpy as np
 from ..errors import ParameterError
 from ..render.tables import StepTable, make_table
 from ..results import StepRecord, StepResult
+from ._common import saved_record
 from .base import StepCheck, StepContext, StepType
 from .options import Option, choice, integer, number, string
 
@@ -49,13 +50,22 @@ class VerificationRecord(StepRecord):
     observed_order, extrapolated, gci_fine, u_num, asymptotic_ratio (P, M) and
     in_asymptotic_range, converging, oscillatory (P, M) 1.0 / 0.0: as in
     :class:`rotoruq.methods.verification.VerificationResult`. ratio, safety_factor,
-    formal_order (NaN: observed), refined : what the levels refine.
+    formal_order (NaN: observed), refined : what the levels refine. u_num_max (M,) : the
+    largest u_num over the points (what a validation step takes); point_labels (P) : each
+    point in the flat view (``"#0"``, ``"#1"``, ...); both empty in a record saved before
+    they existed.
+
+    Its flat view: ``u_num/thrust`` (u_num_max), ``u_num/thrust#0`` and the same of every
+    (P, M) field, ``values/<level index>/thrust#0``, ``x/<input>#0``.
     """
 
     AXES = {"x": ("point", "input"), "values": ("level", "point", "response"),
             **{k: ("point", "response") for k in (
                 "observed_order", "extrapolated", "gci_fine", "u_num", "asymptotic_ratio",
-                "in_asymptotic_range", "converging", "oscillatory")}}
+                "in_asymptotic_range", "converging", "oscillatory")},
+            "u_num_max": ("response",)}
+    FLAT = {"u_num_max": "u_num"}
+    LABELS = {"point": "point_labels"}
 
     names_in: tuple[str, ...]
     names_out: tuple[str, ...]
@@ -75,6 +85,8 @@ class VerificationRecord(StepRecord):
     safety_factor: float
     formal_order: float
     refined: str
+    u_num_max: np.ndarray = field(default_factory=lambda: np.zeros(0), kw_only=True)
+    point_labels: tuple[str, ...] = field(default=(), kw_only=True)
 
 
 def _rotor_of(model: Any) -> Any:
@@ -187,16 +199,10 @@ def run_verification(ctx: StepContext) -> StepResult:
         formal_order=float("nan") if o.get("formal_order") is None else float(o["formal_order"]),
         refined=f"template field {o['field']}" if o.get("field") else
         {"both": "stations and azimuth steps", "azimuth": "azimuth steps",
-         "stations": "stations"}[o["refine"]], **cat)
-    scalars = {}
-    for k, r in enumerate(ctx.responses):
-        scalars[f"u_num/{r}"] = float(np.max(rec.u_num[:, k]))
-        for j in range(len(labels)):
-            scalars[f"u_num/{r}#{j}"] = float(rec.u_num[j, k])
-            scalars[f"observed_order/{r}#{j}"] = float(rec.observed_order[j, k])
-            scalars[f"gci_fine/{r}#{j}"] = float(rec.gci_fine[j, k])
+         "stations": "stations"}[o["refine"]], u_num_max=np.max(cat["u_num"], axis=0),
+        point_labels=tuple(f"#{j}" for j in range(len(labels))), **cat)
     arrays, meta = rec.parts()
-    return StepResult(ctx.name, ctx.type, scalars, arrays, meta={
+    return StepResult(ctx.name, ctx.type, {}, arrays, meta={
         "n_evaluations": int(sum(r.n_evaluations for r in results)),
         "responses": list(ctx.responses), **meta})
 
@@ -227,7 +233,9 @@ def verification_tables(res: StepResult, labels: Mapping[str, str]) -> list[Step
 
 def verification_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
     """Grids outside the asymptotic range (the GCI is then not a reliable bound)."""
-    rec = VerificationRecord.read(res)
+    rec = saved_record(VerificationRecord, res)
+    if rec is None:
+        return []
     w = []
     for j, pt in enumerate(rec.points):
         for k, r in enumerate(rec.names_out):

@@ -703,6 +703,8 @@ def _portal_frame(x, m, comp, grad):
 
 _TB_OUT = "1 (objective f), 2 (f, c1) or 3 (f, c1, c2) responses"
 
+#: Dakota's test functions (its ``analysis_drivers`` names) -> what each takes and gives
+#: (:class:`FunctionInfo`); :func:`dakota_function` makes a model of one.
 FUNCTIONS: dict[str, FunctionInfo] = {f.name: f for f in (
     FunctionInfo("text_book", "f = sum (x_i - 1)^4; c1 = x1^2 - x2/2; c2 = x2^2 - x1/2",
                  None, "any number of variables (>= 1)", _TB_OUT, True),

@@ -14,6 +14,7 @@ from .interval import Interval
 
 __all__ = ["DISTRIBUTIONS", "distribution_keys", "make_distribution"]
 
+#: Distribution classes by their study-file name (``kind = "normal"``), Dakota's catalog.
 DISTRIBUTIONS: dict[str, type[Distribution]] = {
     "normal": dist.Normal,
     "truncated_normal": dist.TruncatedNormal,

@@ -157,10 +157,13 @@ _GVPM_I_P = (0.025 / 0.425) * 0.425 * (0.25 * 0.042) ** 2
 # the GVPM fuselage is a 1:10 Bo105) and a horn arm of 24 mm (0.57 chord, chosen). With the
 # per-unit-strain law the feathering stiffness is (K_p / l0) l_h^2 = 0.432 N m/rad at
 # K_p = 15, about three times the propeller moment I_p Omega^2 = 0.139 N m/rad.
+#: GVPM pitch-link length [m] (chosen: 1:10 of the Bo105's 0.2 m).
 GVPM_PITCH_LINK_LENGTH = 0.02
+#: GVPM pitch-horn arm [m] (chosen: 0.57 chord).
 GVPM_PITCH_HORN_ARM = 0.024
 
-# Rotor speed of the GVPM experiment: v_tip = 108.9 m/s at H = 4R (thesis section 4.2.1).
+#: Rotor speed of the GVPM experiment [rad/s]: v_tip = 108.9 m/s at H = 4R (thesis section
+#: 4.2.1).
 GVPM_OMEGA = 108.9 / 0.485
 
 
@@ -239,6 +242,7 @@ def gvpm(**overrides) -> RotorPreset:
     return p.replace(**overrides) if overrides else p
 
 
+#: The bundled rotors by name: each value makes a :class:`RotorPreset` (``gvpm(omega=230)``).
 PRESETS = {"bo105": bo105, "gvpm": gvpm}
 
 

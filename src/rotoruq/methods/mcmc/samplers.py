@@ -41,6 +41,8 @@ from . import _kernels as kn
 
 __all__ = ["SamplerConfig", "SamplerState", "run_chains", "SAMPLERS", "EVALUATIONS"]
 
+#: MCMC algorithms by name: Metropolis-Hastings, delayed rejection, adaptive Metropolis and
+#: both (DRAM, the default), as Dakota's ``mcmc_type``.
 SAMPLERS = ("mh", "dr", "am", "dram")
 EVALUATIONS = ("speculative", "minimal")
 

@@ -11,6 +11,9 @@ the API page lists the public API, and scripts/ and benchmarks/ lint and run.
   documentation comment.
 - (slow) ``ruff`` passes on scripts/, benchmarks/, examples/ and the docs' extensions, and each
   script or benchmark with a ``--quick`` option runs with it.
+- (slow) The site builds with warnings as errors into a temporary folder and writes nothing
+  into the source tree, and no public docstring is shown as raw text
+  (``docs/_ext/plain_docstrings.py``) but those of files that test_docstrings.py allows.
 """
 
 from __future__ import annotations
@@ -194,3 +197,44 @@ def test_script_runs_quick(script, tmp_path):
                           capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-4000:]
     assert done.stdout.strip(), f"{script.name} --quick printed nothing"
+
+
+# shown as written (not valid reST) until src/rotoruq/results.py and src/rotoruq/steps/ are
+# fixed (tests/test_docstrings.py ALLOWED)
+PLAIN_ALLOWED = {"rotoruq.StepResult", "rotoruq.steps.StepContext", "rotoruq.steps.StepType"}
+
+
+def _source_tree() -> dict[str, tuple[int, int]]:
+    """path -> (size, mtime_ns) of every file under docs/ but the build folder and caches."""
+    out = {}
+    for path in sorted((ROOT / "docs").rglob("*")):
+        rel = path.relative_to(ROOT)
+        if path.is_file() and not {"_build", "__pycache__"} & set(rel.parts):
+            stat = path.stat()
+            out[str(rel)] = (stat.st_size, stat.st_mtime_ns)
+    return out
+
+
+@pytest.mark.slow
+def test_docs_build_writes_only_into_its_build_folder(tmp_path):
+    pytest.importorskip("sphinx", reason="the docs extra is not installed")
+    pytest.importorskip("myst_parser", reason="the docs extra is not installed")
+    pytest.importorskip("numpydoc", reason="the docs extra is not installed")
+    git = ["git", "-C", str(ROOT), "status", "--porcelain", "--untracked-files=all"]
+    status = subprocess.run(git, capture_output=True, text=True)
+    before = _source_tree()
+    done = subprocess.run([sys.executable, "-m", "sphinx", "-W", "-b", "html", "docs",
+                           str(tmp_path / "html"), "-d", str(tmp_path / "doctrees")],
+                          cwd=ROOT, capture_output=True, text=True, timeout=1200)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-6000:]
+    assert (tmp_path / "html" / "api" / "calibration.html").is_file()
+    after = _source_tree()
+    changed = sorted(k for k in before.keys() | after.keys() if before.get(k) != after.get(k))
+    assert not changed, f"the docs build wrote into the source tree: {changed}"
+    if status.returncode == 0:  # a git checkout (not an unpacked sdist)
+        assert subprocess.run(git, capture_output=True, text=True).stdout == status.stdout
+    shown = set()
+    for line in (done.stdout + done.stderr).splitlines():
+        if "docstrings shown as written" in line:
+            shown |= {n.strip() for n in line.partition("):")[2].split(",")}
+    assert shown <= PLAIN_ALLOWED, f"docstrings shown as raw text: {sorted(shown - PLAIN_ALLOWED)}"

@@ -108,6 +108,8 @@ class _Validator(numpydoc_validate.Validator):
 
     @property
     def signature_parameters(self):
+        if inspect.isclass(self.obj) and getattr(self.obj, "_is_protocol", False):
+            return ()  # a Protocol (Model) is never constructed
         return tuple(p for p in super().signature_parameters
                      if not p.lstrip("*").startswith("_"))
 

@@ -60,6 +60,14 @@ def make_distribution(kind: str, **params: Any) -> Distribution:
     An unknown kind or parameter raises :class:`~rotoruq.errors.ParameterError` naming the
     valid ones.
 
+    Parameters
+    ----------
+    kind : str
+        The distribution's name, a key of :data:`DISTRIBUTIONS` (case, ``-`` and spaces
+        ignored: ``"Truncated Normal"`` is ``truncated_normal``).
+    **params
+        Its defining parameters, by their study-file names.
+
     Examples
     --------
     >>> d = make_distribution("normal", mean=10.0, std=2.0)

@@ -47,14 +47,19 @@ ROOT = Path(__file__).resolve().parents[1]
 CHECKS = ("GL08", "PR01", "PR02", "PR03", "PR10")
 
 # Public names defined in files that were being rewritten elsewhere when this test was written
-# (src/rotoruq/results.py, src/rotoruq/steps/): their docstrings are fixed there. Each runs
-# and is reported as xfail (XPASS once fixed: then remove it here).
-ALLOWED = {
+# (src/rotoruq/results.py, src/rotoruq/steps/): their docstrings are fixed there. Each is
+# reported as xfail (XPASS once fixed: then remove it here).
+ALLOWED = {  # path -> the file that defines it
     "rotoruq.StepResult": "src/rotoruq/results.py",
-    "rotoruq.StepRecord": "src/rotoruq/results.py",
+    "rotoruq.StepResult.get": "src/rotoruq/results.py",
+    "rotoruq.StepResult.columns": "src/rotoruq/results.py",
+    "rotoruq.StepResult.column": "src/rotoruq/results.py",
+    "rotoruq.StepRecord.index": "src/rotoruq/results.py",
+    "rotoruq.StepRecord.read": "src/rotoruq/results.py",
     "rotoruq.load_results": "src/rotoruq/results.py",
-    "rotoruq.step_types": "src/rotoruq/steps/__init__.py",
 }
+# docstrings that are not valid reST once numpydoc has read them (the same files)
+ALLOWED_RENDER = {"rotoruq.StepResult": "src/rotoruq/results.py"}
 
 
 def _public_objects() -> dict[str, object]:
@@ -141,13 +146,11 @@ def _errors(path: str) -> list[tuple[str, str]]:
     return [(code, msg) for code, msg in result["errors"] if code in CHECKS]
 
 
-def _params(paths) -> list:
+def _params(paths, allowed: dict[str, str]) -> list:
     out = []
     for path in paths:
-        allowed = next((f for p, f in ALLOWED.items() if path == p or path.startswith(p + ".")),
-                       None)
-        marks = [pytest.mark.xfail(reason=f"defined in {allowed}, fixed there", strict=False)
-                 ] if allowed else []
+        marks = ([pytest.mark.xfail(reason=f"defined in {allowed[path]}, fixed there",
+                                    strict=False)] if path in allowed else [])
         out.append(pytest.param(path, marks=marks, id=path))
     return out
 
@@ -156,10 +159,10 @@ def test_the_checks_cover_the_public_api():
     assert len(PUBLIC) > 300, len(PUBLIC)
     assert "rotoruq.calibrate_bayes" in PUBLIC and "rotoruq.BayesResult.save" in PUBLIC
     assert "rotoruq.errors.StoreError" in PUBLIC  # a name rq.errors adds
-    assert set(ALLOWED) <= set(PUBLIC), set(ALLOWED) - set(PUBLIC)
+    assert set(ALLOWED) | set(ALLOWED_RENDER) <= set(PUBLIC)
 
 
-@pytest.mark.parametrize("path", _params(PUBLIC))
+@pytest.mark.parametrize("path", _params(PUBLIC, ALLOWED))
 def test_docstring_documents_every_parameter(path):
     errors = _errors(path)
     assert not errors, f"{path}:\n" + "\n".join(f"  {c}: {m}" for c, m in errors)
@@ -183,7 +186,7 @@ def _rendered(obj) -> str:
     return "\n".join(_plain_docstrings()._escape_bars(line) for line in text.splitlines())
 
 
-@pytest.mark.parametrize("path", _params(PUBLIC))
+@pytest.mark.parametrize("path", _params(PUBLIC, ALLOWED_RENDER))
 def test_docstring_renders(path):
     pytest.importorskip("sphinx", reason="Sphinx is not installed (numpydoc's reST needs it)")
     text = _rendered(PUBLIC[path])

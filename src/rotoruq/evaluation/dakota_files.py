@@ -315,6 +315,23 @@ def write_parameters(
 ) -> Path:
     """Write a parameters file (keywords of :func:`format_parameters`); returns the path.
 
+    Parameters
+    ----------
+    path : str or PathLike
+        The file to write.
+    variables : mapping of str to float, int or str
+        Variable label -> value (floats written with 17 significant digits).
+    names_out : sequence of str, or mapping of str to int
+        Response labels, or a mapping label -> ASV code.
+    **kwargs
+        ``asv``, ``dvv``, ``analysis_components``, ``eval_id``, ``metadata`` and ``format``
+        of :func:`format_parameters`.
+
+    Returns
+    -------
+    Path
+        The written file.
+
     Examples
     --------
     A parameters file for one evaluation of two variables and one response, read back:
@@ -573,7 +590,18 @@ def read_text(path: str | os.PathLike, what: str) -> str:
 
 
 def read_parameters(path: str | os.PathLike) -> ParametersFile:
-    """Read and parse a parameters file.
+    """Read and parse a parameters file (standard or aprepro format).
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The file; a malformed one raises :class:`~rotoruq.InputFileError` naming the line.
+
+    Returns
+    -------
+    ParametersFile
+        The variables, the active set (ASV), the derivative variables and the rest of the
+        file's blocks.
 
     Examples
     --------
@@ -648,6 +676,28 @@ def write_results(
     marker only.
 
     The file is written to a temporary name and renamed, so a reader never sees half a file.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The file to write.
+    values : sequence of float or ndarray of shape (k,), optional
+        The response values (needed unless ``failed``).
+    names_out : sequence of str, optional
+        Their labels, written after each value (default: no labels).
+    gradients : ndarray of shape (g, p), optional
+        Gradients, one row per response with a gradient.
+    hessians : ndarray of shape (h, p, p), optional
+        Hessians, one per response with a Hessian.
+    metadata : mapping of str to float, optional
+        Label -> value, in the order of the parameters file's metadata block.
+    failed : bool, optional
+        Write the ``FAIL`` marker only (default False).
+
+    Returns
+    -------
+    Path
+        The written file.
 
     Examples
     --------
@@ -824,6 +874,29 @@ def read_results(
     by_position: bool = False,
 ) -> ResultsFile:
     """Read and parse a results file (see :func:`parse_results` for the checks).
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The file the driver wrote; a missing or malformed one raises
+        :class:`~rotoruq.InputFileError`.
+    names_out : sequence of str, optional
+        Expected response labels, in order (a file whose labels are a permutation of them is
+        reordered).
+    asv : sequence of int, optional
+        Active set codes per response (default: values only), which say how many values,
+        gradients and Hessians the file must hold.
+    n_dvv : int, optional
+        Number of derivative variables (length of each gradient).
+    by_position : bool, optional
+        Read the values in file order whatever their labels say, as Dakota does (default
+        False).
+
+    Returns
+    -------
+    ResultsFile
+        The values, their labels, gradients and Hessians, and whether the file says
+        ``FAIL``.
 
     Examples
     --------

@@ -99,6 +99,12 @@ class _ExternalTask:
 class Evaluator:
     """Store-backed, parallel evaluation of a model; itself a Model.
 
+    Only the model's own failures become failed rows. A fault of the infrastructure (a killed
+    pool worker, a lost Dask worker) that the executor cannot recover from raises
+    :class:`~rotoruq.errors.InfrastructureError`, and a storage fault
+    :class:`~rotoruq.errors.StoreError`; in both cases the evaluations finished before it stay
+    in the store, so running again evaluates only the missing points.
+
     Parameters
     ----------
     model : any Model (``names_in``, ``names_out``, ``__call__``); an object with
@@ -114,12 +120,6 @@ class Evaluator:
     progress : None (a bar on a terminal for runs longer than 2 s), True or False.
     model_id : override the text identifying the model in the store.
     reuse_failed : also reuse stored failures (default: failed points are run again).
-
-    Only the model's own failures become failed rows. A fault of the infrastructure (a killed
-    pool worker, a lost Dask worker) that the executor cannot recover from raises
-    :class:`~rotoruq.errors.InfrastructureError`, and a storage fault
-    :class:`~rotoruq.errors.StoreError`; in both cases the evaluations finished before it stay
-    in the store, so running again evaluates only the missing points.
     """
 
     def __init__(
@@ -251,7 +251,21 @@ class Evaluator:
         return [str(start + j) for j in range(k)]
 
     def evaluate(self, x: np.ndarray) -> EvalBatch:
-        """Evaluate a batch ``x`` (n, d); returns values (n, m) and per-row failures."""
+        """Evaluate a batch ``x`` (n, d); returns values (n, m) and per-row failures.
+
+        Stored evaluations of the same model and study are reused; the others run on the
+        executor and are stored as they finish.
+
+        Parameters
+        ----------
+        x : array_like of shape (n, d) or (d,)
+            Points, columns in ``names_in`` order.
+
+        Returns
+        -------
+        EvalBatch
+            ``values`` (n, m), NaN rows for failed points, and the reason of each failure.
+        """
         t0 = time.perf_counter()
         x = np.atleast_2d(np.asarray(x, dtype=float))
         d, m = len(self.names_in), len(self.names_out)
@@ -351,7 +365,13 @@ class Evaluator:
         of times (a Markov chain on the model itself): the store stays the record of what
         was computed, a process killed inside the block loses at most its last ``seconds``
         of evaluations. Points evaluated but not yet committed are not found by lookups
-        (they are evaluated again, to the same values)."""
+        (they are evaluated again, to the same values).
+
+        Parameters
+        ----------
+        seconds : float, optional
+            Longest time between two commits, wall seconds (default 1).
+        """
         outer = self._defer
         self._defer = float(seconds)
         self._committed = time.monotonic()

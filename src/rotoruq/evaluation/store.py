@@ -351,7 +351,26 @@ class Store:
         names_out: Sequence[str],
         run_id: str = "",
     ) -> list[int]:
-        """Commit finished evaluations in one transaction; returns their ids."""
+        """Commit finished evaluations in one transaction; returns their ids.
+
+        Parameters
+        ----------
+        records : iterable of NewRecord
+            The evaluations: inputs, outputs, status, error text, captured output, timing.
+        study : str
+            The study the evaluations belong to (reuse happens within a study).
+        model : str
+            The text identifying the model (its identity digest).
+        names_in, names_out : sequence of str
+            The model's input and response names (the columns of the records).
+        run_id : str, optional
+            Label of the run that made them.
+
+        Returns
+        -------
+        list of int
+            The new rows' ids, in the order of ``records``.
+        """
         host, pid, now = socket.gethostname(), os.getpid(), time.time()
         nin, nout = json.dumps(list(names_in)), json.dumps(list(names_out))
         rows = []
@@ -392,6 +411,20 @@ class Store:
         Exact matching compares canonical keys. With ``tolerance``, a stored point x_s matches
         x when ``|x - x_s| <= tolerance * max(1, |x_s|)`` componentwise; the closest (max-norm)
         match wins. When several stored rows match exactly, the latest wins.
+
+        Parameters
+        ----------
+        x : array_like of shape (n, d) or (d,)
+            The points, in the model's input order.
+        study : str
+            The study to look in.
+        model : str
+            The model's identity text.
+        tolerance : float, optional
+            Relative tolerance of a match (default None: exact matches only).
+        statuses : sequence of str, optional
+            The statuses that count (default ``("ok", "recovered")``: failures are run
+            again).
         """
         x = np.atleast_2d(np.asarray(x, dtype=float))
         keys = canonical_keys(x)
@@ -431,7 +464,14 @@ class Store:
         self, *, study: str | None = None, model: str | None = None, status: str | None = None,
         run_id: str | None = None,
     ) -> list[EvalRecord]:
-        """Stored evaluations, oldest first, filtered by the given fields."""
+        """Stored evaluations, oldest first, filtered by the given fields.
+
+        Parameters
+        ----------
+        study, model, status, run_id : str, optional
+            Keep only the evaluations with this study, model identity, status (``"ok"``,
+            ``"failed"``, ...) or run id (default: any).
+        """
         where, args = [], []
         for col, val in (("study", study), ("model", model), ("status", status),
                          ("run_id", run_id)):
@@ -446,7 +486,13 @@ class Store:
 
     @_guarded
     def count(self, *, study: str | None = None, status: str | None = None) -> int:
-        """Number of stored evaluations (optionally of one study / status)."""
+        """Number of stored evaluations (optionally of one study / status).
+
+        Parameters
+        ----------
+        study, status : str, optional
+            Count only the evaluations of this study, with this status (default: any).
+        """
         where, args = [], []
         if study is not None:
             where.append("study = ?")
@@ -462,7 +508,17 @@ class Store:
     def put_computed(self, kind: str, key: str, value: bytes) -> None:
         """Keep ``value``, a piece computed once and reused by the identity of its setup
         (``kind``, e.g. "self_check", and ``key``, a digest of everything its answer depends
-        on); an earlier value under the same key is replaced."""
+        on); an earlier value under the same key is replaced.
+
+        Parameters
+        ----------
+        kind : str
+            What the value is (``"self_check"``, ...).
+        key : str
+            The digest of the setup it belongs to.
+        value : bytes
+            The value, serialised by the caller.
+        """
         def ins(con):
             con.execute("INSERT OR REPLACE INTO computed (kind, key, value, finished) "
                         "VALUES (?, ?, ?, ?)", (kind, key, sqlite3.Binary(value), time.time()))
@@ -471,7 +527,15 @@ class Store:
 
     @_guarded
     def get_computed(self, kind: str, key: str) -> bytes | None:
-        """The value :meth:`put_computed` kept under (``kind``, ``key``), or None."""
+        """The value :meth:`put_computed` kept under (``kind``, ``key``), or None.
+
+        Parameters
+        ----------
+        kind : str
+            What the value is.
+        key : str
+            The digest of its setup.
+        """
         row = self._con().execute("SELECT value FROM computed WHERE kind = ? AND key = ?",
                                   (kind, key)).fetchone()
         return None if row is None else bytes(row[0])
@@ -492,6 +556,18 @@ class Store:
         One row per stored evaluation (in commit order) of a single model's variables and
         responses; failed evaluations are left out unless ``include_failed`` (then written as
         ``nan``). Values are written with 17 significant digits. Returns the path.
+
+        Parameters
+        ----------
+        path : str or PathLike
+            The file to write.
+        study, model : str, optional
+            Export only this study's / model's evaluations (needed when the store holds
+            models with different variables or responses).
+        interface : str, optional
+            The interface column's text (default ``"NO_ID"``, Dakota's).
+        include_failed : bool, optional
+            Also write failed evaluations, as ``nan`` (default False).
         """
         recs = self.records(study=study, model=model)
         if not include_failed:

@@ -50,8 +50,8 @@ numpydoc_validation_checks: set[str] = set()
 html_theme = "alabaster"
 # wide enough for a 100-column code line (the project's line length) in full; narrower screens
 # scroll it (docs/_static/rotoruq.css)
-html_theme_options = {"page_width": "1180px", "sidebar_width": "220px",
-                      "code_font_size": "0.8em"}
+html_theme_options = {"page_width": "1280px", "sidebar_width": "220px",
+                      "code_font_size": "0.75em"}
 html_static_path = ["_static"]
 html_css_files = ["rotoruq.css"]
 html_title = f"rotoruq {release}"

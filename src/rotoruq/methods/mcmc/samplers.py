@@ -155,11 +155,34 @@ def run_chains(logpost: Callable[[np.ndarray], np.ndarray], state: SamplerState,
                block: int = 4096) -> tuple[np.ndarray, np.ndarray]:
     """Advance all chains in place until each has ``n_samples`` kept steps.
 
-    logpost : batched log posterior, (k, d) -> (k,), -inf (never NaN) where impossible; its
-        value at a point must not depend on the other points of the batch.
     Takes ``burn_in + (n_samples - 1) * thin + 1`` steps (none for ``n_samples = 0``) and
     returns the kept samples (n_samples, c, d) and their log posterior (n_samples, c): steps
     ``burn_in, burn_in + thin, ...`` counted from the start of this call.
+
+    Parameters
+    ----------
+    logpost : callable
+        Batched log posterior, (k, d) -> (k,), -inf (never NaN) where impossible; its value
+        at a point must not depend on the other points of the batch.
+    state : SamplerState
+        The c chains' state (points, log posteriors, adaptation, random streams), advanced
+        in place.
+    cfg : SamplerConfig
+        The sampler and its tuning.
+    n_samples : int
+        Kept steps per chain.
+    burn_in : int, optional
+        Steps dropped first (default 0).
+    thin : int, optional
+        Keep every ``thin``-th step after the burn-in (default 1).
+    block : int, optional
+        Steps per compiled block between returns to Python (default 4096); the chains do
+        not depend on it.
+
+    Returns
+    -------
+    tuple of ndarray
+        The kept samples (n_samples, c, d) and their log posterior (n_samples, c).
     """
     c, d = state.x.shape
     thin = max(int(thin), 1)

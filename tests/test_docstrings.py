@@ -13,7 +13,8 @@ inherits from rotoruq base classes; and the names a public submodule (``rq.error
 - PR02: a documented parameter that does not exist (often a line of text that reads as an
   entry, ``word : text``);
 - PR03: the parameters documented in another order than the signature's;
-- PR10: ``name: type`` without the space before the colon (numpydoc then reads no entry).
+- PR10: ``name: type`` without the space before the colon (numpydoc then reads no entry);
+- GL06, GL07: an unknown section, or sections in the wrong order.
 
 ``test_docstring_renders`` parses each docstring as numpydoc turns it into reST (what the API
 pages show) and fails on a formatting problem (a broken definition list, unexpected
@@ -44,7 +45,7 @@ from numpydoc.docscrape import get_doc_object  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 
 #: the checks that fail a test
-CHECKS = ("GL08", "PR01", "PR02", "PR03", "PR10")
+CHECKS = ("GL06", "GL07", "GL08", "PR01", "PR02", "PR03", "PR10")
 
 # Public names defined in files that were being rewritten elsewhere when this test was written
 # (src/rotoruq/results.py, src/rotoruq/steps/): their docstrings are fixed there. Each is
@@ -141,9 +142,20 @@ class _Validator(numpydoc_validate.Validator):
         return errs
 
 
+#: checks computed here, with the validator above, in place of numpydoc's own
+OWN_CHECKS = ("GL08", "PR01", "PR02", "PR03")
+
+
 def _errors(path: str) -> list[tuple[str, str]]:
-    result = numpydoc_validate.validate(path, validator_cls=_Validator)
-    return [(code, msg) for code, msg in result["errors"] if code in CHECKS]
+    """The failing checks of ``path``: numpydoc's validation report (``validate``) for the
+    formatting checks, and the parameter checks of :class:`_Validator` (which reads the same
+    docstring with numpydoc's parser)."""
+    found = [(code, msg) for code, msg in numpydoc_validate.validate(path)["errors"]
+             if code in CHECKS and code not in OWN_CHECKS]
+    validator = _Validator(path)
+    if not validator.raw_doc:
+        return [numpydoc_validate.error("GL08")] + found
+    return list(validator.parameter_mismatches) + found
 
 
 def _params(paths, allowed: dict[str, str]) -> list:

@@ -1069,6 +1069,10 @@ def calibrate_bayes(
         accepted for one release with a ``DeprecationWarning`` naming the record field that
         replaces each; they override that field of the record given.
 
+    Returns
+    -------
+    BayesResult
+
     Examples
     --------
     >>> import numpy as np
@@ -1081,10 +1085,6 @@ def calibrate_bayes(
     ...                           chains=ChainOptions(n_samples=400, n_chains=2), seed=1)
     >>> post.chains.shape
     (2, 400, 1)
-
-    Returns
-    -------
-    BayesResult
     """
     t_start = time.perf_counter()
     flat = legacy_keywords("calibrate_bayes", legacy, LEGACY_KEYWORDS)

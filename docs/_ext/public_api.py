@@ -255,8 +255,8 @@ API reference
 The public names of ``rotoruq``, grouped by task. A short name (``sample``) is imported from
 the top level (``import rotoruq as rq; rq.sample``), where every name loads on first use; a
 full name (``rotoruq.params.NatafModel``) is imported from its subpackage. Every parameter of
-every function, class and method is described in its entry (``tests/test_docstrings.py``
-checks).
+a function, class or method is described in its entry (``tests/test_docstrings.py`` checks,
+and names the few that are still waiting).
 """
 
 

@@ -145,13 +145,23 @@ def check_label(label: Any, what: str = "label") -> str:
 class ParametersFile:
     """Content of a Dakota parameters file.
 
-    variables : mapping label -> value (float, int or str), in file order.
-    asv : mapping response label -> active set code (bit 1 value, 2 gradient, 4 Hessian).
-    dvv : labels of the derivative variables (the variables gradients are taken with respect to).
-    analysis_components : tuple of (component, driver name) pairs.
-    eval_id : evaluation id as written ("12" or hierarchical "1:4:2").
-    metadata : labels of the metadata block (empty when the file has none or an empty block).
-    format : "standard" or "aprepro".
+    Attributes
+    ----------
+    variables : dict of str to float, int or str
+        Label -> value, in file order.
+    asv : dict of str to int
+        Response label -> active set code (bit 1 value, 2 gradient, 4 Hessian).
+    dvv : tuple of str
+        Labels of the derivative variables (the variables gradients are taken with respect
+        to).
+    analysis_components : tuple of (str, str)
+        (component, driver name) pairs.
+    eval_id : str
+        Evaluation id as written (``"12"`` or hierarchical ``"1:4:2"``).
+    metadata : tuple of str
+        Labels of the metadata block (empty when the file has none or an empty block).
+    format : str
+        ``"standard"`` or ``"aprepro"``.
     """
 
     variables: dict[str, float | int | str]
@@ -186,11 +196,18 @@ class ParametersFile:
 class ResultsFile:
     """Content of a Dakota results file.
 
-    values : (k,) function values in file order (k = number of values present).
-    names_out : label of each value, or None where the value had none.
-    gradients : (g, p) array, one row per gradient block, or None.
-    hessians : (h, p, p) array, or None.
-    failed : True when the file reports a failed evaluation (``fail``).
+    Attributes
+    ----------
+    values : ndarray of shape (k,)
+        Function values in file order (k = number of values present).
+    names_out : tuple of str or None
+        Label of each value, or None where the value had none.
+    gradients : ndarray of shape (g, p) or None
+        One row per gradient block.
+    hessians : ndarray of shape (h, p, p) or None
+        One matrix per Hessian block.
+    failed : bool
+        True when the file reports a failed evaluation (``fail``).
     """
 
     values: np.ndarray

@@ -59,11 +59,23 @@ MIN_CHUNK = 16
 class EvalStats:
     """What the last :meth:`Evaluator.evaluate` call did.
 
-    n_samples : rows asked for; n_reused : rows found in the store; n_evaluations : distinct
-    points run (model evaluations spent); n_duplicates : rows that repeated another row of the
-    batch; n_failed : rows that failed; wall_time : seconds. stored_wall_time : seconds the
-    reused rows took when they were first run (as the store recorded them), so a cost
-    measured on a batch served from the store is still the model's cost.
+    Attributes
+    ----------
+    n_samples : int
+        Rows asked for.
+    n_reused : int
+        Rows found in the store.
+    n_evaluations : int
+        Distinct points run (model evaluations spent).
+    n_duplicates : int
+        Rows that repeated another row of the batch.
+    n_failed : int
+        Rows that failed.
+    wall_time : float
+        Seconds the call took.
+    stored_wall_time : float
+        Seconds the reused rows took when they were first run (as the store recorded them),
+        so a cost measured on a batch served from the store is still the model's cost.
     """
 
     n_samples: int
@@ -445,7 +457,15 @@ class Evaluator:
 
 
 def as_evaluator(model: Model, **kwargs: Any) -> Evaluator:
-    """``model`` itself if it is already an Evaluator, else ``Evaluator(model, **kwargs)``."""
+    """``model`` itself if it is already an Evaluator, else ``Evaluator(model, **kwargs)``.
+
+    Parameters
+    ----------
+    model : Model
+        Any model, or an Evaluator (returned as it is, ``kwargs`` ignored).
+    **kwargs
+        Keyword arguments of :class:`Evaluator` (``store``, ``executor``, ``study``, ...).
+    """
     return model if isinstance(model, Evaluator) else Evaluator(model, **kwargs)
 
 

@@ -593,8 +593,15 @@ def make_executor(spec: str | Executor | None, **kwargs: Any) -> Executor:
     """An Executor from a name ("serial", "processes", "dask") or an existing Executor.
 
     ``"processes:4"`` sets the number of workers; ``"dask:tcp://host:8786"`` a scheduler.
-    Keyword arguments: ``max_workers``, ``restarts`` (processes); ``address``, ``resubmits``,
-    ``worker_timeout`` (dask).
+
+    Parameters
+    ----------
+    spec : str, Executor or None
+        ``"serial"`` (or None), ``"processes[:N]"``, ``"dask[:ADDRESS]"``, or an Executor
+        (returned as it is).
+    **kwargs
+        ``max_workers``, ``restarts`` (processes); ``address``, ``resubmits``,
+        ``worker_timeout`` (dask); the others are ignored.
     """
     if isinstance(spec, Executor):
         return spec

@@ -189,7 +189,45 @@ class NewRecord:
 
 @dataclass(frozen=True, eq=False)
 class EvalRecord:
-    """One stored evaluation. ``outputs`` is None for failures without recovered values."""
+    """One stored evaluation.
+
+    Attributes
+    ----------
+    id : int
+        The row's id (commit order).
+    study : str
+        The study it belongs to.
+    run_id : str
+        Label of the run that made it.
+    model : str
+        The text identifying the model.
+    names_in, names_out : tuple of str
+        The model's input and response names.
+    inputs : ndarray of shape (d,)
+        The point.
+    outputs : ndarray of shape (m,) or None
+        The responses; None for a failure without recovered values.
+    status : str
+        ``"ok"``, ``"failed"`` or ``"recovered"``.
+    error : str or None
+        Why it failed.
+    stdout, stderr : str or None
+        What an external solver printed (the start and the end, capped).
+    wall_time : float or None
+        Seconds the evaluation took.
+    started : float or None
+        When it started (Unix time).
+    finished : float
+        When it was committed (Unix time).
+    host : str or None
+        The machine that ran it.
+    pid : int or None
+        The process that committed it.
+    eval_id : str or None
+        An external solver's evaluation id.
+    attempts : int or None
+        Runs it took (retries included).
+    """
 
     id: int
     study: str
@@ -215,6 +253,9 @@ class EvalRecord:
 class Store:
     """SQLite evaluation store.
 
+    The store opens one connection per process and thread and reopens after a fork, so one
+    Store object may be shared with worker processes.
+
     Parameters
     ----------
     path : database file (created with its directory when missing).
@@ -229,9 +270,6 @@ class Store:
     StoreError
         For any storage fault (disk full, read-only, damaged file), on opening or later, with
         a one-line message naming the file and what to do; never a raw ``sqlite3`` error.
-
-    The store opens one connection per process and thread and reopens after a fork, so one
-    Store object may be shared with worker processes.
     """
 
     def __init__(self, path: str | os.PathLike, *, timeout: float = 30.0, retries: int = 20,

@@ -41,6 +41,11 @@ def distribution_keys(kind: str) -> tuple[str, ...]:
     """The parameter keys of a distribution in study files and :meth:`Distribution.describe`
     (its fields, ``lambda_`` spelled ``lambda``), for a key of :data:`DISTRIBUTIONS`.
 
+    Parameters
+    ----------
+    kind : str
+        The distribution's name, a key of :data:`DISTRIBUTIONS`.
+
     Examples
     --------
     >>> distribution_keys("lognormal")

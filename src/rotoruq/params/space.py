@@ -380,10 +380,15 @@ def unit_design(
 ) -> np.ndarray:
     """Points in (0, 1)^dim, shape (n_samples, dim), from the named design.
 
+    Raises :class:`~rotoruq.errors.ParameterError` for an unknown design or pairing, or
+    ``n_samples < 1``.
+
     Parameters
     ----------
-    n_samples : int >= 1
-    dim : int >= 1
+    n_samples : int
+        Number of points, >= 1.
+    dim : int
+        Number of dimensions, >= 1.
     design : one of :data:`DESIGNS`.
     pairing : one of :data:`PAIRINGS`, used by ``design="lhs"`` only. "restricted" (default,
         Dakota's LHS): the columns of the Latin hypercube are re-ordered by
@@ -396,9 +401,6 @@ def unit_design(
     correlation : (dim, dim) target correlation of the normal scores for a restricted LHS
         (e.g. a space's Nataf correlation :attr:`ParameterSpace.nataf`); ignored otherwise.
     seed : int, numpy Generator or None; the same seed gives the same points, bitwise.
-
-    Raises :class:`~rotoruq.errors.ParameterError` for an unknown design or pairing, or
-    ``n_samples < 1``.
 
     Examples
     --------

@@ -6,10 +6,14 @@ the API page lists the public API, and scripts/ and benchmarks/ lint and run.
 - Every ``<!-- generated: COMMAND -->`` block of the docs equals what COMMAND prints now (the
   commands print saved JSON results: fast and deterministic); after a new measurement,
   ``python docs/_ext/generated_blocks.py`` rewrites the blocks.
-- The API page (written at build time by ``docs/_ext/public_api.py``) documents every name of
-  ``rotoruq.__all__`` and of the subpackages it lists, each resolvable.
+- The API reference (``docs/_ext/public_api.py``, one page per task group) lists every public
+  name once, under its public name, and never a private module; each public constant has a
+  documentation comment.
 - (slow) ``ruff`` passes on scripts/, benchmarks/, examples/ and the docs' extensions, and each
   script or benchmark with a ``--quick`` option runs with it.
+- (slow) The site builds with warnings as errors into a temporary folder and writes nothing
+  into the source tree, and no public docstring is shown as raw text
+  (``docs/_ext/plain_docstrings.py``) but those of files that test_docstrings.py allows.
 """
 
 from __future__ import annotations
@@ -110,16 +114,51 @@ def test_generated_block_command_must_be_a_script():
         generated_blocks.run_command("python benchmarks/no_such_benchmark.py --summary x.json")
 
 
-def test_api_page_lists_every_public_name():
-    page = public_api.api_page()
-    listed = {line.strip() for line in page.splitlines() if line.startswith("   ")}
-    expected = {n for n in rotoruq.__all__ if n not in ("__version__", "errors", "presets")}
-    assert expected <= listed, sorted(expected - listed)
-    for sub in public_api.SUBPACKAGES:
-        mod = importlib.import_module(sub)
-        assert set(mod.__all__) <= listed | set(rotoruq.__all__), sub
-    for name in expected:
-        assert getattr(rotoruq, name) is not None
+def _grouped() -> list[str]:
+    return [name for group in public_api.GROUPS.values() for name in group.names]
+
+
+def test_api_groups_list_every_public_name_once():
+    listed = _grouped()
+    twice = sorted({n for n in listed if listed.count(n) > 1})
+    assert not twice, f"in two groups of docs/_ext/public_api.py GROUPS: {twice}"
+    top = set(rotoruq._PUBLIC)
+    expected = top | {f"{sub}.{n}" for sub in public_api.SUBPACKAGES
+                      for n in importlib.import_module(sub).__all__ if n not in top}
+    missing = sorted(expected - set(listed))
+    assert not missing, f"public names in no group of docs/_ext/public_api.py GROUPS: {missing}"
+    assert set(listed) <= expected, sorted(set(listed) - expected)
+
+
+def test_api_pages_never_name_a_private_module():
+    for key in public_api.GROUPS:
+        for name in public_api.GROUPS[key].names:
+            assert not any(p.startswith("_") for p in public_api.full_name(name).split(".")), name
+            assert public_api.resolve(name) is not None
+        page = public_api.group_page(key)
+        assert "rotoruq._" not in page, key
+    assert "as_generator" in public_api.GROUPS["parameters"].names  # defined in rotoruq._rng
+    assert "rotoruq._" not in public_api.index_page()
+
+
+def test_every_api_group_has_its_page():
+    pages = {p.stem for p in (ROOT / "docs" / "api").glob("*.rst")} - {"index"}
+    assert pages == set(public_api.GROUPS), (pages, set(public_api.GROUPS))
+    for key in public_api.GROUPS:
+        text = (ROOT / "docs" / "api" / f"{key}.rst").read_text(encoding="utf-8")
+        assert f".. rotoruq-api:: {key}\n" in text, key
+
+
+def test_public_constants_are_documented():
+    constants = [n for n in _grouped() if not callable(public_api.resolve(n))
+                 and not inspect.ismodule(public_api.resolve(n))]
+    assert "RESPONSES" in constants
+    for module in public_api.MODULES.values():
+        mod = importlib.import_module(module)
+        constants += [f"{module}.{n}" for n in mod.__all__ if n not in rotoruq.__all__
+                      and not callable(getattr(mod, n))]
+    undocumented = [n for n in constants if not public_api.data_doc(n)]
+    assert not undocumented, f"constants without a '#:' comment or docstring: {undocumented}"
 
 
 def test_tutorials_are_in_the_site():
@@ -158,3 +197,44 @@ def test_script_runs_quick(script, tmp_path):
                           capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-4000:]
     assert done.stdout.strip(), f"{script.name} --quick printed nothing"
+
+
+# shown as written (not valid reST) until src/rotoruq/results.py and src/rotoruq/steps/ are
+# fixed (tests/test_docstrings.py ALLOWED)
+PLAIN_ALLOWED = {"rotoruq.StepResult", "rotoruq.steps.StepContext", "rotoruq.steps.StepType"}
+
+
+def _source_tree() -> dict[str, tuple[int, int]]:
+    """path -> (size, mtime_ns) of every file under docs/ but the build folder and caches."""
+    out = {}
+    for path in sorted((ROOT / "docs").rglob("*")):
+        rel = path.relative_to(ROOT)
+        if path.is_file() and not {"_build", "__pycache__"} & set(rel.parts):
+            stat = path.stat()
+            out[str(rel)] = (stat.st_size, stat.st_mtime_ns)
+    return out
+
+
+@pytest.mark.slow
+def test_docs_build_writes_only_into_its_build_folder(tmp_path):
+    pytest.importorskip("sphinx", reason="the docs extra is not installed")
+    pytest.importorskip("myst_parser", reason="the docs extra is not installed")
+    pytest.importorskip("numpydoc", reason="the docs extra is not installed")
+    git = ["git", "-C", str(ROOT), "status", "--porcelain", "--untracked-files=all"]
+    status = subprocess.run(git, capture_output=True, text=True)
+    before = _source_tree()
+    done = subprocess.run([sys.executable, "-m", "sphinx", "-W", "-b", "html", "docs",
+                           str(tmp_path / "html"), "-d", str(tmp_path / "doctrees")],
+                          cwd=ROOT, capture_output=True, text=True, timeout=1200)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-6000:]
+    assert (tmp_path / "html" / "api" / "calibration.html").is_file()
+    after = _source_tree()
+    changed = sorted(k for k in before.keys() | after.keys() if before.get(k) != after.get(k))
+    assert not changed, f"the docs build wrote into the source tree: {changed}"
+    if status.returncode == 0:  # a git checkout (not an unpacked sdist)
+        assert subprocess.run(git, capture_output=True, text=True).stdout == status.stdout
+    shown = set()
+    for line in (done.stdout + done.stderr).splitlines():
+        if "docstrings shown as written" in line:
+            shown |= {n.strip() for n in line.partition("):")[2].split(",")}
+    assert shown <= PLAIN_ALLOWED, f"docstrings shown as raw text: {sorted(shown - PLAIN_ALLOWED)}"

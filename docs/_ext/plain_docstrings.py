@@ -10,8 +10,15 @@ broken definition lists. Two handlers on ``autodoc-process-docstring``:
   ``| `` (a reST table row or line block) is left alone;
 - after numpydoc: the result is parsed with docutils; if it still gives a formatting warning
   (unexpected indentation, unterminated markup, ...), the original docstring is shown as a
-  literal block, so the page says exactly what ``help()`` says and the build stays clean.
-  ``plain_docstrings`` (the module global) records which objects were shown so.
+  literal block (of class ``plain-docstring``, which docs/_static/rotoruq.css wraps at
+  the window's width), so the page says exactly what ``help()`` says and the build stays
+  clean. ``plain_docstrings`` (the module global) records which objects were shown so, and the
+  build's last lines name them.
+
+The fallback is a safety net, not the way to write a docstring: its cause is a docstring that
+lists attributes or options as ``name : text`` lines outside a numpydoc section.
+``tests/test_docstrings.py`` parses every public docstring as numpydoc renders it and fails on
+such problems, so the net only catches names that test allows.
 
 Sphinx's own roles and directives (``:class:``, ``.. autosummary::``) are unknown to bare
 docutils; messages about them are not formatting problems and are ignored.
@@ -56,7 +63,7 @@ def _problems(text: str, env) -> list[str]:
     except SystemMessage as exc:  # pragma: no cover (halt_level 5 does not raise)
         return [str(exc)]
     found = []
-    for node in tree.traverse():
+    for node in tree.findall():
         if node.tagname == "system_message" and node["level"] >= 2:
             msg = node.astext()
             if not any(k in msg for k in _IGNORED):
@@ -67,9 +74,20 @@ def _problems(text: str, env) -> list[str]:
 def literal_if_invalid(app, what, name, obj, options, lines):  # noqa: ARG001
     if not lines or not _problems("\n".join(lines), app.env):
         return
-    original = inspect.getdoc(obj) or ""
+    original = (inspect.getdoc(obj) or "").splitlines()
     plain_docstrings.append(name)
-    lines[:] = ["::", ""] + ["    " + ln if ln else "" for ln in original.splitlines()] + [""]
+    # the summary paragraph stays text when it is valid on its own: autosummary's tables show
+    # a docstring's first paragraph, and a page's first lines read better as prose
+    end = original.index("") if "" in original else len(original)
+    summary, rest = original[:end], original[end:]
+    if _problems("\n".join(summary), app.env):
+        summary, rest = ["Shown as written:"], original
+    while rest and not rest[0]:
+        rest = rest[1:]
+    lines[:] = summary + [""]
+    if rest:
+        lines += [".. rst-class:: plain-docstring", "", "::", ""]
+        lines += ["    " + ln if ln else "" for ln in rest] + [""]
 
 
 def report(app, exception):

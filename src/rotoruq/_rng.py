@@ -22,6 +22,12 @@ def as_generator(seed: SeedLike = None) -> np.random.Generator:
     None, a SeedSequence or a Generator: ``True``/``False`` (a bool is an int to Python, so
     ``seed=True`` would silently mean seed 1), floats (``1.5`` is not a seed, and ``1.0`` hides a
     computed value), strings and arrays.
+
+    Parameters
+    ----------
+    seed : int, SeedSequence, Generator or None
+        The random source: a Generator is used as it is (and advances), an int >= 0 or a
+        SeedSequence seeds a new one, None seeds one from fresh OS entropy.
     """
     if seed is None or isinstance(seed, np.random.Generator | np.random.SeedSequence):
         return seed if isinstance(seed, np.random.Generator) else np.random.default_rng(seed)

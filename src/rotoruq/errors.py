@@ -78,7 +78,17 @@ class InfrastructureError(RotoruqError, RuntimeError):
 
 class StoreError(RotoruqError, OSError):
     """The evaluation store cannot be read or written (disk full, read-only folder, ...); the
-    message names the file and what to do."""
+    message names the file and what to do.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The store's file.
+    problem : str
+        What went wrong, in words.
+    remedy : str
+        What to do about it, in words.
+    """
 
     def __init__(self, path: str | PathLike, problem: str, remedy: str):
         self.path = str(path)
@@ -91,4 +101,14 @@ class StoreError(RotoruqError, OSError):
 
 
 class StoreCorruptError(StoreError):
-    """The evaluation store file is damaged (truncated, overwritten, not a database)."""
+    """The evaluation store file is damaged (truncated, overwritten, not a database).
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The store's file.
+    problem : str
+        What is damaged, in words.
+    remedy : str
+        What to do about it, in words.
+    """

@@ -47,10 +47,14 @@ class Model(Protocol):
     """What every method calls (module doc); ``gradient`` and ``evaluate`` are optional."""
 
     @property
-    def names_in(self) -> Sequence[str]: ...
+    def names_in(self) -> Sequence[str]:
+        """The input names, in the order of the columns of ``x`` (d of them)."""
+        ...
 
     @property
-    def names_out(self) -> Sequence[str]: ...
+    def names_out(self) -> Sequence[str]:
+        """The response names, in the order of the columns of the result (m of them)."""
+        ...
 
     def __call__(self, x: np.ndarray) -> np.ndarray: ...
 
@@ -59,8 +63,12 @@ class Model(Protocol):
 class EvalBatch:
     """Responses of a batch.
 
-    values : (n, m) array, NaN rows for failed points.
-    failures : mapping row index -> reason (text) for each failed point.
+    Parameters
+    ----------
+    values : ndarray of shape (n, m)
+        The responses of the n points, in the model's units; NaN rows for failed points.
+    failures : dict of int to str, optional
+        Row index -> reason (text) for each failed point (default: none failed).
     """
 
     values: np.ndarray
@@ -107,6 +115,18 @@ class FunctionModel:
         return y
 
     def gradient(self, x: np.ndarray) -> np.ndarray:
+        """The analytic gradient ``g(x)``, shape (n, m, d): d response / d input.
+
+        Parameters
+        ----------
+        x : array_like of shape (n, d) or (d,)
+            Points, columns in ``names_in`` order.
+
+        Raises
+        ------
+        NotImplementedError
+            When the model was made without ``gradient``.
+        """
         if self._gradient is None:
             raise NotImplementedError("this FunctionModel has no analytic gradient")
         x = np.atleast_2d(np.asarray(x, dtype=float))

@@ -119,13 +119,29 @@ class DakotaFunction:
     """One of Dakota's test functions as a batched model (build it with
     :func:`dakota_function`).
 
-    ``variables`` are the deck's continuous variables (in the deck's order) and ``responses``
-    its responses. The model's own inputs ``names_in`` are ``inputs`` (default: the variables
-    not in ``fixed``, any order) and its outputs ``names_out`` are ``outputs`` (default: all
-    responses); ``fixed`` gives the values of the other variables. ``model(x)`` maps ``x``
-    (n, len(names_in)) to (n, len(names_out)) and, when Dakota has one, ``model.gradient(x)``
-    gives (n, len(names_out), len(names_in)). A point where Dakota's function is undefined
-    (a damped oscillator that is not under-damped) is a NaN row, a failure of that point only.
+    ``model(x)`` maps ``x`` (n, len(names_in)) to (n, len(names_out)) and, when Dakota has
+    one, ``model.gradient(x)`` gives (n, len(names_out), len(names_in)). A point where
+    Dakota's function is undefined (a damped oscillator that is not under-damped) is a NaN
+    row, a failure of that point only.
+
+    Parameters
+    ----------
+    name : str
+        The function's Dakota name, a key of :data:`FUNCTIONS`.
+    variables : sequence of str
+        The deck's continuous variables, in the deck's order (the function reads them by
+        position, or by descriptor for the functions that have labels).
+    responses : sequence of str
+        The deck's responses, in order.
+    components : sequence of str, optional
+        The deck's ``analysis_components`` (for the functions that take one).
+    fixed : mapping of str to float, optional
+        Values of the variables that are not inputs of the model.
+    inputs : sequence of str, optional
+        The model's inputs ``names_in``, any order (default: the variables not in
+        ``fixed``).
+    outputs : sequence of str, optional
+        The model's outputs ``names_out`` (default: all responses).
     """
 
     def __init__(self, name: str, variables: Sequence[str], responses: Sequence[str],
@@ -703,6 +719,8 @@ def _portal_frame(x, m, comp, grad):
 
 _TB_OUT = "1 (objective f), 2 (f, c1) or 3 (f, c1, c2) responses"
 
+#: Dakota's test functions (its ``analysis_drivers`` names) -> what each takes and gives
+#: (:class:`FunctionInfo`); :func:`dakota_function` makes a model of one.
 FUNCTIONS: dict[str, FunctionInfo] = {f.name: f for f in (
     FunctionInfo("text_book", "f = sum (x_i - 1)^4; c1 = x1^2 - x2/2; c2 = x2^2 - x1/2",
                  None, "any number of variables (>= 1)", _TB_OUT, True),

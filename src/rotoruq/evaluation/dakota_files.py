@@ -145,13 +145,23 @@ def check_label(label: Any, what: str = "label") -> str:
 class ParametersFile:
     """Content of a Dakota parameters file.
 
-    variables : mapping label -> value (float, int or str), in file order.
-    asv : mapping response label -> active set code (bit 1 value, 2 gradient, 4 Hessian).
-    dvv : labels of the derivative variables (the variables gradients are taken with respect to).
-    analysis_components : tuple of (component, driver name) pairs.
-    eval_id : evaluation id as written ("12" or hierarchical "1:4:2").
-    metadata : labels of the metadata block (empty when the file has none or an empty block).
-    format : "standard" or "aprepro".
+    Attributes
+    ----------
+    variables : dict of str to float, int or str
+        Label -> value, in file order.
+    asv : dict of str to int
+        Response label -> active set code (bit 1 value, 2 gradient, 4 Hessian).
+    dvv : tuple of str
+        Labels of the derivative variables (the variables gradients are taken with respect
+        to).
+    analysis_components : tuple of (str, str)
+        (component, driver name) pairs.
+    eval_id : str
+        Evaluation id as written (``"12"`` or hierarchical ``"1:4:2"``).
+    metadata : tuple of str
+        Labels of the metadata block (empty when the file has none or an empty block).
+    format : str
+        ``"standard"`` or ``"aprepro"``.
     """
 
     variables: dict[str, float | int | str]
@@ -186,11 +196,18 @@ class ParametersFile:
 class ResultsFile:
     """Content of a Dakota results file.
 
-    values : (k,) function values in file order (k = number of values present).
-    names_out : label of each value, or None where the value had none.
-    gradients : (g, p) array, one row per gradient block, or None.
-    hessians : (h, p, p) array, or None.
-    failed : True when the file reports a failed evaluation (``fail``).
+    Attributes
+    ----------
+    values : ndarray of shape (k,)
+        Function values in file order (k = number of values present).
+    names_out : tuple of str or None
+        Label of each value, or None where the value had none.
+    gradients : ndarray of shape (g, p) or None
+        One row per gradient block.
+    hessians : ndarray of shape (h, p, p) or None
+        One matrix per Hessian block.
+    failed : bool
+        True when the file reports a failed evaluation (``fail``).
     """
 
     values: np.ndarray
@@ -314,6 +331,23 @@ def write_parameters(
     **kwargs: Any,
 ) -> Path:
     """Write a parameters file (keywords of :func:`format_parameters`); returns the path.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The file to write.
+    variables : mapping of str to float, int or str
+        Variable label -> value (floats written with 17 significant digits).
+    names_out : sequence of str, or mapping of str to int
+        Response labels, or a mapping label -> ASV code.
+    **kwargs
+        ``asv``, ``dvv``, ``analysis_components``, ``eval_id``, ``metadata`` and ``format``
+        of :func:`format_parameters`.
+
+    Returns
+    -------
+    Path
+        The written file.
 
     Examples
     --------
@@ -573,7 +607,18 @@ def read_text(path: str | os.PathLike, what: str) -> str:
 
 
 def read_parameters(path: str | os.PathLike) -> ParametersFile:
-    """Read and parse a parameters file.
+    """Read and parse a parameters file (standard or aprepro format).
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The file; a malformed one raises :class:`~rotoruq.InputFileError` naming the line.
+
+    Returns
+    -------
+    ParametersFile
+        The variables, the active set (ASV), the derivative variables and the rest of the
+        file's blocks.
 
     Examples
     --------
@@ -648,6 +693,28 @@ def write_results(
     marker only.
 
     The file is written to a temporary name and renamed, so a reader never sees half a file.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The file to write.
+    values : sequence of float or ndarray of shape (k,), optional
+        The response values (needed unless ``failed``).
+    names_out : sequence of str, optional
+        Their labels, written after each value (default: no labels).
+    gradients : ndarray of shape (g, p), optional
+        Gradients, one row per response with a gradient.
+    hessians : ndarray of shape (h, p, p), optional
+        Hessians, one per response with a Hessian.
+    metadata : mapping of str to float, optional
+        Label -> value, in the order of the parameters file's metadata block.
+    failed : bool, optional
+        Write the ``FAIL`` marker only (default False).
+
+    Returns
+    -------
+    Path
+        The written file.
 
     Examples
     --------
@@ -824,6 +891,29 @@ def read_results(
     by_position: bool = False,
 ) -> ResultsFile:
     """Read and parse a results file (see :func:`parse_results` for the checks).
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The file the driver wrote; a missing or malformed one raises
+        :class:`~rotoruq.InputFileError`.
+    names_out : sequence of str, optional
+        Expected response labels, in order (a file whose labels are a permutation of them is
+        reordered).
+    asv : sequence of int, optional
+        Active set codes per response (default: values only), which say how many values,
+        gradients and Hessians the file must hold.
+    n_dvv : int, optional
+        Number of derivative variables (length of each gradient).
+    by_position : bool, optional
+        Read the values in file order whatever their labels say, as Dakota does (default
+        False).
+
+    Returns
+    -------
+    ResultsFile
+        The values, their labels, gradients and Hessians, and whether the file says
+        ``FAIL``.
 
     Examples
     --------

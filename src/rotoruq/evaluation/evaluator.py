@@ -59,11 +59,23 @@ MIN_CHUNK = 16
 class EvalStats:
     """What the last :meth:`Evaluator.evaluate` call did.
 
-    n_samples : rows asked for; n_reused : rows found in the store; n_evaluations : distinct
-    points run (model evaluations spent); n_duplicates : rows that repeated another row of the
-    batch; n_failed : rows that failed; wall_time : seconds. stored_wall_time : seconds the
-    reused rows took when they were first run (as the store recorded them), so a cost
-    measured on a batch served from the store is still the model's cost.
+    Attributes
+    ----------
+    n_samples : int
+        Rows asked for.
+    n_reused : int
+        Rows found in the store.
+    n_evaluations : int
+        Distinct points run (model evaluations spent).
+    n_duplicates : int
+        Rows that repeated another row of the batch.
+    n_failed : int
+        Rows that failed.
+    wall_time : float
+        Seconds the call took.
+    stored_wall_time : float
+        Seconds the reused rows took when they were first run (as the store recorded them),
+        so a cost measured on a batch served from the store is still the model's cost.
     """
 
     n_samples: int
@@ -99,6 +111,12 @@ class _ExternalTask:
 class Evaluator:
     """Store-backed, parallel evaluation of a model; itself a Model.
 
+    Only the model's own failures become failed rows. A fault of the infrastructure (a killed
+    pool worker, a lost Dask worker) that the executor cannot recover from raises
+    :class:`~rotoruq.errors.InfrastructureError`, and a storage fault
+    :class:`~rotoruq.errors.StoreError`; in both cases the evaluations finished before it stay
+    in the store, so running again evaluates only the missing points.
+
     Parameters
     ----------
     model : any Model (``names_in``, ``names_out``, ``__call__``); an object with
@@ -114,12 +132,6 @@ class Evaluator:
     progress : None (a bar on a terminal for runs longer than 2 s), True or False.
     model_id : override the text identifying the model in the store.
     reuse_failed : also reuse stored failures (default: failed points are run again).
-
-    Only the model's own failures become failed rows. A fault of the infrastructure (a killed
-    pool worker, a lost Dask worker) that the executor cannot recover from raises
-    :class:`~rotoruq.errors.InfrastructureError`, and a storage fault
-    :class:`~rotoruq.errors.StoreError`; in both cases the evaluations finished before it stay
-    in the store, so running again evaluates only the missing points.
     """
 
     def __init__(
@@ -251,7 +263,21 @@ class Evaluator:
         return [str(start + j) for j in range(k)]
 
     def evaluate(self, x: np.ndarray) -> EvalBatch:
-        """Evaluate a batch ``x`` (n, d); returns values (n, m) and per-row failures."""
+        """Evaluate a batch ``x`` (n, d); returns values (n, m) and per-row failures.
+
+        Stored evaluations of the same model and study are reused; the others run on the
+        executor and are stored as they finish.
+
+        Parameters
+        ----------
+        x : array_like of shape (n, d) or (d,)
+            Points, columns in ``names_in`` order.
+
+        Returns
+        -------
+        EvalBatch
+            ``values`` (n, m), NaN rows for failed points, and the reason of each failure.
+        """
         t0 = time.perf_counter()
         x = np.atleast_2d(np.asarray(x, dtype=float))
         d, m = len(self.names_in), len(self.names_out)
@@ -351,7 +377,13 @@ class Evaluator:
         of times (a Markov chain on the model itself): the store stays the record of what
         was computed, a process killed inside the block loses at most its last ``seconds``
         of evaluations. Points evaluated but not yet committed are not found by lookups
-        (they are evaluated again, to the same values)."""
+        (they are evaluated again, to the same values).
+
+        Parameters
+        ----------
+        seconds : float, optional
+            Longest time between two commits, wall seconds (default 1).
+        """
         outer = self._defer
         self._defer = float(seconds)
         self._committed = time.monotonic()
@@ -425,7 +457,15 @@ class Evaluator:
 
 
 def as_evaluator(model: Model, **kwargs: Any) -> Evaluator:
-    """``model`` itself if it is already an Evaluator, else ``Evaluator(model, **kwargs)``."""
+    """``model`` itself if it is already an Evaluator, else ``Evaluator(model, **kwargs)``.
+
+    Parameters
+    ----------
+    model : Model
+        Any model, or an Evaluator (returned as it is, ``kwargs`` ignored).
+    **kwargs
+        Keyword arguments of :class:`Evaluator` (``store``, ``executor``, ``study``, ...).
+    """
     return model if isinstance(model, Evaluator) else Evaluator(model, **kwargs)
 
 

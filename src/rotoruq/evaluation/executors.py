@@ -128,7 +128,23 @@ class Executor(ABC):
 
     @abstractmethod
     def run(self, fn: Callable[[Any], Any], tasks: Sequence[Any]) -> Generator[TaskOutcome]:
-        """Yield one outcome per task, in completion order."""
+        """Yield one outcome per task, in completion order.
+
+        A task's exception is its outcome's ``error`` (the text and a short traceback), not
+        an exception of the batch.
+
+        Parameters
+        ----------
+        fn : callable
+            Called as ``fn(task)``; must be picklable for an executor with worker processes.
+        tasks : sequence
+            The tasks; each outcome carries its task's index in this sequence.
+
+        Yields
+        ------
+        TaskOutcome
+            The task's index, value or error, and wall time.
+        """
 
     def close(self) -> None:
         """Release workers (a closed executor may be used again; it restarts them)."""
@@ -183,13 +199,6 @@ def _worker_init(parent: int) -> None:
 class ProcessExecutor(Executor):
     """Local process pool.
 
-    Parameters
-    ----------
-    max_workers : number of worker processes (default: ``os.cpu_count()``).
-    mp_context : multiprocessing context name ("fork", "spawn", "forkserver") or None for
-        Python's default.
-    restarts : how many times a broken pool is replaced in one :meth:`run` before giving up.
-
     The pool is started on first use and kept until :meth:`close`, so repeated batches do
     not pay the start-up cost again. A worker that dies (killed, out of memory) is an
     infrastructure fault, not a result: the pool is replaced and the tasks it had not finished
@@ -198,6 +207,13 @@ class ProcessExecutor(Executor):
     drivers end with the process that started them (even when it is SIGKILLed), and when
     :meth:`run` is left early (an exception, Ctrl-C, SIGTERM) the workers are stopped at once:
     queued tasks never start and running drivers are killed.
+
+    Parameters
+    ----------
+    max_workers : number of worker processes (default: ``os.cpu_count()``).
+    mp_context : multiprocessing context name ("fork", "spawn", "forkserver") or None for
+        Python's default.
+    restarts : how many times a broken pool is replaced in one :meth:`run` before giving up.
     """
 
     def __init__(self, max_workers: int | None = None, *, mp_context: str | None = None,
@@ -299,6 +315,7 @@ class ProcessExecutor(Executor):
         pool.shutdown(wait=True, cancel_futures=True)
 
     def close(self) -> None:
+        """Shut the pool down (the next :meth:`run` starts a new one)."""
         if self._pool is not None:
             self._pool.shutdown(wait=True, cancel_futures=True)
             self._pool = None
@@ -314,16 +331,6 @@ class ProcessExecutor(Executor):
 class DaskExecutor(Executor):
     """Dask distributed.
 
-    Parameters
-    ----------
-    address : scheduler address (``"tcp://host:8786"``); None starts a LocalCluster.
-    client : an existing ``distributed.Client`` to use instead (not closed by :meth:`close`).
-    n_workers, threads_per_worker : size of the LocalCluster when one is started.
-    resubmits : how many times a task lost to the infrastructure is submitted again.
-    worker_timeout : seconds to wait for a worker when the scheduler has none left, before
-        :meth:`run` raises :class:`~rotoruq.errors.InfrastructureError` (default: the
-        ``ROTORUQ_DASK_WORKER_TIMEOUT`` environment variable, else 30).
-
     External-solver tasks release the GIL while they wait for the subprocess, so threads are
     fine for them; vectorized Python models are better served by one thread per worker.
 
@@ -338,6 +345,16 @@ class DaskExecutor(Executor):
     and every worker kills the drivers of this run (only this run's: a worker may serve
     others) and starts none of them afterwards; all within ``STOP_SECONDS`` even when the
     scheduler does not answer.
+
+    Parameters
+    ----------
+    address : scheduler address (``"tcp://host:8786"``); None starts a LocalCluster.
+    client : an existing ``distributed.Client`` to use instead (not closed by :meth:`close`).
+    n_workers, threads_per_worker : size of the LocalCluster when one is started.
+    resubmits : how many times a task lost to the infrastructure is submitted again.
+    worker_timeout : seconds to wait for a worker when the scheduler has none left, before
+        :meth:`run` raises :class:`~rotoruq.errors.InfrastructureError` (default: the
+        ``ROTORUQ_DASK_WORKER_TIMEOUT`` environment variable, else 30).
     """
 
     #: seconds that leaving :meth:`run` early may spend on fetching finished results and on
@@ -390,6 +407,7 @@ class DaskExecutor(Executor):
 
     @property
     def n_workers(self) -> int:  # type: ignore[override]
+        """Worker threads the scheduler has now (at least 1), to size the chunks."""
         info = self.client.scheduler_info()
         n = sum(w.get("nthreads", 1) for w in info.get("workers", {}).values())
         return max(1, n)
@@ -508,6 +526,8 @@ class DaskExecutor(Executor):
         t.join(self.STOP_SECONDS)
 
     def close(self) -> None:
+        """Close the client and the local cluster this executor started (a client given to
+        it stays open)."""
         if self._client is not None and self._own_client:
             self._client.close()
             self._client = None
@@ -573,8 +593,15 @@ def make_executor(spec: str | Executor | None, **kwargs: Any) -> Executor:
     """An Executor from a name ("serial", "processes", "dask") or an existing Executor.
 
     ``"processes:4"`` sets the number of workers; ``"dask:tcp://host:8786"`` a scheduler.
-    Keyword arguments: ``max_workers``, ``restarts`` (processes); ``address``, ``resubmits``,
-    ``worker_timeout`` (dask).
+
+    Parameters
+    ----------
+    spec : str, Executor or None
+        ``"serial"`` (or None), ``"processes[:N]"``, ``"dask[:ADDRESS]"``, or an Executor
+        (returned as it is).
+    **kwargs
+        ``max_workers``, ``restarts`` (processes); ``address``, ``resubmits``,
+        ``worker_timeout`` (dask); the others are ignored.
     """
     if isinstance(spec, Executor):
         return spec

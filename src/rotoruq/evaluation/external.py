@@ -517,6 +517,8 @@ class ExternalModel:
 
     @property
     def failure_policy(self) -> FailurePolicy:
+        """What a failed run becomes (``continue``, ``abort``, ``retry:N`` or ``recover``),
+        parsed from the ``failure_policy`` argument."""
         return self.policy
 
     def __getstate__(self):
@@ -667,6 +669,7 @@ class ExternalModel:
         return _Attempt(res.values, None, out_s, err_s, grad, note)
 
     def next_eval_id(self) -> str:
+        """The next evaluation id of this model object (``"1"``, ``"2"``, ...; thread-safe)."""
         with self._lock:
             return str(next(self._counter))
 
@@ -676,6 +679,16 @@ class ExternalModel:
         with ``gradient`` (a model with ``gradients="analytic"``), values and gradients.
 
         Never raises for a solver failure: the failure is described in the result.
+
+        Parameters
+        ----------
+        x : array_like of shape (d,)
+            The point, in ``names_in`` order.
+        eval_id : str or int, optional
+            The evaluation id written to the parameters file and in the work directory's
+            name (default: :meth:`next_eval_id`).
+        gradient : bool, optional
+            Ask the driver for gradients too (ASV 3); needs ``gradients="analytic"``.
         """
         if gradient and self.gradients != "analytic":
             raise ParameterError(f"model {self.name!r} has gradients = {self.gradients!r}: "
@@ -726,7 +739,18 @@ class ExternalModel:
 
     def evaluate(self, x: np.ndarray) -> EvalBatch:
         """Run every row in turn (use :class:`~rotoruq.evaluation.evaluator.Evaluator` for
-        parallel runs and a store). With the "abort" policy the first failure raises."""
+        parallel runs and a store). With the "abort" policy the first failure raises.
+
+        Parameters
+        ----------
+        x : array_like of shape (n, d) or (d,)
+            Points, columns in ``names_in`` order.
+
+        Returns
+        -------
+        EvalBatch
+            ``values`` (n, m), NaN rows for failed runs, and the reason of each failure.
+        """
         x = np.atleast_2d(np.asarray(x, dtype=float))
         values = np.full((len(x), len(self.names_out)), np.nan)
         failures: dict[int, str] = {}

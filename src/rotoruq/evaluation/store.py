@@ -189,7 +189,45 @@ class NewRecord:
 
 @dataclass(frozen=True, eq=False)
 class EvalRecord:
-    """One stored evaluation. ``outputs`` is None for failures without recovered values."""
+    """One stored evaluation.
+
+    Attributes
+    ----------
+    id : int
+        The row's id (commit order).
+    study : str
+        The study it belongs to.
+    run_id : str
+        Label of the run that made it.
+    model : str
+        The text identifying the model.
+    names_in, names_out : tuple of str
+        The model's input and response names.
+    inputs : ndarray of shape (d,)
+        The point.
+    outputs : ndarray of shape (m,) or None
+        The responses; None for a failure without recovered values.
+    status : str
+        ``"ok"``, ``"failed"`` or ``"recovered"``.
+    error : str or None
+        Why it failed.
+    stdout, stderr : str or None
+        What an external solver printed (the start and the end, capped).
+    wall_time : float or None
+        Seconds the evaluation took.
+    started : float or None
+        When it started (Unix time).
+    finished : float
+        When it was committed (Unix time).
+    host : str or None
+        The machine that ran it.
+    pid : int or None
+        The process that committed it.
+    eval_id : str or None
+        An external solver's evaluation id.
+    attempts : int or None
+        Runs it took (retries included).
+    """
 
     id: int
     study: str
@@ -215,6 +253,9 @@ class EvalRecord:
 class Store:
     """SQLite evaluation store.
 
+    The store opens one connection per process and thread and reopens after a fork, so one
+    Store object may be shared with worker processes.
+
     Parameters
     ----------
     path : database file (created with its directory when missing).
@@ -229,9 +270,6 @@ class Store:
     StoreError
         For any storage fault (disk full, read-only, damaged file), on opening or later, with
         a one-line message naming the file and what to do; never a raw ``sqlite3`` error.
-
-    The store opens one connection per process and thread and reopens after a fork, so one
-    Store object may be shared with worker processes.
     """
 
     def __init__(self, path: str | os.PathLike, *, timeout: float = 30.0, retries: int = 20,
@@ -351,7 +389,26 @@ class Store:
         names_out: Sequence[str],
         run_id: str = "",
     ) -> list[int]:
-        """Commit finished evaluations in one transaction; returns their ids."""
+        """Commit finished evaluations in one transaction; returns their ids.
+
+        Parameters
+        ----------
+        records : iterable of NewRecord
+            The evaluations: inputs, outputs, status, error text, captured output, timing.
+        study : str
+            The study the evaluations belong to (reuse happens within a study).
+        model : str
+            The text identifying the model (its identity digest).
+        names_in, names_out : sequence of str
+            The model's input and response names (the columns of the records).
+        run_id : str, optional
+            Label of the run that made them.
+
+        Returns
+        -------
+        list of int
+            The new rows' ids, in the order of ``records``.
+        """
         host, pid, now = socket.gethostname(), os.getpid(), time.time()
         nin, nout = json.dumps(list(names_in)), json.dumps(list(names_out))
         rows = []
@@ -392,6 +449,20 @@ class Store:
         Exact matching compares canonical keys. With ``tolerance``, a stored point x_s matches
         x when ``|x - x_s| <= tolerance * max(1, |x_s|)`` componentwise; the closest (max-norm)
         match wins. When several stored rows match exactly, the latest wins.
+
+        Parameters
+        ----------
+        x : array_like of shape (n, d) or (d,)
+            The points, in the model's input order.
+        study : str
+            The study to look in.
+        model : str
+            The model's identity text.
+        tolerance : float, optional
+            Relative tolerance of a match (default None: exact matches only).
+        statuses : sequence of str, optional
+            The statuses that count (default ``("ok", "recovered")``: failures are run
+            again).
         """
         x = np.atleast_2d(np.asarray(x, dtype=float))
         keys = canonical_keys(x)
@@ -431,7 +502,14 @@ class Store:
         self, *, study: str | None = None, model: str | None = None, status: str | None = None,
         run_id: str | None = None,
     ) -> list[EvalRecord]:
-        """Stored evaluations, oldest first, filtered by the given fields."""
+        """Stored evaluations, oldest first, filtered by the given fields.
+
+        Parameters
+        ----------
+        study, model, status, run_id : str, optional
+            Keep only the evaluations with this study, model identity, status (``"ok"``,
+            ``"failed"``, ...) or run id (default: any).
+        """
         where, args = [], []
         for col, val in (("study", study), ("model", model), ("status", status),
                          ("run_id", run_id)):
@@ -446,7 +524,13 @@ class Store:
 
     @_guarded
     def count(self, *, study: str | None = None, status: str | None = None) -> int:
-        """Number of stored evaluations (optionally of one study / status)."""
+        """Number of stored evaluations (optionally of one study / status).
+
+        Parameters
+        ----------
+        study, status : str, optional
+            Count only the evaluations of this study, with this status (default: any).
+        """
         where, args = [], []
         if study is not None:
             where.append("study = ?")
@@ -462,7 +546,17 @@ class Store:
     def put_computed(self, kind: str, key: str, value: bytes) -> None:
         """Keep ``value``, a piece computed once and reused by the identity of its setup
         (``kind``, e.g. "self_check", and ``key``, a digest of everything its answer depends
-        on); an earlier value under the same key is replaced."""
+        on); an earlier value under the same key is replaced.
+
+        Parameters
+        ----------
+        kind : str
+            What the value is (``"self_check"``, ...).
+        key : str
+            The digest of the setup it belongs to.
+        value : bytes
+            The value, serialised by the caller.
+        """
         def ins(con):
             con.execute("INSERT OR REPLACE INTO computed (kind, key, value, finished) "
                         "VALUES (?, ?, ?, ?)", (kind, key, sqlite3.Binary(value), time.time()))
@@ -471,7 +565,15 @@ class Store:
 
     @_guarded
     def get_computed(self, kind: str, key: str) -> bytes | None:
-        """The value :meth:`put_computed` kept under (``kind``, ``key``), or None."""
+        """The value :meth:`put_computed` kept under (``kind``, ``key``), or None.
+
+        Parameters
+        ----------
+        kind : str
+            What the value is.
+        key : str
+            The digest of its setup.
+        """
         row = self._con().execute("SELECT value FROM computed WHERE kind = ? AND key = ?",
                                   (kind, key)).fetchone()
         return None if row is None else bytes(row[0])
@@ -492,6 +594,18 @@ class Store:
         One row per stored evaluation (in commit order) of a single model's variables and
         responses; failed evaluations are left out unless ``include_failed`` (then written as
         ``nan``). Values are written with 17 significant digits. Returns the path.
+
+        Parameters
+        ----------
+        path : str or PathLike
+            The file to write.
+        study, model : str, optional
+            Export only this study's / model's evaluations (needed when the store holds
+            models with different variables or responses).
+        interface : str, optional
+            The interface column's text (default ``"NO_ID"``, Dakota's).
+        include_failed : bool, optional
+            Also write failed evaluations, as ``nan`` (default False).
         """
         recs = self.records(study=study, model=model)
         if not include_failed:

@@ -191,6 +191,16 @@ def fill_template_file(
 ) -> Path:
     r"""Fill the template file ``src`` and write the result to ``dst``; returns ``dst``.
 
+    Parameters
+    ----------
+    src : str or PathLike
+        The template (``{label}``, ``{label = default}``, ``{label:.6e}`` fields; see
+        :func:`fill_template`).
+    dst : str or PathLike
+        The file to write.
+    values : mapping of str to object
+        Label -> value of each field.
+
     Examples
     --------
     >>> import tempfile

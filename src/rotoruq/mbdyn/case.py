@@ -46,9 +46,22 @@ DERIVED_FROM = {"ground_distance": ("height_over_radius",), "final_time": ("omeg
 
 @dataclass(frozen=True)
 class CaseSettings:
-    """Time integration of a case: ``revolutions`` simulated, ``steps_per_rev`` time steps per
-    revolution, loads averaged over the last ``average`` revolutions (the ``average`` before
-    them must agree within ``tolerance``, relative), ``timeout`` [s] for MBDyn."""
+    """Time integration of a case.
+
+    Parameters
+    ----------
+    revolutions : int, optional
+        Rotor revolutions simulated (default 12; at least ``2 * average``).
+    steps_per_rev : int, optional
+        Time steps per revolution (default 72; at least 8).
+    average : int, optional
+        The loads are averaged over the last ``average`` revolutions (default 2).
+    tolerance : float, optional
+        The ``average`` revolutions before them must agree within this, relative (default
+        2e-3), or the case did not reach a periodic state.
+    timeout : float or None, optional
+        Seconds MBDyn may run (default 600; None: no limit).
+    """
 
     revolutions: int = 12
     steps_per_rev: int = 72
@@ -85,6 +98,15 @@ def template_values(preset: RotorPreset, inputs: Mapping[str, float],
       (``OGE_DISTANCE`` * R when height_over_radius is inf);
     - ``airfoil_file``: the sample's c81 table (free format), written next to the input;
     - ``final_time``, ``time_step`` [s] from ``settings`` and omega.
+
+    Parameters
+    ----------
+    preset : RotorPreset
+        The rotor.
+    inputs : mapping of str to float
+        Rotor inputs overriding the preset's values (deg and SI).
+    settings : CaseSettings
+        The time integration.
     """
     from ..rotor.model import RotorModel
 
@@ -121,6 +143,24 @@ def run_case(workdir: str | os.PathLike, preset: RotorPreset, inputs: Mapping[st
     (:func:`sample_table`). An input the template does not use is
     an error (it would silently do nothing). Raises :class:`~rotoruq.mbdyn.solver.MBDynError`
     when MBDyn fails, stops early or does not reach a periodic state.
+
+    Parameters
+    ----------
+    workdir : str or PathLike
+        The folder MBDyn runs in (created when missing): it receives ``rotor.mbd``, the c81
+        table and MBDyn's output files.
+    preset : RotorPreset
+        The rotor.
+    inputs : mapping of str to float
+        Rotor inputs and airfoil coefficients (deg and SI).
+    template : str or PathLike, optional
+        A bundled template (:data:`TEMPLATES`, default ``"rigid"``) or a template file.
+    settings : CaseSettings, optional
+        The time integration (default :class:`CaseSettings()`).
+    mbdyn : str or PathLike, optional
+        The MBDyn executable (default: :func:`~rotoruq.mbdyn.solver.find_mbdyn`).
+    airfoil : Airfoil, optional
+        The airfoil whose table is written (default: the preset's).
     """
     from ..rotor.c81 import write_c81
     from ..rotor.model import load_airfoil
@@ -161,7 +201,13 @@ def rigid_equivalent(preset: RotorPreset) -> RotorPreset:
     """The built-in model of the rigid template's physics: blades clamped at the collective
     (flap, lag and pitch-link springs effectively rigid), uniform momentum inflow without the
     first-harmonic part, no tip loss, no induced-power factor, Cheeseman-Bennett ground effect.
-    Used to check the built-in rotor against MBDyn on identical physics."""
+    Used to check the built-in rotor against MBDyn on identical physics.
+
+    Parameters
+    ----------
+    preset : RotorPreset
+        The rotor whose geometry, airfoil and operating point are kept.
+    """
     return preset.replace(flap_model="hinge", k_flap=1e9, c_flap=0.0, k_lag=1e9, c_lag=0.0,
                           k_pitch_link=1e12, c_pitch_link=0.0, delta3_deg=0.0,
                           inflow="uniform", harmonic_inflow=False, tip_loss=False,

@@ -45,9 +45,22 @@ RESPONSES = ("thrust", "torque", "roll", "pitch", "power", "ct", "cq")
 class HubLoads:
     """Mean hub loads of one MBDyn run (README sign conventions, SI units).
 
-    thrust [N], torque [N m], roll [N m], pitch [N m], power [W], ct, cq [-];
-    inflow [m/s] (MBDyn's mean momentum inflow); periodicity: relative change of the mean
-    thrust/torque between the last two averaging windows; steps: rows read from the file.
+    Attributes
+    ----------
+    thrust : float
+        N.
+    torque, roll, pitch : float
+        N m.
+    power : float
+        W.
+    ct, cq : float
+        Thrust and torque coefficients.
+    inflow : float
+        MBDyn's mean momentum inflow, m/s.
+    periodicity : float
+        Relative change of the mean thrust/torque between the last two averaging windows.
+    steps : int
+        Rows read from the file.
     """
 
     thrust: float
@@ -62,6 +75,13 @@ class HubLoads:
     steps: int
 
     def response(self, name: str) -> float:
+        """The mean load ``name``, one of :data:`RESPONSES`.
+
+        Parameters
+        ----------
+        name : str
+            A response name (``"thrust"``, ...); another raises :class:`MBDynError`.
+        """
         if name not in RESPONSES:
             raise MBDynError(f"unknown MBDyn response {name!r}; available: {', '.join(RESPONSES)}")
         return float(getattr(self, name))
@@ -90,7 +110,13 @@ def _read_table(path: Path, what: str, min_cols: int, missing: str) -> np.ndarra
 
 def read_rotor_output(path: str | os.PathLike) -> np.ndarray:
     """Rows of a ``.rot`` file as an array (n_steps, n_columns); :class:`MBDynError` when the
-    file is missing, empty or malformed."""
+    file is missing, empty or malformed.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The rotor output file (MBDyn's induced velocity element output).
+    """
     return _read_table(Path(path), "rotor output", 16, "did the run start? does the model "
                        "enable output of its induced velocity element?")
 
@@ -109,10 +135,15 @@ def hub_loads(path: str | os.PathLike, *, omega: float, rho: float, radius: floa
 
     Parameters
     ----------
-    path : the ``.rot`` file. omega [rad/s], rho [kg/m^3], radius [m]: for power and
-        coefficients. steps_per_rev, revolutions : the run's time steps per revolution and
-        simulated revolutions (the file must hold at least revolutions * steps_per_rev rows).
-    average : revolutions averaged. tolerance : periodicity tolerance (relative).
+    path : the ``.rot`` file.
+    omega : rotor speed [rad/s], for the power and the coefficients.
+    rho : air density [kg/m^3], for the coefficients.
+    radius : rotor radius [m], for the coefficients.
+    steps_per_rev : the run's time steps per revolution.
+    revolutions : the run's simulated revolutions (the file must hold at least
+        revolutions * steps_per_rev rows).
+    average : revolutions averaged.
+    tolerance : periodicity tolerance (relative).
     joint : optional ``.jnt`` file of the airframe-hub joint alone. Its reaction in the global
         frame (columns 8-13: the airframe's; the local one turns with the hub) is minus the
         load the rotor puts on the airframe, blade inertia included: what a balance under the

@@ -33,8 +33,17 @@ class MBDynError(EvaluationError):
 
 @dataclass(frozen=True, eq=False)
 class MBDynRun:
-    """A finished MBDyn run: the output prefix (``<prefix>.rot``, ``.out``, ...), wall time [s]
-    and the tail of its combined stdout/stderr."""
+    """A finished MBDyn run.
+
+    Attributes
+    ----------
+    prefix : Path
+        The output prefix (``<prefix>.rot``, ``.out``, ...).
+    wall_time : float
+        Seconds the run took.
+    output : str
+        The tail of its combined stdout and stderr.
+    """
 
     prefix: Path
     wall_time: float
@@ -57,6 +66,13 @@ def find_mbdyn(explicit: str | os.PathLike | None = None, *,
     An ``explicit`` path that is not an executable file is an error of its own (the caller
     asked for that MBDyn: another one found elsewhere would silently answer instead).
     Raises :class:`MBDynNotFoundError` naming what was tried.
+
+    Parameters
+    ----------
+    explicit : str or PathLike, optional
+        The executable asked for (``--mbdyn``).
+    build_prefix : bool, optional
+        Also look in the build tool's install (default False).
     """
     if explicit:
         p = Path(explicit).expanduser()
@@ -94,7 +110,24 @@ def run_mbdyn(input_file: str | os.PathLike, prefix: str | os.PathLike,
               mbdyn: str | os.PathLike | None = None, timeout: float | None = None) -> MBDynRun:
     """Run ``mbdyn -f input_file -o prefix`` (absolute prefix, so output never lands next to
     the input) in the input file's folder; raise :class:`MBDynError` with the tail of MBDyn's
-    output when it exits with a non-zero status or times out."""
+    output when it exits with a non-zero status or times out.
+
+    Parameters
+    ----------
+    input_file : str or PathLike
+        The MBDyn input file.
+    prefix : str or PathLike
+        The output prefix (made absolute).
+    mbdyn : str or PathLike, optional
+        The executable (default: :func:`find_mbdyn`).
+    timeout : float, optional
+        Seconds the run may take (default None: no limit).
+
+    Returns
+    -------
+    MBDynRun
+        The output prefix, wall time and output tail.
+    """
     exe = find_mbdyn(mbdyn)
     input_file, prefix = Path(input_file).absolute(), Path(prefix).absolute()
     t0 = time.perf_counter()

@@ -89,6 +89,11 @@ class CoKriging:
         """Runs of each low-fidelity model (cheapest first) in a nested design around
         ``n_high`` high-fidelity points: ``n_low``, or four times ``n_high``.
 
+        Parameters
+        ----------
+        n_high : int
+            Runs of the high-fidelity model (``n_emulator_samples``).
+
         Examples
         --------
         >>> from rotoruq.model import FunctionModel
@@ -113,9 +118,20 @@ class CoKriging:
     def fit(self, X: Sequence[Any], Y: Sequence[Any]) -> CoKriging:
         """Fit on the points of each level, the cheapest first and the truth last.
 
-        X : sequence of L arrays (n_t, d); Y : sequence of L arrays (n_t,) or (n_t, m).
         Nested designs (every level's points among the previous level's) make the recursive
-        model exact; each level needs at least 3 points. Returns self.
+        model exact; each level needs at least 3 points.
+
+        Parameters
+        ----------
+        X : sequence of array_like of shape (n_t, d)
+            The L >= 2 levels' input points, cheapest first, input units.
+        Y : sequence of array_like of shape (n_t,) or (n_t, m)
+            Each level's responses at its points, response units.
+
+        Returns
+        -------
+        CoKriging
+            This emulator, fitted.
         """
         if isinstance(X, np.ndarray) or isinstance(Y, np.ndarray) or len(X) != len(Y) \
                 or len(X) < 2:
@@ -203,11 +219,13 @@ class CoKriging:
 
     @property
     def n_inputs(self) -> int:
+        """Number of inputs d."""
         self._check_fitted()
         return self._d
 
     @property
     def n_outputs(self) -> int:
+        """Number of responses m."""
         self._check_fitted()
         return self._m
 
@@ -246,6 +264,17 @@ class CoKriging:
         :meth:`~rotoruq.methods.surrogate.GaussianProcess.predict`; warns
         :class:`~rotoruq.methods.surrogate.ExtrapolationWarning` for points farther than
         ``warn_distance`` box-widths outside the high-fidelity runs' box (None: no check).
+
+        Parameters
+        ----------
+        X : array_like of shape (n, d) or (d,)
+            Points, in input units.
+        return_var : bool, optional
+            Also return the variance (default True).
+        return_grad : bool, optional
+            Also return the gradient of the mean (default False).
+        warn_distance : float or None, optional
+            Distance in box-widths beyond which to warn (default None: no check).
         """
         self._check_fitted()
         X = np.atleast_2d(np.asarray(X, dtype=float))
@@ -292,7 +321,13 @@ class CoKriging:
         return self._levels[-1][0].bounds
 
     def extrapolation_distance(self, X) -> np.ndarray:
-        """Euclidean distance (n,) of points outside :attr:`bounds`, in box-widths."""
+        """Euclidean distance (n,) of points outside :attr:`bounds`, in box-widths.
+
+        Parameters
+        ----------
+        X : array_like of shape (n, d) or (d,)
+            Points, in input units (0 for a point inside the box).
+        """
         self._check_fitted()
         return self._levels[-1][0].extrapolation_distance(X)
 
@@ -312,7 +347,15 @@ class CoKriging:
 
     def as_model(self, names_in: Sequence[str], names_out: Sequence[str] | None = None
                  ) -> CoKrigingModel:
-        """This emulator's mean as a :class:`~rotoruq.model.Model`."""
+        """This emulator's mean as a :class:`~rotoruq.model.Model`.
+
+        Parameters
+        ----------
+        names_in : sequence of str
+            The d input names, in the training order.
+        names_out : sequence of str, optional
+            The m response names (default ``y0``, ``y1``, ...).
+        """
         self._check_fitted()
         names_in = tuple(names_in)
         names_out = tuple(names_out) if names_out is not None else tuple(

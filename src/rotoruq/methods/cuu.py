@@ -100,27 +100,51 @@ class CUUResult:
 
     Attributes
     ----------
-    names_in : names of the calibrated statistics, ``"<input>.<mean|std>"``, in the order of
-        ``x``. names_out : the model's responses.
-    x : (p,) calibrated statistic values; ``x0`` the starting ones.
-    calibrated : mapping input -> {"mean": ..., "std": ...} of every input with a calibrated
-        statistic (both moments, calibrated or not).
-    space : the ParameterSpace with the calibrated distributions; ``initial_space`` the given
-        one.
-    fixed : deterministic inputs held fixed.
-    targets : mapping response -> {statistic: target}.
-    statistics_before, statistics_after : mapping response -> {"mean": ..., "std": ...} of
-        every response from the inner method at ``x0`` and at ``x``.
-    least_squares : the outer :class:`LeastSquaresResult` (its residuals weighted by
-        ``weighting``).
-    singular_values : (min(n_targets, p),) singular values of the scaled outer Jacobian.
-    condition_number : largest / smallest singular value (inf when rank deficient).
-    identifiable : False when the diagnostic flags the calibration.
-    diagnostic : explanation of the identifiability verdict.
-    inner : name of the inner method. optimizer : the outer solver.
-    weighting : "relative" or "absolute" residuals of the outer least squares.
-    n_evaluations : model evaluations (points) of the whole nested study.
-    converged, message : from the outer solver.
+    names_in : tuple of str
+        Names of the p calibrated statistics, ``"<input>.<mean|std>"``, in the order of
+        ``x``.
+    names_out : tuple of str
+        The model's responses.
+    x : ndarray of shape (p,)
+        Calibrated statistic values, in the inputs' units.
+    x0 : ndarray of shape (p,)
+        The starting values.
+    calibrated : dict
+        Input -> {"mean": ..., "std": ...} of every input with a calibrated statistic (both
+        moments, calibrated or not).
+    space : ParameterSpace
+        The space with the calibrated distributions.
+    initial_space : ParameterSpace
+        The space that was given.
+    fixed : dict of str to float
+        Deterministic inputs held fixed.
+    targets : dict
+        Response -> {statistic: target}.
+    statistics_before, statistics_after : dict
+        Response -> {"mean": ..., "std": ...} of every response from the inner method at
+        ``x0`` and at ``x``.
+    least_squares : LeastSquaresResult
+        The outer least squares (its residuals weighted by ``weighting``).
+    singular_values : ndarray of shape (min(n_targets, p),)
+        Singular values of the scaled outer Jacobian.
+    condition_number : float
+        Largest / smallest singular value (inf when rank deficient).
+    identifiable : bool
+        False when the diagnostic flags the calibration.
+    diagnostic : str
+        Explanation of the identifiability verdict.
+    inner : str
+        Name of the inner method.
+    optimizer : str
+        The outer solver (``"nl2sol"``, ``"trf"`` or ``"lm"``).
+    weighting : str
+        ``"relative"`` or ``"absolute"`` residuals of the outer least squares.
+    n_evaluations : int
+        Model evaluations (points) of the whole nested study.
+    converged : bool
+        Whether the outer solver converged.
+    message : str
+        The outer solver's stopping reason.
     """
 
     names_in: tuple[str, ...]
@@ -706,6 +730,24 @@ def check_cuu(result: CUUResult, model: Model, n_samples: int = 300, *, design: 
     """Forward-propagate the calibrated distributions with ``n_samples`` points of ``design``
     (one model batch) and compare the sampled response statistics with the CUU targets (the
     thesis confirms each CUU with 300-500 LHS samples).
+
+    Parameters
+    ----------
+    result : CUUResult
+        The calibration to check.
+    model : Model
+        The calibrated model (the inputs held fixed in ``result`` are held fixed again).
+    n_samples : int, optional
+        Sample size (default 300).
+    design : str, optional
+        ``"lhs"`` (default), ``"random"``, ``"sobol"`` or ``"halton"``.
+    seed : int, SeedSequence, Generator or None, optional
+        Random source of the sample.
+
+    Returns
+    -------
+    CUUCheck
+        The sampled statistics and their relative errors against the targets.
 
     Examples
     --------

@@ -94,13 +94,33 @@ def _refine(model, space, xs, y, lo, hi, cmin, cmax, n_starts, rel_step=1e-7):
 class EvidenceResult:
     """Belief and plausibility of response levels.
 
+    The inputs' intervals combine into c cells (one interval of each input); a cell's BPA is
+    the product of its intervals' BPAs.
+
     Attributes
     ----------
-    names_in, names_out; cells_lower, cells_upper : (c, d) cell bounds; cell_bpa : (c,);
-    cell_min, cell_max : (c, m) response range per cell; response_levels, cbf, cpf, ccbf,
-    ccpf : dict name -> arrays over the levels; n_evaluations.
-    optimizer : "ego" or "sampling"; converged : False when EGO stopped at its evaluation budget
-        before every cell's expected improvement fell below the tolerance.
+    names_in, names_out : tuple of str
+        The d input and m response names.
+    cells_lower, cells_upper : ndarray of shape (c, d)
+        The cells' bounds, input units.
+    cell_bpa : ndarray of shape (c,)
+        Basic probability assignment of each cell.
+    cell_min, cell_max : ndarray of shape (c, m)
+        The response's range over each cell, response units.
+    response_levels : dict of str to ndarray
+        Response name -> the levels z.
+    cbf, cpf : dict of str to ndarray
+        Response name -> cumulative belief Bel(g <= z) and plausibility Pl(g <= z) at its
+        levels.
+    ccbf, ccpf : dict of str to ndarray
+        Response name -> complementary belief Bel(g > z) and plausibility Pl(g > z).
+    n_evaluations : int
+        Model evaluations (points).
+    optimizer : str
+        ``"ego"`` or ``"sampling"``: how the cell ranges were found.
+    converged : bool
+        False when EGO stopped at its evaluation budget before every cell's expected
+        improvement fell below the tolerance.
     """
 
     names_in: tuple[str, ...]
@@ -120,7 +140,15 @@ class EvidenceResult:
     converged: bool = True
 
     def belief_plausibility(self, name: str, z) -> tuple[np.ndarray, np.ndarray]:
-        """(Bel(g <= z), Pl(g <= z)) for response ``name`` at levels z."""
+        """(Bel(g <= z), Pl(g <= z)) for response ``name`` at levels z.
+
+        Parameters
+        ----------
+        name : str
+            A response name.
+        z : float or array_like
+            Levels, response units; each result has shape (len(z),).
+        """
         k = self.names_out.index(name)
         z = np.atleast_1d(np.asarray(z, dtype=float))
         bel = (self.cell_bpa[None, :] * (self.cell_max[:, k][None, :] <= z[:, None])).sum(1)

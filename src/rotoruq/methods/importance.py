@@ -38,11 +38,22 @@ class ImportanceSamplingResult:
 
     Attributes
     ----------
-    names_out; refinement : the scheme; response_levels; cdf_probability P(g <= z),
-    ccdf_probability; std_error : standard error of either probability; form_probability :
-    the MPP search's (first- or second-order) P(g <= z) it refines; n_samples : points per
-    level and round; n_evaluations : model evaluations spent (the MPP search's not
-    included).
+    names_out : tuple of str
+        The responses with levels.
+    refinement : str
+        The scheme, one of :data:`REFINEMENTS`.
+    response_levels : dict of str to ndarray
+        Response name -> the levels z, response units.
+    cdf_probability, ccdf_probability : dict of str to ndarray
+        Response name -> the refined P(g <= z) and P(g > z) at its levels.
+    std_error : dict of str to ndarray
+        Response name -> the standard error of either probability.
+    form_probability : dict of str to ndarray
+        Response name -> the MPP search's (first- or second-order) P(g <= z) it refines.
+    n_samples : int
+        Points per level and round.
+    n_evaluations : int
+        Model evaluations spent (the MPP search's not included).
     """
 
     names_out: tuple[str, ...]

@@ -314,6 +314,10 @@ def least_squares(
         Standard deviations of the data behind each residual (residual units). With them the
         covariance is ``(J^T W J)^-1``, ``W = diag(1 / noise_std^2)`` (noise known); without,
         ``s^2 (J^T J)^-1`` with the residual variance ``s^2 = sum r^2 / (n_res - p)``.
+    fd_step : float, optional
+        Relative finite-difference step of the Jacobian (default
+        :data:`rotoruq.model.FD_STEP`): input i moves by ``fd_step * max(|x_i|, s_i)``,
+        ``s_i`` the size of ``x0_i`` (1 where it is 0).
     initial_radius : scaled trust radius ``||D s||`` of the first step (NL2SOL's lmax0,
         default 1; None: ``100 ||D x0||``, or 100 when ``x0 = 0``, as MINPACK).
     confidence : level of the returned confidence intervals.
@@ -477,7 +481,8 @@ class CalibrationResult:
         differences. With a model whose evaluations return their gradient too
         (``evaluate_gradient``: an external driver's own gradients) every evaluation asks for
         both, as Dakota's NL2SOL does, and these Jacobians cost no run of their own.
-    converged, message : from the solver. optimizer : the solver used.
+    converged, message : from the solver.
+    optimizer : the solver used (``"nl2sol"``, ``"trf"`` or ``"lm"``).
     least_squares : the full :class:`LeastSquaresResult`.
     residual_model : True when there were no data: the responses were the residuals.
     """

@@ -91,10 +91,22 @@ class LinearAdaptation:
 
     @classmethod
     def fit(cls, x: np.ndarray, Y: np.ndarray) -> tuple[LinearAdaptation, np.ndarray]:
-        """Least squares on pilot points ``x`` (n, d) with every model's values ``Y``
-        (n, K, m); returns the adaptation and ``Y`` with each low-fidelity model replaced by
-        its leave-one-out adapted values where the fit is used (``adapted``; the
-        high-fidelity column and the models kept as evaluated unchanged)."""
+        """Least squares on pilot points ``x`` with every model's values ``Y``.
+
+        Parameters
+        ----------
+        x : ndarray of shape (n, d)
+            The pilot points, in the inputs' units.
+        Y : ndarray of shape (n, K, m)
+            Every model's responses at them, the high-fidelity model first.
+
+        Returns
+        -------
+        tuple of (LinearAdaptation, ndarray)
+            The adaptation, and ``Y`` with each low-fidelity model replaced by its
+            leave-one-out adapted values where the fit is used (``adapted``; the
+            high-fidelity column and the models kept as evaluated unchanged).
+        """
         n, K, m = Y.shape
         center = x.mean(axis=0)
         scale = x.std(axis=0)
@@ -127,7 +139,17 @@ class LinearAdaptation:
         return cls(coef, center, scale, r2, adapted), loo
 
     def apply(self, k: int, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """Model ``k``'s adapted values at points ``x`` (n, d) from its values ``y`` (n, m)."""
+        """Model ``k``'s adapted values at points ``x``, shape (n, m).
+
+        Parameters
+        ----------
+        k : int
+            The model's index in the ensemble (0 is the high-fidelity model, never adapted).
+        x : ndarray of shape (n, d)
+            The points, in the inputs' units.
+        y : ndarray of shape (n, m)
+            Model ``k``'s responses at them.
+        """
         y = np.asarray(y, dtype=float).reshape(len(x), -1)
         z = (np.asarray(x, dtype=float) - self.center) / self.scale
         c = self.coef[k]
@@ -162,7 +184,8 @@ class MultifidelityResult:
         variance estimate is unbiased and may, rarely, come out negative.
     mean_se, variance_se : (m,) their standard errors predicted from the pilot moments and
         the allocation.
-    adapt : "none" or "linear"; adaptation : the :class:`LinearAdaptation` (None without).
+    adapt : "none" or "linear".
+    adaptation : the :class:`LinearAdaptation` (None without).
     correlation_unadapted : (m, K) pilot correlation of each model as evaluated (equal to
         ``correlation`` without adaptation; with it, ``correlation`` is the adapted models',
         leave-one-out).
@@ -172,8 +195,10 @@ class MultifidelityResult:
         estimator variance.
     speedup : statistic -> (m,) cost of those runs over ``cost_pilot + cost_main``.
     n_evaluations : evaluations of all models, pilot included.
-    pilot_inputs : (n_pilot, d) the pilot's points; pilot_outputs : (n_pilot, K, m) every
-        model's responses there (NaN where one failed).
+    pilot_inputs : (n_pilot, d) the pilot's points.
+    pilot_outputs : (n_pilot, K, m) every model's responses there (NaN where one failed).
+    plan : the allocation as planned (``rotoruq.methods.acv.Allocation``: the models used,
+        their continuous ratios, integer evaluations, cost and predicted variance).
     """
 
     names_in: tuple[str, ...]

@@ -121,8 +121,8 @@ class MultifidelitySobolResult:
     n_equivalent_hf : "main", "total" -> (m, d) high-fidelity *evaluations* (base samples times
         d + 2) plain single-fidelity pick-and-freeze (the same estimators on the
         high-fidelity model alone) needs for the same standard error.
-    speedup : "main", "total" -> (m, d) cost of those evaluations over ``cost_pilot +
-        cost_main``.
+    speedup : "main", "total" -> (m, d) cost of those evaluations over the cost spent,
+        ``cost_pilot + cost_main``.
     n_evaluations : evaluations of all models, pilot included.
     plan : the :class:`rotoruq.methods.acv.Allocation` in base samples.
     """

@@ -215,13 +215,40 @@ class PCEResult:
 
     Attributes
     ----------
-    names_in, names_out; order p; multi_indices (N_T, d); coefficients (N_T, m);
-    families (d,) polynomial family per input; mean (m,) = c_0 (eq. 2.18);
-    variance (m,) = sum_{i>0} c_i^2 (eq. 2.19); std (m,); main, total (m, d) Sobol' indices
-    from the coefficients; estimator ("quadrature", "sparse_grid", "regression");
-    n_evaluations; n_dropped (failed points left out of a regression fit); truncation
-    ("tensor", "total_order" or "hyperbolic"); loo_error (m,) relative leave-one-out error of
-    a sparse ("omp", "lars", "lasso") regression, None otherwise.
+    names_in, names_out : tuple of str
+        The d input and m response names.
+    order : int
+        The polynomial order p.
+    multi_indices : ndarray of shape (N_T, d)
+        The degree of each input in each of the N_T basis terms.
+    coefficients : ndarray of shape (N_T, m)
+        The expansion's coefficients, response units (orthonormal basis).
+    families : tuple of str
+        The polynomial family of each input (``"hermite"``, ``"legendre"``, ...).
+    mean : ndarray of shape (m,)
+        c_0 (eq. 2.18).
+    variance : ndarray of shape (m,)
+        sum_{i>0} c_i^2 (eq. 2.19), response units squared.
+    std : ndarray of shape (m,)
+        The square root of ``variance``.
+    main, total : ndarray of shape (m, d)
+        Sobol' indices from the coefficients.
+    estimator : str
+        ``"quadrature"``, ``"sparse_grid"``, ``"regression"`` or ``"sampling"``.
+    n_evaluations : int
+        Model evaluations (points).
+    n_dropped : int
+        Failed points left out of a regression fit.
+    truncation : str
+        ``"tensor"``, ``"total_order"`` or ``"hyperbolic"``.
+    loo_error : ndarray of shape (m,) or None
+        Relative leave-one-out error of a sparse (``"omp"``, ``"lars"``, ``"lasso"``)
+        regression, None otherwise.
+    space : ParameterSpace or None
+        The inputs' distributions (:meth:`predict` maps points through them).
+    germs : list
+        The one-dimensional polynomial families of the inputs, with their maps to the
+        standard variables.
     """
 
     names_in: tuple[str, ...]
@@ -245,6 +272,7 @@ class PCEResult:
 
     @property
     def n_terms(self) -> int:
+        """Number of basis terms N_T."""
         return self.multi_indices.shape[0]
 
     def interaction(self, *names_in: str) -> np.ndarray:
@@ -252,6 +280,11 @@ class PCEResult:
 
         The share of the variance carried by the terms whose non-zero degrees are exactly on
         ``names_in`` (one name: the main index; two: the pure second-order index S_ij).
+
+        Parameters
+        ----------
+        *names_in : str
+            The inputs of the interaction (at least one).
 
         Examples
         --------
@@ -276,7 +309,13 @@ class PCEResult:
             return (self.coefficients[rows] ** 2).sum(axis=0) / self.variance
 
     def predict(self, x: np.ndarray) -> np.ndarray:
-        """Expansion at points x (n, d) in ``names_in`` order: (n, m)."""
+        """Expansion at points x (n, d) in ``names_in`` order: (n, m).
+
+        Parameters
+        ----------
+        x : array_like of shape (n, d) or (d,)
+            Points, in the inputs' units.
+        """
         if self.space is None:
             raise ParameterError("this PCEResult does not carry its parameter space")
         x = self.space._check(x)
@@ -541,28 +580,32 @@ def polynomial_chaos(
 ) -> PCEResult:
     """Fit an order-``order`` polynomial chaos expansion of every response.
 
+    All points of a design go to the model in ONE batched call.
+
     Parameters
     ----------
     model, space : the Model and its uncertain inputs (matched by name).
     order : polynomial order p (>= 1): the total order, or the degree in each input for the
         tensor basis.
+    estimator : "quadrature" (tensor Gauss rule, ``quadrature_points`` per input, default p + 1),
+        "sparse_grid" (Smolyak level p over Gauss rules of 1..p+1 points), "regression"
+        (least squares on ``n_samples`` LHS points, default 2 N_T) or "sampling" (each
+        coefficient the sample mean of y times its orthonormal basis term over ``n_samples``
+        LHS points, default 2 N_T: Dakota's ``expansion_samples``).
+    n_samples : int, optional
+        ``"regression"`` and ``"sampling"``: the number of LHS points (default 2 N_T, or N_T
+        of the order with a sparse ``solver``).
+    quadrature_points : int, optional
+        ``"quadrature"``: Gauss points per input (default p + 1; the most preferred input's
+        with ``dimension_preference``).
+    basis : "askey" (table 2.1 where it applies, Hermite in u-space otherwise) or "hermite"
+        (Hermite in u-space for every input).
     truncation : "tensor" (degree <= p in each input, (p + 1)^d terms: Dakota's basis on a
         tensor grid, and the default for ``estimator="quadrature"``; needs
         ``quadrature_points >= p + 1`` there, where the projection is then exact for every
         polynomial in the basis), "total_order" (N_T = (d + p)! / (d! p!) terms, the default
         for the other estimators) or "hyperbolic" (``||alpha||_q <= p`` with ``q_norm``).
     q_norm : q in (0, 1] of the hyperbolic truncation.
-    estimator : "quadrature" (tensor Gauss rule, ``quadrature_points`` per input, default p + 1),
-        "sparse_grid" (Smolyak level p over Gauss rules of 1..p+1 points), "regression"
-        (least squares on ``n_samples`` LHS points, default 2 N_T) or "sampling" (each
-        coefficient the sample mean of y times its orthonormal basis term over ``n_samples``
-        LHS points, default 2 N_T: Dakota's ``expansion_samples``).
-    dimension_preference : (d,) positive, "quadrature" only: an anisotropic tensor grid as
-        Dakota's ``dimension_preference`` makes it: the most preferred input gets the
-        ``quadrature_points``, input i ``int(quadrature_points * pref_i / max pref)`` (at
-        least 1), and the tensor basis its degree ``points - 1`` per input.
-    basis : "askey" (table 2.1 where it applies, Hermite in u-space otherwise) or "hermite"
-        (Hermite in u-space for every input).
     solver : "regression" only: "least_squares" (all terms; needs n_samples >= N), or a sparse
         fit per response whose number of terms, and order up to ``order`` (raised until two
         orders in a row do not improve it), minimize the leave-one-out error: "omp"
@@ -571,9 +614,11 @@ def polynomial_chaos(
         Dakota's ``lasso``); each active set is refit by least squares (hybrid LARS). Fewer
         samples than terms allowed, default n_samples = N_T of the order. The result's
         ``loo_error`` holds the relative leave-one-out error of each response.
+    dimension_preference : (d,) positive, "quadrature" only: an anisotropic tensor grid as
+        Dakota's ``dimension_preference`` makes it: the most preferred input gets the
+        ``quadrature_points``, input i ``int(quadrature_points * pref_i / max pref)`` (at
+        least 1), and the tensor basis its degree ``points - 1`` per input.
     seed : design seed for "regression".
-
-    All points of a design go to the model in ONE batched call.
 
     Examples
     --------

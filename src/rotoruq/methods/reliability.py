@@ -95,7 +95,15 @@ class MeanValueResult:
         return np.column_stack([self.mean, self.std])
 
     def cdf(self, name: str, z: ArrayLike) -> np.ndarray:
-        """Gaussian CDF P(g <= z) of response ``name`` implied by the two moments."""
+        """Gaussian CDF P(g <= z) of response ``name`` implied by the two moments.
+
+        Parameters
+        ----------
+        name : str
+            A response name.
+        z : float or array_like
+            Levels, response units; the result has their shape.
+        """
         k = self.names_out.index(name)
         return stats.norm.cdf((np.asarray(z, dtype=float) - self.mean[k]) / self.std[k])
 
@@ -135,6 +143,8 @@ def mean_value_from_gradient(
 ) -> MeanValueResult:
     """Mean value statistics from a response value and gradient at the input means.
 
+    Cheap (no model calls): a nested loop that only changes input stds can reuse ``grad``.
+
     Parameters
     ----------
     g0 : (m,) responses at the input means.
@@ -142,8 +152,19 @@ def mean_value_from_gradient(
     std : (d,) input standard deviations (> 0 or 0 for a fixed input).
     correlation : (d, d) input correlation matrix (x-space), default identity.
     response_levels, probability_levels, reliability_levels : see :func:`mean_value`.
+    distribution : str, optional
+        ``"cdf"`` (default) or ``"ccdf"``: how probability and reliability levels are read
+        (see :func:`mean_value`).
+    names_in : sequence of str, optional
+        The d input names (default ``x0``, ``x1``, ...).
+    names_out : sequence of str, optional
+        The m response names (default ``g0``, ``g1``, ...).
+    n_evaluations : int, optional
+        Model evaluations that gave ``g0`` and ``grad``, reported in the result (default 0).
 
-    Cheap (no model calls): a nested loop that only changes input stds can reuse ``grad``.
+    Returns
+    -------
+    MeanValueResult
     """
     g0 = np.atleast_1d(np.asarray(g0, dtype=float))
     grad = np.asarray(grad, dtype=float).reshape(g0.size, -1)
@@ -237,6 +258,8 @@ def mean_value(
         probabilities P(g <= z), or CCDF P(g > z) with ``distribution="ccdf"``).
     reliability_levels : reliability indices mapped to response levels
         (``z = mu - sigma beta`` for "cdf", ``z = mu + sigma beta`` for "ccdf").
+    distribution : str, optional
+        ``"cdf"`` (default) or ``"ccdf"``: how probability and reliability levels are read.
     gradient : "auto" (the model's analytic ``gradient`` when it has one, else central finite
         differences on one batch of 2d+1 points), "analytic", "finite_difference" or a
         callable ``g(x: (n, d)) -> (n, m, d)`` (columns in ``space.names`` order).
@@ -288,6 +311,41 @@ class MPPResult:
     beta_ccdf = beta; first-order, or second-order levels with
     ``integration="second_order"``); ``pma_mpp_x`` their MPPs.
     ``converged``: every RIA and PMA search met the MPP (KKT) conditions.
+
+    Attributes
+    ----------
+    names_in, names_out : tuple of str
+        The d input and m response names.
+    integration : str
+        ``"first_order"`` (FORM) or ``"second_order"`` (SORM).
+    response_levels : dict of str to ndarray
+        Response name -> the k levels z, response units.
+    cdf_probability, ccdf_probability : dict of str to ndarray
+        P(g <= z) and P(g > z) at the levels.
+    cdf_reliability : dict of str to ndarray
+        The FORM index beta_cdf (signed distance of the MPP) at the levels.
+    generalized_reliability : dict of str to ndarray
+        -Phi^-1(P(g <= z)) at the levels.
+    mpp_u, mpp_x : dict of str to ndarray of shape (k, d)
+        The most probable point of each level in u-space and in the inputs' units.
+    curvatures : dict of str to ndarray of shape (k, d - 1)
+        Principal curvatures of the limit state at each MPP (SORM only, else NaN).
+    probability_levels, reliability_levels : dict of str to ndarray
+        Response name -> the levels asked for.
+    probability_response, reliability_response : dict of str to ndarray
+        Response name -> the response level of each probability / reliability level.
+    pma_mpp_x : dict of str to ndarray
+        The MPPs of the PMA searches, the inputs' units.
+    n_evaluations : int
+        Model evaluations (points), gradients and Hessians included.
+    converged : bool
+        Every RIA and PMA search met the MPP (KKT) conditions.
+    ccdf_reliability : dict of str to ndarray
+        -beta_cdf at the levels.
+    ccdf_generalized_reliability : dict of str to ndarray
+        -Phi^-1(P(g > z)) at the levels.
+    distribution : str
+        ``"cdf"`` or ``"ccdf"``: how the probability and reliability levels were read.
     """
 
     names_in: tuple[str, ...]
@@ -916,6 +974,44 @@ def mpp_search(
     ``distribution`` ("cdf" or "ccdf", Dakota's ``distribution cumulative / complementary``)
     says how probability and reliability levels are read; both probabilities and both
     reliability indices of the response levels are always reported.
+
+    Parameters
+    ----------
+    model : Model
+        Batched; its inputs are matched to ``space.names`` by name.
+    space : ParameterSpace
+        The uncertain inputs (correlations through the Nataf model).
+    response_levels : sequence of float, mapping or sequence of sequences, optional
+        Levels z (response units) mapped to probabilities and reliability indices: the same
+        for every response, a mapping name -> levels, or one sequence per response.
+    probability_levels : sequence of float, mapping or sequence of sequences, optional
+        Probabilities in (0, 1) mapped to response levels, read in the sense of
+        ``distribution``; given like ``response_levels``.
+    reliability_levels : sequence of float, mapping or sequence of sequences, optional
+        Reliability indices mapped to response levels, read in the sense of
+        ``distribution``; given like ``response_levels``.
+    integration : str, optional
+        ``"first_order"`` (FORM, default) or ``"second_order"`` (SORM).
+    sorm : str, optional
+        The SORM formula: ``"breitung"`` (default) or ``"hohenbichler"`` (Hohenbichler-
+        Rackwitz).
+    fd_step : float, optional
+        Relative finite-difference step in u-space (default :data:`rotoruq.model.FD_STEP`).
+    tolerance : float, optional
+        Convergence of the MPP conditions (default 1e-10), see above.
+    max_iterations : int, optional
+        Iterations per level before it is reported as not converged (default 200).
+    approximation : str, optional
+        ``"none"`` (default), ``"x_taylor_mean"``, ``"u_taylor_mean"``, ``"x_taylor_mpp"``,
+        ``"u_taylor_mpp"``, ``"x_two_point"`` or ``"u_two_point"``, see above.
+    distribution : str, optional
+        ``"cdf"`` (default: P(g <= z) and beta_cdf) or ``"ccdf"`` (P(g > z) and beta_ccdf):
+        how probability and reliability levels are read (Dakota's ``distribution
+        cumulative / complementary``).
+
+    Returns
+    -------
+    MPPResult
 
     Examples
     --------

@@ -43,17 +43,32 @@ class ResponseStatistics:
 
     Attributes
     ----------
-    names_out : (m,) response names.
-    n_valid : (m,) number of finite values used per response.
-    n_dropped : (m,) number of values left out (failed or NaN) per response.
-    mean, std, skewness, kurtosis : (m,) sample moments (std ddof=1; skewness G1 and excess
-        kurtosis G2, both bias-corrected; normal -> 0).
-    mean_ci, std_ci : (m, 2) confidence intervals at level ``confidence`` (Student t for the
-        mean, chi-square for the std, as Dakota).
-    percentile_levels : (k,) percentiles in percent; percentiles : (m, k) values.
-    response_levels, cdf_probability, ccdf_probability : dict name -> arrays: empirical
-        P(y <= z) and P(y > z) at the levels z.
-    probability_levels, probability_response : dict name -> arrays: empirical quantiles.
+    names_out : tuple of str
+        The m response names.
+    n_valid : ndarray of shape (m,)
+        Number of finite values used per response.
+    n_dropped : ndarray of shape (m,)
+        Number of values left out (failed or NaN) per response.
+    mean, std, skewness, kurtosis : ndarray of shape (m,)
+        Sample moments in response units (std with ddof=1; skewness G1 and excess kurtosis
+        G2, both bias-corrected; a normal sample gives 0).
+    mean_ci, std_ci : ndarray of shape (m, 2)
+        Confidence intervals at level ``confidence`` (Student t for the mean, chi-square for
+        the std, as Dakota).
+    confidence : float
+        The level of ``mean_ci`` and ``std_ci`` (0.95 by default).
+    percentile_levels : ndarray of shape (k,)
+        The percentiles reported, in percent.
+    percentiles : ndarray of shape (m, k)
+        The values at ``percentile_levels``, response units.
+    response_levels : dict of str to ndarray
+        Response name -> the levels z asked for.
+    cdf_probability, ccdf_probability : dict of str to ndarray
+        Response name -> empirical P(y <= z) and P(y > z) at its levels.
+    probability_levels : dict of str to ndarray
+        Response name -> the probabilities asked for.
+    probability_response : dict of str to ndarray
+        Response name -> the empirical quantiles at its probability levels.
     """
 
     names_out: tuple[str, ...]
@@ -101,6 +116,30 @@ def response_statistics(
 ) -> ResponseStatistics:
     """Statistics of a sample of responses ``values`` (n, m); NaN/inf entries are dropped per
     response, with a RuntimeWarning saying how many (``warn=False`` silences it).
+
+    Parameters
+    ----------
+    values : array_like of shape (n, m) or (n,)
+        The sampled responses, one row per sample.
+    names_out : sequence of str, optional
+        The m response names (default ``y0``, ``y1``, ...).
+    response_levels : sequence of float, mapping or sequence of sequences, optional
+        Levels z (response units) for the empirical P(y <= z) / P(y > z): the same for all
+        responses, a mapping name -> levels, or one sequence per response.
+    probability_levels : sequence of float, mapping or sequence of sequences, optional
+        Probabilities in [0, 1] mapped to empirical quantiles (response units), given like
+        ``response_levels``.
+    percentiles : sequence of float, optional
+        Percentiles (percent) to report (default 1, 5, 10, 25, 50, 75, 90, 95, 99).
+    confidence : float, optional
+        Level of the mean / std confidence intervals, in (0, 1) (default 0.95).
+    warn : bool, optional
+        Warn when non-finite values are dropped (default True).
+
+    Returns
+    -------
+    ResponseStatistics
+        The statistics, one entry per response.
 
     Examples
     --------
@@ -183,14 +222,29 @@ class SamplingResult:
 
     Attributes
     ----------
-    names_in, names_out : input (d) and response (m) names.
-    inputs : (n, d) sample points (columns in ``names_in`` order).
-    outputs : (n, m) responses (NaN rows for failed points).
-    failures : dict row -> reason for failed points.
-    statistics : ResponseStatistics of the finite responses.
-    design : "lhs", "random", "sobol" or "halton".
-    unit : (n, d) the design in (0, 1)^d (used by :func:`refine`).
-    n_evaluations : model evaluations made (all rows, failed ones included).
+    names_in, names_out : tuple of str
+        The d input and m response names.
+    inputs : ndarray of shape (n, d)
+        Sample points, columns in ``names_in`` order, in the inputs' units.
+    outputs : ndarray of shape (n, m)
+        Responses (NaN rows for failed points).
+    failures : dict of int to str
+        Row -> reason, for the failed points.
+    statistics : ResponseStatistics
+        Statistics of the finite responses.
+    design : str
+        ``"lhs"``, ``"random"``, ``"sobol"`` or ``"halton"``.
+    unit : ndarray of shape (n, d)
+        The design in (0, 1)^d (used by :func:`refine`).
+    n_evaluations : int
+        Model evaluations made (all rows, failed ones included).
+    model : Model or None
+        The model that was sampled (:func:`refine` runs it again).
+    space : ParameterSpace or None
+        The inputs' distributions.
+    options : dict
+        The other arguments of :func:`sample` (pairing, levels, percentiles, confidence) and
+        the generator state that :func:`refine` continues from.
     """
 
     names_in: tuple[str, ...]
@@ -209,22 +263,27 @@ class SamplingResult:
     # convenience accessors
     @property
     def n_samples(self) -> int:
+        """Number of sample points n (failed ones included)."""
         return self.inputs.shape[0]
 
     @property
     def mean(self) -> np.ndarray:
+        """Sample mean per response, shape (m,) (``statistics.mean``)."""
         return self.statistics.mean
 
     @property
     def std(self) -> np.ndarray:
+        """Sample standard deviation per response, shape (m,) (``statistics.std``)."""
         return self.statistics.std
 
     @property
     def skewness(self) -> np.ndarray:
+        """Sample skewness per response, shape (m,) (``statistics.skewness``)."""
         return self.statistics.skewness
 
     @property
     def kurtosis(self) -> np.ndarray:
+        """Sample excess kurtosis per response, shape (m,) (``statistics.kurtosis``)."""
         return self.statistics.kurtosis
 
     def _column(self, name: str) -> np.ndarray:
@@ -234,18 +293,42 @@ class SamplingResult:
         return v[np.isfinite(v)]
 
     def ecdf(self, name: str) -> tuple[np.ndarray, np.ndarray]:
-        """Empirical CDF of response ``name``: sorted values (k,) and P(Y <= value) (k,)."""
+        """Empirical CDF of response ``name``: sorted values (k,) and P(Y <= value) (k,).
+
+        Parameters
+        ----------
+        name : str
+            A response name; its k finite values are used.
+        """
         v = np.sort(self._column(name))
         return v, np.arange(1, v.size + 1) / v.size
 
     def histogram_pdf(self, name: str, bins="auto") -> tuple[np.ndarray, np.ndarray]:
-        """Histogram density: bin edges (b+1,) and densities (b,) (integrates to 1)."""
+        """Histogram density: bin edges (b+1,) and densities (b,) (integrates to 1).
+
+        Parameters
+        ----------
+        name : str
+            A response name; its finite values are used.
+        bins : int, sequence of float or str, optional
+            As :func:`numpy.histogram`: a count, the edges, or a rule (default ``"auto"``).
+        """
         dens, edges = np.histogram(self._column(name), bins=bins, density=True)
         return edges, dens
 
     def kde_pdf(self, name: str, grid=None, bw_method=None) -> tuple[np.ndarray, np.ndarray]:
-        """Gaussian kernel density (scipy.stats.gaussian_kde) on ``grid`` (default 200 points
-        spanning the sample +- 3 bandwidths): returns (grid, density)."""
+        """Gaussian kernel density (scipy.stats.gaussian_kde): returns (grid, density).
+
+        Parameters
+        ----------
+        name : str
+            A response name; its finite values are used.
+        grid : array_like, optional
+            Where to evaluate the density, response units (default 200 points spanning the
+            sample +- 3 bandwidths).
+        bw_method : str, float or callable, optional
+            The bandwidth rule of :class:`scipy.stats.gaussian_kde` (default Scott's).
+        """
         v = self._column(name)
         kde = stats.gaussian_kde(v, bw_method=bw_method)
         if grid is None:
@@ -459,6 +542,21 @@ def refine(result: SamplingResult, n_samples: int, *, seed: SeedLike = None) -> 
     ``seed`` (lhs and random) defaults to the state the original sample's generator was left in
     (continued), so a refined run is reproducible from the original seed, and refining one
     result twice gives the same points.
+
+    Parameters
+    ----------
+    result : SamplingResult
+        A result of :func:`sample` (it holds the model, the space and the design).
+    n_samples : int
+        Number of points to add (>= 1).
+    seed : int, SeedSequence, Generator or None, optional
+        For ``"lhs"`` and ``"random"``: the random source of the new points (default: the
+        original sample's generator, continued).
+
+    Returns
+    -------
+    SamplingResult
+        The original and the new points together, with the statistics of all of them.
 
     Examples
     --------

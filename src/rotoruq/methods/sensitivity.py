@@ -72,15 +72,28 @@ class SobolResult:
 
     Attributes
     ----------
-    names_in, names_out : input (d) and response (m) names.
-    main, total : (m, d) first-order and total-effect indices.
-    main_ci, total_ci : (m, d, 2) percentile intervals at level ``confidence`` (NaN when
+    names_in, names_out : tuple of str
+        The d input and m response names.
+    main, total : ndarray of shape (m, d)
+        First-order and total-effect indices.
+    main_ci, total_ci : ndarray of shape (m, d, 2)
+        Bootstrap percentile intervals at level ``confidence`` (NaN when
         ``n_bootstrap == 0``).
-    variance, mean : (m,) response variance and mean over the base samples.
-    estimator : estimator name; design : base design ("sobol", ..., or None when the
-        responses were handed to :func:`sobol_from_design`); n_samples : N base samples;
-    n_evaluations : N (d + 2) model evaluations;
-    n_dropped : (m,) base rows left out because one of their d + 2 evaluations failed.
+    variance, mean : ndarray of shape (m,)
+        Response variance and mean over the base samples (response units).
+    estimator : str
+        The estimator, one of ``"hybrid"``, ``"saltelli2010"``, ``"jansen"``, ``"janon"``.
+    design : str or None
+        The base design (``"sobol"``, ...), or None when the responses were handed to
+        :func:`sobol_from_design`.
+    confidence : float
+        The level of ``main_ci`` and ``total_ci``.
+    n_samples : int
+        N, the number of base samples.
+    n_evaluations : int
+        N (d + 2) model evaluations.
+    n_dropped : ndarray of shape (m,)
+        Base rows left out because one of their d + 2 evaluations failed.
     """
 
     names_in: tuple[str, ...]
@@ -111,8 +124,20 @@ class SobolResult:
 
     def ranking(self, response: str | int | None = None,
                 by: str = "total") -> list[tuple[str, float, float]]:
-        """Inputs sorted by decreasing ``by`` index ("total" or "main") for one response:
-        a list of (name, main, total), ready for a tornado diagram."""
+        """Inputs sorted by decreasing ``by`` index for one response.
+
+        Parameters
+        ----------
+        response : str or int, optional
+            The response, by name or index (may be left out when there is only one).
+        by : str, optional
+            ``"total"`` (default) or ``"main"``: the index to sort by.
+
+        Returns
+        -------
+        list of (str, float, float)
+            (name, main, total) per input, ready for a tornado diagram.
+        """
         k = self._k(response)
         if by not in ("total", "main"):
             raise ParameterError(f"by must be 'total' or 'main', got {by!r}")

@@ -171,10 +171,16 @@ def _robust_cholesky(a: np.ndarray, jitter: float,
 class LeaveOneOut:
     """Closed-form leave-one-out cross-validation (Dubrule 1983).
 
-    errors : (n, m) ``y_i - yhat_{-i}(x_i)`` in response units.
-    rmse : (m,) root mean square LOO error.
-    nrmse : (m,) rmse divided by the std of the training responses.
-    q2 : (m,) ``1 - sum(e^2) / sum((y - mean y)^2)`` (1 = perfect).
+    Attributes
+    ----------
+    errors : ndarray of shape (n, m)
+        ``y_i - yhat_{-i}(x_i)`` at the n training points, in response units.
+    rmse : ndarray of shape (m,)
+        Root mean square leave-one-out error, response units.
+    nrmse : ndarray of shape (m,)
+        ``rmse`` divided by the std of the training responses.
+    q2 : ndarray of shape (m,)
+        ``1 - sum(e^2) / sum((y - mean y)^2)`` (1 = perfect).
     """
 
     errors: np.ndarray
@@ -203,6 +209,9 @@ class _Fit:
 
 class GaussianProcess:
     """Kriging surrogate with maximum-likelihood hyperparameters.
+
+    The jitter actually added to the covariance diagonal (response units squared, per
+    response) is :attr:`jitter`.
 
     Parameters
     ----------
@@ -237,9 +246,6 @@ class GaussianProcess:
         None draws fresh entropy from the operating system at every :meth:`fit`: two fits
         then differ; :func:`~rotoruq.methods.mcmc.calibrate_bayes` gives an unseeded
         emulator a seed spawned from its own.
-
-    The jitter actually added to the covariance diagonal (response units squared, per
-    response) is :attr:`jitter`.
     """
 
     def __init__(
@@ -325,12 +331,23 @@ class GaussianProcess:
     def fit(self, X, Y) -> GaussianProcess:
         """Fit one GP per response column.
 
-        X : (n, d) training inputs. Y : (n,) or (n, m) responses. Rows with non-finite values
-        are dropped with a warning. Returns self.
+        Rows with non-finite values are dropped with a warning.
 
         Up to n = 2000 the fit runs on one BLAS thread: its n x n factorizations are too small
         to gain from threads, and on a busy machine a second thread made fits 5-14x slower
         (issue 12). Results do not depend on the thread count.
+
+        Parameters
+        ----------
+        X : array_like of shape (n, d)
+            Training inputs, in input units.
+        Y : array_like of shape (n,) or (n, m)
+            Training responses, in response units.
+
+        Returns
+        -------
+        GaussianProcess
+            This GP, fitted.
         """
         from threadpoolctl import threadpool_limits
 
@@ -569,11 +586,13 @@ class GaussianProcess:
 
     @property
     def n_inputs(self) -> int:
+        """Number of inputs d of the training data."""
         self._check_fitted()
         return self._X.shape[1]
 
     @property
     def n_outputs(self) -> int:
+        """Number of responses m (one GP each)."""
         self._check_fitted()
         return len(self._fits)
 
@@ -619,7 +638,13 @@ class GaussianProcess:
 
     # --- prediction ------------------------------------------------------------------------
     def extrapolation_distance(self, X) -> np.ndarray:
-        """Euclidean distance (n,) of points outside the training box, in box-widths."""
+        """Euclidean distance (n,) of points outside the training box, in box-widths.
+
+        Parameters
+        ----------
+        X : array_like of shape (n, d) or (d,)
+            Points, in input units (0 for a point inside the box).
+        """
         self._check_fitted()
         xs = (np.atleast_2d(np.asarray(X, dtype=float)) - self._lo) / self._span
         out = np.maximum(0.0, -xs) + np.maximum(0.0, xs - 1.0)
@@ -629,11 +654,22 @@ class GaussianProcess:
                 warn_distance: float = 0.1):
         """Predict the latent function at a batch of points.
 
-        X : (n, d). Returns ``mean`` (n, m), then ``var`` (n, m) if ``return_var`` (the
-        Kriging variance including the trend uncertainty, without the measurement noise), then
-        ``grad`` (n, m, d) (d mean / d x, analytic) if ``return_grad``.
-        Warns :class:`ExtrapolationWarning` when a point lies farther than ``warn_distance``
-        box-widths outside the training box.
+        Returns ``mean`` (n, m), then ``var`` (n, m) if ``return_var`` (the Kriging variance
+        including the trend uncertainty, without the measurement noise), then ``grad``
+        (n, m, d) (d mean / d x, analytic) if ``return_grad``; a single array when only the
+        mean is asked for.
+
+        Parameters
+        ----------
+        X : array_like of shape (n, d) or (d,)
+            Points, in input units, columns in the training order.
+        return_var : bool, optional
+            Also return the Kriging variance (default True).
+        return_grad : bool, optional
+            Also return the gradient of the mean (default False).
+        warn_distance : float or None, optional
+            Warn (:class:`ExtrapolationWarning`) when a point lies farther than this many
+            box-widths outside the training box (default 0.1; None: never).
         """
         self._check_fitted()
         X = np.atleast_2d(np.asarray(X, dtype=float))
@@ -698,9 +734,13 @@ class GaussianProcess:
             self._y_std)
 
     def compiled(self, variance: bool = False) -> CompiledGP:
-        """This GP's arrays for the compiled kernels (:class:`CompiledGP`), with the Kriging
-        variance's arrays when ``variance`` (built once, kept: an inverse triangular factor
-        per response, n^3/3 flops and n^2 doubles each).
+        """This GP's arrays for the compiled kernels (:class:`CompiledGP`).
+
+        Parameters
+        ----------
+        variance : bool, optional
+            Also the Kriging variance's arrays (built once, kept: an inverse triangular factor
+            per response, n^3/3 flops and n^2 doubles each); default False.
 
         Examples
         --------
@@ -776,7 +816,15 @@ class GaussianProcess:
         return LeaveOneOut(errors=errs, rmse=rmse, nrmse=rmse / ystd, q2=q2)
 
     def as_model(self, names_in: Sequence[str], names_out: Sequence[str] | None = None) -> GPModel:
-        """This GP as a :class:`~rotoruq.model.Model` (mean and analytic gradient)."""
+        """This GP as a :class:`~rotoruq.model.Model` (mean and analytic gradient).
+
+        Parameters
+        ----------
+        names_in : sequence of str
+            The d input names, in the training order.
+        names_out : sequence of str, optional
+            The m response names (default ``y0``, ``y1``, ...).
+        """
         self._check_fitted()
         names_in = tuple(names_in)
         names_out = tuple(names_out) if names_out is not None else tuple(

@@ -83,7 +83,8 @@ class ValidationResult:
     relative_area_metric : area_metric / |D|.
     predictive_std : standard deviation of the predictive samples (= u_input).
     sigma_distance : |S - D| / predictive_std, the reference study's measure.
-    n_sigma : its threshold; within_n_sigma : sigma_distance <= n_sigma (bool).
+    n_sigma : its threshold.
+    within_n_sigma : sigma_distance <= n_sigma (bool).
     n_samples, n_repeats : (n_conditions,) predictive samples and data repeats per condition.
     """
 

@@ -14,6 +14,7 @@ from .interval import Interval
 
 __all__ = ["DISTRIBUTIONS", "distribution_keys", "make_distribution"]
 
+#: Distribution classes by their study-file name (``kind = "normal"``), Dakota's catalog.
 DISTRIBUTIONS: dict[str, type[Distribution]] = {
     "normal": dist.Normal,
     "truncated_normal": dist.TruncatedNormal,
@@ -40,6 +41,11 @@ def distribution_keys(kind: str) -> tuple[str, ...]:
     """The parameter keys of a distribution in study files and :meth:`Distribution.describe`
     (its fields, ``lambda_`` spelled ``lambda``), for a key of :data:`DISTRIBUTIONS`.
 
+    Parameters
+    ----------
+    kind : str
+        The distribution's name, a key of :data:`DISTRIBUTIONS`.
+
     Examples
     --------
     >>> distribution_keys("lognormal")
@@ -58,6 +64,14 @@ def make_distribution(kind: str, **params: Any) -> Distribution:
 
     An unknown kind or parameter raises :class:`~rotoruq.errors.ParameterError` naming the
     valid ones.
+
+    Parameters
+    ----------
+    kind : str
+        The distribution's name, a key of :data:`DISTRIBUTIONS` (case, ``-`` and spaces
+        ignored: ``"Truncated Normal"`` is ``truncated_normal``).
+    **params
+        Its defining parameters, by their study-file names.
 
     Examples
     --------

@@ -96,19 +96,43 @@ class Distribution:
         return float(lo), float(hi)
 
     def ppf(self, q: Any) -> np.ndarray:
-        """Quantile function F^-1(q), shape of ``q``."""
+        """Quantile function F^-1(q), shape of ``q``.
+
+        Parameters
+        ----------
+        q : array_like
+            Probabilities in [0, 1] (any shape).
+        """
         return self.dist.ppf(q)
 
     def cdf(self, x: Any) -> np.ndarray:
-        """Cumulative distribution function F(x), shape of ``x``."""
+        """Cumulative distribution function F(x), shape of ``x``.
+
+        Parameters
+        ----------
+        x : array_like
+            Values of the variable, in its units (any shape).
+        """
         return self.dist.cdf(x)
 
     def sf(self, x: Any) -> np.ndarray:
-        """Survival function 1 - F(x), computed without cancellation in the upper tail."""
+        """Survival function 1 - F(x), computed without cancellation in the upper tail.
+
+        Parameters
+        ----------
+        x : array_like
+            Values of the variable, in its units (any shape); the result has its shape.
+        """
         return self.dist.sf(x)
 
     def isf(self, q: Any) -> np.ndarray:
-        """Inverse survival function: x with sf(x) = q."""
+        """Inverse survival function: x with sf(x) = q.
+
+        Parameters
+        ----------
+        q : array_like
+            Upper-tail probabilities in [0, 1] (any shape); the result has its shape.
+        """
         return self.dist.isf(q)
 
     def from_z(self, z: Any) -> np.ndarray:
@@ -117,6 +141,11 @@ class Distribution:
         The lower tail goes through ``ppf(Phi(z))`` and the upper tail through
         ``isf(Phi(-z))``, so no probability is ever rounded to 1 (``Phi(8.3)`` is 1.0 in double
         precision, ``Phi(-37)`` = 5.7e-300 is not 0). Shape of ``z``.
+
+        Parameters
+        ----------
+        z : array_like
+            Standard normal scores (any shape).
         """
         z = np.asarray(z, dtype=float)
         lower = z <= 0
@@ -126,10 +155,17 @@ class Distribution:
         return np.where(lower, lo, hi)
 
     def to_z(self, x: Any) -> np.ndarray:
-        """Normal score ``Phi^-1(F(x))`` of values ``x``, exact in both tails (the smaller of
-        the CDF and the survival function is inverted). Clipped to +-37.5 (where the
-        tail probability reaches the smallest normal double) at and beyond the support
-        bounds. Shape of ``x``."""
+        """Normal score ``Phi^-1(F(x))`` of values ``x``, exact in both tails.
+
+        The smaller of the CDF and the survival function is inverted. Clipped to +-37.5
+        (where the tail probability reaches the smallest normal double) at and beyond the
+        support bounds; NaN stays NaN. Shape of ``x``.
+
+        Parameters
+        ----------
+        x : array_like
+            Values of the variable, in its units (any shape).
+        """
         x = np.asarray(x, dtype=float)
         c = np.asarray(self.cdf(x), dtype=float)
         s = np.asarray(self.sf(x), dtype=float)
@@ -141,15 +177,35 @@ class Distribution:
         return np.where(np.isnan(x), np.nan, z)
 
     def pdf(self, x: Any) -> np.ndarray:
-        """Probability density, shape of ``x``."""
+        """Probability density (per unit of the variable), shape of ``x``.
+
+        Parameters
+        ----------
+        x : array_like
+            Values of the variable, in its units (any shape).
+        """
         return self.dist.pdf(x)
 
     def logpdf(self, x: Any) -> np.ndarray:
-        """Log density (-inf outside the support), shape of ``x``."""
+        """Log density (-inf outside the support), shape of ``x``.
+
+        Parameters
+        ----------
+        x : array_like
+            Values of the variable, in its units (any shape).
+        """
         return self.dist.logpdf(x)
 
     def rvs(self, size: int | tuple[int, ...], *, seed: SeedLike = None) -> np.ndarray:
-        """Independent random values, array of shape ``size``."""
+        """Independent random values, array of shape ``size``.
+
+        Parameters
+        ----------
+        size : int or tuple of int
+            Shape of the result.
+        seed : int, SeedSequence, Generator or None
+            Random source (:func:`~rotoruq.as_generator`); None draws fresh entropy.
+        """
         return self.dist.rvs(size=size, random_state=as_generator(seed))
 
     def describe(self) -> dict[str, Any]:
@@ -182,7 +238,15 @@ def _freeze(obj: Distribution, frozen: Any) -> None:
 
 @dataclass(frozen=True)
 class Normal(Distribution):
-    """Normal (Gaussian) distribution N(mean, std^2)."""
+    """Normal (Gaussian) distribution N(mean, std^2).
+
+    Parameters
+    ----------
+    mean : float
+        Mean, in the variable's units.
+    std : float
+        Standard deviation (> 0), in the variable's units.
+    """
 
     mean: float
     std: float
@@ -245,6 +309,15 @@ class TruncatedNormal(Distribution):
 
     ``mean`` and ``std`` are those of the parent normal (Dakota's convention); the moments of
     the truncated variable are :attr:`moments`.
+
+    Parameters
+    ----------
+    mean : float
+        Mean of the parent normal, in the variable's units.
+    std : float
+        Standard deviation (> 0) of the parent normal.
+    lower, upper : float, optional
+        Truncation bounds, ``lower < upper`` (default: -inf and +inf, no truncation).
     """
 
     mean: float
@@ -344,6 +417,21 @@ class LogNormal(Distribution):
     (lambda, zeta) truncated to [ln lower, ln upper], the fields still describe the parent
     lognormal (Dakota's convention, as for :class:`TruncatedNormal`) and :attr:`moments` are
     those of the truncated variable. :meth:`describe` gives the form that was given.
+
+    Parameters
+    ----------
+    mean : float, optional
+        Mean (> 0) of the (parent) variable, in its units.
+    std : float, optional
+        Standard deviation (> 0) of the (parent) variable.
+    lambda_ : float, optional
+        Mean of ``ln x``.
+    zeta : float, optional
+        Standard deviation (> 0) of ``ln x``.
+    error_factor : float, optional
+        The 95th over the 50th percentile (> 1), with ``mean``.
+    lower, upper : float, optional
+        Truncation bounds, ``0 <= lower < upper`` (default 0 and +inf: not truncated).
 
     Examples
     --------
@@ -502,7 +590,13 @@ class LogNormal(Distribution):
 
 @dataclass(frozen=True)
 class Uniform(_DerivedMoments):
-    """Uniform on [lower, upper]. Its std is derived from the bounds: (upper-lower)/sqrt(12)."""
+    """Uniform on [lower, upper]. Its std is derived from the bounds: (upper-lower)/sqrt(12).
+
+    Parameters
+    ----------
+    lower, upper : float
+        The bounds, ``lower < upper``, in the variable's units.
+    """
 
     lower: float
     upper: float
@@ -524,7 +618,13 @@ class Uniform(_DerivedMoments):
 
 @dataclass(frozen=True)
 class LogUniform(_DerivedMoments):
-    """Log-uniform on [lower, upper], 0 < lower < upper."""
+    """Log-uniform on [lower, upper], 0 < lower < upper: log(x) is uniform.
+
+    Parameters
+    ----------
+    lower, upper : float
+        The bounds, ``0 < lower < upper``, in the variable's units.
+    """
 
     lower: float
     upper: float
@@ -554,7 +654,15 @@ class _MirroredTail(_DerivedMoments):
 
 @dataclass(frozen=True)
 class Beta(_MirroredTail):
-    """Beta(alpha, beta) scaled to [lower, upper]."""
+    """Beta(alpha, beta) scaled to [lower, upper].
+
+    Parameters
+    ----------
+    alpha, beta : float
+        The shape parameters (> 0) of the beta distribution on [0, 1].
+    lower, upper : float, optional
+        The bounds it is scaled to (default 0 and 1), in the variable's units.
+    """
 
     alpha: float
     beta: float
@@ -572,7 +680,15 @@ class Beta(_MirroredTail):
 
 @dataclass(frozen=True)
 class Gamma(_DerivedMoments):
-    """Gamma with shape ``alpha`` and scale ``beta`` (mean alpha*beta)."""
+    """Gamma with shape ``alpha`` and scale ``beta`` (mean alpha*beta).
+
+    Parameters
+    ----------
+    alpha : float
+        Shape (> 0).
+    beta : float
+        Scale (> 0), in the variable's units.
+    """
 
     alpha: float
     beta: float
@@ -585,7 +701,13 @@ class Gamma(_DerivedMoments):
 
 @dataclass(frozen=True)
 class Exponential(_DerivedMoments):
-    """Exponential with scale ``beta`` (mean beta)."""
+    """Exponential with scale ``beta`` (mean beta).
+
+    Parameters
+    ----------
+    beta : float
+        Scale (> 0) and mean, in the variable's units.
+    """
 
     beta: float
 
@@ -596,7 +718,15 @@ class Exponential(_DerivedMoments):
 
 @dataclass(frozen=True)
 class Gumbel(_DerivedMoments):
-    """Gumbel (largest extreme value) with Dakota's alpha (1/scale) and beta (location)."""
+    """Gumbel (largest extreme value) with Dakota's alpha (1/scale) and beta (location).
+
+    Parameters
+    ----------
+    alpha : float
+        Inverse scale (> 0), per unit of the variable.
+    beta : float
+        Location (the mode), in the variable's units.
+    """
 
     alpha: float
     beta: float
@@ -609,7 +739,15 @@ class Gumbel(_DerivedMoments):
 
 @dataclass(frozen=True)
 class Weibull(_DerivedMoments):
-    """Weibull with shape ``alpha`` and scale ``beta``."""
+    """Weibull with shape ``alpha`` and scale ``beta``.
+
+    Parameters
+    ----------
+    alpha : float
+        Shape (> 0).
+    beta : float
+        Scale (> 0), in the variable's units.
+    """
 
     alpha: float
     beta: float
@@ -622,7 +760,15 @@ class Weibull(_DerivedMoments):
 
 @dataclass(frozen=True)
 class Triangular(_MirroredTail):
-    """Triangular on [lower, upper] with mode ``mode``."""
+    """Triangular on [lower, upper] with mode ``mode``.
+
+    Parameters
+    ----------
+    mode : float
+        The most likely value, ``lower <= mode <= upper``.
+    lower, upper : float
+        The bounds, ``lower < upper``, in the variable's units.
+    """
 
     mode: float
     lower: float
@@ -649,6 +795,13 @@ class Frechet(_DerivedMoments):
 
     Mean ``beta Gamma(1 - 1/alpha)``, variance ``beta^2 (Gamma(1 - 2/alpha) - Gamma(1 -
     1/alpha)^2)``: ``alpha > 2`` (a finite std, which every rotoruq method needs).
+
+    Parameters
+    ----------
+    alpha : float
+        Shape, > 2.
+    beta : float
+        Scale (> 0), in the variable's units.
 
     Examples
     --------
@@ -702,16 +855,20 @@ class Frechet(_DerivedMoments):
 class HistogramBin(_DerivedMoments):
     """Piecewise-uniform density over bins (Dakota's ``histogram_bin_uncertain``).
 
+    :meth:`describe` gives the form that was given (counts or ordinates).
+
     Parameters
     ----------
-    abscissas : sequence of n + 1 strictly increasing bin edges.
-    counts : n counts (the mass of each bin, relative), or n + 1 with the last 0 (Dakota's
-        form: one count per abscissa, the last closing the last bin). Normalised.
-    ordinates : instead of ``counts``: the density of each bin (relative, normalised; the
-        mass of bin i is ``ordinates[i] * width_i``), n or n + 1 values likewise.
-
-    Counts and ordinates are >= 0 with a positive total. :meth:`describe` gives the form
-    that was given.
+    abscissas : sequence of float
+        The n + 1 strictly increasing bin edges, in the variable's units.
+    counts : sequence of float, optional
+        n counts (the mass of each bin, relative), or n + 1 with the last 0 (Dakota's form:
+        one count per abscissa, the last closing the last bin); >= 0 with a positive total,
+        normalised.
+    ordinates : sequence of float, optional
+        Instead of ``counts``: the density of each bin (relative, normalised; the mass of bin
+        i is ``ordinates[i] * width_i``), n or n + 1 values likewise, >= 0 with a positive
+        total.
 
     Examples
     --------

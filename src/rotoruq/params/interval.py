@@ -25,15 +25,17 @@ __all__ = ["Interval"]
 class Interval(_DerivedMoments):
     """Epistemic variable: intervals ``[(lo_1, hi_1), ...]`` with basic probability assignments.
 
-    Parameters
-    ----------
-    intervals : sequence of (lower, upper) pairs; they may overlap or nest. Stored as a tuple
-        of pairs.
-    bpa : sequence of weights (one per interval), each > 0, summing to 1 (within 1e-8).
-        Default: equal weights. Stored as a tuple.
-
     As a density (for sampling, u-space transforms, moments) the variable is the BPA-weighted
     mixture of uniform densities over the intervals.
+
+    Parameters
+    ----------
+    intervals : sequence of (float, float)
+        The (lower, upper) pairs, in the variable's units; they may overlap or nest. Stored
+        as a tuple of pairs.
+    bpa : sequence of float, optional
+        The basic probability assignment of each interval, each > 0, summing to 1 (within
+        1e-8). Default: equal weights. Stored as a tuple.
     """
 
     intervals: Sequence[Sequence[float]]

@@ -43,6 +43,15 @@ def nataf_correlation(
     Pairs of normals keep ``R_ij``. Raises :class:`~rotoruq.errors.ParameterError` when a
     requested correlation cannot be reached with these marginals. Shape (d, d).
 
+    Parameters
+    ----------
+    distributions : sequence of Distribution
+        The d marginals.
+    correlation : array_like of shape (d, d)
+        The x-space (Pearson) correlation matrix.
+    n_quad : int, optional
+        Gauss-Hermite points per axis of the quadrature (default 32).
+
     Examples
     --------
     Two uniforms: the x-space correlation rho and the normal-score one rho0 are related by
@@ -90,9 +99,14 @@ def nataf_correlation(
 class NatafModel:
     """A validated correlation and its Nataf factor.
 
-    correlation : (d, d) x-space correlation, or None when the parameters are independent.
-    nataf : (d, d) normal-score correlation R0, or None when independent.
-    cholesky : (d, d) lower factor L of R0 (L L^T = R0), or None when independent.
+    Attributes
+    ----------
+    correlation : ndarray of shape (d, d) or None
+        The x-space correlation, or None when the parameters are independent.
+    nataf : ndarray of shape (d, d) or None
+        The normal-score correlation R0, or None when independent.
+    cholesky : ndarray of shape (d, d) or None
+        The lower factor L of R0 (L L^T = R0), or None when independent.
     """
 
     correlation: np.ndarray | None
@@ -106,6 +120,13 @@ def nataf_model(distributions: Sequence[Distribution], correlation: Any) -> Nata
     ``correlation`` None or the identity gives an independent model (all fields None). Raises
     :class:`~rotoruq.errors.ParameterError` when the matrix is not (d, d), finite, symmetric,
     of unit diagonal, positive definite, or not reachable with the marginals.
+
+    Parameters
+    ----------
+    distributions : sequence of Distribution
+        The d marginals.
+    correlation : array_like of shape (d, d) or None
+        The x-space (Pearson) correlation matrix; None: independent.
 
     Examples
     --------

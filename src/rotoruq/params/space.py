@@ -36,15 +36,17 @@ DESIGNS = ("lhs", "random", "sobol", "halton")
 class ParameterSpace:
     """An ordered set of named uncertain parameters, independent or correlated.
 
+    Points are arrays of shape ``(n, d)`` with columns in the order of :attr:`names`.
+
     Parameters
     ----------
-    parameters : mapping name -> Distribution, or iterable of (name, Distribution)
-    correlation : array (d, d), optional
+    parameters : mapping of str to Distribution, or iterable of (str, Distribution)
+        The parameters, by name, in order (d of them, at least one; names unique).
+    correlation : array_like of shape (d, d), optional
         Correlation matrix of the parameters themselves (x-space, Pearson), symmetric, unit
         diagonal, positive definite. Sampling and the u-space transforms use the Nataf model
         (Gaussian copula) with the equivalent normal-score correlation :attr:`nataf`.
-
-    Points are arrays of shape ``(n, d)`` with columns in the order of :attr:`names`.
+        Default: independent.
     """
 
     parameters: Mapping[str, Distribution] | Iterable[tuple[str, Distribution]]
@@ -82,14 +84,17 @@ class ParameterSpace:
     # --- description -----------------------------------------------------------------------
     @property
     def names(self) -> tuple[str, ...]:
+        """The parameter names, in order (the columns of a point array)."""
         return tuple(n for n, _ in self._items)
 
     @property
     def distributions(self) -> tuple[Distribution, ...]:
+        """The parameter distributions, in the order of :attr:`names`."""
         return tuple(d for _, d in self._items)
 
     @property
     def dim(self) -> int:
+        """The number of parameters, d."""
         return len(self._items)
 
     def __len__(self) -> int:
@@ -104,6 +109,13 @@ class ParameterSpace:
             ) from None
 
     def index(self, name: str) -> int:
+        """The column of parameter ``name`` in a point array.
+
+        Parameters
+        ----------
+        name : str
+            A parameter name; another raises :class:`~rotoruq.ParameterError`.
+        """
         try:
             return self.names.index(name)
         except ValueError:
@@ -128,6 +140,7 @@ class ParameterSpace:
 
     @property
     def correlated(self) -> bool:
+        """Whether a correlation matrix was given (the parameters are then not independent)."""
         return self.correlation is not None
 
     @property
@@ -152,7 +165,13 @@ class ParameterSpace:
         return tuple(n for n, d in self._items if isinstance(d, Interval))
 
     def replace(self, **dists: Distribution) -> ParameterSpace:
-        """A new space with some distributions replaced (names must exist; correlation kept)."""
+        """A new space with some distributions replaced (names must exist; correlation kept).
+
+        Parameters
+        ----------
+        **dists : Distribution
+            The new distribution of each parameter to replace, by name.
+        """
         for name in dists:
             self.index(name)
         return ParameterSpace(
@@ -160,7 +179,13 @@ class ParameterSpace:
         )
 
     def subset(self, names_in: Iterable[str]) -> ParameterSpace:
-        """A new space with only these parameters (in this order; correlation kept)."""
+        """A new space with only these parameters (in this order; correlation kept).
+
+        Parameters
+        ----------
+        names_in : iterable of str
+            Names of the parameters to keep, in the order of the new space.
+        """
         names = list(names_in)
         corr = None
         if self.correlation is not None:
@@ -188,20 +213,46 @@ class ParameterSpace:
         )
 
     def from_unit(self, q: Any) -> np.ndarray:
-        """Map probabilities in (0, 1)^d (shape (n, d)) to parameter values by marginal ppf."""
+        """Map probabilities in (0, 1)^d to parameter values by marginal ppf, shape (n, d).
+
+        Parameters
+        ----------
+        q : array_like of shape (n, d) or (d,)
+            Marginal probabilities, one column per parameter.
+        """
         return self._marginals("ppf", q)
 
     def to_unit(self, x: Any) -> np.ndarray:
-        """Map parameter values to marginal CDF values in [0, 1]^d."""
+        """Map parameter values to marginal CDF values in [0, 1]^d, shape (n, d).
+
+        Parameters
+        ----------
+        x : array_like of shape (n, d) or (d,)
+            Points, in the parameters' units.
+        """
         return self._marginals("cdf", x)
 
     def to_z(self, x: Any) -> np.ndarray:
-        """Marginal normal scores z = Phi^-1(F_i(x_i)), shape (n, d) (correlated if the space
-        is). Exact in both tails (see :meth:`Distribution.to_z`), |z| <= 37.5."""
+        """Marginal normal scores z = Phi^-1(F_i(x_i)), shape (n, d).
+
+        The scores are correlated if the space is. Exact in both tails (see
+        :meth:`Distribution.to_z`), |z| <= 37.5.
+
+        Parameters
+        ----------
+        x : array_like of shape (n, d) or (d,)
+            Points, in the parameters' units.
+        """
         return self._marginals("to_z", x)
 
     def from_z(self, z: Any) -> np.ndarray:
-        """Inverse of :meth:`to_z`: ``x_i = F_i^-1(Phi(z_i))``, exact in both tails."""
+        """Inverse of :meth:`to_z`: ``x_i = F_i^-1(Phi(z_i))``, exact in both tails.
+
+        Parameters
+        ----------
+        z : array_like of shape (n, d) or (d,)
+            Marginal normal scores.
+        """
         return self._marginals("from_z", z)
 
     def to_u(self, x: Any) -> np.ndarray:
@@ -210,6 +261,11 @@ class ParameterSpace:
         Independent: u = Phi^-1(F(x)). Correlated: Nataf, u = L^-1 z with L L^T = R0.
         Both tails are exact to |u| = 37 (the upper tail goes through the survival function);
         beyond a finite support bound, u saturates at +-37.5.
+
+        Parameters
+        ----------
+        x : array_like of shape (n, d) or (d,)
+            Points, in the parameters' units.
         """
         z = self.to_z(x)
         if self._chol is None:
@@ -217,7 +273,13 @@ class ParameterSpace:
         return solve_triangular(self._chol, z.T, lower=True).T
 
     def from_u(self, u: Any) -> np.ndarray:
-        """Inverse of :meth:`to_u`."""
+        """Inverse of :meth:`to_u`: points in the parameters' units, shape (n, d).
+
+        Parameters
+        ----------
+        u : array_like of shape (n, d) or (d,)
+            Points in independent standard normal space.
+        """
         u = self._check(u)
         if self._chol is not None:
             u = u @ self._chol.T
@@ -227,6 +289,11 @@ class ParameterSpace:
         """Joint log density, shape (n,); -inf outside the support.
 
         Sum of the marginal log densities, plus the Gaussian-copula term when correlated.
+
+        Parameters
+        ----------
+        x : array_like of shape (n, d) or (d,)
+            Points, in the parameters' units.
         """
         x = self._check(x)
         out = np.zeros(x.shape[0])
@@ -242,7 +309,13 @@ class ParameterSpace:
         return np.where(np.isnan(out), -np.inf, out)
 
     def contains(self, x: Any) -> np.ndarray:
-        """Boolean mask (n,) of points inside the support bounds."""
+        """Boolean mask (n,) of points inside the support bounds.
+
+        Parameters
+        ----------
+        x : array_like of shape (n, d) or (d,)
+            Points, in the parameters' units.
+        """
         x = self._check(x)
         b = self.bounds
         return np.all((x >= b[:, 0]) & (x <= b[:, 1]), axis=1)
@@ -307,10 +380,15 @@ def unit_design(
 ) -> np.ndarray:
     """Points in (0, 1)^dim, shape (n_samples, dim), from the named design.
 
+    Raises :class:`~rotoruq.errors.ParameterError` for an unknown design or pairing, or
+    ``n_samples < 1``.
+
     Parameters
     ----------
-    n_samples : int >= 1
-    dim : int >= 1
+    n_samples : int
+        Number of points, >= 1.
+    dim : int
+        Number of dimensions, >= 1.
     design : one of :data:`DESIGNS`.
     pairing : one of :data:`PAIRINGS`, used by ``design="lhs"`` only. "restricted" (default,
         Dakota's LHS): the columns of the Latin hypercube are re-ordered by
@@ -323,9 +401,6 @@ def unit_design(
     correlation : (dim, dim) target correlation of the normal scores for a restricted LHS
         (e.g. a space's Nataf correlation :attr:`ParameterSpace.nataf`); ignored otherwise.
     seed : int, numpy Generator or None; the same seed gives the same points, bitwise.
-
-    Raises :class:`~rotoruq.errors.ParameterError` for an unknown design or pairing, or
-    ``n_samples < 1``.
 
     Examples
     --------

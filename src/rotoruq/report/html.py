@@ -299,20 +299,35 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
                  application: Application | None = None) -> Path:
     """Write the report of the given study output folders; returns ``index.html``.
 
-    title : page title (default: the application's when it gives one, else the studies'
-        names). Progress (a line per study and per figure batch) goes to the
-        ``rotoruq.report.html`` logger at INFO.
-    workers : processes that draw the figures (each figure is drawn once, as PNG and SVG). Default:
-        two when the machine has two or more cores and at least six steps have figures,
-        else one (this process). The page and every file are the same whatever the count.
+    The report only reads what the runs recorded (step results and ``study.json``, which
+    holds the model's properties and reference curves): it never builds or runs a model.
+    Progress (a line per study and per figure batch) goes to the ``rotoruq.report.html``
+    logger at INFO.
 
-    application : what an application built on rotoruq adds (see
+    Parameters
+    ----------
+    results_dirs : sequence of str or Path
+        Results folders written by ``rotoruq run`` (one per study), in the report's order.
+    report_dir : str or Path
+        The folder to write: ``index.html``, ``figures/`` (PNG and SVG) and ``tables/``
+        (created when missing).
+    title : str, optional
+        Page title (default: the application's when it gives one, else the studies' names).
+    workers : int, optional
+        Processes that draw the figures (each figure is drawn once, as PNG and SVG).
+        Default: two when the machine has two or more cores and at least six steps have
+        figures, else one (this process). The page and every file are the same whatever the
+        count.
+    application : Application, optional
+        What an application built on rotoruq adds (see
         :class:`rotoruq.report.application.Application`): for the studies it ``covers``, its
         title, verdict, sections, files and the numbers the figures draw beside the run's.
         None: the report of the run alone.
 
-    The report only reads what the runs recorded (step results and ``study.json``, which
-    holds the model's properties and reference curves): it never builds or runs a model.
+    Returns
+    -------
+    Path
+        The report's ``index.html``.
     """
     t_start = time.perf_counter()
     report_dir = Path(report_dir)

@@ -18,7 +18,18 @@ __all__ = ["LinearAirfoil"]
 class LinearAirfoil:
     """CL = cla * alpha + cl0, CD = cd0 + cda2 * alpha^2, CM = 0 (alpha in deg, no stall).
 
-    cla in 1/deg. Overrides ``cla``, ``cl0``, ``cd0`` take per-sample arrays of shape (n,).
+    Overrides ``cla``, ``cl0``, ``cd0`` take per-sample arrays of shape (n,).
+
+    Parameters
+    ----------
+    cla : float, optional
+        Lift slope, 1/deg (default 2 pi per radian, thin-airfoil theory).
+    cl0 : float, optional
+        Lift coefficient at zero angle of attack (default 0).
+    cd0 : float, optional
+        Drag coefficient at zero angle of attack (default 0.01).
+    cda2 : float, optional
+        Quadratic drag coefficient, 1/deg^2 (default 0).
     """
 
     cla: float = 2 * np.pi * np.pi / 180.0
@@ -29,6 +40,20 @@ class LinearAirfoil:
     parameter_names = ("cla", "cl0", "cd0")
 
     def coefficients(self, alpha_deg, mach, overrides=None):
+        """Lift, drag and moment coefficients ``(cl, cd, cm)``, each of the shape of
+        ``alpha_deg``.
+
+        Parameters
+        ----------
+        alpha_deg : array_like
+            Angle of attack, deg; any shape when ``overrides`` is None, else shape (n, ...)
+            with the sample axis first.
+        mach : array_like
+            Mach number (not used: the linear airfoil has no compressibility).
+        overrides : mapping of str to array_like, optional
+            Per-sample values of ``cla``, ``cl0`` or ``cd0`` (scalars or shape (n,)) in place
+            of the fields.
+        """
         a = np.asarray(alpha_deg, dtype=float)
         ov = overrides or {}
 

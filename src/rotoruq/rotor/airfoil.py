@@ -231,6 +231,7 @@ class Airfoil:
     Parameters
     ----------
     table : C81Table
+        The airfoil's tables (CL, CD, CM over angle of attack and Mach number).
     fit_machs : array_like of float, optional
         Mach rows whose CL and CD are replaced inside the window by the fits (they become the
         parameters ``cla_mXX``, ``cl0_mXX``, ``cda2_mXX``, ``cda_mXX``, ``cd0_mXX``). A Mach
@@ -239,14 +240,14 @@ class Airfoil:
     alpha_window : float
         Half-width W of the window |alpha| <= W (deg) where the fits replace the table; the
         fits are made over [-W, W] as well.
-    replace : ("cl", "cd") or ("cl",)
-        Which coefficients the fits replace. The thesis's Bo105 study rewrote CL only (its
-        parameters are CL slopes); the GVPM study rewrote CL and CD. With ("cl",) the drag
-        names ``cda2_mXX``, ``cda_mXX``, ``cd0_mXX`` are not parameters.
     fit_mode : bool
         True (default): rows at ``fit_machs`` are replaced by the fits (the nominal model is the
         rewritten table of the reference study). False: the raw table, MBDyn semantics, no
         parameters.
+    replace : ("cl", "cd") or ("cl",)
+        Which coefficients the fits replace. The thesis's Bo105 study rewrote CL only (its
+        parameters are CL slopes); the GVPM study rewrote CL and CD. With ("cl",) the drag
+        names ``cda2_mXX``, ``cda_mXX``, ``cd0_mXX`` are not parameters.
 
     Notes
     -----
@@ -304,7 +305,22 @@ class Airfoil:
     @classmethod
     def from_c81(cls, path_or_table, fit_machs=None, alpha_window: float = 10.0,
                  fit_mode: bool = True, replace: tuple[str, ...] = ("cl", "cd")) -> Airfoil:
-        """Airfoil from a C81 file path or a :class:`C81Table`."""
+        """Airfoil from a C81 file path or a :class:`C81Table`.
+
+        Parameters
+        ----------
+        path_or_table : str, PathLike or C81Table
+            The C81 file (fixed or free format) or a table read already.
+        fit_machs : array_like of float, optional
+            Mach rows replaced by the fits (default: the CL block's rows <= 0.6); see
+            :class:`Airfoil`.
+        alpha_window : float, optional
+            Half-width of the fit window, deg (default 10).
+        fit_mode : bool, optional
+            True (default): the fit rows are replaced by the fits; False: the raw table.
+        replace : tuple of str, optional
+            The coefficients the fits replace, ``("cl", "cd")`` (default) or ``("cl",)``.
+        """
         table = path_or_table if isinstance(path_or_table, C81Table) else read_c81(path_or_table)
         return cls(table, fit_machs=fit_machs, alpha_window=alpha_window, fit_mode=fit_mode,
                    replace=replace)
@@ -312,7 +328,22 @@ class Airfoil:
     @classmethod
     def bundled(cls, name: str, fit_machs=None, alpha_window: float = 10.0,
                 fit_mode: bool = True, replace: tuple[str, ...] = ("cl", "cd")) -> Airfoil:
-        """Airfoil from a table shipped with rotoruq: ``"naca0012"`` or ``"naca23012"``."""
+        """Airfoil from a table shipped with rotoruq: ``"naca0012"`` or ``"naca23012"``.
+
+        Parameters
+        ----------
+        name : str
+            ``"naca0012"`` or ``"naca23012"`` (a ``.c81`` suffix and the case are ignored).
+        fit_machs : array_like of float, optional
+            Mach rows replaced by the fits (default: the CL block's rows <= 0.6); see
+            :class:`Airfoil`.
+        alpha_window : float, optional
+            Half-width of the fit window, deg (default 10).
+        fit_mode : bool, optional
+            True (default): the fit rows are replaced by the fits; False: the raw table.
+        replace : tuple of str, optional
+            The coefficients the fits replace, ``("cl", "cd")`` (default) or ``("cl",)``.
+        """
         return cls(read_bundled(name), fit_machs=fit_machs, alpha_window=alpha_window,
                    fit_mode=fit_mode, replace=replace)
 
@@ -381,6 +412,7 @@ class Airfoil:
 
     @property
     def fit_mode(self) -> bool:
+        """Whether the fit rows are replaced by the fits (False: the raw table)."""
         return self._fit_mode
 
     @property
@@ -399,9 +431,16 @@ class Airfoil:
         return float(self._gm[0]), float(self._gm[-1])
 
     def stall_angles(self, mach):
-        """Positive and negative stall angles [deg] at ``mach`` (any shape): the angles of
-        the largest and smallest CL of the nominal airfoil within +-30 deg, linear in Mach
-        between the table's rows."""
+        """Positive and negative stall angles [deg] at ``mach``, each of its shape.
+
+        The angles of the largest and smallest CL of the nominal airfoil within +-30 deg,
+        linear in Mach between the table's rows.
+
+        Parameters
+        ----------
+        mach : array_like
+            Mach numbers (any shape).
+        """
         if not hasattr(self, "_stall"):
             ga = self._ga
             A, M = np.meshgrid(ga, self._gm, indexing="ij")
@@ -564,6 +603,14 @@ class Airfoil:
         (MBDyn semantics) sees the same CL as :meth:`coefficients`, and the same CD at the
         table's angles (between them a solver sees CD's quadratic as a polygon). An airfoil
         whose fits replace CL only (``replace=("cl",)``) keeps the table's CD block.
+
+        Parameters
+        ----------
+        overrides : dict of str to float, optional
+            Values of fit parameters (``cla_m03``, ... of :attr:`parameter_names`) in place of
+            the nominal fits; None: the nominal fits.
+        title : str, optional
+            The new table's title (default: the original table's).
         """
         if self._nominal is None:
             raise ParameterError("this Airfoil has no fit Mach rows (fit_mode=False or empty)")
@@ -608,6 +655,22 @@ def read_bundled(name: str) -> C81Table:
 def write_perturbed_c81(airfoil: Airfoil, overrides: dict[str, float] | None, path,
                         free_format: bool = False) -> Path:
     """Write ``airfoil.perturbed_table(overrides)`` as a C81 file (for external solvers).
+
+    Parameters
+    ----------
+    airfoil : Airfoil
+        The airfoil, with fit Mach rows.
+    overrides : dict of str to float or None
+        Values of its fit parameters (``cla_m03``, ...); None: the nominal fits.
+    path : str or PathLike
+        The file to write.
+    free_format : bool, optional
+        False (default): the fixed C81 format; True: MBDyn's free format, full precision.
+
+    Returns
+    -------
+    Path
+        The written file.
 
     Examples
     --------

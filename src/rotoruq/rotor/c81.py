@@ -163,12 +163,27 @@ class C81Block:
         ``alpha_deg`` and ``mach`` broadcast against each other; the result has the broadcast
         shape. Alpha is wrapped to [-180, 180), Mach taken in absolute value, bilinear inside
         the grid, clamped outside it.
+
+        Parameters
+        ----------
+        alpha_deg : array_like
+            Angles of attack, deg.
+        mach : array_like
+            Mach numbers.
         """
         a, m = np.broadcast_arrays(np.asarray(alpha_deg, float), np.asarray(mach, float))
         return self.interpolate_unwrapped(wrap_alpha(a), np.abs(m))
 
     def interpolate_unwrapped(self, alpha_deg, mach):
-        """Bilinear, clamped interpolation without wrapping alpha or taking |Mach|."""
+        """Bilinear, clamped interpolation without wrapping alpha or taking |Mach|.
+
+        Parameters
+        ----------
+        alpha_deg : array_like
+            Angles of attack, deg, within the table's range (not wrapped).
+        mach : array_like
+            Mach numbers (broadcast against ``alpha_deg``).
+        """
         a, m = np.broadcast_arrays(np.asarray(alpha_deg, float), np.asarray(mach, float))
         ia, t = Bracket(self.alpha).locate(a)
         im, s = Bracket(self.mach).locate(m)
@@ -182,7 +197,15 @@ class C81Block:
 
 @dataclass(frozen=True, eq=False)
 class C81Table:
-    """A C81 airfoil table: title and the CL, CD and CM blocks."""
+    """A C81 airfoil table: title and the CL, CD and CM blocks.
+
+    Parameters
+    ----------
+    title : str
+        The table's title (the first 30 characters of a C81 file's first line).
+    cl, cd, cm : C81Block
+        Lift, drag and pitching-moment coefficients over angle of attack and Mach number.
+    """
 
     title: str
     cl: C81Block
@@ -502,7 +525,9 @@ def write_c81(table: C81Table, path, free_format: bool = False) -> Path:
     Parameters
     ----------
     table : C81Table
+        The table to write.
     path : str or PathLike
+        The file to write (its folder must exist).
     free_format : bool
         False (default) writes the fixed format (7-character fields, values that do not fit
         are rounded to the most precise 7-character text, see :func:`format_field`; counts

@@ -77,7 +77,14 @@ class RotorDiscretization:
             raise ParameterError("refine at least one of azimuth steps and stations")
 
     def counts(self, level: int) -> tuple[int, int]:
-        """(n_stations, n_azimuth) at ``level``."""
+        """(n_stations, n_azimuth) at ``level``.
+
+        Parameters
+        ----------
+        level : int
+            Refinement level: 0 is the base grid, each level up multiplies the refined counts
+            by ``ratio``, each level down divides them (which must leave whole counts).
+        """
         if isinstance(level, bool) or int(level) != level:
             raise ParameterError(f"a rotor discretization level is an integer, got {level!r}")
         k = int(level)

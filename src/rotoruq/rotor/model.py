@@ -110,6 +110,13 @@ def load_airfoil(preset: RotorPreset) -> Airfoil:
 class RotorModel:
     """Hover rotor model following the Model protocol.
 
+    The solve is compiled (numba) and spreads large batches over numba's threads
+    (``numba.set_num_threads``); a row's result does not depend on the batch, its order or
+    the thread count, bitwise.
+
+    After ``evaluate``, ``last_solution`` holds the full :class:`HoverSolution`, one row per
+    input row (``failure`` gives each failed row's reason, "" for a valid row).
+
     Parameters
     ----------
     preset : str or RotorPreset
@@ -124,21 +131,20 @@ class RotorModel:
     airfoil : :class:`~rotoruq.rotor.airfoil.Airfoil` or
         :class:`~rotoruq.rotor.aero.LinearAirfoil`, optional
         Replaces the preset's airfoil table.
-    n_stations, n_azimuth, n_harmonics : discretization (Gauss stations per blade, azimuth
-        steps per revolution, harmonics of the blade motion).
-    tolerance, max_iterations : convergence of the periodic solution (max change of the blade
-        motion harmonics [rad] and of the inflow ratio between iterations), iterations per
-        sample.
-    check_tolerance : the equations re-evaluated at each returned state must leave a residual
-        below it (default max(1e-6, 100 tolerance); see
-        :func:`rotoruq.rotor.hover.solve_hover`).
-
-    The solve is compiled (numba) and spreads large batches over numba's threads
-    (``numba.set_num_threads``); a row's result does not depend on the batch, its order or
-    the thread count, bitwise.
-
-    After ``evaluate``, ``last_solution`` holds the full :class:`HoverSolution`, one row per
-    input row (``failure`` gives each failed row's reason, "" for a valid row).
+    n_stations : int, optional
+        Gauss stations per blade (default 10).
+    n_azimuth : int, optional
+        Azimuth steps per revolution (default 36).
+    n_harmonics : int, optional
+        Harmonics of the blade motion in the periodic solution (default 2).
+    tolerance : float, optional
+        Convergence of the periodic solution: the largest change of the blade-motion
+        harmonics [rad] and of the inflow ratio between iterations (default 1e-8).
+    max_iterations : int, optional
+        Iterations per sample before the point fails as not converged (default 200).
+    check_tolerance : float, optional
+        The equations re-evaluated at each returned state must leave a residual below it
+        (default max(1e-6, 100 tolerance); see :func:`rotoruq.rotor.hover.solve_hover`).
     """
 
     def __init__(
@@ -235,7 +241,19 @@ class RotorModel:
         return self.evaluate(x).values
 
     def evaluate(self, x: npt.ArrayLike) -> EvalBatch:
-        """Evaluate a batch x of shape (n, len(names_in)); failed rows are NaN with a reason."""
+        """Evaluate a batch; failed rows are NaN with a reason.
+
+        Parameters
+        ----------
+        x : array_like of shape (n, len(names_in)) or (len(names_in),)
+            Points, columns in ``names_in`` order (angles in deg, SI otherwise).
+
+        Returns
+        -------
+        EvalBatch
+            ``values`` (n, len(names_out)) in the units of :data:`RESPONSES`, and the
+            reason of each failed row.
+        """
         x = np.atleast_2d(np.asarray(x, dtype=float))
         if x.ndim != 2 or x.shape[1] != len(self.names_in):
             raise ParameterError(
@@ -290,7 +308,14 @@ class RotorModel:
         return EvalBatch(out, failures)
 
     def solve(self, x: npt.ArrayLike) -> HoverSolution:
-        """Full hover solution (loads, coning, pitch, inflow, harmonics) of a valid batch."""
+        """Full hover solution (loads, coning, pitch, inflow, harmonics) of a valid batch.
+
+        Parameters
+        ----------
+        x : array_like of shape (n, len(names_in)) or (len(names_in),)
+            Points, columns in ``names_in`` order; a point that fails raises
+            :class:`~rotoruq.ParameterError`.
+        """
         batch = self.evaluate(x)
         if batch.failures:
             raise ParameterError(f"invalid points: {batch.failures}")

@@ -21,6 +21,90 @@ class RotorPreset:
 
     Lengths in m, angles in deg, stiffnesses in N m/rad (hinges), N/m (pitch link),
     N m^2 (EI), masses in kg, inertias in kg m^2 about the hinge/feathering axis.
+    :func:`get_preset` and the rotor model's inputs (:data:`ROTOR_INPUTS`) use the field
+    names; ``replace(**changes)`` gives a preset with some fields changed.
+
+    Parameters
+    ----------
+    name : str
+        The rotor's name.
+    n_blades : int
+        Number of blades.
+    radius : float
+        Rotor radius R, m.
+    root_cutout : float
+        Start of the aerodynamic span r_root, m from the hub centre (where the collective and
+        the twist are applied).
+    hinge_offset : float
+        Flap/lag hinge (or equivalent hinge) radius e, m.
+    chord : float
+        Blade chord, m.
+    twist_deg : float
+        Total linear twist from r_root (0) to R, deg.
+    airfoil : str
+        A bundled airfoil name (``"naca0012"``, ``"naca23012"``) or the path of a c81 file.
+    blade_mass_per_length : float
+        Blade mass per unit length m' over [e, R], kg/m.
+    pitch_inertia : float
+        Blade inertia I_p about the feathering axis, kg m^2.
+    airfoil_fit_machs : tuple of float, optional
+        Mach rows whose CL/CD fits are uncertain parameters (``cla_m03``...); default none.
+    airfoil_replace : tuple of str, optional
+        The coefficients the fits replace, ``("cl", "cd")`` (default) or ``("cl",)`` (the
+        thesis's Bo105).
+    flap_model : str, optional
+        ``"hinge"`` (rigid blade on a spring ``k_flap``, default) or ``"elastic"`` (an
+        equivalent first flap mode from ``ei_flap``).
+    k_flap : float, optional
+        Flap hinge spring, N m/rad (default 0).
+    c_flap : float, optional
+        Flap hinge damper, N m s/rad (default 0).
+    ei_flap : float, optional
+        Flapwise bending stiffness EI_y, N m^2 (``flap_model="elastic"``; default NaN).
+    k_lag : float, optional
+        Lag hinge spring, N m/rad (default 0).
+    c_lag : float, optional
+        Lag hinge damper, N m s/rad (default 0).
+    k_pitch_link : float, optional
+        Pitch-link stiffness K_p, N (an axial stiffness EA: the link's law is per unit
+        strain, :meth:`feathering_stiffness`); default 1e9, rigid.
+    c_pitch_link : float, optional
+        Pitch-link damping, N s (per unit strain rate, like ``k_pitch_link``); default 0.
+    pitch_horn_arm : float, optional
+        Pitch-horn arm l_h, m (default 0.1).
+    pitch_link_length : float, optional
+        Pitch-link length l0, m (default 0.2).
+    delta3_deg : float, optional
+        Kinematic pitch-flap coupling angle, deg: dtheta = -tan(delta3) beta (default 0).
+    aero_center_offset : float, optional
+        Aerodynamic centre aft of the feathering axis, m (negative: ahead); default 0.
+    pitching_moment : bool, optional
+        Whether the airfoil's CM acts about the feathering axis (default True).
+    cm0 : float, optional
+        Section pitching moment coefficient added to the table's CM (default 0).
+    omega : float, optional
+        Rotor speed, rad/s (default 1).
+    rho : float, optional
+        Air density, kg/m^3 (default 1.225).
+    speed_of_sound : float, optional
+        m/s (default 340.3).
+    collective_deg, lateral_deg, longitudinal_deg : float, optional
+        Collective and cyclic pitch commands, deg (default 0).
+    height_over_radius : float, optional
+        Hub height over the ground divided by R (default inf: out of ground effect).
+    inflow : str, optional
+        ``"uniform"`` (momentum, default) or ``"bemt"`` (blade-element momentum per station).
+    harmonic_inflow : bool, optional
+        Add the steady Pitt-Peters first-harmonic inflow (default True).
+    ground_effect : str, optional
+        The ground-effect model: ``"cheeseman_bennett"`` (default), ``"hayden"``,
+        ``"fradenburgh"`` or ``"none"``.
+    tip_loss : bool, optional
+        Prandtl tip and root loss (default False).
+    induced_power_factor : float, optional
+        kappa_i on the uniform induced velocity (default 1).
+    notes : str, optional
+        Where the numbers come from, in words (not part of the preset's identity).
     """
 
     name: str
@@ -67,6 +151,14 @@ class RotorPreset:
     notes: str = field(default="", compare=False)
 
     def replace(self, **changes) -> RotorPreset:
+        """A copy with some fields changed.
+
+        Parameters
+        ----------
+        **changes
+            New values, by field name; an unknown name raises
+            :class:`~rotoruq.ParameterError`.
+        """
         valid = {f.name for f in fields(self)}
         bad = sorted(set(changes) - valid)
         if bad:
@@ -79,15 +171,22 @@ class RotorPreset:
         The reference study's multibody pitch link is a rod whose constitutive law is written
         per unit strain, so ``k_pitch_link`` [N] acts as an axial stiffness EA and the link's
         spring rate is K_p / l0; at the pitch-horn arm l_h it gives k_theta = (K_p / l0) l_h^2.
+
+        Parameters
+        ----------
+        k_pitch_link : float or ndarray
+            Pitch-link stiffness K_p [N] (or damping [N s]).
         """
         return k_pitch_link / self.pitch_link_length * self.pitch_horn_arm**2
 
     @property
     def area(self) -> float:
+        """Rotor disk area pi R^2, m^2."""
         return math.pi * self.radius**2
 
     @property
     def solidity(self) -> float:
+        """Rotor solidity N c / (pi R)."""
         return self.n_blades * self.chord / (math.pi * self.radius)
 
 
@@ -101,6 +200,7 @@ def bo105(**overrides) -> RotorPreset:
     inflow, collective 6 deg, longitudinal -2 deg.
 
     Chosen:
+
     - twist: linear, -8 deg from the blade root (r = R - b, where the collective is applied)
       to the tip, the published Bo105 blade twist. The thesis prints -6.2 deg per metre, which
       gives negative thrust at every collective from 4 to 10 deg (in MBDyn and in plain BEMT).
@@ -115,6 +215,11 @@ def bo105(**overrides) -> RotorPreset:
     - pitch link: length l0 = L_p = 0.2 m (table 3.1), horn arm 0.24 m (10 x the GVPM's, the
       GVPM being a 1:10 model); with K_p = 1e9 N the link is rigid whatever the arm.
     - speed of sound 340.3 m/s, rho 1.225 kg/m^3 (sea level).
+
+    Parameters
+    ----------
+    **overrides
+        Fields of :class:`RotorPreset` to change (``bo105(omega=40.0)``).
     """
     R, e = 4.912, 0.746
     m_per_l = 3.0 * 140.001 / (R**3 - e**3)
@@ -157,10 +262,13 @@ _GVPM_I_P = (0.025 / 0.425) * 0.425 * (0.25 * 0.042) ** 2
 # the GVPM fuselage is a 1:10 Bo105) and a horn arm of 24 mm (0.57 chord, chosen). With the
 # per-unit-strain law the feathering stiffness is (K_p / l0) l_h^2 = 0.432 N m/rad at
 # K_p = 15, about three times the propeller moment I_p Omega^2 = 0.139 N m/rad.
+#: GVPM pitch-link length [m] (chosen: 1:10 of the Bo105's 0.2 m).
 GVPM_PITCH_LINK_LENGTH = 0.02
+#: GVPM pitch-horn arm [m] (chosen: 0.57 chord).
 GVPM_PITCH_HORN_ARM = 0.024
 
-# Rotor speed of the GVPM experiment: v_tip = 108.9 m/s at H = 4R (thesis section 4.2.1).
+#: Rotor speed of the GVPM experiment [rad/s]: v_tip = 108.9 m/s at H = 4R (thesis section
+#: 4.2.1).
 GVPM_OMEGA = 108.9 / 0.485
 
 
@@ -175,6 +283,7 @@ def gvpm(**overrides) -> RotorPreset:
     -1 deg (the sensitivity study's operating point).
 
     Chosen (the thesis does not give them):
+
     - blade mass 25 g (carbon-fibre blade), i.e. 0.0588 kg/m uniform from the hub radius.
     - feathering inertia I_p = m' L (0.25 c)^2 (chordwise radius of gyration a quarter chord).
     - elastic flap: an equivalent hinge at the hub radius with the spring that gives the
@@ -201,6 +310,11 @@ def gvpm(**overrides) -> RotorPreset:
       that the thesis used has CM = 0 for |alpha| <= 10 deg, while the bundled low-Re table's
       CM there is non-monotonic (-0.03..0.03, NeuralFoil confidence 0.83 at Re 5e4); ``cm0``
       adds a constant section moment (an uncertain input).
+
+    Parameters
+    ----------
+    **overrides
+        Fields of :class:`RotorPreset` to change (``gvpm(omega=230.0)``).
     """
     m_per_l = 0.025 / 0.425
     p = RotorPreset(
@@ -240,6 +354,7 @@ def gvpm(**overrides) -> RotorPreset:
     return p.replace(**overrides) if overrides else p
 
 
+#: The bundled rotors by name: each value makes a :class:`RotorPreset` (``gvpm(omega=230)``).
 PRESETS = {"bo105": bo105, "gvpm": gvpm}
 
 

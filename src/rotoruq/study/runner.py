@@ -66,7 +66,23 @@ ModelFactory = Callable[..., Any]
 @dataclass(frozen=True, eq=False)
 class StudyRun:
     """Outcome of :func:`run_study`: the results by step name, the output directory and which
-    steps were reused from a previous run."""
+    steps were reused from a previous run. ``run["NAME"]`` is the result of step NAME.
+
+    Attributes
+    ----------
+    study : Study
+        The study that ran.
+    out : Path
+        The output directory (each step's results in a folder of its own).
+    results : mapping of str to StepResult
+        Step name -> its result, in the study's order.
+    reused : tuple of str
+        Steps whose saved result was reused (nothing they depend on changed).
+    seconds : mapping of str to float
+        Step name -> wall seconds it took in this run.
+    skipped : tuple of str
+        Steps neither named by ``only`` nor needed by one it names, without a saved result.
+    """
 
     study: Study
     out: Path
@@ -471,6 +487,8 @@ def run_study(
         (whatever their fingerprint), else skipped (:attr:`StudyRun.skipped`). A step one of
         them takes from must be saved or named too.
 
+    Notes
+    -----
     Progress (a line per step, a status line every ``steps.STATUS_INTERVAL`` s while a step
     runs) goes to the ``rotoruq.study`` loggers at INFO; the CLI shows it on stderr.
     """
@@ -722,6 +740,19 @@ def why_rerun(out: str | Path, model_factory: ModelFactory | None = None
     resolve), ``--quick`` from ``study.json``; each step's identity (:data:`IDENTITY_PARTS`)
     is computed as a run would, from the saved results of the steps before it, and compared
     part by part with the one its result recorded. A code part names the changed files.
+
+    Parameters
+    ----------
+    out : str or Path
+        A results folder written by ``rotoruq run`` (or :func:`run_study`).
+    model_factory : callable, optional
+        The ``model_factory`` the run was made with (a Python model replacing the study's
+        ``[model]``), so that its identity is compared too.
+
+    Returns
+    -------
+    dict of str to list of str
+        Step name -> the reasons it would run again (empty: reused).
 
     Examples
     --------

@@ -174,7 +174,18 @@ class ModelInputs:
 
 
 def load_study(path: str | Path) -> Study:
-    """Read and validate a study file. Raises :class:`InputFileError` (file, line, expected)."""
+    """Read and validate a study file. Raises :class:`InputFileError` (file, line, expected).
+
+    Parameters
+    ----------
+    path : str or Path
+        The study file (TOML, UTF-8).
+
+    Returns
+    -------
+    Study
+        The validated study.
+    """
     path = Path(path)
     try:
         raw = path.read_bytes()

@@ -201,9 +201,34 @@ class StepSpec:
 
 @dataclass(frozen=True, eq=False)
 class Study:
-    """A validated study. ``parameters`` is ordered as in the file; ``models`` holds the
-    named ``[models.NAME]`` tables (the low-fidelity models of a ``multifidelity`` step);
-    ``correlation`` the ``[correlation]`` table (None: independent parameters)."""
+    """A validated study (:func:`~rotoruq.load_study` reads one from its file).
+
+    Attributes
+    ----------
+    path : Path
+        The study file (relative paths in it are relative to its folder).
+    info : StudyInfo
+        The ``[study]`` table: name, seed, output folder, description, reference.
+    model : ModelSpec
+        The ``[model]`` table: a preset of the built-in rotor or an external command.
+    parameters : tuple of ParameterSpec
+        The ``[parameters.NAME]`` tables, ordered as in the file.
+    data : mapping of str to DataSet
+        The ``[data.NAME]`` tables: measured responses by configuration.
+    executor : ExecutorSpec
+        The ``[executor]`` table: serial, processes or dask.
+    store : StoreSpec
+        The ``[store]`` table: the evaluation store's file.
+    steps : tuple of StepSpec
+        The ``[[steps]]``, in order.
+    text : str
+        The file's text (copied into the results folder).
+    models : mapping of str to ModelSpec
+        The named ``[models.NAME]`` tables (the low-fidelity models of a ``multifidelity``
+        step, the cheaper models of a co-kriging emulator).
+    correlation : CorrelationSpec or None
+        The ``[correlation]`` table (None: independent parameters).
+    """
 
     path: Path
     info: StudyInfo
@@ -219,6 +244,7 @@ class Study:
 
     @property
     def parameter_names(self) -> tuple[str, ...]:
+        """The parameters' names, in the file's order."""
         return tuple(p.name for p in self.parameters)
 
     @property
@@ -227,21 +253,40 @@ class Study:
         return {p.name: p.input for p in self.parameters if p.input}
 
     def parameter(self, name: str) -> ParameterSpec:
+        """The parameter ``name``'s table.
+
+        Parameters
+        ----------
+        name : str
+            A parameter name; another raises :class:`~rotoruq.ParameterError`.
+        """
         for p in self.parameters:
             if p.name == name:
                 return p
         raise ParameterError(f"study {self.info.name!r} has no parameter {name!r}")
 
     def space(self, names_in: Sequence[str] | None = None) -> ParameterSpace:
-        """ParameterSpace of the named parameters (all when None), in the given order, with
-        their ``[correlation]``."""
+        """ParameterSpace of the named parameters, in the given order, with their
+        ``[correlation]``.
+
+        Parameters
+        ----------
+        names_in : sequence of str, optional
+            The parameters to include (default: all, in the file's order).
+        """
         names = self.parameter_names if names_in is None else tuple(names_in)
         corr = None if self.correlation is None else self.correlation.matrix_for(names)
         return ParameterSpace([(n, self.parameter(n).distribution) for n in names],
                               correlation=corr)
 
     def model_spec(self, name: str | None = None) -> ModelSpec:
-        """``[model]`` (``name`` None) or the named ``[models.NAME]``."""
+        """``[model]`` (``name`` None) or the named ``[models.NAME]``.
+
+        Parameters
+        ----------
+        name : str, optional
+            A name of :attr:`models` (default None: ``[model]``).
+        """
         if name is None:
             return self.model
         try:
@@ -251,6 +296,13 @@ class Study:
                                  f"models: {', '.join(self.models) or 'none'})") from None
 
     def step(self, name: str) -> StepSpec:
+        """The step ``name``'s table.
+
+        Parameters
+        ----------
+        name : str
+            A step name; another raises :class:`~rotoruq.ParameterError`.
+        """
         for s in self.steps:
             if s.name == name:
                 return s

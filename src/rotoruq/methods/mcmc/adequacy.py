@@ -39,10 +39,15 @@ N_CHECK_DRAWS = 400
 class RefineConfig:
     """Adaptive refinement of an emulator over the posterior.
 
-    n_samples : the most model runs added in all (the run budget). target_ratio : stop when
-    every response's ``posterior_ratio`` is below this (default 0.1, the emulator's error a
-    tenth of the noise). batch : runs added per round (each round refits the GP and reruns
-    the chains).
+    Parameters
+    ----------
+    n_samples : int, optional
+        The most model runs added in all, the run budget (default 40).
+    target_ratio : float, optional
+        Stop when every response's ``posterior_ratio`` is below this (default 0.1: the
+        emulator's error a tenth of the noise).
+    batch : int, optional
+        Runs added per round (default 5; each round refits the GP and reruns the chains).
     """
 
     n_samples: int = 40
@@ -62,12 +67,22 @@ class RefineConfig:
 class EmulatorAdequacy:
     """The emulator's error against the data noise, per response.
 
-    names_out : responses. noise_std : (m,) noise std of the experiments' mean (data units).
-    loo_ratio : (m,) leave-one-out RMSE / noise_std (over the final build design).
-    posterior_ratio : (m,) RMS Kriging std over posterior draws / noise_std (final chains).
-    runs_added : model runs added by each refinement round (empty without refinement).
-    posterior_ratio_per_round : (rounds + 1, m) posterior_ratio before each round and at the
-    end. target_ratio : refinement target (None without refinement).
+    Attributes
+    ----------
+    names_out : tuple of str
+        The m calibrated responses.
+    noise_std : ndarray of shape (m,)
+        Noise std of the experiments' mean, data units.
+    loo_ratio : ndarray of shape (m,)
+        Leave-one-out RMSE over ``noise_std`` (over the final build design).
+    posterior_ratio : ndarray of shape (m,)
+        RMS Kriging std over posterior draws, over ``noise_std`` (final chains).
+    runs_added : tuple of int
+        Model runs added by each refinement round (empty without refinement).
+    posterior_ratio_per_round : ndarray of shape (rounds + 1, m) or None
+        ``posterior_ratio`` before each round and at the end.
+    target_ratio : float or None
+        The refinement target (None without refinement).
     """
 
     names_out: tuple[str, ...]

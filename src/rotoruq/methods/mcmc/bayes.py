@@ -224,49 +224,102 @@ class _Posterior:
 
 @dataclass(frozen=True, eq=False)
 class BayesResult:
-    """Posterior samples and their summary.
+    """Posterior samples and their summary (the result of :func:`calibrate_bayes`).
 
-    chains : (n_chains, n_samples, d) kept samples (after burn-in and thinning), parameter
-        units. names_in : parameter names (columns of ``chains``).
-    mean, std, skewness, kurtosis (excess, 0 for a normal), ess, rhat : (d,) each.
-    correlation : (d, d). credible_interval_95 : (d, 2) equal-tailed 2.5 % / 97.5 % quantiles.
-    acceptance_rate : fraction of steps that moved. acceptance_per_stage : (stage 1, stage 2)
-        acceptance of each delayed-rejection stage among the proposals made at that stage.
-    kl_divergence : KL(posterior || prior) in nats, posterior entropy by the Kozachenko-Leonenko
-        kNN estimator; kl_divergence_gaussian : the same with a Gaussian posterior entropy.
-    map_point : (d,) chain start from the MAP pre-solve. proposal_covariance : (d, d) initial
-        stage-1 proposal covariance, parameter units. sampler : the MCMC algorithm.
-    n_likelihood_evaluations : likelihood evaluations (points) by the chains, speculative ones
-        included (see :class:`SamplerConfig` ``evaluations``); n_evaluations : true
-        model evaluations (emulator build, MAP and gradients without emulator, predictive).
-    n_nan_likelihood : proposals rejected because the likelihood was NaN/inf (failed model).
-    n_out_of_support : proposals rejected outside the prior support (not evaluated).
-    sampling_seconds, sampling_cpu_seconds : wall and CPU time of the chains (the CPU time is
-        what the chains cost on a machine shared with other jobs).
-    emulator, emulator_loo : the fitted GP or CoKriging and its leave-one-out quality (None
-        without one; a CoKriging's at its high-fidelity runs, :meth:`CoKriging.loo`).
-    n_low_fidelity_evaluations : with a CoKriging emulator, runs of each low-fidelity model
-        (cheapest first; build and refinement); ``n_evaluations`` counts the calibrated
-        (high-fidelity) model's runs only.
-    emulator_adequacy : the emulator's error against the noise over the build design and the
-        posterior, and the runs added by refinement (:class:`EmulatorAdequacy`).
-    noise_multiplier_names, noise_multiplier_chains : with ``noise_multipliers``, the
-        multipliers of the noise variance and their chains (n_chains, n_samples, k); their
-        moments by :meth:`noise_multiplier_summary`. The parameters' fields (``chains``,
-        ``mean``, ...) hold the model parameters only; ``kl_divergence`` covers both.
-    diagnostics : convergence diagnostics of the parameters' chains to arviz's standard
+    The parameters' fields (``chains``, ``mean``, ...) hold the model parameters only; the
+    noise multipliers, when calibrated, have fields of their own; ``kl_divergence`` covers
+    both.
+
+    Attributes
+    ----------
+    names_in : tuple of str
+        The d parameter names (columns of ``chains``).
+    chains : ndarray of shape (n_chains, n_samples, d)
+        Kept samples (after burn-in and thinning), parameter units.
+    log_posterior : ndarray of shape (n_chains, n_samples)
+        Log posterior density (up to a constant) of each kept sample.
+    mean, std : ndarray of shape (d,)
+        Posterior mean and standard deviation, parameter units.
+    skewness, kurtosis : ndarray of shape (d,)
+        Posterior skewness and excess kurtosis (0 for a normal).
+    correlation : ndarray of shape (d, d)
+        Posterior correlation matrix.
+    credible_interval_95 : ndarray of shape (d, 2)
+        Equal-tailed 2.5 % / 97.5 % quantiles.
+    ess : ndarray of shape (d,)
+        Bulk effective sample size (rank-normalised, arviz's standard).
+    rhat : ndarray of shape (d,)
+        The larger of the rank-normalised split R-hat and its folded form.
+    acceptance_rate : float
+        Fraction of steps that moved.
+    acceptance_per_stage : tuple of float
+        (stage 1, stage 2) acceptance of each delayed-rejection stage among the proposals
+        made at that stage.
+    kl_divergence : float
+        KL(posterior || prior) in nats, posterior entropy by the Kozachenko-Leonenko kNN
+        estimator.
+    kl_divergence_gaussian : float
+        The same with a Gaussian posterior entropy.
+    map_point : ndarray of shape (d,)
+        Chain start from the MAP pre-solve, parameter units.
+    proposal_covariance : ndarray of shape (d, d)
+        Initial stage-1 proposal covariance, parameter units.
+    sampler : str
+        The MCMC algorithm (``"dram"``, ``"am"``, ``"dr"``, ``"mh"``).
+    burn_in : int
+        Steps dropped at the start of each chain.
+    thin : int
+        Every ``thin``-th step was kept after the burn-in.
+    n_likelihood_evaluations : int
+        Likelihood evaluations (points) by the chains, speculative ones included (see
+        :class:`SamplerConfig` ``evaluations``).
+    n_evaluations : int
+        True model evaluations (emulator build, MAP and gradients without emulator,
+        predictive); with a CoKriging emulator, the calibrated (high-fidelity) model's runs
+        only.
+    n_nan_likelihood : int
+        Proposals rejected because the likelihood was NaN/inf (failed model).
+    n_out_of_support : int
+        Proposals rejected outside the prior support (not evaluated).
+    sampling_seconds : float
+        Wall time of the chains, s.
+    emulator : GaussianProcess, CoKriging or None
+        The fitted emulator (None without one).
+    sampling_cpu_seconds : float
+        CPU time of the chains, s (what the chains cost on a machine shared with other
+        jobs).
+    emulator_loo : LeaveOneOut or None
+        The emulator's leave-one-out quality (a CoKriging's at its high-fidelity runs,
+        :meth:`CoKriging.loo`); None without an emulator.
+    predictive_inputs : ndarray of shape (k, d) or None
+        Posterior draws pushed through the true model (None unless
+        ``posterior_predictive`` > 0).
+    predictive : ndarray of shape (k, m) or None
+        The true model's responses at ``predictive_inputs``.
+    names_out : tuple of str
+        The model's responses (columns of ``predictive``).
+    emulator_adequacy : EmulatorAdequacy or None
+        The emulator's error against the noise over the build design and the posterior, and
+        the runs added by refinement.
+    noise_multiplier_names : tuple of str
+        With ``noise_multipliers``, the k multipliers of the noise variance.
+    noise_multiplier_chains : ndarray of shape (n_chains, n_samples, k) or None
+        Their chains; their moments by :meth:`noise_multiplier_summary`.
+    diagnostics : ChainDiagnostics or None
+        Convergence diagnostics of the parameters' chains to arviz's standard
         (rank-normalised split R-hat and its folded form, bulk and tail ESS, MCSE of the mean
-        and of the 5 % / 95 % quantiles in parameter units; ``ess`` is the bulk ESS and
-        ``rhat`` the larger of the bulk and folded R-hat).
-    evaluations : the chains' evaluation schedule, "speculative" or "minimal" (chosen
-        automatically for a model slower than :data:`SLOW_EVALUATION` s a point when the
-        sampler is given by name; the chains are the same, only the model runs differ).
-    self_check : with ``self_check=N``, the simulation-based calibration of this setup
+        and of the 5 % / 95 % quantiles in parameter units).
+    self_check : SBCResult or None
+        With ``self_check=N``, the simulation-based calibration of this setup
         (:class:`~rotoruq.methods.mcmc.sbc.SBCResult`): does the method recover parameters
         drawn from the prior from data simulated with the stated noise?
-    predictive_inputs, predictive : posterior predictive draws pushed through the true model,
-        (k, d) and (k, m) (None unless ``posterior_predictive`` > 0); names_out : the model's
-        responses (columns of ``predictive``).
+    evaluations : str
+        The chains' evaluation schedule, ``"speculative"`` or ``"minimal"`` (chosen
+        automatically for a model slower than :data:`SLOW_EVALUATION` s a point when the
+        sampler is given by name; the chains are the same, only the model runs differ).
+    n_low_fidelity_evaluations : tuple of int
+        With a CoKriging emulator, runs of each low-fidelity model (cheapest first; build
+        and refinement).
     """
 
     names_in: tuple[str, ...]
@@ -320,6 +373,16 @@ class BayesResult:
         ``sample_stats/lp``), any other suffix as the documented npz of
         :func:`rotoruq.methods.mcmc.export.write_chains`.
 
+        Parameters
+        ----------
+        path : str or Path
+            The file to write.
+
+        Returns
+        -------
+        Path
+            The written file.
+
         Examples
         --------
         >>> import arviz as az                                  # doctest: +SKIP
@@ -332,7 +395,13 @@ class BayesResult:
 
     def noise_multiplier_summary(self, level: float = 0.95) -> dict[str, tuple[float, ...]]:
         """Posterior mean, std and equal-tailed ``level`` interval of each noise variance
-        multiplier: name -> (mean, std, lower, upper)."""
+        multiplier: name -> (mean, std, lower, upper).
+
+        Parameters
+        ----------
+        level : float, optional
+            Probability content of the interval, in (0, 1) (default 0.95).
+        """
         if self.noise_multiplier_chains is None:
             raise ParameterError("no noise multipliers were calibrated (noise_multipliers=)")
         flat = self.noise_multiplier_chains.reshape(-1, len(self.noise_multiplier_names))
@@ -343,10 +412,17 @@ class BayesResult:
 
     @property
     def ess_per_second(self) -> np.ndarray:
+        """Effective samples per second of sampling (wall time), shape (d,)."""
         return self.ess / max(self.sampling_seconds, 1e-12)
 
     def credible_interval(self, level: float = 0.95) -> np.ndarray:
-        """Equal-tailed credible interval (d, 2) at ``level``."""
+        """Equal-tailed credible interval (d, 2) at ``level``, parameter units.
+
+        Parameters
+        ----------
+        level : float, optional
+            Probability content, in (0, 1) (default 0.95).
+        """
         if not 0 < level < 1:
             raise ParameterError(f"level must be in (0, 1), got {level}")
         a = 0.5 * (1.0 - level)
@@ -370,7 +446,18 @@ class BayesResult:
     def save(self, path: str | Path) -> Path:
         """Write the chains: ``*.csv`` as a table (chain, step, parameters, log posterior),
         anything else as a NumPy ``.npz`` archive with the chains and the summary arrays (and
-        the noise multipliers' chains and the emulator's adequacy when there are any)."""
+        the noise multipliers' chains and the emulator's adequacy when there are any).
+
+        Parameters
+        ----------
+        path : str or Path
+            The file to write (a suffix other than ``.csv`` and ``.npz`` becomes ``.npz``).
+
+        Returns
+        -------
+        Path
+            The written file.
+        """
         path = Path(path)
         if path.suffix.lower() == ".csv":
             c, n, d = self.chains.shape
@@ -982,6 +1069,10 @@ def calibrate_bayes(
         accepted for one release with a ``DeprecationWarning`` naming the record field that
         replaces each; they override that field of the record given.
 
+    Returns
+    -------
+    BayesResult
+
     Examples
     --------
     >>> import numpy as np
@@ -994,10 +1085,6 @@ def calibrate_bayes(
     ...                           chains=ChainOptions(n_samples=400, n_chains=2), seed=1)
     >>> post.chains.shape
     (2, 400, 1)
-
-    Returns
-    -------
-    BayesResult
     """
     t_start = time.perf_counter()
     flat = legacy_keywords("calibrate_bayes", legacy, LEGACY_KEYWORDS)
@@ -1198,7 +1285,26 @@ def _warning_class(name: str) -> type[Warning]:
 def continue_chain(result: BayesResult, n_samples: int, *, seed: SeedLike = None) -> BayesResult:
     """Keep ``n_samples`` more steps per chain from the final state of ``result`` (same
     proposal and adaptation history, same thinning, no burn-in) and return the combined
-    result."""
+    result.
+
+    Without ``seed`` the chains go on bit for bit as one longer run would have.
+
+    Parameters
+    ----------
+    result : BayesResult
+        A result of :func:`calibrate_bayes` (or of this function): it carries the sampler's
+        state.
+    n_samples : int
+        Kept steps to add to each chain (thinned like the original).
+    seed : int, SeedSequence, Generator or None, optional
+        A new random source for the continued chains (default: the chains' own generator,
+        continued).
+
+    Returns
+    -------
+    BayesResult
+        The original and the new samples together, summarised again.
+    """
     if result._state is None:
         raise ParameterError("this BayesResult carries no sampler state to continue from")
     post, state, cfg = result._state

@@ -270,14 +270,32 @@ class _Posterior:
 class DiscrepancyPrediction:
     """Posterior predictions at configurations, with and without the discrepancy.
 
-    configurations : (n_conditions,) values of ``configuration_name``. names_out : the
-    responses (last axis). model_draws : (n_draws, n_conditions, n_responses)
-    ``eta(x, theta)``; discrepancy_draws : ``delta(x)`` drawn from its conditional Gaussian
-    given the residuals; noise_draws : ``eps``. The predictions are sums of these:
-    ``with_discrepancy = eta + delta + eps`` (a new observation), ``without_discrepancy = eta
-    + eps`` (the calibrated model alone, the same posterior draws). quantile_levels : (q,);
-    quantiles, quantiles_without : (q, n_conditions, n_responses) of the two. mean, std,
-    mean_without, std_without : (n_conditions, n_responses).
+    The predictions are sums of the draws: ``with_discrepancy = eta + delta + eps`` (a new
+    observation), ``without_discrepancy = eta + eps`` (the calibrated model alone, the same
+    posterior draws).
+
+    Attributes
+    ----------
+    configuration_name : str
+        The model input that sets the configuration (a test condition: height, speed...).
+    configurations : ndarray of shape (n_conditions,)
+        Values of ``configuration_name`` predicted at, in its units.
+    names_out : tuple of str
+        The responses (the last axis of the arrays).
+    model_draws : ndarray of shape (n_draws, n_conditions, n_responses)
+        ``eta(x, theta)`` at posterior draws of the parameters, response units.
+    discrepancy_draws : ndarray of shape (n_draws, n_conditions, n_responses)
+        ``delta(x)`` drawn from its conditional Gaussian given the residuals.
+    noise_draws : ndarray of shape (n_draws, n_conditions, n_responses)
+        ``eps``, the observation noise.
+    quantile_levels : ndarray of shape (q,)
+        The probabilities of ``quantiles``.
+    quantiles, quantiles_without : ndarray of shape (q, n_conditions, n_responses)
+        Quantiles of the predictions with and without the discrepancy.
+    mean, std : ndarray of shape (n_conditions, n_responses)
+        Mean and standard deviation of the predictions with the discrepancy.
+    mean_without, std_without : ndarray of shape (n_conditions, n_responses)
+        The same without it.
 
     Examples
     --------
@@ -312,8 +330,17 @@ class DiscrepancyPrediction:
     def interval(self, level: float = 0.9, *, discrepancy: bool = True,
                  noise: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """Equal-tailed predictive interval at ``level``: (lower, upper), each
-        (n_conditions, n_responses). ``discrepancy=False`` drops ``delta``, ``noise=False``
-        predicts the true process instead of a new observation."""
+        (n_conditions, n_responses).
+
+        Parameters
+        ----------
+        level : float, optional
+            Probability content, in (0, 1) (default 0.9).
+        discrepancy : bool, optional
+            Include ``delta`` (default True); False: the calibrated model alone.
+        noise : bool, optional
+            Include ``eps`` (default True: a new observation); False: the true process.
+        """
         if not 0 < level < 1:
             raise ParameterError(f"level must be in (0, 1), got {level}")
         draws = self.model_draws + (self.discrepancy_draws if discrepancy else 0.0) \
@@ -327,24 +354,72 @@ class DiscrepancyPrediction:
 class DiscrepancyResult:
     """Joint posterior of parameters and discrepancy hyperparameters, with identifiability.
 
-    names_in : calibrated parameters; chains : (n_chains, n_samples, d) kept samples.
-    hyper_names : sampled hyperparameters (``amplitude[r]``, ``length_scale[r]`` per response
-    for a GP, none for a polynomial or without discrepancy); hyper_chains : (n_chains,
-    n_samples, n_hyper) in their units. log_posterior : (n_chains, n_samples).
-    mean, std : (d,); credible_interval_95 : (d, 2). ess, rhat : (d + n_hyper,) in the order
-    names_in + hyper_names. prior_std : (d,). std_ratio_to_prior : posterior / prior std.
-    std_without_discrepancy : (d,) posterior std of a calibration without discrepancy
-    (Laplace approximation at its MAP, a uniform prior counted as a normal of its variance, at
-    most the prior std; NaN when the MAP lies on the edge of the prior support or the Hessian
-    there is not positive definite);
-    std_ratio_to_no_discrepancy : std / that.
-    configurations : (n_c,) distinct configurations of the data; discrepancy_at_data :
-    (n_draws, n_c, n_responses) draws of ``delta`` there; level_correlation : (d,
-    n_responses) posterior correlation of each parameter with the discrepancy's mean level over
-    the data configurations. confounded : (d,) a parameter whose |level_correlation| reaches
-    ``confounding_threshold`` for some response; identifiability : the finding in words.
-    noise_std : (n_responses,) used (given, or pooled from the repeats).
-    prediction : predictions at ``predict_at`` (None without).
+    Attributes
+    ----------
+    names_in : tuple of str
+        The d calibrated parameters.
+    names_out : tuple of str
+        The calibrated responses.
+    configuration_name : str
+        The model input that sets the configuration of each observation.
+    discrepancy : Discrepancy or None
+        The form of the discrepancy (None: calibrated without one).
+    chains : ndarray of shape (n_chains, n_samples, d)
+        Kept parameter samples, parameter units.
+    hyper_names : tuple of str
+        Sampled hyperparameters (``amplitude[r]``, ``length_scale[r]`` per response for a
+        GP; none for a polynomial or without discrepancy).
+    hyper_chains : ndarray of shape (n_chains, n_samples, n_hyper)
+        Their samples, in their units.
+    log_posterior : ndarray of shape (n_chains, n_samples)
+        Log posterior density (up to a constant) of each kept sample.
+    mean, std : ndarray of shape (d,)
+        Posterior mean and standard deviation of the parameters.
+    credible_interval_95 : ndarray of shape (d, 2)
+        Equal-tailed 2.5 % / 97.5 % quantiles.
+    ess, rhat : ndarray of shape (d + n_hyper,)
+        Effective sample size and split R-hat, in the order ``names_in + hyper_names``.
+    prior_std : ndarray of shape (d,)
+        The prior's standard deviations.
+    std_ratio_to_prior : ndarray of shape (d,)
+        Posterior over prior std.
+    std_without_discrepancy : ndarray of shape (d,)
+        Posterior std of a calibration without discrepancy (Laplace approximation at its
+        MAP, a uniform prior counted as a normal of its variance, at most the prior std; NaN
+        when the MAP lies on the edge of the prior support or the Hessian there is not
+        positive definite).
+    std_ratio_to_no_discrepancy : ndarray of shape (d,)
+        ``std`` over ``std_without_discrepancy``.
+    configurations : ndarray of shape (n_c,)
+        The distinct configurations of the data.
+    discrepancy_at_data : ndarray of shape (n_draws, n_c, n_responses)
+        Draws of ``delta`` there, response units.
+    level_correlation : ndarray of shape (d, n_responses)
+        Posterior correlation of each parameter with the discrepancy's mean level over the
+        data configurations.
+    confounded : ndarray of shape (d,)
+        A parameter whose abs(level_correlation) reaches ``confounding_threshold`` for some
+        response.
+    confounding_threshold : float
+        The threshold of ``confounded``.
+    identifiability : str
+        The finding, in words.
+    noise_std : ndarray of shape (n_responses,)
+        The noise standard deviation used (given, or pooled from the repeats).
+    map_point : ndarray of shape (d,)
+        The parameters at the chains' start, the maximum a posteriori point.
+    acceptance_rate : float
+        Fraction of steps that moved.
+    sampler : str
+        The MCMC algorithm.
+    n_likelihood_evaluations : int
+        Likelihood evaluations (points) by the chains.
+    n_evaluations : int
+        Model evaluations (points).
+    sampling_seconds : float
+        Wall time of the chains, s.
+    prediction : DiscrepancyPrediction or None
+        Predictions at ``predict_at`` (None without).
     """
 
     names_in: tuple[str, ...]
@@ -386,7 +461,13 @@ class DiscrepancyResult:
         return self.chains.reshape(-1, self.chains.shape[-1])
 
     def credible_interval(self, level: float = 0.95) -> np.ndarray:
-        """Equal-tailed credible interval (d, 2) of the parameters at ``level``."""
+        """Equal-tailed credible interval (d, 2) of the parameters at ``level``.
+
+        Parameters
+        ----------
+        level : float, optional
+            Probability content, in (0, 1) (default 0.95).
+        """
         if not 0 < level < 1:
             raise ParameterError(f"level must be in (0, 1), got {level}")
         a = 0.5 * (1.0 - level)
@@ -531,8 +612,10 @@ def calibrate_with_discrepancy(
         pooled standard deviation of the repeats per response (an error when there are none).
     names_out : the model responses ``data`` observes (default all, in order).
     sampler : "dram" (default), "am", "dr", "mh" or a :class:`SamplerConfig`.
-    n_samples : kept steps per chain; burn_in : steps dropped first (default
-        ``n_samples // 4``); thin : keep every ``thin``-th step; n_chains : chains.
+    n_samples : kept steps per chain.
+    burn_in : steps dropped first (default ``n_samples // 4``).
+    thin : keep every ``thin``-th step.
+    n_chains : chains.
     n_draws : posterior samples pushed through the model and the discrepancy's conditional
         (``discrepancy_at_data``, the identifiability measures, the prediction).
     predict_at : configurations at which to predict (e.g. a held-out height); see
@@ -746,7 +829,9 @@ def predict_with_discrepancy(result: DiscrepancyResult, model: Model,
     model : the model it was calibrated with.
     configurations : (n_conditions,) values of the configuration variable (e.g. a held-out
         height).
-    n_draws : posterior samples used. quantile_levels : quantiles reported.
+    n_draws : posterior samples used.
+    quantile_levels : probabilities in (0, 1) of the quantiles reported (default 0.05, 0.5,
+        0.95).
     seed : int, SeedSequence or Generator.
 
     Returns

@@ -138,7 +138,14 @@ class GaussianLikelihood:
         return P, b, c0, logdet
 
     def misfit(self, q: np.ndarray) -> np.ndarray:
-        """Misfit ``1/2 sum_e r_e^T Gamma_e^-1 r_e`` (eq. 2.24) for responses q (k, m) -> (k,)."""
+        """Misfit ``1/2 sum_e r_e^T Gamma_e^-1 r_e`` (eq. 2.24) for responses q (k, m) -> (k,).
+
+        Parameters
+        ----------
+        q : array_like of shape (k, m) or (m,)
+            Model responses at k points, data units (the residuals are taken against every
+            experiment's data).
+        """
         q = np.ascontiguousarray(np.atleast_2d(q), dtype=float)
         out = np.empty(q.shape[0])
         misfit_rows(q, self.pack, out)
@@ -163,5 +170,11 @@ class GaussianLikelihood:
         return out
 
     def gauss_newton_hessian(self, jac: np.ndarray) -> np.ndarray:
-        """``J^T (sum_e Gamma_e^-1) J`` (eq. 2.26) for a Jacobian (m, d)."""
+        """``J^T (sum_e Gamma_e^-1) J`` (eq. 2.26) for a Jacobian (m, d).
+
+        Parameters
+        ----------
+        jac : ndarray of shape (m, d)
+            d response / d parameter at a point.
+        """
         return jac.T @ self.precision @ jac

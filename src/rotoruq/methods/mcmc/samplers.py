@@ -41,6 +41,8 @@ from . import _kernels as kn
 
 __all__ = ["SamplerConfig", "SamplerState", "run_chains", "SAMPLERS", "EVALUATIONS"]
 
+#: MCMC algorithms by name: Metropolis-Hastings, delayed rejection, adaptive Metropolis and
+#: both (DRAM, the default), as Dakota's ``mcmc_type``.
 SAMPLERS = ("mh", "dr", "am", "dram")
 EVALUATIONS = ("speculative", "minimal")
 
@@ -49,12 +51,29 @@ EVALUATIONS = ("speculative", "minimal")
 class SamplerConfig:
     """An MCMC sampler and its tuning (``calibrate_bayes(chains=ChainOptions(sampler=...))``).
 
-    sampler : "mh", "dr", "am" or "dram". dr_scale : stage-2 proposal scale divisor (5).
-    adapt_start, adapt_interval : AM adaptation from step 100, every 100 steps. scale :
-    proposal scale (default ``2.38**2 / d``). eps : AM regularization (1e-8). pooled : AM
-    covariance from the pooled history of all chains (inter-chain adaptation) instead of each
-    chain's own. evaluations : "speculative" or "minimal" (module doc). max_lookahead : most
-    steps evaluated ahead in one call (speculative, one chain). Defaults are Dakota's DRAM.
+    Defaults are Dakota's DRAM.
+
+    Parameters
+    ----------
+    sampler : str, optional
+        ``"mh"``, ``"dr"``, ``"am"`` or ``"dram"`` (default).
+    dr_scale : float, optional
+        Divisor of the stage-2 proposal's scale (default 5).
+    adapt_start, adapt_interval : int, optional
+        Adaptive Metropolis: adapt from this step on, every so many steps (default 100 and
+        100).
+    scale : float, optional
+        Proposal scale (default ``2.38**2 / d``).
+    eps : float, optional
+        Regularization of the adapted covariance (default 1e-8).
+    pooled : bool, optional
+        Adapt the covariance from the pooled history of all chains (inter-chain adaptation,
+        default) instead of each chain's own.
+    evaluations : str, optional
+        ``"speculative"`` (default) or ``"minimal"``: which points go into one model call
+        (module doc).
+    max_lookahead : int, optional
+        The most steps evaluated ahead in one call (speculative, one chain; default 8).
     """
 
     sampler: str = "dram"
@@ -80,10 +99,12 @@ class SamplerConfig:
 
     @property
     def delayed_rejection(self) -> bool:
+        """Whether a rejected proposal gets a second, smaller one (``"dr"``, ``"dram"``)."""
         return self.sampler in ("dr", "dram")
 
     @property
     def adaptive(self) -> bool:
+        """Whether the proposal covariance adapts to the history (``"am"``, ``"dram"``)."""
         return self.sampler in ("am", "dram")
 
 
@@ -94,10 +115,25 @@ _COUNTS = ("prop1", "acc1", "prop2", "acc2")
 class SamplerState:
     """Everything needed to continue chains exactly where they stopped (scaled coordinates).
 
-    x : (c, d) current points; lp : (c,) their log posterior; chol : (c, d, d) Cholesky factors
-    of the stage-1 proposal covariance; rng : seeds the four random streams of the chains.
-    mean, m2 : (c, d), (c, d, d) running mean and sum of squared deviations of each chain's
-    history (for AM); steps : steps taken so far.
+    Parameters
+    ----------
+    x : ndarray of shape (c, d)
+        The c chains' current points.
+    lp : ndarray of shape (c,)
+        Their log posterior.
+    chol : ndarray of shape (c, d, d)
+        Cholesky factors of the stage-1 proposal covariance.
+    rng : Generator
+        Seeds the four random streams of the chains.
+    mean, m2 : ndarray of shape (c, d) and (c, d, d), optional
+        Running mean and sum of squared deviations of each chain's history (for AM);
+        default zero.
+    streams : list of Generator, optional
+        The four random streams (stage-1 and stage-2 normals and uniforms); default drawn
+        from ``rng``.
+    st : ndarray of shape (7,), optional
+        The kernels' counters: steps, steps of this run, kept steps, stage-1 and stage-2
+        proposals and acceptances.
     """
 
     x: np.ndarray
@@ -124,12 +160,19 @@ class SamplerState:
             self.reseed(self.rng)
 
     def reseed(self, rng: np.random.Generator) -> None:
-        """Draw the four random streams of the following steps from ``rng``."""
+        """Draw the four random streams of the following steps from ``rng``.
+
+        Parameters
+        ----------
+        rng : Generator
+            The new seed source; it is kept as :attr:`rng`.
+        """
         self.rng = rng
         self.streams = [np.random.default_rng(int(s)) for s in rng.integers(2**63, size=4)]
 
     @property
     def steps(self) -> int:
+        """Steps taken so far."""
         return int(self.st[kn.STEPS])
 
     @property
@@ -138,6 +181,9 @@ class SamplerState:
         return {k: int(self.st[kn.PROP1 + i]) for i, k in enumerate(_COUNTS)}
 
     def copy(self) -> SamplerState:
+        """An independent copy (arrays and generators cloned: the copy continues the chains
+        exactly as the original would)."""
+
         def clone(g):
             new = np.random.Generator(type(g.bit_generator)())
             new.bit_generator.state = g.bit_generator.state
@@ -153,11 +199,34 @@ def run_chains(logpost: Callable[[np.ndarray], np.ndarray], state: SamplerState,
                block: int = 4096) -> tuple[np.ndarray, np.ndarray]:
     """Advance all chains in place until each has ``n_samples`` kept steps.
 
-    logpost : batched log posterior, (k, d) -> (k,), -inf (never NaN) where impossible; its
-        value at a point must not depend on the other points of the batch.
     Takes ``burn_in + (n_samples - 1) * thin + 1`` steps (none for ``n_samples = 0``) and
     returns the kept samples (n_samples, c, d) and their log posterior (n_samples, c): steps
     ``burn_in, burn_in + thin, ...`` counted from the start of this call.
+
+    Parameters
+    ----------
+    logpost : callable
+        Batched log posterior, (k, d) -> (k,), -inf (never NaN) where impossible; its value
+        at a point must not depend on the other points of the batch.
+    state : SamplerState
+        The c chains' state (points, log posteriors, adaptation, random streams), advanced
+        in place.
+    cfg : SamplerConfig
+        The sampler and its tuning.
+    n_samples : int
+        Kept steps per chain.
+    burn_in : int, optional
+        Steps dropped first (default 0).
+    thin : int, optional
+        Keep every ``thin``-th step after the burn-in (default 1).
+    block : int, optional
+        Steps per compiled block between returns to Python (default 4096); the chains do
+        not depend on it.
+
+    Returns
+    -------
+    tuple of ndarray
+        The kept samples (n_samples, c, d) and their log posterior (n_samples, c).
     """
     c, d = state.x.shape
     thin = max(int(thin), 1)

@@ -64,31 +64,57 @@ COVERAGE_LEVELS = (0.5, 0.9)
 class SBCResult:
     """Outcome of :func:`simulation_based_calibration`.
 
-    names_in : parameter names (columns below). n_draws : L, the thinned posterior draws each
-    rank is taken among (ranks run over 0..L).
-    theta_true : (n_replications, d) the prior draws the data were simulated at (parameter
-        units). ranks : (n_replications, d) number of thinned posterior draws below theta_true.
-    rank_histogram : (d, n_bins) counts of the ranks in ``n_bins`` bins of ``0..L``; bin b holds
-        ranks r with ``floor(r * n_bins / (L + 1)) == b``. bin_probability : (n_bins,) the
-        probability of each bin under uniform ranks (1 / n_bins when n_bins divides L + 1).
-    p_value : (d,) chi-square test of the histogram against ``bin_probability``
-        (n_bins - 1 degrees of freedom).
-    z_scores : (n_replications, d) ``(theta_true - posterior mean) / posterior std``;
-        z_score_std : (d,) their standard deviation over replications (1 when calibrated, above
-        1 when over-confident).
-    coverage_50, coverage_90 : (d,) fraction of replications whose central (equal-tailed) 50 %
-        and 90 % credible intervals contain theta_true. coverage_50_se, coverage_90_se : their
-        binomial standard errors at the nominal rate, ``sqrt(p (1 - p) / n_replications)``.
-    posterior_mean, posterior_std : (n_replications, d).
-    ess : (n_replications,) smallest effective sample size over the parameters of each
-        replication's posterior draws; n_autocorrelated : replications whose ESS stayed below
-        ``n_draws`` (their ranks come from autocorrelated draws).
-    alpha : significance level of the uniformity test; coverage_tolerance : allowed distance of
-        a coverage from its nominal rate, in binomial standard errors.
-    passed : every parameter passes every test. reason : which parameter fails which test (or
-        a one-line summary of the pass).
-    n_evaluations : true-model evaluations (data simulation and emulator build, plus what the
-        default calibration spent). seconds : wall time.
+    Attributes
+    ----------
+    names_in : tuple of str
+        The d parameter names (the columns of the arrays below).
+    n_draws : int
+        L, the thinned posterior draws each rank is taken among (ranks run over 0..L).
+    theta_true : ndarray of shape (n_replications, d)
+        The prior draws the data were simulated at, parameter units.
+    ranks : ndarray of shape (n_replications, d)
+        Number of thinned posterior draws below ``theta_true``.
+    rank_histogram : ndarray of shape (d, n_bins)
+        Counts of the ranks in ``n_bins`` bins of ``0..L``; bin b holds ranks r with
+        ``floor(r * n_bins / (L + 1)) == b``.
+    bin_probability : ndarray of shape (n_bins,)
+        The probability of each bin under uniform ranks (1 / n_bins when n_bins divides
+        L + 1).
+    p_value : ndarray of shape (d,)
+        Chi-square test of the histogram against ``bin_probability`` (n_bins - 1 degrees of
+        freedom).
+    z_scores : ndarray of shape (n_replications, d)
+        ``(theta_true - posterior mean) / posterior std``.
+    z_score_std : ndarray of shape (d,)
+        Their standard deviation over replications (1 when calibrated, above 1 when
+        over-confident).
+    coverage_50, coverage_90 : ndarray of shape (d,)
+        Fraction of replications whose central (equal-tailed) 50 % and 90 % credible
+        intervals contain ``theta_true``.
+    coverage_50_se, coverage_90_se : float
+        Their binomial standard errors at the nominal rate, ``sqrt(p (1 - p) /
+        n_replications)``.
+    posterior_mean, posterior_std : ndarray of shape (n_replications, d)
+        Each replication's posterior mean and standard deviation, parameter units.
+    ess : ndarray of shape (n_replications,)
+        Smallest effective sample size over the parameters of each replication's posterior
+        draws.
+    n_autocorrelated : int
+        Replications whose ESS stayed below ``n_draws`` (their ranks come from
+        autocorrelated draws).
+    alpha : float
+        Significance level of the uniformity test.
+    coverage_tolerance : float
+        Allowed distance of a coverage from its nominal rate, in binomial standard errors.
+    passed : bool
+        Every parameter passes every test.
+    reason : str
+        Which parameter fails which test (or a one-line summary of the pass).
+    n_evaluations : int
+        True-model evaluations (data simulation and emulator build, plus what the default
+        calibration spent).
+    seconds : float
+        Wall time, s.
     """
 
     names_in: tuple[str, ...]
@@ -117,6 +143,7 @@ class SBCResult:
 
     @property
     def n_replications(self) -> int:
+        """Number of replications (simulated data sets)."""
         return int(self.ranks.shape[0])
 
     def to_arrays(self) -> dict[str, np.ndarray]:
@@ -126,7 +153,14 @@ class SBCResult:
 
     @classmethod
     def from_arrays(cls, arrays: Mapping[str, np.ndarray]) -> SBCResult:
-        """The result :meth:`to_arrays` wrote."""
+        """The result :meth:`to_arrays` wrote.
+
+        Parameters
+        ----------
+        arrays : mapping of str to ndarray
+            One array per field, as :meth:`to_arrays` gives them (an ``np.load`` of its
+            ``np.savez`` file).
+        """
         kinds: dict[str, Callable[[np.ndarray], Any]] = {
             "names_in": lambda a: tuple(str(v) for v in a), "reason": str, "passed": bool,
             "n_draws": int, "n_autocorrelated": int, "n_evaluations": int}
@@ -254,6 +288,8 @@ def simulation_based_calibration(
         :class:`~rotoruq.methods.cokriging.CoKriging` with ``low_fidelity`` models is built the
         same way on its nested design (its cheap models' runs are not counted in
         ``n_evaluations``).
+    n_emulator_samples : int, optional
+        Runs of the true model that an unfitted emulator is built on (default 500).
     names_out : model responses that the data observe (default all).
     alpha : the uniformity test fails when the chi-square p-value <= alpha (per parameter).
     coverage_tolerance : a coverage fails when it is more than this many binomial standard

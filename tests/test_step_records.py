@@ -13,7 +13,7 @@ from dataclasses import fields
 import numpy as np
 import pytest
 
-from rotoruq.results import StepRecord, StepResult, load_step, save_step
+from rotoruq.results import _DEFAULT_LABELS, StepRecord, StepResult, load_step, save_step
 from rotoruq.steps import STEP_TYPES
 
 
@@ -36,7 +36,11 @@ def _value(cls: type[StepRecord], name: str, hint, rng: np.random.Generator):
     """A value of field ``name`` of type ``hint``: random numbers (with NaN and inf, which
     records use for "not computed"), text with quotes and non-ASCII letters."""
     if name in cls.AXES:
-        shape = tuple(range(2, 2 + len(cls.AXES[name])))
+        # an axis named by a field holds as many elements as the field's 3 names; one with
+        # literal labels (bounds, level columns, moments) as many as those
+        labels = {**_DEFAULT_LABELS, **cls.LABELS}
+        shape = tuple(len(lab) if isinstance(labels.get(axis), tuple | list) else 3
+                      for axis in cls.AXES[name] for lab in [labels.get(axis)])
         arr = rng.normal(size=shape)
         if arr.size > 2:
             arr.flat[0], arr.flat[1] = np.nan, np.inf

@@ -12,7 +12,7 @@ import numpy as np
 from ..results import StepResult
 from .figures import UNKNOWN_UNIT, unit_of
 
-__all__ = ["StepTable", "Cell", "make_table", "value", "prefixed", "label", "responses",
+__all__ = ["StepTable", "Cell", "make_table", "value", "label", "responses",
            "parameters", "cell", "moments_rows", "inputs_table", "levels_tables",
            "level_mapping_tables", "LEVEL_COLUMNS", "MOMENTS",
            "with_unit", "cv_or_none", "CV_MIN_MEAN_OVER_STD"]
@@ -51,9 +51,6 @@ def value(res: StepResult, key: str) -> float | None:
     return None if v is None else float(v)
 
 
-def prefixed(res: StepResult, prefix: str) -> dict[str, float]:
-    """The scalars of ``res`` whose key starts with ``prefix``, keyed by the rest."""
-    return {k[len(prefix):]: float(v) for k, v in res.scalars.items() if k.startswith(prefix)}
 
 
 def label(p: str, labels: Mapping[str, str]) -> str:

@@ -15,11 +15,11 @@ from scipy import stats
 from ..errors import ParameterError
 from ..params import ParameterSpace
 from ..render.tables import StepTable, level_mapping_tables, levels_tables
-from ..results import RecordError, StepRecord, StepResult, flat_view
+from ..results import RecordError, StepRecord, StepResult
 from .base import StepCheck, StepContext
 from .options import SIGNATURE, Option, choice, table
 
-__all__ = ["named_model", "deferred_writes", "column_moments", "input_arrays", "input_scalars",
+__all__ = ["named_model", "deferred_writes", "column_moments", "input_arrays",
            "noise", "per_response", "saved_record", "MOMENT_KEYS", "LevelsRecord", "levels_arrays",
            "LEVEL_OPTIONS", "LEVEL_TABLES", "MAPPING_AXES", "MappingsRecord", "check_levels",
            "level_request_of", "mapping_fields", "MAPPING_FLAT",
@@ -70,14 +70,6 @@ def input_arrays(space: ParameterSpace) -> tuple[np.ndarray, np.ndarray, np.ndar
         if np.isfinite(lo) and np.isfinite(hi):
             lower[j], upper[j] = lo, hi
     return mean, std, lower, upper
-
-
-def input_scalars(space: ParameterSpace) -> dict:
-    """The flat view of the input distributions of ``space``, as :func:`~rotoruq.results.
-    flat_view` derives it from those the runner records: ``input_mean/``, ``input_std/`` and,
-    for bounded inputs, ``input_lower/``, ``input_upper/`` of each input."""
-    return flat_view({"input_distributions": {
-        n: d.describe() for n, d in zip(space.names, space.distributions, strict=True)}}, {})
 
 
 def saved_record(kind: type[R], res: StepResult) -> R | None:

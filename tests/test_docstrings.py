@@ -53,32 +53,6 @@ SUBPACKAGES = public_api.SUBPACKAGES
 #: the checks that fail a test
 CHECKS = ("GL06", "GL07", "GL08", "PR01", "PR02", "PR03", "PR10")
 
-# Public names defined in files that were being rewritten elsewhere when this test was written
-# (src/rotoruq/results.py, src/rotoruq/steps/): their docstrings are to be fixed there. Each is
-# reported as xfail (XPASS once fixed: then remove it here).
-ALLOWED = {  # path -> the file that defines it
-    "rotoruq.StepResult": "src/rotoruq/results.py",
-    "rotoruq.StepResult.get": "src/rotoruq/results.py",
-    "rotoruq.StepResult.columns": "src/rotoruq/results.py",
-    "rotoruq.StepResult.column": "src/rotoruq/results.py",
-    "rotoruq.StepRecord.index": "src/rotoruq/results.py",
-    "rotoruq.StepRecord.read": "src/rotoruq/results.py",
-    "rotoruq.load_results": "src/rotoruq/results.py",
-    "rotoruq.steps.find_step_type": "src/rotoruq/steps/__init__.py",
-    "rotoruq.steps.step_type": "src/rotoruq/steps/__init__.py",
-    "rotoruq.steps.StepContext": "src/rotoruq/steps/base.py",
-    "rotoruq.steps.StepContext.model": "src/rotoruq/steps/base.py",
-    "rotoruq.steps.StepCheck": "src/rotoruq/steps/base.py",
-    "rotoruq.steps.StepType": "src/rotoruq/steps/base.py",
-    "rotoruq.steps.StepType.default": "src/rotoruq/steps/base.py",
-    "rotoruq.steps.run_step": "src/rotoruq/steps/base.py",
-}
-# docstrings that are not valid reST once numpydoc has read them (the same files)
-ALLOWED_RENDER = {"rotoruq.StepResult": "src/rotoruq/results.py",
-                  "rotoruq.steps.StepContext": "src/rotoruq/steps/base.py",
-                  "rotoruq.steps.StepType": "src/rotoruq/steps/base.py"}
-
-
 def _public_objects() -> dict[str, object]:
     """Importable path -> object for every name the checks cover (see the module docstring)."""
     found: dict[str, object] = {}
@@ -181,24 +155,14 @@ def _errors(path: str) -> list[tuple[str, str]]:
     return list(validator.parameter_mismatches) + found
 
 
-def _params(paths, allowed: dict[str, str]) -> list:
-    out = []
-    for path in paths:
-        marks = ([pytest.mark.xfail(reason=f"defined in {allowed[path]}, fixed there",
-                                    strict=False)] if path in allowed else [])
-        out.append(pytest.param(path, marks=marks, id=path))
-    return out
-
-
 def test_the_checks_cover_the_public_api():
     assert len(PUBLIC) > 300, len(PUBLIC)
     assert "rotoruq.calibrate_bayes" in PUBLIC and "rotoruq.BayesResult.save" in PUBLIC
     assert "rotoruq.errors.StoreError" in PUBLIC  # a name rq.errors adds
     assert "rotoruq.params.NatafModel" in PUBLIC  # a subpackage's name
-    assert set(ALLOWED) | set(ALLOWED_RENDER) <= set(PUBLIC)
 
 
-@pytest.mark.parametrize("path", _params(PUBLIC, ALLOWED))
+@pytest.mark.parametrize("path", list(PUBLIC))
 def test_docstring_documents_every_parameter(path):
     errors = _errors(path)
     assert not errors, f"{path}:\n" + "\n".join(f"  {c}: {m}" for c, m in errors)
@@ -222,7 +186,7 @@ def _rendered(obj) -> str:
     return "\n".join(_plain_docstrings()._escape_bars(line) for line in text.splitlines())
 
 
-@pytest.mark.parametrize("path", _params(PUBLIC, ALLOWED_RENDER))
+@pytest.mark.parametrize("path", list(PUBLIC))
 def test_docstring_renders(path):
     pytest.importorskip("sphinx", reason="Sphinx is not installed (numpydoc's reST needs it)")
     text = _rendered(PUBLIC[path])

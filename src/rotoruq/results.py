@@ -81,16 +81,33 @@ STUDY_INFO = "study.json"
 class StepResult:
     """Outcome of one study step.
 
-    scalars : flat mapping key -> float: the view of the step's record derived by
-        :func:`flat_view` (the keys given here are kept beside it: numbers outside any
-        record, or the scalars of a folder saved before records). Key forms:
+    Attributes
+    ----------
+    name : str
+        The step's name (its ``[steps.<name>]`` table and its folder ``steps/<name>``).
+    type : str
+        The step's type (``"sampling"``, ``"sobol"``, ...; see :mod:`rotoruq.steps`).
+    scalars : mapping of str to float
+        Flat mapping key -> value: the view of the step's record derived by
+        :func:`flat_view`, with the keys given to the constructor kept beside it (numbers
+        outside any record, or the scalars of a folder saved before records). Key forms:
         ``stat/name`` (e.g. ``mean/thrust``), ``index/response/input``
-        (``S/thrust/cla_m03``) and ``...@label`` for a sweep point.
-    arrays : name -> ndarray (e.g. ``inputs`` (n, d), ``outputs`` (n, m), ``chain`` (N, d)).
-    distributions : parameter name -> distribution description (``{"kind": "normal",
-        "mu": ..., "sigma": ...}``) offered to later steps as ``posterior``/``calibrated``.
-    meta : JSON-serialisable details: ``columns`` (array name -> column names), names,
-        number of evaluations, wall time, failures, notes.
+        (``S/thrust/cla_m03``) and ``...@label`` for a sweep point. Values are in the units
+        of the response or input they describe (indices are dimensionless).
+    arrays : mapping of str to ndarray
+        Named arrays, e.g. ``inputs`` of shape (n, d), ``outputs`` of shape (n, m),
+        ``chain`` of shape (N, d); the record's array fields among them.
+    distributions : mapping of str to dict
+        Parameter name -> distribution description (``{"kind": "normal", "mu": ...,
+        "sigma": ...}``, see :func:`dist_to_dict`) offered to later steps as
+        ``posterior``/``calibrated``.
+    meta : mapping of str to object
+        JSON-serialisable details: ``columns`` (array name -> column names), names, number of
+        evaluations, wall time (s), failures, notes, and the record (``"record"``).
+    fingerprint : str
+        Digest of what the step's numbers depend on (its spec, model, distributions, data,
+        seed and code), set by the study runner to tell whether a saved step can be reused;
+        ``""`` for a result built by hand.
     """
 
     name: str
@@ -118,6 +135,23 @@ class StepResult:
         saved keys (a typo such as ``"men/y1"`` must not read as NaN), unless ``default`` is
         given.
 
+        Parameters
+        ----------
+        key : str
+            A key of :attr:`scalars` (``"mean/thrust"``, ``"S/thrust/cla_m03"``, ...).
+        default : float, optional
+            Returned when the step saved no scalar ``key``; None (the default) raises.
+
+        Returns
+        -------
+        float
+            The scalar, in the units of the quantity it describes.
+
+        Raises
+        ------
+        KeyError
+            No scalar ``key`` and no ``default``.
+
         Examples
         --------
         >>> res = StepResult("s", "sampling", {"mean/y1": 2.0, "std/y1": 0.5})
@@ -137,10 +171,40 @@ class StepResult:
         raise KeyError(f"step {self.name!r} saved no scalar {key!r}{hint}")
 
     def columns(self, array: str) -> list[str]:
+        """Names of the columns of a 2-D array (``meta["columns"]``).
+
+        Parameters
+        ----------
+        array : str
+            Name of an array of :attr:`arrays` (``"inputs"``, ``"outputs"``, ...).
+
+        Returns
+        -------
+        list of str
+            Its column names, in order; empty when the step saved none for it.
+        """
         return list(self.meta.get("columns", {}).get(array, []))
 
     def column(self, array: str, name: str) -> np.ndarray:
-        """One named column of a 2-D array."""
+        """One named column of a 2-D array.
+
+        Parameters
+        ----------
+        array : str
+            Name of a 2-D array of :attr:`arrays` with named columns (see :meth:`columns`).
+        name : str
+            The column's name (an input or response name).
+
+        Returns
+        -------
+        ndarray of shape (n,)
+            The column, in the units of that input or response.
+
+        Raises
+        ------
+        ValueError
+            The array has no column ``name`` (or the step saved no named columns for it).
+        """
         cols = self.columns(array)
         return np.asarray(self.arrays[array])[:, cols.index(name)]
 
@@ -360,7 +424,20 @@ class StepRecord:
     def index(self, axis: str, label: str) -> int:
         """Position of ``label`` on ``axis`` (see :attr:`LABELS`; an example in the class's
         docstring); a label the record does not hold raises ``KeyError`` naming those it
-        does."""
+        does.
+
+        Parameters
+        ----------
+        axis : str
+            An axis name of :attr:`AXES` (``"response"``, ``"input"``, ``"point"``, ...).
+        label : str
+            The name of one element on that axis (a response name, an input name, ...).
+
+        Returns
+        -------
+        int
+            Its index along that axis of the record's arrays.
+        """
         lab = {**_DEFAULT_LABELS, **self.LABELS}.get(axis)
         names = list(getattr(self, lab) if isinstance(lab, str) else lab or ())
         if label not in names:
@@ -371,7 +448,20 @@ class StepRecord:
     @classmethod
     def read(cls, res: StepResult) -> Self:
         """The record saved with ``res``; :class:`RecordError` when it has none (a result
-        of an older rotoruq) or one of a newer version."""
+        of an older rotoruq) or one of a newer version.
+
+        Parameters
+        ----------
+        res : StepResult
+            A step's result, saved with a record of this class (``meta["record"]`` and the
+            record's arrays, as :meth:`parts` gives them).
+
+        Returns
+        -------
+        StepRecord
+            The record of this class rebuilt from ``res``; a field added to the class since
+            it was saved takes its default.
+        """
         rec = res.meta.get("record")
         if not isinstance(rec, Mapping) or rec.get("type") != cls.__name__:
             raise RecordError(f"step {res.name!r} ({res.type}) was saved without a "
@@ -851,7 +941,22 @@ def load_results(directory: str | Path, *, incomplete: dict[str, str] | None = N
 
     A step that does not load (:class:`IncompleteStepError`: a checksum that does not match,
     a file missing) raises, unless ``incomplete`` is a dict: the step is then left out and
-    ``incomplete[name]`` says why (what ``rotoruq run`` would do: run it again)."""
+    ``incomplete[name]`` says why (what ``rotoruq run`` would do: run it again).
+
+    Parameters
+    ----------
+    directory : str or Path
+        A study output folder (the one holding ``study.json`` and ``steps/``).
+    incomplete : dict of str to str, optional
+        Filled with step name -> why it did not load, for each step left out; None (the
+        default) raises on the first such step instead.
+
+    Returns
+    -------
+    dict of str to StepResult
+        Step name -> its result, in the order of ``study.json``'s ``steps`` (steps it does
+        not list last, by name).
+    """
     directory = Path(directory)
     order = load_study_info(directory).get("steps", [])
     if not isinstance(order, list):

@@ -71,6 +71,8 @@ class Convergence:
         relative size below it that still fails to reduce ``f`` (noisy residuals or a wrong
         Jacobian).
 
+    Notes
+    -----
     Only ``max_function_evaluations``, ``tolerance`` and ``x_tolerance`` apply to scipy's
     optimizers.
 

@@ -87,12 +87,41 @@ def step_types() -> Mapping[str, StepType]:
 
 
 def find_step_type(name: str) -> StepType | None:
-    """The step type ``name``, None when there is none (an old or foreign result's type)."""
+    """The step type ``name``, None when there is none (an old or foreign result's type).
+
+    Parameters
+    ----------
+    name : str
+        A step type name (a step's ``type``: ``"sampling"``, ``"pce"``, ...), built-in or of
+        an installed plugin.
+
+    Returns
+    -------
+    StepType or None
+        That step type; None when neither rotoruq nor a plugin defines it.
+    """
     return STEP_TYPES.get(name) or _plugins().get(name)
 
 
 def step_type(name: str) -> StepType:
     """The step type ``name``; raises :class:`UnknownStepTypeError` listing the known ones.
+
+    Parameters
+    ----------
+    name : str
+        A step type name (a step's ``type``: ``"sampling"``, ``"pce"``, ...), built-in or of
+        an installed plugin.
+
+    Returns
+    -------
+    StepType
+        That step type.
+
+    Raises
+    ------
+    UnknownStepTypeError
+        Neither rotoruq nor an installed plugin defines ``name``; the message names the
+        closest known type and lists them all.
 
     Examples
     --------

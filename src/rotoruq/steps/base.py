@@ -42,22 +42,44 @@ WarningsHook = Callable[[StepResult, Mapping[str, str]], list[str]]
 class StepContext:
     """Everything a step needs.
 
-    space : the uncertain inputs of the step (priors / input distributions), shape d.
-    responses : the step's response names (m).
-    fixed : the other model inputs and their values.
-    make_model(inputs, responses, fixed) -> Model : builds (store-backed) models, e.g. for
-        sweeps over fixed inputs.
-    data : (k, m) observations of ``responses`` (None when the step has no data).
-    data_columns : every column of the data set (for sweeps and normalisation).
-    targets : response -> (mean, std) (CUU).
-    rng : numpy Generator for this step.
-    source : the saved result of the ``from`` step (None without one); a forward check uses
-        its chain for the joint posterior predictive.
-    previous : the saved results of the steps before this one, by name (references such as
+    Attributes
+    ----------
+    name : str
+        The step's name (``[[steps]] name``), used in messages and log lines.
+    type : str
+        The step's type (a key of :data:`rotoruq.steps.STEP_TYPES`).
+    options : mapping of str to object
+        The step's options as read from the study file, defaults filled in.
+    space : ParameterSpace
+        The uncertain inputs of the step (priors / input distributions), d of them.
+    responses : tuple of str
+        The step's response names (m of them).
+    fixed : mapping of str to float
+        The other model inputs and their values, in the model's input units.
+    make_model : callable
+        ``make_model(inputs, responses, fixed) -> Model`` builds (store-backed) models, e.g.
+        for sweeps over fixed inputs; a study with named models also takes ``model=NAME``.
+    rng : numpy.random.Generator
+        Random generator of this step: seeded by its ``seed`` option, else by the study's
+        seed and the step's position.
+    data : ndarray of shape (k, m), optional
+        Observations of ``responses``, one row per observation (None when the step has no
+        data).
+    data_columns : mapping of str to ndarray
+        Every column of the data set, column name -> values of shape (k,) (for sweeps and
+        normalisation).
+    targets : mapping of str to tuple of (float, float)
+        Response -> (mean, std) targets in the response's units (CUU).
+    source : StepResult, optional
+        The saved result of the ``from`` step (None without one); a forward check uses its
+        chain for the joint posterior predictive.
+    previous : mapping of str to StepResult
+        The saved results of the steps before this one, by name (references such as
         ``u_num = "verify.u_num"``).
-    store : the study's evaluation store (:class:`rotoruq.evaluation.store.Store`; None
-        without one), which also keeps pieces computed once and reused by the identity of
-        their setup (a Bayes step's self-check: ``Store.get_computed`` / ``put_computed``).
+    store : rotoruq.evaluation.store.Store, optional
+        The study's evaluation store (None without one), which also keeps pieces computed
+        once and reused by the identity of their setup (a Bayes step's self-check:
+        ``Store.get_computed`` / ``put_computed``).
     """
 
     name: str
@@ -85,7 +107,19 @@ class StepContext:
     def model(self, fixed: Mapping[str, float] | None = None) -> Any:
         """The step's model (inputs ``space.names``, outputs ``responses``) with ``fixed``
         set over the step's fixed inputs. Built once per set of fixed values: asking again
-        (a sweep point, a verification level seen before) gives the same model."""
+        (a sweep point, a verification level seen before) gives the same model.
+
+        Parameters
+        ----------
+        fixed : mapping of str to float, optional
+            Fixed input name -> value, in the model's input units, that override or add to
+            :attr:`fixed` (a sweep point, a verification level); None: the step's own.
+
+        Returns
+        -------
+        Model
+            The model built by :attr:`make_model` for those fixed values.
+        """
         f = dict(self.fixed)
         f.update(fixed or {})
         key = tuple(sorted(f.items()))
@@ -98,13 +132,31 @@ class StepContext:
 class StepCheck:
     """What a step type's ``check`` hook sees of one parsed step.
 
-    options : the step's options, defaults filled in. model : the study's ``[model]``
-    (:class:`rotoruq.study.spec.ModelSpec`: ``responses``, ``inputs``, ...).
-    responses : the step's ``responses`` selection (None: all). parameters : the study's
-    parameter names. fail(key_path, expected, found) raises the file/line error for a key
-    of this step. reference(ref, key, attrs) checks a ``"step.attr"`` reference to an
-    earlier step. check_input(key_path, name) checks a model input name. numbers(table,
-    key_path, what) checks a table of numbers.
+    Key paths (``key_path``) are tuples of keys and indices relative to the step's table,
+    e.g. ``("points",)`` or ``("couple", "rpm")``.
+
+    Attributes
+    ----------
+    options : mapping of str to object
+        The step's options, defaults filled in.
+    model : rotoruq.study.spec.ModelSpec
+        The study's ``[model]`` (``responses``, ``inputs``, ...).
+    responses : tuple of str or None
+        The step's ``responses`` selection (None: all).
+    parameters : tuple of str
+        The study's parameter names.
+    fail : callable
+        ``fail(key_path, expected, found=None)`` raises the file/line error
+        (:class:`~rotoruq.errors.InputFileError`) for a key of this step: what was expected
+        and what the file has.
+    reference : callable
+        ``reference(ref, key, attrs) -> (step, attr)`` checks a ``"step.attr"`` reference
+        given under ``key`` to an earlier step that provides ``attr``, one of ``attrs``.
+    check_input : callable
+        ``check_input(key_path, name)`` checks that ``name`` is an input of the model.
+    numbers : callable
+        ``numbers(table, key_path, what) -> dict`` checks that every value of ``table`` is a
+        number and returns them as floats (``what`` names the table in the error).
     """
 
     options: Mapping[str, Any]
@@ -121,32 +173,50 @@ class StepCheck:
 class StepType:
     """One step type.
 
-    name : the ``type`` of a ``[[steps]]`` table. run : the adapter
-        ``run(StepContext) -> StepResult`` (it calls the method; study logic of the type
-        lives in a function of its own). options : key -> :class:`Option`.
-    method : ``"module:function"`` whose signature gives the :data:`SIGNATURE` defaults.
-    provides : attributes later steps may take (``"posterior"``, ``"calibrated"``,
-        ``"samples"``) through ``from = "step.ATTR"`` / ``data = "step.ATTR"``.
-    needs_data : the step takes observations (the study's only data set when it names none).
-    data_optional : with ``needs_data``, a study without any data set runs the step without
-        data (``ctx.data`` None; ``least_squares``: the responses are the residuals).
-    quick : option -> upper bound under ``--quick``.
-    check : extra validation ``check(StepCheck)`` after the options are read.
-    tables(result, labels) -> list of :class:`~rotoruq.render.tables.StepTable`;
-    figures(result, context) -> list of :class:`~rotoruq.render.figures.Figure`
-        (context: :class:`~rotoruq.render.figures.FigureContext`);
-    warnings(result, labels) -> list of warning sentences. Each may be None (the report then
-        shows a key/value table, no figures, no warnings).
-    modules : modules whose code computes this type's numbers beyond what the type's own
-        module imports (its adapter's imports, also those inside functions, are followed
-        already): each, and what it imports within rotoruq, enters the code part of the
-        step's fingerprint (:attr:`code_modules`, read by ``study.runner``), so an edit of one
+    Parameters
+    ----------
+    name : str
+        The ``type`` of a ``[[steps]]`` table.
+    run : callable
+        The adapter ``run(StepContext) -> StepResult`` (it calls the method; study logic of
+        the type lives in a function of its own).
+    options : mapping of str to Option
+        Option key -> :class:`Option` (its checker and default).
+    method : str, optional
+        ``"module:function"`` whose signature gives the :data:`SIGNATURE` defaults.
+    provides : tuple of str
+        Attributes later steps may take (``"posterior"``, ``"calibrated"``, ``"samples"``)
+        through ``from = "step.ATTR"`` / ``data = "step.ATTR"``.
+    needs_data : bool
+        The step takes observations (the study's only data set when it names none).
+    data_optional : bool
+        With ``needs_data``, a study without any data set runs the step without data
+        (``ctx.data`` None; ``least_squares``: the responses are the residuals).
+    quick : mapping of str to int
+        Option -> upper bound under ``--quick`` (a sample count, an iteration count).
+    check : callable, optional
+        Extra validation ``check(StepCheck)`` after the options are read.
+    tables : callable, optional
+        ``tables(result, labels) -> list`` of :class:`~rotoruq.render.tables.StepTable`.
+    figures : callable, optional
+        ``figures(result, context) -> list`` of :class:`~rotoruq.render.figures.Figure`
+        (``context``: a :class:`~rotoruq.render.figures.FigureContext`).
+    warnings : callable, optional
+        ``warnings(result, labels) -> list`` of warning sentences. Each of ``tables``,
+        ``figures`` and ``warnings`` may be None (the report then shows a key/value table,
+        no figures, no warnings).
+    modules : tuple of str
+        Modules whose code computes this type's numbers beyond what the type's own module
+        imports (its adapter's imports, also those inside functions, are followed already):
+        each, and what it imports within rotoruq, enters the code part of the step's
+        fingerprint (:attr:`code_modules`, read by ``study.runner``), so an edit of one
         re-runs the steps of the types that list it and no other. A plugin lists its own
         helper modules here by import name.
-    correlated : the type's method honours a correlated input space (``ParameterSpace``
-        with a ``correlation``: a study file's ``[correlation]`` table). A type without it
-        refuses correlated inputs (the study file fails naming the step and the table)
-        instead of ignoring the correlation.
+    correlated : bool
+        The type's method honours a correlated input space (``ParameterSpace`` with a
+        ``correlation``: a study file's ``[correlation]`` table). A type without it refuses
+        correlated inputs (the study file fails naming the step and the table) instead of
+        ignoring the correlation.
     """
 
     name: str
@@ -179,7 +249,26 @@ class StepType:
 
     def default(self, key: str) -> Any:
         """Default of option ``key``: its own, or its method parameter's (:data:`REQUIRED`
-        when that has none)."""
+        when that has none).
+
+        Parameters
+        ----------
+        key : str
+            An option key of :attr:`options`.
+
+        Returns
+        -------
+        object
+            The option's default value, or :data:`REQUIRED`.
+
+        Raises
+        ------
+        KeyError
+            The type has no option ``key``.
+        LookupError
+            The default comes from a method signature but the type names no method, or the
+            method has no such parameter.
+        """
         opt = self.options[key]
         if opt.default is not SIGNATURE:
             return opt.default
@@ -198,7 +287,22 @@ STATUS_INTERVAL = 15.0
 def run_step(run: Callable[[StepContext], StepResult], ctx: StepContext
              ) -> tuple[StepResult, float]:
     """Run the adapter ``run`` on ``ctx``; returns the result and the wall time in s. While it
-    runs, a status line goes to the log (INFO) every :data:`STATUS_INTERVAL` seconds."""
+    runs, a status line goes to the log (INFO) every :data:`STATUS_INTERVAL` seconds.
+
+    Parameters
+    ----------
+    run : callable
+        The step type's adapter, ``run(StepContext) -> StepResult`` (:attr:`StepType.run`).
+    ctx : StepContext
+        The step to run.
+
+    Returns
+    -------
+    result : StepResult
+        What ``run`` returned.
+    seconds : float
+        Wall time of the run, in s.
+    """
     from ..evaluation.progress import format_duration
 
     t0 = time.perf_counter()

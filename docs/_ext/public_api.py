@@ -100,7 +100,7 @@ GROUPS: dict[str, Group] = {
          "rotoruq.methods.mcmc.effective_sample_size", "rotoruq.methods.mcmc.split_rhat",
          "simulation_based_calibration", "SBCResult", "calibrate_with_discrepancy",
          "DiscrepancyResult", "Discrepancy", "predict_with_discrepancy",
-         "DiscrepancyPrediction", "calibrate", "CalibrationResult", "least_squares",
+         "DiscrepancyPrediction", "calibrate", "CalibrationResult", "least_squares", "Convergence",
          "LeastSquaresResult", "calibrate_under_uncertainty", "CUUResult", "check_cuu",
          "CUUCheck")),
     "validation": Group(
@@ -124,7 +124,8 @@ GROUPS: dict[str, Group] = {
         ("Evaluator", "rotoruq.evaluation.as_evaluator", "rotoruq.evaluation.EvalStats",
          "SerialExecutor", "ProcessExecutor", "DaskExecutor", "rotoruq.evaluation.Executor",
          "rotoruq.evaluation.make_executor", "Store", "rotoruq.evaluation.EvalRecord",
-         "ExternalModel", "fill_template", "rotoruq.evaluation.fill_template_file",
+         "ExternalModel", "WorkDirectory", "FileContract", "fill_template",
+         "rotoruq.evaluation.fill_template_file",
          "read_parameters", "write_parameters", "rotoruq.evaluation.ParametersFile",
          "read_results", "write_results", "rotoruq.evaluation.ResultsFile",
          "rotoruq.mbdyn.run_case", "rotoruq.mbdyn.CaseSettings", "rotoruq.mbdyn.TEMPLATES",

@@ -158,8 +158,13 @@ def _verdict(claim_list: list[Claim]) -> str:
     parts = ", ".join(f"<span class={_STATUS_CLASS[k]}>{n[k]} {word}</span>"
                       for k, word in _VERDICTS)
     counted = [c for c in claim_list if c.counted]
+    judged = {b.beside for b in claim_list if b.beside}
+    stricter = (f"; {len(judged)} of them by the ASME V&amp;V 20 budget, where the thesis "
+                "judged by \"within one predictive std\" (its criterion shown beside, not "
+                "counted)" if judged else "")
     out = [f"<p class=counts {attrs}><b>{len(counted)} claims of the reference "
-           f"study</b>: {parts}.</p><ol class=verdict>"]
+           f"study</b>: {parts}. Each is the thesis's statement judged by the threshold "
+           f"stated with it{stricter}.</p><ol class=verdict>"]
 
     def line(c: Claim) -> str:
         prop = {INDEPENDENT: " (independent normals)", JOINT: " (joint predictive)"}.get(

@@ -207,8 +207,14 @@ def tornado(res: StepResult, sobol: SobolIndices, labels, units=None,
                     label=f"main S_i ({beside_name})")
         neg = sobol.negligible is not None and bool(sobol.negligible[a])
         ax.set_title(f"{r}" + (" (negligible variance)" if neg else ""), fontsize=9)
-        lo = min(0.0, float(np.nanmin(np.r_[s, t, 0.0])) * 1.1)
-        ax.set_xlim(lo, max(1.0, float(np.nanmax(np.r_[s, t, 0.0])) * 1.05))
+        # the axis holds the bars and their whiskers (an interval may pass 1 or go below 0)
+        parts: list[np.ndarray] = [s, t, np.zeros(1)] + [
+            np.ravel(np.asarray(ci[a], dtype=float)) for ci in (sobol.main_ci, sobol.total_ci)
+            if ci is not None]
+        ends = np.concatenate(parts)
+        ends = ends[np.isfinite(ends)]
+        lo = min(0.0, float(ends.min()) * 1.1)
+        ax.set_xlim(lo, max(1.0, float(ends.max()) * 1.05))
         ax.axvline(0, color="k", lw=0.5)
         ax.set_xlabel("Sobol index [-]")
         ax.grid(axis="x", alpha=0.3)

@@ -14,11 +14,14 @@ arrays, not dataclasses).
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 
 import numba as nb
 import numpy as np
+
+log = logging.getLogger(__name__)
 
 __all__ = ["KERNEL_IDS", "CompiledGP", "basis_terms", "gp_pack", "gp_mean_into",
            "gp_mean_batch", "gp_mean_var_into", "gp_mean_var_batch"]
@@ -127,6 +130,9 @@ def compile_gp(lo, span, Xs, inv_ell, alpha, beta, trend, kernel, y_mean, y_std,
                variance=None) -> CompiledGP:
     """A :class:`CompiledGP` from a fit's arrays (see :func:`gp_pack` for the mean's);
     ``variance`` is None or the tuple (chol_inv, minv_f, trend_chol_inv, v0, var_scale)."""
+    from .._compile import notice_if_cold
+
+    notice_if_cold("emulator kernels", [_mean_rows, _mean_var_rows], log)
     mp = gp_pack(lo, span, Xs, inv_ell, alpha, beta, trend, kernel, y_mean, y_std)
     m, n = mp[2].shape[:2]
     p = mp[6].shape[0]

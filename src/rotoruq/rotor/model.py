@@ -29,9 +29,9 @@ __all__ = ["RotorModel", "ROTOR_INPUTS", "RESPONSES", "load_airfoil"]
 
 log = logging.getLogger(__name__)
 
+#: The line logged before the rotor kernels compile on a cold numba cache.
 COMPILE_NOTICE = "compiling rotor kernels (once per install, ~30-90 s) ..."
-#: Processes that have said it (a list, so the notice is given once per process).
-_compile_noticed: list[bool] = []
+
 
 #: Rotor inputs every preset accepts (angles in deg, SI otherwise).
 ROTOR_INPUTS = (
@@ -81,21 +81,18 @@ def kernels_cached() -> bool:
     >>> isinstance(kernels_cached(), bool)
     True
     """
+    from .._compile import is_cached
     from . import _kernel
 
-    try:
-        return bool(_kernel.solve_samples._cache._cache_file._load_index())
-    except Exception:  # a numba without this cache layout: say nothing rather than guess
-        return True
+    return is_cached(_kernel.solve_samples)
 
 
 def _notice_compile() -> None:
     """Say once per process, before the first solve, that the kernels are being compiled."""
-    if _compile_noticed:
-        return
-    _compile_noticed.append(True)
-    if not kernels_cached():
-        log.info(COMPILE_NOTICE)
+    from .._compile import notice_if_cold
+    from . import _kernel
+
+    notice_if_cold("rotor kernels", [_kernel.solve_samples], log, "30-90")
 
 
 def load_airfoil(preset: RotorPreset) -> Airfoil:

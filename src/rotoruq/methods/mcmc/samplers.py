@@ -31,13 +31,17 @@ on how the run is split into calls.
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..._compile import notice_if_cold
 from ...errors import ParameterError
 from . import _kernels as kn
+
+log = logging.getLogger(__name__)
 
 __all__ = ["SamplerConfig", "SamplerState", "run_chains", "SAMPLERS", "EVALUATIONS"]
 
@@ -242,6 +246,7 @@ def run_chains(logpost: Callable[[np.ndarray], np.ndarray], state: SamplerState,
     state.st[kn.RUN_STEP] = 0
     state.st[kn.KEPT] = 0
     compiled = getattr(logpost, "compiled", None)
+    notice_if_cold("chain kernels", [kn.advance], log)
     speculative = cfg.evaluations == "speculative" and compiled is None
     k_max = int(cfg.max_lookahead) if speculative and c == 1 else 1
     Y = np.empty((max(k_max, 4 if k_max > 1 else 1), 2 if dr else 1, c, d))

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -48,13 +48,22 @@ from .acv import (
     optimal_weights,
     sample_sets,
 )
+from .mlblue import (
+    GroupAllocation,
+    mlblue_allocate,
+    mlblue_estimate,
+    mlblue_fixed_allocation,
+    mlblue_psi,
+)
 
 __all__ = ["MultifidelityResult", "LinearAdaptation", "multifidelity_sample", "STATISTICS",
-           "BUDGET_UNITS", "ADAPTATIONS"]
+           "BUDGET_UNITS", "ADAPTATIONS", "MF_ESTIMATORS"]
 
 STATISTICS = ("mean", "variance")
 BUDGET_UNITS = ("cost", "hf_runs")
 ADAPTATIONS = ("none", "linear")
+#: The estimators of :func:`multifidelity_sample`: the ACV family and MLBLUE (mean only).
+MF_ESTIMATORS = (*ESTIMATORS, "mlblue")
 
 
 @dataclass(frozen=True, eq=False)
@@ -163,7 +172,7 @@ class MultifidelityResult:
     Attributes
     ----------
     names_in, names_out : input (d) and response (m) names.
-    estimator : "mfmc", "acvmf" or "acvis".
+    estimator : "mfmc", "acvmf", "acvis" or "mlblue".
     statistics : the statistics estimated ("mean", "variance").
     target : the response whose mean-estimator variance the allocation minimised.
     models_used : indices (into ``models``) of the models the estimator uses, the
@@ -190,7 +199,9 @@ class MultifidelityResult:
         ``correlation`` without adaptation; with it, ``correlation`` is the adapted models',
         leave-one-out).
     weights : statistic -> (m, len(models_used) - 1) control-variate weights alpha_k (the
-        estimate is Q_0(z_0) + sum_k alpha_k (Q_k(z_k*) - Q_k(z_k))).
+        estimate is Q_0(z_0) + sum_k alpha_k (Q_k(z_k*) - Q_k(z_k))); for "mlblue",
+        "mean" -> (m, len(models_used)) the first row of Psi^{-1} (the weights of the
+        models' C_S^{-1}-weighted group sums, :mod:`rotoruq.methods.mlblue`).
     n_equivalent_hf : statistic -> (m,) high-fidelity runs plain Monte Carlo needs for the same
         estimator variance.
     speedup : statistic -> (m,) cost of those runs over ``cost_pilot + cost_main``.
@@ -198,7 +209,8 @@ class MultifidelityResult:
     pilot_inputs : (n_pilot, d) the pilot's points.
     pilot_outputs : (n_pilot, K, m) every model's responses there (NaN where one failed).
     plan : the allocation as planned (``rotoruq.methods.acv.Allocation``: the models used,
-        their continuous ratios, integer evaluations, cost and predicted variance).
+        their continuous ratios, integer evaluations, cost and predicted variance; for
+        "mlblue" a ``rotoruq.methods.mlblue.GroupAllocation``, with the points per group).
     """
 
     names_in: tuple[str, ...]
@@ -273,12 +285,13 @@ def _check_models(models: Sequence[Model], space: ParameterSpace) -> tuple[str, 
 
 
 def _check_common(models: Sequence[Model], space: ParameterSpace, estimator: str,
-                  budget_unit: str, target: str | None, n_pilot, costs, pilot_unit: str = ""
+                  budget_unit: str, target: str | None, n_pilot, costs, pilot_unit: str = "",
+                  estimators: tuple[str, ...] = ESTIMATORS
                   ) -> tuple[tuple[str, ...], int, np.ndarray | None]:
     """The checks :func:`multifidelity_sample` and ``multifidelity_sobol`` share: the
     responses, the target's index and the given costs (None when measured)."""
-    if estimator not in ESTIMATORS:
-        raise ParameterError(f"unknown estimator {estimator!r}; valid: {', '.join(ESTIMATORS)}")
+    if estimator not in estimators:
+        raise ParameterError(f"unknown estimator {estimator!r}; valid: {', '.join(estimators)}")
     if budget_unit not in BUDGET_UNITS:
         raise ParameterError(f"budget_unit must be one of {BUDGET_UNITS}, got {budget_unit!r}")
     names_out = _check_models(models, space)
@@ -356,10 +369,10 @@ def multifidelity_sample(
     estimator: str = "mfmc",
     n_pilot: int = 50,
     costs: Sequence[float] | None = None,
-    statistics: Sequence[str] = STATISTICS,
+    statistics: Sequence[str] | None = None,
     target: str | None = None,
     select: bool = True,
-    allocation: Sequence[int] | None = None,
+    allocation: Sequence[int] | Mapping[tuple[int, ...], int] | None = None,
     adapt: str = "none",
     seed: SeedLike = None,
 ) -> MultifidelityResult:
@@ -377,19 +390,26 @@ def multifidelity_sample(
     budget_unit : "cost" (``budget`` in the units of ``costs``) or "hf_runs" (in evaluations
         of the high-fidelity model: ``budget * costs[0]``).
     estimator : "mfmc" (multifidelity Monte Carlo, closed-form allocation), "acvmf" or "acvis"
-        (approximate control variates, allocation by numerical optimisation).
+        (approximate control variates, allocation by numerical optimisation), or "mlblue"
+        (multilevel best linear unbiased estimator, Schaden, Ullmann 2020, SIAM/ASA JUQ 8(2);
+        allocation over groups of models as in Croci, Willcox, Wright 2023; the mean only:
+        :mod:`rotoruq.methods.mlblue`). At the optimal allocation MLBLUE's predicted variance
+        is at most the ACV estimators'; it needs one high-fidelity run, not two.
     n_pilot : points of the pilot, every model on each (>= 4): it measures the costs and the
         covariances that set the allocation, the weights and the standard errors.
     costs : (K,) cost of one evaluation of each model; None measures wall seconds per point
         in the pilot (the allocation then depends on the machine's timing: pass the result's
         ``costs`` back to reproduce a run bitwise).
-    statistics : any of "mean", "variance".
+    statistics : any of "mean", "variance" (default both; "mean" alone for "mlblue", which
+        estimates no variance).
     target : the response whose mean estimator the allocation optimises (default the first).
     select : let the allocation leave out low-fidelity models that do not pay (see
-        :func:`rotoruq.methods.acv.allocate`).
+        :func:`rotoruq.methods.acv.allocate`); "mlblue" always considers every group of
+        models and leaves out those given no points.
     allocation : (K,) main-phase evaluations per model (0 leaves a model out) instead of the
         optimised allocation (e.g. another tool's, to compare at equal samples); the pilot
-        then sets only the weights and the standard errors.
+        then sets only the weights and the standard errors. For "mlblue" a mapping
+        ``{group: points}`` (a group a tuple of model indices).
     adapt : "none" or "linear": adapt each low-fidelity model on the pilot by a linear map of
         its response and the inputs (module doc); needs ``n_pilot >= d + 5``.
     seed : int, SeedSequence, Generator or None. The same seed (and costs) gives bitwise the
@@ -415,13 +435,18 @@ def multifidelity_sample(
     >>> res.allocation.tolist(), bool(abs(res.mean[0] - 1 / 6) < 4 * res.mean_se[0])
     ([51, 4888], True)
     """
+    if statistics is None:
+        statistics = ("mean",) if estimator == "mlblue" else STATISTICS
     stats_asked = tuple(statistics)
     bad = [s for s in stats_asked if s not in STATISTICS]
     if bad or not stats_asked:
         raise ParameterError(f"statistics must be a non-empty subset of {STATISTICS}, "
                              f"got {list(statistics)}")
     names_out, jt, w_given = _check_common(models, space, estimator, budget_unit, target,
-                                           n_pilot, costs)
+                                           n_pilot, costs, estimators=MF_ESTIMATORS)
+    if estimator == "mlblue" and "variance" in stats_asked:
+        raise ParameterError("estimator 'mlblue' estimates the mean only: statistics=['mean'] "
+                             "(the variance by mfmc, acvmf or acvis)")
     target = names_out[jt]
     K, m = len(models), len(names_out)
     if adapt not in ADAPTATIONS:
@@ -464,6 +489,19 @@ def multifidelity_sample(
         cov, m22 = _sample_moments(Y_loo)
     correlation = _correlation(cov)
 
+    if estimator == "mlblue":
+        if budget is None:
+            if not isinstance(allocation, Mapping):
+                raise ParameterError("estimator 'mlblue': allocation must be a mapping "
+                                     f"{{group: points}}, got {allocation!r}")
+            plan = mlblue_fixed_allocation(cov[jt], w, allocation)
+        else:
+            if budget_unit == "hf_runs":
+                budget = float(budget) * float(w[0])
+            plan = mlblue_allocate(cov[jt], w, float(budget))
+        return _mlblue_main(models, space, plan, s_main, names_out, target, stats_asked,
+                            cov, w, xp, Yp, wall_pilot, int(n_pilot), costs is None, budget,
+                            correlation, correlation_unadapted, adapt, adaptation)
     if budget is None:
         plan = fixed_allocation(cov[jt], w, np.asarray(allocation), estimator=estimator)
     else:
@@ -530,5 +568,63 @@ def multifidelity_sample(
         variance=est["variance"], variance_se=se["variance"], weights=weights,
         n_equivalent_hf=n_eq, speedup=speedup,
         n_evaluations=int(n_pilot) * K + int(plan.n_samples.sum()), plan=plan,
+        pilot_inputs=xp, pilot_outputs=Yp, adapt=adapt, adaptation=adaptation,
+        correlation_unadapted=correlation_unadapted)
+
+
+def _mlblue_main(models, space, plan: GroupAllocation, s_main, names_out, target, stats_asked,
+                 cov, w, xp, Yp, wall_pilot, n_pilot: int, costs_measured: bool, budget,
+                 correlation, correlation_unadapted, adapt, adaptation
+                 ) -> MultifidelityResult:
+    """The main phase of :func:`multifidelity_sample` with ``estimator="mlblue"``: each group
+    with points gets a block of fresh independent points, every model runs once on the union
+    of its groups' blocks."""
+    K, m = len(models), len(names_out)
+    assert plan.group_samples is not None
+    groups = plan.groups
+    gm = np.asarray(plan.group_samples, dtype=int)
+    start = np.concatenate([[0], np.cumsum(gm)])
+    xm = space.draw(int(start[-1]), design="random", seed=np.random.default_rng(s_main))
+    wall_main = np.zeros(K)
+    values = np.full((xm.shape[0], K, m), np.nan)
+    for k in plan.models:
+        idx = np.concatenate([np.arange(start[i], start[i + 1])
+                              for i, g in enumerate(groups) if k in g and gm[i]])
+        y, fails, wall_main[k] = _timed(models[k], space, xm[idx])
+        if fails:
+            first = next(iter(fails.items()))
+            raise EvaluationError(
+                f"multifidelity_sample: models[{k}] failed on {len(fails)} of {idx.size} points "
+                f"(first: point {first[0]}: {first[1]}); the estimators need every point")
+        if adaptation is not None and k > 0:
+            y = adaptation.apply(k, xm[idx], y)
+        values[idx, k, :] = np.asarray(y, dtype=float).reshape(idx.size, m)
+    spent = np.zeros(K, dtype=int)
+    spent[list(plan.models)] = plan.n_samples
+    nan = np.full(m, np.nan)
+    mean, mean_se = nan.copy(), nan.copy()
+    n_eq = np.full(m, np.nan)
+    used = list(plan.models)
+    alphas = np.zeros((m, len(used)))
+    for j in range(m):
+        sums = [values[start[i]:start[i + 1], list(g), j].sum(axis=0)
+                for i, g in enumerate(groups)]
+        mean[j], var = mlblue_estimate(cov[j], groups, sums, gm)
+        alphas[j] = np.linalg.pinv(mlblue_psi(cov[j], groups, gm)[np.ix_(used, used)],
+                                   hermitian=True)[0]
+        mean_se[j] = np.sqrt(max(var, 0.0))
+        n_eq[j] = cov[j, 0, 0] / var
+    cost_pilot = float(n_pilot * w.sum())
+    cost_main = float(w @ spent)
+    speedup = n_eq * w[0] / (cost_pilot + cost_main)
+    return MultifidelityResult(
+        names_in=tuple(space.names), names_out=names_out, estimator="mlblue",
+        statistics=stats_asked, target=target, models_used=tuple(used), allocation=spent,
+        n_pilot=n_pilot, costs=w, costs_measured=costs_measured,
+        budget=plan.cost if budget is None else float(budget),
+        cost_pilot=cost_pilot, cost_main=cost_main, wall_pilot=wall_pilot, wall_main=wall_main,
+        correlation=correlation, mean=mean, mean_se=mean_se, variance=nan.copy(),
+        variance_se=nan.copy(), weights={"mean": alphas}, n_equivalent_hf={"mean": n_eq},
+        speedup={"mean": speedup}, n_evaluations=n_pilot * K + int(spent.sum()), plan=plan,
         pilot_inputs=xp, pilot_outputs=Yp, adapt=adapt, adaptation=adaptation,
         correlation_unadapted=correlation_unadapted)

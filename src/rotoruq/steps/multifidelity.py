@@ -1,5 +1,5 @@
 """Step type ``multifidelity``: mean and variance of the study's model (the high-fidelity one)
-from few of its runs and many runs of cheaper models, by multifidelity Monte Carlo or
+from few of its runs and many runs of cheaper models, by multifidelity Monte Carlo, MLBLUE or
 approximate control variates (:func:`rotoruq.methods.multifidelity.multifidelity_sample`);
 with ``sobol = true`` also its Sobol' main and total indices
 (:func:`rotoruq.methods.multifidelity_sobol.multifidelity_sobol`, a budget of its own on top,
@@ -15,7 +15,7 @@ plain Monte Carlo would need for the same standard errors.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -50,7 +50,8 @@ class MultifidelityRecord(StepRecord):
     :data:`HF_LABEL`), m responses, s statistics.
 
     models (K), names_out (m), statistics (s) : the statistics estimated ("mean",
-    "variance"). estimator : "mfmc", "acvmf" or "acvis"; target : the response the
+    "variance"; "mean" alone for "mlblue"). estimator : "mfmc", "acvmf", "acvis" or
+    "mlblue"; target : the response the
     allocation was optimised for. cost (K,) : cost of one run of each model (seconds when
     ``costs_measured``, else the given cost units); runs (K,) : pilot plus main-phase runs;
     allocation (K,) : main-phase runs; used (K,) 1.0 / 0.0 : whether the estimator uses the
@@ -66,7 +67,10 @@ class MultifidelityRecord(StepRecord):
     sobol_n_equivalent_hf_main, sobol_n_equivalent_hf_total (m, d) : the indices, their
     standard errors and the high-fidelity runs plain pick-and-freeze needs for the same
     standard errors; sobol_allocation (K,) : main-phase base samples (d + 2 runs each);
-    sobol_cost (1,) : the cost of the Sobol' pilot and main phase.
+    sobol_cost (1,) : the cost of the Sobol' pilot and main phase. groups (G) and
+    group_allocation (G,) : for "mlblue", the groups of models given points (names joined
+    by "+") and their main-phase points (empty for the other estimators and in records
+    saved before them).
 
     Its flat view: ``budget``, ``cost_pilot``, ``cost_main``; per model ``cost/``, ``runs/``,
     ``allocation/``, ``used/``, ``correlation/<model>/<response>``; per response ``mean/``,
@@ -83,8 +87,9 @@ class MultifidelityRecord(StepRecord):
             **{f"sobol_{k}": ("response", "input") for k in (
                 "main", "main_se", "total", "total_se", "n_equivalent_hf_main",
                 "n_equivalent_hf_total")},
-            "sobol_allocation": ("model",), "sobol_cost": ("cost",)}
-    LABELS = {"model": "models", "statistic": "statistics"}
+            "sobol_allocation": ("model",), "sobol_cost": ("cost",),
+            "group_allocation": ("group",)}
+    LABELS = {"model": "models", "statistic": "statistics", "group": "groups"}
 
     models: tuple[str, ...]
     names_out: tuple[str, ...]
@@ -120,6 +125,8 @@ class MultifidelityRecord(StepRecord):
     sobol_n_equivalent_hf_total: np.ndarray
     sobol_allocation: np.ndarray
     sobol_cost: np.ndarray
+    groups: tuple[str, ...] = ()
+    group_allocation: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     def statistic(self, name: str, values: np.ndarray, k: int) -> float:
         """Row ``name`` of a (s, m) array at response ``k``; NaN when not estimated."""
@@ -177,13 +184,24 @@ def run_multifidelity(ctx: StepContext) -> StepResult:
         res.adapt, np.asarray(res.correlation_unadapted, dtype=float).T,
         tuple(ctx.space.names), bool(o["sobol"]),
         sob["main"], sob["main_se"], sob["total"], sob["total_se"],
-        sob["n_equivalent_hf_main"], sob["n_equivalent_hf_total"], sob_alloc, sob_cost)
+        sob["n_equivalent_hf_main"], sob["n_equivalent_hf_total"], sob_alloc, sob_cost,
+        *_group_fields(res, names))
     arrays, meta = record.parts()
     return StepResult(ctx.name, ctx.type, {}, arrays, meta={
         "models": list(names), "responses": list(ctx.responses), "estimator": res.estimator,
         "target": res.target,
         "n_pilot": res.n_pilot, "costs_measured": res.costs_measured,
         "n_evaluations": int(res.n_evaluations) + n_sobol_evals, **meta})
+
+
+def _group_fields(res, names: tuple[str, ...]) -> tuple[tuple[str, ...], np.ndarray]:
+    """MLBLUE's groups with points (model names joined by "+") and their points."""
+    used = getattr(res.plan, "used_groups", None)
+    if used is None:
+        return (), np.zeros(0)
+    pairs = used()
+    return (tuple("+".join(names[k] for k in g) for g, _ in pairs),
+            np.array([float(n) for _, n in pairs]))
 
 
 def multifidelity_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
@@ -207,7 +225,11 @@ def multifidelity_tables(res: StepResult, labels: Mapping[str, str]) -> list[Ste
              + (" Low-fidelity models adapted on the pilot (a linear map of their response "
                 "and the inputs): the estimator uses the adapted model's correlation "
                 "(leave-one-out on the pilot); the model's own is beside it."
-                + _kept_as_evaluated(rec, labels) if adapted else ""))
+                + _kept_as_evaluated(rec, labels) if adapted else "")
+             + (" MLBLUE points per group of models (each group's models run on its own "
+                "points): " + ", ".join(f"{g} {int(n)}" for g, n in zip(
+                    rec.groups, rec.group_allocation, strict=True)) + "."
+                if len(rec.groups) else ""))
     est = make_table(
         "Multi-fidelity estimates",
         ("response", "mean", "mean std. error", "std", "variance", "variance std. error",
@@ -314,6 +336,9 @@ def why_dearer(main: float, pilot_share: float, rho: float, target: str | None,
 def _check(c: StepCheck) -> None:
     if not c.options["models"]:
         c.fail(("models",), "a list of low-fidelity model names", "[]")
+    if c.options.get("sobol") and c.options.get("estimator") == "mlblue":
+        c.fail(("estimator",), "mfmc, acvmf or acvis with sobol = true (mlblue estimates "
+               "the mean only)", "mlblue")
     costs = c.options.get("costs")
     if costs is not None and len(costs) != len(c.options["models"]) + 1:
         c.fail(("costs",), f"{len(c.options['models']) + 1} costs ([model] first, then "
@@ -325,7 +350,7 @@ STEP = StepType(
     options={"models": Option(string_list, REQUIRED),
              "budget": Option(number(positive=True, allow_zero=False), SIGNATURE),
              "budget_unit": Option(choice("cost", "hf_runs"), SIGNATURE),
-             "estimator": Option(choice("mfmc", "acvmf", "acvis"), SIGNATURE),
+             "estimator": Option(choice("mfmc", "acvmf", "acvis", "mlblue"), SIGNATURE),
              "n_pilot": Option(integer(4), SIGNATURE),
              "adapt": Option(choice("none", "linear"), SIGNATURE),
              "sobol": Option(boolean, False),

@@ -124,3 +124,40 @@ def test_bad_input_is_told_clearly():
     with pytest.raises(ParameterError, match="mean only"):
         multifidelity_sample(ladder_models(), SPACE, 10.0, costs=list(COSTS), n_pilot=10,
                              estimator="mlblue", statistics=["mean", "variance"], seed=1)
+
+
+@pytest.mark.slow  # the rotor study: about a minute on a busy 2-core machine
+def test_the_multifidelity_step_runs_mlblue_and_saves_the_groups(tmp_path):
+    from dataclasses import replace
+    from pathlib import Path
+
+    from rotoruq.results import load_step
+    from rotoruq.steps.multifidelity import MultifidelityRecord, multifidelity_tables
+    from rotoruq.study.runner import run_study
+
+    toml = (Path(__file__).resolve().parents[1] / "src" / "rotoruq" / "studies"
+            / "multifidelity_rotor.toml").read_text()
+    study = tmp_path / "mf.toml"
+    study.write_text(toml.replace("budget = 200", 'budget = 30\nestimator = "mlblue"')
+                     .replace("n_pilot = 20", "n_pilot = 10"))
+    run_study(study, out=tmp_path / "out")
+    res = load_step(tmp_path / "out" / "steps" / "multifidelity")
+    rec = MultifidelityRecord.read(res)
+    assert rec.estimator == "mlblue" and rec.statistics == ("mean",)
+    assert rec.groups and rec.group_allocation.sum() > 0
+    assert all(g.split("+")[0] in rec.models for g in rec.groups)
+    assert rec.allocation[0] >= 1 and np.all(rec.mean_se > 0)
+    note = multifidelity_tables(res, {})[0].note
+    assert "MLBLUE points per group" in note
+    # a record saved before the groups were reads with none
+    meta = {**res.meta, "record": {**res.meta["record"], "fields": {
+        k: v for k, v in res.meta["record"]["fields"].items() if k != "groups"}}}
+    arrays = {k: v for k, v in res.arrays.items() if k != "group_allocation"}
+    old = MultifidelityRecord.read(replace(res, arrays=arrays, meta=meta))
+    assert old.groups == () and old.group_allocation.size == 0
+
+    bad = tmp_path / "bad.toml"
+    bad.write_text(study.read_text().replace('estimator = "mlblue"',
+                                             'estimator = "mlblue"\nsobol = true'))
+    with pytest.raises(Exception, match="mlblue estimates the mean only"):
+        run_study(bad, out=tmp_path / "out2")

@@ -271,7 +271,7 @@ def mlblue_allocate(cov: np.ndarray, costs, budget: float, *,
 
 
 def mlblue_fixed_allocation(cov: np.ndarray, costs,
-                            group_samples: Mapping[Sequence[int], int]) -> GroupAllocation:
+                            group_samples: Mapping[tuple[int, ...], int]) -> GroupAllocation:
     """A :class:`GroupAllocation` for given points per group ``{group: points}``.
 
     Parameters
@@ -320,8 +320,9 @@ def mlblue_estimate(cov: np.ndarray, groups, sums: Sequence[np.ndarray], m
     Examples
     --------
     >>> y = np.array([1.0, 2.0, 4.0])
-    >>> mlblue_estimate(np.array([[3.0]]), [(0,)], [np.array([y.sum()])], [3])
-    (2.3333333333333335, 1.0)
+    >>> mean, var = mlblue_estimate(np.array([[3.0]]), [(0,)], [np.array([y.sum()])], [3])
+    >>> round(mean, 12), round(var, 12)
+    (2.333333333333, 1.0)
     """
     cov = np.asarray(cov, dtype=float)
     used = _used(groups, m)

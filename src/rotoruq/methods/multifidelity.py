@@ -489,17 +489,18 @@ def multifidelity_sample(
         cov, m22 = _sample_moments(Y_loo)
     correlation = _correlation(cov)
 
+    plan: Allocation
     if estimator == "mlblue":
         if budget is None:
             if not isinstance(allocation, Mapping):
                 raise ParameterError("estimator 'mlblue': allocation must be a mapping "
                                      f"{{group: points}}, got {allocation!r}")
-            plan = mlblue_fixed_allocation(cov[jt], w, allocation)
+            gplan = mlblue_fixed_allocation(cov[jt], w, allocation)
         else:
             if budget_unit == "hf_runs":
                 budget = float(budget) * float(w[0])
-            plan = mlblue_allocate(cov[jt], w, float(budget))
-        return _mlblue_main(models, space, plan, s_main, names_out, target, stats_asked,
+            gplan = mlblue_allocate(cov[jt], w, float(budget))
+        return _mlblue_main(models, space, gplan, s_main, names_out, target, stats_asked,
                             cov, w, xp, Yp, wall_pilot, int(n_pilot), costs is None, budget,
                             correlation, correlation_unadapted, adapt, adaptation)
     if budget is None:

@@ -625,6 +625,7 @@ def test_signal_to_a_dask_run_ends_its_drivers_on_the_workers(tmp_path, sig):
 def test_stopping_one_run_leaves_the_drivers_of_another_in_the_same_process(tmp_path):
     """What a Dask worker does for an interrupted run: its drivers are killed and none of
     them starts again, while another run's driver in the same process goes on."""
+    from rotoruq.evaluation import process_tree
     from rotoruq.evaluation.process_tree import kill_active_trees, owned_by, run_process_tree
 
     runs: dict[str, object] = {}
@@ -643,6 +644,8 @@ def test_stopping_one_run_leaves_the_drivers_of_another_in_the_same_process(tmp_
     for t in threads.values():
         t.start()
     _wait_for(lambda: len(_pids_running(str(tmp_path))) >= 2, 10, "two drivers")
+    # a driver is listed just after it starts: on a busy machine its thread may not be there yet
+    _wait_for(lambda: len(process_tree._ACTIVE) >= 2, 10, "two listed driver trees")
     try:
         assert kill_active_trees(owner="a", stop=True) == 1
         threads["a"].join(5)

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import rotoruq as rq
+from rotoruq.results import load_step
 from rotoruq.rotor.ground_effect import (
     fradenburgh_thrust_ratio,
     ground_effect_factor,
@@ -203,8 +204,7 @@ def test_fradenburgh_ground_effect_from_a_study_file(tmp_path):
             type = "mean_value"
         """))
         cli("run", "s.toml", cwd=d)
-        res = json.loads((d / "out" / "steps" / "mv" / "result.json").read_text())
-        return res["scalars"]["mean/thrust"]
+        return load_step(d / "out" / "steps" / "mv").get("mean/thrust")
 
     oge = run("fradenburgh", 4.0)
     assert run("fradenburgh", 1.0) / oge > run("cheeseman_bennett", 1.0) / oge > 1.05

@@ -292,7 +292,7 @@ def flat_view(meta: Mapping[str, Any], arrays: Mapping[str, np.ndarray]) -> dict
             for axis, n in zip(axes, arr.shape, strict=True):
                 lab = labels.get(axis)
                 lab = plain.get(lab) if isinstance(lab, str) else lab
-                if isinstance(lab, list | tuple):
+                if isinstance(lab, list | tuple) and lab:
                     if len(lab) != n:
                         break  # labels that do not fit (a record not written by rotoruq)
                     names.append([_part(str(x)) for x in lab])
@@ -396,6 +396,8 @@ class StepRecord:
             v = getattr(self, f.name)
             if f.name in self.AXES:
                 v = np.asarray(v)
+                if v.size == 0 and v.ndim != len(self.AXES[f.name]):
+                    v = v.reshape((0,) * len(self.AXES[f.name]))  # none, whatever its shape
                 if v.ndim != len(self.AXES[f.name]):
                     raise ValueError(f"{type(self).__name__}.{f.name}: expected "
                                      f"{len(self.AXES[f.name])} axes "
@@ -410,7 +412,8 @@ class StepRecord:
             for axis, n in zip(self.AXES[name], arr.shape, strict=True):
                 lab = labels.get(axis)
                 lab = plain.get(lab) if isinstance(lab, str) else lab
-                if isinstance(lab, list | tuple) and len(lab) != n:
+                # no names recorded (a field added since, left empty): the view uses indices
+                if isinstance(lab, list | tuple) and lab and len(lab) != n:
                     raise ValueError(f"{type(self).__name__}.{name}: its {axis} axis has {n} "
                                      f"elements but {len(lab)} labels ({labels[axis]!r}); "
                                      "give the axis its own name (LABELS)")

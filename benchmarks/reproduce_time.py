@@ -38,7 +38,7 @@ def run_once(out_root: str, chapters: list[str], quick: bool, jobs: int | None) 
     (the chapters at once on ``jobs`` processes): seconds per chapter, until the last chapter
     ended (``wall``), for the report, in all (``total``), and for the report rebuilt from
     the same results (``rebuild``: its figures from the cache)."""
-    from rotoruq.report.html import write_report
+    from rotoruq.study.cmd_report import write
     from rotoruq.study.cmd_reproduce import reproduce
 
     result: dict = {"seconds": {}, "errors": {}}
@@ -58,9 +58,9 @@ def run_once(out_root: str, chapters: list[str], quick: bool, jobs: int | None) 
     result["dirs"] = dirs   # the studies the report was written from (not in the JSON)
     result["figures"] = len([f for f in os.listdir(os.path.join(out_root, "report", "figures"))
                              if f.endswith(".png")]) if dirs else 0
-    if dirs:
+    if dirs:  # `rotoruq report` of the same results, as a user rebuilds it
         t0 = time.perf_counter()
-        write_report(dirs, os.path.join(out_root, "report"))
+        write(dirs, os.path.join(out_root, "report"))
         result["seconds"]["rebuild"] = round(time.perf_counter() - t0, 2)
     return result
 

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 from scipy import stats
 
+from .._docs import fill_doc
 from .._rng import SeedLike, as_generator
 from ..errors import ParameterError
 
@@ -679,7 +680,6 @@ class Beta(_MirroredTail):
 
 
 _SHAPE_SCALE_PARAMETERS = """
-
     Parameters
     ----------
     alpha : float
@@ -704,10 +704,14 @@ class _ShapeScale(_DerivedMoments):
         _freeze(self, self._family(self.alpha, scale=self.beta))
 
 
+@fill_doc(parameters=_SHAPE_SCALE_PARAMETERS)
 @dataclass(frozen=True)
 class Gamma(_ShapeScale):
-    __doc__ = "Gamma with shape ``alpha`` and scale ``beta`` (mean alpha*beta)." \
-        + _SHAPE_SCALE_PARAMETERS
+    """Gamma with shape ``alpha`` and scale ``beta`` (mean alpha*beta).
+
+    %(parameters)s
+    """
+
     _family = stats.gamma
 
 
@@ -749,9 +753,14 @@ class Gumbel(_DerivedMoments):
         _freeze(self, stats.gumbel_r(loc=self.beta, scale=1.0 / self.alpha))
 
 
+@fill_doc(parameters=_SHAPE_SCALE_PARAMETERS)
 @dataclass(frozen=True)
 class Weibull(_ShapeScale):
-    __doc__ = "Weibull with shape ``alpha`` and scale ``beta``." + _SHAPE_SCALE_PARAMETERS
+    """Weibull with shape ``alpha`` and scale ``beta``.
+
+    %(parameters)s
+    """
+
     _family = stats.weibull_min
 
 

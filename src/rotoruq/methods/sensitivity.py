@@ -59,6 +59,7 @@ from ..errors import ParameterError
 from ..model import Model
 from ..params import ParameterSpace, unit_design
 from ._common import eval_space, nan_rows_warning
+from ._sobol_indices import SobolIndices
 from .sampling import check_design, unit_to_space
 
 __all__ = ["SobolResult", "sobol_indices", "sobol_from_design", "pick_freeze_design"]
@@ -67,7 +68,7 @@ ESTIMATORS = ("hybrid", "saltelli2010", "jansen", "janon")
 
 
 @dataclass(frozen=True, eq=False)
-class SobolResult:
+class SobolResult(SobolIndices):
     """Main and total Sobol' indices.
 
     Attributes
@@ -96,12 +97,6 @@ class SobolResult:
         Base rows left out because one of their d + 2 evaluations failed.
     """
 
-    names_in: tuple[str, ...]
-    names_out: tuple[str, ...]
-    main: np.ndarray
-    total: np.ndarray
-    main_ci: np.ndarray
-    total_ci: np.ndarray
     variance: np.ndarray
     mean: np.ndarray
     estimator: str

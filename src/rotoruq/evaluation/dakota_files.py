@@ -714,7 +714,7 @@ def write_results(
     Returns
     -------
     Path
-        The written file.
+        The results file written (``path``).
 
     Examples
     --------

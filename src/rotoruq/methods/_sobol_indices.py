@@ -14,18 +14,9 @@ __all__ = ["SobolIndices"]
 
 @dataclass(frozen=True, eq=False)
 class SobolIndices:
-    """Main and total Sobol' indices with their intervals, and the axis names of each array
-    (``AXES``, read by a step record that saves them).
-
-    Attributes
-    ----------
-    names_in, names_out : tuple of str
-        The d input and m response names.
-    main, total : ndarray of shape (m, d)
-        First-order and total-effect indices.
-    main_ci, total_ci : ndarray of shape (m, d, 2)
-        Their intervals (lower, upper bound).
-    """
+    """The index fields of :class:`~rotoruq.methods.sensitivity.SobolResult` (documented
+    there: names, main and total indices, their intervals) and the axis names of each array
+    (``AXES``), shared with the sensitivity step's record."""
 
     AXES: ClassVar[dict[str, tuple[str, ...]]] = {
         "main": ("response", "input"), "total": ("response", "input"),

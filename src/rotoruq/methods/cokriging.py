@@ -323,12 +323,14 @@ class CoKriging:
         return self._levels[-1][0].bounds
 
     def extrapolation_distance(self, X) -> np.ndarray:
-        """Euclidean distance (n,) of points outside :attr:`bounds`, in box-widths.
+        """Euclidean distance (n,) of points outside :attr:`bounds`, in box-widths: the
+        high-fidelity level's :meth:`GaussianProcess.extrapolation_distance
+        <rotoruq.methods.surrogate.GaussianProcess.extrapolation_distance>` (0 inside).
 
         Parameters
         ----------
         X : array_like of shape (n, d) or (d,)
-            Points, in input units (0 for a point inside the box).
+            Points, in input units.
         """
         self._check_fitted()
         return self._levels[-1][0].extrapolation_distance(X)

@@ -4,10 +4,11 @@ Every module under ``src/rotoruq`` is parsed (not imported) and each ``import`` 
 or inside a function, since a deferred import is still a dependency - is resolved to the rotoruq
 subpackage it reaches. A lower layer must never import a higher one:
 
-    errors, _rng, _options, _compile, atomic, safety
+    errors, _rng, _options, _compile, _docs, atomic, safety
                                     the bottom: import nothing of rotoruq but each other
                                     (_options: the option records' deprecation helpers;
-                                    _compile: the notice before numba compiles)
+                                    _compile: the notice before numba compiles;
+                                    _docs: docstring entries shared by several names)
     model, params                   + the bottom
     rotor                           + model, params           (never methods, evaluation, ...)
     methods                         + model, params           (never rotor, evaluation, ...)
@@ -48,13 +49,14 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "rotoruq"
 
-BOTTOM = {"errors", "_rng", "_options", "_compile", "atomic", "safety"}
+BOTTOM = {"errors", "_rng", "_options", "_compile", "_docs", "atomic", "safety"}
 UNITS = {"model", "params", "testfunctions"}
 ALLOWED: dict[str, set[str]] = {
     "errors": set(),
     "_rng": {"errors"},
     "_options": {"errors"},
     "_compile": set(),
+    "_docs": set(),
     "atomic": set(),
     "safety": {"errors"},
     "model": BOTTOM,
@@ -336,10 +338,10 @@ def test_import_rotoruq_loads_nothing_until_a_name_is_used():
     assert _loaded_after("import rotoruq") == ["rotoruq"]
     # one layer alone: the rotor does not bring methods, evaluation, study or report
     units = {_unit(m) for m in _loaded_after("import rotoruq.rotor.hover")}
-    assert units <= {"", "errors", "_rng", "model", "params", "rotor"}, units
+    assert units <= {"", "errors", "_rng", "_docs", "model", "params", "rotor"}, units
     # a name loads its own module (and what that imports), nothing else
     units = {_unit(m) for m in _loaded_after("import rotoruq; rotoruq.ParameterSpace")}
-    assert units == {"", "errors", "_rng", "params"}, units
+    assert units == {"", "errors", "_rng", "_docs", "params"}, units
 
 
 def test_python_m_rotoruq_is_as_light_as_the_console_script():

@@ -59,6 +59,23 @@ class Model(Protocol):
     def __call__(self, x: np.ndarray) -> np.ndarray: ...
 
 
+#: the Parameters and Returns of every ``evaluate(x)`` that returns an :class:`EvalBatch`
+#: (:meth:`~rotoruq.evaluation.evaluator.Evaluator.evaluate`,
+#: :meth:`~rotoruq.evaluation.external.ExternalModel.evaluate`), filled in with
+#: :func:`rotoruq._docs.fill_doc`
+EVALUATE_BATCH_DOC = """
+Parameters
+----------
+x : array_like of shape (n, d) or (d,)
+    Points, columns in ``names_in`` order.
+
+Returns
+-------
+EvalBatch
+    ``values`` (n, m), NaN rows for failed points, and the reason of each failure.
+"""
+
+
 @dataclass(frozen=True, eq=False)
 class EvalBatch:
     """Responses of a batch.

@@ -41,6 +41,7 @@ import time
 import uuid
 from collections.abc import Mapping, Sequence
 from dataclasses import MISSING, dataclass, field, fields
+from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, Self
 
@@ -119,14 +120,20 @@ class StepResult:
     fingerprint: str = ""
 
     def __post_init__(self) -> None:
-        derived = flat_view(self.meta, self.arrays)
+        derived = self._flat
         if derived:
             object.__setattr__(self, "scalars", {**derived, **self.scalars})
+
+    @cached_property
+    def _flat(self) -> dict[str, float]:
+        # the flat view of the record, derived once: the constructor merges it into
+        # ``scalars`` and saving leaves it out again (``own_scalars``)
+        return flat_view(self.meta, self.arrays)
 
     def own_scalars(self) -> dict[str, float]:
         """The scalars that the flat view of the record does not give (what ``result.json``
         keeps as ``scalars``)."""
-        derived = flat_view(self.meta, self.arrays)
+        derived = self._flat
         return {k: v for k, v in self.scalars.items()
                 if k not in derived or not _same(derived[k], v)}
 

@@ -347,7 +347,7 @@ def write_parameters(
     Returns
     -------
     Path
-        The written file.
+        The parameters file written (``path``).
 
     Examples
     --------
@@ -714,7 +714,7 @@ def write_results(
     Returns
     -------
     Path
-        The written file.
+        The results file written (``path``).
 
     Examples
     --------
@@ -775,16 +775,31 @@ def parse_results(
 
     Parameters
     ----------
-    names_out : expected response labels, in order. When given, the number of values is
-        checked and labels, where present, must match (a file whose labels are a permutation
-        of ``names_out`` is reordered).
-    asv : active set codes per response (default: values only, i.e. all 1). Used to check
-        how many values, gradients and Hessians the file must hold.
-    n_dvv : number of derivative variables (length of each gradient).
-    by_position : read the values in file order whatever their labels say, as Dakota does
-        (its own test drivers label every value ``g``), instead of refusing labels that are
-        neither ``names_out`` nor a permutation of it; ``names_out`` of the result then keeps
-        the file's labels, for the caller to compare. The number of values is still checked.
+    text : str
+        The file's text.
+    path : str or PathLike, optional
+        The file it was read from, named in the errors (:class:`~rotoruq.InputFileError`).
+    names_out : sequence of str, optional
+        Expected response labels, in order. When given, the number of values is checked and
+        labels, where present, must match (a file whose labels are a permutation of
+        ``names_out`` is reordered).
+    asv : sequence of int, optional
+        Active set codes per response (default: values only, i.e. all 1), which say how many
+        values, gradients and Hessians the file must hold.
+    n_dvv : int, optional
+        Number of derivative variables (length of each gradient).
+    by_position : bool, optional
+        Read the values in file order whatever their labels say, as Dakota does (its own test
+        drivers label every value ``g``), instead of refusing labels that are neither
+        ``names_out`` nor a permutation of it; ``names_out`` of the result then keeps the
+        file's labels, for the caller to compare. The number of values is still checked
+        (default False).
+
+    Returns
+    -------
+    ResultsFile
+        The values, their labels, gradients and Hessians, and whether the file says
+        ``FAIL``.
     """
     toks = _tokens(text, path)
     if toks and toks[0][1].lower().startswith("fail"):
@@ -882,38 +897,26 @@ def parse_results(
     return ResultsFile(vals, labs, g, h, False)
 
 
-def read_results(
-    path: str | os.PathLike,
-    *,
-    names_out: Sequence[str] | None = None,
-    asv: Sequence[int] | None = None,
-    n_dvv: int | None = None,
-    by_position: bool = False,
-) -> ResultsFile:
-    """Read and parse a results file (see :func:`parse_results` for the checks).
+def read_results(path: str | os.PathLike, **expected: Any) -> ResultsFile:
+    """Read and parse a results file.
 
     Parameters
     ----------
     path : str or PathLike
         The file the driver wrote; a missing or malformed one raises
         :class:`~rotoruq.InputFileError`.
-    names_out : sequence of str, optional
-        Expected response labels, in order (a file whose labels are a permutation of them is
-        reordered).
-    asv : sequence of int, optional
-        Active set codes per response (default: values only), which say how many values,
-        gradients and Hessians the file must hold.
-    n_dvv : int, optional
-        Number of derivative variables (length of each gradient).
-    by_position : bool, optional
-        Read the values in file order whatever their labels say, as Dakota does (default
-        False).
+    **expected
+        ``names_out``, ``asv``, ``n_dvv`` and ``by_position`` of :func:`parse_results`: what
+        the file must hold.
 
     Returns
     -------
     ResultsFile
-        The values, their labels, gradients and Hessians, and whether the file says
-        ``FAIL``.
+        As :func:`parse_results` gives it.
+
+    See Also
+    --------
+    parse_results : The checks, on a text already read.
 
     Examples
     --------
@@ -928,5 +931,4 @@ def read_results(
     path = Path(path)
     if not path.is_file():
         raise InputFileError(path, None, "a results file written by the driver", "no file")
-    return parse_results(read_text(path, "Dakota results file"), path, names_out=names_out,
-                         asv=asv, n_dvv=n_dvv, by_position=by_position)
+    return parse_results(read_text(path, "Dakota results file"), path, **expected)

@@ -39,8 +39,9 @@ from typing import Any
 
 import numpy as np
 
+from .._docs import fill_doc
 from ..errors import EvaluationError, ModelShapeError, ParameterError
-from ..model import EvalBatch, Gradient, Model, evaluate, has_gradient
+from ..model import EVALUATE_BATCH_DOC, EvalBatch, Gradient, Model, evaluate, has_gradient
 from .executors import Executor, make_executor
 from .external import RunResult, _abort_message
 from .identity import model_identity
@@ -262,21 +263,14 @@ class Evaluator:
         self._next_eval = start + k
         return [str(start + j) for j in range(k)]
 
+    @fill_doc(evaluate_batch=EVALUATE_BATCH_DOC)
     def evaluate(self, x: np.ndarray) -> EvalBatch:
         """Evaluate a batch ``x`` (n, d); returns values (n, m) and per-row failures.
 
         Stored evaluations of the same model and study are reused; the others run on the
         executor and are stored as they finish.
 
-        Parameters
-        ----------
-        x : array_like of shape (n, d) or (d,)
-            Points, columns in ``names_in`` order.
-
-        Returns
-        -------
-        EvalBatch
-            ``values`` (n, m), NaN rows for failed points, and the reason of each failure.
+        %(evaluate_batch)s
         """
         t0 = time.perf_counter()
         x = np.atleast_2d(np.asarray(x, dtype=float))

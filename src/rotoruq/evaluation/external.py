@@ -75,10 +75,11 @@ from typing import Any
 
 import numpy as np
 
+from .._docs import fill_doc
 from .._options import fields_of, legacy_keywords, legacy_mapping, with_fields
 from ..atomic import make_temp_dir
 from ..errors import EvaluationError, InputFileError, ParameterError, RotoruqError
-from ..model import EvalBatch, Gradient
+from ..model import EVALUATE_BATCH_DOC, EvalBatch, Gradient
 from .dakota_files import check_label, read_results, read_text, write_parameters
 from .identity import file_sha256
 from .process_tree import run_process_tree
@@ -737,19 +738,12 @@ class ExternalModel:
 
     # -- Model protocol ----------------------------------------------------------------------
 
+    @fill_doc(evaluate_batch=EVALUATE_BATCH_DOC)
     def evaluate(self, x: np.ndarray) -> EvalBatch:
         """Run every row in turn (use :class:`~rotoruq.evaluation.evaluator.Evaluator` for
         parallel runs and a store). With the "abort" policy the first failure raises.
 
-        Parameters
-        ----------
-        x : array_like of shape (n, d) or (d,)
-            Points, columns in ``names_in`` order.
-
-        Returns
-        -------
-        EvalBatch
-            ``values`` (n, m), NaN rows for failed runs, and the reason of each failure.
+        %(evaluate_batch)s
         """
         x = np.atleast_2d(np.asarray(x, dtype=float))
         values = np.full((len(x), len(self.names_out)), np.nan)

@@ -16,7 +16,12 @@ from ..model import EvalBatch, Model, align_inputs, evaluate
 if TYPE_CHECKING:
     from ..params import ParameterSpace
 
-__all__ = ["eval_space", "levels_per_response", "nan_rows_warning"]
+__all__ = ["eval_space", "levels_per_response", "nan_rows_warning", "names_or_default"]
+
+
+def names_or_default(names: Sequence[str] | None, n: int, prefix: str) -> tuple[str, ...]:
+    """``names`` as a tuple, or ``<prefix>0``, ``<prefix>1``, ... (n of them) for None."""
+    return tuple(names) if names is not None else tuple(f"{prefix}{k}" for k in range(n))
 
 
 def eval_space(model: Model, space: ParameterSpace, x: ArrayLike) -> EvalBatch:

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any, cast
 
 import numpy as np
@@ -32,6 +33,7 @@ from scipy import optimize
 
 from .._rng import SeedLike, as_seed_sequence
 from ..errors import ModelShapeError, ParameterError
+from ._common import names_or_default
 from .surrogate import ExtrapolationWarning, GaussianProcess, LeaveOneOut
 
 __all__ = ["CoKriging", "CoKrigingModel"]
@@ -321,12 +323,14 @@ class CoKriging:
         return self._levels[-1][0].bounds
 
     def extrapolation_distance(self, X) -> np.ndarray:
-        """Euclidean distance (n,) of points outside :attr:`bounds`, in box-widths.
+        """Euclidean distance (n,) of points outside :attr:`bounds`, in box-widths: the
+        high-fidelity level's :meth:`GaussianProcess.extrapolation_distance
+        <rotoruq.methods.surrogate.GaussianProcess.extrapolation_distance>` (0 inside).
 
         Parameters
         ----------
         X : array_like of shape (n, d) or (d,)
-            Points, in input units (0 for a point inside the box).
+            Points, in input units.
         """
         self._check_fitted()
         return self._levels[-1][0].extrapolation_distance(X)
@@ -351,15 +355,17 @@ class CoKriging:
 
         Parameters
         ----------
-        names_in : sequence of str
-            The d input names, in the training order.
-        names_out : sequence of str, optional
-            The m response names (default ``y0``, ``y1``, ...).
+        names_in, names_out : sequence of str
+            As in :meth:`GaussianProcess.as_model
+            <rotoruq.methods.surrogate.GaussianProcess.as_model>`.
+
+        See Also
+        --------
+        rotoruq.methods.surrogate.GaussianProcess.as_model
         """
         self._check_fitted()
         names_in = tuple(names_in)
-        names_out = tuple(names_out) if names_out is not None else tuple(
-            f"y{j}" for j in range(self._m))
+        names_out = names_or_default(names_out, self._m, "y")
         if len(names_in) != self._d or len(names_out) != self._m:
             raise ModelShapeError(f"CoKriging has {self._d} inputs and {self._m} outputs; got "
                                   f"names {names_in} and {names_out}")
@@ -401,13 +407,21 @@ def _as_n_low(n_low: int | Sequence[int] | None, n_models: int) -> tuple[int, ..
     return sizes
 
 
+@dataclass(frozen=True, eq=False)
 class CoKrigingModel:
-    """A fitted :class:`CoKriging` as a Model: ``names_in``, ``names_out``, ``__call__``."""
+    """A fitted :class:`CoKriging` as a Model: ``names_in``, ``names_out``, ``__call__``.
 
-    def __init__(self, ck: CoKriging, names_in: tuple[str, ...], names_out: tuple[str, ...]):
-        self.emulator = ck
-        self.names_in = names_in
-        self.names_out = names_out
+    Attributes
+    ----------
+    emulator : CoKriging
+        The fitted emulator; the model is its mean.
+    names_in, names_out : tuple of str
+        The d input and m response names.
+    """
+
+    emulator: CoKriging
+    names_in: tuple[str, ...]
+    names_out: tuple[str, ...]
 
     def __call__(self, x) -> np.ndarray:
         return self.emulator.predict(x, return_var=False)

@@ -23,7 +23,7 @@ from scipy import optimize, stats
 from .._options import legacy_keywords, legacy_mapping, with_fields
 from ..errors import EvaluationError, ModelShapeError, ParameterError
 from ..model import FD_STEP, GradientOption, Model, evaluate, finite_difference
-from .nl2sol import CONVERGED, NL2SOLOptions, nl2sol
+from .nl2sol import CONVERGED, Convergence, NL2SOLOptions, nl2sol
 
 if TYPE_CHECKING:
     from ..params import ParameterSpace
@@ -32,70 +32,6 @@ __all__ = ["Convergence", "LeastSquaresResult", "least_squares", "CalibrationRes
            "calibrate", "LEGACY_KEYWORDS"]
 
 OPTIMIZERS = ("nl2sol", "trf", "lm")
-
-
-@dataclass(frozen=True)
-class Convergence:
-    """When the least-squares iteration stops: its limits and convergence tolerances.
-
-    Dakota's NL2SOL controls, with Dakota's defaults; the field names are the keys of a study
-    file's ``least_squares`` step (``max_iterations``, ``max_function_evaluations``,
-    ``tolerance``). All tolerances are relative (dimensionless) except ``absolute_tolerance``,
-    which is in units of the cost ``f = 1/2 sum (r / noise_std)^2``.
-
-    Parameters
-    ----------
-    max_iterations : int
-        Trust-region iterations (trial steps); Dakota's ``max_iterations``, default 100.
-    max_function_evaluations : int
-        Residual evaluations (points), Jacobian finite differences included; Dakota's
-        ``max_function_evaluations``, default 1000.
-    tolerance : float
-        Relative function convergence (NL2SOL's rfctol, Dakota's ``convergence_tolerance``,
-        default 1e-4): stop when at most that fraction of ``f`` can still be gained. Passed as
-        ``ftol`` to scipy's ``trf`` and ``lm``.
-    x_tolerance : float
-        Relative step size for x-convergence (NL2SOL's xctol, Dakota's ``x_conv_tol``; 1e-5 is
-        what Dakota derives from its default ``function_precision`` 1e-10). Passed as ``xtol``
-        to scipy.
-    absolute_tolerance : float
-        Stop when ``f`` falls below it (NL2SOL's afctol, Dakota's ``absolute_conv_tol``,
-        default 1e-20).
-    singular_tolerance, singular_radius : float
-        Singular convergence (NL2SOL's sctol and lmaxs, Dakota's ``singular_conv_tol`` and
-        ``singular_radius``; 1e-10 and 1): stop when no step of scaled length
-        ``singular_radius`` is predicted to reduce ``f`` by more than
-        ``singular_tolerance * f`` (a rank-deficient Jacobian).
-    false_convergence_tolerance : float
-        False convergence (NL2SOL's xftol, Dakota's ``false_conv_tol``, 1e-8): a step of
-        relative size below it that still fails to reduce ``f`` (noisy residuals or a wrong
-        Jacobian).
-
-    Notes
-    -----
-    Only ``max_function_evaluations``, ``tolerance`` and ``x_tolerance`` apply to scipy's
-    optimizers.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> Convergence(tolerance=1e-10).max_iterations
-    100
-    >>> t = np.linspace(0.0, 1.0, 5)
-    >>> fit = least_squares(lambda p: p[:, :1] + p[:, 1:] * t - (1.0 + 2.0 * t), [0.0, 0.0],
-    ...                     convergence=Convergence(max_iterations=20, tolerance=1e-10))
-    >>> fit.converged
-    True
-    """
-
-    max_iterations: int = 100
-    max_function_evaluations: int = 1000
-    tolerance: float = 1e-4
-    x_tolerance: float = 1e-5
-    absolute_tolerance: float = 1e-20
-    singular_tolerance: float = 1e-10
-    singular_radius: float = 1.0
-    false_convergence_tolerance: float = 1e-8
 
 
 #: The flat keyword arguments of least_squares before its option record (deprecated, accepted

@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize
 
-__all__ = ["NL2SOLOptions", "NL2SOLOutcome", "nl2sol", "CONVERGED"]
+__all__ = ["Convergence", "NL2SOLOptions", "NL2SOLOutcome", "nl2sol", "CONVERGED"]
 
 _EPS = np.finfo(float).eps
 # NL2SOL's tuning constants (Dennis, Gay, Welsch 1981; PORT defaults)
@@ -71,26 +71,58 @@ CONVERGED = {
 
 
 @dataclass(frozen=True)
-class NL2SOLOptions:
-    """Stopping rules and the first radius, with Dakota's defaults for ``nl2sol``.
+class Convergence:
+    """When the least-squares iteration stops: its limits and convergence tolerances.
 
-    Dakota passes ``convergence_tolerance`` (default 1e-4) as NL2SOL's rfctol and derives xctol
-    and xftol from ``function_precision`` (default 1e-10): ``xctol = sqrt(1e-10) = 1e-5``,
-    ``xftol = 100 * 1e-10``; the other values are NL2SOL's own (PORT ``DIVSET``).
+    Dakota's NL2SOL controls, with Dakota's defaults; the field names are the keys of a study
+    file's ``least_squares`` step (``max_iterations``, ``max_function_evaluations``,
+    ``tolerance``). All tolerances are relative (dimensionless) except ``absolute_tolerance``,
+    which is in units of the cost ``f = 1/2 sum (r / noise_std)^2``.
 
-    max_iterations : trial steps. max_function_evaluations : residual points, Jacobian
-    differences included (``jacobian_cost`` points per Jacobian).
-    tolerance : rfctol, relative function convergence: the reduction a full (Newton) step of
-    the current model predicts is at most ``tolerance * f``.
-    x_tolerance : xctol, x-convergence: an accepted full Newton step has relative size
-    ``max_i |D_i s_i| / max_i D_i (|x_i| + |x+_i|)`` at most this.
-    absolute_tolerance : afctol, stop when ``f`` falls below it.
-    singular_tolerance, singular_radius : sctol and lmaxs, singular convergence: no step of
-    scaled length ``singular_radius`` is predicted to reduce ``f`` by more than
-    ``singular_tolerance * f`` (and the function is not converged otherwise).
-    false_convergence_tolerance : xftol, false convergence: a step this small (relative, as
-    for x-convergence) still fails to reduce ``f``.
-    initial_radius : lmax0, scaled radius of the first step.
+    Parameters
+    ----------
+    max_iterations : int
+        Trust-region iterations (trial steps); Dakota's ``max_iterations``, default 100.
+    max_function_evaluations : int
+        Residual evaluations (points), Jacobian finite differences included; Dakota's
+        ``max_function_evaluations``, default 1000.
+    tolerance : float
+        Relative function convergence (NL2SOL's rfctol, Dakota's ``convergence_tolerance``,
+        default 1e-4): stop when at most that fraction of ``f`` can still be gained. Passed as
+        ``ftol`` to scipy's ``trf`` and ``lm``.
+    x_tolerance : float
+        Relative step size for x-convergence (NL2SOL's xctol, Dakota's ``x_conv_tol``; 1e-5 is
+        what Dakota derives from its default ``function_precision`` 1e-10). Passed as ``xtol``
+        to scipy.
+    absolute_tolerance : float
+        Stop when ``f`` falls below it (NL2SOL's afctol, Dakota's ``absolute_conv_tol``,
+        default 1e-20).
+    singular_tolerance, singular_radius : float
+        Singular convergence (NL2SOL's sctol and lmaxs, Dakota's ``singular_conv_tol`` and
+        ``singular_radius``; 1e-10 and 1): stop when no step of scaled length
+        ``singular_radius`` is predicted to reduce ``f`` by more than
+        ``singular_tolerance * f`` (a rank-deficient Jacobian).
+    false_convergence_tolerance : float
+        False convergence (NL2SOL's xftol, Dakota's ``false_conv_tol``, 1e-8): a step of
+        relative size below it that still fails to reduce ``f`` (noisy residuals or a wrong
+        Jacobian).
+
+    Notes
+    -----
+    Only ``max_function_evaluations``, ``tolerance`` and ``x_tolerance`` apply to scipy's
+    optimizers.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from rotoruq.methods.least_squares import least_squares
+    >>> Convergence(tolerance=1e-10).max_iterations
+    100
+    >>> t = np.linspace(0.0, 1.0, 5)
+    >>> fit = least_squares(lambda p: p[:, :1] + p[:, 1:] * t - (1.0 + 2.0 * t), [0.0, 0.0],
+    ...                     convergence=Convergence(max_iterations=20, tolerance=1e-10))
+    >>> fit.converged
+    True
     """
 
     max_iterations: int = 100
@@ -101,6 +133,30 @@ class NL2SOLOptions:
     singular_tolerance: float = 1e-10
     singular_radius: float = 1.0
     false_convergence_tolerance: float = 1e-8
+
+
+@dataclass(frozen=True)
+class NL2SOLOptions(Convergence):
+    """The stopping rules of :class:`Convergence` and the first radius, with Dakota's defaults
+    for ``nl2sol``.
+
+    Dakota passes ``convergence_tolerance`` (default 1e-4) as NL2SOL's rfctol and derives xctol
+    and xftol from ``function_precision`` (default 1e-10): ``xctol = sqrt(1e-10) = 1e-5``,
+    ``xftol = 100 * 1e-10``; the other values are NL2SOL's own (PORT ``DIVSET``).
+
+    Parameters
+    ----------
+    max_iterations, max_function_evaluations, tolerance, x_tolerance : int or float
+        As in :class:`Convergence`; NL2SOL's trial steps, residual points (``jacobian_cost``
+        points per Jacobian), rfctol and xctol.
+    absolute_tolerance, singular_tolerance, singular_radius : float
+        As in :class:`Convergence`; NL2SOL's afctol, sctol and lmaxs.
+    false_convergence_tolerance : float
+        As in :class:`Convergence`; NL2SOL's xftol.
+    initial_radius : float or None
+        lmax0, scaled radius of the first step.
+    """
+
     initial_radius: float | None = 1.0
 
 

@@ -20,7 +20,7 @@ from .._rng import SeedLike, as_generator
 from ..errors import ParameterError
 from ..model import Model
 from ..params import PAIRINGS, ParameterSpace, restricted_pairing, unit_design
-from ._common import eval_space, levels_per_response, nan_rows_warning
+from ._common import eval_space, levels_per_response, names_or_default, nan_rows_warning
 
 __all__ = [
     "ResponseStatistics",
@@ -152,7 +152,7 @@ def response_statistics(
     if y.ndim == 1:
         y = y[:, None]
     n, m = y.shape
-    names = tuple(names_out) if names_out is not None else tuple(f"y{k}" for k in range(m))
+    names = names_or_default(names_out, m, "y")
     if not 0 < confidence < 1:
         raise ParameterError(f"confidence must lie in (0, 1), got {confidence}")
     finite = np.isfinite(y)

@@ -58,7 +58,8 @@ from .._rng import SeedLike, as_generator
 from ..errors import ParameterError
 from ..model import Model
 from ..params import ParameterSpace, unit_design
-from ._common import eval_space, nan_rows_warning
+from ._common import eval_space, names_or_default, nan_rows_warning
+from ._sobol_indices import SobolIndices
 from .sampling import check_design, unit_to_space
 
 __all__ = ["SobolResult", "sobol_indices", "sobol_from_design", "pick_freeze_design"]
@@ -67,7 +68,7 @@ ESTIMATORS = ("hybrid", "saltelli2010", "jansen", "janon")
 
 
 @dataclass(frozen=True, eq=False)
-class SobolResult:
+class SobolResult(SobolIndices):
     """Main and total Sobol' indices.
 
     Attributes
@@ -96,12 +97,6 @@ class SobolResult:
         Base rows left out because one of their d + 2 evaluations failed.
     """
 
-    names_in: tuple[str, ...]
-    names_out: tuple[str, ...]
-    main: np.ndarray
-    total: np.ndarray
-    main_ci: np.ndarray
-    total_ci: np.ndarray
     variance: np.ndarray
     mean: np.ndarray
     estimator: str
@@ -339,8 +334,8 @@ def sobol_from_design(
                                        estimator, small)
                 main_ci[k] = _quantiles(s_b, a)
                 total_ci[k] = _quantiles(t_b, a)
-    names_in = tuple(names_in) if names_in is not None else tuple(f"x{i}" for i in range(d))
-    names_out = tuple(names_out) if names_out is not None else tuple(f"y{k}" for k in range(m))
+    names_in = names_or_default(names_in, d, "x")
+    names_out = names_or_default(names_out, m, "y")
     return SobolResult(
         names_in=names_in,
         names_out=names_out,

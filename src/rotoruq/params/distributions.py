@@ -15,11 +15,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 from scipy import stats
 
+from .._docs import fill_doc
 from .._rng import SeedLike, as_generator
 from ..errors import ParameterError
 
@@ -678,10 +679,7 @@ class Beta(_MirroredTail):
         object.__setattr__(self, "_mirror", stats.beta(self.beta, self.alpha))
 
 
-@dataclass(frozen=True)
-class Gamma(_DerivedMoments):
-    """Gamma with shape ``alpha`` and scale ``beta`` (mean alpha*beta).
-
+_SHAPE_SCALE_PARAMETERS = """
     Parameters
     ----------
     alpha : float
@@ -690,13 +688,31 @@ class Gamma(_DerivedMoments):
         Scale (> 0), in the variable's units.
     """
 
+
+@dataclass(frozen=True)
+class _ShapeScale(_DerivedMoments):
+    """A scipy family with shape ``alpha`` and scale ``beta`` (``_family``)."""
+
+    _family: ClassVar[Any]
     alpha: float
     beta: float
 
     def __post_init__(self) -> None:
-        _positive("alpha", self.alpha, "Gamma")
-        _positive("beta", self.beta, "Gamma")
-        _freeze(self, stats.gamma(self.alpha, scale=self.beta))
+        what = type(self).__name__
+        _positive("alpha", self.alpha, what)
+        _positive("beta", self.beta, what)
+        _freeze(self, self._family(self.alpha, scale=self.beta))
+
+
+@fill_doc(parameters=_SHAPE_SCALE_PARAMETERS)
+@dataclass(frozen=True)
+class Gamma(_ShapeScale):
+    """Gamma with shape ``alpha`` and scale ``beta`` (mean alpha*beta).
+
+    %(parameters)s
+    """
+
+    _family = stats.gamma
 
 
 @dataclass(frozen=True)
@@ -737,25 +753,15 @@ class Gumbel(_DerivedMoments):
         _freeze(self, stats.gumbel_r(loc=self.beta, scale=1.0 / self.alpha))
 
 
+@fill_doc(parameters=_SHAPE_SCALE_PARAMETERS)
 @dataclass(frozen=True)
-class Weibull(_DerivedMoments):
+class Weibull(_ShapeScale):
     """Weibull with shape ``alpha`` and scale ``beta``.
 
-    Parameters
-    ----------
-    alpha : float
-        Shape (> 0).
-    beta : float
-        Scale (> 0), in the variable's units.
+    %(parameters)s
     """
 
-    alpha: float
-    beta: float
-
-    def __post_init__(self) -> None:
-        _positive("alpha", self.alpha, "Weibull")
-        _positive("beta", self.beta, "Weibull")
-        _freeze(self, stats.weibull_min(self.alpha, scale=self.beta))
+    _family = stats.weibull_min
 
 
 @dataclass(frozen=True)
@@ -851,8 +857,35 @@ class Frechet(_DerivedMoments):
                             self.beta * (-np.log1p(-q)) ** (-1.0 / self.alpha))
 
 
+class _PiecewiseDensity(_DerivedMoments):
+    """A density constant on each piece between the sorted ``_edges`` (``_dens``, one value a
+    piece): its support, log-density and sampling by inversion of its ``ppf``."""
+
+    _edges: np.ndarray
+    _dens: np.ndarray
+
+    @property
+    def bounds(self) -> tuple[float, float]:
+        return float(self._edges[0]), float(self._edges[-1])
+
+    def _bin(self, x: np.ndarray) -> np.ndarray:
+        return np.clip(np.searchsorted(self._edges, x, side="right") - 1, 0, self._dens.size - 1)
+
+    def pdf(self, x: Any) -> np.ndarray:
+        x = np.asarray(x, dtype=float)
+        inside = (x >= self._edges[0]) & (x <= self._edges[-1])
+        return np.where(inside, self._dens[self._bin(x)], 0.0)
+
+    def logpdf(self, x: Any) -> np.ndarray:
+        with np.errstate(divide="ignore"):
+            return np.log(self.pdf(x))
+
+    def rvs(self, size: int | tuple[int, ...], *, seed: SeedLike = None) -> np.ndarray:
+        return self.ppf(as_generator(seed).random(size))
+
+
 @dataclass(frozen=True)
-class HistogramBin(_DerivedMoments):
+class HistogramBin(_PiecewiseDensity):
     """Piecewise-uniform density over bins (Dakota's ``histogram_bin_uncertain``).
 
     :meth:`describe` gives the form that was given (counts or ordinates).
@@ -930,19 +963,12 @@ class HistogramBin(_DerivedMoments):
         return "histogram_bin"
 
     @property
-    def bounds(self) -> tuple[float, float]:
-        return float(self._edges[0]), float(self._edges[-1])
-
-    @property
     def moments(self) -> tuple[float, float]:
         a, b = self._edges[:-1], self._edges[1:]
         p = np.diff(self._cum)
         mean = float(np.dot(p, (a + b) / 2.0))
         var = float(np.dot(p, (b - a) ** 2 / 12.0 + ((a + b) / 2.0 - mean) ** 2))
         return mean, math.sqrt(var)
-
-    def _bin(self, x: np.ndarray) -> np.ndarray:
-        return np.clip(np.searchsorted(self._edges, x, side="right") - 1, 0, self._dens.size - 1)
 
     def cdf(self, x: Any) -> np.ndarray:
         x = np.asarray(x, dtype=float)
@@ -976,18 +1002,6 @@ class HistogramBin(_DerivedMoments):
             out = t[k + 1] - (q - s[k + 1]) / self._dens[k]
         out = np.maximum(out, t[k])
         return np.where((q < 0) | (q > 1) | np.isnan(q), np.nan, np.where(q <= 0, t[-1], out))
-
-    def pdf(self, x: Any) -> np.ndarray:
-        x = np.asarray(x, dtype=float)
-        inside = (x >= self._edges[0]) & (x <= self._edges[-1])
-        return np.where(inside, self._dens[self._bin(x)], 0.0)
-
-    def logpdf(self, x: Any) -> np.ndarray:
-        with np.errstate(divide="ignore"):
-            return np.log(self.pdf(x))
-
-    def rvs(self, size: int | tuple[int, ...], *, seed: SeedLike = None) -> np.ndarray:
-        return self.ppf(as_generator(seed).random(size))
 
     def describe(self) -> dict[str, Any]:
         key = "counts" if self.counts is not None else "ordinates"

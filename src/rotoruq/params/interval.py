@@ -14,15 +14,14 @@ from typing import Any
 
 import numpy as np
 
-from .._rng import SeedLike, as_generator
 from ..errors import ParameterError
-from .distributions import _DerivedMoments, _finite, _freeze, _ordered
+from .distributions import _finite, _freeze, _ordered, _PiecewiseDensity
 
 __all__ = ["Interval"]
 
 
 @dataclass(frozen=True)
-class Interval(_DerivedMoments):
+class Interval(_PiecewiseDensity):
     """Epistemic variable: intervals ``[(lo_1, hi_1), ...]`` with basic probability assignments.
 
     As a density (for sampling, u-space transforms, moments) the variable is the BPA-weighted
@@ -40,7 +39,7 @@ class Interval(_DerivedMoments):
 
     intervals: Sequence[Sequence[float]]
     bpa: Sequence[float] | None = None
-    _knots: np.ndarray = field(init=False, repr=False, compare=False)
+    _edges: np.ndarray = field(init=False, repr=False, compare=False)
     _dens: np.ndarray = field(init=False, repr=False, compare=False)
     _cdfk: np.ndarray = field(init=False, repr=False, compare=False)
 
@@ -80,21 +79,13 @@ class Interval(_DerivedMoments):
         cdf = np.concatenate([[0.0], np.cumsum(dens * np.diff(knots))])
         cdf /= cdf[-1]
         _freeze(self, None)
-        object.__setattr__(self, "_knots", knots)
+        object.__setattr__(self, "_edges", knots)
         object.__setattr__(self, "_dens", dens)
         object.__setattr__(self, "_cdfk", cdf)
 
     @property
     def dist(self) -> Interval:
         return self
-
-    @property
-    def kind(self) -> str:
-        return "interval"
-
-    @property
-    def bounds(self) -> tuple[float, float]:
-        return float(self._knots[0]), float(self._knots[-1])
 
     @property
     def moments(self) -> tuple[float, float]:
@@ -106,19 +97,19 @@ class Interval(_DerivedMoments):
         return mean, float(np.sqrt(max(m2 - mean**2, 0.0)))
 
     def cdf(self, x: Any) -> np.ndarray:
-        return np.asarray(np.interp(x, self._knots, self._cdfk, left=0.0, right=1.0))
+        return np.asarray(np.interp(x, self._edges, self._cdfk, left=0.0, right=1.0))
 
     # the upper tail is measured from the knot above (exact near the upper bound)
     def sf(self, x: Any) -> np.ndarray:
         x = np.asarray(x, dtype=float)
-        t, s = self._knots, 1.0 - self._cdfk
-        k = np.clip(np.searchsorted(t, x, side="right") - 1, 0, self._dens.size - 1)
+        t, s = self._edges, 1.0 - self._cdfk
+        k = self._bin(x)
         out = s[k + 1] + (t[k + 1] - x) * self._dens[k]
         return np.where(x < t[0], 1.0, np.where(x >= t[-1], 0.0, out))
 
     def isf(self, q: Any) -> np.ndarray:
         q = np.asarray(q, dtype=float)
-        t, s = self._knots, 1.0 - self._cdfk
+        t, s = self._edges, 1.0 - self._cdfk
         # segment k with s[k+1] <= q < s[k] (s decreasing); flat pieces are skipped
         k = np.clip(s.size - 1 - np.searchsorted(s[::-1], q, side="right"), 0, s.size - 2)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -127,24 +118,11 @@ class Interval(_DerivedMoments):
 
     def ppf(self, q: Any) -> np.ndarray:
         q = np.asarray(q, dtype=float)
-        c, t = self._cdfk, self._knots
+        c, t = self._cdfk, self._edges
         # segment k with c[k] < q <= c[k+1]: flat pieces (gaps between intervals) are skipped
         k = np.clip(np.searchsorted(c, q, side="left") - 1, 0, c.size - 2)
         out = t[k] + (q - c[k]) / (c[k + 1] - c[k]) * (t[k + 1] - t[k])
         return np.where((q < 0) | (q > 1), np.nan, out)
-
-    def pdf(self, x: Any) -> np.ndarray:
-        x = np.asarray(x, dtype=float)
-        k = np.clip(np.searchsorted(self._knots, x, side="right") - 1, 0, self._dens.size - 1)
-        inside = (x >= self._knots[0]) & (x <= self._knots[-1])
-        return np.where(inside, self._dens[k], 0.0)
-
-    def logpdf(self, x: Any) -> np.ndarray:
-        with np.errstate(divide="ignore"):
-            return np.log(self.pdf(x))
-
-    def rvs(self, size: int | tuple[int, ...], *, seed: SeedLike = None) -> np.ndarray:
-        return self.ppf(as_generator(seed).random(size))
 
     def describe(self) -> dict[str, Any]:
         return {"kind": "interval", "intervals": list(self.intervals),

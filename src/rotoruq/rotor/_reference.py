@@ -17,9 +17,15 @@ import numpy as np
 from ._kernel import LIFT_SECANT_DEG
 from .controls import swashplate_harmonics
 from .dynamics import HarmonicBasis, apply_blocks, fixed_sum, structural_operator
-from .geometry import CANTILEVER_SPRING_FACTOR, BladeGrid
-from .ground_effect import ground_effect_factor
-from .hover import MAX_BLADE_MOTION, HoverSolution, _col, judge
+from .geometry import BladeGrid
+from .hover import (
+    MAX_BLADE_MOTION,
+    HoverSolution,
+    _col,
+    default_check_tolerance,
+    judge,
+    sample_columns,
+)
 from .inflow import A0, annulus_update, prandtl_loss, uniform_update
 from .presets import RotorPreset
 
@@ -42,7 +48,8 @@ class _Rotor:
     numbers for a sample whatever the subset.
     """
 
-    def __init__(self, preset: RotorPreset, airfoil, grid: BladeGrid, P, ov, n_harmonics):
+    def __init__(self, preset: RotorPreset, airfoil, grid: BladeGrid, columns, ov, n_harmonics):
+        P, kappa, K_b, K_p = columns
         self.p, self.airfoil, self.grid = preset, airfoil, grid
         self.basis = HarmonicBasis(grid.psi, n_harmonics)
         self.kvec = self.basis.k
@@ -52,16 +59,6 @@ class _Rotor:
         r, w = grid.r, grid.w
         self.r, self.w, self.rr = r, w, r - e
         Om, rho = P["omega"], P["rho"]
-        kappa = ground_effect_factor(P["height_over_radius"], preset.ground_effect)
-        kappa = kappa * preset.induced_power_factor
-        if preset.flap_model == "elastic":
-            K_b = CANTILEVER_SPRING_FACTOR * P["ei_flap"] / grid.blade_length
-        else:
-            K_b = P["k_flap"]
-        if "k_feather" in P:
-            K_p = P["k_feather"]
-        else:
-            K_p = preset.feathering_stiffness(P["k_pitch_link"])
         C_p = preset.feathering_stiffness(P["c_pitch_link"])
         tan_d3 = np.tan(np.deg2rad(preset.delta3_deg))
         kvec = self.kvec
@@ -393,37 +390,27 @@ def solve_hover_reference(
     grid: BladeGrid,
     params: dict[str, np.ndarray],
     overrides: dict[str, np.ndarray] | None = None,
-    *,
-    n_harmonics: int = 2,
-    tolerance: float = 1e-9,
-    max_iterations: int = 200,
-    check_tolerance: float | None = None,
-    freeze: bool = True,
+    *, n_harmonics: int = 2, tolerance: float = 1e-9, max_iterations: int = 200,
+    check_tolerance: float | None = None, freeze: bool = True,
 ) -> HoverSolution:
-    """Solve the periodic hover state for n samples.
+    """The hover state of :func:`rotoruq.rotor.hover.solve_hover` (same arguments and
+    result), solved in numpy: the reference the compiled kernel is tested against.
 
-    params : every entry of :data:`rotoruq.rotor.model.ROTOR_INPUTS` except the optional
-        ``k_feather`` (which, when present, replaces the pitch-link stiffness), arrays of
-        shape (n,) (angles in deg). overrides : airfoil coefficient overrides, arrays (n,).
-    tolerance, max_iterations, check_tolerance : as :func:`rotoruq.rotor.hover.solve_hover`.
     freeze : True (default): a converged sample leaves the iteration, which makes results
         independent of the batch; False only serves as a timing baseline.
-    A sample that fails any check has ``converged`` False and its reason in ``failure``.
     """
     n = np.broadcast(*[np.asarray(v) for v in params.values()]).shape[0]
-    P = {k: _col(params, k, n) for k in params}
-    for name in ("cm0", "aero_center_offset"):
-        P.setdefault(name, np.full(n, float(getattr(preset, name))))
+    columns = sample_columns(preset, grid, params, n)
     ov = {k: _col(overrides, k, n) for k in (overrides or {})}
-    if check_tolerance is None:
-        check_tolerance = max(1e-6, 100.0 * tolerance)
+    check_tolerance = default_check_tolerance(tolerance, check_tolerance)
     with np.errstate(all="ignore"):
-        return _solve(preset, airfoil, grid, P, ov, n, n_harmonics, tolerance, max_iterations,
-                      check_tolerance, freeze)
+        return _solve(preset, airfoil, grid, columns, ov, n, n_harmonics, tolerance,
+                      max_iterations, check_tolerance, freeze)
 
 
-def _solve(preset, airfoil, grid, P, ov, n, n_harmonics, tol, max_iter, check_tol, freeze):
-    rot = _Rotor(preset, airfoil, grid, P, ov, n_harmonics)
+def _solve(preset, airfoil, grid, columns, ov, n, n_harmonics, tol, max_iter, check_tol,
+           freeze):
+    rot = _Rotor(preset, airfoil, grid, columns, ov, n_harmonics)
     C = rot.C
     r = rot.r
     K = rot.kvec.size
@@ -489,7 +476,7 @@ def _solve(preset, airfoil, grid, P, ov, n, n_harmonics, tol, max_iter, check_to
         M_root[live] = chk["M_root"]
         out["bad"] = np.zeros(n)
         out["bad"][live] = chk["bad"]
-        judge(live, out, S["Q"][:, 2, 0].real, P["collective_deg"], Om, failure, check_tol)
+        judge(live, out, S["Q"][:, 2, 0].real, columns[0]["collective_deg"], Om, failure, check_tol)
     return HoverSolution.assemble(preset, grid, Om, C["rho"], S["Q"], S["v0"],
                                   {"thrust": out["thrust"], "torque": out["torque"],
                                    "eq": out["eq"], "stalled": out["stalled"]}, M_root,

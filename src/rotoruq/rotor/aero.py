@@ -46,8 +46,7 @@ class LinearAirfoil:
         Parameters
         ----------
         alpha_deg : array_like
-            Angle of attack, deg; any shape when ``overrides`` is None, else shape (n, ...)
-            with the sample axis first.
+            Angle of attack, deg, shaped as for :meth:`rotoruq.rotor.Airfoil.coefficients`.
         mach : array_like
             Mach number (not used: the linear airfoil has no compressibility).
         overrides : mapping of str to array_like, optional

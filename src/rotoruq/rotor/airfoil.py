@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from .._docs import fill_doc
 from ..errors import ModelShapeError, ParameterError
 from .c81 import Bracket, C81Block, C81Table, read_c81, wrap_alpha, write_c81
 
@@ -225,6 +226,20 @@ def fit_airfoil(table: C81Table, machs=None, alpha_range=(-10.0, 10.0)) -> Airfo
 # the airfoil
 
 
+#: the fit settings that :meth:`Airfoil.from_c81` and :meth:`Airfoil.bundled` pass on
+_FIT_SETTINGS = """
+fit_machs : array_like of float, optional
+    Mach rows replaced by the fits (default: the CL block's rows <= 0.6); see
+    :class:`Airfoil`.
+alpha_window : float, optional
+    Half-width of the fit window, deg (default 10).
+fit_mode : bool, optional
+    True (default): the fit rows are replaced by the fits; False: the raw table.
+replace : tuple of str, optional
+    The coefficients the fits replace, ``("cl", "cd")`` (default) or ``("cl",)``.
+"""
+
+
 class Airfoil:
     """C81 aerodynamics with the thesis's fit-row replacement and per-sample perturbations.
 
@@ -303,6 +318,7 @@ class Airfoil:
     # ---- construction helpers
 
     @classmethod
+    @fill_doc(fit_settings=_FIT_SETTINGS)
     def from_c81(cls, path_or_table, fit_machs=None, alpha_window: float = 10.0,
                  fit_mode: bool = True, replace: tuple[str, ...] = ("cl", "cd")) -> Airfoil:
         """Airfoil from a C81 file path or a :class:`C81Table`.
@@ -311,21 +327,14 @@ class Airfoil:
         ----------
         path_or_table : str, PathLike or C81Table
             The C81 file (fixed or free format) or a table read already.
-        fit_machs : array_like of float, optional
-            Mach rows replaced by the fits (default: the CL block's rows <= 0.6); see
-            :class:`Airfoil`.
-        alpha_window : float, optional
-            Half-width of the fit window, deg (default 10).
-        fit_mode : bool, optional
-            True (default): the fit rows are replaced by the fits; False: the raw table.
-        replace : tuple of str, optional
-            The coefficients the fits replace, ``("cl", "cd")`` (default) or ``("cl",)``.
+        %(fit_settings)s
         """
         table = path_or_table if isinstance(path_or_table, C81Table) else read_c81(path_or_table)
         return cls(table, fit_machs=fit_machs, alpha_window=alpha_window, fit_mode=fit_mode,
                    replace=replace)
 
     @classmethod
+    @fill_doc(fit_settings=_FIT_SETTINGS)
     def bundled(cls, name: str, fit_machs=None, alpha_window: float = 10.0,
                 fit_mode: bool = True, replace: tuple[str, ...] = ("cl", "cd")) -> Airfoil:
         """Airfoil from a table shipped with rotoruq: ``"naca0012"`` or ``"naca23012"``.
@@ -334,15 +343,7 @@ class Airfoil:
         ----------
         name : str
             ``"naca0012"`` or ``"naca23012"`` (a ``.c81`` suffix and the case are ignored).
-        fit_machs : array_like of float, optional
-            Mach rows replaced by the fits (default: the CL block's rows <= 0.6); see
-            :class:`Airfoil`.
-        alpha_window : float, optional
-            Half-width of the fit window, deg (default 10).
-        fit_mode : bool, optional
-            True (default): the fit rows are replaced by the fits; False: the raw table.
-        replace : tuple of str, optional
-            The coefficients the fits replace, ``("cl", "cd")`` (default) or ``("cl",)``.
+        %(fit_settings)s
         """
         return cls(read_bundled(name), fit_machs=fit_machs, alpha_window=alpha_window,
                    fit_mode=fit_mode, replace=replace)
@@ -670,7 +671,7 @@ def write_perturbed_c81(airfoil: Airfoil, overrides: dict[str, float] | None, pa
     Returns
     -------
     Path
-        The written file.
+        The c81 file written (``path``).
 
     Examples
     --------

@@ -174,11 +174,13 @@ def _col(p, name, n):
     return np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=float), (n,)))
 
 
-def sample_inputs(preset: RotorPreset, grid: BladeGrid, params: Mapping[str, np.ndarray],
-                  n: int) -> np.ndarray:
-    """The per-sample input matrix of the compiled solve, (n, kern.N_COLUMNS): rotor speed,
-    density, kappa, the structural constants (K_b from EI for elastic blades, K_p and C_p
-    through the pitch link unless ``k_feather`` is given), x_ac, cm0 and the commands [deg]."""
+def sample_columns(preset: RotorPreset, grid: BladeGrid, params: Mapping[str, np.ndarray],
+                   n: int) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, np.ndarray]:
+    """The inputs as columns of n samples (``cm0`` and ``aero_center_offset`` from the preset
+    when not given) and the per-sample constants both solvers derive from them: kappa (the
+    ground-effect factor times the induced power factor), K_b (the flap spring, from EI for
+    elastic blades) and K_p (the feathering stiffness through the pitch link, unless
+    ``k_feather`` is given)."""
     P = {k: _col(params, k, n) for k in params}
     for name in ("cm0", "aero_center_offset"):
         P.setdefault(name, np.full(n, float(getattr(preset, name))))
@@ -189,6 +191,13 @@ def sample_inputs(preset: RotorPreset, grid: BladeGrid, params: Mapping[str, np.
     else:
         K_b = P["k_flap"]
     K_p = P["k_feather"] if "k_feather" in P else preset.feathering_stiffness(P["k_pitch_link"])
+    return P, kappa, K_b, K_p
+def sample_inputs(preset: RotorPreset, grid: BladeGrid, params: Mapping[str, np.ndarray],
+                  n: int) -> np.ndarray:
+    """The per-sample input matrix of the compiled solve, (n, kern.N_COLUMNS): rotor speed,
+    density, kappa, the structural constants (K_b from EI for elastic blades, K_p and C_p
+    through the pitch link unless ``k_feather`` is given), x_ac, cm0 and the commands [deg]."""
+    P, kappa, K_b, K_p = sample_columns(preset, grid, params, n)
     prm = np.empty((n, kern.N_COLUMNS))
     for col, value in ((kern.OMEGA, P["omega"]), (kern.RHO, P["rho"]), (kern.KAPPA, kappa),
                        (kern.K_FLAP, K_b), (kern.C_FLAP, P["c_flap"]),
@@ -318,6 +327,11 @@ def airfoil_samples(airfoil: Airfoil | LinearAirfoil, overrides: Mapping[str, np
     return fits, np.zeros((n, 3))
 
 
+def default_check_tolerance(tolerance: float, check_tolerance: float | None = None) -> float:
+    """``check_tolerance``, or its default max(1e-6, 100 ``tolerance``) when None."""
+    return max(1e-6, 100.0 * tolerance) if check_tolerance is None else check_tolerance
+
+
 def solve_hover(
     preset: RotorPreset,
     airfoil: Airfoil | LinearAirfoil,
@@ -344,8 +358,7 @@ def solve_hover(
     """
     overrides = overrides or {}
     n = np.broadcast(*[np.asarray(v) for v in params.values()]).shape[0]
-    if check_tolerance is None:
-        check_tolerance = max(1e-6, 100.0 * tolerance)
+    check_tolerance = default_check_tolerance(tolerance, check_tolerance)
     K = n_harmonics + 1
     rot = rotor_constants(preset, grid, n_harmonics)
     table = airfoil_table(airfoil)

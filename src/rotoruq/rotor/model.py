@@ -22,7 +22,7 @@ from ..model import EvalBatch
 from .airfoil import Airfoil
 from .geometry import blade_grid
 from .ground_effect import MIN_HEIGHT_OVER_RADIUS, min_height_over_radius
-from .hover import HoverSolution, check_airfoil, solve_hover
+from .hover import HoverSolution, check_airfoil, default_check_tolerance, solve_hover
 from .presets import RotorPreset, get_preset
 
 __all__ = ["RotorModel", "ROTOR_INPUTS", "RESPONSES", "load_airfoil"]
@@ -164,8 +164,7 @@ class RotorModel:
         self.grid = blade_grid(self.preset, n_stations, n_azimuth)
         self.n_harmonics = int(n_harmonics)
         self.tolerance, self.max_iterations = float(tolerance), int(max_iterations)
-        self.check_tolerance = (max(1e-6, 100.0 * self.tolerance) if check_tolerance is None
-                                else float(check_tolerance))
+        self.check_tolerance = float(default_check_tolerance(self.tolerance, check_tolerance))
         self._airfoil_names = tuple(getattr(self.airfoil, "parameter_names", ()))
         valid = ROTOR_INPUTS + self._airfoil_names
         inputs = (("collective_deg", "lateral_deg", "longitudinal_deg") if names_in is None

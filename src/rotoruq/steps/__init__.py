@@ -92,13 +92,16 @@ def find_step_type(name: str) -> StepType | None:
     Parameters
     ----------
     name : str
-        A step type name (a step's ``type``: ``"sampling"``, ``"pce"``, ...), built-in or of
-        an installed plugin.
+        A step type name, as :func:`step_type` takes it.
 
     Returns
     -------
     StepType or None
         That step type; None when neither rotoruq nor a plugin defines it.
+
+    See Also
+    --------
+    step_type : The same look-up, raising on an unknown name.
     """
     return STEP_TYPES.get(name) or _plugins().get(name)
 

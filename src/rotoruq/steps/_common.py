@@ -21,9 +21,8 @@ from .options import SIGNATURE, Option, choice, table
 
 __all__ = ["named_model", "deferred_writes", "column_moments", "input_arrays",
            "noise", "per_response", "saved_record", "MOMENT_KEYS", "LevelsRecord", "levels_arrays",
-           "LEVEL_OPTIONS", "LEVEL_TABLES", "MAPPING_AXES", "MappingsRecord", "check_levels",
-           "level_request_of", "mapping_fields", "MAPPING_FLAT",
-           "MAPPING_LABELS"]
+           "LEVEL_OPTIONS", "LEVEL_TABLES", "MappingsRecord", "check_levels",
+           "level_request_of", "mapping_fields"]
 
 R = TypeVar("R", bound=StepRecord)
 
@@ -236,15 +235,6 @@ def level_request_of(ctx: StepContext) -> Any:
                          compute=o.get("compute", "probabilities"))
 
 
-#: Axis names of the level mapping arrays of a :class:`MappingsRecord`.
-MAPPING_AXES = {"level_mappings": ("response", "level", "column"),
-                "level_kinds": ("response", "level")}
-#: Their flat view: ``level/<response>/<row>/<column>`` of every computed cell (columns
-#: ``response``, ``probability``, ``reliability``, ``gen_reliability``).
-MAPPING_FLAT = {"level_mappings": "level", "level_kinds": None}
-MAPPING_LABELS = {"column": _COLUMN_KEYS}
-
-
 def _no_mappings() -> np.ndarray:
     return np.zeros((0, 0, 4))
 
@@ -263,7 +253,16 @@ class MappingsRecord(StepRecord):
     computed); level_kinds (m, L) : the requested column of each row (0 response, 1
     probability, 2 reliability, 3 generalized reliability level; -1 past its count);
     level_distribution : "cdf" or "ccdf"; level_compute : what response levels map to.
+    A subclass extends ``AXES``, ``FLAT`` and ``LABELS`` with its own
+    (``{**MappingsRecord.AXES, ...}``).
     """
+
+    AXES = {"level_mappings": ("response", "level", "column"),
+            "level_kinds": ("response", "level")}
+    # the flat view: ``level/<response>/<row>/<column>`` of every computed cell (columns
+    # ``response``, ``probability``, ``reliability``, ``gen_reliability``)
+    FLAT = {"level_mappings": "level", "level_kinds": None}
+    LABELS = {"column": _COLUMN_KEYS}
 
     level_mappings: np.ndarray = field(default_factory=_no_mappings, kw_only=True)
     level_kinds: np.ndarray = field(default_factory=_no_kinds, kw_only=True)

@@ -12,9 +12,6 @@ from ..render.tables import StepTable, label, make_table
 from ..results import StepResult
 from ._common import (
     LEVEL_OPTIONS,
-    MAPPING_AXES,
-    MAPPING_FLAT,
-    MAPPING_LABELS,
     MappingsRecord,
     check_levels,
     level_request_of,
@@ -36,9 +33,8 @@ class MeanValueRecord(MappingsRecord):
     """
 
     AXES = {"mean": ("response",), "std": ("response",), "importance": ("response", "input"),
-            "gradient": ("response", "input"), **MAPPING_AXES}
-    FLAT = {"gradient": None, **MAPPING_FLAT}
-    LABELS = MAPPING_LABELS
+            "gradient": ("response", "input"), **MappingsRecord.AXES}
+    FLAT = {"gradient": None, **MappingsRecord.FLAT}
 
     names_in: tuple[str, ...]
     names_out: tuple[str, ...]

@@ -12,9 +12,6 @@ from ..render.tables import StepTable, label, make_table
 from ..results import StepResult
 from ._common import (
     LEVEL_OPTIONS,
-    MAPPING_AXES,
-    MAPPING_FLAT,
-    MAPPING_LABELS,
     MappingsRecord,
     check_levels,
     level_request_of,
@@ -44,9 +41,8 @@ class PceRecord(MappingsRecord):
     """
 
     AXES = {"mean": ("response",), "std": ("response",), "main": ("response", "input"),
-            "total": ("response", "input"), **MAPPING_AXES}
-    FLAT = {"main": "S", "total": "T", **MAPPING_FLAT}
-    LABELS = MAPPING_LABELS
+            "total": ("response", "input"), **MappingsRecord.AXES}
+    FLAT = {"main": "S", "total": "T", **MappingsRecord.FLAT}
 
     names_in: tuple[str, ...]
     names_out: tuple[str, ...]

@@ -12,7 +12,6 @@ from ..render.tables import StepTable
 from ..results import StepResult
 from ._common import (
     LEVEL_OPTIONS,
-    MAPPING_AXES,
     LevelsRecord,
     MappingsRecord,
     check_levels,
@@ -47,7 +46,7 @@ class ReliabilityRecord(LevelsRecord, MappingsRecord):
     read as P(g > z)); and the level mappings as Dakota prints them
     (:class:`~rotoruq.steps._common.MappingsRecord`: every column of every row)."""
 
-    AXES = {**LevelsRecord.AXES, **MAPPING_AXES}
+    AXES = {**LevelsRecord.AXES, **MappingsRecord.AXES}
 
 
 def mpp_mappings(res, request):

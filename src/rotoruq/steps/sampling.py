@@ -21,9 +21,6 @@ from ..render.tables import MOMENTS, StepTable, inputs_table, make_table, moment
 from ..results import StepResult
 from ._common import (
     LEVEL_OPTIONS,
-    MAPPING_AXES,
-    MAPPING_FLAT,
-    MAPPING_LABELS,
     MOMENT_KEYS,
     MappingsRecord,
     check_levels,
@@ -125,12 +122,12 @@ class SamplingRecord(MappingsRecord):
     AXES = {"inputs": ("sample", "input"), "outputs": ("sample", "response"),
             "moments": ("statistic", "response"), "noisy_moments": ("statistic", "response"),
             "input_mean": ("input",), "input_std": ("input",), "input_lower": ("input",),
-            "input_upper": ("input",), **MAPPING_AXES}
+            "input_upper": ("input",), **MappingsRecord.AXES}
     # the flat view: ``mean/thrust`` (model outputs), ``noisy/mean/thrust`` (with the noise),
     # the level mappings; not the samples
     FLAT = {"inputs": None, "outputs": None, "moments": "", "noisy_moments": "noisy",
-            **MAPPING_FLAT}
-    LABELS = {"statistic": MOMENT_KEYS, **MAPPING_LABELS}
+            **MappingsRecord.FLAT}
+    LABELS = {"statistic": MOMENT_KEYS, **MappingsRecord.LABELS}
 
     names_in: tuple[str, ...]
     names_out: tuple[str, ...]

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..methods._sobol_indices import SobolIndices
 from ..render.tables import StepTable, cv_or_none, label, make_table, with_unit
 from ..results import StepRecord, StepResult
 from ._sobol import NEGLIGIBLE_CV, sensitivity_figures, sobol_warnings, spread
@@ -19,7 +20,7 @@ __all__ = ["STEP", "SensitivityRecord", "run_sensitivity", "sensitivity_tables",
 
 
 @dataclass(frozen=True, eq=False)
-class SensitivityRecord(StepRecord):
+class SensitivityRecord(StepRecord, SobolIndices):
     """What a sensitivity step saves: m responses, d inputs.
 
     names_in (d), names_out (m); main, total (m, d) Sobol indices as estimated; main_ci,
@@ -27,18 +28,10 @@ class SensitivityRecord(StepRecord):
     response (the spread that says whether its indices mean anything).
     """
 
-    AXES = {"main": ("response", "input"), "total": ("response", "input"),
-            "main_ci": ("response", "input", "bound"), "total_ci": ("response", "input", "bound"),
-            "mean": ("response",), "variance": ("response",)}
+    AXES = {**SobolIndices.AXES, "mean": ("response",), "variance": ("response",)}
     FLAT = {"main": "S", "total": "T", "main_ci": "S_ci", "total_ci": "T_ci",
             "mean": "out_mean", "variance": "out_var"}
 
-    names_in: tuple[str, ...]
-    names_out: tuple[str, ...]
-    main: np.ndarray
-    total: np.ndarray
-    main_ci: np.ndarray
-    total_ci: np.ndarray
     mean: np.ndarray
     variance: np.ndarray
     confidence: float

@@ -223,7 +223,7 @@ class _Posterior:
 
 
 @dataclass(frozen=True, eq=False)
-class BayesResult:
+class BayesResult(dg.PooledChains):
     """Posterior samples and their summary (the result of :func:`calibrate_bayes`).
 
     The parameters' fields (``chains``, ``mean``, ...) hold the model parameters only; the
@@ -362,11 +362,6 @@ class BayesResult:
     n_low_fidelity_evaluations: tuple[int, ...] = ()
     _state: tuple | None = field(default=None, repr=False, compare=False)
 
-    @property
-    def samples(self) -> np.ndarray:
-        """All kept samples pooled over chains, (n_chains * n_kept, d)."""
-        return self.chains.reshape(-1, self.chains.shape[-1])
-
     def to_netcdf(self, path: str | Path) -> Path:
         """Write the chains for arviz: ``*.nc`` as an ``InferenceData``-compatible netCDF
         (``posterior`` group, dims chain and draw, one variable per parameter;
@@ -414,19 +409,6 @@ class BayesResult:
     def ess_per_second(self) -> np.ndarray:
         """Effective samples per second of sampling (wall time), shape (d,)."""
         return self.ess / max(self.sampling_seconds, 1e-12)
-
-    def credible_interval(self, level: float = 0.95) -> np.ndarray:
-        """Equal-tailed credible interval (d, 2) at ``level``, parameter units.
-
-        Parameters
-        ----------
-        level : float, optional
-            Probability content, in (0, 1) (default 0.95).
-        """
-        if not 0 < level < 1:
-            raise ParameterError(f"level must be in (0, 1), got {level}")
-        a = 0.5 * (1.0 - level)
-        return np.quantile(self.samples, [a, 1.0 - a], axis=0).T
 
     def summary(self) -> str:
         """A plain-text table of the posterior moments and diagnostics."""

@@ -28,6 +28,7 @@ import numpy as np
 from scipy import special, stats
 from scipy.spatial import cKDTree
 
+from ..._docs import fill_doc
 from ...errors import ParameterError
 
 __all__ = ["autocovariance", "effective_sample_size", "split_rhat", "mcse_mean",
@@ -212,14 +213,12 @@ def split_rhat(chains: np.ndarray, *, kind: str = "rank") -> np.ndarray:
     return folded if kind == "folded" else np.fmax(_rhat_core(_rank_normalise(s)), folded)
 
 
-def mcse_mean(chains: np.ndarray) -> np.ndarray:
-    """Monte Carlo standard error of the posterior mean, ``sd / sqrt(ESS_mean)``.
-
-    Parameters
-    ----------
+#: the entries :func:`mcse_mean` and :func:`mcse_quantile` share: their draws, their result
+#: and the i.i.d. draws of their examples
+_MCSE_DOC = {"chains": """
     chains : ndarray, shape (n_chains, n_draws, d)
         Draws of each chain.
-
+    """, "returns": """
     Returns
     -------
     ndarray, shape (d,)
@@ -229,6 +228,18 @@ def mcse_mean(chains: np.ndarray) -> np.ndarray:
     --------
     >>> import numpy as np
     >>> x = np.random.default_rng(0).normal(size=(4, 2500, 1))
+    """}
+
+
+@fill_doc(**_MCSE_DOC)
+def mcse_mean(chains: np.ndarray) -> np.ndarray:
+    """Monte Carlo standard error of the posterior mean, ``sd / sqrt(ESS_mean)``.
+
+    Parameters
+    ----------
+    %(chains)s
+
+    %(returns)s
     >>> bool(abs(mcse_mean(x)[0] - 0.01) < 0.001)  # iid: 1 / sqrt(10000)
     True
     """
@@ -237,6 +248,7 @@ def mcse_mean(chains: np.ndarray) -> np.ndarray:
     return sd / np.sqrt(effective_sample_size(x, kind="mean"))
 
 
+@fill_doc(**_MCSE_DOC)
 def mcse_quantile(chains: np.ndarray, prob: float) -> np.ndarray:
     """Monte Carlo standard error of the ``prob`` quantile (Vehtari et al. 2021, sec. 4.3).
 
@@ -246,20 +258,11 @@ def mcse_quantile(chains: np.ndarray, prob: float) -> np.ndarray:
 
     Parameters
     ----------
-    chains : ndarray, shape (n_chains, n_draws, d)
-        Draws of each chain.
+    %(chains)s
     prob : float
         Quantile level in (0, 1).
 
-    Returns
-    -------
-    ndarray, shape (d,)
-        MCSE in the units of the draws.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> x = np.random.default_rng(0).normal(size=(4, 2500, 1))
+    %(returns)s
     >>> bool(0.01 < mcse_quantile(x, 0.5)[0] < 0.02)  # iid median: sqrt(pi/2) / 100
     True
     """
@@ -282,6 +285,35 @@ def mcse_quantile(chains: np.ndarray, prob: float) -> np.ndarray:
     cols = np.flatnonzero(ok)
     out[ok] = 0.5 * (srt[hi[ok].astype(int), cols] - srt[lo[ok].astype(int), cols])
     return out
+
+
+
+class PooledChains:
+    """The draws of a posterior result with ``chains`` (n_chains, n_draws, d) of the model
+    parameters, pooled: :attr:`samples` and :meth:`credible_interval` (the base of
+    :class:`~rotoruq.methods.mcmc.bayes.BayesResult` and
+    :class:`~rotoruq.methods.mcmc.discrepancy.DiscrepancyResult`)."""
+
+    chains: np.ndarray
+
+    @property
+    def samples(self) -> np.ndarray:
+        """All kept samples of the parameters pooled over chains, (n_chains * n_draws, d)."""
+        return self.chains.reshape(-1, self.chains.shape[-1])
+
+    def credible_interval(self, level: float = 0.95) -> np.ndarray:
+        """Equal-tailed credible interval (d, 2) of the parameters at ``level``, in their
+        units.
+
+        Parameters
+        ----------
+        level : float, optional
+            Probability content, in (0, 1) (default 0.95).
+        """
+        if not 0 < level < 1:
+            raise ParameterError(f"level must be in (0, 1), got {level}")
+        a = 0.5 * (1.0 - level)
+        return np.quantile(self.samples, [a, 1.0 - a], axis=0).T
 
 
 @dataclass(frozen=True, eq=False)

@@ -351,7 +351,7 @@ class DiscrepancyPrediction:
 
 
 @dataclass(frozen=True, eq=False)
-class DiscrepancyResult:
+class DiscrepancyResult(dg.PooledChains):
     """Joint posterior of parameters and discrepancy hyperparameters, with identifiability.
 
     Attributes
@@ -455,23 +455,6 @@ class DiscrepancyResult:
     prediction: DiscrepancyPrediction | None = None
     _post: _Posterior | None = field(default=None, repr=False, compare=False)
 
-    @property
-    def samples(self) -> np.ndarray:
-        """Parameter samples pooled over chains, (n_chains * n_samples, d)."""
-        return self.chains.reshape(-1, self.chains.shape[-1])
-
-    def credible_interval(self, level: float = 0.95) -> np.ndarray:
-        """Equal-tailed credible interval (d, 2) of the parameters at ``level``.
-
-        Parameters
-        ----------
-        level : float, optional
-            Probability content, in (0, 1) (default 0.95).
-        """
-        if not 0 < level < 1:
-            raise ParameterError(f"level must be in (0, 1), got {level}")
-        a = 0.5 * (1.0 - level)
-        return np.quantile(self.samples, [a, 1.0 - a], axis=0).T
 
 
 def _data(data, configurations, names_out, model, noise_std):

@@ -436,17 +436,6 @@ def _drees(mu, lam):
 
 
 @numba.njit(**_JIT)
-def _momentum_slope(v, prm, rot, mom):
-    """d(momentum thrust)/dv [N s/m] at induced velocity v, mom = 2 rho A F / kappa^2:
-    2 mom |v| in hover, mom (V' + v dV'/dv) in forward flight."""
-    Vx = prm[MU] * (prm[OMEGA] * rot.radius)
-    if Vx == 0.0:
-        return 2 * mom * abs(v)
-    Vp, dVp = _glauert(v, Vx, prm[LAMBDA_S] * (prm[OMEGA] * rot.radius))
-    return mom * (Vp + v * dVp)
-
-
-@numba.njit(**_JIT)
 def _structural_jacobian(prm, rot, af, fit, linear, ws):
     """Structural operator Z (K, 3, 3), the inverse of the Jacobian J_k (K, 3, 3), the joint
     (mean motion, uniform inflow) and (first harmonic, harmonic inflow) 4x4 Jacobians J0, J1
@@ -753,6 +742,9 @@ class Work(NamedTuple):
     A: np.ndarray             # (4, 4) complex: a joint Jacobian, its LU factors
     rhs: np.ndarray           # (4,) complex
     x: np.ndarray             # (4,) complex: the joint step
+    A5: np.ndarray            # (5, 5) complex: the mean block with the trim's collective
+    rhs5: np.ndarray          # (5,) complex
+    x5: np.ndarray            # (5,) complex
     im: np.ndarray            # (N_psi, N_r) int: Mach interval of each element (table)
     s: np.ndarray             # (N_psi, N_r): its weight
 
@@ -776,7 +768,27 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
             dQ[d, k] = y + Jinv[k, d, 2] * R_dyn[2, k]
     dv1 = 0.0
     forward = prm[MU] != 0.0
-    if rot.harmonic_inflow and K > 1 and not forward:
+    # wind-tunnel trim: the controls join the unknowns of the mean and first-harmonic
+    # blocks, with the equations thrust = target and first-harmonic flapping = 0
+    trim = prm[TRIM] == WIND_TUNNEL and K > 1
+    K_p, C_p = prm[K_FEATHER], prm[C_FEATHER]
+    d_ctrl = 0.0
+    if trim:
+        rhs, A = ws.rhs, ws.A
+        A[:, :] = 0.0
+        A[:3, :3] = J1[:3, :3]
+        A[2, 3] = -(K_p + 1j * Om * C_p)
+        A[3, 0] = 1.0
+        rhs[:3] = R_dyn[:, 1]
+        rhs[3] = -st.Q[0, 1]
+        d1 = _lu_solve(A, rhs, ws.x)
+        dQ[:, 1] = d1[:3]
+        th1 = (np.deg2rad(prm[LATERAL]) - 1j * np.deg2rad(prm[LONGITUDINAL])) + relax * d1[3]
+        prm[LATERAL] = th1.real * RAD2DEG
+        prm[LONGITUDINAL] = -th1.imag * RAD2DEG
+        F_cmd[2, 1] = (K_p + 1j * Om * C_p) * th1
+        d_ctrl = abs(relax * d1[3])
+    elif rot.harmonic_inflow and K > 1 and not forward:
         # first harmonic: blade motion and the Pitt-Peters inflow V1 = v_c - i v_s together
         s = rot.sums
         dMz_dV = -qa * s[SUM_W_R3] / R
@@ -809,15 +821,31 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
         rhs[:3] = R_dyn[:, 0]
         for i in range(rot.r.size):
             ws.span_line[i] = ws.dT_r[i] * rot.w[i]
+        T_be = _psum(ws.span_line, rot.r.size)
         if forward:
             # Glauert: T = 2 rho A F v V' / kappa^2
             Vp, dVp = _glauert(v, prm[MU] * (Om * R), prm[LAMBDA_S] * (Om * R))
             A[3, 3] = k_v + mom * (Vp + v * dVp)
-            rhs[3] = _psum(ws.span_line, rot.r.size) - mom * v * Vp
+            rhs[3] = T_be - mom * v * Vp
         else:
             A[3, 3] = k_v + 2 * mom * abs(v)
-            rhs[3] = _psum(ws.span_line, rot.r.size) - mom * v * abs(v)
-        d0 = _lu_solve(A, rhs, ws.x)
+            rhs[3] = T_be - mom * v * abs(v)
+        if trim:
+            A5, rhs5 = ws.A5, ws.rhs5
+            A5[:, :] = 0.0
+            A5[:4, :4] = A
+            A5[2, 4] = -K_p
+            A5[4, 2] = -J0[3, 2]
+            A5[4, 3] = -k_v
+            rhs5[:4] = rhs
+            rhs5[4] = prm[THRUST_TARGET] - T_be
+            d0 = _lu_solve(A5, rhs5, ws.x5)
+            th0 = np.deg2rad(prm[COLLECTIVE]) + relax * d0[4].real
+            prm[COLLECTIVE] = th0 * RAD2DEG
+            F_cmd[2, 0] = K_p * th0
+            d_ctrl = _nanmax(d_ctrl, abs(relax * d0[4].real))
+        else:
+            d0 = _lu_solve(A, rhs, ws.x)
         dQ[:, 0] = d0[:3]
         dv_step = d0[3].real
     big = 0.0
@@ -837,6 +865,8 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
         dv1 = max(abs(vc - sc[VC]), abs(vs - sc[VS])) / (Om * R)
         sc[VC], sc[VS] = vc, vs
     size = _nanmax(big, _nanmax(dv, dv1)) / relax
+    if trim:
+        size = _nanmax(size, d_ctrl / relax)
     # per-sample step control: halve the step of a sample whose update grew (stall and strong
     # aerodynamic pitching moments make the fixed point oscillate), regrow it when it shrinks
     if size > sc[RESID]:
@@ -993,45 +1023,6 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
 
 
 # ---------------------------------------------------------------------------------------------
-# trim
-
-
-@numba.njit(**_JIT)
-def _trim_step(st, prm, rot, Jinv, F_cmd, k_v, ws):
-    """Wind-tunnel trim, one control update inside the periodic iteration: collective from
-    the thrust error, cyclic from the first-harmonic flapping, each through the linear gain
-    the iteration's own Jacobian gives (d thrust / d collective with the inflow's response;
-    the complex flap response to the cyclic, its phase included). Writes the controls [deg]
-    to prm and the commanded-pitch forcing F_cmd; returns the control step [rad]."""
-    Om, rho, kappa = prm[OMEGA], prm[RHO], prm[KAPPA]
-    K_p, C_p = prm[K_FEATHER], prm[C_FEATHER]
-    nr = rot.r.size
-    relax = st.scalars[RELAX]
-    for i in range(nr):
-        ws.span_scratch[i] = ws.dT_r[i] * rot.w[i]
-    thrust = _psum(ws.span_scratch, nr)
-    v = st.scalars[V0]
-    F = _uniform_tip_loss(v, Om, rot, ws.span_scratch)
-    m = _momentum_slope(v, prm, rot, 2 * rho * rot.area * F / kappa**2)
-    # thrust per commanded collective: blade-element slope x the feathering's transmission
-    # of the command, reduced by the inflow's response m / (m + k_v)
-    # (k_v = N_b rho c a Omega sum(w r) / 2, so N_b rho c a Omega^2 sum(w r^2) / 2 is this)
-    dT_dth = (k_v * Om * rot.sums[SUM_W_R2] / rot.sums[SUM_W_R]
-              * (Jinv[0, 2, 2] * K_p).real * m / (m + k_v))
-    d0 = relax * (prm[THRUST_TARGET] - thrust) / dT_dth
-    g1 = Jinv[1, 0, 2] * (K_p + 1j * Om * C_p)
-    d1 = -relax * st.Q[0, 1] / g1
-    th0 = np.deg2rad(prm[COLLECTIVE]) + d0
-    th1 = (np.deg2rad(prm[LATERAL]) - 1j * np.deg2rad(prm[LONGITUDINAL])) + d1
-    prm[COLLECTIVE] = th0 * RAD2DEG
-    prm[LATERAL] = th1.real * RAD2DEG
-    prm[LONGITUDINAL] = -th1.imag * RAD2DEG
-    F_cmd[2, 0] = K_p * th0
-    F_cmd[2, 1] = (K_p + 1j * Om * C_p) * th1
-    return max(abs(d0), abs(d1)) / relax
-
-
-# ---------------------------------------------------------------------------------------------
 # one sample, and the batch
 
 
@@ -1067,7 +1058,6 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_ou
         size, bad = _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws)
         iterations += 1
         if trim:
-            size = _nanmax(size, _trim_step(st, prm, rot, Jinv, F_cmd, k_v, ws))
             if (abs(prm[COLLECTIVE]) + abs(prm[LATERAL]) + abs(prm[LONGITUDINAL])
                     > TRIM_PITCH_LIMIT_DEG):
                 reason = TRIM_PITCH
@@ -1116,6 +1106,8 @@ def _workspace(rot):
                 f[10], f[11], f[12], f[13], f[14], np.empty(npsi), np.empty(npsi),
                 np.empty(nr), np.empty(nr), np.empty(nr), c[0], c[1], c[2, 0],
                 np.empty((4, 4), dtype=np.complex128), v[0], v[1],
+                np.empty((5, 5), dtype=np.complex128), np.empty(5, dtype=np.complex128),
+                np.empty(5, dtype=np.complex128),
                 np.zeros((npsi, nr), dtype=np.int64), np.zeros((npsi, nr)))
 
 

@@ -113,8 +113,9 @@ class HoverSolution:
         """Join solutions of consecutive chunks along the sample axis."""
         if len(parts) == 1:
             return parts[0]
-        return HoverSolution(**{f.name: np.concatenate([getattr(p, f.name) for p in parts])
-                                for f in fields(HoverSolution)})
+        cls = type(parts[0])
+        return cls(**{f.name: np.concatenate([getattr(p, f.name) for p in parts])
+                      for f in fields(cls)})
 
     @staticmethod
     def assemble(preset: RotorPreset, grid: BladeGrid, omega: np.ndarray, rho: np.ndarray,

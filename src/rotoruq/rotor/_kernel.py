@@ -436,6 +436,20 @@ def _drees(mu, lam):
 
 
 @numba.njit(**_JIT)
+def _trim_inflow(prm, rot):
+    """The trim's initial induced velocity [m/s]: momentum (Glauert) at the target thrust,
+    v V' = kappa^2 T / (2 rho A), by Newton steps from the hover value."""
+    Om, R = prm[OMEGA], rot.radius
+    c = prm[KAPPA] ** 2 * prm[THRUST_TARGET] / (2 * prm[RHO] * rot.area)
+    v = math.sqrt(abs(c))
+    Vx, Vz = prm[MU] * (Om * R), prm[LAMBDA_S] * (Om * R)
+    for _ in range(20):
+        Vp, dVp = _glauert(v, Vx, Vz)
+        v = v - (v * Vp - c) / (Vp + v * dVp)
+    return v if np.isfinite(v) and v > 0 else math.sqrt(abs(c))
+
+
+@numba.njit(**_JIT)
 def _structural_jacobian(prm, rot, af, fit, linear, ws):
     """Structural operator Z (K, 3, 3), the inverse of the Jacobian J_k (K, 3, 3), the joint
     (mean motion, uniform inflow) and (first harmonic, harmonic inflow) 4x4 Jacobians J0, J1
@@ -1046,6 +1060,9 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_ou
     Q = np.zeros((3, K), dtype=np.complex128)
     for k in range(K):
         Q[2, k] = F_cmd[2, k] / Z[k, 2, 2]
+    trim = prm[TRIM] == WIND_TUNNEL and K > 1
+    if trim:
+        v_init = _trim_inflow(prm, rot)
     scalars = np.zeros(N_SCALARS)
     scalars[V0] = v_init
     scalars[RELAX] = 1.0
@@ -1053,7 +1070,6 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_ou
     v_r = np.full(nr, v_init)
     st = State(Q, scalars, v_r, v_r.copy(), np.zeros(nr))
     reason, dof, bad, iterations = NOT_CONVERGED, 0, False, 0
-    trim = prm[TRIM] == WIND_TUNNEL and K > 1
     for _ in range(max_iterations):
         size, bad = _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws)
         iterations += 1

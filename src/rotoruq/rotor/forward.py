@@ -27,7 +27,6 @@ the solve takes the hover code paths: the answer is the hover model's, bitwise.
 from __future__ import annotations
 
 import math
-
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any

@@ -197,14 +197,24 @@ class ForwardRotorModel(RotorModel):
     ----------
     preset : str or RotorPreset
         ``"bo105"``, ``"gvpm"`` or a :class:`RotorPreset` with uniform inflow.
-    names_in, names_out, fixed, airfoil, n_stations, n_azimuth, n_harmonics, tolerance, \
-max_iterations, check_tolerance
-        As in :class:`~rotoruq.rotor.model.RotorModel` (default responses: thrust, power).
+    names_in : sequence of str, optional
+        Batch columns: any of :data:`~rotoruq.rotor.model.ROTOR_INPUTS`,
+        :data:`FORWARD_INPUTS` and the airfoil's coefficient names (default: the commands).
+    names_out : sequence of str, optional
+        Any of :data:`FORWARD_RESPONSES` (default: thrust, power).
+    fixed : mapping of str to float, optional
+        Inputs held at a value other than the default (``thrust_target`` for a trim).
+    airfoil : Airfoil or LinearAirfoil, optional
+        Replaces the preset's airfoil table.
     inflow_model : {"glauert", "drees"}, optional
         Uniform momentum inflow (default) or Drees's linear inflow.
     trim : {None, "wind_tunnel"}, optional
         Given controls (default) or wind-tunnel trim to ``thrust_target`` and zero
         first-harmonic flapping (the given controls are the trim's starting point).
+    **options
+        The solver options of :class:`~rotoruq.rotor.model.RotorModel`: ``n_stations``,
+        ``n_azimuth``, ``n_harmonics``, ``tolerance``, ``max_iterations``,
+        ``check_tolerance``.
 
     Examples
     --------

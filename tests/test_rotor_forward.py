@@ -173,3 +173,54 @@ def test_the_saved_verification_passed():
     d = json.loads((ROOT / "benchmarks/results/forward_flight_verification.json").read_text())
     assert d["closed_forms"]["passed"] and d["power_curve"]["passed"] and d["gci"]["passed"]
     assert "commit" in d["provenance"]
+
+
+# --- the bundled study, through the CLI in a fresh folder ------------------------------------
+
+@pytest.mark.slow
+def test_bundled_forward_flight_study_runs_from_the_cli(tmp_path):
+    import os
+    import subprocess
+
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    done = subprocess.run([sys.executable, "-m", "rotoruq", "run", "forward_flight", "--quick",
+                           "--no-report", "--out", "res"], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    assert "0 failed evaluation(s)" in done.stdout
+    shown = {}
+    for step in ("lhs", "sobol_mu01", "sobol_mu03"):
+        out = subprocess.run([sys.executable, "-m", "rotoruq", "show", "res", step, "--json"],
+                             cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
+        assert out.returncode == 0, out.stderr[-2000:]
+        shown[step] = json.loads(out.stdout)["steps"][step]
+    spread = {row[0]: row for row in shown["sobol_mu03"]["tables"][0]["rows"]}
+    assert spread["power [W]"][1] > 0 and spread["collective_trim_deg"][2] > 0
+    assert shown["sobol_mu01"]["n_evaluations"] == shown["sobol_mu03"]["n_evaluations"] > 0
+
+
+def test_study_flight_table_is_checked(tmp_path):
+    from rotoruq.errors import InputFileError
+    from rotoruq.study.schema import load_study
+
+    text = (ROOT / "src/rotoruq/studies/forward_flight.toml").read_text()
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace('trim = "wind_tunnel"', 'trim = "free_flight"'))
+    with pytest.raises(InputFileError, match="free_flight"):
+        load_study(bad)
+    bad.write_text(text.replace('"h_force"', '"roll"'))
+    with pytest.raises(InputFileError, match="roll"):
+        load_study(bad)
+
+
+def test_study_builds_the_trimmed_forward_model():
+    from rotoruq.study.runner import build_model
+    from rotoruq.study.schema import load_study
+
+    study = load_study(ROOT / "src/rotoruq/studies/forward_flight.toml")
+    model = build_model(study, ["k_pitch_link"], ["power", "collective_trim_deg"],
+                        dict(study.model.fixed))
+    assert isinstance(model, ForwardRotorModel)
+    assert (model.trim, model.inflow_model) == ("wind_tunnel", "drees")
+    y = model([[15.0]])
+    assert np.all(np.isfinite(y)) and model.last_solution.thrust[0] == pytest.approx(20.0)

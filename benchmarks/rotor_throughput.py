@@ -256,8 +256,15 @@ def summary_text(result: dict) -> str:
         f"Largest relative difference from the "
         f"numpy implementation {result['max_relative_difference']:.1e}. First use compiles "
         f"the kernel in {result['compile_s']:.0f} s (once per install: numba's cache; later "
-        f"processes load it in {result['first_call_cached_s']:.2f} s). {targets} "
-        f"In forward flight (gvpm, mu = 0.2, wind-tunnel trim: collective and cyclic solved "
+        f"processes load it in {result['first_call_cached_s']:.2f} s). {targets}"
+        + (_forward_text(result, f) if "forward" in s else "")
+    )
+
+
+def _forward_text(result: dict, f) -> str:
+    """The forward-flight sentence of the summary (issue 38)."""
+    return (
+        f" In forward flight (gvpm, mu = 0.2, wind-tunnel trim: collective and cyclic solved "
         f"for the thrust and zero first-harmonic flapping) "
         f"{f('forward', 'batch_1000', 'compiled')} trimmed evaluations/s at batch 1000 "
         f"({f('forward', 'batch_1000', 'compiled_per_cpu_s')} per CPU-second, "
@@ -272,9 +279,11 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--summary", action="store_true",
                         help="print the README paragraph from the saved JSON")
+    parser.add_argument("--out", type=Path, default=OUT,
+                        help=f"the JSON written, or read by --summary (default {OUT.name})")
     args = parser.parse_args()
     if args.summary:
-        print(summary_text(json.loads(OUT.read_text())))
+        print(summary_text(json.loads(args.out.read_text())))
         return
     rng = np.random.default_rng(0)
     threads = numba.get_num_threads()
@@ -301,8 +310,8 @@ def main() -> None:
     }
     out["provenance"] = provenance()
     text = json.dumps(out, indent=1)
-    OUT.parent.mkdir(parents=True, exist_ok=True)
-    OUT.write_text(text + "\n")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(text + "\n")
     print(json.dumps({k: v for k, v in out.items() if k != "runs"}, indent=1))
     print(summary_text(out))
 

@@ -22,6 +22,12 @@ paid once per install; ``first_call_cached_s`` the cost of loading the cache).
 ``max_relative_difference``: largest |compiled - numpy| / |numpy| of thrust, torque, roll and
 pitch over the batch of 1000 (rows valid in both).
 
+``forward``: the forward-flight rotor (``ForwardRotorModel``, issue 38) trimmed in the wind
+tunnel (thrust and zero first-harmonic flapping solved by collective and cyclic) at mu = 0.2,
+shaft angle 3 deg, gvpm preset, the pitch link, flap EI and airfoil fits of ``gvpm`` drawn
+as above and the thrust 25 +- 1 N: trimmed evaluations per second at batch 1 and 1000, its
+iterations and failures (target: >= 5,000/s at batch 1000 on 2 cores).
+
 ``--runs N`` (default 3) repeats the measurement; the JSON keeps every run and the median and
 range of each figure; ``--summary`` prints README's paragraph from the saved JSON. Prints JSON
 and writes ``benchmarks/results/rotor_throughput.json``. Targets (issues 12 and 28): gvpm
@@ -47,6 +53,7 @@ import numpy as np
 from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 
 from rotoruq.rotor._reference import solve_hover_reference
+from rotoruq.rotor.forward import ForwardRotorModel
 from rotoruq.rotor.model import RotorModel
 
 CASES = {
@@ -63,6 +70,13 @@ CASES = {
 #: relative standard deviation)
 NOMINAL_CASES = {"gvpm_nominal": ("gvpm", 0.03)}
 RESPONSES = ["thrust", "torque", "roll", "pitch"]
+#: the trimmed forward-flight point set: the gvpm structural and airfoil inputs of CASES and
+#: the thrust target [N] (mean, standard deviation), at FORWARD_FIXED
+FORWARD_CASE = (CASES["gvpm"][0][3:] + ["thrust_target"], CASES["gvpm"][1][3:] + [25.0],
+                CASES["gvpm"][2][3:] + [1.0])
+FORWARD_FIXED = {"advance_ratio": 0.2, "shaft_angle_deg": 3.0}
+FORWARD_RESPONSES = ["thrust", "power", "h_force", "collective_trim_deg", "lateral_trim_deg",
+                     "longitudinal_trim_deg"]
 BATCHES = (1, 100, 1000)
 REFERENCE_CHUNK = 128
 OUT = Path(__file__).parent / "results" / "rotor_throughput.json"
@@ -135,8 +149,26 @@ def point_sets() -> dict:
     return out
 
 
+def forward_run(rng: np.random.Generator) -> dict:
+    """Trimmed forward-flight evaluations per second (wall and per CPU-second)."""
+    names, mean, std = FORWARD_CASE
+    model = ForwardRotorModel("gvpm", names_in=names, names_out=FORWARD_RESPONSES,
+                              fixed=FORWARD_FIXED, trim="wind_tunnel")
+    res: dict = {}
+    for n in (1, 1000):
+        x = _around(np.asarray(mean), np.asarray(std), rng, n)
+        batch = model.evaluate(x)
+        row: dict = {}
+        row["compiled"], row["compiled_per_cpu_s"] = _rate(model, x)
+        if n == 1000:
+            row["iterations_mean"] = float(np.mean(model.last_solution.iterations))
+            row["failures"] = len(batch.failures)
+        res[f"batch_{n}"] = row
+    return res
+
+
 def one_run(rng: np.random.Generator, threads: int) -> dict:
-    out: dict = {}
+    out: dict = {"forward": forward_run(rng)}
     for preset, (model, draw) in point_sets().items():
         res: dict = {}
         for n in BATCHES:
@@ -195,7 +227,7 @@ def summary_text(result: dict) -> str:
     met = [k for k, ok in result["targets_met"].items() if ok]
     missed = [k for k, ok in result["targets_met"].items() if not ok]
     goals = ", ".join(f"{k} {v:,}/s" for k, v in result["targets"].items())
-    targets = (f"Targets of issues 12 and 28 (the medians against {goals}): met "
+    targets = (f"Targets of issues 12, 28 and 38 (the medians against {goals}): met "
                f"{', '.join(met) or 'none'}; not met {', '.join(missed) or 'none'}.")
     return (
         f"Medians of {len(result['runs'])} runs (range in brackets), {result['threads']} "
@@ -225,6 +257,20 @@ def summary_text(result: dict) -> str:
         f"numpy implementation {result['max_relative_difference']:.1e}. First use compiles "
         f"the kernel in {result['compile_s']:.0f} s (once per install: numba's cache; later "
         f"processes load it in {result['first_call_cached_s']:.2f} s). {targets}"
+        + (_forward_text(result, f) if "forward" in s else "")
+    )
+
+
+def _forward_text(result: dict, f) -> str:
+    """The forward-flight sentence of the summary (issue 38)."""
+    return (
+        f" In forward flight (gvpm, mu = 0.2, wind-tunnel trim: collective and cyclic solved "
+        f"for the thrust and zero first-harmonic flapping) "
+        f"{f('forward', 'batch_1000', 'compiled')} trimmed evaluations/s at batch 1000 "
+        f"({f('forward', 'batch_1000', 'compiled_per_cpu_s')} per CPU-second, "
+        f"{f('forward', 'batch_1000', 'iterations_mean', 1)} iterations, target 5,000/s: "
+        f"{'met' if result['targets_met'].get('forward_trimmed_batch_1000') else 'not met'}),"
+        f" {f('forward', 'batch_1', 'compiled')}/s at batch 1."
     )
 
 
@@ -233,9 +279,11 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--summary", action="store_true",
                         help="print the README paragraph from the saved JSON")
+    parser.add_argument("--out", type=Path, default=OUT,
+                        help=f"the JSON written, or read by --summary (default {OUT.name})")
     args = parser.parse_args()
     if args.summary:
-        print(summary_text(json.loads(OUT.read_text())))
+        print(summary_text(json.loads(args.out.read_text())))
         return
     rng = np.random.default_rng(0)
     threads = numba.get_num_threads()
@@ -247,20 +295,23 @@ def main() -> None:
     out["runs"] = [one_run(rng, threads) for _ in range(args.runs)]
     out["summary"] = summarize(out["runs"])
     out["max_relative_difference"] = max(
-        r[p]["batch_1000"]["max_relative_difference"] for r in out["runs"] for p in r)
+        r[p]["batch_1000"]["max_relative_difference"] for r in out["runs"] for p in r
+        if p != "forward")
     med = {p: out["summary"][p]["batch_1000"]["compiled"][0] for p in out["summary"]}
     out["targets"] = {"gvpm_batch_1000": 10000, "gvpm_nominal_batch_1000": 10000,
-                      "gvpm_batch_1": 2000, "bo105_batch_1000": 7000}
+                      "gvpm_batch_1": 2000, "bo105_batch_1000": 7000,
+                      "forward_trimmed_batch_1000": 5000}
     out["targets_met"] = {
         "gvpm_batch_1000": med["gvpm"] >= 10000,
         "gvpm_nominal_batch_1000": med["gvpm_nominal"] >= 10000,
         "gvpm_batch_1": out["summary"]["gvpm"]["batch_1"]["compiled"][0] >= 2000,
         "bo105_batch_1000": med["bo105"] >= 7000,
+        "forward_trimmed_batch_1000": med["forward"] >= 5000,
     }
     out["provenance"] = provenance()
     text = json.dumps(out, indent=1)
-    OUT.parent.mkdir(parents=True, exist_ok=True)
-    OUT.write_text(text + "\n")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(text + "\n")
     print(json.dumps({k: v for k, v in out.items() if k != "runs"}, indent=1))
     print(summary_text(out))
 

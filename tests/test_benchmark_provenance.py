@@ -32,7 +32,9 @@ QUOTED = sorted({j for b in generated_blocks.blocks()
 
 def _script_of(result: str) -> Path:
     path = ROOT / result
-    stem = "multifidelity_mbdyn" if path.stem.startswith("multifidelity_mbdyn") else path.stem
+    # a script may save several results named after it (rotor_throughput_loaded.json)
+    stem = next((p for p in ("multifidelity_mbdyn", "rotor_throughput")
+                 if path.stem.startswith(p)), path.stem)
     return ROOT / path.parts[len(ROOT.parts)] / f"{stem}.py"
 
 

@@ -63,8 +63,10 @@ GROUPS: dict[str, Group] = {
     "models": Group(
         "Models and the rotor",
         "What the methods evaluate: the model protocol and its wrappers, the hover rotor model "
-        "(presets, discretization, airfoils and c81 tables) and Dakota's test functions.",
-        ("Model", "FunctionModel", "EvalBatch", "evaluate", "RotorModel", "ROTOR_INPUTS",
+        "and the rotor in forward flight (presets, discretization, airfoils and c81 tables) "
+        "and Dakota's test functions.",
+        ("Model", "FunctionModel", "EvalBatch", "evaluate", "RotorModel", "ForwardRotorModel",
+         "ROTOR_INPUTS",
          "RESPONSES", "RotorDiscretization", "RotorPreset", "get_preset", "presets",
          "LinearAirfoil", "Airfoil", "AirfoilFit", "fit_airfoil", "write_perturbed_c81",
          "C81Table", "C81Block", "read_c81", "write_c81", "dakota_function", "DakotaFunction",

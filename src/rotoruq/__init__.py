@@ -52,6 +52,7 @@ _PUBLIC: dict[str, str] = {
     "RESPONSES": ".rotor.model",
     "ROTOR_INPUTS": ".rotor.model",
     "RotorModel": ".rotor.model",
+    "ForwardRotorModel": ".rotor.forward",
     "RotorDiscretization": ".rotor.discretization",
     "RotorPreset": ".rotor.presets",
     "get_preset": ".rotor.presets",

@@ -59,10 +59,20 @@ LIFT_SECANT_DEG = 2.0   # half-width of the secant giving the Jacobian's lift sl
 
 # Columns of the per-sample input matrix
 (OMEGA, RHO, KAPPA, K_FLAP, C_FLAP, K_LAG, C_LAG, K_FEATHER, C_FEATHER, X_AC, CM0, COLLECTIVE,
- LATERAL, LONGITUDINAL, N_COLUMNS) = range(15)
+ LATERAL, LONGITUDINAL, MU, LAMBDA_S, INFLOW, TRIM, THRUST_TARGET, N_COLUMNS) = range(20)
+# Forward flight (rotor.forward): advance ratio mu = V cos(alpha_s) / (Omega R), free-stream
+# inflow ratio lambda_s = mu tan(alpha_s) (alpha_s positive tilting the disk forward), the
+# inflow model (GLAUERT uniform, DREES linear), the trim (NO_TRIM, WIND_TUNNEL: collective
+# and cyclic solved for THRUST_TARGET [N] and zero first-harmonic flapping). mu = 0 takes
+# the hover code paths unchanged.
+GLAUERT, DREES = 0, 1
+TRIM_PITCH_LIMIT_DEG = 90.0   # |collective| + |cyclic| a trim may reach [deg]
+NO_TRIM, WIND_TUNNEL = 0, 1
+# Columns of the loads written by _hub_loads
+N_LOADS = 9
 
 # Failure reasons of the iteration (the final check's reasons are judged in hover.py)
-OK, NONFINITE, TOO_LARGE, NOT_CONVERGED = range(4)
+OK, NONFINITE, TOO_LARGE, NOT_CONVERGED, TRIM_PITCH = range(5)
 
 # Airfoil kinds
 TABLE, LINEAR = 0, 1
@@ -262,6 +272,11 @@ def _coefficients(alpha, im_, s_, af, fit, linear, cl, cd, cm):
         for j in range(npsi):
             for i in range(nr):
                 a = alpha[j, i]
+                # reverse flow (forward flight): the thin airfoil's lift is pi-periodic
+                if a >= 90.0:
+                    a = a - 180.0
+                elif a < -90.0:
+                    a = a + 180.0
                 cl[j, i] = cla * a + cl0
                 cd[j, i] = cd0 + cda2 * (a * a)
                 cm[j, i] = 0.0
@@ -400,6 +415,40 @@ def _lift_slope(prm, rot, af, fit, linear, alpha_ref, ws):
     return min(max(a, 0.5 * A0), 2.0 * A0)
 
 
+@numba.njit(**_INLINE)
+def _glauert(v, Vx, Vz):
+    """Glauert's resultant velocity at the disk V' = sqrt(Vx^2 + (Vz + v)^2) [m/s] and
+    dV'/dv for induced velocity v, in-plane free stream Vx and free-stream inflow Vz."""
+    Vp = math.sqrt(Vx * Vx + (Vz + v) * (Vz + v))
+    return Vp, ((Vz + v) / Vp if Vp > 0 else 1.0)
+
+
+@numba.njit(**_INLINE)
+def _drees(mu, lam):
+    """Drees's linear inflow (kx, ky): v(r, psi) = v0 (1 + kx r/R cos psi + ky r/R sin psi),
+    kx = 4/3 (1 - cos chi - 1.8 mu^2) / sin chi, ky = -2 mu, with the wake skew angle
+    chi = atan(mu / lambda) from the advance ratio mu and the inflow ratio lambda (free stream
+    and induced); kx -> 0 as chi -> 0."""
+    chi = math.atan2(mu, lam)
+    sc = math.sin(chi)
+    kx = 4.0 / 3.0 * (1.0 - math.cos(chi) - 1.8 * mu * mu) / sc if sc > 1e-12 else 0.0
+    return kx, -2.0 * mu
+
+
+@numba.njit(**_JIT)
+def _trim_inflow(prm, rot):
+    """The trim's initial induced velocity [m/s]: momentum (Glauert) at the target thrust,
+    v V' = kappa^2 T / (2 rho A), by Newton steps from the hover value."""
+    Om, R = prm[OMEGA], rot.radius
+    c = prm[KAPPA] ** 2 * prm[THRUST_TARGET] / (2 * prm[RHO] * rot.area)
+    v = math.sqrt(abs(c))
+    Vx, Vz = prm[MU] * (Om * R), prm[LAMBDA_S] * (Om * R)
+    for _ in range(20):
+        Vp, dVp = _glauert(v, Vx, Vz)
+        v = v - (v * Vp - c) / (Vp + v * dVp)
+    return v if np.isfinite(v) and v > 0 else math.sqrt(abs(c))
+
+
 @numba.njit(**_JIT)
 def _structural_jacobian(prm, rot, af, fit, linear, ws):
     """Structural operator Z (K, 3, 3), the inverse of the Jacobian J_k (K, 3, 3), the joint
@@ -494,6 +543,11 @@ def _aerodynamic_loads(Q, v0, vc, vs, v_r, prm, rot, af, fit, linear, ws):
     npsi, nr = cos_psi.size, r_.size
     K = Q.shape[1]
     bad = False
+    # forward flight: in-plane free stream mu Omega R (tangential mu sin psi, radial mu cos
+    # psi: its flap-normal part mu beta cos psi is kept, the radial flow along the blade
+    # neglected) and the free-stream inflow lambda_s Omega R through the disk
+    Vx, Vz = prm[MU] * (Om * R), prm[LAMBDA_S] * (Om * R)
+    forward = Vx != 0.0
     for j in range(npsi):
         # flap beta and its psi-derivative, lag rate, feathering at psi_j: q_d(psi_j) =
         # Re(sum_k Q[d, k] exp(i k psi_j)) (written out: see _coefficients)
@@ -516,6 +570,9 @@ def _aerodynamic_loads(Q, v0, vc, vs, v_r, prm, rot, af, fit, linear, ws):
             base = v_r[i] if bemt else v0
             UT = Om * (r - rr * dzeta)
             UP = (base + (r / R) * cs) + (Om * rr) * dbeta
+            if forward:
+                UT = UT + Vx * sin_psi[j]
+                UP = UP + (Vz + Vx * beta * cos_psi[j])
             phi = math.atan2(UP, UT)
             alpha = (theta + twist_[i] - phi) * RAD2DEG
             U2 = UT**2 + UP**2
@@ -699,6 +756,9 @@ class Work(NamedTuple):
     A: np.ndarray             # (4, 4) complex: a joint Jacobian, its LU factors
     rhs: np.ndarray           # (4,) complex
     x: np.ndarray             # (4,) complex: the joint step
+    A5: np.ndarray            # (5, 5) complex: the mean block with the trim's collective
+    rhs5: np.ndarray          # (5,) complex
+    x5: np.ndarray            # (5,) complex
     im: np.ndarray            # (N_psi, N_r) int: Mach interval of each element (table)
     s: np.ndarray             # (N_psi, N_r): its weight
 
@@ -721,7 +781,28 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
             y = y + Jinv[k, d, 1] * R_dyn[1, k]
             dQ[d, k] = y + Jinv[k, d, 2] * R_dyn[2, k]
     dv1 = 0.0
-    if rot.harmonic_inflow and K > 1:
+    forward = prm[MU] != 0.0
+    # wind-tunnel trim: the controls join the unknowns of the mean and first-harmonic
+    # blocks, with the equations thrust = target and first-harmonic flapping = 0
+    trim = prm[TRIM] == WIND_TUNNEL and K > 1
+    K_p, C_p = prm[K_FEATHER], prm[C_FEATHER]
+    d_ctrl = 0.0
+    if trim:
+        rhs, A = ws.rhs, ws.A
+        A[:, :] = 0.0
+        A[:3, :3] = J1[:3, :3]
+        A[2, 3] = -(K_p + 1j * Om * C_p)
+        A[3, 0] = 1.0
+        rhs[:3] = R_dyn[:, 1]
+        rhs[3] = -st.Q[0, 1]
+        d1 = _lu_solve(A, rhs, ws.x)
+        dQ[:, 1] = d1[:3]
+        th1 = (np.deg2rad(prm[LATERAL]) - 1j * np.deg2rad(prm[LONGITUDINAL])) + relax * d1[3]
+        prm[LATERAL] = th1.real * RAD2DEG
+        prm[LONGITUDINAL] = -th1.imag * RAD2DEG
+        F_cmd[2, 1] = (K_p + 1j * Om * C_p) * th1
+        d_ctrl = abs(relax * d1[3])
+    elif rot.harmonic_inflow and K > 1 and not forward:
         # first harmonic: blade motion and the Pitt-Peters inflow V1 = v_c - i v_s together
         s = rot.sums
         dMz_dV = -qa * s[SUM_W_R3] / R
@@ -751,12 +832,34 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
         mom = 2 * rho * rot.area * F / kappa**2
         rhs, A = ws.rhs, ws.A
         A[:, :] = J0
-        A[3, 3] = k_v + 2 * mom * abs(v)
         rhs[:3] = R_dyn[:, 0]
         for i in range(rot.r.size):
             ws.span_line[i] = ws.dT_r[i] * rot.w[i]
-        rhs[3] = _psum(ws.span_line, rot.r.size) - mom * v * abs(v)
-        d0 = _lu_solve(A, rhs, ws.x)
+        T_be = _psum(ws.span_line, rot.r.size)
+        if forward:
+            # Glauert: T = 2 rho A F v V' / kappa^2
+            Vp, dVp = _glauert(v, prm[MU] * (Om * R), prm[LAMBDA_S] * (Om * R))
+            A[3, 3] = k_v + mom * (Vp + v * dVp)
+            rhs[3] = T_be - mom * v * Vp
+        else:
+            A[3, 3] = k_v + 2 * mom * abs(v)
+            rhs[3] = T_be - mom * v * abs(v)
+        if trim:
+            A5, rhs5 = ws.A5, ws.rhs5
+            A5[:, :] = 0.0
+            A5[:4, :4] = A
+            A5[2, 4] = -K_p
+            A5[4, 2] = -J0[3, 2]
+            A5[4, 3] = -k_v
+            rhs5[:4] = rhs
+            rhs5[4] = prm[THRUST_TARGET] - T_be
+            d0 = _lu_solve(A5, rhs5, ws.x5)
+            th0 = np.deg2rad(prm[COLLECTIVE]) + relax * d0[4].real
+            prm[COLLECTIVE] = th0 * RAD2DEG
+            F_cmd[2, 0] = K_p * th0
+            d_ctrl = _nanmax(d_ctrl, abs(relax * d0[4].real))
+        else:
+            d0 = _lu_solve(A, rhs, ws.x)
         dQ[:, 0] = d0[:3]
         dv_step = d0[3].real
     big = 0.0
@@ -770,7 +873,14 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
     else:
         sc[V0] = sc[V0] + relax * dv_step
         dv = abs(relax * dv_step) / (Om * R)
+    if forward and prm[INFLOW] == DREES:
+        kx, ky = _drees(prm[MU], prm[LAMBDA_S] + sc[V0] / (Om * R))
+        vc, vs = kx * sc[V0], ky * sc[V0]
+        dv1 = max(abs(vc - sc[VC]), abs(vs - sc[VS])) / (Om * R)
+        sc[VC], sc[VS] = vc, vs
     size = _nanmax(big, _nanmax(dv, dv1)) / relax
+    if trim:
+        size = _nanmax(size, d_ctrl / relax)
     # per-sample step control: halve the step of a sample whose update grew (stall and strong
     # aerodynamic pitching moments make the fixed point oscillate), regrow it when it shrinks
     if size > sc[RESID]:
@@ -792,6 +902,8 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
     K = st.Q.shape[1]
     sc = st.scalars
     npsi, nr = rot.cos_psi.size, rot.r.size
+    Vx, Vz = prm[MU] * (Om * R), prm[LAMBDA_S] * (Om * R)
+    forward = Vx != 0.0
     bad = _aerodynamic_loads(st.Q, sc[V0], sc[VC], sc[VS], st.v_r, prm, rot, af, fit,
                              linear, ws)
     R_dyn, Mz1 = _blade_root_loads(st.Q, Z, F_cmd, rot, ws)
@@ -828,13 +940,21 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
         F = _uniform_tip_loss(v, Om, rot, ws.span_scratch)
         kap = kappa * F**-0.5
         dT_be = -Nb * 0.5 * rho * rot.chord * A0 * Om * rot.sums[SUM_W_R]
-        f = thrust - 2 * rho * rot.area * v * abs(v) / kap**2
-        df = dT_be - 4 * rho * rot.area * abs(v) / kap**2
+        if forward:
+            Vp, dVp = _glauert(v, Vx, Vz)
+            f = thrust - 2 * rho * rot.area * v * Vp / kap**2
+            df = dT_be - 2 * rho * rot.area * (Vp + v * dVp) / kap**2
+        else:
+            f = thrust - 2 * rho * rot.area * v * abs(v) / kap**2
+            df = dT_be - 4 * rho * rot.area * abs(v) / kap**2
         e_mom = abs((v - f / df) - v) / (Om * R)
     e_h = 0.0
-    if rot.harmonic_inflow:
+    if rot.harmonic_inflow and not forward:
         G = _harmonic_gain(sc[V0], prm, rot)
         e_h = abs(G * Mz1 - (sc[VC] - 1j * sc[VS])) / (Om * R)
+    if forward and prm[INFLOW] == DREES:
+        kx, ky = _drees(prm[MU], prm[LAMBDA_S] + sc[V0] / (Om * R))
+        e_h = max(abs(kx * sc[V0] - sc[VC]), abs(ky * sc[V0] - sc[VS])) / (Om * R)
     eq = max(max(e_dyn, e_mom), e_h)
     if e_dyn != e_dyn or e_mom != e_mom or e_h != e_h or not np.isfinite(eq):
         eq = np.inf
@@ -852,6 +972,21 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
         B = st.Q[0, k]
         M_root[k] = (prm[K_FLAP] + 1j * wk * prm[C_FLAP]) * B + rot.hinge_offset * (
             Fz[k] + rot.S_flap * wk**2 * B)
+    # in-plane hub forces (forward flight; zero in hover by symmetry): H rearward (psi = 0),
+    # Y to the advancing side (psi = 90 deg), N_b x the azimuth mean of the blade's in-plane
+    # force F_x (against the rotation) and radial force -F_z sin(beta), aerodynamic only
+    h_force = y_force = 0.0
+    if forward:
+        h_line, y_line = np.empty(npsi), np.empty(npsi)
+        for j in range(npsi):
+            for i in range(nr):
+                ws.span_scratch[i] = ws.dFx[j, i] * rot.w[i]
+            Fx = _psum(ws.span_scratch, nr)
+            Fr = -ws.psi_line[j] * math.sin(ws.beta[j])
+            h_line[j] = Fx * rot.sin_psi[j] + Fr * rot.cos_psi[j]
+            y_line[j] = -Fx * rot.cos_psi[j] + Fr * rot.sin_psi[j]
+        h_force = Nb * _psum(h_line, npsi) / npsi
+        y_force = Nb * _psum(y_line, npsi) / npsi
     # stall: share of the disk's blade-element area (r dr dpsi) beyond the stall angle
     frac = 0.0
     if af.stall_pos.size:
@@ -896,6 +1031,8 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
     out[4] = cd_min
     out[5] = prm[K_FEATHER] + rot.pitch_inertia * Om**2 - dM
     out[6] = 1.0 if bad else 0.0
+    out[7] = h_force
+    out[8] = y_force
     return M_root
 
 
@@ -923,6 +1060,9 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_ou
     Q = np.zeros((3, K), dtype=np.complex128)
     for k in range(K):
         Q[2, k] = F_cmd[2, k] / Z[k, 2, 2]
+    trim = prm[TRIM] == WIND_TUNNEL and K > 1
+    if trim:
+        v_init = _trim_inflow(prm, rot)
     scalars = np.zeros(N_SCALARS)
     scalars[V0] = v_init
     scalars[RELAX] = 1.0
@@ -933,6 +1073,11 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_ou
     for _ in range(max_iterations):
         size, bad = _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws)
         iterations += 1
+        if trim:
+            if (abs(prm[COLLECTIVE]) + abs(prm[LATERAL]) + abs(prm[LONGITUDINAL])
+                    > TRIM_PITCH_LIMIT_DEG):
+                reason = TRIM_PITCH
+                break
         # largest harmonic amplitude per DOF; the DOF named is np.argmax's (first NaN, else
         # first largest) and the test np.max's (NaN never exceeds the limit)
         largest, dof = -1.0, 0
@@ -977,6 +1122,8 @@ def _workspace(rot):
                 f[10], f[11], f[12], f[13], f[14], np.empty(npsi), np.empty(npsi),
                 np.empty(nr), np.empty(nr), np.empty(nr), c[0], c[1], c[2, 0],
                 np.empty((4, 4), dtype=np.complex128), v[0], v[1],
+                np.empty((5, 5), dtype=np.complex128), np.empty(5, dtype=np.complex128),
+                np.empty(5, dtype=np.complex128),
                 np.zeros((npsi, nr), dtype=np.int64), np.zeros((npsi, nr)))
 
 

@@ -29,7 +29,7 @@ import os
 from collections.abc import Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, fields
-from typing import Any
+from typing import Any, NamedTuple
 
 import numba
 import numpy as np
@@ -113,8 +113,9 @@ class HoverSolution:
         """Join solutions of consecutive chunks along the sample axis."""
         if len(parts) == 1:
             return parts[0]
-        return HoverSolution(**{f.name: np.concatenate([getattr(p, f.name) for p in parts])
-                                for f in fields(HoverSolution)})
+        cls = type(parts[0])
+        return cls(**{f.name: np.concatenate([getattr(p, f.name) for p in parts])
+                      for f in fields(cls)})
 
     @staticmethod
     def assemble(preset: RotorPreset, grid: BladeGrid, omega: np.ndarray, rho: np.ndarray,
@@ -192,13 +193,15 @@ def sample_columns(preset: RotorPreset, grid: BladeGrid, params: Mapping[str, np
         K_b = P["k_flap"]
     K_p = P["k_feather"] if "k_feather" in P else preset.feathering_stiffness(P["k_pitch_link"])
     return P, kappa, K_b, K_p
+
+
 def sample_inputs(preset: RotorPreset, grid: BladeGrid, params: Mapping[str, np.ndarray],
                   n: int) -> np.ndarray:
     """The per-sample input matrix of the compiled solve, (n, kern.N_COLUMNS): rotor speed,
     density, kappa, the structural constants (K_b from EI for elastic blades, K_p and C_p
     through the pitch link unless ``k_feather`` is given), x_ac, cm0 and the commands [deg]."""
     P, kappa, K_b, K_p = sample_columns(preset, grid, params, n)
-    prm = np.empty((n, kern.N_COLUMNS))
+    prm = np.zeros((n, kern.N_COLUMNS))   # the forward-flight columns 0: hover
     for col, value in ((kern.OMEGA, P["omega"]), (kern.RHO, P["rho"]), (kern.KAPPA, kappa),
                        (kern.K_FLAP, K_b), (kern.C_FLAP, P["c_flap"]),
                        (kern.K_LAG, P["k_lag"]), (kern.C_LAG, P["c_lag"]),
@@ -356,25 +359,47 @@ def solve_hover(
         harmonic inflow [-]) must be below it (default max(1e-6, 100 tolerance)).
     A sample that fails any check has ``converged`` False and its reason in ``failure``.
     """
-    overrides = overrides or {}
-    n = np.broadcast(*[np.asarray(v) for v in params.values()]).shape[0]
-    check_tolerance = default_check_tolerance(tolerance, check_tolerance)
-    K = n_harmonics + 1
-    rot = rotor_constants(preset, grid, n_harmonics)
-    table = airfoil_table(airfoil)
-    fits, linear = airfoil_samples(airfoil, overrides, n)
     with np.errstate(all="ignore"):   # absurd inputs fail per row, never for the batch
-        prm = sample_inputs(preset, grid, params, n)
+        n, K, rot, table, fits, linear, prm = prepare(preset, airfoil, grid, params,
+                                                      overrides, n_harmonics)
         return _solve(preset, grid, prm, rot, table, fits, linear, n, K, tolerance,
                       max_iterations, check_tolerance)
 
 
-def _solve(preset, grid, prm, rot, table, fits, linear, n, K, tolerance, max_iterations,
-           check_tolerance) -> HoverSolution:
+def prepare(preset, airfoil, grid, params, overrides, n_harmonics):
+    """The compiled solve's inputs of a batch: (n, K, rotor constants, airfoil table,
+    per-sample fits and linear coefficients, the input matrix (n, kern.N_COLUMNS))."""
+    overrides = overrides or {}
+    n = np.broadcast(*[np.asarray(v) for v in params.values()]).shape[0]
+    rot = rotor_constants(preset, grid, n_harmonics)
+    table = airfoil_table(airfoil)
+    fits, linear = airfoil_samples(airfoil, overrides, n)
+    return n, n_harmonics + 1, rot, table, fits, linear, sample_inputs(preset, grid, params, n)
+
+
+class KernelResult(NamedTuple):
+    """The compiled solve's outputs of a batch, judged: motion harmonics Q (n, 3, K) [rad],
+    scalars (n, kern.N_SCALARS), loads (n, kern.N_LOADS) re-evaluated at the final state
+    (their named columns in ``checked``), blade-root flap moment harmonics M_root (n, K)
+    [N m], iterations (n,) and failure (n,) ("" for a valid row)."""
+
+    Q: np.ndarray
+    scalars: np.ndarray
+    checked: dict
+    M_root: np.ndarray
+    iterations: np.ndarray
+    failure: np.ndarray
+
+
+def run_kernel(prm, rot, table, fits, linear, n, K, tolerance, max_iterations,
+               check_tolerance, *, negative_power=False) -> KernelResult:
+    """Solve the rows of ``prm`` and judge them (:func:`judge`; ``negative_power`` lets a
+    row absorb negative power: a rotor in forward flight may be driven by the wind)."""
+    check_tolerance = default_check_tolerance(tolerance, check_tolerance)
     Q = np.zeros((n, 3, K), dtype=complex)
     scalars = np.zeros((n, kern.N_SCALARS))
     status = np.zeros((n, 4), dtype=np.int64)
-    loads = np.full((n, 7), np.nan)
+    loads = np.full((n, kern.N_LOADS), np.nan)
     M_root = np.full((n, K), np.nan, dtype=complex)
     _solve_spread(prm, rot, table, fits, linear, float(tolerance), int(max_iterations), Q,
                   scalars, status, loads, M_root)
@@ -385,14 +410,22 @@ def _solve(preset, grid, prm, rot, table, fits, linear, n, K, tolerance, max_ite
                                        bool(status[i, 2]), int(iterations[i]),
                                        float(scalars[i, kern.RESID]))
     checked = {name: loads[:, j] for j, name in enumerate(
-        ("thrust", "torque", "eq", "stalled", "cd_min", "k_eff", "bad"))}
+        ("thrust", "torque", "eq", "stalled", "cd_min", "k_eff", "bad", "h_force",
+         "y_force"))}
     live = np.flatnonzero(failure == "")
     mean_pitch = Q[:, 2, 0].real
     judge(live, checked, mean_pitch, prm[:, kern.COLLECTIVE], prm[:, kern.OMEGA], failure,
-          check_tolerance)
-    return HoverSolution.assemble(preset, grid, prm[:, kern.OMEGA], prm[:, kern.RHO], Q,
-                                  scalars[:, kern.V0], checked, M_root,
-                                  scalars[:, kern.RESID], iterations, failure)
+          check_tolerance, negative_power=negative_power)
+    return KernelResult(Q, scalars, checked, M_root, iterations, failure)
+
+
+def _solve(preset, grid, prm, rot, table, fits, linear, n, K, tolerance, max_iterations,
+           check_tolerance) -> HoverSolution:
+    res = run_kernel(prm, rot, table, fits, linear, n, K, tolerance, max_iterations,
+                     check_tolerance)
+    return HoverSolution.assemble(preset, grid, prm[:, kern.OMEGA], prm[:, kern.RHO], res.Q,
+                                  res.scalars[:, kern.V0], res.checked, res.M_root,
+                                  res.scalars[:, kern.RESID], res.iterations, res.failure)
 
 
 def _solve_spread(prm, rot, table, fits, linear, tolerance, max_iterations, *out) -> None:
@@ -417,6 +450,10 @@ def _solve_spread(prm, rot, table, fits, linear, tolerance, max_iterations, *out
 def iteration_failure(reason: int, dof: int, bad: bool, iterations: int,
                       last_step: float) -> str:
     """The reason text of a sample whose iteration diverged or did not converge."""
+    if reason == kern.TRIM_PITCH:
+        return (f"cannot trim: the trim iteration asked for a blade pitch |collective| + "
+                f"|cyclic| beyond {kern.TRIM_PITCH_LIMIT_DEG:g} deg after {iterations} "
+                "iterations")
     if reason == kern.NOT_CONVERGED:
         return (f"periodic solution did not converge in {iterations} iterations "
                 f"(last step {last_step:.2e})")
@@ -430,7 +467,7 @@ def iteration_failure(reason: int, dof: int, bad: bool, iterations: int,
 
 def judge(live: np.ndarray, checked: Mapping[str, np.ndarray], mean_pitch: np.ndarray,
           collective_deg: np.ndarray, omega: np.ndarray, failure: np.ndarray,
-          check_tolerance: float) -> None:
+          check_tolerance: float, *, negative_power: bool = False) -> None:
     """Failure reasons of the samples ``live`` from the state re-evaluated at convergence
     (in place): non-finite loads, residual check, deep stall, torsional divergence, negative
     drag or power. mean_pitch [rad], collective_deg [deg], omega [rad/s] per sample."""
@@ -445,7 +482,8 @@ def judge(live: np.ndarray, checked: Mapping[str, np.ndarray], mean_pitch: np.nd
         suspect = ((bad[live] != 0) | ~np.isfinite(thrust[live]) | ~np.isfinite(torque[live])
                    | ~(eq[live] <= check_tolerance) | (stalled[live] > STALL_AREA_LIMIT)
                    | (np.sign(cmd_all) * (th_all - cmd_all) > np.maximum(2.0, np.abs(cmd_all)))
-                   | (cd_min[live] < 0) | (torque[live] < 0) | ~(k_eff[live] > 0))
+                   | (cd_min[live] < 0) | ((torque[live] < 0) & (not negative_power))
+                   | ~(k_eff[live] > 0))
     for i in live[suspect]:
         frac = stalled[i]
         th = float(np.rad2deg(mean_pitch[i]))
@@ -473,7 +511,7 @@ def judge(live: np.ndarray, checked: Mapping[str, np.ndarray], mean_pitch: np.nd
             failure[i] = (f"physically invalid regime: negative section drag coefficient "
                           f"(min cd {cd_min[i]:.3g}" + (
                               f"; negative power {power:.3g} W)" if power < 0 else ")"))
-        elif torque[i] < 0:
+        elif torque[i] < 0 and not negative_power:
             failure[i] = (f"physically invalid regime: negative power in hover "
                           f"({torque[i] * omega[i]:.3g} W)")
         elif not k_eff[i] > 0:

@@ -144,6 +144,10 @@ class RotorModel:
         (default max(1e-6, 100 tolerance); see :func:`rotoruq.rotor.hover.solve_hover`).
     """
 
+    #: the input and response names this model accepts (a subclass extends them)
+    _inputs: tuple[str, ...] = ROTOR_INPUTS
+    _responses: tuple[str, ...] = RESPONSES
+
     def __init__(
         self,
         preset: str | RotorPreset = "gvpm",
@@ -166,7 +170,7 @@ class RotorModel:
         self.tolerance, self.max_iterations = float(tolerance), int(max_iterations)
         self.check_tolerance = float(default_check_tolerance(self.tolerance, check_tolerance))
         self._airfoil_names = tuple(getattr(self.airfoil, "parameter_names", ()))
-        valid = ROTOR_INPUTS + self._airfoil_names
+        valid = self._inputs + self._airfoil_names
         inputs = (("collective_deg", "lateral_deg", "longitudinal_deg") if names_in is None
                   else names_in)
         responses = ("thrust", "torque") if names_out is None else names_out
@@ -188,8 +192,9 @@ class RotorModel:
                 "'k_pitch_link' (N, acting through the link length and horn arm), not both"
             )
         for name in responses:
-            if name not in RESPONSES:
-                raise ParameterError(f"unknown response {name!r}; valid: {', '.join(RESPONSES)}")
+            if name not in self._responses:
+                raise ParameterError(f"unknown response {name!r}; valid: "
+                                     f"{', '.join(self._responses)}")
         if len(set(inputs)) != len(tuple(inputs)):
             raise ParameterError(f"duplicate input names in {list(inputs)}")
         self.names_in = tuple(inputs)
@@ -282,17 +287,7 @@ class RotorModel:
                 params = {k: v[rows] for k, v in params.items()}
                 overrides = {k: v[rows] for k, v in overrides.items()}
             _notice_compile()
-            sol = solve_hover(
-                self.preset,
-                self.airfoil,
-                self.grid,
-                params,
-                overrides,
-                n_harmonics=self.n_harmonics,
-                tolerance=self.tolerance,
-                max_iterations=self.max_iterations,
-                check_tolerance=self.check_tolerance,
-            )
+            sol = self._solve_rows(params, overrides)
             sols.append(sol)
             vals = np.column_stack([sol.response(r) for r in self.names_out])
             bad = ~sol.converged | ~np.all(np.isfinite(vals), axis=1)
@@ -302,6 +297,13 @@ class RotorModel:
             out[rows] = vals
         self.last_solution = _full_solution(n, rows, sols, failures)
         return EvalBatch(out, failures)
+
+    def _solve_rows(self, params, overrides) -> HoverSolution:
+        """The solution of the valid rows (columns of ``params`` and airfoil overrides)."""
+        return solve_hover(self.preset, self.airfoil, self.grid, params, overrides,
+                           n_harmonics=self.n_harmonics, tolerance=self.tolerance,
+                           max_iterations=self.max_iterations,
+                           check_tolerance=self.check_tolerance)
 
     def solve(self, x: npt.ArrayLike) -> HoverSolution:
         """Full hover solution (loads, coning, pitch, inflow, harmonics) of a valid batch.
@@ -386,11 +388,11 @@ def _full_solution(n, rows, sols, failures) -> HoverSolution | None:
     solve NaN (False, 0) with their reason in ``failure``."""
     if not sols:
         return None
-    part = HoverSolution.concatenate(sols)
+    part = type(sols[0]).concatenate(sols)
     if rows.size == n:
         return part
     kw = {}
-    for f in fields(HoverSolution):
+    for f in fields(part):
         a = getattr(part, f.name)
         if f.name == "failure":
             full = np.array([failures.get(i, "") for i in range(n)], dtype=object)
@@ -401,4 +403,4 @@ def _full_solution(n, rows, sols, failures) -> HoverSolution | None:
         full = np.full((n,) + a.shape[1:], fill, dtype=a.dtype)
         full[rows] = a
         kw[f.name] = full
-    return HoverSolution(**kw)
+    return type(part)(**kw)

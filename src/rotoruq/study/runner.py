@@ -131,6 +131,14 @@ def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
         from ..rotor.presets import get_preset
 
         preset = get_preset(spec.preset, **dict(spec.preset_options))
+        if spec.flight is not None:
+            from ..rotor.forward import ForwardRotorModel
+
+            flight = dict(spec.flight)
+            if flight.get("trim") == "none":
+                flight["trim"] = None
+            return ForwardRotorModel(preset, names_in=list(inputs), names_out=list(responses),
+                                     fixed=dict(fixed), **flight, **dict(spec.discretization))
         return RotorModel(preset, names_in=list(inputs), names_out=list(responses),
                           fixed=dict(fixed), **dict(spec.discretization))
     if spec.function is not None:
@@ -384,6 +392,8 @@ def _model_doc(spec: ModelSpec) -> dict:
     del doc["name"]
     if not doc["discretization"]:
         del doc["discretization"]
+    if doc["flight"] is None:
+        del doc["flight"]
     if doc["external"] is not None and doc["external"]["gradients"] == "finite_difference":
         del doc["external"]["gradients"]
     return doc

@@ -96,7 +96,9 @@ STUDY_KEYS = ("name", "seed", "output", "description", "reference", "max_failed_
 EXTERNAL_KEYS = ("command", "files", "templates", "parameters_format", "timeout", "failure",
                  "retries", "recover", "workdir", "gradients")
 MODEL_KEYS = ("preset", "preset_options", "discretization", "responses", "fixed",
-              "function", "components", *EXTERNAL_KEYS)
+              "function", "components", "flight", *EXTERNAL_KEYS)
+# [model] flight = {...}: the rotor in forward flight's options
+FLIGHT_KEYS = ("inflow_model", "trim")
 # RotorModel's discretization keywords a preset model may set.
 DISCRETIZATION_KEYS = ("n_stations", "n_azimuth", "n_harmonics")
 
@@ -129,21 +131,28 @@ COMMON_STEP_KEYS: dict[str, Option] = {
 }
 
 
-def _rotor_responses() -> tuple[str, ...]:
+def _rotor_responses(forward: bool = False) -> tuple[str, ...]:
+    if forward:
+        from ..rotor.forward import FORWARD_RESPONSES
+
+        return tuple(FORWARD_RESPONSES)
     from ..rotor.model import RESPONSES
 
     return tuple(RESPONSES)
 
 
 @lru_cache(maxsize=16)
-def _rotor_inputs(preset: str, options: str) -> tuple[str, ...]:
-    """Every input name a :class:`~rotoruq.rotor.model.RotorModel` of this preset accepts:
-    the rotor's inputs and its airfoil's coefficient names (the rotor's own list)."""
+def _rotor_inputs(preset: str, options: str, forward: bool = False) -> tuple[str, ...]:
+    """Every input name a :class:`~rotoruq.rotor.model.RotorModel` (``forward``: a
+    :class:`~rotoruq.rotor.forward.ForwardRotorModel`) of this preset accepts: the rotor's
+    inputs and its airfoil's coefficient names (the rotor's own list)."""
+    from ..rotor.forward import FORWARD_INPUTS
     from ..rotor.model import ROTOR_INPUTS, load_airfoil
     from ..rotor.presets import get_preset
 
     airfoil = load_airfoil(get_preset(preset, **json.loads(options)))
-    return tuple(ROTOR_INPUTS) + tuple(airfoil.parameter_names)
+    extra = tuple(FORWARD_INPUTS) if forward else ()
+    return tuple(ROTOR_INPUTS) + extra + tuple(airfoil.parameter_names)
 
 
 class ModelInputs:
@@ -161,7 +170,7 @@ class ModelInputs:
             return None
         opts = json.dumps(dict(self.model.preset_options), sort_keys=True, default=str)
         try:
-            return _rotor_inputs(self.model.preset, opts)
+            return _rotor_inputs(self.model.preset, opts, self.model.flight is not None)
         except (ParameterError, TypeError) as exc:
             self.ck.fail(self.where + ("preset_options",), "options of the rotor preset "
                          f"{self.model.preset!r} ({exc})", opts)
@@ -313,7 +322,14 @@ def _parse_model_table(ck: Checker, t: object, w: tuple, what: str, name: str = 
         for key in EXTERNAL_KEYS:
             if key in t:
                 ck.fail(w + (key,), f"no {key!r} with a rotor preset (it is for external drivers)")
-        rotor_responses = _rotor_responses()
+        flight = None
+        if "flight" in t:
+            flight = ck.value(t, "flight", (table, {}), w, what) or {}
+            ck.keys(flight, FLIGHT_KEYS, w + ("flight",), f"{what} flight")
+            choices = {"inflow_model": ("glauert", "drees"), "trim": ("none", "wind_tunnel")}
+            flight = {k: ck.value(flight, k, (string(choices[k]), None), w + ("flight",),
+                                  f"{what} flight") for k in flight}
+        rotor_responses = _rotor_responses(flight is not None)
         for r in responses:
             if r not in rotor_responses:
                 ck.fail(w + ("responses",), f"rotor responses among {', '.join(rotor_responses)}"
@@ -325,14 +341,15 @@ def _parse_model_table(ck: Checker, t: object, w: tuple, what: str, name: str = 
                             f"{what} discretization") for k in disc}
         _check_grid(ck, preset, opts, disc, w + ("discretization",))
         spec = ModelSpec("preset", responses, fixed, preset=preset, preset_options=opts,
-                         discretization=disc, name=name)
+                         discretization=disc, name=name, flight=flight)
         inputs = ModelInputs(ck, spec, w)
         for k in fixed:
             inputs.check(w + ("fixed", k), k)
         return spec
-    if "discretization" in t:
-        ck.fail(w + ("discretization",), "no 'discretization' with an external driver (it is "
-                "for a rotor preset)")
+    for key in ("discretization", "flight"):
+        if key in t:
+            ck.fail(w + (key,), f"no {key!r} with an external driver (it is for a rotor "
+                    "preset)")
     if "command" not in t:
         ck.fail(w, f"preset = \"bo105\" | \"gvpm\", command = [\"driver\", ...] or "
                 f"function = \"text_book\" (a Dakota test function) in {what}")
@@ -367,7 +384,7 @@ def _parse_function_model(ck: Checker, t: dict, w: tuple, what: str, name: str,
     from ..testfunctions import FUNCTIONS
 
     fn = ck.value(t, "function", (string(tuple(FUNCTIONS)), None), w, what)
-    for key in (*EXTERNAL_KEYS, "preset_options", "discretization"):
+    for key in (*EXTERNAL_KEYS, "preset_options", "discretization", "flight"):
         if key in t:
             ck.fail(w + (key,), f"no {key!r} with a Dakota test function (function = ...)")
     comps = tuple(ck.value(t, "components", (string_list, ()), w, what))
@@ -744,7 +761,8 @@ def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
                             f"{close_hint(p, known)}", p)
         sel_r = common["responses"]
         if sel_r is not None:
-            valid_r = _rotor_responses() if model.kind == "preset" else model.responses
+            valid_r = (_rotor_responses(model.flight is not None) if model.kind == "preset"
+                       else model.responses)
             for r in sel_r:
                 if r not in valid_r:
                     ck.fail(w + ("responses",), f"responses of the model "

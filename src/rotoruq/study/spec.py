@@ -52,9 +52,10 @@ class ExternalSpec:
 class ModelSpec:
     """``[model]`` or a named ``[models.NAME]``: a rotor preset (``kind="preset"``, with
     ``discretization``: the rotor's ``n_stations`` / ``n_azimuth`` / ``n_harmonics`` where
-    given), an external driver (``kind="external"``) or one of Dakota's test functions
-    (``kind="function"``: ``function``, its ``analysis_components`` in ``components``; its
-    variables are :func:`function_variables`). ``name`` is "" for ``[model]``."""
+    given; with ``flight`` the rotor in forward flight), an external driver
+    (``kind="external"``) or one of Dakota's test functions (``kind="function"``:
+    ``function``, its ``analysis_components`` in ``components``; its variables are
+    :func:`function_variables`). ``name`` is "" for ``[model]``."""
 
     kind: str
     responses: tuple[str, ...]
@@ -66,6 +67,9 @@ class ModelSpec:
     name: str = ""
     function: str | None = None
     components: tuple[str, ...] = ()
+    #: a rotor in forward flight (:class:`~rotoruq.rotor.forward.ForwardRotorModel`): its
+    #: ``inflow_model`` and ``trim`` ("" for every key not given); None: the hover rotor
+    flight: Mapping[str, str] | None = None
 
 
 def function_variables(model: ModelSpec, parameters: Sequence[ParameterSpec],

@@ -39,6 +39,7 @@ _PUBLIC: dict[str, str] = {
     "Gumbel": ".params",
     "HistogramBin": ".params",
     "Interval": ".params",
+    "kernel_density": ".params",
     "LogNormal": ".params",
     "LogUniform": ".params",
     "Normal": ".params",
@@ -263,6 +264,7 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     from .params import TruncatedNormal as TruncatedNormal
     from .params import Uniform as Uniform
     from .params import Weibull as Weibull
+    from .params import kernel_density as kernel_density
     from .params import make_distribution as make_distribution
     from .report.html import write_report as write_report
     from .results import StepRecord as StepRecord

@@ -40,6 +40,7 @@ from ..evaluation.identity import (
     model_code_parts,
     model_identity,
 )
+from ..methods._common import one_blas_thread
 from ..params import ParameterSpace
 from ..results import (
     IncompleteStepError,
@@ -508,7 +509,9 @@ def run_study(
                         study.info.name, out, lock.taken_over.get("pid"),
                         lock.taken_over.get("host", "?"))
         clean_partial_saves(out)
-        return _run_locked(study, out, quick, model_factory, only)
+        # LAPACK on one thread: the same seed gives the same bits at any BLAS thread count
+        with one_blas_thread():
+            return _run_locked(study, out, quick, model_factory, only)
 
 
 @dataclass(frozen=True, eq=False)

@@ -111,7 +111,7 @@ GROUPS: dict[str, Group] = {
         "metric).",
         ("grid_convergence_index", "GCIResult", "verify_discretization", "VerificationResult",
          "validate", "ValidationResult", "comparison_error", "ComparisonError",
-         "area_metric")),
+         "area_metric", "pooled_area_metric", "PooledAreaMetric")),
     "multifidelity": Group(
         "Multi-fidelity",
         "Monte Carlo estimators that spend a budget over models of different cost and "

@@ -67,7 +67,7 @@ __all__ = ["STEP", "BayesRecord", "run_bayes_calibration", "noise_model_text",
            "chain_diagnostics", "read_posterior", "posterior_record", "bayes_tables",
            "bayes_figures", "bayes_warnings", "strong_correlations", "THRESHOLDS",
            "ESS_MIN", "RHAT_MAX", "LOO_Q2_MIN", "PILEUP_MAX", "STD_RATIO_MAX", "PRIOR_Z_MAX",
-           "CORR_MAX", "POSTERIOR_RATIO_MAX", "sequential_prior"]
+           "CORR_MAX", "POSTERIOR_RATIO_MAX", "sequential_prior", "SELF_CHECK_FAILED"]
 
 ESS_MIN = 200.0
 RHAT_MAX = 1.01
@@ -117,6 +117,10 @@ def chain_diagnostics(names: Sequence[str], chain: np.ndarray,
             out["pileup_lo"][j] = float(np.mean(x < lo + band))
             out["pileup_hi"][j] = float(np.mean(x > hi - band))
     return out
+
+
+#: The words of a failed self-check in a step's warnings (what a claim resting on it shows).
+SELF_CHECK_FAILED = "the self-check (simulation-based calibration) FAILED"
 
 
 def _empty() -> np.ndarray:
@@ -683,8 +687,8 @@ def bayes_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
         w.append(f"{name}: emulator error over the posterior above {POSTERIOR_RATIO_MAX} of "
                  f"the noise std: {poor}; add n_emulator_samples or refine = {{...}}")
     if rec.self_check_passed is False:
-        w.append(f"{name}: the self-check (simulation-based calibration) FAILED: the "
-                 f"posterior is not calibrated: {rec.self_check_reason}")
+        w.append(f"{name}: {SELF_CHECK_FAILED}: the posterior is not calibrated: "
+                 f"{rec.self_check_reason}")
     for word, pile in (("lower", rec.pileup_lo), ("upper", rec.pileup_hi)):
         for p, f in zip(rec.names_in, map(float, pile), strict=True):
             if f > PILEUP_MAX:

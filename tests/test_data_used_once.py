@@ -11,6 +11,8 @@ import sys
 import textwrap
 from pathlib import Path
 
+import pytest
+
 CLI = [sys.executable, "-m", "rotoruq.study.cli"]
 
 CSV = "height,y1,y2\n1.0,0.9,0.1\n2.0,1.1,-0.1\n3.0,1.0,0.05\n4.0,1.3,0.2\n"
@@ -62,10 +64,14 @@ def show(folder: Path, data: str, second: str, extra: str = "") -> subprocess.Co
 OBS = '[data.obs]\nfile = "obs.csv"\n\n'
 
 
-def test_an_alias_of_the_same_file_is_refused_naming_both_data_sets_and_rows(tmp_path):
-    proc = show(tmp_path, OBS + '[data.again]\nfile = "obs.csv"\n\n', "again")
+def refused(proc: subprocess.CompletedProcess) -> str:
+    """The refusal of a run, its stderr on one line."""
     assert proc.returncode != 0
-    err = " ".join(proc.stderr.split())
+    return " ".join(proc.stderr.split())
+
+
+def test_an_alias_of_the_same_file_is_refused_naming_both_data_sets_and_rows(tmp_path):
+    err = refused(show(tmp_path, OBS + '[data.again]\nfile = "obs.csv"\n\n', "again"))
     assert "study.toml" in err and "already calibrates y1, y2 of data set 'obs'" in err
     assert "data set 'again' (obs.csv) holds the same values (rows 1-4)" in err
     assert "reuse_data = true" in err
@@ -73,31 +79,25 @@ def test_an_alias_of_the_same_file_is_refused_naming_both_data_sets_and_rows(tmp
 
 def test_a_copy_of_the_csv_is_refused(tmp_path):
     (tmp_path / "copy.csv").write_text(CSV)
-    proc = show(tmp_path, OBS + '[data.copy]\nfile = "copy.csv"\n\n', "copy")
-    assert proc.returncode != 0
-    err = " ".join(proc.stderr.split())
+    err = refused(show(tmp_path, OBS + '[data.copy]\nfile = "copy.csv"\n\n', "copy"))
     assert "data set 'copy' (copy.csv) holds the same values (rows 1-4)" in err
     assert "as data set 'obs' (obs.csv)" in err
 
 
 def test_inline_columns_repeating_some_rows_name_those_rows(tmp_path):
     data = OBS + "[data.some]\nheight = [5.0, 2.0, 4.0]\ny1 = [2.0, 1.1, 1.3]\n\n"
-    proc = show(tmp_path, data, "some", 'responses = ["y1"]\n')
-    assert proc.returncode != 0
-    err = " ".join(proc.stderr.split())
+    err = refused(show(tmp_path, data, "some", 'responses = ["y1"]\n'))
     assert "already calibrates y1 of data set 'obs'" in err
     assert "data set 'some' holds the same values (rows 2-3)" in err
 
 
+@pytest.mark.slow  # two calibrations run; the refusals above stop when the study is read
 def test_reuse_data_true_allows_it_and_new_rows_are_not_reuse(tmp_path):
     alias = OBS + '[data.again]\nfile = "obs.csv"\n\n'
     proc = show(tmp_path, alias, "again", "reuse_data = true\n")
     assert proc.returncode == 0, proc.stderr[-2000:]
     # the same file's other rows (a select) are new observations
-    later = OBS + '[data.later]\nfile = "obs.csv"\nselect = { height = 4.0 }\n\n'
-    data = later.replace('[data.obs]\nfile = "obs.csv"\n',
-                         '[data.obs]\nfile = "obs.csv"\ncolumns = ["height", "y1", "y2"]\n')
-    (tmp_path / "obs.csv").write_text(CSV)
-    proc = show(tmp_path, data.replace('[data.obs]', '[data.obs]\nselect = { height = 1.0 }',
-                                       1), "later")
+    split = ('[data.obs]\nfile = "obs.csv"\nselect = { height = 1.0 }\n\n'
+             '[data.later]\nfile = "obs.csv"\nselect = { height = 4.0 }\n\n')
+    proc = show(tmp_path, split, "later")
     assert proc.returncode == 0, proc.stderr[-2000:]

@@ -10,7 +10,8 @@ Prints JSON: per study, the arrays compared, those that differ (with the largest
 difference) and the wall time of each run. Run: python benchmarks/thread_determinism.py
 [--out benchmarks/results/thread_determinism.json] [--full] [--threads 1 2 4]
 [--studies quick validation ...]. ``--quick`` runs (the default) are what CI runs;
-``--full`` runs the studies at their own sizes.
+``--full`` runs the studies at their own sizes. ``--summary FILE`` prints the docs' paragraph
+from a saved JSON.
 """
 
 from __future__ import annotations
@@ -128,13 +129,34 @@ def measure(study: str | Path, threads: tuple[int, ...], root: Path, *, quick: b
             "seconds": seconds}
 
 
+def summary(out: dict) -> str:
+    """The docs' paragraph: per study, the arrays compared and whether every thread count gave
+    the same bits, with the runs' wall times."""
+    parts = []
+    for name, r in out["studies"].items():
+        secs = " / ".join(f"{r['seconds'][str(t)]:.0f} s" for t in out["threads"])
+        verdict = "all bit for bit equal" if r["identical"] else (
+            "DIFFER: " + "; ".join(f"{k}: {len(v)} arrays" for k, v in r["differing"].items()))
+        parts.append(f"{name}: {r['arrays']} arrays, {verdict} ({secs})")
+    threads = ", ".join(map(str, out["threads"]))
+    size = "--quick sizes (gp300 at its own)" if out["quick"] else "their own sizes"
+    return (f"From `benchmarks/results/thread_determinism.json` (threads {threads} for numba "
+            f"and BLAS, studies at {size}; wall times at each thread count on a shared "
+            f"2-core machine): {'; '.join(parts)}. All identical: {out['all_identical']}.")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path)
     ap.add_argument("--full", action="store_true", help="the studies at their own sizes")
     ap.add_argument("--threads", type=int, nargs="+", default=[1, 2, 4])
     ap.add_argument("--studies", nargs="+", default=["gp300", *STUDIES])
+    ap.add_argument("--summary", help="print the docs' paragraph from this JSON file and exit")
     args = ap.parse_args()
+    from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
+
+    if print_saved_summary(args.summary, summary):
+        return
     from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 
     result: dict = {"threads": args.threads, "quick": not args.full, "studies": {}}

@@ -54,7 +54,8 @@ GROUPS: dict[str, Group] = {
         "every method takes.",
         ("ParameterSpace", "Normal", "LogNormal", "Uniform", "LogUniform", "TruncatedNormal",
          "Triangular", "Exponential", "Beta", "Gamma", "Gumbel", "Frechet", "Weibull",
-         "HistogramBin", "Interval", "make_distribution", "as_generator",
+         "HistogramBin", "kernel_density", "Interval", "make_distribution",
+         "as_generator",
          "rotoruq.params.Distribution", "rotoruq.params.DISTRIBUTIONS",
          "rotoruq.params.distribution_keys", "rotoruq.params.DESIGNS",
          "rotoruq.params.unit_design", "rotoruq.params.PAIRINGS",
@@ -112,7 +113,7 @@ GROUPS: dict[str, Group] = {
         "metric).",
         ("grid_convergence_index", "GCIResult", "verify_discretization", "VerificationResult",
          "validate", "ValidationResult", "comparison_error", "ComparisonError",
-         "area_metric")),
+         "area_metric", "pooled_area_metric", "PooledAreaMetric")),
     "multifidelity": Group(
         "Multi-fidelity",
         "Monte Carlo estimators that spend a budget over models of different cost and "

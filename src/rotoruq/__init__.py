@@ -39,6 +39,7 @@ _PUBLIC: dict[str, str] = {
     "Gumbel": ".params",
     "HistogramBin": ".params",
     "Interval": ".params",
+    "kernel_density": ".params",
     "LogNormal": ".params",
     "LogUniform": ".params",
     "Normal": ".params",
@@ -91,6 +92,8 @@ _PUBLIC: dict[str, str] = {
     "validate": ".methods.validation",
     "comparison_error": ".methods.validation",
     "area_metric": ".methods.validation",
+    "pooled_area_metric": ".methods.validation",
+    "PooledAreaMetric": ".methods.validation",
     "GCIResult": ".methods.verification",
     "VerificationResult": ".methods.verification",
     "grid_convergence_index": ".methods.verification",
@@ -237,9 +240,11 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     from .methods.surrogate import GaussianProcess as GaussianProcess
     from .methods.surrogate import LeaveOneOut as LeaveOneOut
     from .methods.validation import ComparisonError as ComparisonError
+    from .methods.validation import PooledAreaMetric as PooledAreaMetric
     from .methods.validation import ValidationResult as ValidationResult
     from .methods.validation import area_metric as area_metric
     from .methods.validation import comparison_error as comparison_error
+    from .methods.validation import pooled_area_metric as pooled_area_metric
     from .methods.validation import validate as validate
     from .methods.verification import GCIResult as GCIResult
     from .methods.verification import VerificationResult as VerificationResult
@@ -264,6 +269,7 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     from .params import TruncatedNormal as TruncatedNormal
     from .params import Uniform as Uniform
     from .params import Weibull as Weibull
+    from .params import kernel_density as kernel_density
     from .params import make_distribution as make_distribution
     from .report.html import write_report as write_report
     from .results import StepRecord as StepRecord

@@ -1,10 +1,12 @@
 """Helpers shared by the forward-UQ methods: batched evaluation in a space's column order and
-response-level bookkeeping. (Gradients: :func:`rotoruq.model.model_gradient`.)"""
+response-level bookkeeping, and the one BLAS thread under which a seed gives the same bits.
+(Gradients: :func:`rotoruq.model.model_gradient`.)"""
 
 from __future__ import annotations
 
 import warnings
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -16,7 +18,36 @@ from ..model import EvalBatch, Model, align_inputs, evaluate
 if TYPE_CHECKING:
     from ..params import ParameterSpace
 
-__all__ = ["eval_space", "levels_per_response", "nan_rows_warning", "names_or_default"]
+__all__ = ["eval_space", "levels_per_response", "nan_rows_warning", "names_or_default",
+           "one_blas_thread"]
+
+
+@contextmanager
+def one_blas_thread() -> Iterator[None]:
+    """Run the block with BLAS and LAPACK on one thread (threadpoolctl), restored after.
+
+    LAPACK's factorizations split their reductions between threads: with OpenBLAS on two
+    threads a 300 x 300 Cholesky (potrf), triangular inverse (trtri) or LU solve (getrf)
+    differs in the last bits from one thread (matrix products, gemm and gemv, do not), and a
+    Markov chain fed by them drifts apart from the first row (issue 35). Everything whose bits
+    a seed promises runs inside this block: :meth:`GaussianProcess.fit`, ``compiled`` and
+    ``loo``, and every step of a study (``rotoruq.study.runner``). The rotor's and the
+    self-check's numba threads are not touched: each row, each replication, is computed by
+    one thread whatever their number.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> a = np.eye(3) * 4.0
+    >>> with one_blas_thread():
+    ...     c = np.linalg.cholesky(a)
+    >>> float(c[0, 0])
+    2.0
+    """
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        yield
 
 
 def names_or_default(names: Sequence[str] | None, n: int, prefix: str) -> tuple[str, ...]:

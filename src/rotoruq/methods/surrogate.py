@@ -47,6 +47,7 @@ from scipy.spatial import cKDTree
 
 from .._rng import SeedLike, as_generator
 from ..errors import ModelShapeError, ParameterError
+from ._common import one_blas_thread
 from ._gp_mean import CompiledGP, compile_gp, gp_mean_batch, gp_mean_var_batch
 
 __all__ = ["GaussianProcess", "LeaveOneOut", "GPModel", "ExtrapolationWarning", "CompiledGP"]
@@ -74,7 +75,6 @@ _MAX_JITTER = 1e-4
 # tighter raised the jitter mid-optimization often enough to cost 6 % holdout error in 9-D.
 _SOLVE_TOL = 1e-5
 _SCREEN_POINTS = 150
-_ONE_THREAD_MAX = 2000
 
 
 class ExtrapolationWarning(UserWarning):
@@ -333,9 +333,10 @@ class GaussianProcess:
 
         Rows with non-finite values are dropped with a warning.
 
-        Up to n = 2000 the fit runs on one BLAS thread: its n x n factorizations are too small
-        to gain from threads, and on a busy machine a second thread made fits 5-14x slower
-        (issue 12). Results do not depend on the thread count.
+        The fit runs on one BLAS thread (:func:`~rotoruq.methods._common.one_blas_thread`):
+        LAPACK's factorizations on more threads give other last bits (issue 35), and on a busy
+        machine a second thread made fits 5-14x slower (issue 12). Results do not depend on
+        the thread count.
 
         Parameters
         ----------
@@ -349,13 +350,8 @@ class GaussianProcess:
         GaussianProcess
             This GP, fitted.
         """
-        from threadpoolctl import threadpool_limits
-
-        n = np.shape(X)[0] if np.ndim(X) else 0
-        if n <= _ONE_THREAD_MAX:
-            with threadpool_limits(limits=1, user_api="blas"):
-                return self._fit(X, Y)
-        return self._fit(X, Y)
+        with one_blas_thread():
+            return self._fit(X, Y)
 
     def _fit(self, X, Y) -> GaussianProcess:
         X = np.asarray(X, dtype=float)
@@ -758,14 +754,15 @@ class GaussianProcess:
         li, mf, ci, v0, vs = [], [], [], [], []
         for j, fit in enumerate(self._fits):
             c = 1.0 if fit.concentrated else fit.sigma2
-            linv, info = lapack.dtrtri(fit.chol, lower=1)
+            with one_blas_thread():  # trtri on two threads: other bits (issue 35)
+                linv, info = lapack.dtrtri(fit.chol, lower=1)
+                p = fit.minv_f.shape[1]
+                ci.append(linalg.solve_triangular(fit.ft_minv_f_chol, np.eye(p), lower=True)
+                          if p else np.zeros((0, 0)))
             if info != 0:
                 raise np.linalg.LinAlgError(f"triangular inverse failed (info={info})")
             li.append(c * np.tril(linv))
             mf.append(c * fit.minv_f)
-            p = fit.minv_f.shape[1]
-            ci.append(linalg.solve_triangular(fit.ft_minv_f_chol, np.eye(p), lower=True)
-                      if p else np.zeros((0, 0)))
             v0.append(1.0 if fit.concentrated else fit.sigma2)
             vs.append((fit.sigma2 if fit.concentrated else 1.0) * self._y_std[j] ** 2)
         self._compiled = dataclasses.replace(
@@ -789,13 +786,11 @@ class GaussianProcess:
         Only ``Q y`` and ``diag(Q)`` are needed: ``M^-1 y`` by two triangular solves and
         ``diag(M^-1)`` as the column sums of squares of ``L^-1`` (one triangular inverse,
         n^3/3 flops; the full ``M^-1`` would cost twice that plus n x n products). Runs on one
-        BLAS thread like :meth:`fit` (issue 12)."""
-        from threadpoolctl import threadpool_limits
-
+        BLAS thread like :meth:`fit` (issues 12, 35)."""
         self._check_fitted()
         n = self._X.shape[0]
         errs = np.empty((n, len(self._fits)))
-        with threadpool_limits(limits=1, user_api="blas"):
+        with one_blas_thread():
             for j, fit in enumerate(self._fits):
                 ys = (self._Y[:, j] - self._y_mean[j]) / self._y_std[j]
                 linv, info = lapack.dtrtri(fit.chol, lower=1)

@@ -16,7 +16,13 @@ predictive samples with the measured repeats:
   197, 2408-2430): the area between the predictive CDF (the samples' empirical CDF) and the
   empirical CDF of the data, in the response's units. It equals the Wasserstein-1 distance of
   the two empirical distributions and, unlike "within k sigma", does not shrink as the
-  predictive spread grows.
+  predictive spread grows. With one measurement per condition it cannot judge a prediction at
+  one condition (one data row: it is the prediction's mean absolute distance to that value,
+  which favours a narrow prediction off the mark over a wide one around it);
+  :func:`pooled_area_metric` pools the conditions instead (u-pooling, Ferson et al. 2008,
+  sec. 5.2): each measurement's probability integral transform u = F_c(D) under its own
+  condition's prediction, and the area between the empirical CDF of the u's and the uniform
+  CDF (0 for predictions whose u's are uniform, at most 0.5).
 - the reference study's own criterion beside them: the distance |S - D| in predictive standard
   deviations, and whether it is within ``n_sigma`` of them.
 
@@ -39,7 +45,8 @@ import numpy.typing as npt
 
 from ..errors import ParameterError
 
-__all__ = ["ValidationResult", "ComparisonError", "validate", "comparison_error", "area_metric"]
+__all__ = ["ValidationResult", "ComparisonError", "validate", "comparison_error", "area_metric",
+           "PooledAreaMetric", "pooled_area_metric"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -372,3 +379,100 @@ def validate(
         error_ratio=ce.error_ratio, area_metric=area, relative_area_metric=rel_area,
         predictive_std=std_pred, sigma_distance=sigma, n_sigma=float(n_sigma),
         within_n_sigma=sigma <= n_sigma, n_samples=n_samples, n_repeats=n_repeats)
+
+
+@dataclass(frozen=True, eq=False)
+class PooledAreaMetric:
+    """The area metric pooled over conditions by the probability integral transform
+    (:func:`pooled_area_metric`).
+
+    Attributes
+    ----------
+    u : ndarray of shape (k, m)
+        u = F_c(D) of each of the k measurements (rows of every condition, in order) under
+        its own condition's predictive CDF, per response; in [0, 1].
+    area : ndarray of shape (m,)
+        Area between the empirical CDF of u and the standard uniform CDF, per response
+        (dimensionless, 0 to 0.5; 1 / (4 k) for u's at the uniform's k quantiles).
+    n_measurements : int
+        k, the measurements pooled.
+    n_conditions : int
+        The conditions they come from.
+    """
+
+    u: np.ndarray
+    area: np.ndarray
+    n_measurements: int
+    n_conditions: int
+
+
+def _uniform_area(u: np.ndarray) -> float:
+    """Exact area between the empirical CDF of ``u`` (values in [0, 1]) and the uniform CDF:
+    on each interval between order statistics the empirical CDF is k / n, and
+    ``int_a^b |t - c| dt = (sgn(b - c) (b - c)^2 - sgn(a - c) (a - c)^2) / 2``."""
+    n = u.size
+    edges = np.concatenate([[0.0], np.sort(u), [1.0]])
+    a, b, c = edges[:-1], edges[1:], np.arange(n + 1) / n
+    return float(np.sum(np.sign(b - c) * (b - c) ** 2 - np.sign(a - c) * (a - c) ** 2) / 2)
+
+
+def pooled_area_metric(predictive: Sequence[npt.ArrayLike] | np.ndarray,
+                       data: Sequence[npt.ArrayLike] | np.ndarray) -> PooledAreaMetric:
+    """The area metric pooled over conditions (u-pooling, Ferson, Oberkampf and Ginzburg
+    2008, sec. 5.2), for predictions validated where each condition has one measurement (or
+    a few).
+
+    Each measurement D at condition c becomes u = F_c(D), its prediction's empirical CDF there
+    (ties count half: ``(#{s < D} + #{s = D} / 2) / n``). If the predictions are right, the u's
+    of all conditions are draws of one standard uniform, whatever the conditions' units and
+    spreads; the metric is the area between the empirical CDF of the u's and the uniform CDF.
+    A prediction too narrow or off the mark pushes the u's to 0 or 1 (area up to 0.5), one too
+    wide bunches them at 0.5. It judges a set of conditions; a single measurement gives
+    ``u^2 / 2 + (1 - u)^2 / 2``, at least 0.25, which ranks nothing.
+
+    Parameters
+    ----------
+    predictive : sequence of array_like, one (n_samples_c, n_responses) per condition
+        The predictive samples at each condition (response units); a 3-D array
+        (n_conditions, n_samples, n_responses) is accepted.
+    data : sequence of array_like, one (n_repeats_c, n_responses) per condition
+        The measurements at each condition; a 2-D array (n_conditions, n_responses) is one
+        measurement per condition.
+
+    Returns
+    -------
+    PooledAreaMetric
+        The u of every measurement (k, m) and the pooled area per response (m,).
+
+    Raises
+    ------
+    ParameterError
+        Mismatched conditions or responses, empty or non-finite values.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> q = (np.arange(1000) + 0.5) / 1000              # predictions: U(0, 1) at 3 conditions
+    >>> pred = [q[:, None], 2 * q[:, None], 10 + q[:, None]]
+    >>> res = pooled_area_metric(pred, np.array([[1 / 6], [1.0], [10 + 5 / 6]]))
+    >>> [round(float(u), 3) for u in res.u[:, 0]], round(float(res.area[0]), 4)
+    ([0.167, 0.5, 0.833], 0.0833)
+    """
+    pred = _per_condition("predictive", predictive, None)
+    n_resp = pred[0].shape[1]
+    obs = _per_condition("data", data, n_resp)
+    if len(obs) != len(pred):
+        raise ParameterError(f"predictive has {len(pred)} conditions but data has {len(obs)}")
+    rows = []
+    for p, d in zip(pred, obs, strict=True):
+        s = np.sort(p, axis=0)
+        u = np.empty(d.shape)
+        for j in range(n_resp):
+            below = np.searchsorted(s[:, j], d[:, j], side="left")
+            upto = np.searchsorted(s[:, j], d[:, j], side="right")
+            u[:, j] = (below + upto) / (2.0 * s.shape[0])
+        rows.append(u)
+    u_all = np.concatenate(rows)
+    return PooledAreaMetric(u=u_all, area=np.array([_uniform_area(u_all[:, j])
+                                                    for j in range(n_resp)]),
+                            n_measurements=int(u_all.shape[0]), n_conditions=len(pred))

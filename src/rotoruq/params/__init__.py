@@ -5,6 +5,7 @@ method draws points from and transforms into (:mod:`.space`)."""
 from __future__ import annotations
 
 from .catalog import DISTRIBUTIONS, distribution_keys, make_distribution
+from .density import kernel_density
 from .distributions import (
     Beta,
     Distribution,
@@ -41,6 +42,7 @@ __all__ = [
     "Triangular",
     "Frechet",
     "HistogramBin",
+    "kernel_density",
     "Interval",
     "ParameterSpace",
     "DESIGNS",

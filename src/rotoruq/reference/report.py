@@ -18,6 +18,7 @@ from ..report.diagnostics import THRESHOLDS
 from ..report.escape import script_json, slug
 from ..report.escape import text as e
 from ..report.tables import fmt
+from ..steps.bayes_calibration import SELF_CHECK_FAILED
 from .claims import INDEPENDENT, JOINT, Claim, claims, claims_json
 from .compare import ComparedTable, compare_tables
 from .studies import is_reference
@@ -170,8 +171,12 @@ def _verdict(claim_list: list[Claim]) -> str:
         prop = {INDEPENDENT: " (independent normals)", JOINT: " (joint predictive)"}.get(
             c.propagation or "", "")
         val = "" if c.value is None else f": {fmt(c.value)}, needs {e(c.op)} {c.threshold:g}"
+        # a failed self-check of a step the claim rests on, next to the claim (issue 35)
+        checks = [w for w in c.warnings if SELF_CHECK_FAILED in w]
+        failed = "".join(f" <span class=st-fails data-self-check=failed>{e(w)}</span>"
+                         for w in checks)
         return (f"<span class={_STATUS_CLASS[c.status]}>{e(c.status)}</span> "
-                f"{e(c.text)}{e(prop)}{val}")
+                f"{e(c.text)}{e(prop)}{val}{failed}")
 
     for c in counted:
         out.append(f"<li data-verdict='{e(c.key)}'>{line(c)}")

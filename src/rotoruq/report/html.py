@@ -218,7 +218,11 @@ def run_verdict(studies: Mapping[str, Mapping[str, StepResult]],
     items = []
     for line in verdict_lines(studies, labels):
         attrs = "".join(f" data-{k}='{v}'" for k, v in line.counts.items())
-        items.append(f"<li data-check='{line.check}'{attrs}><b>{e(line.title)}</b>: "
+        # a failed self-check is a finding, not a warning: marked as one on the first screen
+        failed = (line.counts.get("failed") if line.check == "self-check"
+                  else line.counts.get("on_failed_self_check"))
+        mark = "<span class=st-fails>self-check FAILED</span> " if failed else ""
+        items.append(f"<li data-check='{line.check}'{attrs}>{mark}<b>{e(line.title)}</b>: "
                      f"{e(line.text)}</li>")
     return "<ul class=run-verdict>" + "".join(items) + "</ul>"
 

@@ -3,7 +3,10 @@ last thing ``rotoruq run`` prints.
 
 Four lines, each with the counts it rests on: validation comparisons within k u_val (ASME
 V&V 20, as each ``validation`` step records them), self-checks (simulation-based calibration)
-that failed, failed model evaluations, steps with diagnostic warnings.
+that failed, failed model evaluations, steps with diagnostic warnings. A failed self-check is
+named next to what rests on it (issue 35): the validation verdict says which of its steps
+take their predictions from a calibration whose self-check failed (through their chain of
+``from``), and the self-check line names those steps and the reason.
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ from ..steps.bayes_calibration import posterior_record
 from .diagnostics import step_warnings
 from .provenance import failed_evaluations
 
-__all__ = ["VerdictLine", "verdict_lines", "verdict_text"]
+__all__ = ["VerdictLine", "verdict_lines", "verdict_text", "failed_self_checks", "resting_on"]
 
 Studies = Mapping[str, Mapping[str, StepResult]]
 
@@ -54,6 +57,65 @@ def _validation_counts(res: StepResult) -> tuple[int, int, float] | None:
     return int(np.sum(ratio <= k)), int(ratio.size), k
 
 
+def failed_self_checks(steps: Mapping[str, StepResult]) -> dict[str, str]:
+    """The calibrations of one study whose self-check (simulation-based calibration) failed.
+
+    Parameters
+    ----------
+    steps : mapping
+        Step name -> saved result, of one study.
+
+    Returns
+    -------
+    dict of str to str
+        Step name -> the self-check's reason (its coverages), in the steps' order.
+
+    Examples
+    --------
+    >>> failed_self_checks({})
+    {}
+    """
+    out = {}
+    for name, s in steps.items():
+        rec = posterior_record(s) if s.type == "bayes_calibration" else None
+        if rec is not None and rec.self_check_passed is False:
+            out[name] = rec.self_check_reason
+    return out
+
+
+def resting_on(steps: Mapping[str, StepResult], name: str) -> list[str]:
+    """The steps a saved step rests on through its chain of ``from`` (``meta["source"]``,
+    ``"STEP.posterior"``), nearest first, the step itself excluded.
+
+    Parameters
+    ----------
+    steps : mapping
+        Step name -> saved result, of one study.
+    name : str
+        The step whose sources are followed.
+
+    Returns
+    -------
+    list of str
+        The names of its sources, its source's source, and so on (those saved in ``steps``).
+
+    Examples
+    --------
+    >>> resting_on({}, "val")
+    []
+    """
+    out: list[str] = []
+    at = steps.get(name)
+    while at is not None:
+        source = at.meta.get("source")
+        up = source.split(".")[0] if isinstance(source, str) and source else None
+        if up is None or up in out or up == name:
+            break
+        out.append(up)
+        at = steps.get(up)
+    return out
+
+
 def verdict_lines(studies: Studies, labels: Mapping[str, Mapping[str, str]] | None = None
                   ) -> list[VerdictLine]:
     """The verdict of the saved steps of ``studies`` (study -> step name -> result).
@@ -77,8 +139,9 @@ def verdict_lines(studies: Studies, labels: Mapping[str, Mapping[str, str]] | No
     """
     labels = labels or {}
     lines = []
-    within = total = 0
+    within = total = on_failed = 0
     per_step = []
+    failed_checks = {study: failed_self_checks(steps) for study, steps in studies.items()}
     for study, steps in studies.items():
         for s in steps.values():
             if s.type != "validation":
@@ -89,8 +152,12 @@ def verdict_lines(studies: Studies, labels: Mapping[str, Mapping[str, str]] | No
                 continue
             w, n, k = got
             within, total = within + w, total + n
-            per_step.append(f"{study} / {s.name}: {w} of {n} within {k:g} u_val")
-    counts = {"within": within, "comparisons": total}
+            bad = [u for u in resting_on(steps, s.name) if u in failed_checks[study]]
+            on_failed += n if bad else 0
+            per_step.append(f"{study} / {s.name}: {w} of {n} within {k:g} u_val"
+                            + (f", resting on {', '.join(bad)}, whose self-check FAILED"
+                               if bad else ""))
+    counts = {"within": within, "comparisons": total, "on_failed_self_check": on_failed}
     if per_step:
         lines.append(VerdictLine("validation", "Validation", (
             f"{within} of {total} comparisons with data lie within their validation "
@@ -104,9 +171,13 @@ def verdict_lines(studies: Studies, labels: Mapping[str, Mapping[str, str]] | No
             rec = posterior_record(s) if s.type == "bayes_calibration" else None
             if rec is not None and rec.self_check_passed is not None:
                 checked.append(f"{study} / {s.name}")
-                if not rec.self_check_passed:
-                    failed.append(f"{study} / {s.name}")
-    what = ((f"{len(failed)} of {len(checked)} failed: {', '.join(failed)}" if failed
+            if s.name in failed_checks[study]:
+                users = [u for u in steps if s.name in resting_on(steps, u)]
+                failed.append(f"{study} / {s.name} ({failed_checks[study][s.name]}"
+                              + (f"; resting on it: {', '.join(users)}" if users else "")
+                              + ")")
+    what = ((f"{len(failed)} of {len(checked)} failed: {'; '.join(failed)}; a failed "
+             "self-check means the posterior is not calibrated" if failed
              else f"all {len(checked)} passed") if checked else "none ran")
     lines.append(VerdictLine("self-check", "Self-checks (simulation-based calibration)",
                              f"{what}.", {"failed": len(failed), "checked": len(checked)}))

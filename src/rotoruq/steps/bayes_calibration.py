@@ -27,7 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from ..params import Normal, ParameterSpace
+from ..params import Distribution, Normal, ParameterSpace
+from ..params.density import kernel_density
 from ..render.figures import (
     Figure,
     FigureContext,
@@ -37,7 +38,7 @@ from ..render.figures import (
     prior_posterior,
 )
 from ..render.tables import StepTable, cell, label, make_table
-from ..results import RecordError, StepRecord, StepResult, dist_to_dict
+from ..results import RecordError, StepRecord, StepResult, dict_to_dist, dist_to_dict
 from ._common import deferred_writes, named_model, per_response
 from ._discrepancy import (
     DiscrepancyRecord,
@@ -66,7 +67,7 @@ __all__ = ["STEP", "BayesRecord", "run_bayes_calibration", "noise_model_text",
            "chain_diagnostics", "read_posterior", "posterior_record", "bayes_tables",
            "bayes_figures", "bayes_warnings", "strong_correlations", "THRESHOLDS",
            "ESS_MIN", "RHAT_MAX", "LOO_Q2_MIN", "PILEUP_MAX", "STD_RATIO_MAX", "PRIOR_Z_MAX",
-           "CORR_MAX", "POSTERIOR_RATIO_MAX"]
+           "CORR_MAX", "POSTERIOR_RATIO_MAX", "sequential_prior", "SELF_CHECK_FAILED"]
 
 ESS_MIN = 200.0
 RHAT_MAX = 1.01
@@ -116,6 +117,10 @@ def chain_diagnostics(names: Sequence[str], chain: np.ndarray,
             out["pileup_lo"][j] = float(np.mean(x < lo + band))
             out["pileup_hi"][j] = float(np.mean(x > hi - band))
     return out
+
+
+#: The words of a failed self-check in a step's warnings (what a claim resting on it shows).
+SELF_CHECK_FAILED = "the self-check (simulation-based calibration) FAILED"
 
 
 def _empty() -> np.ndarray:
@@ -472,6 +477,45 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
                                                       strict=True)}, **rec_meta})
 
 
+def sequential_prior(res: StepResult) -> dict[str, Distribution]:
+    """The prior a later calibration takes from this Bayes step's posterior
+    (``from = "STEP.posterior"`` in a ``bayes_calibration`` step): each parameter's
+    :func:`~rotoruq.kernel_density` of the saved chain, reflected at and kept
+    inside the support of the prior this step had, so a flat posterior stays flat (excess
+    kurtosis -1.2, not a normal's 0) and no draw of the next stage leaves the first prior's
+    box. (Other steps taking the posterior get its normals or its joint draws.)
+
+    Parameters
+    ----------
+    res : StepResult
+        A saved ``bayes_calibration`` step with its ``chain`` (N, d) and ``prior``.
+
+    Returns
+    -------
+    dict of str to Distribution
+        Parameter name -> the density of its chain (a
+        :class:`~rotoruq.params.HistogramBin` of 256 bins), in the order of the chain's
+        columns.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from rotoruq.params import Uniform
+    >>> from rotoruq.results import StepResult, dist_to_dict
+    >>> chain = np.random.default_rng(0).uniform(0.0, 1.0, (4000, 1))
+    >>> res = StepResult("s1", "bayes_calibration", {}, {"chain": chain}, {}, meta={
+    ...     "columns": {"chain": ["a"]}, "prior": {"a": dist_to_dict(Uniform(0.0, 1.0))}})
+    >>> sequential_prior(res)["a"].bounds
+    (0.0, 1.0)
+    """
+    prior = res.meta.get("prior") or {}
+    out: dict[str, Distribution] = {}
+    for name in res.columns("chain"):
+        support = dict_to_dist(prior[name]).bounds if name in prior else (-np.inf, np.inf)
+        out[name] = kernel_density(res.column("chain", name), support)
+    return out
+
+
 def read_posterior(res: StepResult) -> BayesRecord:
     """The posterior summary of a Bayes step as a :class:`BayesRecord`, what its tables,
     warnings and the reference study's reasons read; a step calibrated with a discrepancy
@@ -643,8 +687,8 @@ def bayes_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
         w.append(f"{name}: emulator error over the posterior above {POSTERIOR_RATIO_MAX} of "
                  f"the noise std: {poor}; add n_emulator_samples or refine = {{...}}")
     if rec.self_check_passed is False:
-        w.append(f"{name}: the self-check (simulation-based calibration) FAILED: the "
-                 f"posterior is not calibrated: {rec.self_check_reason}")
+        w.append(f"{name}: {SELF_CHECK_FAILED}: the posterior is not calibrated: "
+                 f"{rec.self_check_reason}")
     for word, pile in (("lower", rec.pileup_lo), ("upper", rec.pileup_hi)):
         for p, f in zip(rec.names_in, map(float, pile), strict=True):
             if f > PILEUP_MAX:

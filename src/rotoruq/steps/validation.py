@@ -39,7 +39,8 @@ from .options import SIGNATURE, Option, choice, integer, number, number_list, st
 from .verification import verification_option
 
 __all__ = ["STEP", "ValidationRecord", "run_validation", "validation_tables",
-           "validation_figures", "validation_warnings", "predictions_at", "per_response_values"]
+           "validation_figures", "validation_warnings", "predictions_at", "per_response_values",
+           "ONE_ROW_AREA"]
 
 #: Names of the prediction kinds a validation step compares.
 JOINT, WITH, WITHOUT, PRIOR, NONE = (
@@ -69,6 +70,10 @@ class ValidationRecord(StepRecord):
     prediction_labels (p) : each prediction kind in the flat view ("" for the first, e.g.
     "without_discrepancy"); condition_labels (c) : each condition in it ("@<value>", ""
     without conditions); both empty in a record saved before they existed.
+    pooled_area_metric : (p, m) the area metric pooled over the conditions (u-pooling,
+    :func:`rotoruq.methods.validation.pooled_area_metric`): dimensionless, 0 to 0.5; pit :
+    (p, k, m) the u = F_c(D) of each data row under its condition's prediction. Both empty in
+    a record saved before them.
 
     Its flat view: ``comparison_error/thrust@4`` of the first prediction kind,
     ``comparison_error/without_discrepancy/thrust@4`` of another, and so on for every
@@ -81,8 +86,11 @@ class ValidationRecord(StepRecord):
         "sigma_distance", "within_n_sigma", "band_lower", "band_upper", "inside_band")} | {
         "predictive": ("prediction", "sample", "condition", "response"),
         "data": ("row", "response"), "data_condition": ("row",), "n_repeats": ("condition",),
-        "conditions": ("condition",), "held_out": ("condition",)}
-    FLAT = {"predictive": None, "data": None, "data_condition": None, "conditions": None}
+        "conditions": ("condition",), "held_out": ("condition",),
+        "pooled_area_metric": ("prediction", "response"),
+        "pit": ("prediction", "row", "response")}
+    FLAT = {"predictive": None, "data": None, "data_condition": None, "conditions": None,
+            "pit": None}
     LABELS = {"prediction": "prediction_labels", "condition": "condition_labels"}
 
     predictions: tuple[str, ...]
@@ -117,6 +125,9 @@ class ValidationRecord(StepRecord):
     u_num_source: str
     prediction_labels: tuple[str, ...] = field(default=(), kw_only=True)
     condition_labels: tuple[str, ...] = field(default=(), kw_only=True)
+    pooled_area_metric: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)),
+                                           kw_only=True)
+    pit: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)), kw_only=True)
 
 
 def per_response_values(value, responses: Sequence[str], what: str) -> np.ndarray:
@@ -281,7 +292,7 @@ def _data_rows(ctx: StepContext, match: str, points) -> tuple[np.ndarray, np.nda
 def run_validation(ctx: StepContext) -> StepResult:
     """V&V 20 comparison error, area metric and "within n sigma" per condition and response
     (see the module docstring for the predictions, u_num, u_input and u_D)."""
-    from ..methods.validation import validate
+    from ..methods.validation import pooled_area_metric, validate
 
     o = ctx.options
     match, points = _conditions(ctx)
@@ -320,6 +331,9 @@ def run_validation(ctx: StepContext) -> StepResult:
         fields.setdefault("band_upper", []).append(hi)
         fields.setdefault("inside_band", []).append(
             ((lo <= res.data_mean) & (res.data_mean <= hi)).astype(float))
+        pooled = pooled_area_metric([pred[p, :, j] for j in range(len(points))], per_cond)
+        fields.setdefault("pooled_area_metric", []).append(pooled.area)
+        fields.setdefault("pit", []).append(pooled.u)
     rec = ValidationRecord(
         predictions=kinds, configuration=match, conditions=np.asarray(conds, dtype=float),
         names_out=tuple(ctx.responses), predictive=pred, data=data, data_condition=which,
@@ -356,8 +370,8 @@ def validation_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTa
                     float(rec.u_num[p, j, m]), float(rec.u_input[p, j, m]),
                     float(rec.u_data[p, j, m]), float(rec.u_val[p, j, m]),
                     f"[{rec.lower[p, j, m]:.4g}, {rec.upper[p, j, m]:.4g}]",
-                    float(rec.error_ratio[p, j, m]), float(rec.area_metric[p, j, m]),
-                    float(rec.relative_area_metric[p, j, m]),
+                    float(rec.error_ratio[p, j, m]), _area_cell(rec, p, j, m),
+                    float(rec.relative_area_metric[p, j, m]) if rec.n_repeats[j] > 1 else "-",
                     f"{rec.sigma_distance[p, j, m]:.2f} ("
                     + ("yes" if rec.within_n_sigma[p, j, m] else "no") + ")",
                     "yes" if rec.inside_band[p, j, m] else "no"])
@@ -374,21 +388,64 @@ def validation_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTa
             "uncertainties do not hide. Area metric: between the predictive and the data's "
             "empirical CDFs (Ferson et al. 2008), it does not shrink as the spread grows; "
             "the distance in predictive std devs beside it. Band: of a new "
-            "measurement (prediction plus N(0, u_D^2))."))
+            "measurement (prediction plus N(0, u_D^2))."
+            + (" " + ONE_ROW_AREA if np.any(rec.n_repeats < 2) else "")))
     held = [j for j in range(rec.conditions.size) if rec.held_out[j]]
     if held:
         rows = [[_fmt_cond(rec, j), r, kind, float(rec.data_mean[p, j, m]),
                  f"[{rec.band_lower[p, j, m]:.4g}, {rec.band_upper[p, j, m]:.4g}]",
                  "inside" if rec.inside_band[p, j, m] else "outside",
-                 float(rec.error_ratio[p, j, m]), float(rec.area_metric[p, j, m])]
+                 float(rec.error_ratio[p, j, m]), _area_cell(rec, p, j, m)]
                 for j in held for m, r in enumerate(rec.names_out)
                 for p, kind in enumerate(rec.predictions)]
         out.insert(0, make_table(
             "Held-out test", ("condition", "response", "prediction", "measured",
                               f"{100 * rec.level:g} % band of a new measurement", "measured is",
                               "|E| / u_val", "area metric"), rows,
-            "Conditions whose data the calibration did not see: out-of-sample predictions."))
+            "Conditions whose data the calibration did not see: out-of-sample predictions. "
+            + ONE_ROW_AREA))
+    if rec.pooled_area_metric.size:
+        out.append(_pooled_table(rec))
     return out
+
+
+#: Why the area metric of one data row is not shown as a score of the predictions.
+ONE_ROW_AREA = (
+    "With one data row the area metric is the prediction's mean distance to that value: a "
+    "narrow prediction off the mark scores better than a wide one around it, so it ranks "
+    "nothing; compare the predictions by their bands here and by the area metric pooled over "
+    "the conditions (u-pooling).")
+
+
+def _area_cell(rec: ValidationRecord, p: int, j: int, m: int) -> float | str:
+    """The area metric at one condition, or why it is not a score there (one data row)."""
+    if rec.n_repeats[j] < 2:
+        return "one row: not a score (see the pooled area metric)"
+    return float(rec.area_metric[p, j, m])
+
+
+def _pooled_table(rec: ValidationRecord) -> StepTable:
+    """The area metric pooled over the conditions, per prediction kind and response."""
+    k, c = rec.pit.shape[1], rec.conditions.size
+    rows = []
+    for p, kind in enumerate(rec.predictions):
+        for m, r in enumerate(rec.names_out):
+            u = rec.pit[p, :, m]
+            rows.append([kind, r, float(rec.pooled_area_metric[p, m]) if k > 1 else
+                         "one measurement: no pooled score",
+                         ", ".join(f"{v:.3f}" for v in u)])
+    return make_table(
+        "Area metric pooled over the conditions (u-pooling)",
+        ("prediction", "response", "pooled area metric", "u = F(D) of each data row"), rows,
+        f"Ferson, Oberkampf and Ginzburg (2008): each of the {k} data rows of the {c} "
+        "condition(s) becomes u = F(D), the predictive CDF at its own condition; right "
+        "predictions give uniform u's. The area between their empirical CDF and the uniform's "
+        f"is 0 for a perfect match, {1 / (4 * k):.3g} for u's at the uniform's {k} "
+        "quantiles, and at most 0.5 (every u at 0 or 1: every measurement outside its "
+        "prediction). Unlike the per-condition area metric it judges a prediction over all "
+        "conditions at once, in no response's units." if k > 1 else
+        "A single measurement gives u^2 / 2 + (1 - u)^2 / 2 >= 0.25 whatever the prediction: "
+        "no score. " + ONE_ROW_AREA)
 
 
 def validation_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:

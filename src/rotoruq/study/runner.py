@@ -40,6 +40,7 @@ from ..evaluation.identity import (
     model_code_parts,
     model_identity,
 )
+from ..methods._common import one_blas_thread
 from ..params import ParameterSpace
 from ..results import (
     IncompleteStepError,
@@ -50,6 +51,7 @@ from ..results import (
     save_study_info,
 )
 from ..steps import StepContext, run_step, step_type
+from ..steps.bayes_calibration import sequential_prior
 from ..steps.options import close_hint
 from .lock import results_lock
 from .schema import load_study
@@ -272,13 +274,19 @@ def _step_space(study: Study, step: StepSpec, previous: Mapping[str, StepResult]
 
     The step's parameters (when not listed: those of the ``from`` step, else all of the
     study's, plus the step's own ``distributions``) take their distributions from
-    ``from`` where it provides them, else from ``[parameters]``; the step's own
+    ``from`` where it provides them (a calibration taking an earlier calibration's
+    posterior: the density of its chain, :func:`~rotoruq.steps.bayes_calibration.
+    sequential_prior`), else from ``[parameters]``; the step's own
     ``distributions`` take precedence over both. Parameters of the study or
     of the ``from`` step that the step does not use are fixed at their means.
     """
     source = {}
     if step.source is not None:
-        source = previous[step.source[0]].distribution_objects()
+        earlier = previous[step.source[0]]
+        source = earlier.distribution_objects()
+        if (step.type == earlier.type == "bayes_calibration" and step.source[1] == "posterior"
+                and "chain" in earlier.arrays):  # sequential calibration keeps the shape
+            source = {**source, **sequential_prior(earlier)}
     own = {p.name: p.distribution for p in step.distributions}
     if step.parameters is not None:
         names = list(step.parameters)
@@ -511,7 +519,9 @@ def run_study(
                         study.info.name, out, lock.taken_over.get("pid"),
                         lock.taken_over.get("host", "?"))
         clean_partial_saves(out)
-        return _run_locked(study, out, quick, model_factory, only)
+        # LAPACK on one thread: the same seed gives the same bits at any BLAS thread count
+        with one_blas_thread():
+            return _run_locked(study, out, quick, model_factory, only)
 
 
 @dataclass(frozen=True, eq=False)

@@ -791,7 +791,7 @@ def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
         ))
     if not pnames and any(s.type != "forward_check" or s.source is None for s in steps):
         ck.fail(("parameters",), "at least one [parameters.NAME] table")
-    _check_data_used_once(ck, raw, steps, model)
+    _check_data_used_once(ck, raw, steps, model, data)
     return tuple(steps)
 
 
@@ -844,13 +844,16 @@ def _check_model_names(ck: Checker, opts: Mapping, models: Mapping[str, ModelSpe
                     f"(defined: {defined}){close_hint(str(n), known)}", str(n))
 
 
-def _check_data_used_once(ck: Checker, raw: list, steps: list[StepSpec], model) -> None:
+def _check_data_used_once(ck: Checker, raw: list, steps: list[StepSpec], model,
+                          data: Mapping[str, DataSet]) -> None:
     """Each observation calibrates once: a step calibrating (a type with a ``reuse_data``
-    option) the same responses of the same data set as an earlier one it conditions on
-    (through its chain of ``from``) fails, naming both lines, unless it says
-    ``reuse_data = true`` (the report then states it). Alternative calibrations of the same
-    data that do not condition on each other (with and without a discrepancy, say) are
-    comparisons, not reuse."""
+    option) responses it shares with an earlier step it conditions on (through its chain of
+    ``from``), on rows holding the same values, fails naming both lines, both data sets and the
+    rows, unless it says ``reuse_data = true`` (the report then states it). Rows are compared
+    by content (:func:`_same_rows`), so a second ``[data.NAME]`` table over the same file, a
+    copy of the CSV or inline columns repeating the numbers are caught as surely as the same
+    name. Alternative calibrations of the same data that do not condition on each other (with
+    and without a discrepancy, say) are comparisons, not reuse."""
     by_name = {st.name: st for st in steps}
 
     def upstream(st: StepSpec) -> set[str]:
@@ -868,18 +871,66 @@ def _check_data_used_once(ck: Checker, raw: list, steps: list[StepSpec], model) 
         before = upstream(st)
         for earlier, used in seen:
             both = sorted(resp & used)
-            if (earlier.name in before and earlier.data == st.data and both
-                    and not st.options.get("reuse_data")):
-                key = ("data",) if "data" in raw[st.index] else ()
-                ck.fail(("steps", st.index, *key),
-                        f"data not calibrated before: step {earlier.name!r} (line "
-                        f"{earlier.line}) already calibrates {', '.join(both)} of data set "
-                        f"{st.data!r}. Calibrate the new observations only (e.g. responses = "
-                        f"[...] and from = \"{earlier.name}.posterior\" to condition on the "
-                        "earlier step), or set reuse_data = true to count them twice on "
-                        "purpose (the report states it)",
-                        f"step {st.name!r} calibrating {', '.join(both)} of {st.data!r} again")
+            if earlier.name not in before or not both or st.options.get("reuse_data"):
+                continue
+            if st.data in data and earlier.data in data:
+                rows = _same_rows(data[st.data], data[earlier.data], both)
+                if not rows:
+                    continue
+                where = f" (rows {_row_list(rows)})"
+            elif st.data == earlier.data:  # a step's samples: known by name when read
+                where = ""
+            else:
+                continue
+            key = ("data",) if "data" in raw[st.index] else ()
+            same = ("" if st.data == earlier.data else
+                    f"; data set {st.data!r}{_source(data.get(st.data))} holds the same "
+                    f"values{where} as data set {earlier.data!r}"
+                    f"{_source(data.get(earlier.data))}, compared row by row")
+            ck.fail(("steps", st.index, *key),
+                    f"data not calibrated before: step {earlier.name!r} (line "
+                    f"{earlier.line}) already calibrates {', '.join(both)} of data set "
+                    f"{earlier.data!r}{same}. Calibrate the new observations only (e.g. "
+                    f"responses = [...] and from = \"{earlier.name}.posterior\" to condition "
+                    "on the earlier step), or set reuse_data = true to count them twice on "
+                    "purpose (the report states it)",
+                    f"step {st.name!r} calibrating {', '.join(both)} of {st.data!r}{where} "
+                    "again")
         seen.append((st, resp))
+
+
+def _same_rows(later: DataSet, earlier: DataSet, responses: Sequence[str]) -> list[int]:
+    """Rows of ``later`` (0-based) equal, in every column both data sets have, to a row of
+    ``earlier``, when the columns both have include some of ``responses`` (bit for bit: a
+    copy, an alias or a subset of the same measurements, not merely close numbers)."""
+    common = [c for c in later.columns if c in earlier.columns]
+    if not any(r in common for r in responses):
+        return []
+
+    def keys(d: DataSet) -> list[bytes]:
+        m = np.ascontiguousarray(d.matrix(common), dtype=np.float64) + 0.0  # -0.0 == 0.0
+        return [row.tobytes() for row in m]
+
+    known = set(keys(earlier))
+    return [i for i, k in enumerate(keys(later)) if k in known]
+
+
+def _row_list(rows: Sequence[int]) -> str:
+    """0-based row indices as 1-based ranges, ``1-3, 7``."""
+    parts: list[str] = []
+    start = prev = rows[0]
+    for r in [*rows[1:], None]:
+        if r is not None and r == prev + 1:
+            prev = r
+            continue
+        parts.append(f"{start + 1}" if start == prev else f"{start + 1}-{prev + 1}")
+        if r is not None:
+            start = prev = r
+    return ", ".join(parts)
+
+
+def _source(d: DataSet | None) -> str:
+    return "" if d is None or d.source == "inline" else f" ({Path(d.source).name})"
 
 
 def _step_check(ck: Checker, raw: list, names: list[str], i: int, inputs: ModelInputs,

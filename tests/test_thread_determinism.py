@@ -1,0 +1,75 @@
+"""Same seed, same bits at any thread count (issue 35, item 4): studies run through
+``rotoruq run`` in fresh processes with 1, 2 (and 4) threads for numba and BLAS, set before the
+process starts, save bit-for-bit equal arrays. The calibration with a 300-point GP emulator and
+its variance in the likelihood differed from the first chain row between 1 and 2 threads
+before (LAPACK's trtri/potrf/getrf on two OpenBLAS threads); every bundled study is run at its
+``--quick`` size (slow-marked where it takes longer than a few seconds, MBDyn ones
+``mbdyn``) and the validation study, where ``posterior_ratio`` moved by 0.4 %, at its own
+size too. The runs and the comparison are ``benchmarks/thread_determinism.py``'s, which
+measures the same at 1, 2 and 4 threads."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+
+from thread_determinism import GP_STUDY, differing, run_at  # noqa: E402
+
+from test_mbdyn import env_with_mbdyn, needs_mbdyn  # noqa: E402
+
+
+def same_bits(study, tmp_path: Path, threads=(1, 2), *, quick: bool = True,
+              env: dict | None = None) -> None:
+    first = tmp_path / f"t{threads[0]}"
+    run_at(study, threads[0], first, quick=quick, env=env)
+    for t in threads[1:]:
+        run_at(study, t, tmp_path / f"t{t}", quick=quick, env=env)
+        n, diffs = differing(first, tmp_path / f"t{t}")
+        assert n > 0
+        assert not diffs, f"{study}: {threads[0]} vs {t} threads: {diffs}"
+
+
+@pytest.mark.parametrize("threads", [(1, 2), pytest.param((1, 4), marks=pytest.mark.slow)])
+def test_a_300_point_gp_calibration_is_the_same_at_any_thread_count(threads, tmp_path):
+    study = tmp_path / "gp300.toml"
+    study.write_text(GP_STUDY)
+    same_bits(study, tmp_path, threads, quick=False)
+    chain = np.load(tmp_path / "t1" / "steps" / "bayes" / "chain.npy")
+    assert chain.shape[0] > 100 and np.ptp(chain[:, 0]) > 0  # a chain that moved
+
+
+def test_the_comparison_sees_a_last_bit(tmp_path):
+    for d in ("a", "b"):
+        (tmp_path / d / "steps" / "s").mkdir(parents=True)
+        np.save(tmp_path / d / "steps" / "s" / "x.npy", np.array([1.0, 2.0]))
+    np.save(tmp_path / "b" / "steps" / "s" / "x.npy", np.array([1.0, np.nextafter(2.0, 3.0)]))
+    n, diffs = differing(tmp_path / "a", tmp_path / "b")
+    assert n == 1 and diffs == {"steps/s/x.npy": pytest.approx(4.44e-16, rel=1e-3)}
+
+
+def test_the_quick_study_is_the_same_at_1_and_2_threads(tmp_path):
+    same_bits("quick", tmp_path)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("study", ["validation", "experiment", "heldout",
+                                   "multifidelity_rotor"])
+def test_a_bundled_study_at_quick_size_is_the_same_at_1_and_2_threads(study, tmp_path):
+    same_bits(study, tmp_path)
+
+
+@pytest.mark.slow
+def test_the_validation_study_at_its_own_size_is_the_same_at_1_and_2_threads(tmp_path):
+    same_bits("validation", tmp_path, quick=False)
+
+
+@pytest.mark.mbdyn
+@needs_mbdyn
+@pytest.mark.parametrize("study", ["mbdyn_rigid", "mbdyn_elastic", "mbdyn_multifidelity"])
+def test_an_mbdyn_study_at_quick_size_is_the_same_at_1_and_2_threads(study, tmp_path):
+    same_bits(study, tmp_path, env=env_with_mbdyn())

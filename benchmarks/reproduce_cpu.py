@@ -1,0 +1,118 @@
+"""CPU seconds of each chapter of `rotoruq reproduce` and of each of its steps (issue 34).
+
+CPU time, not wall time: it measures the work on a shared machine, where the wall time of the
+same run varies with the load. Each chapter runs in a fresh Python process (imports, numba
+cache loads and compilation included), one after the other; the process's user + system CPU
+seconds over all its threads are the chapter's, and each step's are the CPU seconds the
+process spent inside it. ``--cold`` points ``NUMBA_CACHE_DIR`` at an empty folder, so every
+kernel a chapter uses is compiled in it (a newcomer's first run).
+
+    python benchmarks/reproduce_cpu.py --json benchmarks/results/reproduce_cpu.json
+    python benchmarks/reproduce_cpu.py --cold --json benchmarks/results/reproduce_cpu_cold.json
+    python benchmarks/reproduce_cpu.py --chapters validation --quick
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
+
+CHAPTERS = ("validation", "experiment", "heldout")
+
+
+def _cpu(who: int) -> float:
+    ru = resource.getrusage(who)
+    return ru.ru_utime + ru.ru_stime
+
+
+def child(chapter: str, out: str, quick: bool) -> None:
+    """Run one chapter in this process; print its step CPU seconds as JSON on the last line."""
+    from pathlib import Path
+
+    from rotoruq.methods.mcmc import bayes
+    from rotoruq.study import runner
+    from rotoruq.study.cmd_reproduce import _chapter
+
+    steps: dict[str, float] = {}
+    checks: dict[str, float] = {}
+    current = [""]
+    run_step, self_check = runner.run_step, bayes._self_check
+
+    def timed(fn, ctx):
+        c0 = _cpu(resource.RUSAGE_SELF)
+        current[0] = ctx.name
+        try:
+            return run_step(fn, ctx)
+        finally:
+            steps[ctx.name] = round(_cpu(resource.RUSAGE_SELF) - c0, 2)
+
+    def timed_check(*args, **kwargs):
+        c0 = _cpu(resource.RUSAGE_SELF)
+        try:
+            return self_check(*args, **kwargs)
+        finally:
+            checks[current[0]] = round(_cpu(resource.RUSAGE_SELF) - c0, 2)
+
+    # the benchmark's probes: the runner calls run_step once per step, calibrate_bayes
+    # _self_check once per self-check (both looked up in their module at each call)
+    runner.run_step, bayes._self_check = timed, timed_check
+    _chapter(chapter, Path(out), quick)
+    print(json.dumps({"steps": steps, "checks": checks,
+                      "cpu": round(_cpu(resource.RUSAGE_SELF), 2)}))
+
+
+def run_chapter(chapter: str, out: str, quick: bool, env: dict) -> dict:
+    """One chapter in a fresh process: its CPU seconds, wall seconds and per-step CPU."""
+    c0, t0 = _cpu(resource.RUSAGE_CHILDREN), time.perf_counter()
+    done = subprocess.run([sys.executable, __file__, "--child", chapter, out]
+                          + (["--quick"] if quick else []),
+                          env=env, capture_output=True, text=True)
+    wall, cpu = time.perf_counter() - t0, _cpu(resource.RUSAGE_CHILDREN) - c0
+    if done.returncode != 0:
+        return {"error": done.stderr[-2000:]}
+    got = json.loads(done.stdout.strip().splitlines()[-1])
+    return {"cpu_seconds": round(cpu, 2), "wall_seconds": round(wall, 2),
+            "steps_cpu_seconds": got["steps"], "self_check_cpu_seconds": got["checks"]}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--chapters", nargs="+", default=list(CHAPTERS), choices=CHAPTERS)
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--cold", action="store_true",
+                    help="an empty numba cache for each chapter (everything compiled)")
+    ap.add_argument("--json", default=None, help="also write the JSON to this file")
+    ap.add_argument("--child", nargs=2, metavar=("CHAPTER", "OUT"), help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.child:
+        child(args.child[0], args.child[1], args.quick)
+        return
+    result: dict = {"quick": args.quick, "cold_numba_cache": args.cold, "cpus": os.cpu_count(),
+                    "chapters": {}}
+    with tempfile.TemporaryDirectory(prefix="rotoruq-cpu-") as tmp:
+        for chapter in args.chapters:
+            env = dict(os.environ)
+            if args.cold:
+                env["NUMBA_CACHE_DIR"] = tempfile.mkdtemp(dir=tmp, prefix="numba-")
+            result["chapters"][chapter] = run_chapter(chapter, os.path.join(tmp, "out"),
+                                                      args.quick, env)
+    result["cpu_seconds"] = round(sum(c.get("cpu_seconds", 0.0)
+                                      for c in result["chapters"].values()), 2)
+    result["provenance"] = provenance(modules=["rotoruq.study.cmd_reproduce"])
+    text = json.dumps(result, indent=1)
+    print(text)
+    if args.json:
+        with open(args.json, "w", encoding="utf-8") as fh:
+            fh.write(text + "\n")
+
+
+if __name__ == "__main__":
+    main()

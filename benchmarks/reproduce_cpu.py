@@ -3,9 +3,12 @@
 CPU time, not wall time: it measures the work on a shared machine, where the wall time of the
 same run varies with the load. Each chapter runs in a fresh Python process (imports, numba
 cache loads and compilation included), one after the other; the process's user + system CPU
-seconds over all its threads are the chapter's, and each step's are the CPU seconds the
-process spent inside it. ``--cold`` points ``NUMBA_CACHE_DIR`` at an empty folder, so every
-kernel a chapter uses is compiled in it (a newcomer's first run).
+seconds over all its threads are the chapter's, each step's are the CPU seconds the process
+spent inside it, and ``self_check_cpu_seconds`` the part of a Bayes step spent in its
+self-check (simulation-based calibration). ``--cold`` points ``NUMBA_CACHE_DIR`` at one empty
+folder for the whole run: the first chapter compiles every kernel it uses, a later one only
+those not compiled before (the chapters of a newcomer's first ``rotoruq reproduce`` share one
+cache).
 
     python benchmarks/reproduce_cpu.py --json benchmarks/results/reproduce_cpu.json
     python benchmarks/reproduce_cpu.py --cold --json benchmarks/results/reproduce_cpu_cold.json
@@ -88,7 +91,7 @@ def main() -> None:
     ap.add_argument("--chapters", nargs="+", default=list(CHAPTERS), choices=CHAPTERS)
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--cold", action="store_true",
-                    help="an empty numba cache for each chapter (everything compiled)")
+                    help="start from an empty numba cache (everything compiled once)")
     ap.add_argument("--json", default=None, help="also write the JSON to this file")
     ap.add_argument("--child", nargs=2, metavar=("CHAPTER", "OUT"), help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -98,10 +101,10 @@ def main() -> None:
     result: dict = {"quick": args.quick, "cold_numba_cache": args.cold, "cpus": os.cpu_count(),
                     "chapters": {}}
     with tempfile.TemporaryDirectory(prefix="rotoruq-cpu-") as tmp:
+        env = dict(os.environ)
+        if args.cold:
+            env["NUMBA_CACHE_DIR"] = os.path.join(tmp, "numba")
         for chapter in args.chapters:
-            env = dict(os.environ)
-            if args.cold:
-                env["NUMBA_CACHE_DIR"] = tempfile.mkdtemp(dir=tmp, prefix="numba-")
             result["chapters"][chapter] = run_chapter(chapter, os.path.join(tmp, "out"),
                                                       args.quick, env)
     result["cpu_seconds"] = round(sum(c.get("cpu_seconds", 0.0)

@@ -13,6 +13,8 @@ cache).
     python benchmarks/reproduce_cpu.py --json benchmarks/results/reproduce_cpu.json
     python benchmarks/reproduce_cpu.py --cold --json benchmarks/results/reproduce_cpu_cold.json
     python benchmarks/reproduce_cpu.py --chapters validation --quick
+    python benchmarks/reproduce_cpu.py --summary benchmarks/results/reproduce_cpu_cold_quick.json
+                                                   # the docs' sentence from a saved run
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ import tempfile
 import time
 
 from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
+from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
 
 CHAPTERS = ("validation", "experiment", "heldout")
 
@@ -86,6 +89,29 @@ def run_chapter(chapter: str, out: str, quick: bool, env: dict) -> dict:
             "steps_cpu_seconds": got["steps"], "self_check_cpu_seconds": got["checks"]}
 
 
+def summary(result: dict) -> str:
+    """The docs' sentence for a saved run: CPU seconds per chapter, its heaviest step and
+    self-check, and the total."""
+    parts = []
+    for name, ch in result["chapters"].items():
+        if "cpu_seconds" not in ch:
+            parts.append(f"{name} failed")
+            continue
+        steps = ch["steps_cpu_seconds"]
+        top = max(steps, key=steps.get)
+        checks = sum(ch.get("self_check_cpu_seconds", {}).values())
+        parts.append(f"{name} {ch['cpu_seconds']:.1f} CPU-s (heaviest step {top} "
+                     f"{steps[top]:.1f}" + (f"; self-checks {checks:.1f}" if checks else "")
+                     + ")")
+    how = "an empty numba cache shared by the chapters" if result["cold_numba_cache"] else \
+        "numba's cache warm"
+    scope = "the --quick study" if result["quick"] else "the full study"
+    return (f"`python benchmarks/reproduce_cpu.py{' --cold' if result['cold_numba_cache'] else ''}"
+            f"{' --quick' if result['quick'] else ''}` ({scope}, {how}, each chapter in a fresh "
+            f"process, load {result['provenance']['load'][0]}): " + "; ".join(parts)
+            + f"; {result['cpu_seconds']:.1f} CPU-s in all.")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--chapters", nargs="+", default=list(CHAPTERS), choices=CHAPTERS)
@@ -93,8 +119,12 @@ def main() -> None:
     ap.add_argument("--cold", action="store_true",
                     help="start from an empty numba cache (everything compiled once)")
     ap.add_argument("--json", default=None, help="also write the JSON to this file")
+    ap.add_argument("--summary", default=None, metavar="JSON",
+                    help="print the docs' sentence for a saved run and exit")
     ap.add_argument("--child", nargs=2, metavar=("CHAPTER", "OUT"), help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if print_saved_summary(args.summary, summary):
+        return
     if args.child:
         child(args.child[0], args.child[1], args.quick)
         return

@@ -29,7 +29,7 @@ import tempfile
 import time
 
 from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
-from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
+from _summary import print_and_save, print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
 
 CHAPTERS = ("validation", "experiment", "heldout")
 
@@ -140,11 +140,7 @@ def main() -> None:
     result["cpu_seconds"] = round(sum(c.get("cpu_seconds", 0.0)
                                       for c in result["chapters"].values()), 2)
     result["provenance"] = provenance(modules=["rotoruq.study.cmd_reproduce"])
-    text = json.dumps(result, indent=1)
-    print(text)
-    if args.json:
-        with open(args.json, "w", encoding="utf-8") as fh:
-            fh.write(text + "\n")
+    print_and_save(result, args.json)
 
 
 if __name__ == "__main__":

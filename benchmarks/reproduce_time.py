@@ -20,7 +20,6 @@ ratio is what the second process buys on this machine.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import tempfile
 import time
@@ -28,7 +27,7 @@ import traceback
 
 import numpy as np
 from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
-from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
+from _summary import print_and_save, print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
 
 TARGET_SECONDS = 30.0
 
@@ -149,11 +148,7 @@ def main() -> None:
     if args.report_repeats > 0 and runs[-1]["dirs"]:
         result["report_workers"] = report_workers(runs[-1]["dirs"], args.report_repeats)
     result["provenance"] = provenance(modules=["rotoruq.study.cli"])
-    text = json.dumps(result, indent=1)
-    print(text)
-    if args.json:
-        with open(args.json, "w", encoding="utf-8") as fh:
-            fh.write(text + "\n")
+    print_and_save(result, args.json)
 
 
 if __name__ == "__main__":

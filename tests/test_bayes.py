@@ -524,6 +524,14 @@ def test_compiled_emulator_posterior_equals_the_python_one():
         assert st.steps == state.steps + 700
     np.testing.assert_array_equal(runs[1], runs[0])
     np.testing.assert_array_equal(runs[2], runs[0])
+    # at most one compiled version of each step kernel whichever driver calls it (a kernel
+    # loaded from numba's cache registers none of its callees; on a cold cache a compiled
+    # caller passing literals made numba compile advance, propose and _step twice: the
+    # slow test_compile_notice.py::test_each_step_kernel_is_compiled_once_on_a_cold_cache)
+    from rotoruq.methods.mcmc import _kernels as kn
+
+    for kernel in (kn.advance, kn.propose, kn._step, kn._after_step):
+        assert len(kernel.signatures) <= 1, (kernel.py_func.__name__, kernel.signatures)
 
 
 def test_emulator_with_other_priors_takes_the_general_route():

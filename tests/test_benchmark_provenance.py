@@ -31,7 +31,12 @@ QUOTED = sorted({j for b in generated_blocks.blocks()
 
 
 def _script_of(result: str) -> Path:
+    """The script that saved ``result``: the one its provenance names (a benchmark may save
+    several results, e.g. ``reproduce_cpu.py --cold``), else ``<stem>.py``."""
     path = ROOT / result
+    script = (json.loads(path.read_text(encoding="utf-8")).get("provenance") or {}).get("script")
+    if script:
+        return ROOT / script
     # a script may save several results named after it (rotor_throughput_loaded.json)
     stem = next((p for p in ("multifidelity_mbdyn", "rotor_throughput")
                  if path.stem.startswith(p)), path.stem)

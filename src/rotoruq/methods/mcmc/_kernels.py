@@ -15,6 +15,11 @@ State arrays (``c`` chains, ``d`` parameters): ``x`` (c, d), ``lp`` (c,), ``L`` 
 lower Cholesky factors of the stage-1 proposal covariance, ``mean`` (c, d) and ``m2``
 (c, d, d) running mean and sum of squared deviations of each chain's history (Welford),
 ``st`` int64 counters ``[steps, run_step, kept, prop1, acc1, prop2, acc2]``.
+
+One compiled version per kernel: a compiled caller passes a constant argument typed
+(``np.int64(1)``, ``np.bool_(False)``), as a Python caller's ints and bools arrive, so numba does
+not compile a second version specialised on the literal (a cold start compiled
+:func:`advance` twice, once for each driver).
 Settings: ``fpar = [1/dr_scale, AM scale, AM eps]``,
 ``ipar = [delayed_rejection, adaptive, adapt_start, adapt_interval, pooled, burn_in, thin]``.
 """
@@ -212,7 +217,7 @@ def advance(x, lp, L, Y, LPY, Z1, Z2, LU1, LU2, t, K, tree, mean, m2, st, fpar, 
     delta = np.empty(x.shape[1])
     inv_s = fpar[0]
     if tree:
-        o = _step(x, lp, Y, LPY, 0, Z1, Z2, LU1, LU2, t, st, inv_s)
+        o = _step(x, lp, Y, LPY, np.int64(0), Z1, Z2, LU1, LU2, t, st, inv_s)
         _after_step(x, lp, L, mean, m2, st, fpar, ipar, out, out_lp, delta)
         if K == 1:
             return 1
@@ -438,12 +443,12 @@ def run_block_emulator(x, lp, L, Z1, Z2, LU1, LU2, nb_steps, Y, LPY, mean, m2, s
     two = Y.shape[1] == 2
     work = _emulator_work(x, post)
     for t in range(nb_steps):
-        propose(x, L, Z1, Z2, t, 1, fpar[0], Y)
+        propose(x, L, Z1, Z2, t, np.int64(1), fpar[0], Y)
         for k in range(c):
             LPY[0, 0, k] = emulator_logpost(Y[0, 0, k], post, work, cnt)
             if two:
                 LPY[0, 1, k] = NEG_INF
                 if not LU1[t, k] < LPY[0, 0, k] - lp[k]:
                     LPY[0, 1, k] = emulator_logpost(Y[0, 1, k], post, work, cnt)
-        advance(x, lp, L, Y, LPY, Z1, Z2, LU1, LU2, t, 1, False, mean, m2, st, fpar, ipar, out,
-                out_lp)
+        advance(x, lp, L, Y, LPY, Z1, Z2, LU1, LU2, t, np.int64(1), np.bool_(False), mean, m2,
+                st, fpar, ipar, out, out_lp)

@@ -275,7 +275,9 @@ def simulation_based_calibration(
     calibrate : None (default): :func:`calibrate_bayes` with ``n_samples`` DRAM steps (5 %
         burn-in, MAP start), ``noise_std``, ``names_out``, the emulator and ``options``; a chain
         whose ESS stays below ``n_draws`` is continued (up to 3 times) with
-        :func:`continue_chain`. Otherwise a callable ``calibrate(data, seed=SeedSequence)`` with
+        :func:`continue_chain`, unless its ESS grown in proportion to the length the
+        continuations would reach stays below half of ``n_draws`` (then the shortfall is
+        certain and the reason says how many replications' chains did not mix). Otherwise a callable ``calibrate(data, seed=SeedSequence)`` with
         ``data`` (n_experiments, m) returning a :class:`BayesResult` or posterior draws
         (n, d) or (n_chains, n, d) in ``prior.names`` order; a callable without a ``seed``
         parameter is called as ``calibrate(data)`` (then its randomness is its own).
@@ -440,6 +442,11 @@ def simulation_based_calibration(
     coverage = covered.mean(1)
     passed, reason = _verdict(prior.names, p_value, coverage, n_replications, alpha,
                               coverage_tolerance)
+    if n_short:
+        reason += (f"; {n_short} of {n_replications} replications' chains have an ESS below "
+                   f"the {n_draws} draws the ranks need (median ESS {np.median(ess):.3g}): "
+                   f"their ranks are autocorrelated, so part of this verdict is the sampler's "
+                   f"mixing, not the posterior's calibration")
     se = [math.sqrt(lv * (1 - lv) / n_replications) for lv in COVERAGE_LEVELS]
     return SBCResult(
         names_in=tuple(prior.names), n_draws=n_draws, theta_true=theta_true, ranks=ranks,
@@ -506,6 +513,30 @@ def setup_key(model_key: str, prior: ParameterSpace, emulator: Any, seed: SeedLi
     return h.hexdigest()[:32]
 
 
+#: Times a replication's chains are continued (by n_samples, 2 n_samples, 4 n_samples) while
+#: their ESS stays below the draws the ranks need.
+N_EXTENSIONS = 3
+#: After the first continuation, another runs only while the ESS, grown in proportion to the
+#: chains' final length, could reach this share of the draws the ranks need: chains that
+#: barely move (ESS 2 after 4000 steps) are not continued fourfold for a foregone shortfall.
+PROJECTED_ESS_SHARE = 0.5
+
+
+def _worth_extending(ess: np.ndarray, n_kept: int, k: int, n_samples: int,
+                     n_draws: int) -> bool:
+    """Whether to continue chains of ``n_kept`` draws with ESS ``ess`` (d,) at continuation
+    ``k`` (0-based): their ESS is below ``n_draws`` and, from the second continuation on,
+    scaled by the length the remaining continuations would reach, at least
+    :data:`PROJECTED_ESS_SHARE` of it."""
+    low = float(np.min(ess))
+    if low >= n_draws:
+        return False
+    if k == 0:  # a chain stuck before its proposal adapted can still mix: one doubling always
+        return True
+    final = n_kept + sum(n_samples * 2**j for j in range(k, N_EXTENSIONS))
+    return low * final / max(n_kept, 1) >= PROJECTED_ESS_SHARE * n_draws
+
+
 def _replication(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarray,
                  noise: np.ndarray, obs: tuple[str, ...], s_rep: np.random.SeedSequence,
                  n_experiments: int, n_draws: int, calibrate: Callable[..., Any] | None,
@@ -525,9 +556,10 @@ def _replication(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarray
                           emulator=None if gp is None else EmulatorOptions(
                               gp, **records.get("emulator", {})),
                           seed=s_cal, **rest)
-    for k, s_k in enumerate(s_more.spawn(3)):
+    for k, s_k in enumerate(s_more.spawn(N_EXTENSIONS)):
         ess = dg.effective_sample_size(res.chains)
-        if ess.min() >= n_draws:
+        if not _worth_extending(ess, res.chains.shape[1], k, int(options["n_samples"]),
+                                n_draws):
             return res.chains, ess, res.n_evaluations
         res = continue_chain(res, int(options["n_samples"]) * 2**k, seed=s_k)
     return res.chains, None, res.n_evaluations
@@ -540,7 +572,8 @@ def _replications(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarra
     draws (c, n, d), their ESS (d,) and true-model evaluations, per replication.
 
     Each replication's chains are continued (up to 3 times) while their ESS stays below
-    ``n_draws``, as with :func:`continue_chain`. Replications are independent: when every
+    ``n_draws`` and could reach it (:func:`_worth_extending`), as with
+    :func:`continue_chain`. Replications are independent: when every
     one runs in compiled code alone they run on ``numba.get_num_threads()`` threads, each
     from its own seeds, so the numbers do not depend on the thread count. The warnings come
     in the order of a one-by-one run (each replication's start, then its chains').
@@ -554,7 +587,7 @@ def _replications(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarra
             reps.append(_CheckChains(model, clean[i] + noise * eps, prior, gp, noise_std=noise,
                                      names_out=list(obs), seed=s_cal, **options))
         caught.append(got)
-        more.append(s_more.spawn(3))
+        more.append(s_more.spawn(N_EXTENSIONS))
     n_samples = int(options["n_samples"])
 
     def chains(i: int, emit: bool) -> np.ndarray:
@@ -566,7 +599,7 @@ def _replications(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarra
             rep.warn()
         for k, s_k in enumerate(more[i]):
             ess = dg.effective_sample_size(rep.chains)
-            if ess.min() >= n_draws:
+            if not _worth_extending(ess, rep.chains.shape[1], k, n_samples, n_draws):
                 return ess
             rep.extend(n_samples * 2**k, s_k)
         return dg.effective_sample_size(rep.chains)

@@ -541,8 +541,11 @@ def test_reproduce_quick(tmp_path, capsys):
     # the V&V 20 verdicts with the thesis's criterion beside them, and the held-out 1R claims
     by = {c["key"]: c for c in data}
     for where in ("4R", "2R", "1R"):
-        assert by[f"gvpm_vv20_{where}"]["counted"] and by[f"gvpm_vv20_{where}"]["value"]
+        assert by[f"gvpm_vv20_{where}"]["value"]
         assert by[f"gvpm_within_1std_{where}_joint"]["beside"] == f"gvpm_vv20_{where}"
+        # 4R is the calibration's own data: a consistency check, not counted (issue 35)
+        assert by[f"gvpm_vv20_{where}"]["counted"] == (where != "4R")
+        assert by[f"gvpm_vv20_{where}"]["consistency"] == (where == "4R")
     assert {"heldout_1r_band", "heldout_1r_vv20"} <= keys
     vv = page[page.index("id='vv'"):page.index("id='provenance'")]
     for step in ("experiment / validate", "heldout / validate_heldout",

@@ -302,3 +302,34 @@ def test_verification_u_num_per_condition_feeds_validate():
     # two repeats differing by d: s = d / sqrt(2), s / sqrt(2) = d / 2
     u_d = np.array([[np.hypot(0.02, 0.005)], [np.hypot(0.01, 0.005)]])
     np.testing.assert_allclose(res.u_val, np.sqrt(ver.u_num**2 + 0.01**2 + u_d**2), rtol=1e-12)
+
+
+@pytest.mark.parametrize("prior_std", [0.3, 3.0, 30.0])
+def test_calibration_data_comparison_is_the_fits_residual_not_the_noise_twice(prior_std):
+    """A linear-Gaussian calibration, truth drawn from its prior, compared on its own data:
+    Var(S - D) = R - H P H^T in closed form (P the posterior covariance, any prior), so E /
+    u_val with the calibration budget is standard normal; the validation budget (u_input
+    added to u_D) counts the noise twice and its ratio's spread falls well below 1."""
+    rng = np.random.default_rng(35)
+    h = np.array([[1.0, 4.0], [1.0, 3.0], [1.0, 2.0]])        # 3 conditions, 2 inputs
+    sigma, p0 = 0.86, prior_std**2 * np.eye(2)
+    post = np.linalg.inv(h.T @ h / sigma**2 + np.linalg.inv(p0))
+    chol = np.linalg.cholesky(post)
+    z_cal, z_val = [], []
+    for _ in range(400):
+        theta = rng.multivariate_normal(np.zeros(2), p0)
+        d = h @ theta + sigma * rng.standard_normal(3)
+        mean = post @ h.T @ d / sigma**2
+        draws = mean + rng.standard_normal((4000, 2)) @ chol.T
+        pred = (draws @ h.T)[:, :, None].transpose(1, 0, 2)       # (3, 4000, 1)
+        kw = dict(u_systematic=sigma)
+        cal = validate(pred, d[:, None], calibration=True, **kw)
+        val = validate(pred, d[:, None], **kw)
+        z_cal.append(cal.comparison_error[:, 0] / cal.u_val[:, 0])
+        z_val.append(val.comparison_error[:, 0] / val.u_val[:, 0])
+        assert cal.calibration.all() and not val.calibration.any()
+    z_cal, z_val = np.concatenate(z_cal), np.concatenate(z_val)
+    # 1200 draws of a standard normal: the std within 0.08 (about 4 standard errors)
+    assert abs(z_cal.std() - 1.0) < 0.08
+    assert abs(np.mean(np.abs(z_cal) <= 2.0) - 0.954) < 0.03
+    assert z_val.std() < 0.85

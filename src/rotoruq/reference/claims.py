@@ -54,7 +54,8 @@ class Claim:
     reasons : why it does not hold (computed from the run). warnings : diagnostics of the
     steps it rests on. beside : the key of the claim that judges the same comparison by the
     ASME V&V 20 budget, when this one is the thesis's criterion shown beside it (not
-    counted in the verdict).
+    counted in the verdict). consistency : True when the comparison is on the calibration's
+    own data: it checks the fit, not the model, and the verdict does not count it.
     """
 
     key: str
@@ -71,12 +72,14 @@ class Claim:
     warnings: tuple[str, ...] = ()
     details: tuple[str, ...] = field(default=())
     beside: str | None = None
+    consistency: bool = False
 
     @property
     def counted(self) -> bool:
         """Whether the verdict counts this claim: a claim ``beside`` another is the thesis's
-        own criterion shown next to the V&V 20 claim that judges the same comparison."""
-        return self.beside is None
+        own criterion shown next to the V&V 20 claim that judges the same comparison; a
+        comparison on the calibration's own data checks the fit, not the model."""
+        return self.beside is None and not self.consistency
 
     @property
     def passes(self) -> bool | None:
@@ -582,6 +585,7 @@ def _vv20_claim(key: str, where: str, num: str, t: ComparedTable, steps, label: 
     k, p = rec.coverage_factor, 0
     ms = [rec.names_out.index(r) for _, r in pairs]
     ratios = [float(rec.error_ratio[p, j, m]) for m in ms]
+    consistency = bool(rec.calibrated()[j, ms].all())
     ok = (lambda v: v <= k)  # noqa: E731
     th_mean, th_std, th_data = (_col(t, c, "thesis") for c in (0, 1, 2))
     th_ratio: list[float | None] = []
@@ -626,14 +630,25 @@ def _vv20_claim(key: str, where: str, num: str, t: ComparedTable, steps, label: 
     if rec.u_num_source:
         details.append(f"u_num {rec.u_num_source}; u_D the stated measurement uncertainty "
                        "and the repeats' standard error")
+    if consistency:
+        details.insert(0, f"the test {where} is the calibration's own data: a consistency "
+                       "check of the fit, not a validation, and not counted; S took in part "
+                       "of D's noise, so u_val = sqrt(u_num^2 + u_D^2 - u_input^2)")
+        text = (f"GVPM {where} (calibration data): the calibration reproduces its own data "
+                f"within the fit's residual uncertainty, |E| <= {k:g} u_val for every load "
+                f"(table {num}'s comparison; a consistency check, not a validation)")
+        metric = ("largest |E| / u_val over the loads (E = S - D, u_val = sqrt(u_num^2 + "
+                  "u_D^2 - u_input^2), the fit's residual)")
+    else:
+        text = (f"GVPM {where}: model and test agree within the validation uncertainty, "
+                f"|E| <= {k:g} u_val for every load (ASME V&V 20 on table {num}'s comparison)")
+        metric = ("largest |E| / u_val over the loads (E = S - D, u_val = sqrt(u_num^2 + "
+                  "u_input^2 + u_D^2))")
     return Claim(
-        key, f"GVPM {where}: model and test agree within the validation uncertainty, "
-        f"|E| <= {k:g} u_val for every load (ASME V&V 20 on table {num}'s comparison)",
-        "largest |E| / u_val over the loads (E = S - D, u_val = sqrt(u_num^2 + u_input^2 + "
-        "u_D^2))", "<=", k, _worst(ratios), _worst(th_ratio), _kofn(ratios, ok),
+        key, text, metric, "<=", k, _worst(ratios), _worst(th_ratio), _kofn(ratios, ok),
         _kofn(th_ratio, ok), propagation=JOINT if rec.predictions[p].startswith("joint") else
         None, reasons=tuple(reasons), warnings=_warnings(steps, [res.name, "bayes"], labels),
-        details=tuple(details))
+        details=tuple(details), consistency=consistency)
 
 
 def _heldout_claims(steps: Mapping[str, StepResult], labels) -> list[Claim]:

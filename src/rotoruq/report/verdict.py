@@ -2,7 +2,8 @@
 last thing ``rotoruq run`` prints.
 
 Four lines, each with the counts it rests on: validation comparisons within k u_val (ASME
-V&V 20, as each ``validation`` step records them), self-checks (simulation-based calibration)
+V&V 20, as each ``validation`` step records them; comparisons on a calibration's own data
+are consistency checks, counted apart and never as validation), self-checks (simulation-based calibration)
 that failed, failed model evaluations, steps with diagnostic warnings.
 """
 
@@ -39,9 +40,10 @@ class VerdictLine:
     counts: dict[str, int] = field(default_factory=dict)
 
 
-def _validation_counts(res: StepResult) -> tuple[int, int, float] | None:
-    """(comparisons with |E| <= k u_val, comparisons, k) of a ``validation`` step's record
-    (every prediction, condition and response with a finite ratio); None when unreadable."""
+def _validation_counts(res: StepResult) -> tuple[int, int, float, int] | None:
+    """(comparisons with |E| <= k u_val, comparisons, k, consistency checks left out) of a
+    ``validation`` step's record: every prediction, condition and response with a finite
+    ratio whose data the calibration did not use; None when unreadable."""
     from ..steps.validation import ValidationRecord
 
     try:
@@ -49,9 +51,11 @@ def _validation_counts(res: StepResult) -> tuple[int, int, float] | None:
     except (RecordError, KeyError, ValueError):
         return None
     ratio = np.asarray(rec.error_ratio, dtype=float)
-    ratio = ratio[np.isfinite(ratio)]
+    cal = np.broadcast_to(rec.calibrated()[None], ratio.shape)
+    finite = np.isfinite(ratio)
+    ratio = ratio[finite & ~cal]
     k = float(rec.coverage_factor)
-    return int(np.sum(ratio <= k)), int(ratio.size), k
+    return int(np.sum(ratio <= k)), int(ratio.size), k, int(np.sum(finite & cal))
 
 
 def verdict_lines(studies: Studies, labels: Mapping[str, Mapping[str, str]] | None = None
@@ -77,7 +81,7 @@ def verdict_lines(studies: Studies, labels: Mapping[str, Mapping[str, str]] | No
     """
     labels = labels or {}
     lines = []
-    within = total = 0
+    within = total = consistency = 0
     per_step = []
     for study, steps in studies.items():
         for s in steps.values():
@@ -87,14 +91,18 @@ def verdict_lines(studies: Studies, labels: Mapping[str, Mapping[str, str]] | No
             if got is None:
                 per_step.append(f"{study} / {s.name}: record not readable")
                 continue
-            w, n, k = got
-            within, total = within + w, total + n
-            per_step.append(f"{study} / {s.name}: {w} of {n} within {k:g} u_val")
-    counts = {"within": within, "comparisons": total}
+            w, n, k, c = got
+            within, total, consistency = within + w, total + n, consistency + c
+            per_step.append(f"{study} / {s.name}: {w} of {n} within {k:g} u_val"
+                            + (f" ({c} on calibration data left out)" if c else ""))
+    counts = {"within": within, "comparisons": total, "calibration_data": consistency}
     if per_step:
         lines.append(VerdictLine("validation", "Validation", (
             f"{within} of {total} comparisons with data lie within their validation "
-            f"uncertainty (|E| <= k u_val, E = S - D): {'; '.join(per_step)}."), counts))
+            f"uncertainty (|E| <= k u_val, E = S - D): {'; '.join(per_step)}."
+            + (f" {consistency} comparisons on the calibrations' own data are consistency "
+               "checks of the fits, not validation, and are not counted." if consistency
+               else "")), counts))
     else:
         lines.append(VerdictLine("validation", "Validation", "no validation step, so no "
                                  "comparison with data is judged.", counts))

@@ -59,7 +59,11 @@ class Discrepancy:
     degree : polynomial degree (0: a constant offset), polynomial only.
     amplitude_scale : scale of the half-normal prior of the GP amplitude (the std of
         ``delta``), or the coefficient std of the polynomial, in response units: a scalar or
-        one per response. Default: 10 % of the root mean square of each response's data.
+        one per response. Default, a weakly-informative rule set from the data: the root
+        mean square of each response's data (a discrepancy as large as the response itself is
+        plausible a priori; 95 % of the half-normal's mass lies below twice it), so the
+        amplitude is learned, not bounded by a hand-set scale
+        (``benchmarks/discrepancy_coverage.py`` checks the bands it gives in extrapolation).
     length_scale : median of the log-normal prior of the GP length-scale, in configuration
         units. Default: the range of the data's configurations.
     length_scale_log_std : std of ``log(length_scale)`` under its prior (0.5: the 95 % prior
@@ -658,7 +662,7 @@ def calibrate_with_discrepancy(
         raise ParameterError("a GP discrepancy needs data at two configurations or more, got "
                              f"{xs.size}")
     forward = _Forward(model, tuple(prior.names), configuration_name, resp_idx)
-    amp = (np.sqrt(np.mean(y**2, axis=0)) * 0.1 if discrepancy is None
+    amp = (np.sqrt(np.mean(y**2, axis=0)) if discrepancy is None
            or discrepancy.amplitude_scale is None
            else np.broadcast_to(np.asarray(discrepancy.amplitude_scale, float), (m,)).copy())
     amp = np.where(amp > 0, amp, 1.0)

@@ -670,7 +670,7 @@ def _heldout_claims(steps: Mapping[str, StepResult], labels) -> list[Claim]:
     # (record, prediction, condition, what): the other predictions of the held-out loads
     others = [(rec, q, j, kind) for q, kind in enumerate(rec.predictions) if q != p]
     for name, what in (("validate_no_discrepancy", "calibrated on the same heights without "
-                        "a discrepancy"), ("validate_4r", "the thesis's 4R-only calibration")):
+                        "a discrepancy"), ("validate_thesis", "the thesis's calibration (its nine inputs, its 4R loads)")):
         f = _validation(steps, name)
         if f is not None and (jj := _condition(f[1], rec.conditions[j])) is not None:
             others.append((f[1], 0, jj, what))

@@ -333,3 +333,41 @@ def test_calibration_data_comparison_is_the_fits_residual_not_the_noise_twice(pr
     assert abs(z_cal.std() - 1.0) < 0.08
     assert abs(np.mean(np.abs(z_cal) <= 2.0) - 0.954) < 0.03
     assert z_val.std() < 0.85
+
+
+def test_u_num_from_finer_grids_covers_the_fine_solve_error_at_every_validated_condition():
+    """At every height and load the reproduction validates (4R, 3R, 2R, 1R; thrust, roll,
+    pitch, power), at the nominal inputs and at a second point: u_num of the grid the
+    studies run (10 stations x 36 azimuth steps), from it and two finer grids (direction =
+    "finer"), covers its actual error against a solve 16 times finer (160 x 576); the
+    two-grid GCI with the assumed order does not (issue 35: 1R power 0.404 W against an
+    error of 0.533 W, 4R roll 1.3e-4 against 1.3e-3 N m)."""
+    from rotoruq.rotor.discretization import RotorDiscretization
+    from rotoruq.steps.verification import production_u_num
+
+    names = ["collective_deg", "lateral_deg", "longitudinal_deg", "k_pitch_link"]
+    x = np.array([[5.4, -1.0, -1.0, 15.0], [6.2, 0.5, -1.5, 11.0]])
+    missed = 0
+    for h, om in zip([4.0, 3.0, 2.0, 1.0], [224.6375, 224.5718, 224.5443, 223.0457],
+                     strict=True):
+        grids = RotorDiscretization("gvpm", names_in=names,
+                                    names_out=["thrust", "roll", "pitch", "power"],
+                                    fixed={"omega": om, "height_over_radius": h})
+        # the steps' convention: level k coarser by 2^k, negative levels finer
+        three = production_u_num(verify_discretization(lambda k: grids(-k), [-2, -1, 0], x,
+                                                       ratio=2.0))
+        two = verify_discretization(lambda k: grids(-k), [0, 1], x, ratio=2.0,
+                                    formal_order=2.0)
+        err = np.abs(three.values[2] - np.asarray(rq.evaluate(grids(4), x).values))
+        np.testing.assert_array_equal(three.values[2], two.values[0])  # the same grid
+        assert np.all(three.u_num >= err), (h, three.u_num, err)
+        missed += int(np.sum(two.u_num < err))
+    assert missed >= 2  # what the two-grid u_num missed, for the record
+
+
+def test_finer_direction_needs_three_levels():
+    from rotoruq.steps.verification import verification_option
+
+    with pytest.raises(TypeError, match="levels = 3"):
+        verification_option({"levels": 2, "formal_order": 2.0, "direction": "finer"})
+    assert verification_option({"levels": 3, "direction": "finer"})["direction"] == "finer"

@@ -23,6 +23,7 @@ from ..steps._common import saved_record
 from ..steps.bayes_calibration import posterior_record
 from ..steps.cuu import CuuRecord
 from ..steps.forward_check import ForwardCheckRecord
+from ..steps._discrepancy import extrapolation_note
 from .causes import (
     calibration_design,
     input_recovery,
@@ -662,7 +663,11 @@ def _heldout_claims(steps: Mapping[str, StepResult], labels) -> list[Claim]:
     if not held.size or not rec.predictions:
         return []
     j, p, k = int(held[0]), 0, rec.coverage_factor
-    at = f"{rec.configuration} = {rec.conditions[j]:g}"
+    far = rec.beyond(j)
+    at = f"{rec.configuration} = {rec.conditions[j]:g}" + (
+        f" (an extrapolation, {far:g} beyond the calibrated range)" if far > 0 else "")
+    flag = (f"{rec.configuration} = {rec.conditions[j]:g} is "
+            + extrapolation_note(far, rec.calibrated_span()),) if far > 0 else ()
     names = [labels.get(r, r) for r in rec.names_out]
     inside = [float(v) for v in rec.inside_band[p, j]]
     ratios = [float(v) for v in rec.error_ratio[p, j]]
@@ -693,12 +698,12 @@ def _heldout_claims(steps: Mapping[str, StepResult], labels) -> list[Claim]:
               "model discrepancy", f"loads outside the {pct} band of a new measurement", "<=",
               0.0, float(len(inside) - sum(inside)), None, (int(sum(inside)), len(inside)),
               reasons=tuple(band), warnings=warn,
-              details=tuple(f"inside the band? {s}" for s in beside(
+              details=flag + tuple(f"inside the band? {s}" for s in beside(
                   "inside_band", lambda v: "yes" if v else "no"))),
         Claim("heldout_1r_vv20", f"Held-out {at} (beyond the thesis): |E| <= {k:g} u_val for "
               "every load with the model discrepancy (ASME V&V 20)",
               "largest |E| / u_val over the loads", "<=", k, max(ratios), None,
               _kofn(ratios, lambda v: v <= k), reasons=tuple(vv), warnings=warn,
-              details=tuple(f"|E| / u_val, {s}" for s in beside(
+              details=flag + tuple(f"|E| / u_val, {s}" for s in beside(
                   "error_ratio", lambda v: f"{v:.2f}")) + tuple(
                   f"area metric, {s}" for s in beside("area_metric", lambda v: f"{v:.3g}")))]

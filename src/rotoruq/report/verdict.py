@@ -40,10 +40,11 @@ class VerdictLine:
     counts: dict[str, int] = field(default_factory=dict)
 
 
-def _validation_counts(res: StepResult) -> tuple[int, int, float, int] | None:
-    """(comparisons with |E| <= k u_val, comparisons, k, consistency checks left out) of a
-    ``validation`` step's record: every prediction, condition and response with a finite
-    ratio whose data the calibration did not use; None when unreadable."""
+def _validation_counts(res: StepResult) -> tuple[int, int, float, int, list[str]] | None:
+    """(comparisons with |E| <= k u_val, comparisons, k, consistency checks left out, the
+    extrapolated conditions in words) of a ``validation`` step's record: every prediction,
+    condition and response with a finite ratio whose data the calibration did not use;
+    None when unreadable."""
     from ..steps.validation import ValidationRecord
 
     try:
@@ -55,7 +56,10 @@ def _validation_counts(res: StepResult) -> tuple[int, int, float, int] | None:
     finite = np.isfinite(ratio)
     ratio = ratio[finite & ~cal]
     k = float(rec.coverage_factor)
-    return int(np.sum(ratio <= k)), int(ratio.size), k, int(np.sum(finite & cal))
+    far = [f"{rec.configuration} = {rec.conditions[j]:g} an extrapolation "
+           f"{rec.beyond(j):g} beyond the calibrated range"
+           for j in range(rec.conditions.size) if rec.beyond(j) > 0]
+    return int(np.sum(ratio <= k)), int(ratio.size), k, int(np.sum(finite & cal)), far
 
 
 def verdict_lines(studies: Studies, labels: Mapping[str, Mapping[str, str]] | None = None
@@ -81,7 +85,7 @@ def verdict_lines(studies: Studies, labels: Mapping[str, Mapping[str, str]] | No
     """
     labels = labels or {}
     lines = []
-    within = total = consistency = 0
+    within = total = consistency = extrapolations = 0
     per_step = []
     for study, steps in studies.items():
         for s in steps.values():
@@ -91,11 +95,14 @@ def verdict_lines(studies: Studies, labels: Mapping[str, Mapping[str, str]] | No
             if got is None:
                 per_step.append(f"{study} / {s.name}: record not readable")
                 continue
-            w, n, k, c = got
+            w, n, k, c, far = got
             within, total, consistency = within + w, total + n, consistency + c
+            extrapolations += len(far)
             per_step.append(f"{study} / {s.name}: {w} of {n} within {k:g} u_val"
-                            + (f" ({c} on calibration data left out)" if c else ""))
-    counts = {"within": within, "comparisons": total, "calibration_data": consistency}
+                            + (f" ({c} on calibration data left out)" if c else "")
+                            + (f" ({'; '.join(far)})" if far else ""))
+    counts = {"within": within, "comparisons": total, "calibration_data": consistency,
+              "extrapolations": extrapolations}
     if per_step:
         lines.append(VerdictLine("validation", "Validation", (
             f"{within} of {total} comparisons with data lie within their validation "

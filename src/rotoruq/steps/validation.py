@@ -36,7 +36,12 @@ from ..render.figures import Figure, FigureContext, axis_label
 from ..render.tables import StepTable, make_table
 from ..results import StepRecord, StepResult
 from ._common import saved_record
-from ._discrepancy import DiscrepancyRecord, is_discrepancy
+from ._discrepancy import (
+    DiscrepancyRecord,
+    extrapolation_distance,
+    extrapolation_note,
+    is_discrepancy,
+)
 from .base import DESIGNS, StepCheck, StepContext, StepType
 from .forward_check import posterior_draws
 from .options import SIGNATURE, Option, choice, integer, number, number_list, string, table
@@ -71,7 +76,9 @@ class ValidationRecord(StepRecord):
     data (a Bayes step's ``predict_at``), else 0.0. calibration_data : (c, m) 1.0 where the
     condition's measured response was data of the calibration the predictions come from
     (a consistency check, not counted as validation), else 0.0; empty in a record saved
-    before it existed. coverage_factor : k. n_sigma : the
+    before it existed. extrapolation : (c,) how far each condition lies outside the range of
+    the conditions with calibration data (configuration units; 0 inside or without
+    conditions; empty in an older record). coverage_factor : k. n_sigma : the
     reference criterion's threshold. level : of the band. u_num_source : where u_num came from.
     prediction_labels (p) : each prediction kind in the flat view ("" for the first, e.g.
     "without_discrepancy"); condition_labels (c) : each condition in it ("@<value>", ""
@@ -89,7 +96,7 @@ class ValidationRecord(StepRecord):
         "predictive": ("prediction", "sample", "condition", "response"),
         "data": ("row", "response"), "data_condition": ("row",), "n_repeats": ("condition",),
         "conditions": ("condition",), "held_out": ("condition",),
-        "calibration_data": ("condition", "response")}
+        "calibration_data": ("condition", "response"), "extrapolation": ("condition",)}
     FLAT = {"predictive": None, "data": None, "data_condition": None, "conditions": None,
             "calibration_data": None}
     LABELS = {"prediction": "prediction_labels", "condition": "condition_labels"}
@@ -128,6 +135,18 @@ class ValidationRecord(StepRecord):
     condition_labels: tuple[str, ...] = field(default=(), kw_only=True)
     calibration_data: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)),
                                          kw_only=True)
+    extrapolation: np.ndarray = field(default_factory=lambda: np.zeros(0), kw_only=True)
+
+    def beyond(self, j: int) -> float:
+        """How far condition ``j`` lies outside the calibrated conditions (0 inside, or in
+        a record saved before ``extrapolation``)."""
+        e = np.asarray(self.extrapolation, dtype=float)
+        return float(e[j]) if e.size == self.conditions.size and np.isfinite(e[j]) else 0.0
+
+    def calibrated_span(self) -> float:
+        """The range of the conditions with calibration data (0 with one or none)."""
+        rows = self.calibrated().any(axis=1)
+        return float(np.ptp(self.conditions[rows])) if rows.sum() > 1 else 0.0
 
     def calibrated(self) -> np.ndarray:
         """(c, m) bool: the comparisons on the calibration's own data (all False in a record
@@ -158,6 +177,10 @@ def _u_num(ctx: StepContext, points: Sequence[Mapping[str, float]]
 
         results, _, levels, _ = verify_points(ctx, verify, [dict(p) for p in points])
         u = np.concatenate([np.atleast_2d(r.u_num) for r in results]).astype(float)
+        if verify.get("direction") == "finer":
+            return u, (f"at each condition, of the grid run ({levels[-1]}) against two finer "
+                       f"ones ({' / '.join(levels[:-1])}): its Richardson error, or the three "
+                       "grids' spread where they do not converge monotonically")
         order = ("observed order" if verify.get("formal_order") is None
                  else f"assumed order {verify['formal_order']:g}")
         return u, (f"from the GCI at each condition (levels {' / '.join(levels)}, {order}, "
@@ -353,6 +376,10 @@ def run_validation(ctx: StepContext) -> StepResult:
     u_num, u_num_source = _u_num(ctx, points)
     kinds, pred, held, left_out = predictions_at(ctx, match, points)
     calibrated = _calibration_mask(ctx, data, which, held)
+    cal_at = np.asarray([points[j][match] for j in range(len(points))
+                         if match and calibrated[j].any()], dtype=float)
+    far = (extrapolation_distance([p[match] for p in points], cal_at) if cal_at.size
+           else np.zeros(len(points)))
     per_cond = [data[which == j] for j in range(len(points))]
     conds = [points[j][match] if match else j for j in range(len(points))]
     fields: dict[str, list] = {}
@@ -383,7 +410,7 @@ def run_validation(ctx: StepContext) -> StepResult:
         prediction_labels=tuple("" if p == 0 else kind.split(" (")[0].replace(" ", "_")
                                 for p, kind in enumerate(kinds)),
         condition_labels=tuple(f"@{c:g}" if match else "" for c in conds),
-        calibration_data=calibrated.astype(float),
+        calibration_data=calibrated.astype(float), extrapolation=far,
         **{k: np.stack(v) for k, v in fields.items()})
     arrays, meta = rec.parts()
     return StepResult(ctx.name, ctx.type, {}, arrays, meta={
@@ -397,7 +424,9 @@ def _fmt_cond(rec: ValidationRecord, j: int, m: int | None = None) -> str:
     text = f"{rec.configuration} = {rec.conditions[j]:g}" if rec.configuration else "-"
     if m is not None and rec.calibrated()[j, m]:
         return text + " (calibration data: consistency, not validation)"
-    return text + (" (held out)" if rec.held_out[j] else "")
+    far = rec.beyond(j)
+    return (text + (" (held out)" if rec.held_out[j] else "")
+            + (f" (extrapolation, {far:g} beyond the calibrated range)" if far > 0 else ""))
 
 
 def validation_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
@@ -510,6 +539,10 @@ def validation_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]
         w.append(f"{res.name}: {left['count']} of {left['count'] + rec.predictive.shape[1]} "
                  f"predictive draws left out: the model failed on them ({left.get('first')})")
     k = rec.coverage_factor
+    for j in range(rec.conditions.size):
+        if rec.beyond(j) > 0 and WITH in rec.predictions:
+            w.append(f"{res.name}: the predictions at {_fmt_cond(rec, j)} are "
+                     + extrapolation_note(rec.beyond(j), rec.calibrated_span()))
     for p, kind in enumerate(rec.predictions):
         for j in range(rec.conditions.size):
             for m, r in enumerate(rec.names_out):

@@ -799,6 +799,11 @@ def _laplace_std_without(post: _Posterior, d: int, tc, ts, zlo, zhi,
     return np.minimum(np.sqrt(np.diag(cov)) * ts, post.logprior.space.std.astype(float))
 
 
+#: Posterior/prior std from which a parameter counts as barely informed by the data (the
+#: report's threshold, rotoruq.report.diagnostics.STD_RATIO_MAX).
+_PRIOR_BOUND = 0.8
+
+
 def _identifiability_text(names_in, names_out, corr, confounded, ratio_prior, ratio_without,
                           discrepancy, threshold) -> str:
     if discrepancy is None:
@@ -809,9 +814,16 @@ def _identifiability_text(names_in, names_out, corr, confounded, ratio_prior, ra
         s = (f"{n}: posterior/prior std {ratio_prior[j]:.2f}, with/without discrepancy "
              f"{ratio_without[j]:.2f}, correlation with the {names_out[r]} discrepancy level "
              f"{corr[j, r]:+.2f}")
-        if confounded[j]:
-            s += (f" (|corr| >= {threshold:g}: confounded with the discrepancy; its value "
+        if confounded[j] and ratio_prior[j] >= _PRIOR_BOUND:
+            s += (f" (|corr| >= {threshold:g}: confounded with the discrepancy, and the data "
+                  f"barely narrow it (posterior/prior std >= {_PRIOR_BOUND:g}): its value "
                   "rests on the priors)")
+        elif confounded[j]:
+            # the data pin a combination of the parameter and the discrepancy's level: the
+            # parameter is narrow, but its value moves with the level the discrepancy takes
+            s += (f" (|corr| >= {threshold:g}: traded against the discrepancy's level; the "
+                  f"data narrow it to {ratio_prior[j]:.2f} of its prior std only jointly with "
+                  "that level, so its value is as uncertain as the discrepancy's level)")
         parts.append(s)
     return "; ".join(parts)
 

@@ -15,7 +15,7 @@ import pytest
 import rotoruq as rq
 from rotoruq.results import load_step
 from rotoruq.steps._discrepancy import DiscrepancyRecord
-from rotoruq.steps.validation import ValidationRecord
+from rotoruq.steps.validation import WITHOUT, ValidationRecord
 from rotoruq.steps.verification import VerificationRecord
 
 HEIGHTS = [4.0, 3.0, 2.0, 1.0]
@@ -139,7 +139,8 @@ def test_validation_record_is_the_vv20_budget(run_dir):
             # on calibration data the fit's residual, u_num^2 + u_sys^2 - std(S)^2
             e = pred.mean(axis=0) - data
             var_s = pred.std(axis=0, ddof=1) ** 2
-            u_val = np.sqrt(u_num**2 + np.where(cal, np.maximum(u_sys**2 - var_s, 0.0),
+            fit = cal & (rec.predictions[p] != WITHOUT)   # the model alone was not fit
+            u_val = np.sqrt(u_num**2 + np.where(fit, np.maximum(u_sys**2 - var_s, 0.0),
                                                 u_sys**2 + var_s))
             np.testing.assert_allclose(rec.comparison_error[p], e, rtol=1e-12, atol=1e-12)
             np.testing.assert_allclose(rec.u_val[p], u_val, rtol=1e-12)
@@ -149,7 +150,7 @@ def test_validation_record_is_the_vv20_budget(run_dir):
             ref = rq.validate([pred[:, j] for j in range(4)],
                               [rec.data[rec.data_condition == j] for j in range(4)],
                               u_num=u_num, u_systematic=u_sys, names_out=rec.names_out,
-                              conditions=HEIGHTS, calibration=rec.calibrated())
+                              conditions=HEIGHTS, calibration=fit)
             for f in ("comparison_error", "u_val", "u_input", "u_data", "error_ratio",
                       "area_metric", "relative_area_metric", "sigma_distance"):
                 np.testing.assert_allclose(getattr(rec, f)[p], getattr(ref, f), rtol=1e-12,

@@ -16,8 +16,10 @@ u_input is the spread of those predictions (the propagated input uncertainty, no
 noise). A comparison on data the calibration behind the predictions used (the ``from`` step's
 data, or its own ``from``'s, matched by value, not by data-set name) is a consistency check,
 not a validation: it is labelled so (``calibration_data``), its u_val is the fit's residual
-uncertainty sqrt(u_num^2 + u_D^2 - u_input^2) (:func:`rotoruq.methods.validation.validate`),
-and the run's verdict does not count it; u_D = sqrt(s^2 / n + u_systematic^2) from the repeats of each condition (s their
+uncertainty sqrt(u_num^2 + u_D^2 - u_input^2) (:func:`rotoruq.methods.validation.validate`;
+for the prediction that was fit: with the discrepancy, or the calibration's own; the model
+alone of a discrepancy calibration keeps the full budget), and the run's verdict does not
+count it; u_D = sqrt(s^2 / n + u_systematic^2) from the repeats of each condition (s their
 sample std) and the stated ``u_systematic``; u_num a number (or one per response), the GCI
 of the model at each condition (``verification = { ratio = 2, levels = 2, formal_order = 2 }``,
 the options of the ``verification`` step type) or the ``u_num`` of an earlier
@@ -389,7 +391,9 @@ def run_validation(ctx: StepContext) -> StepResult:
         res = validate([pred[p, :, j] for j in range(len(points))], per_cond, u_num=u_num,
                        u_systematic=u_sys, names_out=ctx.responses, conditions=conds,
                        coverage_factor=o["coverage_factor"], n_sigma=o["n_sigma"],
-                       calibration=calibrated)
+                       # the model alone of a discrepancy calibration is not what was fit to
+                       # the data: its comparison keeps the full budget (still not counted)
+                       calibration=calibrated if kinds[p] != WITHOUT else False)
         for f in ("simulation", "data_mean", "comparison_error", "u_num", "u_input", "u_data",
                   "u_val", "lower", "upper", "error_ratio", "area_metric",
                   "relative_area_metric", "sigma_distance"):

@@ -371,3 +371,16 @@ def test_finer_direction_needs_three_levels():
     with pytest.raises(TypeError, match="levels = 3"):
         verification_option({"levels": 2, "formal_order": 2.0, "direction": "finer"})
     assert verification_option({"levels": 3, "direction": "finer"})["direction"] == "finer"
+
+
+def test_a_fit_that_interpolates_its_datum_is_not_judged():
+    """u_input within Monte Carlo error of u_D on calibration data: the residual's
+    uncertainty u_D^2 - u_input^2 is not resolved, so u_val and |E| / u_val are NaN (not a
+    ratio blown up by a zero floor); a resolved one keeps its number."""
+    rng = np.random.default_rng(7)
+    z = _standardized(rng.standard_normal(1000))
+    pred = [np.column_stack([0.167 * z, 0.5 * z])]           # u_input 0.167 and 0.5
+    res = validate(pred, np.array([[0.0106, 0.3]]), u_systematic=[0.167, 1.0],
+                   calibration=True)
+    assert np.isnan(res.u_val[0, 0]) and np.isnan(res.error_ratio[0, 0])
+    np.testing.assert_allclose(res.u_val[0, 1], np.sqrt(1.0 - 0.25), rtol=1e-12)

@@ -12,7 +12,10 @@ predictive samples with the measured repeats:
   the comparison is a consistency check of the fit, not a validation: S and D share the
   data's noise, cov(S, D) = u_input^2 (exact for a linear-Gaussian calibration, any prior),
   so u_val = sqrt(u_num^2 + u_D^2 - u_input^2), the residual's uncertainty, not the sum
-  that counts the noise twice. The model error delta_model lies in
+  that counts the noise twice. Where u_D^2 - u_input^2 is below three Monte Carlo standard
+  errors of u_input^2 (3 sqrt(2 / (n - 1)) u_input^2, n predictive samples) the fit
+  interpolates the datum and the residual's uncertainty is not resolved: u_val and |E| / u_val
+  are NaN there (not judged). The model error delta_model lies in
   E +- k u_val; k = 2 by default (about 95 % coverage for a normal error; 1.96 is the exact
   normal 95 % factor, give ``coverage_factor=1.96`` for it). |E| / u_val says whether the model
   error is resolved (> k) or hidden in the uncertainty (< k).
@@ -84,7 +87,8 @@ class ValidationResult:
     u_num, u_input, u_data, u_val : the uncertainty budget (response units); u_input is the
         predictive samples' standard deviation (ddof = 1), u_data = sqrt(s^2/n + u_sys^2).
     calibration : bool, True where the data were the calibration's (a consistency check,
-        u_val = sqrt(u_num^2 + max(u_data^2 - u_input^2, 0)), see the module).
+        u_val = sqrt(u_num^2 + max(u_data^2 - u_input^2, 0)), NaN where the Monte Carlo
+        error of u_input does not resolve it, see the module).
     coverage_factor : k.
     lower, upper : E -+ k u_val.
     error_ratio : |E| / u_val.
@@ -385,6 +389,16 @@ def validate(
     cal = _table("calibration", np.asarray(calibration, dtype=float), shape) > 0
     ce = comparison_error(s_pred, d_mean, u_num=un, u_input=std_pred, u_data=u_data,
                           coverage_factor=coverage_factor, calibration=cal)
+    # a fit's residual variance u_D^2 - u_input^2 within Monte Carlo error of u_input^2: the
+    # subtraction does not resolve it (the fit interpolates the datum), so it is not judged
+    mc = 3.0 * np.sqrt(2.0 / (n_samples[:, None] - 1.0)) * std_pred**2
+    unresolved = cal & (u_data**2 - std_pred**2 < mc)
+    if unresolved.any():
+        nan = np.where(unresolved, np.nan, 1.0)
+        ce = ComparisonError(
+            comparison_error=ce.comparison_error, u_val=ce.u_val * nan,
+            coverage_factor=ce.coverage_factor, lower=ce.lower * nan, upper=ce.upper * nan,
+            error_ratio=ce.error_ratio * nan, calibration=ce.calibration)
     area = np.array([[area_metric(pred[c][:, j], obs[c][:, j]) for j in range(n_resp)]
                      for c in range(n_cond)])
     with np.errstate(divide="ignore", invalid="ignore"):

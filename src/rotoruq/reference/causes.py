@@ -161,6 +161,14 @@ def sensitivity_causes(sens: StepResult, steps: Steps, response: str, claimed: s
         out.append(f"+1 std of each input changes {response} by "
                    + ", ".join(f"{eff[p]:+.3g} ({_lab(labels, p)})" for p in order)
                    + f" (least-squares plane through the {n} saved samples of step {step})")
+        total = sum(v * v for v in eff.values() if math.isfinite(v))
+        if total > 0:
+            # a linear effect's share of the variance: what ranks the main indices
+            out.append("the ranking is the size of each input's effect, not its sign: the "
+                       "squared effects' shares "
+                       + ", ".join(f"{_lab(labels, p)} {eff[p] ** 2 / total:.2f} "
+                                   f"(S {main.get(p, math.nan):.2f})" for p in order[:3])
+                       + " give the main indices' order")
     lift = [p for p in inputs if p.startswith("cla_")]
     span = negative_pitch_span(values, sens.meta.get("fixed") or {})
     if lift and span is not None:
@@ -172,7 +180,8 @@ def sensitivity_causes(sens: StepResult, steps: Steps, response: str, claimed: s
             neg = [_lab(labels, p) for p in sorted(lift, key=lambda p: signs.get(p, 0.0))
                    if signs.get(p, 0.0) < 0]
             carried = (f": there the angle of attack is negative, so a steeper lift slope "
-                       f"lowers the lift ({', '.join(neg)} lower the {response})" if neg else "")
+                       f"lowers the lift ({', '.join(neg)} lower the {response}): this sets "
+                       "the sign of their effect, not its size" if neg else "")
             out.append(
                 f"blade pitch theta(r) = {span['collective']:.3g} deg "
                 f"{span['twist']:+.3g} deg (r - {span['root']:.3g} m) / "

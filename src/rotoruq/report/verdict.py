@@ -59,7 +59,7 @@ def _validation_counts(res: StepResult) -> tuple[int, int, float, int, list[str]
     far = [f"{rec.configuration} = {rec.conditions[j]:g} an extrapolation "
            f"{rec.beyond(j):g} beyond the calibrated range"
            for j in range(rec.conditions.size) if rec.beyond(j) > 0]
-    return int(np.sum(ratio <= k)), int(ratio.size), k, int(np.sum(finite & cal)), far
+    return int(np.sum(ratio <= k)), int(ratio.size), k, int(np.sum(cal)), far
 
 
 def verdict_lines(studies: Studies, labels: Mapping[str, Mapping[str, str]] | None = None

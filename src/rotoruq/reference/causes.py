@@ -240,6 +240,7 @@ def sweep_growth(base: StepResult | None, res: StepResult, resp: Sequence[str], 
     mean1 = rec.prediction(joint)[0]
     parts: list[str] = []
     weaker: list[bool] = []
+    weaker_abs: list[bool] = []  # loads near zero at 4R: judged only when no other is
     for lab, r in zip(rows, resp, strict=True):
         m0, m1 = ref.at(mean0, "@4", r), rec.at(mean1, at, r)
         d0, d1 = ref.at(ref.measured, "@4", r), rec.at(rec.measured, at, r)
@@ -252,7 +253,7 @@ def sweep_growth(base: StepResult | None, res: StepResult, resp: Sequence[str], 
             if abs(d1 - d0) > s0:
                 parts.append(f"{lab} {m1 - m0:+.3g} against the test's {d1 - d0:+.3g} "
                              "(absolute: the 4R value is near zero)")
-                weaker.append(abs(m1 - m0) < abs(d1 - d0))
+                weaker_abs.append(abs(m1 - m0) < abs(d1 - d0))
             continue
         if abs(d1 / d0 - 1) < 0.02:
             continue
@@ -261,6 +262,7 @@ def sweep_growth(base: StepResult | None, res: StepResult, resp: Sequence[str], 
         weaker.append(abs(m1 / m0 - 1) < abs(d1 / d0 - 1))
     if not parts:
         return ""
+    weaker = weaker or weaker_abs
     what = ("weaker than" if all(weaker) else "stronger than" if not any(weaker)
             else "unlike")
     return (f"from 4R to {at[1:]}R the model's loads change " + ", ".join(parts)

@@ -26,7 +26,7 @@ u_val, |E| / u_val and the area metric of the predictions of the calibration on 
 with the discrepancy (``with_discrepancy``), of the same posterior's model alone
 (``without_discrepancy_same_posterior``), of the same calibration without a discrepancy
 (``calibrated_without_discrepancy``) and of the thesis's 4R-only calibration
-(``thesis_4r_only``, joint posterior predictive); and the coverage of the held-out test:
+(``thesis_calibration``: its nine inputs and its 4R loads, joint posterior predictive); and the coverage of the held-out test:
 whether each 1R load lies inside the 90 % band of a new measurement, with and without the
 discrepancy, and the fraction of the 1R loads covered.
 
@@ -132,7 +132,7 @@ def heldout(results: Path | None = None) -> dict:
     sources = {"with_discrepancy": ("validate_heldout", 0),
                "without_discrepancy_same_posterior": ("validate_heldout", 1),
                "calibrated_without_discrepancy": ("validate_no_discrepancy", 0),
-               "thesis_4r_only": ("validate_4r", 0)}
+               "thesis_calibration": ("validate_thesis", 0)}
     for key, (step, p) in sources.items():
         rec = ValidationRecord.read(load_step(results / "steps" / step))
         j = _at(rec, HELD_OUT)

@@ -254,3 +254,41 @@ def test_noise_pooled_from_repeats():
                                      discrepancy=Discrepancy(kind="polynomial", degree=1))
     pooled = np.sqrt((0.04 + 0.04 + 0.01 + 0.01) / (6 - 2))
     assert res.noise_std[0] == pytest.approx(pooled)
+
+
+def test_the_identifiability_sentence_agrees_with_its_numbers():
+    """A parameter correlated with the discrepancy's level is said to rest on its prior only
+    when the data barely narrow it (posterior/prior std >= 0.8); one the data narrow (issue
+    35: 0.08) is said to trade against the level, with its ratio."""
+    from rotoruq.methods.mcmc.discrepancy import _identifiability_text
+
+    corr = np.array([[-0.96], [-0.97]])
+    text = _identifiability_text(("a", "b"), ("thrust",), corr, np.array([True, True]),
+                                 np.array([0.08, 0.93]), np.array([5.0, 1.1]), Discrepancy(),
+                                 0.5)
+    a, b = text.split("; b: ")
+    assert "posterior/prior std 0.08" in a and "rests on the priors" not in a
+    assert "traded against the discrepancy's level" in a and "to 0.08 of its prior std" in a
+    assert b.startswith("posterior/prior std 0.93") and "rests on the priors" in b
+
+
+def test_the_extrapolation_flag_quotes_the_coverage_benchmark():
+    """The warning of a prediction beyond the calibrated configurations gives its distance
+    and the coverage benchmark's numbers, read from the JSON it wrote (and how far short of
+    85 % when it is)."""
+    import json
+    from importlib import resources
+
+    from rotoruq.steps._discrepancy import extrapolation_distance, extrapolation_note
+
+    np.testing.assert_array_equal(extrapolation_distance([1.0, 2.5, 4.0, 5.0], [2.0, 3.0, 4.0]),
+                                  [1.0, 0.0, 0.0, 1.0])
+    cov = json.loads(resources.files("rotoruq.data").joinpath(
+        "discrepancy_coverage.json").read_text())
+    vals = [p["coverage"] for p in cov["problems"].values()]
+    assert len(vals) >= 2 and cov["replications"] >= 100
+    note = extrapolation_note(1.0, 2.0)
+    assert note.startswith("an extrapolation, 1 beyond the calibrated range (0.5 x the "
+                           "calibrated range)")
+    assert f"covered the truth {min(vals):.2f} to {max(vals):.2f} of the time" in note
+    assert ("short of 0.85" in note) == (min(vals) < 0.85)

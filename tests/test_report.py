@@ -36,6 +36,42 @@ from test_runner import STUDY, linear_factory
 OPS = {"<=": operator.le, ">=": operator.ge, ">": operator.gt}
 
 
+def assert_reasons_recomputed(claim_dicts) -> None:
+    """Issue 35's reasons against numbers recomputed here from the claim's own figures: the
+    Bo105 ranking's squared-effect shares from the "+1 std" effects it lists, a posterior
+    mean's miss in posterior std devs from table 3.9's numbers in the sentence, the 4R
+    consistency check not counted, the held-out 1R flagged as an extrapolation of 1 H/R, and
+    no calibration diagnostic among the 2R/1R reasons where 4R fits."""
+    by = {c["key"]: c for c in claim_dicts}
+    sens = by["bo105_sens_top"]["reasons"]
+    effects = next(r for r in sens if r.startswith("+1 std of each input"))
+    eff = {lab: float(v) for v, lab in re.findall(
+        r"([+-][\d.e+-]+) \(((?:[^()]|\([^()]*\))+)\)", effects.split(" (least-squares")[0])}
+    total = sum(v * v for v in eff.values())
+    ranking = next(r for r in sens if r.startswith("the ranking is the size"))
+    for lab, v in sorted(eff.items(), key=lambda kv: -abs(kv[1]))[:3]:
+        assert f"{lab} {v * v / total:.2f} (S " in ranking, (lab, ranking)
+    assert not any("sets the sign" in r and "ranking" in r for r in sens)
+    judged = 0
+    for r in by["bo105_bayes_means"]["reasons"]:
+        m = re.match(r"(.+): posterior mean ([\d.]+) % from the true mean, ([\d.]+) posterior "
+                     r"std devs \(std ([\d.e+-]+)", r)
+        if m:
+            z = float(m.group(3))
+            assert ("within the posterior's own uncertainty" in r) == (z <= 2), r
+            judged += 1
+    assert judged >= 1
+    c4 = by["gvpm_vv20_4R"]
+    assert c4["consistency"] and not c4["counted"] and "calibration data" in c4["text"]
+    for key in ("heldout_1r_band", "heldout_1r_vv20"):
+        assert "an extrapolation, 1 beyond the calibrated range" in by[key]["text"]
+        assert any("covered the truth" in d for d in by[key]["details"])
+    for key in ("gvpm_within_1std_2R_joint", "gvpm_within_1std_1R_joint"):
+        reasons = by[key]["reasons"]
+        if any(r.startswith("at 4R, the calibration's data") for r in reasons):
+            assert not any("piles up" in r or "barely inform" in r for r in reasons)
+
+
 def assert_claims_truthful(claim_dicts) -> None:
     """The check of issue 16: a claim reads "holds" (with or without a warning) exactly when
     its computed value passes its threshold; a claim that does not hold gives a reason."""
@@ -533,6 +569,7 @@ def test_reproduce_quick(tmp_path, capsys):
     from test_reference_app import assert_same_claims
 
     assert_same_claims(data)
+    assert_reasons_recomputed(data)
     keys = {c["key"] for c in data}
     for where in ("4R", "2R", "1R"):  # the 4R and IGE claims under both propagations
         assert {f"gvpm_within_1std_{where}_independent", f"gvpm_within_1std_{where}_joint"} \
@@ -541,8 +578,11 @@ def test_reproduce_quick(tmp_path, capsys):
     # the V&V 20 verdicts with the thesis's criterion beside them, and the held-out 1R claims
     by = {c["key"]: c for c in data}
     for where in ("4R", "2R", "1R"):
-        assert by[f"gvpm_vv20_{where}"]["counted"] and by[f"gvpm_vv20_{where}"]["value"]
+        assert by[f"gvpm_vv20_{where}"]["value"]
         assert by[f"gvpm_within_1std_{where}_joint"]["beside"] == f"gvpm_vv20_{where}"
+        # 4R is the calibration's own data: a consistency check, not counted (issue 35)
+        assert by[f"gvpm_vv20_{where}"]["counted"] == (where != "4R")
+        assert by[f"gvpm_vv20_{where}"]["consistency"] == (where == "4R")
     assert {"heldout_1r_band", "heldout_1r_vv20"} <= keys
     vv = page[page.index("id='vv'"):page.index("id='provenance'")]
     for step in ("experiment / validate", "heldout / validate_heldout",

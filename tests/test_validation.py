@@ -302,3 +302,85 @@ def test_verification_u_num_per_condition_feeds_validate():
     # two repeats differing by d: s = d / sqrt(2), s / sqrt(2) = d / 2
     u_d = np.array([[np.hypot(0.02, 0.005)], [np.hypot(0.01, 0.005)]])
     np.testing.assert_allclose(res.u_val, np.sqrt(ver.u_num**2 + 0.01**2 + u_d**2), rtol=1e-12)
+
+
+@pytest.mark.parametrize("prior_std", [0.3, 3.0, 30.0])
+def test_calibration_data_comparison_is_the_fits_residual_not_the_noise_twice(prior_std):
+    """A linear-Gaussian calibration, truth drawn from its prior, compared on its own data:
+    Var(S - D) = R - H P H^T in closed form (P the posterior covariance, any prior), so E /
+    u_val with the calibration budget is standard normal; the validation budget (u_input
+    added to u_D) counts the noise twice and its ratio's spread falls well below 1."""
+    rng = np.random.default_rng(35)
+    h = np.array([[1.0, 4.0], [1.0, 3.0], [1.0, 2.0]])        # 3 conditions, 2 inputs
+    sigma, p0 = 0.86, prior_std**2 * np.eye(2)
+    post = np.linalg.inv(h.T @ h / sigma**2 + np.linalg.inv(p0))
+    chol = np.linalg.cholesky(post)
+    z_cal, z_val = [], []
+    for _ in range(400):
+        theta = rng.multivariate_normal(np.zeros(2), p0)
+        d = h @ theta + sigma * rng.standard_normal(3)
+        mean = post @ h.T @ d / sigma**2
+        draws = mean + rng.standard_normal((4000, 2)) @ chol.T
+        pred = (draws @ h.T)[:, :, None].transpose(1, 0, 2)       # (3, 4000, 1)
+        kw = dict(u_systematic=sigma)
+        cal = validate(pred, d[:, None], calibration=True, **kw)
+        val = validate(pred, d[:, None], **kw)
+        z_cal.append(cal.comparison_error[:, 0] / cal.u_val[:, 0])
+        z_val.append(val.comparison_error[:, 0] / val.u_val[:, 0])
+        assert cal.calibration.all() and not val.calibration.any()
+    z_cal, z_val = np.concatenate(z_cal), np.concatenate(z_val)
+    # 1200 draws of a standard normal: the std within 0.08 (about 4 standard errors)
+    assert abs(z_cal.std() - 1.0) < 0.08
+    assert abs(np.mean(np.abs(z_cal) <= 2.0) - 0.954) < 0.03
+    assert z_val.std() < 0.85
+
+
+def test_u_num_from_finer_grids_covers_the_fine_solve_error_at_every_validated_condition():
+    """At every height and load the reproduction validates (4R, 3R, 2R, 1R; thrust, roll,
+    pitch, power), at the nominal inputs and at a second point: u_num of the grid the
+    studies run (10 stations x 36 azimuth steps), from it and two finer grids (direction =
+    "finer"), covers its actual error against a solve 16 times finer (160 x 576); the
+    two-grid GCI with the assumed order does not (issue 35: 1R power 0.404 W against an
+    error of 0.533 W, 4R roll 1.3e-4 against 1.3e-3 N m)."""
+    from rotoruq.rotor.discretization import RotorDiscretization
+    from rotoruq.steps.verification import production_u_num
+
+    names = ["collective_deg", "lateral_deg", "longitudinal_deg", "k_pitch_link"]
+    x = np.array([[5.4, -1.0, -1.0, 15.0], [6.2, 0.5, -1.5, 11.0]])
+    missed = 0
+    for h, om in zip([4.0, 3.0, 2.0, 1.0], [224.6375, 224.5718, 224.5443, 223.0457],
+                     strict=True):
+        grids = RotorDiscretization("gvpm", names_in=names,
+                                    names_out=["thrust", "roll", "pitch", "power"],
+                                    fixed={"omega": om, "height_over_radius": h})
+        # the steps' convention: level k coarser by 2^k, negative levels finer
+        three = production_u_num(verify_discretization(lambda k: grids(-k), [-2, -1, 0], x,
+                                                       ratio=2.0))
+        two = verify_discretization(lambda k: grids(-k), [0, 1], x, ratio=2.0,
+                                    formal_order=2.0)
+        err = np.abs(three.values[2] - np.asarray(rq.evaluate(grids(4), x).values))
+        np.testing.assert_array_equal(three.values[2], two.values[0])  # the same grid
+        assert np.all(three.u_num >= err), (h, three.u_num, err)
+        missed += int(np.sum(two.u_num < err))
+    assert missed >= 2  # what the two-grid u_num missed, for the record
+
+
+def test_finer_direction_needs_three_levels():
+    from rotoruq.steps.verification import verification_option
+
+    with pytest.raises(TypeError, match="levels = 3"):
+        verification_option({"levels": 2, "formal_order": 2.0, "direction": "finer"})
+    assert verification_option({"levels": 3, "direction": "finer"})["direction"] == "finer"
+
+
+def test_a_fit_that_interpolates_its_datum_is_not_judged():
+    """u_input within Monte Carlo error of u_D on calibration data: the residual's
+    uncertainty u_D^2 - u_input^2 is not resolved, so u_val and |E| / u_val are NaN (not a
+    ratio blown up by a zero floor); a resolved one keeps its number."""
+    rng = np.random.default_rng(7)
+    z = _standardized(rng.standard_normal(1000))
+    pred = [np.column_stack([0.167 * z, 0.5 * z])]           # u_input 0.167 and 0.5
+    res = validate(pred, np.array([[0.0106, 0.3]]), u_systematic=[0.167, 1.0],
+                   calibration=True)
+    assert np.isnan(res.u_val[0, 0]) and np.isnan(res.error_ratio[0, 0])
+    np.testing.assert_allclose(res.u_val[0, 1], np.sqrt(1.0 - 0.25), rtol=1e-12)

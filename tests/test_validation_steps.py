@@ -15,7 +15,7 @@ import pytest
 import rotoruq as rq
 from rotoruq.results import load_step
 from rotoruq.steps._discrepancy import DiscrepancyRecord
-from rotoruq.steps.validation import ValidationRecord
+from rotoruq.steps.validation import WITHOUT, ValidationRecord
 from rotoruq.steps.verification import VerificationRecord
 
 HEIGHTS = [4.0, 3.0, 2.0, 1.0]
@@ -128,12 +128,24 @@ def test_validation_record_is_the_vv20_budget(run_dir):
         u_num = (np.array([U_NUM["thrust"], U_NUM["power"]]) if name == "val_4r"
                  else rec.u_num[0])  # val_disc: the GCI per height (checked below)
         u_sys = np.array([U_SYS["thrust"], U_SYS["power"]])
+        # the calibrations' own data, found by value: 4R for the 4R-only one, 4R-2R for the
+        # one with a discrepancy (1R held out)
+        cal = np.array(HEIGHTS)[:, None] >= (4.0 if name == "val_4r" else 2.0)
+        np.testing.assert_array_equal(rec.calibrated(), np.repeat(cal, 2, axis=1))
         for p in range(len(rec.predictions)):
             pred = rec.predictive[p]                    # (n, c, m)
             data = np.array([rec.data[rec.data_condition == j][0] for j in range(4)])
-            # by hand: E = mean(S) - D, u_val^2 = u_num^2 + std(S)^2 + u_sys^2 (one repeat)
+            # by hand: E = mean(S) - D, u_val^2 = u_num^2 + std(S)^2 + u_sys^2 (one repeat);
+            # on calibration data the fit's residual, u_num^2 + u_sys^2 - std(S)^2
             e = pred.mean(axis=0) - data
-            u_val = np.sqrt(u_num**2 + pred.std(axis=0, ddof=1) ** 2 + u_sys**2)
+            var_s = pred.std(axis=0, ddof=1) ** 2
+            fit = cal & (rec.predictions[p] != WITHOUT)   # the model alone was not fit
+            u_val = np.sqrt(u_num**2 + np.where(fit, np.maximum(u_sys**2 - var_s, 0.0),
+                                                u_sys**2 + var_s))
+            # not judged where the residual variance is within 3 Monte Carlo standard
+            # errors of var_s (n predictive samples)
+            n = pred.shape[0]
+            u_val[fit & (u_sys**2 - var_s < 3 * np.sqrt(2 / (n - 1)) * var_s)] = np.nan
             np.testing.assert_allclose(rec.comparison_error[p], e, rtol=1e-12, atol=1e-12)
             np.testing.assert_allclose(rec.u_val[p], u_val, rtol=1e-12)
             np.testing.assert_allclose(rec.lower[p], e - 2.0 * u_val, rtol=1e-12, atol=1e-12)
@@ -142,12 +154,35 @@ def test_validation_record_is_the_vv20_budget(run_dir):
             ref = rq.validate([pred[:, j] for j in range(4)],
                               [rec.data[rec.data_condition == j] for j in range(4)],
                               u_num=u_num, u_systematic=u_sys, names_out=rec.names_out,
-                              conditions=HEIGHTS)
+                              conditions=HEIGHTS, calibration=fit)
             for f in ("comparison_error", "u_val", "u_input", "u_data", "error_ratio",
                       "area_metric", "relative_area_metric", "sigma_distance"):
                 np.testing.assert_allclose(getattr(rec, f)[p], getattr(ref, f), rtol=1e-12,
                                            atol=1e-10, err_msg=f)
             np.testing.assert_array_equal(rec.within_n_sigma[p], ref.within_n_sigma)
+
+
+@pytest.mark.slow
+def test_calibration_data_are_not_counted_as_validation(run_dir):
+    """The run's verdict counts only the held-out comparisons (1R, 2 predictions x 2 loads
+    for the discrepancy step, 2 loads for the 4R-only one below 4R), the rest apart."""
+    from rotoruq.report.verdict import verdict_lines
+    from rotoruq.results import load_results
+
+    steps = load_results(run_dir)
+    line = verdict_lines({"vv": steps})[0]
+    ratios = []
+    for name in ("val_4r", "val_disc"):
+        rec = ValidationRecord.read(steps[name])
+        free = ~rec.calibrated()
+        ratios += [float(v) for v in rec.error_ratio[:, free].ravel()]
+    assert line.counts["comparisons"] == len(ratios) == 3 * 2 + 2 * 2
+    assert line.counts["within"] == sum(v <= 2.0 for v in ratios)
+    assert line.counts["calibration_data"] == 1 * 2 + 2 * 3 * 2
+    assert "consistency checks" in line.text
+    page = (run_dir / "report" / "index.html")
+    if page.is_file():
+        assert "calibration data: consistency, not validation" in page.read_text()
 
 
 @pytest.mark.slow

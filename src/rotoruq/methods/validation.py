@@ -8,7 +8,14 @@ predictive samples with the measured repeats:
   **validation uncertainty** u_val = sqrt(u_num^2 + u_input^2 + u_D^2): u_num the numerical
   (discretization) uncertainty, u_input the standard deviation of the predictive samples (the
   propagated input uncertainty), u_D = sqrt(s^2 / n_repeats + u_systematic^2) the measurement's
-  (s the repeats' sample standard deviation). The model error delta_model lies in
+  (s the repeats' sample standard deviation). On data the calibration used (``calibration``)
+  the comparison is a consistency check of the fit, not a validation: S and D share the
+  data's noise, cov(S, D) = u_input^2 (exact for a linear-Gaussian calibration, any prior),
+  so u_val = sqrt(u_num^2 + u_D^2 - u_input^2), the residual's uncertainty, not the sum
+  that counts the noise twice. Where u_D^2 - u_input^2 is below three Monte Carlo standard
+  errors of u_input^2 (3 sqrt(2 / (n - 1)) u_input^2, n predictive samples) the fit
+  interpolates the datum and the residual's uncertainty is not resolved: u_val and |E| / u_val
+  are NaN there (not judged). The model error delta_model lies in
   E +- k u_val; k = 2 by default (about 95 % coverage for a normal error; 1.96 is the exact
   normal 95 % factor, give ``coverage_factor=1.96`` for it). |E| / u_val says whether the model
   error is resolved (> k) or hidden in the uncertainty (< k).
@@ -60,6 +67,8 @@ class ComparisonError:
     coverage_factor : k of the interval E +- k u_val.
     lower, upper : E - k u_val, E + k u_val: the interval holding the model error.
     error_ratio : |E| / u_val (inf where u_val = 0 and E != 0).
+    calibration : True where D was the calibration's data (a consistency check; u_val =
+        sqrt(u_num^2 + max(u_data^2 - u_input^2, 0))).
     """
 
     comparison_error: np.ndarray
@@ -68,6 +77,7 @@ class ComparisonError:
     lower: np.ndarray
     upper: np.ndarray
     error_ratio: np.ndarray
+    calibration: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,6 +93,9 @@ class ValidationResult:
     comparison_error : E = S - D.
     u_num, u_input, u_data, u_val : the uncertainty budget (response units); u_input is the
         predictive samples' standard deviation (ddof = 1), u_data = sqrt(s^2/n + u_sys^2).
+    calibration : bool, True where the data were the calibration's (a consistency check,
+        u_val = sqrt(u_num^2 + max(u_data^2 - u_input^2, 0)), NaN where the Monte Carlo
+        error of u_input does not resolve it, see the module).
     coverage_factor : k.
     lower, upper : E -+ k u_val.
     error_ratio : |E| / u_val.
@@ -116,6 +129,7 @@ class ValidationResult:
     within_n_sigma: np.ndarray
     n_samples: np.ndarray
     n_repeats: np.ndarray
+    calibration: np.ndarray
 
 
 def _nonnegative(name: str, value: npt.ArrayLike) -> np.ndarray:
@@ -135,6 +149,7 @@ def comparison_error(
     u_input: npt.ArrayLike = 0.0,
     u_data: npt.ArrayLike = 0.0,
     coverage_factor: float = 2.0,
+    calibration: npt.ArrayLike = False,
 ) -> ComparisonError:
     """ASME V&V 20 comparison error E = S - D with its validation uncertainty.
 
@@ -147,6 +162,10 @@ def comparison_error(
         data (response units), broadcast with S and D.
     coverage_factor : float, > 0
         k of the interval E +- k u_val (2: about 95 % for a normal model error).
+    calibration : array_like of bool
+        True where D is data the calibration behind S used: u_input is then the part of
+        the data's noise the fit took in and is subtracted, u_val = sqrt(u_num^2 +
+        max(u_data^2 - u_input^2, 0)) (see the module).
 
     Returns
     -------
@@ -157,6 +176,8 @@ def comparison_error(
     >>> ce = comparison_error(10.0, 12.0, u_num=0.3, u_input=0.4, u_data=1.2)
     >>> float(ce.comparison_error), float(ce.u_val)
     (-2.0, 1.3)
+    >>> float(comparison_error(10.0, 12.0, u_input=0.6, u_data=1.0, calibration=True).u_val)
+    0.8
     """
     k = float(coverage_factor)
     if not np.isfinite(k) or k <= 0:
@@ -164,19 +185,24 @@ def comparison_error(
     s, d = np.asarray(simulation, dtype=float), np.asarray(data_mean, dtype=float)
     un, ui, ud = (_nonnegative(n, v) for n, v in
                   (("u_num", u_num), ("u_input", u_input), ("u_data", u_data)))
+    cal = np.asarray(calibration, dtype=bool)
     try:
-        s, d, un, ui, ud = np.broadcast_arrays(s, d, un, ui, ud)
+        s, d, un, ui, ud, cal = np.broadcast_arrays(s, d, un, ui, ud, cal)
     except ValueError:
         raise ParameterError(
-            f"simulation {s.shape}, data_mean {d.shape}, u_num {un.shape}, u_input {ui.shape} "
-            f"and u_data {ud.shape} must broadcast to one shape") from None
+            f"simulation {s.shape}, data_mean {d.shape}, u_num {un.shape}, u_input {ui.shape}, "
+            f"u_data {ud.shape} and calibration {cal.shape} must broadcast to one shape"
+        ) from None
     e = s - d
-    u_val = np.sqrt(un**2 + ui**2 + ud**2)
+    # a fit's residual: S took in part of D's noise (cov(S, D) = u_input^2), so it is
+    # subtracted rather than added; a nonlinear fit may pass 0, hence the floor
+    u_val = np.sqrt(un**2 + np.where(cal, np.maximum(ud**2 - ui**2, 0.0), ui**2 + ud**2))
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(u_val > 0, np.abs(e) / np.where(u_val > 0, u_val, 1.0),
                          np.where(e == 0, 0.0, np.inf))
     return ComparisonError(comparison_error=e, u_val=u_val, coverage_factor=k,
-                           lower=e - k * u_val, upper=e + k * u_val, error_ratio=ratio)
+                           lower=e - k * u_val, upper=e + k * u_val, error_ratio=ratio,
+                           calibration=cal.copy())
 
 
 def area_metric(samples: npt.ArrayLike, data: npt.ArrayLike) -> float:
@@ -271,6 +297,7 @@ def validate(
     conditions: Sequence | None = None,
     coverage_factor: float = 2.0,
     n_sigma: float = 1.0,
+    calibration: npt.ArrayLike = False,
 ) -> ValidationResult:
     """V&V 20 comparison error, area metric and the "within n sigma" criterion per condition.
 
@@ -299,6 +326,10 @@ def validate(
         k of E +- k u_val (default 2; 1.96 is the normal 95 % factor).
     n_sigma : float
         Threshold of the reference study's criterion |S - D| <= n_sigma * predictive std.
+    calibration : array_like of bool
+        True where the data are the calibration's own (scalar, (n_responses,) or
+        (n_conditions, n_responses)): a consistency check with the fit's residual
+        uncertainty (see :func:`comparison_error`), not a validation.
 
     Returns
     -------
@@ -362,8 +393,19 @@ def validate(
         if s.shape != shape:
             raise ParameterError(f"simulation must have shape {shape}, got {s.shape}")
         s_pred = s
+    cal = _table("calibration", np.asarray(calibration, dtype=float), shape) > 0
     ce = comparison_error(s_pred, d_mean, u_num=un, u_input=std_pred, u_data=u_data,
-                          coverage_factor=coverage_factor)
+                          coverage_factor=coverage_factor, calibration=cal)
+    # a fit's residual variance u_D^2 - u_input^2 within Monte Carlo error of u_input^2: the
+    # subtraction does not resolve it (the fit interpolates the datum), so it is not judged
+    mc = 3.0 * np.sqrt(2.0 / (n_samples[:, None] - 1.0)) * std_pred**2
+    unresolved = cal & (u_data**2 - std_pred**2 < mc)
+    if unresolved.any():
+        nan = np.where(unresolved, np.nan, 1.0)
+        ce = ComparisonError(
+            comparison_error=ce.comparison_error, u_val=ce.u_val * nan,
+            coverage_factor=ce.coverage_factor, lower=ce.lower * nan, upper=ce.upper * nan,
+            error_ratio=ce.error_ratio * nan, calibration=ce.calibration)
     area = np.array([[area_metric(pred[c][:, j], obs[c][:, j]) for j in range(n_resp)]
                      for c in range(n_cond)])
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -378,7 +420,8 @@ def validate(
         u_val=ce.u_val, coverage_factor=ce.coverage_factor, lower=ce.lower, upper=ce.upper,
         error_ratio=ce.error_ratio, area_metric=area, relative_area_metric=rel_area,
         predictive_std=std_pred, sigma_distance=sigma, n_sigma=float(n_sigma),
-        within_n_sigma=sigma <= n_sigma, n_samples=n_samples, n_repeats=n_repeats)
+        within_n_sigma=sigma <= n_sigma, n_samples=n_samples, n_repeats=n_repeats,
+        calibration=cal)
 
 
 @dataclass(frozen=True, eq=False)

@@ -161,6 +161,14 @@ def sensitivity_causes(sens: StepResult, steps: Steps, response: str, claimed: s
         out.append(f"+1 std of each input changes {response} by "
                    + ", ".join(f"{eff[p]:+.3g} ({_lab(labels, p)})" for p in order)
                    + f" (least-squares plane through the {n} saved samples of step {step})")
+        total = sum(v * v for v in eff.values() if math.isfinite(v))
+        if total > 0:
+            # a linear effect's share of the variance: what ranks the main indices
+            out.append("the ranking is the size of each input's effect, not its sign: the "
+                       "squared effects' shares "
+                       + ", ".join(f"{_lab(labels, p)} {eff[p] ** 2 / total:.2f} "
+                                   f"(S {main.get(p, math.nan):.2f})" for p in order[:3])
+                       + " give the main indices' order")
     lift = [p for p in inputs if p.startswith("cla_")]
     span = negative_pitch_span(values, sens.meta.get("fixed") or {})
     if lift and span is not None:
@@ -172,7 +180,8 @@ def sensitivity_causes(sens: StepResult, steps: Steps, response: str, claimed: s
             neg = [_lab(labels, p) for p in sorted(lift, key=lambda p: signs.get(p, 0.0))
                    if signs.get(p, 0.0) < 0]
             carried = (f": there the angle of attack is negative, so a steeper lift slope "
-                       f"lowers the lift ({', '.join(neg)} lower the {response})" if neg else "")
+                       f"lowers the lift ({', '.join(neg)} lower the {response}): this sets "
+                       "the sign of their effect, not its size" if neg else "")
             out.append(
                 f"blade pitch theta(r) = {span['collective']:.3g} deg "
                 f"{span['twist']:+.3g} deg (r - {span['root']:.3g} m) / "
@@ -231,18 +240,29 @@ def sweep_growth(base: StepResult | None, res: StepResult, resp: Sequence[str], 
     mean1 = rec.prediction(joint)[0]
     parts: list[str] = []
     weaker: list[bool] = []
+    weaker_abs: list[bool] = []  # loads near zero at 4R: judged only when no other is
     for lab, r in zip(rows, resp, strict=True):
         m0, m1 = ref.at(mean0, "@4", r), rec.at(mean1, at, r)
         d0, d1 = ref.at(ref.measured, "@4", r), rec.at(rec.measured, at, r)
         s0 = ref.at(std0, "@4", r)
-        if (not all(map(math.isfinite, (m0, m1, d0, d1, s0))) or m0 == 0 or abs(d0) < 3 * s0
-                or abs(d1 / d0 - 1) < 0.02):
-            continue  # a reference near zero (within 3 std devs) makes a percentage meaningless
+        if not all(map(math.isfinite, (m0, m1, d0, d1, s0))):
+            continue
+        if m0 == 0 or abs(d0) < 3 * s0:
+            # a reference near zero (within 3 std devs) makes a percentage meaningless: the
+            # change in the load's units, when the test's exceeds the model's spread
+            if abs(d1 - d0) > s0:
+                parts.append(f"{lab} {m1 - m0:+.3g} against the test's {d1 - d0:+.3g} "
+                             "(absolute: the 4R value is near zero)")
+                weaker_abs.append(abs(m1 - m0) < abs(d1 - d0))
+            continue
+        if abs(d1 / d0 - 1) < 0.02:
+            continue
         parts.append(f"{lab} {100 * (m1 / m0 - 1):+.1f} % against the test's "
                      f"{100 * (d1 / d0 - 1):+.1f} %")
         weaker.append(abs(m1 / m0 - 1) < abs(d1 / d0 - 1))
     if not parts:
         return ""
+    weaker = weaker or weaker_abs
     what = ("weaker than" if all(weaker) else "stronger than" if not any(weaker)
             else "unlike")
     return (f"from 4R to {at[1:]}R the model's loads change " + ", ".join(parts)

@@ -115,7 +115,9 @@ def _claim_row(c: Claim) -> str:
     return (f"<tr data-claim='{e(c.key)}' data-status='{e(status)}'>"
             f"<td class=l>{e(c.text)}"
             + (f" <i>(the thesis's criterion, shown beside {e(c.beside)}; not counted)</i>"
-               if c.beside else "") + f"</td><td class=l>{e(prop)}</td>"
+               if c.beside else "")
+            + (" <i>(on the calibration's own data: a consistency check, not counted)</i>"
+               if c.consistency else "") + f"</td><td class=l>{e(prop)}</td>"
             f"<td><span class={_STATUS_CLASS[status]}>{e(status)}</span></td>"
             f"<td>{num(c.value)}</td><td>{e(c.op)} {c.threshold:g}</td><td>{kofn(c.ours)}</td>"
             f"<td>{num(c.thesis_value)}</td><td>{thesis}</td>"
@@ -178,15 +180,28 @@ def _verdict(claim_list: list[Claim]) -> str:
         return (f"<span class={_STATUS_CLASS[c.status]}>{e(c.status)}</span> "
                 f"{e(c.text)}{e(prop)}{val}{failed}")
 
-    for c in counted:
-        out.append(f"<li data-verdict='{e(c.key)}'>{line(c)}")
-        beside = [b for b in claim_list if b.beside == c.key]
-        if beside:
+    def beside(c: Claim) -> None:
+        nested = [b for b in claim_list if b.beside == c.key]
+        if nested:
             out.append("<ul class=beside>" + "".join(
                 f"<li data-beside='{e(b.key)}'>the thesis's criterion, not counted: "
-                f"{line(b)}</li>" for b in beside) + "</ul>")
+                f"{line(b)}</li>" for b in nested) + "</ul>")
+
+    for c in counted:
+        out.append(f"<li data-verdict='{e(c.key)}'>{line(c)}")
+        beside(c)
         out.append("</li>")
-    out.append("</ol><p class=note>Values, thresholds and the reasons computed from this "
+    out.append("</ol>")
+    checks = [c for c in claim_list if c.consistency]
+    if checks:
+        out.append("<p class=note>Consistency checks on the calibrations' own data (the fit, "
+                   "not the model; not counted):</p><ul class=verdict>")
+        for c in checks:
+            out.append(f"<li data-consistency='{e(c.key)}'>{line(c)}")
+            beside(c)
+            out.append("</li>")
+        out.append("</ul>")
+    out.append("<p class=note>Values, thresholds and the reasons computed from this "
                "run: <a href='#claims'>the claims table</a>. Where the thesis judged a "
                "comparison by \"within one predictive std\", the verdict judges it by the "
                "ASME V&amp;V 20 budget (|E| against u_val) and shows the thesis's criterion "

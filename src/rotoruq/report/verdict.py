@@ -2,11 +2,12 @@
 last thing ``rotoruq run`` prints.
 
 Four lines, each with the counts it rests on: validation comparisons within k u_val (ASME
-V&V 20, as each ``validation`` step records them), self-checks (simulation-based calibration)
-that failed, failed model evaluations, steps with diagnostic warnings. A failed self-check is
-named next to what rests on it (issue 35): the validation verdict says which of its steps
-take their predictions from a calibration whose self-check failed (through their chain of
-``from``), and the self-check line names those steps and the reason.
+V&V 20, as each ``validation`` step records them; comparisons on a calibration's own data
+are consistency checks, counted apart and never as validation), self-checks (simulation-based
+calibration) that failed, failed model evaluations, steps with diagnostic warnings. A failed
+self-check is named next to what rests on it (issue 35): the validation verdict says which of
+its steps take their predictions from a calibration whose self-check failed (through their
+chain of ``from``), and the self-check line names those steps and the reason.
 """
 
 from __future__ import annotations
@@ -42,9 +43,11 @@ class VerdictLine:
     counts: dict[str, int] = field(default_factory=dict)
 
 
-def _validation_counts(res: StepResult) -> tuple[int, int, float] | None:
-    """(comparisons with |E| <= k u_val, comparisons, k) of a ``validation`` step's record
-    (every prediction, condition and response with a finite ratio); None when unreadable."""
+def _validation_counts(res: StepResult) -> tuple[int, int, float, int, list[str]] | None:
+    """(comparisons with |E| <= k u_val, comparisons, k, consistency checks left out, the
+    extrapolated conditions in words) of a ``validation`` step's record: every prediction,
+    condition and response with a finite ratio whose data the calibration did not use;
+    None when unreadable."""
     from ..steps.validation import ValidationRecord
 
     try:
@@ -52,9 +55,14 @@ def _validation_counts(res: StepResult) -> tuple[int, int, float] | None:
     except (RecordError, KeyError, ValueError):
         return None
     ratio = np.asarray(rec.error_ratio, dtype=float)
-    ratio = ratio[np.isfinite(ratio)]
+    cal = np.broadcast_to(rec.calibrated()[None], ratio.shape)
+    finite = np.isfinite(ratio)
+    ratio = ratio[finite & ~cal]
     k = float(rec.coverage_factor)
-    return int(np.sum(ratio <= k)), int(ratio.size), k
+    far = [f"{rec.configuration} = {rec.conditions[j]:g} an extrapolation "
+           f"{rec.beyond(j):g} beyond the calibrated range"
+           for j in range(rec.conditions.size) if rec.beyond(j) > 0]
+    return int(np.sum(ratio <= k)), int(ratio.size), k, int(np.sum(cal)), far
 
 
 def failed_self_checks(steps: Mapping[str, StepResult]) -> dict[str, str]:
@@ -139,7 +147,7 @@ def verdict_lines(studies: Studies, labels: Mapping[str, Mapping[str, str]] | No
     """
     labels = labels or {}
     lines = []
-    within = total = on_failed = 0
+    within = total = consistency = extrapolations = on_failed = 0
     per_step = []
     failed_checks = {study: failed_self_checks(steps) for study, steps in studies.items()}
     for study, steps in studies.items():
@@ -150,18 +158,25 @@ def verdict_lines(studies: Studies, labels: Mapping[str, Mapping[str, str]] | No
             if got is None:
                 per_step.append(f"{study} / {s.name}: record not readable")
                 continue
-            w, n, k = got
-            within, total = within + w, total + n
+            w, n, k, c, far = got
+            within, total, consistency = within + w, total + n, consistency + c
+            extrapolations += len(far)
             bad = [u for u in resting_on(steps, s.name) if u in failed_checks[study]]
             on_failed += n if bad else 0
             per_step.append(f"{study} / {s.name}: {w} of {n} within {k:g} u_val"
+                            + (f" ({c} on calibration data left out)" if c else "")
+                            + (f" ({'; '.join(far)})" if far else "")
                             + (f", resting on {', '.join(bad)}, whose self-check FAILED"
                                if bad else ""))
-    counts = {"within": within, "comparisons": total, "on_failed_self_check": on_failed}
+    counts = {"within": within, "comparisons": total, "calibration_data": consistency,
+              "extrapolations": extrapolations, "on_failed_self_check": on_failed}
     if per_step:
         lines.append(VerdictLine("validation", "Validation", (
             f"{within} of {total} comparisons with data lie within their validation "
-            f"uncertainty (|E| <= k u_val, E = S - D): {'; '.join(per_step)}."), counts))
+            f"uncertainty (|E| <= k u_val, E = S - D): {'; '.join(per_step)}."
+            + (f" {consistency} comparisons on the calibrations' own data are consistency "
+               "checks of the fits, not validation, and are not counted." if consistency
+               else "")), counts))
     else:
         lines.append(VerdictLine("validation", "Validation", "no validation step, so no "
                                  "comparison with data is judged.", counts))

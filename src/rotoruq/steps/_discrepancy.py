@@ -30,7 +30,8 @@ from .base import StepCheck, StepContext
 
 __all__ = ["DiscrepancyRecord", "run_discrepancy", "discrepancy_tables",
            "discrepancy_warnings", "discrepancy_option", "check_discrepancy", "is_discrepancy",
-           "N_CHAINS", "BAND_LEVEL", "N_DRAWS"]
+           "extrapolation_distance", "extrapolation_note", "N_CHAINS", "BAND_LEVEL",
+           "N_DRAWS"]
 
 #: Chains the kept steps are split over (R-hat across chains).
 N_CHAINS = 2
@@ -91,6 +92,45 @@ def check_discrepancy(c: StepCheck) -> None:
             c.fail(("couple", key), f"{key} = \"<a data column>\"", repr(col))
 
 
+def extrapolation_distance(points: np.ndarray, calibrated: np.ndarray) -> np.ndarray:
+    """How far each of ``points`` (q,) lies outside the range of the ``calibrated``
+    configurations (configuration units; 0 inside, NaN when nothing was calibrated)."""
+    pts = np.asarray(points, dtype=float)
+    cal = np.asarray(calibrated, dtype=float)
+    if cal.size == 0:
+        return np.full(pts.shape, np.nan)
+    return np.maximum(0.0, np.maximum(cal.min() - pts, pts - cal.max()))
+
+
+def extrapolation_note(distance: float, span: float, unit: str = "") -> str:
+    """An extrapolation in words: its distance beyond the calibrated range, and how the
+    discrepancy-aware 90 % band covered the truth in extrapolation on the literature's
+    model-error problems (``rotoruq/data/discrepancy_coverage.json``, written by
+    ``benchmarks/discrepancy_coverage.py``), with how far that falls short of 85 %."""
+    import json
+    from importlib import resources
+
+    rel = f" ({distance / span:.2g} x the calibrated range)" if span > 0 else ""
+    text = f"an extrapolation, {distance:g}{unit} beyond the calibrated range{rel}"
+    try:
+        cov = json.loads(resources.files("rotoruq.data").joinpath(
+            "discrepancy_coverage.json").read_text())
+    except (OSError, ValueError):
+        return text
+    vals = {n: float(p["coverage"]) for n, p in cov.get("problems", {}).items()}
+    if not vals:
+        return text
+    lo, hi, target = min(vals.values()), max(vals.values()), float(cov.get("target", 0.85))
+    text += (f"; on {len(vals)} model-error problems of the literature, in extrapolation, "
+             f"the {100 * float(cov.get('level', 0.9)):g} % band with the discrepancy "
+             f"covered the truth {lo:.2f} to {hi:.2f} of the time over "
+             f"{cov.get('replications')} replications ({cov.get('benchmark')})")
+    if lo < target:
+        text += f", {target - lo:.2f} short of {target:g} at worst: read the band as narrower "
+        text += "than its level says"
+    return text
+
+
 def is_discrepancy(res: StepResult) -> bool:
     """Whether ``res`` is a Bayes step calibrated through this branch."""
     rec = res.meta.get("record")
@@ -125,6 +165,8 @@ class DiscrepancyRecord(StepRecord):
     correlation (d, d) : the parameters' posterior correlation. noise_model : in words.
     prediction_labels (q) : ``@<configuration>`` of each prediction; inside_band (m, q) :
     1.0 / 0.0 whether the measured mean lies in the band with the discrepancy (NaN: no data).
+    extrapolation (q) : how far each prediction lies outside the calibrated configurations
+    (configuration units, 0 inside; :func:`extrapolation_distance`).
 
     The flat view: ``mean/<p>``, ``ess/<p or hyperparameter>``, ``map/<p>``,
     ``corr/<p>/<q>``, ``noise_std/<r>``, ``inside_band/<r>@<configuration>``, ...; not the
@@ -149,7 +191,8 @@ class DiscrepancyRecord(StepRecord):
             "measured": ("prediction", "response"),
             **{k: ("parameter",) for k in ("map_point", "std_ratio", "prior_z", "pileup_lo",
                                             "pileup_hi")},
-            "correlation": ("parameter", "parameter"), "inside_band": ("response", "prediction")}
+            "correlation": ("parameter", "parameter"), "inside_band": ("response", "prediction"),
+            "extrapolation": ("prediction",)}
     FLAT = {**{k: None for k in (
         "chains", "hyper_chains", "data_configurations", "held_out", "predict_configurations",
         "pred_model", "pred_discrepancy", "pred_noise", "band_lower", "band_upper",
@@ -199,6 +242,7 @@ class DiscrepancyRecord(StepRecord):
     noise_model: str = ""
     prediction_labels: tuple[str, ...] = ()
     inside_band: np.ndarray = field(default_factory=_empty)
+    extrapolation: np.ndarray = field(default_factory=_empty)
 
 
 def _coupled_model(ctx: StepContext, configuration: str, couple: Mapping[str, str]):
@@ -306,7 +350,8 @@ def run_discrepancy(ctx: StepContext) -> StepResult:
         correlation=np.atleast_2d(np.corrcoef(np.asarray(chain, dtype=float), rowvar=False)),
         noise_model="noise_std per response" if o.get("noise_std") is not None
         else "pooled from the repeats",
-        prediction_labels=tuple(f"@{v:g}" for v in at), inside_band=inside)
+        prediction_labels=tuple(f"@{v:g}" for v in at), inside_band=inside,
+        extrapolation=extrapolation_distance(at, res.configurations))
     arrays, meta = rec.parts()
     posterior = {n: dist_to_dict(Normal(float(res.mean[j]), float(res.std[j])))
                  for j, n in enumerate(names_in)}
@@ -318,8 +363,9 @@ def run_discrepancy(ctx: StepContext) -> StepResult:
                                                       strict=True)}})
 
 
-def _cond(v: float, held: Sequence[float] | np.ndarray) -> str:
-    return f"{v:g}" + (" (held out)" if np.any(np.isclose(held, v)) else "")
+def _cond(v: float, held: Sequence[float] | np.ndarray, far: float = 0.0) -> str:
+    return (f"{v:g}" + (" (held out)" if np.any(np.isclose(held, v)) else "")
+            + (f" (extrapolation, {far:g} beyond the calibrated range)" if far > 0 else ""))
 
 
 def discrepancy_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
@@ -355,7 +401,8 @@ def discrepancy_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepT
             inside_w = ("-" if not np.isfinite(meas) else
                         "yes" if rec.band_lower_without[j, k] <= meas
                         <= rec.band_upper_without[j, k] else "no")
-            prow.append([_cond(v, rec.held_out), r, meas,
+            far = float(rec.extrapolation[j]) if rec.extrapolation.size else 0.0
+            prow.append([_cond(v, rec.held_out, far), r, meas,
                          float(np.mean(rec.pred_model[:, j, k])),
                          float(np.mean(rec.pred_discrepancy[:, j, k])),
                          float(np.std(with_d, ddof=1)),
@@ -381,7 +428,11 @@ def discrepancy_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str
     if conf:
         w.append(f"{res.name}: parameters confounded with the discrepancy: {', '.join(conf)} "
                  f"({rec.identifiability})")
+    span = float(np.ptp(rec.data_configurations)) if rec.data_configurations.size else 0.0
     for j, v in enumerate(rec.predict_configurations):
+        if rec.extrapolation.size and rec.extrapolation[j] > 0 and rec.kind != "none":
+            w.append(f"{res.name}: the prediction at {rec.configuration} = {v:g} is "
+                     + extrapolation_note(float(rec.extrapolation[j]), span))
         if not np.any(np.isclose(rec.held_out, v)):
             continue
         for k, r in enumerate(rec.names_out):

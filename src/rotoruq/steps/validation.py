@@ -13,7 +13,13 @@ Where the predictions come from (``from``):
 * no ``from``: samples of the step's input distributions through the model.
 
 u_input is the spread of those predictions (the propagated input uncertainty, no measurement
-noise); u_D = sqrt(s^2 / n + u_systematic^2) from the repeats of each condition (s their
+noise). A comparison on data the calibration behind the predictions used (the ``from`` step's
+data, or its own ``from``'s, matched by value, not by data-set name) is a consistency check,
+not a validation: it is labelled so (``calibration_data``), its u_val is the fit's residual
+uncertainty sqrt(u_num^2 + u_D^2 - u_input^2) (:func:`rotoruq.methods.validation.validate`;
+for the prediction that was fit: with the discrepancy, or the calibration's own; the model
+alone of a discrepancy calibration keeps the full budget), and the run's verdict does not
+count it; u_D = sqrt(s^2 / n + u_systematic^2) from the repeats of each condition (s their
 sample std) and the stated ``u_systematic``; u_num a number (or one per response), the GCI
 of the model at each condition (``verification = { ratio = 2, levels = 2, formal_order = 2 }``,
 the options of the ``verification`` step type) or the ``u_num`` of an earlier
@@ -32,7 +38,12 @@ from ..render.figures import Figure, FigureContext, axis_label
 from ..render.tables import StepTable, make_table
 from ..results import StepRecord, StepResult
 from ._common import saved_record
-from ._discrepancy import DiscrepancyRecord, is_discrepancy
+from ._discrepancy import (
+    DiscrepancyRecord,
+    extrapolation_distance,
+    extrapolation_note,
+    is_discrepancy,
+)
 from .base import DESIGNS, StepCheck, StepContext, StepType
 from .forward_check import posterior_draws
 from .options import SIGNATURE, Option, choice, integer, number, number_list, string, table
@@ -65,7 +76,12 @@ class ValidationRecord(StepRecord):
     predictive : (p, n, c, m) the predictive samples validated. data : (k, m) the measured
     rows used; data_condition : (k,) the condition index of each row.
     n_repeats : (c,). held_out : (c,) 1.0 where the calibration did not see the condition's
-    data (a Bayes step's ``predict_at``), else 0.0. coverage_factor : k. n_sigma : the
+    data (a Bayes step's ``predict_at``), else 0.0. calibration_data : (c, m) 1.0 where the
+    condition's measured response was data of the calibration the predictions come from
+    (a consistency check, not counted as validation), else 0.0; empty in a record saved
+    before it existed. extrapolation : (c,) how far each condition lies outside the range of
+    the conditions with calibration data (configuration units; 0 inside or without
+    conditions; empty in an older record). coverage_factor : k. n_sigma : the
     reference criterion's threshold. level : of the band. u_num_source : where u_num came from.
     prediction_labels (p) : each prediction kind in the flat view ("" for the first, e.g.
     "without_discrepancy"); condition_labels (c) : each condition in it ("@<value>", ""
@@ -88,9 +104,10 @@ class ValidationRecord(StepRecord):
         "data": ("row", "response"), "data_condition": ("row",), "n_repeats": ("condition",),
         "conditions": ("condition",), "held_out": ("condition",),
         "pooled_area_metric": ("prediction", "response"),
-        "pit": ("prediction", "row", "response")}
+        "pit": ("prediction", "row", "response"),
+        "calibration_data": ("condition", "response"), "extrapolation": ("condition",)}
     FLAT = {"predictive": None, "data": None, "data_condition": None, "conditions": None,
-            "pit": None}
+            "pit": None, "calibration_data": None}
     LABELS = {"prediction": "prediction_labels", "condition": "condition_labels"}
 
     predictions: tuple[str, ...]
@@ -128,6 +145,27 @@ class ValidationRecord(StepRecord):
     pooled_area_metric: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)),
                                            kw_only=True)
     pit: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0)), kw_only=True)
+    calibration_data: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)),
+                                         kw_only=True)
+    extrapolation: np.ndarray = field(default_factory=lambda: np.zeros(0), kw_only=True)
+
+    def beyond(self, j: int) -> float:
+        """How far condition ``j`` lies outside the calibrated conditions (0 inside, or in
+        a record saved before ``extrapolation``)."""
+        e = np.asarray(self.extrapolation, dtype=float)
+        return float(e[j]) if e.size == self.conditions.size and np.isfinite(e[j]) else 0.0
+
+    def calibrated_span(self) -> float:
+        """The range of the conditions with calibration data (0 with one or none)."""
+        rows = self.calibrated().any(axis=1)
+        return float(np.ptp(self.conditions[rows])) if rows.sum() > 1 else 0.0
+
+    def calibrated(self) -> np.ndarray:
+        """(c, m) bool: the comparisons on the calibration's own data (all False in a record
+        saved before ``calibration_data``)."""
+        c, m = self.conditions.size, len(self.names_out)
+        cal = np.asarray(self.calibration_data, dtype=float)
+        return cal > 0 if cal.shape == (c, m) else np.zeros((c, m), dtype=bool)
 
 
 def per_response_values(value, responses: Sequence[str], what: str) -> np.ndarray:
@@ -151,6 +189,10 @@ def _u_num(ctx: StepContext, points: Sequence[Mapping[str, float]]
 
         results, _, levels, _ = verify_points(ctx, verify, [dict(p) for p in points])
         u = np.concatenate([np.atleast_2d(r.u_num) for r in results]).astype(float)
+        if verify.get("direction") == "finer":
+            return u, (f"at each condition, of the grid run ({levels[-1]}) against two finer "
+                       f"ones ({' / '.join(levels[:-1])}): its Richardson error, or the three "
+                       "grids' spread where they do not converge monotonically")
         order = ("observed order" if verify.get("formal_order") is None
                  else f"assumed order {verify['formal_order']:g}")
         return u, (f"from the GCI at each condition (levels {' / '.join(levels)}, {order}, "
@@ -289,6 +331,41 @@ def _data_rows(ctx: StepContext, match: str, points) -> tuple[np.ndarray, np.nda
     return y[rows], np.array(which, dtype=int)
 
 
+def _lineage(ctx: StepContext) -> list[StepResult]:
+    """The ``from`` step and its own ``from`` steps, nearest first (what the predictions
+    were conditioned on)."""
+    out, res = [], ctx.source
+    previous = getattr(ctx, "previous", None) or {}
+    while res is not None and all(r is not res for r in out):
+        out.append(res)
+        up = str(res.meta.get("source") or "").split(".")[0]
+        res = previous.get(up)
+    return out
+
+
+def _calibration_mask(ctx: StepContext, data: np.ndarray, which: np.ndarray,
+                      held: np.ndarray) -> np.ndarray:
+    """(c, m) bool: where a measured response at a condition was data of a calibration
+    behind the predictions (the ``from`` lineage): a row whose values equal a calibration
+    row on every response that calibration used, by value (an alias or a copy of the data
+    set is the same data); a discrepancy step saves its held-out rows too, which it did not
+    calibrate on (``held``, (c,))."""
+    out = np.zeros((held.size, len(ctx.responses)), dtype=bool)
+    for res in _lineage(ctx):
+        cal = res.arrays.get("data")
+        cols = ((res.meta.get("columns") or {}).get("data")) or []
+        shared = [r for r in cols if r in ctx.responses]
+        if cal is None or not shared or np.ndim(cal) != 2:
+            continue
+        a = np.asarray(cal, dtype=float)[:, [list(cols).index(r) for r in shared]]
+        b = data[:, [ctx.responses.index(r) for r in shared]]
+        hit = np.isclose(b[:, None, :], a[None, :, :], rtol=1e-12, atol=0.0).all(-1).any(1)
+        seen = held <= 0 if is_discrepancy(res) else np.ones(held.size, dtype=bool)
+        for j in np.unique(which[hit]):
+            out[j, [ctx.responses.index(r) for r in shared]] |= bool(seen[j])
+    return out
+
+
 def run_validation(ctx: StepContext) -> StepResult:
     """V&V 20 comparison error, area metric and "within n sigma" per condition and response
     (see the module docstring for the predictions, u_num, u_input and u_D)."""
@@ -310,6 +387,11 @@ def run_validation(ctx: StepContext) -> StepResult:
     u_sys = None if usys is None else per_response_values(usys, ctx.responses, "u_systematic")
     u_num, u_num_source = _u_num(ctx, points)
     kinds, pred, held, left_out = predictions_at(ctx, match, points)
+    calibrated = _calibration_mask(ctx, data, which, held)
+    cal_at = np.asarray([points[j][match] for j in range(len(points))
+                         if match and calibrated[j].any()], dtype=float)
+    far = (extrapolation_distance([p[match] for p in points], cal_at) if cal_at.size
+           else np.zeros(len(points)))
     per_cond = [data[which == j] for j in range(len(points))]
     conds = [points[j][match] if match else j for j in range(len(points))]
     fields: dict[str, list] = {}
@@ -318,7 +400,10 @@ def run_validation(ctx: StepContext) -> StepResult:
     for p in range(len(kinds)):
         res = validate([pred[p, :, j] for j in range(len(points))], per_cond, u_num=u_num,
                        u_systematic=u_sys, names_out=ctx.responses, conditions=conds,
-                       coverage_factor=o["coverage_factor"], n_sigma=o["n_sigma"])
+                       coverage_factor=o["coverage_factor"], n_sigma=o["n_sigma"],
+                       # the model alone of a discrepancy calibration is not what was fit to
+                       # the data: its comparison keeps the full budget (still not counted)
+                       calibration=calibrated if kinds[p] != WITHOUT else False)
         for f in ("simulation", "data_mean", "comparison_error", "u_num", "u_input", "u_data",
                   "u_val", "lower", "upper", "error_ratio", "area_metric",
                   "relative_area_metric", "sigma_distance"):
@@ -342,6 +427,7 @@ def run_validation(ctx: StepContext) -> StepResult:
         prediction_labels=tuple("" if p == 0 else kind.split(" (")[0].replace(" ", "_")
                                 for p, kind in enumerate(kinds)),
         condition_labels=tuple(f"@{c:g}" if match else "" for c in conds),
+        calibration_data=calibrated.astype(float), extrapolation=far,
         **{k: np.stack(v) for k, v in fields.items()})
     arrays, meta = rec.parts()
     return StepResult(ctx.name, ctx.type, {}, arrays, meta={
@@ -351,9 +437,13 @@ def run_validation(ctx: StepContext) -> StepResult:
         "responses": list(ctx.responses), "failed_draws": left_out, **meta})
 
 
-def _fmt_cond(rec: ValidationRecord, j: int) -> str:
+def _fmt_cond(rec: ValidationRecord, j: int, m: int | None = None) -> str:
     text = f"{rec.configuration} = {rec.conditions[j]:g}" if rec.configuration else "-"
-    return text + (" (held out)" if rec.held_out[j] else "")
+    if m is not None and rec.calibrated()[j, m]:
+        return text + " (calibration data: consistency, not validation)"
+    far = rec.beyond(j)
+    return (text + (" (held out)" if rec.held_out[j] else "")
+            + (f" (extrapolation, {far:g} beyond the calibrated range)" if far > 0 else ""))
 
 
 def validation_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTable]:
@@ -365,7 +455,7 @@ def validation_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTa
         for j in range(rec.conditions.size):
             for m, r in enumerate(rec.names_out):
                 rows.append([
-                    _fmt_cond(rec, j), r, float(rec.simulation[p, j, m]),
+                    _fmt_cond(rec, j, m), r, float(rec.simulation[p, j, m]),
                     float(rec.data_mean[p, j, m]), float(rec.comparison_error[p, j, m]),
                     float(rec.u_num[p, j, m]), float(rec.u_input[p, j, m]),
                     float(rec.u_data[p, j, m]), float(rec.u_val[p, j, m]),
@@ -389,7 +479,11 @@ def validation_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTa
             "empirical CDFs (Ferson et al. 2008), it does not shrink as the spread grows; "
             "the distance in predictive std devs beside it. Band: of a new "
             "measurement (prediction plus N(0, u_D^2))."
-            + (" " + ONE_ROW_AREA if np.any(rec.n_repeats < 2) else "")))
+            + (" " + ONE_ROW_AREA if np.any(rec.n_repeats < 2) else "")
+            + (" Rows on calibration data check the fit's consistency, not the model: S "
+               "took in part of D's noise, so u_val = sqrt(u_num^2 + u_D^2 - u_input^2) "
+               "there, and the verdict does not count them." if rec.calibrated().any()
+               else "")))
     held = [j for j in range(rec.conditions.size) if rec.held_out[j]]
     if held:
         rows = [[_fmt_cond(rec, j), r, kind, float(rec.data_mean[p, j, m]),
@@ -505,11 +599,21 @@ def validation_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]
         w.append(f"{res.name}: {left['count']} of {left['count'] + rec.predictive.shape[1]} "
                  f"predictive draws left out: the model failed on them ({left.get('first')})")
     k = rec.coverage_factor
+    for j in range(rec.conditions.size):
+        if rec.beyond(j) > 0 and WITH in rec.predictions:
+            w.append(f"{res.name}: the predictions at {_fmt_cond(rec, j)} are "
+                     + extrapolation_note(rec.beyond(j), rec.calibrated_span()))
     for p, kind in enumerate(rec.predictions):
         for j in range(rec.conditions.size):
             for m, r in enumerate(rec.names_out):
                 ratio = float(rec.error_ratio[p, j, m])
-                if ratio > k:
+                if ratio > k and rec.calibrated()[j, m]:
+                    w.append(f"{res.name}: {r} at {_fmt_cond(rec, j)} ({kind}): the "
+                             "calibration does not fit its own data, E = "
+                             f"{rec.comparison_error[p, j, m]:.4g} with the fit's residual "
+                             f"u_val = {rec.u_val[p, j, m]:.4g} (|E| / u_val = {ratio:.2f} > "
+                             f"{k:g}; a consistency check, not a validation)")
+                elif ratio > k:
                     extra = (f"; the within-{rec.n_sigma:g}-sigma criterion passes it "
                              f"({rec.sigma_distance[p, j, m]:.2f} sigma)"
                              if rec.within_n_sigma[p, j, m] else "")

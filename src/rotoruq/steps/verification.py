@@ -5,6 +5,11 @@ The model's discretization is coarsened by a constant ``ratio`` from the grid th
 ``u_num = "STEP.u_num"``), over ``levels`` grids: three give the observed order and Roache's
 GCI with Fs = 1.25, two need the scheme's ``formal_order`` and take Fs = 3 (see
 :mod:`rotoruq.methods.verification`). u_num = GCI / Fs in response units (ASME V&V 20).
+With ``direction = "finer"`` (three levels) the grid the study runs is the coarsest and
+two finer grids judge it: its u_num is its Richardson error where the three converge
+monotonically in the asymptotic range, else the three grids' spread (Eca and Hoekstra 2014;
+:func:`production_u_num`), which covers the actual error against a 16 times finer solve at
+every height and load the reproduction validates (``tests/test_validation.py``).
 
 What is refined:
 
@@ -33,7 +38,7 @@ from .base import StepCheck, StepContext, StepType
 from .options import Option, choice, integer, number, string
 
 __all__ = ["STEP", "VerificationRecord", "run_verification", "verify_points",
-           "verification_tables", "verification_warnings", "TOLERANCE", "VERIFY_KEYS",
+           "production_u_num", "verification_tables", "verification_warnings", "TOLERANCE", "VERIFY_KEYS",
            "verification_option"]
 
 #: Solver tolerance of the rotor at every verification level.
@@ -111,6 +116,9 @@ def _rotor_factory(rotor: Any, ratio: float, refine: str, name: str):
         out = []
         for n, on, what in ((n_st, refine in ("both", "stations"), "stations"),
                             (n_az, refine in ("both", "azimuth"), "azimuth steps")):
+            if level < 0:  # finer than the grid the study runs
+                out.append(n * r ** -level if on else n)
+                continue
             q, rem = divmod(n, r ** level)
             if on and rem:
                 raise ParameterError(
@@ -143,7 +151,10 @@ def verify_points(ctx: StepContext, options: Mapping[str, Any],
     o = options
     ratio, n_levels = float(o["ratio"]), int(o["levels"])
     means = {n: d.mean for n, d in zip(ctx.space.names, ctx.space.distributions, strict=True)}
-    levels = list(range(n_levels))
+    finer = o.get("direction") == "finer"
+    # "finer": the grid the study runs is the coarsest of the levels, its u_num read from
+    # the finer ones (production_u_num); "coarser": it is the finest
+    levels = list(range(1 - n_levels, 1)) if finer else list(range(n_levels))
     labels: list[str] = []
     level_text: list[str] = []
     xs, results = [], []
@@ -174,13 +185,33 @@ def verify_points(ctx: StepContext, options: Mapping[str, Any],
                     f"step {ctx.name!r}: the model exposes no discretization; give field = "
                     "\"<its template field, e.g. n_intervals>\" and field_value = <its value>")
             factory, text = _rotor_factory(rotor, ratio, o.get("refine", "both"), ctx.name)
-        results.append(verify_discretization(factory, levels, x, ratio=ratio,
-                                             formal_order=o.get("formal_order")))
+        res = verify_discretization(factory, levels, x, ratio=ratio,
+                                    formal_order=o.get("formal_order"))
+        results.append(production_u_num(res) if finer else res)
         xs.append(x[0])
         labels.append(", ".join(f"{k} = {float(v):.10g}" for k, v in pt.items()) or "nominal")
         if not level_text:
             level_text = [text(k) for k in levels]
     return results, labels, level_text, np.array(xs)
+
+
+def production_u_num(res: Any) -> Any:
+    """``res`` (a :class:`~rotoruq.methods.verification.VerificationResult` of three grids,
+    finest first, the coarsest the grid the study runs) with ``u_num`` the numerical
+    uncertainty of that coarsest grid: its Richardson error |f3 - f_ext| where the three
+    grids converge monotonically in the asymptotic range, else (oscillatory or outside it,
+    where the observed order is not to be trusted) the largest difference between the three
+    grids, the data-range estimate of Eca and Hoekstra (2014, J. Comput. Phys. 262, 104),
+    their U = 3 max|f_i - f_j| read with Fs = 3 as a standard uncertainty."""
+    import dataclasses
+
+    v = np.asarray(res.values, dtype=float)
+    if v.shape[0] != 3:
+        raise ParameterError("direction = \"finer\" needs levels = 3")
+    spread = v.max(axis=0) - v.min(axis=0)
+    richardson = np.abs(v[2] - np.asarray(res.extrapolated, dtype=float))
+    ok = np.asarray(res.in_asymptotic_range, dtype=bool) & np.isfinite(richardson)
+    return dataclasses.replace(res, u_num=np.where(ok, richardson, spread))
 
 
 def run_verification(ctx: StepContext) -> StepResult:
@@ -255,7 +286,8 @@ def _ratio(v: Any) -> float:
 
 
 #: Keys of a ``verification = {...}`` table of a validation step (the step type's options).
-VERIFY_KEYS = ("ratio", "levels", "formal_order", "refine", "field", "field_value")
+VERIFY_KEYS = ("ratio", "levels", "formal_order", "refine", "field", "field_value",
+               "direction")
 
 
 def verification_option(v: Any) -> dict:
@@ -272,6 +304,9 @@ def verification_option(v: Any) -> dict:
         out[k] = STEP.options[k].check(x)
     if out["levels"] == 2 and out["formal_order"] is None:
         raise TypeError("levels = 3 for an observed order, or levels = 2 with formal_order")
+    if out["direction"] == "finer" and out["levels"] != 3:
+        raise TypeError("direction = \"finer\" with levels = 3 (the study's grid and two "
+                        "finer ones)")
     return out
 
 
@@ -300,5 +335,6 @@ STEP = StepType(
              "points": Option(_points, None),
              "refine": Option(choice("both", "azimuth", "stations"), "both"),
              "field": Option(string(), None),
-             "field_value": Option(number(positive=True, allow_zero=False), None)},
+             "field_value": Option(number(positive=True, allow_zero=False), None),
+             "direction": Option(choice("coarser", "finer"), "coarser")},
     check=_check, tables=verification_tables, warnings=verification_warnings)

@@ -59,7 +59,11 @@ class Discrepancy:
     degree : polynomial degree (0: a constant offset), polynomial only.
     amplitude_scale : scale of the half-normal prior of the GP amplitude (the std of
         ``delta``), or the coefficient std of the polynomial, in response units: a scalar or
-        one per response. Default: 10 % of the root mean square of each response's data.
+        one per response. Default, a weakly-informative rule set from the data: the root
+        mean square of each response's data (a discrepancy as large as the response itself is
+        plausible a priori; 95 % of the half-normal's mass lies below twice it), so the
+        amplitude is learned, not bounded by a hand-set scale
+        (``benchmarks/discrepancy_coverage.py`` checks the bands it gives in extrapolation).
     length_scale : median of the log-normal prior of the GP length-scale, in configuration
         units. Default: the range of the data's configurations.
     length_scale_log_std : std of ``log(length_scale)`` under its prior (0.5: the 95 % prior
@@ -641,7 +645,7 @@ def calibrate_with_discrepancy(
         raise ParameterError("a GP discrepancy needs data at two configurations or more, got "
                              f"{xs.size}")
     forward = _Forward(model, tuple(prior.names), configuration_name, resp_idx)
-    amp = (np.sqrt(np.mean(y**2, axis=0)) * 0.1 if discrepancy is None
+    amp = (np.sqrt(np.mean(y**2, axis=0)) if discrepancy is None
            or discrepancy.amplitude_scale is None
            else np.broadcast_to(np.asarray(discrepancy.amplitude_scale, float), (m,)).copy())
     amp = np.where(amp > 0, amp, 1.0)
@@ -778,6 +782,11 @@ def _laplace_std_without(post: _Posterior, d: int, tc, ts, zlo, zhi,
     return np.minimum(np.sqrt(np.diag(cov)) * ts, post.logprior.space.std.astype(float))
 
 
+#: Posterior/prior std from which a parameter counts as barely informed by the data (the
+#: report's threshold, rotoruq.report.diagnostics.STD_RATIO_MAX).
+_PRIOR_BOUND = 0.8
+
+
 def _identifiability_text(names_in, names_out, corr, confounded, ratio_prior, ratio_without,
                           discrepancy, threshold) -> str:
     if discrepancy is None:
@@ -788,9 +797,16 @@ def _identifiability_text(names_in, names_out, corr, confounded, ratio_prior, ra
         s = (f"{n}: posterior/prior std {ratio_prior[j]:.2f}, with/without discrepancy "
              f"{ratio_without[j]:.2f}, correlation with the {names_out[r]} discrepancy level "
              f"{corr[j, r]:+.2f}")
-        if confounded[j]:
-            s += (f" (|corr| >= {threshold:g}: confounded with the discrepancy; its value "
+        if confounded[j] and ratio_prior[j] >= _PRIOR_BOUND:
+            s += (f" (|corr| >= {threshold:g}: confounded with the discrepancy, and the data "
+                  f"barely narrow it (posterior/prior std >= {_PRIOR_BOUND:g}): its value "
                   "rests on the priors)")
+        elif confounded[j]:
+            # the data pin a combination of the parameter and the discrepancy's level: the
+            # parameter is narrow, but its value moves with the level the discrepancy takes
+            s += (f" (|corr| >= {threshold:g}: traded against the discrepancy's level; the "
+                  f"data narrow it to {ratio_prior[j]:.2f} of its prior std only jointly with "
+                  "that level, so its value is as uncertain as the discrepancy's level)")
         parts.append(s)
     return "; ".join(parts)
 

@@ -26,7 +26,7 @@ from .errors import InputFileError, RotoruqError
 
 __all__ = ["UnsafePathError", "ForeignFileError", "check_name", "name_problem",
            "check_relative", "inside", "no_symlink", "real_dir", "open_nofollow",
-           "read_nofollow", "terminal_text", "is_control"]
+           "read_nofollow", "terminal_text", "is_control", "path_length_problem"]
 
 # Unicode's bidirectional overrides and isolates reorder what a terminal shows (a name can
 # hide or reverse the text after it); they are format characters, not control ones.
@@ -37,6 +37,9 @@ _CONTROL_CATEGORIES = frozenset({"Cc", "Cs", "Zl", "Zp"})
 #: Longest name accepted, in UTF-8 bytes: it must fit in one file name (255 on every common
 #: file system) with the prefixes rotoruq adds (``.tmp-``, ``.old-``, suffixes).
 MAX_NAME_BYTES = 200
+#: Longest file name and path the kernel takes, in bytes (Linux ``NAME_MAX``, ``PATH_MAX``).
+NAME_MAX = 255
+PATH_MAX = 4096
 
 
 class UnsafePathError(RotoruqError, ValueError):
@@ -272,6 +275,27 @@ def inside(root: str | os.PathLike, value: object, *, what: str = "path",
                              f"{terminal_text(target)} through a symlink)",
                              str(value))
     return joined
+
+
+def path_length_problem(p: str | os.PathLike) -> str | None:
+    """Why no file can be named ``p`` (a name longer than ``NAME_MAX`` bytes, the whole path
+    longer than ``PATH_MAX``), or None; for a command-line argument, refused as a usage
+    error before the file system answers ``File name too long``.
+
+    Examples
+    --------
+    >>> path_length_problem("results/r.out") is None
+    True
+    >>> path_length_problem("x" * 300)
+    'a file name of 300 bytes (at most 255)'
+    """
+    raw = os.fsencode(p)
+    if len(raw) >= PATH_MAX:
+        return f"a path of {len(raw)} bytes (at most {PATH_MAX - 1})"
+    longest = max(raw.split(b"/"), key=len)
+    if len(longest) > NAME_MAX:
+        return f"a file name of {len(longest)} bytes (at most {NAME_MAX})"
+    return None
 
 
 def no_symlink(p: str | os.PathLike) -> Path:

@@ -6,8 +6,10 @@ storage errors are one line naming the file, long driver arguments are a usage e
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -17,9 +19,9 @@ CLI = [sys.executable, "-m", "rotoruq.study.cli"]
 ENV = {**os.environ, "PYTHONPATH": SRC}
 
 
-def run_cli(*args, cwd=None, timeout=300, **kw) -> subprocess.CompletedProcess:
+def run_cli(*args, cwd=None, timeout=300, env=None, **kw) -> subprocess.CompletedProcess:
     return subprocess.run([*CLI, *map(str, args)], capture_output=True, text=True,
-                          timeout=timeout, env=ENV, cwd=cwd, **kw)
+                          timeout=timeout, env={**ENV, **(env or {})}, cwd=cwd, **kw)
 
 
 PARAMS = "1 variables\n5.0 collective_deg\n1 functions\n1 ASV_1:thrust\n" \
@@ -54,3 +56,120 @@ def test_driver_whose_results_folder_is_missing_says_so_in_one_line(tmp_path):
     assert proc.returncode == 1 and "Traceback" not in proc.stderr
     assert proc.stderr.splitlines()[-1] == ("rotoruq driver: cannot write the results file "
                                             "no/r.out: No such file or directory")
+
+
+# A driver that leaves a tree behind: two children, and a grandchild that calls setsid(),
+# ignores SIGTERM and empties its environment (no token, no session or group of the run's).
+TREE_DRIVER = r'''
+import os, signal, sys, time
+marks = os.environ["MARKS"]
+def mark(role):
+    open(os.path.join(marks, f"{role}-{os.getpid()}"), "w").close()
+mark("driver")
+for i in range(2):
+    if os.fork() == 0:
+        if i == 0 and os.fork() == 0:
+            os.setsid()
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
+            os.environ.clear()
+            if os.fork() == 0:  # and its own child, orphaned at once
+                mark("great")
+                time.sleep(120)
+                os._exit(0)
+            mark("grandchild")
+            time.sleep(120)
+            os._exit(0)
+        mark("child")
+        time.sleep(120)
+        os._exit(0)
+while len(os.listdir(marks)) < 5 * int(os.environ.get("N_TREES", "1")):
+    time.sleep(0.01)
+time.sleep(float(os.environ.get("DRIVER_SLEEP", "0")))
+open(sys.argv[2], "w").write("1.0 y\n")
+'''
+
+TREE_STUDY = """\
+[study]
+name = "tree"
+seed = 1
+
+[model]
+command = [{python}, "-S", "driver.py", "{{params}}", "{{results}}"]
+responses = ["y"]
+
+[parameters.a]
+distribution = "uniform"
+lower = 0.0
+upper = 1.0
+
+[executor]
+kind = "{executor}"
+
+[[steps]]
+name = "lhs"
+type = "sampling"
+n_samples = {n}
+"""
+
+
+def _tree_study(tmp_path: Path, executor: str, n: int) -> tuple[Path, Path]:
+    import json
+
+    marks = tmp_path / "marks"
+    marks.mkdir()
+    (tmp_path / "driver.py").write_text(TREE_DRIVER)
+    study = tmp_path / "study.toml"
+    study.write_text(TREE_STUDY.format(python=json.dumps(sys.executable), executor=executor,
+                                       n=n))
+    return study, marks
+
+
+def _marked(marks: Path) -> dict[str, int]:
+    return {f.name: int(f.name.split("-")[1]) for f in marks.iterdir()}
+
+
+def _alive_after(marks: Path, seconds: float) -> list[str]:
+    from rotoruq.evaluation.process_tree import is_running
+
+    time.sleep(seconds)
+    return sorted(name for name, pid in _marked(marks).items() if is_running(pid))
+
+
+def test_a_drivers_whole_tree_ends_with_each_evaluation(tmp_path):
+    """After a normal run no process of any driver's tree is alive (2 s later), the setsid'd
+    grandchild that ignores SIGTERM and its orphaned child included."""
+    study, marks = _tree_study(tmp_path, "serial", 3)
+    proc = run_cli("run", study, "--out", tmp_path / "out", "--no-report", cwd=tmp_path,
+                   env={"MARKS": str(marks)})
+    assert proc.returncode == 0, proc.stderr
+    assert len(_marked(marks)) == 15  # 3 evaluations x (driver, 2 children, 2 setsid'd)
+    assert _alive_after(marks, 2.0) == []
+
+
+@pytest.mark.parametrize("executor,whole_group", [("serial", False), ("processes", True)],
+                         ids=["serial-kill-cli", "processes-kill-group"])
+def test_sigkill_of_the_run_ends_every_drivers_tree(tmp_path, executor, whole_group):
+    """kill -9 of `rotoruq run` (or of its process group, pool workers included) while its
+    drivers and their trees run: 2 s later none of their processes is alive."""
+    n_trees = 2 if executor == "processes" else 1
+    study, marks = _tree_study(tmp_path, executor, 4)
+    proc = subprocess.Popen([*CLI, "run", str(study), "--out", str(tmp_path / "out"),
+                             "--no-report"], cwd=tmp_path, start_new_session=True,
+                            env={**ENV, "DRIVER_SLEEP": "120", "N_TREES": str(n_trees),
+                                 "MARKS": str(marks)},
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        end = time.monotonic() + 120
+        while len(_marked(marks)) < 5 * n_trees:
+            assert time.monotonic() < end and proc.poll() is None, "the drivers' trees"
+            time.sleep(0.05)
+        if whole_group:
+            os.killpg(proc.pid, signal.SIGKILL)
+        else:
+            proc.kill()
+        proc.wait(10)
+        assert _alive_after(marks, 2.0) == []
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()

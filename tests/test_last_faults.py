@@ -173,3 +173,45 @@ def test_sigkill_of_the_run_ends_every_drivers_tree(tmp_path, executor, whole_gr
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+
+
+# A driver that, in its first evaluation, plants a symlink in the results folder ($OUT) the
+# run is writing: at `report` (to a folder outside), or at `work` (the real one moved aside
+# and linked to, so that this evaluation's own files still read back).
+PLANTER = r'''
+import os, sys
+out, where = os.environ["OUT"], os.environ["PLANT"]
+link = os.path.join(out, where)
+if not os.path.islink(link):
+    if where == "work":
+        os.rename(link, link + "-moved")
+        os.symlink(link + "-moved", link)
+    else:
+        os.symlink(os.environ["TARGET"], link)
+open(sys.argv[2], "w").write("1.0 y\n")
+'''
+
+
+@pytest.mark.parametrize("where", ["report", "work"])
+def test_a_symlink_planted_during_the_steps_is_refused_naming_it(tmp_path, where):
+    """A link planted at out/report or out/work while the run is in its steps (after the
+    start's checks): the run stops with one line naming the link, writes nothing through it,
+    and shows no traceback (before: the report was written into the link's target; a
+    swapped work folder failed blaming the driver's interpreter)."""
+    study, _ = _tree_study(tmp_path, "serial", 3)
+    (tmp_path / "driver.py").write_text(PLANTER)
+    out, target = tmp_path / "out", tmp_path / "elsewhere"
+    target.mkdir()
+    proc = run_cli("run", study, "--out", out, cwd=tmp_path,
+                   env={"OUT": str(out), "PLANT": where, "TARGET": str(target)})
+    assert proc.returncode == 1, proc.stderr
+    assert "Traceback" not in proc.stderr and "internal error" not in proc.stderr
+    (line,) = [ln for ln in proc.stderr.splitlines() if "error" in ln]
+    assert f"symlink planted at {out / where}" in line or f"symlink in a results folder: " \
+        f"{out / where} ->" in line, line
+    assert (out / where).is_symlink()
+    if where == "report":
+        assert list(target.iterdir()) == []
+        assert (out / "steps" / "lhs" / "result.json").is_file()  # the steps were saved
+    else:  # the first evaluation's folder is gone; no other was made through the link
+        assert list((out / "work-moved").iterdir()) == []

@@ -215,3 +215,77 @@ def test_a_symlink_planted_during_the_steps_is_refused_naming_it(tmp_path, where
         assert (out / "steps" / "lhs" / "result.json").is_file()  # the steps were saved
     else:  # the first evaluation's folder is gone; no other was made through the link
         assert list((out / "work-moved").iterdir()) == []
+
+
+def _file_size_limit(limit: int):
+    """A preexec for a subprocess: files cannot grow past ``limit`` bytes (EFBIG, as on a
+    full disk; SIGXFSZ ignored so the write fails instead of killing the process)."""
+    import resource
+
+    def pre() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    return pre
+
+
+TINY = """\
+[study]
+name = "tiny"
+seed = 3
+
+[model]
+preset = "gvpm"
+responses = ["thrust", "roll"]
+fixed = {{ collective_deg = 5.0 }}
+
+[parameters.k_pitch_link]
+distribution = "normal"
+mean = 15.0
+std = 0.75
+
+[executor]
+kind = "{executor}"
+
+[[steps]]
+name = "lhs"
+type = "sampling"
+n_samples = {n}
+"""
+
+
+def test_a_report_that_cannot_be_written_keeps_the_previous_one_whole(tmp_path):
+    """`rotoruq report` under a file-size limit below the size of index.html: one line
+    naming the file, no traceback, the previous index.html byte for byte, no temporary
+    file left (before: a truncated index.html)."""
+    study = tmp_path / "s.toml"
+    study.write_text(TINY.format(executor="serial", n=60))
+    out = tmp_path / "out"
+    first = run_cli("run", study, "--out", out, cwd=tmp_path)
+    assert first.returncode == 0, first.stderr
+    index = out / "report" / "index.html"
+    before = index.read_bytes()
+    assert len(before) > 60_000
+    proc = run_cli("report", out, cwd=tmp_path, preexec_fn=_file_size_limit(60_000))
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    (line,) = [ln for ln in proc.stderr.splitlines() if "error" in ln]
+    assert line.startswith("rotoruq report: error: ") and "File too large" in line
+    assert str(out / "report") in line  # the file that could not be written
+    assert index.read_bytes() == before
+    left = [p.name for p in (out / "report").rglob("*.tmp")]
+    assert left == []
+
+
+def test_a_full_store_in_a_pool_run_is_one_line_naming_the_file(tmp_path):
+    """`rotoruq run` on process workers whose store cannot grow past a file-size limit:
+    exit 1, one line naming evaluations.sqlite and what to do, nothing else on stderr."""
+    study = tmp_path / "s.toml"
+    study.write_text(TINY.format(executor="processes", n=3000))
+    out = tmp_path / "out"
+    proc = run_cli("run", study, "--out", out, "--no-report", cwd=tmp_path,
+                   preexec_fn=_file_size_limit(100_000))
+    assert proc.returncode == 1
+    lines = [ln for ln in proc.stderr.splitlines() if not ln.startswith("[tiny]")]
+    assert len(lines) == 1, proc.stderr
+    assert lines[0].startswith(f"rotoruq run: error: {out / 'evaluations.sqlite'}: ")
+    assert "free disk space" in lines[0]

@@ -4,9 +4,10 @@
   ``run_process_tree`` call running ``python -S -c pass``, with the watchdog and without it
   (the path taken where ``prctl`` is missing), medians of interleaved repeats; the watchdog's
   cost is the difference.
-- ``escapes``: a driver that starts a grandchild which calls ``setsid()``, ignores SIGTERM,
-  empties its environment and outlives its parent; the processes of the tree still alive
-  right after ``run_process_tree`` returns, with and without the watchdog.
+- ``escapes``: a driver that starts a grandchild which calls ``setsid()``, execs a program
+  with an empty environment that ignores SIGTERM, and whose parent exits at once; the
+  processes of the tree still alive right after ``run_process_tree`` returns, with and
+  without the watchdog.
 
     python benchmarks/driver_watchdog.py [--quick] > benchmarks/results/driver_watchdog.json
 """
@@ -28,15 +29,14 @@ from rotoruq.evaluation import process_tree
 from rotoruq.evaluation.process_tree import is_running, run_process_tree
 
 ESCAPER = r'''
-import os, signal, sys, time
+import os, sys, time
 if os.fork() == 0:
-    if os.fork() == 0:
+    if os.fork() == 0:  # setsid, then a new program with an empty environment (no token)
         os.setsid()
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)
-        os.environ.clear()
         open(sys.argv[1], "a").write(f"{os.getpid()}\n")
-        time.sleep(60)
-    os._exit(0)
+        os.execve(sys.executable, [sys.executable, "-S", "-c", "import signal, time; "
+                  "signal.signal(signal.SIGTERM, signal.SIG_IGN); time.sleep(60)"], {})
+    os._exit(0)  # its parent exits at once: it is nobody's descendant but init's
 time.sleep(0.3)
 '''
 

@@ -59,30 +59,35 @@ def test_driver_whose_results_folder_is_missing_says_so_in_one_line(tmp_path):
 
 
 # A driver that leaves a tree behind: two children, and a grandchild that calls setsid(),
-# ignores SIGTERM and empties its environment (no token, no session or group of the run's).
+# execs a program with an empty environment (no token, no session or group of the run's)
+# that ignores SIGTERM and starts a child of its own, while its parent exits at once.
 TREE_DRIVER = r'''
-import os, signal, sys, time
+import os, sys, time
 marks = os.environ["MARKS"]
 def mark(role):
     open(os.path.join(marks, f"{role}-{os.getpid()}"), "w").close()
+GRAND = """
+import os, signal, sys, time
+signal.signal(signal.SIGTERM, signal.SIG_IGN)
+role = "great" if os.fork() == 0 else "grandchild"
+open(os.path.join(sys.argv[1], f"{role}-{os.getpid()}"), "w").close()
+time.sleep(120)
+"""
 mark("driver")
 for i in range(2):
     if os.fork() == 0:
-        if i == 0 and os.fork() == 0:
-            os.setsid()
-            signal.signal(signal.SIGTERM, signal.SIG_IGN)
-            os.environ.clear()
-            if os.fork() == 0:  # and its own child, orphaned at once
-                mark("great")
-                time.sleep(120)
-                os._exit(0)
-            mark("grandchild")
-            time.sleep(120)
-            os._exit(0)
         mark("child")
+        if i == 0:
+            if os.fork() == 0:
+                os.setsid()
+                os.execve(sys.executable, [sys.executable, "-S", "-c", GRAND, marks], {})
+            os._exit(0)
         time.sleep(120)
         os._exit(0)
-while len(os.listdir(marks)) < 5 * int(os.environ.get("N_TREES", "1")):
+def complete():  # every driver started so far has its five processes marked
+    names = os.listdir(marks)
+    return len(names) >= 5 * sum(n.startswith("driver-") for n in names)
+while not complete():
     time.sleep(0.01)
 time.sleep(float(os.environ.get("DRIVER_SLEEP", "0")))
 open(sys.argv[2], "w").write("1.0 y\n")
@@ -155,8 +160,7 @@ def test_sigkill_of_the_run_ends_every_drivers_tree(tmp_path, executor, whole_gr
     study, marks = _tree_study(tmp_path, executor, 4)
     proc = subprocess.Popen([*CLI, "run", str(study), "--out", str(tmp_path / "out"),
                              "--no-report"], cwd=tmp_path, start_new_session=True,
-                            env={**ENV, "DRIVER_SLEEP": "120", "N_TREES": str(n_trees),
-                                 "MARKS": str(marks)},
+                            env={**ENV, "DRIVER_SLEEP": "120", "MARKS": str(marks)},
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         end = time.monotonic() + 120

@@ -117,3 +117,18 @@ def test_a_sample_of_mutants_through_the_cli_is_refused_in_one_line(tmp_path):
 @pytest.mark.slow
 def test_a_larger_sample_through_the_cli(tmp_path):
     _cli(tmp_path, SEED + 8, 40)
+
+
+def test_a_step_naming_a_removed_parameter_is_refused_naming_file_and_line(tmp_path):
+    """Found by the 5,000-mutant run: experiment.toml without [parameters.cla_m02], which a
+    step still lists, made `rotoruq dakota export` end in a KeyError traceback."""
+    doc = bundled()["experiment.toml"]
+    del doc["parameters"]["cla_m02"]
+    study = tmp_path / "study.toml"
+    study.write_text(to_toml(doc), encoding="utf-8")
+    proc = subprocess.run([*CLI, "dakota", "export", str(study), "-o", str(tmp_path / "d")],
+                          capture_output=True, text=True, timeout=300,
+                          env={**os.environ, "PYTHONPATH": SRC})
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    (line,) = [ln for ln in proc.stderr.splitlines() if "error" in ln]
+    assert f"{study}, line " in line and "found 'cla_m02'" in line

@@ -36,7 +36,8 @@ def test_driver_with_an_overlong_argument_is_a_usage_error(tmp_path, where):
     (tmp_path / "p.in").write_text(PARAMS)
     long = "a" * 300
     args = {"params": [long, "r.out"], "results": ["p.in", long],
-            "results-deep": ["p.in", f"d/{long}/r.out"], "path": ["p.in", "a/" * 3000 + "r.out"]}[where]
+            "results-deep": ["p.in", f"d/{long}/r.out"],
+            "path": ["p.in", "a/" * 3000 + "r.out"]}[where]
     proc = run_cli("driver", *args, cwd=tmp_path)
     assert proc.returncode == 2, proc.stderr
     assert "Traceback" not in proc.stderr and "usage: rotoruq driver" in proc.stderr

@@ -157,9 +157,9 @@ def main(args: list[str]) -> None:
     status = last if status is None else status
     if stopped or (status is not None and os.WIFSIGNALED(status)):
         # the driver's signal, SIGKILL when it was stopped: what its waiter would have seen
-        sig = signal.SIGKILL if stopped or status is None else os.WTERMSIG(status)
-        for s in {*_STOP_SIGNALS, sig} - {signal.SIGKILL, signal.SIGSTOP}:
-            signal.signal(s, signal.SIG_DFL)
+        sig = int(signal.SIGKILL) if stopped or status is None else os.WTERMSIG(status)
+        for number in {*map(int, _STOP_SIGNALS), sig} - {signal.SIGKILL, signal.SIGSTOP}:
+            signal.signal(number, signal.SIG_DFL)
         os.kill(me, sig)
         os._exit(1)
     os._exit(127 if status is None else os.waitstatus_to_exitcode(status))

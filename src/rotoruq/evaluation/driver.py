@@ -41,8 +41,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import ParameterError, RotoruqError
-from ..safety import path_length_problem, terminal_text
 from ..model import EvalBatch, Model, align_inputs, evaluate, has_gradient, model_gradient
+from ..safety import path_length_problem, terminal_text
 from .dakota_files import FAIL_TEXT, ParametersFile, format_results, read_parameters_batch
 
 __all__ = ["add_arguments", "main", "named_pairs", "run", "run_model", "ArgumentError",

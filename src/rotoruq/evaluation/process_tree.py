@@ -459,22 +459,24 @@ def run_process_tree(
     files = []
     pipes = []
     watchdog = _PRCTL is not None
+    pass_fds: tuple[int, ...]
     try:  # everything that can fail is done before the driver starts
         files = [open(stdout_path, "wb"), open(stderr_path, "wb")]  # noqa: SIM115
         pipes = [os.pipe(), os.pipe(), os.pipe()]  # stdout, stderr, the watchdog's report
         if watchdog:
             command = [sys.executable, "-I", "-S", _WATCHDOG, str(os.getpid()),
                        str(pipes[2][1]), *argv]
-            extra = {"pass_fds": (pipes[2][1],)}
+            pass_fds, preexec = (pipes[2][1],), None
         else:
-            command, extra = list(argv), {"preexec_fn": _driver_preexec(os.getpid())}
+            command, pass_fds, preexec = list(argv), (), _driver_preexec(os.getpid())
         # the watchdog starts with its stop signals blocked (it unblocks them once it can
         # act on them): a stop sent while it starts is never lost
         mask = signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS) if watchdog else None
         try:
             proc = subprocess.Popen(command, cwd=cwd, env=env, stdin=subprocess.DEVNULL,
                                     stdout=pipes[0][1], stderr=pipes[1][1], shell=False,
-                                    close_fds=True, start_new_session=True, **extra)
+                                    close_fds=True, start_new_session=True,
+                                    pass_fds=pass_fds, preexec_fn=preexec)
         finally:
             if mask is not None:
                 signal.pthread_sigmask(signal.SIG_SETMASK, mask)

@@ -31,7 +31,6 @@ from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 from typing import Any
 
-from ..atomic import SafeFolder
 from ..render.figures import FigureContext
 from ..results import (
     STUDY_INFO,
@@ -40,6 +39,7 @@ from ..results import (
     load_results,
     study_infos,
 )
+from ..safety import SafeFolder
 from ..steps.bayes_calibration import posterior_record
 from .application import Addition, Application, ReportData, Section
 from .escape import slug

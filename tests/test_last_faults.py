@@ -91,42 +91,17 @@ def complete():  # every driver started so far has its five processes marked
 while not complete():
     time.sleep(0.01)
 time.sleep(float(os.environ.get("DRIVER_SLEEP", "0")))
-open(sys.argv[2], "w").write("1.0 y\n")
+open(sys.argv[2], "w").write("1.0 y1\n2.0 y2\n")
 '''
 
-TREE_STUDY = """\
-[study]
-name = "tree"
-seed = 1
-
-[model]
-command = [{python}, "-S", "driver.py", "{{params}}", "{{results}}"]
-responses = ["y"]
-
-[parameters.a]
-distribution = "uniform"
-lower = 0.0
-upper = 1.0
-
-[executor]
-kind = "{executor}"
-
-[[steps]]
-name = "lhs"
-type = "sampling"
-n_samples = {n}
-"""
-
-
 def _tree_study(tmp_path: Path, executor: str, n: int) -> tuple[Path, Path]:
-    import json
+    """test_trust's external study (``n`` points on ``executor``) with the tree driver."""
+    from test_trust import external_study
 
     marks = tmp_path / "marks"
     marks.mkdir()
+    study = external_study(tmp_path, n=n, executor=executor)
     (tmp_path / "driver.py").write_text(TREE_DRIVER)
-    study = tmp_path / "study.toml"
-    study.write_text(TREE_STUDY.format(python=json.dumps(sys.executable), executor=executor,
-                                       n=n))
     return study, marks
 
 
@@ -193,7 +168,7 @@ if not os.path.islink(link):
         os.symlink(link + "-moved", link)
     else:
         os.symlink(os.environ["TARGET"], link)
-open(sys.argv[2], "w").write("1.0 y\n")
+open(sys.argv[2], "w").write("1.0 y1\n2.0 y2\n")
 '''
 
 
@@ -234,29 +209,13 @@ def _file_size_limit(limit: int):
     return pre
 
 
-TINY = """\
-[study]
-name = "tiny"
-seed = 3
+def _tiny(executor: str, n: int) -> str:
+    """test_cli's one-step rotor study, ``n`` points on ``executor``."""
+    from test_cli import TINY
 
-[model]
-preset = "gvpm"
-responses = ["thrust", "roll"]
-fixed = {{ collective_deg = 5.0 }}
-
-[parameters.k_pitch_link]
-distribution = "normal"
-mean = 15.0
-std = 0.75
-
-[executor]
-kind = "{executor}"
-
-[[steps]]
-name = "lhs"
-type = "sampling"
-n_samples = {n}
-"""
+    assert "n_samples = 40\n" in TINY
+    return (TINY.replace("n_samples = 40\n", f"n_samples = {n}\n")
+            + f'\n[executor]\nkind = "{executor}"\n')
 
 
 def test_a_report_that_cannot_be_written_keeps_the_previous_one_whole(tmp_path):
@@ -264,7 +223,7 @@ def test_a_report_that_cannot_be_written_keeps_the_previous_one_whole(tmp_path):
     naming the file, no traceback, the previous index.html byte for byte, no temporary
     file left (before: a truncated index.html)."""
     study = tmp_path / "s.toml"
-    study.write_text(TINY.format(executor="serial", n=60))
+    study.write_text(_tiny("serial", 60))
     out = tmp_path / "out"
     first = run_cli("run", study, "--out", out, cwd=tmp_path)
     assert first.returncode == 0, first.stderr
@@ -285,7 +244,7 @@ def test_a_full_store_in_a_pool_run_is_one_line_naming_the_file(tmp_path):
     """`rotoruq run` on process workers whose store cannot grow past a file-size limit:
     exit 1, one line naming evaluations.sqlite and what to do, nothing else on stderr."""
     study = tmp_path / "s.toml"
-    study.write_text(TINY.format(executor="processes", n=3000))
+    study.write_text(_tiny("processes", 3000))
     out = tmp_path / "out"
     proc = run_cli("run", study, "--out", out, "--no-report", cwd=tmp_path,
                    preexec_fn=_file_size_limit(100_000))

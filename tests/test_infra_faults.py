@@ -22,7 +22,7 @@ import pytest
 from rotoruq.errors import InfrastructureError
 from rotoruq.evaluation.evaluator import Evaluator
 from rotoruq.evaluation.executors import ProcessExecutor
-from rotoruq.evaluation.process_tree import is_running
+from rotoruq.evaluation.process_tree import _stat, is_running
 from rotoruq.evaluation.store import Store
 from rotoruq.model import FunctionModel
 
@@ -235,7 +235,9 @@ def test_sigkill_of_the_run_leaves_no_worker_or_driver(tmp_path, whole_group):
     try:
         _wait_for(lambda: _slow_running(marks) == 2, 60, "two 30 s drivers running")
         drivers = _drivers(marks)
-        workers = {ppid for ppid, _ in drivers.values()}
+        # the running drivers' parents are their watchdogs, whose parents are the workers
+        watchdogs = {ppid for pid, (ppid, a) in drivers.items() if a > 2 and is_running(pid)}
+        workers = {_stat(w)[1] for w in watchdogs}
         assert len(workers) == 2 and proc.pid not in workers
         if whole_group:
             os.killpg(proc.pid, signal.SIGKILL)
@@ -243,7 +245,7 @@ def test_sigkill_of_the_run_leaves_no_worker_or_driver(tmp_path, whole_group):
             proc.kill()
         proc.wait(10)
         time.sleep(2.0)
-        alive = [p for p in [*drivers, *workers] if is_running(p)]
+        alive = [p for p in [*drivers, *watchdogs, *workers] if is_running(p)]
         assert alive == [], f"still running 2 s after SIGKILL: {alive}"
     finally:
         if proc.poll() is None:
@@ -287,9 +289,7 @@ def _pids_running(word: str) -> list[int]:
 
 
 def _driver_workers(cli_pid: int) -> list[int]:
-    """Parents (pool workers of the CLI) of the running driver.py processes."""
-    from rotoruq.evaluation.process_tree import _stat
-
+    """Pool workers of the CLI running driver.py (the parents of the drivers' watchdogs)."""
     found = set()
     for pid in _pids_running("driver.py"):  # only those whose grandparent is the CLI
         st = _stat(pid)

@@ -10,6 +10,10 @@ symlink planted there, or put escape codes on the user's terminal:
   its folder once resolved (symlinks included);
 - :func:`real_dir`, :func:`no_symlink`, :func:`open_nofollow`, :func:`read_nofollow`: files
   and folders of a results folder, never through a symlink;
+- :class:`SafeFolder`: a tree of files (a report) written through folder descriptors opened
+  with ``O_NOFOLLOW``, each file atomically: a symlink planted at any name after the run
+  started is refused naming it, and a folder swapped after it was opened does not redirect
+  the writes;
 - :func:`terminal_text`: a string with its control characters shown as escapes (the one
   escaping of study-supplied text: :mod:`rotoruq.report.escape` builds on it).
 """
@@ -18,6 +22,7 @@ from __future__ import annotations
 
 import errno
 import os
+import secrets
 import stat
 import unicodedata
 from pathlib import Path, PurePath
@@ -26,7 +31,10 @@ from .errors import InputFileError, RotoruqError
 
 __all__ = ["UnsafePathError", "ForeignFileError", "check_name", "name_problem",
            "check_relative", "inside", "no_symlink", "real_dir", "open_nofollow",
-           "read_nofollow", "terminal_text", "is_control"]
+           "read_nofollow", "terminal_text", "is_control", "path_length_problem", "SafeFolder"]
+
+_DIR_FLAGS = os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC
+_NEW_FILE = os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC
 
 # Unicode's bidirectional overrides and isolates reorder what a terminal shows (a name can
 # hide or reverse the text after it); they are format characters, not control ones.
@@ -37,6 +45,9 @@ _CONTROL_CATEGORIES = frozenset({"Cc", "Cs", "Zl", "Zp"})
 #: Longest name accepted, in UTF-8 bytes: it must fit in one file name (255 on every common
 #: file system) with the prefixes rotoruq adds (``.tmp-``, ``.old-``, suffixes).
 MAX_NAME_BYTES = 200
+#: Longest file name and path the kernel takes, in bytes (Linux ``NAME_MAX``, ``PATH_MAX``).
+NAME_MAX = 255
+PATH_MAX = 4096
 
 
 class UnsafePathError(RotoruqError, ValueError):
@@ -274,6 +285,27 @@ def inside(root: str | os.PathLike, value: object, *, what: str = "path",
     return joined
 
 
+def path_length_problem(p: str | os.PathLike) -> str | None:
+    """Why no file can be named ``p`` (a name longer than ``NAME_MAX`` bytes, the whole path
+    longer than ``PATH_MAX``), or None; for a command-line argument, refused as a usage
+    error before the file system answers ``File name too long``.
+
+    Examples
+    --------
+    >>> path_length_problem("results/r.out") is None
+    True
+    >>> path_length_problem("x" * 300)
+    'a file name of 300 bytes (at most 255)'
+    """
+    raw = os.fsencode(p)
+    if len(raw) >= PATH_MAX:
+        return f"a path of {len(raw)} bytes (at most {PATH_MAX - 1})"
+    longest = max(raw.split(b"/"), key=len)
+    if len(longest) > NAME_MAX:
+        return f"a file name of {len(longest)} bytes (at most {NAME_MAX})"
+    return None
+
+
 def no_symlink(p: str | os.PathLike) -> Path:
     """``p`` when it is not a symlink (it may be missing); :class:`UnsafePathError` naming
     it otherwise.
@@ -362,3 +394,117 @@ def read_nofollow(p: str | os.PathLike) -> bytes:
         return b"".join(chunks)
     finally:
         os.close(fd)
+
+
+def _planted(name: str, dir_fd: int | None, shown: Path) -> UnsafePathError | None:
+    """The error for a symlink (or, where a folder is expected, a file) at ``name``."""
+    try:
+        st = os.lstat(name, dir_fd=dir_fd)
+    except FileNotFoundError:
+        return None
+    if stat.S_ISLNK(st.st_mode):
+        return UnsafePathError(
+            f"symlink planted at {terminal_text(shown)} (-> "
+            f"{terminal_text(os.readlink(name, dir_fd=dir_fd))}) while rotoruq writes there; "
+            "rotoruq never writes through a symlink: remove it and run again")
+    return None
+
+
+class SafeFolder:
+    """A folder opened without following a symlink, to create files and folders in.
+
+    Every folder below it is opened the same way and every file is written atomically (a
+    temporary name opened with ``O_EXCL | O_NOFOLLOW``, then renamed), all through folder
+    descriptors: a symlink planted at a name, at any time, raises
+    :class:`~rotoruq.safety.UnsafePathError` naming it, and nothing is written through it.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The folder; created (with its parents, the user's umask) when missing. Its parents
+        may be symlinks (the user's choice); the folder itself may not.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as d, SafeFolder(Path(d) / "report") as out:
+    ...     with out.folder("tables") as tables:
+    ...         _ = tables.write("a.csv", b"x,y\\n")
+    ...     (Path(d) / "report" / "tables" / "a.csv").read_bytes()
+    b'x,y\\n'
+    """
+
+    fd: int  # the folder's descriptor, -1 once closed
+
+    def __init__(self, path: str | os.PathLike, *, _parent: SafeFolder | None = None):
+        self.path = Path(path)
+        if _parent is None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            where, name = None, str(self.path)
+        else:
+            where, name = _parent.fd, self.path.name
+        try:
+            os.mkdir(name, 0o777, dir_fd=where)
+        except FileExistsError:
+            pass
+        try:
+            self.fd = os.open(name, _DIR_FLAGS, dir_fd=where)
+        except OSError as exc:
+            if exc.errno in (errno.ELOOP, errno.ENOTDIR):
+                planted = _planted(name, where, self.path)
+                if planted is not None:
+                    raise planted from None
+                raise UnsafePathError(f"{terminal_text(self.path)}: expected a folder, found "
+                                      "a file; remove it") from None
+            raise
+
+    def folder(self, name: str) -> SafeFolder:
+        """The folder ``name`` in this one, created when missing (a context manager)."""
+        return SafeFolder(self.path / name, _parent=self)
+
+    def write(self, name: str, data: bytes, *, sync: bool = False) -> Path:
+        """Write ``data`` to the file ``name`` of this folder atomically (with ``sync``, on
+        disk before the rename); returns its path."""
+        shown = self.path / name
+        for _ in range(100):
+            tmp = f".{name}.{secrets.token_hex(6)}.tmp"
+            try:
+                fd = os.open(tmp, _NEW_FILE, 0o666, dir_fd=self.fd)
+                break
+            except FileExistsError:
+                continue
+        else:
+            raise FileExistsError(f"no free temporary name .{name}.*.tmp in {self.path}")
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(data)
+                fh.flush()
+                if sync:
+                    os.fsync(fh.fileno())
+            planted = _planted(name, self.fd, shown)
+            if planted is not None:
+                raise planted
+            os.replace(tmp, name, src_dir_fd=self.fd, dst_dir_fd=self.fd)
+        except BaseException as exc:
+            try:
+                os.unlink(tmp, dir_fd=self.fd)
+            except FileNotFoundError:
+                pass
+            if isinstance(exc, OSError) and not isinstance(exc, UnsafePathError):
+                raise OSError(exc.errno, exc.strerror, str(shown)) from None
+            raise
+        if sync:
+            os.fsync(self.fd)
+        return shown
+
+    def close(self) -> None:
+        """Close the folder's descriptor."""
+        if self.fd >= 0:
+            os.close(self.fd)
+            self.fd = -1
+
+    def __enter__(self) -> SafeFolder:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

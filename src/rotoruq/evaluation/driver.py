@@ -42,6 +42,7 @@ import numpy as np
 
 from ..errors import ParameterError, RotoruqError
 from ..model import EvalBatch, Model, align_inputs, evaluate, has_gradient, model_gradient
+from ..safety import path_length_problem, terminal_text
 from .dakota_files import FAIL_TEXT, ParametersFile, format_results, read_parameters_batch
 
 __all__ = ["add_arguments", "main", "named_pairs", "run", "run_model", "ArgumentError",
@@ -122,15 +123,32 @@ def _outputs(items: Sequence[str]) -> list[str]:
 def _results_path(argv: Sequence[str]) -> Path | None:
     """The results file of a command line that did not parse: the last word, when the word
     before it names an existing file (Dakota appends ``params results``)."""
-    if len(argv) >= 2 and not argv[-1].startswith("-") and Path(argv[-2]).is_file():
+    if (len(argv) >= 2 and not argv[-1].startswith("-")
+            and not any(map(path_length_problem, argv[-2:])) and Path(argv[-2]).is_file()):
         return Path(argv[-1])
     return None
 
 
-def _write(path: Path, text: str) -> None:
+def _write(path: Path, text: str, program: str) -> bool:
+    """Write the results file (via a temporary one); a failure is one line on stderr."""
     tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
+    try:
+        tmp.write_text(text)
+        tmp.replace(path)
+    except OSError as exc:
+        print(f"{program}: cannot write the results file {terminal_text(path)}: "
+              f"{exc.strerror or exc}", file=sys.stderr)
+        return False
+    return True
+
+
+def _check_paths(args: argparse.Namespace, parser: argparse.ArgumentParser) -> None:
+    """A parameters or results file that no file system can name is a usage error."""
+    for what in ("params", "results"):
+        problem = path_length_problem(getattr(args, what))
+        if problem is not None:
+            raise ArgumentError(f"argument {what}: {problem}\n"
+                                f"{parser.format_usage().strip()}")
 
 
 class _Plan:
@@ -281,7 +299,7 @@ def run(params: Path, results: Path, make_model: MakeModel, args: argparse.Names
         values, grads, failures, seconds = _evaluate(model, plan)
     except (RotoruqError, OSError, ValueError) as exc:
         print(f"{program}: {exc}", file=sys.stderr)
-        _write(results, FAIL_TEXT)
+        _write(results, FAIL_TEXT, program)
         return 1
     texts = []
     status = 0
@@ -296,7 +314,8 @@ def run(params: Path, results: Path, make_model: MakeModel, args: argparse.Names
         print(f"{program}: evaluation {b.eval_id} failed: {reason}", file=sys.stderr)
         texts.append(FAIL_TEXT)
         status = 1
-    _write(results, "#\n".join(texts))
+    if not _write(results, "#\n".join(texts), program):
+        return 1
     return status
 
 
@@ -373,10 +392,11 @@ def main(argv: Sequence[str] | None, make_model: MakeModel, *, program: str,
         args = parser.parse_args(argv)
         named_pairs(args.fixed, "--set", True)
         named_pairs(args.mapping, "--map")
+        _check_paths(args, parser)
     except ArgumentError as exc:
         print(f"{program}: error: {exc}", file=sys.stderr)
         path = getattr(locals().get("args"), "results", None) or _results_path(argv)
-        if path is not None:
-            _write(Path(path), FAIL_TEXT)
+        if path is not None and path_length_problem(path) is None:
+            _write(Path(path), FAIL_TEXT, program)
         return 2
     return run(args.params, args.results, make_model, args, program=program)

@@ -80,6 +80,7 @@ from .._options import fields_of, legacy_keywords, legacy_mapping, with_fields
 from ..atomic import make_temp_dir
 from ..errors import EvaluationError, InputFileError, ParameterError, RotoruqError
 from ..model import EVALUATE_BATCH_DOC, EvalBatch, Gradient
+from ..safety import UnsafePathError, real_dir
 from .dakota_files import check_label, read_results, read_text, write_parameters
 from .identity import file_sha256
 from .process_tree import run_process_tree
@@ -399,6 +400,8 @@ class ExternalModel:
         if len(set(self.names_out)) != len(self.names_out):
             raise ParameterError(f"duplicate response names in {self.names_out}")
         self.workdir = Path(wd_opts.base).absolute()
+        # a link the user made is their choice; one planted later is refused (_make_workdir)
+        self._workdir_linked = self.workdir.is_symlink()
         self.name = _file_name(name, "model name")
         self.tag = bool(tag)
         self.template_files = [Path(p).absolute() for p in template_files]
@@ -556,8 +559,13 @@ class ExternalModel:
     def _make_workdir(self, eval_id: str, previous: Path | None) -> Path:
         """A fresh, empty work directory made by this call; ``previous`` (the directory of
         the previous attempt of this evaluation, made by this model) is removed first.
-        Never removes a directory rotoruq did not make."""
-        self.workdir.mkdir(parents=True, exist_ok=True)
+        Never removes a directory rotoruq did not make, never makes one through a symlink
+        planted at the base after the model was made."""
+        if self.__dict__.get("_workdir_linked", True):
+            self.workdir.mkdir(parents=True, exist_ok=True)
+        else:
+            self.workdir.parent.mkdir(parents=True, exist_ok=True)
+            real_dir(self.workdir, create=True)
         if previous is not None:
             shutil.rmtree(previous, ignore_errors=True)
         if not self.tag:
@@ -710,7 +718,8 @@ class ExternalModel:
             attempts += 1
             try:
                 wd = self._make_workdir(eval_id, wd)
-            except OSError as exc:  # disk full, no permission: a failure like any other
+            except (OSError, UnsafePathError) as exc:  # disk full, no permission, a link
+                # planted at the base: a failure like any other, naming the path
                 got = _Attempt(None, f"could not make a work directory: {exc}")
                 wd = None
             else:

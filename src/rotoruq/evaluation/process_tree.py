@@ -3,22 +3,31 @@
 :func:`run_process_tree` starts a command in a session of its own and waits for it with a
 time limit. It is the one place where rotoruq runs a solver, and it guarantees:
 
-- **The whole process tree ends.** On timeout, on an exception in the waiting thread
-  (``KeyboardInterrupt``, a cancelled task) and after a normal exit, every process the driver
-  left behind is killed with SIGKILL: its process group (= its session, since it starts one),
-  every descendant recorded while it ran (``/proc/<pid>/stat`` parent links, scanned at growing
-  intervals: 10 ms doubling up to 2 s), and every process whose environment carries the run's
-  random token (``ROTORUQ_DRIVER_TOKEN``), which catches a grandchild that called
-  ``setsid()`` and whose parent already exited. Processes are identified by (pid, start time),
-  so a recycled pid is never signalled, and the driver itself is reaped only after its group
-  has been killed, so its pid (the group id) cannot be reused in between. No cgroups or
-  privileges are needed; Linux only (elsewhere the process group alone is killed).
+- **The whole process tree ends.** On Linux the command runs under a watchdog
+  (:mod:`rotoruq.evaluation._watchdog`, a small process of its own session) that is the
+  *child subreaper* of the driver's tree: every process the driver starts stays below it,
+  whatever it does (``setsid()``, double forks, an emptied environment). When the driver
+  exits, when the run stops it or times out, and when the thread waiting for it dies (even by
+  SIGKILL: the watchdog's parent-death signal), the watchdog SIGKILLs and reaps every
+  descendant before it exits. As a second line, after the watchdog has exited (or when it
+  was killed itself) every process the run left behind is killed with SIGKILL: the driver's
+  process group, every descendant recorded while it ran (``/proc/<pid>/stat`` parent links,
+  scanned at growing intervals: 10 ms doubling up to 2 s), and every process whose
+  environment carries the run's random token (``ROTORUQ_DRIVER_TOKEN``). Processes are
+  identified by (pid, start time), so a recycled pid is never signalled, and the watchdog
+  itself is reaped only after its group has been killed, so its pid (the group id) cannot be
+  reused in between. No cgroups or privileges are needed; elsewhere than Linux the command
+  runs without watchdog and its process group alone is killed.
 - **Bounded output.** stdout and stderr go through pipes drained by the waiting thread into
   two files: the first ``cap`` bytes, then a ``[rotoruq: N bytes omitted]`` line and the last
   ``FILE_TAIL`` bytes. Memory held per stream is the last ``FILE_TAIL`` bytes, whatever the
   driver writes.
-- **Nothing outlives the run.** The driver gets a parent-death signal (``PR_SET_PDEATHSIG``,
-  SIGKILL): if the process waiting for it dies, even by SIGKILL, so does the driver. Every
+- **Nothing outlives the run.** The watchdog gets a parent-death signal (``PR_SET_PDEATHSIG``,
+  SIGTERM, upon which it kills the tree), the driver another (SIGKILL, should the watchdog
+  itself be killed): if the process waiting for them dies, even by SIGKILL, so does the
+  driver's whole tree. What no process can guarantee: a SIGKILL of the watchdog and of the
+  run at once (``kill -9`` of both pids, the OOM killer taking both) leaves the driver's own
+  children to init. Every
   running tree is listed, so that :func:`kill_active_trees` (called by a process-pool worker
   on SIGTERM or when :func:`watch_parent` sees the run's main process die) ends them all.
 - **Stopped by the run that owns it.** A thread that runs the tasks of one client (a Dask
@@ -55,6 +64,9 @@ FILE_TAIL = 64 * 1024  # bytes of the end of each stream kept (file and memory)
 _CHUNK = 64 * 1024
 _PROC = Path("/proc")
 _PR_SET_PDEATHSIG = 1
+_WATCHDOG = str(Path(__file__).with_name("_watchdog.py"))
+_STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP, signal.SIGINT)  # the watchdog's
+_WATCHDOG_GRACE = 5.0  # seconds the watchdog gets to kill and reap the tree it holds
 _ACTIVE: dict[int, _Tree] = {}  # running driver trees of this process, by driver pid
 _ACTIVE_LOCK = threading.Lock()
 _STOPPING = threading.Event()  # set by kill_active_trees(stop=True): no new driver starts
@@ -316,9 +328,11 @@ def _pids() -> list[int]:
 class _Tree:
     """The processes of one driver run, recorded as (pid -> start time)."""
 
-    def __init__(self, root: int, token: str, owner: str | None = None):
+    def __init__(self, root: int, token: str, owner: str | None = None,
+                 watchdog: bool = False):
         self.root = root
         self.owner = owner
+        self.watchdog = watchdog
         self.needle = f"{TOKEN_VAR}={token}".encode()
         self.known: dict[int, int] = {}
         self.me = os.getpid()
@@ -361,6 +375,14 @@ class _Tree:
         """SIGKILL the driver's group and every process of the run (several rounds, so that
         children forked meanwhile are caught too); returns how many processes other than the
         driver were killed."""
+        if self.watchdog:  # it kills and reaps the tree it holds, then exits
+            try:
+                os.kill(self.root, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+            end = time.monotonic() + _WATCHDOG_GRACE
+            while is_running(self.root) and time.monotonic() < end:
+                time.sleep(0.002)
         killed: set[int] = set()
         for rnd in range(50):
             try:
@@ -436,13 +458,28 @@ def run_process_tree(
                                 if k != TOKEN_VAR}}
     files = []
     pipes = []
+    watchdog = _PRCTL is not None
+    pass_fds: tuple[int, ...]
     try:  # everything that can fail is done before the driver starts
         files = [open(stdout_path, "wb"), open(stderr_path, "wb")]  # noqa: SIM115
-        pipes = [os.pipe(), os.pipe()]
-        proc = subprocess.Popen(list(argv), cwd=cwd, env=env, stdin=subprocess.DEVNULL,
-                                stdout=pipes[0][1], stderr=pipes[1][1], shell=False,
-                                close_fds=True, start_new_session=True,
-                                preexec_fn=_driver_preexec(os.getpid()))
+        pipes = [os.pipe(), os.pipe(), os.pipe()]  # stdout, stderr, the watchdog's report
+        if watchdog:
+            command = [sys.executable, "-I", "-S", _WATCHDOG, str(os.getpid()),
+                       str(pipes[2][1]), *argv]
+            pass_fds, preexec = (pipes[2][1],), None
+        else:
+            command, pass_fds, preexec = list(argv), (), _driver_preexec(os.getpid())
+        # the watchdog starts with its stop signals blocked (it unblocks them once it can
+        # act on them): a stop sent while it starts is never lost
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS) if watchdog else None
+        try:
+            proc = subprocess.Popen(command, cwd=cwd, env=env, stdin=subprocess.DEVNULL,
+                                    stdout=pipes[0][1], stderr=pipes[1][1], shell=False,
+                                    close_fds=True, start_new_session=True,
+                                    pass_fds=pass_fds, preexec_fn=preexec)
+        finally:
+            if mask is not None:
+                signal.pthread_sigmask(signal.SIG_SETMASK, mask)
     except BaseException:
         for fd in (fd for pair in pipes for fd in pair):
             os.close(fd)
@@ -452,7 +489,7 @@ def run_process_tree(
     for _, w in pipes:
         os.close(w)
     caps = [_Capture(pipes[0][0], files[0], cap), _Capture(pipes[1][0], files[1], cap)]
-    tree = _Tree(proc.pid, token, owner)
+    tree = _Tree(proc.pid, token, owner, watchdog)
     with _ACTIVE_LOCK:
         _ACTIVE[proc.pid] = tree
         stopping = _STOPPING.is_set() or (owner is not None and owner in _STOPPED_OWNERS)
@@ -504,8 +541,26 @@ def run_process_tree(
             if pidfd is not None:
                 os.close(pidfd)
             tails = [c.finish() for c in caps]
+            report = _read_report(pipes[2][0])
+    if report.startswith("exec "):
+        code = int(report.split()[1])
+        raise OSError(code, os.strerror(code), argv[0])
+    if report.startswith("done "):
+        leftovers += int(report.split()[1])
     return DriverRun(proc.returncode, timed_out, tails[0], tails[1], caps[0].total,
                      caps[1].total, leftovers, time.perf_counter() - t0)
+
+
+def _read_report(fd: int) -> str:
+    """What the watchdog wrote to its report pipe (empty without watchdog, or when it was
+    killed before writing); closes the pipe."""
+    try:
+        os.set_blocking(fd, False)
+        return os.read(fd, 64).decode("ascii", "replace")
+    except (BlockingIOError, OSError):
+        return ""
+    finally:
+        os.close(fd)
 
 
 def _pump(sel: selectors.BaseSelector, wait: float) -> None:

@@ -27,6 +27,8 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from ..safety import real_dir
+
 __all__ = ["FigureCache", "CACHE_DIR"]
 
 #: The cache folder inside a report folder.
@@ -116,7 +118,7 @@ class FigureCache:
         if key is None:
             return
         try:
-            self.root.mkdir(parents=True, exist_ok=True)
+            real_dir(self.root, create=True)  # a planted link is refused, never followed
             tmp = Path(tempfile.mkdtemp(prefix=".tmp-", dir=self.root))
             index = []
             for i, f in enumerate(figures):
@@ -137,7 +139,9 @@ class FigureCache:
 
     def prune(self) -> int:
         """Remove the entries this report did not use; returns how many."""
-        if not self.root.is_dir():
+        try:
+            real_dir(self.root)  # never prunes through a planted link
+        except FileNotFoundError:
             return 0
         gone = 0
         for p in self.root.iterdir():

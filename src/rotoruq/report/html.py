@@ -28,7 +28,7 @@ import tempfile
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any
 
 from ..render.figures import FigureContext
@@ -39,6 +39,7 @@ from ..results import (
     load_results,
     study_infos,
 )
+from ..safety import SafeFolder
 from ..steps.bayes_calibration import posterior_record
 from .application import Addition, Application, ReportData, Section
 from .escape import slug
@@ -335,9 +336,19 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
     """
     t_start = time.perf_counter()
     report_dir = Path(report_dir)
-    fig_dir, tab_dir = report_dir / "figures", report_dir / "tables"
-    fig_dir.mkdir(parents=True, exist_ok=True)
-    tab_dir.mkdir(parents=True, exist_ok=True)
+    # every folder and file of the report is made through descriptors that never follow a
+    # symlink, each file atomically: a link planted while the run was in its steps is
+    # refused naming it, and a full disk leaves the previous file whole
+    with SafeFolder(report_dir) as out, out.folder("figures") as fig_dir, \
+            out.folder("tables") as tab_dir:
+        return _write_report(results_dirs, report_dir, out, fig_dir, tab_dir, title, workers,
+                             application, t_start)
+
+
+def _write_report(results_dirs: Sequence[str | Path], report_dir: Path, out: SafeFolder,
+                  fig_dir: SafeFolder, tab_dir: SafeFolder, title: str | None,
+                  workers: int | None, application: Application | None,
+                  t_start: float) -> Path:
     studies: dict[str, dict[str, StepResult]] = {}
     infos: dict[str, dict] = {}
     folders: dict[str, str] = {}
@@ -413,12 +424,10 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
         for sec in added.sections:
             section(sec)
         for rel, text in added.files.items():
-            path = (report_dir / rel).resolve()
-            if not path.is_relative_to(report_dir.resolve()):
+            parts = PurePosixPath(rel).parts
+            if not parts or PurePosixPath(rel).is_absolute() or ".." in parts:
                 raise ValueError(f"an application's file outside the report folder: {rel!r}")
-            path.parent.mkdir(parents=True, exist_ok=True)
-            with path.open("w", newline="") as fh:
-                fh.write(text)
+            _write_nested(out, parts, text.encode("utf-8"))
 
         unrendered = sorted({s.type for steps in studies.values() for s in steps.values()
                              if rendering(s.type).tables is None})
@@ -439,8 +448,8 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
                 heading(4, f"{s.name} ({s.type}): {s.meta.get('title') or ''}".rstrip(": "),
                         anchors[s.name])
                 for k, t in enumerate(step_tables(s, labels.get(name))):
-                    (tab_dir / f"{slug(name)}_{slug(s.name)}_{k + 1}.csv").write_text(
-                        table_csv(t))
+                    tab_dir.write(f"{slug(name)}_{slug(s.name)}_{k + 1}.csv",
+                                  table_csv(t).encode("utf-8"))
                     body.append(step_table_html(t))
             for sec in added.study_sections.get(name, ()):
                 section(sec)
@@ -456,8 +465,8 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
                 heading(3, "Figures", _anchor(sid, "figures"))
             for f in figs:
                 key = f"{slug(name)}_{slug(f.name)}"  # two studies may both have a step "bayes"
-                (fig_dir / f"{key}.png").write_bytes(f.png)
-                (fig_dir / f"{key}.svg").write_bytes(f.svg)
+                fig_dir.write(f"{key}.png", f.png)
+                fig_dir.write(f"{key}.svg", f.svg)
                 toc.append((4, f"fig-{key}", f.caption))
                 body.append(_figure_html(f, key))
             log.info("report: %s: %d figures (%.1f s waited)", name, len(figs),
@@ -477,11 +486,20 @@ def write_report(results_dirs: Sequence[str | Path], report_dir: str | Path,
             f"<meta http-equiv='Content-Security-Policy' content=\"{CSP}\">"
             f"<title>{e(title)}</title><style>{_CSS}</style></head><body>"
             + "\n".join(head + body) + "</body></html>")
-    index = report_dir / "index.html"
-    index.write_text(page, encoding="utf-8")
+    index = out.write("index.html", page.encode("utf-8"), sync=True)
     log.info("report: written in %.1f s", time.perf_counter() - t_start)
     return index
 
+
+
+def _write_nested(folder: SafeFolder, parts: Sequence[str], data: bytes) -> None:
+    """Write ``data`` at the relative path ``parts`` below ``folder``, folders made on the
+    way, none of them followed if it is a symlink."""
+    if len(parts) == 1:
+        folder.write(parts[0], data)
+        return
+    with folder.folder(parts[0]) as sub:
+        _write_nested(sub, parts[1:], data)
 
 
 @dataclass(frozen=True, eq=False)

@@ -1804,6 +1804,10 @@ def _space_of(study: Any, st: Any) -> tuple[list[str], list[Any]]:
     names = list(st.parameters or study.parameter_names)
     specs = {p.name: p for p in study.parameters}
     specs.update({p.name: p for p in st.distributions})
+    unknown = [n for n in names if n not in specs]
+    if unknown:
+        raise InputFileError(study.path, st.line, f"parameters of step {st.name!r} defined in "
+                             "[parameters] or in the step's distributions", ", ".join(unknown))
     return names, [specs[n] for n in names]
 
 

@@ -26,7 +26,8 @@ u_val, |E| / u_val and the area metric of the predictions of the calibration on 
 with the discrepancy (``with_discrepancy``), of the same posterior's model alone
 (``without_discrepancy_same_posterior``), of the same calibration without a discrepancy
 (``calibrated_without_discrepancy``) and of the thesis's 4R-only calibration
-(``thesis_calibration``: its nine inputs and its 4R loads, joint posterior predictive); and the coverage of the held-out test:
+(``thesis_calibration``: its nine inputs and its 4R loads, joint posterior predictive); and
+the coverage of the held-out test:
 whether each 1R load lies inside the 90 % band of a new measurement, with and without the
 discrepancy, and the fraction of the 1R loads covered.
 

@@ -28,10 +28,18 @@ def ishigami(x: np.ndarray, a: float = 7.0, b: float = 0.1) -> np.ndarray:
     return np.sin(x[:, 0]) + a * np.sin(x[:, 1]) ** 2 + b * x[:, 2] ** 4 * np.sin(x[:, 0])
 
 
+def pytest_addoption(parser):
+    parser.addoption("--extended", action="store_true",
+                     help="also run the tests marked `extended`: the long versions of checks "
+                          "CI runs at a smaller size (minutes each)")
+
+
 def pytest_collection_modifyitems(config, items):
     """Tests that run the ``dakota`` executable (their skip condition names it) get the marker
     ``dakota``: they compare our numbers with Dakota's, which the minimum-versions lane of
-    .ci/run need not repeat (they already ran at the current versions).
+    .ci/run need not repeat (they already ran at the current versions). Tests marked
+    ``extended`` (the long versions of checks the suite runs at a smaller size) are skipped
+    unless ``pytest --extended``.
 
     The test files holding ``slow`` or ``mbdyn`` tests run first, each file's tests in their
     own order: with ``-n auto`` (pytest-xdist) the minutes-long tests start at once instead
@@ -41,6 +49,11 @@ def pytest_collection_modifyitems(config, items):
             if "'dakota' executable" in str(mark.kwargs.get("reason", "")):
                 item.add_marker(pytest.mark.dakota)
                 break
+    if not config.getoption("--extended"):
+        skip = pytest.mark.skip(reason="extended check: run with pytest --extended")
+        for item in items:
+            if item.get_closest_marker("extended"):
+                item.add_marker(skip)
     heavy = {item.path for item in items
              if item.get_closest_marker("slow") or item.get_closest_marker("mbdyn")}
     items.sort(key=lambda item: item.path not in heavy)  # stable: the order within kept

@@ -89,6 +89,7 @@ def test_500_mutants_load_or_are_refused_naming_the_file(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.extended  # ~6-12 min; the 500 above run in every suite
 def test_5000_mutants_load_or_are_refused_naming_the_file(tmp_path):
     _run(tmp_path, 5000)
 
@@ -115,6 +116,7 @@ def test_a_sample_of_mutants_through_the_cli_is_refused_in_one_line(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.extended  # 40 CLI runs, ~5 min
 def test_a_larger_sample_through_the_cli(tmp_path):
     _cli(tmp_path, SEED + 8, 40)
 

@@ -2,11 +2,12 @@
 ``rotoruq run`` in fresh processes with 1, 2 (and 4) threads for numba and BLAS, set before the
 process starts, save bit-for-bit equal arrays. The calibration with a 300-point GP emulator and
 its variance in the likelihood differed from the first chain row between 1 and 2 threads
-before (LAPACK's trtri/potrf/getrf on two OpenBLAS threads); every bundled study is run at its
-``--quick`` size (slow-marked where it takes longer than a few seconds, MBDyn ones
-``mbdyn``) and the validation study, where ``posterior_ratio`` moved by 0.4 %, at its own
-size too. The runs and the comparison are ``benchmarks/thread_determinism.py``'s, which
-measures the same at 1, 2 and 4 threads."""
+before (LAPACK's trtri/potrf/getrf on two OpenBLAS threads). Every bundled study (the MBDyn
+ones included) is run at its ``--quick`` size at 1 and at 2 threads by
+``test_reproducible_studies.py``, which compares the two runs' arrays and records; the
+validation study, where ``posterior_ratio`` moved by 0.4 %, at its own size and the 300-point
+GP at 4 threads are ``extended`` checks (``pytest --extended``). The runs and the comparison
+are ``benchmarks/thread_determinism.py``'s, which measures the same at 1, 2 and 4 threads."""
 
 from __future__ import annotations
 
@@ -20,8 +21,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
 from thread_determinism import GP_STUDY, differing, run_at  # noqa: E402
 
-from test_mbdyn import env_with_mbdyn, needs_mbdyn  # noqa: E402
-
 
 def same_bits(study, tmp_path: Path, threads=(1, 2), *, quick: bool = True,
               env: dict | None = None) -> None:
@@ -34,7 +33,7 @@ def same_bits(study, tmp_path: Path, threads=(1, 2), *, quick: bool = True,
         assert not diffs, f"{study}: {threads[0]} vs {t} threads: {diffs}"
 
 
-@pytest.mark.parametrize("threads", [(1, 2), pytest.param((1, 4), marks=pytest.mark.slow)])
+@pytest.mark.parametrize("threads", [(1, 2), pytest.param((1, 4), marks=pytest.mark.extended)])
 def test_a_300_point_gp_calibration_is_the_same_at_any_thread_count(threads, tmp_path):
     study = tmp_path / "gp300.toml"
     study.write_text(GP_STUDY)
@@ -57,19 +56,6 @@ def test_the_quick_study_is_the_same_at_1_and_2_threads(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("study", ["validation", "experiment", "heldout",
-                                   "multifidelity_rotor"])
-def test_a_bundled_study_at_quick_size_is_the_same_at_1_and_2_threads(study, tmp_path):
-    same_bits(study, tmp_path)
-
-
-@pytest.mark.slow
+@pytest.mark.extended  # ~4-6 min
 def test_the_validation_study_at_its_own_size_is_the_same_at_1_and_2_threads(tmp_path):
     same_bits("validation", tmp_path, quick=False)
-
-
-@pytest.mark.mbdyn
-@needs_mbdyn
-@pytest.mark.parametrize("study", ["mbdyn_rigid", "mbdyn_elastic", "mbdyn_multifidelity"])
-def test_an_mbdyn_study_at_quick_size_is_the_same_at_1_and_2_threads(study, tmp_path):
-    same_bits(study, tmp_path, env=env_with_mbdyn())

@@ -354,9 +354,9 @@ def test_u_num_from_finer_grids_covers_the_fine_solve_error_at_every_validated_c
                                     names_out=["thrust", "roll", "pitch", "power"],
                                     fixed={"omega": om, "height_over_radius": h})
         # the steps' convention: level k coarser by 2^k, negative levels finer
-        three = production_u_num(verify_discretization(lambda k: grids(-k), [-2, -1, 0], x,
+        three = production_u_num(verify_discretization(lambda k, g=grids: g(-k), [-2, -1, 0], x,
                                                        ratio=2.0))
-        two = verify_discretization(lambda k: grids(-k), [0, 1], x, ratio=2.0,
+        two = verify_discretization(lambda k, g=grids: g(-k), [0, 1], x, ratio=2.0,
                                     formal_order=2.0)
         err = np.abs(three.values[2] - np.asarray(rq.evaluate(grids(4), x).values))
         np.testing.assert_array_equal(three.values[2], two.values[0])  # the same grid

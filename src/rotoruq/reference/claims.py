@@ -20,10 +20,10 @@ import numpy as np
 from ..report.diagnostics import PILEUP_MAX, STD_RATIO_MAX, step_warnings, strong_correlations
 from ..results import StepResult
 from ..steps._common import saved_record
+from ..steps._discrepancy import extrapolation_note
 from ..steps.bayes_calibration import posterior_record
 from ..steps.cuu import CuuRecord
 from ..steps.forward_check import ForwardCheckRecord
-from ..steps._discrepancy import extrapolation_note
 from .causes import (
     calibration_design,
     input_recovery,
@@ -193,14 +193,14 @@ def mean_miss(lab: str, err: float, true: float | None, mean: float | None,
     'K_f: posterior mean 14.0 % from the true mean, 1.4 posterior s'
     """
     out = f"{lab}: posterior mean {100 * err:.1f} % from the true mean"
-    if None in (true, mean, std) or not std:
+    if true is None or mean is None or std is None or not std:
         return out
-    z = abs(mean - true) / std  # type: ignore[operator]
+    z = abs(mean - true) / std
     ratio = (f", posterior/data-generating std {std / prior_std:.2f}" if prior_std else "")
     out += f", {z:.1f} posterior std devs (std {std:.3g}{ratio})"
     if z <= 2:
         return out + (": within the posterior's own uncertainty, the data do not resolve it "
-                      f"to the claim's tolerance (a 2 % window is {0.02 * abs(true) / std:.2g} "  # type: ignore[operator]
+                      f"to the claim's tolerance (a 2 % window is {0.02 * abs(true) / std:.2g} "
                       "posterior std devs wide each side)")
     return out + ": outside the posterior's own uncertainty, a biased posterior"
 
@@ -734,7 +734,9 @@ def _heldout_claims(steps: Mapping[str, StepResult], labels) -> list[Claim]:
     # (record, prediction, condition, what): the other predictions of the held-out loads
     others = [(rec, q, j, kind) for q, kind in enumerate(rec.predictions) if q != p]
     for name, what in (("validate_no_discrepancy", "calibrated on the same heights without "
-                        "a discrepancy"), ("validate_thesis", "the thesis's calibration (its nine inputs, its 4R loads)")):
+                        "a discrepancy"),
+                       ("validate_thesis", "the thesis's calibration (its nine inputs, its "
+                        "4R loads)")):
         f = _validation(steps, name)
         if f is not None and (jj := _condition(f[1], rec.conditions[j])) is not None:
             others.append((f[1], 0, jj, what))

@@ -334,7 +334,8 @@ def _data_rows(ctx: StepContext, match: str, points) -> tuple[np.ndarray, np.nda
 def _lineage(ctx: StepContext) -> list[StepResult]:
     """The ``from`` step and its own ``from`` steps, nearest first (what the predictions
     were conditioned on)."""
-    out, res = [], ctx.source
+    out: list[StepResult] = []
+    res = ctx.source
     previous = getattr(ctx, "previous", None) or {}
     while res is not None and all(r is not res for r in out):
         out.append(res)
@@ -390,7 +391,8 @@ def run_validation(ctx: StepContext) -> StepResult:
     calibrated = _calibration_mask(ctx, data, which, held)
     cal_at = np.asarray([points[j][match] for j in range(len(points))
                          if match and calibrated[j].any()], dtype=float)
-    far = (extrapolation_distance([p[match] for p in points], cal_at) if cal_at.size
+    far = (extrapolation_distance(np.asarray([p[match] for p in points], dtype=float), cal_at)
+           if cal_at.size
            else np.zeros(len(points)))
     per_cond = [data[which == j] for j in range(len(points))]
     conds = [points[j][match] if match else j for j in range(len(points))]

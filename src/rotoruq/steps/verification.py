@@ -38,8 +38,8 @@ from .base import StepCheck, StepContext, StepType
 from .options import Option, choice, integer, number, string
 
 __all__ = ["STEP", "VerificationRecord", "run_verification", "verify_points",
-           "production_u_num", "verification_tables", "verification_warnings", "TOLERANCE", "VERIFY_KEYS",
-           "verification_option"]
+           "production_u_num", "verification_tables", "verification_warnings", "TOLERANCE",
+           "VERIFY_KEYS", "verification_option"]
 
 #: Solver tolerance of the rotor at every verification level.
 TOLERANCE = 1e-12

@@ -136,11 +136,12 @@ def build_model(study: Study, inputs: Sequence[str], responses: Sequence[str],
         if spec.flight is not None:
             from ..rotor.forward import ForwardRotorModel
 
-            flight = dict(spec.flight)
+            flight: dict[str, Any] = dict(spec.flight)
             if flight.get("trim") == "none":
                 flight["trim"] = None
+            grid: dict[str, Any] = dict(spec.discretization)
             return ForwardRotorModel(preset, names_in=list(inputs), names_out=list(responses),
-                                     fixed=dict(fixed), **flight, **dict(spec.discretization))
+                                     fixed=dict(fixed), **flight, **grid)
         return RotorModel(preset, names_in=list(inputs), names_out=list(responses),
                           fixed=dict(fixed), **dict(spec.discretization))
     if spec.function is not None:

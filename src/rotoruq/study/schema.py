@@ -870,6 +870,7 @@ def _check_data_used_once(ck: Checker, raw: list, steps: list[StepSpec], model,
         resp = set(st.responses or model.responses)
         before = upstream(st)
         for earlier, used in seen:
+            assert earlier.data is not None  # only steps with data are seen
             both = sorted(resp & used)
             if earlier.name not in before or not both or st.options.get("reuse_data"):
                 continue

@@ -275,9 +275,10 @@ def simulation_based_calibration(
     calibrate : None (default): :func:`calibrate_bayes` with ``n_samples`` DRAM steps (5 %
         burn-in, MAP start), ``noise_std``, ``names_out``, the emulator and ``options``; a chain
         whose ESS stays below ``n_draws`` is continued (up to 3 times) with
-        :func:`continue_chain`, unless its ESS grown in proportion to the length the
-        continuations would reach stays below half of ``n_draws`` (then the shortfall is
-        certain and the reason says how many replications' chains did not mix). Otherwise a callable ``calibrate(data, seed=SeedSequence)`` with
+        :func:`continue_chain`; after the first continuation, only while its ESS grown in
+        proportion to the length the continuations would reach could be half of ``n_draws``
+        (else the shortfall is certain; the reason says how many replications' chains did
+        not mix). Otherwise a callable ``calibrate(data, seed=SeedSequence)`` with
         ``data`` (n_experiments, m) returning a :class:`BayesResult` or posterior draws
         (n, d) or (n_chains, n, d) in ``prior.names`` order; a callable without a ``seed``
         parameter is called as ``calibrate(data)`` (then its randomness is its own).

@@ -286,6 +286,7 @@ if TYPE_CHECKING:  # the same names, eagerly, for type checkers and IDEs
     from .rotor.c81 import read_c81 as read_c81
     from .rotor.c81 import write_c81 as write_c81
     from .rotor.discretization import RotorDiscretization as RotorDiscretization
+    from .rotor.forward import ForwardRotorModel as ForwardRotorModel
     from .rotor.model import RESPONSES as RESPONSES
     from .rotor.model import ROTOR_INPUTS as ROTOR_INPUTS
     from .rotor.model import RotorModel as RotorModel

@@ -38,9 +38,9 @@ from scipy import optimize
 
 from ..errors import ParameterError
 
-__all__ = ["ESTIMATORS", "GENERALIZED", "Allocation", "SampleSets", "sample_sets", "set_sizes",
+__all__ = ["ESTIMATORS", "GENERALIZED", "check_ensemble", "Allocation", "SampleSets", "sample_sets", "set_sizes",
            "default_recursion", "recursion_indices", "estimator_covariance",
-           "estimator_variance", "optimal_weights", "allocate", "fixed_allocation",
+           "estimator_variance", "optimal_weights", "weighted_variance", "allocate", "fixed_allocation",
            "mfmc_ratios"]
 
 ESTIMATORS = ("mfmc", "acvmf", "acvis")
@@ -203,6 +203,24 @@ def optimal_weights(S: np.ndarray) -> tuple[np.ndarray, float]:
     except np.linalg.LinAlgError:  # a Delta identically zero (z_k* = z_k)
         alpha = -np.linalg.pinv(CD, rcond=1e-12, hermitian=True) @ c
     return alpha, float(v0 + alpha @ c)
+
+
+def weighted_variance(S: np.ndarray, alpha: np.ndarray) -> float:
+    """Variance of the estimator with weights ``alpha`` (K - 1,) when its sets' estimators
+    have the covariance ``S`` (2K - 1, 2K - 1): ``Var[Q_0] + 2 alpha . c + alpha^T Cov[Delta]
+    alpha`` (at the optimal weights, what :func:`optimal_weights` returns).
+
+    Examples
+    --------
+    >>> S = estimator_covariance(sample_sets("acvmf", [10, 100]), "mean",
+    ...                          np.array([[1.0, 0.9], [0.9, 1.0]]))
+    >>> alpha, v = optimal_weights(S)
+    >>> bool(np.isclose(weighted_variance(S, alpha), v)), weighted_variance(S, 0 * alpha)
+    (True, 0.1)
+    """
+    v0, c, CD = _split(S)
+    a = np.asarray(alpha, dtype=float)
+    return float(v0 + 2.0 * a @ c + a @ CD @ a)
 
 
 def estimator_variance(estimator: str, n_samples, statistic: str, cov: np.ndarray,
@@ -373,8 +391,17 @@ def fixed_allocation(cov: np.ndarray, costs, n_samples, *, estimator: str = "mfm
                       recursion=gamma)
 
 
-def _check_inputs(cov, costs, budget) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """cov, costs and each model's correlation with model 0, checked."""
+def check_ensemble(cov, costs) -> tuple[np.ndarray, np.ndarray]:
+    """``cov`` (K, K) and ``costs`` (K,) as float arrays, checked: matching shapes, costs
+    positive and finite, every model's variance positive and finite.
+
+    Examples
+    --------
+    >>> check_ensemble([[1.0]], [0.0])
+    Traceback (most recent call last):
+    ...
+    rotoruq.errors.ParameterError: costs must be positive and finite, got [0.0]
+    """
     cov = np.asarray(cov, dtype=float)
     w = np.asarray(costs, dtype=float)
     K = w.size
@@ -382,13 +409,10 @@ def _check_inputs(cov, costs, budget) -> tuple[np.ndarray, np.ndarray, np.ndarra
         raise ParameterError(f"cov must be ({K}, {K}) for {K} costs, got {cov.shape}")
     if not np.all(np.isfinite(w)) or np.any(w <= 0):
         raise ParameterError(f"costs must be positive and finite, got {w.tolist()}")
-    if not (np.isfinite(budget) and budget > 0):
-        raise ParameterError(f"budget must be positive, got {budget}")
-    sd = np.sqrt(np.diag(cov))
-    if np.any(sd <= 0):
-        raise ParameterError("every model's output must vary over the pilot (a zero variance "
-                             f"was found: std {sd.tolist()})")
-    return cov, w, cov[0] / (sd[0] * sd)
+    if np.any(np.diag(cov) <= 0) or not np.all(np.isfinite(cov)):
+        raise ParameterError("every model's output must vary over the pilot (variances "
+                             f"{np.diag(cov).tolist()})")
+    return cov, w
 
 
 def _candidates(estimator: str, rho: np.ndarray, select: bool, recursion
@@ -433,7 +457,11 @@ def allocate(cov: np.ndarray, costs, budget: float, *, estimator: str = "mfmc",
     -------
     Allocation
     """
-    cov, w, rho = _check_inputs(cov, costs, budget)
+    cov, w = check_ensemble(cov, costs)
+    if not (np.isfinite(budget) and budget > 0):
+        raise ParameterError(f"budget must be positive, got {budget}")
+    sd = np.sqrt(np.diag(cov))
+    rho = cov[0] / (sd[0] * sd)
     if estimator not in (*ESTIMATORS, *GENERALIZED):
         raise ParameterError(f"unknown estimator {estimator!r}; valid: "
                              f"{', '.join((*ESTIMATORS, *GENERALIZED))}")

@@ -40,7 +40,8 @@ from ..errors import ParameterError
 
 __all__ = ["ESTIMATORS", "GENERALIZED", "check_ensemble", "Allocation", "SampleSets", "sample_sets", "set_sizes",
            "default_recursion", "recursion_indices", "estimator_covariance",
-           "estimator_variance", "optimal_weights", "weighted_variance", "allocate", "fixed_allocation",
+           "estimator_variance", "optimal_weights", "weighted_variance",
+           "weights_stack", "weighted_variance_stack", "allocate", "fixed_allocation",
            "mfmc_ratios"]
 
 ESTIMATORS = ("mfmc", "acvmf", "acvis")
@@ -157,13 +158,15 @@ def sample_sets(estimator: str, n_samples, recursion=None) -> SampleSets:
 
 def estimator_covariance(sets: SampleSets, statistic: str, cov: np.ndarray,
                          m22: np.ndarray | None = None) -> np.ndarray:
-    """Covariance (2K - 1, 2K - 1) of the plain sample estimators on every set.
+    """Covariance (..., 2K - 1, 2K - 1) of the plain sample estimators on every set.
 
-    cov : (K, K) covariance of the models' outputs; m22 : (K, K) ``E[d_i^2 d_j^2]`` of the
-    centred outputs (needed for ``statistic="variance"``).
+    cov : (..., K, K) covariance of the models' outputs (leading axes: a stack of them);
+    m22 : (..., K, K) ``E[d_i^2 d_j^2]`` of the centred outputs (needed for
+    ``statistic="variance"``).
     """
     mo = sets.model_of_set
-    C = np.asarray(cov, dtype=float)[np.ix_(mo, mo)]
+    pick = (..., mo[:, None], mo[None, :])
+    C = np.asarray(cov, dtype=float)[pick]
     a = sets.size()
     c = sets.overlap()
     if statistic == "mean":
@@ -172,9 +175,9 @@ def estimator_covariance(sets: SampleSets, statistic: str, cov: np.ndarray,
         raise ParameterError(f"unknown statistic {statistic!r}; valid: mean, variance")
     if m22 is None:
         raise ParameterError("the variance statistic needs the fourth moments m22")
-    M = np.asarray(m22, dtype=float)[np.ix_(mo, mo)]
-    var = np.diag(np.asarray(cov, dtype=float))[mo]
-    vv = np.outer(var, var)
+    M = np.asarray(m22, dtype=float)[pick]
+    var = np.diagonal(np.asarray(cov, dtype=float), axis1=-2, axis2=-1)[..., mo]
+    vv = var[..., :, None] * var[..., None, :]
     z1 = (M - vv) / 4.0
     z2 = M / 2.0 - vv / 2.0 + C**2
     A, B = a[:, None], a[None, :]
@@ -182,20 +185,35 @@ def estimator_covariance(sets: SampleSets, statistic: str, cov: np.ndarray,
     return num / (A * (A - 1.0) * B * (B - 1.0) / 4.0)
 
 
-def _split(S: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """Var[Q_0], Cov[Delta, Q_0] and Cov[Delta] from the set covariance, Delta_k = Q_k(z_k*) -
-    Q_k(z_k) (set 2k - 1 minus set 2k)."""
+def _split(S: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Var[Q_0], Cov[Delta, Q_0] and Cov[Delta] from the set covariance (..., 2K - 1, 2K - 1),
+    Delta_k = Q_k(z_k*) - Q_k(z_k) (set 2k - 1 minus set 2k)."""
     a, b = slice(1, None, 2), slice(2, None, 2)
-    c = S[a, 0] - S[b, 0]
-    CD = S[a, a] - S[a, b] - S[b, a] + S[b, b]
-    return float(S[0, 0]), c, CD
+    c = S[..., a, 0] - S[..., b, 0]
+    CD = S[..., a, a] - S[..., a, b] - S[..., b, a] + S[..., b, b]
+    return S[..., 0, 0], c, CD
+
+
+def weights_stack(S: np.ndarray) -> np.ndarray:
+    """Optimal weights (B, K - 1) for a stack of set covariances (B, 2K - 1, 2K - 1) (the
+    pseudo-inverse where a Delta is identically zero)."""
+    _, c, CD = _split(S)
+    return -np.einsum("bkl,bl->bk", np.linalg.pinv(CD, rcond=1e-12, hermitian=True), c)
+
+
+def weighted_variance_stack(S: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    """(B,) variances of estimators with weights ``alpha`` (B, K - 1) on the set covariances
+    ``S`` (B, 2K - 1, 2K - 1) (:func:`weighted_variance` for each)."""
+    v0, c, CD = _split(S)
+    return v0 + 2.0 * np.einsum("bk,bk->b", alpha, c) + np.einsum("bk,bkl,bl->b", alpha, CD,
+                                                                   alpha)
 
 
 def optimal_weights(S: np.ndarray) -> tuple[np.ndarray, float]:
     """Control-variate weights alpha (K - 1,) minimising the variance, and that variance."""
     v0, c, CD = _split(S)
     if c.size == 0:
-        return np.zeros(0), v0
+        return np.zeros(0), float(v0)
     try:
         alpha = -np.linalg.solve(CD, c)
         if not np.all(np.isfinite(alpha)):
@@ -218,9 +236,8 @@ def weighted_variance(S: np.ndarray, alpha: np.ndarray) -> float:
     >>> bool(np.isclose(weighted_variance(S, alpha), v)), weighted_variance(S, 0 * alpha)
     (True, 0.1)
     """
-    v0, c, CD = _split(S)
     a = np.asarray(alpha, dtype=float)
-    return float(v0 + 2.0 * a @ c + a @ CD @ a)
+    return float(weighted_variance_stack(S[None], a[None])[0])
 
 
 def estimator_variance(estimator: str, n_samples, statistic: str, cov: np.ndarray,

@@ -53,7 +53,7 @@ def pilot_too_small(n_pilot: int, K: int) -> str | None:
     True
     >>> print(pilot_too_small(20, 3))  # doctest: +NORMALIZE_WHITESPACE
     multifidelity pilot: 20 points for 3 models; the weights' error inflates the estimator
-    variance by about (n - 2) / (n - K - 1) = 1.13 > 1.1 (Lavenberg and Welch 1981): use
+    variance by about (n - 2) / (n - K - 1) = 1.12 > 1.1 (Lavenberg and Welch 1981): use
     n_pilot >= 24
     """
     if n_pilot >= min_pilot(K):
@@ -65,9 +65,9 @@ def pilot_too_small(n_pilot: int, K: int) -> str | None:
             f"> 1.1 (Lavenberg and Welch 1981): use n_pilot >= {min_pilot(K)}")
 
 
-def bootstrap_variance(Y: np.ndarray, weights: Callable[[np.ndarray], object],
-                       variance: Callable[[object, np.ndarray], float], n_boot: int,
-                       rng: np.random.Generator) -> tuple[float, float]:
+def bootstrap_variance(Y: np.ndarray, weights: Callable[[np.ndarray], np.ndarray],
+                       variance: Callable[[np.ndarray, np.ndarray, bool], np.ndarray],
+                       n_boot: int, rng: np.random.Generator) -> tuple[float, float]:
     """Plug-in and bootstrap-corrected predicted variance of an estimator fitted on a pilot.
 
     Parameters
@@ -75,12 +75,14 @@ def bootstrap_variance(Y: np.ndarray, weights: Callable[[np.ndarray], object],
     Y : ndarray of shape (n, K)
         The pilot: every model's response at each of n points.
     weights : callable
-        ``weights(Y)`` -> the estimator's weights fitted to the pilot ``Y`` (rows resampled).
+        ``weights(Ys)`` -> the estimator's weights fitted to each pilot of the stack ``Ys``
+        (B, n, K), stacked on a first axis of length B.
     variance : callable
-        ``variance(w, Y, population)`` -> the variance of the estimator with weights ``w``
-        when the models' moments are the pilot ``Y``'s: its unbiased sample moments, or with
-        ``population`` those of its empirical distribution (covariance divided by n, not
-        n - 1).
+        ``variance(W, Ys, population)`` -> (B,) the variance of the estimator with weights
+        ``W[b]`` when the models' moments are those of the pilot ``Ys[b]`` (``Ys`` of shape
+        (B, n, K) or (1, n, K), one pilot for every weight): its unbiased sample moments,
+        or with ``population`` those of its empirical distribution (covariance divided by n,
+        not n - 1).
     n_boot : int
         Resamples (0 returns the plug-in twice).
     rng : numpy.random.Generator
@@ -93,24 +95,23 @@ def bootstrap_variance(Y: np.ndarray, weights: Callable[[np.ndarray], object],
 
     Examples
     --------
-    The sample mean of model 0 has no fitted weights: no optimism.
+    The sample mean of model 0 has no fitted weights: on average no optimism.
 
     >>> import numpy as np
     >>> Y = np.random.default_rng(0).normal(size=(30, 1))
-    >>> def var(w, Y, population):
-    ...     return float(Y.var(ddof=0 if population else 1)) / 30
-    >>> p, c = bootstrap_variance(Y, lambda Y: None, var, 400, np.random.default_rng(1))
+    >>> def var(W, Ys, population):
+    ...     v = Ys[:, :, 0].var(axis=1, ddof=0 if population else 1) / 30
+    ...     return np.broadcast_to(v, (len(W),))
+    >>> p, c = bootstrap_variance(Y, lambda Ys: np.zeros((len(Ys), 0)), var, 400,
+    ...                           np.random.default_rng(1))
     >>> bool(abs(c / p - 1) < 0.02)
     True
     """
-    w_hat = weights(Y)
-    plug = float(variance(w_hat, Y, False))
+    plug = float(variance(weights(Y[None]), Y[None], False)[0])
     if n_boot <= 0:
         return plug, plug
     n = Y.shape[0]
-    optimism = np.empty(n_boot)
-    for b in range(n_boot):
-        Yb = Y[rng.integers(0, n, n)]
-        wb = weights(Yb)
-        optimism[b] = variance(wb, Y, True) - variance(wb, Yb, False)
-    return plug, max(plug + float(optimism.mean()), 0.0)
+    Yb = Y[rng.integers(0, n, (n_boot, n))]
+    Wb = weights(Yb)
+    optimism = variance(Wb, Y[None], True) - variance(Wb, Yb, False)
+    return plug, max(plug + float(np.mean(optimism)), 0.0)

@@ -50,7 +50,8 @@ from .acv import (
     fixed_allocation,
     optimal_weights,
     sample_sets,
-    weighted_variance,
+    weighted_variance_stack,
+    weights_stack,
 )
 from .mf_choice import EstimatorChoice, choose_estimator
 from .mf_pilot import bootstrap_variance, pilot_too_small
@@ -655,12 +656,15 @@ def _acv_bootstrap(sets: SampleSets, statistic: str, Y: np.ndarray,
     """Plug-in and bootstrap-corrected variance of an ACV estimator on ``sets`` whose weights
     come from the pilot ``Y`` (n, K) of one response."""
 
-    def moments(Y, population=False):
-        c, m = _sample_moments(Y[:, :, None], population)
-        return estimator_covariance(sets, statistic, c[0], m[0])
+    def moments(Ys, population=False):
+        c, m = _sample_moments(Ys.transpose(1, 2, 0), population)
+        return estimator_covariance(sets, statistic, c, m)
 
-    return bootstrap_variance(Y, lambda Y: optimal_weights(moments(Y))[0],
-                              lambda a, Y, pop: weighted_variance(moments(Y, pop), a),
+    def variance(W, Ys, population):
+        S = moments(Ys, population)
+        return weighted_variance_stack(np.broadcast_to(S, (len(W), *S.shape[1:])), W)
+
+    return bootstrap_variance(Y, lambda Ys: weights_stack(moments(Ys)), variance,
                               boot[0] if Y.shape[1] > 1 else 0, boot[1])
 
 
@@ -694,11 +698,16 @@ def _mlblue_main(models, space, plan: GroupAllocation, s_main, names_out, target
         sums = [values[start[i]:start[i + 1], list(g), j].sum(axis=0)
                 for i, g in enumerate(groups)]
         mean[j] = mlblue_estimate(cov[j], groups, sums, gm)[0]
-        plug, var = bootstrap_variance(
-            Y_fit[:, :, j], lambda Y: _sample_moments(Y[:, :, None])[0][0],
-            lambda Cu, Y, pop: mlblue_weighted_variance(
-                _sample_moments(Y[:, :, None], pop)[0][0], Cu, groups, gm),
-            boot[0] if len(used) > 1 else 0, boot[1])
+        def covs(Ys, population=False):
+            return _sample_moments(Ys.transpose(1, 2, 0), population)[0]
+
+        def variance(Cu, Ys, population):
+            C = np.broadcast_to(covs(Ys, population), Cu.shape)
+            return np.array([mlblue_weighted_variance(c, cu, groups, gm)
+                             for c, cu in zip(C, Cu, strict=True)])
+
+        plug, var = bootstrap_variance(Y_fit[:, :, j], covs, variance,
+                                       boot[0] if len(used) > 1 else 0, boot[1])
         se_plug[j] = np.sqrt(plug)
         alphas[j] = np.linalg.pinv(mlblue_psi(cov[j], groups, gm)[np.ix_(used, used)],
                                    hermitian=True)[0]

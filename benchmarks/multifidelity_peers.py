@@ -20,7 +20,8 @@ ACV-MF with a 20-point pilot, where the plug-in prediction is optimistic.
 
 A peer that is not installed stops the benchmark with an install hint.
 
-Run: python benchmarks/multifidelity_peers.py [--seeds 200] > benchmarks/results/multifidelity_peers.json
+Run: python benchmarks/multifidelity_peers.py [--seeds 200]
+    > benchmarks/results/multifidelity_peers.json
 ``--summary benchmarks/results/multifidelity_peers.json`` prints the docs' paragraph.
 """
 

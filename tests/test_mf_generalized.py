@@ -20,7 +20,6 @@ from rotoruq.methods.acv import (
 )
 from rotoruq.methods.mf_choice import AUTO_CANDIDATES, choose_estimator
 from rotoruq.methods.mf_pilot import min_pilot
-
 from test_multifidelity import SPACE, _exact, _ladder
 
 W3 = np.array([1.0, 0.05, 0.01])

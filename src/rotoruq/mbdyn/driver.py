@@ -13,7 +13,8 @@ rigid'``). It reads the parameters file (rotor inputs such as ``collective_deg``
 ``--map``, inputs held by ``--set``), writes the sample's c81 table and the filled MBDyn input
 into the current (work) directory, runs MBDyn (``--mbdyn``, else ``$MBDYN``, else ``mbdyn`` on
 PATH, else the build tool's install ``$MBDYN_PREFIX/bin/mbdyn``, ``~/.cache/mbdyn`` by
-default: :func:`~rotoruq.mbdyn.solver.find_mbdyn` as the benchmarks and scripts call it), and writes the responses named by the parameters file's functions (``thrust``,
+default: :func:`~rotoruq.mbdyn.solver.find_mbdyn` as the benchmarks and scripts call it),
+and writes the responses named by the parameters file's functions (``thrust``,
 ``torque``, ``roll``, ``pitch``, ``power``, ``ct``, ``cq``) as its active set vector asks:
 values, gradients by central finite differences (one MBDyn run per stencil point, each in a
 folder ``point_<k>``), never Hessians. A batch file (Dakota's ``batch`` interface) runs one
@@ -97,7 +98,8 @@ def _model_arguments(p: argparse.ArgumentParser) -> None:
                    "the parameters file does not set (default: gvpm)")
     p.add_argument("--template", default="rigid",
                    help=f"bundled template ({', '.join(TEMPLATES)}) or an MBDyn template file")
-    p.add_argument("--mbdyn", default=None, help="MBDyn executable (default: $MBDYN, then PATH, then "
+    p.add_argument("--mbdyn", default=None,
+                   help="MBDyn executable (default: $MBDYN, then PATH, then "
                    "$MBDYN_PREFIX/bin/mbdyn, the prefix ~/.cache/mbdyn by default)")
     d = CaseSettings()
     p.add_argument("--revolutions", type=int, default=d.revolutions,

@@ -38,7 +38,8 @@ from scipy import optimize
 
 from ..errors import ParameterError
 
-__all__ = ["ESTIMATORS", "GENERALIZED", "check_ensemble", "Allocation", "SampleSets", "sample_sets", "set_sizes",
+__all__ = ["ESTIMATORS", "GENERALIZED", "check_ensemble", "Allocation", "SampleSets",
+           "sample_sets", "set_sizes",
            "default_recursion", "recursion_indices", "estimator_covariance",
            "estimator_variance", "optimal_weights", "weighted_variance",
            "weights_stack", "weighted_variance_stack", "allocate", "fixed_allocation",

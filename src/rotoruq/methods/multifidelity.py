@@ -177,7 +177,33 @@ class LinearAdaptation:
 
 
 @dataclass(frozen=True, eq=False)
-class MultifidelityResult:
+class _EnsembleRun:
+    """The fields every multi-fidelity result shares (documented on each result)."""
+
+    names_in: tuple[str, ...]
+    names_out: tuple[str, ...]
+    estimator: str
+    target: str
+    models_used: tuple[int, ...]
+    allocation: np.ndarray
+    n_pilot: int
+    costs: np.ndarray
+    costs_measured: bool
+    budget: float
+    cost_pilot: float
+    cost_main: float
+    wall_pilot: np.ndarray
+    wall_main: np.ndarray
+    correlation: np.ndarray
+    weights: dict = field(default_factory=dict, kw_only=True)
+    n_equivalent_hf: dict = field(default_factory=dict, kw_only=True)
+    speedup: dict = field(default_factory=dict, kw_only=True)
+    n_evaluations: int = field(default=0, kw_only=True)
+    plan: Allocation | None = field(default=None, repr=False, kw_only=True)
+
+
+@dataclass(frozen=True, eq=False)
+class MultifidelityResult(_EnsembleRun):
     """Result of :func:`multifidelity_sample`.
 
     Attributes
@@ -231,31 +257,11 @@ class MultifidelityResult:
         (every candidate's predicted variance and the reason); None otherwise.
     """
 
-    names_in: tuple[str, ...]
-    names_out: tuple[str, ...]
-    estimator: str
     statistics: tuple[str, ...]
-    target: str
-    models_used: tuple[int, ...]
-    allocation: np.ndarray
-    n_pilot: int
-    costs: np.ndarray
-    costs_measured: bool
-    budget: float
-    cost_pilot: float
-    cost_main: float
-    wall_pilot: np.ndarray
-    wall_main: np.ndarray
-    correlation: np.ndarray
     mean: np.ndarray
     mean_se: np.ndarray
     variance: np.ndarray
     variance_se: np.ndarray
-    weights: dict = field(default_factory=dict)
-    n_equivalent_hf: dict = field(default_factory=dict)
-    speedup: dict = field(default_factory=dict)
-    n_evaluations: int = 0
-    plan: Allocation | None = field(default=None, repr=False)
     pilot_inputs: np.ndarray | None = field(default=None, repr=False)
     pilot_outputs: np.ndarray | None = field(default=None, repr=False)
     adapt: str = "none"

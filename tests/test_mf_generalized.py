@@ -162,3 +162,20 @@ def test_the_bootstrap_corrected_standard_error_covers_the_scatter_of_a_small_pi
     v_emp = e.var(ddof=1)
     assert plug.mean() < 0.95 * v_emp, (plug.mean(), v_emp)
     assert abs(corr.mean() / v_emp - 1.0) < 0.15, (corr.mean(), plug.mean(), v_emp)
+
+
+def test_the_step_runs_auto_and_keeps_the_reason():
+    from test_multifidelity import _step_context
+
+    ladder = dict(zip(("model", "x4", "x3"), _ladder((5, 4, 3)), strict=True))
+
+    def make_model(inputs, responses, fixed, model=None):
+        return ladder[model or "model"]
+
+    st, ctx = _step_context({"models": ("x4", "x3"), "budget": 100.0, "estimator": "auto",
+                             "costs": (1.0, 0.05, 0.01), "n_pilot": 40}, make_model)
+    res = st.run(ctx)
+    assert res.meta["estimator"] in ("mfmc", "acvmf", "acvis", "gmf", "grd", "gis")
+    assert res.meta["estimator_choice"].startswith(f"estimator 'auto' chose "
+                                                   f"{res.meta['estimator']}")
+    assert len(res.meta["recursion"]) == sum(res.scalars[f"used/{m}"] for m in ladder) - 1

@@ -31,6 +31,7 @@ import argparse
 import json
 import time
 import warnings
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
@@ -80,7 +81,8 @@ def _peers_or_exit():
                          "pip install pyapprox mxmcpy (not in the CI extras)") from exc
 
 
-def run_pyapprox(cov: np.ndarray, costs, budget: float) -> dict:
+def run_pyapprox(cov: np.ndarray, costs, budget: float, families=("gmf", "grd", "gis", "mlblue")
+                 ) -> dict:
     from pyapprox.statest.acv.search import ACVSearch
     from pyapprox.statest.acv.strategies import TreeDepthRecursionStrategy
     from pyapprox.statest.acv.variants import GISEstimator, GMFEstimator, GRDEstimator
@@ -94,6 +96,8 @@ def run_pyapprox(cov: np.ndarray, costs, budget: float) -> dict:
     w = np.asarray(costs, dtype=float)
     out = {}
     for name, cls in (("gmf", GMFEstimator), ("grd", GRDEstimator), ("gis", GISEstimator)):
+        if name not in families:
+            continue
         t0 = time.perf_counter()
         res = ACVSearch(stat, w, estimator_classes=[cls],
                         recursion_strategy=TreeDepthRecursionStrategy(len(w) - 1)
@@ -101,6 +105,8 @@ def run_pyapprox(cov: np.ndarray, costs, budget: float) -> dict:
         # the objective of one statistic of one output is the log of its estimator variance
         out[name] = {"variance": float(np.exp(res.allocation.objective_value[0])),
                      "seconds": time.perf_counter() - t0}
+    if "mlblue" not in families:
+        return out
     t0 = time.perf_counter()
     g = GroupACVSearch(stat, w).search(budget)
     out["mlblue"] = {"variance": float(np.exp(g.allocation.objective_value[0])),
@@ -196,6 +202,7 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=200)
     ap.add_argument("--budget", type=float, default=100.0)
     ap.add_argument("--pilot", type=int, default=50)
+    ap.add_argument("--workers", type=int, default=4)
     ap.add_argument("--summary", default=None)
     args = ap.parse_args()
     if print_saved_summary(args.summary, summary):
@@ -207,18 +214,40 @@ def main() -> None:
     out = {"provenance": prov, "seeds": args.seeds, "budget": args.budget,
            "pilot": args.pilot, "pyapprox_version": version("pyapprox"),
            "mxmcpy_version": version("mxmcpy"), "problems": {}}
-    for prob in (_ladder(), _tunable()):
+    # the parts are independent: each in a process of its own (PyApprox's GMF search alone
+    # takes minutes), the results gathered in a fixed order
+    tasks = {(i, part): (_part, i, part, args.budget, args.seeds, args.pilot)
+             for i in range(2) for part in ("rotoruq", "gmf", "rest")}
+    tasks[(0, "small")] = (_part, 0, "small", args.budget, args.seeds, 20)
+    with ProcessPoolExecutor(max_workers=args.workers) as pool:
+        futures = {k: pool.submit(*t) for k, t in tasks.items()}
+        got = {k: f.result() for k, f in futures.items()}
+    for i, prob in enumerate((_ladder(), _tunable())):
         budget = args.budget * prob["costs"][0]
-        choice = choose_estimator(prob["cov"], prob["costs"], budget)
         out["problems"][prob["name"]] = {
             "costs": prob["costs"], "covariance": prob["cov"].tolist(),
-            "auto": choice.estimator, "auto_reason": choice.reason,
-            "rotoruq": run_rotoruq(prob, budget, args.seeds, args.pilot),
-            "pyapprox": run_pyapprox(prob["cov"], prob["costs"], budget),
-            "mxmcpy": run_mxmcpy(prob["cov"], prob["costs"], budget)}
-    out["small_pilot"] = run_rotoruq(_ladder(), args.budget, args.seeds, 20,
-                                     estimators=("acvmf",))["acvmf"]
+            **got[(i, "rest")]["auto"], "rotoruq": got[(i, "rotoruq")],
+            "pyapprox": {**got[(i, "gmf")], **got[(i, "rest")]["pyapprox"]},
+            "mxmcpy": got[(i, "rest")]["mxmcpy"]}
+    out["small_pilot"] = got[(0, "small")]["acvmf"]
     print(json.dumps(out, indent=1))
+
+
+def _part(i: int, part: str, budget_hf: float, seeds: int, pilot: int) -> dict:
+    """One independent part of the run on problem ``i`` (0 the ladder, 1 the tunable one)."""
+    prob = (_ladder, _tunable)[i]()
+    budget = budget_hf * prob["costs"][0]
+    if part == "rotoruq":
+        return run_rotoruq(prob, budget, seeds, pilot)
+    if part == "small":
+        return run_rotoruq(prob, budget, seeds, pilot, estimators=("acvmf",))
+    if part == "gmf":
+        return run_pyapprox(prob["cov"], prob["costs"], budget, families=("gmf",))
+    choice = choose_estimator(prob["cov"], prob["costs"], budget)
+    return {"auto": {"auto": choice.estimator, "auto_reason": choice.reason},
+            "pyapprox": run_pyapprox(prob["cov"], prob["costs"], budget,
+                                     families=("grd", "gis", "mlblue")),
+            "mxmcpy": run_mxmcpy(prob["cov"], prob["costs"], budget)}
 
 
 if __name__ == "__main__":

@@ -223,7 +223,6 @@ def main() -> None:
         futures = {k: pool.submit(*t) for k, t in tasks.items()}
         got = {k: f.result() for k, f in futures.items()}
     for i, prob in enumerate((_ladder(), _tunable())):
-        budget = args.budget * prob["costs"][0]
         out["problems"][prob["name"]] = {
             "costs": prob["costs"], "covariance": prob["cov"].tolist(),
             **got[(i, "rest")]["auto"], "rotoruq": got[(i, "rotoruq")],

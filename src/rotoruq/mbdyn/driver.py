@@ -12,7 +12,9 @@ rigid'``). It reads the parameters file (rotor inputs such as ``collective_deg``
 ``height_over_radius``, airfoil coefficients such as ``cla_m03``, deck labels renamed by
 ``--map``, inputs held by ``--set``), writes the sample's c81 table and the filled MBDyn input
 into the current (work) directory, runs MBDyn (``--mbdyn``, else ``$MBDYN``, else ``mbdyn`` on
-PATH), and writes the responses named by the parameters file's functions (``thrust``,
+PATH, else the build tool's install ``$MBDYN_PREFIX/bin/mbdyn``, ``~/.cache/mbdyn`` by
+default: :func:`~rotoruq.mbdyn.solver.find_mbdyn` as the benchmarks and scripts call it),
+and writes the responses named by the parameters file's functions (``thrust``,
 ``torque``, ``roll``, ``pitch``, ``power``, ``ct``, ``cq``) as its active set vector asks:
 values, gradients by central finite differences (one MBDyn run per stencil point, each in a
 folder ``point_<k>``), never Hessians. A batch file (Dakota's ``batch`` interface) runs one
@@ -38,6 +40,7 @@ from ..evaluation import driver as _driver
 from ..model import EvalBatch
 from .case import TEMPLATES, CaseSettings, run_case
 from .extract import RESPONSES
+from .solver import find_mbdyn
 
 __all__ = ["main", "build_parser", "MBDynCaseModel"]
 
@@ -78,8 +81,9 @@ class MBDynCaseModel:
             wd = self.workdir if len(x) == 1 else self.workdir / f"point_{k}"
             inputs = {**self.fixed, **dict(zip(self.names_in, row.tolist(), strict=True))}
             try:
+                mbdyn = find_mbdyn(self.args.mbdyn, build_prefix=True)
                 loads = run_case(wd, self.preset, inputs, template=self.args.template,
-                                 settings=self.settings, mbdyn=self.args.mbdyn)
+                                 settings=self.settings, mbdyn=mbdyn)
                 values[k] = [loads.response(n) for n in self.names_out]
             except (RotoruqError, OSError, ValueError) as exc:
                 failures[k] = str(exc)
@@ -94,7 +98,9 @@ def _model_arguments(p: argparse.ArgumentParser) -> None:
                    "the parameters file does not set (default: gvpm)")
     p.add_argument("--template", default="rigid",
                    help=f"bundled template ({', '.join(TEMPLATES)}) or an MBDyn template file")
-    p.add_argument("--mbdyn", default=None, help="MBDyn executable (default: $MBDYN, then PATH)")
+    p.add_argument("--mbdyn", default=None,
+                   help="MBDyn executable (default: $MBDYN, then PATH, then "
+                   "$MBDYN_PREFIX/bin/mbdyn, the prefix ~/.cache/mbdyn by default)")
     d = CaseSettings()
     p.add_argument("--revolutions", type=int, default=d.revolutions,
                    help=f"simulated revolutions (default {d.revolutions})")

@@ -38,19 +38,25 @@ from scipy import optimize
 
 from ..errors import ParameterError
 
-__all__ = ["ESTIMATORS", "Allocation", "SampleSets", "sample_sets", "estimator_covariance",
-           "estimator_variance", "optimal_weights", "allocate", "fixed_allocation",
+__all__ = ["ESTIMATORS", "GENERALIZED", "check_ensemble", "Allocation", "SampleSets",
+           "sample_sets", "set_sizes",
+           "default_recursion", "recursion_indices", "estimator_covariance",
+           "estimator_variance", "optimal_weights", "weighted_variance",
+           "weights_stack", "weighted_variance_stack", "allocate", "fixed_allocation",
            "mfmc_ratios"]
 
 ESTIMATORS = ("mfmc", "acvmf", "acvis")
+#: The generalized ACV families of Bomarito et al. 2022, any recursion index.
+GENERALIZED = ("gmf", "grd", "gis")
 
 
 @dataclass(frozen=True, eq=False)
 class SampleSets:
     """Where each model's sample sets lie in one list of independent points.
 
-    sets : (2K - 1, 2, 2) intervals [lo, hi) of point indices (two per set, the second may be
-        empty): set 0 is z_0, set 2k - 1 is z_k* and set 2k is z_k (k = 1 .. K-1).
+    sets : (2K - 1, J, 2) intervals [lo, hi) of point indices (a set is the union of its J
+        intervals, some empty): set 0 is z_0, set 2k - 1 is z_k* and set 2k is z_k
+        (k = 1 .. K-1).
     model_of_set : (2K - 1,) which model each set is evaluated with.
     n_points : distinct points the design draws.
     """
@@ -70,46 +76,98 @@ class SampleSets:
         return np.sum(np.maximum(hi - lo, 0.0), axis=(2, 3))
 
     def indices(self, s: int) -> np.ndarray:
-        """Point indices (integers) of set ``s``."""
-        return np.concatenate([np.arange(int(a), int(b)) for a, b in self.sets[s]])
+        """Point indices (integers, ascending) of set ``s``."""
+        return np.unique(np.concatenate([np.arange(int(a), int(b)) for a, b in self.sets[s]]))
+
+    def model_points(self, k: int) -> np.ndarray:
+        """Point indices (integers, ascending) model ``k`` runs on: the union of its sets."""
+        return np.unique(np.concatenate([self.indices(s)
+                                         for s in np.flatnonzero(self.model_of_set == k)]))
 
 
-def sample_sets(estimator: str, n_samples) -> SampleSets:
+def default_recursion(estimator: str, K: int) -> tuple[int, ...]:
+    """The recursion index of a named estimator: MFMC's chain ``(0, 1, .., K-2)``, else every
+    model's control variate on model 0, ``(0, .., 0)``."""
+    return tuple(range(K - 1)) if estimator == "mfmc" else (0,) * (K - 1)
+
+
+def _family(estimator: str, recursion, K: int) -> tuple[str, tuple[int, ...]]:
+    """(family, recursion index) of an estimator: mfmc and acvmf are GMF, acvis is GIS."""
+    if estimator not in (*ESTIMATORS, *GENERALIZED):
+        raise ParameterError(f"unknown estimator {estimator!r}; valid: "
+                             f"{', '.join((*ESTIMATORS, *GENERALIZED))}")
+    family = {"mfmc": "gmf", "acvmf": "gmf", "acvis": "gis"}.get(estimator, estimator)
+    gamma = default_recursion(estimator, K) if recursion is None else tuple(
+        int(g) for g in recursion)
+    if len(gamma) != K - 1 or any(not 0 <= g < k for k, g in enumerate(gamma, start=1)):
+        raise ParameterError(f"recursion index must give each of models 1..{K - 1} a parent "
+                             f"listed before it (0 <= gamma_k < k), got {list(gamma)}")
+    if estimator in ESTIMATORS and gamma != default_recursion(estimator, K):
+        raise ParameterError(f"estimator {estimator!r} has the recursion index "
+                             f"{list(default_recursion(estimator, K))}; for another use "
+                             f"'gmf', 'grd' or 'gis'")
+    return family, gamma
+
+
+def set_sizes(estimator: str, n_samples, recursion=None) -> np.ndarray:
+    """(K,) sizes |z_k| of the sets from the evaluations per model ``n_samples`` (K,): equal
+    for GMF and GIS; for GRD model k runs on z_{gamma_k} and its own disjoint z_k, so
+    ``|z_k| = n_k - |z_{gamma_k}|``."""
+    n = np.asarray(n_samples, dtype=float)
+    family, gamma = _family(estimator, recursion, n.size)
+    if family != "grd":
+        return n.copy()
+    N = n.copy()
+    for k, p in enumerate(gamma, start=1):
+        N[k] = n[k] - N[p]
+    return N
+
+
+def sample_sets(estimator: str, n_samples, recursion=None) -> SampleSets:
     """The sample sets of ``estimator`` for ``n_samples`` (K,) evaluations per model (model 0
-    first); sizes may be real numbers (continuous relaxation for the allocation)."""
+    first); sizes may be real numbers (continuous relaxation for the allocation).
+
+    ``recursion`` (K - 1,) is the parent ``gamma_k < k`` of each model k >= 1 (Bomarito et
+    al. 2022; default the named estimator's, :func:`default_recursion`): ``z_k* =
+    z_{gamma_k}``, and ``z_k`` is, for "gmf", the first n_k points of one nested stream
+    (``n_k >= n_{gamma_k}``); for "gis", ``z_{gamma_k}`` plus ``n_k - n_{gamma_k}`` points of
+    its own; for "grd", points of its own only (model k runs on both sets).
+    """
     n = np.asarray(n_samples, dtype=float)
     K = n.size
-    sets = np.zeros((2 * K - 1, 2, 2))
-    sets[0, 0] = (0.0, n[0])
-    offset = n[0]
-    for k in range(1, K):
-        if estimator == "mfmc":
-            sets[2 * k - 1, 0] = (0.0, n[k - 1])
-            sets[2 * k, 0] = (0.0, n[k])
-        elif estimator == "acvmf":
-            sets[2 * k - 1, 0] = (0.0, n[0])
-            sets[2 * k, 0] = (0.0, n[k])
-        elif estimator == "acvis":
-            sets[2 * k - 1, 0] = (0.0, n[0])
-            sets[2 * k, 0] = (0.0, n[0])
-            sets[2 * k, 1] = (offset, offset + n[k] - n[0])
-            offset += n[k] - n[0]
+    family, gamma = _family(estimator, recursion, K)
+    N = set_sizes(estimator, n, gamma)
+    z: list[list[tuple[float, float]]] = [[(0.0, N[0])]]
+    offset = float(N[0]) if family != "gmf" else float(N.max())
+    sets = np.zeros((2 * K - 1, K, 2))
+    sets[0, 0] = z[0][0]
+    for k, p in enumerate(gamma, start=1):
+        if family == "gmf":
+            zk = [(0.0, N[k])]
+        elif family == "gis":
+            zk = [*z[p], (offset, offset + N[k] - N[p])]
+            offset += N[k] - N[p]
         else:
-            raise ParameterError(f"unknown estimator {estimator!r}; valid: {', '.join(ESTIMATORS)}")
-    n_points = offset if estimator == "acvis" else float(n.max())
+            zk = [(offset, offset + N[k])]
+            offset += N[k]
+        z.append(zk)
+        sets[2 * k - 1, :len(z[p])] = z[p]
+        sets[2 * k, :len(zk)] = zk
     model_of_set = np.array([0] + [k for k in range(1, K) for _ in (0, 1)], dtype=int)
-    return SampleSets(sets=sets, model_of_set=model_of_set, n_points=n_points)
+    return SampleSets(sets=sets, model_of_set=model_of_set, n_points=offset)
 
 
 def estimator_covariance(sets: SampleSets, statistic: str, cov: np.ndarray,
                          m22: np.ndarray | None = None) -> np.ndarray:
-    """Covariance (2K - 1, 2K - 1) of the plain sample estimators on every set.
+    """Covariance (..., 2K - 1, 2K - 1) of the plain sample estimators on every set.
 
-    cov : (K, K) covariance of the models' outputs; m22 : (K, K) ``E[d_i^2 d_j^2]`` of the
-    centred outputs (needed for ``statistic="variance"``).
+    cov : (..., K, K) covariance of the models' outputs (leading axes: a stack of them);
+    m22 : (..., K, K) ``E[d_i^2 d_j^2]`` of the centred outputs (needed for
+    ``statistic="variance"``).
     """
     mo = sets.model_of_set
-    C = np.asarray(cov, dtype=float)[np.ix_(mo, mo)]
+    pick = (..., mo[:, None], mo[None, :])
+    C = np.asarray(cov, dtype=float)[pick]
     a = sets.size()
     c = sets.overlap()
     if statistic == "mean":
@@ -118,9 +176,9 @@ def estimator_covariance(sets: SampleSets, statistic: str, cov: np.ndarray,
         raise ParameterError(f"unknown statistic {statistic!r}; valid: mean, variance")
     if m22 is None:
         raise ParameterError("the variance statistic needs the fourth moments m22")
-    M = np.asarray(m22, dtype=float)[np.ix_(mo, mo)]
-    var = np.diag(np.asarray(cov, dtype=float))[mo]
-    vv = np.outer(var, var)
+    M = np.asarray(m22, dtype=float)[pick]
+    var = np.diagonal(np.asarray(cov, dtype=float), axis1=-2, axis2=-1)[..., mo]
+    vv = var[..., :, None] * var[..., None, :]
     z1 = (M - vv) / 4.0
     z2 = M / 2.0 - vv / 2.0 + C**2
     A, B = a[:, None], a[None, :]
@@ -128,20 +186,35 @@ def estimator_covariance(sets: SampleSets, statistic: str, cov: np.ndarray,
     return num / (A * (A - 1.0) * B * (B - 1.0) / 4.0)
 
 
-def _split(S: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """Var[Q_0], Cov[Delta, Q_0] and Cov[Delta] from the set covariance, Delta_k = Q_k(z_k*) -
-    Q_k(z_k) (set 2k - 1 minus set 2k)."""
+def _split(S: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Var[Q_0], Cov[Delta, Q_0] and Cov[Delta] from the set covariance (..., 2K - 1, 2K - 1),
+    Delta_k = Q_k(z_k*) - Q_k(z_k) (set 2k - 1 minus set 2k)."""
     a, b = slice(1, None, 2), slice(2, None, 2)
-    c = S[a, 0] - S[b, 0]
-    CD = S[a, a] - S[a, b] - S[b, a] + S[b, b]
-    return float(S[0, 0]), c, CD
+    c = S[..., a, 0] - S[..., b, 0]
+    CD = S[..., a, a] - S[..., a, b] - S[..., b, a] + S[..., b, b]
+    return S[..., 0, 0], c, CD
+
+
+def weights_stack(S: np.ndarray) -> np.ndarray:
+    """Optimal weights (B, K - 1) for a stack of set covariances (B, 2K - 1, 2K - 1) (the
+    pseudo-inverse where a Delta is identically zero)."""
+    _, c, CD = _split(S)
+    return -np.einsum("bkl,bl->bk", np.linalg.pinv(CD, rcond=1e-12, hermitian=True), c)
+
+
+def weighted_variance_stack(S: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    """(B,) variances of estimators with weights ``alpha`` (B, K - 1) on the set covariances
+    ``S`` (B, 2K - 1, 2K - 1) (:func:`weighted_variance` for each)."""
+    v0, c, CD = _split(S)
+    return v0 + 2.0 * np.einsum("bk,bk->b", alpha, c) + np.einsum("bk,bkl,bl->b", alpha, CD,
+                                                                   alpha)
 
 
 def optimal_weights(S: np.ndarray) -> tuple[np.ndarray, float]:
     """Control-variate weights alpha (K - 1,) minimising the variance, and that variance."""
     v0, c, CD = _split(S)
     if c.size == 0:
-        return np.zeros(0), v0
+        return np.zeros(0), float(v0)
     try:
         alpha = -np.linalg.solve(CD, c)
         if not np.all(np.isfinite(alpha)):
@@ -151,10 +224,27 @@ def optimal_weights(S: np.ndarray) -> tuple[np.ndarray, float]:
     return alpha, float(v0 + alpha @ c)
 
 
+def weighted_variance(S: np.ndarray, alpha: np.ndarray) -> float:
+    """Variance of the estimator with weights ``alpha`` (K - 1,) when its sets' estimators
+    have the covariance ``S`` (2K - 1, 2K - 1): ``Var[Q_0] + 2 alpha . c + alpha^T Cov[Delta]
+    alpha`` (at the optimal weights, what :func:`optimal_weights` returns).
+
+    Examples
+    --------
+    >>> S = estimator_covariance(sample_sets("acvmf", [10, 100]), "mean",
+    ...                          np.array([[1.0, 0.9], [0.9, 1.0]]))
+    >>> alpha, v = optimal_weights(S)
+    >>> bool(np.isclose(weighted_variance(S, alpha), v)), weighted_variance(S, 0 * alpha)
+    (True, 0.1)
+    """
+    a = np.asarray(alpha, dtype=float)
+    return float(weighted_variance_stack(S[None], a[None])[0])
+
+
 def estimator_variance(estimator: str, n_samples, statistic: str, cov: np.ndarray,
-                       m22: np.ndarray | None = None) -> float:
+                       m22: np.ndarray | None = None, recursion=None) -> float:
     """Variance of the optimally weighted ensemble estimator with ``n_samples`` (K,)."""
-    S = estimator_covariance(sample_sets(estimator, n_samples), statistic, cov, m22)
+    S = estimator_covariance(sample_sets(estimator, n_samples, recursion), statistic, cov, m22)
     return optimal_weights(S)[1]
 
 
@@ -168,6 +258,8 @@ class Allocation:
     n_samples : (len(models),) integer evaluations per model used.
     cost : cost of ``n_samples`` (<= budget).
     variance : predicted variance of the target's mean estimator at ``n_samples``.
+    recursion : the recursion index (len(models) - 1,): the position in ``models`` of each
+        model's parent (empty for MLBLUE).
     """
 
     estimator: str
@@ -176,6 +268,7 @@ class Allocation:
     n_samples: np.ndarray
     cost: float
     variance: float
+    recursion: tuple[int, ...] = ()
 
 
 def mfmc_ratios(rho: np.ndarray, costs: np.ndarray) -> np.ndarray | None:
@@ -191,56 +284,105 @@ def mfmc_ratios(rho: np.ndarray, costs: np.ndarray) -> np.ndarray | None:
     return np.sqrt(w[0] * (r2[:-1] - r2[1:]) / (w * (1.0 - r2[1])))
 
 
-def _integer(estimator: str, n: np.ndarray) -> np.ndarray:
+def recursion_indices(K: int) -> list[tuple[int, ...]]:
+    """Every recursion index over K models listed by decreasing correlation with model 0
+    whose parents come before their children, ``gamma_k < k``: (K - 1)! trees rooted at model
+    0, from ACV-MF's ``(0, .., 0)`` to MFMC's chain ``(0, 1, .., K - 2)`` (Bomarito et al.
+    2022 search every tree; a model's control variate on a less correlated one is left out
+    here, which keeps the search to 24 trees for 5 models instead of 125).
+
+    Examples
+    --------
+    >>> recursion_indices(3)
+    [(0, 0), (0, 1)]
+    """
+    return list(itertools.product(*(range(k) for k in range(1, K))))
+
+
+def _own_floor(family: str) -> int:
+    """Fewest points of its own a GRD set needs (two: a sample variance)."""
+    return 2 if family == "grd" else 0
+
+
+def _lower(family: str, gamma, n: np.ndarray) -> np.ndarray:
+    """(K,) fewest evaluations each model may have given its parent's (n_0: 2)."""
+    N = set_sizes(family, n, gamma)
+    low = np.full(n.size, 2.0)
+    for k, p in enumerate(gamma, start=1):
+        low[k] = N[p] + _own_floor(family) if family == "grd" else n[p]
+    return low
+
+
+def _integer(estimator: str, n: np.ndarray, recursion=None) -> np.ndarray:
+    family, gamma = _family(estimator, recursion, n.size)
     out = np.floor(n + 1e-9).astype(int)
-    for k in range(1, out.size):
-        low = out[k - 1] if estimator == "mfmc" else out[0]
+    N = out.copy()
+    for k, p in enumerate(gamma, start=1):
+        low = N[p] + _own_floor(family) if family == "grd" else out[p]
         out[k] = max(out[k], low)
+        N[k] = out[k] - N[p] if family == "grd" else out[k]
     return out
 
 
-def _continuous(estimator: str, cov: np.ndarray, w: np.ndarray, budget: float,
-                start: np.ndarray | None) -> tuple[np.ndarray, float]:
-    """Optimal ratios (K,) over the continuous relaxation, r_k = 1 + exp(t_k) (mfmc: increasing,
-    r_k = r_{k-1} + exp(t_k)), and the variance there."""
-    K = w.size
+def _ratios(family: str, gamma, t: np.ndarray) -> np.ndarray:
+    """Evaluations per model for n_0 = 1 from free variables t (K - 1,): a model's set grows
+    on its parent's by exp(t_k) (GMF, GIS), or is exp(t_k) of its own (GRD)."""
+    step = np.exp(np.clip(t, -30.0, 30.0))
+    r = np.ones(len(gamma) + 1)
+    N = np.ones(len(gamma) + 1)
+    for k, p in enumerate(gamma, start=1):
+        r[k] = (N[p] if family == "grd" else r[p]) + step[k - 1]
+        N[k] = step[k - 1] if family == "grd" else r[k]
+    return r
 
-    def ratios(t):
-        step = np.exp(np.clip(t, -30.0, 30.0))
-        return np.concatenate([[1.0], np.cumsum(step) + 1.0 if estimator == "mfmc"
-                               else 1.0 + step])
+
+def _continuous(estimator: str, cov: np.ndarray, w: np.ndarray, budget: float,
+                start: np.ndarray | None, recursion=None, *, effort: int = 300
+                ) -> tuple[np.ndarray, float]:
+    """Optimal ratios (K,) over the continuous relaxation (:func:`_ratios`), and the variance
+    there; ``effort`` evaluations of the variance per free variable and start."""
+    K = w.size
+    family, gamma = _family(estimator, recursion, K)
 
     def objective(t):
-        r = ratios(t)
+        r = _ratios(family, gamma, t)
         n0 = budget / float(w @ r)
-        return np.log(estimator_variance(estimator, n0 * r, "mean", cov))
+        return np.log(estimator_variance(estimator, n0 * r, "mean", cov, recursion=gamma))
 
     # equal ratios are a kink of the nested estimators' variance (min(r_i, r_j)), where the
     # simplex stalls: start from nearly equal small and large ratios, and from MFMC's
     spread = 0.01 * np.arange(K - 1)
-    starts = [np.log(np.maximum(np.diff(start) if estimator == "mfmc" else start[1:] - 1.0,
-                                1e-6))] if start is not None else []
+    starts = []
+    if start is not None:
+        own = set_sizes(family, start, gamma) if family == "grd" else None
+        steps = [own[k] if own is not None else start[k] - start[p]
+                 for k, p in enumerate(gamma, start=1)]
+        starts.append(np.log(np.maximum(steps, 1e-6)))
     starts += [np.log(3.0) + spread, np.log(100.0) + spread]
     best = None
-    for t0 in starts:
+    for t0 in starts[:1] if effort < 300 else starts:
         res = optimize.minimize(objective, t0, method="Nelder-Mead",
-                                options={"xatol": 1e-4, "fatol": 1e-10, "maxfev": 300 * K})
+                                options={"xatol": 1e-4, "fatol": 1e-10, "maxfev": effort * K})
         if best is None or res.fun < best.fun:
             best = res
     assert best is not None
-    res = optimize.minimize(objective, best.x, method="Nelder-Mead",  # restart: a fresh simplex
-                            options={"xatol": 1e-5, "fatol": 1e-12, "maxfev": 300 * K})
-    best = res if res.fun < best.fun else best
-    return ratios(best.x), float(np.exp(best.fun))
+    if effort >= 300:
+        res = optimize.minimize(objective, best.x, method="Nelder-Mead",  # a fresh simplex
+                                options={"xatol": 1e-5, "fatol": 1e-12, "maxfev": effort * K})
+        best = res if res.fun < best.fun else best
+    return _ratios(family, gamma, best.x), float(np.exp(best.fun))
 
 
-def fixed_allocation(cov: np.ndarray, costs, n_samples, *, estimator: str = "mfmc"
-                     ) -> Allocation:
+def fixed_allocation(cov: np.ndarray, costs, n_samples, *, estimator: str = "mfmc",
+                     recursion=None) -> Allocation:
     """An :class:`Allocation` for given evaluations per model (K,), 0 leaving a model out;
-    checks the estimator's structure (n_0 >= 2; mfmc: non-decreasing in the order given,
-    acv: every n_k >= n_0)."""
-    if estimator not in ESTIMATORS:
-        raise ParameterError(f"unknown estimator {estimator!r}; valid: {', '.join(ESTIMATORS)}")
+    checks the estimator's structure (n_0 >= 2; every model at least its parent's
+    evaluations: mfmc non-decreasing in the order given, acv at least n_0; grd two more
+    than its parent's set). ``recursion`` (for "gmf", "grd", "gis") indexes the models
+    left in, in their order."""
+    if estimator not in (*ESTIMATORS, *GENERALIZED):
+        raise ParameterError(f"unknown estimator {estimator!r}; valid: "
+                             f"{', '.join((*ESTIMATORS, *GENERALIZED))}")
     n_all = np.asarray(n_samples)
     w = np.asarray(costs, dtype=float)
     if n_all.shape != w.shape or not np.issubdtype(n_all.dtype, np.integer) or np.any(n_all < 0):
@@ -251,20 +393,67 @@ def fixed_allocation(cov: np.ndarray, costs, n_samples, *, estimator: str = "mfm
         raise ParameterError(f"allocation must give the high-fidelity model at least 2 "
                              f"evaluations, got {n_all.tolist()}")
     n = n_all[list(models)].astype(int)
-    low = np.maximum.accumulate(n) if estimator == "mfmc" else np.full(n.size, n[0])
-    if np.any(n < low):
-        rule = ("non-decreasing from model to model" if estimator == "mfmc"
-                else "at least the high-fidelity model's for every other model")
+    family, gamma = _family(estimator, recursion, n.size)
+    if np.any(n < _lower(family, gamma, n)):
+        rule = {"mfmc": "non-decreasing from model to model",
+                "acvmf": "at least the high-fidelity model's for every other model",
+                "acvis": "at least the high-fidelity model's for every other model"}.get(
+                    estimator, f"at least the parent's (recursion {list(gamma)})"
+                    + (" plus 2 of the model's own" if family == "grd" else ""))
         raise ParameterError(f"allocation {n_all.tolist()} does not fit {estimator}: the "
                              f"evaluations must be {rule}")
     sub = np.asarray(cov, dtype=float)[np.ix_(models, models)]
     return Allocation(estimator=estimator, models=models, ratios=n / n[0], n_samples=n,
                       cost=float(w[list(models)] @ n),
-                      variance=estimator_variance(estimator, n, "mean", sub))
+                      variance=estimator_variance(estimator, n, "mean", sub, recursion=gamma),
+                      recursion=gamma)
+
+
+def check_ensemble(cov, costs) -> tuple[np.ndarray, np.ndarray]:
+    """``cov`` (K, K) and ``costs`` (K,) as float arrays, checked: matching shapes, costs
+    positive and finite, every model's variance positive and finite.
+
+    Examples
+    --------
+    >>> check_ensemble([[1.0]], [0.0])
+    Traceback (most recent call last):
+    ...
+    rotoruq.errors.ParameterError: costs must be positive and finite, got [0.0]
+    """
+    cov = np.asarray(cov, dtype=float)
+    w = np.asarray(costs, dtype=float)
+    K = w.size
+    if cov.shape != (K, K):
+        raise ParameterError(f"cov must be ({K}, {K}) for {K} costs, got {cov.shape}")
+    if not np.all(np.isfinite(w)) or np.any(w <= 0):
+        raise ParameterError(f"costs must be positive and finite, got {w.tolist()}")
+    if np.any(np.diag(cov) <= 0) or not np.all(np.isfinite(cov)):
+        raise ParameterError("every model's output must vary over the pilot (variances "
+                             f"{np.diag(cov).tolist()})")
+    return cov, w
+
+
+def _candidates(estimator: str, rho: np.ndarray, select: bool, recursion
+                ) -> list[tuple[tuple[int, ...], tuple[int, ...]]]:
+    """(models, recursion index) pairs the allocation tries."""
+    K = rho.size
+    order = [0] + sorted(range(1, K), key=lambda k: (-abs(rho[k]), k))
+    subsets = ([tuple(s) for m in range(K) for s in itertools.combinations(order[1:], m)]
+               if select and recursion is None else [tuple(order[1:])])
+    if recursion is not None:
+        return [(tuple(range(K)), _family(estimator, recursion, K)[1])]
+    out = []
+    for lf in subsets:
+        idx = (0, *lf)
+        if estimator in ESTIMATORS or len(idx) == 1:
+            out.append((idx, default_recursion(estimator, len(idx))))
+        else:
+            out += [(idx, g) for g in recursion_indices(len(idx))]
+    return out
 
 
 def allocate(cov: np.ndarray, costs, budget: float, *, estimator: str = "mfmc",
-             select: bool = True) -> Allocation:
+             select: bool = True, recursion=None) -> Allocation:
     """Spend ``budget`` over an ensemble to minimise the variance of model 0's mean estimator.
 
     Parameters
@@ -274,54 +463,67 @@ def allocate(cov: np.ndarray, costs, budget: float, *, estimator: str = "mfmc",
     budget : total cost of the evaluations to allocate.
     estimator : "mfmc" (closed form, thm. 3.4 of Peherstorfer et al. 2016, models ordered by
         decreasing correlation with model 0), "acvmf" or "acvis" (numerical optimisation of the
-        estimator variance over the ratios r_k = n_k / n_0 >= 1, n_0 = budget / (w . r)).
+        estimator variance over the ratios r_k = n_k / n_0 >= 1, n_0 = budget / (w . r)), or a
+        generalized family "gmf", "grd", "gis" (Bomarito et al. 2022): the ratios optimised
+        for every recursion index (:func:`recursion_indices`), the best kept.
     select : try every subset of the low-fidelity models and keep the best (Peherstorfer et
         al., algorithm 1); else use them all (mfmc: those satisfying its conditions, in order).
+    recursion : (K - 1,) the recursion index of a generalized family over every model in the
+        order given (no search).
 
     Returns
     -------
     Allocation
     """
-    if estimator not in ESTIMATORS:
-        raise ParameterError(f"unknown estimator {estimator!r}; valid: {', '.join(ESTIMATORS)}")
-    cov = np.asarray(cov, dtype=float)
-    w = np.asarray(costs, dtype=float)
-    K = w.size
-    if cov.shape != (K, K):
-        raise ParameterError(f"cov must be ({K}, {K}) for {K} costs, got {cov.shape}")
-    if not np.all(np.isfinite(w)) or np.any(w <= 0):
-        raise ParameterError(f"costs must be positive and finite, got {w.tolist()}")
+    cov, w = check_ensemble(cov, costs)
     if not (np.isfinite(budget) and budget > 0):
         raise ParameterError(f"budget must be positive, got {budget}")
     sd = np.sqrt(np.diag(cov))
-    if np.any(sd <= 0):
-        raise ParameterError("every model's output must vary over the pilot (a zero variance "
-                             f"was found: std {sd.tolist()})")
     rho = cov[0] / (sd[0] * sd)
-    order = [0] + sorted(range(1, K), key=lambda k: (-abs(rho[k]), k))
-    subsets = ([tuple(s) for m in range(K) for s in itertools.combinations(order[1:], m)]
-               if select else [tuple(order[1:])])
-    best: tuple[float, tuple[int, ...], np.ndarray] | None = None
-    for lf in subsets:
-        idx = [0, *lf]
-        sub_cov, sub_w = cov[np.ix_(idx, idx)], w[idx]
+    if estimator not in (*ESTIMATORS, *GENERALIZED):
+        raise ParameterError(f"unknown estimator {estimator!r}; valid: "
+                             f"{', '.join((*ESTIMATORS, *GENERALIZED))}")
+    cands = _candidates(estimator, rho, select, recursion)
+    # many structures: screen each with a short optimisation, then refine the best few
+    effort = 300 if estimator in ESTIMATORS or len(cands) <= 4 else 60
+    scored: list[tuple[float, tuple[int, ...], tuple[int, ...], np.ndarray]] = []
+    for idx, gamma in cands:
+        sub_cov, sub_w = cov[np.ix_(idx, idx)], w[list(idx)]
         if len(idx) == 1:
             r = np.ones(1)
         elif estimator == "mfmc":
-            r_or_none = mfmc_ratios(rho[idx], sub_w)
+            r_or_none = mfmc_ratios(rho[list(idx)], sub_w)
             if r_or_none is None:
                 continue
             r = r_or_none
         else:
-            start = mfmc_ratios(rho[idx], sub_w)
-            r = _continuous(estimator, sub_cov, sub_w, budget, start)[0]
+            start = mfmc_ratios(rho[list(idx)], sub_w) if gamma == default_recursion(
+                "mfmc", len(idx)) or estimator in ESTIMATORS else None
+            r = _continuous(estimator, sub_cov, sub_w, budget, start, gamma, effort=effort)[0]
         n0 = budget / float(sub_w @ r)
-        var = estimator_variance(estimator, n0 * r, "mean", sub_cov)
-        if best is None or var < best[0] * (1.0 - 1e-9):
-            best = (var, tuple(idx), r)
+        var = estimator_variance(estimator, n0 * r, "mean", sub_cov, recursion=gamma)
+        scored.append((var, idx, gamma, r))
+    if effort < 300:
+        # the best few, and the named estimators' structures (a short search must not lose
+        # to ACV-MF, MFMC or ACV-IS, which GMF and GIS contain)
+        scored.sort(key=lambda s: s[0])
+        named = {default_recursion(e, len(s[1])) for e in ("mfmc", "acvmf") for s in scored}
+        for i, (_, idx, gamma, r) in enumerate(scored):
+            if len(idx) == 1 or (i >= 6 and gamma not in named):
+                continue
+            sub_cov, sub_w = cov[np.ix_(idx, idx)], w[list(idx)]
+            r = _continuous(estimator, sub_cov, sub_w, budget, r, gamma)[0]
+            n0 = budget / float(sub_w @ r)
+            scored[i] = (estimator_variance(estimator, n0 * r, "mean", sub_cov,
+                                            recursion=gamma), idx, gamma, r)
+    best = None
+    for s in scored:  # the first of equals: fewer models, then the candidates' order
+        if best is None or s[0] < best[0] * (1.0 - 1e-9):
+            best = s
     assert best is not None  # the HF model alone is always admissible
-    _, models, r = best
+    _, models, gamma, r = best
     sub_cov, sub_w = cov[np.ix_(models, models)], w[list(models)]
+    family = _family(estimator, gamma, len(models))[0]
     n_cont = budget / float(sub_w @ r) * r
     if n_cont[0] < 2.0 and len(models) > 1:
         # the optimum wants fewer than the 2 high-fidelity runs a variance needs (a very good
@@ -330,9 +532,16 @@ def allocate(cov: np.ndarray, costs, budget: float, *, estimator: str = "mfmc",
         if budget >= low:
             lf = n_cont[1:] * (budget - 2.0 * sub_w[0]) / float(sub_w[1:] @ n_cont[1:])
             n_cont = np.concatenate([[2.0], np.maximum(lf, 2.0)])
-    n = _integer(estimator, n_cont)
-    while float(sub_w @ n) > budget * (1 + 1e-12) and n[-1] > n[0]:
-        n[-1] -= 1  # rounding the floors up to 2 may overspend: trim the cheapest set
+    n = _integer(estimator, n_cont, gamma)
+    parents = set(gamma)
+    while float(sub_w @ n) > budget * (1 + 1e-12):
+        # rounding the floors up may overspend: trim a model no other one leans on, the one
+        # spending most, while it keeps what its parent requires
+        slack = [k for k in range(1, n.size)
+                 if k not in parents and n[k] > _lower(family, gamma, n)[k]]
+        if not slack:
+            break
+        n[max(slack, key=lambda k: (sub_w[k] * n[k], k))] -= 1
     if n[0] < 2 or float(sub_w @ n) > budget * (1 + 1e-12):
         raise ParameterError(
             f"budget {budget:g} buys {int(n_cont[0])} high-fidelity evaluation(s) with the "
@@ -340,4 +549,6 @@ def allocate(cov: np.ndarray, costs, budget: float, *, estimator: str = "mfmc",
             f"needed: raise the budget above {2 * float(sub_w @ r):g}")
     return Allocation(estimator=estimator, models=models, ratios=r, n_samples=n,
                       cost=float(sub_w @ n),
-                      variance=estimator_variance(estimator, n, "mean", sub_cov))
+                      variance=estimator_variance(estimator, n, "mean", sub_cov,
+                                                  recursion=gamma),
+                      recursion=gamma)

@@ -35,10 +35,11 @@ import numpy as np
 from scipy import optimize
 
 from ..errors import ParameterError
-from .acv import Allocation
+from .acv import Allocation, check_ensemble
 
 __all__ = ["GroupAllocation", "mlblue_groups", "mlblue_psi", "mlblue_variance",
-           "mlblue_allocate", "mlblue_fixed_allocation", "mlblue_estimate"]
+           "mlblue_allocate", "mlblue_fixed_allocation", "mlblue_estimate",
+           "mlblue_weighted_variance"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -94,16 +95,14 @@ def _blocks(cov: np.ndarray, groups) -> list[np.ndarray]:
 
 
 def mlblue_psi(cov: np.ndarray, groups, m) -> np.ndarray:
-    """Psi = sum_S m_S R_S^T C_S^{-1} R_S, (K, K).
+    """Psi = sum_S m_S R_S^T C_S^{-1} R_S, (K, K), for the covariance ``cov`` (K, K), the
+    groups (tuples of model indices) and ``m`` (len(groups),) points per group (real numbers
+    allowed): the arguments of :func:`mlblue_variance`.
 
-    Parameters
-    ----------
-    cov : ndarray of shape (K, K)
-        Covariance of the models' outputs.
-    groups : sequence of tuples of int
-        The groups (model indices).
-    m : array_like of shape (len(groups),)
-        Points per group (real numbers allowed).
+    Examples
+    --------
+    >>> mlblue_psi(np.array([[2.0]]), [(0,)], [8]).tolist()
+    [[4.0]]
     """
     cov = np.asarray(cov, dtype=float)
     return np.einsum("s,skl->kl", np.asarray(m, dtype=float), np.array(_blocks(cov, groups)))
@@ -183,20 +182,6 @@ def _continuous(cov: np.ndarray, gc: np.ndarray, groups) -> tuple[np.ndarray, fl
     return best[0], best[1] * scale
 
 
-def _check(cov, costs) -> tuple[np.ndarray, np.ndarray]:
-    cov = np.asarray(cov, dtype=float)
-    w = np.asarray(costs, dtype=float)
-    K = w.size
-    if cov.shape != (K, K):
-        raise ParameterError(f"cov must be ({K}, {K}) for {K} costs, got {cov.shape}")
-    if not np.all(np.isfinite(w)) or np.any(w <= 0):
-        raise ParameterError(f"costs must be positive and finite, got {w.tolist()}")
-    if np.any(np.diag(cov) <= 0) or not np.all(np.isfinite(cov)):
-        raise ParameterError("every model's output must vary over the pilot (variances "
-                             f"{np.diag(cov).tolist()})")
-    return cov, w
-
-
 def _plan(cov, w, groups, m, fractions) -> GroupAllocation:
     m = np.asarray(m, dtype=int)
     used = _used(groups, m)
@@ -241,7 +226,7 @@ def mlblue_allocate(cov: np.ndarray, costs, budget: float, *,
     >>> bool(plan.variance < 1.0 / 100), plan.cost <= 100.0
     (True, True)
     """
-    cov, w = _check(cov, costs)
+    cov, w = check_ensemble(cov, costs)
     K = w.size
     groups = mlblue_groups(K) if groups is None else tuple(tuple(sorted(set(g))) for g in groups)
     if (0,) not in groups:  # the optimiser's second start; a harmless extra group
@@ -283,7 +268,7 @@ def mlblue_fixed_allocation(cov: np.ndarray, costs,
     group_samples : mapping of tuple of int to int
         Points per group; at least one group holding model 0 needs one.
     """
-    cov, w = _check(cov, costs)
+    cov, w = check_ensemble(cov, costs)
     K = w.size
     groups, m = [], []
     for g, n in group_samples.items():
@@ -299,6 +284,37 @@ def mlblue_fixed_allocation(cov: np.ndarray, costs,
         raise ParameterError("MLBLUE needs at least one point of a group holding the "
                              "high-fidelity model (0)")
     return _plan(cov, w, tuple(groups), m, None)
+
+
+def mlblue_weighted_variance(cov: np.ndarray, cov_used: np.ndarray, groups, m) -> float:
+    """Variance of MLBLUE's model-0 mean built with the covariance ``cov_used`` (a pilot's)
+    when the models' true covariance is ``cov``: ``v^T M v`` with ``v`` the first row of
+    ``Psi(cov_used)^{-1}`` and ``M = sum_S m_S R_S^T Cu_S^{-1} C_S Cu_S^{-1} R_S`` (the
+    group sums have covariance ``m_S C_S``); :func:`mlblue_variance` when they agree.
+
+    Parameters
+    ----------
+    cov, cov_used : ndarray of shape (K, K)
+        The true covariance and the one the estimator's weights come from.
+    groups : sequence of tuples of int
+        The groups.
+    m : array_like of shape (len(groups),)
+        Points per group.
+
+    Examples
+    --------
+    >>> cov = np.array([[1.0, 0.9], [0.9, 1.0]])
+    >>> g, m = [(0,), (0, 1), (1,)], [0, 10, 90]
+    >>> bool(np.isclose(mlblue_weighted_variance(cov, cov, g, m), mlblue_variance(cov, g, m)))
+    True
+    """
+    used = _used(groups, m)
+    B = np.array(_blocks(np.asarray(cov_used, dtype=float), groups))
+    mm = np.asarray(m, dtype=float)
+    P = np.einsum("s,skl->kl", mm, B)[np.ix_(used, used)]
+    M = np.einsum("s,skl,lq,sqr->kr", mm, B, np.asarray(cov, dtype=float), B)[np.ix_(used, used)]
+    v = np.linalg.pinv(P, hermitian=True)[0]
+    return float(v @ M @ v)
 
 
 def mlblue_estimate(cov: np.ndarray, groups, sums: Sequence[np.ndarray], m

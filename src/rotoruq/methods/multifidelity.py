@@ -27,6 +27,7 @@ response: a choice made on the pilot alone, so unbiasedness holds.
 
 from __future__ import annotations
 
+import logging
 import time
 import warnings
 from collections.abc import Mapping, Sequence
@@ -41,20 +42,29 @@ from ..params import ParameterSpace
 from ._common import eval_space
 from .acv import (
     ESTIMATORS,
+    GENERALIZED,
     Allocation,
+    SampleSets,
     allocate,
     estimator_covariance,
     fixed_allocation,
     optimal_weights,
     sample_sets,
+    weighted_variance_stack,
+    weights_stack,
 )
+from .mf_choice import EstimatorChoice, choose_estimator
+from .mf_pilot import bootstrap_variance, pilot_too_small
 from .mlblue import (
     GroupAllocation,
     mlblue_allocate,
     mlblue_estimate,
     mlblue_fixed_allocation,
     mlblue_psi,
+    mlblue_weighted_variance,
 )
+
+log = logging.getLogger(__name__)
 
 __all__ = ["MultifidelityResult", "LinearAdaptation", "multifidelity_sample", "STATISTICS",
            "BUDGET_UNITS", "ADAPTATIONS", "MF_ESTIMATORS"]
@@ -62,8 +72,9 @@ __all__ = ["MultifidelityResult", "LinearAdaptation", "multifidelity_sample", "S
 STATISTICS = ("mean", "variance")
 BUDGET_UNITS = ("cost", "hf_runs")
 ADAPTATIONS = ("none", "linear")
-#: The estimators of :func:`multifidelity_sample`: the ACV family and MLBLUE (mean only).
-MF_ESTIMATORS = (*ESTIMATORS, "mlblue")
+#: The estimators of :func:`multifidelity_sample`: the ACV family, its generalized families
+#: (Bomarito et al. 2022), MLBLUE (mean only) and "auto" (:mod:`rotoruq.methods.mf_choice`).
+MF_ESTIMATORS = (*ESTIMATORS, *GENERALIZED, "mlblue", "auto")
 
 
 @dataclass(frozen=True, eq=False)
@@ -166,13 +177,40 @@ class LinearAdaptation:
 
 
 @dataclass(frozen=True, eq=False)
-class MultifidelityResult:
+class _EnsembleRun:
+    """The fields every multi-fidelity result shares (documented on each result)."""
+
+    names_in: tuple[str, ...]
+    names_out: tuple[str, ...]
+    estimator: str
+    target: str
+    models_used: tuple[int, ...]
+    allocation: np.ndarray
+    n_pilot: int
+    costs: np.ndarray
+    costs_measured: bool
+    budget: float
+    cost_pilot: float
+    cost_main: float
+    wall_pilot: np.ndarray
+    wall_main: np.ndarray
+    correlation: np.ndarray
+    weights: dict = field(default_factory=dict, kw_only=True)
+    n_equivalent_hf: dict = field(default_factory=dict, kw_only=True)
+    speedup: dict = field(default_factory=dict, kw_only=True)
+    n_evaluations: int = field(default=0, kw_only=True)
+    plan: Allocation | None = field(default=None, repr=False, kw_only=True)
+
+
+@dataclass(frozen=True, eq=False)
+class MultifidelityResult(_EnsembleRun):
     """Result of :func:`multifidelity_sample`.
 
     Attributes
     ----------
     names_in, names_out : input (d) and response (m) names.
-    estimator : "mfmc", "acvmf", "acvis" or "mlblue".
+    estimator : "mfmc", "acvmf", "acvis", "gmf", "grd", "gis" or "mlblue" (the one "auto"
+        chose, see ``choice``).
     statistics : the statistics estimated ("mean", "variance").
     target : the response whose mean-estimator variance the allocation minimised.
     models_used : indices (into ``models``) of the models the estimator uses, the
@@ -192,7 +230,10 @@ class MultifidelityResult:
     mean, variance : (m,) estimates (NaN for a statistic not asked for); the multi-fidelity
         variance estimate is unbiased and may, rarely, come out negative.
     mean_se, variance_se : (m,) their standard errors predicted from the pilot moments and
-        the allocation.
+        the allocation, with the pilot's uncertainty accounted for by the bootstrap
+        (``pilot_bootstrap`` resamples, :mod:`rotoruq.methods.mf_pilot`; the plug-in without).
+    mean_se_plugin, variance_se_plugin : (m,) the plug-in standard errors (weights and
+        variance from the pilot's covariance as if it were exact; optimistic).
     adapt : "none" or "linear".
     adaptation : the :class:`LinearAdaptation` (None without).
     correlation_unadapted : (m, K) pilot correlation of each model as evaluated (equal to
@@ -209,40 +250,26 @@ class MultifidelityResult:
     pilot_inputs : (n_pilot, d) the pilot's points.
     pilot_outputs : (n_pilot, K, m) every model's responses there (NaN where one failed).
     plan : the allocation as planned (``rotoruq.methods.acv.Allocation``: the models used,
-        their continuous ratios, integer evaluations, cost and predicted variance; for
-        "mlblue" a ``rotoruq.methods.mlblue.GroupAllocation``, with the points per group).
+        their continuous ratios, integer evaluations, cost, predicted variance and recursion
+        index; for "mlblue" a ``rotoruq.methods.mlblue.GroupAllocation``, with the points per
+        group).
+    choice : for ``estimator="auto"``, the :class:`~rotoruq.methods.mf_choice.EstimatorChoice`
+        (every candidate's predicted variance and the reason); None otherwise.
     """
 
-    names_in: tuple[str, ...]
-    names_out: tuple[str, ...]
-    estimator: str
     statistics: tuple[str, ...]
-    target: str
-    models_used: tuple[int, ...]
-    allocation: np.ndarray
-    n_pilot: int
-    costs: np.ndarray
-    costs_measured: bool
-    budget: float
-    cost_pilot: float
-    cost_main: float
-    wall_pilot: np.ndarray
-    wall_main: np.ndarray
-    correlation: np.ndarray
     mean: np.ndarray
     mean_se: np.ndarray
     variance: np.ndarray
     variance_se: np.ndarray
-    weights: dict = field(default_factory=dict)
-    n_equivalent_hf: dict = field(default_factory=dict)
-    speedup: dict = field(default_factory=dict)
-    n_evaluations: int = 0
-    plan: Allocation | None = field(default=None, repr=False)
     pilot_inputs: np.ndarray | None = field(default=None, repr=False)
     pilot_outputs: np.ndarray | None = field(default=None, repr=False)
     adapt: str = "none"
     adaptation: LinearAdaptation | None = field(default=None, repr=False)
     correlation_unadapted: np.ndarray | None = field(default=None, repr=False)
+    mean_se_plugin: np.ndarray | None = field(default=None, repr=False)
+    variance_se_plugin: np.ndarray | None = field(default=None, repr=False)
+    choice: EstimatorChoice | None = field(default=None, repr=False)
 
     @property
     def std(self) -> np.ndarray:
@@ -343,11 +370,13 @@ def _correlation(cov: np.ndarray) -> np.ndarray:
         return cov[:, 0, :] / (sd[:, :1] * sd)
 
 
-def _sample_moments(Y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Y (n, K, m) -> covariance (m, K, K) and E[d_i^2 d_j^2] (m, K, K) of the centred values."""
+def _sample_moments(Y: np.ndarray, population: bool = False
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Y (n, K, m) -> covariance (m, K, K) and E[d_i^2 d_j^2] (m, K, K) of the centred values
+    (the covariance unbiased, or with ``population`` the empirical distribution's)."""
     d = Y - Y.mean(axis=0)
     n = Y.shape[0]
-    cov = np.einsum("nkj,nlj->jkl", d, d) / (n - 1)
+    cov = np.einsum("nkj,nlj->jkl", d, d) / (n if population else n - 1)
     d2 = d**2
     m22 = np.einsum("nkj,nlj->jkl", d2, d2) / n
     return cov, m22
@@ -374,6 +403,8 @@ def multifidelity_sample(
     select: bool = True,
     allocation: Sequence[int] | Mapping[tuple[int, ...], int] | None = None,
     adapt: str = "none",
+    recursion: Sequence[int] | None = None,
+    pilot_bootstrap: int = 100,
     seed: SeedLike = None,
 ) -> MultifidelityResult:
     """Mean and variance of ``models[0]``'s responses using cheaper correlated models.
@@ -394,7 +425,13 @@ def multifidelity_sample(
         (multilevel best linear unbiased estimator, Schaden, Ullmann 2020, SIAM/ASA JUQ 8(2);
         allocation over groups of models as in Croci, Willcox, Wright 2023; the mean only:
         :mod:`rotoruq.methods.mlblue`). At the optimal allocation MLBLUE's predicted variance
-        is at most the ACV estimators'; it needs one high-fidelity run, not two.
+        is at most the ACV estimators'; it needs one high-fidelity run, not two. "gmf",
+        "grd", "gis": the generalized ACV families of Bomarito et al. 2022 (J. Comput. Phys.
+        451), the allocation searched over model subsets and recursion indices (each model's
+        control variate on a parent model; :func:`rotoruq.methods.acv.sample_sets`). "auto":
+        every one of these allocated on the pilot, the smallest predicted variance of the
+        target's mean kept (MLBLUE only when ``statistics=["mean"]``); ``choice`` says which
+        and why, and the module's logger says it at INFO.
     n_pilot : points of the pilot, every model on each (>= 4): it measures the costs and the
         covariances that set the allocation, the weights and the standard errors.
     costs : (K,) cost of one evaluation of each model; None measures wall seconds per point
@@ -412,6 +449,12 @@ def multifidelity_sample(
         ``{group: points}`` (a group a tuple of model indices).
     adapt : "none" or "linear": adapt each low-fidelity model on the pilot by a linear map of
         its response and the inputs (module doc); needs ``n_pilot >= d + 5``.
+    recursion : (number of models with evaluations - 1,) with ``allocation`` and "gmf",
+        "grd" or "gis": each model's parent, its position among those models (``gamma_k <
+        k``).
+    pilot_bootstrap : resamples of the pilot for the standard errors' correction for the
+        pilot's uncertainty (:mod:`rotoruq.methods.mf_pilot`); 0 reports the plug-in. A
+        pilot smaller than ``11 (K - 1) + 2`` points warns (the rule there).
     seed : int, SeedSequence, Generator or None. The same seed (and costs) gives bitwise the
         same result.
 
@@ -437,6 +480,10 @@ def multifidelity_sample(
     """
     if statistics is None:
         statistics = ("mean",) if estimator == "mlblue" else STATISTICS
+    if isinstance(pilot_bootstrap, bool) or not isinstance(pilot_bootstrap, int | np.integer) \
+            or pilot_bootstrap < 0:
+        raise ParameterError(f"pilot_bootstrap must be a non-negative integer, got "
+                             f"{pilot_bootstrap!r}")
     stats_asked = tuple(statistics)
     bad = [s for s in stats_asked if s not in STATISTICS]
     if bad or not stats_asked:
@@ -457,8 +504,14 @@ def multifidelity_sample(
                              f"{n_pilot}")
     if (budget is None) == (allocation is None):
         raise ParameterError("give either a budget or an allocation (evaluations per model)")
+    if estimator == "auto" and budget is None:
+        raise ParameterError("estimator 'auto' chooses by the predicted variance at a budget: "
+                             "give a budget, not an allocation")
+    if recursion is not None and (estimator not in GENERALIZED or allocation is None):
+        raise ParameterError("recursion goes with an allocation and estimator 'gmf', 'grd' or "
+                             "'gis' (with a budget the allocation searches the recursion)")
     ss = as_seed_sequence(seed)
-    s_pilot, s_main = ss.spawn(2)
+    s_pilot, s_main, s_boot = ss.spawn(3)
 
     # pilot: every model on the same points
     xp = space.draw(int(n_pilot), design="random", seed=np.random.default_rng(s_pilot))
@@ -478,6 +531,9 @@ def multifidelity_sample(
                       "some model and are left out of the pilot statistics", RuntimeWarning,
                       stacklevel=2)
     w = w_given if w_given is not None else wall_pilot / n_pilot
+    small = pilot_too_small(int(ok.sum()), K)
+    if small:
+        warnings.warn(small, RuntimeWarning, stacklevel=2)
     cov, m22 = _sample_moments(Yp[ok])
     correlation_unadapted = _correlation(cov)
     adaptation = None
@@ -487,9 +543,20 @@ def multifidelity_sample(
                                   f"adapt='linear' needs {space.dim + 5}")
         adaptation, Y_loo = LinearAdaptation.fit(xp[ok], Yp[ok])
         cov, m22 = _sample_moments(Y_loo)
+    Y_fit = Y_loo if adaptation is not None else Yp[ok]
     correlation = _correlation(cov)
+    boot = (int(pilot_bootstrap), np.random.default_rng(s_boot))
 
     plan: Allocation
+    choice = None
+    if estimator == "auto":
+        if budget_unit == "hf_runs":
+            budget = float(budget) * float(w[0])
+        choice = choose_estimator(cov[jt], w, float(budget), statistics=stats_asked,
+                                  select=select)
+        log.info("%s", choice.reason)
+        estimator = choice.estimator
+        budget_unit = "cost"
     if estimator == "mlblue":
         if budget is None:
             if not isinstance(allocation, Mapping):
@@ -499,18 +566,23 @@ def multifidelity_sample(
         else:
             if budget_unit == "hf_runs":
                 budget = float(budget) * float(w[0])
-            gplan = mlblue_allocate(cov[jt], w, float(budget))
+            gplan = (choice.plan if choice is not None  # type: ignore[assignment]
+                     else mlblue_allocate(cov[jt], w, float(budget)))
         return _mlblue_main(models, space, gplan, s_main, names_out, target, stats_asked,
                             cov, w, xp, Yp, wall_pilot, int(n_pilot), costs is None, budget,
-                            correlation, correlation_unadapted, adapt, adaptation)
-    if budget is None:
-        plan = fixed_allocation(cov[jt], w, np.asarray(allocation), estimator=estimator)
+                            correlation, correlation_unadapted, adapt, adaptation, Y_fit, boot,
+                            choice)
+    if choice is not None:
+        plan = choice.plan
+    elif budget is None:
+        plan = fixed_allocation(cov[jt], w, np.asarray(allocation), estimator=estimator,
+                                recursion=recursion)
     else:
         if budget_unit == "hf_runs":
             budget = float(budget) * float(w[0])
         plan = allocate(cov[jt], w, float(budget), estimator=estimator, select=select)
     used = list(plan.models)
-    sets = sample_sets(estimator, plan.n_samples)
+    sets = sample_sets(estimator, plan.n_samples, plan.recursion)
 
     # main phase: fresh points, each model on its largest set
     xm = space.draw(int(round(sets.n_points)), design="random",
@@ -518,15 +590,8 @@ def multifidelity_sample(
     wall_main = np.zeros(K)
     values: list[np.ndarray] = []
     for pos, k in enumerate(used):
-        idx = sets.indices(2 * pos if pos else 0)
-        y, fails, wall_main[k] = _timed(models[k], space, xm[idx])
-        if fails:
-            first = next(iter(fails.items()))
-            raise EvaluationError(
-                f"multifidelity_sample: models[{k}] failed on {len(fails)} of {idx.size} points "
-                f"(first: point {first[0]}: {first[1]}); the estimators need every point")
-        if adaptation is not None and k > 0:
-            y = adaptation.apply(k, xm[idx], y)
+        idx = sets.model_points(pos)
+        y, wall_main[k] = _run_main(models, k, space, xm[idx], adaptation)
         full = np.full((xm.shape[0], m), np.nan)
         full[idx] = y
         values.append(full)
@@ -536,6 +601,7 @@ def multifidelity_sample(
     nan = np.full(m, np.nan)
     est = {"mean": nan.copy(), "variance": nan.copy()}
     se = {"mean": nan.copy(), "variance": nan.copy()}
+    se_plug = {"mean": nan.copy(), "variance": nan.copy()}
     weights, n_eq, speedup = {}, {}, {}
     cost_pilot = float(n_pilot * w.sum())
     cost_main = float(w[used] @ plan.n_samples)
@@ -545,7 +611,9 @@ def multifidelity_sample(
         n_eq[s] = np.full(m, np.nan)
         for j in range(m):
             S = estimator_covariance(sets, s, cov[j][sub], m22[j][sub])
-            alpha, var = optimal_weights(S)
+            alpha = optimal_weights(S)[0]
+            plug, var = _acv_bootstrap(sets, s, Y_fit[:, used, j], boot)
+            se_plug[s][j] = np.sqrt(plug)
             alphas[j] = alpha
             q = []
             for si, k in enumerate(sets.model_of_set):
@@ -570,13 +638,46 @@ def multifidelity_sample(
         n_equivalent_hf=n_eq, speedup=speedup,
         n_evaluations=int(n_pilot) * K + int(plan.n_samples.sum()), plan=plan,
         pilot_inputs=xp, pilot_outputs=Yp, adapt=adapt, adaptation=adaptation,
-        correlation_unadapted=correlation_unadapted)
+        correlation_unadapted=correlation_unadapted, mean_se_plugin=se_plug["mean"],
+        variance_se_plugin=se_plug["variance"], choice=choice)
+
+
+def _run_main(models, k: int, space: ParameterSpace, x: np.ndarray,
+              adaptation: LinearAdaptation | None) -> tuple[np.ndarray, float]:
+    """Model ``k``'s main-phase values at ``x`` (adapted where asked) and its seconds; every
+    point must succeed."""
+    y, fails, wall = _timed(models[k], space, x)
+    if fails:
+        first = next(iter(fails.items()))
+        raise EvaluationError(
+            f"multifidelity_sample: models[{k}] failed on {len(fails)} of {len(x)} points "
+            f"(first: point {first[0]}: {first[1]}); the estimators need every point")
+    if adaptation is not None and k > 0:
+        y = adaptation.apply(k, x, y)
+    return np.asarray(y, dtype=float).reshape(len(x), -1), wall
+
+
+def _acv_bootstrap(sets: SampleSets, statistic: str, Y: np.ndarray,
+                   boot: tuple[int, np.random.Generator]) -> tuple[float, float]:
+    """Plug-in and bootstrap-corrected variance of an ACV estimator on ``sets`` whose weights
+    come from the pilot ``Y`` (n, K) of one response."""
+
+    def moments(Ys, population=False):
+        c, m = _sample_moments(Ys.transpose(1, 2, 0), population)
+        return estimator_covariance(sets, statistic, c, m)
+
+    def variance(W, Ys, population):
+        S = moments(Ys, population)
+        return weighted_variance_stack(np.broadcast_to(S, (len(W), *S.shape[1:])), W)
+
+    return bootstrap_variance(Y, lambda Ys: weights_stack(moments(Ys)), variance,
+                              boot[0] if Y.shape[1] > 1 else 0, boot[1])
 
 
 def _mlblue_main(models, space, plan: GroupAllocation, s_main, names_out, target, stats_asked,
                  cov, w, xp, Yp, wall_pilot, n_pilot: int, costs_measured: bool, budget,
-                 correlation, correlation_unadapted, adapt, adaptation
-                 ) -> MultifidelityResult:
+                 correlation, correlation_unadapted, adapt, adaptation, Y_fit, boot,
+                 choice) -> MultifidelityResult:
     """The main phase of :func:`multifidelity_sample` with ``estimator="mlblue"``: each group
     with points gets a block of fresh independent points, every model runs once on the union
     of its groups' blocks."""
@@ -591,26 +692,29 @@ def _mlblue_main(models, space, plan: GroupAllocation, s_main, names_out, target
     for k in plan.models:
         idx = np.concatenate([np.arange(start[i], start[i + 1])
                               for i, g in enumerate(groups) if k in g and gm[i]])
-        y, fails, wall_main[k] = _timed(models[k], space, xm[idx])
-        if fails:
-            first = next(iter(fails.items()))
-            raise EvaluationError(
-                f"multifidelity_sample: models[{k}] failed on {len(fails)} of {idx.size} points "
-                f"(first: point {first[0]}: {first[1]}); the estimators need every point")
-        if adaptation is not None and k > 0:
-            y = adaptation.apply(k, xm[idx], y)
-        values[idx, k, :] = np.asarray(y, dtype=float).reshape(idx.size, m)
+        values[idx, k, :], wall_main[k] = _run_main(models, k, space, xm[idx], adaptation)
     spent = np.zeros(K, dtype=int)
     spent[list(plan.models)] = plan.n_samples
     nan = np.full(m, np.nan)
-    mean, mean_se = nan.copy(), nan.copy()
+    mean, mean_se, se_plug = nan.copy(), nan.copy(), nan.copy()
     n_eq = np.full(m, np.nan)
     used = list(plan.models)
     alphas = np.zeros((m, len(used)))
     for j in range(m):
         sums = [values[start[i]:start[i + 1], list(g), j].sum(axis=0)
                 for i, g in enumerate(groups)]
-        mean[j], var = mlblue_estimate(cov[j], groups, sums, gm)
+        mean[j] = mlblue_estimate(cov[j], groups, sums, gm)[0]
+        def covs(Ys, population=False):
+            return _sample_moments(Ys.transpose(1, 2, 0), population)[0]
+
+        def variance(Cu, Ys, population):
+            C = np.broadcast_to(covs(Ys, population), Cu.shape)
+            return np.array([mlblue_weighted_variance(c, cu, groups, gm)
+                             for c, cu in zip(C, Cu, strict=True)])
+
+        plug, var = bootstrap_variance(Y_fit[:, :, j], covs, variance,
+                                       boot[0] if len(used) > 1 else 0, boot[1])
+        se_plug[j] = np.sqrt(plug)
         alphas[j] = np.linalg.pinv(mlblue_psi(cov[j], groups, gm)[np.ix_(used, used)],
                                    hermitian=True)[0]
         mean_se[j] = np.sqrt(max(var, 0.0))
@@ -628,4 +732,5 @@ def _mlblue_main(models, space, plan: GroupAllocation, s_main, names_out, target
         variance_se=nan.copy(), weights={"mean": alphas}, n_equivalent_hf={"mean": n_eq},
         speedup={"mean": speedup}, n_evaluations=n_pilot * K + int(spent.sum()), plan=plan,
         pilot_inputs=xp, pilot_outputs=Yp, adapt=adapt, adaptation=adaptation,
-        correlation_unadapted=correlation_unadapted)
+        correlation_unadapted=correlation_unadapted, mean_se_plugin=se_plug,
+        variance_se_plugin=nan.copy(), choice=choice)

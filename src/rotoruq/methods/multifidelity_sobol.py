@@ -56,7 +56,7 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import optimize
@@ -73,7 +73,7 @@ from .acv import (
     optimal_weights,
     sample_sets,
 )
-from .multifidelity import _check_common, _correlation, _sample_moments, _timed
+from .multifidelity import _check_common, _correlation, _EnsembleRun, _sample_moments, _timed
 from .sensitivity import _BASE_TERMS, _PER_INPUT, _row_terms, pick_freeze_design
 
 __all__ = ["MultifidelitySobolResult", "multifidelity_sobol"]
@@ -83,7 +83,7 @@ _SALTELLI, _JANSEN = 3, 4
 
 
 @dataclass(frozen=True, eq=False)
-class MultifidelitySobolResult:
+class MultifidelitySobolResult(_EnsembleRun):
     """Result of :func:`multifidelity_sobol`.
 
     Attributes
@@ -127,22 +127,7 @@ class MultifidelitySobolResult:
     plan : the :class:`rotoruq.methods.acv.Allocation` in base samples.
     """
 
-    names_in: tuple[str, ...]
-    names_out: tuple[str, ...]
-    estimator: str
-    target: str
     allocation_term: str
-    models_used: tuple[int, ...]
-    allocation: np.ndarray
-    n_pilot: int
-    costs: np.ndarray
-    costs_measured: bool
-    budget: float
-    cost_pilot: float
-    cost_main: float
-    wall_pilot: np.ndarray
-    wall_main: np.ndarray
-    correlation: np.ndarray
     term_correlation: np.ndarray
     main: np.ndarray
     main_se: np.ndarray
@@ -150,11 +135,6 @@ class MultifidelitySobolResult:
     total_se: np.ndarray
     variance: np.ndarray
     variance_se: np.ndarray
-    weights: dict = field(default_factory=dict)
-    n_equivalent_hf: dict = field(default_factory=dict)
-    speedup: dict = field(default_factory=dict)
-    n_evaluations: int = 0
-    plan: Allocation | None = field(default=None, repr=False)
 
     def table(self) -> list[dict]:
         """One dict per (response, input): indices, standard errors, equivalent HF runs."""

@@ -50,8 +50,10 @@ class MultifidelityRecord(StepRecord):
     :data:`HF_LABEL`), m responses, s statistics.
 
     models (K), names_out (m), statistics (s) : the statistics estimated ("mean",
-    "variance"; "mean" alone for "mlblue"). estimator : "mfmc", "acvmf", "acvis" or
-    "mlblue"; target : the response the
+    "variance"; "mean" alone for "mlblue"). estimator : "mfmc", "acvmf", "acvis", "gmf",
+    "grd", "gis" or "mlblue" (for ``estimator = "auto"`` the one chosen; the metadata's
+    ``estimator_choice`` says why, ``recursion`` gives its recursion index); target : the
+    response the
     allocation was optimised for. cost (K,) : cost of one run of each model (seconds when
     ``costs_measured``, else the given cost units); runs (K,) : pilot plus main-phase runs;
     allocation (K,) : main-phase runs; used (K,) 1.0 / 0.0 : whether the estimator uses the
@@ -190,6 +192,8 @@ def run_multifidelity(ctx: StepContext) -> StepResult:
     return StepResult(ctx.name, ctx.type, {}, arrays, meta={
         "models": list(names), "responses": list(ctx.responses), "estimator": res.estimator,
         "target": res.target,
+        "recursion": [int(g) for g in getattr(res.plan, "recursion", ())],
+        "estimator_choice": res.choice.reason if res.choice is not None else "",
         "n_pilot": res.n_pilot, "costs_measured": res.costs_measured,
         "n_evaluations": int(res.n_evaluations) + n_sobol_evals, **meta})
 
@@ -336,9 +340,11 @@ def why_dearer(main: float, pilot_share: float, rho: float, target: str | None,
 def _check(c: StepCheck) -> None:
     if not c.options["models"]:
         c.fail(("models",), "a list of low-fidelity model names", "[]")
-    if c.options.get("sobol") and c.options.get("estimator") == "mlblue":
-        c.fail(("estimator",), "mfmc, acvmf or acvis with sobol = true (mlblue estimates "
-               "the mean only)", "mlblue")
+    if c.options.get("sobol") and c.options.get("estimator") not in ("mfmc", "acvmf", "acvis"):
+        est = str(c.options.get("estimator"))
+        why = ("mlblue estimates the mean only" if est == "mlblue"
+               else "the Sobol' indices have those allocations")
+        c.fail(("estimator",), f"mfmc, acvmf or acvis with sobol = true ({why})", est)
     costs = c.options.get("costs")
     if costs is not None and len(costs) != len(c.options["models"]) + 1:
         c.fail(("costs",), f"{len(c.options['models']) + 1} costs ([model] first, then "
@@ -350,7 +356,8 @@ STEP = StepType(
     options={"models": Option(string_list, REQUIRED),
              "budget": Option(number(positive=True, allow_zero=False), SIGNATURE),
              "budget_unit": Option(choice("cost", "hf_runs"), SIGNATURE),
-             "estimator": Option(choice("mfmc", "acvmf", "acvis", "mlblue"), SIGNATURE),
+             "estimator": Option(choice("mfmc", "acvmf", "acvis", "gmf", "grd", "gis", "mlblue",
+                                       "auto"), SIGNATURE),
              "n_pilot": Option(integer(4), SIGNATURE),
              "adapt": Option(choice("none", "linear"), SIGNATURE),
              "sobol": Option(boolean, False),
@@ -358,4 +365,5 @@ STEP = StepType(
     quick={"n_pilot": 10}, check=_check,
     tables=multifidelity_tables, warnings=multifidelity_warnings,
     modules=("rotoruq.methods.multifidelity", "rotoruq.methods.multifidelity_sobol",
-             "rotoruq.methods.acv"))
+             "rotoruq.methods.acv", "rotoruq.methods.mf_choice", "rotoruq.methods.mf_pilot",
+             "rotoruq.methods.mlblue"))

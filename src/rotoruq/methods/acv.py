@@ -81,7 +81,7 @@ class SampleSets:
 
     def model_points(self, k: int) -> np.ndarray:
         """Point indices (integers, ascending) model ``k`` runs on: the union of its sets."""
-        return np.unique(np.concatenate([self.indices(s)
+        return np.unique(np.concatenate([self.indices(int(s))
                                          for s in np.flatnonzero(self.model_of_set == k)]))
 
 

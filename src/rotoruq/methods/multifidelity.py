@@ -550,6 +550,7 @@ def multifidelity_sample(
     plan: Allocation
     choice = None
     if estimator == "auto":
+        assert budget is not None  # checked above: 'auto' needs a budget
         if budget_unit == "hf_runs":
             budget = float(budget) * float(w[0])
         choice = choose_estimator(cov[jt], w, float(budget), statistics=stats_asked,

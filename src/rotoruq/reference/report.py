@@ -169,7 +169,7 @@ def _verdict(claim_list: list[Claim]) -> str:
     def line(c: Claim) -> str:
         prop = {INDEPENDENT: " (independent normals)", JOINT: " (joint predictive)"}.get(
             c.propagation or "", "")
-        val = "" if c.value is None else f": {fmt(c.value)}, needs {e(c.op)} {c.threshold:g}"
+        val = "" if c.value is None else f": {fmt(c.value)}, needs {e(c.requirement)}"
         return (f"<span class={_STATUS_CLASS[c.status]}>{e(c.status)}</span> "
                 f"{e(c.text)}{e(prop)}{val}")
 

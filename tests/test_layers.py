@@ -4,10 +4,11 @@ Every module under ``src/rotoruq`` is parsed (not imported) and each ``import`` 
 or inside a function, since a deferred import is still a dependency - is resolved to the rotoruq
 subpackage it reaches. A lower layer must never import a higher one:
 
-    errors, _rng, _options, _compile, atomic, safety
+    errors, _rng, _options, _compile, _progress, atomic, safety
                                     the bottom: import nothing of rotoruq but each other
                                     (_options: the option records' deprecation helpers;
-                                    _compile: the notice before numba compiles)
+                                    _compile: the notice before numba compiles; _progress:
+                                    a long phase's progress as log records)
     model, params                   + the bottom
     rotor                           + model, params           (never methods, evaluation, ...)
     methods                         + model, params           (never rotor, evaluation, ...)
@@ -48,13 +49,14 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "rotoruq"
 
-BOTTOM = {"errors", "_rng", "_options", "_compile", "atomic", "safety"}
+BOTTOM = {"errors", "_rng", "_options", "_compile", "_progress", "atomic", "safety"}
 UNITS = {"model", "params", "testfunctions"}
 ALLOWED: dict[str, set[str]] = {
     "errors": set(),
     "_rng": {"errors"},
     "_options": {"errors"},
     "_compile": set(),
+    "_progress": set(),
     "atomic": set(),
     "safety": {"errors"},
     "model": BOTTOM,

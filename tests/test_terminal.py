@@ -6,6 +6,7 @@ chains arviz opens and ``chain.csv``'s chain column."""
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -65,3 +66,116 @@ def test_a_killed_pool_worker_is_logged_and_the_run_completes(tmp_path):
     assert "the pool is replaced and its" in text and "(replacement 1 of at most 2)" in text
     outputs = np.load(tmp_path / "out" / "steps" / "lhs" / "outputs.npy")
     assert outputs.shape == (16, 2) and np.isfinite(outputs).all()
+
+
+BAYES_STUDY = """\
+[study]
+name = "tb"
+seed = 4
+
+[model]
+function = "text_book"
+responses = ["f"]
+
+[parameters.x1]
+distribution = "normal"
+mean = 1.5
+std = 0.3
+
+[parameters.x2]
+distribution = "normal"
+mean = 1.5
+std = 0.3
+
+[data.obs]
+f = [0.52, 0.47, 0.55, 0.49]
+
+[[steps]]
+name = "bayes"
+type = "bayes_calibration"
+data = "obs"
+emulator = "gp"
+n_emulator_samples = 30
+noise_std = { f = 0.05 }
+n_samples = 400
+burn_in = 100
+self_check = 20
+"""
+
+
+def _bayes_study(folder: Path) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / "study.toml"
+    path.write_text(BAYES_STUDY)
+    return path
+
+
+def test_method_messages_are_gathered_under_their_step_and_the_status_line_says_the_phase(
+        tmp_path):
+    study = _bayes_study(tmp_path / "s")
+    # a status line every 0.05 s: the pipe's fallback for the bar, with the phase under way
+    env = {**os.environ, "ROTORUQ_STATUS_INTERVAL": "0.05"}
+    proc = subprocess.run([*CLI, "run", study, "--out", tmp_path / "out", "--no-report"],
+                          capture_output=True, text=True, timeout=600, env=env, cwd=tmp_path)
+    assert proc.returncode in (0, 3), proc.stderr
+    lines = proc.stderr.splitlines()
+    assert "\r" not in proc.stderr and "\033" not in proc.stderr  # no bar in a pipe
+    done = lines.index(next(x for x in lines if x.startswith("[tb] 1/1 bayes: done in")))
+    loo = [k for k, x in enumerate(lines) if "emulator leave-one-out: f RMSE" in x]
+    cal = [k for k, x in enumerate(lines) if "calibrate_bayes: 4 chains x 400 kept steps" in x]
+    # each once, after the step's "done" line, under its name; no raw arrays
+    assert len(loo) == 1 and len(cal) == 1 and min(loo + cal) > done, proc.stderr
+    assert lines[loo[0]].startswith("  [tb] 1/1 bayes: emulator leave-one-out: f RMSE ")
+    assert not any("RMSE [" in x for x in lines)
+    status = [x for x in lines if x.startswith("  bayes: bayes_calibration running, ")]
+    phases = " ".join(status)
+    assert "4 chains " in phases or "self-check replications " in phases, proc.stderr
+    # --quiet: none of these lines
+    quiet = subprocess.run([*CLI, "run", study, "--out", tmp_path / "q", "--no-report", "-q"],
+                           capture_output=True, text=True, timeout=600, env=env, cwd=tmp_path)
+    assert "leave-one-out" not in quiet.stderr and "running" not in quiet.stderr
+
+
+def test_a_terminal_gets_a_progress_bar_a_pipe_does_not(tmp_path):
+    """stderr on a pseudo-terminal: the phases drawn in place (carriage return, erase to the
+    end of the line), no periodic status line for them; the lines of the run still there."""
+    import pty
+    import select
+
+    study = _bayes_study(tmp_path / "s")
+    master, slave = pty.openpty()
+    env = {**os.environ, "ROTORUQ_STATUS_INTERVAL": "0.05", "COLUMNS": "200"}
+    proc = subprocess.Popen([*CLI, "run", study, "--out", tmp_path / "out", "--no-report"],
+                            stdout=subprocess.DEVNULL, stderr=slave, env=env, cwd=tmp_path)
+    os.close(slave)
+    chunks = []
+    try:
+        while True:
+            ready, _, _ = select.select([master], [], [], 600)
+            if not ready:
+                break
+            try:
+                data = os.read(master, 65536)
+            except OSError:  # the child closed the terminal
+                break
+            if not data:
+                break
+            chunks.append(data)
+        assert proc.wait(timeout=60) in (0, 3)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        os.close(master)
+    text = b"".join(chunks).decode(errors="replace")
+    bars = [seg for seg in text.split("\r") if "] " in seg and "ETA" in seg]
+    assert any(seg.startswith(("4 chains [", "self-check replications [")) for seg in bars), \
+        text[-3000:]
+    assert "\033[K" in text
+    # the bar is taken off the line (or redrawn) before anything else is written after it
+    after = re.findall(r"ETA [^\r\n\x1b]*\x1b\[K(.)", text, flags=re.S)
+    assert after and set(after) == {"\r"}, text[-3000:]
+    assert "[tb] 1/1 bayes: done in" in text
+    # the status line leaves the phases to the bar
+    assert not any("(4 chains " in seg or "(self-check replications " in seg
+                   for seg in text.splitlines()), text[-3000:]

@@ -110,14 +110,24 @@ def _bayes_study(folder: Path) -> Path:
     return path
 
 
-def test_method_messages_are_gathered_under_their_step_and_the_status_line_says_the_phase(
-        tmp_path):
-    study = _bayes_study(tmp_path / "s")
-    # a status line every 0.05 s: the pipe's fallback for the bar, with the phase under way
-    env = {**os.environ, "ROTORUQ_STATUS_INTERVAL": "0.05"}
-    proc = subprocess.run([*CLI, "run", study, "--out", tmp_path / "out", "--no-report"],
-                          capture_output=True, text=True, timeout=600, env=env, cwd=tmp_path)
+# a status line every 0.05 s: the pipe's fallback for the bar, with the phase under way
+FAST_STATUS = {**os.environ, "ROTORUQ_STATUS_INTERVAL": "0.05"}
+
+
+@pytest.fixture(scope="module")
+def bayes_run(tmp_path_factory):
+    """The Bayes study run once through the CLI, stderr a pipe: (folder, process)."""
+    d = tmp_path_factory.mktemp("bayes")
+    study = _bayes_study(d / "s")
+    proc = subprocess.run([*CLI, "run", study, "--out", d / "out", "--no-report"],
+                          capture_output=True, text=True, timeout=600, env=FAST_STATUS, cwd=d)
     assert proc.returncode in (0, 3), proc.stderr
+    return d, proc
+
+
+def test_method_messages_are_gathered_under_their_step_and_the_status_line_says_the_phase(
+        bayes_run):
+    d, proc = bayes_run
     lines = proc.stderr.splitlines()
     assert "\r" not in proc.stderr and "\033" not in proc.stderr  # no bar in a pipe
     done = lines.index(next(x for x in lines if x.startswith("[tb] 1/1 bayes: done in")))
@@ -131,8 +141,9 @@ def test_method_messages_are_gathered_under_their_step_and_the_status_line_says_
     phases = " ".join(status)
     assert "4 chains " in phases or "self-check replications " in phases, proc.stderr
     # --quiet: none of these lines
-    quiet = subprocess.run([*CLI, "run", study, "--out", tmp_path / "q", "--no-report", "-q"],
-                           capture_output=True, text=True, timeout=600, env=env, cwd=tmp_path)
+    quiet = subprocess.run([*CLI, "run", d / "s" / "study.toml", "--out", d / "q",
+                            "--no-report", "-q"], capture_output=True, text=True, timeout=600,
+                           env=FAST_STATUS, cwd=d)
     assert "leave-one-out" not in quiet.stderr and "running" not in quiet.stderr
 
 
@@ -179,3 +190,21 @@ def test_a_terminal_gets_a_progress_bar_a_pipe_does_not(tmp_path):
     # the status line leaves the phases to the bar
     assert not any("(4 chains " in seg or "(self-check replications " in seg
                    for seg in text.splitlines()), text[-3000:]
+
+
+def test_every_bayes_step_writes_chains_arviz_opens_and_a_csv_with_a_chain_column(bayes_run):
+    az = pytest.importorskip("arviz")  # the `arviz` extra (installed with the test extras)
+    d, _ = bayes_run
+    step = d / "out" / "steps" / "bayes"
+    chain = np.load(step / "chain.npy")  # (4 chains x 400 draws, 2), chain after chain
+    idata = az.from_netcdf(step / "chains.nc")
+    post = idata.posterior
+    assert dict(post.sizes)["chain"] == 4 and dict(post.sizes)["draw"] == 400
+    assert sorted(post.data_vars) == ["x1", "x2"]
+    assert np.array_equal(np.stack([post["x1"].values, post["x2"].values], -1).reshape(-1, 2),
+                          chain)
+    rows = (step / "chain.csv").read_text().splitlines()
+    assert rows[0] == "chain,x1,x2"
+    table = np.loadtxt(step / "chain.csv", delimiter=",", skiprows=1)
+    assert np.array_equal(table[:, 0], np.repeat(np.arange(4), 400))
+    assert np.array_equal(table[:, 1:], chain)  # shortest repr: the same bits

@@ -64,13 +64,21 @@ def route_warnings(quiet: bool = False) -> None:
     >>> warnings.warn("not printed: quiet")
     >>> warnings.showwarning = saved
     """
-    logger = logging.getLogger(WARNINGS_LOGGER)
-    for h in [h for h in logger.handlers if isinstance(h, _WarningLines)]:
-        logger.removeHandler(h)
-    logger.addHandler(_WarningLines())
-    logger.propagate = False
-    logger.setLevel(logging.ERROR if quiet else logging.WARNING)
+    _only_handler(WARNINGS_LOGGER, _WarningLines(), logging.ERROR if quiet else logging.WARNING,
+                  propagate=False)
     warnings.showwarning = _show_warning
+
+
+def _only_handler(name: str, handler: logging.Handler, level: int,
+                  propagate: bool = True) -> None:
+    """Logger ``name`` with ``handler`` in place of any earlier one of its class (configuring
+    twice prints each line once), at ``level``."""
+    logger = logging.getLogger(name)
+    for h in [h for h in logger.handlers if isinstance(h, type(handler))]:
+        logger.removeHandler(h)
+    logger.addHandler(handler)
+    logger.propagate = propagate
+    logger.setLevel(level)
 
 
 def pipe_safe(run: Callable[[Any], int | None]) -> Callable[[Any], int]:
@@ -250,18 +258,10 @@ def configure_logging(quiet: bool = False, debug: bool = False, verbose: bool = 
     as one ``warning: ...`` line each, also with ``quiet``. The progress of long phases
     (:mod:`rotoruq._progress`) is a bar on a terminal and no line (none with ``quiet``)."""
     route_warnings(quiet=False)
-    root = logging.getLogger("rotoruq")
-    for h in [h for h in root.handlers if isinstance(h, _StderrHandler)]:
-        root.removeHandler(h)
-    root.addHandler(_StderrHandler())
-    root.setLevel(logging.DEBUG if debug or verbose else logging.WARNING if quiet
-                  else logging.INFO)
-    progress = logging.getLogger(PROGRESS_LOGGER)
-    for h in [h for h in progress.handlers if isinstance(h, _ProgressBar)]:
-        progress.removeHandler(h)
-    progress.addHandler(_ProgressBar())
-    progress.propagate = False
-    progress.setLevel(logging.WARNING if quiet else logging.INFO)
+    _only_handler("rotoruq", _StderrHandler(), logging.DEBUG if debug or verbose
+                  else logging.WARNING if quiet else logging.INFO)
+    _only_handler(PROGRESS_LOGGER, _ProgressBar(), logging.WARNING if quiet else logging.INFO,
+                  propagate=False)
 
 
 #: The loggers whose INFO messages a step gathers (:func:`gathered_messages`).

@@ -253,6 +253,10 @@ def run_chains(logpost: Callable[[np.ndarray], np.ndarray], state: SamplerState,
     compiled = getattr(logpost, "compiled", None)
     notice_if_cold("chain kernels", [kn.advance], log)
     speculative = cfg.evaluations == "speculative" and compiled is None
+    if compiled is None and progress:
+        # a step of a Python model costs a model call: blocks small enough for the progress
+        # to move (the chains do not depend on the block size)
+        block = min(block, 128)
     k_max = int(cfg.max_lookahead) if speculative and c == 1 else 1
     Y = np.empty((max(k_max, 4 if k_max > 1 else 1), 2 if dr else 1, c, d))
     LPY = np.full(Y.shape[:3], -np.inf)

@@ -137,7 +137,7 @@ def test_method_messages_are_gathered_under_their_step_and_the_status_line_says_
     assert len(loo) == 1 and len(cal) == 1 and min(loo + cal) > done, proc.stderr
     assert lines[loo[0]].startswith("  [tb] 1/1 bayes: emulator leave-one-out: f RMSE ")
     assert not any("RMSE [" in x for x in lines)
-    status = [x for x in lines if x.startswith("  bayes: bayes_calibration running, ")]
+    status = [x for x in lines if x.startswith("  [tb] 1/1 bayes: bayes_calibration running, ")]
     phases = " ".join(status)
     assert "4 chains " in phases or "self-check replications " in phases, proc.stderr
     # --quiet: none of these lines

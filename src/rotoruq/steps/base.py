@@ -296,10 +296,11 @@ def _status_interval() -> float:
     return value if math.isfinite(value) and value > 0 else STATUS_INTERVAL
 
 
-def run_step(run: Callable[[StepContext], StepResult], ctx: StepContext
-             ) -> tuple[StepResult, float]:
+def run_step(run: Callable[[StepContext], StepResult], ctx: StepContext,
+             label: str | None = None) -> tuple[StepResult, float]:
     """Run the adapter ``run`` on ``ctx``; returns the result and the wall time in s. While it
-    runs, a status line goes to the log (INFO) every :data:`STATUS_INTERVAL` seconds.
+    runs, a status line goes to the log (INFO) every :data:`STATUS_INTERVAL` seconds, with
+    the phase under way (:mod:`rotoruq._progress`) unless a bar on the terminal shows it.
 
     Parameters
     ----------
@@ -307,6 +308,9 @@ def run_step(run: Callable[[StepContext], StepResult], ctx: StepContext
         The step type's adapter, ``run(StepContext) -> StepResult`` (:attr:`StepType.run`).
     ctx : StepContext
         The step to run.
+    label : str, optional
+        The step as the status line names it (the runner's ``[study] 3/12 sobol``); default
+        the step's name.
 
     Returns
     -------
@@ -328,7 +332,7 @@ def run_step(run: Callable[[StepContext], StepResult], ctx: StepContext
             under_way = phases.text()
             if under_way and bar_on_terminal():
                 continue  # the bar on the terminal says it
-            log.info("  %s: %s running, %s elapsed%s", ctx.name, ctx.type,
+            log.info("  %s: %s running, %s elapsed%s", label or ctx.name, ctx.type,
                      format_duration(time.perf_counter() - t0),
                      f" ({under_way})" if under_way else "")
 

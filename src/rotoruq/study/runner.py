@@ -621,7 +621,7 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
                  ", ".join(plan.responses))
         try:
             with gathered_messages() as gathered:
-                res, dt = run_step(step_type(step.type).run, ctx)
+                res, dt = run_step(step_type(step.type).run, ctx, at)
         except ParameterError as exc:
             raise _at_step(exc, study, step) from exc
         meta = dict(res.meta)

@@ -208,3 +208,52 @@ def test_every_bayes_step_writes_chains_arviz_opens_and_a_csv_with_a_chain_colum
     table = np.loadtxt(step / "chain.csv", delimiter=",", skiprows=1)
     assert np.array_equal(table[:, 0], np.repeat(np.arange(4), 400))
     assert np.array_equal(table[:, 1:], chain)  # shortest repr: the same bits
+
+
+VV_STUDY = """\
+[study]
+name = "vvu"
+seed = 3
+
+[model]
+preset = "gvpm"
+responses = ["thrust", "power"]
+fixed = { collective_deg = 5.0 }
+
+[parameters.k_pitch_link]
+distribution = "normal"
+mean = 15.0
+std = 0.75
+
+[data.obs]
+height_over_radius = [4.0, 4.0]
+thrust = [29.0, 29.6]
+power = [280.0, 290.0]
+
+[[steps]]
+name = "val"
+type = "validation"
+data = "obs"
+conditions = { height_over_radius = [4.0] }
+u_num = 0.05
+u_systematic = 0.1
+n_samples = 20
+"""
+
+
+def test_vv_tables_carry_units_on_every_column(tmp_path):
+    import json
+
+    (tmp_path / "vv.toml").write_text(VV_STUDY)
+    proc = subprocess.run([*CLI, "run", "vv.toml", "--out", "out", "--no-report"],
+                          capture_output=True, text=True, timeout=600, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    shown = subprocess.run([*CLI, "show", "out", "val", "--json"], capture_output=True,
+                           text=True, timeout=120, cwd=tmp_path)
+    assert shown.returncode == 0, shown.stderr
+    tables = json.loads(shown.stdout)["steps"]["val"]["tables"]
+    vv = next(t for t in tables if t["title"].startswith("V&V 20 comparison error"))
+    numeric = [c for c in vv["columns"][1:] if not c.startswith("D in ")]
+    assert all("[unit]" in c or "[-]" in c for c in numeric), vv["columns"]
+    assert [r[1] for r in vv["rows"]] == ["thrust [N]", "power [W]"]
+    assert "[unit]: the response's unit, beside its name." in vv["note"]

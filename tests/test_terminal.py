@@ -5,6 +5,7 @@ chains arviz opens and ``chain.csv``'s chain column."""
 
 from __future__ import annotations
 
+import io
 import os
 import re
 import signal
@@ -37,6 +38,7 @@ def _children(pid: int) -> list[int]:
 
 
 @pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads the process tree from /proc")
+@pytest.mark.slow  # the fast counterpart: tests/test_infra_faults.py, in one process
 def test_a_killed_pool_worker_is_logged_and_the_run_completes(tmp_path):
     study = external_study(tmp_path / "s", n=16, executor="processes")
     err = (tmp_path / "err.txt").open("w")
@@ -125,6 +127,7 @@ def bayes_run(tmp_path_factory):
     return d, proc
 
 
+@pytest.mark.slow
 def test_method_messages_are_gathered_under_their_step_and_the_status_line_says_the_phase(
         bayes_run):
     d, proc = bayes_run
@@ -147,6 +150,7 @@ def test_method_messages_are_gathered_under_their_step_and_the_status_line_says_
     assert "leave-one-out" not in quiet.stderr and "running" not in quiet.stderr
 
 
+@pytest.mark.slow
 def test_a_terminal_gets_a_progress_bar_a_pipe_does_not(tmp_path):
     """stderr on a pseudo-terminal: the phases drawn in place (carriage return, erase to the
     end of the line), no periodic status line for them; the lines of the run still there."""
@@ -192,6 +196,7 @@ def test_a_terminal_gets_a_progress_bar_a_pipe_does_not(tmp_path):
                    for seg in text.splitlines()), text[-3000:]
 
 
+@pytest.mark.slow
 def test_every_bayes_step_writes_chains_arviz_opens_and_a_csv_with_a_chain_column(bayes_run):
     az = pytest.importorskip("arviz")  # the `arviz` extra (installed with the test extras)
     d, _ = bayes_run
@@ -257,3 +262,62 @@ def test_vv_tables_carry_units_on_every_column(tmp_path):
     assert all("[unit]" in c or "[-]" in c for c in numeric), vv["columns"]
     assert [r[1] for r in vv["rows"]] == ["thrust [N]", "power [W]"]
     assert "[unit]: the response's unit, beside its name." in vv["note"]
+
+
+class _Terminal(io.StringIO):
+    """A stderr that says it is a terminal."""
+
+    def isatty(self) -> bool:
+        return True
+
+
+def test_phases_draw_one_bar_on_a_terminal_and_nothing_in_a_pipe(monkeypatch):
+    """The fast counterpart of the runs above: the CLI's logging, phases reported as the
+    methods report them, a terminal and a pipe as stderr."""
+    import logging
+
+    from rotoruq._progress import Phase, bar_on_terminal
+    from rotoruq.study.console import configure_logging
+
+    for stream, drawn in ((_Terminal(), True), (io.StringIO(), False)):
+        monkeypatch.setattr(sys, "stderr", stream)
+        configure_logging()
+        assert bar_on_terminal() is drawn
+        with Phase("4 chains", 1000, interval=0.0) as phase:
+            t0 = time.perf_counter()
+            while time.perf_counter() - t0 < 0.8:  # a phase under half a second is not drawn
+                time.sleep(0.25)
+                phase.advance(100)
+            logging.getLogger("rotoruq.study").info("a line")
+        text = stream.getvalue()
+        if drawn:
+            assert re.search(r"\r4 chains \[#+\.+\] \d00/1000 ", text), text
+            # the bar is taken off before the line, and the line stands alone
+            assert "\r\x1b[Ka line\n" in text
+        else:
+            assert text == "a line\n"
+    configure_logging()  # back to the real stderr
+
+
+def test_gathered_messages_pass_warnings_at_once_and_count_the_rest(monkeypatch):
+    import logging
+
+    from rotoruq.study.console import configure_logging, gathered_messages
+
+    stream = io.StringIO()
+    monkeypatch.setattr(sys, "stderr", stream)
+    configure_logging()
+    log = logging.getLogger("rotoruq.methods.demo")
+    with gathered_messages() as got:
+        for k in range(5):
+            log.info("calibrate_bayes: 4 chains x %d kept steps", 100 + k)
+        log.warning("a warning")
+        log.info("emulator leave-one-out: f RMSE 0.01")
+    assert stream.getvalue() == "a warning\n"  # at once; the INFO lines wait for the step
+    assert got.lines() == ["calibrate_bayes: 4 chains x 100 kept steps (and 4 more like it)",
+                           "emulator leave-one-out: f RMSE 0.01"]
+    configure_logging(verbose=True)  # --verbose: each as it comes
+    with gathered_messages() as got:
+        log.info("calibrate_bayes: 4 chains x 7 kept steps")
+    assert got.lines() == [] and stream.getvalue().endswith("x 7 kept steps\n")
+    configure_logging()

@@ -101,12 +101,15 @@ def test_evaluate_prints_the_preset_inputs_it_used(warm):
     assert float(values["lateral_deg"]) == model.defaults()["lateral_deg"] == -1.0
     assert float(values["longitudinal_deg"]) == model.defaults()["longitudinal_deg"] == -1.0
     assert "collective_deg" not in values and "k_pitch_link" not in values
-    # the table below it holds the model's own numbers at the point
+    # the table below it holds the model's own numbers at the point, each column with its unit
     header, row = proc.stdout.splitlines()[1:3]
-    got = dict(zip(header.split(), map(float, row.split()), strict=True))
+    got = dict(zip(re.split(r"\s{2,}", header.strip()), map(float, row.split()), strict=True))
+    assert list(got) == ["collective_deg [deg]", "k_pitch_link [N]", "thrust [N]",
+                         "torque [N m]", "roll [N m]", "pitch [N m]", "power [W]", "ct [-]",
+                         "cq [-]"]
     expect = RotorModel("gvpm", names_in=["collective_deg", "k_pitch_link"],
                         names_out=["thrust"])([[5.0, 15.0]])[0, 0]
-    assert got["thrust"] == pytest.approx(expect, rel=1e-5)  # printed to 6 digits
+    assert got["thrust [N]"] == pytest.approx(expect, rel=1e-5)  # printed to 6 digits
 
 
 def test_evaluate_fails_when_every_point_failed(warm):

@@ -56,7 +56,8 @@ def marks(tmp_path, monkeypatch):
     return d
 
 
-def test_killed_pool_worker_is_replaced_and_the_batch_is_bitwise_complete(tmp_path, marks):
+def test_killed_pool_worker_is_replaced_and_the_batch_is_bitwise_complete(tmp_path, marks,
+                                                                          caplog):
     x = np.random.default_rng(3).uniform(-1, 1, size=(24, 2))
     m = FunctionModel(slow_square, ["a", "b"], ["f", "g"])
     ref = Evaluator(m, chunk_size=2).evaluate(x)
@@ -80,6 +81,11 @@ def test_killed_pool_worker_is_replaced_and_the_batch_is_bitwise_complete(tmp_pa
         assert killed and not is_running(killed[0])
         np.testing.assert_array_equal(out.values, ref.values)
         assert out.failures == {}
+        # said, not replaced in silence (the CLI's run of it: tests/test_terminal.py)
+        said = [r.getMessage() for r in caplog.records
+                if r.name == "rotoruq.evaluation.executors"]
+        assert len(said) == 1 and said[0].startswith(
+            f"a process-pool worker died (PID {killed[0]}, killed by signal 9 (SIGKILL)")
         st = Store(tmp_path / "e.db")
         assert st.count() == 24 and st.count(status="failed") == 0
         assert {tuple(r.inputs) for r in st.records()} == {tuple(r) for r in x}

@@ -4,11 +4,12 @@ Every module under ``src/rotoruq`` is parsed (not imported) and each ``import`` 
 or inside a function, since a deferred import is still a dependency - is resolved to the rotoruq
 subpackage it reaches. A lower layer must never import a higher one:
 
-    errors, _rng, _options, _compile, _docs, atomic, safety
+    errors, _rng, _options, _compile, _docs, _progress, atomic, safety
                                     the bottom: import nothing of rotoruq but each other
                                     (_options: the option records' deprecation helpers;
                                     _compile: the notice before numba compiles;
-                                    _docs: docstring entries shared by several names)
+                                    _docs: docstring entries shared by several names;
+                                    _progress: a long phase's progress as log records)
     model, params                   + the bottom
     rotor                           + model, params           (never methods, evaluation, ...)
     methods                         + model, params           (never rotor, evaluation, ...)
@@ -49,7 +50,7 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "rotoruq"
 
-BOTTOM = {"errors", "_rng", "_options", "_compile", "_docs", "atomic", "safety"}
+BOTTOM = {"errors", "_rng", "_options", "_compile", "_docs", "_progress", "atomic", "safety"}
 UNITS = {"model", "params", "testfunctions"}
 ALLOWED: dict[str, set[str]] = {
     "errors": set(),
@@ -57,6 +58,7 @@ ALLOWED: dict[str, set[str]] = {
     "_options": {"errors"},
     "_compile": set(),
     "_docs": set(),
+    "_progress": set(),
     "atomic": set(),
     "safety": {"errors"},
     "model": BOTTOM,

@@ -206,8 +206,10 @@ def assert_same_claims(got: list[dict]) -> None:
     reference_quick_claims.json``: the claims.json of the code before the move, in which the
     only edits are the wording the move took out of the generic layers' messages: "(emulator_
     variance = false, as the reference thesis)" -> "(emulator_variance = false)" and CUU's
-    "(thesis table 3.10)" / "(thesis section 3.5)" dropped; re-pinned for issue 35, whose
-    changes to the numbers CHANGELOG.md lists)."""
+    "(thesis table 3.10)" / "(thesis section 3.5)" dropped; a claim's requirement in words
+    from its threshold's sense, "needs <= 0.02" -> "needs at most 0.02", "needs > 0" -> "needs a
+    positive value"; re-pinned for issue 35, whose changes to the numbers CHANGELOG.md
+    lists)."""
     want = json.loads(EXPECTED_CLAIMS.read_text())
     assert [c["key"] for c in got] == [c["key"] for c in want]
     assert [c["status"] for c in got] == [c["status"] for c in want]

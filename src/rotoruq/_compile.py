@@ -75,5 +75,7 @@ def notice_if_cold(family: str, dispatchers: Iterable[Any], logger: logging.Logg
     _noticed.add(family)
     if all(is_cached(d) for d in dispatchers):
         return False
-    logger.info("compiling %s (once per install, ~%s s) ...", family, seconds)
+    # "now": printed as it comes, before the compile, even where a step gathers messages
+    logger.info("compiling %s (once per install, ~%s s) ...", family, seconds,
+                extra={"now": True})
     return True

@@ -10,6 +10,8 @@ disk::
 
     <out>/steps/<name>/result.json     name, type, fingerprint, record, distributions, meta
     <out>/steps/<name>/<array>.npy     every array, plus <array>.csv when it has named columns
+                                       (a Markov chain's CSV, ``chain.csv``, starts with a
+                                       ``chain`` column: 0, 1, ... per row)
     <out>/study.json                   the study: name, description, seed, quick, step order,
                                        parameters (labels, units) and the model's record
                                        (``model.values``, ``model.curves``; see
@@ -590,7 +592,9 @@ def save_step(result: StepResult, directory: str | Path) -> Path:
             put(f"{name}.npy", lambda fh, arr=arr: np.save(fh, arr))
             cols = result.columns(name)
             if arr.ndim == 2 and len(cols) == arr.shape[1]:
-                put(f"{name}.csv", lambda fh, arr=arr, cols=cols: _write_csv(fh, arr, cols))
+                chain = _chain_index(result, name, arr.shape[0])
+                put(f"{name}.csv", lambda fh, arr=arr, cols=cols, chain=chain:
+                    _write_csv(fh, arr, cols, chain=chain))
         doc = {
             "schema": SCHEMA_VERSION,
             "name": result.name,
@@ -657,18 +661,35 @@ def _write_synced(path: Path, write) -> str:
     return out.sha.hexdigest()
 
 
-def _write_csv(fh, arr: np.ndarray, cols: Sequence[str], rows_per_block: int = 8192) -> None:
+def _chain_index(result: StepResult, name: str, n_rows: int) -> np.ndarray | None:
+    """The chain (0, 1, ...) of each row of a Markov chain array saved chain after chain
+    (``chain`` or ``<x>_chain`` of a step whose ``meta["n_chains"]`` divides its rows), for
+    the ``chain`` column of its CSV copy; None for any other array."""
+    n_chains = result.meta.get("n_chains")
+    if not (name == "chain" or name.endswith("_chain")) or not isinstance(n_chains, int) \
+            or n_chains < 1 or n_rows % n_chains:
+        return None
+    return np.repeat(np.arange(n_chains), n_rows // n_chains)
+
+
+def _write_csv(fh, arr: np.ndarray, cols: Sequence[str], rows_per_block: int = 8192,
+               chain: np.ndarray | None = None) -> None:
     """A 2-D array as CSV under a header of column names, each value in its shortest form
-    that reads back to the same float (``repr``). One format operation per block of rows:
+    that reads back to the same float (``repr``), after a first ``chain`` column of integers
+    when ``chain`` (one per row) is given. One format operation per block of rows:
     ``np.savetxt`` formats row by row, which took seconds for the 100k-row chains."""
-    fh.write((",".join(cols) + "\n").encode())
+    fh.write((",".join((["chain"] if chain is not None else []) + list(cols)) + "\n").encode())
     if arr.dtype.kind not in "biuf":
-        np.savetxt(fh, arr, delimiter=",", fmt="%s")
+        np.savetxt(fh, arr if chain is None else np.column_stack([chain, arr]), delimiter=",",
+                   fmt="%s")
         return
     arr = arr.astype(float, copy=False)
-    row = ",".join(["%r"] * arr.shape[1]) + "\n"
+    row = ("%d," if chain is not None else "") + ",".join(["%r"] * arr.shape[1]) + "\n"
     for start in range(0, arr.shape[0], rows_per_block):
         block = arr[start:start + rows_per_block]
+        if chain is not None:
+            block = np.column_stack([chain[start:start + rows_per_block], block]).astype(object)
+            block[:, 0] = block[:, 0].astype(int)
         fh.write((row * block.shape[0] % tuple(block.ravel().tolist())).encode())
 
 

@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from .._docs import fill_doc
+from .._progress import Phase, bar_on_terminal
 from ..errors import EvaluationError, ModelShapeError, ParameterError
 from ..model import EVALUATE_BATCH_DOC, EvalBatch, Gradient, Model, evaluate, has_gradient
 from .executors import Executor, make_executor
@@ -333,9 +334,13 @@ class Evaluator:
             tasks = [pts[s[0] : s[-1] + 1] for s in spans]
             fn = _ChunkTask(self.model)
             abort = False
-        bar = Progress(len(firsts), enabled=self.progress if self.progress is not None else None)
-        if self.progress is True:
-            bar.enabled = True
+        # the CLI draws the "evaluations" phase itself on a terminal (one bar for every phase)
+        own = self.progress if self.progress is not None else (
+            False if bar_on_terminal() else None)
+        bar = Progress(len(firsts), enabled=own)
+        # not a chain's step of a few points: thousands of those make no phase of their own
+        phase = Phase("evaluations", len(firsts)) if (
+            self.external or len(firsts) > MIN_CHUNK) else None
         n_failed = 0
         outcomes = self.executor.run(fn, tasks)
         try:
@@ -351,6 +356,8 @@ class Evaluator:
                             failures[i] = fails[j]
                 n_failed += len(fails)
                 bar.update(len(span))
+                if phase is not None:
+                    phase.advance(len(span))
                 if abort and fails:
                     j = next(iter(fails))
                     r = out.value if isinstance(out.value, RunResult) else None
@@ -361,6 +368,8 @@ class Evaluator:
         finally:
             outcomes.close()  # cancels tasks not yet started
             bar.close()
+            if phase is not None:
+                phase.close()
         return n_failed
 
     @contextmanager

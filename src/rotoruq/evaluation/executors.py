@@ -43,6 +43,8 @@ from typing import Any
 
 from ..errors import InfrastructureError, ParameterError
 
+log = logging.getLogger(__name__)
+
 __all__ = [
     "TaskOutcome",
     "Executor",
@@ -270,6 +272,11 @@ class ProcessExecutor(Executor):
                 breaks.append(self._death_note(procs))
                 self._discard_pool()
                 todo = sorted(lost)
+                if len(breaks) <= self.restarts:
+                    log.warning("a process-pool worker died (%s: the out-of-memory killer, a "
+                                "kill or a crash in native code); the pool is replaced and its "
+                                "%d unfinished task(s) run again (replacement %d of at most %d)",
+                                breaks[-1], len(todo), len(breaks), self.restarts)
                 if len(breaks) > self.restarts:
                     raise InfrastructureError(
                         f"a process-pool worker died {len(breaks)} time(s) (last: {breaks[-1]}; "

@@ -10,7 +10,7 @@ import sys
 import time
 from typing import TextIO
 
-__all__ = ["Progress", "format_duration"]
+__all__ = ["Progress", "bar_line", "format_duration"]
 
 
 def format_duration(seconds: float) -> str:
@@ -21,6 +21,39 @@ def format_duration(seconds: float) -> str:
     h, rem = divmod(s, 3600)
     m, s = divmod(rem, 60)
     return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
+
+
+def bar_line(label: str, done: int, total: int, elapsed: float, width: int = 24) -> str:
+    """One progress bar as text: label, bar, count, percentage, rate, elapsed time and ETA.
+
+    Parameters
+    ----------
+    label : str
+        What is counted (``"evaluations"``, ``"4 chains"``).
+    done, total : int
+        Units done and to do.
+    elapsed : float
+        Seconds since the start (wall).
+    width : int, optional
+        Characters of the bar itself.
+
+    Returns
+    -------
+    str
+        The line, without carriage return or newline.
+
+    Examples
+    --------
+    >>> bar_line("evaluations", 30, 120, 15.0, width=8)
+    'evaluations [##......] 30/120  25% 2/s elapsed 0:15 ETA 0:45'
+    """
+    rate = done / elapsed if elapsed > 0 else 0.0
+    frac = done / total if total else 1.0
+    fill = int(round(frac * width))
+    eta = (total - done) / rate if rate > 0 else float("nan")
+    return (f"{label} [{'#' * fill}{'.' * (width - fill)}] {done}/{total} "
+            f"{100 * frac:3.0f}% {rate:.3g}/s elapsed {format_duration(elapsed)} "
+            f"ETA {format_duration(eta)}")
 
 
 class Progress:
@@ -56,15 +89,7 @@ class Progress:
 
     def line(self) -> str:
         """The current progress text (without carriage return)."""
-        elapsed = time.perf_counter() - self.start
-        rate = self.done / elapsed if elapsed > 0 else 0.0
-        frac = self.done / self.total if self.total else 1.0
-        width = 24
-        fill = int(round(frac * width))
-        eta = (self.total - self.done) / rate if rate > 0 else float("nan")
-        return (f"{self.label} [{'#' * fill}{'.' * (width - fill)}] {self.done}/{self.total} "
-                f"{100 * frac:3.0f}% {rate:.3g}/s elapsed {format_duration(elapsed)} "
-                f"ETA {format_duration(eta)}")
+        return bar_line(self.label, self.done, self.total, time.perf_counter() - self.start)
 
     def update(self, n: int = 1) -> None:
         """Record ``n`` more finished tasks and redraw if due."""

@@ -45,6 +45,7 @@ from scipy import linalg, optimize
 from scipy.linalg import lapack
 from scipy.spatial import cKDTree
 
+from .._progress import Phase
 from .._rng import SeedLike, as_generator
 from ..errors import ModelShapeError, ParameterError
 from ._common import one_blas_thread
@@ -408,6 +409,7 @@ class GaussianProcess:
             if noise is None:
                 noise = np.zeros(m)  # a fixed sigma^2: the non-concentrated likelihood path
         self._fits = []
+        phase = Phase(f"emulator fit ({n} points)", m) if self.optimize else None
         for j in range(m):
             ys = (Y[:, j] - self._y_mean[j]) / self._y_std[j]
             nj = None if noise is None else float(noise[j])
@@ -421,6 +423,10 @@ class GaussianProcess:
             else:
                 self._fits.append(self._fit_one(ys, nj, rng,
                                                 None if log_ell0 is None else log_ell0[j]))
+                assert phase is not None  # self.optimize
+                phase.advance()
+        if phase is not None:
+            phase.close()
         self._build_fast()
         worst = max(f.jitter if f.concentrated else f.jitter / f.sigma2 for f in self._fits)
         if worst > base_jitter(n) * 1.01 and self.nugget is None:

@@ -89,6 +89,16 @@ class Claim:
         return bool(_OPS[self.op](self.value, self.threshold))
 
     @property
+    def requirement(self) -> str:
+        """What the claim needs of its value, in words from the threshold's sense:
+        ``"at most 0.02"``, ``"at least 0.5"``, ``"a positive value"`` (``> 0``), ``"none"``
+        (``<= 0``: a count such as loads outside a band)."""
+        t = f"{self.threshold:g}"
+        if self.threshold == 0 and self.op in ("<=", ">"):
+            return "none" if self.op == "<=" else "a positive value"
+        return {"<=": f"at most {t}", ">=": f"at least {t}", ">": f"more than {t}"}[self.op]
+
+    @property
     def thesis_passes(self) -> bool | None:
         if self.thesis_value is None:
             return None
@@ -392,7 +402,7 @@ def _input_recovery_claim(t: ComparedTable, step: str, what: str, val, labels) -
 def _with_fallback_reason(c: Claim) -> Claim:
     """Every claim that does not hold states at least its number against its threshold."""
     if c.passes is False:
-        first = f"{c.metric} = {c.value:.4g}, needs {c.op} {c.threshold:g}"
+        first = f"{c.metric} = {c.value:.4g}, needs {c.requirement}"
         return Claim(**{**{k: getattr(c, k) for k in c.__dataclass_fields__},
                         "reasons": (first, *c.reasons)})
     return c

@@ -172,7 +172,7 @@ def _verdict(claim_list: list[Claim]) -> str:
     def line(c: Claim) -> str:
         prop = {INDEPENDENT: " (independent normals)", JOINT: " (joint predictive)"}.get(
             c.propagation or "", "")
-        val = "" if c.value is None else f": {fmt(c.value)}, needs {e(c.op)} {c.threshold:g}"
+        val = "" if c.value is None else f": {fmt(c.value)}, needs {e(c.requirement)}"
         # a failed self-check of a step the claim rests on, next to the claim (issue 35)
         checks = [w for w in c.warnings if SELF_CHECK_FAILED in w]
         failed = "".join(f" <span class=st-fails data-self-check=failed>{e(w)}</span>"

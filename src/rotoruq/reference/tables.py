@@ -37,6 +37,11 @@ class ReferenceTable:
     note: str = ""
 
 
+# One unit per quantity: the model's link law is per unit strain (K_p an axial stiffness EA)
+_KP_UNIT = ("K_p and C_p in N and N s, the model's per-unit-strain link law (an axial "
+            "stiffness EA); the thesis prints N/m and N s/m for the same numbers.")
+
+
 def _t(number, caption, study, columns, rows, note="") -> ReferenceTable:
     return ReferenceTable(number, caption, study, tuple(columns),
                           tuple((lab, tuple(cells)) for lab, cells in rows), note)
@@ -56,15 +61,16 @@ T3_1 = _t("3.1", "Model technical features (Bo105)", "validation", ["Value"], [
     ("Lag stiffness K_l [N m/rad]", [(70698.042, _BO + "k_lag")]),
     ("Lag damping C_l [N m s/rad]", [(4093.662, _BO + "c_lag")]),
     ("Pitch link length L_p [m]", [(0.2, None)]),
-    ("Pitch link stiffness K_p [N/m]", [(1.0e9, _BO + "k_pitch_link")]),
-    ("Pitch link damping C_p [N s/m]", [(100.0, _BO + "c_pitch_link")]),
+    ("Pitch link stiffness K_p [N]", [(1.0e9, _BO + "k_pitch_link")]),
+    ("Pitch link damping C_p [N s]", [(100.0, _BO + "c_pitch_link")]),
     ("Pitch inertia I_p [kg m^2]", [(0.257, _BO + "pitch_inertia")]),
     ("Flap inertia I_f [kg m^2]", [(140.001, None)]),
     ("Lag inertia I_l [kg m^2]", [(140.257, None)]),
     ("Blade span b [m]", [(3.812, None)]),
     ("Blade chord c [m]", [(0.270, _BO + "chord")]),
     ("Twist slope [deg/m] (ours: total twist [deg])", [(-6.2, _BO + "twist_deg")]),
-], note="Our twist is -6.2 deg over the whole blade (see the bo105 preset), not per metre.")
+], note="Our twist is -6.2 deg over the whole blade (see the bo105 preset), not per metre. "
+   + _KP_UNIT)
 
 T3_2 = _t("3.2", "Interpolated aerodynamic lift coefficients (NACA 23012)", "validation",
           ["C_La [1/deg]", "C_L0"], [
@@ -84,7 +90,7 @@ T3_3 = _t("3.3", "Input variable distributions (Gaussian)", "validation", ["Mean
                      (751, "sens_struct:input_std/k_flap")]),
     ("K_l [N/rad]", [(70698, "sens_struct:input_mean/k_lag"),
                      (3534, "sens_struct:input_std/k_lag")]),
-    ("K_p [N/m]", [(1.0e9, "sens_struct:input_mean/k_pitch_link"),
+    ("K_p [N]", [(1.0e9, "sens_struct:input_mean/k_pitch_link"),
                    (5.0e7, "sens_struct:input_std/k_pitch_link")]),
 ])
 
@@ -221,9 +227,9 @@ T4_2 = _t("4.2", "Model technical features (GVPM rotor)", "experiment", ["Value"
     ("Bending stiffness EI_y [N m^2]", [(7.0, _GV + "ei_flap")]),
     ("Bending stiffness EI_z [N m^2]", [(2.26e3, None)]),
     ("Torsional stiffness GJ [N m^2]", [(1.0e2, None)]),
-    ("Pitch link stiffness K_p [N/m]", [(10.0, _GV + "k_pitch_link")]),
-    ("Pitch link damping C_p [N s/m]", [(0.05, _GV + "c_pitch_link")]),
-])
+    ("Pitch link stiffness K_p [N]", [(10.0, _GV + "k_pitch_link")]),
+    ("Pitch link damping C_p [N s]", [(0.05, _GV + "c_pitch_link")]),
+], note=_KP_UNIT)
 
 T4_3 = _t("4.3", "Interpolated aerodynamic lift coefficients (NACA 0012)", "experiment",
           ["C_La [1/deg]", "C_L0"], [

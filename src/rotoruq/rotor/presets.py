@@ -19,7 +19,7 @@ __all__ = ["RotorPreset", "bo105", "gvpm", "get_preset", "PRESETS", "GVPM_OMEGA"
 class RotorPreset:
     """Geometry, structure, operating point and model options of a hover rotor.
 
-    Lengths in m, angles in deg, stiffnesses in N m/rad (hinges), N/m (pitch link),
+    Lengths in m, angles in deg, stiffnesses in N m/rad (hinges), N (pitch link, per unit strain),
     N m^2 (EI), masses in kg, inertias in kg m^2 about the hinge/feathering axis.
     :func:`get_preset` and the rotor model's inputs (:data:`ROTOR_INPUTS`) use the field
     names; ``replace(**changes)`` gives a preset with some fields changed.
@@ -195,7 +195,7 @@ def bo105(**overrides) -> RotorPreset:
     """Bo105 main rotor of the thesis's validation chapter (thesis table 3.1).
 
     Given by the thesis: Omega 44.4 rad/s, R 4.912 m, hinge offset 0.746 m, K_f 15035.467,
-    K_l 70698.042, C_l 4093.662 (N m/rad, N m s/rad), K_p 1e9 N/m, C_p 100 N s/m, I_p 0.257,
+    K_l 70698.042, C_l 4093.662 (N m/rad, N m s/rad), K_p 1e9 N, C_p 100 N s (the thesis prints N/m, N s/m), I_p 0.257,
     I_f 140.001 kg m^2 about the hub, blade span 3.812 m, chord 0.27 m, NACA 23012, uniform
     inflow, collective 6 deg, longitudinal -2 deg.
 
@@ -277,7 +277,7 @@ def gvpm(**overrides) -> RotorPreset:
 
     Given by the thesis: 4 untwisted rectangular blades, R 0.485 m, hub radius 0.06 m, span
     0.425 m, chord 0.042 m, NACA 0012, EI_y 7 N m^2, pitch-link stiffness 10 (N per unit
-    strain here; the thesis prints N/m) and damping 0.05 N s/m, Omega from v_tip = 108.9
+    strain here; the thesis prints N/m) and damping 0.05 N s, Omega from v_tip = 108.9
     m/s, Glauert/linear inflow (here: uniform plus the steady first-harmonic Pitt-Peters
     inflow, which reduces to uniform without cyclic), collective/lateral/longitudinal 5, -1,
     -1 deg (the sensitivity study's operating point).

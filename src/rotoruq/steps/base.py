@@ -10,6 +10,8 @@ and a Python call without that key get the same value.
 from __future__ import annotations
 
 import logging
+import math
+import os
 import threading
 import time
 from collections.abc import Callable, Mapping
@@ -280,14 +282,25 @@ class StepType:
 
 
 #: Seconds between status lines of a running step (a silent terminal for minutes reads as a
-#: hang).
+#: hang); the environment variable ``ROTORUQ_STATUS_INTERVAL`` sets another (a CI log that
+#: wants fewer lines, a test that wants one soon).
 STATUS_INTERVAL = 15.0
 
 
-def run_step(run: Callable[[StepContext], StepResult], ctx: StepContext
-             ) -> tuple[StepResult, float]:
+def _status_interval() -> float:
+    text = os.environ.get("ROTORUQ_STATUS_INTERVAL", "")
+    try:
+        value = float(text)
+    except ValueError:
+        return STATUS_INTERVAL
+    return value if math.isfinite(value) and value > 0 else STATUS_INTERVAL
+
+
+def run_step(run: Callable[[StepContext], StepResult], ctx: StepContext,
+             label: str | None = None) -> tuple[StepResult, float]:
     """Run the adapter ``run`` on ``ctx``; returns the result and the wall time in s. While it
-    runs, a status line goes to the log (INFO) every :data:`STATUS_INTERVAL` seconds.
+    runs, a status line goes to the log (INFO) every :data:`STATUS_INTERVAL` seconds, with
+    the phase under way (:mod:`rotoruq._progress`) unless a bar on the terminal shows it.
 
     Parameters
     ----------
@@ -295,6 +308,9 @@ def run_step(run: Callable[[StepContext], StepResult], ctx: StepContext
         The step type's adapter, ``run(StepContext) -> StepResult`` (:attr:`StepType.run`).
     ctx : StepContext
         The step to run.
+    label : str, optional
+        The step as the status line names it (the runner's ``[study] 3/12 sobol``); default
+        the step's name.
 
     Returns
     -------
@@ -303,18 +319,27 @@ def run_step(run: Callable[[StepContext], StepResult], ctx: StepContext
     seconds : float
         Wall time of the run, in s.
     """
+    from .._progress import LOGGER, bar_on_terminal
     from ..evaluation.progress import format_duration
 
     t0 = time.perf_counter()
     done = threading.Event()
+    phases = _Phases()
 
     def status() -> None:
-        while not done.wait(STATUS_INTERVAL):
-            log.info("  %s: %s running, %s elapsed", ctx.name, ctx.type,
-                     format_duration(time.perf_counter() - t0))
+        interval = _status_interval()
+        while not done.wait(interval):
+            under_way = phases.text()
+            if under_way and bar_on_terminal():
+                continue  # the bar on the terminal says it
+            log.info("  %s: %s running, %s elapsed%s", label or ctx.name, ctx.type,
+                     format_duration(time.perf_counter() - t0),
+                     f" ({under_way})" if under_way else "")
 
     watcher = None
+    progress = logging.getLogger(LOGGER)
     if log.isEnabledFor(logging.INFO):
+        progress.addHandler(phases)
         watcher = threading.Thread(target=status, name=f"status-{ctx.name}", daemon=True)
         watcher.start()
     try:
@@ -323,4 +348,30 @@ def run_step(run: Callable[[StepContext], StepResult], ctx: StepContext
         done.set()
         if watcher is not None:
             watcher.join()
+            progress.removeHandler(phases)
     return res, time.perf_counter() - t0
+
+
+class _Phases(logging.Handler):
+    """The phases (:mod:`rotoruq._progress`) under way in a running step, for its status
+    line: ``"4 chains 3000/7200 (42 %)"``."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.states: dict[str, Any] = {}
+        self.lock_ = threading.Lock()
+
+    def emit(self, record: logging.LogRecord) -> None:
+        state = getattr(record, "progress", None)
+        if state is None:
+            return
+        with self.lock_:
+            if state.finished:
+                self.states.pop(state.name, None)
+            else:
+                self.states[state.name] = state
+
+    def text(self) -> str:
+        with self.lock_:
+            return ", ".join(f"{p.name} {p.done}/{p.total} ({100 * p.done / p.total:.0f} %)"
+                             for p in self.states.values() if p.total)

@@ -35,7 +35,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..render.figures import Figure, FigureContext, axis_label
-from ..render.tables import StepTable, make_table
+from ..render.tables import StepTable, make_table, with_unit
 from ..results import StepRecord, StepResult
 from ._common import saved_record
 from ._discrepancy import (
@@ -457,7 +457,7 @@ def validation_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTa
         for j in range(rec.conditions.size):
             for m, r in enumerate(rec.names_out):
                 rows.append([
-                    _fmt_cond(rec, j, m), r, float(rec.simulation[p, j, m]),
+                    _fmt_cond(rec, j, m), with_unit(r, labels), float(rec.simulation[p, j, m]),
                     float(rec.data_mean[p, j, m]), float(rec.comparison_error[p, j, m]),
                     float(rec.u_num[p, j, m]), float(rec.u_input[p, j, m]),
                     float(rec.u_data[p, j, m]), float(rec.u_val[p, j, m]),
@@ -469,10 +469,13 @@ def validation_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTa
                     "yes" if rec.inside_band[p, j, m] else "no"])
         out.append(make_table(
             f"V&V 20 comparison error ({kind})",
-            ("condition", "response", "S", "D", "E = S - D", "u_num", "u_input", "u_D",
-             "u_val", f"E +- {k:g} u_val", "|E| / u_val", "area metric", "area / |D|",
-             f"|S - D| / predictive std (within {rec.n_sigma:g} sigma)",
+            ("condition", "response [unit]", "S [unit]", "D [unit]", "E = S - D [unit]",
+             "u_num [unit]", "u_input [unit]", "u_D [unit]", "u_val [unit]",
+             f"E +- {k:g} u_val [unit]", "|E| / u_val [-]", "area metric [unit]",
+             "area / |D| [-]",
+             f"|S - D| / predictive std [-] (within {rec.n_sigma:g} sigma)",
              f"D in {100 * rec.level:g} % band"), rows,
+            f"[unit]: the response's unit, beside its name. "
             f"S: mean of the predictions ({kind}); D: mean of the repeats ("
             f"{int(rec.n_repeats.min())} to {int(rec.n_repeats.max())} per condition); "
             f"u_val = sqrt(u_num^2 + u_input^2 + u_D^2), u_num {rec.u_num_source}"
@@ -488,18 +491,18 @@ def validation_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepTa
                else "")))
     held = [j for j in range(rec.conditions.size) if rec.held_out[j]]
     if held:
-        rows = [[_fmt_cond(rec, j), r, kind, float(rec.data_mean[p, j, m]),
+        rows = [[_fmt_cond(rec, j), with_unit(r, labels), kind, float(rec.data_mean[p, j, m]),
                  f"[{rec.band_lower[p, j, m]:.4g}, {rec.band_upper[p, j, m]:.4g}]",
                  "inside" if rec.inside_band[p, j, m] else "outside",
                  float(rec.error_ratio[p, j, m]), _area_cell(rec, p, j, m)]
                 for j in held for m, r in enumerate(rec.names_out)
                 for p, kind in enumerate(rec.predictions)]
         out.insert(0, make_table(
-            "Held-out test", ("condition", "response", "prediction", "measured",
-                              f"{100 * rec.level:g} % band of a new measurement", "measured is",
-                              "|E| / u_val", "area metric"), rows,
+            "Held-out test", ("condition", "response [unit]", "prediction", "measured [unit]",
+                              f"{100 * rec.level:g} % band of a new measurement [unit]",
+                              "measured is", "|E| / u_val [-]", "area metric [unit]"), rows,
             "Conditions whose data the calibration did not see: out-of-sample predictions. "
-            + ONE_ROW_AREA))
+            "[unit]: the response's unit, beside its name. " + ONE_ROW_AREA))
     if rec.pooled_area_metric.size:
         out.append(_pooled_table(rec))
     return out

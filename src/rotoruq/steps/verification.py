@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ParameterError
-from ..render.tables import StepTable, make_table
+from ..render.tables import StepTable, make_table, with_unit
 from ..results import StepRecord, StepResult
 from ._common import saved_record
 from .base import StepCheck, StepContext, StepType
@@ -243,7 +243,7 @@ def verification_tables(res: StepResult, labels: Mapping[str, str]) -> list[Step
     rows = []
     for j, pt in enumerate(rec.points):
         for k, r in enumerate(rec.names_out):
-            rows.append([pt, r, *[float(v) for v in rec.values[:, j, k]],
+            rows.append([pt, with_unit(r, labels), *[float(v) for v in rec.values[:, j, k]],
                          float(rec.observed_order[j, k]), float(rec.extrapolated[j, k]),
                          float(rec.gci_fine[j, k]), float(rec.u_num[j, k]),
                          float(rec.u_num[j, k]) / abs(float(rec.values[0, j, k]))
@@ -254,9 +254,10 @@ def verification_tables(res: StepResult, labels: Mapping[str, str]) -> list[Step
              else f"assumed {rec.formal_order:g} (two grids)")
     return [make_table(
         f"Solution verification: grid convergence index ({rec.refined}, ratio {rec.ratio:g})",
-        ("point", "response", *[f"level {t}" for t in rec.levels], "order",
-         "Richardson extrapolation", "GCI fine (relative)", "u_num", "u_num / |S|",
-         "asymptotic range"), rows,
+        ("point", "response [unit]", *[f"level {t} [unit]" for t in rec.levels], "order [-]",
+         "Richardson extrapolation [unit]", "GCI fine (relative) [-]", "u_num [unit]",
+         "u_num / |S| [-]", "asymptotic range"), rows,
+        f"[unit]: the response's unit, beside its name. "
         f"Finest level first (the grid the study runs); order {order}; Fs = "
         f"{rec.safety_factor:g}; u_num = GCI / Fs in response units (ASME V&V 20), the "
         "largest over the points is what a validation step takes.")]

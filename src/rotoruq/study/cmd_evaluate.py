@@ -60,6 +60,7 @@ def fixed_inputs_line(model) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    from ..render.tables import with_unit
     from ..rotor.model import RotorModel
 
     quiet = getattr(args, "quiet", False)
@@ -84,9 +85,12 @@ def run(args: argparse.Namespace) -> int:
         if not quiet:
             print(fixed_inputs_line(model))
         header = list(names) + list(model.names_out)
-        print("  ".join(f"{h:>14s}" for h in header))
+        titles = [with_unit(h) for h in header]
+        widths = [max(14, len(t)) for t in titles]
+        print("  ".join(f"{t:>{w}s}" for t, w in zip(titles, widths, strict=True)))
         for i, row in enumerate(rows):
-            print("  ".join(f"{_num(row[h]):14.6g}" for h in header))
+            print("  ".join(f"{_num(row[h]):{w}.6g}" for h, w in zip(header, widths,
+                                                                       strict=True)))
             if "failure" in row:
                 print(f"    point {i} failed: {row['failure']}")
     if out.failures:

@@ -53,6 +53,7 @@ from ..results import (
 from ..steps import StepContext, run_step, step_type
 from ..steps.bayes_calibration import sequential_prior
 from ..steps.options import close_hint
+from .console import gathered_messages
 from .lock import results_lock
 from .schema import load_study
 from .spec import ModelSpec, StepSpec, Study, function_variables
@@ -640,7 +641,8 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
         log.info("%s: running %s (%s -> %s)", at, step.type, ", ".join(plan.space.names),
                  ", ".join(plan.responses))
         try:
-            res, dt = run_step(step_type(step.type).run, ctx)
+            with gathered_messages() as gathered:
+                res, dt = run_step(step_type(step.type).run, ctx, at)
         except ParameterError as exc:
             raise _at_step(exc, study, step) from exc
         meta = dict(res.meta)
@@ -663,6 +665,8 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
         results[step.name] = res
         seconds[step.name] = dt
         log.info("%s: done in %.1f s", at, dt)
+        for line in gathered.lines():  # the methods' messages, under their step
+            log.info("  %s: %s", at, line)
     return StudyRun(study, out, results, tuple(reused), seconds, tuple(skipped))
 
 

@@ -690,8 +690,9 @@ def _build_emulator(emulator, prior: ParameterSpace, truth: _TrueModel, pb: _Pro
         lp_build = LogPrior(prior)(build.inputs) + pb.lik(build.outputs)
         best_build = build.inputs[int(np.argmax(lp_build))]
     loo = gp.loo()
-    log.info("emulator LOO: RMSE %s, Q2 %s", np.array2string(loo.rmse, precision=4),
-             np.array2string(loo.q2, precision=4))
+    log.info("emulator leave-one-out: %s", ", ".join(
+        f"{r} RMSE {e:.3g} (Q2 {q:.3f})" for r, e, q in zip(pb.names_out, loo.rmse, loo.q2,
+                                                            strict=True)))
     return gp, loo, best_build, lf
 
 
@@ -1375,14 +1376,15 @@ class _CheckChains:
 
     def run(self) -> None:
         """The chains (:func:`calibrate_bayes`'s n_samples, burn_in); then ``chains``."""
+        # the self-check reports its replications, not each one's chains
         if self.compiled:
             kept = run_chains(self.post, self.state, self.cfg, self.n_samples, self.burn_in,
-                              self.thin)[0]
+                              self.thin, progress=False)[0]
         else:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", ExtrapolationWarning)
                 kept = run_chains(self.post, self.state, self.cfg, self.n_samples, self.burn_in,
-                                  self.thin)[0]
+                                  self.thin, progress=False)[0]
         self.chains = self.post.center + self.post.scale * kept.transpose(1, 0, 2)
         self._extrapolated = (self.post.n_extrapolated, self.post.max_extrapolation)
 
@@ -1405,7 +1407,8 @@ class _CheckChains:
         seed=seed)``."""
         post, state = self.post, self.state
         state.reseed(as_generator(seed))
-        kept = run_chains(post, state, self.cfg, int(n_samples), 0, self.thin)[0]
+        kept = run_chains(post, state, self.cfg, int(n_samples), 0, self.thin,
+                          progress=False)[0]
         z_old = (self.chains - post.center) / post.scale
         chains_z = np.concatenate([z_old, kept.transpose(1, 0, 2)], axis=1)
         self.chains = post.center + post.scale * chains_z

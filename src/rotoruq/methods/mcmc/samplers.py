@@ -31,6 +31,7 @@ on how the run is split into calls.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -38,6 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..._compile import notice_if_cold
+from ..._progress import Phase
 from ...errors import ParameterError
 from . import _kernels as kn
 
@@ -200,7 +202,7 @@ class SamplerState:
 
 def run_chains(logpost: Callable[[np.ndarray], np.ndarray], state: SamplerState,
                cfg: SamplerConfig, n_samples: int, burn_in: int = 0, thin: int = 1,
-               block: int = 4096) -> tuple[np.ndarray, np.ndarray]:
+               block: int = 4096, progress: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """Advance all chains in place until each has ``n_samples`` kept steps.
 
     Takes ``burn_in + (n_samples - 1) * thin + 1`` steps (none for ``n_samples = 0``) and
@@ -226,6 +228,9 @@ def run_chains(logpost: Callable[[np.ndarray], np.ndarray], state: SamplerState,
     block : int, optional
         Steps per compiled block between returns to Python (default 4096); the chains do
         not depend on it.
+    progress : bool, optional
+        Report the steps done as the ``"chains"`` phase (:mod:`rotoruq._progress`) after
+        each block (default True; False for chains inside another reported phase).
 
     Returns
     -------
@@ -248,6 +253,10 @@ def run_chains(logpost: Callable[[np.ndarray], np.ndarray], state: SamplerState,
     compiled = getattr(logpost, "compiled", None)
     notice_if_cold("chain kernels", [kn.advance], log)
     speculative = cfg.evaluations == "speculative" and compiled is None
+    if compiled is None and progress:
+        # a step of a Python model costs a model call: blocks small enough for the progress
+        # to move (the chains do not depend on the block size)
+        block = min(block, 128)
     k_max = int(cfg.max_lookahead) if speculative and c == 1 else 1
     Y = np.empty((max(k_max, 4 if k_max > 1 else 1), 2 if dr else 1, c, d))
     LPY = np.full(Y.shape[:3], -np.inf)
@@ -255,7 +264,9 @@ def run_chains(logpost: Callable[[np.ndarray], np.ndarray], state: SamplerState,
     no_z2 = np.zeros((1, 1, 1))
     no_u2 = np.zeros((1, 1))
     done = 0
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+    phase = Phase(f"{c} chain{'s' if c > 1 else ''}", n_steps) if progress else None
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"), \
+            phase or contextlib.nullcontext():
         while done < n_steps:
             nb = min(block, n_steps - done)
             Z1 = g1.standard_normal((nb, c, d))
@@ -274,6 +285,8 @@ def run_chains(logpost: Callable[[np.ndarray], np.ndarray], state: SamplerState,
             else:
                 _block_minimal(logpost, state, args, nb, Y, LPY, fpar, ipar, out, out_lp)
             done += nb
+            if phase is not None:
+                phase.advance(nb)
     kept = int(state.st[kn.KEPT])
     return out[:kept], out_lp[:kept]
 

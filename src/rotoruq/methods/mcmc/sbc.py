@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy import stats
 
+from ..._progress import Phase
 from ..._rng import SeedLike, as_seed_sequence
 from ...errors import EvaluationError, ModelShapeError, ParameterError
 from ...model import Model, align_inputs, evaluate
@@ -416,6 +417,8 @@ def simulation_based_calibration(
     if calibrate is None and gp is not None and set(bayes_options) <= CHECK_OPTIONS:
         lean = _replications(model, prior, gp, clean, noise, obs, s_reps, n_experiments,
                              n_draws, bayes_options)
+    # per-replication calibrations report here (the lean ones in _replications)
+    phase = Phase("self-check replications", n_replications) if lean is None else None
     for i, s_rep in enumerate(s_reps):
         ess_i = None
         if lean is not None:
@@ -426,6 +429,8 @@ def simulation_based_calibration(
                                               n_experiments, n_draws, calibrate, takes_seed,
                                               bayes_options, records, rest, d)
             n_evaluations += n_ev
+            assert phase is not None  # lean is None here
+            phase.advance()
         if ess_i is None:  # the chains changed since their ESS was computed
             ess_i = dg.effective_sample_size(draws)
         ess[i] = float(ess_i.min())
@@ -439,6 +444,8 @@ def simulation_based_calibration(
             lo, hi = np.quantile(flat, [0.5 - level / 2, 0.5 + level / 2], axis=0)
             covered[k, i] = (lo <= theta_true[i]) & (theta_true[i] <= hi)
 
+    if phase is not None:
+        phase.close()
     hist, prob, p_value = _uniformity(ranks, n_draws, _n_bins(n_replications, n_draws))
     coverage = covered.mean(1)
     passed, reason = _verdict(prior.names, p_value, coverage, n_replications, alpha,
@@ -606,17 +613,25 @@ def _replications(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarra
         return dg.effective_sample_size(rep.chains)
 
     n_threads = min(numba.get_num_threads(), len(reps))
+    phase = Phase("self-check replications", len(reps))
+
+    def counted(i: int, emit: bool) -> np.ndarray:
+        ess = chains(i, emit)
+        phase.advance()
+        return ess
+
     if all(r.compiled for r in reps):  # nothing warns while they run: any order will do
         if n_threads > 1:
             with ThreadPoolExecutor(n_threads) as pool:
-                ess = list(pool.map(chains, range(len(reps)), [False] * len(reps)))
+                ess = list(pool.map(counted, range(len(reps)), [False] * len(reps)))
         else:
-            ess = [chains(i, False) for i in range(len(reps))]
+            ess = [counted(i, False) for i in range(len(reps))]
         for got, rep in zip(caught, reps, strict=True):
             _warn_again(got)
             rep.warn()
     else:
-        ess = [chains(i, True) for i in range(len(reps))]
+        ess = [counted(i, True) for i in range(len(reps))]
+    phase.close()
     return [(r.chains, e, r.n_evaluations) for r, e in zip(reps, ess, strict=True)]
 
 

@@ -195,7 +195,8 @@ def bo105(**overrides) -> RotorPreset:
     """Bo105 main rotor of the thesis's validation chapter (thesis table 3.1).
 
     Given by the thesis: Omega 44.4 rad/s, R 4.912 m, hinge offset 0.746 m, K_f 15035.467,
-    K_l 70698.042, C_l 4093.662 (N m/rad, N m s/rad), K_p 1e9 N, C_p 100 N s (the thesis prints N/m, N s/m), I_p 0.257,
+    K_l 70698.042, C_l 4093.662 (N m/rad, N m s/rad), K_p 1e9 N, C_p 100 N s (the thesis
+    prints N/m, N s/m), I_p 0.257,
     I_f 140.001 kg m^2 about the hub, blade span 3.812 m, chord 0.27 m, NACA 23012, uniform
     inflow, collective 6 deg, longitudinal -2 deg.
 

@@ -291,6 +291,9 @@ def test_a_step_taking_distributions_from_a_posterior_is_not_correlated(tmp_path
     step = StepSpec("s", "sampling", 0, {}, source=("cal", "posterior"))
 
     class Source:
+        type = "bayes_calibration"
+        arrays: dict = {}
+
         def distribution_objects(self):
             return {"a": rq.Normal(1.0, 0.1), "b": rq.Normal(1.0, 0.1)}
 

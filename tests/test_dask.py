@@ -25,7 +25,13 @@ time.sleep(0.15)
 if a == 5.0:
     sys.stderr.write("solver diverged\n")
     sys.exit(2)
-open(results, "w").write(f"{3 * a!r} f\n{os.getppid()} worker_pid\n")
+pid = os.getppid()
+try:  # on Linux the driver's parent is its watchdog, whose parent is the worker
+    if b"_watchdog" in open(f"/proc/{pid}/cmdline", "rb").read():
+        pid = int(open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()[1])
+except OSError:
+    pass
+open(results, "w").write(f"{3 * a!r} f\n{pid} worker_pid\n")
 '''
 
 

@@ -173,8 +173,12 @@ LINTED = ["scripts", "benchmarks", "examples", "docs/_ext", "docs/conf.py"]
 # benchmarks/reproduce_time.py --quick is `rotoruq reproduce --quick` plus two report redraws
 # (7 min on a loaded 2-core machine); tests/test_install.py already runs that reproduction from
 # a wheel, and the benchmark's --summary runs in test_generated_block_is_current.
-# run in quick mode by their own tests, which also check what they print
-NOT_SMOKE_RUN = {"reproduce_time.py", "aero_center_calibration.py"}
+# run in quick mode by their own tests, which also check what they print.
+# reproduce_cpu.py and terminal_lines.py --quick are `rotoruq reproduce --quick` again (each
+# chapter in a process of its own, or through a pipe); thread_determinism.py's runs are
+# tests/test_thread_determinism.py's (its --quick is a study option, not a flag of its own).
+NOT_SMOKE_RUN = {"reproduce_time.py", "aero_center_calibration.py", "reproduce_cpu.py",
+                 "terminal_lines.py", "thread_determinism.py"}
 
 
 def _quick_scripts() -> list[Path]:

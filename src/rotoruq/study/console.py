@@ -34,8 +34,9 @@ class _WarningLines(logging.Handler):
             return
         self.seen.add(line)
         try:
-            clear_bar()
-            print(f"warning: {line}", file=sys.stderr)
+            with _BAR_LOCK:  # no bar drawn between its clearing and this line
+                clear_bar()
+                print(f"warning: {line}", file=sys.stderr)
         except Exception:  # noqa: BLE001  # a closed stderr must not end the run
             self.handleError(record)
 
@@ -169,8 +170,9 @@ class _StderrHandler(logging.StreamHandler):
         self.setFormatter(logging.Formatter("%(message)s"))
 
     def emit(self, record: logging.LogRecord) -> None:
-        clear_bar()
-        super().emit(record)
+        with _BAR_LOCK:  # no bar drawn between its clearing and this line
+            clear_bar()
+            super().emit(record)
 
     @property  # type: ignore[override]  # follow sys.stderr when a caller swaps it
     def stream(self):  # noqa: D102

@@ -52,8 +52,8 @@ import numpy.typing as npt
 
 from ..errors import ParameterError
 
-__all__ = ["ValidationResult", "ComparisonError", "validate", "comparison_error", "area_metric",
-           "PooledAreaMetric", "pooled_area_metric"]
+__all__ = ["ComparisonArrays", "ValidationResult", "ComparisonError", "validate",
+           "comparison_error", "area_metric", "PooledAreaMetric", "pooled_area_metric"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -81,7 +81,30 @@ class ComparisonError:
 
 
 @dataclass(frozen=True, eq=False)
-class ValidationResult:
+class ComparisonArrays:
+    """The ASME V&V 20 comparison of a prediction with data: the fields a
+    :class:`ValidationResult` (arrays (n_conditions, n_responses)) and the validation step's
+    record (arrays (n_predictions, n_conditions, n_responses)) share.
+
+    Attributes
+    ----------
+    simulation, data_mean, comparison_error : ndarray
+        S, D and E = S - D (response units).
+    u_num, u_input, u_data, u_val : ndarray
+        The uncertainty budget (response units), as in :class:`ValidationResult`.
+    """
+
+    simulation: np.ndarray
+    data_mean: np.ndarray
+    comparison_error: np.ndarray
+    u_num: np.ndarray
+    u_input: np.ndarray
+    u_data: np.ndarray
+    u_val: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class ValidationResult(ComparisonArrays):
     """Validation metrics per condition and response; every array is (n_conditions, n_responses).
 
     Attributes
@@ -110,13 +133,6 @@ class ValidationResult:
 
     names_out: tuple[str, ...]
     conditions: tuple
-    simulation: np.ndarray
-    data_mean: np.ndarray
-    comparison_error: np.ndarray
-    u_num: np.ndarray
-    u_input: np.ndarray
-    u_data: np.ndarray
-    u_val: np.ndarray
     coverage_factor: float
     lower: np.ndarray
     upper: np.ndarray

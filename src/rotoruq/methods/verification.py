@@ -34,7 +34,7 @@ reader can use the GCI itself (``gci_fine`` times |f1|).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
@@ -43,7 +43,8 @@ import numpy.typing as npt
 from ..errors import EvaluationError, ParameterError
 from ..model import Model, evaluate
 
-__all__ = ["GCIResult", "VerificationResult", "grid_convergence_index", "verify_discretization"]
+__all__ = ["GCIResult", "GridConvergenceArrays", "GRID_FIELDS", "VerificationResult",
+           "grid_convergence_index", "verify_discretization"]
 
 #: Roache's safety factors: three grids (observed order), two grids (assumed order).
 SAFETY_FACTOR_THREE_GRIDS = 1.25
@@ -222,7 +223,34 @@ def grid_convergence_index(
 
 
 @dataclass(frozen=True, eq=False)
-class VerificationResult:
+class GridConvergenceArrays:
+    """The grid-convergence numbers of several points, arrays (n_points, n_responses): the
+    fields a :class:`VerificationResult` and the verification step's record share.
+
+    Attributes
+    ----------
+    observed_order, extrapolated, gci_fine, u_num, asymptotic_ratio : ndarray
+        As in :class:`GCIResult` (response units for ``extrapolated`` and ``u_num``).
+    in_asymptotic_range, converging, oscillatory : ndarray
+        As in :class:`GCIResult`, boolean (1.0 / 0.0 in a saved record).
+    """
+
+    observed_order: np.ndarray
+    extrapolated: np.ndarray
+    gci_fine: np.ndarray
+    u_num: np.ndarray
+    asymptotic_ratio: np.ndarray
+    in_asymptotic_range: np.ndarray
+    converging: np.ndarray
+    oscillatory: np.ndarray
+
+
+#: The names of :class:`GridConvergenceArrays`' fields, in order.
+GRID_FIELDS = tuple(f.name for f in fields(GridConvergenceArrays))
+
+
+@dataclass(frozen=True, eq=False)
+class VerificationResult(GridConvergenceArrays):
     """Solution verification of a model at chosen points; arrays are (n_points, n_responses).
 
     Attributes
@@ -242,14 +270,6 @@ class VerificationResult:
     levels: tuple
     x: np.ndarray
     values: np.ndarray
-    observed_order: np.ndarray
-    extrapolated: np.ndarray
-    gci_fine: np.ndarray
-    u_num: np.ndarray
-    asymptotic_ratio: np.ndarray
-    in_asymptotic_range: np.ndarray
-    converging: np.ndarray
-    oscillatory: np.ndarray
     ratio: float
     ratio_coarse: float
     safety_factor: float

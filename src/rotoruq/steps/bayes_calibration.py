@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from ..methods._convergence import ChainConvergence
 from ..params import Distribution, Normal, ParameterSpace
 from ..params.density import kernel_density
 from ..render.figures import (
@@ -130,7 +131,7 @@ def _empty() -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class BayesRecord(StepRecord):
+class BayesRecord(StepRecord, ChainConvergence):
     """What a Bayes calibration step saves besides its flat chain: d parameters, m observed
     responses, k noise multipliers.
 
@@ -196,13 +197,6 @@ class BayesRecord(StepRecord):
     mean: np.ndarray
     std: np.ndarray
     correlation: np.ndarray
-    rhat_bulk: np.ndarray
-    rhat_folded: np.ndarray
-    ess_bulk: np.ndarray
-    ess_tail: np.ndarray
-    mcse_mean: np.ndarray
-    mcse_q05: np.ndarray
-    mcse_q95: np.ndarray
     noise_std: np.ndarray
     noise_model: str
     emulator_variance: bool

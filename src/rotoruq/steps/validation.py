@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ParameterError
+from ..methods.validation import ComparisonArrays
 from ..render.figures import Figure, FigureContext, axis_label
 from ..render.tables import StepTable, make_table, with_unit
 from ..results import StepRecord, StepResult
@@ -60,7 +61,7 @@ JOINT, WITH, WITHOUT, PRIOR, NONE = (
 
 
 @dataclass(frozen=True, eq=False)
-class ValidationRecord(StepRecord):
+class ValidationRecord(StepRecord, ComparisonArrays):
     """What a validation step saves: p prediction kinds, c conditions, m responses.
 
     predictions (p) : the prediction kinds (e.g. "with discrepancy", "without discrepancy").
@@ -114,13 +115,6 @@ class ValidationRecord(StepRecord):
     configuration: str
     conditions: np.ndarray
     names_out: tuple[str, ...]
-    simulation: np.ndarray
-    data_mean: np.ndarray
-    comparison_error: np.ndarray
-    u_num: np.ndarray
-    u_input: np.ndarray
-    u_data: np.ndarray
-    u_val: np.ndarray
     lower: np.ndarray
     upper: np.ndarray
     error_ratio: np.ndarray

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import ParameterError
+from ..methods.verification import GRID_FIELDS, GridConvergenceArrays
 from ..render.tables import StepTable, make_table, with_unit
 from ..results import StepRecord, StepResult
 from ._common import saved_record
@@ -46,7 +47,7 @@ TOLERANCE = 1e-12
 
 
 @dataclass(frozen=True, eq=False)
-class VerificationRecord(StepRecord):
+class VerificationRecord(StepRecord, GridConvergenceArrays):
     """What a verification step saves: L levels (finest first), P points, M responses.
 
     names_in (the step's parameters), names_out (M); points (P) : labels of the points;
@@ -65,10 +66,7 @@ class VerificationRecord(StepRecord):
     """
 
     AXES = {"x": ("point", "input"), "values": ("level", "point", "response"),
-            **{k: ("point", "response") for k in (
-                "observed_order", "extrapolated", "gci_fine", "u_num", "asymptotic_ratio",
-                "in_asymptotic_range", "converging", "oscillatory")},
-            "u_num_max": ("response",)}
+            **{k: ("point", "response") for k in GRID_FIELDS}, "u_num_max": ("response",)}
     FLAT = {"u_num_max": "u_num"}
     LABELS = {"point": "point_labels"}
 
@@ -78,14 +76,6 @@ class VerificationRecord(StepRecord):
     levels: tuple[str, ...]
     x: np.ndarray
     values: np.ndarray
-    observed_order: np.ndarray
-    extrapolated: np.ndarray
-    gci_fine: np.ndarray
-    u_num: np.ndarray
-    asymptotic_ratio: np.ndarray
-    in_asymptotic_range: np.ndarray
-    converging: np.ndarray
-    oscillatory: np.ndarray
     ratio: float
     safety_factor: float
     formal_order: float
@@ -220,8 +210,7 @@ def run_verification(ctx: StepContext) -> StepResult:
     ratio = float(o["ratio"])
     results, labels, level_text, xs = verify_points(ctx, o, o.get("points") or [{}])
     cat = {f: np.concatenate([np.atleast_2d(getattr(r, f)) for r in results]).astype(float)
-           for f in ("observed_order", "extrapolated", "gci_fine", "u_num", "asymptotic_ratio",
-                     "in_asymptotic_range", "converging", "oscillatory")}
+           for f in GRID_FIELDS}
     rec = VerificationRecord(
         names_in=tuple(ctx.space.names), names_out=tuple(ctx.responses), points=tuple(labels),
         levels=tuple(level_text), x=xs,

@@ -30,6 +30,7 @@ from scipy.spatial import cKDTree
 
 from ..._docs import fill_doc
 from ...errors import ParameterError
+from .._convergence import ChainConvergence
 
 __all__ = ["autocovariance", "effective_sample_size", "split_rhat", "mcse_mean",
            "mcse_quantile", "ChainDiagnostics", "diagnose", "moments", "entropy_knn",
@@ -317,23 +318,12 @@ class PooledChains:
 
 
 @dataclass(frozen=True, eq=False)
-class ChainDiagnostics:
-    """Convergence diagnostics of one set of chains, each (d,) per parameter.
-
-    rhat : rank-normalised split R-hat, max of bulk and folded (dimensionless).
-    rhat_bulk, rhat_folded : its two parts. ess_bulk, ess_tail : effective sample sizes
-    (draws). mcse_mean : MCSE of the mean; mcse_q05, mcse_q95 : MCSE of the 5 % and 95 %
-    quantiles (units of the draws).
-    """
+class ChainDiagnostics(ChainConvergence):
+    """Convergence diagnostics of one set of chains, each (d,) per parameter: the fields of
+    :class:`~rotoruq.methods._convergence.ChainConvergence` and ``rhat``, the
+    rank-normalised split R-hat, max of bulk and folded (dimensionless)."""
 
     rhat: np.ndarray
-    rhat_bulk: np.ndarray
-    rhat_folded: np.ndarray
-    ess_bulk: np.ndarray
-    ess_tail: np.ndarray
-    mcse_mean: np.ndarray
-    mcse_q05: np.ndarray
-    mcse_q95: np.ndarray
 
 
 def diagnose(chains: np.ndarray) -> ChainDiagnostics:

@@ -193,6 +193,8 @@ class _ProgressBar(logging.Handler):
         self.phases: dict[str, PhaseState] = {}
         self.drawn = False
         self.last = -float("inf")
+        # a phase shorter than this [s] is not worth a flash of a bar
+        self.after = float(os.environ.get("ROTORUQ_BAR_AFTER", "0.5"))
 
     @property
     def draws_on_terminal(self) -> bool:
@@ -213,8 +215,7 @@ class _ProgressBar(logging.Handler):
             if self.phases and now - self.last < 0.2:
                 return
             self.last = now
-            # a phase shorter than half a second is not worth a flash of a bar
-            shown = [p for p in self.phases.values() if p.elapsed >= 0.5]
+            shown = [p for p in self.phases.values() if p.elapsed >= self.after]
             try:
                 if not shown:
                     self._clear()

@@ -57,6 +57,7 @@ ONCE = textwrap.dedent("""
 
 
 @pytest.mark.slow
+@pytest.mark.extended  # a cold numba compile of the chain kernels: minutes on 2 cores
 def test_each_step_kernel_is_compiled_once_on_a_cold_cache(tmp_path):
     """Chains on an emulator (the compiled driver) and on a Python model (the Python driver)
     in one process with an empty numba cache compile each step kernel once: the compiled

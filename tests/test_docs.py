@@ -181,9 +181,15 @@ NOT_SMOKE_RUN = {"reproduce_time.py", "aero_center_calibration.py", "reproduce_c
                  "terminal_lines.py", "thread_determinism.py"}
 
 
-def _quick_scripts() -> list[Path]:
-    return sorted(p for d in ("scripts", "benchmarks") for p in (ROOT / d).glob("*.py")
-                  if '"--quick"' in p.read_text(encoding="utf-8") and p.name not in NOT_SMOKE_RUN)
+# smoke-run only with pytest --extended: minutes of MBDyn runs even at --quick
+EXTENDED_SMOKE = {"multifidelity_mbdyn_repeat.py"}
+
+
+def _quick_scripts() -> list:
+    return [pytest.param(p, marks=pytest.mark.extended) if p.name in EXTENDED_SMOKE else p
+            for p in sorted(p for d in ("scripts", "benchmarks") for p in (ROOT / d).glob("*.py")
+                            if '"--quick"' in p.read_text(encoding="utf-8")
+                            and p.name not in NOT_SMOKE_RUN)]
 
 
 @pytest.mark.slow

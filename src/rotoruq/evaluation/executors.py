@@ -296,7 +296,9 @@ class ProcessExecutor(Executor):
             p.join(timeout=1.0)
             codes[pid] = p.exitcode
         # the pool terminates the survivors (SIGTERM) once one worker died: name the other
-        dead = [(pid, c) for pid, c in codes.items() if c not in (None, -signal.SIGTERM)]
+        # (a worker that handles SIGTERM, stopping its drivers first, exits with 128 + 15)
+        dead = [(pid, c) for pid, c in codes.items()
+                if c not in (None, -signal.SIGTERM, 128 + signal.SIGTERM)]
         if not dead:
             dead = [(pid, c) for pid, c in codes.items() if c is not None]
         if not dead:

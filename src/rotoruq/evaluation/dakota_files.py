@@ -598,6 +598,18 @@ def read_text(path: str | os.PathLike, what: str) -> str:
     except OSError as exc:
         raise InputFileError(path, None, f"a readable {what}", f"{type(exc).__name__}: "
                              f"{exc.strerror or exc}") from None
+    return decode_text(data, path, what)
+
+
+def decode_text(data: bytes, path: str | os.PathLike | None, what: str) -> str:
+    """``data`` decoded as UTF-8; undecodable bytes raise
+    :class:`~rotoruq.errors.InputFileError` naming the file ``path``, the line and the bytes.
+
+    Examples
+    --------
+    >>> decode_text(b"1.5 f\\n", "results.out", "Dakota results file")
+    '1.5 f\\n'
+    """
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:

@@ -400,7 +400,8 @@ def read_nofollow(p: str | os.PathLike) -> bytes:
         os.close(fd)
 
 
-def _planted(name: str, dir_fd: int | None, shown: Path) -> UnsafePathError | None:
+def _planted(name: str, dir_fd: int | None, shown: Path, doing: str = "writes"
+             ) -> UnsafePathError | None:
     """The error for a symlink (or, where a folder is expected, a file) at ``name``."""
     try:
         st = os.lstat(name, dir_fd=dir_fd)
@@ -409,8 +410,8 @@ def _planted(name: str, dir_fd: int | None, shown: Path) -> UnsafePathError | No
     if stat.S_ISLNK(st.st_mode):
         return UnsafePathError(
             f"symlink planted at {terminal_text(shown)} (-> "
-            f"{terminal_text(os.readlink(name, dir_fd=dir_fd))}) while rotoruq writes there; "
-            "rotoruq never writes through a symlink: remove it and run again")
+            f"{terminal_text(os.readlink(name, dir_fd=dir_fd))}) while rotoruq {doing} there; "
+            f"rotoruq never {doing} through a symlink: remove it and run again")
     return None
 
 
@@ -463,6 +464,9 @@ class SafeFolder:
                 os.mkdir(name, 0o777, dir_fd=where)
             except FileExistsError:
                 if new:
+                    planted = _planted(name, where, self.path)
+                    if planted is not None:
+                        raise planted from None
                     raise
         try:
             self.fd = os.open(name, flags, dir_fd=where)
@@ -477,8 +481,8 @@ class SafeFolder:
 
     def folder(self, name: str, *, new: bool = False, create: bool = True) -> SafeFolder:
         """The folder ``name`` in this one (a context manager), created when missing
-        (``create``); with ``new``, made by this call (:class:`FileExistsError` when the
-        name is taken, by anything, a symlink included)."""
+        (``create``); with ``new``, made by this call: a name taken is
+        :class:`FileExistsError`, by a symlink :class:`UnsafePathError` naming it."""
         return SafeFolder(self.path / name, new=new, create=create, _parent=self)
 
     def create(self, name: str, mode: int = 0o666) -> int:
@@ -515,7 +519,7 @@ class SafeFolder:
                          dir_fd=self.fd)
         except OSError as exc:
             if exc.errno == errno.ELOOP:
-                planted = _planted(name, self.fd, shown)
+                planted = _planted(name, self.fd, shown, "reads")
                 if planted is not None:
                     raise planted from None
             raise OSError(exc.errno, exc.strerror, str(shown)) from None

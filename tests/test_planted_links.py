@@ -86,3 +86,47 @@ def test_rotoruq_driver_never_writes_its_results_through_a_link(tmp_path, at):
         assert proc.returncode == 0, proc.stderr
         assert not (tmp_path / "r.out").is_symlink()
         assert "thrust" in (tmp_path / "r.out").read_text()
+
+
+class _Fig:
+    name, caption, xlabels, ylabels = "f", "a figure", ("x [m]",), ("y [N]",)
+    png, svg = b"\x89PNG fake", b"<svg/>"
+
+
+def test_the_figure_cache_is_held_by_its_descriptor_not_its_name(tmp_path):
+    """The cache folder is opened once, without following a link: swapped for a link after
+    it was opened (between check and use), the entry goes to the folder held, nothing
+    through the link; a link planted at an entry's name is neither read nor replaced."""
+    from rotoruq.report.figcache import CACHE_DIR, FigureCache
+    from rotoruq.safety import SafeFolder
+
+    report, elsewhere = tmp_path / "report", tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    with SafeFolder(report) as out, FigureCache(report, out) as cache:
+        assert cache.get("k0", lambda *a: a) is None  # opens nothing yet: no cache folder
+        cache.put("k1", [_Fig()])
+        (report / CACHE_DIR).rename(tmp_path / "moved")
+        (report / CACHE_DIR).symlink_to(elsewhere)
+        cache.put("k2", [_Fig()])
+        assert cache.get("k2", lambda *a: a)[0][2] == _Fig.png
+        assert cache.prune() == 0
+    assert list(elsewhere.iterdir()) == []
+    assert sorted(p.name for p in (tmp_path / "moved").iterdir()) == ["k1", "k2"]
+    # a fresh cache refuses the planted link at .figure-cache itself
+    with FigureCache(report) as cache:
+        assert cache.get("k1", lambda *a: a) is None
+        cache.put("k3", [_Fig()])
+        assert cache.prune() == 0
+    assert list(elsewhere.iterdir()) == []
+    # a link planted at an entry: not read, not replaced, not removed through
+    (report / CACHE_DIR).unlink()
+    (tmp_path / "moved").rename(report / CACHE_DIR)
+    (elsewhere / "0.png").write_bytes(b"theirs")
+    (report / CACHE_DIR / "k1").rename(tmp_path / "k1-real")
+    (report / CACHE_DIR / "k1").symlink_to(elsewhere)
+    with FigureCache(report) as cache:
+        assert cache.get("k1", lambda *a: a) is None
+        cache.put("k1", [_Fig()])
+        assert cache.prune() == 2  # the unused k2 and the link k1 (the link itself)
+    assert (elsewhere / "0.png").read_bytes() == b"theirs"
+    assert list((report / CACHE_DIR).iterdir()) == []

@@ -5,7 +5,12 @@ For each input point, :class:`ExternalModel`
 1. makes a work directory ``<workdir>/<name>.<pid>.<token>.<eval_id>`` (``pid`` of the
    process running the evaluation, ``token`` random per model, so that evaluations, worker
    processes and concurrent runs over one base folder never share a directory), copies or
-   links the listed files into it and fills the templates;
+   links the listed files into it and fills the templates. The base folder is opened
+   without following a link and the evaluation's folder made exclusively and held by a
+   descriptor (:class:`~rotoruq.safety.SafeFolder`); every file rotoruq puts there is
+   created through it with ``O_EXCL | O_NOFOLLOW``, the driver starts in the folder held
+   and the results file is read without following a link: a symlink planted at any of
+   these names fails the evaluation, naming it;
 2. writes the Dakota parameters file (standard or aprepro format) there;
 3. runs the command with the work directory as current directory, **without a shell**
    (argument list), in a session of its own; ``driver`` becomes

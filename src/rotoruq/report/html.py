@@ -371,7 +371,7 @@ def _write_report(results_dirs: Sequence[str | Path], report_dir: Path, out: Saf
     from ._figworker import hook_name
     from .figcache import FigureCache
 
-    cache = FigureCache(report_dir)
+    cache = FigureCache(report_dir, out)
     jobs = [_Job(study, name, hook, (labels.get(study, {}), units.get(study, {}),
                                      beside.get(study), _recorded(infos[study], "curves")))
             for study, steps in studies.items() for name, res in steps.items()
@@ -460,6 +460,7 @@ def _write_report(results_dirs: Sequence[str | Path], report_dir: Path, out: Saf
                     cache.put(keys.get(job_key), figs_of)
                 drawn.update(cached)
                 cache.prune()
+                cache.close()
             figs = [f for step in steps for f in drawn.get((name, step), [])]
             if figs:
                 heading(3, "Figures", _anchor(sid, "figures"))
@@ -486,6 +487,7 @@ def _write_report(results_dirs: Sequence[str | Path], report_dir: Path, out: Saf
             f"<meta http-equiv='Content-Security-Policy' content=\"{CSP}\">"
             f"<title>{e(title)}</title><style>{_CSS}</style></head><body>"
             + "\n".join(head + body) + "</body></html>")
+    cache.close()  # when no study had figures to draw
     index = out.write("index.html", page.encode("utf-8"), sync=True)
     log.info("report: written in %.1f s", time.perf_counter() - t_start)
     return index

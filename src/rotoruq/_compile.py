@@ -2,16 +2,21 @@
 
 The first run after an install compiles the rotor, chain and emulator kernels (tens of
 seconds each on two cores) and says nothing meanwhile; :func:`notice_if_cold` logs one INFO
-line per family and process before that happens, and nothing when the cache is warm.
+line per family and process before that happens, and nothing when the cache is warm;
+:func:`compiling` also keeps a progress phase open while the compile runs, so a step's status
+line says "compiling rotor kernels" instead of a count that does not move.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from typing import Any
 
-__all__ = ["is_cached", "notice_if_cold"]
+from ._progress import Phase
+
+__all__ = ["compiling", "is_cached", "notice_if_cold"]
 
 _noticed: set[str] = set()  # families announced in this process
 _checked: set[int] = set()  # ids of the dispatchers already looked up in the cache
@@ -89,3 +94,30 @@ def notice_if_cold(family: str, dispatchers: Iterable[Any], logger: logging.Logg
     logger.info("compiling %s (once per install, ~%s s) ...", family, seconds,
                 extra={"now": True})
     return True
+
+
+@contextlib.contextmanager
+def compiling(family: str, dispatchers: Iterable[Any], logger: logging.Logger,
+              seconds: str = "10-60") -> Iterator[bool]:
+    """Around the first call of ``dispatchers``: :func:`notice_if_cold`, and while the body
+    runs, when it logged, an uncounted progress phase ``"compiling <family>"`` (the step's
+    status line and the terminal's bar name it).
+
+    Yields
+    ------
+    bool
+        Whether a compile was announced.
+
+    Examples
+    --------
+    >>> with compiling("demo kernels", [len], logging.getLogger("demo")) as cold:
+    ...     len("abc")
+    3
+    >>> cold
+    False
+    """
+    if not notice_if_cold(family, dispatchers, logger, seconds):
+        yield False
+        return
+    with Phase(f"compiling {family}", None):
+        yield True

@@ -21,17 +21,36 @@ _log = logging.getLogger(LOGGER)
 
 @dataclass(frozen=True)
 class PhaseState:
-    """Where a phase is: ``done`` of ``total`` units after ``elapsed`` seconds (wall)."""
+    """Where a phase is: ``done`` of ``total`` units after ``elapsed`` seconds (wall);
+    ``total`` None for a phase that is not counted (a compile: under way until closed)."""
 
     name: str
     done: int
-    total: int
+    total: int | None
     elapsed: float
+    closed: bool = False
 
     @property
     def finished(self) -> bool:
-        """Whether every unit is done."""
-        return self.done >= self.total
+        """Whether every unit is done (an uncounted phase: whether it was closed)."""
+        return self.closed if self.total is None else self.done >= self.total
+
+    def text(self) -> str:
+        """``"4 chains 3000/7200 (42 %)"``; an uncounted phase: its name and elapsed time."""
+        if self.total is None:
+            return f"{self.name}, {format_duration(self.elapsed)}"
+        pct = 100 * self.done / self.total if self.total else 100.0
+        return f"{self.name} {self.done}/{self.total} ({pct:.0f} %)"
+
+
+def format_duration(seconds: float) -> str:
+    """``h:mm:ss`` (or ``m:ss`` under an hour)."""
+    if seconds != seconds or seconds == float("inf"):
+        return "?"
+    s = int(round(seconds))
+    h, rem = divmod(s, 3600)
+    m, s = divmod(rem, 60)
+    return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
 
 
 def bar_on_terminal() -> bool:
@@ -43,7 +62,8 @@ def bar_on_terminal() -> bool:
 class Phase:
     """Report ``done`` of ``total`` units of the phase ``name``: a record at the start, at most
     one every ``interval`` seconds (wall), and one when it is finished or left. Thread-safe
-    (replications finishing on a thread pool).
+    (replications finishing on a thread pool). ``total`` None: a phase that is not counted
+    (a compile), under way until it is closed.
 
     Examples
     --------
@@ -54,9 +74,9 @@ class Phase:
     3
     """
 
-    def __init__(self, name: str, total: int, interval: float = 0.25) -> None:
+    def __init__(self, name: str, total: int | None, interval: float = 0.25) -> None:
         self.name = name
-        self.total = max(int(total), 0)
+        self.total = None if total is None else max(int(total), 0)
         self.done = 0
         self.interval = interval
         self._t0 = time.perf_counter()
@@ -68,7 +88,8 @@ class Phase:
     def advance(self, n: int = 1) -> None:
         """Count ``n`` more units done."""
         with self._lock:
-            self.done = min(self.done + int(n), self.total)
+            self.done = self.done + int(n) if self.total is None else min(
+                self.done + int(n), self.total)
             self._emit(force=False)
 
     def close(self) -> None:
@@ -76,18 +97,18 @@ class Phase:
         with self._lock:
             if not self._closed:
                 self._closed = True
-                self.done = self.total
+                self.done = self.done if self.total is None else self.total
                 self._emit(force=True)
 
     def _emit(self, force: bool) -> None:
         if not _log.isEnabledFor(logging.INFO):
             return
         now = time.perf_counter()
-        if not force and now - self._last < self.interval and self.done < self.total:
+        state = PhaseState(self.name, self.done, self.total, now - self._t0, self._closed)
+        if not force and now - self._last < self.interval and not state.finished:
             return
         self._last = now
-        state = PhaseState(self.name, self.done, self.total, now - self._t0)
-        _log.info("%s: %d/%d", self.name, self.done, self.total, extra={"progress": state})
+        _log.info("%s", state.text(), extra={"progress": state})
 
     def __enter__(self) -> Phase:
         return self

@@ -10,17 +10,9 @@ import sys
 import time
 from typing import TextIO
 
+from .._progress import format_duration
+
 __all__ = ["Progress", "bar_line", "format_duration"]
-
-
-def format_duration(seconds: float) -> str:
-    """``h:mm:ss`` (or ``m:ss`` under an hour)."""
-    if seconds != seconds or seconds == float("inf"):
-        return "?"
-    s = int(round(seconds))
-    h, rem = divmod(s, 3600)
-    m, s = divmod(rem, 60)
-    return f"{h}:{m:02d}:{s:02d}" if h else f"{m}:{s:02d}"
 
 
 def bar_line(label: str, done: int, total: int, elapsed: float, width: int = 24) -> str:

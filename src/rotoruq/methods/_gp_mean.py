@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
-from .._compile import notice_if_cold
+from .._compile import compiling
 
 log = logging.getLogger(__name__)
 
@@ -211,8 +211,8 @@ def gp_mean_batch(X: np.ndarray, pack: tuple) -> np.ndarray:
     # the notice where the kernel is called: a process that never calls one (a chain on the
     # emulator calls neither: its own kernels inline the GP) never caches it, and checking
     # it up front announced a compile on every warm run
-    notice_if_cold("emulator kernels", [_mean_rows], log)
-    _mean_rows(X, pack, out)
+    with compiling("emulator kernels", [_mean_rows], log):
+        _mean_rows(X, pack, out)
     return out
 
 
@@ -297,6 +297,6 @@ def gp_mean_var_batch(X: np.ndarray, gp: CompiledGP) -> tuple[np.ndarray, np.nda
     X = np.ascontiguousarray(X, dtype=float)
     out = np.empty((X.shape[0], gp.n_outputs))
     var = np.empty_like(out)
-    notice_if_cold("emulator kernels", [_mean_var_rows], log)
-    _mean_var_rows(X, gp.mean_pack, gp.var_pack, out, var)
+    with compiling("emulator kernels", [_mean_var_rows], log):
+        _mean_var_rows(X, gp.mean_pack, gp.var_pack, out, var)
     return out, var

@@ -8,6 +8,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import fields
@@ -87,12 +88,13 @@ def kernels_cached() -> bool:
     return is_cached(_kernel.solve_samples)
 
 
-def _notice_compile() -> None:
-    """Say once per process, before the first solve, that the kernels are being compiled."""
-    from .._compile import notice_if_cold
+def _compiling() -> contextlib.AbstractContextManager[bool]:
+    """Around a solve: say once per process, before the first, that the kernels are being
+    compiled (and keep a "compiling rotor kernels" phase open while they are)."""
+    from .._compile import compiling
     from . import _kernel
 
-    notice_if_cold("rotor kernels", [_kernel.solve_samples], log, "30-90")
+    return compiling("rotor kernels", [_kernel.solve_samples], log, "30-90")
 
 
 def load_airfoil(preset: RotorPreset) -> Airfoil:
@@ -286,8 +288,8 @@ class RotorModel:
             if failures:
                 params = {k: v[rows] for k, v in params.items()}
                 overrides = {k: v[rows] for k, v in overrides.items()}
-            _notice_compile()
-            sol = self._solve_rows(params, overrides)
+            with _compiling():
+                sol = self._solve_rows(params, overrides)
             sols.append(sol)
             vals = np.column_stack([sol.response(r) for r in self.names_out])
             bad = ~sol.converged | ~np.all(np.isfinite(vals), axis=1)

@@ -373,5 +373,4 @@ class _Phases(logging.Handler):
 
     def text(self) -> str:
         with self.lock_:
-            return ", ".join(f"{p.name} {p.done}/{p.total} ({100 * p.done / p.total:.0f} %)"
-                             for p in self.states.values() if p.total)
+            return ", ".join(p.text() for p in self.states.values() if p.total != 0)

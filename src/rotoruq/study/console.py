@@ -223,7 +223,8 @@ class _ProgressBar(logging.Handler):
                 from ..evaluation.progress import bar_line  # on a terminal only: not light
 
                 width = max(shutil.get_terminal_size().columns - 1, 20)
-                text = " | ".join(bar_line(p.name, p.done, p.total, p.elapsed, width=16)
+                text = " | ".join(p.text() if p.total is None else
+                                  bar_line(p.name, p.done, p.total, p.elapsed, width=16)
                                   for p in shown)
                 sys.stderr.write("\r" + text[:width] + "\033[K")
                 sys.stderr.flush()

@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..._compile import notice_if_cold
+from ..._compile import compiling
 from ..._progress import Phase
 from ...errors import ParameterError
 from . import _kernels as kn
@@ -251,7 +251,9 @@ def run_chains(logpost: Callable[[np.ndarray], np.ndarray], state: SamplerState,
     state.st[kn.RUN_STEP] = 0
     state.st[kn.KEPT] = 0
     compiled = getattr(logpost, "compiled", None)
-    notice_if_cold("chain kernels", [kn.advance], log)
+    # open until the first block is done: the kernels compile in its call
+    compile_phase = contextlib.ExitStack()
+    compile_phase.enter_context(compiling("chain kernels", [kn.advance], log))
     speculative = cfg.evaluations == "speculative" and compiled is None
     if compiled is None and progress:
         # a step of a Python model costs a model call: blocks small enough for the progress
@@ -266,7 +268,7 @@ def run_chains(logpost: Callable[[np.ndarray], np.ndarray], state: SamplerState,
     done = 0
     phase = Phase(f"{c} chain{'s' if c > 1 else ''}", n_steps) if progress else None
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"), \
-            phase or contextlib.nullcontext():
+            phase or contextlib.nullcontext(), compile_phase:
         while done < n_steps:
             nb = min(block, n_steps - done)
             Z1 = g1.standard_normal((nb, c, d))
@@ -285,6 +287,7 @@ def run_chains(logpost: Callable[[np.ndarray], np.ndarray], state: SamplerState,
             else:
                 _block_minimal(logpost, state, args, nb, Y, LPY, fpar, ipar, out, out_lp)
             done += nb
+            compile_phase.close()
             if phase is not None:
                 phase.advance(nb)
     kept = int(state.st[kn.KEPT])

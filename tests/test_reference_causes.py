@@ -57,7 +57,8 @@ def test_data_information_is_the_linear_gaussian_posterior_of_the_runs_effects()
     h = np.array([[2.0, 2.0], [1.0, -1.0]]) / 0.5
     cov = np.linalg.inv(np.eye(2) + 4 * h.T @ h)
     assert f"keeps {np.sqrt(cov[0, 0]):.2f} of a's prior std" in text2
-    assert "leave" not in text2
+    assert "leave" not in text2 and "the data could resolve it" in text2
+    assert "moves with" not in text2  # no correlation worth naming
 
 
 def test_a_miss_the_calibrated_inputs_cannot_close_says_how_far_each_would_have_to_move():

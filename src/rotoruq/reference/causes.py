@@ -33,6 +33,8 @@ nan = math.nan
 _COUPLED = 0.95
 # The target ratio and the model's slope disagree when they differ by more than this fraction.
 _RATIO_TOL = 0.2
+# A posterior correlation this strong is named beside a weakly resolved input.
+_MOVES_WITH = 0.5
 
 
 def _lab(labels: Mapping[str, str], p: str) -> str:
@@ -480,10 +482,16 @@ def data_information(bayes: StepResult, steps: Steps, params: Sequence[str],
                 f"{_lab(labels, p)}'s prior std (the run's posterior: {run_ratio[j]:.2f})")
         if corr is not None and corr.shape == (d, d) and d > 1:
             k = max((i for i in range(d) if i != j), key=lambda i: abs(corr[j, i]))
-            text += (f"; it moves with {_lab(labels, names[k])} (posterior corr "
-                     f"{corr[j, k]:+.2f})")
-        out.append(text + ": the data do not separate it from the other inputs, so its "
-                   "posterior stays wide and its mean can sit far from the truth")
+            if abs(corr[j, k]) >= _MOVES_WITH:
+                text += (f"; it moves with {_lab(labels, names[k])} (posterior corr "
+                         f"{corr[j, k]:+.2f})")
+        if linear[j] >= 0.5:
+            text += (": the data do not separate it from the other inputs, so its posterior "
+                     "stays wide and its mean can sit far from the truth")
+        else:
+            text += (": the data could resolve it; a wider posterior comes from elsewhere "
+                     "(the model's nonlinearity, data that do not fit one input)")
+        out.append(text)
     return out
 
 

@@ -430,11 +430,10 @@ def section_loads(preset: RotorPreset, airfoil, grid: BladeGrid, params: dict[st
 
     Examples
     --------
-    >>> from rotoruq.rotor.geometry import blade_grid
-    >>> from rotoruq.rotor.model import load_airfoil
-    >>> from rotoruq.rotor.presets import get_preset
-    >>> p = get_preset("bo105")
-    >>> out = section_loads(p, load_airfoil(p), blade_grid(p), {"collective_deg": [6.0]})
+    >>> from rotoruq.rotor.model import RotorModel
+    >>> m = RotorModel("bo105", names_in=["collective_deg"], names_out=["thrust"])
+    >>> params = {k: np.array([v]) for k, v in m.defaults().items()}
+    >>> out = section_loads(m.preset, m.airfoil, m.grid, params)
     >>> out["thrust_per_span"].shape == (1, out["r"].size)
     True
     """

@@ -76,6 +76,10 @@ def test_a_miss_the_calibrated_inputs_cannot_close_says_how_far_each_would_have_
                   text)
     assert m and float(m.group(1)) == pytest.approx(5.0, rel=1e-6)
     assert float(m.group(2)) == pytest.approx(-0.5, rel=1e-9)
+    assert text.endswith("beyond 3 of them: the calibrated inputs cannot produce this roll at "
+                         "their posterior")
+    near = comparison_miss({"lhs": lhs}, bayes, "roll", -0.1, 2e-3, 0.01, {})
+    assert "would take 2 posterior std devs of b" in near and near.endswith("within 3 of them")
     assert comparison_miss({}, None, "roll", 0.0, 1e-3, 1e-3, {}) == ""
 
 

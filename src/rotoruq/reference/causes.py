@@ -35,6 +35,9 @@ _COUPLED = 0.95
 _RATIO_TOL = 0.2
 # A posterior correlation this strong is named beside a weakly resolved input.
 _MOVES_WITH = 0.5
+# A comparison error one calibrated input closes within this many posterior std devs is
+# within the posterior's reach.
+_REACH = 3.0
 
 
 def _lab(labels: Mapping[str, str], p: str) -> str:
@@ -534,11 +537,13 @@ def comparison_miss(steps: Steps, bayes: StepResult | None, response: str, error
     if not need:
         return out
     best = min(need, key=lambda p: need[p])
+    verdict = (f"beyond {_REACH:g} of them: the calibrated inputs cannot produce this "
+               f"{response} at their posterior" if need[best] > _REACH else
+               f"within {_REACH:g} of them")
     return (out + f"; closing E with one calibrated input would take {need[best]:.3g} posterior "
             f"std devs of {_lab(labels, best)} (d{response}/d{_lab(labels, best)} = "
             f"{slope[best]:.3g}, posterior std {post[best]:.3g}; plane through the {n} saved "
-            f"samples of step {step}): the calibrated inputs cannot produce this {response}, "
-            "the model lacks what makes it")
+            f"samples of step {step}), {verdict}")
 
 
 def calibration_design(bayes: StepResult) -> list[str]:

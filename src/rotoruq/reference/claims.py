@@ -629,6 +629,33 @@ def _posterior_of(steps: Mapping[str, StepResult], res: StepResult) -> StepResul
     return steps.get(up)
 
 
+def _posterior_plane(steps: Mapping[str, StepResult], bayes: StepResult | None, label: str
+                     ) -> dict[str, StepResult]:
+    """The posterior draws a forward check of ``bayes`` propagated at sweep point ``label``
+    with their outputs, as a sampling step's samples (a plane's input): the draws are the
+    chain thinned as :func:`~rotoruq.steps.forward_check.posterior_draws` thins it for the
+    step, row for row with its saved ``pp_outputs<label>``."""
+    from ..steps.forward_check import posterior_draws
+
+    out: dict[str, StepResult] = {}
+    key = f"pp_outputs{label}"
+    for s in steps.values():
+        if bayes is None or s.type != "forward_check" or key not in s.arrays:
+            continue
+        if str(s.meta.get("source") or "").split(".")[0] != bayes.name:
+            continue
+        names = list(s.meta.get("parameters") or [])
+        y = np.asarray(s.arrays[key], dtype=float)
+        x = posterior_draws(bayes, names, len(y)) if names else None
+        if x is None or len(x) != len(y):
+            continue
+        out[f"{s.name} (posterior draws at {label[1:]}R)"] = StepResult(
+            f"{s.name} (posterior draws at {label[1:]}R)", "sampling",
+            arrays={"inputs": x, "outputs": y},
+            meta={"columns": {"inputs": names, "outputs": s.columns(key)}})
+    return out
+
+
 def _condition(rec, value: float) -> int | None:
     hit = np.flatnonzero(np.isclose(rec.conditions, value))
     return int(hit[0]) if hit.size else None
@@ -689,7 +716,9 @@ def _vv20_claim(key: str, where: str, num: str, t: ComparedTable, steps, label: 
         why += (f"hide, about {100 * rec.comparison_error[p, j, m] / rec.data_mean[p, j, m]:+.1f}"
                 " % of the measurement" if rec.data_mean[p, j, m] else "hide")
         reasons.append(why)
-        miss = comparison_miss(steps, _posterior_of(steps, res), rec.names_out[m],
+        post = _posterior_of(steps, res)
+        miss = comparison_miss({**steps, **_posterior_plane(steps, post, label)}, post,
+                               rec.names_out[m],
                                float(rec.comparison_error[p, j, m]), float(rec.u_num[p, j, m]),
                                float(rec.u_input[p, j, m]), labels)
         if miss:

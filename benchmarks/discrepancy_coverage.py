@@ -16,10 +16,14 @@ Problems:
   zeta(x) = theta x / (1 + x / a), theta = 0.65, a = 20; simulator eta(x, theta) = theta x;
   theta ~ U(0, 2); 10 observations at x = 0.2, 0.4, ..., 2.0, noise std 0.01; predicted at
   x = 3 and 4 (beyond the data by 0.56 and 1.1 times their range), and at 1.1.
-* ``sine_line`` (the imperfect linear model of Plumlee 2017, JASA 112, 1274): reality
-  zeta(x) = 4 x + x sin(5 x); simulator eta(x, theta) = theta x; theta ~ U(0, 10);
-  8 observations at x = 0, 0.1, ..., 0.7, noise std 0.05; predicted at x = 0.85 and 1.0
-  (0.21 and 0.43 ranges beyond), and at 0.35.
+* ``sine_line``, the imperfect line: reality zeta(x) = 4 x + x sin(5 x); simulator
+  eta(x, theta) = theta x; theta ~ U(0, 10); 8 observations at x = 0, 0.1, ..., 0.7, noise
+  std 0.05; predicted at x = 0.85 and 1.0 (0.21 and 0.43 ranges beyond), and at 0.35. The
+  pair (zeta, eta) is the example M. Plumlee gives for an orthogonal discrepancy (a public
+  orthogonal-discrepancy code quotes it "from Plumlee"); we cite Plumlee 2017, "Bayesian
+  calibration of inexact computer models", J. Am. Stat. Assoc. 112(519), 1274-1285, for the
+  method, but could not check that the paper itself states this pair. The design, the noise
+  and the prior are ours.
 
 Prints JSON (``--out`` writes it, with provenance); the summary the software reads to say how
 far coverage falls (``rotoruq/data/discrepancy_coverage.json``) is written beside it.
@@ -49,7 +53,11 @@ PROBLEMS = {
         "truth": lambda x: 4.0 * x + x * np.sin(5.0 * x),
         "prior": (0.0, 10.0), "x": np.round(np.arange(8) * 0.1, 10), "noise": 0.05,
         "extrapolate": [0.85, 1.0], "interpolate": [0.35],
-        "source": "Plumlee 2017, J. Am. Stat. Assoc. 112, 1274 (the imperfect linear model)"},
+        "source": ("Plumlee's imperfect line (zeta = 4x + x sin 5x against theta x; the "
+                   "orthogonal-discrepancy example attributed to M. Plumlee, cf. Plumlee 2017, "
+                   "'Bayesian calibration of inexact computer models', J. Am. Stat. Assoc. "
+                   "112(519), 1274-1285: not checked against the paper's text; design, noise "
+                   "and prior ours)")},
 }
 
 

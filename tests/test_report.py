@@ -52,6 +52,15 @@ def assert_reasons_recomputed(claim_dicts) -> None:
     for lab, v in sorted(eff.items(), key=lambda kv: -abs(kv[1]))[:3]:
         assert f"{lab} {v * v / total:.2f} (S " in ranking, (lab, ranking)
     assert not any("sets the sign" in r and "ranking" in r for r in sens)
+    # the ranking's physical cause: the section loads' squared shares from the effects listed
+    sections = next(r for r in sens if r.startswith("the section loads at the nominal point"))
+    listed = {lab: float(v) for v, lab in re.findall(
+        r"([+-][\d.e+-]+) \(((?:[^()]|\([^()]*\))+)\)",
+        sections.split(" N, squared shares")[0].split("changes the thrust by ")[1])}
+    tot = sum(v * v for v in listed.values())
+    for lab, v in listed.items():
+        assert f"{lab} {v * v / tot:.2f}" in sections.split("squared shares")[1], (lab, sections)
+    assert max(listed, key=lambda k: abs(listed[k])) == max(eff, key=lambda k: abs(eff[k]))
     judged = 0
     for r in by["bo105_bayes_means"]["reasons"]:
         m = re.match(r"(.+): posterior mean ([\d.]+) % from the true mean, ([\d.]+) posterior "

@@ -2,8 +2,9 @@
 ``rotoruq run`` in fresh processes with 1, 2 (and 4) threads for numba and BLAS, set before the
 process starts, save bit-for-bit equal arrays. The calibration with a 300-point GP emulator and
 its variance in the likelihood differed from the first chain row between 1 and 2 threads
-before (LAPACK's trtri/potrf/getrf on two OpenBLAS threads). Every bundled study (the MBDyn
-ones included) is run at its ``--quick`` size at 1 and at 2 threads by
+before (LAPACK's trtri/potrf/getrf on two OpenBLAS threads), and at the minimum versions
+with threadpoolctl 3.1, which did not see numpy's and scipy's OpenBLAS. Every bundled study
+(the MBDyn ones included) is run at its ``--quick`` size at 1 and at 2 threads by
 ``test_reproducible_studies.py``, which compares the two runs' arrays and records; the
 validation study, where ``posterior_ratio`` moved by 0.4 %, at its own size and the 300-point
 GP at 4 threads are ``extended`` checks (``pytest --extended``). The runs and the comparison
@@ -33,9 +34,6 @@ def same_bits(study, tmp_path: Path, threads=(1, 2), *, quick: bool = True,
         assert not diffs, f"{study}: {threads[0]} vs {t} threads: {diffs}"
 
 
-# slow: runs in the main lane only; at the minimum versions (.ci/min_constraints.py) the two
-# runs still differ (found by that lane, not yet explained: see the issue-35 note)
-@pytest.mark.slow
 @pytest.mark.parametrize("threads", [(1, 2), pytest.param((1, 4), marks=pytest.mark.extended)])
 def test_a_300_point_gp_calibration_is_the_same_at_any_thread_count(threads, tmp_path):
     study = tmp_path / "gp300.toml"
@@ -43,6 +41,31 @@ def test_a_300_point_gp_calibration_is_the_same_at_any_thread_count(threads, tmp
     same_bits(study, tmp_path, threads, quick=False)
     chain = np.load(tmp_path / "t1" / "steps" / "bayes" / "chain.npy")
     assert chain.shape[0] > 100 and np.ptp(chain[:, 0]) > 0  # a chain that moved
+
+
+@pytest.mark.skipif(not Path("/proc/self/maps").is_file(), reason="reads /proc/self/maps")
+def test_one_blas_thread_limits_every_openblas_numpy_and_scipy_loaded():
+    """Every OpenBLAS this process has loaded (numpy's and scipy's wheels each bundle one,
+    ``libscipy_openblas*``) is found by threadpoolctl and runs on one thread inside
+    ``one_blas_thread``. threadpoolctl 3.1-3.4 do not recognise that build: they found none,
+    limited nothing, and the 300-point GP calibration above differed between 1 and 2 threads
+    at the minimum versions (the reason for ``threadpoolctl>=3.5`` in pyproject.toml)."""
+    import scipy.linalg  # noqa: F401  (loads scipy's own OpenBLAS)
+    from threadpoolctl import threadpool_info
+
+    from rotoruq.methods._common import one_blas_thread
+
+    np.linalg.cholesky(np.eye(2))
+    scipy.linalg.cholesky(np.eye(2))
+    maps = Path("/proc/self/maps").read_text().split("\n")
+    loaded = {Path(line.split()[-1]).resolve() for line in maps
+              if "openblas" in line.lower() and line.split()[-1].startswith("/")}
+    with one_blas_thread():
+        info = {Path(i["filepath"]).resolve(): i["num_threads"] for i in threadpool_info()
+                if i["user_api"] == "blas"}
+    assert loaded, "no OpenBLAS loaded: numpy and scipy use another BLAS here"
+    assert loaded <= set(info), f"threadpoolctl does not see {sorted(loaded - set(info))}"
+    assert all(info[p] == 1 for p in loaded), info
 
 
 def test_the_comparison_sees_a_last_bit(tmp_path):

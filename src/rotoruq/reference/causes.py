@@ -22,8 +22,9 @@ from ..steps.bayes_calibration import posterior_record
 from ..steps.cuu import CuuRecord
 from ..steps.forward_check import ForwardCheckRecord
 
-__all__ = ["local_effects", "negative_pitch_span", "sensitivity_causes", "model_form_gap",
-           "sweep_growth", "target_consistency", "input_recovery", "calibration_design"]
+__all__ = ["local_effects", "negative_pitch_span", "lift_slope_sections", "sensitivity_causes",
+           "model_form_gap", "sweep_growth", "target_consistency", "input_recovery",
+           "data_information", "comparison_miss", "calibration_design"]
 
 Steps = Mapping[str, StepResult]
 nan = math.nan
@@ -32,6 +33,11 @@ nan = math.nan
 _COUPLED = 0.95
 # The target ratio and the model's slope disagree when they differ by more than this fraction.
 _RATIO_TOL = 0.2
+# A posterior correlation this strong is named beside a weakly resolved input.
+_MOVES_WITH = 0.5
+# A comparison error one calibrated input closes within this many posterior std devs is
+# within the posterior's reach.
+_REACH = 3.0
 
 
 def _lab(labels: Mapping[str, str], p: str) -> str:
@@ -132,11 +138,79 @@ def negative_pitch_span(values: Mapping[str, float], fixed: Mapping[str, float]
     return out
 
 
+def lift_slope_sections(spanwise: Mapping | None, stds: Mapping[str, float],
+                        labels: Mapping[str, str]) -> list[str]:
+    """The physical cause of a lift-slope ranking, from the section loads the run recorded
+    at its nominal point (:func:`rotoruq.study.runner.spanwise_record`): the direct thrust
+    change for +1 std of each lift slope (inflow and blade motion held), its squared share,
+    and where the top one acts (stations, Mach numbers, angles of attack); and, when the run
+    also recorded the blade at a twist with no negative pitch, whether the same input stays
+    on top there.
+
+    Examples
+    --------
+    >>> rec = {"r": [1.0, 2.0], "w": [1.0, 1.0], "mach": [0.3, 0.6],
+    ...        "alpha_deg": [2.0, -1.0], "inputs": {"collective_deg": 6.0},
+    ...        "thrust_derivative": {"a": 100.0, "b": -300.0},
+    ...        "station_derivative": {"a": [100.0, 0.0], "b": [0.0, -300.0]}}
+    >>> lift_slope_sections(rec, {"a": 0.01, "b": 0.01}, {})[0][:48]
+    'the section loads at the nominal point (collecti'
+    """
+    if not spanwise or not spanwise.get("thrust_derivative") or spanwise.get("failure"):
+        return []
+
+    def effects(rec) -> dict[str, float]:
+        return {p: float(d) * stds[p] for p, d in rec["thrust_derivative"].items()
+                if p in stds and math.isfinite(stds[p])}
+
+    eff = effects(spanwise)
+    total = sum(v * v for v in eff.values())
+    if not eff or total <= 0:
+        return []
+    order = sorted(eff, key=lambda p: -abs(eff[p]))
+    top = order[0]
+    r = np.asarray(spanwise["r"], dtype=float)
+    mach = np.asarray(spanwise["mach"], dtype=float)
+    alpha = np.asarray(spanwise["alpha_deg"], dtype=float)
+    per = np.abs(np.asarray(spanwise["station_derivative"][top], dtype=float))
+    acts = per > 1e-6 * per.max()
+    coll = (spanwise.get("inputs") or {}).get("collective_deg")
+    where = f"collective {coll:g} deg, " if isinstance(coll, int | float) else ""
+    out = [f"the section loads at the nominal point ({where}every input at its "
+           "mean; reference solve, inflow and blade motion held) give the same order: +1 std "
+           "of each lift slope changes the thrust by "
+           + ", ".join(f"{eff[p]:+.3g} ({_lab(labels, p)})" for p in order)
+           + " N, squared shares "
+           + ", ".join(f"{_lab(labels, p)} {eff[p] ** 2 / total:.2f}" for p in order)
+           + f"; {_lab(labels, top)} acts on the sections at r = {r[acts].min():.3g} to "
+           f"{r[acts].max():.3g} m (Mach {mach[acts].min():.2f} to {mach[acts].max():.2f}), "
+           f"where the dynamic pressure is highest and the angle of attack is "
+           f"{alpha[acts].min():+.2g} to {alpha[acts].max():+.2g} deg: the outboard sections' "
+           "lift-slope term sets the size of the effect, hence the ranking"]
+    alt = spanwise.get("no_negative_pitch")
+    if alt and not alt.get("failure") and alt.get("thrust_derivative"):
+        e2 = effects(alt)
+        t2 = sum(v * v for v in e2.values())
+        if e2 and t2 > 0:
+            top2 = max(e2, key=lambda p: abs(e2[p]))
+            same = "still has" if top2 == top else "no longer has"
+            out.append(
+                f"at {alt['twist_deg']:g} deg of twist (tip pitch 0: no section with negative "
+                f"pitch), {_lab(labels, top)} {same} the largest share ("
+                + ", ".join(f"{_lab(labels, p)} {e2[p] ** 2 / t2:.2f}"
+                            for p in sorted(e2, key=lambda p: -abs(e2[p])))
+                + ")" + (": the ranking does not come from the negative pitch"
+                         if top2 == top else ""))
+    return out
+
+
 def sensitivity_causes(sens: StepResult, steps: Steps, response: str, claimed: str,
-                       labels: Mapping[str, str], values: Mapping[str, float]) -> list[str]:
+                       labels: Mapping[str, str], values: Mapping[str, float],
+                       spanwise: Mapping | None = None) -> list[str]:
     """Why ``claimed`` is not the largest main index of ``response``: the dominant input,
-    the local effect of +1 std of each input, and, for lift slopes of a twisted rotor blade,
-    the span where the pitch (hence the angle of attack) is negative."""
+    the local effect of +1 std of each input, for lift slopes the section loads behind the
+    ranking (``spanwise``, :func:`lift_slope_sections`), and, for a twisted rotor blade,
+    the span where the pitch (hence the angle of attack) is negative (the effect's sign)."""
     got = sobol_of(sens)
     if got is None or response not in got[0].names_out:
         return []
@@ -170,6 +244,8 @@ def sensitivity_causes(sens: StepResult, steps: Steps, response: str, claimed: s
                                    f"(S {main.get(p, math.nan):.2f})" for p in order[:3])
                        + " give the main indices' order")
     lift = [p for p in inputs if p.startswith("cla_")]
+    if lift and response == "thrust":
+        out += lift_slope_sections(spanwise, {p: stds[p] for p in lift}, labels)
     span = negative_pitch_span(values, sens.meta.get("fixed") or {})
     if lift and span is not None:
         if span["fraction"] > 0 and math.isfinite(span["r0"]):
@@ -334,6 +410,140 @@ def input_recovery(cuu: StepResult, truth: StepResult | None, labels: Mapping[st
            f"{true[p]:.3g} (x{r:.2g}{collapse(p)})"
            for p, r in ratios.items() if not 0.5 <= r <= 2.0]
     return ratios, out
+
+
+def data_information(bayes: StepResult, steps: Steps, params: Sequence[str],
+                     labels: Mapping[str, str]) -> list[str]:
+    """Why the data leave the posterior of ``params`` wide: the calibrated responses give at
+    most one equation each for the calibrated inputs, and a linear-Gaussian posterior built
+    from the run's own numbers (each input's effect for +1 prior std, from a least-squares
+    plane through a sampling step's saved samples, :func:`local_effects`; the likelihood's
+    noise std; the number of data rows) says how much of each input's prior std the data
+    can remove, beside the run's posterior/prior std and the input it moves with most.
+
+    In prior-std units the linear-Gaussian posterior covariance is (I + n A^T N^-2 A)^-1, A
+    (m, d) the effects, N the noise std devs, n the data rows: along the d - m directions A
+    does not see it stays the prior's.
+
+    Examples
+    --------
+    >>> from rotoruq.steps.bayes_calibration import BayesRecord
+    >>> x = np.random.default_rng(0).normal(size=(50, 2))
+    >>> lhs = StepResult("lhs", "sampling", arrays={"inputs": x, "outputs": x[:, :1] + x[:, 1:]},
+    ...                  meta={"columns": {"inputs": ["a", "b"], "outputs": ["y"]}})
+    >>> arrays, meta = BayesRecord.partial(("a", "b"), ("y",), noise_std=np.array([0.1]),
+    ...                                    std_ratio=np.array([0.7, 0.7]),
+    ...                                    correlation=np.array([[1.0, -0.9], [-0.9, 1.0]])
+    ...                                    ).parts()
+    >>> from rotoruq.params import Normal
+    >>> from rotoruq.results import dist_to_dict
+    >>> prior = {"input_distributions": {k: dist_to_dict(Normal(0, 1)) for k in "ab"}}
+    >>> b = StepResult("bayes", "bayes_calibration", {}, {"data": np.zeros((4, 1)), **arrays},
+    ...                meta={**meta, **prior})
+    >>> data_information(b, {"lhs": lhs}, ["a"], {})[0][:62]
+    'the 4 data rows measure 1 response (y) for 2 calibrated inputs'
+    """
+    rec = posterior_record(bayes)
+    data = bayes.arrays.get("data")
+    if rec is None or data is None or not len(data):
+        return []
+    names = list(rec.names_in)
+    dists = bayes.input_distributions()
+    stds = {p: float(dists[p].std) if p in dists else math.nan for p in names}
+    rows, used = [], None
+    for r in rec.names_out:
+        fx = local_effects(steps, names, r, stds)
+        if fx is None or set(fx[2]) != set(names):
+            return []
+        rows.append([fx[2][p] for p in names])
+        used = fx[:2]
+    a = np.asarray(rows, dtype=float)
+    noise = np.asarray(rec.noise_std, dtype=float)
+    if not np.all(np.isfinite(a)) or not np.all(noise > 0) or used is None:
+        return []
+    n, (m, d) = len(data), a.shape
+    h = a / noise[:, None]
+    cov = np.linalg.inv(np.eye(d) + n * h.T @ h)
+    linear = np.sqrt(np.diag(cov))
+    run_ratio = np.asarray(rec.std_ratio, dtype=float)
+    corr = np.asarray(rec.correlation, dtype=float) if np.size(rec.correlation) else None
+    free = d - int(np.linalg.matrix_rank(a))
+    resp = ", ".join(rec.names_out)
+    out = []
+    for p in params:
+        if p not in names:
+            continue
+        j = names.index(p)
+        eff = ", ".join(f"{r} {a[i, j]:+.3g}" for i, r in enumerate(rec.names_out))
+        text = (f"the {n} data rows measure {m} response{'s' if m > 1 else ''} ({resp}) for {d} "
+                f"calibrated inputs: they fix at most {m} combination{'s' if m > 1 else ''} "
+                f"of the inputs" + (f" and leave {free} to the prior" if free > 0 else "")
+                + f"; +1 prior std of {_lab(labels, p)} changes {eff} (plane through the "
+                f"{used[1]} saved samples of step {used[0]}); with the noise std "
+                + ", ".join(f"{v:.3g}" for v in noise)
+                + f" a linear-Gaussian posterior of these effects keeps {linear[j]:.2f} of "
+                f"{_lab(labels, p)}'s prior std (the run's posterior: {run_ratio[j]:.2f})")
+        if corr is not None and corr.shape == (d, d) and d > 1:
+            k = max((i for i in range(d) if i != j), key=lambda i: abs(corr[j, i]))
+            if abs(corr[j, k]) >= _MOVES_WITH:
+                text += (f"; it moves with {_lab(labels, names[k])} (posterior corr "
+                         f"{corr[j, k]:+.2f})")
+        if linear[j] >= 0.5:
+            text += (": the data do not separate it from the other inputs, so its posterior "
+                     "stays wide and its mean can sit far from the truth")
+        else:
+            text += (": the data could resolve it; a wider posterior comes from elsewhere "
+                     "(the model's nonlinearity, data that do not fit one input)")
+        out.append(text)
+    return out
+
+
+def comparison_miss(steps: Steps, bayes: StepResult | None, response: str, error: float,
+                    u_num: float, u_input: float, labels: Mapping[str, str]) -> str:
+    """What a V&V 20 miss of ``response`` (comparison error ``error`` = S - D) is not: the
+    grid (``u_num`` against |E|) nor the calibrated inputs' spread (``u_input``); and what
+    closing it with one calibrated input of ``bayes`` would take: the shift, in posterior std
+    devs, of the input whose slope (a least-squares plane through a sampling step's saved
+    samples, :func:`local_effects`) needs the smallest. "" when nothing is computable.
+
+    Examples
+    --------
+    >>> from rotoruq.steps.bayes_calibration import BayesRecord
+    >>> x = np.random.default_rng(0).normal(size=(30, 2))
+    >>> lhs = StepResult("lhs", "sampling", arrays={"inputs": x, "outputs": 0.5 * x[:, :1]},
+    ...                  meta={"columns": {"inputs": ["a", "b"], "outputs": ["roll"]}})
+    >>> arrays, meta = BayesRecord.partial(("a", "b"), ("roll",),
+    ...                                    std=np.array([0.1, 0.1])).parts()
+    >>> b = StepResult("bayes", "bayes_calibration", {}, arrays, meta=meta)
+    >>> comparison_miss({"lhs": lhs}, b, "roll", -0.25, 1e-3, 0.01, {})[:56]
+    'u_num 0.001 is 0.4 % of |E| = 0.25 and u_input 0.01 is 4'
+    """
+    if not math.isfinite(error) or error == 0:
+        return ""
+    out = (f"u_num {u_num:.3g} is {100 * u_num / abs(error):.1f} % of |E| = {abs(error):.3g} "
+           f"and u_input {u_input:.3g} is {100 * u_input / abs(error):.1f} %: not the grid, "
+           "not the spread of the calibrated inputs")
+    rec = None if bayes is None else posterior_record(bayes)
+    if rec is None:
+        return out
+    names = list(rec.names_in)
+    fx = local_effects(steps, names, response, {p: 1.0 for p in names})
+    post = {p: float(rec.std[j]) for j, p in enumerate(names)}
+    if fx is None:
+        return out
+    step, n, slope = fx
+    need = {p: abs(error / slope[p]) / post[p] for p in slope
+            if slope[p] and math.isfinite(slope[p]) and post.get(p, 0) > 0}
+    if not need:
+        return out
+    best = min(need, key=lambda p: need[p])
+    verdict = (f"beyond {_REACH:g} of them: the calibrated inputs cannot produce this "
+               f"{response} at their posterior" if need[best] > _REACH else
+               f"within {_REACH:g} of them")
+    return (out + f"; closing E with one calibrated input would take {need[best]:.3g} posterior "
+            f"std devs of {_lab(labels, best)} (d{response}/d{_lab(labels, best)} = "
+            f"{slope[best]:.3g}, posterior std {post[best]:.3g}; plane through the {n} saved "
+            f"samples of step {step}), {verdict}")
 
 
 def calibration_design(bayes: StepResult) -> list[str]:

@@ -26,6 +26,8 @@ from ..steps.cuu import CuuRecord
 from ..steps.forward_check import ForwardCheckRecord
 from .causes import (
     calibration_design,
+    comparison_miss,
+    data_information,
     input_recovery,
     model_form_gap,
     sensitivity_causes,
@@ -223,14 +225,17 @@ def _misses(labels: list[str], vals: list, ok, fmt_item) -> list[str]:
 # --------------------------------------------------------------------------------- claims
 def claims(tables: list[ComparedTable], results: Results | None = None,
            labels: Mapping[str, Mapping[str, str]] | None = None,
-           model_values: Mapping[str, Mapping[str, float]] | None = None) -> list[Claim]:
+           model_values: Mapping[str, Mapping[str, float]] | None = None,
+           spanwise: Mapping[str, Mapping] | None = None) -> list[Claim]:
     """The reference study's main claims, on our results and on the thesis's numbers.
 
     ``tables`` are the compared thesis tables (:func:`rotoruq.reference.compare.compare_tables`);
     ``results`` (study -> step -> result) supplies the diagnostics and the joint posterior
     predictive; ``labels`` (study -> parameter -> label) names parameters in the reasons;
     ``model_values`` (study -> the preset numbers ``study.json`` recorded) give the blade
-    geometry a reason may need. Every reason is computed from these (:mod:`.causes`).
+    geometry a reason may need; ``spanwise`` (study -> the section loads ``study.json``
+    recorded, :func:`rotoruq.study.runner.spanwise_record`) the cause of a lift-slope ranking.
+    Every reason is computed from these (:mod:`.causes`).
     """
     results = results or {}
     labels = labels or {}
@@ -249,6 +254,11 @@ def claims(tables: list[ComparedTable], results: Results | None = None,
                                          _col(t, 3, "ours"), _col(t, 1, "ours"), strict=True),
         strict=True) if e is not None and e > 0.02]
     if reasons and "bayes" in val:
+        by_label = {lab_v.get(k, k): k for k in lab_v}
+        missed = [by_label.get(lab, lab) for lab, e in zip(_rowlabels(t), errs["ours"],
+                                                           strict=True)
+                  if e is not None and e > 0.02]
+        reasons += data_information(val["bayes"], val, missed, lab_v)
         reasons += calibration_design(val["bayes"])
     reasons += _bayes_reasons(val, "bayes", lab_v)
     out.append(Claim(
@@ -272,7 +282,8 @@ def claims(tables: list[ComparedTable], results: Results | None = None,
     m = margin("ours")
     if s is not None and m is not None and m < 0:
         reasons = sensitivity_causes(s, val, "thrust", "cla_m03", lab_v,
-                                     model_values.get("validation", {}))
+                                     model_values.get("validation", {}),
+                                     (spanwise or {}).get("validation"))
     out.append(Claim(
         "bo105_sens_top", "Bo105 mixed sensitivity: C_La(0.3) has the largest main index of "
         "the mean thrust (table 3.6)", "S(C_La(0.3)) - largest other S", ">", 0.0,
@@ -612,6 +623,39 @@ def _validation(steps: Mapping[str, StepResult], name: str | None = None):
     return None
 
 
+def _posterior_of(steps: Mapping[str, StepResult], res: StepResult) -> StepResult | None:
+    """The calibration step a validation step took its posterior from (``from``)."""
+    up = str(res.meta.get("source") or "").split(".")[0]
+    return steps.get(up)
+
+
+def _posterior_plane(steps: Mapping[str, StepResult], bayes: StepResult | None, label: str
+                     ) -> dict[str, StepResult]:
+    """The posterior draws a forward check of ``bayes`` propagated at sweep point ``label``
+    with their outputs, as a sampling step's samples (a plane's input): the draws are the
+    chain thinned as :func:`~rotoruq.steps.forward_check.posterior_draws` thins it for the
+    step, row for row with its saved ``pp_outputs<label>``."""
+    from ..steps.forward_check import posterior_draws
+
+    out: dict[str, StepResult] = {}
+    key = f"pp_outputs{label}"
+    for s in steps.values():
+        if bayes is None or s.type != "forward_check" or key not in s.arrays:
+            continue
+        if str(s.meta.get("source") or "").split(".")[0] != bayes.name:
+            continue
+        names = list(s.meta.get("parameters") or [])
+        y = np.asarray(s.arrays[key], dtype=float)
+        x = posterior_draws(bayes, names, len(y)) if names else None
+        if x is None or len(x) != len(y):
+            continue
+        out[f"{s.name} (posterior draws at {label[1:]}R)"] = StepResult(
+            f"{s.name} (posterior draws at {label[1:]}R)", "sampling",
+            arrays={"inputs": x, "outputs": y},
+            meta={"columns": {"inputs": names, "outputs": s.columns(key)}})
+    return out
+
+
 def _condition(rec, value: float) -> int | None:
     hit = np.flatnonzero(np.isclose(rec.conditions, value))
     return int(hit[0]) if hit.size else None
@@ -672,6 +716,13 @@ def _vv20_claim(key: str, where: str, num: str, t: ComparedTable, steps, label: 
         why += (f"hide, about {100 * rec.comparison_error[p, j, m] / rec.data_mean[p, j, m]:+.1f}"
                 " % of the measurement" if rec.data_mean[p, j, m] else "hide")
         reasons.append(why)
+        post = _posterior_of(steps, res)
+        miss = comparison_miss({**steps, **_posterior_plane(steps, post, label)}, post,
+                               rec.names_out[m],
+                               float(rec.comparison_error[p, j, m]), float(rec.u_num[p, j, m]),
+                               float(rec.u_input[p, j, m]), labels)
+        if miss:
+            reasons.append(f"{lab}: {miss}")
         if j4 is not None and j4 != j and rec.simulation[p, j4, m] and rec.data_mean[p, j4, m]:
             ds = rec.simulation[p, j, m] / rec.simulation[p, j4, m] - 1
             dd = rec.data_mean[p, j, m] / rec.data_mean[p, j4, m] - 1

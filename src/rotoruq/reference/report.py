@@ -263,8 +263,10 @@ class ThesisApplication:
         results = {n: data.studies[n] for n in data.studies}
         values = {n: dict((data.infos[n].get("model") or {}).get("values") or {})
                   for n in data.studies}
+        spanwise = {n: (data.infos[n].get("model") or {}).get("spanwise") or {}
+                    for n in data.studies}
         tables = compare_tables(results, values)
-        claim_list = claims(tables, results, data.labels, values)
+        claim_list = claims(tables, results, data.labels, values, spanwise)
         files = {"claims.json": json.dumps(claims_json(claim_list), indent=1)}
         per_study: dict[str, tuple[Section, ...]] = {}
         for name in data.studies:

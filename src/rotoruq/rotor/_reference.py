@@ -3,7 +3,9 @@
 Used only by the tests and benchmarks (``tests/test_rotor_kernel.py``,
 ``benchmarks/rotor_throughput.py``), never by the model: it is the batched numpy solve that
 :mod:`rotoruq.rotor._kernel` replaced, kept to prove the compiled solve gives the same
-numbers (1e-10 relative) and to measure the speed-up against. Arrays over (sample, azimuth,
+numbers (1e-10 relative) and to measure the speed-up against; it also gives what the
+compiled solve does not return, the spanwise section loads (:func:`section_loads`), which a
+run records at its nominal point for the report's reasons. Arrays over (sample, azimuth,
 station); a converged sample leaves the iteration (its state is frozen), every reduction runs
 per sample in a fixed order, so a sample's result is bitwise the same whatever batch it is
 solved in. ``freeze=False`` iterates every sample until the slowest has converged (the
@@ -29,7 +31,7 @@ from .hover import (
 from .inflow import A0, annulus_update, prandtl_loss, uniform_update
 from .presets import RotorPreset
 
-__all__ = ["solve_hover_reference"]
+__all__ = ["solve_hover_reference", "section_loads"]
 
 
 def _wrap_deg(a):
@@ -408,13 +410,65 @@ def solve_hover_reference(
                       max_iterations, check_tolerance, freeze)
 
 
-def _solve(preset, airfoil, grid, columns, ov, n, n_harmonics, tol, max_iter, check_tol,
-           freeze):
+def section_loads(preset: RotorPreset, airfoil, grid: BladeGrid, params: dict[str, np.ndarray],
+                  overrides: dict[str, np.ndarray] | None = None, *,
+                  derivatives: tuple[str, ...] = (), n_harmonics: int = 2,
+                  tolerance: float = 1e-9, max_iterations: int = 200) -> dict[str, np.ndarray]:
+    """The spanwise loads of the converged hover state: per station, azimuth means.
+
+    Same arguments as :func:`solve_hover_reference`; ``derivatives`` names airfoil fit
+    parameters (``cla_m06``, ...) whose direct effect on the section thrust is wanted.
+    Returns ``r`` (Nr,) station radius [m],
+    ``w`` (Nr,) its span quadrature weight [m], ``thrust_per_span`` (n, Nr) the rotor's
+    thrust per unit span (all blades) [N/m] (``sum(thrust_per_span * w)`` is the thrust),
+    ``mach`` and ``alpha_deg`` (n, Nr) the section Mach number and angle of attack [deg],
+    ``failure`` (n,) the reason of a sample that did not converge ("" otherwise; its
+    loads are NaN), and for each name in ``derivatives`` ``"d_thrust_per_span/<name>"``
+    (n, Nr): d(thrust per unit span)/d(parameter) at the converged inflow and blade motion
+    held fixed (the section's own response, before the inflow answers it), by a central
+    difference of 1e-6 of the parameter's value.
+
+    Examples
+    --------
+    >>> from rotoruq.rotor.model import RotorModel
+    >>> m = RotorModel("bo105", names_in=["collective_deg"], names_out=["thrust"])
+    >>> params = {k: np.array([v]) for k, v in m.defaults().items()}
+    >>> out = section_loads(m.preset, m.airfoil, m.grid, params)
+    >>> out["thrust_per_span"].shape == (1, out["r"].size)
+    True
+    """
+    n = np.broadcast(*[np.asarray(v) for v in params.values()]).shape[0]
+    columns = sample_columns(preset, grid, params, n)
+    ov = {k: _col(overrides, k, n) for k in (overrides or {})}
+    with np.errstate(all="ignore"):
+        rot, S, _, failure = _iterate(preset, airfoil, grid, columns, ov, n, n_harmonics,
+                                      tolerance, max_iterations, True)
+        A = rot.aero(S, rot.C, ov, full=True)
+        dT = rot.blade_thrust(A)
+        out = {"r": rot.r.copy(), "w": rot.w.copy(), "thrust_per_span": dT,
+               "mach": A["mach"].mean(axis=1), "alpha_deg": A["alpha"].mean(axis=1),
+               "failure": failure.astype(str)}
+        nominal = airfoil.nominal_values() if derivatives else {}
+        for name in derivatives:
+            base = ov[name] if name in ov else np.full(n, nominal[name])
+            h = 1e-6 * np.maximum(np.abs(base), 1e-12)
+            up, down = ({**ov, name: base + sign * h} for sign in (1.0, -1.0))
+            out[f"d_thrust_per_span/{name}"] = (
+                rot.blade_thrust(rot.aero(S, rot.C, up)) - rot.blade_thrust(
+                    rot.aero(S, rot.C, down))) / (2 * h[:, None])
+    bad = failure != ""
+    for k, v in out.items():
+        if k not in ("r", "w", "failure"):
+            v[bad] = np.nan
+    return out
+
+
+def _iterate(preset, airfoil, grid, columns, ov, n, n_harmonics, tol, max_iter, freeze):
+    """The periodic iteration: (rotor constants, final state, iterations, failure reasons)."""
     rot = _Rotor(preset, airfoil, grid, columns, ov, n_harmonics)
     C = rot.C
     r = rot.r
     K = rot.kvec.size
-    Om = C["Om"]
     # Initial state: pitch from the quasi-static pitch-link balance, no flap, hover inflow
     # of linear theory at 0.75 R.
     Q = np.zeros((n, 3, K), dtype=complex)
@@ -460,6 +514,16 @@ def _solve(preset, airfoil, grid, columns, ov, n, n_harmonics, tol, max_iter, ch
     for i in np.flatnonzero(~done):
         failure[i] = (f"periodic solution did not converge in {iters[i]} iterations "
                       f"(last step {S['resid'][i]:.2e})")
+    return rot, S, iters, failure
+
+
+def _solve(preset, airfoil, grid, columns, ov, n, n_harmonics, tol, max_iter, check_tol,
+           freeze):
+    rot, S, iters, failure = _iterate(preset, airfoil, grid, columns, ov, n, n_harmonics, tol,
+                                      max_iter, freeze)
+    C = rot.C
+    K = rot.kvec.size
+    Om = C["Om"]
 
     # Re-evaluate the equations and the loads at the returned state of every sample.
     live = np.flatnonzero(failure == "")

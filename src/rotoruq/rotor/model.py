@@ -264,21 +264,7 @@ class RotorModel:
                 f"{self.names_in}, got {x.shape}"
             )
         n = x.shape[0]
-        cols = {name: x[:, j] for j, name in enumerate(self.names_in)}
-        params, overrides = {}, {}
-        defaults = self.defaults()
-        filled = np.empty((len(defaults), n))   # one array for every defaulted column
-        filled[:] = np.fromiter(defaults.values(), float, len(defaults))[:, None]
-        for row, name in enumerate(defaults):
-            params[name] = cols[name] if name in cols else filled[row]
-        for name in OPTIONAL_INPUTS:
-            if name in cols:
-                params[name] = cols[name]
-        for name in self._airfoil_names:
-            if name in cols:
-                overrides[name] = cols[name]
-            elif name in self.fixed:
-                overrides[name] = np.full(n, self.fixed[name])
+        params, overrides = self._columns(x)
         failures = self._validate(params, overrides, n)
         out = np.full((n, len(self.names_out)), np.nan)
         rows = np.array([i for i in range(n) if i not in failures], dtype=np.intp) if (
@@ -299,6 +285,70 @@ class RotorModel:
             out[rows] = vals
         self.last_solution = _full_solution(n, rows, sols, failures)
         return EvalBatch(out, failures)
+
+    def _columns(self, x: np.ndarray) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+        """The solve's input columns of the points ``x`` (n, len(names_in)): rotor inputs
+        (defaults filled in) and airfoil overrides."""
+        n = x.shape[0]
+        cols = {name: x[:, j] for j, name in enumerate(self.names_in)}
+        params, overrides = {}, {}
+        defaults = self.defaults()
+        filled = np.empty((len(defaults), n))   # one array for every defaulted column
+        filled[:] = np.fromiter(defaults.values(), float, len(defaults))[:, None]
+        for row, name in enumerate(defaults):
+            params[name] = cols[name] if name in cols else filled[row]
+        for name in OPTIONAL_INPUTS:
+            if name in cols:
+                params[name] = cols[name]
+        for name in self._airfoil_names:
+            if name in cols:
+                overrides[name] = cols[name]
+            elif name in self.fixed:
+                overrides[name] = np.full(n, self.fixed[name])
+        return params, overrides
+
+    def section_loads(self, x: npt.ArrayLike, derivatives: Sequence[str] = ()
+                      ) -> dict[str, np.ndarray]:
+        """The spanwise section loads at points ``x``, which the solve itself does not return:
+        thrust per unit span, Mach number and angle of attack per station (azimuth means),
+        and the direct effect of airfoil fit parameters on the section thrust.
+
+        Solved again by the numpy reference solve (``rotor/_reference.py``), which agrees
+        with the compiled one to 1e-10 (``tests/test_rotor_kernel.py``): a few points, not
+        a batch.
+
+        Parameters
+        ----------
+        x : array_like of shape (n, len(names_in)) or (len(names_in),)
+            Points, columns in ``names_in`` order.
+        derivatives : sequence of str, optional
+            Airfoil fit parameters (``cla_m06``, ...) whose effect on the section thrust,
+            with the inflow and blade motion held, is wanted.
+
+        Returns
+        -------
+        dict of str to ndarray
+            ``r``, ``w`` (Nr,) station radius and span weight [m]; ``thrust_per_span``,
+            ``mach``, ``alpha_deg`` (n, Nr) [N/m, -, deg]; ``failure`` (n,);
+            ``d_thrust_per_span/<name>`` (n, Nr) [N/m per unit of the parameter].
+
+        Examples
+        --------
+        >>> model = RotorModel("bo105", names_in=["collective_deg"], names_out=["thrust"])
+        >>> out = model.section_loads([[6.0]], derivatives=["cla_m06"])
+        >>> thrust = float((out["thrust_per_span"] * out["w"]).sum())
+        >>> abs(thrust / float(model([[6.0]])[0, 0]) - 1) < 1e-3
+        True
+        """
+        from ._reference import section_loads
+
+        for name in derivatives:
+            self._check_name(name, self._airfoil_names)
+        x = np.atleast_2d(np.asarray(x, dtype=float))
+        params, overrides = self._columns(x)
+        return section_loads(self.preset, self.airfoil, self.grid, params, overrides,
+                             derivatives=tuple(derivatives), n_harmonics=self.n_harmonics,
+                             tolerance=self.tolerance, max_iterations=self.max_iterations)
 
     def _solve_rows(self, params, overrides) -> HoverSolution:
         """The solution of the valid rows (columns of ``params`` and airfoil overrides)."""

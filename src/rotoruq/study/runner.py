@@ -59,7 +59,8 @@ from .schema import load_study
 from .spec import ModelSpec, StepSpec, Study, function_variables
 
 __all__ = ["run_study", "StudyRun", "build_model", "build_model_factory", "step_options",
-           "model_record", "why_rerun", "IDENTITY_PARTS", "step_code_parts", "step_references"]
+           "model_record", "spanwise_record", "why_rerun", "IDENTITY_PARTS", "step_code_parts",
+           "step_references"]
 
 log = logging.getLogger(__name__)
 
@@ -851,7 +852,8 @@ def model_record(study: Study) -> dict:
     For a rotor preset: ``values``, the preset's numeric fields and the airfoil's nominal
     (fitted) coefficients by input name (the thesis tables quote some of them); ``curves``,
     the digitized Fradenburgh ground-effect thrust ratio T/T_inf on H/R in [0.8, 4.2] (200
-    points). An external model records nothing.
+    points); for a hover study with airfoil lift slopes among its parameters, ``spanwise``
+    (:func:`spanwise_record`). An external model records nothing.
     """
     if study.model.preset is None:
         return {}
@@ -867,7 +869,62 @@ def model_record(study: Study) -> dict:
     curves = {"fradenburgh_thrust_ratio": {
         "height_over_radius": h.tolist(),
         "thrust_ratio": np.asarray(fradenburgh_thrust_ratio(h), dtype=float).tolist()}}
-    return {"values": values, "curves": curves}
+    out: dict = {"values": values, "curves": curves}
+    lift = [p.input or p.name for p in study.parameters
+            if (p.input or p.name).startswith("cla_") and (p.input or p.name) in values]
+    if lift and study.model.flight is None:
+        out["spanwise"] = spanwise_record(study, lift)
+    return out
+
+
+def spanwise_record(study: Study, lift: Sequence[str]) -> dict:
+    """The section loads behind a lift slope's effect on the thrust, at the study's nominal
+    point (the model's fixed inputs, every other parameter at its mean): per station ``r``,
+    ``w`` [m], ``mach``, ``alpha_deg`` [deg], ``thrust_per_span`` [N/m], and for each lift
+    slope in ``lift`` the direct thrust derivative ``thrust_derivative`` [N per 1/deg] with
+    the inflow and blade motion held (``station_derivative``: per station [N/m per 1/deg]).
+    When some section's pitch is negative there (collective + twist < 0), ``no_negative_pitch``
+    gives the same derivatives at the twist that makes the tip pitch zero (its
+    ``twist_deg``): whether the ranking of the lift slopes needs the negative pitch. The
+    report's reasons read it (:func:`rotoruq.reference.causes.sensitivity_causes`); the run
+    records it so the report never builds a model."""
+    from ..rotor.model import ROTOR_INPUTS, RotorModel, load_airfoil
+    from ..rotor.presets import get_preset
+
+    name = study.model.preset
+    if name is None:
+        raise ParameterError(f"{study.path}: spanwise loads need a rotor preset")
+    base = get_preset(name, **dict(study.model.preset_options))
+    known = set(ROTOR_INPUTS) | set(load_airfoil(base).parameter_names)
+    means = {p.input or p.name: float(p.distribution.mean) for p in study.parameters
+             if (p.input or p.name) in known}
+    fixed = {k: v for k, v in study.model.fixed.items() if k in known}
+
+    def at(twist: float | None) -> dict:
+        opts = dict(study.model.preset_options)
+        if twist is not None:
+            opts["twist_deg"] = twist
+        preset = get_preset(name, **opts)
+        model = RotorModel(preset, names_in=list(lift), names_out=["thrust"],
+                           fixed={k: v for k, v in {**means, **fixed}.items()
+                                  if k not in lift}, **dict(study.model.discretization))
+        sec = model.section_loads([[means[p] for p in lift]], derivatives=lift)
+        w = sec["w"]
+        rec = {"r": sec["r"].tolist(), "w": w.tolist(),
+               "mach": sec["mach"][0].tolist(), "alpha_deg": sec["alpha_deg"][0].tolist(),
+               "thrust_per_span": sec["thrust_per_span"][0].tolist(),
+               "thrust_derivative": {p: float(np.sum(sec[f"d_thrust_per_span/{p}"][0] * w))
+                                     for p in lift},
+               "station_derivative": {p: sec[f"d_thrust_per_span/{p}"][0].tolist()
+                                      for p in lift},
+               "twist_deg": float(preset.twist_deg), "failure": str(sec["failure"][0])}
+        return rec
+
+    out = {"inputs": {**means, **fixed}, **at(None)}
+    coll = float({**means, **fixed}.get("collective_deg", np.nan))
+    if np.isfinite(coll) and coll > 0 and coll + out["twist_deg"] < 0:
+        out["no_negative_pitch"] = at(-coll)
+    return out
 
 
 def _write_study_json(study: Study, out: Path, quick: bool) -> None:

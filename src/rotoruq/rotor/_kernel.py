@@ -796,14 +796,15 @@ def _lu_solve_real(A, b, x):
 @numba.njit(**_INLINE)
 def _real_index(d, k, part, K):
     """Row (and column) of the real part (part 0) or imaginary part (1) of harmonic k of
-    DOF d in the coupled system: the mean, then (re, im) per harmonic, DOF after DOF."""
-    return d * (2 * K - 1) + (0 if k == 0 else 2 * k - 1 + part)
+    DOF d (0 flap, 2 feathering) in the coupled system: the mean, then (re, im) per
+    harmonic, flap then feathering (the lag is uncoupled: stepped on its own)."""
+    return (0 if d == 0 else 2 * K - 1) + (0 if k == 0 else 2 * k - 1 + part)
 
 
 @numba.njit(**_JIT)
 def _coupled_jacobian(prm, rot, J, J0, k_v, a_lift, n_trim, ws):
-    """The Jacobian (real, n x n) of the forward-flight harmonic balance: the motion
-    harmonics of the three DOFs (mean; real and imaginary parts of k = 1..K-1), the uniform
+    """The Jacobian (real, n x n) of the forward-flight harmonic balance: the flap and
+    feathering harmonics (mean; real and imaginary parts of k = 1..K-1), the uniform
     inflow v0 and, trimmed, the controls (collective, lateral, longitudinal [rad]) with the
     trim's three equations (thrust; first-harmonic flapping or hub roll and pitch moments).
 
@@ -813,11 +814,12 @@ def _coupled_jacobian(prm, rot, J, J0, k_v, a_lift, n_trim, ws):
     U_P = v + Omega (r - e) beta' + V_x beta cos psi, so the flap moment, thrust, hub shear
     and feathering moment (x_ac) of every motion harmonic reach every harmonic (the hover
     Jacobian has only the diagonal in k). Exact for a linear airfoil at small angles; the
-    momentum row's inflow slope is completed per iteration. Returns the matrix; the momentum
-    row is nQ = 3 (2K - 1), the trim rows and control columns nQ + 1..nQ + 3."""
+    momentum row's inflow slope is completed per iteration. The lag has no aerodynamic
+    coupling here nor a structural one in J_k: it stays out. Returns the matrix; the
+    momentum row is nQ = 2 (2K - 1), the trim rows and control columns nQ + 1..nQ + 3."""
     K = rot.cos_k.shape[0]
     nH = 2 * K - 1
-    nQ = 3 * nH
+    nQ = 2 * nH
     n = nQ + 1 + n_trim
     Om, R, Nb = prm[OMEGA], rot.radius, rot.n_blades
     Vx = prm[MU] * (Om * R)
@@ -827,8 +829,8 @@ def _coupled_jacobian(prm, rot, J, J0, k_v, a_lift, n_trim, ws):
     npsi, nr = rot.cos_psi.size, rot.r.size
     M = np.zeros((n, n))
     for k in range(K):
-        for d in range(3):
-            for f in range(3):
+        for d in range(0, 3, 2):
+            for f in range(0, 3, 2):
                 z = J[k, d, f]
                 r0, c0 = _real_index(d, k, 0, K), _real_index(f, k, 0, K)
                 M[r0, c0] = z.real
@@ -837,7 +839,7 @@ def _coupled_jacobian(prm, rot, J, J0, k_v, a_lift, n_trim, ws):
                     M[r0 + 1, c0] = z.imag
                     M[r0 + 1, c0 + 1] = z.real
     M[0, nQ] = J0[0, 3].real
-    M[2 * nH, nQ] = J0[2, 3].real
+    M[nH, nQ] = J0[2, 3].real
     # span integrals sum_i omega_i (r^2, r, 1, r (r - e), r - e) for the flap-moment weight
     # omega = w (r - e) (row 0) and the shear weight omega = w (row 1)
     S = np.zeros((2, 5))
@@ -857,13 +859,8 @@ def _coupled_jacobian(prm, rot, J, J0, k_v, a_lift, n_trim, ws):
     dT = np.zeros(n)
     dFz1 = np.zeros(n, dtype=np.complex128)   # d(first harmonic of the hub shear)/dx
     for col in range(nQ + 1):
-        if col == nQ:
-            d, k, part = 1, 0, 0              # the inflow: d = 1 marks it below
-        else:
-            d, rem = col // nH, col % nH
-            k, part = (0, 0) if rem == 0 else ((rem + 1) // 2, (rem + 1) % 2)
-            if d == 1:
-                continue                      # lag: no aerodynamic coupling modelled
+        d, rem = 2 * (col // nH), col % nH    # (col == nQ: the inflow)
+        k, part = (0, 0) if rem == 0 else ((rem + 1) // 2, (rem + 1) % 2)
         for j in range(npsi):
             s, c = rot.sin_psi[j], rot.cos_psi[j]
             if col == nQ:
@@ -945,7 +942,7 @@ def _coupled_jacobian(prm, rot, J, J0, k_v, a_lift, n_trim, ws):
 
 
 @numba.njit(**_JIT)
-def _coupled_step(st, prm, rot, F_cmd, R_dyn, M, A, b, x, ws):
+def _coupled_step(st, prm, rot, Jinv, F_cmd, R_dyn, M, A, b, x, ws):
     """The motion, inflow and (trimmed) control step of forward flight with the coupled
     Jacobian M of :func:`_coupled_jacobian`. Returns the largest motion step [rad], inflow
     step [-] and control step [rad] (relaxed)."""
@@ -954,12 +951,12 @@ def _coupled_step(st, prm, rot, F_cmd, R_dyn, M, A, b, x, ws):
     K = st.Q.shape[1]
     Q, sc = st.Q, st.scalars
     relax = sc[RELAX]
-    nQ = 3 * (2 * K - 1)
+    nQ = 2 * (2 * K - 1)
     n = M.shape[0]
     for i in range(n):
         for j in range(n):
             A[i, j] = M[i, j]
-    for d in range(3):
+    for d in range(0, 3, 2):
         for k in range(K):
             r0 = _real_index(d, k, 0, K)
             b[r0] = R_dyn[d, k].real
@@ -991,8 +988,13 @@ def _coupled_step(st, prm, rot, F_cmd, R_dyn, M, A, b, x, ws):
     big = 0.0
     for d in range(3):
         for k in range(K):
-            r0 = _real_index(d, k, 0, K)
-            dq = relax * (x[r0] + 1j * x[r0 + 1]) if k > 0 else relax * x[r0] + 0j
+            if d == 1:
+                y = Jinv[k, 1, 0] * R_dyn[0, k]
+                y = y + Jinv[k, 1, 1] * R_dyn[1, k]
+                dq = relax * (y + Jinv[k, 1, 2] * R_dyn[2, k])
+            else:
+                r0 = _real_index(d, k, 0, K)
+                dq = relax * (x[r0] + 1j * x[r0 + 1]) if k > 0 else relax * x[r0] + 0j
             Q[d, k] = Q[d, k] + dq
             big = _nanmax(big, abs(dq))
     sc[V0] = sc[V0] + relax * x[nQ]
@@ -1017,9 +1019,7 @@ def _coupled_step(st, prm, rot, F_cmd, R_dyn, M, A, b, x, ws):
 def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws, M, A, b, x):
     """One iteration of a sample: returns (step size, flow not finite). A non-empty M (forward
     flight or a trim) takes the coupled step of :func:`_coupled_step`."""
-    Om, rho, kappa = prm[OMEGA], prm[RHO], prm[KAPPA]
-    R = rot.radius
-    K = st.Q.shape[1]
+    Om, R = prm[OMEGA], rot.radius
     sc = st.scalars
     relax = sc[RELAX]
     bad = _aerodynamic_loads(st.Q, sc[V0], sc[VC], sc[VS], st.v_r, prm, rot, af, fit,
@@ -1027,7 +1027,7 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws, M,
     R_dyn, Mz1 = _blade_root_loads(st.Q, Z, F_cmd, rot, ws)
     dv1 = 0.0
     if M.shape[0]:
-        big, dv, d_ctrl = _coupled_step(st, prm, rot, F_cmd, R_dyn, M, A, b, x, ws)
+        big, dv, d_ctrl = _coupled_step(st, prm, rot, Jinv, F_cmd, R_dyn, M, A, b, x, ws)
         if prm[INFLOW] == DREES and prm[MU] != 0.0:
             kx, ky = _drees(prm[MU], prm[LAMBDA_S] + sc[V0] / (Om * R))
             vc, vs = kx * sc[V0], ky * sc[V0]

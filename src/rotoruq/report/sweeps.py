@@ -66,12 +66,12 @@ def find_sweeps(types: Mapping[str, str], fixed: Mapping[str, Mapping[str, float
         differ = [k for k in keys if len({_number(fixed[n][k]) for n in names}) > 1]
         if len(differ) != 1:
             continue
-        values = [_number(fixed[n][differ[0]]) for n in names]
-        if None in values or len(set(values)) != len(values):
+        values = [v for n in names if (v := _number(fixed[n][differ[0]])) is not None]
+        if len(values) != len(names) or len(set(values)) != len(values):
             continue
-        order = sorted(range(len(names)), key=lambda i: values[i])  # type: ignore[arg-type,return-value]
+        order = sorted(range(len(names)), key=values.__getitem__)
         out.append(Sweep(typ, differ[0], tuple(names[i] for i in order),
-                         tuple(float(values[i]) for i in order)))  # type: ignore[arg-type]
+                         tuple(values[i] for i in order)))
     return out
 
 

@@ -25,7 +25,10 @@ Notation (per sample; arrays over azimuth j = 0..N_psi-1 and span stations i = 0
 Stages of one iteration: :func:`_aerodynamic_loads` (section loads over the disk at the state),
 :func:`_blade_root_loads` (their harmonics: the structural residual), the motion step with
 the Jacobian of :func:`_structural_jacobian`, :func:`_inflow_update` (momentum); at the final
-state :func:`_hub_loads` re-evaluates the equations and gives the loads.
+state :func:`_hub_loads` re-evaluates the equations and gives the loads. In forward flight
+and when trimmed the motion, inflow and control step is :func:`_coupled_step`, one real
+system over every harmonic with the Jacobian of :func:`_coupled_jacobian` (the hover blocks
+plus forward flight's couplings between the harmonics, the inflow and the controls).
 
 Every sample is solved on its own by :func:`_solve_sample`: its own step control and
 convergence test, no reduction across samples, sums in numpy's pairwise order; so a sample's

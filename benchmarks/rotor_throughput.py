@@ -215,14 +215,21 @@ def summarize(runs: list[dict]) -> dict:
     return out
 
 
-def summary_text(result: dict) -> str:
-    """The README's paragraph (``--summary``) from the saved JSON."""
-    s = result["summary"]
+def _formatter(s: dict):
+    """``f(preset, batch, key, digits)``: a figure's median and range as the summary prints."""
 
     def f(preset, batch, key, digits=0):
         med, lo, hi = s[preset][batch][key]
         fmt = f"{{:,.{digits}f}}"
         return f"{fmt.format(med)} ({fmt.format(lo)}-{fmt.format(hi)})"
+
+    return f
+
+
+def summary_text(result: dict) -> str:
+    """The README's paragraph (``--summary``) from the saved JSON."""
+    s = result["summary"]
+    f = _formatter(s)
 
     met = [k for k, ok in result["targets_met"].items() if ok]
     missed = [k for k, ok in result["targets_met"].items() if not ok]
@@ -263,13 +270,16 @@ def summary_text(result: dict) -> str:
 
 def _forward_text(result: dict, f) -> str:
     """The forward-flight sentence of the summary (issue 38)."""
+    s_fwd = result["summary"]["forward"]["batch_1000"]
     return (
         f" In forward flight (gvpm, mu = 0.2, wind-tunnel trim: collective and cyclic solved "
         f"for the thrust and zero first-harmonic flapping) "
         f"{f('forward', 'batch_1000', 'compiled')} trimmed evaluations/s at batch 1000 "
         f"({f('forward', 'batch_1000', 'compiled_per_cpu_s')} per CPU-second, "
         f"{f('forward', 'batch_1000', 'iterations_mean', 1)} iterations, target 5,000/s: "
-        f"{'met' if result['targets_met'].get('forward_trimmed_batch_1000') else 'not met'}),"
+        f"{'met' if result['targets_met'].get('forward_trimmed_batch_1000') else 'not met'};"
+        f" {result['cpu_count']} free cores at this CPU time per evaluation would give "
+        f"{result['cpu_count'] * s_fwd['compiled_per_cpu_s'][0]:,.0f}/s),"
         f" {f('forward', 'batch_1', 'compiled')}/s at batch 1."
     )
 
@@ -279,11 +289,17 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--summary", action="store_true",
                         help="print the README paragraph from the saved JSON")
+    parser.add_argument("--forward", action="store_true",
+                        help="with --summary: the forward-flight sentence only")
     parser.add_argument("--out", type=Path, default=OUT,
                         help=f"the JSON written, or read by --summary (default {OUT.name})")
     args = parser.parse_args()
     if args.summary:
-        print(summary_text(json.loads(args.out.read_text())))
+        saved = json.loads(args.out.read_text())
+        if args.forward:
+            print(_forward_text(saved, _formatter(saved["summary"])).strip())
+        else:
+            print(summary_text(saved))
         return
     rng = np.random.default_rng(0)
     threads = numba.get_num_threads()

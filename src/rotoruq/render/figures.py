@@ -513,3 +513,58 @@ def ground_effect_curves(name: str, resp: Sequence[str], labels: Sequence[str],
         out.append(Figure(f"{name}_{r}_vs_height",
                           f"Normalised {title} coefficient vs H/R ({name})", fig))
     return out
+
+
+def sobol_sweep(swept: str, values: Sequence[float], steps: Sequence[str],
+                sobols: Sequence[SobolIndices], mean: np.ndarray, std: np.ndarray,
+                labels: Mapping[str, str] | None = None,
+                units: Mapping[str, str] | None = None) -> list[Figure]:
+    """Sobol indices and the response across steps that differ in one fixed input.
+
+    One figure per response: the main (solid) and total (dashed) index of every input
+    against the swept input's value, and the response's mean +- one std beside them.
+
+    Parameters
+    ----------
+    swept : str
+        The fixed input the steps differ in (e.g. ``advance_ratio``).
+    values : sequence of float
+        Its value at each step, shape (k,), increasing.
+    steps : sequence of str
+        The steps' names, in the order of ``values``.
+    sobols : sequence of SobolIndices
+        Each step's indices (the same inputs and responses in each).
+    mean, std : ndarray of shape (k, m)
+        Each step's response means and standard deviations, in the responses' units.
+    labels, units : mapping of str to str, optional
+        Display labels and units of inputs and responses.
+
+    Returns
+    -------
+    list of Figure
+        ``sweep_<swept>_<response>``, one per response.
+    """
+    x = np.asarray(values, dtype=float)
+    first = sobols[0]
+    out = []
+    for k, r in enumerate(first.names_out):
+        fig, (ax, ay) = _subplots(1, 2, figsize=(9, 3.4))
+        for j, p in enumerate(first.names_in):
+            line, = ax.plot(x, [s.main[k, j] for s in sobols], "o-",
+                            label=f"{(labels or {}).get(p) or p}: main")
+            ax.plot(x, [s.total[k, j] for s in sobols], "s--", color=line.get_color(),
+                    label=f"{(labels or {}).get(p) or p}: total")
+        ax.set_xlabel(axis_label(swept, labels, units), fontsize=_TICK)
+        ax.set_ylabel("Sobol index [-]", fontsize=_TICK)
+        ax.set_title(f"Indices of {(labels or {}).get(r) or r}", fontsize=9)
+        ay.errorbar(x, mean[:, k], yerr=std[:, k], fmt="o-", capsize=3, color="k",
+                    label="mean +- 1 std")
+        ay.set_xlabel(axis_label(swept, labels, units), fontsize=_TICK)
+        ay.set_ylabel(axis_label(r, labels, units), fontsize=_TICK)
+        ay.set_title(f"{(labels or {}).get(r) or r} across the steps", fontsize=9)
+        for a in (ax, ay):
+            a.tick_params(labelsize=_TICK)
+        _legend_below(fig, (ax, ay))
+        out.append(Figure(f"sweep_{swept}_{r}", f"Sobol indices and {r} against {swept} "
+                          f"(steps {', '.join(steps)})", fig))
+    return out

@@ -47,6 +47,7 @@ from .escape import text as e
 from .hooks import rendering
 from .provenance import failed_evaluations, git_commit
 from .steptables import step_tables, table_csv
+from .sweeps import sweep_figures
 from .tables import fmt, step_table_html
 from .verdict import verdict_lines
 
@@ -462,6 +463,11 @@ def _write_report(results_dirs: Sequence[str | Path], report_dir: Path, out: Saf
                 cache.prune()
                 cache.close()
             figs = [f for step in steps for f in drawn.get((name, step), [])]
+            # steps of one type that differ in one fixed input: drawn against it
+            figs += _render(sweep_figures(
+                steps, {s: r.type for s, r in steps.items()}, info.get("step_fixed") or {},
+                FigureContext(name, steps, labels.get(name, {}), units.get(name, {}),
+                              beside.get(name), _recorded(info, "curves"))))
             if figs:
                 heading(3, "Figures", _anchor(sid, "figures"))
             for f in figs:

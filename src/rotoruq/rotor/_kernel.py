@@ -25,7 +25,10 @@ Notation (per sample; arrays over azimuth j = 0..N_psi-1 and span stations i = 0
 Stages of one iteration: :func:`_aerodynamic_loads` (section loads over the disk at the state),
 :func:`_blade_root_loads` (their harmonics: the structural residual), the motion step with
 the Jacobian of :func:`_structural_jacobian`, :func:`_inflow_update` (momentum); at the final
-state :func:`_hub_loads` re-evaluates the equations and gives the loads.
+state :func:`_hub_loads` re-evaluates the equations and gives the loads. In forward flight
+and when trimmed the motion, inflow and control step is :func:`_coupled_step`, one real
+system over every harmonic with the Jacobian of :func:`_coupled_jacobian` (the hover blocks
+plus forward flight's couplings between the harmonics, the inflow and the controls).
 
 Every sample is solved on its own by :func:`_solve_sample`: its own step control and
 convergence test, no reduction across samples, sums in numpy's pairwise order; so a sample's
@@ -59,20 +62,22 @@ LIFT_SECANT_DEG = 2.0   # half-width of the secant giving the Jacobian's lift sl
 
 # Columns of the per-sample input matrix
 (OMEGA, RHO, KAPPA, K_FLAP, C_FLAP, K_LAG, C_LAG, K_FEATHER, C_FEATHER, X_AC, CM0, COLLECTIVE,
- LATERAL, LONGITUDINAL, MU, LAMBDA_S, INFLOW, TRIM, THRUST_TARGET, N_COLUMNS) = range(20)
+ LATERAL, LONGITUDINAL, MU, LAMBDA_S, INFLOW, TRIM, THRUST_TARGET, ROLL_TARGET, PITCH_TARGET,
+ N_COLUMNS) = range(22)
 # Forward flight (rotor.forward): advance ratio mu = V cos(alpha_s) / (Omega R), free-stream
 # inflow ratio lambda_s = mu tan(alpha_s) (alpha_s positive tilting the disk forward), the
-# inflow model (GLAUERT uniform, DREES linear), the trim (NO_TRIM, WIND_TUNNEL: collective
-# and cyclic solved for THRUST_TARGET [N] and zero first-harmonic flapping). mu = 0 takes
-# the hover code paths unchanged.
+# inflow model (GLAUERT uniform, DREES linear), the trim (NO_TRIM; WIND_TUNNEL: collective
+# and cyclic solved for THRUST_TARGET [N] and zero first-harmonic flapping; HUB_MOMENTS: for
+# THRUST_TARGET and the hub moments ROLL_TARGET, PITCH_TARGET [N m]). mu = 0 without a trim
+# takes the hover code paths unchanged.
 GLAUERT, DREES = 0, 1
 TRIM_PITCH_LIMIT_DEG = 90.0   # |collective| + |cyclic| a trim may reach [deg]
-NO_TRIM, WIND_TUNNEL = 0, 1
+NO_TRIM, WIND_TUNNEL, HUB_MOMENTS = 0, 1, 2
 # Columns of the loads written by _hub_loads
 N_LOADS = 9
 
 # Failure reasons of the iteration (the final check's reasons are judged in hover.py)
-OK, NONFINITE, TOO_LARGE, NOT_CONVERGED, TRIM_PITCH = range(5)
+OK, NONFINITE, TOO_LARGE, NOT_CONVERGED, TRIM_PITCH, TRIM_SINGULAR = range(6)
 
 # Airfoil kinds
 TABLE, LINEAR = 0, 1
@@ -524,7 +529,7 @@ def _structural_jacobian(prm, rot, af, fit, linear, ws):
     if K > 1:
         J1[:3, :3] = J[1]
     J1[0, 3] = qa * sums[SUM_W_R_RR_R] / R
-    return Z, Jinv, J0, J1, F_cmd, v_init, k_v, qa
+    return Z, Jinv, J0, J1, F_cmd, v_init, k_v, qa, J, a_lift
 
 
 @numba.njit(**_JIT)
@@ -756,24 +761,303 @@ class Work(NamedTuple):
     A: np.ndarray             # (4, 4) complex: a joint Jacobian, its LU factors
     rhs: np.ndarray           # (4,) complex
     x: np.ndarray             # (4,) complex: the joint step
-    A5: np.ndarray            # (5, 5) complex: the mean block with the trim's collective
-    rhs5: np.ndarray          # (5,) complex
-    x5: np.ndarray            # (5,) complex
     im: np.ndarray            # (N_psi, N_r) int: Mach interval of each element (table)
     s: np.ndarray             # (N_psi, N_r): its weight
 
 
 @numba.njit(**_JIT)
-def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
-    """One iteration of a sample: returns (step size, flow not finite)."""
+def _lu_solve_real(A, b, x):
+    """x with A x = b for a small real A (Gaussian elimination, partial pivoting), written to
+    and returned as x. A and b are overwritten."""
+    m = b.size
+    for col in range(m):
+        p = col
+        best = abs(A[col, col])
+        for row in range(col + 1, m):
+            v = abs(A[row, col])
+            if v > best:
+                best, p = v, row
+        if p != col:
+            for k in range(m):
+                A[col, k], A[p, k] = A[p, k], A[col, k]
+            b[col], b[p] = b[p], b[col]
+        piv = A[col, col]
+        for row in range(col + 1, m):
+            f = A[row, col] / piv
+            A[row, col] = f
+            for k in range(col + 1, m):
+                A[row, k] -= f * A[col, k]
+            b[row] -= f * b[col]
+    for row in range(m - 1, -1, -1):
+        s = b[row]
+        for k in range(row + 1, m):
+            s -= A[row, k] * x[k]
+        x[row] = s / A[row, row]
+    return x
+
+
+@numba.njit(**_INLINE)
+def _real_index(d, k, part, K):
+    """Row (and column) of the real part (part 0) or imaginary part (1) of harmonic k of
+    DOF d (0 flap, 2 feathering) in the coupled system: the mean, then (re, im) per
+    harmonic, flap then feathering (the lag is uncoupled: stepped on its own)."""
+    return (0 if d == 0 else 2 * K - 1) + (0 if k == 0 else 2 * k - 1 + part)
+
+
+@numba.njit(**_JIT)
+def _coupled_jacobian(prm, rot, J, J0, k_v, a_lift, n_trim, ws):
+    """The Jacobian (real, n x n) of the forward-flight harmonic balance: the flap and
+    feathering harmonics (mean; real and imaginary parts of k = 1..K-1), the uniform
+    inflow v0 and, trimmed, the controls (collective, lateral, longitudinal [rad]) with the
+    trim's three equations (thrust; first-harmonic flapping or hub roll and pitch moments).
+
+    The hover blocks J_k, J0 (per harmonic, complex) in real form, plus the couplings of
+    forward flight from linear theory on the grid: a section's lift
+    C (U_T^2 theta - U_T U_P), C = rho c a_lift / 2, with U_T = Omega r + V_x sin psi and
+    U_P = v + Omega (r - e) beta' + V_x beta cos psi, so the flap moment, thrust, hub shear
+    and feathering moment (x_ac) of every motion harmonic reach every harmonic (the hover
+    Jacobian has only the diagonal in k). Exact for a linear airfoil at small angles; the
+    momentum row's inflow slope is completed per iteration. The lag has no aerodynamic
+    coupling here nor a structural one in J_k: it stays out. Returns the matrix; the
+    momentum row is nQ = 2 (2K - 1), the trim rows and control columns nQ + 1..nQ + 3."""
+    K = rot.cos_k.shape[0]
+    nH = 2 * K - 1
+    nQ = 2 * nH
+    n = nQ + 1 + n_trim
+    Om, R, Nb = prm[OMEGA], rot.radius, rot.n_blades
+    Vx = prm[MU] * (Om * R)
+    C = 0.5 * prm[RHO] * rot.chord * a_lift
+    x_ac = prm[X_AC]
+    e = rot.hinge_offset
+    npsi, nr = rot.cos_psi.size, rot.r.size
+    M = np.zeros((n, n))
+    for k in range(K):
+        for d in range(0, 3, 2):
+            for f in range(0, 3, 2):
+                z = J[k, d, f]
+                r0, c0 = _real_index(d, k, 0, K), _real_index(f, k, 0, K)
+                M[r0, c0] = z.real
+                if k > 0:
+                    M[r0, c0 + 1] = -z.imag
+                    M[r0 + 1, c0] = z.imag
+                    M[r0 + 1, c0 + 1] = z.real
+    M[0, nQ] = J0[0, 3].real
+    M[nH, nQ] = J0[2, 3].real
+    # span integrals sum_i omega_i (r^2, r, 1, r (r - e), r - e) for the flap-moment weight
+    # omega = w (r - e) (row 0) and the shear weight omega = w (row 1)
+    S = np.zeros((2, 5))
+    for i in range(nr):
+        r, rr = rot.r[i], rot.rr[i]
+        for row in range(2):
+            wt = rot.w[i] * (rr if row == 0 else 1.0)
+            S[row, 0] += wt * r * r
+            S[row, 1] += wt * r
+            S[row, 2] += wt
+            S[row, 3] += wt * r * rr
+            S[row, 4] += wt * rr
+    flap_line, shear_line = np.empty(npsi), np.empty(npsi)
+    full_line = np.empty(npsi)
+    harm = np.empty(K, dtype=np.complex128)
+    scratch = np.empty(npsi)
+    dT = np.zeros(n)
+    dFz1 = np.zeros(n, dtype=np.complex128)   # d(first harmonic of the hub shear)/dx
+    for col in range(nQ + 1):
+        d, rem = 2 * (col // nH), col % nH    # (col == nQ: the inflow)
+        k, part = (0, 0) if rem == 0 else ((rem + 1) // 2, (rem + 1) % 2)
+        for j in range(npsi):
+            s, c = rot.sin_psi[j], rot.cos_psi[j]
+            if col == nQ:
+                q, dq = 1.0, 0.0
+            elif part == 0:
+                q, dq = rot.cos_k[k, j], -k * rot.sin_k[k, j]
+            else:
+                q, dq = -rot.sin_k[k, j], -k * rot.cos_k[k, j]
+            for row in range(2):
+                Sr2, Sr, S1, Srr_r, Srr = S[row, 0], S[row, 1], S[row, 2], S[row, 3], S[row, 4]
+                if col == nQ:       # uniform inflow
+                    hover = -C * Om * Sr
+                    full = -C * (Om * Sr + Vx * s * S1)
+                elif d == 2:        # feathering
+                    hover = C * q * (Om * Om * Sr2)
+                    full = C * q * (Om * Om * Sr2 + 2 * Om * Vx * s * Sr + Vx * Vx * s * s * S1)
+                else:               # flap
+                    hover = -C * dq * (Om * Om * Srr_r)
+                    full = -C * (dq * Om * (Om * Srr_r + Vx * s * Srr)
+                                 + q * Vx * c * (Om * Sr + Vx * s * S1))
+                if row == 0:
+                    flap_line[j] = full - hover
+                else:
+                    shear_line[j] = full - hover
+                    full_line[j] = full
+        # flap rows: A = -d(aerodynamic flap moment)/dx; feathering rows: the lift x_ac aft
+        # of the axis, -x_ac x shear
+        _analyse(flap_line, rot, harm, scratch)
+        for kk in range(K):
+            r0 = _real_index(0, kk, 0, K)
+            M[r0, col] -= harm[kk].real
+            if kk > 0:
+                M[r0 + 1, col] -= harm[kk].imag
+        if x_ac != 0:
+            _analyse(shear_line, rot, harm, scratch)
+            for kk in range(K):
+                r0 = _real_index(2, kk, 0, K)
+                M[r0, col] += x_ac * harm[kk].real
+                if kk > 0:
+                    M[r0 + 1, col] += x_ac * harm[kk].imag
+        _analyse(full_line, rot, harm, scratch)
+        dT[col] = Nb * harm[0].real
+        if K > 1:
+            dFz1[col] = harm[1]
+    # the hover thrust derivatives are J0's (the same linear theory): keep its numbers
+    dT[_real_index(2, 0, 0, K)] = -J0[3, 2].real
+    dT[nQ] = -k_v
+    for col in range(nQ + 1):
+        M[nQ, col] = -dT[col]
+    if n_trim:
+        K_p, C_p = prm[K_FEATHER], prm[C_FEATHER]
+        p0 = _real_index(2, 0, 0, K)
+        p1 = _real_index(2, 1, 0, K)
+        # commanded pitch through the pitch link: F = (K_p + i Omega C_p)(theta_1c - i theta_1s)
+        M[p0, nQ + 1] = -K_p
+        M[p1, nQ + 2] = -K_p
+        M[p1, nQ + 3] = -Om * C_p
+        M[p1 + 1, nQ + 2] = -Om * C_p
+        M[p1 + 1, nQ + 3] = K_p
+        for col in range(nQ + 1):
+            M[nQ + 1, col] = dT[col]
+        b1 = _real_index(0, 1, 0, K)
+        if prm[TRIM] == WIND_TUNNEL:
+            M[nQ + 2, b1] = 1.0
+            M[nQ + 3, b1 + 1] = 1.0
+        else:
+            # hub moments N_b / 2 x the first harmonic of the root moment
+            # M_1 = (K_b + i Omega C_b + e S Omega^2) B_1 + e F_z1
+            g = prm[K_FLAP] + 1j * Om * prm[C_FLAP] + e * rot.S_flap * Om * Om
+            for col in range(nQ + 1):
+                dm = e * dFz1[col]
+                if col == b1:
+                    dm += g
+                elif col == b1 + 1:
+                    dm += 1j * g
+                M[nQ + 2, col] = 0.5 * Nb * dm.imag
+                M[nQ + 3, col] = -0.5 * Nb * dm.real
+    return M
+
+
+@numba.njit(**_JIT)
+def _coupled_step(st, prm, rot, Jinv, F_cmd, R_dyn, M, A, b, x, ws):
+    """The motion, inflow and (trimmed) control step of forward flight with the coupled
+    Jacobian M of :func:`_coupled_jacobian`. Returns the largest motion step [rad], inflow
+    step [-] and control step [rad] (relaxed)."""
     Om, rho, kappa = prm[OMEGA], prm[RHO], prm[KAPPA]
-    R = rot.radius
+    R, Nb = rot.radius, rot.n_blades
     K = st.Q.shape[1]
+    Q, sc = st.Q, st.scalars
+    relax = sc[RELAX]
+    nQ = 2 * (2 * K - 1)
+    n = M.shape[0]
+    for i in range(n):
+        for j in range(n):
+            A[i, j] = M[i, j]
+    for d in range(0, 3, 2):
+        for k in range(K):
+            r0 = _real_index(d, k, 0, K)
+            b[r0] = R_dyn[d, k].real
+            if k > 0:
+                b[r0 + 1] = R_dyn[d, k].imag
+    _blade_thrust(rot, ws, ws.dT_r)
+    for i in range(rot.r.size):
+        ws.span_line[i] = ws.dT_r[i] * rot.w[i]
+    T_be = _psum(ws.span_line, rot.r.size)
+    v = sc[V0]
+    F = _uniform_tip_loss(v, Om, rot, ws.span_scratch)
+    mom = 2 * rho * rot.area * F / kappa**2
+    Vp, dVp = _glauert(v, prm[MU] * (Om * R), prm[LAMBDA_S] * (Om * R))
+    A[nQ, nQ] += mom * (Vp + v * dVp)
+    b[nQ] = T_be - mom * v * Vp
+    if n > nQ + 1:
+        b[nQ + 1] = prm[THRUST_TARGET] - T_be
+        if prm[TRIM] == WIND_TUNNEL:
+            b[nQ + 2] = -Q[0, 1].real
+            b[nQ + 3] = -Q[0, 1].imag
+        else:
+            _span_sum(ws.dFz, rot.w, ws.psi_line, ws.span_line)
+            _analyse(ws.psi_line, rot, ws.harm, ws.psi_scratch)
+            M1 = (prm[K_FLAP] + 1j * Om * prm[C_FLAP]) * Q[0, 1] + rot.hinge_offset * (
+                ws.harm[1] + rot.S_flap * Om * Om * Q[0, 1])
+            b[nQ + 2] = prm[ROLL_TARGET] - 0.5 * Nb * M1.imag
+            b[nQ + 3] = prm[PITCH_TARGET] + 0.5 * Nb * M1.real
+    _lu_solve_real(A, b, x)
+    big = 0.0
+    for d in range(3):
+        for k in range(K):
+            if d == 1:
+                y = Jinv[k, 1, 0] * R_dyn[0, k]
+                y = y + Jinv[k, 1, 1] * R_dyn[1, k]
+                dq = relax * (y + Jinv[k, 1, 2] * R_dyn[2, k])
+            else:
+                r0 = _real_index(d, k, 0, K)
+                dq = relax * (x[r0] + 1j * x[r0 + 1]) if k > 0 else relax * x[r0] + 0j
+            Q[d, k] = Q[d, k] + dq
+            big = _nanmax(big, abs(dq))
+    sc[V0] = sc[V0] + relax * x[nQ]
+    dv = abs(relax * x[nQ]) / (Om * R)
+    d_ctrl = 0.0
+    if n > nQ + 1:
+        K_p, C_p = prm[K_FEATHER], prm[C_FEATHER]
+        th0 = np.deg2rad(prm[COLLECTIVE]) + relax * x[nQ + 1]
+        c1 = np.deg2rad(prm[LATERAL]) + relax * x[nQ + 2]
+        c2 = np.deg2rad(prm[LONGITUDINAL]) + relax * x[nQ + 3]
+        prm[COLLECTIVE] = th0 * RAD2DEG
+        prm[LATERAL] = c1 * RAD2DEG
+        prm[LONGITUDINAL] = c2 * RAD2DEG
+        F_cmd[2, 0] = K_p * th0
+        F_cmd[2, 1] = (K_p + 1j * Om * C_p) * (c1 - 1j * c2)
+        for i in range(3):
+            d_ctrl = _nanmax(d_ctrl, abs(relax * x[nQ + 1 + i]))
+    return big, dv, d_ctrl
+
+
+@numba.njit(**_JIT)
+def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws, M, A, b, x):
+    """One iteration of a sample: returns (step size, flow not finite). A non-empty M (forward
+    flight or a trim) takes the coupled step of :func:`_coupled_step`."""
+    Om, R = prm[OMEGA], rot.radius
     sc = st.scalars
     relax = sc[RELAX]
     bad = _aerodynamic_loads(st.Q, sc[V0], sc[VC], sc[VS], st.v_r, prm, rot, af, fit,
                              linear, ws)
     R_dyn, Mz1 = _blade_root_loads(st.Q, Z, F_cmd, rot, ws)
+    dv1 = 0.0
+    if M.shape[0]:
+        big, dv, d_ctrl = _coupled_step(st, prm, rot, Jinv, F_cmd, R_dyn, M, A, b, x, ws)
+        if prm[INFLOW] == DREES and prm[MU] != 0.0:
+            kx, ky = _drees(prm[MU], prm[LAMBDA_S] + sc[V0] / (Om * R))
+            vc, vs = kx * sc[V0], ky * sc[V0]
+            dv1 = max(abs(vc - sc[VC]), abs(vs - sc[VS])) / (Om * R)
+            sc[VC], sc[VS] = vc, vs
+        size = _nanmax(_nanmax(big, _nanmax(dv, dv1)), d_ctrl) / relax
+    else:
+        size = _hover_step(st, prm, rot, Jinv, J0, J1, k_v, qa, ws, R_dyn, Mz1)
+    # per-sample step control: halve the step of a sample whose update grew (stall and strong
+    # aerodynamic pitching moments make the fixed point oscillate), regrow it when it shrinks
+    if size > sc[RESID]:
+        sc[RELAX] = max(0.5 * relax, 0.05)
+    else:
+        sc[RELAX] = min(1.5 * relax, 1.0)
+    sc[RESID] = size
+    return size, bad
+
+
+@numba.njit(**_JIT)
+def _hover_step(st, prm, rot, Jinv, J0, J1, k_v, qa, ws, R_dyn, Mz1):
+    """The motion and inflow step of hover (block diagonal in the harmonics); returns the
+    step size before relaxation."""
+    Om, rho, kappa = prm[OMEGA], prm[RHO], prm[KAPPA]
+    R = rot.radius
+    K = st.Q.shape[1]
+    sc = st.scalars
+    relax = sc[RELAX]
     dQ = ws.dQ
     for k in range(K):
         for d in range(3):
@@ -781,28 +1065,7 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
             y = y + Jinv[k, d, 1] * R_dyn[1, k]
             dQ[d, k] = y + Jinv[k, d, 2] * R_dyn[2, k]
     dv1 = 0.0
-    forward = prm[MU] != 0.0
-    # wind-tunnel trim: the controls join the unknowns of the mean and first-harmonic
-    # blocks, with the equations thrust = target and first-harmonic flapping = 0
-    trim = prm[TRIM] == WIND_TUNNEL and K > 1
-    K_p, C_p = prm[K_FEATHER], prm[C_FEATHER]
-    d_ctrl = 0.0
-    if trim:
-        rhs, A = ws.rhs, ws.A
-        A[:, :] = 0.0
-        A[:3, :3] = J1[:3, :3]
-        A[2, 3] = -(K_p + 1j * Om * C_p)
-        A[3, 0] = 1.0
-        rhs[:3] = R_dyn[:, 1]
-        rhs[3] = -st.Q[0, 1]
-        d1 = _lu_solve(A, rhs, ws.x)
-        dQ[:, 1] = d1[:3]
-        th1 = (np.deg2rad(prm[LATERAL]) - 1j * np.deg2rad(prm[LONGITUDINAL])) + relax * d1[3]
-        prm[LATERAL] = th1.real * RAD2DEG
-        prm[LONGITUDINAL] = -th1.imag * RAD2DEG
-        F_cmd[2, 1] = (K_p + 1j * Om * C_p) * th1
-        d_ctrl = abs(relax * d1[3])
-    elif rot.harmonic_inflow and K > 1 and not forward:
+    if rot.harmonic_inflow and K > 1:
         # first harmonic: blade motion and the Pitt-Peters inflow V1 = v_c - i v_s together
         s = rot.sums
         dMz_dV = -qa * s[SUM_W_R3] / R
@@ -836,30 +1099,9 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
         for i in range(rot.r.size):
             ws.span_line[i] = ws.dT_r[i] * rot.w[i]
         T_be = _psum(ws.span_line, rot.r.size)
-        if forward:
-            # Glauert: T = 2 rho A F v V' / kappa^2
-            Vp, dVp = _glauert(v, prm[MU] * (Om * R), prm[LAMBDA_S] * (Om * R))
-            A[3, 3] = k_v + mom * (Vp + v * dVp)
-            rhs[3] = T_be - mom * v * Vp
-        else:
-            A[3, 3] = k_v + 2 * mom * abs(v)
-            rhs[3] = T_be - mom * v * abs(v)
-        if trim:
-            A5, rhs5 = ws.A5, ws.rhs5
-            A5[:, :] = 0.0
-            A5[:4, :4] = A
-            A5[2, 4] = -K_p
-            A5[4, 2] = -J0[3, 2]
-            A5[4, 3] = -k_v
-            rhs5[:4] = rhs
-            rhs5[4] = prm[THRUST_TARGET] - T_be
-            d0 = _lu_solve(A5, rhs5, ws.x5)
-            th0 = np.deg2rad(prm[COLLECTIVE]) + relax * d0[4].real
-            prm[COLLECTIVE] = th0 * RAD2DEG
-            F_cmd[2, 0] = K_p * th0
-            d_ctrl = _nanmax(d_ctrl, abs(relax * d0[4].real))
-        else:
-            d0 = _lu_solve(A, rhs, ws.x)
+        A[3, 3] = k_v + 2 * mom * abs(v)
+        rhs[3] = T_be - mom * v * abs(v)
+        d0 = _lu_solve(A, rhs, ws.x)
         dQ[:, 0] = d0[:3]
         dv_step = d0[3].real
     big = 0.0
@@ -873,22 +1115,7 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
     else:
         sc[V0] = sc[V0] + relax * dv_step
         dv = abs(relax * dv_step) / (Om * R)
-    if forward and prm[INFLOW] == DREES:
-        kx, ky = _drees(prm[MU], prm[LAMBDA_S] + sc[V0] / (Om * R))
-        vc, vs = kx * sc[V0], ky * sc[V0]
-        dv1 = max(abs(vc - sc[VC]), abs(vs - sc[VS])) / (Om * R)
-        sc[VC], sc[VS] = vc, vs
-    size = _nanmax(big, _nanmax(dv, dv1)) / relax
-    if trim:
-        size = _nanmax(size, d_ctrl / relax)
-    # per-sample step control: halve the step of a sample whose update grew (stall and strong
-    # aerodynamic pitching moments make the fixed point oscillate), regrow it when it shrinks
-    if size > sc[RESID]:
-        sc[RELAX] = max(0.5 * relax, 0.05)
-    else:
-        sc[RELAX] = min(1.5 * relax, 1.0)
-    sc[RESID] = size
-    return size, bad
+    return _nanmax(big, _nanmax(dv, dv1)) / relax
 
 
 @numba.njit(**_JIT)
@@ -1053,16 +1280,22 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_ou
     """
     K = rot.cos_k.shape[0]
     nr = rot.r.size
-    Z, Jinv, J0, J1, F_cmd, v_init, k_v, qa = _structural_jacobian(prm, rot, af, fit, linear,
-                                                                   ws)
+    Z, Jinv, J0, J1, F_cmd, v_init, k_v, qa, J, a_lift = _structural_jacobian(
+        prm, rot, af, fit, linear, ws)
     # initial state: pitch from the quasi-static pitch-link balance, no flap, linear-theory
     # hover inflow at 0.75 R
     Q = np.zeros((3, K), dtype=np.complex128)
     for k in range(K):
         Q[2, k] = F_cmd[2, k] / Z[k, 2, 2]
-    trim = prm[TRIM] == WIND_TUNNEL and K > 1
+    trim = prm[TRIM] != NO_TRIM and K > 1
     if trim:
         v_init = _trim_inflow(prm, rot)
+    # forward flight and the trims: the coupled harmonic balance (hover: M empty)
+    if trim or prm[MU] != 0.0:
+        M = _coupled_jacobian(prm, rot, J, J0, k_v, a_lift, 3 if trim else 0, ws)
+    else:
+        M = np.zeros((0, 0))
+    A, b, x = np.empty_like(M), np.empty(M.shape[0]), np.empty(M.shape[0])
     scalars = np.zeros(N_SCALARS)
     scalars[V0] = v_init
     scalars[RELAX] = 1.0
@@ -1070,8 +1303,17 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_ou
     v_r = np.full(nr, v_init)
     st = State(Q, scalars, v_r, v_r.copy(), np.zeros(nr))
     reason, dof, bad, iterations = NOT_CONVERGED, 0, False, 0
+    if trim and prm[TRIM] == HUB_MOMENTS:
+        singular = True
+        for col in range(M.shape[1]):
+            if M[M.shape[0] - 2, col] != 0.0 or M[M.shape[0] - 1, col] != 0.0:
+                singular = False
+        if singular:
+            reason = TRIM_SINGULAR
+            max_iterations = 0
     for _ in range(max_iterations):
-        size, bad = _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws)
+        size, bad = _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws,
+                          M, A, b, x)
         iterations += 1
         if trim:
             if (abs(prm[COLLECTIVE]) + abs(prm[LATERAL]) + abs(prm[LONGITUDINAL])
@@ -1122,8 +1364,6 @@ def _workspace(rot):
                 f[10], f[11], f[12], f[13], f[14], np.empty(npsi), np.empty(npsi),
                 np.empty(nr), np.empty(nr), np.empty(nr), c[0], c[1], c[2, 0],
                 np.empty((4, 4), dtype=np.complex128), v[0], v[1],
-                np.empty((5, 5), dtype=np.complex128), np.empty(5, dtype=np.complex128),
-                np.empty(5, dtype=np.complex128),
                 np.zeros((npsi, nr), dtype=np.int64), np.zeros((npsi, nr)))
 
 

@@ -12,8 +12,12 @@ hover model's harmonic balance (:mod:`rotoruq.rotor.hover`); the periodic aerody
 coefficients of forward flight are in the loads the balance analyses.
 
 Wind-tunnel trim (``trim="wind_tunnel"``) solves the collective and cyclic for a thrust
-(``thrust_target``) and zero first-harmonic flapping inside the same iteration; a point that
-cannot trim is a failed row with its reason. Out of ground effect only: a finite
+(``thrust_target``) and zero first-harmonic flapping inside the same iteration; hub-moment
+trim (``trim="hub_moments"``) for the thrust and the hub roll and pitch moments
+(``roll_moment_target``, ``pitch_moment_target``, default 0 N m). The iteration's Jacobian
+couples the harmonics, the inflow and the controls through forward flight's periodic
+coefficients (linear theory on the grid), so the trim converges like the hover solve. A
+point that cannot trim is a failed row with its reason. Out of ground effect only: a finite
 ``height_over_radius`` with ``advance_ratio > 0`` is a failed row. At ``advance_ratio = 0``
 the solve takes the hover code paths: the answer is the hover model's, bitwise.
 
@@ -40,11 +44,15 @@ from .model import RESPONSES, ROTOR_INPUTS, RotorModel
 from .presets import RotorPreset
 
 __all__ = ["ForwardRotorModel", "ForwardSolution", "FORWARD_INPUTS", "FORWARD_RESPONSES",
-           "INFLOW_MODELS", "MAX_ADVANCE_RATIO", "solve_forward"]
+           "INFLOW_MODELS", "MAX_ADVANCE_RATIO", "MOMENT_TARGETS", "TRIMS", "solve_forward"]
 
 #: Inputs of forward flight, beside every hover input: advance ratio mu [-], shaft angle
-#: [deg, positive tilting the disk forward], the trim's thrust [N].
-FORWARD_INPUTS = ("advance_ratio", "shaft_angle_deg", "thrust_target")
+#: [deg, positive tilting the disk forward], the trim's thrust [N] and the hub-moment trim's
+#: roll and pitch moments [N m] (as the responses ``roll_moment``, ``pitch_moment``).
+FORWARD_INPUTS = ("advance_ratio", "shaft_angle_deg", "thrust_target", "roll_moment_target",
+                  "pitch_moment_target")
+#: The hub-moment trim's target inputs.
+MOMENT_TARGETS = ("roll_moment_target", "pitch_moment_target")
 #: Responses: the hover model's loads (without its hover-named moments), the in-plane hub
 #: forces H (rearward) and Y (advancing side) [N], the hub roll and pitch moments [N m], the
 #: flapping beta_0 + beta_1c cos psi + beta_1s sin psi [deg] and the (trimmed) controls [deg].
@@ -57,7 +65,10 @@ INFLOW_MODELS = {"glauert": kern.GLAUERT, "drees": kern.DREES}
 MAX_ADVANCE_RATIO = 0.4
 #: Largest |shaft angle| accepted [deg].
 MAX_SHAFT_ANGLE_DEG = 30.0
-_TRIMS = {None: kern.NO_TRIM, "none": kern.NO_TRIM, "wind_tunnel": kern.WIND_TUNNEL}
+_TRIMS = {None: kern.NO_TRIM, "none": kern.NO_TRIM, "wind_tunnel": kern.WIND_TUNNEL,
+          "hub_moments": kern.HUB_MOMENTS}
+#: Trim modes by name (None or "none": the controls are given).
+TRIMS = ("none", "wind_tunnel", "hub_moments")
 _ALIASES = {"roll_moment": "roll", "pitch_moment": "pitch", "beta_0_deg": "coning_deg"}
 
 
@@ -117,14 +128,18 @@ def solve_forward(preset: RotorPreset, airfoil: Any, grid: Any,
         Stations and azimuths (:func:`rotoruq.rotor.geometry.blade_grid`).
     params : mapping of str to ndarray of shape (n,)
         Every hover input of :func:`rotoruq.rotor.hover.solve_hover`, and
-        ``advance_ratio`` [-], ``shaft_angle_deg`` [deg] and (trimmed) ``thrust_target`` [N].
+        ``advance_ratio`` [-], ``shaft_angle_deg`` [deg], (trimmed) ``thrust_target`` [N]
+        and (hub-moment trim) ``roll_moment_target``, ``pitch_moment_target`` [N m]
+        (default 0).
     overrides : mapping of str to ndarray of shape (n,), optional
         Airfoil coefficient overrides.
     inflow_model : {"glauert", "drees"}
         Uniform momentum inflow, or Drees's linear inflow.
-    trim : {None, "wind_tunnel"}
+    trim : {None, "wind_tunnel", "hub_moments"}
         None: the controls are given; ``"wind_tunnel"``: collective and cyclic solved for
-        the thrust target and zero first-harmonic flapping (the controls given start it).
+        the thrust target and zero first-harmonic flapping; ``"hub_moments"``: for the
+        thrust target and the hub roll and pitch moment targets (the controls given start
+        either trim).
     n_harmonics, tolerance, max_iterations, check_tolerance
         As in :func:`rotoruq.rotor.hover.solve_hover`; the trim converges within the same
         iteration (its control step in rad joins the tolerance test).
@@ -150,7 +165,7 @@ def solve_forward(preset: RotorPreset, airfoil: Any, grid: Any,
         raise ParameterError(f"unknown inflow model {inflow_model!r}; valid: "
                              f"{', '.join(INFLOW_MODELS)}")
     if trim not in _TRIMS:
-        raise ParameterError(f"unknown trim {trim!r}; valid: none, wind_tunnel")
+        raise ParameterError(f"unknown trim {trim!r}; valid: {', '.join(TRIMS)}")
     flight = {k: params[k] for k in FORWARD_INPUTS if k in params}
     hover = {k: v for k, v in params.items() if k not in FORWARD_INPUTS}
     with np.errstate(all="ignore"):
@@ -164,9 +179,11 @@ def solve_forward(preset: RotorPreset, airfoil: Any, grid: Any,
         prm[:, kern.INFLOW] = INFLOW_MODELS[inflow_model]
         prm[:, kern.TRIM] = _TRIMS[trim]
         prm[:, kern.THRUST_TARGET] = flight.get("thrust_target", np.nan)
+        prm[:, kern.ROLL_TARGET] = flight.get("roll_moment_target", 0.0)
+        prm[:, kern.PITCH_TARGET] = flight.get("pitch_moment_target", 0.0)
         res = run_kernel(prm, rot, table, fits, linear, n, K, tolerance, max_iterations,
                          check_tolerance, negative_power=True)
-    if _TRIMS[trim] == kern.WIND_TUNNEL:
+    if _TRIMS[trim] != kern.NO_TRIM:
         for i in np.flatnonzero(res.failure != ""):
             if res.failure[i].startswith("periodic solution did not converge"):
                 res.failure[i] = "cannot trim: " + res.failure[i].replace(
@@ -208,9 +225,11 @@ class ForwardRotorModel(RotorModel):
         Replaces the preset's airfoil table.
     inflow_model : {"glauert", "drees"}, optional
         Uniform momentum inflow (default) or Drees's linear inflow.
-    trim : {None, "wind_tunnel"}, optional
-        Given controls (default) or wind-tunnel trim to ``thrust_target`` and zero
-        first-harmonic flapping (the given controls are the trim's starting point).
+    trim : {None, "wind_tunnel", "hub_moments"}, optional
+        Given controls (default), wind-tunnel trim to ``thrust_target`` and zero
+        first-harmonic flapping, or trim to ``thrust_target`` and the hub moments
+        ``roll_moment_target``, ``pitch_moment_target`` (default 0 N m; the given controls
+        are either trim's starting point).
     **options
         The solver options of :class:`~rotoruq.rotor.model.RotorModel`: ``n_stations``,
         ``n_azimuth``, ``n_harmonics``, ``tolerance``, ``max_iterations``,
@@ -238,21 +257,26 @@ class ForwardRotorModel(RotorModel):
             raise ParameterError(f"unknown inflow model {inflow_model!r}; valid: "
                                  f"{', '.join(INFLOW_MODELS)}")
         if trim not in _TRIMS:
-            raise ParameterError(f"unknown trim {trim!r}; valid: none, wind_tunnel")
+            raise ParameterError(f"unknown trim {trim!r}; valid: {', '.join(TRIMS)}")
         if self.preset.inflow != "uniform":
             raise ParameterError(f"preset {self.preset.name!r} has inflow "
                                  f"{self.preset.inflow!r}: forward flight takes uniform "
                                  "momentum inflow (inflow_model 'glauert' or 'drees')")
         self.inflow_model, self.trim = inflow_model, trim
-        if _TRIMS[trim] == kern.WIND_TUNNEL:
-            if "thrust_target" not in set(self.names_in) | set(self.fixed):
-                raise ParameterError("trim='wind_tunnel' needs 'thrust_target' [N], in "
+        given = set(self.names_in) | set(self.fixed)
+        if _TRIMS[trim] != kern.NO_TRIM:
+            if "thrust_target" not in given:
+                raise ParameterError(f"trim={trim!r} needs 'thrust_target' [N], in "
                                      "names_in or fixed")
             if self.n_harmonics < 1:
-                raise ParameterError("wind-tunnel trim needs n_harmonics >= 1")
-        elif "thrust_target" in set(self.names_in) | set(self.fixed):
-            raise ParameterError("'thrust_target' is the wind-tunnel trim's thrust: give "
-                                 "trim='wind_tunnel' or drop it")
+                raise ParameterError(f"trim={trim!r} needs n_harmonics >= 1")
+        elif "thrust_target" in given:
+            raise ParameterError("'thrust_target' is a trim's thrust: give "
+                                 "trim='wind_tunnel' or 'hub_moments', or drop it")
+        for name in MOMENT_TARGETS:
+            if name in given and _TRIMS[trim] != kern.HUB_MOMENTS:
+                raise ParameterError(f"{name!r} is the hub-moment trim's target: give "
+                                     "trim='hub_moments' or drop it")
 
     def __repr__(self) -> str:
         return (f"ForwardRotorModel({self.preset.name!r}, names_in={self.names_in}, "
@@ -271,9 +295,11 @@ class ForwardRotorModel(RotorModel):
         """
         d = {"advance_ratio": 0.0, "shaft_angle_deg": 0.0, **super().defaults(),
              "height_over_radius": math.inf}
-        if self.trim == "wind_tunnel":
+        if _TRIMS[self.trim] != kern.NO_TRIM:
             # given in the batch or in fixed (checked when the model is made)
             d.setdefault("thrust_target", math.nan)
+        if _TRIMS[self.trim] == kern.HUB_MOMENTS:
+            d.update(dict.fromkeys(MOMENT_TARGETS, 0.0))
         d.update(self.fixed)
         return d
 

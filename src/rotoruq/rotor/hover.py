@@ -454,6 +454,10 @@ def iteration_failure(reason: int, dof: int, bad: bool, iterations: int,
         return (f"cannot trim: the trim iteration asked for a blade pitch |collective| + "
                 f"|cyclic| beyond {kern.TRIM_PITCH_LIMIT_DEG:g} deg after {iterations} "
                 "iterations")
+    if reason == kern.TRIM_SINGULAR:
+        return ("cannot trim: the hub moments do not depend on the flapping (no hinge offset, "
+                "flap spring or flap damper: the hub transmits no moment); trim to zero "
+                "flapping (trim='wind_tunnel') instead")
     if reason == kern.NOT_CONVERGED:
         return (f"periodic solution did not converge in {iterations} iterations "
                 f"(last step {last_step:.2e})")

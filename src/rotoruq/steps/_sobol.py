@@ -4,7 +4,7 @@ that each one's fingerprint covers its own method only."""
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -14,11 +14,13 @@ from ..render.figures import (
     SobolIndices,
     beside_label,
     beside_sobol,
+    sobol_sweep,
     tornado,
 )
 from ..results import RecordError, StepResult
 
-__all__ = ["sensitivity_figures", "sobol_warnings", "NEGLIGIBLE_CV", "spread", "sobol_of"]
+__all__ = ["sensitivity_figures", "sensitivity_sweep_figures", "sobol_warnings",
+           "NEGLIGIBLE_CV", "spread", "sobol_of"]
 
 # A response whose std is below this fraction of |mean| has negligible variance: its Sobol
 # indices split up numerical noise and mean nothing physically.
@@ -72,6 +74,30 @@ def sensitivity_figures(res: StepResult, ctx: FigureContext) -> list[Figure]:
         return []
     return tornado(res, got[0], ctx.labels, ctx.units, beside_sobol(ctx, res.name),
                    beside_label(ctx))
+
+
+def sensitivity_sweep_figures(results: Sequence[StepResult], swept: str,
+                              values: Sequence[float], ctx: FigureContext) -> list[Figure]:
+    """Sobol indices and each response's mean +- std against the one fixed input ``swept``
+    the steps differ in (sensitivity and pce steps with the same inputs and responses)."""
+    got = [sobol_of(res) for res in results]
+    if any(g is None for g in got):
+        return []
+    sobols = [g[0] for g in got if g is not None]
+    if len({(s.names_in, s.names_out) for s in sobols}) != 1:
+        return []
+    mean = np.array([_means(res) for res in results])
+    std = np.array([g[1] for g in got if g is not None])
+    return sobol_sweep(swept, values, [res.name for res in results], sobols, mean, std,
+                       ctx.labels, ctx.units)
+
+
+def _means(res: StepResult) -> np.ndarray:
+    from .pce import PceRecord
+    from .sensitivity import SensitivityRecord
+
+    rec = PceRecord.read(res) if res.type == "pce" else SensitivityRecord.read(res)
+    return np.asarray(rec.mean, dtype=float)
 
 
 def sobol_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:

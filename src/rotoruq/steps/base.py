@@ -14,7 +14,7 @@ import math
 import os
 import threading
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, NoReturn
 
@@ -28,7 +28,8 @@ from ..results import StepResult
 from .options import SIGNATURE, Option, signature_default
 
 __all__ = ["StepType", "StepCheck", "StepContext", "run_step", "STATUS_INTERVAL", "DESIGNS",
-           "TablesHook", "FiguresHook", "WarningsHook"]
+           "TablesHook", "FiguresHook", "WarningsHook",
+           "SweepFiguresHook"]
 
 log = logging.getLogger(__name__)
 
@@ -37,6 +38,10 @@ DESIGNS = ("lhs", "random", "sobol", "halton")
 
 TablesHook = Callable[[StepResult, Mapping[str, str]], list[StepTable]]
 FiguresHook = Callable[[StepResult, FigureContext], list[Figure]]
+#: ``sweep_figures(results, swept, values, context)``: figures of steps of one type that differ
+#: in one fixed input ``swept`` (values increasing, one per result).
+SweepFiguresHook = Callable[[Sequence[StepResult], str, Sequence[float], FigureContext],
+                            list[Figure]]
 WarningsHook = Callable[[StepResult, Mapping[str, str]], list[str]]
 
 
@@ -219,6 +224,11 @@ class StepType:
         ``correlation``: a study file's ``[correlation]`` table). A type without it refuses
         correlated inputs (the study file fails naming the step and the table) instead of
         ignoring the correlation.
+    sweep_figures : callable, optional
+        ``sweep_figures(results, swept, values, context) -> list`` of figures: the report
+        calls it for steps of this type that differ only in one fixed input ``swept``
+        (values increasing; e.g. Sobol indices against the advance ratio). None: no such
+        figures.
     """
 
     name: str
@@ -235,6 +245,7 @@ class StepType:
     warnings: WarningsHook | None = None
     modules: tuple[str, ...] = ()
     correlated: bool = False
+    sweep_figures: SweepFiguresHook | None = None
 
     @property
     def code_modules(self) -> tuple[str, ...]:

@@ -17,7 +17,7 @@ from ._common import (
     level_request_of,
     mapping_fields,
 )
-from ._sobol import sensitivity_figures, sobol_warnings
+from ._sobol import sensitivity_figures, sensitivity_sweep_figures, sobol_warnings
 from .base import StepCheck, StepContext, StepType
 from .options import SIGNATURE, Option, choice, integer, table
 
@@ -150,4 +150,5 @@ STEP = StepType(
              **LEVEL_OPTIONS},
     quick={"n_samples": 40}, check=_check_pce,
     tables=pce_tables, figures=sensitivity_figures, warnings=sobol_warnings,
+    sweep_figures=sensitivity_sweep_figures,
     modules=("rotoruq.methods.levels", "rotoruq.methods.sampling"))

@@ -11,7 +11,13 @@ import numpy as np
 from ..methods._sobol_indices import SobolIndices
 from ..render.tables import StepTable, cv_or_none, label, make_table, with_unit
 from ..results import StepRecord, StepResult
-from ._sobol import NEGLIGIBLE_CV, sensitivity_figures, sobol_warnings, spread
+from ._sobol import (
+    NEGLIGIBLE_CV,
+    sensitivity_figures,
+    sensitivity_sweep_figures,
+    sobol_warnings,
+    spread,
+)
 from .base import DESIGNS, StepContext, StepType
 from .options import SIGNATURE, Option, choice, integer
 
@@ -91,4 +97,5 @@ STEP = StepType(
              "estimator": Option(choice("hybrid", "saltelli2010", "jansen", "janon"),
                                  SIGNATURE)},
     quick={"n_samples": 32},
-    tables=sensitivity_tables, figures=sensitivity_figures, warnings=sobol_warnings)
+    tables=sensitivity_tables, figures=sensitivity_figures, warnings=sobol_warnings,
+    sweep_figures=sensitivity_sweep_figures)

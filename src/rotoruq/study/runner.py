@@ -943,5 +943,8 @@ def _write_study_json(study: Study, out: Path, quick: bool) -> None:
         "steps": [s.name for s in study.steps],
         "step_types": {s.name: s.type for s in study.steps},
         "titles": {s.name: s.title for s in study.steps},
+        # each step's own fixed inputs: the report draws steps of one type that differ in
+        # one of them against it (rotoruq.report.sweeps)
+        "step_fixed": {s.name: dict(s.fixed) for s in study.steps if s.fixed},
     }
     save_study_info(out, doc)

@@ -326,7 +326,8 @@ def _parse_model_table(ck: Checker, t: object, w: tuple, what: str, name: str = 
         if "flight" in t:
             flight = ck.value(t, "flight", (table, {}), w, what) or {}
             ck.keys(flight, FLIGHT_KEYS, w + ("flight",), f"{what} flight")
-            choices = {"inflow_model": ("glauert", "drees"), "trim": ("none", "wind_tunnel")}
+            choices = {"inflow_model": ("glauert", "drees"),
+                       "trim": ("none", "wind_tunnel", "hub_moments")}
             flight = {k: ck.value(flight, k, (string(choices[k]), None), w + ("flight",),
                                   f"{what} flight") for k in flight}
         rotor_responses = _rotor_responses(flight is not None)

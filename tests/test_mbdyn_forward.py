@@ -77,3 +77,75 @@ def test_forward_flight_parity_at_mu_02(tmp_path):
     for load, diff in row["diff_pct"].items():
         assert abs(diff) <= 5.0, (load, diff, row)
     assert res["all_within_limit"]
+
+
+# ------------------------------------------------------------------------------------------
+# the driver's trim and the bundled study's multi-fidelity step
+
+
+def test_driver_trim_flies_the_builtin_rotors_controls():
+    from rotoruq.mbdyn.driver import builtin_trim
+    from rotoruq.rotor.forward import ForwardRotorModel
+
+    inputs = {"advance_ratio": 0.2, "shaft_angle_deg": 3.0, "thrust_target": 20.0,
+              "cla_m03": 0.11, "height_over_radius": math.inf}
+    flown = builtin_trim(get_preset("gvpm"), inputs, "drees")
+    ref = ForwardRotorModel("gvpm", names_in=list(inputs), trim="wind_tunnel",
+                            inflow_model="drees",
+                            names_out=["collective_trim_deg", "lateral_trim_deg",
+                                       "longitudinal_trim_deg"])([list(inputs.values())])[0]
+    assert "thrust_target" not in flown and flown["cla_m03"] == 0.11
+    assert [flown["collective_deg"], flown["lateral_deg"], flown["longitudinal_deg"]] == \
+        ref.tolist()
+    with pytest.raises(ParameterError, match="needs the input thrust_target"):
+        builtin_trim(get_preset("gvpm"), {"advance_ratio": 0.2})
+    with pytest.raises(ParameterError, match="solves the controls"):
+        builtin_trim(get_preset("gvpm"), {**inputs, "collective_deg": 3.0})
+    with pytest.raises(ParameterError, match="does not trim: advance_ratio 0.6"):
+        builtin_trim(get_preset("gvpm"), {**inputs, "advance_ratio": 0.6})
+
+
+STUDY = ROOT / "src" / "rotoruq" / "studies" / "forward_flight.toml"
+
+
+@pytest.mark.parametrize("old, new, expected", [
+    ('high_fidelity = "elastic"', 'high_fidelity = "elastc"',
+     "the name of a [models.NAME] table as the high_fidelity"),
+    ('needs = ["mbdyn"]', 'needs = ["mbdin"]', "outside software among mbdyn"),
+    ('responses = ["power"]\ntimeout', 'responses = ["thrust"]\ntimeout',
+     "responses of [models.elastic] that include the responses of step"),
+    ('models = ["builtin"]', 'models = ["builtin", "elastic"]',
+     "low-fidelity models other than the high_fidelity"),
+])
+def test_study_multifidelity_step_is_checked(tmp_path, old, new, expected):
+    from rotoruq.errors import InputFileError
+    from rotoruq.study.schema import load_study
+
+    text = STUDY.read_text()
+    assert old in text
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace(old, new))
+    with pytest.raises(InputFileError, match=expected.replace("[", r"\[").replace("]", r"\]")):
+        load_study(bad)
+
+
+@pytest.mark.slow
+@needs_mbdyn
+def test_forward_flight_study_multifidelity_with_mbdyn(tmp_path):
+    """``rotoruq run forward_flight --quick`` with MBDyn, its multi-fidelity step alone
+    (``--only``): the elastic MBDyn rotor flying the built-in trim is the high-fidelity model."""
+    env = env_with_mbdyn()
+    cli = [sys.executable, "-m", "rotoruq"]
+    done = subprocess.run([*cli, "run", "forward_flight", "--quick", "--only",
+                           "multifidelity_mbdyn", "--no-report", "--out", "res"],
+                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=1800)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    assert "0 failed evaluation(s)" in done.stdout
+    shown = subprocess.run([*cli, "show", "res", "multifidelity_mbdyn", "--json"], cwd=tmp_path,
+                           env=env, capture_output=True, text=True, timeout=120)
+    assert shown.returncode == 0, shown.stderr[-2000:]
+    step = json.loads(shown.stdout)["steps"]["multifidelity_mbdyn"]
+    alloc = {row[0].split(" ")[0]: row for row in step["tables"][0]["rows"]}
+    assert set(alloc) == {"elastic", "builtin"}
+    est = step["tables"][1]["rows"][0]
+    assert est[0].startswith("power") and 100.0 < float(est[1]) < 400.0  # W

@@ -349,14 +349,15 @@ def _check(c: StepCheck) -> None:
         why = ("mlblue estimates the mean only" if est == "mlblue"
                else "the Sobol' indices have those allocations")
         c.fail(("estimator",), f"mfmc, acvmf or acvis with sobol = true ({why})", est)
-    costs = c.options.get("costs")
-    if costs is not None and len(costs) != len(c.options["models"]) + 1:
-        c.fail(("costs",), f"{len(c.options['models']) + 1} costs ([model] first, then "
-               "each of models)", str(list(costs)))
     hf = c.options.get("high_fidelity")
     if hf and hf in c.options["models"]:
         c.fail(("models",), f"low-fidelity models other than the high_fidelity {hf!r}",
                str(list(c.options["models"])))
+    costs = c.options.get("costs")
+    if costs is not None and len(costs) != len(c.options["models"]) + 1:
+        first = f"the high_fidelity {hf!r}" if hf else "[model]"
+        c.fail(("costs",), f"{len(c.options['models']) + 1} costs ({first} first, then "
+               "each of models)", str(list(costs)))
 
 
 STEP = StepType(

@@ -1,4 +1,5 @@
-"""One MBDyn case (hover or forward flight): fill a template, write the sample's c81 table, run, extract loads.
+"""One MBDyn case (hover or forward flight): fill a template, write the sample's c81
+table, run, extract loads.
 
 Templates are MBDyn input files with rotoruq's ``{label}`` fields
 (:mod:`rotoruq.evaluation.templates`). The bundled ones live in ``rotoruq/mbdyn/templates``

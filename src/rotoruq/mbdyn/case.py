@@ -29,7 +29,7 @@ if TYPE_CHECKING:
 
 __all__ = ["TEMPLATES", "CaseSettings", "template_text", "template_values", "run_case",
            "rigid_equivalent", "sample_table", "GEOMETRY_FIELDS", "OGE_DISTANCE",
-           "FLIGHT_INPUTS"]
+           "FLIGHT_INPUTS", "TEMPLATE_DEFAULTS"]
 
 #: Bundled templates, by name.
 TEMPLATES = ("rigid", "elastic")
@@ -44,6 +44,10 @@ OGE_DISTANCE = 1.0e6
 #: mu (free stream in the disk plane over Omega R) and the shaft angle [deg, positive tilting
 #: the disk forward], as the built-in :class:`~rotoruq.rotor.forward.ForwardRotorModel`.
 FLIGHT_INPUTS = {"advance_ratio": 0.0, "shaft_angle_deg": 0.0}
+#: Inputs a bundled template takes a value of its own for when the case does not give them
+#: (instead of the preset's): the rigid template's blades fly no cyclic unless told to, as
+#: they did before they could (and as :func:`rigid_equivalent`).
+TEMPLATE_DEFAULTS = {"rigid": {"lateral_deg": 0.0, "longitudinal_deg": 0.0}}
 AIRFOIL_FILE = "airfoil.c81"
 #: Fields rotoruq derives from rotor inputs: a template using the field uses the inputs.
 DERIVED_FROM = {"ground_distance": ("height_over_radius",), "final_time": ("omega",),
@@ -94,7 +98,8 @@ def template_text(template: str | os.PathLike) -> tuple[str, Path]:
 
 
 def template_values(preset: RotorPreset, inputs: Mapping[str, float],
-                    settings: CaseSettings) -> dict[str, Any]:
+                    settings: CaseSettings, defaults: Mapping[str, float] | None = None
+                    ) -> dict[str, Any]:
     """Every value a template can use.
 
     - the rotor inputs (:data:`rotoruq.rotor.model.ROTOR_INPUTS`, deg and SI) and the
@@ -114,6 +119,9 @@ def template_values(preset: RotorPreset, inputs: Mapping[str, float],
         Rotor inputs overriding the preset's values (deg and SI).
     settings : CaseSettings
         The time integration.
+    defaults : mapping of str to float, optional
+        Values replacing the preset's for inputs ``inputs`` leaves out (a bundled template's
+        :data:`TEMPLATE_DEFAULTS`).
     """
     from ..rotor.model import RotorModel
 
@@ -126,7 +134,8 @@ def template_values(preset: RotorPreset, inputs: Mapping[str, float],
                  else repr(k) for k in unknown]
         raise ParameterError(f"{', '.join(hints)}: not rotor inputs of preset {preset.name!r}; "
                              f"valid: {', '.join(base)}")
-    vals: dict[str, Any] = {**base, **{k: float(v) for k, v in inputs.items()}}
+    vals: dict[str, Any] = {**base, **dict(defaults or {}),
+                            **{k: float(v) for k, v in inputs.items()}}
     vals.update({k: float(getattr(preset, k)) for k in GEOMETRY_FIELDS})
     h = vals["height_over_radius"]
     if not h > 0.25:
@@ -183,7 +192,8 @@ def run_case(workdir: str | os.PathLike, preset: RotorPreset, inputs: Mapping[st
     overrides = {k: float(v) for k, v in inputs.items() if k in coef_names}
     rotor_inputs = {k: v for k, v in inputs.items() if k not in coef_names}
     text, tpath = template_text(template)
-    values = template_values(preset, rotor_inputs, settings)
+    values = template_values(preset, rotor_inputs, settings,
+                             TEMPLATE_DEFAULTS.get(str(template)))
     used = set(template_fields(text, tpath))
     used |= {src for f in list(used) for src in DERIVED_FROM.get(f, ())}
     unused = sorted(k for k in rotor_inputs if k not in used)

@@ -116,12 +116,12 @@ STUDY = ROOT / "src" / "rotoruq" / "studies" / "forward_flight.toml"
 
 
 @pytest.mark.parametrize("old, new, expected", [
-    ('high_fidelity = "elastic"', 'high_fidelity = "elastc"',
+    ('high_fidelity = "mbdyn"', 'high_fidelity = "mbdin"',
      "the name of a [models.NAME] table as the high_fidelity"),
     ('needs = ["mbdyn"]', 'needs = ["mbdin"]', "outside software among mbdyn"),
     ('responses = ["power"]\ntimeout', 'responses = ["thrust"]\ntimeout',
-     "responses of [models.elastic] that include the responses of step"),
-    ('models = ["builtin"]', 'models = ["builtin", "elastic"]',
+     "responses of [models.mbdyn] that include the responses of step"),
+    ('models = ["builtin"]', 'models = ["builtin", "mbdyn"]',
      "low-fidelity models other than the high_fidelity"),
 ])
 def test_study_multifidelity_step_is_checked(tmp_path, old, new, expected):
@@ -140,7 +140,7 @@ def test_study_multifidelity_step_is_checked(tmp_path, old, new, expected):
 @needs_mbdyn
 def test_forward_flight_study_multifidelity_with_mbdyn(tmp_path):
     """``rotoruq run forward_flight --quick`` with MBDyn, its multi-fidelity step alone
-    (``--only``): the elastic MBDyn rotor flying the built-in trim is the high-fidelity model."""
+    (``--only``): MBDyn's rigid rotor flying the built-in trim is the high-fidelity model."""
     env = env_with_mbdyn()
     cli = [sys.executable, "-m", "rotoruq"]
     done = subprocess.run([*cli, "run", "forward_flight", "--quick", "--only",
@@ -153,6 +153,6 @@ def test_forward_flight_study_multifidelity_with_mbdyn(tmp_path):
     assert shown.returncode == 0, shown.stderr[-2000:]
     step = json.loads(shown.stdout)["steps"]["multifidelity_mbdyn"]
     alloc = {row[0].split(" ")[0]: row for row in step["tables"][0]["rows"]}
-    assert set(alloc) == {"elastic", "builtin"}
+    assert set(alloc) == {"mbdyn", "builtin"}
     est = step["tables"][1]["rows"][0]
     assert est[0].startswith("power") and 100.0 < float(est[1]) < 400.0  # W

@@ -25,7 +25,8 @@ MBDyn does not trim. In forward flight (inputs ``advance_ratio``, ``shaft_angle_
 for each case the built-in rotor (:class:`~rotoruq.rotor.forward.ForwardRotorModel`, same
 preset and inputs, ``--inflow-model``) is trimmed to that thrust and zero first-harmonic
 flapping, and MBDyn flies its collective, lateral and longitudinal cyclic; a case the built-in
-rotor cannot trim fails with its reason.
+rotor cannot trim fails with its reason. Rotor inputs the template does not model (the rigid
+template's ``k_pitch_link``, ``ei_flap``, ...) then act through the trim only.
 
 When MBDyn fails, stops early or does not reach a periodic state, or the file or the command
 line is wrong, the results file says ``FAIL``, the reason goes to stderr and the exit status is
@@ -91,12 +92,26 @@ class MBDynCaseModel:
                 mbdyn = find_mbdyn(self.args.mbdyn, build_prefix=True)
                 if getattr(self.args, "trim", None):
                     inputs = builtin_trim(self.preset, inputs, self.args.inflow_model)
+                    inputs = self._for_template(inputs)
                 loads = run_case(wd, self.preset, inputs, template=self.args.template,
                                  settings=self.settings, mbdyn=mbdyn)
                 values[k] = [loads.response(n) for n in self.names_out]
             except (RotoruqError, OSError, ValueError) as exc:
                 failures[k] = str(exc)
         return EvalBatch(values, failures)
+
+    def _for_template(self, inputs: dict[str, float]) -> dict[str, float]:
+        """After the built-in trim: the rotor inputs the template does not model (the rigid
+        template's structure, say) have acted through the trim's controls; MBDyn gets the
+        others (airfoil coefficients always)."""
+        from ..evaluation.templates import template_fields
+        from ..rotor.model import ROTOR_INPUTS
+        from .case import DERIVED_FROM, template_text
+
+        text, path = template_text(self.args.template)
+        used = set(template_fields(text, path))
+        used |= {src for f in list(used) for src in DERIVED_FROM.get(f, ())}
+        return {k: v for k, v in inputs.items() if k in used or k not in ROTOR_INPUTS}
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         return self.evaluate(x).values

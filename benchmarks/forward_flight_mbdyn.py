@@ -168,7 +168,7 @@ def summary(path: Path) -> str:
         c, m, b, d = r["controls_deg"], r["mbdyn"], r["builtin"], r["diff_pct"]
         dc = r.get("diff_pct_converged")
 
-        def cell(k: str) -> str:
+        def cell(k: str, d: dict = d, dc: dict | None = dc) -> str:
             return f"{d[k]:+.2f} %" + (f" ({dc[k]:+.2f} %)" if dc else "")
 
         lines.append(

@@ -182,12 +182,18 @@ def test_bundled_forward_flight_study_runs_from_the_cli(tmp_path):
     import os
     import subprocess
 
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    # where MBDyn is not built: its multi-fidelity step is skipped, saying why
+    env = {k: v for k, v in os.environ.items() if k != "MBDYN"}
+    env.update(PYTHONPATH=str(ROOT / "src"), MBDYN_PREFIX=str(tmp_path / "no-mbdyn"),
+               PATH=os.pathsep.join([str(Path(sys.executable).parent), "/usr/bin", "/bin"]))
     done = subprocess.run([sys.executable, "-m", "rotoruq", "run", "forward_flight", "--quick",
                            "--no-report", "--out", "res"], cwd=tmp_path, env=env,
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]
     assert "0 failed evaluation(s)" in done.stdout
+    assert ("multifidelity_mbdyn  skipped (needs MBDyn, not found here: MBDyn executable not "
+            "found" in done.stdout), done.stdout
+    assert not (tmp_path / "res" / "steps" / "multifidelity_mbdyn").exists()
     shown = {}
     for step in ("lhs", "sobol_mu01", "sobol_mu03"):
         out = subprocess.run([sys.executable, "-m", "rotoruq", "show", "res", step, "--json"],

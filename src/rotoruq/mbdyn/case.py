@@ -1,4 +1,5 @@
-"""One MBDyn hover case: fill a template, write the sample's c81 table, run, extract loads.
+"""One MBDyn case (hover or forward flight): fill a template, write the sample's c81
+table, run, extract loads.
 
 Templates are MBDyn input files with rotoruq's ``{label}`` fields
 (:mod:`rotoruq.evaluation.templates`). The bundled ones live in ``rotoruq/mbdyn/templates``
@@ -28,7 +29,8 @@ if TYPE_CHECKING:
     from ..rotor.presets import RotorPreset
 
 __all__ = ["TEMPLATES", "CaseSettings", "template_text", "template_values", "run_case",
-           "rigid_equivalent", "sample_table", "GEOMETRY_FIELDS", "OGE_DISTANCE"]
+           "rigid_equivalent", "sample_table", "GEOMETRY_FIELDS", "OGE_DISTANCE",
+           "FLIGHT_INPUTS", "TEMPLATE_DEFAULTS"]
 
 #: Bundled templates, by name.
 TEMPLATES = ("rigid", "elastic")
@@ -39,6 +41,14 @@ GEOMETRY_FIELDS = ("radius", "root_cutout", "chord", "twist_deg", "speed_of_soun
 #: Out of ground effect the ground node is put this many radii below the hub (MBDyn's
 #: Cheeseman-Bennett factor is then 1 - 6e-14).
 OGE_DISTANCE = 1.0e6
+#: Forward-flight inputs every template may use, with their hover values: the advance ratio
+#: mu (free stream in the disk plane over Omega R) and the shaft angle [deg, positive tilting
+#: the disk forward], as the built-in :class:`~rotoruq.rotor.forward.ForwardRotorModel`.
+FLIGHT_INPUTS = {"advance_ratio": 0.0, "shaft_angle_deg": 0.0}
+#: Inputs a bundled template takes a value of its own for when the case does not give them
+#: (instead of the preset's): the rigid template's blades fly no cyclic unless told to, as
+#: they did before they could (and as :func:`rigid_equivalent`).
+TEMPLATE_DEFAULTS = {"rigid": {"lateral_deg": 0.0, "longitudinal_deg": 0.0}}
 AIRFOIL_FILE = "airfoil.c81"
 #: Fields rotoruq derives from rotor inputs: a template using the field uses the inputs.
 DERIVED_FROM = {"ground_distance": ("height_over_radius",), "final_time": ("omega",),
@@ -89,11 +99,13 @@ def template_text(template: str | os.PathLike) -> tuple[str, Path]:
 
 
 def template_values(preset: RotorPreset, inputs: Mapping[str, float],
-                    settings: CaseSettings) -> dict[str, Any]:
+                    settings: CaseSettings, defaults: Mapping[str, float] | None = None
+                    ) -> dict[str, Any]:
     """Every value a template can use.
 
-    - the rotor inputs (:data:`rotoruq.rotor.model.ROTOR_INPUTS`, deg and SI): the preset's
-      values, overridden by ``inputs``;
+    - the rotor inputs (:data:`rotoruq.rotor.model.ROTOR_INPUTS`, deg and SI) and the
+      forward-flight ones (:data:`FLIGHT_INPUTS`, hover by default): the preset's values,
+      overridden by ``inputs``;
     - the preset's geometry (:data:`GEOMETRY_FIELDS`);
     - ``ground_distance`` [m]: hub height above the ground, height_over_radius * R
       (``OGE_DISTANCE`` * R when height_over_radius is inf);
@@ -108,10 +120,13 @@ def template_values(preset: RotorPreset, inputs: Mapping[str, float],
         Rotor inputs overriding the preset's values (deg and SI).
     settings : CaseSettings
         The time integration.
+    defaults : mapping of str to float, optional
+        Values replacing the preset's for inputs ``inputs`` leaves out (a bundled template's
+        :data:`TEMPLATE_DEFAULTS`).
     """
     from ..rotor.model import RotorModel
 
-    base = RotorModel(preset, names_in=[]).defaults()
+    base = {**RotorModel(preset, names_in=[]).defaults(), **FLIGHT_INPUTS}
     unknown = sorted(k for k in inputs if k not in base)
     if unknown:
         import difflib
@@ -120,12 +135,17 @@ def template_values(preset: RotorPreset, inputs: Mapping[str, float],
                  else repr(k) for k in unknown]
         raise ParameterError(f"{', '.join(hints)}: not rotor inputs of preset {preset.name!r}; "
                              f"valid: {', '.join(base)}")
-    vals: dict[str, Any] = {**base, **{k: float(v) for k, v in inputs.items()}}
+    vals: dict[str, Any] = {**base, **dict(defaults or {}),
+                            **{k: float(v) for k, v in inputs.items()}}
     vals.update({k: float(getattr(preset, k)) for k in GEOMETRY_FIELDS})
     h = vals["height_over_radius"]
     if not h > 0.25:
         raise ParameterError(f"height_over_radius must be > 0.25 (MBDyn clamps the ground "
                              f"effect below R/4), got {h}")
+    mu, alpha = vals["advance_ratio"], vals["shaft_angle_deg"]
+    if not 0.0 <= mu <= 1.0 or not abs(alpha) < 90.0:
+        raise ParameterError(f"advance_ratio must be in [0, 1] and |shaft_angle_deg| < 90, got "
+                             f"{mu} and {alpha}")
     vals["ground_distance"] = (OGE_DISTANCE if math.isinf(h) else h) * preset.radius
     period = 2 * math.pi / vals["omega"]
     vals["final_time"] = settings.revolutions * period
@@ -137,9 +157,10 @@ def template_values(preset: RotorPreset, inputs: Mapping[str, float],
 def run_case(workdir: str | os.PathLike, preset: RotorPreset, inputs: Mapping[str, float],
              template: str | os.PathLike = "rigid", settings: CaseSettings | None = None,
              mbdyn: str | os.PathLike | None = None, airfoil: Airfoil | None = None) -> HubLoads:
-    """Run one hover case in ``workdir`` and return its mean :class:`HubLoads`.
+    """Run one case in ``workdir`` and return its mean :class:`HubLoads`.
 
-    ``inputs`` holds rotor inputs (``collective_deg``, ``height_over_radius``, ...) and airfoil
+    ``inputs`` holds rotor inputs (``collective_deg``, ``height_over_radius``, ...), the
+    forward-flight ones (``advance_ratio``, ``shaft_angle_deg``; hover when left out) and airfoil
     coefficients of the preset's fit rows (``cla_m03``, ...), which rewrite the c81 table
     (:func:`sample_table`). An input the template does not use is
     an error (it would silently do nothing). Raises :class:`~rotoruq.mbdyn.solver.MBDynError`
@@ -172,7 +193,8 @@ def run_case(workdir: str | os.PathLike, preset: RotorPreset, inputs: Mapping[st
     overrides = {k: float(v) for k, v in inputs.items() if k in coef_names}
     rotor_inputs = {k: v for k, v in inputs.items() if k not in coef_names}
     text, tpath = template_text(template)
-    values = template_values(preset, rotor_inputs, settings)
+    values = template_values(preset, rotor_inputs, settings,
+                             TEMPLATE_DEFAULTS.get(str(template)))
     used = set(template_fields(text, tpath))
     used |= {src for f in list(used) for src in DERIVED_FROM.get(f, ())}
     unused = sorted(k for k in rotor_inputs if k not in used)

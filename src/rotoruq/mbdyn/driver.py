@@ -20,6 +20,14 @@ values, gradients by central finite differences (one MBDyn run per stencil point
 folder ``point_<k>``), never Hessians. A batch file (Dakota's ``batch`` interface) runs one
 case per block, each in its ``point_<k>`` folder.
 
+MBDyn does not trim. In forward flight (inputs ``advance_ratio``, ``shaft_angle_deg``) with
+``--trim wind_tunnel`` the parameters file gives ``thrust_target`` [N] instead of the controls:
+for each case the built-in rotor (:class:`~rotoruq.rotor.forward.ForwardRotorModel`, same
+preset and inputs, ``--inflow-model``) is trimmed to that thrust and zero first-harmonic
+flapping, and MBDyn flies its collective, lateral and longitudinal cyclic; a case the built-in
+rotor cannot trim fails with its reason. Rotor inputs the template does not model (the rigid
+template's ``k_pitch_link``, ``ei_flap``, ...) then act through the trim only.
+
 When MBDyn fails, stops early or does not reach a periodic state, or the file or the command
 line is wrong, the results file says ``FAIL``, the reason goes to stderr and the exit status is
 1 (2 for a command line that does not parse), so Dakota's ``failure_capture`` and rotoruq's
@@ -82,6 +90,9 @@ class MBDynCaseModel:
             inputs = {**self.fixed, **dict(zip(self.names_in, row.tolist(), strict=True))}
             try:
                 mbdyn = find_mbdyn(self.args.mbdyn, build_prefix=True)
+                if getattr(self.args, "trim", None):
+                    inputs = builtin_trim(self.preset, inputs, self.args.inflow_model)
+                    inputs = self._for_template(inputs)
                 loads = run_case(wd, self.preset, inputs, template=self.args.template,
                                  settings=self.settings, mbdyn=mbdyn)
                 values[k] = [loads.response(n) for n in self.names_out]
@@ -89,8 +100,62 @@ class MBDynCaseModel:
                 failures[k] = str(exc)
         return EvalBatch(values, failures)
 
+    def _for_template(self, inputs: dict[str, float]) -> dict[str, float]:
+        """After the built-in trim: the rotor inputs the template does not model (the rigid
+        template's structure, say) have acted through the trim's controls; MBDyn gets the
+        others (airfoil coefficients always)."""
+        from ..evaluation.templates import template_fields
+        from ..rotor.model import ROTOR_INPUTS
+        from .case import DERIVED_FROM, template_text
+
+        text, path = template_text(self.args.template)
+        used = set(template_fields(text, path))
+        used |= {src for f in list(used) for src in DERIVED_FROM.get(f, ())}
+        return {k: v for k, v in inputs.items() if k in used or k not in ROTOR_INPUTS}
+
     def __call__(self, x: np.ndarray) -> np.ndarray:
         return self.evaluate(x).values
+
+
+#: The controls the built-in trim gives MBDyn, by the trim's response names.
+TRIM_CONTROLS = {"collective_trim_deg": "collective_deg", "lateral_trim_deg": "lateral_deg",
+                 "longitudinal_trim_deg": "longitudinal_deg"}
+
+
+def builtin_trim(preset, inputs: dict[str, float], inflow_model: str = "glauert"
+                 ) -> dict[str, float]:
+    """``inputs`` with ``thrust_target`` replaced by the controls [deg] of the built-in rotor
+    trimmed in the wind tunnel (thrust target, zero first-harmonic flapping) at the same
+    inputs; :class:`ParameterError` naming the reason when it cannot trim.
+
+    Parameters
+    ----------
+    preset : RotorPreset
+        The rotor (the driver's ``--preset``).
+    inputs : dict of str to float
+        Rotor, forward-flight and airfoil-coefficient inputs with ``thrust_target`` [N].
+    inflow_model : {"glauert", "drees"}
+        The built-in rotor's inflow.
+    """
+    from ..rotor.forward import ForwardRotorModel
+
+    if "thrust_target" not in inputs:
+        raise ParameterError("--trim wind_tunnel needs the input thrust_target [N] in the "
+                             "parameters file (or --set thrust_target=...)")
+    given = [k for k in TRIM_CONTROLS.values() if k in inputs]
+    if given:
+        raise ParameterError(f"--trim wind_tunnel solves the controls: {given} cannot be "
+                             "inputs too")
+    names = list(inputs)
+    model = ForwardRotorModel(preset, names_in=names, names_out=list(TRIM_CONTROLS),
+                              trim="wind_tunnel", inflow_model=inflow_model)
+    batch = model.evaluate(np.array([[inputs[n] for n in names]]))
+    if batch.failures:
+        raise ParameterError(f"the built-in rotor does not trim: {batch.failures[0]}")
+    out = {k: v for k, v in inputs.items() if k != "thrust_target"}
+    out.update({TRIM_CONTROLS[n]: float(v) for n, v in zip(TRIM_CONTROLS, batch.values[0],
+                                                            strict=True)})
+    return out
 
 
 def _model_arguments(p: argparse.ArgumentParser) -> None:
@@ -112,13 +177,18 @@ def _model_arguments(p: argparse.ArgumentParser) -> None:
                    help=f"periodicity tolerance, relative (default {d.tolerance:g})")
     p.add_argument("--timeout", type=float, default=d.timeout,
                    help=f"seconds MBDyn may run (default {d.timeout:g})")
+    p.add_argument("--trim", choices=["wind_tunnel"], default=None,
+                   help="fly the controls of the built-in rotor trimmed to the input "
+                   "thrust_target [N] and zero first-harmonic flapping (MBDyn does not trim)")
+    p.add_argument("--inflow-model", choices=["glauert", "drees"], default="glauert",
+                   help="the built-in rotor's inflow for --trim (default glauert)")
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The driver's command line (for ``--help`` and documentation)."""
     p = argparse.ArgumentParser(
         prog="python -m rotoruq.mbdyn.driver",
-        description="Run one MBDyn hover case from a Dakota parameters file and write the "
+        description="Run one MBDyn rotor case from a Dakota parameters file and write the "
                     "results file.")
     _driver.add_arguments(p)
     _model_arguments(p)

@@ -5,9 +5,10 @@ with ``sobol = true`` also its Sobol' main and total indices
 (:func:`rotoruq.methods.multifidelity_sobol.multifidelity_sobol`, a budget of its own on top,
 the costs the first pilot measured).
 
-The high-fidelity model is the study's ``[model]``; ``models`` names the low-fidelity ones,
-each built by the study's model factory as ``make_model(inputs, responses, fixed,
-model=NAME)`` (a study's ``[models.NAME]`` tables). The report shows the allocation (runs and
+The high-fidelity model is the study's ``[model]``, or the ``[models.NAME]`` named by
+``high_fidelity`` (a study whose other steps run a cheap ``[model]``); ``models`` names the
+low-fidelity ones, each built by the study's model factory as ``make_model(inputs, responses,
+fixed, model=NAME)`` (a study's ``[models.NAME]`` tables). The report shows the allocation (runs and
 measured cost per model), the estimates with their standard errors and the high-fidelity runs
 plain Monte Carlo would need for the same standard errors.
 """
@@ -33,6 +34,7 @@ from .options import (
     integer,
     number,
     number_list,
+    string,
     string_list,
 )
 
@@ -140,8 +142,10 @@ def run_multifidelity(ctx: StepContext) -> StepResult:
     from ..methods.multifidelity import multifidelity_sample
 
     o = ctx.options
-    names = (HF_LABEL, *o["models"])
-    models = [ctx.model()] + [named_model(ctx, n) for n in o["models"]]
+    hf = o.get("high_fidelity")
+    names = (hf or HF_LABEL, *o["models"])
+    models = ([named_model(ctx, hf) if hf else ctx.model()]
+              + [named_model(ctx, n) for n in o["models"]])
     costs = o.get("costs")
     if costs is not None and len(costs) != len(models):
         raise ParameterError(f"step {ctx.name!r}: costs has {len(costs)} values; it needs one "
@@ -345,9 +349,14 @@ def _check(c: StepCheck) -> None:
         why = ("mlblue estimates the mean only" if est == "mlblue"
                else "the Sobol' indices have those allocations")
         c.fail(("estimator",), f"mfmc, acvmf or acvis with sobol = true ({why})", est)
+    hf = c.options.get("high_fidelity")
+    if hf and hf in c.options["models"]:
+        c.fail(("models",), f"low-fidelity models other than the high_fidelity {hf!r}",
+               str(list(c.options["models"])))
     costs = c.options.get("costs")
     if costs is not None and len(costs) != len(c.options["models"]) + 1:
-        c.fail(("costs",), f"{len(c.options['models']) + 1} costs ([model] first, then "
+        first = f"the high_fidelity {hf!r}" if hf else "[model]"
+        c.fail(("costs",), f"{len(c.options['models']) + 1} costs ({first} first, then "
                "each of models)", str(list(costs)))
 
 
@@ -361,7 +370,8 @@ STEP = StepType(
              "n_pilot": Option(integer(4), SIGNATURE),
              "adapt": Option(choice("none", "linear"), SIGNATURE),
              "sobol": Option(boolean, False),
-             "costs": Option(number_list, None)},
+             "costs": Option(number_list, None),
+             "high_fidelity": Option(string(), None)},
     quick={"n_pilot": 10}, check=_check,
     tables=multifidelity_tables, warnings=multifidelity_warnings,
     modules=("rotoruq.methods.multifidelity", "rotoruq.methods.multifidelity_sobol",

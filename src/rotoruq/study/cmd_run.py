@@ -181,8 +181,10 @@ def summary(result) -> str:
         lines += [f"      ! {terminal(w)}" for w in warns[:3]]
         if len(warns) > 3:
             lines.append(f"      ! ... and {len(warns) - 3} more")
+    reasons = getattr(result, "skip_reasons", {})
     for name in getattr(result, "skipped", ()):
-        lines.append(f"  {terminal(name):<20} skipped (not in --only, no saved result)")
+        why = reasons.get(name, "not in --only, no saved result")
+        lines.append(f"  {terminal(name):<20} skipped ({terminal(why)})")
     lines.append(f"{n_warn} warning(s), {n_failed} failed evaluation(s). Tables: rotoruq show "
                  f"{terminal(result.out)} [STEP] [--csv|--json]")
     return "\n".join(lines)

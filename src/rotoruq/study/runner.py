@@ -85,7 +85,10 @@ class StudyRun:
     seconds : mapping of str to float
         Step name -> wall seconds it took in this run.
     skipped : tuple of str
-        Steps neither named by ``only`` nor needed by one it names, without a saved result.
+        Steps neither named by ``only`` nor needed by one it names, without a saved result,
+        and steps whose outside software (``needs = ["mbdyn"]``) is not found.
+    skip_reasons : mapping of str to str
+        Step name -> the reason, for the latter.
     """
 
     study: Study
@@ -93,8 +96,11 @@ class StudyRun:
     results: Mapping[str, StepResult]
     reused: tuple[str, ...] = ()
     seconds: Mapping[str, float] = field(default_factory=dict)
-    #: steps neither named by ``only`` nor needed by one it names, without a saved result
+    #: steps neither named by ``only`` nor needed by one it names, without a saved result,
+    #: and steps whose outside software (``needs``) is missing
     skipped: tuple[str, ...] = ()
+    #: step name -> why it was skipped, for the steps skipped for a missing ``needs``
+    skip_reasons: Mapping[str, str] = field(default_factory=dict)
 
     def __getitem__(self, name: str) -> StepResult:
         return self.results[name]
@@ -389,10 +395,28 @@ IDENTITY_PARTS = {
 }
 
 
+def unmet_needs(step: StepSpec) -> str:
+    """Why ``step`` cannot run here: the outside software of its ``needs`` that is not found
+    ("" when all is there). MBDyn is looked up as the MBDyn driver does
+    (:func:`~rotoruq.mbdyn.solver.find_mbdyn` with the build tool's install)."""
+    for need in step.needs:
+        if need == "mbdyn":
+            from ..mbdyn.solver import MBDynNotFoundError, find_mbdyn
+
+            try:
+                find_mbdyn(build_prefix=True)
+            except MBDynNotFoundError as exc:
+                return f"needs MBDyn, not found here: {exc}"
+    return ""
+
+
 def _named_models(options: Mapping) -> tuple[str, ...]:
-    """The ``[models.NAME]`` a step uses: its option ``models`` (a list of names)."""
+    """The ``[models.NAME]`` a step uses: its option ``models`` (a list of names) and its
+    ``high_fidelity`` (a name)."""
     names = options.get("models")
-    return tuple(names) if isinstance(names, (list, tuple)) else ()
+    hf = options.get("high_fidelity")
+    return ((tuple(names) if isinstance(names, (list, tuple)) else ())
+            + ((hf,) if isinstance(hf, str) else ()))
 
 
 def _model_doc(spec: ModelSpec) -> dict:
@@ -417,7 +441,9 @@ def _identity_parts(study: Study, step: StepSpec, space: ParameterSpace, fixed, 
     for ref in (step.data, options.get("targets"), options.get("u_num")):
         if isinstance(ref, str) and "." in ref:
             refs.append(ref.split(".")[0])
-    spec = {"step": {k: v for k, v in asdict(step).items() if k not in ("line", "index")},
+    # needs: where the step can run, not what it computes
+    spec = {"step": {k: v for k, v in asdict(step).items()
+                     if k not in ("line", "index", "needs")},
             "options": options, "model": _model_doc(study.model),
             "seed": study.info.seed, "index": step.index, "quick": quick}
     if _named_models(options):
@@ -599,6 +625,7 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
 
     results: dict[str, StepResult] = {}
     reused, seconds, skipped = [], {}, []
+    skip_reasons: dict[str, str] = {}
     identities: dict = {}
     needed = _needed_by(study, only)
     n_steps = len(study.steps)
@@ -620,6 +647,12 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
             else:
                 skipped.append(step.name)
                 log.info("%s: skipped (not in --only, no saved result)", at)
+            continue
+        missing = unmet_needs(step)
+        if missing:
+            skipped.append(step.name)
+            skip_reasons[step.name] = missing
+            log.info("%s: skipped (%s)", at, missing)
             continue
         plan = _plan_step(study, step, results, quick, probe_factory, identities)
         fp = plan.fingerprint
@@ -668,7 +701,7 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
         log.info("%s: done in %.1f s", at, dt)
         for line in gathered.lines():  # the methods' messages, under their step
             log.info("  %s: %s", at, line)
-    return StudyRun(study, out, results, tuple(reused), seconds, tuple(skipped))
+    return StudyRun(study, out, results, tuple(reused), seconds, tuple(skipped), skip_reasons)
 
 
 def _saved(study: Study, step: StepSpec, folder: Path) -> StepResult | None:

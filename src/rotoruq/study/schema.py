@@ -128,7 +128,10 @@ COMMON_STEP_KEYS: dict[str, Option] = {
     "seed": Option(integer(), None),
     "quick": Option(table, None),
     "distributions": Option(table, None),
+    "needs": Option(string_list, None),
 }
+#: Outside software a step may need (its ``needs``): skipped with a note where missing.
+STEP_NEEDS = ("mbdyn",)
 
 
 def _rotor_responses(forward: bool = False) -> tuple[str, ...]:
@@ -446,15 +449,30 @@ def _parse_models(ck: Checker, doc: dict, model: ModelSpec) -> dict[str, ModelSp
         if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_\-]*", name) or name == HF_LABEL:
             ck.fail(w, "a model name made of letters, digits, '_' and '-' (not "
                     f"{HF_LABEL!r}: the report's name for [model])", repr(name))
-        m = _parse_model_table(ck, spec, w, f"[models.{name}]", name, model.responses)
-        missing = [r for r in model.responses if r not in m.responses]
-        if missing:
-            key = w + ("responses",) if "responses" in spec else w
-            ck.fail(key, f"responses of [models.{name}] that include the study's responses "
-                    f"({', '.join(model.responses)}); missing {', '.join(missing)}",
-                    ", ".join(m.responses))
-        out[name] = m
+        out[name] = _parse_model_table(ck, spec, w, f"[models.{name}]", name, model.responses)
     return out
+
+
+def _check_model_responses(ck: Checker, doc: dict, opts: Mapping,
+                           models: Mapping[str, ModelSpec], model: ModelSpec,
+                           step_responses: Sequence[str] | None, what: str) -> None:
+    """Each ``[models.NAME]`` a step runs (its ``models`` and ``high_fidelity``) gives the
+    step's responses (its ``responses``, else the study's)."""
+    names = list(opts.get("models") or ()) + ([opts["high_fidelity"]]
+                                              if opts.get("high_fidelity") else [])
+    needed = list(step_responses) if step_responses else list(model.responses)
+    whose = (f"the responses of {what}" if step_responses else "the study's responses")
+    for name in names:
+        m = models.get(name)
+        if m is None:
+            continue
+        missing = [r for r in needed if r not in m.responses]
+        if missing:
+            spec = (doc.get("models") or {}).get(name) or {}
+            key = ("models", name) + (("responses",) if "responses" in spec else ())
+            ck.fail(key, f"responses of [models.{name}] that include {whose} "
+                    f"({', '.join(needed)}); missing {', '.join(missing)}",
+                    ", ".join(m.responses))
 
 
 def _check_model_inputs(ck: Checker, models: Mapping[str, ModelSpec], model: ModelSpec,
@@ -768,6 +786,11 @@ def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
                 if r not in valid_r:
                     ck.fail(w + ("responses",), f"responses of the model "
                             f"({', '.join(valid_r)}){close_hint(r, valid_r)}", r)
+        _check_model_responses(ck, doc, opts, models, model, sel_r, what)
+        for need in common["needs"] or ():
+            if need not in STEP_NEEDS:
+                ck.fail(w + ("needs",), f"outside software among {', '.join(STEP_NEEDS)}"
+                        f"{close_hint(str(need), list(STEP_NEEDS))}", str(need))
         fixed = ck.numbers(common["fixed"] or {}, w + ("fixed",), f"{what} fixed")
         for k in fixed:
             inputs.check(w + ("fixed", k), k)
@@ -788,7 +811,7 @@ def _parse_steps(ck: Checker, doc: dict, inputs: ModelInputs,
             name=name, type=st.name, index=i, options=opts, source=source, parameters=sel_p,
             distributions=dists,
             responses=sel_r, fixed=fixed, data=data_ref, title=common["title"],
-            quick=quick, line=ck.loc.line(*w),
+            quick=quick, line=ck.loc.line(*w), needs=tuple(common["needs"] or ()),
         ))
     if not pnames and any(s.type != "forward_check" or s.source is None for s in steps):
         ck.fail(("parameters",), "at least one [parameters.NAME] table")
@@ -833,11 +856,17 @@ def _check_data_columns(ck: Checker, where: tuple, st: StepType, opts: Mapping,
 
 def _check_model_names(ck: Checker, opts: Mapping, models: Mapping[str, ModelSpec], w: tuple,
                        what: str) -> None:
-    """A step option ``models`` (a list of names) names ``[models.NAME]`` tables."""
+    """A step option ``models`` (a list of names) and ``high_fidelity`` (a name) name
+    ``[models.NAME]`` tables."""
+    known = list(models)
+    hf = opts.get("high_fidelity")
+    if isinstance(hf, str) and hf not in known:
+        defined = ", ".join(known) or f"none; add a [models.{hf}] table"
+        ck.fail(w + ("high_fidelity",), f"the name of a [models.NAME] table as the "
+                f"high_fidelity of {what} (defined: {defined}){close_hint(hf, known)}", hf)
     names = opts.get("models")
     if not isinstance(names, (list, tuple)):
         return
-    known = list(models)
     for n in names:
         if n not in known:
             defined = ", ".join(known) or f"none; add a [models.{n}] table"

@@ -185,7 +185,9 @@ class StepSpec:
     ``source`` is the ``from`` reference as ``(step, attribute)``; ``parameters`` /
     ``responses`` restrict the study's sets (None: all); ``distributions`` replaces (or adds)
     the distributions of some inputs for this step only; ``fixed`` adds fixed model inputs
-    for this step; ``options`` holds the type-specific options with defaults filled in.
+    for this step; ``options`` holds the type-specific options with defaults filled in;
+    ``needs`` names outside software the step runs (``"mbdyn"``): where it is missing the
+    step is skipped with the reason (:attr:`~rotoruq.study.runner.StudyRun.skip_reasons`).
     """
 
     name: str
@@ -201,6 +203,7 @@ class StepSpec:
     quick: Mapping[str, Any] = field(default_factory=dict)
     line: int | None = None
     distributions: tuple[ParameterSpec, ...] = ()
+    needs: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,0 +1,158 @@
+"""MBDyn in forward flight (issue 38, item 5): the templates' free stream and cyclic pitch, hover
+unchanged, and the parity check of ``benchmarks/forward_flight_mbdyn.py`` at one advance ratio
+(the benchmark's script run from a fresh folder)."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from rotoruq.errors import ParameterError
+from rotoruq.evaluation.templates import fill_template
+from rotoruq.mbdyn import CaseSettings, run_case, template_values
+from rotoruq.mbdyn.case import template_text
+from rotoruq.rotor.presets import get_preset
+from test_mbdyn import MBDYN, env_with_mbdyn, needs_mbdyn
+
+ROOT = Path(__file__).resolve().parents[1]
+BENCH = ROOT / "benchmarks" / "forward_flight_mbdyn.py"
+
+
+@pytest.mark.parametrize("template", ["rigid", "elastic"])
+def test_forward_inputs_fill_the_free_stream(template):
+    text, path = template_text(template)
+    preset = get_preset("gvpm")
+    hover = fill_template(text, template_values(preset, {}, CaseSettings()), path=path)
+    assert "set: real MU = 0.0;" in hover and "set: real ALPHA_S = 0.0 * pi / 180.;" in hover
+    vals = template_values(preset, {"advance_ratio": 0.2, "shaft_angle_deg": 3.0,
+                                    "lateral_deg": 0.5}, CaseSettings())
+    filled = fill_template(text, vals, path=path)
+    assert "set: real MU = 0.2;" in filled and "set: real ALPHA_S = 3.0 * pi / 180.;" in filled
+    # the air moves aft in the disk plane at mu Omega R and down through the tilted disk
+    assert "air properties: RHO, SOUND, cos(ALPHA_S), 0., -sin(ALPHA_S), const, V_INF;" in filled
+    assert "set: real V_INF = MU * OMEGA * R / cos(ALPHA_S);" in filled
+    assert "set: real LAT = 0.5 * pi / 180.;" in filled
+
+
+def test_bad_flight_inputs_are_refused():
+    with pytest.raises(ParameterError, match=r"advance_ratio must be in \[0, 1\]"):
+        template_values(get_preset("gvpm"), {"advance_ratio": -0.1}, CaseSettings())
+    with pytest.raises(ParameterError, match=r"\|shaft_angle_deg\| < 90"):
+        template_values(get_preset("gvpm"), {"shaft_angle_deg": 95.0}, CaseSettings())
+
+
+@needs_mbdyn
+def test_rigid_template_in_hover_is_unchanged(tmp_path):
+    """The blades now hang on pitch joints: in hover the loads are those the benchmark saved
+    before (benchmarks/results/mbdyn_parity.json, gvpm at 5.4 deg out of ground effect, 40
+    revolutions) to solver precision."""
+    saved = json.loads((ROOT / "benchmarks" / "results" / "mbdyn_parity.json").read_text())
+    row = next(r for r in saved["parity"]["gvpm"]
+               if r["collective_deg"] == 5.4 and r["height_over_radius"] == "inf")
+    m = run_case(tmp_path, get_preset("gvpm"), {"collective_deg": 5.4,
+                                                 "height_over_radius": math.inf},
+                 settings=CaseSettings(revolutions=40), mbdyn=MBDYN)
+    assert m.thrust == pytest.approx(row["mbdyn_thrust"], rel=1e-6)
+    assert m.torque == pytest.approx(row["mbdyn_torque"], rel=1e-6)
+
+
+@needs_mbdyn
+def test_forward_flight_parity_at_mu_02(tmp_path):
+    """The benchmark's check at mu = 0.2 (built-in trimmed controls flown by MBDyn's rigid
+    template and by the built-in rotor on the same physics): thrust and power within 5 % at
+    MBDyn's 72 steps per revolution, every load within 5 % of MBDyn extrapolated to zero time
+    step (the hub moments' difference at 72 steps is MBDyn's time step)."""
+    out = tmp_path / "ff.json"
+    proc = subprocess.run([sys.executable, str(BENCH), "--mu", "0.2", "--out", str(out)],
+                          cwd=tmp_path, env=env_with_mbdyn(), capture_output=True, text=True,
+                          timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    res = json.loads(out.read_text())
+    (row,) = res["rows"]
+    assert row["advance_ratio"] == 0.2
+    assert row["controls_deg"]["longitudinal_deg"] < 0  # the trim's cyclic is flown
+    for load in ("thrust", "power"):
+        assert abs(row["diff_pct"][load]) <= 5.0, (load, row)
+    for load, diff in row["diff_pct_converged"].items():
+        assert abs(diff) <= 5.0, (load, diff, row)
+    # the moments move towards the built-in rotor's as MBDyn's step shrinks
+    for load in ("roll_moment", "pitch_moment"):
+        assert abs(row["diff_pct_converged"][load]) < abs(row["diff_pct"][load])
+    assert res["all_converged_within_limit"]
+
+
+# ------------------------------------------------------------------------------------------
+# the driver's trim and the bundled study's multi-fidelity step
+
+
+def test_driver_trim_flies_the_builtin_rotors_controls():
+    from rotoruq.mbdyn.driver import builtin_trim
+    from rotoruq.rotor.forward import ForwardRotorModel
+
+    inputs = {"advance_ratio": 0.2, "shaft_angle_deg": 3.0, "thrust_target": 20.0,
+              "cla_m03": 0.11, "height_over_radius": math.inf}
+    flown = builtin_trim(get_preset("gvpm"), inputs, "drees")
+    ref = ForwardRotorModel("gvpm", names_in=list(inputs), trim="wind_tunnel",
+                            inflow_model="drees",
+                            names_out=["collective_trim_deg", "lateral_trim_deg",
+                                       "longitudinal_trim_deg"])([list(inputs.values())])[0]
+    assert "thrust_target" not in flown and flown["cla_m03"] == 0.11
+    assert [flown["collective_deg"], flown["lateral_deg"], flown["longitudinal_deg"]] == \
+        ref.tolist()
+    with pytest.raises(ParameterError, match="needs the input thrust_target"):
+        builtin_trim(get_preset("gvpm"), {"advance_ratio": 0.2})
+    with pytest.raises(ParameterError, match="solves the controls"):
+        builtin_trim(get_preset("gvpm"), {**inputs, "collective_deg": 3.0})
+    with pytest.raises(ParameterError, match="does not trim: advance_ratio 0.6"):
+        builtin_trim(get_preset("gvpm"), {**inputs, "advance_ratio": 0.6})
+
+
+STUDY = ROOT / "src" / "rotoruq" / "studies" / "forward_flight.toml"
+
+
+@pytest.mark.parametrize("old, new, expected", [
+    ('high_fidelity = "mbdyn"', 'high_fidelity = "mbdin"',
+     "the name of a [models.NAME] table as the high_fidelity"),
+    ('needs = ["mbdyn"]', 'needs = ["mbdin"]', "outside software among mbdyn"),
+    ('responses = ["power"]\ntimeout', 'responses = ["thrust"]\ntimeout',
+     "responses of [models.mbdyn] that include the responses of step"),
+    ('models = ["builtin"]', 'models = ["builtin", "mbdyn"]',
+     "low-fidelity models other than the high_fidelity"),
+])
+def test_study_multifidelity_step_is_checked(tmp_path, old, new, expected):
+    from rotoruq.errors import InputFileError
+    from rotoruq.study.schema import load_study
+
+    text = STUDY.read_text()
+    assert old in text
+    bad = tmp_path / "bad.toml"
+    bad.write_text(text.replace(old, new))
+    with pytest.raises(InputFileError, match=expected.replace("[", r"\[").replace("]", r"\]")):
+        load_study(bad)
+
+
+@pytest.mark.slow
+@needs_mbdyn
+def test_forward_flight_study_multifidelity_with_mbdyn(tmp_path):
+    """``rotoruq run forward_flight --quick`` with MBDyn, its multi-fidelity step alone
+    (``--only``): MBDyn's rigid rotor flying the built-in trim is the high-fidelity model."""
+    env = env_with_mbdyn()
+    cli = [sys.executable, "-m", "rotoruq"]
+    done = subprocess.run([*cli, "run", "forward_flight", "--quick", "--only",
+                           "multifidelity_mbdyn", "--no-report", "--out", "res"],
+                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=1800)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    assert "0 failed evaluation(s)" in done.stdout
+    shown = subprocess.run([*cli, "show", "res", "multifidelity_mbdyn", "--json"], cwd=tmp_path,
+                           env=env, capture_output=True, text=True, timeout=120)
+    assert shown.returncode == 0, shown.stderr[-2000:]
+    step = json.loads(shown.stdout)["steps"]["multifidelity_mbdyn"]
+    alloc = {row[0].split(" ")[0]: row for row in step["tables"][0]["rows"]}
+    assert set(alloc) == {"mbdyn", "builtin"}
+    est = step["tables"][1]["rows"][0]
+    assert est[0].startswith("power") and 100.0 < float(est[1]) < 400.0  # W

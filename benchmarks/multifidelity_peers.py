@@ -14,13 +14,14 @@ exact covariance and reports the optimal estimator variance it predicts (PyAppro
 GRD, GIS searched over recursion trees, MLBLUE; MXMCPy 1.0: every algorithm it offers, an
 algorithm that fails recorded with its error). The tools are compared at the whole runs each
 would spend (PyApprox's fitted estimator's covariance; ``variance_continuous`` keeps the
-continuous optimum its ACV search reports, which no whole-run allocation reaches). rotoruq's estimators then run ``--seeds``
-times at their allocation, each seed with a fresh ``--pilot``-point pilot that sets the
-weights: the empirical variance of the estimates against the predicted one (the mean over the
-seeds of the bootstrap-corrected ``mean_se**2``, and of the plug-in one). A last row repeats
-ACV-MF with a 20-point pilot, where the plug-in prediction is optimistic. A variance from
-200 draws is itself uncertain by ~10 % (more with heavy tails): each ratio carries chi-square
-and bootstrap intervals, and the seeds go on to ``--check-seeds`` for a second, tighter check.
+continuous optimum its ACV search reports, which no whole-run allocation reaches).
+rotoruq's estimators then run ``--seeds`` times at their allocation, each seed with a fresh
+``--pilot``-point pilot that sets the weights: the empirical variance of the estimates against
+the predicted one (the mean over the seeds of the bootstrap-corrected ``mean_se**2``, and of the
+plug-in one). A last row repeats ACV-MF with a 20-point pilot, where the plug-in prediction is
+optimistic. A variance from 200 draws is itself uncertain by ~10 % (more with heavy tails): each
+ratio carries chi-square and bootstrap intervals, and the seeds go on to ``--check-seeds`` for a
+second, tighter check.
 
 A peer that is not installed stops the benchmark with an install hint.
 

@@ -287,7 +287,7 @@ def main() -> None:
     # the parts are independent: each in a process of its own (PyApprox's GMF search alone
     # takes minutes), the results gathered in a fixed order
     tasks = {(i, part): (_part, i, part, args.budget, args.seeds, args.pilot, args.check_seeds)
-             for i in range(2) for part in ("rotoruq", "gmf", "rest")}
+             for i in range(2) for part in ("rotoruq", "mlblue", "gmf", "rest")}
     tasks[(0, "small")] = (_part, 0, "small", args.budget, args.seeds, 20, args.check_seeds)
     with ProcessPoolExecutor(max_workers=args.workers) as pool:
         futures = {k: pool.submit(*t) for k, t in tasks.items()}
@@ -295,7 +295,8 @@ def main() -> None:
     for i, prob in enumerate((_ladder(), _tunable())):
         out["problems"][prob["name"]] = {
             "costs": prob["costs"], "covariance": prob["cov"].tolist(),
-            **got[(i, "rest")]["auto"], "rotoruq": got[(i, "rotoruq")],
+            **got[(i, "rest")]["auto"],
+            "rotoruq": {**got[(i, "rotoruq")], **got[(i, "mlblue")]},
             "pyapprox": {**got[(i, "gmf")], **got[(i, "rest")]["pyapprox"]},
             "mxmcpy": got[(i, "rest")]["mxmcpy"]}
     out["small_pilot"] = got[(0, "small")]["acvmf"]
@@ -307,8 +308,9 @@ def _part(i: int, part: str, budget_hf: float, seeds: int, pilot: int, check_see
     """One independent part of the run on problem ``i`` (0 the ladder, 1 the tunable one)."""
     prob = (_ladder, _tunable)[i]()
     budget = budget_hf * prob["costs"][0]
-    if part == "rotoruq":
-        return run_rotoruq(prob, budget, seeds, pilot, check_seeds=check_seeds)
+    if part in ("rotoruq", "mlblue"):  # MLBLUE's seeds cost as much as the six others'
+        return run_rotoruq(prob, budget, seeds, pilot, check_seeds=check_seeds,
+                           estimators=("mlblue",) if part == "mlblue" else ROTORUQ[:-1])
     if part == "small":
         return run_rotoruq(prob, budget, seeds, pilot, estimators=("acvmf",),
                            check_seeds=check_seeds)

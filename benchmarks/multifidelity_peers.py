@@ -267,7 +267,7 @@ def summary(out: dict) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=200)
-    ap.add_argument("--check-seeds", type=int, default=2000,
+    ap.add_argument("--check-seeds", type=int, default=1000,
                     help="seeds of the longer predicted-over-empirical check (0: none)")
     ap.add_argument("--budget", type=float, default=100.0)
     ap.add_argument("--pilot", type=int, default=50)

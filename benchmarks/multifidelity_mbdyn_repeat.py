@@ -26,12 +26,12 @@ import json
 import resource
 import tempfile
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
 import numpy as np
 from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
-from _summary import print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
+from _summary import print_and_save, print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
 from multifidelity_mbdyn import FIXED, RESPONSES, SPACE, MBDynModel, locate_mbdyn  # noqa: E402
 from scipy import stats
 
@@ -47,7 +47,9 @@ def summary(out: dict) -> str:
     cpu = (f"; {out['cpu_seconds'] / 60:.0f} CPU minutes in all" if "cpu_seconds" in out
            else "")
     return (f"MBDyn multi-fidelity ({out['estimator']}, adapt={out['adapt']}) repeated "
-            f"{out['repeats']} times ({out['pilot']}-point pilot, {out['budget']:g} elastic runs "
+            + (f"{out['repeats']} times" if out.get("repeats_done", out["repeats"])
+               == out["repeats"] else f"{out['repeats_done']} of {out['repeats']} planned times")
+            + f" ({out['pilot']}-point pilot, {out['budget']:g} elastic runs "
             f"of budget, {out['elastic_runs']} elastic runs in all{cpu}): savings of the mean "
             "over plain Monte Carlo on the elastic rotor at the same cost, "
             + "; ".join(parts) + ".")
@@ -65,7 +67,7 @@ def one_repetition(r: int, args: argparse.Namespace, mbdyn: Path, tmp: str) -> d
                                   n_pilot=args.pilot, adapt=args.adapt,
                                   costs=[1.0, args.cost_ratio], statistics=["mean"], seed=r)
     kids = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return {"mean": res.mean, "speedup": res.speedup["mean"],
+    return {"seed": r, "mean": res.mean, "speedup": res.speedup["mean"],
             "spent": res.cost_pilot + res.cost_main, "hf": res.pilot_outputs[:, 0, :],
             "elastic_runs": elastic.count, "failures": len(elastic.failures),
             "n_samples": [int(n) for n in res.n_samples],
@@ -73,36 +75,9 @@ def one_repetition(r: int, args: argparse.Namespace, mbdyn: Path, tmp: str) -> d
             - (kids0.ru_utime + kids0.ru_stime)}
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--repeats", type=int, default=20)
-    ap.add_argument("--pilot", type=int, default=8)
-    ap.add_argument("--budget", type=float, default=6.0, help="main phase, in elastic runs")
-    ap.add_argument("--estimator", default="mfmc")
-    ap.add_argument("--adapt", default="linear", choices=("none", "linear"))
-    ap.add_argument("--cost-ratio", type=float, default=1.2e-4)
-    ap.add_argument("--elastic-revolutions", type=int, default=8)
-    ap.add_argument("--workers", type=int, default=1,
-                    help="repetitions run side by side (each its own process)")
-    ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--summary", metavar="JSON")
-    args = ap.parse_args()
-    if print_saved_summary(args.summary, summary):
-        return
-    if args.quick:
-        args.repeats, args.pilot, args.budget = 2, 7, 3.0
-    prov = provenance()
-    mbdyn = locate_mbdyn()
-    costs = [1.0, args.cost_ratio]
-    t0 = time.perf_counter()
-    with tempfile.TemporaryDirectory() as tmp:
-        if args.workers > 1:
-            with ProcessPoolExecutor(max_workers=args.workers) as pool:
-                futures = [pool.submit(one_repetition, r, args, mbdyn, tmp)
-                           for r in range(args.repeats)]
-                reps = [f.result() for f in futures]
-        else:
-            reps = [one_repetition(r, args, mbdyn, tmp) for r in range(args.repeats)]
+def result(reps: list[dict], args: argparse.Namespace, prov: dict, costs: list[float],
+           t0: float) -> dict:
+    """The JSON of the repetitions done so far (``repeats_done`` of ``repeats``)."""
     means = np.array([rep["mean"] for rep in reps])
     pooled = np.vstack([rep["hf"] for rep in reps])
     sigma2 = np.nanvar(pooled, axis=0, ddof=1)
@@ -115,7 +90,8 @@ def main() -> None:
     R, N = len(reps), len(pooled)
     lo = v_mc / v_mf * stats.chi2.ppf(0.025, R - 1) / (R - 1)
     hi = v_mc / v_mf * stats.chi2.ppf(0.975, R - 1) / (R - 1)
-    out = {"provenance": prov, "repeats": args.repeats, "pilot": args.pilot,
+    out = {"provenance": prov, "repeats": args.repeats, "repeats_done": len(reps),
+           "pilot": args.pilot,
            "budget": args.budget, "estimator": args.estimator, "adapt": args.adapt,
            "costs": costs, "elastic_revolutions": args.elastic_revolutions,
            "responses": list(RESPONSES), "wall_seconds": time.perf_counter() - t0,
@@ -133,7 +109,45 @@ def main() -> None:
                r: [float(a), float(b)] for r, a, b in zip(RESPONSES, lo, hi, strict=True)},
            "predicted_saving": dict(zip(RESPONSES, np.mean([rep["speedup"] for rep in reps],
                                                            axis=0).tolist(), strict=True))}
-    print(json.dumps(out, indent=1))
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeats", type=int, default=20)
+    ap.add_argument("--pilot", type=int, default=8)
+    ap.add_argument("--budget", type=float, default=6.0, help="main phase, in elastic runs")
+    ap.add_argument("--estimator", default="mfmc")
+    ap.add_argument("--adapt", default="linear", choices=("none", "linear"))
+    ap.add_argument("--cost-ratio", type=float, default=1.2e-4)
+    ap.add_argument("--elastic-revolutions", type=int, default=8)
+    ap.add_argument("--workers", type=int, default=1,
+                    help="repetitions run side by side (each its own process)")
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--summary", metavar="JSON")
+    ap.add_argument("--json", metavar="PATH",
+                    help="also write the JSON there, rewritten as each repetition finishes")
+    args = ap.parse_args()
+    if print_saved_summary(args.summary, summary):
+        return
+    if args.quick:
+        args.repeats, args.pilot, args.budget = 2, 7, 3.0
+    prov = provenance()
+    mbdyn = locate_mbdyn()
+    costs = [1.0, args.cost_ratio]
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        reps: list[dict] = []
+        with ProcessPoolExecutor(max_workers=args.workers) as pool:
+            futures = [pool.submit(one_repetition, r, args, mbdyn, tmp)
+                       for r in range(args.repeats)]
+            for f in as_completed(futures):
+                reps.append(f.result())
+                if args.json and 2 <= len(reps) < args.repeats:  # what is done so far
+                    with open(args.json, "w", encoding="utf-8") as fh:
+                        json.dump(result(reps, args, prov, costs, t0), fh, indent=1)
+        reps.sort(key=lambda rep: rep["seed"])
+    print_and_save(result(reps, args, prov, costs, t0), args.json)
 
 
 if __name__ == "__main__":

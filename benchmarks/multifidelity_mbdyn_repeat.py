@@ -70,7 +70,7 @@ def one_repetition(r: int, args: argparse.Namespace, mbdyn: Path, tmp: str) -> d
     return {"seed": r, "mean": res.mean, "speedup": res.speedup["mean"],
             "spent": res.cost_pilot + res.cost_main, "hf": res.pilot_outputs[:, 0, :],
             "elastic_runs": elastic.count, "failures": len(elastic.failures),
-            "n_samples": [int(n) for n in res.n_samples],
+            "n_samples": [int(n) for n in res.allocation],
             "cpu_seconds": time.process_time() - cpu0 + (kids.ru_utime + kids.ru_stime)
             - (kids0.ru_utime + kids0.ru_stime)}
 

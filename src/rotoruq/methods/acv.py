@@ -373,6 +373,83 @@ def _continuous(estimator: str, cov: np.ndarray, w: np.ndarray, budget: float,
     return _ratios(family, gamma, best.x), float(np.exp(best.fun))
 
 
+def _rounded(estimator: str, n_cont: np.ndarray, w: np.ndarray, budget: float, gamma
+             ) -> np.ndarray:
+    """Whole runs from a continuous allocation (K,): the floors, raised to what each model's
+    parent requires, then trimmed to the budget."""
+    family = _family(estimator, gamma, n_cont.size)[0]
+    n = _integer(estimator, n_cont, gamma)
+    parents = set(gamma)
+    while float(w @ n) > budget * (1 + 1e-12):
+        # rounding the floors up may overspend: trim a model no other one leans on, the one
+        # spending most, while it keeps what its parent requires
+        slack = [k for k in range(1, n.size)
+                 if k not in parents and n[k] > _lower(family, gamma, n)[k]]
+        if not slack:
+            break
+        n[max(slack, key=lambda k: (w[k] * n[k], k))] -= 1
+    return n
+
+
+def _whole_runs(estimator: str, cov: np.ndarray, w: np.ndarray, budget: float, r: np.ndarray,
+                gamma) -> np.ndarray:
+    """The integer allocation (K,) for the continuous optimum's ratios ``r`` (K,).
+
+    Flooring every count leaves up to one high-fidelity run's cost unspent, 1 % of the
+    variance at 100 runs (the loss PyApprox's reported continuous optimum does not carry). So
+    the high-fidelity count is fixed at each whole number next to the optimum's, the
+    low-fidelity models' shape re-optimised with the budget that count leaves, and the
+    candidate with the smallest variance at its whole runs kept (the plain floors among
+    them)."""
+    K = w.size
+    n_cont = budget / float(w @ r) * r
+    if n_cont[0] < 2.0 and K > 1:
+        # the optimum wants fewer than the 2 high-fidelity runs a variance needs (a very good
+        # low-fidelity model): take 2 and spread what is left in the optimum's proportions
+        low = 2.0 * w[0] + 2.0 * float(w[1:].sum())
+        if budget >= low:
+            lf = n_cont[1:] * (budget - 2.0 * w[0]) / float(w[1:] @ n_cont[1:])
+            n_cont = np.concatenate([[2.0], np.maximum(lf, 2.0)])
+    cands = [_rounded(estimator, n_cont, w, budget, gamma)]
+    family = _family(estimator, gamma, K)[0]
+    if K > 1:
+        # n(n0, lam) = n0 a + lam (r(t) - a) is linear in the high-fidelity count n0 and the
+        # low-fidelity steps' scale lam (:func:`_ratios`): fix n0, spend the rest through lam
+        a = _ratios(family, gamma, np.full(K - 1, -np.inf))
+        steps = [(set_sizes(family, r, gamma)[k] if family == "grd" else r[k] - r[p])
+                 for k, p in enumerate(gamma, start=1)]
+        t_opt = np.log(np.maximum(steps, 1e-12))
+
+        def counts(n0: float, t: np.ndarray) -> np.ndarray | None:
+            shape = _ratios(family, gamma, t) - a
+            lam = (budget - n0 * float(w @ a)) / float(w @ shape)
+            return n0 * a + lam * shape if lam > 0 else None
+
+        for n0 in {int(np.floor(n_cont[0] + 1e-9)), int(np.floor(n_cont[0] + 1e-9)) + 1}:
+            if n0 < 2 or counts(n0, t_opt) is None:
+                continue
+
+            def objective(t, n0=n0):
+                n = counts(n0, t)
+                return np.inf if n is None else np.log(
+                    estimator_variance(estimator, n, "mean", cov, recursion=gamma))
+
+            res = optimize.minimize(objective, t_opt, method="Nelder-Mead",
+                                    options={"xatol": 1e-5, "fatol": 1e-12,
+                                             "maxfev": 100 * K})
+            t = res.x if res.fun < objective(t_opt) else t_opt
+            n = counts(n0, t)
+            if n is not None:
+                cands.append(_rounded(estimator, n, w, budget, gamma))
+    ok = [n for n in cands
+          if n[0] >= 2 and float(w @ n) <= budget * (1 + 1e-12)
+          and np.all(n >= _lower(family, gamma, n))]
+    if not ok:
+        return cands[0]
+    var = [estimator_variance(estimator, n, "mean", cov, recursion=gamma) for n in ok]
+    return ok[int(np.argmin(var))]
+
+
 def fixed_allocation(cov: np.ndarray, costs, n_samples, *, estimator: str = "mfmc",
                      recursion=None) -> Allocation:
     """An :class:`Allocation` for given evaluations per model (K,), 0 leaving a model out;
@@ -523,25 +600,8 @@ def allocate(cov: np.ndarray, costs, budget: float, *, estimator: str = "mfmc",
     assert best is not None  # the HF model alone is always admissible
     _, models, gamma, r = best
     sub_cov, sub_w = cov[np.ix_(models, models)], w[list(models)]
-    family = _family(estimator, gamma, len(models))[0]
     n_cont = budget / float(sub_w @ r) * r
-    if n_cont[0] < 2.0 and len(models) > 1:
-        # the optimum wants fewer than the 2 high-fidelity runs a variance needs (a very good
-        # low-fidelity model): take 2 and spread what is left in the optimum's proportions
-        low = 2.0 * sub_w[0] + 2.0 * float(sub_w[1:].sum())
-        if budget >= low:
-            lf = n_cont[1:] * (budget - 2.0 * sub_w[0]) / float(sub_w[1:] @ n_cont[1:])
-            n_cont = np.concatenate([[2.0], np.maximum(lf, 2.0)])
-    n = _integer(estimator, n_cont, gamma)
-    parents = set(gamma)
-    while float(sub_w @ n) > budget * (1 + 1e-12):
-        # rounding the floors up may overspend: trim a model no other one leans on, the one
-        # spending most, while it keeps what its parent requires
-        slack = [k for k in range(1, n.size)
-                 if k not in parents and n[k] > _lower(family, gamma, n)[k]]
-        if not slack:
-            break
-        n[max(slack, key=lambda k: (sub_w[k] * n[k], k))] -= 1
+    n = _whole_runs(estimator, sub_cov, sub_w, budget, r, gamma)
     if n[0] < 2 or float(sub_w @ n) > budget * (1 + 1e-12):
         raise ParameterError(
             f"budget {budget:g} buys {int(n_cont[0])} high-fidelity evaluation(s) with the "

@@ -26,9 +26,11 @@ CHAPTERS = {"validation": "validation.toml", "experiment": "experiment.toml",
             "heldout": "heldout.toml"}
 
 #: The order ``rotoruq reproduce`` starts the chapters in when it runs several at once: the
-#: longest first (CPU seconds per chapter in ``benchmarks/results/reproduce_cpu.json``), so
-#: on two processes the two shorter ones share the second while the longest runs (the
-#: chapters are independent: the order changes no number, only when each ends).
+#: longest first (seconds per chapter on a quiet machine,
+#: ``benchmarks/results/reproduce_time.json``; ``tests/test_reproduce_schedule.py`` checks
+#: the order against it), so on two processes the two shorter ones share the second while
+#: the longest runs (the chapters are independent: the order changes no number, only when
+#: each ends).
 START_ORDER = ("heldout", "experiment", "validation")
 
 

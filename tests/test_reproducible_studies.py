@@ -1,7 +1,8 @@
 """Every bundled study, run twice into fresh folders through the CLI, once with 1 and once
-with 2 threads for numba and BLAS, saves bitwise the same arrays and the same tables (issue
-21's first acceptance test: the same seed gives the same posterior, the same forward checks,
-the same everything; issue 35: at any thread count)."""
+with 2 threads for numba and BLAS (the second with its independent steps in two processes,
+``--jobs 2``), saves bitwise the same arrays and the same tables (issue 21's first acceptance
+test: the same seed gives the same posterior, the same forward checks, the same everything;
+issue 35: at any thread count; issue 34: at any job count)."""
 
 from __future__ import annotations
 
@@ -27,10 +28,11 @@ BUNDLED = [pytest.param(p.stem, marks=pytest.mark.mbdyn) if p.stem.startswith("m
            else p.stem for p in sorted(STUDIES.glob("*.toml"))]
 
 
-def _run(study: str, out: Path, threads: int) -> None:
+def _run(study: str, out: Path, threads: int, jobs: int = 1) -> None:
     env = env_with_mbdyn() if study.startswith("mbdyn") else dict(os.environ)
     env.update({k: str(threads) for k in THREAD_VARIABLES})
-    proc = subprocess.run([*CLI, "run", study, "--quick", "--no-report", "--out", str(out)],
+    proc = subprocess.run([*CLI, "run", study, "--quick", "--no-report", "--out", str(out),
+                           "--jobs", str(jobs)],
                           capture_output=True, text=True, env=env, timeout=1800)
     assert proc.returncode == 0, proc.stderr[-3000:]
 
@@ -91,12 +93,13 @@ def _differences(a: Path, b: Path) -> list[str]:
 @pytest.mark.slow
 @pytest.mark.parametrize("study", BUNDLED)
 def test_bundled_study_repeats_bitwise_at_1_and_2_threads(study, tmp_path):
-    """Same seed, same bits, at any thread count (issue 35, item 4): the two runs of every
-    bundled study differ in their numba and BLAS threads (1, then 2), nothing else."""
+    """Same seed, same bits, at any thread count (issue 35, item 4) and job count (issue
+    34): the two runs of every bundled study differ in their numba and BLAS threads (1, then
+    2) and in the processes their independent steps run on (1, then 2), nothing else."""
     if study.startswith("mbdyn") and MBDYN is None:
         pytest.skip("MBDyn not available: build it with shared/tools/build-mbdyn and set "
                     "MBDYN (CI does both)")
     _run(study, tmp_path / "a", threads=1)
-    _run(study, tmp_path / "b", threads=2)
+    _run(study, tmp_path / "b", threads=2, jobs=2)
     assert _saved(tmp_path / "a"), "the run saved no arrays"
     assert _differences(tmp_path / "a", tmp_path / "b") == []

@@ -5,11 +5,13 @@ from __future__ import annotations
 import multiprocessing as mp
 import pickle
 import sqlite3
+import sys
 
 import numpy as np
 import pytest
 
 from rotoruq.evaluation.evaluator import Evaluator
+from rotoruq.evaluation.external import ExternalModel
 from rotoruq.evaluation.store import NewRecord, Store, canonical_key, canonical_keys
 from rotoruq.model import FunctionModel
 
@@ -139,6 +141,36 @@ def test_deferred_writes_commit_on_leaving_the_block_also_on_error(tmp_path):
     assert ev.store.count() == 9
     assert Evaluator(m, store=tmp_path / "e.db", study="st").evaluate(
         np.array([[0.5], [7.0]])).values.tolist() == [[1.0], [14.0]]
+
+
+def test_unstored_evaluates_an_in_process_model_directly_and_an_external_one_as_always(
+        tmp_path):
+    calls = []
+
+    def f(x):
+        calls.append(len(x))
+        return np.c_[x[:, 0] * 2.0, np.where(x[:, 0] > 5.0, np.nan, 1.0)]
+
+    ev = Evaluator(FunctionModel(f, ["a"], ["y", "z"]), store=tmp_path / "e.db", study="st")
+    stored = ev.evaluate(np.array([[1.0]])).values
+    with ev.unstored():
+        got = ev.evaluate(np.array([[1.0], [2.0], [2.0], [6.0]]))
+        assert ev.store.count() == 1  # nothing written, the stored point not looked up
+    assert calls == [1, 4]
+    np.testing.assert_array_equal(got.values[0], stored[0])  # the model's own bits
+    assert list(got.failures) == [3] and ev.last_stats.n_evaluations == 4
+    ev.evaluate(np.array([[2.0]]))  # outside the block: stored again
+    assert ev.store.count() == 2
+    # an external solver keeps the store inside the block too (its runs cost seconds)
+    driver = tmp_path / "driver.py"
+    driver.write_text("import sys\nline = open(sys.argv[1]).read().splitlines()[1]\n"
+                      "a = float(line.split()[0])\n"
+                      "open(sys.argv[2], 'w').write(f'{2 * a!r} y\\n')\n")
+    ext = Evaluator(ExternalModel([sys.executable, "-S", str(driver)], ["a"], ["y"],
+                                  workdir=tmp_path / "work"), store=tmp_path / "x.db")
+    with ext.unstored():
+        assert ext.evaluate(np.array([[3.0]])).values.tolist() == [[6.0]]
+    assert ext.store.count() == 1
 
 
 def test_evaluator_reuses_identical_inputs_across_runs(tmp_path):

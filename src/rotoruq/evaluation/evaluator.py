@@ -173,6 +173,7 @@ class Evaluator:
         self.last_stats: EvalStats | None = None
         self._next_eval = 1
         self._defer: float | None = None  # deferred_writes: seconds between commits
+        self._unstored = False  # unstored: an in-process model evaluated directly
         self._pending: list[NewRecord] = []
         self._committed = 0.0
 
@@ -280,6 +281,11 @@ class Evaluator:
             raise ModelShapeError(f"expected points of shape (n, {d}) for inputs "
                                   f"{self.names_in}, got {x.shape}")
         n = x.shape[0]
+        if self._unstored and not self.external:
+            batch = evaluate(self.model, x)
+            self.last_stats = EvalStats(n, 0, n, 0, len(batch.failures),
+                                        time.perf_counter() - t0)
+            return batch
         values = np.full((n, m), np.nan)
         failures: dict[int, str] = {}
         done = np.zeros(n, dtype=bool)
@@ -395,6 +401,40 @@ class Evaluator:
         finally:
             self._defer = outer
             self._commit_pending()
+
+    @contextmanager
+    def unstored(self) -> Iterator[Evaluator]:
+        """Within the block, an in-process model is evaluated directly, in this process:
+        no point is looked up in the store, none is written to it (an external solver
+        keeps both: its evaluations cost seconds each, and a killed run resumes them).
+
+        For a Markov chain on the model itself: its thousands of proposals of a few points
+        each are not worth keeping. A point of the built-in rotor costs less CPU than its
+        lookup and its row in the store, a proposal is never asked for again (the chains are
+        a function of the seed alone, so a run killed inside the block runs them again to
+        the same numbers), and the values are the model's own, bit for bit, with or
+        without the store. What a chain's step needs is kept elsewhere: the emulator's
+        design, the start and the predictive runs go through the store outside the block.
+
+        Examples
+        --------
+        >>> import pathlib, tempfile
+        >>> import numpy as np
+        >>> from rotoruq.model import FunctionModel
+        >>> ev = Evaluator(FunctionModel(lambda x: x**2, ["a"], ["y"]),
+        ...                store=pathlib.Path(tempfile.mkdtemp()) / "store.sqlite")
+        >>> with ev.unstored():
+        ...     ev(np.array([[2.0]])).tolist()
+        [[4.0]]
+        >>> ev.store.count()
+        0
+        """
+        outer = self._unstored
+        self._unstored = True
+        try:
+            yield self
+        finally:
+            self._unstored = outer
 
     def _commit(self, recs: list[NewRecord]) -> None:
         if self.store is None:

@@ -27,7 +27,7 @@ import hashlib
 import importlib.util
 import json
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -117,9 +117,22 @@ def _parsed_imports(name: str, package: str, sha: bytes, text: bytes) -> frozens
 _IMPORTS: dict[tuple[str, str, bytes], frozenset[str]] = {}
 
 
+def _statements(body: list) -> Iterator[ast.stmt]:
+    """Every statement of ``body`` and of the blocks nested in it (an import is a statement:
+    the expressions, most of a module's nodes, are not walked)."""
+    for node in body:
+        yield node
+        for name in ("body", "orelse", "finalbody"):
+            sub = getattr(node, name, None)
+            if isinstance(sub, list):
+                yield from _statements(sub)
+        for block in (*getattr(node, "handlers", ()), *getattr(node, "cases", ())):
+            yield from _statements(block.body)
+
+
 def _parse_imports(source: str, package: str) -> set[str]:
     out = set()
-    for node in ast.walk(ast.parse(source)):
+    for node in _statements(ast.parse(source).body):
         if isinstance(node, ast.Import):
             out |= {a.name for a in node.names if a.name.split(".")[0] == "rotoruq"}
         elif isinstance(node, ast.ImportFrom):

@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["NAME", "STUDIES", "CHAPTERS", "is_reference", "declaration_error"]
+__all__ = ["NAME", "STUDIES", "CHAPTERS", "START_ORDER", "is_reference", "declaration_error"]
 
 #: The reference's name, as a study file declares it.
 NAME = "thesis"
@@ -24,6 +24,14 @@ STUDIES = {"validation": "bo105", "experiment": "gvpm", "heldout": "gvpm"}
 #: (beyond the thesis).
 CHAPTERS = {"validation": "validation.toml", "experiment": "experiment.toml",
             "heldout": "heldout.toml"}
+
+#: The order ``rotoruq reproduce`` starts the chapters in when it runs several at once: the
+#: longest first (seconds per chapter on a quiet machine,
+#: ``benchmarks/results/reproduce_time.json``; ``tests/test_reproduce_schedule.py`` checks
+#: the order against it), so on two processes the two shorter ones share the second while
+#: the longest runs (the chapters are independent: the order changes no number, only when
+#: each ends).
+START_ORDER = ("heldout", "experiment", "validation")
 
 
 def is_reference(info: Mapping[str, Any]) -> bool:

@@ -19,7 +19,7 @@ from ..results import RecordError, StepRecord, StepResult
 from .base import StepCheck, StepContext
 from .options import SIGNATURE, Option, choice, table
 
-__all__ = ["named_model", "deferred_writes", "column_moments", "input_arrays",
+__all__ = ["named_model", "deferred_writes", "chain_on_model", "column_moments", "input_arrays",
            "noise", "per_response", "saved_record", "MOMENT_KEYS", "LevelsRecord", "levels_arrays",
            "LEVEL_OPTIONS", "LEVEL_TABLES", "MappingsRecord", "check_levels",
            "level_request_of", "mapping_fields"]
@@ -100,6 +100,18 @@ def deferred_writes(model: Any, seconds: float = 1.0) -> Iterator[None]:
     model is used as it is."""
     defer = getattr(model, "deferred_writes", None)
     with defer(seconds) if callable(defer) else nullcontext():
+        yield
+
+
+@contextmanager
+def chain_on_model(model: Any, seconds: float = 1.0) -> Iterator[None]:
+    """Within the block, Markov chains run on ``model`` itself: a store-backed in-process
+    model is evaluated without the store
+    (:meth:`rotoruq.evaluation.evaluator.Evaluator.unstored`: its proposals are not worth a
+    row each), an external solver commits its evaluations at most every ``seconds``
+    (:func:`deferred_writes`). Any other model is used as it is."""
+    unstored = getattr(model, "unstored", None)
+    with deferred_writes(model, seconds), unstored() if callable(unstored) else nullcontext():
         yield
 
 

@@ -25,7 +25,7 @@ from ..errors import ParameterError
 from ..params import Normal
 from ..render.tables import StepTable, label, make_table
 from ..results import StepRecord, StepResult, dist_to_dict
-from ._common import deferred_writes, per_response
+from ._common import chain_on_model, per_response
 from .base import StepCheck, StepContext
 
 __all__ = ["DiscrepancyRecord", "run_discrepancy", "discrepancy_tables",
@@ -306,7 +306,7 @@ def run_discrepancy(ctx: StepContext) -> StepResult:
                              "configuration; nothing is left to calibrate on")
     at = np.unique(np.concatenate([x[~held], predict]))
     n_samples = max(2, int(o["n_samples"]) // N_CHAINS)
-    with deferred_writes(inner):
+    with chain_on_model(inner):  # the chains run on the model itself
         res = calibrate_with_discrepancy(
             model, y[~held], ctx.space, configurations=x[~held], configuration_name=configuration,
             discrepancy=form, noise_std=per_response(o.get("noise_std"), ctx.responses),

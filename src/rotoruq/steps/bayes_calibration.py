@@ -40,7 +40,7 @@ from ..render.figures import (
 )
 from ..render.tables import StepTable, cell, label, make_table
 from ..results import RecordError, StepRecord, StepResult, dict_to_dist, dist_to_dict
-from ._common import deferred_writes, named_model, per_response
+from ._common import chain_on_model, deferred_writes, named_model, per_response
 from ._discrepancy import (
     DiscrepancyRecord,
     check_discrepancy,
@@ -374,7 +374,9 @@ def run_bayes_calibration(ctx: StepContext) -> StepResult:
     multipliers = o.get("noise_multipliers")
     mult_prior = tuple(o.get("noise_multiplier_prior") or (1.0, 1.0))
     model = ctx.model()
-    with warnings.catch_warnings(record=True) as caught, deferred_writes(model):
+    # on an emulator the model runs its design (kept in the store); else the chains run on it
+    writes = deferred_writes if emulator is not None else chain_on_model
+    with warnings.catch_warnings(record=True) as caught, writes(model):
         warnings.simplefilter("always")
         res = calibrate_bayes(
             model, ctx.observations(), ctx.space,

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputFileError
-from ..reference.studies import CHAPTERS
+from ..reference.studies import CHAPTERS, START_ORDER
 
 HELP = ("reproduce the reference study (thesis chapters 3 and 4, and a held-out validation of "
         "the ground effect) and write the report")
@@ -56,7 +56,8 @@ def reproduce(which: str = "all", out: str | Path = "rotoruq-results",
 
     The chapters are independent studies (each its own folder, store and seed): with
     ``jobs`` > 1 (default: the machine's cores, at most the chapters asked for) they run at
-    once in worker processes and give the same results, bit for bit, as one after the other.
+    once in worker processes, the longest first (:data:`~rotoruq.reference.studies.
+    START_ORDER`), and give the same results, bit for bit, as one after the other.
     ``seconds`` holds each chapter's own time and ``"wall"``, the time until the last
     chapter ended.
     """
@@ -67,6 +68,19 @@ def reproduce(which: str = "all", out: str | Path = "rotoruq-results",
         raise ValueError(f"jobs must be an integer >= 1, got {jobs!r}")
     with results_lock(out, "reproduce"):
         return _reproduce(which, out, quick, jobs)
+
+
+def start_order(names: list[str]) -> list[str]:
+    """The chapters ``names`` in the order several processes start them: the longest first
+    (:data:`~rotoruq.reference.studies.START_ORDER`), any other after them as given.
+
+    Examples
+    --------
+    >>> start_order(["validation", "experiment", "heldout"])
+    ['heldout', 'experiment', 'validation']
+    """
+    return sorted(names, key=lambda n: START_ORDER.index(n) if n in START_ORDER
+                  else len(START_ORDER))
 
 
 def _chapter(name: str, out: Path, quick: bool) -> tuple[Any, float]:
@@ -112,7 +126,9 @@ def _reproduce(which: str, out: Path, quick: bool, jobs: int | None) -> dict:
         ctx = multiprocessing.get_context("spawn")
         with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_child_logging,
                                  initargs=(_console_level(),)) as pool:
-            futures = {name: pool.submit(_chapter, name, out, quick) for name in names}
+            # the pool starts the tasks in the order they were submitted
+            futures = {name: pool.submit(_chapter, name, out, quick)
+                       for name in start_order(names)}
             for name in names:  # in order: the first failure raised is the first chapter's
                 runs[name], seconds[name] = futures[name].result()
     seconds["wall"] = time.perf_counter() - t0

@@ -31,9 +31,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "this share, 0 to 1 (default: [study] max_failed_share, else "
                              "0.5); a step without a successful evaluation always does")
     parser.add_argument("--no-report", action="store_true", help="do not write the report")
+    parser.add_argument("--jobs", type=_jobs, default=1, metavar="N",
+                        help="steps run at once, each in its own process, as soon as the "
+                             "steps they take from are done (default 1); the numbers are the "
+                             "same at any count")
     parser.add_argument("--allow-outside-store", action="store_true",
                         help="allow a [store] path outside the results folder (absolute or "
                              "with '..'), e.g. a store shared between studies")
+
+
+def _jobs(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"an integer >= 1, got {text!r}")
+    return n
 
 
 def _share(text: str) -> float:
@@ -78,7 +92,8 @@ def run(args: argparse.Namespace) -> int:
     check_study_paths(study, out, out_given=bool(args.out) or bundled,
                       outside_store=args.allow_outside_store)
     with results_lock(out, "run"):  # the run and its report, one at a time per folder
-        result = run_study(study, out=out, quick=args.quick, only=args.only)
+        result = run_study(study, out=out, quick=args.quick, only=args.only,
+                           jobs=args.jobs)
         say = (lambda line: None) if getattr(args, "quiet", False) else print
         index = None
         if not args.no_report and result.results:

@@ -518,6 +518,7 @@ def run_study(
     quick: bool = False,
     model_factory: ModelFactory | None = None,
     only: Sequence[str] | None = None,
+    jobs: int = 1,
 ) -> StudyRun:
     """Run the steps of ``study`` in order and write their results.
 
@@ -533,12 +534,19 @@ def run_study(
     only : run only these steps; the others are loaded from an earlier run where saved
         (whatever their fingerprint), else skipped (:attr:`StudyRun.skipped`). A step one of
         them takes from must be saved or named too.
+    jobs : steps run at once, each in a worker process (spawned) as soon as the steps it
+        takes from are done; the numbers are the same bits as one after the other (each
+        step's seed is the study's seed and its position). Default 1. The steps of a study
+        with a ``model_factory``, an external model or a parallel ``[executor]`` run one
+        after the other whatever ``jobs`` says (logged).
 
     Notes
     -----
     Progress (a line per step, a status line every ``steps.STATUS_INTERVAL`` s while a step
     runs) goes to the ``rotoruq.study`` loggers at INFO; the CLI shows it on stderr.
     """
+    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+        raise ValueError(f"jobs must be an integer >= 1, got {jobs!r}")
     if not isinstance(study, Study):
         study = load_study(study)
     out = Path(out) if out is not None else study.info.output
@@ -550,7 +558,7 @@ def run_study(
         clean_partial_saves(out)
         # LAPACK on one thread: the same seed gives the same bits at any BLAS thread count
         with one_blas_thread():
-            return _run_locked(study, out, quick, model_factory, only)
+            return _run_locked(study, out, quick, model_factory, only, jobs)
 
 
 @dataclass(frozen=True, eq=False)
@@ -610,7 +618,7 @@ def _plan_step(study: Study, step: StepSpec, results: Mapping[str, StepResult], 
 
 
 def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactory | None,
-                only: Sequence[str] | None) -> StudyRun:
+                only: Sequence[str] | None, jobs: int = 1) -> StudyRun:
     if study.path.is_file():
         write_bytes(out / "study.toml", study.path.read_bytes())
     store_path = out / study.store.path if study.store.enabled else None
@@ -629,6 +637,7 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
     identities: dict = {}
     needed = _needed_by(study, only)
     n_steps = len(study.steps)
+    to_run: list[tuple[str, StepSpec]] = []
     for i_step, step in enumerate(study.steps, 1):
         # "[study] 3/12 sobol": where the run is, on every progress line of the step
         at = f"[{study.info.name}] {i_step}/{n_steps} {step.name}"
@@ -654,54 +663,172 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
             skip_reasons[step.name] = missing
             log.info("%s: skipped (%s)", at, missing)
             continue
+        to_run.append((at, step))
+
+    def planned(at: str, step: StepSpec) -> _Planned | None:
+        """The step's plan, None when its saved result is reused (then in ``results``)."""
         plan = _plan_step(study, step, results, quick, probe_factory, identities)
-        fp = plan.fingerprint
-        saved = _saved(study, step, folder)
-        if saved is not None and saved.fingerprint == fp:
+        saved = _saved(study, step, out / "steps" / step.name)
+        if saved is not None and saved.fingerprint == plan.fingerprint:
             results[step.name] = saved
             reused.append(step.name)
             log.info("%s: reused (%s)", at, step.type)
-            continue
-        failed: Counter[str] = Counter()
-        ctx = StepContext(
-            name=step.name, type=step.type, options=plan.options, space=plan.space,
-            responses=tuple(plan.responses), fixed=plan.fixed,
-            make_model=_counting_failures(factory, failed),
-            rng=_seed(study, step, plan.options), data=plan.data, data_columns=plan.columns,
-            targets=_step_targets(step, plan.options, results),
-            source=results[step.source[0]] if step.source else None,
-            previous=dict(results), store=computed_store,
-        )
+            return None
         log.info("%s: running %s (%s -> %s)", at, step.type, ", ".join(plan.space.names),
                  ", ".join(plan.responses))
-        try:
-            with gathered_messages() as gathered:
-                res, dt = run_step(step_type(step.type).run, ctx, at)
-        except ParameterError as exc:
-            raise _at_step(exc, study, step) from exc
-        meta = dict(res.meta)
-        meta.update(failed_evaluations={"count": sum(failed.values()),
-                                        "reasons": dict(failed.most_common(20)),
-                                        # the first failure met (a Counter keeps that order)
-                                        "first": next(iter(failed), None)})
-        meta.update(seconds=dt, title=step.title, parameters=list(plan.space.names),
-                    responses=list(plan.responses), fixed=plan.fixed, options=plan.options,
-                    source=".".join(step.source) if step.source else None,
-                    model_identity=plan.parts["model"], code_version=code_version(),
-                    identity=plan.parts, code_files=plan.step_code,
-                    model_code_files=plan.model_code,
-                    input_distributions={n: d.describe() for n, d in
-                                         zip(plan.space.names, plan.space.distributions,
-                                             strict=True)})
-        res = StepResult(res.name, res.type, res.scalars, res.arrays, res.distributions, meta,
-                         fingerprint=fp)
-        export_chains(res, save_step(res, out))
-        results[step.name] = res
-        seconds[step.name] = dt
+        return plan
+
+    def finished(at: str, res: StepResult, dt: float, lines: list[str]) -> None:
+        results[res.name] = res
+        seconds[res.name] = dt
         log.info("%s: done in %.1f s", at, dt)
-        for line in gathered.lines():  # the methods' messages, under their step
+        for line in lines:  # the methods' messages, under their step
             log.info("  %s: %s", at, line)
-    return StudyRun(study, out, results, tuple(reused), seconds, tuple(skipped), skip_reasons)
+
+    why_serial = _why_serial(study, model_factory) if jobs > 1 else "one job"
+    if why_serial is None and len(to_run) > 1:
+        _run_parallel(study, out, quick, to_run, jobs, planned, finished, results)
+    else:
+        if jobs > 1 and why_serial:
+            log.info("[%s] the steps run one after the other: %s", study.info.name, why_serial)
+        for at, step in to_run:
+            plan = planned(at, step)
+            if plan is not None:
+                finished(at, *_execute(study, plan, out, factory, computed_store, results, at))
+    order = {s.name: i for i, s in enumerate(study.steps)}
+    results = dict(sorted(results.items(), key=lambda kv: order[kv[0]]))
+    return StudyRun(study, out, results, tuple(sorted(reused, key=order.__getitem__)),
+                    dict(sorted(seconds.items(), key=lambda kv: order[kv[0]])), tuple(skipped),
+                    skip_reasons)
+
+
+def _execute(study: Study, plan: _Planned, out: Path, factory: ModelFactory, computed_store,
+             results: Mapping[str, StepResult], at: str
+             ) -> tuple[StepResult, float, list[str]]:
+    """Run one planned step and save it: its result, wall seconds and the methods'
+    messages gathered while it ran."""
+    step = plan.step
+    failed: Counter[str] = Counter()
+    ctx = StepContext(
+        name=step.name, type=step.type, options=plan.options, space=plan.space,
+        responses=tuple(plan.responses), fixed=plan.fixed,
+        make_model=_counting_failures(factory, failed),
+        rng=_seed(study, step, plan.options), data=plan.data, data_columns=plan.columns,
+        targets=_step_targets(step, plan.options, results),
+        source=results[step.source[0]] if step.source else None,
+        previous=dict(results), store=computed_store,
+    )
+    try:
+        with gathered_messages() as gathered:
+            res, dt = run_step(step_type(step.type).run, ctx, at)
+    except ParameterError as exc:
+        raise _at_step(exc, study, step) from exc
+    meta = dict(res.meta)
+    meta.update(failed_evaluations={"count": sum(failed.values()),
+                                    "reasons": dict(failed.most_common(20)),
+                                    # the first failure met (a Counter keeps that order)
+                                    "first": next(iter(failed), None)})
+    meta.update(seconds=dt, title=step.title, parameters=list(plan.space.names),
+                responses=list(plan.responses), fixed=plan.fixed, options=plan.options,
+                source=".".join(step.source) if step.source else None,
+                model_identity=plan.parts["model"], code_version=code_version(),
+                identity=plan.parts, code_files=plan.step_code,
+                model_code_files=plan.model_code,
+                input_distributions={n: d.describe() for n, d in
+                                     zip(plan.space.names, plan.space.distributions,
+                                         strict=True)})
+    res = StepResult(res.name, res.type, res.scalars, res.arrays, res.distributions, meta,
+                     fingerprint=plan.fingerprint)
+    export_chains(res, save_step(res, out))
+    return res, dt, gathered.lines()
+
+
+def _why_serial(study: Study, model_factory: ModelFactory | None) -> str | None:
+    """Why a study's steps cannot run in worker processes (None: they can)."""
+    if model_factory is not None:
+        return "a Python model_factory is not sent to other processes"
+    if any(study.model_spec(n).external is not None for n in (None, *study.models)):
+        return "an external model numbers its evaluations' folders in one process"
+    if study.executor.kind != "serial":
+        return f"the [executor] ({study.executor.kind}) already runs evaluations in parallel"
+    return None
+
+
+#: A worker process's model factory and computed store per (study file, results folder).
+_WORKER: dict[tuple[str, str], tuple[ModelFactory, Any]] = {}
+
+
+def _execute_in_worker(study: Study, plan: _Planned, out: Path,
+                       results: Mapping[str, StepResult], at: str
+                       ) -> tuple[StepResult, float, list[str]]:
+    """:func:`_execute` in a worker process of :func:`_run_parallel` (LAPACK on one thread,
+    as in :func:`run_study`)."""
+    key = (str(study.path), str(out))
+    if key not in _WORKER:
+        store_path = out / study.store.path if study.store.enabled else None
+        store = None
+        if store_path is not None:
+            from ..evaluation.store import Store
+
+            store = Store(store_path)
+        _WORKER[key] = (build_model_factory(study, store_path, out), store)
+    factory, store = _WORKER[key]
+    with one_blas_thread():
+        return _execute(study, plan, out, factory, store, results, at)
+
+
+def _worker_logging(level: int | None) -> None:
+    """A step's worker prints its progress lines as the run's process does."""
+    if level is not None:
+        from .console import configure_logging
+
+        configure_logging()
+        logging.getLogger("rotoruq").setLevel(level)
+
+
+def _run_parallel(study: Study, out: Path, quick: bool, to_run: list[tuple[str, StepSpec]],
+                  jobs: int, planned: Callable, finished: Callable,
+                  results: dict[str, StepResult]) -> None:
+    """Run the steps ``to_run`` on ``jobs`` worker processes (spawned), each as soon as the
+    steps it takes from (:func:`step_references`) are done, in the study's order among
+    those ready. Each step's numbers are a function of its inputs and its own seed (the
+    study's seed and the step's position), so they are the same bits as one after the
+    other."""
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    from .console import printing_level
+
+    waiting = list(to_run)
+    running: dict[Any, tuple[str, StepSpec]] = {}
+    ctx = multiprocessing.get_context("spawn")  # a fork would copy BLAS and numba locks
+    with ProcessPoolExecutor(min(jobs, len(to_run)), mp_context=ctx,
+                             initializer=_worker_logging,
+                             initargs=(printing_level(),)) as pool:
+        try:
+            while waiting or running:
+                for item in list(waiting):
+                    at, step = item
+                    if any(r not in results for r in step_references(study, step)):
+                        continue
+                    waiting.remove(item)
+                    plan = planned(at, step)
+                    if plan is not None:
+                        running[pool.submit(_execute_in_worker, study, plan, out,
+                                            dict(results), at)] = item
+                if not running:
+                    if waiting:  # cannot happen: every reference is an earlier step
+                        raise ParameterError(f"steps {[s.name for _, s in waiting]} wait for "
+                                             "steps that do not run")
+                    break
+                done, _ = wait(running, return_when=FIRST_COMPLETED)
+                order = [s.name for s in study.steps]
+                for future in sorted(done, key=lambda f: order.index(running[f][1].name)):
+                    at, _ = running.pop(future)
+                    finished(at, *future.result())
+        except BaseException:
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise
 
 
 def _saved(study: Study, step: StepSpec, folder: Path) -> StepResult | None:

@@ -1,0 +1,101 @@
+"""Independent steps of one study run at once in worker processes (``rotoruq run --jobs N``,
+issue 34): the same bits as one after the other, and the studies whose steps cannot leave
+the run's process say why."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from rotoruq.study.runner import _why_serial
+from rotoruq.study.schema import load_study
+
+CLI = [sys.executable, "-m", "rotoruq.study.cli"]
+
+STUDY = """\
+[study]
+name = "parallel"
+seed = 8
+
+[model]
+function = "text_book"
+responses = ["f", "c1", "c2"]
+
+[parameters.a]
+distribution = "uniform"
+lower = 0.0
+upper = 1.0
+
+[parameters.b]
+distribution = "normal"
+mean = 0.5
+std = 0.1
+
+[[steps]]
+name = "lhs"
+type = "sampling"
+n_samples = 64
+
+[[steps]]
+name = "mv"
+type = "mean_value"
+
+[[steps]]
+name = "random"
+type = "sampling"
+design = "random"
+n_samples = 64
+"""
+
+
+def _run(folder, *extra):
+    return subprocess.run([*CLI, "run", str(folder / "parallel.toml"), "--no-report",
+                           "--out", str(folder / f"out{''.join(extra)}"), *extra],
+                          capture_output=True, text=True, timeout=600)
+
+
+def test_independent_steps_in_two_processes_give_the_bits_of_one(tmp_path):
+    (tmp_path / "parallel.toml").write_text(STUDY)
+    one, two = _run(tmp_path), _run(tmp_path, "--jobs", "2")
+    assert one.returncode == 0 and two.returncode == 0, two.stderr[-3000:]
+    for step in ("lhs", "mv", "random"):
+        assert f"{step}: done" in two.stderr  # each step's lines, from its worker
+        a, b = tmp_path / "out" / "steps" / step, tmp_path / "out--jobs2" / "steps" / step
+        arrays = sorted(p.name for p in a.glob("*.npy"))
+        assert arrays == sorted(p.name for p in b.glob("*.npy")) and arrays
+        for name in arrays:
+            assert np.load(a / name).tobytes() == np.load(b / name).tobytes(), (step, name)
+    # the summary lists the steps in the study's order, whatever order they ended in
+    assert one.stdout.index("lhs") < one.stdout.index("random")
+    assert two.stdout.index("lhs") < two.stdout.index("random")
+
+
+def test_a_bad_job_count_is_a_usage_error(tmp_path):
+    (tmp_path / "parallel.toml").write_text(STUDY)
+    bad = _run(tmp_path, "--jobs", "0")
+    assert bad.returncode == 2 and "--jobs: an integer >= 1, got '0'" in bad.stderr
+
+
+def test_steps_that_cannot_leave_the_process_say_why(tmp_path):
+    (tmp_path / "parallel.toml").write_text(STUDY)
+    study = load_study(tmp_path / "parallel.toml")
+    assert _why_serial(study, None) is None
+    assert "model_factory" in _why_serial(study, lambda *a, **k: None)
+    ext = STUDY.replace('function = "text_book"', 'command = ["python", "driver.py"]')
+    (tmp_path / "ext.toml").write_text(ext)
+    assert "external model" in _why_serial(load_study(tmp_path / "ext.toml"), None)
+    pooled = STUDY + '\n[executor]\nkind = "processes"\n'
+    (tmp_path / "pool.toml").write_text(pooled)
+    assert "[executor]" in _why_serial(load_study(tmp_path / "pool.toml"), None)
+
+
+@pytest.mark.parametrize("jobs", [0, 1.5, True])
+def test_run_study_refuses_a_bad_job_count(tmp_path, jobs):
+    from rotoruq.study.runner import run_study
+
+    (tmp_path / "parallel.toml").write_text(STUDY)
+    with pytest.raises(ValueError, match="jobs must be an integer >= 1"):
+        run_study(tmp_path / "parallel.toml", out=tmp_path / "o", jobs=jobs)

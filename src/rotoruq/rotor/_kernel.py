@@ -340,8 +340,11 @@ def _wrap_deg(a):
 
 
 @numba.njit(**_JIT)
-def _prandtl(r, v, omega, radius, root_cutout, n_blades, derivative):
-    """Prandtl tip and root loss F(r, v) and dF/dv (inflow.prandtl_loss, one station)."""
+def _prandtl(r, v, omega, radius, root_cutout, n_blades):
+    """Prandtl tip and root loss F(r, v) and dF/dv (inflow.prandtl_loss, one station).
+
+    One signature for every caller (a literal flag argument would compile it twice): a
+    caller that needs F only drops dF/dv."""
     av = abs(v)
     ratio = av / (omega * r)
     phi = max(ratio, 1e-6)
@@ -363,8 +366,6 @@ def _prandtl(r, v, omega, radius, root_cutout, n_blades, derivative):
         F = F * Fi
         dlogF = dlogF + (0.0 if limited else dFi * (-f / max(av, 1e-300))) / max(Fi, 1e-3)
     Fc = max(F, 1e-3)
-    if not derivative:
-        return Fc, 0.0
     sign = 1.0 if v > 0 else (-1.0 if v < 0 else 0.0)
     return Fc, (F * dlogF * sign if F > 1e-3 else 0.0)
 
@@ -377,7 +378,7 @@ def _uniform_tip_loss(v0, omega, rot, scratch):
     r_, w_r, radius, root, nb = rot.r, rot.w_r, rot.radius, rot.root_cutout, rot.n_blades
     nr = r_.size
     for i in range(nr):
-        scratch[i] = _prandtl(r_[i], v0, omega, radius, root, nb, False)[0] * w_r[i]
+        scratch[i] = _prandtl(r_[i], v0, omega, radius, root, nb)[0] * w_r[i]
     return _psum(scratch, nr) / rot.sums[SUM_W_R]
 
 
@@ -506,7 +507,9 @@ def _structural_jacobian(prm, rot, af, fit, linear, ws):
         for col in range(3):
             unit = np.zeros(3, dtype=np.complex128)
             unit[col] = 1.0
-            Jinv[k, :, col] = _lu_solve(J[k].copy(), unit, np.empty(3, dtype=np.complex128))
+            x = _lu_solve(J[k].copy(), unit, np.empty(3, dtype=np.complex128))
+            for d in range(3):
+                Jinv[k, d, col] = x[d]
     qa = 0.5 * rho * c * a_lift * Om
     theta_cmd = np.zeros(K, dtype=np.complex128)
     theta_cmd[0] = np.deg2rad(prm[COLLECTIVE])
@@ -516,13 +519,17 @@ def _structural_jacobian(prm, rot, af, fit, linear, ws):
     for k in range(K):
         F_cmd[2, k] = (K_p + 1j * (Om * k) * C_p) * theta_cmd[k]
     J0 = np.zeros((4, 4), dtype=np.complex128)
-    J0[:3, :3] = J[0]
+    for a in range(3):
+        for b in range(3):
+            J0[a, b] = J[0, a, b]
     J0[0, 3] = 0.5 * rho * c * a_lift * Om * sums[SUM_W_R_RR]
     J0[2, 3] = -x_ac * 0.5 * rho * c * a_lift * Om * sums[SUM_W_R]
     J0[3, 2] = -rot.n_blades * 0.5 * rho * c * a_lift * Om**2 * sums[SUM_W_R2]
     J1 = np.zeros((4, 4), dtype=np.complex128)
     if K > 1:
-        J1[:3, :3] = J[1]
+        for a in range(3):
+            for b in range(3):
+                J1[a, b] = J[1, a, b]
     J1[0, 3] = qa * sums[SUM_W_R_RR_R] / R
     return Z, Jinv, J0, J1, F_cmd, v_init, k_v, qa
 
@@ -693,7 +700,7 @@ def _inflow_update(st, dT_r, prm, rot, ws):
         r = rot.r[i]
         v = st.v_r[i]
         if rot.tip_loss:
-            F, dF = _prandtl(r, v, Om, R, rot.root_cutout, Nb, True)
+            F, dF = _prandtl(r, v, Om, R, rot.root_cutout, Nb)
         else:
             F, dF = 1.0, 0.0
         lin = -Nb * 0.5 * rho * c * A0 * Om * r
@@ -790,13 +797,17 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
     if trim:
         rhs, A = ws.rhs, ws.A
         A[:, :] = 0.0
-        A[:3, :3] = J1[:3, :3]
+        for a in range(3):
+            for b in range(3):
+                A[a, b] = J1[a, b]
         A[2, 3] = -(K_p + 1j * Om * C_p)
         A[3, 0] = 1.0
-        rhs[:3] = R_dyn[:, 1]
+        for d in range(3):
+            rhs[d] = R_dyn[d, 1]
         rhs[3] = -st.Q[0, 1]
         d1 = _lu_solve(A, rhs, ws.x)
-        dQ[:, 1] = d1[:3]
+        for d in range(3):
+            dQ[d, 1] = d1[d]
         th1 = (np.deg2rad(prm[LATERAL]) - 1j * np.deg2rad(prm[LONGITUDINAL])) + relax * d1[3]
         prm[LATERAL] = th1.real * RAD2DEG
         prm[LONGITUDINAL] = -th1.imag * RAD2DEG
@@ -811,14 +822,18 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
         G = _harmonic_gain(sc[V0], prm, rot)
         V1 = sc[VC] - 1j * sc[VS]
         rhs, A = ws.rhs, ws.A
-        rhs[:3] = R_dyn[:, 1]
+        for d in range(3):
+            rhs[d] = R_dyn[d, 1]
         rhs[3] = G * Mz1 - V1
-        A[:, :] = J1
+        for a in range(4):
+            for b in range(4):
+                A[a, b] = J1[a, b]
         A[3, 0] = -G * dMz_dB
         A[3, 2] = -G * dMz_dT
         A[3, 3] = 1.0 - G * dMz_dV
         d1 = _lu_solve(A, rhs, ws.x)
-        dQ[:, 1] = d1[:3]
+        for d in range(3):
+            dQ[d, 1] = d1[d]
         V1 = V1 + relax * d1[3]
         sc[VC], sc[VS] = V1.real, -V1.imag
         dv1 = abs(d1[3]) / (Om * R)
@@ -831,8 +846,11 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
         F = _uniform_tip_loss(v, Om, rot, ws.span_scratch)
         mom = 2 * rho * rot.area * F / kappa**2
         rhs, A = ws.rhs, ws.A
-        A[:, :] = J0
-        rhs[:3] = R_dyn[:, 0]
+        for a in range(4):
+            for b in range(4):
+                A[a, b] = J0[a, b]
+        for d in range(3):
+            rhs[d] = R_dyn[d, 0]
         for i in range(rot.r.size):
             ws.span_line[i] = ws.dT_r[i] * rot.w[i]
         T_be = _psum(ws.span_line, rot.r.size)
@@ -847,11 +865,14 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
         if trim:
             A5, rhs5 = ws.A5, ws.rhs5
             A5[:, :] = 0.0
-            A5[:4, :4] = A
+            for a in range(4):
+                for b in range(4):
+                    A5[a, b] = A[a, b]
             A5[2, 4] = -K_p
             A5[4, 2] = -J0[3, 2]
             A5[4, 3] = -k_v
-            rhs5[:4] = rhs
+            for a in range(4):
+                rhs5[a] = rhs[a]
             rhs5[4] = prm[THRUST_TARGET] - T_be
             d0 = _lu_solve(A5, rhs5, ws.x5)
             th0 = np.deg2rad(prm[COLLECTIVE]) + relax * d0[4].real
@@ -860,7 +881,8 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
             d_ctrl = _nanmax(d_ctrl, abs(relax * d0[4].real))
         else:
             d0 = _lu_solve(A, rhs, ws.x)
-        dQ[:, 0] = d0[:3]
+        for d in range(3):
+            dQ[d, 0] = d0[d]
         dv_step = d0[3].real
     big = 0.0
     for d in range(3):
@@ -926,7 +948,7 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
         for i in range(nr):
             r, v = rot.r[i], st.v_r[i]
             if rot.tip_loss:
-                F, dF = _prandtl(r, v, Om, R, rot.root_cutout, Nb, True)
+                F, dF = _prandtl(r, v, Om, R, rot.root_cutout, Nb)
             else:
                 F, dF = 1.0, 0.0
             d_be = -Nb * 0.5 * rho * rot.chord * A0 * Om * r
@@ -1100,14 +1122,19 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_ou
         if size < tolerance:
             reason = OK
             break
-    Q_out[:, :] = Q
-    scalars_out[:] = scalars
+    for d in range(3):
+        for k in range(K):
+            Q_out[d, k] = Q[d, k]
+    for j in range(N_SCALARS):
+        scalars_out[j] = scalars[j]
     status_out[0] = reason
     status_out[1] = dof
     status_out[2] = 1 if bad else 0
     status_out[3] = iterations
     if reason == OK:
-        M_root_out[:] = _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, loads_out)
+        M_root = _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, loads_out)
+        for k in range(K):
+            M_root_out[k] = M_root[k]
 
 
 @numba.njit(**_JIT)

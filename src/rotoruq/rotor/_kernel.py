@@ -535,7 +535,7 @@ def _structural_jacobian(prm, rot, af, fit, linear, ws):
 
 
 @numba.njit(**_JIT)
-def _aerodynamic_loads(Q, v0, vc, vs, v_r, prm, rot, af, fit, linear, ws):
+def _aerodynamic_loads(Q, v0, vc, vs, v_r, prm, rot, af, fit, linear, ws, flight):
     """Section loads over the disk (N_psi, N_r) at the state: ws.dFz, ws.dFx, ws.dMp, with
     the flow (alpha, mach) and coefficients kept for the final check. Returns True when the
     section flow is not finite somewhere (the loads there are taken at a neutral flow)."""
@@ -554,7 +554,7 @@ def _aerodynamic_loads(Q, v0, vc, vs, v_r, prm, rot, af, fit, linear, ws):
     # psi: its flap-normal part mu beta cos psi is kept, the radial flow along the blade
     # neglected) and the free-stream inflow lambda_s Omega R through the disk
     Vx, Vz = prm[MU] * (Om * R), prm[LAMBDA_S] * (Om * R)
-    forward = Vx != 0.0
+    forward = flight is not None and Vx != 0.0
     for j in range(npsi):
         # flap beta and its psi-derivative, lag rate, feathering at psi_j: q_d(psi_j) =
         # Re(sum_k Q[d, k] exp(i k psi_j)) (written out: see _coefficients)
@@ -771,7 +771,7 @@ class Work(NamedTuple):
 
 
 @numba.njit(**_JIT)
-def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
+def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws, flight):
     """One iteration of a sample: returns (step size, flow not finite)."""
     Om, rho, kappa = prm[OMEGA], prm[RHO], prm[KAPPA]
     R = rot.radius
@@ -779,7 +779,7 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
     sc = st.scalars
     relax = sc[RELAX]
     bad = _aerodynamic_loads(st.Q, sc[V0], sc[VC], sc[VS], st.v_r, prm, rot, af, fit,
-                             linear, ws)
+                             linear, ws, flight)
     R_dyn, Mz1 = _blade_root_loads(st.Q, Z, F_cmd, rot, ws)
     dQ = ws.dQ
     for k in range(K):
@@ -788,10 +788,10 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
             y = y + Jinv[k, d, 1] * R_dyn[1, k]
             dQ[d, k] = y + Jinv[k, d, 2] * R_dyn[2, k]
     dv1 = 0.0
-    forward = prm[MU] != 0.0
+    forward = flight is not None and prm[MU] != 0.0
     # wind-tunnel trim: the controls join the unknowns of the mean and first-harmonic
     # blocks, with the equations thrust = target and first-harmonic flapping = 0
-    trim = prm[TRIM] == WIND_TUNNEL and K > 1
+    trim = flight is not None and prm[TRIM] == WIND_TUNNEL and K > 1
     K_p, C_p = prm[K_FEATHER], prm[C_FEATHER]
     d_ctrl = 0.0
     if trim:
@@ -914,7 +914,7 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws):
 
 
 @numba.njit(**_JIT)
-def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
+def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out, flight):
     """Loads and the equation residual re-evaluated at the final state. Writes out[:] =
     thrust [N], torque [N m], equation residual [-], stalled fraction [-], min cd [-], static
     feathering stiffness [N m/rad], flow not finite (1.0) and returns the blade-root flap
@@ -925,9 +925,9 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
     sc = st.scalars
     npsi, nr = rot.cos_psi.size, rot.r.size
     Vx, Vz = prm[MU] * (Om * R), prm[LAMBDA_S] * (Om * R)
-    forward = Vx != 0.0
+    forward = flight is not None and Vx != 0.0
     bad = _aerodynamic_loads(st.Q, sc[V0], sc[VC], sc[VS], st.v_r, prm, rot, af, fit,
-                             linear, ws)
+                             linear, ws, flight)
     R_dyn, Mz1 = _blade_root_loads(st.Q, Z, F_cmd, rot, ws)
     e_dyn = 0.0
     for d in range(3):
@@ -1064,7 +1064,7 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
 
 @numba.njit(**_JIT)
 def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_out,
-                  scalars_out, status_out, loads_out, M_root_out):
+                  scalars_out, status_out, loads_out, M_root_out, flight):
     """Iterate one sample to convergence and evaluate its loads at the final state.
 
     prm : (N_COLUMNS,) inputs; ws : a :class:`Work` (every entry is written before it is
@@ -1082,7 +1082,7 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_ou
     Q = np.zeros((3, K), dtype=np.complex128)
     for k in range(K):
         Q[2, k] = F_cmd[2, k] / Z[k, 2, 2]
-    trim = prm[TRIM] == WIND_TUNNEL and K > 1
+    trim = flight is not None and prm[TRIM] == WIND_TUNNEL and K > 1
     if trim:
         v_init = _trim_inflow(prm, rot)
     scalars = np.zeros(N_SCALARS)
@@ -1093,7 +1093,8 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_ou
     st = State(Q, scalars, v_r, v_r.copy(), np.zeros(nr))
     reason, dof, bad, iterations = NOT_CONVERGED, 0, False, 0
     for _ in range(max_iterations):
-        size, bad = _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws)
+        size, bad = _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws,
+                          flight)
         iterations += 1
         if trim:
             if (abs(prm[COLLECTIVE]) + abs(prm[LATERAL]) + abs(prm[LONGITUDINAL])
@@ -1132,7 +1133,7 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_ou
     status_out[2] = 1 if bad else 0
     status_out[3] = iterations
     if reason == OK:
-        M_root = _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, loads_out)
+        M_root = _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, loads_out, flight)
         for k in range(K):
             M_root_out[k] = M_root[k]
 
@@ -1156,11 +1157,26 @@ def _workspace(rot):
 
 @numba.njit(**_JIT)
 def solve_samples(prm, rot, af, fits, linear, tolerance, max_iterations, Q, scalars, status,
-                  loads, M_root):
+                  loads, M_root, flight):
     """Solve the samples of ``prm`` (n, N_COLUMNS) one after the other, writing row s of
     every output array (see :func:`_solve_sample`). Releases the GIL: threads may solve
-    disjoint slices of a batch at the same time."""
+    disjoint slices of a batch at the same time.
+
+    ``flight`` is None for the hover build: numba leaves out every branch behind
+    ``flight is not None`` when it compiles, so a hover study never compiles the forward
+    flight and trim code (less to compile on a cold cache, issue 34); True for the
+    forward-flight build (:func:`needs_flight`), where mu = 0 rows take the hover paths."""
     ws = _workspace(rot)
     for s in range(prm.shape[0]):
         _solve_sample(prm[s], rot, af, fits[s], linear[s], tolerance, max_iterations, ws,
-                      Q[s], scalars[s], status[s], loads[s], M_root[s])
+                      Q[s], scalars[s], status[s], loads[s], M_root[s], flight)
+
+
+def needs_flight(prm: np.ndarray) -> bool | None:
+    """:func:`solve_samples`'s ``flight`` for the rows of ``prm`` (n, N_COLUMNS): True when a
+    row is in forward flight or trimmed (or its advance ratio is not a number), else None
+    (the hover build)."""
+    mu = prm[:, MU]
+    if np.any(mu != 0.0) or np.any(prm[:, TRIM] != NO_TRIM):
+        return True
+    return None

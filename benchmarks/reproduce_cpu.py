@@ -52,11 +52,11 @@ def child(chapter: str, out: str, quick: bool) -> None:
     current = [""]
     run_step, self_check = runner.run_step, bayes._self_check
 
-    def timed(fn, ctx, *rest):
+    def timed(fn, ctx, *args):
         c0 = _cpu(resource.RUSAGE_SELF)
         current[0] = ctx.name
         try:
-            return run_step(fn, ctx, *rest)
+            return run_step(fn, ctx, *args)
         finally:
             steps[ctx.name] = round(_cpu(resource.RUSAGE_SELF) - c0, 2)
 

@@ -1164,7 +1164,7 @@ def solve_samples(prm, rot, af, fits, linear, tolerance, max_iterations, Q, scal
 
     ``flight`` is None for the hover build: numba leaves out every branch behind
     ``flight is not None`` when it compiles, so a hover study never compiles the forward
-    flight and trim code (less to compile on a cold cache, issue 34); True for the
+    flight and trim code on a cold cache (issue 34); True for the
     forward-flight build (:func:`needs_flight`), where mu = 0 rows take the hover paths."""
     ws = _workspace(rot)
     for s in range(prm.shape[0]):

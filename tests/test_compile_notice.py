@@ -67,3 +67,88 @@ def test_each_step_kernel_is_compiled_once_on_a_cold_cache(tmp_path):
                           capture_output=True, text=True, timeout=1200)
     assert done.returncode == 0, done.stderr[-2000:]
     assert done.stdout.strip().splitlines()[-1] == "[1, 1, 1, 1]", done.stdout
+
+
+# Two kernels in a module of their own: the process calls `used` only, as a chain on an
+# emulator calls one of the emulator's kernels and never the other (issue 36).
+KERNELS = textwrap.dedent("""
+    import logging, sys
+    import numba as nb
+    from rotoruq._compile import notice_if_cold
+
+    @nb.njit(cache=True)
+    def used(x):
+        return x + 1.0
+
+    @nb.njit(cache=True)
+    def never(x):
+        return x - 1.0
+
+    logging.basicConfig(level=logging.INFO, format="%(message)s", stream=sys.stdout)
+    notice_if_cold("demo kernels", [used], logging.getLogger("demo"))
+    used(1.0)
+""")
+
+
+def test_the_notice_names_only_kernels_about_to_be_called(tmp_path):
+    """The notice is given where a kernel is called, for that kernel: a second run on the same
+    numba cache says nothing although the module's other kernel was never compiled (before,
+    a family was checked as a whole, and a kernel no run calls was 'compiled' every run)."""
+    (tmp_path / "kernels.py").write_text(KERNELS)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"),
+           "PYTHONPATH": os.pathsep.join([str(tmp_path), *sys.path])}
+    said = [subprocess.run([sys.executable, "-c", "import kernels"], capture_output=True,
+                           text=True, env=env, cwd=tmp_path, timeout=300).stdout
+            for _ in range(2)]
+    assert said[0].startswith("compiling demo kernels"), said
+    assert said[1] == "", said
+
+
+STUDY = textwrap.dedent("""
+    [study]
+    name = "warm"
+    seed = 1
+
+    [model]
+    function = "text_book"
+    responses = ["y1", "y2"]
+
+    [parameters.a]
+    distribution = "uniform"
+    lower = -1.0
+    upper = 1.0
+
+    [parameters.b]
+    distribution = "uniform"
+    lower = -1.0
+    upper = 1.0
+
+    [data.obs]
+    file = "obs.csv"
+
+    [[steps]]
+    name = "bayes"
+    type = "bayes_calibration"
+    data = "obs"
+    noise_std = { y1 = 0.2, y2 = 0.2 }
+    n_emulator_samples = 12
+    n_samples = 200
+    """)
+
+
+@pytest.mark.slow
+@pytest.mark.extended  # the first run compiles the emulator and chain kernels: minutes
+def test_a_second_run_on_a_warm_cache_prints_no_compile_notice(tmp_path):
+    """`rotoruq run` twice with one NUMBA_CACHE_DIR: the first (cold) names what it
+    compiles, the second compiles nothing and says nothing of compiling."""
+    (tmp_path / "obs.csv").write_text("y1,y2\n0.9,0.1\n1.1,-0.1\n")
+    (tmp_path / "study.toml").write_text(STUDY)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"),
+           "PYTHONPATH": os.pathsep.join(sys.path)}
+    runs = [subprocess.run([sys.executable, "-m", "rotoruq.study.cli", "run", "study.toml",
+                            "--out", f"out{k}", "--no-report"], capture_output=True,
+                           text=True, env=env, cwd=tmp_path, timeout=1800) for k in range(2)]
+    for r in runs:
+        assert r.returncode == 0, r.stderr
+    assert "compiling " in runs[0].stderr, runs[0].stderr
+    assert "compiling " not in runs[1].stderr, runs[1].stderr

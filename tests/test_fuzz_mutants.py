@@ -134,3 +134,52 @@ def test_a_step_naming_a_removed_parameter_is_refused_naming_file_and_line(tmp_p
     assert proc.returncode == 1 and "Traceback" not in proc.stderr
     (line,) = [ln for ln in proc.stderr.splitlines() if "error" in ln]
     assert f"{study}, line " in line and "found 'cla_m02'" in line
+
+
+def _first_steps(tmp_path: Path, seed: int, n: int) -> list[tuple[int, str, Path, str]]:
+    """The first ``n`` mutants (of the seeded stream) that load, with their first step: mbdyn
+    studies left out (MBDyn's runs are their own tests)."""
+    picked = []
+    for i, (name, text) in enumerate(mutants(seed, 100 * n)):
+        if name.startswith("mbdyn"):
+            continue
+        path = tmp_path / f"run{i}.toml"
+        path.write_text(text, encoding="utf-8")
+        try:
+            study = load_study(path)
+        except RotoruqError:
+            continue
+        if study.steps:
+            picked.append((i, name, path, study.steps[0].name))
+        if len(picked) == n:
+            break
+    return picked
+
+
+def _run_first_steps(tmp_path: Path, seed: int, n: int) -> None:
+    """Mutants that load RUN their first step (``rotoruq run --quick --only``, a fresh
+    interpreter each): no traceback, no internal error; a failure is one line."""
+    picked = _first_steps(tmp_path, seed, n)
+    assert len(picked) == n
+    env = {**os.environ, "PYTHONPATH": SRC}
+    for i, name, study, step in picked:
+        proc = subprocess.run([*CLI, "run", str(study), "--quick", "--only", step, "--out",
+                               str(tmp_path / f"out{i}"), "--no-report", "--quiet"],
+                              capture_output=True, text=True, env=env, timeout=600)
+        where = f"mutant {i} of {name} (step {step!r})"
+        assert "Traceback" not in proc.stderr and "internal error" not in proc.stderr, \
+            f"{where}: {proc.stderr}"
+        if proc.returncode != 0:
+            errors = [ln for ln in proc.stderr.splitlines() if "error" in ln]
+            assert errors and errors[0].startswith("rotoruq run: error: "), \
+                f"{where}: {proc.stderr}"
+
+
+def test_a_sample_of_mutants_runs_its_first_step_through_the_cli(tmp_path):
+    _run_first_steps(tmp_path, SEED + 11, 3)
+
+
+@pytest.mark.slow
+@pytest.mark.extended  # 30 CLI runs of a first step, minutes
+def test_a_larger_sample_runs_its_first_step_through_the_cli(tmp_path):
+    _run_first_steps(tmp_path, SEED + 12, 30)

@@ -29,34 +29,11 @@ from rotoruq.study.schema import parse_study
 CLI = [sys.executable, "-m", "rotoruq.study.cli"]
 EXPECTED_CLAIMS = Path(__file__).parent / "data" / "reference_quick_claims.json"
 
-from test_security import DRIVER  # noqa: E402 (one external driver for both)
+from test_security import DRIVER, STUDY  # noqa: E402 (one external study for both)
 
 # An external solver's study that happens to be called "validation", with one sampling step.
-EXTERNAL = """\
-[study]
-name = "validation"
-seed = 3
-
-[model]
-command = [{python}, "-S", "driver.py", "{{params}}", "{{results}}"]
-templates = ["input.txt"]
-responses = ["y1"]
-
-[parameters.a]
-distribution = "uniform"
-lower = 0.0
-upper = 1.0
-
-[parameters.b]
-distribution = "normal"
-mean = 2.0
-std = 0.5
-
-[[steps]]
-name = "lhs"
-type = "sampling"
-n_samples = 4
-"""
+EXTERNAL = STUDY.replace('name = "ext"', 'name = "validation"')
+assert EXTERNAL != STUDY
 
 
 def test_a_study_named_validation_gets_a_plain_report(tmp_path):

@@ -13,7 +13,8 @@ from typing import Any
 
 __all__ = ["is_cached", "notice_if_cold"]
 
-_noticed: set[str] = set()
+_noticed: set[str] = set()  # families announced in this process
+_checked: set[int] = set()  # ids of the dispatchers already looked up in the cache
 
 
 def is_cached(dispatcher: Any) -> bool:
@@ -49,6 +50,11 @@ def notice_if_cold(family: str, dispatchers: Iterable[Any], logger: logging.Logg
     """Log once per process, at INFO, that the kernels of ``family`` are being compiled,
     when one of ``dispatchers`` is not in numba's cache.
 
+    Call it where the dispatchers are about to be called, with those only: a kernel that a
+    process never calls is never cached, and naming it would announce a compile on every
+    run. A family may be checked from several call sites (each with its own kernels); it is
+    announced at most once.
+
     Parameters
     ----------
     family : str
@@ -72,9 +78,13 @@ def notice_if_cold(family: str, dispatchers: Iterable[Any], logger: logging.Logg
     """
     if family in _noticed:
         return False
-    _noticed.add(family)
-    if all(is_cached(d) for d in dispatchers):
+    fresh = [d for d in dispatchers if id(d) not in _checked]
+    if not fresh:
         return False
+    _checked.update(id(d) for d in fresh)
+    if all(is_cached(d) for d in fresh):
+        return False
+    _noticed.add(family)
     # "now": printed as it comes, before the compile, even where a step gathers messages
     logger.info("compiling %s (once per install, ~%s s) ...", family, seconds,
                 extra={"now": True})

@@ -14,6 +14,7 @@ symlink planted there, or put escape codes on the user's terminal:
   with ``O_NOFOLLOW``, each file atomically: a symlink planted at any name after the run
   started is refused naming it, and a folder swapped after it was opened does not redirect
   the writes;
+- :func:`write_file`: one file written atomically, never through a symlink at its name;
 - :func:`terminal_text`: a string with its control characters shown as escapes (the one
   escaping of study-supplied text: :mod:`rotoruq.report.escape` builds on it).
 """
@@ -23,15 +24,18 @@ from __future__ import annotations
 import errno
 import os
 import secrets
+import shutil
 import stat
 import unicodedata
 from pathlib import Path, PurePath
+from typing import BinaryIO
 
 from .errors import InputFileError, RotoruqError
 
 __all__ = ["UnsafePathError", "ForeignFileError", "check_name", "name_problem",
            "check_relative", "inside", "no_symlink", "real_dir", "open_nofollow",
-           "read_nofollow", "terminal_text", "is_control", "path_length_problem", "SafeFolder"]
+           "read_nofollow", "terminal_text", "is_control", "path_length_problem", "SafeFolder",
+           "write_file"]
 
 _DIR_FLAGS = os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW | os.O_CLOEXEC
 _NEW_FILE = os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC
@@ -396,7 +400,8 @@ def read_nofollow(p: str | os.PathLike) -> bytes:
         os.close(fd)
 
 
-def _planted(name: str, dir_fd: int | None, shown: Path) -> UnsafePathError | None:
+def _planted(name: str, dir_fd: int | None, shown: Path, doing: str = "writes"
+             ) -> UnsafePathError | None:
     """The error for a symlink (or, where a folder is expected, a file) at ``name``."""
     try:
         st = os.lstat(name, dir_fd=dir_fd)
@@ -405,8 +410,8 @@ def _planted(name: str, dir_fd: int | None, shown: Path) -> UnsafePathError | No
     if stat.S_ISLNK(st.st_mode):
         return UnsafePathError(
             f"symlink planted at {terminal_text(shown)} (-> "
-            f"{terminal_text(os.readlink(name, dir_fd=dir_fd))}) while rotoruq writes there; "
-            "rotoruq never writes through a symlink: remove it and run again")
+            f"{terminal_text(os.readlink(name, dir_fd=dir_fd))}) while rotoruq {doing} there; "
+            f"rotoruq never {doing} through a symlink: remove it and run again")
     return None
 
 
@@ -423,6 +428,14 @@ class SafeFolder:
     path : str or path-like
         The folder; created (with its parents, the user's umask) when missing. Its parents
         may be symlinks (the user's choice); the folder itself may not.
+    new : bool
+        The folder must be made by this call (:class:`FileExistsError` otherwise).
+    create : bool
+        Make the folder (and its parents) when missing (default); False: it must exist.
+    follow : bool
+        The folder itself may be a symlink (one the user made before the run started: a
+        work folder linked to a scratch disk); everything below it is still held by
+        descriptors.
 
     Examples
     --------
@@ -436,19 +449,27 @@ class SafeFolder:
 
     fd: int  # the folder's descriptor, -1 once closed
 
-    def __init__(self, path: str | os.PathLike, *, _parent: SafeFolder | None = None):
+    def __init__(self, path: str | os.PathLike, *, new: bool = False, create: bool = True,
+                 follow: bool = False, _parent: SafeFolder | None = None):
         self.path = Path(path)
         if _parent is None:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
+            if create:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
             where, name = None, str(self.path)
         else:
             where, name = _parent.fd, self.path.name
+        flags = _DIR_FLAGS & ~os.O_NOFOLLOW if follow and _parent is None else _DIR_FLAGS
+        if create or new:
+            try:
+                os.mkdir(name, 0o777, dir_fd=where)
+            except FileExistsError:
+                if new:
+                    planted = _planted(name, where, self.path)
+                    if planted is not None:
+                        raise planted from None
+                    raise
         try:
-            os.mkdir(name, 0o777, dir_fd=where)
-        except FileExistsError:
-            pass
-        try:
-            self.fd = os.open(name, _DIR_FLAGS, dir_fd=where)
+            self.fd = os.open(name, flags, dir_fd=where)
         except OSError as exc:
             if exc.errno in (errno.ELOOP, errno.ENOTDIR):
                 planted = _planted(name, where, self.path)
@@ -458,13 +479,93 @@ class SafeFolder:
                                       "a file; remove it") from None
             raise
 
-    def folder(self, name: str) -> SafeFolder:
-        """The folder ``name`` in this one, created when missing (a context manager)."""
-        return SafeFolder(self.path / name, _parent=self)
+    def folder(self, name: str, *, new: bool = False, create: bool = True) -> SafeFolder:
+        """The folder ``name`` in this one (a context manager), created when missing
+        (``create``); with ``new``, made by this call: a name taken is
+        :class:`FileExistsError`, by a symlink :class:`UnsafePathError` naming it."""
+        return SafeFolder(self.path / name, new=new, create=create, _parent=self)
 
-    def write(self, name: str, data: bytes, *, sync: bool = False) -> Path:
-        """Write ``data`` to the file ``name`` of this folder atomically (with ``sync``, on
-        disk before the rename); returns its path."""
+    def create(self, name: str, mode: int = 0o666) -> int:
+        """A descriptor of the new file ``name`` (opened ``O_EXCL | O_NOFOLLOW``, for a
+        stream written as it comes): a symlink or a file already at ``name`` is refused,
+        naming it (:class:`UnsafePathError` or :class:`FileExistsError`)."""
+        try:
+            return os.open(name, _NEW_FILE, mode, dir_fd=self.fd)
+        except FileExistsError:
+            planted = _planted(name, self.fd, self.path / name)
+            if planted is not None:
+                raise planted from None
+            raise FileExistsError(errno.EEXIST, "a file is already there",
+                                  str(self.path / name)) from None
+        except OSError as exc:
+            raise OSError(exc.errno, exc.strerror, str(self.path / name)) from None
+
+    def symlink(self, name: str, target: str | os.PathLike) -> Path:
+        """Make the symbolic link ``name`` -> ``target`` in this folder (the caller's link:
+        the user listed it); a name already taken is :class:`FileExistsError`."""
+        try:
+            os.symlink(target, name, dir_fd=self.fd)
+        except OSError as exc:
+            raise OSError(exc.errno, exc.strerror, str(self.path / name)) from None
+        return self.path / name
+
+    def read(self, name: str, limit: int | None = None) -> bytes:
+        """The bytes of the regular file ``name`` of this folder, never through a symlink
+        (:class:`UnsafePathError` naming it); at most ``limit`` bytes when given. A missing
+        file is :class:`FileNotFoundError`, a folder or device :class:`ForeignFileError`."""
+        shown = self.path / name
+        try:
+            fd = os.open(name, os.O_RDONLY | os.O_NONBLOCK | os.O_NOFOLLOW | os.O_CLOEXEC,
+                         dir_fd=self.fd)
+        except OSError as exc:
+            if exc.errno == errno.ELOOP:
+                planted = _planted(name, self.fd, shown, "reads")
+                if planted is not None:
+                    raise planted from None
+            raise OSError(exc.errno, exc.strerror, str(shown)) from None
+        try:
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                raise ForeignFileError(shown, "not a regular file")
+            chunks, got = [], 0
+            while (limit is None or got < limit) and (
+                    chunk := os.read(fd, 1 << 20 if limit is None else min(1 << 20, limit - got))):
+                chunks.append(chunk)
+                got += len(chunk)
+            return b"".join(chunks)
+        finally:
+            os.close(fd)
+
+    def lstat(self, name: str) -> os.stat_result | None:
+        """``os.lstat`` of ``name`` in this folder (a link is not followed); None when
+        missing."""
+        try:
+            return os.lstat(name, dir_fd=self.fd)
+        except FileNotFoundError:
+            return None
+
+    def remove_tree(self, name: str) -> None:
+        """Remove the folder ``name`` of this one and everything in it (links are removed,
+        never followed: ``shutil.rmtree`` through this folder's descriptor); a symlink at
+        ``name`` itself is :class:`UnsafePathError`; a missing one is nothing to do."""
+        planted = _planted(name, self.fd, self.path / name)
+        if planted is not None:
+            raise planted
+        try:
+            shutil.rmtree(name, dir_fd=self.fd)
+        except FileNotFoundError:
+            pass
+
+    def cwd_path(self) -> str:
+        """A path to this very folder for a child process's working directory
+        (``/proc/self/fd/<fd>``, with the descriptor passed to the child): the child starts
+        in the folder this descriptor holds, even if its name was swapped for a link."""
+        return f"/proc/self/fd/{self.fd}"
+
+    def write(self, name: str, data: bytes | BinaryIO, *, sync: bool = False,
+              mode: int | None = None) -> Path:
+        """Write ``data`` (bytes, or a binary file read to its end) to the file ``name`` of
+        this folder atomically (with ``sync``, on disk before the rename); ``mode``: the
+        file's permission bits exactly (default 0666 less the umask). Returns its path."""
         shown = self.path / name
         for _ in range(100):
             tmp = f".{name}.{secrets.token_hex(6)}.tmp"
@@ -477,8 +578,13 @@ class SafeFolder:
             raise FileExistsError(f"no free temporary name .{name}.*.tmp in {self.path}")
         try:
             with os.fdopen(fd, "wb") as fh:
-                fh.write(data)
+                if isinstance(data, bytes | bytearray | memoryview):
+                    fh.write(data)
+                else:
+                    shutil.copyfileobj(data, fh)
                 fh.flush()
+                if mode is not None:
+                    os.fchmod(fh.fileno(), mode)
                 if sync:
                     os.fsync(fh.fileno())
             planted = _planted(name, self.fd, shown)
@@ -508,3 +614,23 @@ class SafeFolder:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def write_file(path: str | os.PathLike, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically (a new temporary name opened ``O_EXCL |
+    O_NOFOLLOW`` in its folder, then renamed): a symlink planted at ``path`` is refused with
+    :class:`UnsafePathError` naming it, never written through. The folder itself is the
+    caller's and may be reached through links. For a file a driver or a results folder
+    writes where someone else may have planted a link (no ``fsync``: see
+    :mod:`rotoruq.atomic` for crash safety).
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     write_file(Path(d) / "results.out", b"1.5 f\\n").read_bytes()
+    b'1.5 f\\n'
+    """
+    p = Path(path)
+    with SafeFolder(p.parent, create=False, follow=True) as folder:
+        return folder.write(p.name, data)

@@ -56,6 +56,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputFileError, ParameterError
+from ..safety import write_file
 
 __all__ = [
     "check_label",
@@ -360,9 +361,8 @@ def write_parameters(
     >>> read_parameters(path).variables
     {'collective_deg': 5.4, 'omega': 224.6375}
     """
-    path = Path(path)
-    path.write_text(format_parameters(variables, names_out, **kwargs))
-    return path
+    # atomically, never through a link planted at its name
+    return write_file(path, format_parameters(variables, names_out, **kwargs).encode("utf-8"))
 
 
 def _aprepro_line(line: str) -> tuple[str, str] | None:
@@ -598,6 +598,18 @@ def read_text(path: str | os.PathLike, what: str) -> str:
     except OSError as exc:
         raise InputFileError(path, None, f"a readable {what}", f"{type(exc).__name__}: "
                              f"{exc.strerror or exc}") from None
+    return decode_text(data, path, what)
+
+
+def decode_text(data: bytes, path: str | os.PathLike | None, what: str) -> str:
+    """``data`` decoded as UTF-8; undecodable bytes raise
+    :class:`~rotoruq.errors.InputFileError` naming the file ``path``, the line and the bytes.
+
+    Examples
+    --------
+    >>> decode_text(b"1.5 f\\n", "results.out", "Dakota results file")
+    '1.5 f\\n'
+    """
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:
@@ -734,10 +746,7 @@ def write_results(
     else:
         text = format_results(values, names_out, gradients=gradients, hessians=hessians,
                               metadata=metadata)
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, path)
-    return path
+    return write_file(path, text.encode("utf-8"))  # never through a link planted at its name
 
 
 def _tokens(text: str, path=None) -> list[tuple[int, str]]:

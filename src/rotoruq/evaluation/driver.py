@@ -42,7 +42,7 @@ import numpy as np
 
 from ..errors import ParameterError, RotoruqError
 from ..model import EvalBatch, Model, align_inputs, evaluate, has_gradient, model_gradient
-from ..safety import path_length_problem, terminal_text
+from ..safety import UnsafePathError, path_length_problem, terminal_text, write_file
 from .dakota_files import FAIL_TEXT, ParametersFile, format_results, read_parameters_batch
 
 __all__ = ["add_arguments", "main", "named_pairs", "run", "run_model", "ArgumentError",
@@ -130,11 +130,13 @@ def _results_path(argv: Sequence[str]) -> Path | None:
 
 
 def _write(path: Path, text: str, program: str) -> bool:
-    """Write the results file (via a temporary one); a failure is one line on stderr."""
-    tmp = path.with_name(path.name + ".tmp")
+    """Write the results file (via a new temporary one, never through a symlink planted
+    at its name); a failure is one line on stderr."""
     try:
-        tmp.write_text(text)
-        tmp.replace(path)
+        write_file(path, text.encode("utf-8"))
+    except UnsafePathError as exc:
+        print(f"{program}: cannot write the results file: {exc}", file=sys.stderr)
+        return False
     except OSError as exc:
         print(f"{program}: cannot write the results file {terminal_text(path)}: "
               f"{exc.strerror or exc}", file=sys.stderr)

@@ -5,7 +5,12 @@ For each input point, :class:`ExternalModel`
 1. makes a work directory ``<workdir>/<name>.<pid>.<token>.<eval_id>`` (``pid`` of the
    process running the evaluation, ``token`` random per model, so that evaluations, worker
    processes and concurrent runs over one base folder never share a directory), copies or
-   links the listed files into it and fills the templates;
+   links the listed files into it and fills the templates. The base folder is opened
+   without following a link and the evaluation's folder made exclusively and held by a
+   descriptor (:class:`~rotoruq.safety.SafeFolder`); every file rotoruq puts there is
+   created through it with ``O_EXCL | O_NOFOLLOW``, the driver starts in the folder held
+   and the results file is read without following a link: a symlink planted at any of
+   these names fails the evaluation, naming it;
 2. writes the Dakota parameters file (standard or aprepro format) there;
 3. runs the command with the work directory as current directory, **without a shell**
    (argument list), in a session of its own; ``driver`` becomes
@@ -65,6 +70,7 @@ import os
 import shlex
 import shutil
 import signal
+import stat
 import threading
 import time
 import uuid
@@ -77,11 +83,10 @@ import numpy as np
 
 from .._docs import fill_doc
 from .._options import fields_of, legacy_keywords, legacy_mapping, with_fields
-from ..atomic import make_temp_dir
 from ..errors import EvaluationError, InputFileError, ParameterError, RotoruqError
 from ..model import EVALUATE_BATCH_DOC, EvalBatch, Gradient
-from ..safety import UnsafePathError, real_dir
-from .dakota_files import check_label, read_results, read_text, write_parameters
+from ..safety import ForeignFileError, SafeFolder, UnsafePathError
+from .dakota_files import check_label, decode_text, format_parameters, parse_results, read_text
 from .identity import file_sha256
 from .process_tree import run_process_tree
 from .templates import check_template, fill_template
@@ -556,67 +561,94 @@ class ExternalModel:
             argv += [self.parameters_file, self.results_file]
         return argv
 
-    def _make_workdir(self, eval_id: str, previous: Path | None) -> Path:
-        """A fresh, empty work directory made by this call; ``previous`` (the directory of
-        the previous attempt of this evaluation, made by this model) is removed first.
-        Never removes a directory rotoruq did not make, never makes one through a symlink
-        planted at the base after the model was made."""
-        if self.__dict__.get("_workdir_linked", True):
-            self.workdir.mkdir(parents=True, exist_ok=True)
-        else:
-            self.workdir.parent.mkdir(parents=True, exist_ok=True)
-            real_dir(self.workdir, create=True)
-        if previous is not None:
-            shutil.rmtree(previous, ignore_errors=True)
-        if not self.tag:
-            wd = self.workdir / self.name
-            if wd.is_symlink() or (wd.exists() and not (wd / MARKER).is_file()):
+    def _make_workdir(self, eval_id: str, previous: Path | None) -> _Place:
+        """A fresh, empty work directory made by this call, held by descriptors; ``previous``
+        (the directory of the previous attempt of this evaluation, made by this model) is
+        removed first. Never removes a directory rotoruq did not make, never makes or
+        writes one through a symlink planted at the base or in it after the model was made:
+        the base is opened without following a link (unless the user's own link, there when
+        the model was made) and everything below it is made through its descriptor."""
+        base = SafeFolder(self.workdir, follow=self.__dict__.get("_workdir_linked", True))
+        try:
+            if previous is not None:
+                try:
+                    base.remove_tree(previous.name)
+                except OSError:
+                    pass  # kept: the new attempt has a directory of its own
+            if not self.tag:
+                return _Place(self.workdir / self.name, base, self._fixed_workdir(base))
+            name = f"{self.name}.{os.getpid()}.{self._token}.{eval_id}"
+            for _ in range(100):
+                try:
+                    # exclusive: a name taken (by anything, a planted link included) is
+                    # never reused
+                    return _Place(self.workdir / name, base, base.folder(name, new=True))
+                except FileExistsError:
+                    name = f"{self.name}.{os.getpid()}.{self._token}.{eval_id}." \
+                           f"{uuid.uuid4().hex[:12]}"
+            raise FileExistsError(f"no free work directory name {self.name}.* in "
+                                  f"{self.workdir}")
+        except BaseException:
+            base.close()
+            raise
+
+    def _fixed_workdir(self, base: SafeFolder) -> SafeFolder:
+        """The one work directory of ``tag=False``, emptied (only if rotoruq made it)."""
+        wd = self.workdir / self.name
+        st = base.lstat(self.name)
+        if st is not None:
+            ours = False
+            if stat.S_ISDIR(st.st_mode):
+                with base.folder(self.name, create=False) as old:
+                    mark = old.lstat(MARKER)
+                    ours = mark is not None and stat.S_ISREG(mark.st_mode)
+            if not ours:
                 raise ParameterError(
                     f"work directory {wd} exists and was not made by rotoruq (no {MARKER} "
                     "marker in it): rotoruq will not empty it; remove it or choose another "
                     "name")
-            if wd.exists():
-                shutil.rmtree(wd)
-            wd.mkdir()
-            (wd / MARKER).write_text(f"made by rotoruq for ExternalModel {self.name!r}\n")
-            return wd
-        wd = self.workdir / f"{self.name}.{os.getpid()}.{self._token}.{eval_id}"
+            base.remove_tree(self.name)
+        folder = base.folder(self.name, new=True)
         try:
-            wd.mkdir()  # exclusive: fails rather than reuse a directory
-        except FileExistsError:
-            wd = make_temp_dir(self.workdir, wd.name + ".")  # the umask, not 0700
-        return wd
+            folder.write(MARKER, f"made by rotoruq for ExternalModel {self.name!r}\n".encode())
+        except BaseException:
+            folder.close()
+            raise
+        return folder
 
-    def _prepare(self, wd: Path, values: Mapping[str, float]) -> None:
+    def _prepare(self, folder: SafeFolder, values: Mapping[str, float]) -> None:
         for p in self.copy_files:
-            if p.is_dir():
-                shutil.copytree(p, wd / p.name, symlinks=True)
-            else:
-                shutil.copy2(p, wd / p.name)
+            _copy_into(folder, p)
         for p in self.link_files:
-            (wd / p.name).symlink_to(p)
+            folder.symlink(p.name, p)
         for p, text in self._templates:
-            (wd / p.name).write_text(fill_template(text, values, path=p))
+            folder.write(p.name, fill_template(text, values, path=p).encode("utf-8"))
 
-    def _run_once(self, x: np.ndarray, eval_id: str, wd: Path, gradient: bool = False
+    def _run_once(self, x: np.ndarray, eval_id: str, place: _Place, gradient: bool = False
                   ) -> _Attempt:
-        """One attempt in the (empty) work directory ``wd``; with ``gradient``, values and
+        """One attempt in the (empty) work directory ``place``; with ``gradient``, values and
         gradients (ASV 3, the derivative variables in the DVV)."""
         values = dict(zip(self.names_in, (float(v) for v in x), strict=True))
         asv = 3 if gradient else self.asv
+        wd, folder = place.path, place.folder
+        streams: list[int] = []
         try:
-            self._prepare(wd, values)
-            write_parameters(wd / self.parameters_file, values, list(self.names_out),
-                             asv=asv, analysis_components=self.analysis_components,
-                             eval_id=eval_id, format=self.parameters_format,
-                             dvv=list(self.derivative_variables))
+            self._prepare(folder, values)
+            text = format_parameters(values, list(self.names_out), asv=asv,
+                                     analysis_components=self.analysis_components,
+                                     eval_id=eval_id, format=self.parameters_format,
+                                     dvv=list(self.derivative_variables))
+            folder.write(self.parameters_file, text.encode("utf-8"))
+            streams = [folder.create(STDOUT_FILE), folder.create(STDERR_FILE)]
         except (OSError, RotoruqError) as exc:
-            return _Attempt(None, f"could not prepare the work directory: {exc}")
+            for fd in streams:
+                os.close(fd)
+            return _Attempt(None, f"could not prepare the work directory: {_why(exc)}")
         argv = self._argv(wd, eval_id)
         env = {**os.environ, **self.env}
         try:
-            run = run_process_tree(argv, cwd=wd, env=env, timeout=self.timeout,
-                                   stdout_path=wd / STDOUT_FILE, stderr_path=wd / STDERR_FILE,
+            run = run_process_tree(argv, cwd=folder.fd, env=env, timeout=self.timeout,
+                                   stdout_path=streams[0], stderr_path=streams[1],
                                    cap=self.output_cap)
         except OSError as exc:
             return _Attempt(None, f"could not start {argv[0]!r}: {exc}")
@@ -632,17 +664,20 @@ class ExternalModel:
             last = err_s.strip().splitlines()[-1:] if err_s.strip() else []
             why = f": {last[0][:200]}" if last else ""
             return _Attempt(None, f"driver exited with status {rc}{sig}{why}", out_s, err_s)
-        try:
-            size = (wd / self.results_file).stat().st_size
-        except OSError:
-            size = 0  # missing: read_results says so
-        if size > MAX_RESULTS_BYTES:
-            return _Attempt(None, f"bad results file: {size} bytes (more than "
-                            f"{MAX_RESULTS_BYTES}; not read)", out_s, err_s)
         m = len(self.names_out)
+        results = wd / self.results_file
         try:
-            res = read_results(wd / self.results_file, names_out=self.names_out, asv=[asv] * m,
-                               n_dvv=len(self.derivative_variables), by_position=True)
+            data = folder.read(self.results_file, MAX_RESULTS_BYTES + 1)
+            if len(data) > MAX_RESULTS_BYTES:
+                return _Attempt(None, f"bad results file: more than {MAX_RESULTS_BYTES} "
+                                "bytes (not read)", out_s, err_s)
+            res = parse_results(decode_text(data, results, "Dakota results file"), results,
+                                names_out=self.names_out, asv=[asv] * m,
+                                n_dvv=len(self.derivative_variables), by_position=True)
+        except FileNotFoundError:
+            return _Attempt(None, f"bad results file: {InputFileError(results, None, 'a results file written by the driver', 'no file')}", out_s, err_s)  # noqa: E501
+        except (UnsafePathError, ForeignFileError, OSError) as exc:
+            return _Attempt(None, f"bad results file: {_why(exc)}", out_s, err_s)
         except InputFileError as exc:
             hint = ""
             if gradient:
@@ -713,25 +748,38 @@ class ExternalModel:
         attempts = 0
         tries = 1 + (self.policy.retries if self.policy.kind == "retry" else 0)
         wd = None
+        place: _Place | None = None
         error: str | None
         while True:
             attempts += 1
+            if place is not None:
+                place.close()
             try:
-                wd = self._make_workdir(eval_id, wd)
+                place = self._make_workdir(eval_id, wd)
             except (OSError, UnsafePathError) as exc:  # disk full, no permission, a link
                 # planted at the base: a failure like any other, naming the path
-                got = _Attempt(None, f"could not make a work directory: {exc}")
-                wd = None
+                got = _Attempt(None, f"could not make a work directory: {_why(exc)}")
+                wd = place = None
             else:
-                got = self._run_once(x, eval_id, wd, gradient)
+                wd = place.path
+                try:
+                    got = self._run_once(x, eval_id, place, gradient)
+                except BaseException:
+                    place.close()
+                    raise
             error, out, err = got.error, got.stdout, got.stderr
             if error is None or attempts >= tries:
                 break
         wall = time.perf_counter() - t0
         keep = wd is not None and (self.keep_workdirs is True or
                                    (self.keep_workdirs == "failed" and error is not None))
-        if not keep and wd is not None:
-            shutil.rmtree(wd, ignore_errors=True)
+        if place is not None:
+            if not keep:
+                try:
+                    place.base.remove_tree(place.path.name)
+                except OSError:
+                    pass  # a link swapped in for it: left as it is, never followed
+            place.close()
         m = len(self.names_out)
         if error is None:
             return RunResult(np.asarray(got.values, float), None, "ok", None, None, wall, started,
@@ -794,6 +842,42 @@ class ExternalModel:
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         return self.evaluate(x).values
+
+
+@dataclass(frozen=True, eq=False)
+class _Place:
+    """One attempt's work directory: its path (for messages and ``{workdir}``), the base
+    folder and the directory itself, both held by descriptors until :meth:`close`."""
+
+    path: Path
+    base: SafeFolder
+    folder: SafeFolder
+
+    def close(self) -> None:
+        self.folder.close()
+        self.base.close()
+
+
+def _why(exc: BaseException) -> str:
+    """An exception as one line naming its file (``[Errno 28] No space left on device:
+    'path'``), without the class name."""
+    return str(exc)
+
+
+def _copy_into(folder: SafeFolder, src: Path) -> None:
+    """Copy the user's file or folder ``src`` into ``folder`` under its name, through the
+    folder's descriptor (permission bits kept, links inside a copied folder copied as
+    links, as ``shutil.copytree(symlinks=True)`` does)."""
+    if src.is_dir():
+        with folder.folder(src.name, new=True) as sub:
+            for entry in sorted(os.scandir(src), key=lambda e: e.name):
+                if entry.is_symlink():
+                    sub.symlink(entry.name, os.readlink(entry.path))
+                else:
+                    _copy_into(sub, Path(entry.path))
+        return
+    with open(src, "rb") as fh:
+        folder.write(src.name, fh, mode=stat.S_IMODE(os.fstat(fh.fileno()).st_mode))
 
 
 @dataclass(frozen=True, eq=False)

@@ -423,11 +423,11 @@ def _exited(pid: int) -> bool:
 def run_process_tree(
     argv: Sequence[str],
     *,
-    cwd: str | os.PathLike,
+    cwd: str | os.PathLike | int,
     env: Mapping[str, str] | None = None,
     timeout: float | None = None,
-    stdout_path: str | os.PathLike,
-    stderr_path: str | os.PathLike,
+    stdout_path: str | os.PathLike | int,
+    stderr_path: str | os.PathLike | int,
     cap: int = 10 * 2**20,
 ) -> DriverRun:
     """Run ``argv`` (no shell) in ``cwd`` in a new session; wait at most ``timeout`` seconds.
@@ -435,12 +435,14 @@ def run_process_tree(
     Parameters
     ----------
     argv : the command and its arguments.
-    cwd : working directory.
+    cwd : working directory: a path, or an open folder descriptor (the driver starts in the
+        folder it holds, whatever its name leads to by then; the descriptor is passed on).
     env : the environment (default: this process's), to which ``ROTORUQ_DRIVER_TOKEN`` is
         added.
     timeout : seconds, or None for no limit.
     stdout_path, stderr_path : files receiving the first ``cap`` bytes and the last
-        ``FILE_TAIL`` bytes of each stream.
+        ``FILE_TAIL`` bytes of each stream: paths, or open file descriptors that this call
+        takes over (and closes).
     cap : bytes of the head of each stream written to its file.
 
     Raises
@@ -462,13 +464,16 @@ def run_process_tree(
     pass_fds: tuple[int, ...]
     try:  # everything that can fail is done before the driver starts
         files = [open(stdout_path, "wb"), open(stderr_path, "wb")]  # noqa: SIM115
+        extra: tuple[int, ...] = ()
+        if isinstance(cwd, int):  # the folder the descriptor holds, never a swapped name
+            extra, cwd = (cwd,), f"/proc/self/fd/{cwd}"
         pipes = [os.pipe(), os.pipe(), os.pipe()]  # stdout, stderr, the watchdog's report
         if watchdog:
             command = [sys.executable, "-I", "-S", _WATCHDOG, str(os.getpid()),
                        str(pipes[2][1]), *argv]
-            pass_fds, preexec = (pipes[2][1],), None
+            pass_fds, preexec = (pipes[2][1], *extra), None
         else:
-            command, pass_fds, preexec = list(argv), (), _driver_preexec(os.getpid())
+            command, pass_fds, preexec = list(argv), extra, _driver_preexec(os.getpid())
         # the watchdog starts with its stop signals blocked (it unblocks them once it can
         # act on them): a stop sent while it starts is never lost
         mask = signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS) if watchdog else None

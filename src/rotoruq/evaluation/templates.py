@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputFileError
+from ..safety import write_file
 from .dakota_files import _to_int, read_text
 
 __all__ = ["fill_template", "fill_template_file", "template_fields", "check_template"]
@@ -212,5 +213,5 @@ def fill_template_file(
     'omega = 224.6375  # rad/s\n'
     """
     src, dst = Path(src), Path(dst)
-    dst.write_text(fill_template(read_text(src, "template file"), values, path=src))
-    return dst
+    text = fill_template(read_text(src, "template file"), values, path=src)
+    return write_file(dst, text.encode("utf-8"))  # never through a link planted at dst

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import ParameterError
 from ..evaluation.templates import fill_template, template_fields
+from ..safety import write_file
 from .extract import HubLoads, hub_loads
 from .solver import run_mbdyn
 
@@ -182,7 +183,7 @@ def run_case(workdir: str | os.PathLike, preset: RotorPreset, inputs: Mapping[st
     wd.mkdir(parents=True, exist_ok=True)
     write_c81(sample_table(airfoil, overrides), wd / AIRFOIL_FILE, free_format=True)
     mbd = wd / "rotor.mbd"
-    mbd.write_text(fill_template(text, values, path=tpath))
+    write_file(mbd, fill_template(text, values, path=tpath).encode("utf-8"))
     run = run_mbdyn(mbd, wd / "rotor", mbdyn=mbdyn, timeout=settings.timeout)
     jnt = run.prefix.with_suffix(".jnt")
     return hub_loads(run.prefix.with_suffix(".rot"), omega=values["omega"], rho=values["rho"],

@@ -21,6 +21,8 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from .._compile import notice_if_cold
+
 log = logging.getLogger(__name__)
 
 __all__ = ["KERNEL_IDS", "CompiledGP", "basis_terms", "gp_pack", "gp_mean_into",
@@ -130,9 +132,6 @@ def compile_gp(lo, span, Xs, inv_ell, alpha, beta, trend, kernel, y_mean, y_std,
                variance=None) -> CompiledGP:
     """A :class:`CompiledGP` from a fit's arrays (see :func:`gp_pack` for the mean's);
     ``variance`` is None or the tuple (chol_inv, minv_f, trend_chol_inv, v0, var_scale)."""
-    from .._compile import notice_if_cold
-
-    notice_if_cold("emulator kernels", [_mean_rows, _mean_var_rows], log)
     mp = gp_pack(lo, span, Xs, inv_ell, alpha, beta, trend, kernel, y_mean, y_std)
     m, n = mp[2].shape[:2]
     p = mp[6].shape[0]
@@ -209,6 +208,10 @@ def gp_mean_batch(X: np.ndarray, pack: tuple) -> np.ndarray:
     the batch a point is evaluated in)."""
     X = np.ascontiguousarray(X, dtype=float)
     out = np.empty((X.shape[0], pack[2].shape[0]))
+    # the notice where the kernel is called: a process that never calls one (a chain on the
+    # emulator calls neither: its own kernels inline the GP) never caches it, and checking
+    # it up front announced a compile on every warm run
+    notice_if_cold("emulator kernels", [_mean_rows], log)
     _mean_rows(X, pack, out)
     return out
 
@@ -294,5 +297,6 @@ def gp_mean_var_batch(X: np.ndarray, gp: CompiledGP) -> tuple[np.ndarray, np.nda
     X = np.ascontiguousarray(X, dtype=float)
     out = np.empty((X.shape[0], gp.n_outputs))
     var = np.empty_like(out)
+    notice_if_cold("emulator kernels", [_mean_var_rows], log)
     _mean_var_rows(X, gp.mean_pack, gp.var_pack, out, var)
     return out, var

@@ -13,7 +13,9 @@ never cached.
 An entry is a folder ``<report>/.figure-cache/<key>/`` holding the rendered files and an
 index with their sha256: an entry is only ever read as bytes (never unpickled), and one whose
 files do not match its index counts as missing. Entries are written whole into a temporary
-folder and renamed; a report removes the entries it did not use.
+folder and renamed; a report removes the entries it did not use. All of it goes through the
+descriptor of the cache folder, opened without following a link: a symlink planted there
+while a report is written is never followed.
 """
 
 from __future__ import annotations
@@ -21,13 +23,13 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import shutil
-import tempfile
+import secrets
+import stat
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from ..safety import real_dir
+from ..safety import SafeFolder, UnsafePathError
 
 __all__ = ["FigureCache", "CACHE_DIR"]
 
@@ -47,10 +49,19 @@ def _report_code_digest() -> str:
 class FigureCache:
     """The rendered figures of the steps of earlier reports in ``report_dir``.
 
+    Every entry is read, written and removed through the descriptor of the cache folder
+    (opened without following a symlink, through the report folder's own descriptor when
+    one is given): a link planted at ``.figure-cache``, at an entry or at a file of one,
+    at any time, is never followed (a cache that cannot be used is skipped: the report
+    draws the figures).
+
     Parameters
     ----------
     report_dir : path
         The report folder; the cache lives in its ``.figure-cache`` folder.
+    folder : SafeFolder, optional
+        The report folder, already open (the report writer's): the cache folder is opened
+        in it, so a report folder swapped by its name does not redirect the cache.
 
     Examples
     --------
@@ -60,10 +71,34 @@ class FigureCache:
     True
     """
 
-    def __init__(self, report_dir: str | os.PathLike) -> None:
+    def __init__(self, report_dir: str | os.PathLike, folder: SafeFolder | None = None
+                 ) -> None:
         self.root = Path(report_dir) / CACHE_DIR
+        self._report = folder
+        self._root: SafeFolder | None = None
         self._code: str | None = None
         self.used: set[str] = set()
+
+    def _open(self, create: bool) -> SafeFolder:
+        """The cache folder, opened once (never through a link)."""
+        if self._root is None:
+            if self._report is not None:
+                self._root = self._report.folder(CACHE_DIR, create=create)
+            else:
+                self._root = SafeFolder(self.root, create=create)
+        return self._root
+
+    def close(self) -> None:
+        """Close the cache folder's descriptor."""
+        if self._root is not None:
+            self._root.close()
+            self._root = None
+
+    def __enter__(self) -> FigureCache:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
     def _code_digest(self) -> str:
         if self._code is None:
@@ -96,58 +131,73 @@ class FigureCache:
         xlabels, ylabels)``; None when there is no whole entry."""
         if key is None:
             return None
-        folder = self.root / key
         try:
-            index = json.loads((folder / _INDEX).read_text(encoding="utf-8"))
-            out = []
-            for i, f in enumerate(index):
-                png, svg = (folder / f"{i}.png").read_bytes(), (folder / f"{i}.svg").read_bytes()
-                if (hashlib.sha256(png).hexdigest() != f["png"]
-                        or hashlib.sha256(svg).hexdigest() != f["svg"]):
-                    return None
-                out.append(make(str(f["name"]), str(f["caption"]), png, svg,
-                                tuple(map(str, f["xlabels"])), tuple(map(str, f["ylabels"]))))
-        except (OSError, ValueError, KeyError, TypeError):
+            with self._open(create=False).folder(key, create=False) as entry:
+                index = json.loads(entry.read(_INDEX).decode("utf-8"))
+                out = []
+                for i, f in enumerate(index):
+                    png, svg = entry.read(f"{i}.png"), entry.read(f"{i}.svg")
+                    if (hashlib.sha256(png).hexdigest() != f["png"]
+                            or hashlib.sha256(svg).hexdigest() != f["svg"]):
+                        return None
+                    out.append(make(str(f["name"]), str(f["caption"]), png, svg,
+                                    tuple(map(str, f["xlabels"])),
+                                    tuple(map(str, f["ylabels"]))))
+        except (OSError, ValueError, KeyError, TypeError):  # UnsafePathError: a ValueError
             return None
         self.used.add(key)
         return out
 
     def put(self, key: str | None, figures: Sequence[Any]) -> None:
         """Keep ``figures`` (records with name, caption, png, svg, xlabels, ylabels) under
-        ``key``; a cache that cannot be written is skipped (the report does not need it)."""
+        ``key``; a cache that cannot be written (a full disk, a planted link) is skipped
+        (the report does not need it)."""
         if key is None:
             return
+        tmp = f".tmp-{secrets.token_hex(6)}"
         try:
-            real_dir(self.root, create=True)  # a planted link is refused, never followed
-            tmp = Path(tempfile.mkdtemp(prefix=".tmp-", dir=self.root))
-            index = []
-            for i, f in enumerate(figures):
-                (tmp / f"{i}.png").write_bytes(f.png)
-                (tmp / f"{i}.svg").write_bytes(f.svg)
-                index.append({"name": f.name, "caption": f.caption,
-                              "png": hashlib.sha256(f.png).hexdigest(),
-                              "svg": hashlib.sha256(f.svg).hexdigest(),
-                              "xlabels": list(f.xlabels), "ylabels": list(f.ylabels)})
-            (tmp / _INDEX).write_text(json.dumps(index), encoding="utf-8")
-            dest = self.root / key
-            if dest.exists():
-                shutil.rmtree(dest, ignore_errors=True)
-            os.replace(tmp, dest)
+            root = self._open(create=True)
+        except (OSError, UnsafePathError):
+            return
+        try:
+            with root.folder(tmp, new=True) as entry:
+                index = []
+                for i, f in enumerate(figures):
+                    entry.write(f"{i}.png", f.png)
+                    entry.write(f"{i}.svg", f.svg)
+                    index.append({"name": f.name, "caption": f.caption,
+                                  "png": hashlib.sha256(f.png).hexdigest(),
+                                  "svg": hashlib.sha256(f.svg).hexdigest(),
+                                  "xlabels": list(f.xlabels), "ylabels": list(f.ylabels)})
+                entry.write(_INDEX, json.dumps(index).encode("utf-8"))
+            root.remove_tree(key)
+            os.replace(tmp, key, src_dir_fd=root.fd, dst_dir_fd=root.fd)
             self.used.add(key)
-        except OSError:
-            shutil.rmtree(locals().get("tmp", self.root / ".none"), ignore_errors=True)
+        except (OSError, UnsafePathError):
+            try:
+                root.remove_tree(tmp)
+            except (OSError, UnsafePathError):
+                pass
 
     def prune(self) -> int:
         """Remove the entries this report did not use; returns how many."""
         try:
-            real_dir(self.root)  # never prunes through a planted link
-        except FileNotFoundError:
+            root = self._open(create=False)  # never prunes through a planted link
+        except (OSError, UnsafePathError):
             return 0
         gone = 0
-        for p in self.root.iterdir():
-            if p.name not in self.used:
-                shutil.rmtree(p, ignore_errors=True) if p.is_dir() else p.unlink(missing_ok=True)
-                gone += 1
+        for name in os.listdir(root.fd):
+            if name in self.used:
+                continue
+            st = root.lstat(name)
+            try:
+                if st is not None and stat.S_ISDIR(st.st_mode):
+                    root.remove_tree(name)
+                else:
+                    os.unlink(name, dir_fd=root.fd)  # a file or a link: the link itself
+            except OSError:
+                continue
+            gone += 1
         return gone
 
 

@@ -366,7 +366,7 @@ def _write_report(results_dirs: Sequence[str | Path], report_dir: Path, out: Saf
     # cache of the earlier reports (or of prerender_figures while the run went on)
     from .figcache import FigureCache
 
-    cache = FigureCache(report_dir)
+    cache = FigureCache(report_dir, out)
     jobs, keys = _figure_jobs(studies, infos, application, cache)
     cached = {}
     for j in jobs:
@@ -449,6 +449,7 @@ def _write_report(results_dirs: Sequence[str | Path], report_dir: Path, out: Saf
                     cache.put(keys.get(job_key), figs_of)
                 drawn.update(cached)
                 cache.prune()
+                cache.close()
             figs = [f for step in steps for f in drawn.get((name, step), [])]
             if figs:
                 heading(3, "Figures", _anchor(sid, "figures"))
@@ -475,6 +476,7 @@ def _write_report(results_dirs: Sequence[str | Path], report_dir: Path, out: Saf
             f"<meta http-equiv='Content-Security-Policy' content=\"{CSP}\">"
             f"<title>{e(title)}</title><style>{_CSS}</style></head><body>"
             + "\n".join(head + body) + "</body></html>")
+    cache.close()  # when no study had figures to draw
     index = out.write("index.html", page.encode("utf-8"), sync=True)
     log.info("report: written in %.1f s", time.perf_counter() - t_start)
     return index
@@ -546,17 +548,17 @@ def prerender_figures(results_dir: str | Path, report_dir: str | Path, *,
     found = study_infos(find_study_dirs(results_dir))
     studies = {name: load_results(folder) for name, (folder, _) in found.items()}
     infos = {name: info for name, (_, info) in found.items()}
-    with SafeFolder(report_dir):  # made as write_report makes it, never through a link
-        pass
-    cache = FigureCache(report_dir)
-    jobs, keys = _figure_jobs(studies, infos, application, cache)
-    drawn = 0
-    for j in jobs:
-        key = keys[j.study, j.step]
-        if key is None or cache.get(key, _Rendered) is not None:
-            continue
-        cache.put(key, draw_step(j.hook, studies[j.study], j.step, j.study, *j.context))
-        drawn += 1
+    # the report folder made and the cache opened in it as write_report does, never
+    # through a link
+    with SafeFolder(report_dir) as out, FigureCache(report_dir, out) as cache:
+        jobs, keys = _figure_jobs(studies, infos, application, cache)
+        drawn = 0
+        for j in jobs:
+            key = keys[j.study, j.step]
+            if key is None or cache.get(key, _Rendered) is not None:
+                continue
+            cache.put(key, draw_step(j.hook, studies[j.study], j.step, j.study, *j.context))
+            drawn += 1
     log.info("report: %d figure jobs of %s drawn ahead of the report", drawn, results_dir)
     return drawn
 

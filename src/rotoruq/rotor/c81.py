@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputFileError, ParameterError
+from ..safety import write_file
 
 __all__ = ["C81Block", "C81Table", "read_c81", "write_c81", "Bracket", "wrap_alpha"]
 
@@ -573,5 +574,5 @@ def write_c81(table: C81Table, path, free_format: bool = False) -> Path:
             lines += _fixed_row("", b.mach)
             for a, row in zip(b.alpha, b.values, strict=True):
                 lines += _fixed_row(format_field(a), row)
-    path.write_text("\n".join(lines) + "\n", encoding="ascii")
-    return path
+    # never through a link planted at its name (an evaluation's folder: the MBDyn driver)
+    return write_file(path, ("\n".join(lines) + "\n").encode("ascii"))

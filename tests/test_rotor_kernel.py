@@ -365,16 +365,17 @@ def test_hover_batches_run_the_hover_build_and_forward_rows_at_mu_0_equal_it():
 
     names = ["collective_deg", "lateral_deg", "longitudinal_deg"]
     points = np.array([[5.0, -1.0, -1.0], [6.0, 0.5, -0.5], [4.0, 0.0, 0.0]])
-    hover = RotorModel("gvpm", names_in=names, names_out=["thrust", "torque", "roll", "pitch"])
+    # out of ground effect: a forward row in ground effect is refused before the solve
+    fwd = ForwardRotorModel("gvpm", names_in=names + ["advance_ratio"],
+                            names_out=["thrust", "torque", "roll_moment", "pitch_moment"])
+    hover = RotorModel("gvpm", names_in=names, names_out=["thrust", "torque", "roll", "pitch"],
+                       fixed={"height_over_radius": fwd.defaults()["height_over_radius"]})
     a = hover(points)
     assert any(str(sig[-1]) == "none" for sig in kern.solve_samples.signatures)
-    fwd = ForwardRotorModel("gvpm", names_in=names + ["advance_ratio"],
-                            names_out=["thrust", "torque", "roll_moment", "pitch_moment"],
-                            fixed={"height_over_radius": hover.defaults()["height_over_radius"]})
     mixed = np.column_stack([np.vstack([points, points[:1]]), [0.0, 0.0, 0.0, 0.2]])
     b = fwd(mixed)
+    assert np.all(np.isfinite(a)) and np.all(np.isfinite(b))  # the forward row solved
     assert any(str(sig[-1]) == "bool" for sig in kern.solve_samples.signatures)
-    assert np.all(np.isfinite(a))
     np.testing.assert_array_equal(a, b[:3])
     prm = np.zeros((2, kern.N_COLUMNS))
     assert kern.needs_flight(prm) is None

@@ -177,8 +177,10 @@ LINTED = ["scripts", "benchmarks", "examples", "docs/_ext", "docs/conf.py"]
 # reproduce_cpu.py and terminal_lines.py --quick are `rotoruq reproduce --quick` again (each
 # chapter in a process of its own, or through a pipe); thread_determinism.py's runs are
 # tests/test_thread_determinism.py's (its --quick is a study option, not a flag of its own).
+# compile_time.py has no --quick: each of its runs is a whole study compiled from an empty
+# numba cache (about a minute of CPU per study).
 NOT_SMOKE_RUN = {"reproduce_time.py", "aero_center_calibration.py", "reproduce_cpu.py",
-                 "terminal_lines.py", "thread_determinism.py"}
+                 "terminal_lines.py", "thread_determinism.py", "compile_time.py"}
 
 
 # smoke-run only with pytest --extended: minutes of MBDyn runs even at --quick

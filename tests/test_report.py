@@ -396,6 +396,36 @@ def test_an_unchanged_report_takes_its_figures_from_the_cache(tmp_path, caplog):
     assert report("elsewhere")[0].startswith("report: 0 of ")
 
 
+def test_figures_drawn_ahead_are_the_reports(tmp_path, caplog):
+    """`prerender_figures` (what `rotoruq reproduce` runs as each chapter ends) fills the
+    report's figure cache: the report then draws nothing, and its files are the bytes a
+    report drawing them itself writes; a second call draws nothing either."""
+    import logging
+
+    from rotoruq.report.html import prerender_figures
+
+    run = _run(tmp_path)
+    n = prerender_figures(run.out, tmp_path / "ahead")
+    assert n >= 2
+    assert prerender_figures(run.out, tmp_path / "ahead") == 0
+    with caplog.at_level(logging.INFO, logger="rotoruq.report.html"):
+        index = write_report([run.out], tmp_path / "ahead")
+    assert f"report: {n} of {n} figure jobs from the cache of earlier reports" in [
+        r.getMessage() for r in caplog.records]
+    own = write_report([run.out], tmp_path / "own")
+
+    def files(folder):
+        return {p.name: p.read_bytes() for p in (folder / "figures").iterdir()}
+
+    assert files(tmp_path / "ahead") == files(tmp_path / "own")
+    assert len(files(tmp_path / "own")) >= n
+
+    def page(i):
+        return re.sub(r"Generated \S+ from [^<]*", "", i.read_text())
+
+    assert page(index) == page(own)
+
+
 def _fake_reference(tmp_path):
     """Saved results of both reference studies, with values that pass, fail and warn."""
     rng = np.random.default_rng(0)
@@ -619,6 +649,9 @@ def test_reproduce_quick(tmp_path, capsys):
     one, three = report(1), report(3)
     assert len(one[1]) == len(page_figs)
     assert one == three
+    # the figures drawn as each chapter ended (in the chapters' pool) are the same bytes
+    assert {p.name: p.read_bytes() for p in (tmp_path / "report" / "figures").glob("*.png")
+            } == one[1]
 
 
 def test_report_never_rebuilds_the_model(tmp_path):

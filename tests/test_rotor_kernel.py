@@ -355,3 +355,32 @@ def test_cyclic_nominal_point_converges_in_few_iterations(preset, names):
     sol = model.solve(x)
     assert np.all(sol.converged)
     assert sol.iterations.max() <= 7, np.bincount(sol.iterations)
+
+
+def test_hover_batches_run_the_hover_build_and_forward_rows_at_mu_0_equal_it():
+    """A hover batch runs the build compiled without the forward-flight code (``flight`` is
+    None: numba prunes those branches, issue 34); a batch with a forward row runs the
+    forward build, whose rows at mu = 0 give the hover build's numbers, bit for bit."""
+    from rotoruq.rotor.forward import ForwardRotorModel
+
+    names = ["collective_deg", "lateral_deg", "longitudinal_deg"]
+    points = np.array([[5.0, -1.0, -1.0], [6.0, 0.5, -0.5], [4.0, 0.0, 0.0]])
+    # out of ground effect: a forward row in ground effect is refused before the solve
+    fwd = ForwardRotorModel("gvpm", names_in=names + ["advance_ratio"],
+                            names_out=["thrust", "torque", "roll_moment", "pitch_moment"])
+    hover = RotorModel("gvpm", names_in=names, names_out=["thrust", "torque", "roll", "pitch"],
+                       fixed={"height_over_radius": fwd.defaults()["height_over_radius"]})
+    a = hover(points)
+    assert any(str(sig[-1]) == "none" for sig in kern.solve_samples.signatures)
+    mixed = np.column_stack([np.vstack([points, points[:1]]), [0.0, 0.0, 0.0, 0.2]])
+    b = fwd(mixed)
+    assert np.all(np.isfinite(a)) and np.all(np.isfinite(b))  # the forward row solved
+    assert any(str(sig[-1]) == "bool" for sig in kern.solve_samples.signatures)
+    np.testing.assert_array_equal(a, b[:3])
+    prm = np.zeros((2, kern.N_COLUMNS))
+    assert kern.needs_flight(prm) is None
+    prm[1, kern.MU] = np.nan
+    assert kern.needs_flight(prm) is True
+    prm[1, kern.MU] = 0.0
+    prm[0, kern.TRIM] = kern.WIND_TUNNEL
+    assert kern.needs_flight(prm) is True

@@ -51,7 +51,7 @@ from .sweeps import sweep_figures
 from .tables import fmt, step_table_html
 from .verdict import verdict_lines
 
-__all__ = ["write_report", "find_study_dirs"]
+__all__ = ["write_report", "find_study_dirs", "prerender_figures"]
 
 log = logging.getLogger(__name__)
 
@@ -359,30 +359,19 @@ def _write_report(results_dirs: Sequence[str | Path], report_dir: Path, out: Saf
         studies[name] = load_results(folder)
         infos[name] = info
         folders[name] = str(folder)
-    labels = {n: {k: v.get("label") or k for k, v in i.get("parameters", {}).items()}
-              for n, i in infos.items()}
-    units = {n: {k: v.get("unit") for k, v in i.get("parameters", {}).items() if v.get("unit")}
-             for n, i in infos.items()}
+    labels = _labels(infos)
     covered = ([n for n, i in infos.items() if application.covers(i)]
                if application is not None else [])
-    beside = {n: application.beside(n, infos[n]) for n in covered} if application else {}
     # figures first: a worker process draws them while this one builds the tables; the
     # figures of steps whose study, context and drawing code did not change come from the
-    # cache of the earlier reports
-    from ._figworker import hook_name
+    # cache of the earlier reports (or of prerender_figures while the run went on)
     from .figcache import FigureCache
 
     cache = FigureCache(report_dir, out)
-    jobs = [_Job(study, name, hook, (labels.get(study, {}), units.get(study, {}),
-                                     beside.get(study), _recorded(infos[study], "curves")))
-            for study, steps in studies.items() for name, res in steps.items()
-            if (hook := rendering(res.type).figures) is not None]
-    keys, cached = {}, {}
+    jobs, keys = _figure_jobs(studies, infos, application, cache)
+    cached = {}
     for j in jobs:
-        keys[j.study, j.step] = key = cache.key(
-            j.study, j.step, hook_name(j.hook),
-            {n: r.fingerprint for n, r in studies[j.study].items()}, j.context)
-        hit = cache.get(key, _Rendered)
+        hit = cache.get(keys[j.study, j.step], _Rendered)
         if hit is not None:
             cached[j.study, j.step] = hit
     log.info("report: %d of %d figure jobs from the cache of earlier reports", len(cached),
@@ -466,8 +455,7 @@ def _write_report(results_dirs: Sequence[str | Path], report_dir: Path, out: Saf
             # steps of one type that differ in one fixed input: drawn against it
             figs += _render(sweep_figures(
                 steps, {s: r.type for s, r in steps.items()}, info.get("step_fixed") or {},
-                FigureContext(name, steps, labels.get(name, {}), units.get(name, {}),
-                              beside.get(name), _recorded(info, "curves"))))
+                FigureContext(name, steps, *_figure_contexts({name: info}, application)[name])))
             if figs:
                 heading(3, "Figures", _anchor(sid, "figures"))
             for f in figs:
@@ -498,6 +486,95 @@ def _write_report(results_dirs: Sequence[str | Path], report_dir: Path, out: Saf
     log.info("report: written in %.1f s", time.perf_counter() - t_start)
     return index
 
+
+
+def _labels(infos: Mapping[str, dict]) -> dict[str, dict[str, str]]:
+    return {n: {k: v.get("label") or k for k, v in i.get("parameters", {}).items()}
+            for n, i in infos.items()}
+
+
+def _figure_contexts(infos: Mapping[str, dict], application: Application | None
+                     ) -> dict[str, tuple]:
+    """Per study, what its figures are drawn with besides its results: the labels, the
+    parameters' units, the numbers the application draws beside the run's and the recorded
+    curves (the context of a :class:`FigureContext` and part of each figure's cache key)."""
+    labels = _labels(infos)
+    units = {n: {k: v.get("unit") for k, v in i.get("parameters", {}).items() if v.get("unit")}
+             for n, i in infos.items()}
+    beside = {n: application.beside(n, i) for n, i in infos.items()
+              if application is not None and application.covers(i)}
+    return {n: (labels.get(n, {}), units.get(n, {}), beside.get(n), _recorded(i, "curves"))
+            for n, i in infos.items()}
+
+
+def _figure_jobs(studies: Mapping[str, Mapping[str, StepResult]], infos: Mapping[str, dict],
+                 application: Application | None, cache: Any,
+                 ) -> tuple[list[_Job], dict[tuple[str, str], str | None]]:
+    """Every step's figure job and its key in ``cache`` (a :class:`FigureCache`). A study's
+    jobs and keys depend on that study alone (its results, labels, units, curves and what
+    the application draws beside it), so they are the same in a report of that study alone
+    and in one of several (:func:`prerender_figures` relies on it)."""
+    from ._figworker import hook_name
+
+    contexts = _figure_contexts(infos, application)
+    jobs = [_Job(study, name, hook, contexts[study])
+            for study, steps in studies.items() for name, res in steps.items()
+            if (hook := rendering(res.type).figures) is not None]
+    keys = {(j.study, j.step): cache.key(
+        j.study, j.step, hook_name(j.hook),
+        {n: r.fingerprint for n, r in studies[j.study].items()}, j.context) for j in jobs}
+    return jobs, keys
+
+
+def prerender_figures(results_dir: str | Path, report_dir: str | Path, *,
+                      application: Application | None = None) -> int:
+    """Draw the figures of the studies saved under ``results_dir`` into the figure cache of
+    ``report_dir``, for a later :func:`write_report` of these studies (alone or with others)
+    to take instead of drawing them: ``rotoruq reproduce`` draws a chapter's figures as soon
+    as that chapter is done, while the other chapters still run.
+
+    Only adds to the cache (never prunes it: the report that follows does); figures already
+    cached are not drawn again. The files are the same bytes the report would draw itself:
+    the cache key covers the study's results, the figure's context and the drawing code.
+
+    Parameters
+    ----------
+    results_dir : str or Path
+        A study's results folder (or a folder of them).
+    report_dir : str or Path
+        The report folder the later :func:`write_report` writes.
+    application : Application, optional
+        The application the later report is given (its numbers are drawn beside the run's).
+
+    Returns
+    -------
+    int
+        The number of figure jobs (steps with figures) drawn, cached ones not counted.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> prerender_figures(tempfile.mkdtemp(), tempfile.mkdtemp())  # no study: nothing
+    0
+    """
+    from .figcache import FigureCache
+
+    found = study_infos(find_study_dirs(results_dir))
+    studies = {name: load_results(folder) for name, (folder, _) in found.items()}
+    infos = {name: info for name, (_, info) in found.items()}
+    # the report folder made and the cache opened in it as write_report does, never
+    # through a link
+    with SafeFolder(report_dir) as out, FigureCache(report_dir, out) as cache:
+        jobs, keys = _figure_jobs(studies, infos, application, cache)
+        drawn = 0
+        for j in jobs:
+            key = keys[j.study, j.step]
+            if key is None or cache.get(key, _Rendered) is not None:
+                continue
+            cache.put(key, draw_step(j.hook, studies[j.study], j.step, j.study, *j.context))
+            drawn += 1
+    log.info("report: %d figure jobs of %s drawn ahead of the report", drawn, results_dir)
+    return drawn
 
 
 def _write_nested(folder: SafeFolder, parts: Sequence[str], data: bytes) -> None:

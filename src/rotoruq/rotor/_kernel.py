@@ -345,8 +345,11 @@ def _wrap_deg(a):
 
 
 @numba.njit(**_JIT)
-def _prandtl(r, v, omega, radius, root_cutout, n_blades, derivative):
-    """Prandtl tip and root loss F(r, v) and dF/dv (inflow.prandtl_loss, one station)."""
+def _prandtl(r, v, omega, radius, root_cutout, n_blades):
+    """Prandtl tip and root loss F(r, v) and dF/dv (inflow.prandtl_loss, one station).
+
+    One signature for every caller (a literal flag argument would compile it twice): a
+    caller that needs F only drops dF/dv."""
     av = abs(v)
     ratio = av / (omega * r)
     phi = max(ratio, 1e-6)
@@ -368,8 +371,6 @@ def _prandtl(r, v, omega, radius, root_cutout, n_blades, derivative):
         F = F * Fi
         dlogF = dlogF + (0.0 if limited else dFi * (-f / max(av, 1e-300))) / max(Fi, 1e-3)
     Fc = max(F, 1e-3)
-    if not derivative:
-        return Fc, 0.0
     sign = 1.0 if v > 0 else (-1.0 if v < 0 else 0.0)
     return Fc, (F * dlogF * sign if F > 1e-3 else 0.0)
 
@@ -382,7 +383,7 @@ def _uniform_tip_loss(v0, omega, rot, scratch):
     r_, w_r, radius, root, nb = rot.r, rot.w_r, rot.radius, rot.root_cutout, rot.n_blades
     nr = r_.size
     for i in range(nr):
-        scratch[i] = _prandtl(r_[i], v0, omega, radius, root, nb, False)[0] * w_r[i]
+        scratch[i] = _prandtl(r_[i], v0, omega, radius, root, nb)[0] * w_r[i]
     return _psum(scratch, nr) / rot.sums[SUM_W_R]
 
 
@@ -511,7 +512,9 @@ def _structural_jacobian(prm, rot, af, fit, linear, ws):
         for col in range(3):
             unit = np.zeros(3, dtype=np.complex128)
             unit[col] = 1.0
-            Jinv[k, :, col] = _lu_solve(J[k].copy(), unit, np.empty(3, dtype=np.complex128))
+            x = _lu_solve(J[k].copy(), unit, np.empty(3, dtype=np.complex128))
+            for d in range(3):
+                Jinv[k, d, col] = x[d]
     qa = 0.5 * rho * c * a_lift * Om
     theta_cmd = np.zeros(K, dtype=np.complex128)
     theta_cmd[0] = np.deg2rad(prm[COLLECTIVE])
@@ -521,19 +524,23 @@ def _structural_jacobian(prm, rot, af, fit, linear, ws):
     for k in range(K):
         F_cmd[2, k] = (K_p + 1j * (Om * k) * C_p) * theta_cmd[k]
     J0 = np.zeros((4, 4), dtype=np.complex128)
-    J0[:3, :3] = J[0]
+    for a in range(3):
+        for b in range(3):
+            J0[a, b] = J[0, a, b]
     J0[0, 3] = 0.5 * rho * c * a_lift * Om * sums[SUM_W_R_RR]
     J0[2, 3] = -x_ac * 0.5 * rho * c * a_lift * Om * sums[SUM_W_R]
     J0[3, 2] = -rot.n_blades * 0.5 * rho * c * a_lift * Om**2 * sums[SUM_W_R2]
     J1 = np.zeros((4, 4), dtype=np.complex128)
     if K > 1:
-        J1[:3, :3] = J[1]
+        for a in range(3):
+            for b in range(3):
+                J1[a, b] = J[1, a, b]
     J1[0, 3] = qa * sums[SUM_W_R_RR_R] / R
     return Z, Jinv, J0, J1, F_cmd, v_init, k_v, qa, J, a_lift
 
 
 @numba.njit(**_JIT)
-def _aerodynamic_loads(Q, v0, vc, vs, v_r, prm, rot, af, fit, linear, ws):
+def _aerodynamic_loads(Q, v0, vc, vs, v_r, prm, rot, af, fit, linear, ws, flight):
     """Section loads over the disk (N_psi, N_r) at the state: ws.dFz, ws.dFx, ws.dMp, with
     the flow (alpha, mach) and coefficients kept for the final check. Returns True when the
     section flow is not finite somewhere (the loads there are taken at a neutral flow)."""
@@ -552,7 +559,7 @@ def _aerodynamic_loads(Q, v0, vc, vs, v_r, prm, rot, af, fit, linear, ws):
     # psi: its flap-normal part mu beta cos psi is kept, the radial flow along the blade
     # neglected) and the free-stream inflow lambda_s Omega R through the disk
     Vx, Vz = prm[MU] * (Om * R), prm[LAMBDA_S] * (Om * R)
-    forward = Vx != 0.0
+    forward = flight is not None and Vx != 0.0
     for j in range(npsi):
         # flap beta and its psi-derivative, lag rate, feathering at psi_j: q_d(psi_j) =
         # Re(sum_k Q[d, k] exp(i k psi_j)) (written out: see _coefficients)
@@ -698,7 +705,7 @@ def _inflow_update(st, dT_r, prm, rot, ws):
         r = rot.r[i]
         v = st.v_r[i]
         if rot.tip_loss:
-            F, dF = _prandtl(r, v, Om, R, rot.root_cutout, Nb, True)
+            F, dF = _prandtl(r, v, Om, R, rot.root_cutout, Nb)
         else:
             F, dF = 1.0, 0.0
         lin = -Nb * 0.5 * rho * c * A0 * Om * r
@@ -1019,17 +1026,18 @@ def _coupled_step(st, prm, rot, Jinv, F_cmd, R_dyn, M, A, b, x, ws):
 
 
 @numba.njit(**_JIT)
-def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws, M, A, b, x):
+def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws, M, A, b, x,
+          flight):
     """One iteration of a sample: returns (step size, flow not finite). A non-empty M (forward
     flight or a trim) takes the coupled step of :func:`_coupled_step`."""
     Om, R = prm[OMEGA], rot.radius
     sc = st.scalars
     relax = sc[RELAX]
     bad = _aerodynamic_loads(st.Q, sc[V0], sc[VC], sc[VS], st.v_r, prm, rot, af, fit,
-                             linear, ws)
+                             linear, ws, flight)
     R_dyn, Mz1 = _blade_root_loads(st.Q, Z, F_cmd, rot, ws)
     dv1 = 0.0
-    if M.shape[0]:
+    if flight is not None and M.shape[0]:
         big, dv, d_ctrl = _coupled_step(st, prm, rot, Jinv, F_cmd, R_dyn, M, A, b, x, ws)
         if prm[INFLOW] == DREES and prm[MU] != 0.0:
             kx, ky = _drees(prm[MU], prm[LAMBDA_S] + sc[V0] / (Om * R))
@@ -1074,14 +1082,18 @@ def _hover_step(st, prm, rot, Jinv, J0, J1, k_v, qa, ws, R_dyn, Mz1):
         G = _harmonic_gain(sc[V0], prm, rot)
         V1 = sc[VC] - 1j * sc[VS]
         rhs, A = ws.rhs, ws.A
-        rhs[:3] = R_dyn[:, 1]
+        for d in range(3):
+            rhs[d] = R_dyn[d, 1]
         rhs[3] = G * Mz1 - V1
-        A[:, :] = J1
+        for a in range(4):
+            for b in range(4):
+                A[a, b] = J1[a, b]
         A[3, 0] = -G * dMz_dB
         A[3, 2] = -G * dMz_dT
         A[3, 3] = 1.0 - G * dMz_dV
         d1 = _lu_solve(A, rhs, ws.x)
-        dQ[:, 1] = d1[:3]
+        for d in range(3):
+            dQ[d, 1] = d1[d]
         V1 = V1 + relax * d1[3]
         sc[VC], sc[VS] = V1.real, -V1.imag
         dv1 = abs(d1[3]) / (Om * R)
@@ -1094,15 +1106,19 @@ def _hover_step(st, prm, rot, Jinv, J0, J1, k_v, qa, ws, R_dyn, Mz1):
         F = _uniform_tip_loss(v, Om, rot, ws.span_scratch)
         mom = 2 * rho * rot.area * F / kappa**2
         rhs, A = ws.rhs, ws.A
-        A[:, :] = J0
-        rhs[:3] = R_dyn[:, 0]
+        for a in range(4):
+            for b in range(4):
+                A[a, b] = J0[a, b]
+        for d in range(3):
+            rhs[d] = R_dyn[d, 0]
         for i in range(rot.r.size):
             ws.span_line[i] = ws.dT_r[i] * rot.w[i]
         T_be = _psum(ws.span_line, rot.r.size)
         A[3, 3] = k_v + 2 * mom * abs(v)
         rhs[3] = T_be - mom * v * abs(v)
         d0 = _lu_solve(A, rhs, ws.x)
-        dQ[:, 0] = d0[:3]
+        for d in range(3):
+            dQ[d, 0] = d0[d]
         dv_step = d0[3].real
     big = 0.0
     for d in range(3):
@@ -1119,7 +1135,7 @@ def _hover_step(st, prm, rot, Jinv, J0, J1, k_v, qa, ws, R_dyn, Mz1):
 
 
 @numba.njit(**_JIT)
-def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
+def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out, flight):
     """Loads and the equation residual re-evaluated at the final state. Writes out[:] =
     thrust [N], torque [N m], equation residual [-], stalled fraction [-], min cd [-], static
     feathering stiffness [N m/rad], flow not finite (1.0) and returns the blade-root flap
@@ -1130,9 +1146,9 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
     sc = st.scalars
     npsi, nr = rot.cos_psi.size, rot.r.size
     Vx, Vz = prm[MU] * (Om * R), prm[LAMBDA_S] * (Om * R)
-    forward = Vx != 0.0
+    forward = flight is not None and Vx != 0.0
     bad = _aerodynamic_loads(st.Q, sc[V0], sc[VC], sc[VS], st.v_r, prm, rot, af, fit,
-                             linear, ws)
+                             linear, ws, flight)
     R_dyn, Mz1 = _blade_root_loads(st.Q, Z, F_cmd, rot, ws)
     e_dyn = 0.0
     for d in range(3):
@@ -1153,7 +1169,7 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
         for i in range(nr):
             r, v = rot.r[i], st.v_r[i]
             if rot.tip_loss:
-                F, dF = _prandtl(r, v, Om, R, rot.root_cutout, Nb, True)
+                F, dF = _prandtl(r, v, Om, R, rot.root_cutout, Nb)
             else:
                 F, dF = 1.0, 0.0
             d_be = -Nb * 0.5 * rho * rot.chord * A0 * Om * r
@@ -1269,7 +1285,7 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out):
 
 @numba.njit(**_JIT)
 def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_out,
-                  scalars_out, status_out, loads_out, M_root_out):
+                  scalars_out, status_out, loads_out, M_root_out, flight):
     """Iterate one sample to convergence and evaluate its loads at the final state.
 
     prm : (N_COLUMNS,) inputs; ws : a :class:`Work` (every entry is written before it is
@@ -1287,11 +1303,12 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_ou
     Q = np.zeros((3, K), dtype=np.complex128)
     for k in range(K):
         Q[2, k] = F_cmd[2, k] / Z[k, 2, 2]
-    trim = prm[TRIM] != NO_TRIM and K > 1
+    trim = flight is not None and prm[TRIM] != NO_TRIM and K > 1
     if trim:
         v_init = _trim_inflow(prm, rot)
-    # forward flight and the trims: the coupled harmonic balance (hover: M empty)
-    if trim or prm[MU] != 0.0:
+    # forward flight and the trims: the coupled harmonic balance (hover: M empty; the hover
+    # build, flight None, compiles none of it)
+    if flight is not None and (trim or prm[MU] != 0.0):
         M = _coupled_jacobian(prm, rot, J, J0, k_v, a_lift, 3 if trim else 0, ws)
     else:
         M = np.zeros((0, 0))
@@ -1313,7 +1330,7 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_ou
             max_iterations = 0
     for _ in range(max_iterations):
         size, bad = _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws,
-                          M, A, b, x)
+                          M, A, b, x, flight)
         iterations += 1
         if trim:
             if (abs(prm[COLLECTIVE]) + abs(prm[LATERAL]) + abs(prm[LONGITUDINAL])
@@ -1342,14 +1359,19 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_ou
         if size < tolerance:
             reason = OK
             break
-    Q_out[:, :] = Q
-    scalars_out[:] = scalars
+    for d in range(3):
+        for k in range(K):
+            Q_out[d, k] = Q[d, k]
+    for j in range(N_SCALARS):
+        scalars_out[j] = scalars[j]
     status_out[0] = reason
     status_out[1] = dof
     status_out[2] = 1 if bad else 0
     status_out[3] = iterations
     if reason == OK:
-        M_root_out[:] = _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, loads_out)
+        M_root = _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, loads_out, flight)
+        for k in range(K):
+            M_root_out[k] = M_root[k]
 
 
 @numba.njit(**_JIT)
@@ -1369,11 +1391,26 @@ def _workspace(rot):
 
 @numba.njit(**_JIT)
 def solve_samples(prm, rot, af, fits, linear, tolerance, max_iterations, Q, scalars, status,
-                  loads, M_root):
+                  loads, M_root, flight):
     """Solve the samples of ``prm`` (n, N_COLUMNS) one after the other, writing row s of
     every output array (see :func:`_solve_sample`). Releases the GIL: threads may solve
-    disjoint slices of a batch at the same time."""
+    disjoint slices of a batch at the same time.
+
+    ``flight`` is None for the hover build: numba leaves out every branch behind
+    ``flight is not None`` when it compiles, so a hover study never compiles the forward
+    flight and trim code on a cold cache (issue 34); True for the forward-flight build
+    (:func:`needs_flight`), where mu = 0 rows take the hover paths."""
     ws = _workspace(rot)
     for s in range(prm.shape[0]):
         _solve_sample(prm[s], rot, af, fits[s], linear[s], tolerance, max_iterations, ws,
-                      Q[s], scalars[s], status[s], loads[s], M_root[s])
+                      Q[s], scalars[s], status[s], loads[s], M_root[s], flight)
+
+
+def needs_flight(prm: np.ndarray) -> bool | None:
+    """:func:`solve_samples`'s ``flight`` for the rows of ``prm`` (n, N_COLUMNS): True when a
+    row is in forward flight or trimmed (or its advance ratio is not a number), else None
+    (the hover build)."""
+    mu = prm[:, MU]
+    if np.any(mu != 0.0) or np.any(prm[:, TRIM] != NO_TRIM):
+        return True
+    return None

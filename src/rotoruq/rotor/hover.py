@@ -433,15 +433,17 @@ def _solve_spread(prm, rot, table, fits, linear, tolerance, max_iterations, *out
     (contiguous slices; each row's numbers do not depend on the slice)."""
     n = prm.shape[0]
     n_threads = numba.get_num_threads()
+    flight = kern.needs_flight(prm)  # a hover batch runs (and compiles) the hover build
     if n < PARALLEL_MIN_BATCH or n_threads < 2:
-        kern.solve_samples(prm, rot, table, fits, linear, tolerance, max_iterations, *out)
+        kern.solve_samples(prm, rot, table, fits, linear, tolerance, max_iterations, *out,
+                           flight)
         return
     edges = np.linspace(0, n, min(n, SLICES_PER_THREAD * n_threads) + 1).astype(int)
 
     def run(k: int) -> None:
         rows = slice(edges[k], edges[k + 1])
         kern.solve_samples(prm[rows], rot, table, fits[rows], linear[rows], tolerance,
-                           max_iterations, *(a[rows] for a in out))
+                           max_iterations, *(a[rows] for a in out), flight)
 
     for future in [_pool(n_threads).submit(run, k) for k in range(edges.size - 1)]:
         future.result()

@@ -202,8 +202,9 @@ def _nanmin(a, b):
 
 @numba.njit(**_JIT)
 def _lu_solve(A, b, x):
-    """x with A x = b for a small complex A (Gaussian elimination, partial pivoting on
-    |re| + |im| as LAPACK's zgetrf), written to and returned as x. A and b are overwritten."""
+    """x with A x = b for a small complex or real A (Gaussian elimination, partial pivoting
+    on |re| + |im| as LAPACK's zgetrf; |x| for a real A, as dgetrf), written to and returned
+    as x. A and b are overwritten."""
     m = b.size
     for col in range(m):
         p = col
@@ -772,37 +773,6 @@ class Work(NamedTuple):
     s: np.ndarray             # (N_psi, N_r): its weight
 
 
-@numba.njit(**_JIT)
-def _lu_solve_real(A, b, x):
-    """x with A x = b for a small real A (Gaussian elimination, partial pivoting), written to
-    and returned as x. A and b are overwritten."""
-    m = b.size
-    for col in range(m):
-        p = col
-        best = abs(A[col, col])
-        for row in range(col + 1, m):
-            v = abs(A[row, col])
-            if v > best:
-                best, p = v, row
-        if p != col:
-            for k in range(m):
-                A[col, k], A[p, k] = A[p, k], A[col, k]
-            b[col], b[p] = b[p], b[col]
-        piv = A[col, col]
-        for row in range(col + 1, m):
-            f = A[row, col] / piv
-            A[row, col] = f
-            for k in range(col + 1, m):
-                A[row, k] -= f * A[col, k]
-            b[row] -= f * b[col]
-    for row in range(m - 1, -1, -1):
-        s = b[row]
-        for k in range(row + 1, m):
-            s -= A[row, k] * x[k]
-        x[row] = s / A[row, row]
-    return x
-
-
 @numba.njit(**_INLINE)
 def _real_index(d, k, part, K):
     """Row (and column) of the real part (part 0) or imaginary part (1) of harmonic k of
@@ -994,7 +964,7 @@ def _coupled_step(st, prm, rot, Jinv, F_cmd, R_dyn, M, A, b, x, ws):
                 ws.harm[1] + rot.S_flap * Om * Om * Q[0, 1])
             b[nQ + 2] = prm[ROLL_TARGET] - 0.5 * Nb * M1.imag
             b[nQ + 3] = prm[PITCH_TARGET] + 0.5 * Nb * M1.real
-    _lu_solve_real(A, b, x)
+    _lu_solve(A, b, x)
     big = 0.0
     for d in range(3):
         for k in range(K):

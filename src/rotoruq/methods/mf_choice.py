@@ -83,7 +83,7 @@ def choose_estimator(cov: np.ndarray, costs, budget: float, *,
     >>> cov = np.array([[1.0, 0.95], [0.95, 1.0]])
     >>> choice = choose_estimator(cov, [1.0, 0.01], 100.0)
     >>> choice.estimator, bool(choice.plan.variance < 1.0 / 100)
-    ('mlblue', True)
+    ('mfmc', True)
     """
     names = [e for e in AUTO_CANDIDATES if e != "mlblue" or "variance" not in statistics]
     plans: dict[str, Allocation] = {}

@@ -476,7 +476,7 @@ def multifidelity_sample(
     >>> res = rq.multifidelity_sample([hf, lf], space, 100.0, costs=[1.0, 0.01],
     ...                               n_pilot=100, seed=1)
     >>> res.allocation.tolist(), bool(abs(res.mean[0] - 1 / 6) < 4 * res.mean_se[0])
-    ([51, 4888], True)
+    ([51, 4900], True)
     """
     if statistics is None:
         statistics = ("mean",) if estimator == "mlblue" else STATISTICS

@@ -74,7 +74,7 @@ def test_each_step_kernel_is_compiled_once_on_a_cold_cache(tmp_path):
 KERNELS = textwrap.dedent("""
     import logging, sys
     import numba as nb
-    from rotoruq._compile import notice_if_cold
+    from rotoruq._compile import compiling
 
     @nb.njit(cache=True)
     def used(x):
@@ -84,16 +84,25 @@ KERNELS = textwrap.dedent("""
     def never(x):
         return x - 1.0
 
+    class Phases(logging.Handler):
+        def emit(self, record):
+            p = record.progress
+            print(f"phase {p.name!r} total={p.total} closed={p.closed}")
+
     logging.basicConfig(level=logging.INFO, format="%(message)s", stream=sys.stdout)
-    notice_if_cold("demo kernels", [used], logging.getLogger("demo"))
-    used(1.0)
+    progress = logging.getLogger("rotoruq.progress")
+    progress.addHandler(Phases())
+    progress.propagate = False
+    with compiling("demo kernels", [used], logging.getLogger("demo")):
+        used(1.0)
 """)
 
 
 def test_the_notice_names_only_kernels_about_to_be_called(tmp_path):
     """The notice is given where a kernel is called, for that kernel: a second run on the same
     numba cache says nothing although the module's other kernel was never compiled (before,
-    a family was checked as a whole, and a kernel no run calls was 'compiled' every run)."""
+    a family was checked as a whole, and a kernel no run calls was 'compiled' every run).
+    While the compile runs, a progress phase names it."""
     (tmp_path / "kernels.py").write_text(KERNELS)
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"),
            "PYTHONPATH": os.pathsep.join([str(tmp_path), *sys.path])}
@@ -101,6 +110,9 @@ def test_the_notice_names_only_kernels_about_to_be_called(tmp_path):
                            text=True, env=env, cwd=tmp_path, timeout=300).stdout
             for _ in range(2)]
     assert said[0].startswith("compiling demo kernels"), said
+    # while it compiles, an uncounted phase is open (the status line names it), then closed
+    assert said[0].splitlines()[1:] == ["phase 'compiling demo kernels' total=None closed=False",
+                                        "phase 'compiling demo kernels' total=None closed=True"]
     assert said[1] == "", said
 
 

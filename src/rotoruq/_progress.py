@@ -36,7 +36,15 @@ class PhaseState:
         return self.closed if self.total is None else self.done >= self.total
 
     def text(self) -> str:
-        """``"4 chains 3000/7200 (42 %)"``; an uncounted phase: its name and elapsed time."""
+        """``"4 chains 3000/7200 (42 %)"``; an uncounted phase: its name and elapsed time.
+
+        Examples
+        --------
+        >>> PhaseState("4 chains", 3000, 7200, 12.0).text()
+        '4 chains 3000/7200 (42 %)'
+        >>> PhaseState("compiling rotor kernels", 0, None, 45.0).text()
+        'compiling rotor kernels, 0:45'
+        """
         if self.total is None:
             return f"{self.name}, {format_duration(self.elapsed)}"
         pct = 100 * self.done / self.total if self.total else 100.0

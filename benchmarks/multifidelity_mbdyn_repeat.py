@@ -39,11 +39,24 @@ import rotoruq as rq
 from rotoruq.rotor.model import RotorModel
 
 
+def _against(predicted: float, band: list[float]) -> str:
+    """Where the predicted saving lies against the measured one's interval."""
+    if predicted < band[0]:
+        return (f" (below the interval: the prediction is conservative by "
+                f"{band[0] / predicted:.2g}x at least)")
+    if predicted > band[1]:
+        return (f" (above the interval: the prediction is optimistic by "
+                f"{predicted / band[1]:.2g}x at least)")
+    return " (inside the interval)"
+
+
 def summary(out: dict) -> str:
     band = out.get("measured_saving_interval_95", {})
     parts = [f"{r}: measured {out['measured_saving'][r]:.3g}x"
              + (f" (95 % interval {band[r][0]:.3g}-{band[r][1]:.3g}x)" if r in band else "")
-             + f", predicted {out['predicted_saving'][r]:.3g}x" for r in out["responses"]]
+             + f", predicted {out['predicted_saving'][r]:.3g}x"
+             + (_against(out["predicted_saving"][r], band[r]) if r in band else "")
+             for r in out["responses"]]
     cpu = (f"; {out['cpu_seconds'] / 60:.0f} CPU minutes in all" if "cpu_seconds" in out
            else "")
     return (f"MBDyn multi-fidelity ({out['estimator']}, adapt={out['adapt']}) repeated "

@@ -130,3 +130,20 @@ def test_the_figure_cache_is_held_by_its_descriptor_not_its_name(tmp_path):
         assert cache.prune() == 2  # the unused k2 and the link k1 (the link itself)
     assert (elsewhere / "0.png").read_bytes() == b"theirs"
     assert list((report / CACHE_DIR).iterdir()) == []
+
+
+def test_an_mbdyn_case_folder_planted_as_a_link_is_refused_before_mbdyn_runs(tmp_path):
+    """A batch of MBDyn points runs each in ``point_<k>``: a link planted at that name is
+    refused naming it, and nothing is written through it (MBDyn is never started, so the
+    check needs no MBDyn build)."""
+    from rotoruq.mbdyn.case import run_case
+    from rotoruq.rotor.presets import get_preset
+    from rotoruq.safety import UnsafePathError
+
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (tmp_path / "point_1").symlink_to(outside)
+    with pytest.raises(UnsafePathError, match="point_1"):
+        run_case(tmp_path / "point_1", get_preset("gvpm"), {"collective_deg": 6.0},
+                 mbdyn="/nonexistent/mbdyn")
+    assert list(outside.iterdir()) == []

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import ParameterError
 from ..evaluation.templates import fill_template, template_fields
-from ..safety import write_file
+from ..safety import real_dir, write_file
 from .extract import HubLoads, hub_loads
 from .solver import run_mbdyn
 
@@ -202,7 +202,9 @@ def run_case(workdir: str | os.PathLike, preset: RotorPreset, inputs: Mapping[st
         raise ParameterError(f"MBDyn template {tpath.name} does not use the inputs {unused}; "
                              f"it uses {sorted(used)}")
     wd = Path(workdir).absolute()
-    wd.mkdir(parents=True, exist_ok=True)
+    wd.parent.mkdir(parents=True, exist_ok=True)
+    # the case's own folder (a batch's point_<k>) is never a link planted in its place
+    real_dir(wd, create=True)
     write_c81(sample_table(airfoil, overrides), wd / AIRFOIL_FILE, free_format=True)
     mbd = wd / "rotor.mbd"
     write_file(mbd, fill_template(text, values, path=tpath).encode("utf-8"))

@@ -182,7 +182,13 @@ def run_template(wd: Path, template: str, inputs: dict, settings, mbdyn, extra: 
     import dataclasses
 
     from rotoruq.evaluation.templates import fill_template
-    from rotoruq.mbdyn.case import AIRFOIL_FILE, sample_table, template_text, template_values
+    from rotoruq.mbdyn.case import (
+        AIRFOIL_FILE,
+        TEMPLATE_DEFAULTS,
+        sample_table,
+        template_text,
+        template_values,
+    )
     from rotoruq.mbdyn.solver import run_mbdyn
     from rotoruq.rotor.c81 import write_c81
     from rotoruq.rotor.model import load_airfoil
@@ -190,7 +196,9 @@ def run_template(wd: Path, template: str, inputs: dict, settings, mbdyn, extra: 
 
     preset = gvpm()
     text, tpath = template_text(template)
-    values = template_values(preset, inputs, settings)
+    # the template's own defaults, as the driver fills it (the rigid template's cyclic is 0
+    # unless given: it has no swashplate of the preset's)
+    values = template_values(preset, inputs, settings, TEMPLATE_DEFAULTS.get(template))
     filled = fill_template(text, values, path=tpath)
     out = "default output: none, induced velocity elements;"
     if out not in filled:

@@ -397,7 +397,7 @@ def test_an_unchanged_report_takes_its_figures_from_the_cache(tmp_path, caplog):
 
 
 def test_figures_drawn_ahead_are_the_reports(tmp_path, caplog):
-    """`prerender_figures` (what `rotoruq reproduce` runs as each chapter ends) fills the
+    """`prerender_figures` (a study's figures drawn ahead, in this process) fills the
     report's figure cache: the report then draws nothing, and its files are the bytes a
     report drawing them itself writes; a second call draws nothing either."""
     import logging

@@ -136,7 +136,7 @@ def test_study_multifidelity_step_is_checked(tmp_path, old, new, expected):
         load_study(bad)
 
 
-@pytest.mark.slow
+@pytest.mark.extended  # ~1 min of MBDyn on 2 cores; CI runs the step's checks and the parity
 @needs_mbdyn
 def test_forward_flight_study_multifidelity_with_mbdyn(tmp_path):
     """``rotoruq run forward_flight --quick`` with MBDyn, its multi-fidelity step alone

@@ -291,10 +291,16 @@ class ProcessExecutor(Executor):
 
     @staticmethod
     def _death_note(procs: dict) -> str:
-        codes = {}
-        for pid, p in procs.items():
-            p.join(timeout=1.0)
-            codes[pid] = p.exitcode
+        codes: dict = {}
+        # on a loaded machine the dead worker's exit may be read a moment late: wait up to a
+        # few seconds in all for one exit code before naming none
+        deadline = time.monotonic() + 5.0
+        while True:
+            for pid, p in procs.items():
+                p.join(timeout=max(0.0, min(1.0, deadline - time.monotonic())))
+                codes[pid] = p.exitcode
+            if any(c is not None for c in codes.values()) or time.monotonic() >= deadline:
+                break
         # the pool terminates the survivors (SIGTERM) once one worker died: name the other
         # (a worker that handles SIGTERM, stopping its drivers first, exits with 128 + 15)
         dead = [(pid, c) for pid, c in codes.items()

@@ -364,11 +364,12 @@ def _write_report(results_dirs: Sequence[str | Path], report_dir: Path, out: Saf
                if application is not None else [])
     # figures first: a worker process draws them while this one builds the tables; the
     # figures of steps whose study, context and drawing code did not change come from the
-    # cache of the earlier reports (or of prerender_figures while the run went on)
+    # cache of the earlier reports (or of prerender_figures)
     from .figcache import FigureCache
 
     cache = FigureCache(report_dir, out)
-    jobs, keys = _figure_jobs(studies, infos, application, cache)
+    contexts = _figure_contexts(infos, application)
+    jobs, keys = _figure_jobs(studies, infos, application, cache, contexts)
     cached = {}
     for j in jobs:
         hit = cache.get(keys[j.study, j.step], _Rendered)
@@ -455,7 +456,7 @@ def _write_report(results_dirs: Sequence[str | Path], report_dir: Path, out: Saf
             # steps of one type that differ in one fixed input: drawn against it
             figs += _render(sweep_figures(
                 steps, {s: r.type for s, r in steps.items()}, info.get("step_fixed") or {},
-                FigureContext(name, steps, *_figure_contexts({name: info}, application)[name])))
+                FigureContext(name, steps, *contexts[name])))
             if figs:
                 heading(3, "Figures", _anchor(sid, "figures"))
             for f in figs:
@@ -509,6 +510,7 @@ def _figure_contexts(infos: Mapping[str, dict], application: Application | None
 
 def _figure_jobs(studies: Mapping[str, Mapping[str, StepResult]], infos: Mapping[str, dict],
                  application: Application | None, cache: Any,
+                 contexts: Mapping[str, tuple] | None = None,
                  ) -> tuple[list[_Job], dict[tuple[str, str], str | None]]:
     """Every step's figure job and its key in ``cache`` (a :class:`FigureCache`). A study's
     jobs and keys depend on that study alone (its results, labels, units, curves and what
@@ -516,7 +518,8 @@ def _figure_jobs(studies: Mapping[str, Mapping[str, StepResult]], infos: Mapping
     and in one of several (:func:`prerender_figures` relies on it)."""
     from ._figworker import hook_name
 
-    contexts = _figure_contexts(infos, application)
+    if contexts is None:
+        contexts = _figure_contexts(infos, application)
     jobs = [_Job(study, name, hook, contexts[study])
             for study, steps in studies.items() for name, res in steps.items()
             if (hook := rendering(res.type).figures) is not None]

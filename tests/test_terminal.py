@@ -301,6 +301,33 @@ def test_phases_draw_one_bar_on_a_terminal_and_nothing_in_a_pipe(monkeypatch):
     configure_logging()  # back to the real stderr
 
 
+def test_a_compile_phase_counts_its_time_on_the_bar_and_the_status_line(monkeypatch):
+    """An uncounted phase (a compile) never advances: it still tells its elapsed time while
+    it runs. Found in a by-hand run: the status line said `compiling rotor kernels, 0:00`
+    for five minutes of a cold compile."""
+    import logging
+
+    from rotoruq._progress import Phase
+    from rotoruq.steps.base import _Phases
+    from rotoruq.study.console import configure_logging
+
+    stream = _Terminal()
+    monkeypatch.setattr(sys, "stderr", stream)
+    configure_logging()
+    phases = _Phases()
+    logging.getLogger("rotoruq.progress").addHandler(phases)
+    try:
+        with Phase("compiling demo kernels", None, tick=0.05):
+            time.sleep(1.3)
+            under_way = phases.text()
+    finally:
+        logging.getLogger("rotoruq.progress").removeHandler(phases)
+        configure_logging()  # back to the real stderr
+    assert re.fullmatch(r"compiling demo kernels, 0:0[1-9]", under_way), under_way
+    assert re.search(r"\rcompiling demo kernels, 0:0[1-9]", stream.getvalue()), stream.getvalue()
+    assert phases.text() == ""  # closed: off the status line
+
+
 def test_gathered_messages_pass_warnings_at_once_and_count_the_rest(monkeypatch):
     import logging
 

@@ -71,7 +71,8 @@ class Phase:
     """Report ``done`` of ``total`` units of the phase ``name``: a record at the start, at most
     one every ``interval`` seconds (wall), and one when it is finished or left. Thread-safe
     (replications finishing on a thread pool). ``total`` None: a phase that is not counted
-    (a compile), under way until it is closed.
+    (a compile), under way until it is closed; while it is open and someone listens, a record
+    every ``tick`` seconds carries its elapsed time (nothing else would: it never advances).
 
     Examples
     --------
@@ -82,7 +83,8 @@ class Phase:
     3
     """
 
-    def __init__(self, name: str, total: int | None, interval: float = 0.25) -> None:
+    def __init__(self, name: str, total: int | None, interval: float = 0.25,
+                 tick: float = 1.0) -> None:
         self.name = name
         self.total = None if total is None else max(int(total), 0)
         self.done = 0
@@ -91,7 +93,18 @@ class Phase:
         self._last = -float("inf")
         self._lock = threading.Lock()
         self._closed = False
+        self._stop = threading.Event()
         self._emit(force=True)
+        if self.total is None and _log.isEnabledFor(logging.INFO):
+            threading.Thread(target=self._tick, args=(tick,), name=f"phase-{name}",
+                             daemon=True).start()
+
+    def _tick(self, tick: float) -> None:
+        while not self._stop.wait(tick):
+            with self._lock:
+                if self._closed:
+                    return
+                self._emit(force=True)
 
     def advance(self, n: int = 1) -> None:
         """Count ``n`` more units done."""
@@ -105,6 +118,7 @@ class Phase:
         with self._lock:
             if not self._closed:
                 self._closed = True
+                self._stop.set()
                 self.done = self.done if self.total is None else self.total
                 self._emit(force=True)
 

@@ -103,19 +103,19 @@ def test_the_figure_cache_is_held_by_its_descriptor_not_its_name(tmp_path):
     report, elsewhere = tmp_path / "report", tmp_path / "elsewhere"
     elsewhere.mkdir()
     with SafeFolder(report) as out, FigureCache(report, out) as cache:
-        assert cache.get("k0", lambda *a: a) is None  # opens nothing yet: no cache folder
-        cache.put("k1", [_Fig()])
+        assert cache.get("k0", lambda *a: a, {}) is None  # opens nothing yet: no cache folder
+        cache.put("k1", [_Fig()], {})
         (report / CACHE_DIR).rename(tmp_path / "moved")
         (report / CACHE_DIR).symlink_to(elsewhere)
-        cache.put("k2", [_Fig()])
-        assert cache.get("k2", lambda *a: a)[0][2] == _Fig.png
+        cache.put("k2", [_Fig()], {})
+        assert cache.get("k2", lambda *a: a, {})[0][2] == _Fig.png
         assert cache.prune() == 0
     assert list(elsewhere.iterdir()) == []
     assert sorted(p.name for p in (tmp_path / "moved").iterdir()) == ["k1", "k2"]
     # a fresh cache refuses the planted link at .figure-cache itself
     with FigureCache(report) as cache:
-        assert cache.get("k1", lambda *a: a) is None
-        cache.put("k3", [_Fig()])
+        assert cache.get("k1", lambda *a: a, {}) is None
+        cache.put("k3", [_Fig()], {})
         assert cache.prune() == 0
     assert list(elsewhere.iterdir()) == []
     # a link planted at an entry: not read, not replaced, not removed through
@@ -125,8 +125,8 @@ def test_the_figure_cache_is_held_by_its_descriptor_not_its_name(tmp_path):
     (report / CACHE_DIR / "k1").rename(tmp_path / "k1-real")
     (report / CACHE_DIR / "k1").symlink_to(elsewhere)
     with FigureCache(report) as cache:
-        assert cache.get("k1", lambda *a: a) is None
-        cache.put("k1", [_Fig()])
+        assert cache.get("k1", lambda *a: a, {}) is None
+        cache.put("k1", [_Fig()], {})
         assert cache.prune() == 2  # the unused k2 and the link k1 (the link itself)
     assert (elsewhere / "0.png").read_bytes() == b"theirs"
     assert list((report / CACHE_DIR).iterdir()) == []

@@ -8,6 +8,9 @@ import json
 import math
 import operator
 import re
+import subprocess
+import sys
+import textwrap
 import types
 import typing
 from dataclasses import MISSING, fields
@@ -394,6 +397,87 @@ def test_an_unchanged_report_takes_its_figures_from_the_cache(tmp_path, caplog):
     assert third[1] == first[1]
     # a report elsewhere has its own cache
     assert report("elsewhere")[0].startswith("report: 0 of ")
+
+
+TWO_STEPS = textwrap.dedent("""
+    [study]
+    name = "two"
+    seed = 3
+    output = "out"
+
+    [model]
+    function = "text_book"
+    responses = ["y1", "y2"]
+
+    [parameters.a]
+    distribution = "uniform"
+    lower = -1.0
+    upper = 1.0
+
+    [parameters.b]
+    distribution = "uniform"
+    lower = -1.0
+    upper = 1.0
+
+    [[steps]]
+    name = "indices"
+    type = "sensitivity"
+    n_samples = 64
+
+    [[steps]]
+    name = "chaos"
+    type = "pce"
+    order = 2
+    estimator = "regression"
+    n_samples = 30
+    """)
+
+
+def test_a_changed_step_redraws_its_own_figures_only(tmp_path):
+    """Through the CLI: a study of two steps with figures, run, then one step's option
+    changed and run again: the other step's figures come from the cache (found in a by-hand
+    run: any change redrew every figure of the study, as the key held every step's
+    fingerprint)."""
+    study = tmp_path / "two.toml"
+    study.write_text(TWO_STEPS)
+
+    def run():
+        out = subprocess.run([sys.executable, "-m", "rotoruq", "run", str(study)],
+                             capture_output=True, text=True, cwd=tmp_path, timeout=600)
+        assert out.returncode == 0, out.stderr
+        return [ln for ln in out.stderr.splitlines() if "from the cache" in ln]
+
+    assert run() == ["report: 0 of 2 figure jobs from the cache of earlier reports"]
+    study.write_text(TWO_STEPS.replace("order = 2", "order = 3"))
+    assert run() == ["report: 1 of 2 figure jobs from the cache of earlier reports"]
+    assert run() == ["report: 2 of 2 figure jobs from the cache of earlier reports"]
+
+
+def test_cached_figures_follow_the_other_steps_their_hook_read(tmp_path):
+    """A hook that read another step of its study (a calibration drawing the densities of
+    the sampling step that made its data) keeps its figures only while that step is the
+    same; a step it never looked at does not matter."""
+    from rotoruq.report.figcache import FigureCache
+    from rotoruq.report.html import _ReadSteps
+
+    steps = {"truth": "t", "bayes": "b", "lhs": "l"}
+    seen = _ReadSteps(steps, "bayes")
+    assert seen["bayes"] == "b" and "truth" in seen and "gone" not in seen
+    assert seen.read == {"truth", "gone"}
+    list(seen)
+    assert seen.read == {"truth", "gone", "lhs"}
+
+    class Fig:
+        name, caption, png, svg, xlabels, ylabels = "f", "c", b"png", b"svg", ("x",), ("y",)
+
+    with FigureCache(tmp_path) as cache:
+        cache.put("k", [Fig()], {"truth": "t1"})
+        assert cache.get("k", lambda *a: a, {"truth": "t1", "lhs": "l1"}) is not None
+        assert cache.get("k", lambda *a: a, {"truth": "t1", "lhs": "l2"}) is not None
+        assert cache.get("k", lambda *a: a, {"truth": "t2", "lhs": "l1"}) is None
+        assert cache.get("k", lambda *a: a, {"lhs": "l1"}) is None  # the step it read is gone
+        cache.put("n", [Fig()], {"truth": ""})  # read a step without a fingerprint: not kept
+        assert cache.get("n", lambda *a: a, {"truth": ""}) is None
 
 
 def test_figures_drawn_ahead_are_the_reports(tmp_path, caplog):

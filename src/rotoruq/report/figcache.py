@@ -1,14 +1,17 @@
 """Figures of earlier reports, kept so that a report of unchanged results redraws nothing.
 
-A step's figures depend on the results of its study (the figure hook sees them all), on what
-the report passes to the hook (labels, units, the application's numbers beside the run's,
-the model's curves), on the code that draws and renders them and on Matplotlib. The cache
-key is the sha256 of all of these: the fingerprint of every step of the study (a step's
-fingerprint identifies its numbers: inputs, options, seed and the code that computes them),
-the hook's name, the context as JSON, :func:`~rotoruq.evaluation.identity.code_version`
-(the package's source), a digest of the report's own modules and Matplotlib's version. A
-study with a step that has no fingerprint (results built by hand, not by the runner) is
-never cached.
+A step's figures depend on the step's results, on the other steps of its study the figure
+hook read (the hook sees them all; the report notes those it looked at), on what the report
+passes to the hook (labels, units, the application's numbers beside the run's, the model's
+curves), on the code that draws and renders them and on Matplotlib. The cache key is the
+sha256 of the step's fingerprint (it identifies its numbers: inputs, options, seed and the
+code that computes them), the hook's name, the context as JSON,
+:func:`~rotoruq.evaluation.identity.code_version` (the package's source), a digest of the
+report's own modules and Matplotlib's version; the entry also keeps the fingerprints of the
+other steps the hook read, and it is used only while they are the same. So a study whose one
+step changed redraws that step's figures (and those of steps that read it), not all of them.
+A step without a fingerprint (results built by hand, not by the runner), or whose hook read
+one, is never cached.
 
 An entry is a folder ``<report>/.figure-cache/<key>/`` holding the rendered files and an
 index with their sha256: an entry is only ever read as bytes (never unpickled), and one whose
@@ -67,7 +70,7 @@ class FigureCache:
     --------
     >>> import tempfile
     >>> cache = FigureCache(tempfile.mkdtemp())
-    >>> cache.key("study", "lhs", "m:f", {"lhs": ""}, ({}, {}, None, {})) is None
+    >>> cache.key("study", "lhs", "m:f", "", ({}, {}, None, {})) is None
     True
     """
 
@@ -111,31 +114,37 @@ class FigureCache:
             ).hexdigest()
         return self._code
 
-    def key(self, study: str, step: str, hook: str | None, fingerprints: Mapping[str, str],
+    def key(self, study: str, step: str, hook: str | None, fingerprint: str,
             context: Sequence[Any]) -> str | None:
         """The key of one step's figures; None when they cannot be cached (a hook another
         process cannot name, a step without a fingerprint, a context that is not JSON)."""
-        if hook is None or not fingerprints or not all(fingerprints.values()):
+        if hook is None or not fingerprint:
             return None
         try:
             ctx = json.dumps(list(context), sort_keys=True, default=_no_json)
         except TypeError:
             return None
         doc = json.dumps({"study": study, "step": step, "hook": hook, "context": ctx,
-                          "steps": dict(sorted(fingerprints.items())),
+                          "fingerprint": fingerprint,
                           "code": self._code_digest()}, sort_keys=True)
         return hashlib.sha256(doc.encode()).hexdigest()
 
-    def get(self, key: str | None, make: Callable[..., Any]) -> list[Any] | None:
+    def get(self, key: str | None, make: Callable[..., Any], fingerprints: Mapping[str, str]
+            ) -> list[Any] | None:
         """The figures cached under ``key``, each built by ``make(name, caption, png, svg,
-        xlabels, ylabels)``; None when there is no whole entry."""
+        xlabels, ylabels)``; None when there is no whole entry, or when a step its hook read
+        has another fingerprint now (``fingerprints``: the study's steps, name -> fingerprint;
+        a step gone counts as changed)."""
         if key is None:
             return None
         try:
             with self._open(create=False).folder(key, create=False) as entry:
                 index = json.loads(entry.read(_INDEX).decode("utf-8"))
+                reads = index["reads"]
+                if any(not fp or fingerprints.get(name) != fp for name, fp in reads.items()):
+                    return None
                 out = []
-                for i, f in enumerate(index):
+                for i, f in enumerate(index["figures"]):
                     png, svg = entry.read(f"{i}.png"), entry.read(f"{i}.svg")
                     if (hashlib.sha256(png).hexdigest() != f["png"]
                             or hashlib.sha256(svg).hexdigest() != f["svg"]):
@@ -148,11 +157,13 @@ class FigureCache:
         self.used.add(key)
         return out
 
-    def put(self, key: str | None, figures: Sequence[Any]) -> None:
+    def put(self, key: str | None, figures: Sequence[Any], reads: Mapping[str, str]) -> None:
         """Keep ``figures`` (records with name, caption, png, svg, xlabels, ylabels) under
-        ``key``; a cache that cannot be written (a full disk, a planted link) is skipped
-        (the report does not need it)."""
-        if key is None:
+        ``key``, valid while the steps the hook read keep the fingerprints ``reads``; a
+        cache that cannot be written (a full disk, a planted link) is skipped (the report
+        does not need it), and figures whose hook read a step without a fingerprint are not
+        kept."""
+        if key is None or not all(reads.values()):
             return
         tmp = f".tmp-{secrets.token_hex(6)}"
         try:
@@ -169,7 +180,8 @@ class FigureCache:
                                   "png": hashlib.sha256(f.png).hexdigest(),
                                   "svg": hashlib.sha256(f.svg).hexdigest(),
                                   "xlabels": list(f.xlabels), "ylabels": list(f.ylabels)})
-                entry.write(_INDEX, json.dumps(index).encode("utf-8"))
+                entry.write(_INDEX, json.dumps({"figures": index, "reads": dict(reads)}
+                                               ).encode("utf-8"))
             root.remove_tree(key)
             os.replace(tmp, key, src_dir_fd=root.fd, dst_dir_fd=root.fd)
             self.used.add(key)

@@ -150,14 +150,60 @@ def _render(figs) -> list[_Rendered]:
 _PARALLEL_MIN_STEPS = 6
 
 
+class _ReadSteps(Mapping[str, StepResult]):
+    """A study's steps as a figure hook sees them, noting the other steps it looked at (by
+    name, looked up or asked about; a walk over them all notes them all), so that its
+    figures are kept only as long as those steps are unchanged, not every step of the study."""
+
+    def __init__(self, steps: Mapping[str, StepResult], own: str) -> None:
+        self._steps, self._own = steps, own
+        self.read: set[str] = set()
+
+    def _note(self, name: str) -> None:
+        if name != self._own:
+            self.read.add(name)
+
+    def __getitem__(self, name: str) -> StepResult:
+        self._note(name)
+        return self._steps[name]
+
+    def __contains__(self, name: object) -> bool:
+        if isinstance(name, str):
+            self._note(name)
+        return name in self._steps
+
+    def __iter__(self):  # type: ignore[no-untyped-def]
+        for name in self._steps:
+            self._note(name)
+        return iter(self._steps)
+
+    def __len__(self) -> int:
+        return len(self._steps)
+
+
+@dataclass(frozen=True)
+class _Drawn:
+    """One step's rendered figures and the other steps of its study the hook read."""
+
+    figures: list[_Rendered]
+    reads: tuple[str, ...]
+
+
 def draw_step(hook: Callable, steps: Mapping[str, StepResult], step: str, study: str,
               labels: Mapping[str, str], units: Mapping[str, str],
-              beside: Mapping[str, Any] | None, curves: Mapping[str, Any]) -> list[_Rendered]:
-    """Draw and render one step's figures (in this process or in the figure worker)."""
+              beside: Mapping[str, Any] | None, curves: Mapping[str, Any]) -> _Drawn:
+    """Draw and render one step's figures (in this process or in the figure worker), noting
+    which other steps of the study the hook read."""
     from .plots import step_figures
 
-    ctx = FigureContext(study, steps, labels, units, beside, curves)
-    return _render(step_figures(hook, steps[step], ctx))
+    seen = _ReadSteps(steps, step)
+    ctx = FigureContext(study, seen, labels, units, beside, curves)
+    figures = _render(step_figures(hook, steps[step], ctx))
+    return _Drawn(figures, tuple(sorted(seen.read)))
+
+
+def _fingerprints(steps: Mapping[str, StepResult]) -> dict[str, str]:
+    return {n: r.fingerprint for n, r in steps.items()}
 
 
 def _anchor(*parts: str) -> str:
@@ -372,7 +418,7 @@ def _write_report(results_dirs: Sequence[str | Path], report_dir: Path, out: Saf
     jobs, keys = _figure_jobs(studies, infos, application, cache, contexts)
     cached = {}
     for j in jobs:
-        hit = cache.get(keys[j.study, j.step], _Rendered)
+        hit = cache.get(keys[j.study, j.step], _Rendered, _fingerprints(studies[j.study]))
         if hit is not None:
             cached[j.study, j.step] = hit
     log.info("report: %d of %d figure jobs from the cache of earlier reports", len(cached),
@@ -446,9 +492,12 @@ def _write_report(results_dirs: Sequence[str | Path], report_dir: Path, out: Saf
                 section(sec)
             t0 = time.perf_counter()
             if drawn is None:
-                drawn = drawing.finish()
-                for job_key, figs_of in drawn.items():
-                    cache.put(keys.get(job_key), figs_of)
+                drawn = {}
+                for job_key, got in drawing.finish().items():
+                    fps = _fingerprints(studies[job_key[0]])
+                    cache.put(keys.get(job_key), got.figures,
+                              {n: fps.get(n, "") for n in got.reads})
+                    drawn[job_key] = got.figures
                 drawn.update(cached)
                 cache.prune()
                 cache.close()
@@ -524,8 +573,8 @@ def _figure_jobs(studies: Mapping[str, Mapping[str, StepResult]], infos: Mapping
             for study, steps in studies.items() for name, res in steps.items()
             if (hook := rendering(res.type).figures) is not None]
     keys = {(j.study, j.step): cache.key(
-        j.study, j.step, hook_name(j.hook),
-        {n: r.fingerprint for n, r in studies[j.study].items()}, j.context) for j in jobs}
+        j.study, j.step, hook_name(j.hook), studies[j.study][j.step].fingerprint, j.context)
+        for j in jobs}
     return jobs, keys
 
 
@@ -571,10 +620,11 @@ def prerender_figures(results_dir: str | Path, report_dir: str | Path, *,
         jobs, keys = _figure_jobs(studies, infos, application, cache)
         drawn = 0
         for j in jobs:
-            key = keys[j.study, j.step]
-            if key is None or cache.get(key, _Rendered) is not None:
+            key, fps = keys[j.study, j.step], _fingerprints(studies[j.study])
+            if key is None or cache.get(key, _Rendered, fps) is not None:
                 continue
-            cache.put(key, draw_step(j.hook, studies[j.study], j.step, j.study, *j.context))
+            got = draw_step(j.hook, studies[j.study], j.step, j.study, *j.context)
+            cache.put(key, got.figures, {n: fps.get(n, "") for n in got.reads})
             drawn += 1
     log.info("report: %d figure jobs of %s drawn ahead of the report", drawn, results_dir)
     return drawn
@@ -629,12 +679,12 @@ class _FigureDrawing:
                 [sys.executable, "-m", "rotoruq.report._figworker", str(self.job_dir)],
                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE))
 
-    def finish(self) -> dict[tuple[str, str], list[_Rendered]]:
+    def finish(self) -> dict[tuple[str, str], _Drawn]:
         """Draw what the workers have not claimed, wait for them, collect (study, step) ->
         rendered figures. A worker that fails leaves its jobs to this process."""
         from ._figworker import claim
 
-        out: dict[tuple[str, str], list[_Rendered]] = {}
+        out: dict[tuple[str, str], _Drawn] = {}
         mine = set(range(len(self.jobs)))
         if self.job_dir is not None:
             mine -= set(self.shared)
@@ -678,6 +728,6 @@ class _FigureDrawing:
     def _key(self, i: int) -> tuple[str, str]:
         return self.jobs[i].study, self.jobs[i].step
 
-    def _draw(self, i: int) -> list[_Rendered]:
+    def _draw(self, i: int) -> _Drawn:
         j = self.jobs[i]
         return draw_step(j.hook, self.studies[j.study], j.step, j.study, *j.context)

@@ -509,3 +509,51 @@ def test_the_modules_a_step_type_lists_enter_its_fingerprint_only(tmp_path, monk
         parts = runner.step_code_parts(st.name)
         for module in st.modules:
             assert "rotoruq/" + module.split(".", 1)[1].replace(".", "/") + ".py" in parts
+
+
+WHY_STUDY = textwrap.dedent("""
+    [study]
+    name = "why"
+    seed = 5
+
+    [model]
+    function = "text_book"
+    responses = ["y1"]
+
+    [parameters.a]
+    distribution = "uniform"
+    lower = -1.0
+    upper = 1.0
+
+    [parameters.b]
+    distribution = "uniform"
+    lower = -1.0
+    upper = 1.0
+
+    [[steps]]
+    name = "lhs"
+    type = "sampling"
+    n_samples = 8
+
+    [[steps]]
+    name = "chaos"
+    type = "pce"
+    order = 2
+    """)
+
+
+def test_why_rerun_names_the_changed_key_with_its_old_and_new_value(tmp_path):
+    """`rotoruq show --why-rerun` after one option of one step changed: the reason names the
+    key and both values, computed from the saved result (found in a by-hand run: it said
+    only "the step's table in the study file, its options, seed, position or --quick")."""
+    from rotoruq.study.runner import why_rerun
+
+    study = tmp_path / "why.toml"
+    study.write_text(WHY_STUDY)
+    run_study(study, out=tmp_path / "out")
+    assert why_rerun(tmp_path / "out") == {"lhs": [], "chaos": []}
+    study.write_text(WHY_STUDY.replace("order = 2", "order = 3").replace(
+        'name = "lhs"', 'name = "lhs"\ntitle = "my design"'))
+    assert why_rerun(tmp_path / "out") == {
+        "lhs": ['spec: title "" -> "my design" changed'],
+        "chaos": ["spec: order 2 -> 3 changed"]}

@@ -369,17 +369,18 @@ def _step_targets(step: StepSpec, options, previous) -> dict[str, tuple[float, f
     return {r: (float(v[0]), float(v[1])) for r, v in t.items()}
 
 
-def _digest(obj: Any) -> str:
-    def default(o):
-        if isinstance(o, np.ndarray):
-            return o.tolist()
-        if isinstance(o, Path):
-            return str(o)
-        if isinstance(o, float) and not math.isfinite(o):
-            return repr(o)
+def _json_default(o: Any) -> Any:
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, Path):
+        return str(o)
+    if isinstance(o, float) and not math.isfinite(o):
         return repr(o)
+    return repr(o)
 
-    text = json.dumps(obj, sort_keys=True, default=default)
+
+def _digest(obj: Any) -> str:
+    text = json.dumps(obj, sort_keys=True, default=_json_default)
     return hashlib.sha256(text.encode()).hexdigest()[:20]
 
 
@@ -434,6 +435,34 @@ def _model_doc(spec: ModelSpec) -> dict:
     return doc
 
 
+#: The study file's names for the fields of a step's spec (the rest are the field's own).
+_SPEC_NAMES = {"source": "from", "quick": "quick options"}
+
+
+def _short(value: Any) -> str:
+    """``value`` as compact JSON, or a digest when that is long (a reason stays a line)."""
+    text = json.dumps(value, sort_keys=True, default=_json_default)
+    return text if len(text) <= 100 else f"(digest {_digest(value)[:12]})"
+
+
+def _spec_keys(spec: Mapping[str, Any]) -> dict[str, str]:
+    """The spec part of a step's identity key by key, named as the study file names them,
+    each value as short JSON: :func:`why_rerun` names the keys that changed, with their old
+    and new values."""
+    keys: dict[str, Any] = {}
+    for k, v in spec["step"].items():
+        if k != "options":
+            keys[_SPEC_NAMES.get(k, k)] = v
+    for k, v in spec["options"].items():
+        keys[k if k not in keys else f"option {k}"] = v
+    keys["[model]"] = spec["model"]
+    keys["[models]"] = spec.get("models")
+    keys["[study] seed"] = spec["seed"]
+    keys["position in the study"] = spec["index"]
+    keys["--quick"] = spec["quick"]
+    return {k: _short(v) for k, v in keys.items()}
+
+
 def _identity_parts(study: Study, step: StepSpec, space: ParameterSpace, fixed, options,
                     data, previous, quick: bool, model_id: str, code: str) -> dict:
     """The parts of a step's identity, each a digest (see :data:`IDENTITY_PARTS`)."""
@@ -450,6 +479,8 @@ def _identity_parts(study: Study, step: StepSpec, space: ParameterSpace, fixed, 
         spec["models"] = {n: _model_doc(study.model_spec(n)) for n in _named_models(options)}
     return {
         "spec": _digest(spec),
+        # not part of the fingerprint (it is the spec's digest): what why_rerun names
+        "spec_keys": _spec_keys(spec),
         "inputs": _digest({"space": [(n, d.describe()) for n, d in
                                      zip(space.names, space.distributions, strict=True)],
                            "fixed": dict(sorted(fixed.items())),
@@ -576,6 +607,7 @@ class _Planned:
     fingerprint: str
     model_code: dict
     step_code: dict
+    spec_keys: dict
 
 
 def step_code_parts(type_name: str) -> dict[str, str]:
@@ -613,8 +645,9 @@ def _plan_step(study: Study, step: StepSpec, results: Mapping[str, StepResult], 
     step_code = step_code_parts(step.type)
     parts = _identity_parts(study, step, space, fixed, options, data, results, quick,
                             model_id, code_digest(step_code))
+    spec_keys = parts.pop("spec_keys")
     return _Planned(step, options, space, fixed, responses, data, columns, parts,
-                    _digest(parts), model_code, step_code)
+                    _digest(parts), model_code, step_code, spec_keys)
 
 
 def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactory | None,
@@ -732,7 +765,7 @@ def _execute(study: Study, plan: _Planned, out: Path, factory: ModelFactory, com
                 responses=list(plan.responses), fixed=plan.fixed, options=plan.options,
                 source=".".join(step.source) if step.source else None,
                 model_identity=plan.parts["model"], code_version=code_version(),
-                identity=plan.parts, code_files=plan.step_code,
+                identity=plan.parts, spec_keys=plan.spec_keys, code_files=plan.step_code,
                 model_code_files=plan.model_code,
                 input_distributions={n: d.describe() for n, d in
                                      zip(plan.space.names, plan.space.distributions,
@@ -997,6 +1030,12 @@ def why_rerun(out: str | Path, model_factory: ModelFactory | None = None
                 steps = [r for r, f in plan.parts["upstream"].items()
                          if (was.get("upstream") or {}).get(r) != f or reasons.get(r)]
                 why.append(f"upstream: {', '.join(steps) or what} changed")
+            elif part == "spec" and isinstance(old.meta.get("spec_keys"), Mapping):
+                before, now = old.meta["spec_keys"], plan.spec_keys
+                changed = [f"{k} {before.get(k, 'unset')} -> {now.get(k, 'unset')}"
+                           for k in sorted(set(before) | set(now))
+                           if before.get(k) != now.get(k)]
+                why.append(f"spec: {'; '.join(changed) or what} changed")
             else:
                 why.append(f"{part}: {what} changed")
         for r in plan.parts["upstream"]:

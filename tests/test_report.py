@@ -396,6 +396,7 @@ def test_an_unchanged_report_takes_its_figures_from_the_cache(tmp_path, caplog):
     assert report("elsewhere")[0].startswith("report: 0 of ")
 
 
+@pytest.mark.slow  # ~8 CPU-s; the figure cache's test stays fast
 def test_figures_drawn_ahead_are_the_reports(tmp_path, caplog):
     """`prerender_figures` (a study's figures drawn ahead, in this process) fills the
     report's figure cache: the report then draws nothing, and its files are the bytes a
@@ -710,6 +711,7 @@ def test_report_never_rebuilds_the_model(tmp_path):
     assert float(cells["model:gvpm:chord"]) == get_preset("gvpm").chord
 
 
+@pytest.mark.slow  # ~11 CPU-s: a report in a fresh process
 def test_the_report_is_the_same_in_a_fresh_interpreter(tmp_path):
     """``rq.write_report`` on a study's results renders the same page, tables and figures in a
     fresh interpreter as after ``import rotoruq.study`` (the renderers come from the step

@@ -144,8 +144,8 @@ def summary(res: dict) -> str:
     return (f"`{res['command']}`: {res['passed']:,} tests passed ({res['skipped']} skipped, "
             f"{res['failed']} failed) in {res['wall_s'] / 60:.1f} min wall, "
             f"{res['cpu_s'] / 60:.1f} CPU-min, on {res['cores']} cores at load "
-            f"{res['load_before'][0]:g} (1-min average at the start), "
-            f"collection {res['collect_cpu_s']:.0f} CPU-s of it; measured "
+            f"{res['load_before'][0]:g} (1-min average at the start; collecting the tests "
+            f"alone takes {res['collect_cpu_s']:.0f} CPU-s); measured "
             f"{res['provenance']['date'][:10]} at {res['provenance']['commit'][:10]}.")
 
 

@@ -34,12 +34,17 @@ def pytest_addoption(parser):
                           "CI runs at a smaller size (minutes each)")
 
 
+# the markers of the tests the fast lane (`pytest -n 2 -m fast`) leaves out
+NOT_FAST = ("slow", "mbdyn", "browser", "dakota", "extended")
+
+
 def pytest_collection_modifyitems(config, items):
     """Tests that run the ``dakota`` executable (their skip condition names it) get the marker
     ``dakota``: they compare our numbers with Dakota's, which the minimum-versions lane of
     .ci/run need not repeat (they already ran at the current versions). Tests marked
     ``extended`` (the long versions of checks the suite runs at a smaller size) are skipped
-    unless ``pytest --extended``.
+    unless ``pytest --extended``. Every other test gets the marker ``fast``: the lane a
+    developer runs often is ``pytest -q -n 2 -m fast`` (README, developer section).
 
     The test files holding ``slow`` or ``mbdyn`` tests run first, each file's tests in their
     own order: with ``-n auto`` (pytest-xdist) the minutes-long tests start at once instead
@@ -49,6 +54,9 @@ def pytest_collection_modifyitems(config, items):
             if "'dakota' executable" in str(mark.kwargs.get("reason", "")):
                 item.add_marker(pytest.mark.dakota)
                 break
+    for item in items:
+        if not any(item.get_closest_marker(m) for m in NOT_FAST):
+            item.add_marker(pytest.mark.fast)
     if not config.getoption("--extended"):
         skip = pytest.mark.skip(reason="extended check: run with pytest --extended")
         for item in items:

@@ -30,6 +30,7 @@ COMMANDS = ["collective_deg", "lateral_deg", "longitudinal_deg"]
 OUT = ["thrust", "torque", "roll", "pitch", "power"]
 
 
+@pytest.mark.slow  # ~15 CPU-s: five rotor builds (the rotor's other tests stay fast)
 def test_uncertain_offset_gives_the_fixed_presets_loads_bitwise():
     offsets = [-0.001, -0.00019, 0.0, -0.0005]
     cmd = [5.0, -1.0, -1.0]
@@ -85,6 +86,7 @@ def test_predictive_fit_standardises_with_model_and_noise_spread():
     assert fit["z"] == pytest.approx([2.0 / math.sqrt(sd**2 + 1.0), 0.0])
 
 
+@pytest.mark.slow  # ~23 CPU-s: the calibration twice; its parts are tested fast above
 def test_mbdyn_calibration_is_seeded_and_rejects_the_tuned_value():
     prior = A.offset_prior()
     a = A.mbdyn_elastic(prior, quick=True)

@@ -119,6 +119,7 @@ def test_same_seed_same_chains():
                         chains=ChainOptions(n_samples=10, sampler=SamplerConfig(evaluations="all")))
 
 
+@pytest.mark.slow  # ~13 CPU-s; test_same_seed_same_chains stays fast
 def test_readme_example_is_bitwise_reproducible():
     """The README's call (an unseeded GaussianProcess emulator, seed=1) twice: every random
     stage (design, GP restarts, MAP starts, chain starts, chains, predictive draws, the KL

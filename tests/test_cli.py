@@ -314,6 +314,7 @@ n_samples = 10
 """
 
 
+@pytest.mark.slow  # ~12 CPU-s; exit 3 stays fast in the test above
 def test_a_failure_share_above_the_threshold_exits_3(tmp_path, warm):
     # 8 of the 10 collectives from 4 to 94 deg fail (deep stall, > 90 deg)
     study = _study(tmp_path, PARTIAL.format(extra=""))
@@ -332,6 +333,7 @@ def test_a_failure_share_above_the_threshold_exits_3(tmp_path, warm):
     assert bad.returncode == 1 and "w.toml, line 4: expected a share" in bad.stderr
 
 
+@pytest.mark.slow  # ~11 CPU-s: several runs in fresh processes
 def test_only_runs_what_it_names_and_skips_the_rest(tmp_path, warm):
     study = _study(tmp_path, TINY.replace("n_samples = 40", "n_samples = 6") + """
 [[steps]]

@@ -23,6 +23,7 @@ SCRIPT = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow  # ~12 CPU-s, a cold compile; the next test and test_cli's stay fast
 def test_a_cold_cache_names_the_kernels_before_compiling_them(tmp_path):
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
     proc = subprocess.Popen([sys.executable, "-c", SCRIPT], env=env, cwd=tmp_path,

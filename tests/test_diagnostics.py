@@ -22,9 +22,18 @@ from rotoruq.methods.mcmc.diagnostics import (
 )
 from rotoruq.methods.mcmc.export import FORMAT, read_chains, to_arviz_dict, write_chains
 
-with warnings.catch_warnings():
-    warnings.simplefilter("ignore", FutureWarning)  # arviz announces its refactor on import
-    az = pytest.importorskip("arviz")
+
+class _Arviz:
+    """arviz, imported by the first test that uses it (~4 CPU-s: every pytest worker collects
+    this file, one runs these tests)."""
+
+    def __getattr__(self, name):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FutureWarning)  # arviz announces its refactor
+            return getattr(pytest.importorskip("arviz"), name)
+
+
+az = _Arviz()
 
 
 def _ar1(rng, shape, phi, innovations):

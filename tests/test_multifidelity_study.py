@@ -72,6 +72,7 @@ def check_estimates(res, responses: list[str], k: float = 4.0) -> None:
 # the analytic study through the CLI
 
 
+@pytest.mark.slow  # ~21 CPU-s; the step's in-process tests stay fast
 def test_rotor_study_through_cli_from_a_fresh_folder(tmp_path):
     """`rotoruq run multifidelity_rotor` in an empty folder: the allocation and estimate tables
     in `rotoruq show` and in the report; mean and variance of thrust and power within 4
@@ -178,6 +179,7 @@ def test_rotor_study_on_dask_by_changing_only_the_executor(tmp_path):
     check_estimates(load_step(out / "steps" / "multifidelity"), ["thrust", "power"])
 
 
+@pytest.mark.slow  # ~13 CPU-s; tests/test_multifidelity_sobol.py stays fast
 def test_sobol_indices_of_a_multifidelity_step_through_the_cli(tmp_path):
     """``sobol = true`` in the study file: `rotoruq show` prints the multi-fidelity Sobol'
     table, and each index is within 4 of its standard errors (plus 0.01 for the reference's

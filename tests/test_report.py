@@ -433,6 +433,7 @@ TWO_STEPS = textwrap.dedent("""
     """)
 
 
+@pytest.mark.slow  # three CLI runs with reports; the cache's own test below stays fast
 def test_a_changed_step_redraws_its_own_figures_only(tmp_path):
     """Through the CLI: a study of two steps with figures, run, then one step's option
     changed and run again: the other step's figures come from the cache (found in a by-hand
@@ -480,6 +481,7 @@ def test_cached_figures_follow_the_other_steps_their_hook_read(tmp_path):
         assert cache.get("n", lambda *a: a, {"truth": ""}) is None
 
 
+@pytest.mark.slow  # ~8 CPU-s; the figure cache's test stays fast
 def test_figures_drawn_ahead_are_the_reports(tmp_path, caplog):
     """`prerender_figures` (a study's figures drawn ahead, in this process) fills the
     report's figure cache: the report then draws nothing, and its files are the bytes a
@@ -794,6 +796,7 @@ def test_report_never_rebuilds_the_model(tmp_path):
     assert float(cells["model:gvpm:chord"]) == get_preset("gvpm").chord
 
 
+@pytest.mark.slow  # ~11 CPU-s: a report in a fresh process
 def test_the_report_is_the_same_in_a_fresh_interpreter(tmp_path):
     """``rq.write_report`` on a study's results renders the same page, tables and figures in a
     fresh interpreter as after ``import rotoruq.study`` (the renderers come from the step

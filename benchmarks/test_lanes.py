@@ -1,0 +1,170 @@
+"""Time of the fast test lane (``pytest -q -n 2 -m fast``) and the modules it leaves untested.
+
+The fast lane is the suite a developer runs often: every test without the ``slow``,
+``extended``, ``browser``, ``mbdyn`` or ``dakota`` marker (``tests/conftest.py`` marks the
+rest ``fast``). Its target (issue 34): under 5 minutes on 2 cores, covering every module of
+``src/rotoruq``.
+
+The default run measures the lane as a developer runs it: one ``pytest --collect-only``
+first (it writes the bytecode caches of the test files, as a developer's earlier run would
+have, and measures the collection alone), then the lane; wall seconds, CPU seconds of pytest
+and its workers (user + system, every process it waited for), the test counts from pytest's
+summary and the load average before and after (timings on a shared machine are inflated by
+the load; the CPU seconds much less). Python's bytecode cache is on in the children even when
+``PYTHONDONTWRITEBYTECODE`` is set here (without it every run rewrites the assertions of
+every test file again: ~15 CPU-s per worker).
+
+``--modules`` runs the lane instead under ``coverage`` (``pip install coverage``), started in
+each worker after collection: a module counts when a fast test ran a line of it (its
+functions, or its body when a test's code imported it first), not for being imported by a
+test file. It lists the modules of ``src/rotoruq`` no fast test ran. Code run only in a
+subprocess (a test of the CLI) is not seen; a numba-compiled function counts when it was
+compiled or loaded for a call, but one compiled into its caller (loaded from the cache with
+it) is not seen, so a module listed may still be tested that way: read the list.
+
+    python benchmarks/test_lanes.py --json benchmarks/results/test_lanes.json
+    python benchmarks/test_lanes.py --modules [-- tests/test_params.py]   # pytest arguments
+    python benchmarks/test_lanes.py --summary benchmarks/results/test_lanes.json  # README's line
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import resource
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
+from _summary import print_and_save, print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
+
+ROOT = Path(__file__).resolve().parents[1]
+SRC = ROOT / "src" / "rotoruq"
+LANE = ["-q", "-n", "2", "-m", "fast"]
+COUNTS = re.compile(r"(\d+) (passed|failed|skipped|deselected|errors?|xfailed|xpassed)")
+
+
+def _children_cpu() -> float:
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
+
+
+def _env() -> dict[str, str]:
+    env = dict(os.environ)
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
+    env["PYTHONPATH"] = os.pathsep.join(
+        [str(ROOT / "src"), str(ROOT / "benchmarks"), *filter(None, [env.get("PYTHONPATH")])])
+    return env
+
+
+def _pytest(args: list[str]) -> tuple[float, float, str, int]:
+    """(wall s, CPU s, output, exit code) of ``python -m pytest ARGS`` from the repository root."""
+    c0, t0 = _children_cpu(), time.perf_counter()
+    done = subprocess.run([sys.executable, "-m", "pytest", *args], cwd=ROOT, env=_env(),
+                          capture_output=True, text=True)
+    wall, cpu = time.perf_counter() - t0, _children_cpu() - c0
+    return wall, cpu, done.stdout + done.stderr, done.returncode
+
+
+def _counts(output: str) -> dict[str, int]:
+    """The counts of pytest's last summary line (``2400 passed, 30 skipped, ... in 250.1s``)."""
+    last = [ln for ln in output.splitlines() if re.search(r" in [\d.]+s", ln)]
+    if not last:
+        raise RuntimeError("pytest printed no summary line:\n" + output[-3000:])
+    return {k.rstrip("s") if k.startswith("error") else k: int(n)
+            for n, k in COUNTS.findall(last[-1])}
+
+
+def measure(extra: list[str]) -> dict:
+    """Collect once (bytecode caches written, collection timed), then run the lane."""
+    load0 = [round(v, 2) for v in os.getloadavg()]
+    cwall, ccpu, cout, crc = _pytest(["--collect-only", *LANE, *extra])
+    if crc != 0:
+        raise RuntimeError(f"pytest --collect-only exited with {crc}:\n{cout[-3000:]}")
+    wall, cpu, out, rc = _pytest([*LANE, *extra])
+    counts = _counts(out)
+    failed = counts.get("failed", 0) + counts.get("error", 0)
+    return {"command": "pytest " + " ".join(LANE + extra), "exit_code": rc,
+            "wall_s": round(wall, 1), "cpu_s": round(cpu, 1),
+            "collect_wall_s": round(cwall, 1), "collect_cpu_s": round(ccpu, 1),
+            "passed": counts.get("passed", 0), "skipped": counts.get("skipped", 0),
+            "failed": failed, "deselected": counts.get("deselected", 0),
+            "cores": os.cpu_count(), "load_before": load0,
+            "load_after": [round(v, 2) for v in os.getloadavg()],
+            "provenance": provenance(modules=all_modules())}
+
+
+def all_modules() -> list[str]:
+    """Every module of ``src/rotoruq``, by name (``rotoruq.rotor.hover``), from its files."""
+    names = []
+    for path in sorted(SRC.rglob("*.py")):
+        parts = path.relative_to(SRC.parent).with_suffix("").parts
+        names.append(".".join(parts[:-1] if parts[-1] == "__init__" else parts))
+    return names
+
+
+def untested_modules(extra: list[str]) -> dict:
+    """Run the lane under coverage (``_lane_modules.py``, a pytest plugin) and name the
+    modules of ``src/rotoruq`` whose functions no test of it ran."""
+    try:
+        import coverage
+    except ImportError:
+        raise SystemExit("--modules needs coverage: pip install coverage") from None
+    data_dir = Path(tempfile.mkdtemp(prefix="lane-modules-"))
+    try:
+        os.environ["ROTORUQ_LANE_COVERAGE"] = str(data_dir / ".coverage")
+        wall, cpu, out, rc = _pytest([*LANE, "-p", "_lane_modules", *extra])
+        counts = _counts(out)
+        cov = coverage.Coverage(data_file=str(data_dir / ".coverage"))
+        cov.combine(data_paths=[str(data_dir)])
+        data = cov.get_data()
+        ran = {str(Path(f).resolve()): set(data.lines(f) or ()) for f in data.measured_files()}
+        compiled = {ln for f in data_dir.glob("numba-*.txt")
+                    for ln in f.read_text(encoding="utf-8").split()}
+    finally:
+        os.environ.pop("ROTORUQ_LANE_COVERAGE", None)
+        shutil.rmtree(data_dir, ignore_errors=True)
+    untested = []
+    for path, name in zip(sorted(SRC.rglob("*.py")), all_modules(), strict=True):
+        if not ran.get(str(path.resolve())) and name not in compiled:
+            untested.append(name)
+    return {"command": "pytest " + " ".join(LANE + extra) + " (under coverage)",
+            "exit_code": rc, "passed": counts.get("passed", 0),
+            "modules": len(all_modules()), "untested": untested,
+            "wall_s": round(wall, 1), "cpu_s": round(cpu, 1)}
+
+
+def summary(res: dict) -> str:
+    """README's sentence: the lane's command, test count, time and the load it ran at."""
+    return (f"`{res['command']}`: {res['passed']:,} tests passed ({res['skipped']} skipped, "
+            f"{res['failed']} failed) in {res['wall_s'] / 60:.1f} min wall, "
+            f"{res['cpu_s'] / 60:.1f} CPU-min, on {res['cores']} cores at load "
+            f"{res['load_before'][0]:g} (1-min average at the start; collecting the tests "
+            f"alone takes {res['collect_cpu_s']:.0f} CPU-s); measured "
+            f"{res['provenance']['date'][:10]} at {res['provenance']['commit'][:10]}.")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--json", help="save the result here")
+    ap.add_argument("--modules", action="store_true",
+                    help="run the lane under coverage and list the modules no fast test runs")
+    ap.add_argument("--summary", metavar="JSON", help="print README's line from a saved result")
+    ap.add_argument("pytest_args", nargs="*", help="more pytest arguments (after --)")
+    args = ap.parse_args()
+    if print_saved_summary(args.summary, summary):
+        return
+    if args.modules:
+        res = untested_modules(args.pytest_args)
+        print_and_save(res, args.json)
+        raise SystemExit(1 if res["untested"] or res["exit_code"] else 0)
+    print_and_save(measure(args.pytest_args), args.json)
+
+
+if __name__ == "__main__":
+    main()

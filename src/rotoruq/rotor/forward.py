@@ -17,8 +17,10 @@ trim (``trim="hub_moments"``) for the thrust and the hub roll and pitch moments
 (``roll_moment_target``, ``pitch_moment_target``, default 0 N m). The iteration's Jacobian
 couples the harmonics, the inflow and the controls through forward flight's periodic
 coefficients (linear theory on the grid), so the trim converges like the hover solve. A
-point that cannot trim is a failed row with its reason. Out of ground effect only: a finite
-``height_over_radius`` with ``advance_ratio > 0`` is a failed row. At ``advance_ratio = 0``
+point that cannot trim is a failed row with its reason. In ground effect (a finite
+``height_over_radius``) the hover model's factor on the induced velocity, 1 - g, is seen
+through the wake skewed by V / v (Cheeseman & Bennett): 1 - g / (1 + (mu Omega R / v)^2).
+At ``advance_ratio = 0``
 the solve takes the hover code paths: the answer is the hover model's, bitwise.
 
 >>> import rotoruq as rq

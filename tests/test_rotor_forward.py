@@ -165,7 +165,7 @@ def test_ground_effect_in_forward_flight_is_cheeseman_bennetts_skewed_image():
     OmR, rho = d["omega"] * R, d["rho"]
     g = (0.25 / h) ** 2
     ratio = []
-    for (T, lam), (T_o, lam_o), mu in zip(ige, oge, mus):
+    for (T, lam), (T_o, lam_o), mu in zip(ige, oge, mus, strict=True):
         v, v_o, Vx, Vz = lam * OmR, lam_o * OmR, mu * OmR, mu * np.tan(np.deg2rad(3.0)) * OmR
         kappa = preset.induced_power_factor * (1 - g * v**2 / (v**2 + Vx**2))
         np.testing.assert_allclose(T, 2 * rho * A * v * np.hypot(Vx, Vz + v) / kappa**2,

@@ -28,7 +28,8 @@ the Jacobian of :func:`_structural_jacobian`, :func:`_inflow_update` (momentum);
 state :func:`_hub_loads` re-evaluates the equations and gives the loads. In forward flight
 and when trimmed the motion, inflow and control step is :func:`_coupled_step`, one real
 system over every harmonic with the Jacobian of :func:`_coupled_jacobian` (the hover blocks
-plus forward flight's couplings between the harmonics, the inflow and the controls).
+plus forward flight's couplings between the harmonics, the inflow and the controls), which
+each iteration corrects by Broyden's rank-one secant update from the last step.
 
 Every sample is solved on its own by :func:`_solve_sample`: its own step control and
 convergence test, no reduction across samples, sums in numpy's pairwise order; so a sample's
@@ -941,8 +942,11 @@ def _coupled_jacobian(prm, rot, J, J0, k_v, a_lift, n_trim, ws):
 @numba.njit(**_JIT)
 def _coupled_step(st, prm, rot, Jinv, F_cmd, R_dyn, M, A, b, x, ws, hist):
     """The motion, inflow and (trimmed) control step of forward flight with the coupled
-    Jacobian M of :func:`_coupled_jacobian`. Returns the largest motion step [rad], inflow
-    step [-] and control step [rad] (relaxed)."""
+    Jacobian M of :func:`_coupled_jacobian`, updated in place by Broyden's rank-one step
+    from the last residual and step kept in ``hist`` (3, n + 1): row 0 the last right-hand
+    side and (at n) the last relaxation (0: no step yet), row 1 the last step, row 2 the
+    column weights. Returns the largest motion step [rad], inflow step [-] and control step
+    [rad] (relaxed)."""
     Om, rho, kappa = prm[OMEGA], prm[RHO], prm[KAPPA]
     R, Nb = rot.radius, rot.n_blades
     K = st.Q.shape[1]

@@ -132,12 +132,54 @@ def test_bemt_preset_is_refused():
 def test_out_of_range_rows_fail_with_their_reason():
     m = ForwardRotorModel("gvpm", names_in=["advance_ratio", "shaft_angle_deg",
                                            "height_over_radius"])
-    res = m.evaluate([[0.5, 0.0, np.inf], [0.2, 45.0, np.inf], [0.2, 0.0, 2.0],
-                      [0.2, 0.0, np.inf]])
+    res = m.evaluate([[0.5, 0.0, np.inf], [0.2, 45.0, np.inf], [0.2, 0.0, 0.25],
+                      [0.2, 0.0, np.inf], [0.2, 0.0, 2.0]])
     assert "advance_ratio 0.5 is outside [0, 0.4]" in res.failures[0]
     assert "shaft_angle_deg 45" in res.failures[1]
-    assert "ground effect in forward flight" in res.failures[2]
-    assert 3 not in res.failures and np.all(np.isfinite(res.values[3]))
+    # ground effect in forward flight: the hover model's validity (z > R/4)
+    assert "height_over_radius 0.25 is at or below R/4" in res.failures[2]
+    assert set(res.failures) == {0, 1, 2} and np.all(np.isfinite(res.values[3:]))
+
+
+def test_ground_effect_in_forward_flight_is_cheeseman_bennetts_skewed_image():
+    """Trimmed to one thrust at z/R = 0.8 and out of ground effect: the converged thrust
+    and mean inflow satisfy Glauert's momentum with Cheeseman-Bennett's factor
+    v_IGE / v_OGE = 1 - (R/4z)^2 / (1 + (V / v)^2) (no tip loss: the closed form holds to
+    the solve's tolerance); at mu -> 0 it is hover's 1 - (R/4z)^2 and it tends to 1 (out of
+    ground effect) as V / v grows."""
+    preset = rq.get_preset("gvpm").replace(tip_loss=False)
+    m = ForwardRotorModel(preset, names_in=["advance_ratio", "height_over_radius"],
+                          names_out=["thrust"], trim="wind_tunnel",
+                          fixed={"thrust_target": 25.0, "shaft_angle_deg": 3.0})
+    mus = np.array([1e-4, 0.02, 0.05, 0.2])
+    h = 0.8
+
+    def solve(height):   # thrust [N], induced inflow ratio v0 / (Omega R) [-]
+        thrust = m(np.column_stack([mus, np.full(4, height)]))[:, 0]
+        return np.column_stack([thrust, m.last_solution.inflow_ratio])
+
+    ige, oge = solve(h), solve(np.inf)
+    assert np.all(np.isfinite(ige)) and np.all(np.isfinite(oge))
+    R, A = preset.radius, np.pi * preset.radius**2
+    d = m.defaults()
+    OmR, rho = d["omega"] * R, d["rho"]
+    g = (0.25 / h) ** 2
+    ratio = []
+    for (T, lam), (T_o, lam_o), mu in zip(ige, oge, mus, strict=True):
+        v, v_o, Vx, Vz = lam * OmR, lam_o * OmR, mu * OmR, mu * np.tan(np.deg2rad(3.0)) * OmR
+        kappa = preset.induced_power_factor * (1 - g * v**2 / (v**2 + Vx**2))
+        np.testing.assert_allclose(T, 2 * rho * A * v * np.hypot(Vx, Vz + v) / kappa**2,
+                                   rtol=1e-7)
+        np.testing.assert_allclose(T, 25.0, rtol=1e-9)
+        np.testing.assert_allclose(T_o, 2 * rho * A * v_o * np.hypot(Vx, Vz + v_o)
+                                   / preset.induced_power_factor**2, rtol=1e-7)
+        ratio.append(1 - g * v**2 / (v**2 + Vx**2))
+    # mu -> 0: hover's factor; growing mu: out of ground effect
+    np.testing.assert_allclose(ratio[0], 1 - g, rtol=1e-5)
+    assert ratio[0] < ratio[1] < ratio[2] < ratio[3] and 1 - ratio[3] < 0.01 * g
+    # the induced inflow is lower in ground effect, by less as mu grows
+    drop = 1 - ige[:, 1] / oge[:, 1]
+    assert np.all(drop > 0) and np.all(np.diff(drop) < 0)
 
 
 def test_every_response_is_available():

@@ -28,7 +28,8 @@ the Jacobian of :func:`_structural_jacobian`, :func:`_inflow_update` (momentum);
 state :func:`_hub_loads` re-evaluates the equations and gives the loads. In forward flight
 and when trimmed the motion, inflow and control step is :func:`_coupled_step`, one real
 system over every harmonic with the Jacobian of :func:`_coupled_jacobian` (the hover blocks
-plus forward flight's couplings between the harmonics, the inflow and the controls).
+plus forward flight's couplings between the harmonics, the inflow and the controls), which
+each iteration corrects by Broyden's rank-one secant update from the last step.
 
 Every sample is solved on its own by :func:`_solve_sample`: its own step control and
 convergence test, no reduction across samples, sums in numpy's pairwise order; so a sample's
@@ -63,13 +64,15 @@ LIFT_SECANT_DEG = 2.0   # half-width of the secant giving the Jacobian's lift sl
 # Columns of the per-sample input matrix
 (OMEGA, RHO, KAPPA, K_FLAP, C_FLAP, K_LAG, C_LAG, K_FEATHER, C_FEATHER, X_AC, CM0, COLLECTIVE,
  LATERAL, LONGITUDINAL, MU, LAMBDA_S, INFLOW, TRIM, THRUST_TARGET, ROLL_TARGET, PITCH_TARGET,
- N_COLUMNS) = range(22)
+ GROUND_DEFICIT, N_COLUMNS) = range(23)
 # Forward flight (rotor.forward): advance ratio mu = V cos(alpha_s) / (Omega R), free-stream
 # inflow ratio lambda_s = mu tan(alpha_s) (alpha_s positive tilting the disk forward), the
 # inflow model (GLAUERT uniform, DREES linear), the trim (NO_TRIM; WIND_TUNNEL: collective
 # and cyclic solved for THRUST_TARGET [N] and zero first-harmonic flapping; HUB_MOMENTS: for
-# THRUST_TARGET and the hub moments ROLL_TARGET, PITCH_TARGET [N m]). mu = 0 without a trim
-# takes the hover code paths unchanged.
+# THRUST_TARGET and the hub moments ROLL_TARGET, PITCH_TARGET [N m]; GROUND_DEFICIT: the
+# hover ground-effect model's 1 - v_IGE / v_OGE at the sample's height, which forward flight
+# weights by the wake skew, :func:`_ground_skew`). mu = 0 without a trim takes the hover code
+# paths unchanged.
 GLAUERT, DREES = 0, 1
 TRIM_PITCH_LIMIT_DEG = 90.0   # |collective| + |cyclic| a trim may reach [deg]
 NO_TRIM, WIND_TUNNEL, HUB_MOMENTS = 0, 1, 2
@@ -428,6 +431,21 @@ def _glauert(v, Vx, Vz):
     dV'/dv for induced velocity v, in-plane free stream Vx and free-stream inflow Vz."""
     Vp = math.sqrt(Vx * Vx + (Vz + v) * (Vz + v))
     return Vp, ((Vz + v) / Vp if Vp > 0 else 1.0)
+
+
+@numba.njit(**_INLINE)
+def _ground_skew(v, Vx, g):
+    """Ground effect in forward flight relative to hover's: the factor on KAPPA (which holds
+    hover's v_IGE / v_OGE = 1 - g) and its derivative in v [s/m]. Cheeseman & Bennett's image
+    source seen through the wake skewed back by tan(chi) = Vx / v: v_IGE / v_OGE =
+    1 - g cos^2(chi) = 1 - g v^2 / (v^2 + Vx^2), hover's at Vx = 0, 1 as Vx / v grows."""
+    if g == 0.0:
+        return 1.0, 0.0
+    d = v * v + Vx * Vx
+    if d == 0.0:
+        return 1.0, 0.0
+    w = v * v / d
+    return (1.0 - g * w) / (1.0 - g), -g * (2.0 * v * Vx * Vx / (d * d)) / (1.0 - g)
 
 
 @numba.njit(**_INLINE)
@@ -922,10 +940,13 @@ def _coupled_jacobian(prm, rot, J, J0, k_v, a_lift, n_trim, ws):
 
 
 @numba.njit(**_JIT)
-def _coupled_step(st, prm, rot, Jinv, F_cmd, R_dyn, M, A, b, x, ws):
+def _coupled_step(st, prm, rot, Jinv, F_cmd, R_dyn, M, A, b, x, ws, hist):
     """The motion, inflow and (trimmed) control step of forward flight with the coupled
-    Jacobian M of :func:`_coupled_jacobian`. Returns the largest motion step [rad], inflow
-    step [-] and control step [rad] (relaxed)."""
+    Jacobian M of :func:`_coupled_jacobian`, updated in place by Broyden's rank-one step
+    from the last residual and step kept in ``hist`` (3, n + 1): row 0 the last right-hand
+    side and (at n) the last relaxation (0: no step yet), row 1 the last step, row 2 the
+    column weights. Returns the largest motion step [rad], inflow step [-] and control step
+    [rad] (relaxed)."""
     Om, rho, kappa = prm[OMEGA], prm[RHO], prm[KAPPA]
     R, Nb = rot.radius, rot.n_blades
     K = st.Q.shape[1]
@@ -949,9 +970,12 @@ def _coupled_step(st, prm, rot, Jinv, F_cmd, R_dyn, M, A, b, x, ws):
     v = sc[V0]
     F = _uniform_tip_loss(v, Om, rot, ws.span_scratch)
     mom = 2 * rho * rot.area * F / kappa**2
-    Vp, dVp = _glauert(v, prm[MU] * (Om * R), prm[LAMBDA_S] * (Om * R))
-    A[nQ, nQ] += mom * (Vp + v * dVp)
-    b[nQ] = T_be - mom * v * Vp
+    Vx = prm[MU] * (Om * R)
+    Vp, dVp = _glauert(v, Vx, prm[LAMBDA_S] * (Om * R))
+    gs, dgs = _ground_skew(v, Vx, prm[GROUND_DEFICIT])
+    # T = mom v V' / gs^2 (gs = 1 out of ground effect)
+    A[nQ, nQ] += mom * ((Vp + v * dVp) - 2.0 * v * Vp * dgs / gs) / (gs * gs)
+    b[nQ] = T_be - mom * v * Vp / (gs * gs)
     if n > nQ + 1:
         b[nQ + 1] = prm[THRUST_TARGET] - T_be
         if prm[TRIM] == WIND_TUNNEL:
@@ -964,7 +988,27 @@ def _coupled_step(st, prm, rot, Jinv, F_cmd, R_dyn, M, A, b, x, ws):
                 ws.harm[1] + rot.S_flap * Om * Om * Q[0, 1])
             b[nQ + 2] = prm[ROLL_TARGET] - 0.5 * Nb * M1.imag
             b[nQ + 3] = prm[PITCH_TARGET] + 0.5 * Nb * M1.real
+    if hist[0, n] != 0.0:
+        # Broyden's (good) rank-one update of the linear-theory part M from the last step
+        # s = relax x_prev: the secant condition A_new s = b_prev - b, where A_prev s =
+        # relax b_prev, corrects M by ((1 - relax) b_prev - b) (W s)^T / (s^T W s) (W
+        # weights the inflow column by 1 / (Omega R)^2: every unknown as a ratio)
+        ss = 0.0
+        for j in range(n):
+            ss += hist[1, j] * hist[1, j] * (hist[2, j])
+        if ss > 0.0:
+            for i in range(n):
+                y = ((1.0 - hist[0, n]) * hist[0, i] - b[i]) / ss
+                for j in range(n):
+                    corr = y * (hist[1, j] * hist[2, j])
+                    M[i, j] += corr
+                    A[i, j] += corr
+    for i in range(n):
+        hist[0, i] = b[i]
     _lu_solve(A, b, x)
+    for i in range(n):
+        hist[1, i] = relax * x[i]
+    hist[0, n] = relax
     big = 0.0
     for d in range(3):
         for k in range(K):
@@ -997,7 +1041,7 @@ def _coupled_step(st, prm, rot, Jinv, F_cmd, R_dyn, M, A, b, x, ws):
 
 @numba.njit(**_JIT)
 def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws, M, A, b, x,
-          flight):
+          flight, hist):
     """One iteration of a sample: returns (step size, flow not finite). A non-empty M (forward
     flight or a trim) takes the coupled step of :func:`_coupled_step`."""
     Om, R = prm[OMEGA], rot.radius
@@ -1008,7 +1052,8 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws, M,
     R_dyn, Mz1 = _blade_root_loads(st.Q, Z, F_cmd, rot, ws)
     dv1 = 0.0
     if flight is not None and M.shape[0]:
-        big, dv, d_ctrl = _coupled_step(st, prm, rot, Jinv, F_cmd, R_dyn, M, A, b, x, ws)
+        big, dv, d_ctrl = _coupled_step(st, prm, rot, Jinv, F_cmd, R_dyn, M, A, b, x, ws,
+                                        hist)
         if prm[INFLOW] == DREES and prm[MU] != 0.0:
             kx, ky = _drees(prm[MU], prm[LAMBDA_S] + sc[V0] / (Om * R))
             vc, vs = kx * sc[V0], ky * sc[V0]
@@ -1155,8 +1200,11 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out, flight):
         dT_be = -Nb * 0.5 * rho * rot.chord * A0 * Om * rot.sums[SUM_W_R]
         if forward:
             Vp, dVp = _glauert(v, Vx, Vz)
+            gs, dgs = _ground_skew(v, Vx, prm[GROUND_DEFICIT])
+            kap = kap * gs
             f = thrust - 2 * rho * rot.area * v * Vp / kap**2
-            df = dT_be - 2 * rho * rot.area * (Vp + v * dVp) / kap**2
+            df = dT_be - 2 * rho * rot.area * ((Vp + v * dVp) - 2.0 * v * Vp * dgs / gs
+                                               ) / kap**2
         else:
             f = thrust - 2 * rho * rot.area * v * abs(v) / kap**2
             df = dT_be - 4 * rho * rot.area * abs(v) / kap**2
@@ -1283,6 +1331,11 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_ou
     else:
         M = np.zeros((0, 0))
     A, b, x = np.empty_like(M), np.empty(M.shape[0]), np.empty(M.shape[0])
+    # the coupled step's last residual and step and the column weights (Broyden)
+    hist = np.zeros((3, M.shape[0] + 1))
+    hist[2, :] = 1.0
+    if M.shape[0]:
+        hist[2, 2 * (2 * K - 1)] = 1.0 / (prm[OMEGA] * rot.radius) ** 2
     scalars = np.zeros(N_SCALARS)
     scalars[V0] = v_init
     scalars[RELAX] = 1.0
@@ -1300,7 +1353,7 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_ou
             max_iterations = 0
     for _ in range(max_iterations):
         size, bad = _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws,
-                          M, A, b, x, flight)
+                          M, A, b, x, flight, hist)
         iterations += 1
         if trim:
             if (abs(prm[COLLECTIVE]) + abs(prm[LATERAL]) + abs(prm[LONGITUDINAL])

@@ -17,8 +17,10 @@ trim (``trim="hub_moments"``) for the thrust and the hub roll and pitch moments
 (``roll_moment_target``, ``pitch_moment_target``, default 0 N m). The iteration's Jacobian
 couples the harmonics, the inflow and the controls through forward flight's periodic
 coefficients (linear theory on the grid), so the trim converges like the hover solve. A
-point that cannot trim is a failed row with its reason. Out of ground effect only: a finite
-``height_over_radius`` with ``advance_ratio > 0`` is a failed row. At ``advance_ratio = 0``
+point that cannot trim is a failed row with its reason. In ground effect (a finite
+``height_over_radius``) the hover model's factor on the induced velocity, 1 - g, is seen
+through the wake skewed by V / v (Cheeseman & Bennett): 1 - g / (1 + (mu Omega R / v)^2).
+At ``advance_ratio = 0``
 the solve takes the hover code paths: the answer is the hover model's, bitwise.
 
 >>> import rotoruq as rq
@@ -39,6 +41,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from . import _kernel as kern
+from .ground_effect import ground_effect_factor
 from .hover import HoverSolution, prepare, run_kernel
 from .model import RESPONSES, ROTOR_INPUTS, RotorModel
 from .presets import RotorPreset
@@ -181,6 +184,9 @@ def solve_forward(preset: RotorPreset, airfoil: Any, grid: Any,
         prm[:, kern.THRUST_TARGET] = flight.get("thrust_target", np.nan)
         prm[:, kern.ROLL_TARGET] = flight.get("roll_moment_target", 0.0)
         prm[:, kern.PITCH_TARGET] = flight.get("pitch_moment_target", 0.0)
+        h = np.broadcast_to(np.asarray(hover["height_over_radius"], float), (n,))
+        prm[:, kern.GROUND_DEFICIT] = np.where(
+            np.isinf(h), 0.0, 1.0 - ground_effect_factor(h, preset.ground_effect))
         res = run_kernel(prm, rot, table, fits, linear, n, K, tolerance, max_iterations,
                          check_tolerance, negative_power=True)
     if _TRIMS[trim] != kern.NO_TRIM:
@@ -314,8 +320,7 @@ class ForwardRotorModel(RotorModel):
         mu, alpha = params["advance_ratio"], params["shaft_angle_deg"]
         with np.errstate(invalid="ignore"):
             ok = bool(np.all((mu >= 0) & (mu <= MAX_ADVANCE_RATIO))
-                      and np.all(np.abs(alpha) <= MAX_SHAFT_ANGLE_DEG)
-                      and not np.any((mu > 0) & np.isfinite(params["height_over_radius"])))
+                      and np.all(np.abs(alpha) <= MAX_SHAFT_ANGLE_DEG))
             if "thrust_target" in params:
                 ok = ok and bool(np.all(params["thrust_target"] > 0))
         return ok and super()._all_valid(params, overrides)
@@ -323,7 +328,6 @@ class ForwardRotorModel(RotorModel):
     def _validate(self, params, overrides, n) -> dict[int, str]:
         failures = super()._validate(params, overrides, n)
         mu, alpha = params["advance_ratio"], params["shaft_angle_deg"]
-        h = params["height_over_radius"]
 
         def fail(mask, reason):
             for i in np.flatnonzero(mask):
@@ -336,9 +340,6 @@ class ForwardRotorModel(RotorModel):
             fail(~(np.abs(alpha) <= MAX_SHAFT_ANGLE_DEG),
                  lambda i: f"shaft_angle_deg {alpha[i]:g} is outside "
                  f"[-{MAX_SHAFT_ANGLE_DEG:g}, {MAX_SHAFT_ANGLE_DEG:g}] deg")
-            fail((mu > 0) & np.isfinite(h),
-                 lambda i: f"height_over_radius {h[i]:g} with advance_ratio {mu[i]:g}: ground "
-                 "effect in forward flight is not modelled (out of ground effect only)")
             if "thrust_target" in params:
                 T = params["thrust_target"]
                 fail(~(T > 0), lambda i: f"thrust_target must be > 0 N, got {T[i]:g}")

@@ -146,9 +146,13 @@ def summary(out: dict) -> str:
         parts.append(f"{name}: {r['arrays']} arrays, {verdict} ({secs})")
     threads = ", ".join(map(str, out["threads"]))
     size = "--quick sizes (gp300 at its own)" if out["quick"] else "their own sizes"
+    missing = [s for s in ("gp300", *STUDIES) if s not in out["studies"]]
+    left = (f" Not in this run (CI checks them at 1 and 2 threads): {', '.join(missing)}."
+            if missing else "")
     return (f"From `benchmarks/results/thread_determinism.json` (threads {threads} for numba "
             f"and BLAS, studies at {size}; wall times at each thread count on a shared "
-            f"2-core machine): {'; '.join(parts)}. All identical: {out['all_identical']}.")
+            f"2-core machine): {'; '.join(parts)}. All identical: {out['all_identical']}."
+            + left)
 
 
 def main() -> None:

@@ -69,8 +69,11 @@ n_samples = 400
 burn_in = 100
 """
 
-#: the bundled studies that run without MBDyn, and those that need it
-STUDIES = ("quick", "validation", "experiment", "heldout", "multifidelity_rotor")
+#: the bundled studies that run without MBDyn (forward_flight without its MBDyn step, which
+#: the runs here skip), and those that need it (tests/test_reproducible_studies.py replays
+#: their MBDyn runs from the first run's store)
+STUDIES = ("quick", "validation", "experiment", "heldout", "multifidelity_rotor",
+           "forward_flight")
 MBDYN_STUDIES = ("mbdyn_rigid", "mbdyn_elastic", "mbdyn_multifidelity")
 THREAD_VARIABLES = ("NUMBA_NUM_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS",
                     "MKL_NUM_THREADS")
@@ -112,12 +115,15 @@ def differing(a: Path, b: Path) -> tuple[int, dict[str, float]]:
 
 
 def measure(study: str | Path, threads: tuple[int, ...], root: Path, *, quick: bool) -> dict:
-    """Run ``study`` at each thread count and compare each run with the first's arrays."""
+    """Run ``study`` at each thread count and compare each run with the first's arrays. A
+    step that needs MBDyn (``needs = ["mbdyn"]``) is skipped: no MBDyn is found."""
     name = Path(study).stem if str(study).endswith(".toml") else str(study)
+    env = {k: v for k, v in os.environ.items() if k != "MBDYN"}
+    env["MBDYN_PREFIX"] = str(root / "no-mbdyn")
     runs, seconds = {}, {}
     for t in threads:
         runs[t] = root / f"{name}-{t}"
-        seconds[str(t)] = round(run_at(study, t, runs[t], quick=quick), 2)
+        seconds[str(t)] = round(run_at(study, t, runs[t], quick=quick, env=env), 2)
     first = threads[0]
     compared, diffs = 0, {}
     for t in threads[1:]:
@@ -140,9 +146,13 @@ def summary(out: dict) -> str:
         parts.append(f"{name}: {r['arrays']} arrays, {verdict} ({secs})")
     threads = ", ".join(map(str, out["threads"]))
     size = "--quick sizes (gp300 at its own)" if out["quick"] else "their own sizes"
+    missing = [s for s in ("gp300", *STUDIES) if s not in out["studies"]]
+    left = (f" Not in this run (CI checks them at 1 and 2 threads): {', '.join(missing)}."
+            if missing else "")
     return (f"From `benchmarks/results/thread_determinism.json` (threads {threads} for numba "
             f"and BLAS, studies at {size}; wall times at each thread count on a shared "
-            f"2-core machine): {'; '.join(parts)}. All identical: {out['all_identical']}.")
+            f"2-core machine): {'; '.join(parts)}. All identical: {out['all_identical']}."
+            + left)
 
 
 def main() -> None:

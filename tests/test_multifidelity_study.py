@@ -19,6 +19,12 @@ from rotoruq.rotor.model import RotorModel
 from rotoruq.study.runner import run_study, why_rerun
 from rotoruq.study.schema import load_study
 from test_mbdyn import env_with_mbdyn, needs_mbdyn
+from test_reproducible_studies import (
+    THREAD_VARIABLES,
+    assert_replays_bitwise,
+    counting_mbdyn,
+    mbdyn_starts,
+)
 
 CLI = [sys.executable, "-m", "rotoruq.study.cli"]
 STUDIES = Path(__file__).resolve().parents[1] / "src" / "rotoruq" / "studies"
@@ -382,11 +388,17 @@ def test_bundled_mbdyn_study_parses():
 def test_mbdyn_study_runs_through_the_cli(tmp_path):
     """`rotoruq run mbdyn_multifidelity --quick` with the real solver: both steps' allocation
     and estimate tables, finite estimates with standard errors, each model's runs (elastic,
-    rigid, built-in) in the store under its own identity, as many as the allocation says."""
+    rigid, built-in) in the store under its own identity, as many as the allocation says.
+    The run is at 1 thread for numba and BLAS; a second run at 2 threads and ``--jobs 2``
+    replaying its MBDyn runs from a copy of its store saves the same bits (issue 35:
+    test_reproducible_studies.py's check of this study)."""
     out = tmp_path / "out"
+    env, starts = counting_mbdyn(tmp_path)
+    env.update({k: "1" for k in THREAD_VARIABLES})
     proc = run_cli("run", "mbdyn_multifidelity", "--quick", "--out", str(out), cwd=tmp_path,
-                   env=env_with_mbdyn(), timeout=900)
+                   env=env, timeout=900)
     assert proc.returncode == 0, proc.stderr
+    assert mbdyn_starts(starts) > 0
     show = run_cli("show", str(out), cwd=tmp_path)
     assert show.stdout.count("Multi-fidelity estimates") == 2
     assert "rigid" in show.stdout and "builtin" in show.stdout
@@ -401,6 +413,7 @@ def test_mbdyn_study_runs_through_the_cli(tmp_path):
             for m in res.meta["models"]]
     # elastic and built-in at two operating points, rigid at one: five identities
     assert sorted(store_counts(out).values()) == sorted(runs)
+    assert_replays_bitwise("mbdyn_multifidelity", out, tmp_path / "replay", env, starts)
 
 
 @pytest.mark.slow

@@ -665,3 +665,54 @@ def test_stopping_one_run_leaves_the_drivers_of_another_in_the_same_process(tmp_
         kill_active_trees(owner="b")
         threads["b"].join(5)
     assert runs["b"].returncode == -signal.SIGKILL
+
+
+def test_sigterm_during_a_rotor_compile_ends_the_run_at_once(tmp_path):
+    """`rotoruq run` of a rotor study on a cold numba cache, SIGTERM while the rotor kernels
+    compile on the rotor's thread pool: the run says it was terminated and ends (exit 143)
+    within seconds. Found in use: it printed "terminated" and then waited for the compile
+    (minutes), because the interpreter joined the pool's threads at exit."""
+    study = tmp_path / "s.toml"
+    study.write_text(textwrap.dedent("""
+        [study]
+        name = "cold"
+        seed = 1
+
+        [model]
+        preset = "gvpm"
+        responses = ["thrust"]
+
+        [parameters.cd0_m03]
+        distribution = "uniform"
+        lower = 0.008
+        upper = 0.014
+
+        [[steps]]
+        name = "lhs"
+        type = "sampling"
+        n_samples = 64
+        """))
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba"), "NUMBA_NUM_THREADS": "2",
+           "PYTHONPATH": SRC}
+    proc = subprocess.Popen([sys.executable, "-m", "rotoruq", "run", str(study), "--out",
+                             str(tmp_path / "out")], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env, cwd=tmp_path)
+    lines: list[str] = []
+    reader = threading.Thread(target=lambda: lines.extend(iter(proc.stderr.readline, "")),
+                              daemon=True)
+    reader.start()
+    try:
+        _wait_for(lambda: any(ln.startswith("compiling rotor kernels") for ln in lines), 120,
+                  "the rotor compile's notice")
+        time.sleep(2.0)  # the batch spread over the pool's two threads, compiling there
+        t0 = time.monotonic()
+        proc.send_signal(signal.SIGTERM)
+        proc.wait(60)
+        assert time.monotonic() - t0 < 10, "SIGTERM waited for the rotor's threads"
+        reader.join(10)
+        assert proc.returncode == 143, lines
+        assert any("terminated" in ln for ln in lines), lines
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate(timeout=10)

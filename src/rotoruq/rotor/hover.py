@@ -26,8 +26,10 @@ over the disk, torsional divergence, negative drag, negative power).
 from __future__ import annotations
 
 import os
+import queue
+import threading
 from collections.abc import Mapping
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future
 from dataclasses import dataclass, fields
 from typing import Any, NamedTuple
 
@@ -56,16 +58,44 @@ PARALLEL_MIN_BATCH = 16
 #: Slices per thread of a spread batch (samples differ in cost: smaller slices balance).
 SLICES_PER_THREAD = 4
 
-_POOLS: dict[tuple[int, int], ThreadPoolExecutor] = {}
+class _DaemonPool:
+    """``n_threads`` daemon threads that run submitted calls. Not a ThreadPoolExecutor: the
+    interpreter joins those at exit, so a run ended by Ctrl-C or SIGTERM waited for the batch
+    (or a first compile, minutes long) still running on them; nothing these threads compute
+    is saved unless the caller gets it back, so they may simply stop with the process."""
+
+    def __init__(self, n_threads: int) -> None:
+        self._jobs: queue.SimpleQueue = queue.SimpleQueue()
+        for k in range(n_threads):
+            threading.Thread(target=self._work, name=f"rotoruq-rotor_{k}", daemon=True).start()
+
+    def _work(self) -> None:
+        while True:
+            future, fn, args = self._jobs.get()
+            if not future.set_running_or_notify_cancel():
+                continue
+            try:
+                future.set_result(fn(*args))
+            except BaseException as exc:  # noqa: BLE001 - handed to the caller
+                future.set_exception(exc)
+
+    def submit(self, fn: Any, *args: Any) -> Future:
+        """Run ``fn(*args)`` on a pool thread."""
+        future: Future = Future()
+        self._jobs.put((future, fn, args))
+        return future
 
 
-def _pool(n_threads: int) -> ThreadPoolExecutor:
+_POOLS: dict[tuple[int, int], _DaemonPool] = {}
+
+
+def _pool(n_threads: int) -> _DaemonPool:
     """A thread pool of this process (a forked child makes its own) with n_threads workers."""
     key = (os.getpid(), n_threads)
     pool = _POOLS.get(key)
     if pool is None:
         _POOLS.clear()
-        pool = _POOLS[key] = ThreadPoolExecutor(n_threads, thread_name_prefix="rotoruq-rotor")
+        pool = _POOLS[key] = _DaemonPool(n_threads)
     return pool
 
 

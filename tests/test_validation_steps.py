@@ -80,6 +80,7 @@ configuration = "height_over_radius"
 couple = {{ omega = "omega" }}
 predict_at = [1.0]
 discrepancy = {{ amplitude_scale = {{ thrust = 3.0, power = 40.0 }}, length_scale = 2.0 }}
+n_emulator_samples = 30
 n_samples = 600
 burn_in = 200
 
@@ -194,6 +195,11 @@ def test_discrepancy_predictions_reach_the_validation(run_dir):
     assert disc.held_out.tolist() == [1.0]
     assert sorted(disc.predict_configurations.tolist()) == [1.0, 2.0, 3.0, 4.0]
     assert disc.chains.shape[0] == 2 and disc.hyper_names  # GP amplitude and length-scale
+    # the chains ran a GP emulator of the rotor (30 design points at the 3 heights), close to
+    # the rotor at the posterior draws against the noise; the predictions ran the rotor
+    assert disc.emulator_runs == 30
+    assert np.all(disc.emulator_loo_ratio < 0.3) and np.all(disc.emulator_posterior_ratio < 0.3)
+    assert disc.noise_model.endswith("+ the emulator's Kriging variance")
     assert val.predictions == ("with discrepancy", "without discrepancy (same posterior)")
     assert val.held_out.tolist() == [0.0, 0.0, 0.0, 1.0]
     idx = [int(np.flatnonzero(np.isclose(disc.predict_configurations, h))[0]) for h in HEIGHTS]
@@ -489,6 +495,7 @@ configuration = "c"
 couple = { w = "w" }
 predict_at = [3.0, 1.5]
 discrepancy = { amplitude_scale = { y = 0.2, v = 0.01 }, length_scale = 1.0 }
+emulator = "none"
 n_samples = 400
 burn_in = 100
 """

@@ -31,8 +31,8 @@ from ..._rng import SeedLike, as_generator
 from ...errors import ModelShapeError, ParameterError
 from ...model import Model, align_inputs, evaluate
 from ...params import ParameterSpace, Uniform
-from . import diagnostics as dg
 from ..surrogate import GaussianProcess, LeaveOneOut
+from . import diagnostics as dg
 from ._discrepancy_kernel import MATERN52, SQUARED_EXPONENTIAL, gp_marginal_loglik
 from ._emulator import fit_on_prior
 from .options import EmulatorOptions

@@ -473,7 +473,7 @@ def discrepancy_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str
     for what, ratio in (("at the posterior draws", rec.emulator_posterior_ratio),
                         ("leave-one-out", rec.emulator_loo_ratio)):
         poor = [f"{r} ({float(v):.2f})" for r, v in zip(rec.names_out, ratio, strict=True)
-                if not float(v) <= POSTERIOR_RATIO_MAX]
+                if not float(v) <= POSTERIOR_RATIO_MAX] if ratio.size else []  # else: no emulator
         if poor:
             w.append(f"{res.name}: emulator error {what} above {POSTERIOR_RATIO_MAX} of the "
                      f"noise std: {', '.join(poor)}; add n_emulator_samples or set "

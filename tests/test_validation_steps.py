@@ -531,3 +531,20 @@ def test_coupled_inputs_follow_the_configuration_and_runs_repeat_bitwise(tmp_pat
     assert np.isnan(rec.measured[at.index(1.5)]).all()      # no data there
     for f in ("chains", "hyper_chains", "pred_model", "pred_discrepancy", "band_lower"):
         np.testing.assert_array_equal(getattr(recs[0], f), getattr(recs[1], f), err_msg=f)
+
+
+@pytest.mark.parametrize("extra, needle, expected", [
+    ("refine = { n_samples = 10 }\n", "refine = ", "no refine = {...} beside discrepancy"),
+])
+def test_an_emulator_a_discrepancy_cannot_take_names_the_line(tmp_path, extra, needle,
+                                                              expected):
+    from rotoruq.errors import InputFileError
+    from rotoruq.study.schema import load_study
+
+    text = COUPLED.replace('emulator = "none"\n', extra)
+    p = tmp_path / "c.toml"
+    p.write_text(text)
+    with pytest.raises(InputFileError) as info:
+        load_study(p)
+    line = next(i for i, ln in enumerate(text.splitlines(), 1) if ln.startswith(needle))
+    assert f"line {line}" in str(info.value) and expected in str(info.value), str(info.value)

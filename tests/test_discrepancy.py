@@ -10,6 +10,7 @@ from scipy import stats
 
 import rotoruq as rq
 from rotoruq.errors import ParameterError
+from rotoruq.methods.mcmc import EmulatorOptions
 from rotoruq.methods.mcmc.discrepancy import (
     Discrepancy,
     calibrate_with_discrepancy,
@@ -138,6 +139,76 @@ def test_parameters_and_discrepancy_recovered_and_plain_fit_is_biased():
     assert np.all(res.std_ratio_to_no_discrepancy > 2.0)
     assert res.std_without_discrepancy == pytest.approx(plain.std, rel=0.15)
     assert plain.hyper_chains.shape[-1] == 0 and np.all(plain.discrepancy_at_data == 0)
+
+
+def _on_emulator(n_samples: int = 30, variance: bool = True) -> EmulatorOptions:
+    return EmulatorOptions(rq.GaussianProcess(trend="linear"), n_emulator_samples=n_samples,
+                           emulator_variance=variance)
+
+
+def test_on_an_emulator_the_posterior_is_the_models_and_the_emulator_is_checked():
+    """The chains on a GP emulator of eta (30 LHS points of the prior, each run at the five
+    configurations; its variance in the likelihood) give the posterior the chains on the model
+    give, within the Monte Carlo error of the two; the emulator's leave-one-out and posterior
+    errors are recorded against the noise std, and the model itself makes the draws."""
+    rng = np.random.default_rng(1)
+    h = np.repeat(H_TRAIN, 4)
+    sig = 0.02
+    y = A_TRUE * np.exp(-C_TRUE * h) + delta_true(h) + sig * rng.standard_normal(h.size)
+    prior = rq.ParameterSpace({"a": rq.Normal(2.1, 0.15), "c": rq.Normal(0.48, 0.04)})
+    kw = dict(configurations=h, configuration_name="h", noise_std=sig, n_samples=3000,
+              n_chains=2, n_draws=500, discrepancy=Discrepancy(amplitude_scale=0.2), seed=11)
+    model = calibrate_with_discrepancy(decay_model(), y, prior, **kw)
+    emu = calibrate_with_discrepancy(decay_model(), y, prior, emulator=_on_emulator(), **kw)
+    assert model.emulator_runs == 0 and model.emulator_loo_ratio.size == 0
+    assert emu.emulator_runs == 30
+    assert emu.n_evaluations == 30 * H_TRAIN.size + 500 * H_TRAIN.size  # design, then draws
+    assert np.all(emu.emulator_loo_ratio < 0.3) and np.all(emu.emulator_posterior_ratio < 0.3)
+    ess = np.minimum(model.ess[:2], emu.ess[:2])
+    se = np.sqrt(model.std**2 / ess + emu.std**2 / ess)
+    assert np.all(np.abs(emu.mean - model.mean) < 4 * se), (emu.mean, model.mean, se)
+    assert np.all(np.abs(emu.std / model.std - 1) < 4 * np.sqrt(2 / ess))
+
+
+@pytest.mark.parametrize("kind", ["gp", "polynomial", "none"])
+def test_an_emulators_variance_enters_each_points_covariance(kind):
+    """marginal_loglik with an emulator variance v (k, n_c, m) is log N(ybar; eta,
+    K_delta + diag(sigma^2 / n_c + v)) of each point (scipy), in the compiled GP kernel and in
+    the per-point factors of the polynomial and no-discrepancy forms; v = 0 gives the value
+    without it."""
+    h = np.repeat([1.0, 2.5, 4.0], [2, 3, 4])
+    y = np.exp(-0.4 * h) * 2.0 + 0.05 * np.random.default_rng(1).standard_normal(h.size)
+    prior = rq.ParameterSpace({"a": rq.Normal(2.0, 0.3), "c": rq.Normal(0.4, 0.05)})
+    spec = None if kind == "none" else Discrepancy(kind=kind, amplitude_scale=0.2)
+    res = calibrate_with_discrepancy(
+        decay_model(), y, prior, configurations=h, configuration_name="h", discrepancy=spec,
+        noise_std=0.05, n_samples=10, n_draws=2, seed=0)
+    post = res._post
+    rng = np.random.default_rng(2)
+    eta = 2.0 * np.exp(-0.4 * post.xs)[None, :, None] + 0.01 * rng.standard_normal((3, 3, 1))
+    var = rng.uniform(0.0, 0.01, (3, 3, 1))
+    hyper = np.log([[0.1, 1.0], [0.3, 3.0], [0.05, 0.4]])[:, :2 if kind == "gp" else 0]
+    ours = post.marginal_loglik(eta, hyper, var)
+    for i in range(3):
+        K = post.form.cov(hyper[i:i + 1], post.xs, post.xs)[0, 0]
+        C = K + np.diag(post.var_mean[0] + var[i, :, 0] + post._jitter)
+        want = stats.multivariate_normal(eta[i, :, 0], C).logpdf(post.ybar[:, 0])
+        assert ours[i] == pytest.approx(want, rel=1e-10, abs=1e-9)
+    np.testing.assert_allclose(post.marginal_loglik(eta, hyper, np.zeros_like(var)),
+                               post.marginal_loglik(eta, hyper), rtol=1e-12)
+
+
+def test_a_crude_emulator_is_flagged_and_runs_repeat_bitwise():
+    """Four design runs of a model not linear in c: the emulator's leave-one-out error is
+    large against the noise, and recorded; the same seed gives the same bits."""
+    kw = dict(discrepancy=Discrepancy(kind="polynomial", degree=1, amplitude_scale=0.1),
+              n_samples=400, predict_at=[0.5])
+    r1 = _small(5, emulator=_on_emulator(4), **kw)
+    r2 = _small(5, emulator=_on_emulator(4), **kw)
+    assert np.array_equal(r1.chains, r2.chains)
+    assert np.array_equal(r1.prediction.with_discrepancy, r2.prediction.with_discrepancy)
+    assert np.array_equal(r1.emulator_posterior_ratio, r2.emulator_posterior_ratio)
+    assert r1.emulator_runs == 4 and r1.emulator_loo_ratio[0] > 0.3
 
 
 # --- held-out coverage over repeated synthetic data sets ------------------------------------

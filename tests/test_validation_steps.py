@@ -80,6 +80,7 @@ configuration = "height_over_radius"
 couple = {{ omega = "omega" }}
 predict_at = [1.0]
 discrepancy = {{ amplitude_scale = {{ thrust = 3.0, power = 40.0 }}, length_scale = 2.0 }}
+n_emulator_samples = 30
 n_samples = 600
 burn_in = 200
 
@@ -194,6 +195,11 @@ def test_discrepancy_predictions_reach_the_validation(run_dir):
     assert disc.held_out.tolist() == [1.0]
     assert sorted(disc.predict_configurations.tolist()) == [1.0, 2.0, 3.0, 4.0]
     assert disc.chains.shape[0] == 2 and disc.hyper_names  # GP amplitude and length-scale
+    # the chains ran a GP emulator of the rotor (30 design points at the 3 heights), close to
+    # the rotor at the posterior draws against the noise; the predictions ran the rotor
+    assert disc.emulator_runs == 30
+    assert np.all(disc.emulator_loo_ratio < 0.3) and np.all(disc.emulator_posterior_ratio < 0.3)
+    assert disc.noise_model.endswith("+ the emulator's Kriging variance")
     assert val.predictions == ("with discrepancy", "without discrepancy (same posterior)")
     assert val.held_out.tolist() == [0.0, 0.0, 0.0, 1.0]
     idx = [int(np.flatnonzero(np.isclose(disc.predict_configurations, h))[0]) for h in HEIGHTS]
@@ -489,6 +495,7 @@ configuration = "c"
 couple = { w = "w" }
 predict_at = [3.0, 1.5]
 discrepancy = { amplitude_scale = { y = 0.2, v = 0.01 }, length_scale = 1.0 }
+emulator = "none"
 n_samples = 400
 burn_in = 100
 """
@@ -524,3 +531,20 @@ def test_coupled_inputs_follow_the_configuration_and_runs_repeat_bitwise(tmp_pat
     assert np.isnan(rec.measured[at.index(1.5)]).all()      # no data there
     for f in ("chains", "hyper_chains", "pred_model", "pred_discrepancy", "band_lower"):
         np.testing.assert_array_equal(getattr(recs[0], f), getattr(recs[1], f), err_msg=f)
+
+
+@pytest.mark.parametrize("extra, needle, expected", [
+    ("refine = { n_samples = 10 }\n", "refine = ", "no refine = {...} beside discrepancy"),
+])
+def test_an_emulator_a_discrepancy_cannot_take_names_the_line(tmp_path, extra, needle,
+                                                              expected):
+    from rotoruq.errors import InputFileError
+    from rotoruq.study.schema import load_study
+
+    text = COUPLED.replace('emulator = "none"\n', extra)
+    p = tmp_path / "c.toml"
+    p.write_text(text)
+    with pytest.raises(InputFileError) as info:
+        load_study(p)
+    line = next(i for i, ln in enumerate(text.splitlines(), 1) if ln.startswith(needle))
+    assert f"line {line}" in str(info.value) and expected in str(info.value), str(info.value)

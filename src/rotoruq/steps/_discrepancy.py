@@ -12,6 +12,12 @@ predictions there are out-of-sample. Predictions are made at the data's configur
 ``validation`` step validates both. ``n_samples`` kept steps are split over two chains.
 ``kind = "none"`` runs the same calibration over the configurations without a discrepancy
 (the comparison a reader needs).
+
+With ``emulator = "gp"`` (the step's default) the chains run on a GP emulator of the model
+(``n_emulator_samples`` LHS points of the prior, each run at every data configuration; its
+Kriging variance in the likelihood with ``emulator_variance``), checked by its leave-one-out
+error and against the model at the posterior draws; ``emulator = "none"``: on the model
+itself. The posterior draws and the predictions run the model itself either way.
 """
 
 from __future__ import annotations
@@ -86,6 +92,12 @@ def check_discrepancy(c: StepCheck) -> None:
         c.fail(("discrepancy",), "configuration = \"<the model input that varies between "
                "experiments, e.g. height_over_radius>\" beside discrepancy")
     c.check_input(("configuration",), o["configuration"])
+    if o.get("emulator") == "cokriging":
+        c.fail(("emulator",), "emulator = \"gp\" or \"none\" beside discrepancy (a "
+               "co-kriging emulator is not supported there)", "\"cokriging\"")
+    if o.get("refine") is not None:
+        c.fail(("refine",), "no refine = {...} beside discrepancy (the emulator is checked "
+               "against the model at the posterior draws instead)")
     for key, col in (o.get("couple") or {}).items():
         c.check_input(("couple", key), key)
         if not isinstance(col, str):
@@ -158,7 +170,10 @@ class DiscrepancyRecord(StepRecord):
     measurement's noise at posterior draws. band_lower, band_upper, band_lower_without,
     band_upper_without (q, m) : the :data:`BAND_LEVEL` band of a new measurement with and
     without the discrepancy. measured (q, m) : the data's mean there (NaN: no data).
-    acceptance_rate; level : :data:`BAND_LEVEL`.
+    acceptance_rate; level : :data:`BAND_LEVEL`. emulator_runs : the emulator's design runs
+    (0: the chains ran the model); emulator_loo_ratio, emulator_posterior_ratio (m) : its
+    largest leave-one-out RMS error over the data configurations and its RMS error against
+    the model at the posterior draws, over the noise std (empty: no emulator).
     quantities (d + h) : names_in + hyper_names, the labels of ``ess`` and ``rhat``.
     map_point (d) : the chains' start. std_ratio, prior_z, pileup_lo, pileup_hi (d) : the
     chain against the prior (:func:`~rotoruq.steps.bayes_calibration.chain_diagnostics`);
@@ -192,7 +207,8 @@ class DiscrepancyRecord(StepRecord):
             **{k: ("parameter",) for k in ("map_point", "std_ratio", "prior_z", "pileup_lo",
                                             "pileup_hi")},
             "correlation": ("parameter", "parameter"), "inside_band": ("response", "prediction"),
-            "extrapolation": ("prediction",)}
+            "extrapolation": ("prediction",), "emulator_loo_ratio": ("response",),
+            "emulator_posterior_ratio": ("response",)}
     FLAT = {**{k: None for k in (
         "chains", "hyper_chains", "data_configurations", "held_out", "predict_configurations",
         "pred_model", "pred_discrepancy", "pred_noise", "band_lower", "band_upper",
@@ -243,6 +259,9 @@ class DiscrepancyRecord(StepRecord):
     prediction_labels: tuple[str, ...] = ()
     inside_band: np.ndarray = field(default_factory=_empty)
     extrapolation: np.ndarray = field(default_factory=_empty)
+    emulator_runs: int = 0
+    emulator_loo_ratio: np.ndarray = field(default_factory=_empty)
+    emulator_posterior_ratio: np.ndarray = field(default_factory=_empty)
 
 
 def _coupled_model(ctx: StepContext, configuration: str, couple: Mapping[str, str]):
@@ -306,13 +325,23 @@ def run_discrepancy(ctx: StepContext) -> StepResult:
                              "configuration; nothing is left to calibrate on")
     at = np.unique(np.concatenate([x[~held], predict]))
     n_samples = max(2, int(o["n_samples"]) // N_CHAINS)
-    with chain_on_model(inner):  # the chains run on the model itself
+    emulator = None
+    if o.get("emulator", "none") != "none":
+        from ..methods.mcmc import EmulatorOptions
+        from ..methods.surrogate import GaussianProcess
+
+        emulator = EmulatorOptions(GaussianProcess(trend=o["trend"]),
+                                   n_emulator_samples=o["n_emulator_samples"],
+                                   emulator_variance=o["emulator_variance"])
+    # the design, the posterior draws and the predictions run the model (the chains too
+    # without an emulator): not worth a row each in the store
+    with chain_on_model(inner):
         res = calibrate_with_discrepancy(
             model, y[~held], ctx.space, configurations=x[~held], configuration_name=configuration,
             discrepancy=form, noise_std=per_response(o.get("noise_std"), ctx.responses),
             names_out=ctx.responses, sampler=o["sampler"], n_samples=n_samples,
             burn_in=int(o["burn_in"]) // N_CHAINS, n_chains=N_CHAINS, n_draws=N_DRAWS,
-            predict_at=at, seed=ctx.rng)
+            predict_at=at, seed=ctx.rng, emulator=emulator)
     p = res.prediction
     assert p is not None
     lo, hi = p.interval(BAND_LEVEL)
@@ -348,10 +377,14 @@ def run_discrepancy(ctx: StepContext) -> StepResult:
         quantities=names_in + hyper, map_point=np.asarray(res.map_point, dtype=float),
         **chain_diagnostics(names_in, chain, ctx.space),
         correlation=np.atleast_2d(np.corrcoef(np.asarray(chain, dtype=float), rowvar=False)),
-        noise_model="noise_std per response" if o.get("noise_std") is not None
-        else "pooled from the repeats",
+        noise_model=("noise_std per response" if o.get("noise_std") is not None
+                     else "pooled from the repeats") + (
+            "" if emulator is None else " + the emulator's Kriging variance"
+            if emulator.emulator_variance else ", the emulator's mean only"),
         prediction_labels=tuple(f"@{v:g}" for v in at), inside_band=inside,
-        extrapolation=extrapolation_distance(at, res.configurations))
+        extrapolation=extrapolation_distance(at, res.configurations),
+        emulator_runs=int(res.emulator_runs), emulator_loo_ratio=res.emulator_loo_ratio,
+        emulator_posterior_ratio=res.emulator_posterior_ratio)
     arrays, meta = rec.parts()
     posterior = {n: dist_to_dict(Normal(float(res.mean[j]), float(res.std[j])))
                  for j, n in enumerate(names_in)}
@@ -390,7 +423,7 @@ def discrepancy_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepT
         f"{rec.identifiability} Calibrated on {rec.configuration} = "
         + ", ".join(f"{v:g}" for v in rec.data_configurations)
         + (f"; held out: {', '.join(f'{v:g}' for v in rec.held_out)}" if rec.held_out.size
-           else "") + f"; acceptance rate {rec.acceptance_rate:.2f}.")]
+           else "") + f"; acceptance rate {rec.acceptance_rate:.2f}." + _emulator_note(rec))]
     prow = []
     for j, v in enumerate(rec.predict_configurations):
         for k, r in enumerate(rec.names_out):
@@ -420,10 +453,31 @@ def discrepancy_tables(res: StepResult, labels: Mapping[str, str]) -> list[StepT
     return out
 
 
+def _emulator_note(rec: DiscrepancyRecord) -> str:
+    if not rec.emulator_runs:
+        return " The chains ran the model itself."
+    def each(v: np.ndarray) -> str:
+        return ", ".join(f"{r} {float(x):.2g}" for r, x in zip(rec.names_out, v, strict=True))
+    return (f" The chains ran a GP emulator of {rec.emulator_runs} model runs (noise model: "
+            f"{rec.noise_model}); its RMS error "
+            f"/ noise std: leave-one-out (worst configuration) {each(rec.emulator_loo_ratio)}; "
+            f"against the model at the posterior draws {each(rec.emulator_posterior_ratio)}.")
+
+
 def discrepancy_warnings(res: StepResult, labels: Mapping[str, str]) -> list[str]:
     """Confounded parameters; held-out measurements outside the discrepancy-aware band."""
+    from .bayes_calibration import POSTERIOR_RATIO_MAX  # it imports this module
+
     rec = DiscrepancyRecord.read(res)
     w = []
+    for what, ratio in (("at the posterior draws", rec.emulator_posterior_ratio),
+                        ("leave-one-out", rec.emulator_loo_ratio)):
+        poor = [f"{r} ({float(v):.2f})" for r, v in zip(rec.names_out, ratio, strict=True)
+                if not float(v) <= POSTERIOR_RATIO_MAX] if ratio.size else []  # else: no emulator
+        if poor:
+            w.append(f"{res.name}: emulator error {what} above {POSTERIOR_RATIO_MAX} of the "
+                     f"noise std: {', '.join(poor)}; add n_emulator_samples or set "
+                     "emulator = \"none\"")
     conf = [label(p, labels) for j, p in enumerate(rec.names_in) if rec.confounded[j]]
     if conf:
         w.append(f"{res.name}: parameters confounded with the discrepancy: {', '.join(conf)} "

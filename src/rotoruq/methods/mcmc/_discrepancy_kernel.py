@@ -19,13 +19,16 @@ SQUARED_EXPONENTIAL, MATERN52 = 0, 1
 @nb.njit(cache=True, nogil=True)
 def gp_marginal_loglik(resid: np.ndarray, xs: np.ndarray, var_mean: np.ndarray,
                        log_amp: np.ndarray, log_ell: np.ndarray, kernel: int, jitter: float,
-                       out: np.ndarray) -> None:  # pragma: no cover - compiled
-    """out[i] = sum_r log N(resid[i, r]; 0, K(a_ir, l_ir) + diag(var_mean[r]) + jitter I).
+                       var_point: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
+    """out[i] = sum_r log N(resid[i, r]; 0, K(a_ir, l_ir) + diag(var_mean[r] + var_point[i, r])
+    + jitter I).
 
     resid : (k, m, n_c); xs : (n_c,); var_mean : (m, n_c); log_amp, log_ell : (k, m);
-    kernel : SQUARED_EXPONENTIAL or MATERN52. A non-finite input or a matrix that is not
-    positive definite gives -inf.
+    kernel : SQUARED_EXPONENTIAL or MATERN52; var_point : (k, m, n_c) a variance of each
+    point's own (an emulator's Kriging variance), or (0, 0, 0): none. A non-finite input or a
+    matrix that is not positive definite gives -inf.
     """
+    per_point = var_point.shape[0] > 0
     k, m, nc = resid.shape
     C = np.empty((nc, nc))
     w = np.empty(nc)
@@ -43,7 +46,10 @@ def gp_marginal_loglik(resid: np.ndarray, xs: np.ndarray, var_mean: np.ndarray,
                     else:
                         c = a2 * (1.0 + s5 * t + 5.0 * t * t / 3.0) * math.exp(-s5 * t)
                     C[p, q] = c
-                C[p, p] += var_mean[r, p] + jitter
+                if per_point:
+                    C[p, p] += var_mean[r, p] + var_point[i, r, p] + jitter
+                else:
+                    C[p, p] += var_mean[r, p] + jitter
             logdet = 0.0
             quad = 0.0
             ok = True

@@ -31,8 +31,11 @@ from ..._rng import SeedLike, as_generator
 from ...errors import ModelShapeError, ParameterError
 from ...model import Model, align_inputs, evaluate
 from ...params import ParameterSpace, Uniform
+from ..surrogate import GaussianProcess, LeaveOneOut
 from . import diagnostics as dg
 from ._discrepancy_kernel import MATERN52, SQUARED_EXPONENTIAL, gp_marginal_loglik
+from ._emulator import fit_on_prior
+from .options import EmulatorOptions
 from .proposals import LogPrior, prior_scales
 from .samplers import SamplerConfig, SamplerState, run_chains
 
@@ -44,6 +47,7 @@ KERNELS = ("squared_exponential", "matern52")
 _LOG_2PI = float(np.log(2.0 * np.pi))
 _JITTER = 1e-10
 _KERNEL_CODES = {"squared_exponential": SQUARED_EXPONENTIAL, "matern52": MATERN52}
+_NO_POINT_VAR = np.zeros((0, 0, 0))
 
 
 @dataclass(frozen=True)
@@ -215,12 +219,41 @@ class _Forward:
         return y[:, self.resp_idx].reshape(k, nc, -1)
 
 
+class _Emulated:
+    """eta at the data's configurations from a GP emulator of the model: one output per
+    (configuration, response), fitted on an LHS design of the prior run at every
+    configuration (:func:`._emulator.fit_on_prior`), its Kriging variance (k, n_c, m) beside
+    its mean when ``options.emulator_variance``."""
+
+    def __init__(self, forward: _Forward, prior: ParameterSpace, xs: np.ndarray,
+                 options: EmulatorOptions, design_seed, fit_seed):
+        if not isinstance(options.emulator, GaussianProcess):
+            raise ParameterError("a calibration with a discrepancy takes a GaussianProcess "
+                                 f"emulator, got {type(options.emulator).__name__}")
+        self.shape = (xs.size, forward.resp_idx.size)
+        size = xs.size * forward.resp_idx.size
+        self.build = fit_on_prior(
+            options.emulator, prior, lambda t: forward(t, xs).reshape(t.shape[0], size),
+            int(options.n_emulator_samples), design_seed=design_seed, fit_seed=fit_seed)
+        self.gp: GaussianProcess = self.build.gp
+        self.variance = bool(options.emulator_variance)
+        self.loo: LeaveOneOut = self.gp.loo()
+
+    def __call__(self, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        t = np.ascontiguousarray(theta, dtype=float)
+        if not self.variance:
+            return self.gp._mean_fast(t).reshape(-1, *self.shape), None
+        mean, var = self.gp._mean_var_fast(t)
+        return mean.reshape(-1, *self.shape), var.reshape(-1, *self.shape)
+
+
 class _Posterior:
     """Batched log posterior of ``z = (phi - center) / scale``, ``phi = [theta, log hyper]``."""
 
     def __init__(self, forward: _Forward, logprior: LogPrior, form: _Form, xs, ybar, var_mean,
-                 center, scale, d: int):
+                 center, scale, d: int, emulated: _Emulated | None = None):
         self.forward, self.logprior, self.form = forward, logprior, form
+        self.emulated = emulated  # None: the chains run the model itself
         self.xs, self.ybar, self.var_mean = xs, ybar, var_mean  # (nc,), (nc, m), (m, nc)
         self.center, self.scale, self.d = center, scale, d
         self.n_evals = 0
@@ -231,18 +264,32 @@ class _Posterior:
         phi = self.center + self.scale * np.atleast_2d(z)
         return phi[:, :self.d], phi[:, self.d:]
 
-    def marginal_loglik(self, eta: np.ndarray, hyper: np.ndarray) -> np.ndarray:
-        """(k,) log N(ybar; eta, K_delta + diag(sigma^2 / n_c)) summed over responses; eta
-        (k, n_c, m), hyper (k, n_hyper) log-hyperparameters."""
+    def marginal_loglik(self, eta: np.ndarray, hyper: np.ndarray,
+                        var: np.ndarray | None = None) -> np.ndarray:
+        """(k,) log N(ybar; eta, K_delta + diag(sigma^2 / n_c + var)) summed over responses;
+        eta (k, n_c, m), hyper (k, n_hyper) log-hyperparameters, var (k, n_c, m) an
+        emulator's variance at each point (None: the model's own eta)."""
         resid = np.ascontiguousarray((self.ybar[None] - eta).transpose(0, 2, 1))  # (k, m, nc)
         out = np.empty(eta.shape[0])
         spec = self.form.spec
+        vt = None if var is None else np.ascontiguousarray(var.transpose(0, 2, 1))
         if spec is not None and spec.kind == "gp":
             m = self.ybar.shape[1]
             gp_marginal_loglik(resid, self.xs, self.var_mean,
                                np.ascontiguousarray(hyper[:, :m]),
                                np.ascontiguousarray(hyper[:, m:]),
-                               _KERNEL_CODES[spec.kernel], self._jitter, out)
+                               _KERNEL_CODES[spec.kernel], self._jitter,
+                               _NO_POINT_VAR if vt is None else vt, out)
+        elif vt is not None:  # each point's covariance has its own diagonal: one factor each
+            nc = self.xs.size
+            C0 = self.form.cov(np.zeros((1, 0)), self.xs, self.xs)[0]
+            C = np.broadcast_to(C0[None], (eta.shape[0], *C0.shape)).copy()
+            idx = np.arange(nc)
+            C[:, :, idx, idx] += self.var_mean[None] + vt + self._jitter
+            L = np.linalg.cholesky(C)
+            w = np.linalg.solve(L, resid[..., None])[..., 0]
+            logdet = 2.0 * np.log(np.diagonal(L, axis1=-2, axis2=-1)).sum(-1)
+            out[:] = (-0.5 * ((w * w).sum(-1) + logdet + nc * _LOG_2PI)).sum(-1)
         else:  # the covariance does not depend on the sample: one factor for all
             if self._fixed is None:
                 C = self.form.cov(np.zeros((1, 0)), self.xs, self.xs)[0].copy()
@@ -263,9 +310,10 @@ class _Posterior:
         lp = self.logprior(theta) + self.form.log_hyperprior(hyper)
         ok = np.isfinite(lp)
         if ok.any():
-            eta = self.forward(theta[ok], self.xs)
+            eta, var = (self.forward(theta[ok], self.xs), None) if self.emulated is None \
+                else self.emulated(theta[ok])
             with np.errstate(invalid="ignore", over="ignore"):
-                lp[ok] += self.marginal_loglik(eta, hyper[ok])
+                lp[ok] += self.marginal_loglik(eta, hyper[ok], var)
         lp[~np.isfinite(lp)] = -np.inf
         return lp
 
@@ -424,6 +472,14 @@ class DiscrepancyResult(dg.PooledChains):
         Wall time of the chains, s.
     prediction : DiscrepancyPrediction or None
         Predictions at ``predict_at`` (None without).
+    emulator_runs : int
+        Model runs of the emulator's design (0: the chains ran the model itself).
+    emulator_loo_ratio : ndarray of shape (n_responses,)
+        The emulator's largest leave-one-out RMS error over the data configurations, over the
+        noise std (empty without an emulator).
+    emulator_posterior_ratio : ndarray of shape (n_responses,)
+        The RMS of emulator mean - model at the ``n_draws`` posterior draws and the data
+        configurations, over the noise std (empty without an emulator).
     """
 
     names_in: tuple[str, ...]
@@ -458,6 +514,9 @@ class DiscrepancyResult(dg.PooledChains):
     sampling_seconds: float
     prediction: DiscrepancyPrediction | None = None
     _post: _Posterior | None = field(default=None, repr=False, compare=False)
+    emulator_runs: int = 0
+    emulator_loo_ratio: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    emulator_posterior_ratio: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 
@@ -581,6 +640,7 @@ def calibrate_with_discrepancy(
     predict_at: ArrayLike | None = None,
     confounding_threshold: float = 0.5,
     seed: SeedLike = None,
+    emulator: EmulatorOptions | None = None,
 ) -> DiscrepancyResult:
     """Calibrate ``prior``'s parameters of ``model`` jointly with an additive discrepancy.
 
@@ -610,6 +670,15 @@ def calibrate_with_discrepancy(
     confounding_threshold : |posterior correlation| between a parameter and a discrepancy's
         mean level from which the parameter is reported as confounded.
     seed : int, SeedSequence or Generator; the same seed gives bitwise the same result.
+    emulator : an :class:`~rotoruq.methods.mcmc.options.EmulatorOptions` with an unfitted
+        GaussianProcess: the chains run on it instead of the model (one output per data
+        configuration and response, fitted on ``n_emulator_samples`` LHS points of the prior,
+        each run at every data configuration), its Kriging variance added to each point's
+        diagonal of the likelihood's covariance when ``emulator_variance`` (the emulator's
+        errors across configurations taken as independent). The model itself still gives the
+        posterior draws (the discrepancy's conditional, the predictions), where the emulator
+        is checked (``emulator_posterior_ratio``), beside its leave-one-out error
+        (``emulator_loo_ratio``). None (default): the chains run the model.
 
     Returns
     -------
@@ -660,7 +729,12 @@ def calibrate_with_discrepancy(
     hc, hs = form.hyper_center_scale()
     center, scale = np.concatenate([tc, hc]), np.concatenate([ts, hs])
     var_mean = (sd**2)[:, None] / counts[None, :]
-    post = _Posterior(forward, logprior, form, xs, ybar, var_mean, center, scale, d)
+    emulated = None
+    if emulator is not None:  # children spawned after the four above: those stay as they are
+        r_design, r_fit = rng.spawn(2)
+        emulated = _Emulated(forward, prior, xs, emulator, r_design,
+                             int(r_fit.integers(2**63)))
+    post = _Posterior(forward, logprior, form, xs, ybar, var_mean, center, scale, d, emulated)
     zlo = np.concatenate([(logprior.lo - tc) / ts, np.full(form.n_hyper, -np.inf)])
     zhi = np.concatenate([(logprior.hi - tc) / ts, np.full(form.n_hyper, np.inf)])
     z0 = np.zeros(d + form.n_hyper)
@@ -700,7 +774,15 @@ def calibrate_with_discrepancy(
     flat_z = zch.reshape(-1, D)
     pick = r_draw.choice(flat_z.shape[0], n_draws, replace=flat_z.shape[0] < n_draws)
     th_d, hy_d = post.split(flat_z[pick])
-    eta_d = forward(th_d, xs)
+    eta_d = forward(th_d, xs)  # the model itself, emulator or not
+    checks: dict = {}
+    if emulated is not None:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            err = eta_d - emulated(th_d)[0]
+            checks = dict(
+                emulator_runs=emulated.build.n_evaluations,
+                emulator_loo_ratio=emulated.loo.rmse.reshape(emulated.shape).max(0) / sd,
+                emulator_posterior_ratio=np.sqrt(np.mean(err**2, axis=(0, 1))) / sd)
     delta_d = _conditional_draws(post, eta_d, hy_d, xs, r_draw)
     level = delta_d.mean(axis=1)  # (n_draws, m)
     corr = np.zeros((d, m))
@@ -733,7 +815,7 @@ def calibrate_with_discrepancy(
         confounding_threshold=float(confounding_threshold), identifiability=ident,
         noise_std=sd, map_point=(center + scale * zm)[:d], acceptance_rate=float(acc),
         sampler=cfg.sampler, n_likelihood_evaluations=int(n_lik),
-        n_evaluations=forward.n_evaluations, sampling_seconds=t_sampling, _post=post)
+        n_evaluations=forward.n_evaluations, sampling_seconds=t_sampling, _post=post, **checks)
     if predict_at is not None:
         pred = predict_with_discrepancy(res, model, predict_at, n_draws=n_draws, seed=r_pred)
         res = DiscrepancyResult(**{**{f: getattr(res, f) for f in res.__dataclass_fields__},
@@ -773,7 +855,7 @@ def _laplace_std_without(post: _Posterior, d: int, tc, ts, zlo, zhi,
     MAP): the reference for the identifiability ratio."""
     plain = _Posterior(post.forward, post.logprior, _Form(None, post.xs, post.form.amp_scale,
                                                           post.form.ell_median),
-                       post.xs, post.ybar, post.var_mean, tc, ts, d)
+                       post.xs, post.ybar, post.var_mean, tc, ts, d, post.emulated)
     _, cov, ok = _map_and_covariance(plain, np.zeros(d), zlo, zhi, flat)
     if not ok:
         return np.full(d, np.nan)

@@ -37,6 +37,32 @@ def test_forward_inputs_fill_the_free_stream(template):
     assert "air properties: RHO, SOUND, cos(ALPHA_S), 0., -sin(ALPHA_S), const, V_INF;" in filled
     assert "set: real V_INF = MU * OMEGA * R / cos(ALPHA_S);" in filled
     assert "set: real LAT = 0.5 * pi / 180.;" in filled
+    if template == "elastic":
+        # MBDyn's default stall tolerance in hover (output unchanged), none in forward flight
+        assert ', tolerance, 1e-06, free format;' in hover
+        assert ', tolerance, 1e+30, free format;' in filled
+
+
+@needs_mbdyn
+def test_elastic_template_flies_through_the_reverse_flow_region(tmp_path):
+    """A sample of the forward_flight study (K_p = 11 N, mu = 0.2, the driver's trim) whose
+    elastic run stopped at step 115 (1.6 revolutions) with MBDyn's stall tolerance: the
+    residual on the inboard beam of the blade leaving the reverse-flow region stayed at
+    0.030 N (MBDyn's swept-flow lift jumps where its stall branch starts). Without the stall
+    slope the lift is continuous and the case reaches a periodic state."""
+    from rotoruq.mbdyn.driver import builtin_trim
+
+    preset = get_preset("gvpm")
+    inputs = builtin_trim(preset, {"omega": 224.6375, "thrust_target": 20.0,
+                                   "shaft_angle_deg": 3.0, "advance_ratio": 0.2,
+                                   "k_pitch_link": 11.0, "ei_flap": 7.0, "cla_m03": 0.108,
+                                   "cd0_m03": 0.011, "height_over_radius": math.inf},
+                          "drees")
+    loads = run_case(tmp_path, preset, inputs, template="elastic",
+                     settings=CaseSettings(revolutions=6, average=2, tolerance=0.02),
+                     mbdyn=MBDYN)
+    assert "tolerance, 1e+30" in (tmp_path / "rotor.mbd").read_text()
+    assert 10.0 < loads.response("thrust") < 30.0 and loads.response("power") > 0.0
 
 
 def test_bad_flight_inputs_are_refused():

@@ -32,7 +32,11 @@ def test_sweeps_need_one_type_and_exactly_one_differing_fixed_input():
 
 @pytest.mark.slow
 def test_forward_flight_report_draws_the_indices_against_the_advance_ratio(tmp_path):
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    # where MBDyn is not found (MBDYN unset, no build under MBDYN_PREFIX, no mbdyn on PATH):
+    # the multi-fidelity step is skipped, and the report says so in its place
+    env = {k: v for k, v in os.environ.items() if k != "MBDYN"}
+    env.update(PYTHONPATH=str(ROOT / "src"), MBDYN_PREFIX=str(tmp_path / "no-mbdyn"),
+               PATH=os.pathsep.join([str(Path(sys.executable).parent), "/usr/bin", "/bin"]))
     done = subprocess.run([sys.executable, "-m", "rotoruq", "run", "forward_flight", "--quick",
                            "--out", "res"], cwd=tmp_path, env=env, capture_output=True,
                           text=True, timeout=900)
@@ -45,3 +49,8 @@ def test_forward_flight_report_draws_the_indices_against_the_advance_ratio(tmp_p
         assert any(name in f for f in figures), sorted(figures)
     # the three Sobol steps at mu 0.1, 0.2, 0.3, and not the LHS (no fixed input of its own)
     assert "(steps sobol_mu01, sobol_mu02, sobol_mu03)" in html
+    # the step MBDyn was missing for: its own section in the report, saying why
+    assert "multifidelity_mbdyn: skipped</h4>" in html
+    assert ("<b>Skipped by the run</b> (multifidelity, Multi-fidelity Monte Carlo of the MBDyn "
+            "rotor&#x27;s power at mu = 0.2): needs MBDyn, not found here: MBDyn executable not "
+            "found") in html, html[html.find("multifidelity_mbdyn"):][:2000]

@@ -51,7 +51,8 @@ FLIGHT_INPUTS = {"advance_ratio": 0.0, "shaft_angle_deg": 0.0}
 TEMPLATE_DEFAULTS = {"rigid": {"lateral_deg": 0.0, "longitudinal_deg": 0.0}}
 AIRFOIL_FILE = "airfoil.c81"
 #: Fields rotoruq derives from rotor inputs: a template using the field uses the inputs.
-DERIVED_FROM = {"ground_distance": ("height_over_radius",), "final_time": ("omega",),
+DERIVED_FROM = {"ground_distance": ("height_over_radius",), "c81_stall_tolerance":
+                ("advance_ratio",), "final_time": ("omega",),
                 "time_step": ("omega",)}
 
 
@@ -110,6 +111,20 @@ def template_values(preset: RotorPreset, inputs: Mapping[str, float],
     - ``ground_distance`` [m]: hub height above the ground, height_over_radius * R
       (``OGE_DISTANCE`` * R when height_over_radius is inf);
     - ``airfoil_file``: the sample's c81 table (free format), written next to the input;
+    - ``c81_stall_tolerance``: the ``tolerance`` of MBDyn's ``c81 data`` (how far the lift
+      slope may fall below its value at zero incidence before MBDyn takes the section as
+      stalled): MBDyn's default 1e-6 in hover, 1e30 (no stall found: stall slope 0) in
+      forward flight. MBDyn 1.7.3's steady c81 section (``c81_aerod2_u`` in
+      ``aero/aerodc81.c``) multiplies the lift by 1 / cos(gamma), gamma the spanwise sweep
+      of the section's flow, only where the lift over the incidence falls below the stall
+      slope, and unlike the formula it cites (COE0 in ``aero/aerod2.f``) keeps the table's
+      lift elsewhere, so the lift jumps by (1 / cos(gamma) - 1) (cl - cl0) where the two
+      meet. In hover gamma is near 0; in forward flight the inboard sections of the
+      retreating blade see a sweep of up to MBDyn's 60 deg clamp and the jump stopped MBDyn's
+      Newton iteration on the elastic blades. With the stall slope 0 the two branches meet
+      where cl = cl0, so the lift is continuous: the table's lift wherever lift and incidence
+      have one sign (the built-in rotor neglects the radial flow altogether), MBDyn's
+      1 / cos(gamma) where they differ (reverse flow);
     - ``final_time``, ``time_step`` [s] from ``settings`` and omega.
 
     Parameters
@@ -147,6 +162,7 @@ def template_values(preset: RotorPreset, inputs: Mapping[str, float],
         raise ParameterError(f"advance_ratio must be in [0, 1] and |shaft_angle_deg| < 90, got "
                              f"{mu} and {alpha}")
     vals["ground_distance"] = (OGE_DISTANCE if math.isinf(h) else h) * preset.radius
+    vals["c81_stall_tolerance"] = 1.0e30 if mu > 0.0 else 1.0e-6
     period = 2 * math.pi / vals["omega"]
     vals["final_time"] = settings.revolutions * period
     vals["time_step"] = period / settings.steps_per_rev

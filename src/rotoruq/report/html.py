@@ -46,6 +46,7 @@ from .escape import slug
 from .escape import text as e
 from .hooks import rendering
 from .provenance import failed_evaluations, git_commit
+from .skipped import skipped_note, skipped_steps
 from .steptables import step_tables, table_csv
 from .sweeps import sweep_figures
 from .tables import fmt, step_table_html
@@ -488,6 +489,9 @@ def _write_report(results_dirs: Sequence[str | Path], report_dir: Path, out: Saf
                     tab_dir.write(f"{slug(name)}_{slug(s.name)}_{k + 1}.csv",
                                   table_csv(t).encode("utf-8"))
                     body.append(step_table_html(t))
+            for skipped, why in skipped_steps(info, steps):  # rotoruq.report.skipped
+                heading(4, f"{skipped}: skipped", _anchor(sid, "step", skipped))
+                body.append(skipped_note(info, skipped, why))
             for sec in added.study_sections.get(name, ()):
                 section(sec)
             t0 = time.perf_counter()

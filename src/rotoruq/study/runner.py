@@ -662,7 +662,6 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
 
         computed_store = Store(store_path)
     probe_factory = model_factory or partial(build_model, study, out=out)
-    _write_study_json(study, out, quick)
 
     results: dict[str, StepResult] = {}
     reused, seconds, skipped = [], {}, []
@@ -697,6 +696,7 @@ def _run_locked(study: Study, out: Path, quick: bool, model_factory: ModelFactor
             log.info("%s: skipped (%s)", at, missing)
             continue
         to_run.append((at, step))
+    _write_study_json(study, out, quick, skip_reasons)
 
     def planned(at: str, step: StepSpec) -> _Planned | None:
         """The step's plan, None when its saved result is reused (then in ``results``)."""
@@ -1126,7 +1126,8 @@ def spanwise_record(study: Study, lift: Sequence[str]) -> dict:
     return out
 
 
-def _write_study_json(study: Study, out: Path, quick: bool) -> None:
+def _write_study_json(study: Study, out: Path, quick: bool,
+                      skip_reasons: Mapping[str, str]) -> None:
     doc = {
         "name": study.info.name,
         "description": study.info.description,
@@ -1145,5 +1146,8 @@ def _write_study_json(study: Study, out: Path, quick: bool) -> None:
         # each step's own fixed inputs: the report draws steps of one type that differ in
         # one of them against it (rotoruq.report.sweeps)
         "step_fixed": {s.name: dict(s.fixed) for s in study.steps if s.fixed},
+        # steps this run skipped for outside software it did not find, with the reason: the
+        # report says so in their place (rotoruq.report.skipped)
+        "skipped": dict(skip_reasons),
     }
     save_study_info(out, doc)

@@ -667,6 +667,7 @@ def test_stopping_one_run_leaves_the_drivers_of_another_in_the_same_process(tmp_
     assert runs["b"].returncode == -signal.SIGKILL
 
 
+@pytest.mark.slow  # a cold compile started, ~10 s
 def test_sigterm_during_a_rotor_compile_ends_the_run_at_once(tmp_path):
     """`rotoruq run` of a rotor study on a cold numba cache, SIGTERM while the rotor kernels
     compile on the rotor's thread pool: the run says it was terminated and ends (exit 143)

@@ -67,7 +67,7 @@ class LogPrior:
             else:
                 self._other.append((j, dist))
         if self._other:  # the Python route adds every other marginal in parameter order
-            self._other = sorted(self._other + pieces, key=lambda jd: jd[0])
+            self._other = sorted([*self._other, *pieces], key=lambda jd: jd[0])
             pieces = []
         self.compiled = not self._other
         self.pack = (self.lo, self.hi, float(const), np.array(idx, dtype=np.int64),

@@ -235,10 +235,29 @@ def advance(x, lp, L, Y, LPY, Z1, Z2, LU1, LU2, t, K, tree, mean, m2, st, fpar, 
 # --- log prior and likelihood ------------------------------------------------------------------
 
 @_jit
+def _piece_index(edges, e0, n, x) -> int:
+    """Bin k in 0..n-1 of x among the n + 1 sorted edges ``edges[e0:e0 + n + 1]``: the last
+    edge <= x (numpy's ``searchsorted(side="right") - 1``), clipped to the bins."""
+    a = 0
+    b = n + 1
+    while a < b:
+        h = (a + b) // 2
+        if edges[e0 + h] <= x:
+            a = h + 1
+        else:
+            b = h
+    return min(max(a - 1, 0), n - 1)
+
+
+@_jit
 def logprior_point(theta, prior) -> float:
-    """Log density of independent uniform / normal marginals at theta (d,); -inf outside the
-    support [lo, hi] or where it is NaN. prior = (lo, hi, const, normal index, mu, sigma)."""
-    lo, hi, const, idx, mu, sig = prior
+    """Log density of independent uniform / normal / piecewise-constant marginals at theta
+    (d,); -inf outside the support [lo, hi] or where it is NaN. prior = (lo, hi, const,
+    normal index, mu, sigma, piecewise index (r,), edge offsets (r + 1,), edges, log
+    densities): piece q's edges are ``edges[off[q]:off[q + 1]]`` and its bins' log densities
+    ``logd[off[q] - q:off[q + 1] - q - 1]`` (:class:`.proposals.LogPrior`). The piecewise
+    terms are added after the normal ones, in parameter order."""
+    lo, hi, const, idx, mu, sig, pidx, poff, pedges, plogd = prior
     for a in range(theta.shape[0]):
         if not (theta[a] >= lo[a] and theta[a] <= hi[a]):
             return NEG_INF
@@ -246,6 +265,9 @@ def logprior_point(theta, prior) -> float:
     for q in range(idx.shape[0]):
         u = (theta[idx[q]] - mu[q]) / sig[q]
         out -= 0.5 * u * u
+    for q in range(pidx.shape[0]):
+        e0 = poff[q]
+        out += plogd[e0 - q + _piece_index(pedges, e0, poff[q + 1] - e0 - 1, theta[pidx[q]])]
     return out
 
 

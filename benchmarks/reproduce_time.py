@@ -89,10 +89,14 @@ def summary(result: dict) -> str:
         return f"{sec[s]:.1f} ({rng[s][0]:.1f}-{rng[s][1]:.1f}) s"
 
     chapters = ", ".join(f"{s} {stage(s)}" for s in sec
-                         if s not in ("report", "total", "wall", "rebuild"))
+                         if s not in ("report", "total", "wall", "rebuild")
+                         and not s.startswith("figures"))
     verdict = "within" if result["within_target"] else "NOT within"
     par = (f" (at once on {result['jobs']} processes: the last ended after {stage('wall')})"
            if "wall" in sec and result.get("jobs", 1) > 1 else "")
+    if "figures_after_chapters" in sec:  # each chapter's figures drawn as it ended
+        par += (", its figures drawn meanwhile (waited "
+                f"{stage('figures_after_chapters')} after the last chapter)")
     text = (f"{result['repeats']} runs, medians, range in brackets, {result['cpus']} cores, "
             f"load {result['load_average_1min']:.1f}: {chapters}{par}, report "
             f"{stage('report')} with {result['figures']} figures, total {stage('total')}: "

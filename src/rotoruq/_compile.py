@@ -133,8 +133,35 @@ def compiling(family: str, dispatchers: Iterable[Any], logger: logging.Logger,
     if not notice_if_cold(family, dispatchers, logger, seconds):
         yield False
         return
-    with Phase(f"compiling {family}", None), compile_lock(family, dispatchers, logger):
+    with Phase(f"compiling {family}", None) as phase, _ticking(phase), \
+            compile_lock(family, dispatchers, logger):
         yield True
+
+
+#: Seconds between the records of an open compile phase (its elapsed time moves on).
+TICK = 5.0
+
+
+@contextlib.contextmanager
+def _ticking(phase: Phase) -> Iterator[None]:
+    """A record of ``phase`` every :data:`TICK` seconds while the body runs: nothing else
+    advances an uncounted phase, and its records carry the elapsed time the status line
+    shows (it stood at 0:00 for the whole compile)."""
+    import threading
+
+    stop = threading.Event()
+
+    def tick() -> None:
+        while not stop.wait(TICK):
+            phase.advance(0)
+
+    thread = threading.Thread(target=tick, name="rotoruq-compile-tick", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join()
 
 
 def _lock_path(family: str, dispatchers: Iterable[Any]) -> str | None:

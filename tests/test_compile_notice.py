@@ -239,7 +239,7 @@ def test_processes_on_a_cold_cache_compile_a_family_once(tmp_path):
         holder.stdin.close()
         assert holder.wait(timeout=60) == 0
         outs = []
-        for p, e in zip(procs, errs):
+        for p, e in zip(procs, errs, strict=True):
             out, _ = p.communicate(timeout=120)
             assert p.returncode == 0, e.read_text()
             outs.append(json.loads(out.strip().splitlines()[-1]))

@@ -59,8 +59,16 @@ def reproduce(which: str = "all", out: str | Path = "rotoruq-results",
     ``jobs`` > 1 (default: the machine's cores, at most the chapters asked for) they run at
     once in worker processes, the longest first (:data:`~rotoruq.reference.studies.
     START_ORDER`), and give the same results, bit for bit, as one after the other.
+    As each chapter ends, its figures are drawn into the report's figure cache in the same
+    pool, while the other chapters run (:func:`rotoruq.report.html.prerender_figures`): the
+    report written at the end takes them from there and draws nothing new (the same bytes
+    as ``rotoruq report`` of these folders writes).
+
     ``seconds`` holds each chapter's own time and ``"wall"``, the time until the last
-    chapter ended.
+    chapter ended; ``"figures:<chapter>"`` and ``"figures_cpu:<chapter>"``, the wall and
+    CPU seconds of drawing its figures ahead; ``"figures_after_chapters"``, the wait for
+    the figures after the last chapter ended; ``"report"`` and ``"report_cpu"``, the wall
+    and CPU seconds (its figure workers included) of writing the report.
     """
     from .lock import results_lock
 
@@ -108,13 +116,23 @@ def _child_logging(level: int | None) -> None:
         logging.getLogger("rotoruq").setLevel(level)
 
 
-def _prerender(name: str, out: Path) -> float:
-    """Draw a finished chapter's figures into the report's figure cache; its seconds."""
+def _prerender(name: str, out: Path) -> tuple[float, float]:
+    """Draw a finished chapter's figures into the report's figure cache (with the
+    application ``rotoruq report`` gives them); its seconds, wall and CPU."""
     from .cmd_report import prerender
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     prerender(out / name, out / "report")
-    return time.perf_counter() - t0
+    return time.perf_counter() - t0, time.process_time() - c0
+
+
+def _cpu() -> float:
+    """CPU seconds of this process and of its children that have ended."""
+    import resource
+
+    own, ended = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(
+        resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + ended.ru_utime + ended.ru_stime
 
 
 def _reproduce(which: str, out: Path, quick: bool, jobs: int | None) -> dict:
@@ -150,7 +168,8 @@ def _reproduce(which: str, out: Path, quick: bool, jobs: int | None) -> dict:
             t0 = time.perf_counter()
             for name in names:
                 try:
-                    seconds[f"figures:{name}"] = drawing[name].result()
+                    seconds[f"figures:{name}"], seconds[f"figures_cpu:{name}"] = \
+                        drawing[name].result()
                 except Exception as exc:  # noqa: BLE001 - the report draws them itself
                     logging.getLogger(__name__).warning(
                         "report: the figures of %s were not drawn ahead (%s: %s); the report "
@@ -159,9 +178,10 @@ def _reproduce(which: str, out: Path, quick: bool, jobs: int | None) -> dict:
             seconds["figures_after_chapters"] = time.perf_counter() - t0
     if "wall" not in seconds:
         seconds["wall"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), _cpu()
     index = write([out / n for n in CHAPTERS if is_study_dir(out / n)], out / "report")
     seconds["report"] = time.perf_counter() - t0
+    seconds["report_cpu"] = _cpu() - c0  # with the figure workers it started
     return {"report": str(index), "seconds": seconds, "runs": runs}
 
 

@@ -100,6 +100,41 @@ def _chapter(name: str, out: Path, quick: bool) -> tuple[Any, float]:
     return run, time.perf_counter() - t0
 
 
+def _chain_kernels_cached() -> bool:
+    """Whether numba's cache holds the chain kernels (their compiled driver's entry)."""
+    from .._compile import is_cached
+    from ..methods.mcmc import _kernels
+
+    return is_cached(_kernels.advance) and is_cached(_kernels.run_block_emulator)
+
+
+def _compile_chain_kernels() -> float:
+    """Compile the chain kernels (into numba's cache) by running two tiny calibrations, one
+    on an emulator and one on a model, as the chapters' Bayes steps do; its CPU seconds.
+    The numbers are thrown away: the chapters load the compiled kernels from the cache."""
+    import numpy as np
+
+    from .. import (
+        ChainOptions,
+        EmulatorOptions,
+        FunctionModel,
+        GaussianProcess,
+        NoiseModel,
+        ParameterSpace,
+        Uniform,
+        calibrate_bayes,
+    )
+
+    c0 = time.process_time()
+    model = FunctionModel(lambda x: x[:, :1] * 2.0, ["a"], ["y"])
+    prior = ParameterSpace({"a": Uniform(0.0, 1.0)})
+    for emulator in (EmulatorOptions(GaussianProcess(), n_emulator_samples=8), None):
+        calibrate_bayes(model, np.array([[1.0]]), prior, noise=NoiseModel(noise_std=0.1),
+                        chains=ChainOptions(n_samples=50, burn_in=0), emulator=emulator,
+                        seed=0)
+    return time.process_time() - c0
+
+
 def _console_level() -> int | None:
     """The level of the progress lines this process prints (None: it prints none)."""
     from .console import printing_level
@@ -152,6 +187,10 @@ def _reproduce(which: str, out: Path, quick: bool, jobs: int | None) -> dict:
         ctx = multiprocessing.get_context("spawn")
         with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_child_logging,
                                  initargs=(_console_level(),)) as pool:
+            # on an empty numba cache, one worker compiles the chain kernels while the first
+            # chapter compiles the rotor's (the chapters then load both from the cache; a
+            # family is compiled by one process at a time: rotoruq._compile.compile_lock)
+            warm = None if _chain_kernels_cached() else pool.submit(_compile_chain_kernels)
             # the pool starts the tasks in the order they were submitted
             futures = {name: pool.submit(_chapter, name, out, quick)
                        for name in start_order(names)}
@@ -163,6 +202,13 @@ def _reproduce(which: str, out: Path, quick: bool, jobs: int | None) -> dict:
             drawing = {chapter_of[fut]: pool.submit(_prerender, chapter_of[fut], out)
                        for fut in as_completed(futures.values()) if fut.exception() is None}
             seconds["wall"] = time.perf_counter() - t0
+            if warm is not None:
+                try:
+                    seconds["compile_chain_kernels_cpu"] = warm.result()
+                except Exception as exc:  # noqa: BLE001 - the chapters compiled them
+                    logging.getLogger(__name__).warning(
+                        "the chain kernels were not compiled ahead (%s: %s); the chapters "
+                        "compiled them", type(exc).__name__, exc)
             for name in names:  # in order: the first failure raised is the first chapter's
                 runs[name], seconds[name] = futures[name].result()
             t0 = time.perf_counter()

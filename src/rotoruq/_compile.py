@@ -28,8 +28,10 @@ from ._progress import Phase
 
 __all__ = ["compile_lock", "compiling", "is_cached", "notice_if_cold"]
 
-#: Seconds a process waits for another one's compile before it compiles itself.
-LOCK_WAIT = 900.0
+#: Seconds a process waits for another one's compile before it compiles itself; None: as
+#: long as the other holds the lock (it is released when that process ends, however it
+#: ends; a compile takes many minutes on a loaded machine).
+LOCK_WAIT: float | None = None
 
 _noticed: set[str] = set()  # families announced in this process
 _checked: set[int] = set()  # ids of the dispatchers already looked up in the cache
@@ -176,7 +178,7 @@ def _lock_path(family: str, dispatchers: Iterable[Any]) -> str | None:
 
 @contextlib.contextmanager
 def compile_lock(family: str, dispatchers: Iterable[Any], logger: logging.Logger,
-                 wait: float | None = None) -> Iterator[bool]:
+                 wait: float | None = LOCK_WAIT) -> Iterator[bool]:
     """Hold the exclusive lock of ``family``'s compile (across processes) while the body
     runs: a process that finds it held logs that it waits, and its body runs once the other
     process is done (its kernels then load from numba's cache instead of compiling).
@@ -184,8 +186,8 @@ def compile_lock(family: str, dispatchers: Iterable[Any], logger: logging.Logger
     An advisory ``flock`` on ``rotoruq-compile-<family>.lock`` in numba's cache folder of the
     first of ``dispatchers``; released when the body ends, also by an error or by the
     process's end. No lock (the body runs at once) where there is no such folder or no
-    ``fcntl`` (Windows), and after ``wait`` seconds (default :data:`LOCK_WAIT`) with a
-    warning: a stuck process never stops another for good.
+    ``fcntl`` (Windows), and after ``wait`` seconds (None, the default: no limit) with a
+    warning.
 
     Yields
     ------
@@ -214,13 +216,14 @@ def compile_lock(family: str, dispatchers: Iterable[Any], logger: logging.Logger
         yield False
         return
     try:
-        held = _acquire(fd, fcntl, family, logger, LOCK_WAIT if wait is None else wait)
+        held = _acquire(fd, fcntl, family, logger, wait)
         yield held
     finally:
         os.close(fd)  # releases the lock
 
 
-def _acquire(fd: int, fcntl: Any, family: str, logger: logging.Logger, wait: float) -> bool:
+def _acquire(fd: int, fcntl: Any, family: str, logger: logging.Logger,
+             wait: float | None) -> bool:
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         return True
@@ -229,7 +232,7 @@ def _acquire(fd: int, fcntl: Any, family: str, logger: logging.Logger, wait: flo
     logger.info("another process is compiling the %s: waiting for it, then loading them "
                 "from the cache ...", family, extra={"now": True})
     t0 = time.monotonic()
-    while time.monotonic() - t0 < wait:
+    while wait is None or time.monotonic() - t0 < wait:
         time.sleep(0.1)
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -237,5 +240,5 @@ def _acquire(fd: int, fcntl: Any, family: str, logger: logging.Logger, wait: flo
         except BlockingIOError:
             continue
     logger.warning("the %s: another process has held their compile lock for %.0f s; "
-                   "compiling them here", family, wait)
+                   "compiling them here", family, time.monotonic() - t0)
     return False

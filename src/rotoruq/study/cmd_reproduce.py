@@ -114,16 +114,10 @@ def _compile_chain_kernels() -> float:
     The numbers are thrown away: the chapters load the compiled kernels from the cache."""
     import numpy as np
 
-    from .. import (
-        ChainOptions,
-        EmulatorOptions,
-        FunctionModel,
-        GaussianProcess,
-        NoiseModel,
-        ParameterSpace,
-        Uniform,
-        calibrate_bayes,
-    )
+    from ..methods.mcmc import ChainOptions, EmulatorOptions, NoiseModel, calibrate_bayes
+    from ..methods.surrogate import GaussianProcess
+    from ..model import FunctionModel
+    from ..params import ParameterSpace, Uniform
 
     c0 = time.process_time()
     model = FunctionModel(lambda x: x[:, :1] * 2.0, ["a"], ["y"])

@@ -1,7 +1,10 @@
 """Wall time of `rotoruq reproduce` per chapter (target, issue 12: the whole study and its
 report in < 30 s on 2 cores, each figure drawn once). Prints JSON: seconds per chapter (run
 at once, ``--jobs``), for the report, total, the rebuild of an unchanged report (figures from
-the cache), the number of figures, and whether the total is within the target.
+the cache; also ``rebuild_cli``: ``rotoruq report`` in a process of its own, wall and CPU), the
+report phase had the figures not been drawn as each chapter ended (``report_fresh``: the same
+report into a fresh folder, wall and CPU, beside reproduce's ``report`` and ``report_cpu``),
+the number of figures, and whether the total is within the target.
 Run it once first so the numba caches are warm; compare versions by alternating runs.
 
     python benchmarks/reproduce_time.py --repeats 3 --json benchmarks/results/reproduce_time.json
@@ -21,6 +24,9 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
+import subprocess
+import sys
 import tempfile
 import time
 import traceback
@@ -61,7 +67,30 @@ def run_once(out_root: str, chapters: list[str], quick: bool, jobs: int | None) 
         t0 = time.perf_counter()
         write(dirs, os.path.join(out_root, "report"))
         result["seconds"]["rebuild"] = round(time.perf_counter() - t0, 2)
+        # the same in a process of its own, as a user types it (imports included)
+        t0, c0 = time.perf_counter(), _children_cpu()
+        subprocess.run([sys.executable, "-m", "rotoruq.study.cli", "report", *dirs, "--out",
+                        os.path.join(out_root, "report"), "-q"], check=True)
+        result["seconds"]["rebuild_cli"] = round(time.perf_counter() - t0, 2)
+        result["seconds"]["rebuild_cli_cpu"] = round(_children_cpu() - c0, 2)
+        # the report phase had reproduce not drawn the figures as each chapter ended: the
+        # same report into a fresh folder (every figure drawn, with its figure worker), in
+        # this process as reproduce writes it
+        t0, c0 = time.perf_counter(), _cpu()
+        write(dirs, os.path.join(out_root, "report_fresh"))
+        result["seconds"]["report_fresh"] = round(time.perf_counter() - t0, 2)
+        result["seconds"]["report_fresh_cpu"] = round(_cpu() - c0, 2)
     return result
+
+
+def _children_cpu() -> float:
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
+
+
+def _cpu() -> float:
+    ru = resource.getrusage(resource.RUSAGE_SELF)
+    return ru.ru_utime + ru.ru_stime + _children_cpu()
 
 
 def report_workers(dirs: list[str], repeats: int) -> dict:
@@ -89,16 +118,26 @@ def summary(result: dict) -> str:
         return f"{sec[s]:.1f} ({rng[s][0]:.1f}-{rng[s][1]:.1f}) s"
 
     chapters = ", ".join(f"{s} {stage(s)}" for s in sec
-                         if s not in ("report", "total", "wall", "rebuild"))
+                         if s not in ("report", "total", "wall") and not s.startswith(
+                             ("figures", "rebuild", "report_")))
     verdict = "within" if result["within_target"] else "NOT within"
     par = (f" (at once on {result['jobs']} processes: the last ended after {stage('wall')})"
            if "wall" in sec and result.get("jobs", 1) > 1 else "")
+    if "figures_after_chapters" in sec:  # each chapter's figures drawn as it ended
+        par += (", its figures drawn meanwhile (waited "
+                f"{stage('figures_after_chapters')} after the last chapter)")
     text = (f"{result['repeats']} runs, medians, range in brackets, {result['cpus']} cores, "
             f"load {result['load_average_1min']:.1f}: {chapters}{par}, report "
             f"{stage('report')} with {result['figures']} figures, total {stage('total')}: "
             f"{verdict} the {result['target_seconds']:.0f} s target.")
+    if "report_fresh" in sec:
+        text += (f" Had the figures not been drawn ahead, the report would have taken "
+                 f"{stage('report_fresh')} ({sec['report_fresh_cpu']:.1f} CPU-s against "
+                 f"{sec['report_cpu']:.1f}).")
     if "rebuild" in sec:
-        text += f" The report of unchanged results rebuilt in {stage('rebuild')}."
+        text += f" The report of unchanged results rebuilt in {stage('rebuild')}"
+        text += (f" ({stage('rebuild_cli')} as `rotoruq report` in a process of its own, "
+                 f"{sec['rebuild_cli_cpu']:.1f} CPU-s)." if "rebuild_cli" in sec else ".")
     if w := result.get("report_workers"):
         text += (f" The report alone, {w['repeats']} alternated runs: "
                  f"{w['median_1_process']:.2f} s drawing in one process, "

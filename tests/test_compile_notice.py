@@ -111,12 +111,12 @@ def test_the_notice_names_only_kernels_about_to_be_called(tmp_path):
                            text=True, env=env, cwd=tmp_path, timeout=300).stdout
             for _ in range(2)]
     assert said[0].startswith("compiling demo kernels"), said
-    # while it compiles, an uncounted phase is open (the status line names it; a record a
-    # second carries its elapsed time), then closed
-    phases = said[0].splitlines()[1:]
-    assert phases[-1] == "phase 'compiling demo kernels' total=None closed=True", phases
-    assert phases[:-1] and set(phases[:-1]) == {
-        "phase 'compiling demo kernels' total=None closed=False"}, phases
+    # while it compiles, an uncounted phase is open (the status line names it; a record
+    # every few seconds on a slow machine), then closed
+    lines = said[0].splitlines()[1:]
+    assert lines[0] == "phase 'compiling demo kernels' total=None closed=False"
+    assert set(lines[1:-1]) <= {lines[0]}
+    assert lines[-1] == "phase 'compiling demo kernels' total=None closed=True"
     assert said[1] == "", said
 
 
@@ -168,3 +168,117 @@ def test_a_second_run_on_a_warm_cache_prints_no_compile_notice(tmp_path):
         assert r.returncode == 0, r.stderr
     assert "compiling " in runs[0].stderr, runs[0].stderr
     assert "compiling " not in runs[1].stderr, runs[1].stderr
+
+
+LOCKED = textwrap.dedent("""
+    import json, logging, sys
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    from numba.core import event
+    sys.path.insert(0, sys.argv[1])
+    import demo_kernel
+    from rotoruq._compile import compiling
+    compiled = []
+
+    class Count(event.Listener):
+        def on_start(self, ev):
+            compiled.append(ev.data["dispatcher"].py_func.__name__)
+
+        def on_end(self, ev):
+            pass
+
+    with event.install_listener("numba:compile", Count()):
+        with compiling("demo kernels", [demo_kernel.twice], logging.getLogger("demo")):
+            value = demo_kernel.twice(2.0)
+    print(json.dumps({"value": value, "compiled": compiled}))
+""")
+
+
+HOLD = textwrap.dedent("""
+    import logging, sys
+    sys.path.insert(0, sys.argv[1])
+    import demo_kernel
+    from rotoruq._compile import compile_lock
+    with compile_lock("demo kernels", [demo_kernel.twice], logging.getLogger("demo")) as held:
+        print(held, flush=True)
+        sys.stdin.readline()  # until the test says
+""")
+
+
+def test_processes_on_a_cold_cache_compile_a_family_once(tmp_path):
+    """Two processes that reach the same cold kernels at once: one compiles them (holding the
+    family's lock in numba's cache folder), the other waits, then loads them from the cache
+    (issue 34: `rotoruq reproduce`'s chapters each compiled the rotor kernels)."""
+    import json
+    import time
+
+    (tmp_path / "demo_kernel.py").write_text(textwrap.dedent("""
+        import numba
+
+        @numba.njit(cache=True)
+        def twice(x):
+            return 2.0 * x
+    """))
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
+    # a third process holds the lock while both start: each must find it taken and wait
+    holder = subprocess.Popen([sys.executable, "-c", HOLD, str(tmp_path)], env=env,
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    procs: list[subprocess.Popen] = []
+    try:
+        assert holder.stdout is not None and holder.stdin is not None
+        assert holder.stdout.readline().strip() == "True"
+        errs = [tmp_path / f"err{k}" for k in range(2)]
+        procs = [subprocess.Popen([sys.executable, "-c", LOCKED, str(tmp_path)], env=env,
+                                  stdout=subprocess.PIPE, stderr=e.open("w"), text=True)
+                 for e in errs]
+        t0 = time.monotonic()
+        while not all("another process is compiling the demo kernels" in e.read_text()
+                      for e in errs):
+            assert time.monotonic() - t0 < 120 and all(p.poll() is None for p in procs), \
+                [e.read_text() for e in errs]
+            time.sleep(0.1)
+        holder.stdin.write("go\n")
+        holder.stdin.close()
+        assert holder.wait(timeout=60) == 0
+        outs = []
+        for p, e in zip(procs, errs, strict=True):
+            out, _ = p.communicate(timeout=120)
+            assert p.returncode == 0, e.read_text()
+            outs.append(json.loads(out.strip().splitlines()[-1]))
+    finally:
+        for p in [holder, *procs]:
+            if p.poll() is None:
+                p.kill()
+                p.wait()
+    assert [o["value"] for o in outs] == [4.0, 4.0]
+    # one process compiled `twice`; the other loaded the first one's code from the cache
+    assert sorted(len(o["compiled"]) for o in outs) == [0, 1], outs
+
+
+def test_an_open_compile_phase_reports_its_elapsed_time(monkeypatch):
+    """Nothing advances an uncounted phase: while a compile runs, its phase gets a record
+    every ``tick`` seconds, each with a later elapsed time (the status line showed
+    'compiling rotor kernels, 0:00' for the whole compile)."""
+    import logging
+    import time
+
+    from rotoruq._progress import Phase
+
+    states = []
+
+    class Keep(logging.Handler):
+        def emit(self, record):
+            states.append(record.progress)
+
+    log = logging.getLogger("rotoruq.progress")
+    keep = Keep()
+    log.addHandler(keep)
+    monkeypatch.setattr(log, "level", logging.INFO)
+    try:
+        with Phase("compiling demo kernels", None, tick=0.05):
+            time.sleep(1.0)
+    finally:
+        log.removeHandler(keep)
+    assert len(states) >= 3, states
+    elapsed = [s.elapsed for s in states]
+    assert elapsed == sorted(elapsed) and elapsed[-2] > 0.2, elapsed
+    assert [s.closed for s in states] == [False] * (len(states) - 1) + [True]

@@ -178,9 +178,11 @@ LINTED = ["scripts", "benchmarks", "examples", "docs/_ext", "docs/conf.py"]
 # chapter in a process of its own, or through a pipe); thread_determinism.py's runs are
 # tests/test_thread_determinism.py's (its --quick is a study option, not a flag of its own).
 # compile_time.py has no --quick: each of its runs is a whole study compiled from an empty
-# numba cache (about a minute of CPU per study).
+# numba cache (about a minute of CPU per study); reproduce_cold.py --quick is `rotoruq
+# reproduce --quick` on an empty numba cache (every kernel compiled: minutes on 2 cores).
 NOT_SMOKE_RUN = {"reproduce_time.py", "aero_center_calibration.py", "reproduce_cpu.py",
-                 "terminal_lines.py", "thread_determinism.py", "compile_time.py"}
+                 "terminal_lines.py", "thread_determinism.py", "compile_time.py",
+                 "reproduce_cold.py"}
 
 
 # smoke-run only with pytest --extended: minutes of MBDyn runs even at --quick

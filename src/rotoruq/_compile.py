@@ -5,18 +5,33 @@ seconds each on two cores) and says nothing meanwhile; :func:`notice_if_cold` lo
 line per family and process before that happens, and nothing when the cache is warm;
 :func:`compiling` also keeps a progress phase open while the compile runs, so a step's status
 line says "compiling rotor kernels" instead of a count that does not move.
+
+Processes that start together with a cold cache (``rotoruq reproduce``'s chapters, ``rotoruq
+run --jobs``'s steps) would each compile the same kernels: :func:`compiling` holds an
+exclusive lock per family (:func:`compile_lock`, a file in numba's cache folder) while the
+first call compiles, so one process compiles and the others wait and then load its code
+from the cache. It also keeps numba's cache index, which numba reads, changes and rewrites
+unlocked, from being written by two processes at once.
 """
 
 from __future__ import annotations
 
 import contextlib
 import logging
+import os
+import re
+import time
 from collections.abc import Iterable, Iterator
 from typing import Any
 
 from ._progress import Phase
 
-__all__ = ["compiling", "is_cached", "notice_if_cold"]
+__all__ = ["compile_lock", "compiling", "is_cached", "notice_if_cold"]
+
+#: Seconds a process waits for another one's compile before it compiles itself; None: as
+#: long as the other holds the lock (it is released when that process ends, however it
+#: ends; a compile takes many minutes on a loaded machine).
+LOCK_WAIT: float | None = None
 
 _noticed: set[str] = set()  # families announced in this process
 _checked: set[int] = set()  # ids of the dispatchers already looked up in the cache
@@ -116,8 +131,87 @@ def compiling(family: str, dispatchers: Iterable[Any], logger: logging.Logger,
     >>> cold
     False
     """
+    dispatchers = list(dispatchers)
     if not notice_if_cold(family, dispatchers, logger, seconds):
         yield False
         return
-    with Phase(f"compiling {family}", None):
+    with Phase(f"compiling {family}", None), compile_lock(family, dispatchers, logger):
         yield True
+
+
+def _lock_path(family: str, dispatchers: Iterable[Any]) -> str | None:
+    """The lock file of ``family``: in numba's cache folder of its first dispatcher."""
+    for d in dispatchers:
+        folder = getattr(getattr(d, "_cache", None), "_cache_path", None)
+        if isinstance(folder, str) and os.path.isdir(folder):
+            return os.path.join(folder, "rotoruq-compile-" + re.sub(r"\W+", "-", family)
+                                + ".lock")
+    return None
+
+
+@contextlib.contextmanager
+def compile_lock(family: str, dispatchers: Iterable[Any], logger: logging.Logger,
+                 wait: float | None = LOCK_WAIT) -> Iterator[bool]:
+    """Hold the exclusive lock of ``family``'s compile (across processes) while the body
+    runs: a process that finds it held logs that it waits, and its body runs once the other
+    process is done (its kernels then load from numba's cache instead of compiling).
+
+    An advisory ``flock`` on ``rotoruq-compile-<family>.lock`` in numba's cache folder of the
+    first of ``dispatchers``; released when the body ends, also by an error or by the
+    process's end. No lock (the body runs at once) where there is no such folder or no
+    ``fcntl`` (Windows), and after ``wait`` seconds (None, the default: no limit) with a
+    warning.
+
+    Yields
+    ------
+    bool
+        Whether the lock is held.
+
+    Examples
+    --------
+    >>> with compile_lock("demo kernels", [len], logging.getLogger("demo")) as held:
+    ...     held  # a builtin has no numba cache folder: nothing to lock
+    False
+    """
+    try:
+        import fcntl
+    except ImportError:  # Windows: the processes may compile at once
+        yield False
+        return
+    path = _lock_path(family, dispatchers)
+    fd = -1
+    if path is not None:
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o666)
+        except OSError:  # a read-only cache folder: numba does not cache there either
+            fd = -1
+    if fd < 0:
+        yield False
+        return
+    try:
+        held = _acquire(fd, fcntl, family, logger, wait)
+        yield held
+    finally:
+        os.close(fd)  # releases the lock
+
+
+def _acquire(fd: int, fcntl: Any, family: str, logger: logging.Logger,
+             wait: float | None) -> bool:
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        return True
+    except BlockingIOError:
+        pass
+    logger.info("another process is compiling the %s: waiting for it, then loading them "
+                "from the cache ...", family, extra={"now": True})
+    t0 = time.monotonic()
+    while wait is None or time.monotonic() - t0 < wait:
+        time.sleep(0.1)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return True
+        except BlockingIOError:
+            continue
+    logger.warning("the %s: another process has held their compile lock for %.0f s; "
+                   "compiling them here", family, time.monotonic() - t0)
+    return False

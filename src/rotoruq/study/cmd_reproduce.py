@@ -10,7 +10,7 @@ import logging
 import multiprocessing
 import os
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
@@ -59,8 +59,16 @@ def reproduce(which: str = "all", out: str | Path = "rotoruq-results",
     ``jobs`` > 1 (default: the machine's cores, at most the chapters asked for) they run at
     once in worker processes, the longest first (:data:`~rotoruq.reference.studies.
     START_ORDER`), and give the same results, bit for bit, as one after the other.
+    As each chapter ends, its figures are drawn into the report's figure cache in the same
+    pool, while the other chapters run (:func:`rotoruq.report.html.prerender_figures`): the
+    report written at the end takes them from there and draws nothing new (the same bytes
+    as ``rotoruq report`` of these folders writes).
+
     ``seconds`` holds each chapter's own time and ``"wall"``, the time until the last
-    chapter ended.
+    chapter ended; ``"figures:<chapter>"`` and ``"figures_cpu:<chapter>"``, the wall and
+    CPU seconds of drawing its figures ahead; ``"figures_after_chapters"``, the wait for
+    the figures after the last chapter ended; ``"report"`` and ``"report_cpu"``, the wall
+    and CPU seconds (its figure workers included) of writing the report.
     """
     from .lock import results_lock
 
@@ -92,6 +100,35 @@ def _chapter(name: str, out: Path, quick: bool) -> tuple[Any, float]:
     return run, time.perf_counter() - t0
 
 
+def _chain_kernels_cached() -> bool:
+    """Whether numba's cache holds the chain kernels (their compiled driver's entry)."""
+    from .._compile import is_cached
+    from ..methods.mcmc import _kernels
+
+    return is_cached(_kernels.advance) and is_cached(_kernels.run_block_emulator)
+
+
+def _compile_chain_kernels() -> float:
+    """Compile the chain kernels (into numba's cache) by running two tiny calibrations, one
+    on an emulator and one on a model, as the chapters' Bayes steps do; its CPU seconds.
+    The numbers are thrown away: the chapters load the compiled kernels from the cache."""
+    import numpy as np
+
+    from ..methods.mcmc import ChainOptions, EmulatorOptions, NoiseModel, calibrate_bayes
+    from ..methods.surrogate import GaussianProcess
+    from ..model import FunctionModel
+    from ..params import ParameterSpace, Uniform
+
+    c0 = time.process_time()
+    model = FunctionModel(lambda x: x[:, :1] * 2.0, ["a"], ["y"])
+    prior = ParameterSpace({"a": Uniform(0.0, 1.0)})
+    for emulator in (EmulatorOptions(GaussianProcess(), n_emulator_samples=8), None):
+        calibrate_bayes(model, np.array([[1.0]]), prior, noise=NoiseModel(noise_std=0.1),
+                        chains=ChainOptions(n_samples=50, burn_in=0), emulator=emulator,
+                        seed=0)
+    return time.process_time() - c0
+
+
 def _console_level() -> int | None:
     """The level of the progress lines this process prints (None: it prints none)."""
     from .console import printing_level
@@ -106,6 +143,25 @@ def _child_logging(level: int | None) -> None:
 
         configure_logging()
         logging.getLogger("rotoruq").setLevel(level)
+
+
+def _prerender(name: str, out: Path) -> tuple[float, float]:
+    """Draw a finished chapter's figures into the report's figure cache (with the
+    application ``rotoruq report`` gives them); its seconds, wall and CPU."""
+    from .cmd_report import prerender
+
+    t0, c0 = time.perf_counter(), time.process_time()
+    prerender(out / name, out / "report")
+    return time.perf_counter() - t0, time.process_time() - c0
+
+
+def _cpu() -> float:
+    """CPU seconds of this process and of its children that have ended."""
+    import resource
+
+    own, ended = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(
+        resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + ended.ru_utime + ended.ru_stime
 
 
 def _reproduce(which: str, out: Path, quick: bool, jobs: int | None) -> dict:
@@ -125,17 +181,47 @@ def _reproduce(which: str, out: Path, quick: bool, jobs: int | None) -> dict:
         ctx = multiprocessing.get_context("spawn")
         with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_child_logging,
                                  initargs=(_console_level(),)) as pool:
+            # on an empty numba cache, one worker compiles the chain kernels while the first
+            # chapter compiles the rotor's (the chapters then load both from the cache; a
+            # family is compiled by one process at a time: rotoruq._compile.compile_lock)
+            warm = None if _chain_kernels_cached() else pool.submit(_compile_chain_kernels)
             # the pool starts the tasks in the order they were submitted
             futures = {name: pool.submit(_chapter, name, out, quick)
                        for name in start_order(names)}
+            # as each chapter ends, its figures are queued behind the chapters not yet
+            # started: they fill a core the chapters leave idle, and the report written at
+            # the end takes them from its figure cache (same bytes: the cache key covers the
+            # results and the drawing code)
+            chapter_of = {fut: name for name, fut in futures.items()}
+            drawing = {chapter_of[fut]: pool.submit(_prerender, chapter_of[fut], out)
+                       for fut in as_completed(futures.values()) if fut.exception() is None}
             seconds["wall"] = time.perf_counter() - t0
+            if warm is not None:
+                try:
+                    seconds["compile_chain_kernels_cpu"] = warm.result()
+                except Exception as exc:  # noqa: BLE001 - the chapters compiled them
+                    logging.getLogger(__name__).warning(
+                        "the chain kernels were not compiled ahead (%s: %s); the chapters "
+                        "compiled them", type(exc).__name__, exc)
             for name in names:  # in order: the first failure raised is the first chapter's
                 runs[name], seconds[name] = futures[name].result()
+            t0 = time.perf_counter()
+            for name in names:
+                try:
+                    seconds[f"figures:{name}"], seconds[f"figures_cpu:{name}"] = \
+                        drawing[name].result()
+                except Exception as exc:  # noqa: BLE001 - the report draws them itself
+                    logging.getLogger(__name__).warning(
+                        "report: the figures of %s were not drawn ahead (%s: %s); the report "
+                        "draws them", name, type(exc).__name__, exc)
+            # the figures still being drawn when the last chapter ended
+            seconds["figures_after_chapters"] = time.perf_counter() - t0
     if "wall" not in seconds:
         seconds["wall"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), _cpu()
     index = write([out / n for n in CHAPTERS if is_study_dir(out / n)], out / "report")
     seconds["report"] = time.perf_counter() - t0
+    seconds["report_cpu"] = _cpu() - c0  # with the figure workers it started
     return {"report": str(index), "seconds": seconds, "runs": runs}
 
 

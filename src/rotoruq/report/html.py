@@ -583,7 +583,8 @@ def _figure_jobs(studies: Mapping[str, Mapping[str, StepResult]], infos: Mapping
 
 
 def prerender_figures(results_dir: str | Path, report_dir: str | Path, *,
-                      application: Application | None = None) -> int:
+                      application: Application | None = None,
+                      part: tuple[int, int] = (0, 1)) -> int:
     """Draw the figures of the studies saved under ``results_dir`` into the figure cache of
     ``report_dir``, for a later :func:`write_report` of these studies (alone or with others)
     to take instead of drawing them: ``rotoruq reproduce`` draws a chapter's figures as soon
@@ -601,6 +602,9 @@ def prerender_figures(results_dir: str | Path, report_dir: str | Path, *,
         The report folder the later :func:`write_report` writes.
     application : Application, optional
         The application the later report is given (its numbers are drawn beside the run's).
+    part : (int, int), optional
+        ``(k, n)``: draw only every ``n``-th figure job from the ``k``-th, so that ``n``
+        processes share one study's figures (default: all of them).
 
     Returns
     -------
@@ -622,8 +626,11 @@ def prerender_figures(results_dir: str | Path, report_dir: str | Path, *,
     # through a link
     with SafeFolder(report_dir) as out, FigureCache(report_dir, out) as cache:
         jobs, keys = _figure_jobs(studies, infos, application, cache)
+        k, n = part
+        if not 0 <= k < n:
+            raise ValueError(f"part must be (k, n) with 0 <= k < n, got {part!r}")
         drawn = 0
-        for j in jobs:
+        for j in jobs[k::n]:
             key, fps = keys[j.study, j.step], _fingerprints(studies[j.study])
             if key is None or cache.get(key, _Rendered, fps) is not None:
                 continue

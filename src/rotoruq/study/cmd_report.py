@@ -18,14 +18,16 @@ def write(results_dirs, out, **kwargs) -> Path:
     return write_report(results_dirs, out, application=application_for(results_dirs), **kwargs)
 
 
-def prerender(results_dir, out) -> int:
-    """Draw the figures of the study saved in ``results_dir`` into the figure cache of the
-    report folder ``out``, ahead of :func:`write` (same application as it gives); returns
-    the figure jobs drawn (:func:`rotoruq.report.html.prerender_figures`)."""
+def prerender(results_dir, out, part: tuple[int, int] = (0, 1)) -> int:
+    """Draw the figures of the study saved in ``results_dir`` (its ``part``, ``(k, n)``: every
+    n-th figure job from the k-th) into the figure cache of the report folder ``out``, ahead
+    of :func:`write` (same application as it gives); returns the figure jobs drawn
+    (:func:`rotoruq.report.html.prerender_figures`)."""
     from ..reference import application_for
     from ..report.html import prerender_figures
 
-    return prerender_figures(results_dir, out, application=application_for([results_dir]))
+    return prerender_figures(results_dir, out, application=application_for([results_dir]),
+                             part=part)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

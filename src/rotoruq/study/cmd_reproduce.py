@@ -145,13 +145,13 @@ def _child_logging(level: int | None) -> None:
         logging.getLogger("rotoruq").setLevel(level)
 
 
-def _prerender(name: str, out: Path) -> tuple[float, float]:
-    """Draw a finished chapter's figures into the report's figure cache (with the
-    application ``rotoruq report`` gives them); its seconds, wall and CPU."""
+def _prerender(name: str, out: Path, part: tuple[int, int]) -> tuple[float, float]:
+    """Draw a finished chapter's figures (its ``part``) into the report's figure cache (with
+    the application ``rotoruq report`` gives them); its seconds, wall and CPU."""
     from .cmd_report import prerender
 
     t0, c0 = time.perf_counter(), time.process_time()
-    prerender(out / name, out / "report")
+    prerender(out / name, out / "report", part)
     return time.perf_counter() - t0, time.process_time() - c0
 
 
@@ -191,9 +191,11 @@ def _reproduce(which: str, out: Path, quick: bool, jobs: int | None) -> dict:
             # as each chapter ends, its figures are queued behind the chapters not yet
             # started: they fill a core the chapters leave idle, and the report written at
             # the end takes them from its figure cache (same bytes: the cache key covers the
-            # results and the drawing code)
+            # results and the drawing code); split in one part per process, so that the
+            # last chapter's figures do not wait on one core while the other is idle
             chapter_of = {fut: name for name, fut in futures.items()}
-            drawing = {chapter_of[fut]: pool.submit(_prerender, chapter_of[fut], out)
+            drawing = {chapter_of[fut]: [pool.submit(_prerender, chapter_of[fut], out,
+                                                     (k, jobs)) for k in range(jobs)]
                        for fut in as_completed(futures.values()) if fut.exception() is None}
             seconds["wall"] = time.perf_counter() - t0
             if warm is not None:
@@ -208,8 +210,9 @@ def _reproduce(which: str, out: Path, quick: bool, jobs: int | None) -> dict:
             t0 = time.perf_counter()
             for name in names:
                 try:
-                    seconds[f"figures:{name}"], seconds[f"figures_cpu:{name}"] = \
-                        drawing[name].result()
+                    parts = [f.result() for f in drawing[name]]
+                    seconds[f"figures:{name}"] = max(w for w, _ in parts)
+                    seconds[f"figures_cpu:{name}"] = sum(c for _, c in parts)
                 except Exception as exc:  # noqa: BLE001 - the report draws them itself
                     logging.getLogger(__name__).warning(
                         "report: the figures of %s were not drawn ahead (%s: %s); the report "

@@ -272,12 +272,14 @@ def test_an_open_compile_phase_reports_its_elapsed_time(monkeypatch):
     log = logging.getLogger("rotoruq.progress")
     keep = Keep()
     log.addHandler(keep)
-    monkeypatch.setattr(log, "level", logging.INFO)
+    level = log.level
+    log.setLevel(logging.INFO)  # (setLevel: a level set as an attribute keeps a stale cache)
     try:
         with Phase("compiling demo kernels", None, tick=0.05):
             time.sleep(1.0)
     finally:
         log.removeHandler(keep)
+        log.setLevel(level)
     assert len(states) >= 3, states
     elapsed = [s.elapsed for s in states]
     assert elapsed == sorted(elapsed) and elapsed[-2] > 0.2, elapsed

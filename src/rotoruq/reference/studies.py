@@ -31,7 +31,7 @@ CHAPTERS = {"validation": "validation.toml", "experiment": "experiment.toml",
 #: the order against it), so on two processes the two shorter ones share the second while
 #: the longest runs (the chapters are independent: the order changes no number, only when
 #: each ends).
-START_ORDER = ("heldout", "experiment", "validation")
+START_ORDER = ("experiment", "heldout", "validation")
 
 
 def is_reference(info: Mapping[str, Any]) -> bool:

@@ -86,7 +86,7 @@ def start_order(names: list[str]) -> list[str]:
     Examples
     --------
     >>> start_order(["validation", "experiment", "heldout"])
-    ['heldout', 'experiment', 'validation']
+    ['experiment', 'heldout', 'validation']
     """
     return sorted(names, key=lambda n: START_ORDER.index(n) if n in START_ORDER
                   else len(START_ORDER))

@@ -417,6 +417,8 @@ def test_mbdyn_study_runs_through_the_cli(tmp_path):
 
 
 @pytest.mark.slow
+@pytest.mark.extended  # CI time (~80 s): MBDyn studies on Dask stay in CI through
+# test_mbdyn.py::test_study_runs_on_dask_by_changing_only_the_executor
 @needs_mbdyn
 def test_mbdyn_study_on_dask_by_changing_only_the_executor(tmp_path):
     """The bundled MBDyn study with only ``[executor]`` changed to a Dask local cluster (the

@@ -455,3 +455,42 @@ def test_mpp_search_and_distribution_keywords_import_and_export(tmp_path):
                                                  tmp_path / "p.in")), tmp_path / "p.toml")
     assert plain.steps[0].options["approximation"] == "none"
     assert "mpp_search no_approx" in next(iter(study_to_decks(plain).values()))
+
+
+def test_a_statistic_rotoruq_does_not_compute_is_named_as_such_in_the_note(tmp_path):
+    """Dakota's test deck ``dakota_cantilever_sampling_srcs.in`` asks for standardized
+    regression coefficients: the import keeps them out, and its note says they are a
+    statistic rotoruq does not compute, not Dakota's output (a by-hand import once told
+    the user they were "not a computed number")."""
+    deck = _prepare(tmp_path, """\
+        environment
+           results_output
+              hdf5
+                results_output_file = 'cantilever_samling_srcs_s0'
+        method
+          sampling
+           samples 50
+           seed = 31415
+           std_regression_coeffs
+        variables
+          normal_uncertain = 2
+            means = 40000. 29.E+6
+            std_deviations = 2000. 1.45E+6
+            descriptors = 'R' 'E'
+        interface
+            direct
+              analysis_driver = 'cantilever'
+        responses
+          response_functions = 3
+          no_gradients
+          no_hessians
+        """)
+    proc = subprocess.run([sys.executable, "-m", "rotoruq.study.cli", "dakota", "import",
+                           deck.name, "-o", "study.toml"], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    note = proc.stderr
+    assert "not a computed number" not in note
+    assert ("statistics Dakota would add that rotoruq does not compute (the step's own "
+            "results stand without them): std_regression_coeffs (line 9)") in note
+    assert "Dakota's output: results_output (line 2), hdf5 (line 3)" in note

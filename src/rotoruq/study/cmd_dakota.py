@@ -38,9 +38,8 @@ def run(args: argparse.Namespace) -> int:
         tr = translate_deck(read_deck(args.deck), name=args.name)
         write_text(args.output, tr.text)
         if tr.ignored:
-            print(f"note: {args.deck.name}: kept out of the study (they shape what Dakota "
-                  f"itself writes or how it schedules, not a computed number): {tr.ignored}",
-                  file=sys.stderr)
+            print(f"note: {args.deck.name}: kept out of the study (nothing the study "
+                  f"computes depends on them): {tr.ignored}", file=sys.stderr)
         for note in tr.notes:
             print(f"note: {args.deck.name}: {note}", file=sys.stderr)
         print(args.output)

@@ -234,7 +234,8 @@ def read_deck(path: str | os.PathLike) -> Deck:
 # --------------------------------------------------------------------------- import
 #: Keywords that only shape Dakota's own output, restart file, bookkeeping or scheduling:
 #: accepted where Dakota accepts them and listed in one note (a rotoruq run keeps its own
-#: store, report and executor). Nothing here changes a computed number.
+#: store, report and executor), or that ask Dakota for an extra statistic rotoruq does not
+#: compute (named as such in the note). Nothing here changes a number the study computes.
 OUTPUT_ONLY: dict[str, frozenset[str]] = {
     "environment": frozenset((
         "tabular_data", "tabular_data_file", "annotated", "custom_annotated", "freeform",
@@ -284,6 +285,11 @@ _IGNORED_WHAT = {"evaluation_concurrency": "Dakota's scheduling",
                  "model_pointer": "block ids", "top_method_pointer": "block ids",
                  "variables_pointer": "block ids", "interface_pointer": "block ids",
                  "responses_pointer": "block ids", "single": "the model kind",
+                 **dict.fromkeys(("std_regression_coeffs", "tolerance_intervals", "coverage",
+                                  "confidence_level", "posterior_stats", "kl_divergence",
+                                  "mutual_info"),
+                                 "statistics Dakota would add that rotoruq does not compute "
+                                 "(the step's own results stand without them)"),
                  **dict.fromkeys(("method_source", "dakota", "vendor", "interval_type",
                                   "forward", "central", "fd_step_size"),
                                  "Dakota's finite-difference settings (rotoruq takes the "

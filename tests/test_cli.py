@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from rotoruq import __version__
+from rotoruq.errors import ParameterError
 from rotoruq.rotor.model import COMPILE_NOTICE, RotorModel, kernels_cached
 
 CLI = [sys.executable, "-m", "rotoruq.study.cli"]
@@ -121,6 +122,17 @@ def test_evaluate_fails_when_every_point_failed(warm):
     assert all("exceeds 90 deg" in r["failure"] for r in rows)
     assert "rotoruq evaluate: error: all 2 evaluations failed" in proc.stderr
     assert "fixed inputs (preset gvpm)" in proc.stderr  # stdout stays JSON
+
+
+def test_evaluate_with_no_response_named_is_a_usage_error():
+    # found by test_fuzz_study: `--responses` with no names reached numpy's concatenate
+    proc = cli("evaluate", "--responses")
+    assert proc.returncode == 2
+    assert "argument --responses: expected at least one argument" in proc.stderr
+    assert "internal error" not in proc.stderr
+    with pytest.raises(ParameterError, match="names_out is empty: name at least one response; "
+                                             "valid: thrust, torque"):
+        RotorModel("gvpm", names_out=[])
 
 
 def test_run_summary_and_quiet(tiny_run, tmp_path):

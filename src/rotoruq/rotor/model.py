@@ -193,6 +193,9 @@ class RotorModel:
                 "give either 'k_feather' (the feathering stiffness itself, N m/rad) or "
                 "'k_pitch_link' (N, acting through the link length and horn arm), not both"
             )
+        if len(tuple(responses)) == 0:
+            raise ParameterError("names_out is empty: name at least one response; valid: "
+                                 f"{', '.join(self._responses)}")
         for name in responses:
             if name not in self._responses:
                 raise ParameterError(f"unknown response {name!r}; valid: "

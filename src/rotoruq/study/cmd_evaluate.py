@@ -24,7 +24,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--responses",
-        nargs="*",
+        nargs="+",
+        metavar="NAME",
         default=["thrust", "torque", "roll", "pitch", "power", "ct", "cq"],
     )
     p.add_argument("--json", action="store_true", help="print JSON instead of a table")

@@ -28,7 +28,8 @@ import numpy as np
 
 from ...errors import ParameterError
 
-__all__ = ["HessianEstimate", "NoiseEstimate", "noise_level", "noisy_hessian"]
+__all__ = ["HessianEstimate", "NoiseEstimate", "coordinate_noise", "noise_level",
+           "noisy_hessian"]
 
 #: Differences of order 1 to this one are compared (Moré and Wild 2011 use 6).
 _MAX_ORDER = 6
@@ -112,6 +113,67 @@ def noise_level(values: np.ndarray) -> NoiseEstimate:
     return NoiseEstimate(float(levels[k]), k, False)
 
 
+def coordinate_noise(fun: Callable[[np.ndarray], np.ndarray], x: np.ndarray,
+                     f0: float | None = None) -> np.ndarray:
+    """Noise level of a function along each coordinate at a point (:func:`noise_level`).
+
+    Nine values spaced 1e-6 along each coordinate (one batch of points), again at 1e-8 and
+    then 1e-4 for the coordinates whose table gave no estimate; without an estimate at any
+    spacing, the smallest upper bound. At least the rounding of the value at ``x``
+    (``4 eps |f(x)|``).
+
+    Parameters
+    ----------
+    fun : callable
+        ``fun(points)`` with points (k, d) returns the k values (k,).
+    x : array_like of shape (d,)
+        The point, in coordinates of about unit scale.
+    f0 : float, optional
+        ``fun(x)``, when known (else evaluated).
+
+    Returns
+    -------
+    ndarray of shape (d,)
+        The noise's standard deviation along each coordinate, function units.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> f = lambda z: (z**2).sum(1) + 1e-6 * np.sin(1e7 * z[:, 1])  # rough along z_1 only
+    >>> eps = coordinate_noise(f, np.ones(2))
+    >>> bool(eps[0] < 1e-14), bool(2e-7 < eps[1] < 4e-6)
+    (True, True)
+    """
+    x = np.asarray(x, dtype=float).reshape(-1)
+    d = x.size
+    eye = np.eye(d)
+    if f0 is None:
+        f0 = float(np.asarray(fun(x[None]), dtype=float).reshape(-1)[0])
+    offsets = np.arange(_NOISE_POINTS) - _NOISE_POINTS // 2
+    noise = np.full(d, np.nan)
+    todo = np.arange(d)
+    for spacing in _NOISE_STEPS:  # one batch per spacing, for the coordinates not yet found
+        if todo.size == 0:
+            break
+        pts = x[None, None] + spacing * offsets[None, :, None] * eye[todo][:, None, :]
+        table = np.asarray(fun(pts.reshape(-1, d)), dtype=float).reshape(todo.size,
+                                                                          _NOISE_POINTS)
+        left = []
+        for i, row in zip(todo, table, strict=True):
+            if not np.all(np.isfinite(row)):
+                left.append(i)
+                continue
+            est = noise_level(row)
+            if est.found:
+                noise[i] = est.level
+            else:
+                left.append(i)
+                noise[i] = est.level if np.isnan(noise[i]) else min(noise[i], est.level)
+        todo = np.array(left, dtype=int)
+    noise = np.where(np.isfinite(noise), noise, 0.0)
+    return np.maximum(noise, 4.0 * np.finfo(float).eps * max(abs(f0), 1.0))
+
+
 @dataclass(frozen=True)
 class HessianEstimate:
     """A finite-difference Hessian with per-direction steps (:func:`noisy_hessian`).
@@ -143,16 +205,16 @@ def noisy_hessian(fun: Callable[[np.ndarray], np.ndarray], x: np.ndarray, *,
                   max_step: float | np.ndarray = 1.0) -> HessianEstimate:
     """Hessian of a noisy function, each coordinate's step set by its noise and curvature.
 
-    Along each coordinate ``i``: the noise level ``eps_i`` (:func:`noise_level`, nine values
-    spaced 1e-6, else 1e-8 or 1e-4, in the coordinate's units), a first curvature ``mu_a`` at
-    the step ``eps_i**(1/4)``, then the step ``h_i = (eps_i / |mu_a|)**(1/4)`` (the step
-    that balances the second difference's truncation and noise errors for a function whose
-    fourth derivative is of the order of its second; Moré and Wild 2012) and the curvature
-    there, the step lengthened to ``sqrt(100 eps_i / |mu_a|)`` where that is longer (a weak
-    curvature whose second difference would stay within the noise), at most ``max_step``. A
-    coordinate whose second difference stays below ``10 eps_i`` has no measurable curvature
-    (``measured`` False, its row and column 0). The mixed derivatives use the four points
-    ``x +- h_i e_i +- h_j e_j``. Every stage is one batch of points.
+    Along each coordinate ``i``: the noise level ``eps_i`` (:func:`coordinate_noise`), a
+    first curvature ``mu_a`` at the step ``eps_i**(1/4)``, then the step
+    ``h_i = (eps_i / |mu_a|)**(1/4)`` (the step that balances the second difference's
+    truncation and noise errors for a function whose fourth derivative is of the order of its
+    second; Moré and Wild 2012) and the curvature there, the step lengthened to
+    ``sqrt(100 eps_i / |mu_a|)`` where that is longer (a weak curvature whose second
+    difference would stay within the noise), at most ``max_step``. A coordinate whose second
+    difference stays below ``10 eps_i`` has no measurable curvature (``measured`` False, its
+    row and column 0). The mixed derivatives use the four points ``x +- h_i e_i +- h_j e_j``.
+    Every stage is one batch of points.
 
     Parameters
     ----------
@@ -196,29 +258,7 @@ def noisy_hessian(fun: Callable[[np.ndarray], np.ndarray], x: np.ndarray, *,
 
     eye = np.eye(d)
     f0 = float(values(x[None])[0])
-    offsets = np.arange(_NOISE_POINTS) - _NOISE_POINTS // 2
-    noise = np.full(d, np.nan)
-    todo = np.arange(d)
-    for spacing in _NOISE_STEPS:  # one batch per spacing, for the coordinates not yet found
-        if todo.size == 0:
-            break
-        pts = x[None, None] + spacing * offsets[None, :, None] * eye[todo][:, None, :]
-        table = values(pts.reshape(-1, d)).reshape(todo.size, _NOISE_POINTS)
-        left = []
-        for i, row in zip(todo, table, strict=True):
-            if not np.all(np.isfinite(row)):
-                left.append(i)
-                continue
-            est = noise_level(row)
-            if est.found:
-                noise[i] = est.level
-            else:
-                left.append(i)
-                noise[i] = est.level if np.isnan(noise[i]) else min(noise[i], est.level)
-        todo = np.array(left, dtype=int)
-    # no estimate at any spacing: the smallest upper bound, else the values' resolution
-    noise = np.where(np.isfinite(noise), noise, 0.0)
-    noise = np.maximum(noise, 4.0 * np.finfo(float).eps * max(abs(f0), 1.0))
+    noise = coordinate_noise(values, x, f0)
 
     def curvature(h: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Central second differences along the coordinates ``rows``, steps ``h[rows]``."""

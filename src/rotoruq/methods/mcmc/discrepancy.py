@@ -35,6 +35,7 @@ from ..surrogate import GaussianProcess, LeaveOneOut
 from . import diagnostics as dg
 from ._discrepancy_kernel import MATERN52, SQUARED_EXPONENTIAL, gp_marginal_loglik
 from ._emulator import fit_on_prior
+from .fd_noise import noisy_hessian
 from .options import EmulatorOptions
 from .proposals import LogPrior, prior_scales
 from .samplers import SamplerConfig, SamplerState, run_chains
@@ -48,6 +49,9 @@ _LOG_2PI = float(np.log(2.0 * np.pi))
 _JITTER = 1e-10
 _KERNEL_CODES = {"squared_exponential": SQUARED_EXPONENTIAL, "matern52": MATERN52}
 _NO_POINT_VAR = np.zeros((0, 0, 0))
+#: A MAP closer than this to a bound of a bounded prior (scaled coordinates) is moved inside
+#: for its Hessian, whose steps then reach at most the bound.
+_EDGE = 3e-3
 
 
 @dataclass(frozen=True)
@@ -567,8 +571,10 @@ def _data(data, configurations, names_out, model, noise_std):
 def _map_and_covariance(post: _Posterior, z0: np.ndarray, zlo, zhi,
                         flat: np.ndarray | None = None):
     """MAP in scaled coordinates, the inverse finite-difference Hessian of the negative log
-    posterior there (eigenvalues floored), and whether that Hessian was finite and positive
-    definite (else the covariance is only a usable proposal, not a Laplace approximation).
+    posterior there (:func:`.fd_noise.noisy_hessian`: each direction's step from its noise
+    level and curvature; eigenvalues floored), and whether that Hessian was finite and
+    positive definite (else the covariance is only a usable proposal, not a Laplace
+    approximation).
     ``flat`` (D,) marks coordinates whose prior is uniform: they get the curvature of a
     normal prior of the same variance (Dakota's choice), or a direction the data do not inform
     would make every correlated parameter's variance unbounded."""
@@ -594,27 +600,23 @@ def _map_and_covariance(post: _Posterior, z0: np.ndarray, zlo, zhi,
         res = optimize.minimize(fg, z0, jac=True, method="L-BFGS-B", bounds=bounds,
                                 options={"maxiter": 500})
     zm = res.x if f(res.x) <= f(z0) else z0
-    h = 1e-3
-    E = np.eye(D) * h
-    # all points of the central-difference Hessian in one batch, a MAP on the edge of a
-    # bounded prior moved inside by the stencil's reach (else half the stencil is outside)
-    zh = np.clip(zm, zlo + 3 * h, zhi - 3 * h)
-    pts = [zh]
-    for i in range(D):
-        for j in range(i, D):
-            pts += [zh + E[i] + E[j], zh + E[i] - E[j], zh - E[i] + E[j], zh - E[i] - E[j]]
-    v = -post(np.array(pts))
-    H = np.empty((D, D))
-    q = 1
+    # the log posterior carries numerical noise (a trim iteration, an emulator): each
+    # direction's second-difference step comes from its measured noise level and curvature,
+    # as a fixed small step gives a curvature that is mostly noise; the stencil stays inside
+    # a bounded prior's support (a MAP on its edge moved inside by its reach)
+    zh = np.clip(zm, zlo + _EDGE, zhi - _EDGE)
+    reach = np.minimum(1.0, np.minimum(zh - zlo, zhi - zh))
     with np.errstate(invalid="ignore"):
-        for i in range(D):
-            for j in range(i, D):
-                H[i, j] = H[j, i] = (v[q] - v[q + 1] - v[q + 2] + v[q + 3]) / (4 * h * h)
-                q += 4
+        est = noisy_hessian(lambda z: -post(z), zh, max_step=reach)
+    H = est.hessian
     if not np.all(np.isfinite(H)):  # at the edge of the support: no Laplace approximation
         return zm, np.eye(D), False
-    if flat is not None:
-        H[np.diag_indices(D)] += flat.astype(float)  # unit prior variance in scaled coordinates
+    flat_f = np.zeros(D) if flat is None else flat.astype(float)
+    # a direction without measurable curvature: the prior's scale (unit variance in scaled
+    # coordinates), not a floored curvature's unbounded variance
+    H[np.diag_indices(D)] = np.where(est.measured, H[np.diag_indices(D)], 1.0 - flat_f)
+    # a uniform prior's coordinate: the curvature of a normal prior of the same variance
+    H[np.diag_indices(D)] += flat_f
     w, V = np.linalg.eigh(0.5 * (H + H.T))
     ok = bool(w.min() > 0) and np.array_equal(zh, zm)
     w = np.maximum(w, max(w.max(), 1.0) * 1e-8)

@@ -165,19 +165,20 @@ def test_study_multifidelity_step_is_checked(tmp_path, old, new, expected):
 @pytest.mark.extended  # ~1 min of MBDyn on 2 cores; CI runs the step's checks and the parity
 @needs_mbdyn
 def test_forward_flight_study_multifidelity_with_mbdyn(tmp_path):
-    """``rotoruq run forward_flight --quick`` with MBDyn, its multi-fidelity step alone
-    (``--only``): MBDyn's rigid rotor flying the built-in trim is the high-fidelity model."""
+    """``rotoruq run forward_flight --quick`` with MBDyn, its multi-fidelity step at mu = 0.2
+    alone (``--only``): MBDyn's elastic rotor flying the built-in trim is the high-fidelity
+    model."""
     env = env_with_mbdyn()
     cli = [sys.executable, "-m", "rotoruq"]
     done = subprocess.run([*cli, "run", "forward_flight", "--quick", "--only",
-                           "multifidelity_mbdyn", "--no-report", "--out", "res"],
+                           "multifidelity_mu02", "--no-report", "--out", "res"],
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=1800)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     assert "0 failed evaluation(s)" in done.stdout
-    shown = subprocess.run([*cli, "show", "res", "multifidelity_mbdyn", "--json"], cwd=tmp_path,
+    shown = subprocess.run([*cli, "show", "res", "multifidelity_mu02", "--json"], cwd=tmp_path,
                            env=env, capture_output=True, text=True, timeout=120)
     assert shown.returncode == 0, shown.stderr[-2000:]
-    step = json.loads(shown.stdout)["steps"]["multifidelity_mbdyn"]
+    step = json.loads(shown.stdout)["steps"]["multifidelity_mu02"]
     alloc = {row[0].split(" ")[0]: row for row in step["tables"][0]["rows"]}
     assert set(alloc) == {"mbdyn", "builtin"}
     est = step["tables"][1]["rows"][0]

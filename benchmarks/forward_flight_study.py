@@ -22,7 +22,6 @@ python benchmarks/forward_flight_study.py --summary benchmarks/results/forward_f
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import resource
 import subprocess

@@ -186,7 +186,9 @@ NOT_SMOKE_RUN = {"reproduce_time.py", "aero_center_calibration.py", "reproduce_c
 
 
 # smoke-run only with pytest --extended: minutes of MBDyn runs even at --quick
-EXTENDED_SMOKE = {"multifidelity_mbdyn_repeat.py"}
+# (forward_flight_study.py --quick: the study's --quick, its multi-fidelity steps' elastic
+# MBDyn runs included)
+EXTENDED_SMOKE = {"multifidelity_mbdyn_repeat.py", "forward_flight_study.py"}
 
 
 def _quick_scripts() -> list:

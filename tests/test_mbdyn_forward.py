@@ -65,6 +65,23 @@ def test_elastic_template_flies_through_the_reverse_flow_region(tmp_path):
     assert 10.0 < loads.response("thrust") < 30.0 and loads.response("power") > 0.0
 
 
+def test_elastic_swashplate_follows_the_hubs_azimuth():
+    """The elastic template's cyclic is a function of the hub node's rotation (MBDyn's hub
+    runs 0.135 deg per revolution ahead of OMEGA * Time, which drifted the cyclic's phase
+    against the blades): every blade's swashplate drive reads the hub's E[3], none the
+    clock."""
+    text, path = template_text("elastic")
+    vals = template_values(get_preset("gvpm"), {"advance_ratio": 0.3, "lateral_deg": 0.2,
+                                                "longitudinal_deg": -1.3}, CaseSettings())
+    filled = fill_template(text, vals, path=path)
+    drives = [ln for ln in filled.splitlines() if "LAT * cos(" in ln]
+    assert len(drives) == 4
+    for k, ln in enumerate(drives, start=1):
+        assert f"LAT * cos(Var + PSI{k}) + LON * sin(Var + PSI{k})" in ln
+    assert filled.count('single, 0., 0., 1., node, HUB, structural, string, "E[3]", string,') == 4
+    assert not any("OMEGA * Time" in ln for ln in filled.splitlines() if not ln.startswith("#"))
+
+
 def test_bad_flight_inputs_are_refused():
     with pytest.raises(ParameterError, match=r"advance_ratio must be in \[0, 1\]"):
         template_values(get_preset("gvpm"), {"advance_ratio": -0.1}, CaseSettings())
@@ -165,19 +182,20 @@ def test_study_multifidelity_step_is_checked(tmp_path, old, new, expected):
 @pytest.mark.extended  # ~1 min of MBDyn on 2 cores; CI runs the step's checks and the parity
 @needs_mbdyn
 def test_forward_flight_study_multifidelity_with_mbdyn(tmp_path):
-    """``rotoruq run forward_flight --quick`` with MBDyn, its multi-fidelity step alone
-    (``--only``): MBDyn's rigid rotor flying the built-in trim is the high-fidelity model."""
+    """``rotoruq run forward_flight --quick`` with MBDyn, its multi-fidelity step at mu = 0.2
+    alone (``--only``): MBDyn's elastic rotor flying the built-in trim is the high-fidelity
+    model."""
     env = env_with_mbdyn()
     cli = [sys.executable, "-m", "rotoruq"]
     done = subprocess.run([*cli, "run", "forward_flight", "--quick", "--only",
-                           "multifidelity_mbdyn", "--no-report", "--out", "res"],
+                           "multifidelity_mu02", "--no-report", "--out", "res"],
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=1800)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     assert "0 failed evaluation(s)" in done.stdout
-    shown = subprocess.run([*cli, "show", "res", "multifidelity_mbdyn", "--json"], cwd=tmp_path,
+    shown = subprocess.run([*cli, "show", "res", "multifidelity_mu02", "--json"], cwd=tmp_path,
                            env=env, capture_output=True, text=True, timeout=120)
     assert shown.returncode == 0, shown.stderr[-2000:]
-    step = json.loads(shown.stdout)["steps"]["multifidelity_mbdyn"]
+    step = json.loads(shown.stdout)["steps"]["multifidelity_mu02"]
     alloc = {row[0].split(" ")[0]: row for row in step["tables"][0]["rows"]}
     assert set(alloc) == {"mbdyn", "builtin"}
     est = step["tables"][1]["rows"][0]

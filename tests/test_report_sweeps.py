@@ -50,7 +50,8 @@ def test_forward_flight_report_draws_the_indices_against_the_advance_ratio(tmp_p
     # the three Sobol steps at mu 0.1, 0.2, 0.3, and not the LHS (no fixed input of its own)
     assert "(steps sobol_mu01, sobol_mu02, sobol_mu03)" in html
     # the step MBDyn was missing for: its own section in the report, saying why
-    assert "multifidelity_mbdyn: skipped</h4>" in html
-    assert ("<b>Skipped by the run</b> (multifidelity, Multi-fidelity Monte Carlo of the MBDyn "
-            "rotor&#x27;s power at mu = 0.2): needs MBDyn, not found here: MBDyn executable not "
-            "found") in html, html[html.find("multifidelity_mbdyn"):][:2000]
+    for step, mu in (("multifidelity_mu01", "0.1"), ("multifidelity_mu02", "0.2")):
+        assert f"{step}: skipped</h4>" in html
+        assert ("<b>Skipped by the run</b> (multifidelity, Multi-fidelity Monte Carlo of the "
+                f"elastic MBDyn rotor&#x27;s power at mu = {mu}): needs MBDyn, not found here: "
+                "MBDyn executable not found") in html, html[html.find(step):][:2000]

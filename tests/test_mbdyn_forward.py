@@ -65,6 +65,23 @@ def test_elastic_template_flies_through_the_reverse_flow_region(tmp_path):
     assert 10.0 < loads.response("thrust") < 30.0 and loads.response("power") > 0.0
 
 
+def test_elastic_swashplate_follows_the_hubs_azimuth():
+    """The elastic template's cyclic is a function of the hub node's rotation (MBDyn's hub
+    runs 0.135 deg per revolution ahead of OMEGA * Time, which drifted the cyclic's phase
+    against the blades): every blade's swashplate drive reads the hub's E[3], none the
+    clock."""
+    text, path = template_text("elastic")
+    vals = template_values(get_preset("gvpm"), {"advance_ratio": 0.3, "lateral_deg": 0.2,
+                                                "longitudinal_deg": -1.3}, CaseSettings())
+    filled = fill_template(text, vals, path=path)
+    drives = [ln for ln in filled.splitlines() if "LAT * cos(" in ln]
+    assert len(drives) == 4
+    for k, ln in enumerate(drives, start=1):
+        assert f"LAT * cos(Var + PSI{k}) + LON * sin(Var + PSI{k})" in ln
+    assert filled.count('single, 0., 0., 1., node, HUB, structural, string, "E[3]", string,') == 4
+    assert not any("OMEGA * Time" in ln for ln in filled.splitlines() if not ln.startswith("#"))
+
+
 def test_bad_flight_inputs_are_refused():
     with pytest.raises(ParameterError, match=r"advance_ratio must be in \[0, 1\]"):
         template_values(get_preset("gvpm"), {"advance_ratio": -0.1}, CaseSettings())

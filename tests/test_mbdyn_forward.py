@@ -111,7 +111,8 @@ def test_forward_flight_parity_at_mu_02(tmp_path):
     MBDyn's 72 steps per revolution, every load within 5 % of MBDyn extrapolated to zero time
     step (the hub moments' difference at 72 steps is MBDyn's time step)."""
     out = tmp_path / "ff.json"
-    proc = subprocess.run([sys.executable, str(BENCH), "--mu", "0.2", "--out", str(out)],
+    proc = subprocess.run([sys.executable, str(BENCH), "--template", "rigid", "--mu", "0.2",
+                           "--out", str(out)],
                           cwd=tmp_path, env=env_with_mbdyn(), capture_output=True, text=True,
                           timeout=600)
     assert proc.returncode == 0, proc.stderr

@@ -223,11 +223,13 @@ def run_template(wd: Path, template: str, inputs: dict, settings, mbdyn, extra: 
 
 def blade1(wd: Path, tip: int = 1006, root: int = 1000, swashplate: int = 1100):
     """Blade 1 in the hub frame from the .mov file: tip, root and swashplate-point positions
-    (n, 3) [m], tip and root pitch (n,) [rad] (the chord axis's angle to the disk plane)."""
+    (n, 3) [m], tip and root pitch (n,) [rad] (the chord axis's angle to the disk plane), and
+    the hub's azimuth ``psi`` (n,) [rad, unwrapped]: blade 1's, which runs ahead of Omega t
+    (0.135 deg per revolution at 72 steps) and which the swashplate follows."""
     a = np.loadtxt(wd / "rotor.mov")
     hub = a[a[:, 0] == 3]
     Rh = hub[:, 4:13].reshape(-1, 3, 3)
-    out = {}
+    out = {"psi": np.unwrap(np.arctan2(Rh[:, 1, 0], Rh[:, 0, 0]))}
     for name, label in (("tip", tip), ("root", root)):
         x = a[a[:, 0] == label]
         Rrel = np.einsum("nji,njk->nik", Rh, x[:, 4:13].reshape(-1, 3, 3))
@@ -406,7 +408,7 @@ def elastic_hover(wd: Path, settings, mbdyn, x: dict | None = None, table_cm: bo
                       joint=wd / "rotor.jnt")
     b = blade1(wd)
     n = 2 * settings.steps_per_rev
-    psi = (np.arange(len(b["tip_pitch"])) * 2 * math.pi / settings.steps_per_rev)[-n:]
+    psi = b["psi"][-n:]
     L = p.radius - p.root_cutout
     w = harmonic1(psi, b["tip_pos"][-n:, 2])
     v = harmonic1(psi, b["tip_pos"][-n:, 1])

@@ -286,17 +286,18 @@ def simulation_based_calibration(
     n_experiments : observations per replication (rows of the simulated data).
     calibrate : None (default): :func:`calibrate_bayes` with ``n_samples`` kept DRAM steps
         (a fixed burn-in of ``n_samples // 2`` steps, no MAP start), ``noise_std``,
-        ``names_out``, the emulator and ``options``; a chain whose ESS stays below
-        ``n_draws`` is continued (up to 3 times) with :func:`continue_chain`; after the
-        first continuation, only while its ESS grown in proportion to the length the
+        ``names_out``, the emulator and ``options``. Each replication's chains drop their
+        warm-up, the MSER-5 truncation point of their kept draws
+        (:func:`~rotoruq.methods.mcmc.warmup.mser_warm_up`: largest over chains and
+        parameters, at most half the draws): a chain that drifts longer than the fixed
+        burn-in would otherwise pile its ranks at one end. Chains whose ESS after their
+        warm-up stays below ``n_draws`` are continued (up to 3 times) with
+        :func:`continue_chain` (the warm-up taken again over the longer chains); after the
+        first continuation, only while that ESS grown in proportion to the length the
         continuations would reach could be half of ``n_draws`` (else the shortfall is
-        certain; the reason says how many replications' chains did not mix). Each
-        replication's chains then drop their warm-up, the MSER-5 truncation point of their
-        kept draws (:func:`~rotoruq.methods.mcmc.warmup.mser_warm_up`: largest over chains
-        and parameters, at most half the draws): a chain that drifts longer than the fixed
-        burn-in would otherwise pile its ranks at one end. Otherwise a callable
-        ``calibrate(data, seed=SeedSequence)`` with ``data`` (n_experiments, m) returning a
-        :class:`BayesResult` or posterior draws (n, d) or (n_chains, n, d) in
+        certain; the reason says how many replications' chains did not mix). Otherwise a
+        callable ``calibrate(data, seed=SeedSequence)`` with ``data`` (n_experiments, m)
+        returning a :class:`BayesResult` or posterior draws (n, d) or (n_chains, n, d) in
         ``prior.names`` order; a callable without a ``seed`` parameter is called as
         ``calibrate(data)`` (then its randomness is its own); its draws are used as
         returned (its burn-in is its own).
@@ -449,12 +450,10 @@ def simulation_based_calibration(
             n_evaluations += n_ev
             assert phase is not None  # lean is None here
             phase.advance()
-        if calibrate is None and draws.shape[1] >= MIN_BATCHES * BATCH:
-            w = mser_warm_up(draws)
-            warm[i], n_unsettled = w.steps, n_unsettled + (not w.settled)
-            if w.steps:
-                draws, ess_i = draws[:, w.steps:], None
-        if ess_i is None:  # the chains changed since their ESS was computed
+        if calibrate is None:  # the ESS the chains return is that of their draws after it
+            draws, warm[i], settled = _after_warm_up(draws)
+            n_unsettled += not settled
+        if ess_i is None:
             ess_i = dg.effective_sample_size(draws)
         ess[i] = float(ess_i.min())
         n_short += bool(ess[i] < n_draws)
@@ -582,13 +581,24 @@ def _worth_extending(ess: np.ndarray, n_kept: int, k: int, n_samples: int,
     return low * final / max(n_kept, 1) >= PROJECTED_ESS_SHARE * n_draws
 
 
+def _after_warm_up(chains: np.ndarray) -> tuple[np.ndarray, int, bool]:
+    """Chains (c, n, d) without their MSER-5 warm-up (:func:`mser_warm_up`), the warm-up
+    (draws) and whether it settled before the cap; chains too short for the rule as they
+    are."""
+    if chains.shape[1] < MIN_BATCHES * BATCH:
+        return chains, 0, True
+    w = mser_warm_up(chains)
+    return chains[:, w.steps:], w.steps, w.settled
+
+
 def _replication(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarray,
                  noise: np.ndarray, obs: tuple[str, ...], s_rep: np.random.SeedSequence,
                  n_experiments: int, n_draws: int, calibrate: Callable[..., Any] | None,
                  takes_seed: bool, options: dict, records: dict, rest: dict, d: int
                  ) -> tuple[np.ndarray, np.ndarray | None, int]:
     """One replication through ``calibrate`` or :func:`calibrate_bayes`: posterior draws
-    (c, n, d), their ESS when it was computed (else None) and true-model evaluations."""
+    (c, n, d), the ESS of those after their warm-up (:func:`calibrate_bayes`; None for
+    ``calibrate``) and true-model evaluations."""
     s_noise, s_cal, s_more = s_rep.spawn(3)
     eps = np.random.default_rng(s_noise).standard_normal((n_experiments, len(obs)))
     data = clean + noise * eps
@@ -602,21 +612,24 @@ def _replication(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarray
                               gp, **records.get("emulator", {})),
                           seed=s_cal, **rest)
     for k, s_k in enumerate(s_more.spawn(N_EXTENSIONS)):
-        ess = dg.effective_sample_size(res.chains)
-        if not _worth_extending(ess, res.chains.shape[1], k, int(options["n_samples"]),
-                                n_draws):
+        kept = _after_warm_up(res.chains)[0]
+        ess = dg.effective_sample_size(kept)
+        if not _worth_extending(ess, kept.shape[1], k, int(options["n_samples"]), n_draws):
             return res.chains, ess, res.n_evaluations
         res = continue_chain(res, int(options["n_samples"]) * 2**k, seed=s_k)
-    return res.chains, None, res.n_evaluations
+    return res.chains, dg.effective_sample_size(_after_warm_up(res.chains)[0]), \
+        res.n_evaluations
 
 
 def _replications(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarray,
                   noise: np.ndarray, obs: tuple[str, ...], s_reps: list, n_experiments: int,
                   n_draws: int, options: dict) -> list[tuple[np.ndarray, np.ndarray, int]]:
     """The default calibration of every replication on the fitted emulator ``gp``: posterior
-    draws (c, n, d), their ESS (d,) and true-model evaluations, per replication.
+    draws (c, n, d), the ESS (d,) of those after their warm-up and true-model evaluations,
+    per replication.
 
-    Each replication's chains are continued (up to 3 times) while their ESS stays below
+    Each replication's chains are continued (up to 3 times) while the ESS of their draws
+    after the MSER-5 warm-up (:func:`_after_warm_up`) stays below
     ``n_draws`` and could reach it (:func:`_worth_extending`), as with
     :func:`continue_chain`. Replications are independent: when every
     one runs in compiled code alone they run on ``numba.get_num_threads()`` threads, each
@@ -643,11 +656,12 @@ def _replications(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarra
         if emit:
             rep.warn()
         for k, s_k in enumerate(more[i]):
-            ess = dg.effective_sample_size(rep.chains)
-            if not _worth_extending(ess, rep.chains.shape[1], k, n_samples, n_draws):
+            kept = _after_warm_up(rep.chains)[0]
+            ess = dg.effective_sample_size(kept)
+            if not _worth_extending(ess, kept.shape[1], k, n_samples, n_draws):
                 return ess
             rep.extend(n_samples * 2**k, s_k)
-        return dg.effective_sample_size(rep.chains)
+        return dg.effective_sample_size(_after_warm_up(rep.chains)[0])
 
     n_threads = min(numba.get_num_threads(), len(reps))
     phase = Phase("self-check replications", len(reps))

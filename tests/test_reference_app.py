@@ -187,7 +187,9 @@ def assert_same_claims(got: list[dict]) -> None:
     from its threshold's sense, "needs <= 0.02" -> "needs at most 0.02", "needs > 0" -> "needs a
     positive value"; re-pinned for issue 35, whose changes to the numbers CHANGELOG.md
     lists; issue 34: the stage-2 extrapolation warning counts 117 proposals, not 121, its chains
-    now compiled, bitwise the same)."""
+    now compiled, bitwise the same; issue 34, the MSER-5 warm-up of the self-checks'
+    replications: the self-check warnings state the warm-up, and their coverages and ESS
+    are those of the draws after it)."""
     want = json.loads(EXPECTED_CLAIMS.read_text())
     assert [c["key"] for c in got] == [c["key"] for c in want]
     assert [c["status"] for c in got] == [c["status"] for c in want]

@@ -101,6 +101,7 @@ GROUPS: dict[str, Group] = {
          "rotoruq.methods.mcmc.SAMPLERS", "rotoruq.methods.mcmc.SamplerState",
          "rotoruq.methods.mcmc.run_chains", "rotoruq.methods.mcmc.GaussianLikelihood",
          "rotoruq.methods.mcmc.effective_sample_size", "rotoruq.methods.mcmc.split_rhat",
+         "rotoruq.methods.mcmc.mser_warm_up", "rotoruq.methods.mcmc.WarmUp",
          "simulation_based_calibration", "SBCResult", "calibrate_with_discrepancy",
          "DiscrepancyResult", "Discrepancy", "predict_with_discrepancy",
          "DiscrepancyPrediction", "calibrate", "CalibrationResult", "least_squares", "Convergence",

@@ -2,9 +2,13 @@
 
 A Markov chain on an emulator asks for the GP mean at one or two points per step; numpy's call
 overhead (a dozen array operations per call) costs more than the arithmetic then. These kernels
-compute ``y_o = y_mean_o + y_std_o (sum_i alpha_oi r(h_oi) + g(x)^T beta_o)`` with a direct loop
-over the training points (no distance matrix, no temporaries), one output at a time, and, when
+compute ``y_o = y_mean_o + y_std_o (sum_i alpha_oi r(h_oi) + g(x)^T beta_o)`` with direct loops
+(no distance matrix, no temporaries beyond one row of n), one output at a time, and, when
 asked, the Kriging variance from the same correlations ``r`` (:func:`gp_mean_var_into`).
+The scaled training points are stored input by input (outputs, inputs, points): the squared
+distances to all n points build up one input at a time in loops over contiguous memory that
+the compiler vectorizes, each distance summed over the inputs in the same order as a
+point-by-point loop would (the same bits).
 
 The GP is handed over as a :class:`CompiledGP` (built by
 :meth:`rotoruq.methods.surrogate.GaussianProcess.compiled`); the kernels take its
@@ -56,13 +60,14 @@ def gp_pack(lo, span, Xs, inv_ell, alpha, beta, trend, kernel, y_mean, y_std) ->
     """Arrays of a fitted GP for the kernels.
 
     lo, span : (d,) training box (inputs are scaled ``(x - lo) / span``); Xs : (n, d) scaled
-    training points; inv_ell : (m, d) inverse length-scales in scaled units; alpha : (m, n)
-    weights (``sigma^2`` folded in); beta : (m, p) trend coefficients; y_mean, y_std : (m,)
-    response standardization.
+    training points (packed as Xe (m, d, n), the points times output o's inverse
+    length-scales, contiguous over points); inv_ell : (m, d) inverse length-scales in scaled
+    units; alpha : (m, n) weights (``sigma^2`` folded in); beta : (m, p) trend
+    coefficients; y_mean, y_std : (m,) response standardization.
     """
     ie = np.ascontiguousarray(inv_ell, dtype=float)
-    Xe = np.ascontiguousarray(np.asarray(Xs, float)[None] * ie[:, None, :])  # (m, n, d)
-    bi, bj = basis_terms(trend, Xe.shape[2])
+    Xe = np.ascontiguousarray(np.asarray(Xs, float).T[None] * ie[:, :, None])  # (m, d, n)
+    bi, bj = basis_terms(trend, Xe.shape[1])
     beta = np.asarray(beta, dtype=float).reshape(ie.shape[0], bi.size)
     f = np.ascontiguousarray
     return (f(lo, dtype=float), f(span, dtype=float), Xe, ie, f(alpha, dtype=float), f(beta),
@@ -74,11 +79,11 @@ def gp_pack(lo, span, Xs, inv_ell, alpha, beta, trend, kernel, y_mean, y_std) ->
 class CompiledGP:
     """A fitted GP's arrays for the compiled kernels, one leading axis per response (m).
 
-    Mean: lo, span : (d,) training box (inputs scaled ``(x - lo) / span``); Xe : (m, n, d)
-    scaled training points times the inverse length-scales; inv_ell : (m, d) inverse
-    length-scales (scaled units); alpha : (m, n) kriging weights (``sigma^2`` folded in);
-    beta : (m, p) trend coefficients; basis_i, basis_j : (p,) trend terms
-    (:func:`basis_terms`); kernel_id : :data:`KERNEL_IDS`; y_mean, y_std : (m,) response
+    Mean: lo, span : (d,) training box (inputs scaled ``(x - lo) / span``); Xe : (m, d, n)
+    scaled training points times the inverse length-scales, contiguous over the points;
+    inv_ell : (m, d) inverse length-scales (scaled units); alpha : (m, n) kriging weights
+    (``sigma^2`` folded in); beta : (m, p) trend coefficients; basis_i, basis_j : (p,)
+    trend terms (:func:`basis_terms`); kernel_id : :data:`KERNEL_IDS`; y_mean, y_std : (m,) response
     standardization.
 
     Variance (empty with ``has_variance`` False): with ``r`` (n,) the correlations to the
@@ -114,7 +119,7 @@ class CompiledGP:
 
     @property
     def has_variance(self) -> bool:
-        return self.chol_inv.shape[1] == self.Xe.shape[1]
+        return self.chol_inv.shape[1] == self.Xe.shape[2]
 
     @property
     def mean_pack(self) -> tuple:
@@ -133,7 +138,7 @@ def compile_gp(lo, span, Xs, inv_ell, alpha, beta, trend, kernel, y_mean, y_std,
     """A :class:`CompiledGP` from a fit's arrays (see :func:`gp_pack` for the mean's);
     ``variance`` is None or the tuple (chol_inv, minv_f, trend_chol_inv, v0, var_scale)."""
     mp = gp_pack(lo, span, Xs, inv_ell, alpha, beta, trend, kernel, y_mean, y_std)
-    m, n = mp[2].shape[:2]
+    m = mp[2].shape[0]
     p = mp[6].shape[0]
     if variance is None:
         variance = (np.zeros((m, 0, 0)), np.zeros((m, 0, p)), np.zeros((m, p, p)),
@@ -154,36 +159,33 @@ def _corr(h2: float, kernel: int) -> float:
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _scale_to_output(xs, ie, o, xe) -> None:
-    """xe (d,) = the scaled point xs times output o's inverse length-scales ie[o]."""
+def _sq_distances(xs, Xe, ie, o, h) -> None:
+    """h (n,) = |xs * ie[o] - Xe[o, :, i]|^2 for every training point i, built up one input
+    at a time (each sum in input order, as a loop over the inputs per point would)."""
+    n = h.shape[0]
+    for i in range(n):
+        h[i] = 0.0
     for a in range(xs.shape[0]):
-        xe[a] = xs[a] * ie[o, a]
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def _sq_distance(xe, Xe, o, i) -> float:
-    """|xe - Xe[o, i]|^2, summed over the inputs in order (no reassociation: the mean and
-    the mean with variance give the same bits)."""
-    h2 = 0.0
-    for a in range(xe.shape[0]):
-        u = xe[a] - Xe[o, i, a]
-        h2 += u * u
-    return h2
+        xa = xs[a] * ie[o, a]
+        row = Xe[o, a]
+        for i in range(n):
+            u = xa - row[i]
+            h[i] += u * u
 
 
 @nb.njit(cache=True, nogil=True)
-def gp_mean_into(theta, pack, xs, xe, out) -> None:
-    """GP mean at one point theta (d,) into out (m,); xs, xe : (d,) work arrays. On return
-    ``xs`` holds the point scaled to the training box (0..1 inside it)."""
+def gp_mean_into(theta, pack, xs, h, out) -> None:
+    """GP mean at one point theta (d,) into out (m,); work arrays xs (d,) and h (n,). On
+    return ``xs`` holds the point scaled to the training box (0..1 inside it)."""
     lo, span, Xe, ie, alpha, beta, bi, bj, kernel, y_mean, y_std = pack
-    m, n, d = Xe.shape
+    m, d, n = Xe.shape
     for a in range(d):
         xs[a] = (theta[a] - lo[a]) / span[a]
     for o in range(m):
-        _scale_to_output(xs, ie, o, xe)
+        _sq_distances(xs, Xe, ie, o, h)
         acc = 0.0
         for i in range(n):
-            acc += alpha[o, i] * _corr(_sq_distance(xe, Xe, o, i), kernel)
+            acc += alpha[o, i] * _corr(h[i], kernel)
         for q in range(bi.shape[0]):
             f = beta[o, q]
             if bi[q] >= 0:
@@ -196,11 +198,10 @@ def gp_mean_into(theta, pack, xs, xe, out) -> None:
 
 @nb.njit(cache=True, nogil=True)
 def _mean_rows(X, pack, out) -> None:
-    d = X.shape[1]
-    xs = np.empty(d)
-    xe = np.empty(d)
+    xs = np.empty(X.shape[1])
+    h = np.empty(pack[2].shape[2])
     for k in range(X.shape[0]):
-        gp_mean_into(X[k], pack, xs, xe, out[k])
+        gp_mean_into(X[k], pack, xs, h, out[k])
 
 
 def gp_mean_batch(X: np.ndarray, pack: tuple) -> np.ndarray:
@@ -232,14 +233,14 @@ def _tri_sumsq(Li, r, n) -> float:
 
 
 @nb.njit(cache=True, nogil=True)
-def gp_mean_var_into(theta, pack, vpack, xs, xe, r, g, u, out, var) -> None:
+def gp_mean_var_into(theta, pack, vpack, xs, r, g, u, out, var) -> None:
     """GP mean (m,) into ``out`` and Kriging variance (m,) into ``var`` at one point theta
-    (d,). Work arrays: xs, xe (d,), r (n,), g, u (p,). On return ``xs`` holds the scaled
+    (d,). Work arrays: xs (d,), r (n,), g, u (p,). On return ``xs`` holds the scaled
     point. The variance is ``v0 - |L^-1 r|^2 + |C^-1 (M^-1 F)^T r - g|^2`` (times the
     scale), clipped at 0 like :meth:`GaussianProcess.predict`."""
     lo, span, Xe, ie, alpha, beta, bi, bj, kernel, y_mean, y_std = pack
     Li, MF, Ci, v0, vscale = vpack
-    m, n, d = Xe.shape
+    m, d, n = Xe.shape
     p = bi.shape[0]
     for a in range(d):
         xs[a] = (theta[a] - lo[a]) / span[a]
@@ -251,10 +252,10 @@ def gp_mean_var_into(theta, pack, vpack, xs, xe, r, g, u, out, var) -> None:
             f *= xs[bj[q]] - 0.5
         g[q] = f
     for o in range(m):
-        _scale_to_output(xs, ie, o, xe)
+        _sq_distances(xs, Xe, ie, o, r)
         acc = 0.0
         for i in range(n):
-            r[i] = _corr(_sq_distance(xe, Xe, o, i), kernel)
+            r[i] = _corr(r[i], kernel)
             acc += alpha[o, i] * r[i]
         for q in range(p):
             acc += beta[o, q] * g[q]
@@ -277,16 +278,13 @@ def gp_mean_var_into(theta, pack, vpack, xs, xe, r, g, u, out, var) -> None:
 
 @nb.njit(cache=True, nogil=True)
 def _mean_var_rows(X, pack, vpack, out, var) -> None:
-    d = X.shape[1]
-    n = pack[2].shape[1]
+    xs = np.empty(X.shape[1])
+    r = np.empty(pack[2].shape[2])
     p = pack[6].shape[0]
-    xs = np.empty(d)
-    xe = np.empty(d)
-    r = np.empty(n)
     g = np.empty(p)
     u = np.empty(p)
     for k in range(X.shape[0]):
-        gp_mean_var_into(X[k], pack, vpack, xs, xe, r, g, u, out[k], var[k])
+        gp_mean_var_into(X[k], pack, vpack, xs, r, g, u, out[k], var[k])
 
 
 def gp_mean_var_batch(X: np.ndarray, gp: CompiledGP) -> tuple[np.ndarray, np.ndarray]:

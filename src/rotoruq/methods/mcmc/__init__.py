@@ -1,5 +1,6 @@
 """Markov chain Monte Carlo Bayesian calibration: Gaussian likelihood, MH / DR / AM / DRAM
-samplers advancing several chains in one batched step, diagnostics (ESS, split R-hat, KL)."""
+samplers advancing several chains in one batched step, diagnostics (ESS, split R-hat, KL, the
+MSER-5 warm-up)."""
 
 from .adequacy import EmulatorAdequacy, RefineConfig
 from .bayes import BayesResult, calibrate_bayes, continue_chain
@@ -7,6 +8,7 @@ from .diagnostics import effective_sample_size, split_rhat
 from .likelihood import GaussianLikelihood
 from .options import ChainOptions, EmulatorOptions, NoiseModel
 from .samplers import SAMPLERS, SamplerConfig, SamplerState, run_chains
+from .warmup import WarmUp, mser_warm_up
 
 __all__ = [
     "BayesResult",
@@ -19,6 +21,8 @@ __all__ = [
     "RefineConfig",
     "effective_sample_size",
     "split_rhat",
+    "mser_warm_up",
+    "WarmUp",
     "GaussianLikelihood",
     "SAMPLERS",
     "SamplerConfig",

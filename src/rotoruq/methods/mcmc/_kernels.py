@@ -380,10 +380,11 @@ def add_loglik_rows(Q, lik, lp, cnt) -> None:
 
 @_jit
 def _emulator_work(Z, post):
-    """Scratch for :func:`emulator_logpost`: rows theta, xs, xe, q, variance (d or m wide),
-    correlations r (n), trend basis g and its residual u (p)."""
-    Xe = post[3][2]
-    w = max(Z.shape[1], Xe.shape[0], Xe.shape[1], post[3][6].shape[0], 1)
+    """Scratch for :func:`emulator_logpost`: rows theta, xs, q, variance (d or m wide),
+    correlations or squared distances r (n), trend basis g and its residual u (p); row 2
+    unused."""
+    Xe = post[3][2]  # (m, d, n)
+    w = max(Z.shape[1], Xe.shape[0], Xe.shape[2], post[3][6].shape[0], 1)
     return np.empty((8, w))
 
 
@@ -397,7 +398,7 @@ def emulator_logpost(z, post, work, cnt) -> float:
     box-widths, largest extrapolation)."""
     center, scale, prior, gp, lik, gpv, use_var = post
     d = z.shape[0]
-    m, n = gp[2].shape[0], gp[2].shape[1]
+    m, n = gp[2].shape[0], gp[2].shape[2]
     p = gp[6].shape[0]
     theta = work[0, :d]
     for a in range(d):
@@ -410,10 +411,9 @@ def emulator_logpost(z, post, work, cnt) -> float:
     q = work[3, :m]
     if use_var:
         v = work[4, :m]
-        gp_mean_var_into(theta, gp, gpv, xs, work[2, :d], work[5, :n], work[6, :p],
-                         work[7, :p], q, v)
+        gp_mean_var_into(theta, gp, gpv, xs, work[5, :n], work[6, :p], work[7, :p], q, v)
     else:
-        gp_mean_into(theta, gp, xs, work[2, :d], q)
+        gp_mean_into(theta, gp, xs, work[5, :n], q)
     e2 = 0.0
     for a in range(d):
         e = max(0.0, -xs[a]) + max(0.0, xs[a] - 1.0)

@@ -55,6 +55,7 @@ from .options import (
     NoiseModel,
     legacy_keywords,
 )
+from .warmup import BATCH, MIN_BATCHES, mser_warm_up
 
 __all__ = ["SBCResult", "simulation_based_calibration", "setup_key"]
 
@@ -99,10 +100,18 @@ class SBCResult:
         Each replication's posterior mean and standard deviation, parameter units.
     ess : ndarray of shape (n_replications,)
         Smallest effective sample size over the parameters of each replication's posterior
-        draws.
+        draws (after its warm-up).
     n_autocorrelated : int
         Replications whose ESS stayed below ``n_draws`` (their ranks come from
         autocorrelated draws).
+    warm_up : ndarray of shape (n_replications,)
+        Draws each replication's chains dropped at their start by the MSER-5 rule
+        (:func:`~rotoruq.methods.mcmc.warmup.mser_warm_up`: largest over chains and
+        parameters, at most half of the kept draws), after the default calibration's fixed
+        burn-in; 0 for draws a ``calibrate`` callable returned (used as returned).
+    n_unsettled : int
+        Replications whose MSER-5 truncation point reached that cap: their chains had not
+        settled within the first half of their draws.
     alpha : float
         Significance level of the uniformity test.
     coverage_tolerance : float
@@ -135,6 +144,8 @@ class SBCResult:
     posterior_std: np.ndarray
     ess: np.ndarray
     n_autocorrelated: int
+    warm_up: np.ndarray
+    n_unsettled: int
     alpha: float
     coverage_tolerance: float
     passed: bool
@@ -164,7 +175,7 @@ class SBCResult:
         """
         kinds: dict[str, Callable[[np.ndarray], Any]] = {
             "names_in": lambda a: tuple(str(v) for v in a), "reason": str, "passed": bool,
-            "n_draws": int, "n_autocorrelated": int, "n_evaluations": int}
+            "n_draws": int, "n_autocorrelated": int, "n_evaluations": int, "n_unsettled": int}
         out: dict[str, Any] = {}
         for f in dataclasses.fields(cls):
             a = np.asarray(arrays[f.name])
@@ -273,16 +284,23 @@ def simulation_based_calibration(
         scalar or (m,) per observed response; every value > 0.
     n_replications : replications (200 or more for a test of any power).
     n_experiments : observations per replication (rows of the simulated data).
-    calibrate : None (default): :func:`calibrate_bayes` with ``n_samples`` DRAM steps (5 %
-        burn-in, MAP start), ``noise_std``, ``names_out``, the emulator and ``options``; a chain
-        whose ESS stays below ``n_draws`` is continued (up to 3 times) with
-        :func:`continue_chain`; after the first continuation, only while its ESS grown in
-        proportion to the length the continuations would reach could be half of ``n_draws``
-        (else the shortfall is certain; the reason says how many replications' chains did
-        not mix). Otherwise a callable ``calibrate(data, seed=SeedSequence)`` with
-        ``data`` (n_experiments, m) returning a :class:`BayesResult` or posterior draws
-        (n, d) or (n_chains, n, d) in ``prior.names`` order; a callable without a ``seed``
-        parameter is called as ``calibrate(data)`` (then its randomness is its own).
+    calibrate : None (default): :func:`calibrate_bayes` with ``n_samples`` kept DRAM steps
+        (a fixed burn-in of ``n_samples // 2`` steps, no MAP start), ``noise_std``,
+        ``names_out``, the emulator and ``options``. Each replication's chains drop their
+        warm-up, the MSER-5 truncation point of their kept draws
+        (:func:`~rotoruq.methods.mcmc.warmup.mser_warm_up`: largest over chains and
+        parameters, at most half the draws): a chain that drifts longer than the fixed
+        burn-in would otherwise pile its ranks at one end. Chains whose ESS after their
+        warm-up stays below ``n_draws`` are continued (up to 3 times) with
+        :func:`continue_chain` (the warm-up taken again over the longer chains); after the
+        first continuation, only while that ESS grown in proportion to the length the
+        continuations would reach could be half of ``n_draws`` (else the shortfall is
+        certain; the reason says how many replications' chains did not mix). Otherwise a
+        callable ``calibrate(data, seed=SeedSequence)`` with ``data`` (n_experiments, m)
+        returning a :class:`BayesResult` or posterior draws (n, d) or (n_chains, n, d) in
+        ``prior.names`` order; a callable without a ``seed`` parameter is called as
+        ``calibrate(data)`` (then its randomness is its own); its draws are used as
+        returned (its burn-in is its own).
     n_draws : L, the thinned draws each rank is taken among (ranks 0..L; 99 gives 100 values).
     n_samples : kept chain steps of the default calibration.
     emulator : with the default calibration, a GaussianProcess built ONCE from the prior (on
@@ -410,7 +428,8 @@ def simulation_based_calibration(
     std = np.empty((n_replications, d))
     covered = np.zeros((len(COVERAGE_LEVELS), n_replications, d), dtype=bool)
     ess = np.empty(n_replications)
-    n_short = 0
+    warm = np.zeros(n_replications, dtype=np.int64)
+    n_short = n_unsettled = 0
     # on a fitted emulator the replications run the chains alone (no posterior summary nor
     # diagnostics, which the self-check never reads): the same chains, bitwise
     lean = None
@@ -431,7 +450,10 @@ def simulation_based_calibration(
             n_evaluations += n_ev
             assert phase is not None  # lean is None here
             phase.advance()
-        if ess_i is None:  # the chains changed since their ESS was computed
+        if calibrate is None:  # the ESS the chains return is that of their draws after it
+            draws, warm[i], settled = _after_warm_up(draws)
+            n_unsettled += not settled
+        if ess_i is None:
             ess_i = dg.effective_sample_size(draws)
         ess[i] = float(ess_i.min())
         n_short += bool(ess[i] < n_draws)
@@ -450,6 +472,8 @@ def simulation_based_calibration(
     coverage = covered.mean(1)
     passed, reason = _verdict(prior.names, p_value, coverage, n_replications, alpha,
                               coverage_tolerance)
+    if calibrate is None:
+        reason += _warm_up_text(warm, n_unsettled, int(bayes_options.get("burn_in", 0)))
     if n_short:
         reason += (f"; {n_short} of {n_replications} replications' chains have an ESS below "
                    f"the {n_draws} draws the ranks need (median ESS {np.median(ess):.3g}): "
@@ -461,9 +485,21 @@ def simulation_based_calibration(
         rank_histogram=hist, bin_probability=prob, p_value=p_value, z_scores=z,
         z_score_std=z.std(0, ddof=1), coverage_50=coverage[0], coverage_90=coverage[1],
         coverage_50_se=se[0], coverage_90_se=se[1], posterior_mean=mean, posterior_std=std,
-        ess=ess, n_autocorrelated=n_short, alpha=float(alpha),
+        ess=ess, n_autocorrelated=n_short, warm_up=warm, n_unsettled=n_unsettled,
+        alpha=float(alpha),
         coverage_tolerance=float(coverage_tolerance), passed=passed, reason=reason,
         n_evaluations=n_evaluations, seconds=time.perf_counter() - t_start)
+
+
+def _warm_up_text(warm: np.ndarray, n_unsettled: int, burn_in: int) -> str:
+    """The reason's clause on the replications' warm-up (from the run)."""
+    text = (f"; warm-up by MSER-5 after the fixed burn-in of {burn_in} steps: median "
+            f"{np.median(warm):.0f}, largest {int(warm.max())} draws dropped")
+    if n_unsettled:
+        text += (f", {n_unsettled} of {warm.size} replications' chains had not settled within "
+                 f"half their draws (at the cap: their warm-up is a lower bound, the ranks of "
+                 f"those replications carry drift)")
+    return text
 
 
 def setup_key(model_key: str, prior: ParameterSpace, emulator: Any, seed: SeedLike,
@@ -508,7 +544,7 @@ def setup_key(model_key: str, prior: ParameterSpace, emulator: Any, seed: SeedLi
             h.update(repr(obj).encode())
         h.update(b"\0")
 
-    add(["sbc-setup-1", model_key, seed_doc])
+    add(["sbc-setup-2", model_key, seed_doc])  # 2: MSER-5 warm-up of the replications
     add([(n, type(d).__qualname__, d.describe()) for n, d in
          zip(prior.names, prior.distributions, strict=True)])
     add(None if prior.correlation is None else np.asarray(prior.correlation, dtype=float))
@@ -545,13 +581,24 @@ def _worth_extending(ess: np.ndarray, n_kept: int, k: int, n_samples: int,
     return low * final / max(n_kept, 1) >= PROJECTED_ESS_SHARE * n_draws
 
 
+def _after_warm_up(chains: np.ndarray) -> tuple[np.ndarray, int, bool]:
+    """Chains (c, n, d) without their MSER-5 warm-up (:func:`mser_warm_up`), the warm-up
+    (draws) and whether it settled before the cap; chains too short for the rule as they
+    are."""
+    if chains.shape[1] < MIN_BATCHES * BATCH:
+        return chains, 0, True
+    w = mser_warm_up(chains)
+    return chains[:, w.steps:], w.steps, w.settled
+
+
 def _replication(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarray,
                  noise: np.ndarray, obs: tuple[str, ...], s_rep: np.random.SeedSequence,
                  n_experiments: int, n_draws: int, calibrate: Callable[..., Any] | None,
                  takes_seed: bool, options: dict, records: dict, rest: dict, d: int
                  ) -> tuple[np.ndarray, np.ndarray | None, int]:
     """One replication through ``calibrate`` or :func:`calibrate_bayes`: posterior draws
-    (c, n, d), their ESS when it was computed (else None) and true-model evaluations."""
+    (c, n, d), the ESS of those after their warm-up (:func:`calibrate_bayes`; None for
+    ``calibrate``) and true-model evaluations."""
     s_noise, s_cal, s_more = s_rep.spawn(3)
     eps = np.random.default_rng(s_noise).standard_normal((n_experiments, len(obs)))
     data = clean + noise * eps
@@ -565,21 +612,24 @@ def _replication(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarray
                               gp, **records.get("emulator", {})),
                           seed=s_cal, **rest)
     for k, s_k in enumerate(s_more.spawn(N_EXTENSIONS)):
-        ess = dg.effective_sample_size(res.chains)
-        if not _worth_extending(ess, res.chains.shape[1], k, int(options["n_samples"]),
-                                n_draws):
+        kept = _after_warm_up(res.chains)[0]
+        ess = dg.effective_sample_size(kept)
+        if not _worth_extending(ess, kept.shape[1], k, int(options["n_samples"]), n_draws):
             return res.chains, ess, res.n_evaluations
         res = continue_chain(res, int(options["n_samples"]) * 2**k, seed=s_k)
-    return res.chains, None, res.n_evaluations
+    return res.chains, dg.effective_sample_size(_after_warm_up(res.chains)[0]), \
+        res.n_evaluations
 
 
 def _replications(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarray,
                   noise: np.ndarray, obs: tuple[str, ...], s_reps: list, n_experiments: int,
                   n_draws: int, options: dict) -> list[tuple[np.ndarray, np.ndarray, int]]:
     """The default calibration of every replication on the fitted emulator ``gp``: posterior
-    draws (c, n, d), their ESS (d,) and true-model evaluations, per replication.
+    draws (c, n, d), the ESS (d,) of those after their warm-up and true-model evaluations,
+    per replication.
 
-    Each replication's chains are continued (up to 3 times) while their ESS stays below
+    Each replication's chains are continued (up to 3 times) while the ESS of their draws
+    after the MSER-5 warm-up (:func:`_after_warm_up`) stays below
     ``n_draws`` and could reach it (:func:`_worth_extending`), as with
     :func:`continue_chain`. Replications are independent: when every
     one runs in compiled code alone they run on ``numba.get_num_threads()`` threads, each
@@ -606,11 +656,12 @@ def _replications(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarra
         if emit:
             rep.warn()
         for k, s_k in enumerate(more[i]):
-            ess = dg.effective_sample_size(rep.chains)
-            if not _worth_extending(ess, rep.chains.shape[1], k, n_samples, n_draws):
+            kept = _after_warm_up(rep.chains)[0]
+            ess = dg.effective_sample_size(kept)
+            if not _worth_extending(ess, kept.shape[1], k, n_samples, n_draws):
                 return ess
             rep.extend(n_samples * 2**k, s_k)
-        return dg.effective_sample_size(rep.chains)
+        return dg.effective_sample_size(_after_warm_up(rep.chains)[0])
 
     n_threads = min(numba.get_num_threads(), len(reps))
     phase = Phase("self-check replications", len(reps))

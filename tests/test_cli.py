@@ -58,6 +58,42 @@ def warm():
     assert kernels_cached()
 
 
+@pytest.fixture
+def rotoruq_main(capsys):
+    """``rotoruq ARGS`` in this process (``rotoruq.study.cli.main``): (exit code, stdout,
+    stderr). For checks of what the command says about bad input, where a fresh process
+    would add ~2 CPU-s of start-up and nothing of the path (the subprocess tests here run
+    the same entry point). The loggers and the warnings hook the command configures are put
+    back afterwards, so later tests in this worker see pytest's."""
+    import logging
+    import warnings
+
+    from rotoruq.study import console
+    from rotoruq.study.cli import main
+
+    names = ("rotoruq", console.PROGRESS_LOGGER, console.WARNINGS_LOGGER)
+    saved = [(lg, list(lg.handlers), lg.level, lg.propagate)
+             for lg in map(logging.getLogger, names)]
+    shown = warnings.showwarning
+
+    def run(*args) -> tuple[int, str, str]:
+        try:
+            code = main([str(a) for a in args])
+        except SystemExit as exc:  # argparse's errors (exit 2), as a process would end
+            code = exc.code
+        out, err = capsys.readouterr()
+        return code, out, err
+
+    try:
+        yield run
+    finally:
+        warnings.showwarning = shown
+        for lg, handlers, level, propagate in saved:
+            lg.handlers[:] = handlers
+            lg.setLevel(level)
+            lg.propagate = propagate
+
+
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory, warm):
     d = tmp_path_factory.mktemp("tiny")
@@ -396,12 +432,15 @@ CSV = "# measured\ncollective_deg,thrust,roll\n5.0,25.7,-0.04\n5.0,{v},-0.03\n6.
     ("1" * 20000, "m.csv, line 4: expected a number in column 'thrust' of at most 100 "
                   "characters, found '11111111111111111111... (20000 characters)'"),
 ])
-def test_measured_numbers_are_checked_when_the_study_is_read(tmp_path, value, expected):
+def test_measured_numbers_are_checked_when_the_study_is_read(tmp_path, value, expected,
+                                                            rotoruq_main):
+    # in this process: the same check through a fresh process is the next tests' (a missing
+    # column, an empty select)
     (tmp_path / "m.csv").write_text(CSV.format(v=value))
     study = _study(tmp_path, DATA_STUDY.replace("{extra}", ""))
-    proc = cli("run", study, "--out", tmp_path / "out")
-    assert proc.returncode == 1
-    assert expected in proc.stderr, proc.stderr
+    code, _, err = rotoruq_main("run", study, "--out", tmp_path / "out")
+    assert code == 1
+    assert expected in err, err
     assert not (tmp_path / "out" / "steps").exists()  # before any step ran
 
 
@@ -453,15 +492,19 @@ def test_bundled_names_help_and_did_you_mean(tmp_path):
     assert "(did you mean 'quick'?)" in proc.stderr and "mbdyn_rigid" in proc.stderr
 
 
-def test_global_flags_before_or_after_the_subcommand_and_python_m(tmp_path):
+def test_global_flags_before_or_after_the_subcommand_and_python_m(tmp_path, rotoruq_main):
     d = tmp_path / "nothing"
     d.mkdir()
+    # the parser's part in this process (the command line the process gets is the same list)
     for args in (["--quiet", "report", d], ["report", d, "--quiet"], ["report", d, "-q"],
                  ["report", d, "--verbose"], ["-v", "report", d]):
-        proc = cli(*args)
-        assert proc.returncode == 1 and "rotoruq report: error:" in proc.stderr, args
-    both = cli("report", d, "-q", "-v")
-    assert both.returncode == 2 and "--quiet and --verbose" in both.stderr
+        code, _, err = rotoruq_main(*args)
+        assert code == 1 and "rotoruq report: error:" in err, args
+    code, _, err = rotoruq_main("report", d, "-q", "-v")
+    assert code == 2 and "--quiet and --verbose" in err
+    # in a process of its own: a global flag before the subcommand
+    proc = cli("--quiet", "report", d)
+    assert proc.returncode == 1 and "rotoruq report: error:" in proc.stderr
     # python -m rotoruq is the same command
     mod = subprocess.run([sys.executable, "-m", "rotoruq", "--version"], capture_output=True,
                          text=True, timeout=120)

@@ -58,42 +58,6 @@ def warm():
     assert kernels_cached()
 
 
-@pytest.fixture
-def rotoruq_main(capsys):
-    """``rotoruq ARGS`` in this process (``rotoruq.study.cli.main``): (exit code, stdout,
-    stderr). For checks of what the command says about bad input, where a fresh process
-    would add ~2 CPU-s of start-up and nothing of the path (the subprocess tests here run
-    the same entry point). The loggers and the warnings hook the command configures are put
-    back afterwards, so later tests in this worker see pytest's."""
-    import logging
-    import warnings
-
-    from rotoruq.study import console
-    from rotoruq.study.cli import main
-
-    names = ("rotoruq", console.PROGRESS_LOGGER, console.WARNINGS_LOGGER)
-    saved = [(lg, list(lg.handlers), lg.level, lg.propagate)
-             for lg in map(logging.getLogger, names)]
-    shown = warnings.showwarning
-
-    def run(*args) -> tuple[int, str, str]:
-        try:
-            code = main([str(a) for a in args])
-        except SystemExit as exc:  # argparse's errors (exit 2), as a process would end
-            code = exc.code
-        out, err = capsys.readouterr()
-        return code, out, err
-
-    try:
-        yield run
-    finally:
-        warnings.showwarning = shown
-        for lg, handlers, level, propagate in saved:
-            lg.handlers[:] = handlers
-            lg.setLevel(level)
-            lg.propagate = propagate
-
-
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory, warm):
     d = tmp_path_factory.mktemp("tiny")

@@ -81,6 +81,7 @@ def test_vectorized_model_chunks_on_dask(cluster):
     np.testing.assert_array_equal(out.values, m(x))
 
 
+@pytest.mark.slow  # ~32 CPU-s (six study runs, the Dask workers); the two above stay fast
 def test_study_file_runs_on_dask_by_changing_only_the_executor(cluster, tmp_path):
     """A user's path: the same study file through `rotoruq run`, serial, with processes and on
     the Dask scheduler (the [executor] table is all that changes): bitwise equal results, for

@@ -408,7 +408,7 @@ def test_measured_numbers_are_checked_when_the_study_is_read(tmp_path, value, ex
     assert not (tmp_path / "out" / "steps").exists()  # before any step ran
 
 
-def test_nonfinite_data_allowed_explicitly(tmp_path, warm):
+def test_nonfinite_data_allowed_explicitly(tmp_path, warm, rotoruq_main):
     (tmp_path / "m.csv").write_text(CSV.format(v="nan"))
     study = _study(tmp_path, DATA_STUDY.replace("{extra}", "allow_nonfinite = true\n"))
     proc = cli("run", study, "--out", tmp_path / "out", "--no-report", "--only", "fwd")
@@ -421,9 +421,9 @@ def test_nonfinite_data_allowed_explicitly(tmp_path, warm):
     inline = _study(tmp_path, DATA_STUDY.replace('file = "m.csv"', "thrust = [25.7, nan]\n"
                                                  "collective_deg = [5.0, 5.0]")
                     .replace("{extra}", ""), "i.toml")
-    proc = cli("run", inline, "--out", tmp_path / "o2")
-    assert proc.returncode == 1
-    assert "i.toml, line 22: expected finite numbers in column 'thrust'" in proc.stderr
+    code, _, err = rotoruq_main("run", inline, "--out", tmp_path / "o2")
+    assert code == 1
+    assert "i.toml, line 22: expected finite numbers in column 'thrust'" in err
 
 
 def test_a_missing_column_or_an_empty_select_is_said_before_any_step_runs(tmp_path):
@@ -479,7 +479,8 @@ def test_global_flags_before_or_after_the_subcommand_and_python_m(tmp_path, roto
     assert _driver_argv(["-q", "--debug", "driver", "p", "r"]) == ["p", "r"]
 
 
-def test_exported_decks_are_named_step_in_with_a_portable_driver(tmp_path):
+def test_exported_decks_are_named_step_in_with_a_portable_driver(tmp_path, rotoruq_main,
+                                                                  monkeypatch):
     study = _study(tmp_path, TINY + """
 [[steps]]
 name = "sobol"
@@ -492,17 +493,17 @@ n_samples = 8
     assert sorted(p.name for p in (tmp_path / "decks").iterdir()) == ["lhs.in", "sobol.in"]
     deck = (tmp_path / "decks" / "lhs.in").read_text()
     venv_bin = os.path.dirname(sys.executable)
-    here = {**os.environ, "PATH": venv_bin + os.pathsep + os.environ.get("PATH", "")}
-    elsewhere = {**os.environ, "PATH": "/usr/bin:/bin"}
-    for env, line, note in ((here, "analysis_drivers = 'rotoruq driver --preset gvpm",
-                             "# driver: 'rotoruq' as found on PATH"),
-                            (elsewhere, f"analysis_drivers = '{venv_bin}/rotoruq driver",
-                             "# driver: this installation's rotoruq by absolute path")):
+    here = venv_bin + os.pathsep + os.environ.get("PATH", "")
+    # the driver line as the PATH decides, in this process (the export above ran in its own)
+    monkeypatch.chdir(tmp_path)
+    for path, line, note in ((here, "analysis_drivers = 'rotoruq driver --preset gvpm",
+                              "# driver: 'rotoruq' as found on PATH"),
+                             ("/usr/bin:/bin", f"analysis_drivers = '{venv_bin}/rotoruq driver",
+                              "# driver: this installation's rotoruq by absolute path")):
         if not os.path.isfile(os.path.join(venv_bin, "rotoruq")):
             pytest.skip("no rotoruq console script beside this Python")
-        proc = subprocess.run([*CLI, "dakota", "export", study, "-o", "d.in", "--step", "lhs"],
-                              cwd=tmp_path, capture_output=True, text=True, timeout=120,
-                              env=env)
-        assert proc.returncode == 0, proc.stderr
+        monkeypatch.setenv("PATH", path)
+        code, _, err = rotoruq_main("dakota", "export", study, "-o", "d.in", "--step", "lhs")
+        assert code == 0, err
         deck = (tmp_path / "d.in").read_text()
         assert line in deck and deck.startswith(note), deck[:400]

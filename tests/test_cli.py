@@ -357,7 +357,7 @@ n_samples = 8
     assert "lhs: reused" in both.stderr and "sobol: running" in both.stderr
 
 
-def test_only_a_step_whose_source_is_missing_says_what_to_add(tmp_path, warm):
+def test_only_a_step_whose_source_is_missing_says_what_to_add(tmp_path, rotoruq_main):
     # `cal` calibrates on `lhs`'s samples: --only cal in a fresh folder cannot run it
     study = _study(tmp_path, TINY.replace("n_samples = 40", "n_samples = 6") + """
 [[steps]]
@@ -366,10 +366,10 @@ type = "least_squares"
 data = "lhs.samples"
 responses = ["thrust"]
 """)
-    proc = cli("run", study, "--only", "cal", "--out", tmp_path / "o")
-    assert proc.returncode == 1, proc.stderr
+    code, _, err = rotoruq_main("run", study, "--only", "cal", "--out", tmp_path / "o")
+    assert code == 1, err
     assert "step 'lhs' has no saved result, and 'cal' (in --only) takes from it: add it, " \
-           "--only lhs cal" in proc.stderr
+           "--only lhs cal" in err
     assert not (tmp_path / "o" / "steps" / "lhs").exists()
 
 
@@ -444,16 +444,17 @@ def test_a_missing_column_or_an_empty_select_is_said_before_any_step_runs(tmp_pa
             "6), found 'collective_deg = 7'") in proc.stderr, proc.stderr
 
 
-def test_bundled_names_help_and_did_you_mean(tmp_path):
+def test_bundled_names_help_and_did_you_mean(tmp_path, rotoruq_main):
     from rotoruq.study.cmd_run import bundled_studies
 
     names = bundled_studies()
     assert {"quick", "validation", "experiment", "heldout"} <= set(names) and len(names) >= 8
-    help_text = " ".join(cli("run", "--help").stdout.split())
-    assert all(n in help_text for n in names), help_text
-    proc = cli("run", "quik")
-    assert proc.returncode == 1
-    assert "(did you mean 'quick'?)" in proc.stderr and "mbdyn_rigid" in proc.stderr
+    code, out, _ = rotoruq_main("run", "--help")
+    help_text = " ".join(out.split())
+    assert code == 0 and all(n in help_text for n in names), help_text
+    code, _, err = rotoruq_main("run", "quik")
+    assert code == 1
+    assert "(did you mean 'quick'?)" in err and "mbdyn_rigid" in err
 
 
 def test_global_flags_before_or_after_the_subcommand_and_python_m(tmp_path, rotoruq_main):

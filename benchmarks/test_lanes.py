@@ -10,9 +10,13 @@ first (it writes the bytecode caches of the test files, as a developer's earlier
 have, and measures the collection alone), then the lane; wall seconds, CPU seconds of pytest
 and its workers (user + system, every process it waited for), the test counts from pytest's
 summary and the load average before and after (timings on a shared machine are inflated by
-the load; the CPU seconds much less). Python's bytecode cache is on in the children even when
-``PYTHONDONTWRITEBYTECODE`` is set here (without it every run rewrites the assertions of
-every test file again: ~15 CPU-s per worker).
+the load; the CPU seconds much less). The CPU seconds of every test (``_test_cpu.py``, a
+pytest plugin: its process's and the subprocesses' it waited for, setup and teardown
+included) give the ``slowest`` tests and ``over_10_cpu_s``, the fast tests above the 10 s a
+test of this lane may take (README: such a test gets ``@pytest.mark.slow``). Python's
+bytecode cache is on in the children even when ``PYTHONDONTWRITEBYTECODE`` is set here
+(without it every run rewrites the assertions of every test file again: ~15 CPU-s per
+worker).
 
 ``--modules`` runs the lane instead under ``coverage`` (``pip install coverage``), started in
 each worker after collection: a module counts when a fast test ran a line of it (its
@@ -42,10 +46,13 @@ from pathlib import Path
 
 from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 from _summary import print_and_save, print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
+from _test_cpu import read as read_test_cpu  # noqa: E402  (benchmarks/ is on sys.path)
 
 ROOT = Path(__file__).resolve().parents[1]
 SRC = ROOT / "src" / "rotoruq"
 LANE = ["-q", "-n", "2", "-m", "fast"]
+SLOWEST = 30  # the tests listed by their CPU seconds
+SLOW_CPU_S = 10.0  # README: a test above this gets @pytest.mark.slow
 COUNTS = re.compile(r"(\d+) (passed|failed|skipped|deselected|errors?|xfailed|xpassed)")
 
 
@@ -86,7 +93,14 @@ def measure(extra: list[str]) -> dict:
     cwall, ccpu, cout, crc = _pytest(["--collect-only", *LANE, *extra])
     if crc != 0:
         raise RuntimeError(f"pytest --collect-only exited with {crc}:\n{cout[-3000:]}")
-    wall, cpu, out, rc = _pytest([*LANE, *extra])
+    per_test = tempfile.mkdtemp(prefix="lane-cpu-")
+    try:
+        os.environ["ROTORUQ_TEST_CPU"] = per_test
+        wall, cpu, out, rc = _pytest([*LANE, "-p", "_test_cpu", *extra])
+        tests = read_test_cpu(per_test)
+    finally:
+        os.environ.pop("ROTORUQ_TEST_CPU", None)
+        shutil.rmtree(per_test, ignore_errors=True)
     counts = _counts(out)
     failed = counts.get("failed", 0) + counts.get("error", 0)
     return {"command": "pytest " + " ".join(LANE + extra), "exit_code": rc,
@@ -96,6 +110,9 @@ def measure(extra: list[str]) -> dict:
             "failed": failed, "deselected": counts.get("deselected", 0),
             "cores": os.cpu_count(), "load_before": load0,
             "load_after": [round(v, 2) for v in os.getloadavg()],
+            "tests_cpu_s": round(sum(t["cpu_s"] for t in tests), 1),
+            "slowest": tests[:SLOWEST],
+            "over_10_cpu_s": [t["nodeid"] for t in tests if t["cpu_s"] > SLOW_CPU_S],
             "provenance": provenance(modules=all_modules())}
 
 
@@ -146,7 +163,20 @@ def summary(res: dict) -> str:
             f"{res['cpu_s'] / 60:.1f} CPU-min, on {res['cores']} cores at load "
             f"{res['load_before'][0]:g} (1-min average at the start; collecting the tests "
             f"alone takes {res['collect_cpu_s']:.0f} CPU-s); measured "
-            f"{res['provenance']['date'][:10]} at {res['provenance']['commit'][:10]}.")
+            f"{res['provenance']['date'][:10]} at {res['provenance']['commit'][:10]}."
+            + _slowest_sentence(res))
+
+
+def _slowest_sentence(res: dict) -> str:
+    """The lane's most expensive test and how many take more than ``SLOW_CPU_S`` (results
+    saved before the per-test CPU seconds have none: an empty string)."""
+    if not res.get("slowest"):
+        return ""
+    top = res["slowest"][0]
+    over = len(res["over_10_cpu_s"])
+    return (f" The tests' own CPU seconds add up to {res['tests_cpu_s'] / 60:.1f} CPU-min; the "
+            f"most expensive is `{top['nodeid']}` ({top['cpu_s']:.0f} CPU-s), and {over} "
+            f"test{'' if over == 1 else 's'} take more than {SLOW_CPU_S:.0f} CPU-s.")
 
 
 def main() -> None:

@@ -23,6 +23,43 @@ def shared_dir() -> Path:
     return SHARED
 
 
+@pytest.fixture
+def rotoruq_main(capsys):
+    """``rotoruq ARGS`` in this process (``rotoruq.study.cli.main``): (exit code, stdout,
+    stderr), run from the current folder (``monkeypatch.chdir`` for a study's own). For checks
+    of what the command says about bad input, where a fresh process would add ~2 CPU-s of
+    start-up and nothing of the path (tests/test_cli.py runs the same entry point in fresh
+    processes). The loggers and the warnings hook the command configures are put
+    back afterwards, so later tests in this worker see pytest's."""
+    import logging
+    import warnings
+
+    from rotoruq.study import console
+    from rotoruq.study.cli import main
+
+    names = ("rotoruq", console.PROGRESS_LOGGER, console.WARNINGS_LOGGER)
+    saved = [(lg, list(lg.handlers), lg.level, lg.propagate)
+             for lg in map(logging.getLogger, names)]
+    shown = warnings.showwarning
+
+    def run(*args) -> tuple[int, str, str]:
+        try:
+            code = main([str(a) for a in args])
+        except SystemExit as exc:  # argparse's errors (exit 2), as a process would end
+            code = exc.code
+        out, err = capsys.readouterr()
+        return code, out, err
+
+    try:
+        yield run
+    finally:
+        warnings.showwarning = shown
+        for lg, handlers, level, propagate in saved:
+            lg.handlers[:] = handlers
+            lg.setLevel(level)
+            lg.propagate = propagate
+
+
 def ishigami(x: np.ndarray, a: float = 7.0, b: float = 0.1) -> np.ndarray:
     """Ishigami function on [-pi, pi]^3, shape (n,)."""
     return np.sin(x[:, 0]) + a * np.sin(x[:, 1]) ** 2 + b * x[:, 2] ** 4 * np.sin(x[:, 0])

@@ -86,15 +86,14 @@ def test_compile_notice_on_a_cold_cache_only(tmp_path, warm):
     finally:
         proc.kill()
         proc.wait()
-    # the worktree's cache is warm: not a word about compiling
-    warm_run = cli("evaluate", "--set", "collective_deg=5")
-    assert warm_run.returncode == 0, warm_run.stderr
-    assert "compiling" not in warm_run.stderr
+    # on the worktree's warm cache the same command says not a word about compiling:
+    # test_evaluate_prints_the_preset_inputs_it_used's run checks it
 
 
 def test_evaluate_prints_the_preset_inputs_it_used(warm):
     proc = cli("evaluate", "--set", "collective_deg=5", "k_pitch_link=15")
     assert proc.returncode == 0, proc.stderr
+    assert "compiling" not in proc.stderr  # the cache is warm (`warm`): no compile notice
     fixed = proc.stdout.splitlines()[0]
     assert fixed.startswith("fixed inputs (preset gvpm): ")
     values = dict(w.split("=") for w in fixed.split(": ", 1)[1].split())
@@ -369,7 +368,7 @@ n_samples = 8
     assert "lhs: reused" in both.stderr and "sobol: running" in both.stderr
 
 
-def test_only_a_step_whose_source_is_missing_says_what_to_add(tmp_path, warm):
+def test_only_a_step_whose_source_is_missing_says_what_to_add(tmp_path, rotoruq_main):
     # `cal` calibrates on `lhs`'s samples: --only cal in a fresh folder cannot run it
     study = _study(tmp_path, TINY.replace("n_samples = 40", "n_samples = 6") + """
 [[steps]]
@@ -378,10 +377,10 @@ type = "least_squares"
 data = "lhs.samples"
 responses = ["thrust"]
 """)
-    proc = cli("run", study, "--only", "cal", "--out", tmp_path / "o")
-    assert proc.returncode == 1, proc.stderr
+    code, _, err = rotoruq_main("run", study, "--only", "cal", "--out", tmp_path / "o")
+    assert code == 1, err
     assert "step 'lhs' has no saved result, and 'cal' (in --only) takes from it: add it, " \
-           "--only lhs cal" in proc.stderr
+           "--only lhs cal" in err
     assert not (tmp_path / "o" / "steps" / "lhs").exists()
 
 
@@ -408,16 +407,19 @@ CSV = "# measured\ncollective_deg,thrust,roll\n5.0,25.7,-0.04\n5.0,{v},-0.03\n6.
     ("1" * 20000, "m.csv, line 4: expected a number in column 'thrust' of at most 100 "
                   "characters, found '11111111111111111111... (20000 characters)'"),
 ])
-def test_measured_numbers_are_checked_when_the_study_is_read(tmp_path, value, expected):
+def test_measured_numbers_are_checked_when_the_study_is_read(tmp_path, value, expected,
+                                                            rotoruq_main):
+    # in this process: the same check through a fresh process is the next tests' (a missing
+    # column, an empty select)
     (tmp_path / "m.csv").write_text(CSV.format(v=value))
     study = _study(tmp_path, DATA_STUDY.replace("{extra}", ""))
-    proc = cli("run", study, "--out", tmp_path / "out")
-    assert proc.returncode == 1
-    assert expected in proc.stderr, proc.stderr
+    code, _, err = rotoruq_main("run", study, "--out", tmp_path / "out")
+    assert code == 1
+    assert expected in err, err
     assert not (tmp_path / "out" / "steps").exists()  # before any step ran
 
 
-def test_nonfinite_data_allowed_explicitly(tmp_path, warm):
+def test_nonfinite_data_allowed_explicitly(tmp_path, warm, rotoruq_main):
     (tmp_path / "m.csv").write_text(CSV.format(v="nan"))
     study = _study(tmp_path, DATA_STUDY.replace("{extra}", "allow_nonfinite = true\n"))
     proc = cli("run", study, "--out", tmp_path / "out", "--no-report", "--only", "fwd")
@@ -430,9 +432,9 @@ def test_nonfinite_data_allowed_explicitly(tmp_path, warm):
     inline = _study(tmp_path, DATA_STUDY.replace('file = "m.csv"', "thrust = [25.7, nan]\n"
                                                  "collective_deg = [5.0, 5.0]")
                     .replace("{extra}", ""), "i.toml")
-    proc = cli("run", inline, "--out", tmp_path / "o2")
-    assert proc.returncode == 1
-    assert "i.toml, line 22: expected finite numbers in column 'thrust'" in proc.stderr
+    code, _, err = rotoruq_main("run", inline, "--out", tmp_path / "o2")
+    assert code == 1
+    assert "i.toml, line 22: expected finite numbers in column 'thrust'" in err
 
 
 def test_a_missing_column_or_an_empty_select_is_said_before_any_step_runs(tmp_path):
@@ -453,27 +455,32 @@ def test_a_missing_column_or_an_empty_select_is_said_before_any_step_runs(tmp_pa
             "6), found 'collective_deg = 7'") in proc.stderr, proc.stderr
 
 
-def test_bundled_names_help_and_did_you_mean(tmp_path):
+def test_bundled_names_help_and_did_you_mean(tmp_path, rotoruq_main):
     from rotoruq.study.cmd_run import bundled_studies
 
     names = bundled_studies()
     assert {"quick", "validation", "experiment", "heldout"} <= set(names) and len(names) >= 8
-    help_text = " ".join(cli("run", "--help").stdout.split())
-    assert all(n in help_text for n in names), help_text
-    proc = cli("run", "quik")
-    assert proc.returncode == 1
-    assert "(did you mean 'quick'?)" in proc.stderr and "mbdyn_rigid" in proc.stderr
+    code, out, _ = rotoruq_main("run", "--help")
+    help_text = " ".join(out.split())
+    assert code == 0 and all(n in help_text for n in names), help_text
+    code, _, err = rotoruq_main("run", "quik")
+    assert code == 1
+    assert "(did you mean 'quick'?)" in err and "mbdyn_rigid" in err
 
 
-def test_global_flags_before_or_after_the_subcommand_and_python_m(tmp_path):
+def test_global_flags_before_or_after_the_subcommand_and_python_m(tmp_path, rotoruq_main):
     d = tmp_path / "nothing"
     d.mkdir()
+    # the parser's part in this process (the command line the process gets is the same list)
     for args in (["--quiet", "report", d], ["report", d, "--quiet"], ["report", d, "-q"],
                  ["report", d, "--verbose"], ["-v", "report", d]):
-        proc = cli(*args)
-        assert proc.returncode == 1 and "rotoruq report: error:" in proc.stderr, args
-    both = cli("report", d, "-q", "-v")
-    assert both.returncode == 2 and "--quiet and --verbose" in both.stderr
+        code, _, err = rotoruq_main(*args)
+        assert code == 1 and "rotoruq report: error:" in err, args
+    code, _, err = rotoruq_main("report", d, "-q", "-v")
+    assert code == 2 and "--quiet and --verbose" in err
+    # in a process of its own: a global flag before the subcommand
+    proc = cli("--quiet", "report", d)
+    assert proc.returncode == 1 and "rotoruq report: error:" in proc.stderr
     # python -m rotoruq is the same command
     mod = subprocess.run([sys.executable, "-m", "rotoruq", "--version"], capture_output=True,
                          text=True, timeout=120)
@@ -484,7 +491,8 @@ def test_global_flags_before_or_after_the_subcommand_and_python_m(tmp_path):
     assert _driver_argv(["-q", "--debug", "driver", "p", "r"]) == ["p", "r"]
 
 
-def test_exported_decks_are_named_step_in_with_a_portable_driver(tmp_path):
+def test_exported_decks_are_named_step_in_with_a_portable_driver(tmp_path, rotoruq_main,
+                                                                  monkeypatch):
     study = _study(tmp_path, TINY + """
 [[steps]]
 name = "sobol"
@@ -497,17 +505,17 @@ n_samples = 8
     assert sorted(p.name for p in (tmp_path / "decks").iterdir()) == ["lhs.in", "sobol.in"]
     deck = (tmp_path / "decks" / "lhs.in").read_text()
     venv_bin = os.path.dirname(sys.executable)
-    here = {**os.environ, "PATH": venv_bin + os.pathsep + os.environ.get("PATH", "")}
-    elsewhere = {**os.environ, "PATH": "/usr/bin:/bin"}
-    for env, line, note in ((here, "analysis_drivers = 'rotoruq driver --preset gvpm",
-                             "# driver: 'rotoruq' as found on PATH"),
-                            (elsewhere, f"analysis_drivers = '{venv_bin}/rotoruq driver",
-                             "# driver: this installation's rotoruq by absolute path")):
+    here = venv_bin + os.pathsep + os.environ.get("PATH", "")
+    # the driver line as the PATH decides, in this process (the export above ran in its own)
+    monkeypatch.chdir(tmp_path)
+    for path, line, note in ((here, "analysis_drivers = 'rotoruq driver --preset gvpm",
+                              "# driver: 'rotoruq' as found on PATH"),
+                             ("/usr/bin:/bin", f"analysis_drivers = '{venv_bin}/rotoruq driver",
+                              "# driver: this installation's rotoruq by absolute path")):
         if not os.path.isfile(os.path.join(venv_bin, "rotoruq")):
             pytest.skip("no rotoruq console script beside this Python")
-        proc = subprocess.run([*CLI, "dakota", "export", study, "-o", "d.in", "--step", "lhs"],
-                              cwd=tmp_path, capture_output=True, text=True, timeout=120,
-                              env=env)
-        assert proc.returncode == 0, proc.stderr
+        monkeypatch.setenv("PATH", path)
+        code, _, err = rotoruq_main("dakota", "export", study, "-o", "d.in", "--step", "lhs")
+        assert code == 0, err
         deck = (tmp_path / "d.in").read_text()
         assert line in deck and deck.startswith(note), deck[:400]

@@ -110,6 +110,7 @@ def asked(d: Path) -> list[int]:
     return [int(s) for s in path.read_text().split()] if path.exists() else []
 
 
+@pytest.mark.slow  # ~12 CPU-s: two CLI runs and shows; the CLI with gradients stays fast below
 def test_residual_driver_without_data_reaches_the_minimum_through_the_cli(tmp_path):
     runs = {}
     for gradients in ("analytic", "finite_difference"):
@@ -222,11 +223,13 @@ def test_wrong_number_of_values_stays_an_error_naming_the_file_and_line(tmp_path
     assert "expected 2 response values" in why
 
 
-def bad_run(tmp_path: Path, name: str, **kw) -> str:
+def bad_run(rotoruq_main, tmp_path: Path, name: str, **kw) -> str:
+    """``rotoruq run`` of a study file with bad input, in this process (refused when the
+    study is read, before any driver run; the driver's own errors run in a fresh process)."""
     d = folder(tmp_path, name, **kw)
-    proc = cli(d, "run", "study.toml", "--out", "out")
-    assert proc.returncode != 0
-    return proc.stderr
+    code, _, err = rotoruq_main("run", d / "study.toml", "--out", d / "out")
+    assert code != 0
+    return err
 
 
 def line_of(d: Path, text: str) -> int:
@@ -234,20 +237,20 @@ def line_of(d: Path, text: str) -> int:
     return next(i for i, s in enumerate(lines, 1) if text in s)
 
 
-def test_bad_inputs_name_the_file_and_line(tmp_path):
-    err = bad_run(tmp_path, "outside", step_extra='x0 = { x1 = -1.2, x2 = 3.0 }')
+def test_bad_inputs_name_the_file_and_line(tmp_path, rotoruq_main):
+    err = bad_run(rotoruq_main, tmp_path, "outside", step_extra='x0 = { x1 = -1.2, x2 = 3.0 }')
     d = tmp_path / "outside"
     assert f"study.toml, line {line_of(d, '[[steps]]')}" in err
     assert "x0: x2 = 3 lies outside its bounds [-2, 2]" in err
 
-    err = bad_run(tmp_path, "unknown", step_extra='x0 = { x1 = -1.2, x3 = 1.0 }')
+    err = bad_run(rotoruq_main, tmp_path, "unknown", step_extra='x0 = { x1 = -1.2, x3 = 1.0 }')
     assert f"line {line_of(tmp_path / 'unknown', '[[steps]]')}" in err
     assert "x0 names 'x3', which is not a calibrated parameter" in err
 
-    err = bad_run(tmp_path, "notatable", step_extra='x0 = 1.0')
+    err = bad_run(rotoruq_main, tmp_path, "notatable", step_extra='x0 = 1.0')
     assert f"line {line_of(tmp_path / 'notatable', 'x0 = 1.0')}" in err
 
-    err = bad_run(tmp_path, "bogus", model_extra='gradients = "bogus"')
+    err = bad_run(rotoruq_main, tmp_path, "bogus", model_extra='gradients = "bogus"')
     assert f"study.toml, line {line_of(tmp_path / 'bogus', 'gradients')}" in err
     assert "analytic" in err and "finite_difference" in err
 

@@ -13,8 +13,6 @@ from rotoruq.evaluation.external import ExternalModel
 from rotoruq.evaluation.store import Store
 from rotoruq.model import FunctionModel
 
-distributed = pytest.importorskip("distributed")
-
 # Writes f = 3 a and records the pid of the process that ran it (the Dask worker).
 DRIVER = r'''
 import os, sys, time
@@ -37,6 +35,8 @@ open(results, "w").write(f"{3 * a!r} f\n{pid} worker_pid\n")
 
 @pytest.fixture(scope="module")
 def cluster():
+    # imported here, not at the module's top: every pytest worker collects this file
+    distributed = pytest.importorskip("distributed")
     cl = distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                   host="127.0.0.1", dashboard_address=None)
     yield cl
@@ -81,6 +81,7 @@ def test_vectorized_model_chunks_on_dask(cluster):
     np.testing.assert_array_equal(out.values, m(x))
 
 
+@pytest.mark.slow  # ~32 CPU-s (six study runs, the Dask workers); the two above stay fast
 def test_study_file_runs_on_dask_by_changing_only_the_executor(cluster, tmp_path):
     """A user's path: the same study file through `rotoruq run`, serial, with processes and on
     the Dask scheduler (the [executor] table is all that changes): bitwise equal results, for

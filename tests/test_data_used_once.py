@@ -2,7 +2,8 @@
 data-set name (an alias of the same CSV) or in a copy of the CSV are refused when a step
 conditions on an earlier one that calibrated them, naming both data sets and the rows;
 ``reuse_data = true`` still allows it; other rows of the same file are new observations. Each
-case goes through ``rotoruq run`` in a subprocess on a study file in a fresh folder."""
+case goes through ``rotoruq run`` on a study file in a fresh folder: the runs in a subprocess,
+the refusals (the study is read, no step runs) in this process (``rotoruq_main``)."""
 
 from __future__ import annotations
 
@@ -51,11 +52,15 @@ def _step(name: str, data: str, extra: str = "") -> str:
         """) + extra
 
 
-def show(folder: Path, data: str, second: str, extra: str = "") -> subprocess.CompletedProcess:
+def _write(folder: Path, data: str, second: str, extra: str = "") -> None:
     (folder / "obs.csv").write_text(CSV)
     text = (HEAD + data + _step("first", "obs")
             + _step("second", second, 'from = "first.posterior"\n' + extra))
     (folder / "study.toml").write_text(text)
+
+
+def show(folder: Path, data: str, second: str, extra: str = "") -> subprocess.CompletedProcess:
+    _write(folder, data, second, extra)
     return subprocess.run([*CLI, "run", str(folder / "study.toml"), "--out",
                            str(folder / "out"), "--no-report", "-q"], capture_output=True,
                           text=True, timeout=300, cwd=folder)
@@ -64,29 +69,39 @@ def show(folder: Path, data: str, second: str, extra: str = "") -> subprocess.Co
 OBS = '[data.obs]\nfile = "obs.csv"\n\n'
 
 
-def refused(proc: subprocess.CompletedProcess) -> str:
-    """The refusal of a run, its stderr on one line."""
-    assert proc.returncode != 0
-    return " ".join(proc.stderr.split())
+@pytest.fixture
+def refused(rotoruq_main, tmp_path, monkeypatch):
+    """The refusal of ``rotoruq run`` (in this process, from the study's folder) of the study
+    ``_write`` makes of its arguments, its stderr on one line."""
+    monkeypatch.chdir(tmp_path)
+
+    def run(data: str, second: str, extra: str = "") -> str:
+        _write(tmp_path, data, second, extra)
+        code, _, err = rotoruq_main("run", tmp_path / "study.toml", "--out", tmp_path / "out",
+                                    "--no-report", "-q")
+        assert code != 0
+        return " ".join(err.split())
+
+    return run
 
 
-def test_an_alias_of_the_same_file_is_refused_naming_both_data_sets_and_rows(tmp_path):
-    err = refused(show(tmp_path, OBS + '[data.again]\nfile = "obs.csv"\n\n', "again"))
+def test_an_alias_of_the_same_file_is_refused_naming_both_data_sets_and_rows(refused):
+    err = refused(OBS + '[data.again]\nfile = "obs.csv"\n\n', "again")
     assert "study.toml" in err and "already calibrates y1, y2 of data set 'obs'" in err
     assert "data set 'again' (obs.csv) holds the same values (rows 1-4)" in err
     assert "reuse_data = true" in err
 
 
-def test_a_copy_of_the_csv_is_refused(tmp_path):
+def test_a_copy_of_the_csv_is_refused(tmp_path, refused):
     (tmp_path / "copy.csv").write_text(CSV)
-    err = refused(show(tmp_path, OBS + '[data.copy]\nfile = "copy.csv"\n\n', "copy"))
+    err = refused(OBS + '[data.copy]\nfile = "copy.csv"\n\n', "copy")
     assert "data set 'copy' (copy.csv) holds the same values (rows 1-4)" in err
     assert "as data set 'obs' (obs.csv)" in err
 
 
-def test_inline_columns_repeating_some_rows_name_those_rows(tmp_path):
+def test_inline_columns_repeating_some_rows_name_those_rows(refused):
     data = OBS + "[data.some]\nheight = [5.0, 2.0, 4.0]\ny1 = [2.0, 1.1, 1.3]\n\n"
-    err = refused(show(tmp_path, data, "some", 'responses = ["y1"]\n'))
+    err = refused(data, "some", 'responses = ["y1"]\n')
     assert "already calibrates y1 of data set 'obs'" in err
     assert "data set 'some' holds the same values (rows 2-3)" in err
 

@@ -28,6 +28,11 @@ class _Arviz:
     this file, one runs these tests)."""
 
     def __getattr__(self, name):
+        if name.startswith("_"):
+            # pytest's collection asks every module attribute for its own markers
+            # (``__test__``, ``_pytestfixturefunction``...): not arviz's to answer (importing it
+            # here made every worker pay for it)
+            raise AttributeError(name)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", FutureWarning)  # arviz announces its refactor
             return getattr(pytest.importorskip("arviz"), name)

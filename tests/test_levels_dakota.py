@@ -394,6 +394,7 @@ def folder(tmp_path):
     return tmp_path
 
 
+@pytest.mark.slow  # ~16 CPU-s: five step types and their report; the bad options below stay fast
 def test_a_study_with_level_options_runs_and_show_prints_the_mappings(folder):
     (folder / "study.toml").write_text(STUDY.format(python=sys.executable))
     run = cli("run", "study.toml", "--out", "out", cwd=folder)

@@ -89,6 +89,7 @@ def repeats():
     return mf, plain, spent
 
 
+@pytest.mark.slow  # `repeats` (~17 CPU-s) is theirs alone; the other tests here stay fast
 def test_unbiased_over_seeds_with_the_predicted_standard_errors(repeats):
     mf, _, _ = repeats
     _, main, total = _exact()
@@ -107,6 +108,7 @@ def test_unbiased_over_seeds_with_the_predicted_standard_errors(repeats):
         pytest.approx(1.0, abs=0.5)
 
 
+@pytest.mark.slow  # `repeats` (~17 CPU-s) is theirs alone; the other tests here stay fast
 def test_smaller_variance_than_plain_pick_freeze_at_equal_cost(repeats):
     mf, plain, spent = repeats
     assert all(abs(r.cost_pilot + r.cost_main - spent) < 0.01 * spent for r in mf)

@@ -361,13 +361,15 @@ def test_a_rotor_named_model_must_take_every_study_input(tmp_path):
     assert "'web_thickness' is not an input of [models.coarse]" in str(info.value)
 
 
-def test_bad_models_input_through_the_cli(tmp_path):
+def test_bad_models_input_through_the_cli(tmp_path, rotoruq_main, monkeypatch):
+    # `rotoruq run` in this process: refused when the study is read
     text = BASE.replace('models = ["coarse"]', 'models = ["corse"]')
     (tmp_path / "mf.toml").write_text(text)
-    proc = run_cli("run", "mf.toml", cwd=tmp_path, timeout=120)
-    assert proc.returncode != 0
-    assert f"mf.toml, line {line_of(text, 'corse')}" in proc.stderr, proc.stderr
-    assert "(defined: coarse) (did you mean 'coarse'?), found 'corse'" in proc.stderr
+    monkeypatch.chdir(tmp_path)
+    code, _, err = rotoruq_main("run", "mf.toml")
+    assert code != 0
+    assert f"mf.toml, line {line_of(text, 'corse')}" in err, err
+    assert "(defined: coarse) (did you mean 'coarse'?), found 'corse'" in err
 
 
 # ------------------------------------------------------------------------------------------

@@ -275,11 +275,15 @@ def test_a_study_of_a_dakota_function_through_the_cli(tmp_path):
     (('function = "rosenbrock"', 'function = "rosenbrock"\npreset = "gvpm"'), 6,
      "expected one of preset, command or function in [model], not preset and function"),
 ])
-def test_a_bad_function_model_is_an_error_naming_file_and_line(tmp_path, edit, line, message):
+def test_a_bad_function_model_is_an_error_naming_file_and_line(tmp_path, edit, line, message,
+                                                                rotoruq_main):
+    # `rotoruq run` in this process: refused when the study is read (the good study above runs
+    # in a fresh process)
     (tmp_path / "bad.toml").write_text(STUDY.replace(*edit))
-    proc = _cli("run", tmp_path / "bad.toml", "--out", tmp_path / "out", "--no-report")
-    assert proc.returncode != 0
-    assert f"bad.toml, line {line}: {message}" in proc.stderr, proc.stderr
+    code, _, err = rotoruq_main("run", tmp_path / "bad.toml", "--out", tmp_path / "out",
+                                "--no-report")
+    assert code != 0
+    assert f"bad.toml, line {line}: {message}" in err, err
 
 
 def function_table() -> str:

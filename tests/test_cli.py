@@ -123,12 +123,12 @@ def test_evaluate_fails_when_every_point_failed(warm):
     assert "fixed inputs (preset gvpm)" in proc.stderr  # stdout stays JSON
 
 
-def test_evaluate_with_no_response_named_is_a_usage_error():
+def test_evaluate_with_no_response_named_is_a_usage_error(rotoruq_main):
     # found by test_fuzz_study: `--responses` with no names reached numpy's concatenate
-    proc = cli("evaluate", "--responses")
-    assert proc.returncode == 2
-    assert "argument --responses: expected at least one argument" in proc.stderr
-    assert "internal error" not in proc.stderr
+    code, _, err = rotoruq_main("evaluate", "--responses")
+    assert code == 2
+    assert "argument --responses: expected at least one argument" in err
+    assert "internal error" not in err
     with pytest.raises(ParameterError, match="names_out is empty: name at least one response; "
                                              "valid: thrust, torque"):
         RotorModel("gvpm", names_out=[])

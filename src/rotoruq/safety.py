@@ -112,6 +112,11 @@ def terminal_text(text: object, *, lines: bool = False) -> str:
     lines\\x07
     """
     s = str(text)
+    # str.isprintable is False for every control character (Cc, Cs, Zl, Zp; the bidi
+    # overrides are format characters, Cf): a printable string is returned in one C call
+    # (a report escapes thousands of strings)
+    if s.isprintable():
+        return s
     keep = "\n\t" if lines else ""
     if not any(is_control(c) and c not in keep for c in s):
         return s

@@ -7,12 +7,18 @@ allowed.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy import special
 
+from .._lazy import lazy_module
 from ..errors import ParameterError
 from .distributions import HistogramBin
+
+if TYPE_CHECKING:
+    from scipy import special
+else:
+    special = lazy_module("scipy.special")
 
 __all__ = ["kernel_density"]
 

@@ -18,11 +18,16 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
-from scipy import stats
 
 from .._docs import fill_doc
+from .._lazy import lazy_module
 from .._rng import SeedLike, as_generator
 from ..errors import ParameterError
+
+if TYPE_CHECKING:
+    from scipy import stats
+else:  # imported on first use: reading saved distributions (a report) never needs it
+    stats = lazy_module("scipy.stats")
 
 
 def _number(name: str, value: Any, what: str) -> float:
@@ -58,8 +63,9 @@ def _ordered(lower: Any, upper: Any, what: str) -> tuple[float, float]:
 class Distribution:
     """Base class: a frozen scipy distribution plus the parameters that define it.
 
-    Subclasses are frozen dataclasses whose fields are the defining parameters; they set the
-    scipy distribution with ``_freeze`` in ``__post_init__``. All methods are vectorized:
+    Subclasses are frozen dataclasses whose fields are the defining parameters; they name the
+    scipy distribution with ``_freeze`` in ``__post_init__`` (it is built on first use, so
+    making a distribution does not import :mod:`scipy.stats`). All methods are vectorized:
     arguments and results have the same shape. ``mean`` and ``std`` are the moments of the
     variable (a field for :class:`Normal` and :class:`LogNormal`, derived for the others;
     :class:`TruncatedNormal`'s fields are those of the parent normal and its moments are
@@ -67,7 +73,7 @@ class Distribution:
     """
 
     if TYPE_CHECKING:
-        _frozen: Any
+        _scipy: tuple[str, tuple[Any, ...], dict[str, Any]] | None
 
         @property
         def mean(self) -> float: ...
@@ -77,8 +83,13 @@ class Distribution:
 
     @property
     def dist(self) -> Any:
-        """The frozen :mod:`scipy.stats` distribution."""
-        return self._frozen
+        """The frozen :mod:`scipy.stats` distribution (built on first use)."""
+        frozen = self.__dict__.get("_frozen")
+        if frozen is None and self._scipy is not None:
+            family, args, kwargs = self._scipy
+            frozen = getattr(stats, family)(*args, **kwargs)
+            object.__setattr__(self, "_frozen", frozen)
+        return frozen
 
     @property
     def kind(self) -> str:
@@ -233,8 +244,10 @@ class _DerivedMoments(Distribution):
         return self.moments[1]
 
 
-def _freeze(obj: Distribution, frozen: Any) -> None:
-    object.__setattr__(obj, "_frozen", frozen)
+def _freeze(obj: Distribution, family: str | None, *args: Any, **kwargs: Any) -> None:
+    """Name ``obj``'s scipy distribution: ``scipy.stats.<family>(*args, **kwargs)``, built by
+    :attr:`Distribution.dist` on first use (None: it has none)."""
+    object.__setattr__(obj, "_scipy", None if family is None else (family, args, kwargs))
 
 
 @dataclass(frozen=True)
@@ -255,11 +268,15 @@ class Normal(Distribution):
     def __post_init__(self) -> None:
         _finite("mean", self.mean, "Normal")
         _positive("std", self.std, "Normal")
-        _freeze(self, stats.norm(loc=self.mean, scale=self.std))
+        _freeze(self, "norm", loc=self.mean, scale=self.std)
 
     @property
     def moments(self) -> tuple[float, float]:
         return float(self.mean), float(self.std)
+
+    @property
+    def bounds(self) -> tuple[float, float]:
+        return -math.inf, math.inf
 
 
 _SERIES_DELTA = 1e-4
@@ -333,7 +350,7 @@ class TruncatedNormal(Distribution):
         _ordered(self.lower, self.upper, "TruncatedNormal")
         a = (self.lower - self.mean) / self.std
         b = (self.upper - self.mean) / self.std
-        _freeze(self, stats.truncnorm(a, b, loc=self.mean, scale=self.std))
+        _freeze(self, "truncnorm", a, b, loc=self.mean, scale=self.std)
         z = _normal_mass(a, np.array(b - a)) if np.isfinite(a) else stats.norm.cdf(b)
         object.__setattr__(self, "_mass", float(z))
 
@@ -386,7 +403,7 @@ class TruncatedNormal(Distribution):
 #: Phi^-1(0.95): Dakota's error factor is the 95th over the 50th percentile of a lognormal,
 #: ``error_factor = exp(PHI_95 * zeta)`` (its manual rounds PHI_95 to 1.645; its code, and
 #: real Dakota 6.24, use the exact quantile: tests/test_dakota_distributions.py).
-PHI_95 = float(stats.norm.ppf(0.95))
+PHI_95 = 1.6448536269514722  # float(scipy.stats.norm.ppf(0.95)), bit for bit (a test checks)
 
 # LogNormal's three forms (Dakota's option_1, option_2, option_3) by the fields they give
 _LOGNORMAL_FORMS = (("mean", "std"), ("mean", "error_factor"), ("lambda_", "zeta"))
@@ -502,7 +519,7 @@ class LogNormal(Distribution):
         if lo > 0.0 or np.isfinite(hi):
             log = TruncatedNormal(lam, zeta, math.log(lo) if lo > 0 else -math.inf,
                                   math.log(hi))
-        _freeze(self, stats.lognorm(s=zeta, scale=math.exp(lam)))
+        _freeze(self, "lognorm", s=zeta, scale=math.exp(lam))
         object.__setattr__(self, "_form", form)
         object.__setattr__(self, "_log_mean", lam)
         object.__setattr__(self, "_log_std", zeta)
@@ -606,7 +623,21 @@ class Uniform(_DerivedMoments):
         lo, hi = _ordered(self.lower, self.upper, "Uniform")
         _finite("lower", lo, "Uniform")
         _finite("upper", hi, "Uniform")
-        _freeze(self, stats.uniform(loc=lo, scale=hi - lo))
+        _freeze(self, "uniform", loc=lo, scale=hi - lo)
+
+    # scipy's arithmetic (loc + scale * standard moment, its support likewise) without
+    # importing it: the same bits (tests/test_report_imports.py)
+    @property
+    def moments(self) -> tuple[float, float]:
+        lo, hi = float(self.lower), float(self.upper)
+        w = hi - lo
+        return 0.5 * w + lo, math.sqrt(1.0 / 12 * w * w)
+
+    @property
+    def bounds(self) -> tuple[float, float]:
+        lo, hi = float(self.lower), float(self.upper)
+        w = hi - lo
+        return 0.0 * w + lo, 1.0 * w + lo
 
     # sf/isf measured from the upper bound: scipy's 1 - F loses the upper tail
     def sf(self, x: Any) -> np.ndarray:
@@ -633,7 +664,7 @@ class LogUniform(_DerivedMoments):
     def __post_init__(self) -> None:
         _positive("lower", self.lower, "LogUniform")
         _ordered(self.lower, self.upper, "LogUniform")
-        _freeze(self, stats.loguniform(self.lower, self.upper))
+        _freeze(self, "loguniform", self.lower, self.upper)
 
 
 class _MirroredTail(_DerivedMoments):
@@ -643,7 +674,16 @@ class _MirroredTail(_DerivedMoments):
 
     lower: float
     upper: float
-    _mirror: Any
+
+    @property
+    def _mirror(self) -> Any:
+        """The frozen scipy distribution of (upper - x) / width (built on first use)."""
+        mirror = self.__dict__.get("_mirror_frozen")
+        if mirror is None:
+            family, args = self.__dict__["_mirror_scipy"]
+            mirror = getattr(stats, family)(*args)
+            object.__setattr__(self, "_mirror_frozen", mirror)
+        return mirror
 
     def sf(self, x: Any) -> np.ndarray:
         w = self.upper - self.lower
@@ -669,14 +709,13 @@ class Beta(_MirroredTail):
     beta: float
     lower: float = 0.0
     upper: float = 1.0
-    _mirror: Any = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         _positive("alpha", self.alpha, "Beta")
         _positive("beta", self.beta, "Beta")
         lo, hi = _ordered(self.lower, self.upper, "Beta")
-        _freeze(self, stats.beta(self.alpha, self.beta, loc=lo, scale=hi - lo))
-        object.__setattr__(self, "_mirror", stats.beta(self.beta, self.alpha))
+        _freeze(self, "beta", self.alpha, self.beta, loc=lo, scale=hi - lo)
+        object.__setattr__(self, "_mirror_scipy", ("beta", (self.beta, self.alpha)))
 
 
 _SHAPE_SCALE_PARAMETERS = """
@@ -691,9 +730,10 @@ _SHAPE_SCALE_PARAMETERS = """
 
 @dataclass(frozen=True)
 class _ShapeScale(_DerivedMoments):
-    """A scipy family with shape ``alpha`` and scale ``beta`` (``_family``)."""
+    """A scipy family with shape ``alpha`` and scale ``beta`` (``_family``: its name in
+    :mod:`scipy.stats`)."""
 
-    _family: ClassVar[Any]
+    _family: ClassVar[str]
     alpha: float
     beta: float
 
@@ -701,7 +741,7 @@ class _ShapeScale(_DerivedMoments):
         what = type(self).__name__
         _positive("alpha", self.alpha, what)
         _positive("beta", self.beta, what)
-        _freeze(self, self._family(self.alpha, scale=self.beta))
+        _freeze(self, self._family, self.alpha, scale=self.beta)
 
 
 @fill_doc(parameters=_SHAPE_SCALE_PARAMETERS)
@@ -712,7 +752,7 @@ class Gamma(_ShapeScale):
     %(parameters)s
     """
 
-    _family = stats.gamma
+    _family = "gamma"
 
 
 @dataclass(frozen=True)
@@ -729,7 +769,7 @@ class Exponential(_DerivedMoments):
 
     def __post_init__(self) -> None:
         _positive("beta", self.beta, "Exponential")
-        _freeze(self, stats.expon(scale=self.beta))
+        _freeze(self, "expon", scale=self.beta)
 
 
 @dataclass(frozen=True)
@@ -750,7 +790,7 @@ class Gumbel(_DerivedMoments):
     def __post_init__(self) -> None:
         _positive("alpha", self.alpha, "Gumbel")
         _finite("beta", self.beta, "Gumbel")
-        _freeze(self, stats.gumbel_r(loc=self.beta, scale=1.0 / self.alpha))
+        _freeze(self, "gumbel_r", loc=self.beta, scale=1.0 / self.alpha)
 
 
 @fill_doc(parameters=_SHAPE_SCALE_PARAMETERS)
@@ -761,7 +801,7 @@ class Weibull(_ShapeScale):
     %(parameters)s
     """
 
-    _family = stats.weibull_min
+    _family = "weibull_min"
 
 
 @dataclass(frozen=True)
@@ -779,7 +819,6 @@ class Triangular(_MirroredTail):
     mode: float
     lower: float
     upper: float
-    _mirror: Any = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         lo, hi = _ordered(self.lower, self.upper, "Triangular")
@@ -789,8 +828,8 @@ class Triangular(_MirroredTail):
                 f"Triangular: mode must lie in [lower, upper], got mode={self.mode!r}, "
                 f"lower={lo!r}, upper={hi!r}"
             )
-        _freeze(self, stats.triang((self.mode - lo) / (hi - lo), loc=lo, scale=hi - lo))
-        object.__setattr__(self, "_mirror", stats.triang((hi - self.mode) / (hi - lo)))
+        _freeze(self, "triang", (self.mode - lo) / (hi - lo), loc=lo, scale=hi - lo)
+        object.__setattr__(self, "_mirror_scipy", ("triang", ((hi - self.mode) / (hi - lo),)))
 
 
 @dataclass(frozen=True)
@@ -824,7 +863,7 @@ class Frechet(_DerivedMoments):
         if not a > 2.0:
             raise ParameterError(f"Frechet: alpha must be > 2 (a finite std), got {a!r}")
         _positive("beta", self.beta, "Frechet")
-        _freeze(self, stats.invweibull(a, scale=self.beta))
+        _freeze(self, "invweibull", a, scale=self.beta)
 
     @property
     def moments(self) -> tuple[float, float]:
@@ -956,7 +995,7 @@ class HistogramBin(_PiecewiseDensity):
         # cumulative mass below each edge and above it (the upper tail summed from the top)
         object.__setattr__(self, "_cum", np.concatenate([[0.0], np.cumsum(mass)]))
         object.__setattr__(self, "_upper", np.concatenate([np.cumsum(mass[::-1])[::-1], [0.0]]))
-        _freeze(self, stats.rv_histogram((mass, x), density=False))
+        _freeze(self, "rv_histogram", (mass, x), density=False)
 
     @property
     def kind(self) -> str:

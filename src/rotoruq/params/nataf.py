@@ -11,13 +11,18 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy.optimize import brentq
 
+from .._lazy import lazy_module
 from ..errors import ParameterError
 from .distributions import Distribution, Normal
+
+if TYPE_CHECKING:
+    from scipy import optimize
+else:
+    optimize = lazy_module("scipy.optimize")
 
 __all__ = ["NatafModel", "nataf_correlation", "nataf_model"]
 
@@ -85,7 +90,7 @@ def nataf_correlation(
                     f"correlation {rij} between parameters {i} and {j} is not reachable with "
                     f"their marginals (range [{lo:.4f}, {hi:.4f}])"
                 )
-            val = brentq(
+            val = optimize.brentq(
                 lambda q, a=di, b=dj, t=rij: _bivariate_corr(a, b, q, z, w) - t,
                 -0.9999,
                 0.9999,

@@ -10,10 +10,17 @@ for independent inputs, the Nataf correlation R0 for correlated ones).
 
 from __future__ import annotations
 
-import numpy as np
-from scipy.special import ndtr, ndtri
+from typing import TYPE_CHECKING
 
+import numpy as np
+
+from .._lazy import lazy_module
 from ..errors import ParameterError
+
+if TYPE_CHECKING:
+    from scipy import special
+else:
+    special = lazy_module("scipy.special")
 
 __all__ = ["PAIRINGS", "restricted_pairing"]
 
@@ -97,13 +104,13 @@ def restricted_pairing(
             return q.copy()
         # no pairing reaches the target: correlate the normal scores instead (the design is
         # then stratified in u-space, not per column, as a randomly paired one mapped by Nataf)
-        z = ndtri(np.clip(q, 1e-16, 1.0 - 1e-16)) @ p_target.T
-        return np.clip(ndtr(z), 1e-300, 1.0 - 1e-16)
+        z = special.ndtri(np.clip(q, 1e-16, 1.0 - 1e-16)) @ p_target.T
+        return np.clip(special.ndtr(z), 1e-300, 1.0 - 1e-16)
     goal = p_target @ p_target.T
     qs = np.sort(q, axis=0)
     # the normal scores of the design's own values (centred per column): what the Nataf
     # correlation refers to, tails included
-    zs = ndtri(np.clip(qs, 1e-300, 1.0 - 1e-16))
+    zs = special.ndtri(np.clip(qs, 1e-300, 1.0 - 1e-16))
     zs = zs - zs.mean(axis=0)
     s = np.column_stack([zs[rng.permutation(n), j] for j in range(d)])
     try:

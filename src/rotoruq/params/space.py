@@ -12,19 +12,25 @@ from __future__ import annotations
 import warnings
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy import stats
-from scipy.linalg import solve_triangular
-from scipy.stats import qmc
 
+from .._lazy import lazy_module
 from .._rng import SeedLike, as_generator
 from ..errors import ParameterError
 from .distributions import Distribution
 from .interval import Interval
 from .nataf import nataf_model
 from .pairing import PAIRINGS, restricted_pairing
+
+if TYPE_CHECKING:
+    from scipy import linalg, stats
+    from scipy.stats import qmc
+else:  # imported on first use: a space read from saved results (a report) needs none
+    linalg = lazy_module("scipy.linalg")
+    stats = lazy_module("scipy.stats")
+    qmc = lazy_module("scipy.stats.qmc")
 
 __all__ = ["DESIGNS", "PAIRINGS", "ParameterSpace", "unit_design"]
 
@@ -270,7 +276,7 @@ class ParameterSpace:
         z = self.to_z(x)
         if self._chol is None:
             return z
-        return solve_triangular(self._chol, z.T, lower=True).T
+        return linalg.solve_triangular(self._chol, z.T, lower=True).T
 
     def from_u(self, u: Any) -> np.ndarray:
         """Inverse of :meth:`to_u`: points in the parameters' units, shape (n, d).

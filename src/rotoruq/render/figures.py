@@ -13,13 +13,18 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy import stats
 
+from .._lazy import lazy_module
 from ..params import Distribution
 from ..results import StepResult, dict_to_dist
+
+if TYPE_CHECKING:
+    from scipy import stats
+else:
+    stats = lazy_module("scipy.stats")
 
 __all__ = ["Figure", "FigureContext", "tornado", "SobolIndices", "prior_posterior", "chain_traces",
            "pair_plot", "load_distributions", "cuu_comparison", "ground_effect_curves",
@@ -158,6 +163,15 @@ def _subplots(*args, figsize=None, **kwargs):
     return fig, fig.subplots(*args, **kwargs)
 
 
+def _density_hist(ax, x: np.ndarray, bins: int, **kwargs: Any) -> None:
+    """A density histogram of ``x`` drawn as one filled step outline (``ax.hist`` draws a
+    rectangle per bin, each an artist to lay out and render): the same bins, heights and
+    fill. ``kwargs`` go to :meth:`~matplotlib.axes.Axes.stairs` (``color``, ``alpha``,
+    ``label``, ``rasterized``)."""
+    density, edges = np.histogram(x, bins=bins, density=True)
+    ax.stairs(density, edges, fill=True, **kwargs)
+
+
 def _legend_below(fig, axes) -> None:
     """One legend for the figure, below the axes (never over the data)."""
     handles, names = [], []
@@ -263,8 +277,7 @@ def prior_posterior(res: StepResult, labels, units=None,
             lo = min(lo, plo) if np.isfinite(plo) else lo
             hi = max(hi, phi) if np.isfinite(phi) else hi
         grid = np.linspace(lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo), 300)
-        ax.hist(x, bins=40, density=True, color="#c6dbef", label="posterior (chain)",
-                rasterized=True)
+        _density_hist(ax, x, 40, color="#c6dbef", label="posterior (chain)", rasterized=True)
         if p in prior:
             ax.plot(grid, prior[p].pdf(grid), "k--", lw=1.2, label="prior")
         ax.plot(grid, stats.norm.pdf(grid, x.mean(), x.std(ddof=1)), "C0", lw=1.5,
@@ -301,7 +314,8 @@ def chain_traces(res: StepResult, labels, units=None) -> list[Figure]:
 def pair_plot(res: StepResult, labels, units=None) -> list[Figure]:
     """Lower triangle: joint samples (1,000 spread over the chain, rasterized); diagonal:
     marginal histograms; the posterior correlation in each panel's corner (red beyond
-    |0.7|). Laid out by hand: constrained layout costs seconds on d^2 axes."""
+    |0.7|). Laid out by hand: constrained layout costs seconds on d^2 axes; only the
+    d (d + 1) / 2 axes of the lower triangle and the diagonal are made."""
     names = res.columns("chain")
     chain = np.asarray(res.arrays["chain"])
     d = len(names)
@@ -311,16 +325,12 @@ def pair_plot(res: StepResult, labels, units=None) -> list[Figure]:
     from matplotlib.figure import Figure as _MplFigure
 
     fig = _MplFigure(figsize=(size, size))
-    axes = fig.subplots(d, d, squeeze=False)
     margin = 1.3 / size
-    fig.subplots_adjust(left=margin, bottom=margin, right=0.99, top=0.99, wspace=0.08,
-                        hspace=0.08)
+    grid = fig.add_gridspec(d, d, left=margin, bottom=margin, right=0.99, top=0.99,
+                            wspace=0.08, hspace=0.08)
     for i in range(d):
-        for j in range(d):
-            ax = axes[i, j]
-            if j > i:
-                ax.set_visible(False)
-                continue
+        for j in range(i + 1):
+            ax = fig.add_subplot(grid[i, j])
             ax.tick_params(labelsize=7, labelrotation=45, labelbottom=i == d - 1,
                            labelleft=j == 0 and i > 0)
             if i == j:
@@ -336,7 +346,7 @@ def pair_plot(res: StepResult, labels, units=None) -> list[Figure]:
                 ax.set_xlabel(axis_label(names[j], labels, units), fontsize=8)
             if j == 0 and i > 0:
                 ax.set_ylabel(axis_label(names[i], labels, units), fontsize=8)
-    axes[0, 0].set_ylabel("count [-]", fontsize=8)
+    fig.axes[0].set_ylabel("count [-]", fontsize=8)  # the top-left histogram
     return [Figure(f"{res.name}_pairs", f"Posterior pair plot, correlation in each panel "
                    f"({res.name})", fig)]
 
@@ -374,7 +384,7 @@ def load_distributions(name: str, resp: Sequence[str], labels: Sequence[str],
                 if v.size < 2:
                     continue
                 lo, hi = min(lo, float(v.min())), max(hi, float(v.max()))
-                ax.hist(v, bins=30, density=True, color=color, alpha=0.3, rasterized=True)
+                _density_hist(ax, v, 30, color=color, alpha=0.3, rasterized=True)
                 if np.std(v) > 0:
                     g = np.linspace(v.min(), v.max(), 200)
                     ax.plot(g, stats.gaussian_kde(v)(g), color=color, label=what)

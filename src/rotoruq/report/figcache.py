@@ -28,6 +28,7 @@ import json
 import os
 import secrets
 import stat
+import sys
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -47,6 +48,17 @@ def _report_code_digest() -> str:
     for p in sorted(here.glob("*.py")):
         h.update(p.name.encode() + b"\0" + p.read_bytes() + b"\0")
     return h.hexdigest()
+
+
+def _matplotlib_version() -> str:
+    # the installed version without importing Matplotlib (about 0.3 CPU-s) when this report
+    # draws nothing; the imported module's own when it is loaded (the one that draws)
+    module = sys.modules.get("matplotlib")
+    if module is not None:
+        return str(module.__version__)
+    from importlib.metadata import version
+
+    return version("matplotlib")
 
 
 class FigureCache:
@@ -105,12 +117,10 @@ class FigureCache:
 
     def _code_digest(self) -> str:
         if self._code is None:
-            import matplotlib
-
             from ..evaluation.identity import code_version
 
             self._code = hashlib.sha256(
-                f"{code_version()}|{_report_code_digest()}|{matplotlib.__version__}".encode()
+                f"{code_version()}|{_report_code_digest()}|{_matplotlib_version()}".encode()
             ).hexdigest()
         return self._code
 

@@ -141,7 +141,11 @@ def _render(figs) -> list[_Rendered]:
     out = []
     for f in figs:
         shown = [ax for ax in f.figure.axes if ax.axison]
-        out.append(_Rendered(f.name, f.caption, _png(f.figure), _svg(f.figure),
+        png = _png(f.figure)
+        # the SVG keeps the layout the PNG's drawing computed (the axes stay where it put
+        # them): the layout engine's measuring pass over every label is not run twice
+        f.figure.set_layout_engine("none")
+        out.append(_Rendered(f.name, f.caption, png, _svg(f.figure),
                              tuple(sorted({a.get_xlabel() for a in shown} - {""})),
                              tuple(sorted({a.get_ylabel() for a in shown} - {""}))))
     return out

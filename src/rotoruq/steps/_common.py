@@ -7,17 +7,22 @@ import inspect
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, field
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
-from scipy import stats
 
+from .._lazy import lazy_module
 from ..errors import ParameterError
 from ..params import ParameterSpace
 from ..render.tables import StepTable, level_mapping_tables, levels_tables
 from ..results import RecordError, StepRecord, StepResult
 from .base import StepCheck, StepContext
 from .options import SIGNATURE, Option, choice, table
+
+if TYPE_CHECKING:
+    from scipy import stats
+else:
+    stats = lazy_module("scipy.stats")
 
 __all__ = ["named_model", "deferred_writes", "chain_on_model", "column_moments", "input_arrays",
            "noise", "per_response", "saved_record", "MOMENT_KEYS", "LevelsRecord", "levels_arrays",

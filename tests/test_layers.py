@@ -4,12 +4,13 @@ Every module under ``src/rotoruq`` is parsed (not imported) and each ``import`` 
 or inside a function, since a deferred import is still a dependency - is resolved to the rotoruq
 subpackage it reaches. A lower layer must never import a higher one:
 
-    errors, _rng, _options, _compile, _docs, _progress, atomic, safety
+    errors, _rng, _options, _compile, _docs, _progress, _lazy, atomic, safety
                                     the bottom: import nothing of rotoruq but each other
                                     (_options: the option records' deprecation helpers;
                                     _compile: the notice before numba compiles;
                                     _docs: docstring entries shared by several names;
-                                    _progress: a long phase's progress as log records)
+                                    _progress: a long phase's progress as log records;
+                                    _lazy: a third-party module imported on first use)
     model, params                   + the bottom
     rotor                           + model, params           (never methods, evaluation, ...)
     methods                         + model, params           (never rotor, evaluation, ...)
@@ -50,7 +51,8 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "rotoruq"
 
-BOTTOM = {"errors", "_rng", "_options", "_compile", "_docs", "_progress", "atomic", "safety"}
+BOTTOM = {"errors", "_rng", "_options", "_compile", "_docs", "_progress", "_lazy", "atomic",
+          "safety"}
 UNITS = {"model", "params", "testfunctions"}
 ALLOWED: dict[str, set[str]] = {
     "errors": set(),
@@ -59,6 +61,7 @@ ALLOWED: dict[str, set[str]] = {
     "_compile": {"_progress"},
     "_docs": set(),
     "_progress": set(),
+    "_lazy": set(),
     "atomic": set(),
     "safety": {"errors"},
     "model": BOTTOM,
@@ -340,11 +343,11 @@ def test_import_rotoruq_loads_nothing_until_a_name_is_used():
     assert _loaded_after("import rotoruq") == ["rotoruq"]
     # one layer alone: the rotor does not bring methods, evaluation, study or report
     units = {_unit(m) for m in _loaded_after("import rotoruq.rotor.hover")}
-    assert units <= {"", "errors", "_rng", "_docs", "model", "params", "rotor",
+    assert units <= {"", "errors", "_rng", "_docs", "_lazy", "model", "params", "rotor",
                      "safety"}  # c81 tables are written through safety.write_file, units
     # a name loads its own module (and what that imports), nothing else
     units = {_unit(m) for m in _loaded_after("import rotoruq; rotoruq.ParameterSpace")}
-    assert units == {"", "errors", "_rng", "_docs", "params"}, units
+    assert units == {"", "errors", "_rng", "_docs", "_lazy", "params"}, units
 
 
 def test_python_m_rotoruq_is_as_light_as_the_console_script():

@@ -144,6 +144,30 @@ def test_a_dearer_mean_is_explained_by_what_the_run_measured(tmp_path):
                             "pilot, and the allocation was made for thrust")
 
 
+def test_a_pilot_too_small_is_in_the_steps_record_and_the_summary(tmp_path):
+    """The estimator's own warning (a pilot of 8 points for 2 models, under the 13 its
+    control-variate weights need) is saved with the step: the run's summary counts and
+    prints it and `rotoruq show --json` lists it (it was printed once while the step ran and
+    then lost: the summary said 0 warnings, found in a by-hand run of forward_flight --quick)."""
+    import json
+
+    from rotoruq.methods.mf_pilot import pilot_too_small
+
+    study = tmp_path / "mf.toml"
+    study.write_text(ROTOR_STUDY.read_text().replace("budget = 200", "budget = 20")
+                     .replace("n_pilot = 20", "n_pilot = 8"))
+    out = tmp_path / "out"
+    proc = run_cli("run", str(study), "--out", str(out), "--no-report", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    expected = pilot_too_small(8, 2)
+    assert expected is not None and "use n_pilot >= 13" in expected
+    assert expected in proc.stdout
+    assert "0 warning(s)" not in proc.stdout
+    show = run_cli("show", str(out), "multifidelity", "--json", cwd=tmp_path)
+    assert show.returncode == 0, show.stderr
+    assert expected in json.loads(show.stdout)["steps"]["multifidelity"]["warnings"]
+
+
 def test_the_allocation_note_names_the_responses_kept_as_evaluated(tmp_path):
     """With adapt = "linear", the allocation table's note lists the (model, response) pairs
     whose adaptation was not used, read from the saved record: none on the bundled study

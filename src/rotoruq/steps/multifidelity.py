@@ -15,6 +15,7 @@ plain Monte Carlo would need for the same standard errors.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -151,9 +152,13 @@ def run_multifidelity(ctx: StepContext) -> StepResult:
         raise ParameterError(f"step {ctx.name!r}: costs has {len(costs)} values; it needs one "
                              f"per model ({', '.join(names)})")
     rng_moments, rng_sobol = ctx.rng.spawn(2) if o["sobol"] else (ctx.rng, None)
-    res = multifidelity_sample(models, ctx.space, o["budget"], budget_unit=o["budget_unit"],
-                               estimator=o["estimator"], n_pilot=o["n_pilot"], costs=costs,
-                               adapt=o["adapt"], seed=rng_moments)
+    # the estimators' own warnings (a pilot too small, pilot points that failed) go into the
+    # step's record, so the summary, `rotoruq show` and the report state them
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        res = multifidelity_sample(models, ctx.space, o["budget"], budget_unit=o["budget_unit"],
+                                   estimator=o["estimator"], n_pilot=o["n_pilot"], costs=costs,
+                                   adapt=o["adapt"], seed=rng_moments)
     k_models = len(names)
     d, m = ctx.space.dim, len(ctx.responses)
     nan = np.full((m, d), np.nan)
@@ -163,9 +168,13 @@ def run_multifidelity(ctx: StepContext) -> StepResult:
     if o["sobol"]:
         from ..methods.multifidelity_sobol import multifidelity_sobol
 
-        sr = multifidelity_sobol(models, ctx.space, o["budget"], budget_unit=o["budget_unit"],
-                                 estimator=o["estimator"], n_pilot=o["n_pilot"],
-                                 costs=[float(c) for c in res.costs], seed=rng_sobol)
+        with warnings.catch_warnings(record=True) as caught_sobol:
+            warnings.simplefilter("always")
+            sr = multifidelity_sobol(models, ctx.space, o["budget"],
+                                     budget_unit=o["budget_unit"], estimator=o["estimator"],
+                                     n_pilot=o["n_pilot"],
+                                     costs=[float(c) for c in res.costs], seed=rng_sobol)
+        caught += caught_sobol
         sob = {k: np.asarray(v, dtype=float) for k, v in (
             ("main", sr.main), ("main_se", sr.main_se), ("total", sr.total),
             ("total_se", sr.total_se), ("n_equivalent_hf_main", sr.n_equivalent_hf["main"]),
@@ -199,7 +208,8 @@ def run_multifidelity(ctx: StepContext) -> StepResult:
         "recursion": [int(g) for g in getattr(res.plan, "recursion", ())],
         "estimator_choice": res.choice.reason if res.choice is not None else "",
         "n_pilot": res.n_pilot, "costs_measured": res.costs_measured,
-        "n_evaluations": int(res.n_evaluations) + n_sobol_evals, **meta})
+        "n_evaluations": int(res.n_evaluations) + n_sobol_evals,
+        "warnings": list(dict.fromkeys(str(w.message) for w in caught)), **meta})
 
 
 def _group_fields(res, names: tuple[str, ...]) -> tuple[tuple[str, ...], np.ndarray]:
@@ -298,6 +308,7 @@ def multifidelity_warnings(res: StepResult, labels: Mapping[str, str]) -> list[s
             out.append(f"{label(r, labels)}: the multi-fidelity mean costs {1 / s:.2g} times "
                        "what plain Monte Carlo on the high-fidelity model would for the same "
                        f"standard error (pilot included): {_why_dearer(rec, k, labels)}")
+    out.extend(res.meta.get("warnings", []) or [])
     return out
 
 

@@ -180,9 +180,12 @@ LINTED = ["scripts", "benchmarks", "examples", "docs/_ext", "docs/conf.py"]
 # compile_time.py has no --quick: each of its runs is a whole study compiled from an empty
 # numba cache (about a minute of CPU per study); reproduce_cold.py --quick is `rotoruq
 # reproduce --quick` on an empty numba cache (every kernel compiled: minutes on 2 cores).
+# figure_cpu.py has no --quick of its own: it runs `rotoruq reproduce all --quick` for the
+# results it redraws, then alternates the redraws (tests/test_report_imports.py checks the
+# import claim it measures; its --summary runs in test_generated_block_is_current).
 NOT_SMOKE_RUN = {"reproduce_time.py", "aero_center_calibration.py", "reproduce_cpu.py",
                  "terminal_lines.py", "thread_determinism.py", "compile_time.py",
-                 "reproduce_cold.py"}
+                 "reproduce_cold.py", "figure_cpu.py"}
 
 
 # smoke-run only with pytest --extended: minutes of MBDyn runs even at --quick

@@ -292,19 +292,23 @@ class ProcessExecutor(Executor):
     @staticmethod
     def _death_note(procs: dict) -> str:
         codes: dict = {}
-        # on a loaded machine the dead worker's exit may be read a moment late: wait up to a
-        # few seconds in all for one exit code before naming none
+        # the pool terminates the survivors (SIGTERM) once one worker died: name the other
+        # (a worker that handles SIGTERM, stopping its drivers first, exits with 128 + 15)
+        terminated = (None, -signal.SIGTERM, 128 + signal.SIGTERM)
+        # on a loaded machine the dead worker's exit may be read a moment late (the pool's own
+        # thread may be reaping it while the survivors' SIGTERM exits are already known): wait
+        # up to a few seconds in all for the exit that is not the pool's SIGTERM
         deadline = time.monotonic() + 5.0
         while True:
             for pid, p in procs.items():
                 p.join(timeout=max(0.0, min(1.0, deadline - time.monotonic())))
                 codes[pid] = p.exitcode
-            if any(c is not None for c in codes.values()) or time.monotonic() >= deadline:
+            if (any(c not in terminated for c in codes.values())
+                    or all(c is not None for c in codes.values())
+                    or time.monotonic() >= deadline):
                 break
-        # the pool terminates the survivors (SIGTERM) once one worker died: name the other
-        # (a worker that handles SIGTERM, stopping its drivers first, exits with 128 + 15)
-        dead = [(pid, c) for pid, c in codes.items()
-                if c not in (None, -signal.SIGTERM, 128 + signal.SIGTERM)]
+            time.sleep(0.05)
+        dead = [(pid, c) for pid, c in codes.items() if c not in terminated]
         if not dead:
             dead = [(pid, c) for pid, c in codes.items() if c is not None]
         if not dead:

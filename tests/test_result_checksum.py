@@ -3,8 +3,10 @@ outside the step's folder) is never served. ``rotoruq show`` refuses the step wi
 naming the file, ``rotoruq run`` computes it again (one warning line naming the file) and the
 new step equals the original bitwise, ``rotoruq repair`` moves it aside.
 
-Every run is the CLI in a subprocess on a fresh folder, with the external-solver study of
-``test_trust`` (a driver of a few milliseconds per point).
+Every run is the CLI on a fresh folder, with the external-solver study of ``test_trust`` (a
+driver of a few milliseconds per point): the study's first run in a fresh process, the
+commands on the edited folders through the CLI's entry point in the test's process
+(``tests/_inproc.py``: a fresh interpreter per command adds ~2 CPU-s and nothing checked here).
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from _inproc import rotoruq
 from rotoruq.results import (
     IncompleteStepError,
     StepResult,
@@ -24,7 +27,7 @@ from rotoruq.results import (
     save_step,
     set_aside_damaged_steps,
 )
-from test_trust import cli, external_study
+from test_trust import cli, external_study, run_here
 
 
 def _edit_mean(doc: dict) -> None:
@@ -106,6 +109,7 @@ def original(tmp_path_factory) -> tuple[Path, Path]:
 @pytest.mark.parametrize("edit", CLI_EDITS)
 def test_an_edited_result_json_is_never_served_and_run_recomputes_it_bitwise(
         tmp_path, original, edit):
+    cli = run_here
     study, orig = original
     out = tmp_path / "out"
     shutil.copytree(orig, out)
@@ -135,6 +139,7 @@ def test_an_edited_result_json_is_never_served_and_run_recomputes_it_bitwise(
 
 
 def test_repair_moves_an_edited_step_aside_and_run_recomputes_it(tmp_path, original):
+    cli = run_here
     study, orig = original
     out = tmp_path / "out"
     shutil.copytree(orig, out)
@@ -169,10 +174,11 @@ def test_report_of_two_folders_of_one_study_name_is_a_clear_error(tmp_path, orig
     a, b = tmp_path / "a", tmp_path / "b"
     shutil.copytree(orig, a)
     shutil.copytree(orig, b)
-    proc = cli("report", a, b, "--out", tmp_path / "report", check=False)
+    proc = rotoruq("report", a, b, "--out", tmp_path / "report")
     assert proc.returncode == 1 and proc.stderr.count("\n") == 1, proc.stderr
     assert proc.stderr.startswith(f"rotoruq report: error: {b / 'study.json'}: expected a "
                                   f"study name of its own: study 'ext' is also in "
                                   f"{a / 'study.json'} (")
     assert not (tmp_path / "report" / "index.html").exists()
-    assert cli("report", a, a, "--out", tmp_path / "report").returncode == 0  # one folder
+    # one folder given twice: no clash
+    assert rotoruq("report", a, a, "--out", tmp_path / "report").returncode == 0

@@ -1,5 +1,8 @@
-"""Results a user can trust, tested the way a user works: study files and ``rotoruq run`` in a
-subprocess, nothing injected.
+"""Results a user can trust, tested the way a user works: study files and ``rotoruq run``,
+nothing injected (the first test and the signal tests run it as a fresh process; the others
+through its entry point in the test's process, ``tests/_inproc.py``: a fresh interpreter per run
+adds ~2 CPU-s and nothing of what is checked, and a cache kept in memory between runs could
+only make a stale result more likely, never hide one).
 
 - change anything a result depends on (a fixed input, the preset, the airfoil table, a template,
   the driver script) and re-run into the same folder: the results equal a fresh folder's;
@@ -27,6 +30,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from _inproc import rotoruq
 from rotoruq.results import load_step
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -107,6 +111,14 @@ def cli(*args, env=None, check=True, timeout=300):
     return proc
 
 
+def run_here(*args, env=None, check=True):
+    """``cli`` through the CLI's entry point in this process (``tests/_inproc.py``)."""
+    proc = rotoruq(*args, env=env)
+    if check:
+        assert proc.returncode == 0, proc.stderr
+    return proc
+
+
 def outputs(out: Path, step: str = "lhs") -> np.ndarray:
     return load_step(out / "steps" / step).arrays["outputs"]
 
@@ -128,8 +140,8 @@ def test_external_study_runs_from_a_study_file(tmp_path):
 ])
 def test_external_study_failure_policy(tmp_path, failure, expect_rc):
     study = external_study(tmp_path / "s", failure=failure)
-    proc = cli("run", study, "--out", tmp_path / "out", "--no-report",
-               env={"DRIVER_FAIL_ABOVE": "0.5"}, check=False)
+    proc = run_here("run", study, "--out", tmp_path / "out", "--no-report",
+                    env={"DRIVER_FAIL_ABOVE": "0.5"}, check=False)
     assert proc.returncode == expect_rc, proc.stderr
     assert "Traceback" not in proc.stderr
     if expect_rc:
@@ -147,7 +159,7 @@ def test_external_study_failure_policy(tmp_path, failure, expect_rc):
     assert np.isfinite(y[~bad]).all()
 
 
-def _rerun_equals_fresh(tmp_path, study: Path, change, tag: str):
+def _rerun_equals_fresh(tmp_path, study: Path, change, tag: str, cli=run_here):
     """Run into ``same``, apply ``change``, run again into ``same`` and into a fresh folder."""
     same = tmp_path / f"same_{tag}"
     cli("run", study, "--out", same, "--no-report")
@@ -265,17 +277,17 @@ def test_second_run_on_one_folder_refuses(tmp_path):
 def test_half_saved_step_is_recomputed(tmp_path):
     study = external_study(tmp_path / "s")
     out = tmp_path / "out"
-    cli("run", study, "--out", out, "--no-report")
+    run_here("run", study, "--out", out, "--no-report")
     good = outputs(out)
     step = out / "steps" / "lhs"
     # a save cut short: arrays missing, then a truncated result.json
     (step / "outputs.npy").unlink()
-    proc = cli("run", study, "--out", out, "--no-report")
+    proc = run_here("run", study, "--out", out, "--no-report")
     assert "incomplete" in proc.stderr
     np.testing.assert_array_equal(outputs(out), good)
     text = (step / "result.json").read_text()
     (step / "result.json").write_text(text[: len(text) // 2])
-    proc = cli("run", study, "--out", out, "--no-report")
+    proc = run_here("run", study, "--out", out, "--no-report")
     assert "incomplete" in proc.stderr
     np.testing.assert_array_equal(outputs(out), good)
 

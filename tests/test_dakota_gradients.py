@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from _inproc import rotoruq
 from rotoruq.errors import EvaluationError, ParameterError
 from rotoruq.evaluation.evaluator import Evaluator
 from rotoruq.evaluation.external import ExternalModel
@@ -98,10 +99,15 @@ def folder(tmp_path: Path, name: str, *, model_extra: str = 'gradients = "analyt
     return d
 
 
-def cli(d: Path, *args: str, **env: str) -> subprocess.CompletedProcess:
+def cli(d: Path, *args: str, fresh: bool = False, **env: str) -> subprocess.CompletedProcess:
+    """``rotoruq ARGS`` from ``d`` with the driver's counter file and ``env``: in the test's
+    process (``tests/_inproc.py``), or with ``fresh`` in a new one (the user's path)."""
+    env = {"COUNTER": str(d / "count"), **env}
+    if not fresh:
+        return rotoruq(*args, cwd=d, env=env)
     return subprocess.run([sys.executable, "-m", "rotoruq.study.cli", *args], cwd=d,
                           capture_output=True, text=True, timeout=300,
-                          env={**os.environ, "COUNTER": str(d / "count"), **env})
+                          env={**os.environ, **env})
 
 
 def asked(d: Path) -> list[int]:
@@ -115,7 +121,7 @@ def test_residual_driver_without_data_reaches_the_minimum_through_the_cli(tmp_pa
     runs = {}
     for gradients in ("analytic", "finite_difference"):
         d = folder(tmp_path, gradients, model_extra=f'gradients = "{gradients}"')
-        proc = cli(d, "run", "study.toml", "--out", "out")
+        proc = cli(d, "run", "study.toml", "--out", "out", fresh=True)
         assert proc.returncode == 0, proc.stderr
         res = load_step(d / "out" / "steps" / "fit")
         x = [res.get("value/x1"), res.get("value/x2")]
@@ -124,7 +130,7 @@ def test_residual_driver_without_data_reaches_the_minimum_through_the_cli(tmp_pa
         assert res.meta["x0"] == {"x1": -1.2, "x2": 1.0}
         runs[gradients] = asked(d)
         assert len(runs[gradients]) == res.meta["n_evaluations"]
-        show = cli(d, "show", "out", "fit")
+        show = cli(d, "show", "out", "fit", fresh=True)
         assert show.returncode == 0, show.stderr
         assert "the model's responses are the residuals" in show.stdout
         assert "started at x1 = -1.2, x2 = 1" in show.stdout

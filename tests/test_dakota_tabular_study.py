@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from _inproc import rotoruq
 from rotoruq.errors import InputFileError
 from rotoruq.evaluation.store import Store
 from rotoruq.evaluation.tabular import read_table, write_tabular
@@ -60,9 +61,15 @@ type = "sampling"
 """
 
 
-def cli(folder: Path, *args: str) -> subprocess.CompletedProcess:
-    proc = subprocess.run([*CLI, *args], cwd=folder, capture_output=True, text=True,
-                          timeout=600, env=os.environ.copy())
+def cli(folder: Path, *args: str, fresh: bool = False) -> subprocess.CompletedProcess:
+    """``rotoruq ARGS`` run from ``folder``; exit code 0 asserted. In the test's process
+    (``tests/_inproc.py``), or with ``fresh`` in a new one (the user's path: the module's
+    first run and export)."""
+    if fresh:
+        proc = subprocess.run([*CLI, *args], cwd=folder, capture_output=True, text=True,
+                              timeout=600, env=os.environ.copy())
+    else:
+        proc = rotoruq(*args, cwd=folder)
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-3000:]
     return proc
 
@@ -81,8 +88,8 @@ def exported(tmp_path_factory) -> tuple[Path, Path]:
     first = tmp_path_factory.mktemp("first")
     (first / "study.toml").write_text(ROTOR_STUDY.format(
         name="first", data="", step='n_samples = 6\ndesign = "lhs"'))
-    cli(first, "run", "study.toml")
-    cli(first, "export", "out", "--dakota-tabular", "points.dat")
+    cli(first, "run", "study.toml", fresh=True)
+    cli(first, "export", "out", "--dakota-tabular", "points.dat", fresh=True)
     return first / "out", first / "points.dat"
 
 

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from _inproc import rotoruq
 from rotoruq.errors import InputFileError, ParameterError
 from rotoruq.results import load_step
 from rotoruq.rotor.model import RotorModel
@@ -31,8 +32,12 @@ STUDIES = Path(__file__).resolve().parents[1] / "src" / "rotoruq" / "studies"
 ROTOR_STUDY = STUDIES / "multifidelity_rotor.toml"
 
 
-def run_cli(*args: str, cwd: Path, env: dict | None = None, timeout: float = 600
-            ) -> subprocess.CompletedProcess:
+def run_cli(*args: str, cwd: Path, env: dict | None = None, timeout: float = 600,
+            fresh: bool = False) -> subprocess.CompletedProcess:
+    """``rotoruq ARGS`` from ``cwd``: in the test's process (``tests/_inproc.py``), or with
+    ``fresh`` in a new one (a study from a fresh folder, on Dask or MBDyn: the user's path)."""
+    if not fresh:
+        return rotoruq(*args, cwd=cwd, env=env)
     return subprocess.run([*CLI, *args], cwd=cwd, env=env, capture_output=True, text=True,
                           timeout=timeout)
 
@@ -85,7 +90,8 @@ def test_rotor_study_through_cli_from_a_fresh_folder(tmp_path):
     standard errors of the quadrature answer; each model's runs stored under its own identity,
     as many as the allocation table says."""
     out = tmp_path / "out"
-    proc = run_cli("run", "multifidelity_rotor", "--out", str(out), cwd=tmp_path)
+    proc = run_cli("run", "multifidelity_rotor", "--out", str(out), cwd=tmp_path,
+                   fresh=True)
     assert proc.returncode == 0, proc.stderr
     show = run_cli("show", str(out), "multifidelity", cwd=tmp_path)
     assert show.returncode == 0, show.stderr
@@ -204,7 +210,8 @@ def test_rotor_study_on_dask_by_changing_only_the_executor(tmp_path):
     study = tmp_path / "mf.toml"
     study.write_text(ROTOR_STUDY.read_text() + '\n[executor]\nkind = "dask"\n')
     out = tmp_path / "out"
-    proc = run_cli("run", str(study), "--out", str(out), "--no-report", cwd=tmp_path)
+    proc = run_cli("run", str(study), "--out", str(out), "--no-report", cwd=tmp_path,
+                   fresh=True)
     assert proc.returncode == 0, proc.stderr
     check_estimates(load_step(out / "steps" / "multifidelity"), ["thrust", "power"])
 
@@ -422,7 +429,7 @@ def test_mbdyn_study_runs_through_the_cli(tmp_path):
     env, starts = counting_mbdyn(tmp_path)
     env.update({k: "1" for k in THREAD_VARIABLES})
     proc = run_cli("run", "mbdyn_multifidelity", "--quick", "--out", str(out), cwd=tmp_path,
-                   env=env, timeout=900)
+                   env=env, timeout=900, fresh=True)
     assert proc.returncode == 0, proc.stderr
     assert mbdyn_starts(starts) > 0
     show = run_cli("show", str(out), cwd=tmp_path)
@@ -458,7 +465,7 @@ def test_mbdyn_study_on_dask_by_changing_only_the_executor(tmp_path):
     study.write_text(text.replace('kind = "processes"', 'kind = "dask"'))
     out = tmp_path / "out"
     proc = run_cli("run", str(study), "--quick", "--out", str(out), cwd=tmp_path,
-                   env=env_with_mbdyn(), timeout=900)
+                   env=env_with_mbdyn(), timeout=900, fresh=True)
     assert proc.returncode == 0, proc.stderr
     loads = load_step(out / "steps" / "loads")
     moments = load_step(out / "steps" / "hub_moments")

@@ -7,7 +7,9 @@ rotor) and the Dakota decks. Every rejection must be a :class:`~rotoruq.errors.R
 whose message names the file; any other exception is a traceback the user would see.
 A sample goes through ``rotoruq dakota export`` in a subprocess (the user's path). The
 in-suite run is 500 mutants and 3 CLI calls (each a fresh interpreter: about 2 s on a quiet
-machine, 9 s on a loaded one); the slow run 5,000 and 40."""
+machine, 9 s on a loaded one); the slow run 5,000 and 40. Mutants that load run their
+first step through the CLI's entry point in the test's process (3 in the suite, 30 in the
+slow run)."""
 
 from __future__ import annotations
 
@@ -20,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from _inproc import rotoruq
 from _study_mutants import bundled, mutants, to_toml
 from rotoruq.errors import RotoruqError
 from rotoruq.study.schema import load_study
@@ -157,15 +160,15 @@ def _first_steps(tmp_path: Path, seed: int, n: int) -> list[tuple[int, str, Path
 
 
 def _run_first_steps(tmp_path: Path, seed: int, n: int) -> None:
-    """Mutants that load RUN their first step (``rotoruq run --quick --only``, a fresh
-    interpreter each): no traceback, no internal error; a failure is one line."""
+    """Mutants that load RUN their first step (``rotoruq run --quick --only``, through the
+    CLI's entry point in this process, ``tests/_inproc.py``: an exception that escapes it
+    fails the test as a traceback would show): no traceback, no internal error; a failure
+    is one line."""
     picked = _first_steps(tmp_path, seed, n)
     assert len(picked) == n
-    env = {**os.environ, "PYTHONPATH": SRC}
     for i, name, study, step in picked:
-        proc = subprocess.run([*CLI, "run", str(study), "--quick", "--only", step, "--out",
-                               str(tmp_path / f"out{i}"), "--no-report", "--quiet"],
-                              capture_output=True, text=True, env=env, timeout=600)
+        proc = rotoruq("run", study, "--quick", "--only", step, "--out", tmp_path / f"out{i}",
+                       "--no-report", "--quiet")
         where = f"mutant {i} of {name} (step {step!r})"
         assert "Traceback" not in proc.stderr and "internal error" not in proc.stderr, \
             f"{where}: {proc.stderr}"

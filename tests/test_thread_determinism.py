@@ -34,6 +34,9 @@ def same_bits(study, tmp_path: Path, threads=(1, 2), *, quick: bool = True,
         assert not diffs, f"{study}: {threads[0]} vs {t} threads: {diffs}"
 
 
+# ~12 CPU-s at 1 and 2 threads (README: a test over 10 CPU-s is `slow`; it runs in CI's main
+# lane); the quick study's check below stays in the fast lane
+@pytest.mark.slow
 @pytest.mark.parametrize("threads", [(1, 2), pytest.param((1, 4), marks=pytest.mark.extended)])
 def test_a_300_point_gp_calibration_is_the_same_at_any_thread_count(threads, tmp_path):
     study = tmp_path / "gp300.toml"

@@ -5,19 +5,17 @@ names its line."""
 
 from __future__ import annotations
 
-import subprocess
-import sys
 import textwrap
 
 import numpy as np
 import pytest
 
+from _inproc import rotoruq
 from rotoruq.errors import InputFileError
 from rotoruq.results import load_step
 from rotoruq.rotor.model import RotorModel
 from rotoruq.study.schema import load_study
 
-CLI = [sys.executable, "-m", "rotoruq.study.cli"]
 FIXED = {"height_over_radius": 4.0}
 TRUTH, NOISE, N_OBS = 5.6, 0.4, 4
 
@@ -81,8 +79,9 @@ def test_cokriging_calibration_step_through_the_cli(tmp_path):
     study = tmp_path / "ck.toml"
     study.write_text(study_text(STEP))
     out = tmp_path / "out"
-    done = subprocess.run([*CLI, "run", str(study), "--out", str(out), "--no-report"],
-                          cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    # through the CLI's entry point in this process (tests/_inproc.py: a fresh interpreter
+    # adds ~2 CPU-s per command and nothing checked here)
+    done = rotoruq("run", study, "--out", out, "--no-report", cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     res = load_step(out / "steps" / "bayes")
     obs = np.asarray(load_study(study).data["obs"].columns["thrust"], dtype=float)
@@ -91,8 +90,7 @@ def test_cokriging_calibration_step_through_the_cli(tmp_path):
     assert res.scalars["std/collective_deg"] == pytest.approx(std, rel=0.25)
     assert res.scalars["low_fidelity_runs/coarse"] == 30
     assert np.isfinite(res.scalars["cokriging_rho/model/thrust"])
-    show = subprocess.run([*CLI, "show", str(out), "bayes"], cwd=tmp_path, capture_output=True,
-                          text=True, timeout=120)
+    show = rotoruq("show", out, "bayes", cwd=tmp_path)
     assert "co-kriging: runs of the low-fidelity model coarse" in show.stdout, show.stdout
 
 

@@ -362,8 +362,7 @@ def test_a_new_step_type_is_one_file_and_one_registry_line(tmp_path):
 
 def test_cli_progress_is_logging(tmp_path):
     """Progress lines reach stderr through logging; --quiet keeps only warnings."""
-    import subprocess
-    import sys
+    from _inproc import rotoruq
 
     study = tmp_path / "mv.toml"
     study.write_text(textwrap.dedent("""\
@@ -384,14 +383,13 @@ def test_cli_progress_is_logging(tmp_path):
         name = "mv"
         type = "mean_value"
         """))
-    cli = [sys.executable, "-m", "rotoruq.study.cli"]
-    loud = subprocess.run([*cli, "run", str(study), "--out", str(tmp_path / "a"), "--no-report"],
-                          capture_output=True, text=True, timeout=300)
+    # through the CLI's entry point in this process (tests/_inproc.py): the logging it
+    # configures writes to this process's stderr, captured there
+    loud = rotoruq("run", study, "--out", tmp_path / "a", "--no-report")
     assert loud.returncode == 0, loud.stderr
     assert "[mv] 1/1 mv: running mean_value (cla_m03 -> thrust)" in loud.stderr
     assert "[mv] 1/1 mv: done in" in loud.stderr
-    quiet = subprocess.run([*cli, "--quiet", "run", str(study), "--out", str(tmp_path / "b"),
-                            "--no-report"], capture_output=True, text=True, timeout=300)
+    quiet = rotoruq("--quiet", "run", study, "--out", tmp_path / "b", "--no-report")
     assert quiet.returncode == 0, quiet.stderr
     assert "running" not in quiet.stderr and "done in" not in quiet.stderr
     assert quiet.stdout == "" and quiet.stderr == ""  # --quiet: errors only
@@ -416,6 +414,8 @@ def test_identities_cover_only_the_code_that_computes_the_answer():
     assert "rotoruq/methods/pce.py" in code_parts(["rotoruq.steps.cuu"])
 
 
+@pytest.mark.slow  # ~9-10 CPU-s: six fresh processes on a copy of the package; the
+# fingerprint's modules stay in the fast lane (the test after it, and the one before)
 def test_editing_a_method_reruns_only_its_steps(tmp_path):
     """Append a comment to methods/pce.py in a copy of the package: the pce step runs again
     (``show --why-rerun`` names the file), the other steps are reused and every evaluation of

@@ -5,8 +5,6 @@ shows the area metric of one data row as a score of the predictions (through the
 from __future__ import annotations
 
 import dataclasses
-import subprocess
-import sys
 import textwrap
 
 import numpy as np
@@ -14,6 +12,7 @@ import pytest
 from scipy import stats
 
 import rotoruq as rq
+from _inproc import rotoruq
 from rotoruq.errors import ParameterError
 from rotoruq.results import StepResult, load_step
 from rotoruq.steps.validation import ONE_ROW_AREA, ValidationRecord, validation_tables
@@ -105,9 +104,8 @@ n_samples = 200
 
 def test_the_validation_step_pools_its_conditions_and_ranks_nothing_on_one_row(tmp_path):
     (tmp_path / "s.toml").write_text(textwrap.dedent(STUDY))
-    cli = [sys.executable, "-m", "rotoruq.study.cli"]
-    proc = subprocess.run([*cli, "-q", "run", "s.toml", "--out", "out", "--no-report"],
-                          cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    # the CLI's entry point in this process (tests/_inproc.py)
+    proc = rotoruq("-q", "run", "s.toml", "--out", "out", "--no-report", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     res = load_step(tmp_path / "out" / "steps" / "val")
     rec = ValidationRecord.read(res)
@@ -116,8 +114,7 @@ def test_the_validation_step_pools_its_conditions_and_ranks_nothing_on_one_row(t
     np.testing.assert_array_equal(rec.pit[0], again.u)
     np.testing.assert_array_equal(rec.pooled_area_metric[0], again.area)
     assert res.get("pooled_area_metric/f") == again.area[0]
-    shown = subprocess.run([*cli, "show", "out", "val"], cwd=tmp_path, capture_output=True,
-                           text=True, timeout=300).stdout
+    shown = rotoruq("show", "out", "val", cwd=tmp_path).stdout
     assert "Area metric pooled over the conditions (u-pooling)" in shown
     assert f"{again.area[0]:.4g}" in shown
     # one data row per condition: the per-condition area is no score, here or held out

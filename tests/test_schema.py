@@ -319,13 +319,11 @@ def test_quick_overrides_are_options_of_the_step(tmp_path):
 def test_cli_names_the_new_word_for_an_old_key(tmp_path):
     """The user's path: ``rotoruq run`` on a study with a key from before the vocabulary
     (``chain_samples``) fails with the file, the line and the key it expected."""
-    import subprocess
-    import sys
+    from _inproc import rotoruq  # the CLI's entry point, in this process
 
     text = VALID.replace("n_samples = 2000", "chain_samples = 2000")
     p = write(tmp_path, text)
-    proc = subprocess.run([sys.executable, "-m", "rotoruq.study.cli", "run", str(p)],
-                          capture_output=True, text=True, timeout=120)
+    proc = rotoruq("run", p)
     assert proc.returncode == 1
     assert f"{p}, line {line_of(text, 'chain_samples')}" in proc.stderr
     assert "n_samples" in proc.stderr and "found 'chain_samples'" in proc.stderr

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import rotoruq as rq
+from _inproc import rotoruq
 from rotoruq.results import load_step
 from rotoruq.steps._discrepancy import DiscrepancyRecord
 from rotoruq.steps.validation import WITHOUT, ValidationRecord
@@ -105,7 +106,11 @@ verification = {{ ratio = 2, levels = 2, formal_order = 2.0 }}
 """
 
 
-def cli(*args, cwd: Path) -> subprocess.CompletedProcess:
+def cli(*args, cwd: Path, fresh: bool = False) -> subprocess.CompletedProcess:
+    """``rotoruq ARGS`` from ``cwd``: through the CLI's entry point in this process
+    (``tests/_inproc.py``), or with ``fresh`` in a new one (the module's study run)."""
+    if not fresh:
+        return rotoruq(*args, cwd=cwd)
     return subprocess.run([sys.executable, "-m", "rotoruq.study.cli", *map(str, args)],
                           capture_output=True, text=True, cwd=cwd, timeout=600)
 
@@ -114,7 +119,7 @@ def cli(*args, cwd: Path) -> subprocess.CompletedProcess:
 def run_dir(tmp_path_factory) -> Path:
     tmp = tmp_path_factory.mktemp("vv")
     (tmp / "vv.toml").write_text(STUDY)
-    proc = cli("run", "vv.toml", "--out", "out", cwd=tmp)
+    proc = cli("run", "vv.toml", "--out", "out", cwd=tmp, fresh=True)
     assert proc.returncode == 0, proc.stderr
     return tmp / "out"
 

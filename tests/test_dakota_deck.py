@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from _inproc import rotoruq
 from rotoruq.errors import InputFileError
 from rotoruq.results import load_step
 from rotoruq.study.deck import deck_to_study, parse_deck, study_to_decks
@@ -64,8 +65,9 @@ def _prepare(tmp_path: Path, deck: str, **files: str) -> Path:
 
 
 def cli(*args: str, cwd: Path) -> str:
-    proc = subprocess.run([sys.executable, "-m", "rotoruq.study.cli", *args], cwd=cwd,
-                          capture_output=True, text=True, timeout=600)
+    """``rotoruq ARGS`` from ``cwd`` through the CLI's entry point in this process
+    (``tests/_inproc.py``; ``dakota import`` runs in a fresh process below); its stdout."""
+    proc = rotoruq(*args, cwd=cwd)
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-3000:]
     return proc.stdout
 

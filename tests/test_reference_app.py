@@ -12,13 +12,13 @@ import dataclasses
 import json
 import math
 import re
-import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from _inproc import rotoruq
 from rotoruq.errors import InputFileError
 from rotoruq.report.application import Addition, ReportData, Section
 from rotoruq.report.html import run_verdict, write_report
@@ -26,7 +26,6 @@ from rotoruq.results import StepResult, save_step
 from rotoruq.steps.validation import JOINT
 from rotoruq.study.schema import parse_study
 
-CLI = [sys.executable, "-m", "rotoruq.study.cli"]
 EXPECTED_CLAIMS = Path(__file__).parent / "data" / "reference_quick_claims.json"
 
 from test_security import DRIVER, STUDY  # noqa: E402 (one external study for both)
@@ -42,8 +41,7 @@ def test_a_study_named_validation_gets_a_plain_report(tmp_path):
     study = tmp_path / "study.toml"
     study.write_text(EXTERNAL.format(python=json.dumps(sys.executable)))
     out = tmp_path / "out"
-    proc = subprocess.run([*CLI, "run", str(study), "--out", str(out)], capture_output=True,
-                          text=True, timeout=300, cwd=tmp_path)
+    proc = rotoruq("run", study, "--out", out, cwd=tmp_path)  # tests/_inproc.py
     assert proc.returncode == 0, proc.stderr
     assert json.loads((out / "study.json").read_text())["reference"] is None
     page = (out / "report" / "index.html").read_text()

@@ -24,6 +24,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from _inproc import rotoruq
 from rotoruq.errors import InputFileError
 from rotoruq.results import StepResult, load_step, save_step, save_study_info
 from rotoruq.safety import (
@@ -85,6 +86,11 @@ def make_study(folder: Path) -> Path:
 
 
 def cli(*args, umask: int = -1, timeout: float = 120) -> subprocess.CompletedProcess:
+    """``rotoruq ARGS``: with a ``umask``, in a fresh process started with it; otherwise
+    through the CLI's entry point in this process (``tests/_inproc.py``: what is checked is
+    what the command writes, refuses and says, not the process)."""
+    if umask == -1:
+        return rotoruq(*args)
     return subprocess.run([*CLI, *map(str, args)], capture_output=True, text=True,
                           timeout=timeout, umask=umask)
 

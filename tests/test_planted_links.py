@@ -1,7 +1,8 @@
-"""Paths an evaluation creates refuse a planted symlink (issue 36): through ``rotoruq run`` in
-a subprocess, with real symlinks planted by a real driver, in the evaluation's own folder
-(its results file) and at the name of the next evaluation's folder. The evaluation fails,
-naming the link; nothing is read or written through it."""
+"""Paths an evaluation creates refuse a planted symlink (issue 36): through ``rotoruq run``
+(the CLI's entry point in the test's process, ``tests/_inproc.py``), with real symlinks
+planted by a real driver process, in the evaluation's own folder (its results file) and at
+the name of the next evaluation's folder; ``rotoruq driver`` in a fresh process. The
+evaluation fails, naming the link; nothing is read or written through it."""
 
 from __future__ import annotations
 
@@ -11,6 +12,8 @@ import sys
 from pathlib import Path
 
 import pytest
+
+from _inproc import rotoruq
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 
@@ -41,11 +44,8 @@ def test_a_link_planted_where_an_evaluation_works_fails_it_naming_the_link(tmp_p
     target = tmp_path / "elsewhere"
     target.mkdir()
     out = tmp_path / "out"
-    proc = subprocess.run([sys.executable, "-m", "rotoruq.study.cli", "run", str(study),
-                           "--out", str(out), "--no-report"], capture_output=True, text=True,
-                          cwd=tmp_path, timeout=300,
-                          env={**os.environ, "PYTHONPATH": SRC, "PLANT": plant,
-                               "TARGET": str(target)})
+    proc = rotoruq("run", study, "--out", out, "--no-report", cwd=tmp_path,
+                   env={"PLANT": plant, "TARGET": str(target)})
     assert proc.returncode == 1, proc.stderr
     assert "Traceback" not in proc.stderr and "internal error" not in proc.stderr
     (line,) = [ln for ln in proc.stderr.splitlines() if "error" in ln]

@@ -221,16 +221,18 @@ def test_a_server_that_dies_mid_call_or_stays_silent_is_bypassed(folder, tmp_pat
     assert got == reference
 
 
-def test_concurrent_calls_are_served_in_parallel(folder, tmp_path):
+def test_concurrent_calls_are_served_in_parallel(folder, tmp_path, capsys, monkeypatch):
     """Four driver processes at once, each its own point and folder, are all answered by
-    the server as in process; and while one worker is held by a caller that sends nothing,
-    the other still answers."""
+    the server as in process (the references: the driver in this process, no server); and
+    while one worker is held by a caller that sends nothing, the other still answers."""
     values = [6.0, 7.0, 8.0, 9.0]
     for k, v in enumerate(values):
         (tmp_path / f"w{k}").mkdir()
         point(tmp_path / f"w{k}" / "params.in", {"collective_deg": v}, ["thrust", "power"])
-    references = [drive(tmp_path / f"w{k}", "params.in", "results.out",
-                        env={client.SWITCH: "0"}) for k in range(len(values))]
+    references = [in_process(tmp_path / f"w{k}", "params.in", "results.out", capsys=capsys,
+                             monkeypatch=monkeypatch) for k in range(len(values))]
+    for k in range(len(values)):
+        (tmp_path / f"w{k}" / "results.out").unlink()  # the served calls write them again
     procs = [subprocess.Popen([*ROTORUQ, "driver", "params.in", "results.out"],
                               cwd=tmp_path / f"w{k}", stderr=subprocess.PIPE, text=True)
              for k in range(len(values))]

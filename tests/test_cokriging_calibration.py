@@ -137,6 +137,7 @@ def test_emulator_variance_widens_the_posterior_where_the_cokriging_is_unsure():
     assert on.std[0] > 1.2 * off.std[0], (on.std, off.std)
 
 
+@pytest.mark.slow  # ~5 CPU-s; the SBC of an unfitted co-kriging below checks the coverage fast
 def test_coverage_of_the_cokriging_calibration_by_simulation_based_calibration(pair):
     """self_check=40: parameters drawn from the prior, data from the HF model, posteriors with
     this co-kriging emulator (and its variance): the 90 % intervals cover at 0.9 within three

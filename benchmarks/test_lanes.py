@@ -13,7 +13,8 @@ summary and the load average before and after (timings on a shared machine are i
 the load; the CPU seconds much less). The CPU seconds of every test (``_test_cpu.py``, a
 pytest plugin: its process's and the subprocesses' it waited for, setup and teardown
 included) give the ``slowest`` tests and ``over_10_cpu_s``, the fast tests above the 10 s a
-test of this lane may take (README: such a test gets ``@pytest.mark.slow``). Python's
+test of this lane may take (README: such a test gets ``@pytest.mark.slow``), and
+``files_cpu_s``, the test files whose tests cost the most CPU seconds together. Python's
 bytecode cache is on in the children even when ``PYTHONDONTWRITEBYTECODE`` is set here
 (without it every run rewrites the assertions of every test file again: ~15 CPU-s per
 worker).
@@ -29,11 +30,13 @@ it) is not seen, so a module listed may still be tested that way: read the list.
     python benchmarks/test_lanes.py --json benchmarks/results/test_lanes.json
     python benchmarks/test_lanes.py --modules [-- tests/test_params.py]   # pytest arguments
     python benchmarks/test_lanes.py --summary benchmarks/results/test_lanes.json  # README's line
+    python benchmarks/test_lanes.py --per-test /tmp/lane.jsonl   # and every test's seconds
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import re
 import resource
@@ -87,8 +90,20 @@ def _counts(output: str) -> dict[str, int]:
             for n, k in COUNTS.findall(last[-1])}
 
 
-def measure(extra: list[str]) -> dict:
-    """Collect once (bytecode caches written, collection timed), then run the lane."""
+def by_file(tests: list[dict]) -> dict[str, float]:
+    """CPU seconds of the tests of each test file (their own, subprocesses included), the
+    ``SLOWEST`` costliest files, the most first."""
+    sums: dict[str, float] = {}
+    for t in tests:
+        path = t["nodeid"].split("::")[0]
+        sums[path] = sums.get(path, 0.0) + t["cpu_s"]
+    top = sorted(sums.items(), key=lambda kv: -kv[1])[:SLOWEST]
+    return {path: round(cpu, 1) for path, cpu in top}
+
+
+def measure(extra: list[str], per_test_path: str | None = None) -> dict:
+    """Collect once (bytecode caches written, collection timed), then run the lane; with
+    ``per_test_path``, every test's record (``_test_cpu.py``) saved there as JSON lines."""
     load0 = [round(v, 2) for v in os.getloadavg()]
     cwall, ccpu, cout, crc = _pytest(["--collect-only", *LANE, *extra])
     if crc != 0:
@@ -101,6 +116,9 @@ def measure(extra: list[str]) -> dict:
     finally:
         os.environ.pop("ROTORUQ_TEST_CPU", None)
         shutil.rmtree(per_test, ignore_errors=True)
+    if per_test_path:
+        Path(per_test_path).write_text("".join(json.dumps(t) + "\n" for t in tests),
+                                       encoding="utf-8")
     counts = _counts(out)
     failed = counts.get("failed", 0) + counts.get("error", 0)
     return {"command": "pytest " + " ".join(LANE + extra), "exit_code": rc,
@@ -111,7 +129,7 @@ def measure(extra: list[str]) -> dict:
             "cores": os.cpu_count(), "load_before": load0,
             "load_after": [round(v, 2) for v in os.getloadavg()],
             "tests_cpu_s": round(sum(t["cpu_s"] for t in tests), 1),
-            "slowest": tests[:SLOWEST],
+            "slowest": tests[:SLOWEST], "files_cpu_s": by_file(tests),
             "over_10_cpu_s": [t["nodeid"] for t in tests if t["cpu_s"] > SLOW_CPU_S],
             "provenance": provenance(modules=all_modules())}
 
@@ -185,6 +203,8 @@ def main() -> None:
     ap.add_argument("--modules", action="store_true",
                     help="run the lane under coverage and list the modules no fast test runs")
     ap.add_argument("--summary", metavar="JSON", help="print README's line from a saved result")
+    ap.add_argument("--per-test", metavar="JSONL",
+                    help="also save every test's CPU and wall seconds here, one JSON line each")
     ap.add_argument("pytest_args", nargs="*", help="more pytest arguments (after --)")
     args = ap.parse_args()
     if print_saved_summary(args.summary, summary):
@@ -193,7 +213,7 @@ def main() -> None:
         res = untested_modules(args.pytest_args)
         print_and_save(res, args.json)
         raise SystemExit(1 if res["untested"] or res["exit_code"] else 0)
-    print_and_save(measure(args.pytest_args), args.json)
+    print_and_save(measure(args.pytest_args, args.per_test), args.json)
 
 
 if __name__ == "__main__":

@@ -105,6 +105,9 @@ def measure(extra: list[str], per_test_path: str | None = None) -> dict:
     """Collect once (bytecode caches written, collection timed), then run the lane; with
     ``per_test_path``, every test's record (``_test_cpu.py``) saved there as JSON lines."""
     load0 = [round(v, 2) for v in os.getloadavg()]
+    # the commit, date and sources at the start (a commit made while the lane runs is not
+    # what it ran); the load average at the end, as before
+    prov = provenance(modules=all_modules())
     cwall, ccpu, cout, crc = _pytest(["--collect-only", *LANE, *extra])
     if crc != 0:
         raise RuntimeError(f"pytest --collect-only exited with {crc}:\n{cout[-3000:]}")
@@ -131,7 +134,7 @@ def measure(extra: list[str], per_test_path: str | None = None) -> dict:
             "tests_cpu_s": round(sum(t["cpu_s"] for t in tests), 1),
             "slowest": tests[:SLOWEST], "files_cpu_s": by_file(tests),
             "over_10_cpu_s": [t["nodeid"] for t in tests if t["cpu_s"] > SLOW_CPU_S],
-            "provenance": provenance(modules=all_modules())}
+            "provenance": {**prov, "load": [round(v, 2) for v in os.getloadavg()]}}
 
 
 def all_modules() -> list[str]:

@@ -496,7 +496,11 @@ class GaussianProcess:
         if not want_grad:
             return ll, None, out
         Minv, info = lapack.dpotri(L, lower=1)  # lower triangle; L's upper is zero (clean=1)
-        Minv += np.tril(Minv, -1).T
+        # the upper triangle from the lower, row by row (the n^2 copies, not tril's mask and
+        # temporaries); + 0.0 as the sum ``Minv + tril(Minv, -1).T`` it replaces (-0 -> +0)
+        for i in range(1, n):
+            Minv[i - 1, i:] = Minv[i:, i - 1]
+        Minv += 0.0
         if conc and reml:  # M^-1 -> the projection M^-1 - M^-1 F (F^T M^-1 F)^-1 F^T M^-1
             qf = linalg.solve_triangular(
                 c_f, linalg.solve_triangular(L, Lf, lower=True, trans=1, check_finite=False).T,

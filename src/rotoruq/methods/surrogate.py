@@ -509,17 +509,17 @@ class GaussianProcess:
         # W = scale * alpha alpha^T - M^-1, formed in place
         W = np.multiply.outer(alpha * scale, alpha, out=np.empty((n, n)))
         W -= Minv
-        P = W * G
-        if s2 != 1.0:
-            P *= s2
-        rows = P.sum(1)
         g = np.empty_like(theta)
-        Xe = Xs * inv_ell
-        g[:d] = (Xe * Xe * rows[:, None]).sum(0) - (Xe * (P @ Xe)).sum(0)
         if not conc:
             g[d] = 0.5 * s2 * float((W * R).sum())
         elif self.nugget == "estimate":
             g[d] = 0.5 * eta * float(np.trace(W))
+        P = np.multiply(W, G, out=W)  # W is not read after: P takes its memory
+        if s2 != 1.0:
+            P *= s2
+        rows = P.sum(1)
+        Xe = Xs * inv_ell
+        g[:d] = (Xe * Xe * rows[:, None]).sum(0) - (Xe * (P @ Xe)).sum(0)
         return ll, g, out
 
     def _fit_one(self, ys: np.ndarray, noise: float | None, rng, log_ell0=None) -> _Fit:

@@ -66,11 +66,13 @@ def _split(x: np.ndarray) -> np.ndarray:
 def _average_ranks(a: np.ndarray) -> np.ndarray:
     """Ranks 1..N of each column of ``a`` (N, d), ties given their average rank: the numbers
     of ``scipy.stats.rankdata(a, method="average", axis=0)`` (a column holding a NaN is all
-    NaN), from one quicksort per column instead of its stable sort and bookkeeping.
+    NaN), about twice as fast on Markov chains.
 
-    Every rank is an integer or half-integer below 2**52: the average of a tie group,
-    ``(first + last) / 2`` of its positions, is exact, so the order the sort leaves equal
-    values in changes nothing.
+    A chain repeats its point at every rejected proposal: each column is taken as runs of
+    equal consecutive values, only the runs are sorted, and a group of equal values (one run
+    or several) gets ``(first + last) / 2 + 1`` of the positions it covers in the sorted
+    column. Every rank is an integer or half-integer below 2**52, so that average is exact
+    and the order the sort leaves equal values in changes nothing.
 
     Examples
     --------
@@ -80,20 +82,32 @@ def _average_ranks(a: np.ndarray) -> np.ndarray:
            [2.5, 2.5, 4. , 1. ]])
     """
     n, d = a.shape
-    t = np.ascontiguousarray(a.T)  # (d, N): each column's values contiguous
-    order = np.argsort(t, axis=1)
-    s = np.take_along_axis(t, order, 1)
-    # new[:, p]: sorted position p starts a tie group (p = N closes the last one)
-    new = np.empty((d, n + 1), dtype=bool)
-    new[:, 0] = new[:, n] = True
-    np.not_equal(s[:, 1:], s[:, :-1], out=new[:, 1:n])
-    pos = np.arange(n)
-    first = np.maximum.accumulate(np.where(new[:, :n], pos, 0), axis=1)
-    last = np.minimum.accumulate(np.where(new[:, 1:], pos, n)[:, ::-1], axis=1)[:, ::-1]
-    out = np.empty((d, n))
-    np.put_along_axis(out, order, (first + last + 2) * 0.5, 1)
-    out[np.isnan(t).any(1)] = np.nan
-    return out.T
+    out = np.empty((n, d))
+    if n == 0:
+        return out
+    start = np.empty(n, dtype=bool)
+    start[0] = True
+    for j in range(d):
+        x = a[:, j]
+        if np.isnan(x).any():
+            out[:, j] = np.nan
+            continue
+        np.not_equal(x[1:], x[:-1], out=start[1:])
+        first = np.flatnonzero(start)  # where each run of equal consecutive values starts
+        counts = np.diff(first, append=n)
+        order = np.argsort(x[first], kind="stable")
+        vals, sc = x[first][order], counts[order]
+        # new[k]: sorted run k starts a group of equal values (k = runs closes the last)
+        new = np.empty(vals.size + 1, dtype=bool)
+        new[0] = new[-1] = True
+        np.not_equal(vals[1:], vals[:-1], out=new[1:-1])
+        before = np.concatenate(([0], np.cumsum(sc)))  # positions before each sorted run
+        lo = before[np.flatnonzero(new[:-1])]  # each group's first and last position
+        hi = before[np.flatnonzero(new[1:]) + 1] - 1
+        ranks = np.empty(vals.size)
+        ranks[order] = ((lo + hi + 2) * 0.5)[np.cumsum(new[:-1]) - 1]
+        out[:, j] = np.repeat(ranks, counts)
+    return out
 
 
 def _rank_normalise(x: np.ndarray) -> np.ndarray:

@@ -32,9 +32,9 @@ from ..._docs import fill_doc
 from ...errors import ParameterError
 from .._convergence import ChainConvergence
 
-__all__ = ["autocovariance", "effective_sample_size", "split_rhat", "ess_and_rhat",
-           "mcse_mean", "mcse_quantile", "ChainDiagnostics", "diagnose", "moments",
-           "entropy_knn", "entropy_gaussian"]
+__all__ = ["autocovariance", "effective_sample_size", "split_rhat", "mcse_mean",
+           "mcse_quantile", "ChainDiagnostics", "diagnose", "moments", "entropy_knn",
+           "entropy_gaussian"]
 
 #: fewest draws per chain the split estimators accept (as arviz)
 MIN_DRAWS = 4

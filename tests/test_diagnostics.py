@@ -237,3 +237,43 @@ def test_reading_a_foreign_npz_names_the_format(tmp_path):
     np.savez(tmp_path / "other.npz", chains=np.zeros((1, 4, 1)))
     with pytest.raises(ParameterError, match="rotoruq-chains-1"):
         read_chains(tmp_path / "other.npz")
+
+
+@pytest.mark.parametrize("shape,round_to", [((1, 1), None), ((7, 3), 0), ((4000, 9), 1),
+                                             ((2500, 2), None)])
+def test_average_ranks_are_scipys(shape, round_to):
+    """The quicksort ranks are scipy's rankdata(method="average", axis=0), ties, infinities
+    and a NaN column included."""
+    from scipy import stats
+
+    from rotoruq.methods.mcmc.diagnostics import _average_ranks
+
+    a = np.random.default_rng(3).normal(size=shape) * 3.0
+    if round_to is not None:  # ties, as a chain's rejected moves make them
+        a = np.round(a, round_to)
+    if a.size > 4:
+        a[0, 0], a[1, 0] = np.inf, -np.inf
+        a[2, -1] = np.nan
+    got = _average_ranks(a)
+    want = stats.rankdata(a, method="average", axis=0)
+    assert np.array_equal(got, want, equal_nan=True)
+
+
+@pytest.mark.parametrize("shape", [(4, 600, 3), (1, 999, 2), (2, 3, 2)])
+def test_diagnose_and_ess_and_rhat_give_the_public_functions_numbers(shape):
+    """diagnose and ess_and_rhat share their intermediate results: the same bits as each
+    estimator on its own (chains with repeated draws, as a Metropolis chain's)."""
+    from rotoruq.methods.mcmc.diagnostics import diagnose, ess_and_rhat
+
+    x = np.random.default_rng(5).standard_normal(shape).cumsum(1)
+    x[:, 1::4] = x[:, 0:-1:4][:, :x[:, 1::4].shape[1]]  # rejected moves: repeats
+    dg = diagnose(x)
+    one = {"rhat": split_rhat(x), "rhat_bulk": split_rhat(x, kind="bulk"),
+           "rhat_folded": split_rhat(x, kind="folded"), "ess_bulk": effective_sample_size(x),
+           "ess_tail": effective_sample_size(x, kind="tail"), "mcse_mean": mcse_mean(x),
+           "mcse_q05": mcse_quantile(x, 0.05), "mcse_q95": mcse_quantile(x, 0.95)}
+    for name, want in one.items():
+        assert np.array_equal(getattr(dg, name), want, equal_nan=True), name
+    ess, rhat = ess_and_rhat(x)
+    assert np.array_equal(ess, one["ess_bulk"]) and np.array_equal(rhat, one["rhat"],
+                                                                   equal_nan=True)

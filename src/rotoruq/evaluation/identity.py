@@ -108,13 +108,62 @@ def _imports(path: Path, name: str) -> set[str]:
 def _parsed_imports(name: str, package: str, sha: bytes, text: bytes) -> frozenset[str]:
     key = (name, package, sha)
     hit = _IMPORTS.get(key)
+    if hit is None and _load_saved():
+        hit = _IMPORTS.get(key)
     if hit is None:
         hit = _IMPORTS[key] = frozenset(_parse_imports(text.decode("utf-8"), package))
+        _save_at_exit()
     return hit
 
 
 #: _parse_imports by (module, package, sha256 of the source)
 _IMPORTS: dict[tuple[str, str, bytes], frozenset[str]] = {}
+#: :data:`_IMPORTS` kept between processes (parsing every module a study's code touches
+#: costs a few tenths of a CPU second per process): a file beside this module's bytecode,
+#: named by the digest of this file (an edit of the parser starts a new one), read at the
+#: first lookup that misses, written back atomically at exit when a parse added to it.
+#: Entries are keyed by content, so a file left by another checkout or version is never
+#: wrong, only unused; where the folder is not writable nothing is kept.
+_SAVED = Path(__file__).resolve().parent / "__pycache__" / (
+    "rotoruq-imports-" + hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:16]
+    + ".json")
+_SAVED_STATE = {"loaded": False, "save": False}
+
+
+def _load_saved() -> bool:
+    """Merge the saved imports into :data:`_IMPORTS` (once per process): whether it read
+    any."""
+    if _SAVED_STATE["loaded"]:
+        return False
+    _SAVED_STATE["loaded"] = True
+    try:
+        rows = json.loads(_SAVED.read_text(encoding="utf-8"))
+        for name, package, sha, imports in rows:
+            _IMPORTS.setdefault((name, package, bytes.fromhex(sha)), frozenset(imports))
+    except (OSError, ValueError, TypeError):  # none yet, or unreadable: parse again
+        return False
+    return True
+
+
+def _save_at_exit() -> None:
+    if not _SAVED_STATE["save"]:
+        _SAVED_STATE["save"] = True
+        import atexit
+
+        atexit.register(_save)
+
+
+def _save() -> None:
+    """Write :data:`_IMPORTS` to :data:`_SAVED` (atomically; nothing when it cannot)."""
+    from ..atomic import write_bytes
+
+    rows = sorted([name, package, sha.hex(), sorted(imports)]
+                  for (name, package, sha), imports in _IMPORTS.items())
+    try:
+        _SAVED.parent.mkdir(exist_ok=True)
+        write_bytes(_SAVED, json.dumps(rows).encode())
+    except OSError:
+        pass
 
 
 def _statements(body: list) -> Iterator[ast.stmt]:

@@ -496,7 +496,11 @@ class GaussianProcess:
         if not want_grad:
             return ll, None, out
         Minv, info = lapack.dpotri(L, lower=1)  # lower triangle; L's upper is zero (clean=1)
-        Minv += np.tril(Minv, -1).T
+        # the upper triangle from the lower, row by row (the n^2 copies, not tril's mask and
+        # temporaries); + 0.0 as the sum ``Minv + tril(Minv, -1).T`` it replaces (-0 -> +0)
+        for i in range(1, n):
+            Minv[i - 1, i:] = Minv[i:, i - 1]
+        Minv += 0.0
         if conc and reml:  # M^-1 -> the projection M^-1 - M^-1 F (F^T M^-1 F)^-1 F^T M^-1
             qf = linalg.solve_triangular(
                 c_f, linalg.solve_triangular(L, Lf, lower=True, trans=1, check_finite=False).T,
@@ -505,17 +509,17 @@ class GaussianProcess:
         # W = scale * alpha alpha^T - M^-1, formed in place
         W = np.multiply.outer(alpha * scale, alpha, out=np.empty((n, n)))
         W -= Minv
-        P = W * G
-        if s2 != 1.0:
-            P *= s2
-        rows = P.sum(1)
         g = np.empty_like(theta)
-        Xe = Xs * inv_ell
-        g[:d] = (Xe * Xe * rows[:, None]).sum(0) - (Xe * (P @ Xe)).sum(0)
         if not conc:
             g[d] = 0.5 * s2 * float((W * R).sum())
         elif self.nugget == "estimate":
             g[d] = 0.5 * eta * float(np.trace(W))
+        P = np.multiply(W, G, out=W)  # W is not read after: P takes its memory
+        if s2 != 1.0:
+            P *= s2
+        rows = P.sum(1)
+        Xe = Xs * inv_ell
+        g[:d] = (Xe * Xe * rows[:, None]).sum(0) - (Xe * (P @ Xe)).sum(0)
         return ll, g, out
 
     def _fit_one(self, ys: np.ndarray, noise: float | None, rng, log_ell0=None) -> _Fit:

@@ -479,8 +479,7 @@ def _summarize(names, chains_z, lp, post: _Posterior, state: SamplerState, base:
     mean, std, skew, kurt = dg.moments(flat)
     with np.errstate(invalid="ignore", divide="ignore"):
         corr = np.atleast_2d(np.corrcoef(flat, rowvar=False))
-    ess = dg.effective_sample_size(chains_z)
-    rhat = dg.split_rhat(chains_z)
+    ess, rhat = dg.ess_and_rhat(chains_z)
     # entropy on a near-independent subsample (spacing ~ integrated autocorrelation time)
     rng = as_generator(seed)
     n_sub = int(min(4000, max(50, np.min(ess)), flat.shape[0]))

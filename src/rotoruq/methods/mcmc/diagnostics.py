@@ -63,10 +63,57 @@ def _split(x: np.ndarray) -> np.ndarray:
     return np.concatenate([x[:, :half], x[:, x.shape[1] - half:]], axis=0)
 
 
+def _average_ranks(a: np.ndarray) -> np.ndarray:
+    """Ranks 1..N of each column of ``a`` (N, d), ties given their average rank: the numbers
+    of ``scipy.stats.rankdata(a, method="average", axis=0)`` (a column holding a NaN is all
+    NaN), about twice as fast on Markov chains.
+
+    A chain repeats its point at every rejected proposal: each column is taken as runs of
+    equal consecutive values, only the runs are sorted, and a group of equal values (one run
+    or several) gets ``(first + last) / 2 + 1`` of the positions it covers in the sorted
+    column. Every rank is an integer or half-integer below 2**52, so that average is exact
+    and the order the sort leaves equal values in changes nothing.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> _average_ranks(np.array([[3.0, 1.0], [1.0, 1.0], [3.0, 2.0], [2.0, 0.5]])).T
+    array([[3.5, 1. , 3.5, 2. ],
+           [2.5, 2.5, 4. , 1. ]])
+    """
+    n, d = a.shape
+    out = np.empty((n, d))
+    if n == 0:
+        return out
+    start = np.empty(n, dtype=bool)
+    start[0] = True
+    for j in range(d):
+        x = a[:, j]
+        if np.isnan(x).any():
+            out[:, j] = np.nan
+            continue
+        np.not_equal(x[1:], x[:-1], out=start[1:])
+        first = np.flatnonzero(start)  # where each run of equal consecutive values starts
+        counts = np.diff(first, append=n)
+        order = np.argsort(x[first], kind="stable")
+        vals, sc = x[first][order], counts[order]
+        # new[k]: sorted run k starts a group of equal values (k = runs closes the last)
+        new = np.empty(vals.size + 1, dtype=bool)
+        new[0] = new[-1] = True
+        np.not_equal(vals[1:], vals[:-1], out=new[1:-1])
+        before = np.concatenate(([0], np.cumsum(sc)))  # positions before each sorted run
+        lo = before[np.flatnonzero(new[:-1])]  # each group's first and last position
+        hi = before[np.flatnonzero(new[1:]) + 1] - 1
+        ranks = np.empty(vals.size)
+        ranks[order] = ((lo + hi + 2) * 0.5)[np.cumsum(new[:-1]) - 1]
+        out[:, j] = np.repeat(ranks, counts)
+    return out
+
+
 def _rank_normalise(x: np.ndarray) -> np.ndarray:
     """Pooled ranks per parameter mapped to normal scores (Blom's offset 3/8), same shape."""
     m, n, d = x.shape
-    rank = stats.rankdata(x.reshape(m * n, d), method="average", axis=0)
+    rank = _average_ranks(x.reshape(m * n, d))
     # stats.norm.ppf without its argument checks: ndtri(q) * 1 + 0 into a C-ordered array
     # (the FFT of the ESS depends on the layout in its last bits)
     z = np.empty(rank.shape)
@@ -209,9 +256,55 @@ def split_rhat(chains: np.ndarray, *, kind: str = "rank") -> np.ndarray:
             f"kind must be one of 'rank', 'bulk', 'folded', 'classic'; got {kind!r}")
     if kind == "bulk":
         return _rhat_core(_rank_normalise(s))
-    median = np.median(s.reshape(-1, s.shape[2]), axis=0)
-    folded = _rhat_core(_rank_normalise(np.abs(s - median)))
+    folded = _folded_rhat(s)
     return folded if kind == "folded" else np.fmax(_rhat_core(_rank_normalise(s)), folded)
+
+
+def _folded_rhat(s: np.ndarray) -> np.ndarray:
+    """The folded R-hat of split chains ``s`` (2c, n, d)."""
+    median = np.median(s.reshape(-1, s.shape[2]), axis=0)
+    return _rhat_core(_rank_normalise(np.abs(s - median)))
+
+
+def _bulk(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Bulk ESS, bulk R-hat and folded R-hat of chains (c, n, d) with at least
+    :data:`MIN_DRAWS` draws each: the numbers of ``effective_sample_size(x)``,
+    ``split_rhat(x, kind="bulk")`` and ``split_rhat(x, kind="folded")``, the split chains
+    rank-normalised once for the first two."""
+    s = _split(x)
+    z = _rank_normalise(s)
+    return _ess_core(z), _rhat_core(z), _folded_rhat(s)
+
+
+def ess_and_rhat(chains: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(effective_sample_size(chains), split_rhat(chains))`` (bulk ESS, rank R-hat), the
+    same numbers, the split chains rank-normalised once for both.
+
+    Parameters
+    ----------
+    chains : ndarray, shape (n_chains, n_draws, d)
+        Draws of each chain.
+
+    Returns
+    -------
+    tuple of ndarray
+        Bulk ESS (d,) and rank-normalised split R-hat (d,).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> x = np.random.default_rng(0).normal(size=(2, 300, 2))
+    >>> ess, rhat = ess_and_rhat(x)
+    >>> bool(np.array_equal(ess, effective_sample_size(x))), bool(np.array_equal(
+    ...     rhat, split_rhat(x)))
+    (True, True)
+    """
+    x = _as_chains(chains)
+    c, n, d = x.shape
+    if n < MIN_DRAWS:
+        return np.full(d, float(c * n)), np.full(d, np.nan)
+    ess, bulk, folded = _bulk(x)
+    return ess, np.fmax(bulk, folded)
 
 
 #: the entries :func:`mcse_mean` and :func:`mcse_quantile` share: their draws, their result
@@ -273,11 +366,17 @@ def mcse_quantile(chains: np.ndarray, prob: float) -> np.ndarray:
     d = x.shape[2]
     if x.shape[1] < MIN_DRAWS:
         return np.full(d, np.nan)
-    ess = _ess_quantile(x, float(prob))
+    return _mcse_quantile(np.sort(x.reshape(-1, d), axis=0), float(prob),
+                          _ess_quantile(x, float(prob)))
+
+
+def _mcse_quantile(srt: np.ndarray, prob: float, ess: np.ndarray) -> np.ndarray:
+    """:func:`mcse_quantile` from the pooled draws sorted per parameter ``srt`` (N, d) and
+    the ESS (d,) of the quantile's indicator."""
+    d = srt.shape[1]
     with np.errstate(invalid="ignore"):
         a = stats.beta.ppf(np.array([0.1586553, 0.8413447])[:, None],
                            ess * prob + 1.0, ess * (1.0 - prob) + 1.0)  # (2, d)
-    srt = np.sort(x.reshape(-1, d), axis=0)
     size = srt.shape[0]
     lo = np.floor(np.fmax(a[0] * size - 1.0, 0.0))
     hi = np.ceil(np.fmin(a[1] * size - 1.0, size - 1.0))
@@ -348,14 +447,23 @@ def diagnose(chains: np.ndarray) -> ChainDiagnostics:
     ((3,), True)
     """
     x = _as_chains(chains)
-    bulk = split_rhat(x, kind="bulk")
-    folded = split_rhat(x, kind="folded")
+    c, n, d = x.shape
+    if n < MIN_DRAWS:
+        bulk = folded = mcse_q05 = mcse_q95 = np.full(d, np.nan)
+        ess_bulk = ess_tail = np.full(d, float(c * n))
+    else:
+        # each estimator once: the split chains rank-normalised once (bulk R-hat and ESS),
+        # the 5 % and 95 % indicators' ESS once (tail ESS and the quantiles' MCSE), the
+        # draws sorted once; the same numbers as the public functions one by one
+        ess_bulk, bulk, folded = _bulk(x)
+        e05, e95 = _ess_quantile(x, 0.05), _ess_quantile(x, 0.95)
+        ess_tail = np.minimum(e05, e95)
+        srt = np.sort(x.reshape(-1, d), axis=0)
+        mcse_q05, mcse_q95 = _mcse_quantile(srt, 0.05, e05), _mcse_quantile(srt, 0.95, e95)
     return ChainDiagnostics(
         rhat=np.fmax(bulk, folded), rhat_bulk=bulk, rhat_folded=folded,
-        ess_bulk=effective_sample_size(x, kind="bulk"),
-        ess_tail=effective_sample_size(x, kind="tail"),
-        mcse_mean=mcse_mean(x), mcse_q05=mcse_quantile(x, 0.05),
-        mcse_q95=mcse_quantile(x, 0.95))
+        ess_bulk=ess_bulk, ess_tail=ess_tail, mcse_mean=mcse_mean(x), mcse_q05=mcse_q05,
+        mcse_q95=mcse_q95)
 
 
 def moments(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

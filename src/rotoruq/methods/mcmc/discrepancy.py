@@ -805,12 +805,13 @@ def calibrate_with_discrepancy(
                                   ratio_without, discrepancy, confounding_threshold)
     hyper_names = () if form.n_hyper == 0 else tuple(
         [f"amplitude[{n}]" for n in names] + [f"length_scale[{n}]" for n in names])
+    ess, rhat = dg.ess_and_rhat(zch)
     res = DiscrepancyResult(
         names_in=tuple(prior.names), names_out=names, configuration_name=configuration_name,
         discrepancy=discrepancy, chains=theta_ch, hyper_names=hyper_names,
         hyper_chains=hyper_ch, log_posterior=kept_lp.T, mean=flat_theta.mean(axis=0), std=std,
         credible_interval_95=np.quantile(flat_theta, [0.025, 0.975], axis=0).T,
-        ess=dg.effective_sample_size(zch), rhat=dg.split_rhat(zch), prior_std=prior_std,
+        ess=ess, rhat=rhat, prior_std=prior_std,
         std_ratio_to_prior=ratio_prior, std_without_discrepancy=std_without,
         std_ratio_to_no_discrepancy=ratio_without, configurations=xs,
         discrepancy_at_data=delta_d, level_correlation=corr, confounded=confounded,

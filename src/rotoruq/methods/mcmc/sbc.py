@@ -440,9 +440,10 @@ def simulation_based_calibration(
     phase = Phase("self-check replications", n_replications) if lean is None else None
     for i, s_rep in enumerate(s_reps):
         ess_i = None
-        if lean is not None:
-            draws, ess_i, n_ev = lean[i]
+        if lean is not None:  # their draws after the warm-up, as _after_warm_up gives them
+            (draws, warm[i], settled), ess_i, n_ev = lean[i]
             n_evaluations += n_ev
+            n_unsettled += not settled
         else:
             draws, ess_i, n_ev = _replication(model, prior, gp, clean[i], noise, obs, s_rep,
                                               n_experiments, n_draws, calibrate, takes_seed,
@@ -450,9 +451,9 @@ def simulation_based_calibration(
             n_evaluations += n_ev
             assert phase is not None  # lean is None here
             phase.advance()
-        if calibrate is None:  # the ESS the chains return is that of their draws after it
-            draws, warm[i], settled = _after_warm_up(draws)
-            n_unsettled += not settled
+            if calibrate is None:  # the ESS the chains return is that of their draws after it
+                draws, warm[i], settled = _after_warm_up(draws)
+                n_unsettled += not settled
         if ess_i is None:
             ess_i = dg.effective_sample_size(draws)
         ess[i] = float(ess_i.min())
@@ -623,10 +624,12 @@ def _replication(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarray
 
 def _replications(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarray,
                   noise: np.ndarray, obs: tuple[str, ...], s_reps: list, n_experiments: int,
-                  n_draws: int, options: dict) -> list[tuple[np.ndarray, np.ndarray, int]]:
+                  n_draws: int, options: dict
+                  ) -> list[tuple[tuple[np.ndarray, int, bool], np.ndarray, int]]:
     """The default calibration of every replication on the fitted emulator ``gp``: posterior
-    draws (c, n, d), the ESS (d,) of those after their warm-up and true-model evaluations,
-    per replication.
+    draws after their warm-up (:func:`_after_warm_up` of the chains: draws (c, n, d), the
+    warm-up and whether it settled), the ESS (d,) of those draws and true-model
+    evaluations, per replication.
 
     Each replication's chains are continued (up to 3 times) while the ESS of their draws
     after the MSER-5 warm-up (:func:`_after_warm_up`) stays below
@@ -648,6 +651,8 @@ def _replications(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarra
         more.append(s_more.spawn(N_EXTENSIONS))
     n_samples = int(options["n_samples"])
 
+    after: list[Any] = [None] * len(reps)
+
     def chains(i: int, emit: bool) -> np.ndarray:
         rep = reps[i]
         if emit:
@@ -656,12 +661,13 @@ def _replications(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarra
         if emit:
             rep.warn()
         for k, s_k in enumerate(more[i]):
-            kept = _after_warm_up(rep.chains)[0]
-            ess = dg.effective_sample_size(kept)
-            if not _worth_extending(ess, kept.shape[1], k, n_samples, n_draws):
+            after[i] = _after_warm_up(rep.chains)
+            ess = dg.effective_sample_size(after[i][0])
+            if not _worth_extending(ess, after[i][0].shape[1], k, n_samples, n_draws):
                 return ess
             rep.extend(n_samples * 2**k, s_k)
-        return dg.effective_sample_size(_after_warm_up(rep.chains)[0])
+        after[i] = _after_warm_up(rep.chains)
+        return dg.effective_sample_size(after[i][0])
 
     n_threads = min(numba.get_num_threads(), len(reps))
     phase = Phase("self-check replications", len(reps))
@@ -683,7 +689,7 @@ def _replications(model: Model, prior: ParameterSpace, gp: Any, clean: np.ndarra
     else:
         ess = [counted(i, True) for i in range(len(reps))]
     phase.close()
-    return [(r.chains, e, r.n_evaluations) for r, e in zip(reps, ess, strict=True)]
+    return [(a, e, r.n_evaluations) for r, a, e in zip(reps, after, ess, strict=True)]
 
 
 def _warn_again(caught: list) -> None:

@@ -27,7 +27,8 @@ else:
     stats = lazy_module("scipy.stats")
 
 __all__ = ["Figure", "FigureContext", "tornado", "SobolIndices", "prior_posterior", "chain_traces",
-           "pair_plot", "trace_points", "load_distributions", "cuu_comparison", "ground_effect_curves",
+           "trace_points", "TRACE_POINTS", "pair_plot", "PAIR_TICKS", "load_distributions",
+           "cuu_comparison", "ground_effect_curves",
            "UNITS", "axis_label", "unit_of", "per_unit", "beside_label", "beside_sobol",
            "beside_predictions", "beside_truth"]
 

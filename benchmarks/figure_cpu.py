@@ -20,12 +20,17 @@ average the JSON records.
     python benchmarks/figure_cpu.py --summary benchmarks/results/figure_cpu.json
 
 ``--results``: a folder holding saved studies (``rotoruq reproduce --quick --out DIR``
-writes one); without it the quick reproduction is run first into a temporary folder.
+writes one; the full ``rotoruq reproduce --out DIR`` too: the JSON's ``quick`` says which);
+without it the quick reproduction is run first into a temporary folder.
+
+    python benchmarks/figure_cpu.py --results /tmp/full --before /work/main/src \\
+        --repeats 1 --json benchmarks/results/figure_cpu_full.json
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import re
 import resource
@@ -99,7 +104,8 @@ def summary(result: dict) -> str:
 
     text = (f"{result['repeats']} alternated runs, medians (range), {result['cpus']} cores, "
             f"load {result['load_average_1min']:.1f} (CPU-s are comparable under load, "
-            f"wall seconds are not): the {after['figures']} figures of the quick "
+            f"wall seconds are not): the {after['figures']} figures of the "
+            f"{'quick' if result.get('quick', True) else 'full'} "
             f"reproduction ({after['jobs']} figure jobs) drawn in one process in "
             f"{cpu(after, 'draw_cpu')} CPU-s; `rotoruq report` of the unchanged results "
             f"rebuilt in {cpu(after, 'rebuild_cpu')} CPU-s "
@@ -143,7 +149,9 @@ def main() -> None:
     for _ in range(args.repeats):
         for name, tree in trees.items():
             runs[name].append(once(tree, dirs, work / name, args.rebuilds))
-    out: dict = {"quick": True, "cpus": os.cpu_count(), "repeats": args.repeats,
+    quick = all(json.loads((Path(d) / "study.json").read_text(encoding="utf-8")).get("quick")
+                for d in dirs)
+    out: dict = {"quick": quick, "cpus": os.cpu_count(), "repeats": args.repeats,
                  "rebuilds": args.rebuilds, "studies": [Path(d).name for d in dirs],
                  "load_average_1min": round(max(load0, os.getloadavg()[0]), 2),
                  "target_rebuild_seconds": TARGET_SECONDS, "trees": {}}

@@ -1,5 +1,7 @@
 """The report's figures drawn with fewer artists and one layout (issue 34: figure CPU): the
-same histograms, the SVG laid out as the PNG, the pair plot's lower triangle only."""
+same histograms, the SVG laid out as the PNG, the pair plot's lower triangle only, one
+layout pass with the ticks pinned where the locator put them, the chain traces thinned to
+their min/max envelope."""
 
 from __future__ import annotations
 
@@ -8,8 +10,16 @@ import io
 import numpy as np
 
 from rotoruq.params import Normal, Uniform
-from rotoruq.render.figures import load_distributions, pair_plot, prior_posterior
-from rotoruq.report.html import _render
+from rotoruq.render.figures import (
+    PAIR_TICKS,
+    TRACE_POINTS,
+    chain_traces,
+    load_distributions,
+    pair_plot,
+    prior_posterior,
+    trace_points,
+)
+from rotoruq.report.html import _lay_out, _render
 from rotoruq.results import StepResult
 
 NAMES = ["k_flap", "c_flap", "cla_1"]
@@ -42,7 +52,8 @@ def test_histograms_are_one_outline_with_the_histogram_heights():
         np.testing.assert_array_equal(values, want)
         np.testing.assert_array_equal(edges, want_edges)
         assert abs(np.sum(values * np.diff(edges)) - 1.0) < 1e-12
-        assert patch.get_fill() and patch.get_rasterized()
+        # a vector outline in the SVG (a path of 2 (bins + 1) points, not a raster image)
+        assert patch.get_fill() and not patch.get_rasterized()
     # the legend still names the posterior's histogram
     legend = fig.figure.legends[0]
     assert "posterior (chain)" in [t.get_text() for t in legend.get_texts()]
@@ -111,3 +122,149 @@ def test_the_pair_plot_makes_only_the_lower_triangle():
     assert axes[0].get_ylabel() == "count [-]"
     (drawn,) = _render([fig])
     assert drawn.png[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def _svg_images(svg: bytes) -> int:
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(svg)
+    return sum(1 for el in root.iter() if el.tag.endswith("image"))
+
+
+def test_one_layout_pass_and_the_ticks_of_a_drawing_of_its_own():
+    """Laid out once (then no engine: neither file's drawing lays it out again), with every
+    axis's ticks pinned: the same tick positions, labels and offset a figure drawn on its
+    own (constrained layout in its own savefig) shows; the SVG's text is text."""
+    from matplotlib.ticker import FixedFormatter, FixedLocator
+
+    res = _bayes()
+    (alone,) = prior_posterior(res, {}, None)
+    alone.figure.savefig(io.BytesIO(), format="png", dpi=150)
+    (ours,) = prior_posterior(res, {}, None)
+    _lay_out(ours.figure)
+    assert ours.figure.get_layout_engine() is None
+    for a, b in zip(alone.figure.axes, ours.figure.axes, strict=True):
+        if not b.axison:
+            continue
+        for axa, axb in ((a.xaxis, b.xaxis), (a.yaxis, b.yaxis)):
+            assert isinstance(axb.get_major_locator(), FixedLocator)
+            assert isinstance(axb.get_major_formatter(), FixedFormatter)
+            np.testing.assert_allclose(axb.get_majorticklocs(), axa.get_majorticklocs())
+            assert [t.get_text() for t in axb.get_majorticklabels()] == \
+                [t.get_text() for t in axa.get_majorticklabels()]
+            assert axb.get_major_formatter().get_offset() == \
+                axa.get_major_formatter().get_offset()
+    (drawn,) = _render([ours])
+    # the strings are in the SVG as text (not one path per glyph)
+    assert b"<text" in drawn.svg and b"posterior (chain)" in drawn.svg
+    assert b"k_flap [N m/rad]" in drawn.svg
+
+
+def test_an_offset_label_survives_the_pinned_ticks():
+    """A small-valued axis keeps matplotlib's offset/scale text (e.g. ``1e-7``)."""
+    from matplotlib.figure import Figure as MplFigure
+
+    fig = MplFigure(layout="constrained")
+    ax = fig.subplots()
+    ax.plot([1.0000001, 1.0000002, 1.0000004], [1e-7, 3e-7, 2e-7])
+    fig.savefig(io.BytesIO(), format="png")
+    want_x = ax.xaxis.get_major_formatter().get_offset()
+    want_y = ax.yaxis.get_major_formatter().get_offset()
+    assert want_x and want_y
+    fig2 = MplFigure(layout="constrained")
+    ax2 = fig2.subplots()
+    ax2.plot([1.0000001, 1.0000002, 1.0000004], [1e-7, 3e-7, 2e-7])
+    _lay_out(fig2)
+    fig2.savefig(io.BytesIO(), format="png")
+    assert ax2.xaxis.get_major_formatter().get_offset() == want_x
+    assert ax2.yaxis.get_major_formatter().get_offset() == want_y
+    assert ax2.xaxis.offsetText.get_text() == ax.xaxis.offsetText.get_text()
+
+
+def test_the_pair_plot_has_at_most_four_ticks_per_panel_axis_and_the_same_limits():
+    res = _bayes()
+    (fig,) = pair_plot(res, {}, None)
+    (drawn,) = _render([fig])
+    for ax in fig.figure.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            lo, hi = sorted(axis.get_view_interval())
+            shown = [t for t in axis.get_majorticklocs() if lo <= t <= hi]
+            assert 2 <= len(shown) <= PAIR_TICKS + 1 or axis is ax.yaxis and not shown
+    # the axes still hold every sample drawn (the limits come from the data, not the ticks)
+    for ax in fig.figure.axes:
+        for line in ax.get_lines():
+            x, y = line.get_data()
+            (x0, x1), (y0, y1) = sorted(ax.get_xlim()), sorted(ax.get_ylim())
+            assert x0 <= x.min() and x.max() <= x1 and y0 <= y.min() and y.max() <= y1
+    assert drawn.svg.rstrip().endswith(b"</svg>")
+
+
+def test_trace_points_keep_every_blocks_min_and_max():
+    rng = np.random.default_rng(7)
+    y = np.cumsum(rng.normal(size=50_000))
+    y[12_345] += 40.0  # a one-sample spike a stride would miss
+    y[40_001] -= 40.0
+    idx = trace_points(y, 1000)
+    assert len(idx) <= 1000 and np.all(np.diff(idx) > 0)
+    assert y[idx].max() == y.max() and y[idx].min() == y.min()
+    assert 12_345 in idx and 40_001 in idx
+    # the envelope: every block of ~100 samples has its min and max drawn
+    edges = np.linspace(0, y.size, 501).astype(int)
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
+        inside = idx[(idx >= a) & (idx < b)]
+        assert y[inside].max() == y[a:b].max() and y[inside].min() == y[a:b].min()
+    # short chains are drawn whole; a non-finite sample: evenly spread samples
+    np.testing.assert_array_equal(trace_points(y[:500], 1000), np.arange(500))
+    bad = y.copy()
+    bad[3] = np.nan
+    spread = trace_points(bad, 1000)
+    assert len(spread) <= 1000 and spread[0] == 0 and spread[-1] == y.size - 1
+
+
+def test_chain_traces_draw_the_envelope_of_a_long_chain():
+    rng = np.random.default_rng(5)
+    chain = rng.normal(size=(3 * TRACE_POINTS, 3))
+    chain[777, 1] = 25.0
+    res = StepResult("bayes", "bayes_calibration", {}, {"chain": chain},
+                     meta={"columns": {"chain": NAMES}})
+    (fig,) = chain_traces(res, {}, None)
+    for j, ax in enumerate(fig.figure.axes):
+        (line,) = ax.get_lines()
+        x, y = line.get_data()
+        assert len(x) <= TRACE_POINTS and line.get_rasterized()
+        assert y.max() == chain[:, j].max() and y.min() == chain[:, j].min()
+        assert x[0] >= 0 and x[-1] <= chain.shape[0] - 1
+    (drawn,) = _render([fig])
+    assert _svg_images(drawn.svg) == len(NAMES)  # one raster image per trace
+
+
+def _png_pixels(data: bytes) -> np.ndarray:
+    from PIL import Image
+
+    return np.asarray(Image.open(io.BytesIO(data)))
+
+
+def test_the_png_is_the_one_savefig_draws_with_its_own_layout():
+    """One layout pass and pinned ticks draw the same PNG, pixel for pixel, as matplotlib's
+    savefig of the figure with its layout engine (a measuring draw and a layout in each
+    drawing): the same data, titles, axes, ticks and legends."""
+    from rotoruq.render.figures import SobolIndices, tornado
+    from rotoruq.report.html import PNG_DPI
+
+    rng = np.random.default_rng(4)
+    outputs = [rng.normal(size=(200, 2)) * [1e-4, 30.0] + [2e-3, 900.0]]
+    pp = [rng.normal(size=(300, 2)) * [1.5e-4, 40.0] + [2e-3, 900.0]]
+    sob = SobolIndices(("k_flap", "cla_1"), ("thrust", "power"),
+                       np.array([[0.6, 0.3], [0.1, 0.8]]), np.array([[0.65, 0.35], [0.15, 0.9]]),
+                       main_ci=np.array([[[0.5, 0.7], [0.2, 0.4]], [[0.0, 0.2], [0.7, 0.9]]]))
+    res = _bayes()
+    makers = [lambda: prior_posterior(res, {}, None), lambda: chain_traces(res, {}, None),
+              lambda: load_distributions("cal", ["thrust", "power"], ["@2"], outputs, pp,
+                                         np.array([[2.1e-3, 910.0]])),
+              lambda: tornado(res, sob, {}, None, {("thrust", "k_flap"): 0.5}, "thesis")]
+    for make in makers:
+        (theirs,) = make()
+        buf = io.BytesIO()
+        theirs.figure.savefig(buf, format="png", dpi=PNG_DPI)
+        (ours,) = _render(make())
+        np.testing.assert_array_equal(_png_pixels(ours.png), _png_pixels(buf.getvalue()))

@@ -27,7 +27,8 @@ else:
     stats = lazy_module("scipy.stats")
 
 __all__ = ["Figure", "FigureContext", "tornado", "SobolIndices", "prior_posterior", "chain_traces",
-           "pair_plot", "load_distributions", "cuu_comparison", "ground_effect_curves",
+           "trace_points", "TRACE_POINTS", "pair_plot", "PAIR_TICKS", "load_distributions",
+           "cuu_comparison", "ground_effect_curves",
            "UNITS", "axis_label", "unit_of", "per_unit", "beside_label", "beside_sobol",
            "beside_predictions", "beside_truth"]
 
@@ -45,6 +46,8 @@ _UNIT_PREFIX = {"cla_": "1/deg", "cl0_": "-", "cd0_": "-", "cda_": "1/deg", "cda
 UNKNOWN_UNIT = "model units"
 
 _TICK = 8
+#: Tick intervals per axis of a pair plot's panel (at most this many + 1 ticks).
+PAIR_TICKS = 3
 _LEGEND = {"fontsize": 8, "frameon": False}
 
 
@@ -167,7 +170,8 @@ def _density_hist(ax, x: np.ndarray, bins: int, **kwargs: Any) -> None:
     """A density histogram of ``x`` drawn as one filled step outline (``ax.hist`` draws a
     rectangle per bin, each an artist to lay out and render): the same bins, heights and
     fill. ``kwargs`` go to :meth:`~matplotlib.axes.Axes.stairs` (``color``, ``alpha``,
-    ``label``, ``rasterized``)."""
+    ``label``). The outline is a path of 2 (bins + 1) points, so the SVG keeps it as a
+    vector: rasterizing it would cost an image of the whole figure per histogram."""
     density, edges = np.histogram(x, bins=bins, density=True)
     ax.stairs(density, edges, fill=True, **kwargs)
 
@@ -277,7 +281,7 @@ def prior_posterior(res: StepResult, labels, units=None,
             lo = min(lo, plo) if np.isfinite(plo) else lo
             hi = max(hi, phi) if np.isfinite(phi) else hi
         grid = np.linspace(lo - 0.05 * (hi - lo), hi + 0.05 * (hi - lo), 300)
-        _density_hist(ax, x, 40, color="#c6dbef", label="posterior (chain)", rasterized=True)
+        _density_hist(ax, x, 40, color="#c6dbef", label="posterior (chain)")
         if p in prior:
             ax.plot(grid, prior[p].pdf(grid), "k--", lw=1.2, label="prior")
         ax.plot(grid, stats.norm.pdf(grid, x.mean(), x.std(ddof=1)), "C0", lw=1.5,
@@ -294,16 +298,70 @@ def prior_posterior(res: StepResult, labels, units=None,
     return [Figure(f"{res.name}_densities", f"Prior and posterior densities ({res.name})", fig)]
 
 
+#: Points of a chain trace per parameter at most (the figure is 8 in wide: 1,200 pixels).
+TRACE_POINTS = 4000
+
+
+def trace_points(y: np.ndarray, max_points: int = TRACE_POINTS) -> np.ndarray:
+    """Indices of the samples a trace of ``y`` draws: all of them up to ``max_points``,
+    else the lowest and the highest sample of each of ``max_points // 2`` consecutive
+    blocks, in chain order. The line then reaches every block's extremes: its min/max
+    envelope is the full trace's (a spike of one sample is never thinned away, as a stride
+    would), at a block of a few samples per pixel. A chain with a non-finite sample is
+    drawn through ``max_points`` evenly spread samples.
+
+    Parameters
+    ----------
+    y : ndarray of shape (n,)
+        One parameter's samples in chain order.
+    max_points : int, optional
+        At most this many indices (>= 2).
+
+    Returns
+    -------
+    ndarray of int, shape (k,), k <= max_points
+        Increasing indices into ``y``.
+
+    Examples
+    --------
+    >>> y = np.zeros(10_000); y[1234] = 5.0; y[8765] = -3.0
+    >>> idx = trace_points(y, 100)
+    >>> len(idx) <= 100, y[idx].max(), y[idx].min(), bool(np.all(np.diff(idx) > 0))
+    (True, np.float64(5.0), np.float64(-3.0), True)
+    """
+    y = np.asarray(y)
+    n = y.shape[0]
+    if n <= max_points:
+        return np.arange(n)
+    if not np.all(np.isfinite(y)):  # no envelope to keep: evenly spread samples
+        return np.unique(np.linspace(0, n - 1, max_points).astype(int))
+    blocks = max(1, max_points // 2)
+    edges = np.linspace(0, n, blocks + 1).astype(int)  # blocks of n / blocks samples +- 1
+    lo = np.minimum.reduceat(y, edges[:-1])
+    hi = np.maximum.reduceat(y, edges[:-1])
+    keep = np.zeros(n, dtype=bool)
+    starts = edges[:-1]
+    owner = np.repeat(np.arange(blocks), np.diff(edges))
+    # the first sample of its block equal to the block's min (max)
+    is_lo, is_hi = y == lo[owner], y == hi[owner]
+    first_lo = np.flatnonzero(is_lo)[np.searchsorted(np.flatnonzero(is_lo), starts)]
+    first_hi = np.flatnonzero(is_hi)[np.searchsorted(np.flatnonzero(is_hi), starts)]
+    keep[first_lo] = keep[first_hi] = True
+    return np.flatnonzero(keep)
+
+
 def chain_traces(res: StepResult, labels, units=None) -> list[Figure]:
+    """A trace per parameter of the kept chain (its chains one after the other), each drawn
+    through the min and max of consecutive blocks of samples (:func:`trace_points`,
+    at most :data:`TRACE_POINTS` points), rasterized in the SVG."""
     names = res.columns("chain")
     chain = np.asarray(res.arrays["chain"])
     fig, axes = _subplots(len(names), 1, figsize=(8, 1.15 * len(names) + 0.9), sharex=True,
                           squeeze=False)
-    step = max(1, chain.shape[0] // 4000)
     for j, p in enumerate(names):
         ax = axes[j, 0]
-        ax.plot(np.arange(0, chain.shape[0], step), chain[::step, j], lw=0.4, color="C0",
-                rasterized=True)
+        idx = trace_points(chain[:, j])
+        ax.plot(idx, chain[idx, j], lw=0.4, color="C0", rasterized=True)
         ax.set_ylabel(axis_label(p, labels, units), fontsize=8, rotation=0, ha="right",
                       va="center")
         ax.tick_params(labelsize=_TICK)
@@ -315,7 +373,9 @@ def pair_plot(res: StepResult, labels, units=None) -> list[Figure]:
     """Lower triangle: joint samples (1,000 spread over the chain, rasterized); diagonal:
     marginal histograms; the posterior correlation in each panel's corner (red beyond
     |0.7|). Laid out by hand: constrained layout costs seconds on d^2 axes; only the
-    d (d + 1) / 2 axes of the lower triangle and the diagonal are made."""
+    d (d + 1) / 2 axes of the lower triangle and the diagonal are made, each with at most
+    four ticks per axis (:data:`PAIR_TICKS` bins: every tick is a set of artists drawn twice,
+    for the PNG and the SVG; the panels are 1.6 in wide)."""
     names = res.columns("chain")
     chain = np.asarray(res.arrays["chain"])
     d = len(names)
@@ -323,6 +383,7 @@ def pair_plot(res: StepResult, labels, units=None) -> list[Figure]:
     corr = np.corrcoef(chain, rowvar=False) if d > 1 else np.ones((1, 1))
     size = 1.6 * d + 1.4
     from matplotlib.figure import Figure as _MplFigure
+    from matplotlib.ticker import MaxNLocator
 
     fig = _MplFigure(figsize=(size, size))
     margin = 1.3 / size
@@ -331,6 +392,8 @@ def pair_plot(res: StepResult, labels, units=None) -> list[Figure]:
     for i in range(d):
         for j in range(i + 1):
             ax = fig.add_subplot(grid[i, j])
+            ax.xaxis.set_major_locator(MaxNLocator(PAIR_TICKS))
+            ax.yaxis.set_major_locator(MaxNLocator(PAIR_TICKS))
             ax.tick_params(labelsize=7, labelrotation=45, labelbottom=i == d - 1,
                            labelleft=j == 0 and i > 0)
             if i == j:
@@ -384,7 +447,7 @@ def load_distributions(name: str, resp: Sequence[str], labels: Sequence[str],
                 if v.size < 2:
                     continue
                 lo, hi = min(lo, float(v.min())), max(hi, float(v.max()))
-                _density_hist(ax, v, 30, color=color, alpha=0.3, rasterized=True)
+                _density_hist(ax, v, 30, color=color, alpha=0.3)
                 if np.std(v) > 0:
                     g = np.linspace(v.min(), v.max(), 200)
                     ax.plot(g, stats.gaussian_kde(v)(g), color=color, label=what)

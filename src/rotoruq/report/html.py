@@ -120,9 +120,57 @@ def _svg(fig) -> bytes:
     import matplotlib as mpl
 
     buf = io.BytesIO()
-    with mpl.rc_context({"svg.hashsalt": "rotoruq"}):
+    # text as SVG text (the strings, in the figure's font), not a path per glyph
+    with mpl.rc_context({"svg.hashsalt": "rotoruq", "svg.fonttype": "none"}):
         fig.savefig(buf, format="svg", metadata={"Date": None})
     return buf.getvalue()
+
+
+def _lay_out(fig) -> None:
+    """Run the figure's layout engine once, measuring the text as the PNG draws it (at
+    :data:`PNG_DPI`), then detach it, so that neither file's drawing lays the figure out
+    again: ``savefig`` of a figure with a layout engine draws it twice (a measuring pass,
+    then the file), and the drawing runs the engine again each time."""
+    import matplotlib as mpl
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    engine = fig.get_layout_engine()
+    if engine is not None:
+        dpi = fig.dpi
+        fig.set_dpi(PNG_DPI)
+        FigureCanvasAgg(fig)  # the renderer the engine measures with is the PNG's
+        try:
+            engine.execute(fig)
+        finally:
+            fig.set_dpi(dpi)  # the SVG's raster parts keep the figure's own resolution
+        # None is "no engine" only while the rc defaults ask for none
+        with mpl.rc_context({"figure.autolayout": False,
+                             "figure.constrained_layout.use": False}):
+            fig.set_layout_engine(None)
+    _fix_ticks(fig)
+
+
+def _fix_ticks(fig) -> None:
+    """Pin every axis's major ticks where its locator puts them in the laid-out figure, with
+    the labels (and offset, e.g. ``1e-3``) its formatter gives them: the two drawings (PNG,
+    SVG) then place the same ticks without running the locator and formatter again. The
+    axes' sizes and limits are final here, so the ticks are the ones each drawing would
+    compute."""
+    from matplotlib.ticker import FixedFormatter, FixedLocator
+
+    for ax in fig.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            if not axis.get_visible() or isinstance(axis.get_major_locator(), FixedLocator):
+                continue
+            if axis.get_scale() != "linear":
+                continue
+            locs = axis.get_majorticklocs()
+            formatter = axis.get_major_formatter()
+            labels = formatter.format_ticks(locs)
+            fixed = FixedFormatter(labels)
+            fixed.set_offset_string(formatter.get_offset())
+            axis.set_major_locator(FixedLocator(locs))
+            axis.set_major_formatter(fixed)
 
 
 @dataclass(frozen=True, eq=False)
@@ -141,11 +189,10 @@ def _render(figs) -> list[_Rendered]:
     out = []
     for f in figs:
         shown = [ax for ax in f.figure.axes if ax.axison]
-        png = _png(f.figure)
-        # the SVG keeps the layout the PNG's drawing computed (the axes stay where it put
-        # them): the layout engine's measuring pass over every label is not run twice
-        f.figure.set_layout_engine("none")
-        out.append(_Rendered(f.name, f.caption, png, _svg(f.figure),
+        # laid out once for both files (the SVG keeps the PNG's layout): each file is then
+        # one drawing pass
+        _lay_out(f.figure)
+        out.append(_Rendered(f.name, f.caption, _png(f.figure), _svg(f.figure),
                              tuple(sorted({a.get_xlabel() for a in shown} - {""})),
                              tuple(sorted({a.get_ylabel() for a in shown} - {""}))))
     return out

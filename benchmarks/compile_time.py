@@ -87,16 +87,19 @@ PHASES = (("numba.core.codegen", "CPUCodeLibrary", "_optimize_functions", "llvm_
 def _time_phases() -> dict[str, float]:
     """Wrap numba's compiler stages (:data:`PHASES`) to add the CPU seconds of the calling
     thread spent in each, exclusive of the stages nested in it, to the returned dict (a
-    stage numba no longer has is left out)."""
+    stage numba no longer has is left out). One stack per thread: a solve spread over threads
+    calls a cold kernel from each, and all but one wait in the dispatcher for its compile."""
     import importlib
+    import threading
 
     acc: dict[str, float] = {}
-    stack: list[list] = []  # [phase, start cpu, nested stages' cpu]
+    local = threading.local()
 
     def wrap(cls, name, phase):
         inner_fn = getattr(cls, name)
 
         def timed(*args, **kwargs):
+            stack = local.__dict__.setdefault("stack", [])  # [phase, start cpu, nested cpu]
             stack.append([phase, time.thread_time(), 0.0])
             try:
                 return inner_fn(*args, **kwargs)

@@ -306,9 +306,18 @@ def _lift_slope(model, x):
     table = airfoil_table(model.airfoil)
     fits, linear = airfoil_samples(model.airfoil, over, n)
     prm = sample_inputs(model.preset, model.grid, params, n)
+    return _lift_slopes(prm, rot, table, fits, linear)
+
+
+@numba.njit
+def _lift_slopes(prm, rot, table, fits, linear):
+    """kern._lift_slope of every row (from compiled code: the stages have no CPython
+    wrapper)."""
     ws = kern._workspace(rot)
-    return np.array([kern._lift_slope(prm[s], rot, table, fits[s], linear[s], 3.0, ws)
-                     for s in range(n)])
+    out = np.empty(prm.shape[0])
+    for s in range(prm.shape[0]):
+        out[s] = kern._lift_slope(prm[s], rot, table, fits[s], linear[s], 3.0, ws)
+    return out
 
 
 def test_jacobian_lift_slope_is_the_linear_airfoils_own():

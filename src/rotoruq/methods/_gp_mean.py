@@ -147,7 +147,9 @@ def compile_gp(lo, span, Xs, inv_ell, alpha, beta, trend, kernel, y_mean, y_std,
     return CompiledGP(*mp, *(f(a, dtype=float) for a in variance))
 
 
-@nb.njit(cache=True, nogil=True)
+# _corr, gp_mean_into, _tri_sumsq and gp_mean_var_into are called only from compiled code: no
+# CPython wrapper (see mcmc._kernels._inner); they cannot be called from Python.
+@nb.njit(cache=True, nogil=True, no_cpython_wrapper=True)
 def _corr(h2: float, kernel: int) -> float:
     if kernel == 0:
         return math.exp(-0.5 * h2)
@@ -173,7 +175,7 @@ def _sq_distances(xs, Xe, ie, o, h) -> None:
             h[i] += u * u
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, no_cpython_wrapper=True)
 def gp_mean_into(theta, pack, xs, h, out) -> None:
     """GP mean at one point theta (d,) into out (m,); work arrays xs (d,) and h (n,). On
     return ``xs`` holds the point scaled to the training box (0..1 inside it)."""
@@ -217,7 +219,7 @@ def gp_mean_batch(X: np.ndarray, pack: tuple) -> np.ndarray:
     return out
 
 
-@nb.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"})
+@nb.njit(cache=True, nogil=True, fastmath={"reassoc", "contract"}, no_cpython_wrapper=True)
 def _tri_sumsq(Li, r, n) -> float:
     """|Li r|^2 for a lower-triangular Li (n, n): the n^2/2 multiply-adds of the variance.
     Reassociation lets the compiler vectorize the row sums (the result is still a function
@@ -232,7 +234,7 @@ def _tri_sumsq(Li, r, n) -> float:
     return s
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, no_cpython_wrapper=True)
 def gp_mean_var_into(theta, pack, vpack, xs, r, g, u, out, var) -> None:
     """GP mean (m,) into ``out`` and Kriging variance (m,) into ``var`` at one point theta
     (d,). Work arrays: xs (d,), r (n,), g, u (p,). On return ``xs`` holds the scaled

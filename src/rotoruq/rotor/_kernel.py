@@ -53,6 +53,12 @@ _JIT = {"cache": True, "error_model": "numpy", "nogil": True}
 # updates the reference count of every array passed to an inlined helper, an atomic
 # operation per array and call that cost 14 % of the solve (issue 12).
 _INLINE = {**_JIT, "inline": "always"}
+# the stages, called only from compiled code: no CPython wrapper (issue 34). Each compiled
+# function's library is optimised and compiled to machine code on its own, and a wrapper
+# unboxes every array of the Rotor, Table and Work tuples it takes: 42 -> 30 CPU-s of a cold
+# hover build. Such a function cannot be called from Python (its entry point is null): a
+# test calls it from a compiled function of its own.
+_STAGE = {**_JIT, "no_cpython_wrapper": True}
 
 A0 = 5.73           # linear-theory lift slope [1/rad]: initial inflow, BEMT preconditioner
 RAD2DEG = 180.0 / np.pi
@@ -154,7 +160,7 @@ class Table(NamedTuple):
 # small numerics
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_STAGE)
 def _psum(x, n):
     """sum of x[0:n] in numpy's pairwise order (np.add.reduce on a contiguous row)."""
     if n < 8:
@@ -203,7 +209,7 @@ def _nanmin(a, b):
     return a if a <= b else b
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_STAGE)
 def _lu_solve(A, b, x):
     """x with A x = b for a small complex or real A (Gaussian elimination, partial pivoting
     on |re| + |im| as LAPACK's zgetrf; |x| for a real A, as dgetrf), written to and returned
@@ -268,7 +274,7 @@ def _mach_intervals(mach, gm, inv_dx, im_out, s_out):
             s_out[j, i] = s
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_STAGE)
 def _coefficients(alpha, im_, s_, af, fit, linear, cl, cd, cm):
     """cl, cd, cm (N_psi, N_r) at alpha [deg, wrapped] over the disk, at the Mach intervals
     (im_, s_) of :func:`_mach_intervals`; ``fit`` (5, n_m) the sample's fit-row coefficients,
@@ -348,7 +354,7 @@ def _wrap_deg(a):
     return (a + 180.0) % 360.0 - 180.0
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_STAGE)
 def _prandtl(r, v, omega, radius, root_cutout, n_blades):
     """Prandtl tip and root loss F(r, v) and dF/dv (inflow.prandtl_loss, one station).
 
@@ -379,7 +385,7 @@ def _prandtl(r, v, omega, radius, root_cutout, n_blades):
     return Fc, (F * dlogF * sign if F > 1e-3 else 0.0)
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_STAGE)
 def _uniform_tip_loss(v0, omega, rot, scratch):
     """Area (r dr) mean of the Prandtl factor over the span for one v; 1 without tip loss."""
     if not rot.tip_loss:
@@ -395,7 +401,7 @@ def _uniform_tip_loss(v0, omega, rot, scratch):
 # stages
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_STAGE)
 def _lift_slope(prm, rot, af, fit, linear, alpha_ref, ws):
     """The sample's lift slope a_lift [1/rad] for the Jacobian: the secant of cl over
     alpha_ref +- LIFT_SECANT_DEG at each station's Mach number Omega r / a, averaged with the
@@ -460,7 +466,7 @@ def _drees(mu, lam):
     return kx, -2.0 * mu
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_STAGE)
 def _trim_inflow(prm, rot):
     """The trim's initial induced velocity [m/s]: momentum (Glauert) at the target thrust,
     v V' = kappa^2 T / (2 rho A), by Newton steps from the hover value."""
@@ -474,7 +480,7 @@ def _trim_inflow(prm, rot):
     return v if np.isfinite(v) and v > 0 else math.sqrt(abs(c))
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_STAGE)
 def _structural_jacobian(prm, rot, af, fit, linear, ws):
     """Structural operator Z (K, 3, 3), the inverse of the Jacobian J_k (K, 3, 3), the joint
     (mean motion, uniform inflow) and (first harmonic, harmonic inflow) 4x4 Jacobians J0, J1
@@ -558,7 +564,7 @@ def _structural_jacobian(prm, rot, af, fit, linear, ws):
     return Z, Jinv, J0, J1, F_cmd, v_init, k_v, qa, J, a_lift
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_STAGE)
 def _aerodynamic_loads(Q, v0, vc, vs, v_r, prm, rot, af, fit, linear, ws, flight):
     """Section loads over the disk (N_psi, N_r) at the state: ws.dFz, ws.dFx, ws.dMp, with
     the flow (alpha, mach) and coefficients kept for the final check. Returns True when the
@@ -638,7 +644,7 @@ def _aerodynamic_loads(Q, v0, vc, vs, v_r, prm, rot, af, fit, linear, ws, flight
     return bad
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_STAGE)
 def _analyse(f, rot, out, scratch):
     """Harmonics out[k] (k = 0..K-1) of f over azimuth, one pairwise sum per weight row."""
     K, npsi = rot.cos_k.shape
@@ -652,7 +658,7 @@ def _analyse(f, rot, out, scratch):
         out[k] = re + 1j * _psum(scratch, npsi)
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_STAGE)
 def _span_sum(field, weight, out, scratch):
     """out[j] = sum_i field[j, i] weight[i] (per azimuth, pairwise over the span)."""
     npsi, nr = field.shape
@@ -662,7 +668,7 @@ def _span_sum(field, weight, out, scratch):
         out[j] = _psum(scratch, nr)
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_STAGE)
 def _blade_root_loads(Q, Z, F_cmd, rot, ws):
     """Structural residual R_dyn (3, K) = F(aero) + F_cmd - Z Q and the first harmonic of the
     blade-root thrust moment Mz1 (for the harmonic inflow)."""
@@ -689,7 +695,7 @@ def _blade_root_loads(Q, Z, F_cmd, rot, ws):
     return R_dyn, Mz1
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_STAGE)
 def _blade_thrust(rot, ws, out):
     """Per-station thrust per unit span, azimuth mean over N_b blades (N_r,) [N/m]."""
     npsi, nr = ws.dFz.shape
@@ -702,14 +708,14 @@ def _blade_thrust(rot, ws, out):
         out[i] = rot.n_blades * _psum(scratch, npsi) / npsi
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_STAGE)
 def _harmonic_gain(v0, prm, rot):
     Om, R = prm[OMEGA], rot.radius
     lam0 = max(abs(v0) / (Om * R), 1e-4)
     return 0.5 * rot.n_blades * prm[KAPPA] / (prm[RHO] * rot.area * Om * R**2 * lam0)
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_STAGE)
 def _inflow_update(st, dT_r, prm, rot, ws):
     """BEMT: a damped Newton step per annulus on dT_BE(r) = 4 pi rho F r v|v| / kappa^2 with
     the blade-element slope from the secant of the last two iterates (bounded by 1/4..4 x
@@ -799,7 +805,7 @@ def _real_index(d, k, part, K):
     return (0 if d == 0 else 2 * K - 1) + (0 if k == 0 else 2 * k - 1 + part)
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_STAGE)
 def _coupled_jacobian(prm, rot, J, J0, k_v, a_lift, n_trim, ws):
     """The Jacobian (real, n x n) of the forward-flight harmonic balance: the flap and
     feathering harmonics (mean; real and imaginary parts of k = 1..K-1), the uniform
@@ -939,7 +945,7 @@ def _coupled_jacobian(prm, rot, J, J0, k_v, a_lift, n_trim, ws):
     return M
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_STAGE)
 def _coupled_step(st, prm, rot, Jinv, F_cmd, R_dyn, M, A, b, x, ws, hist):
     """The motion, inflow and (trimmed) control step of forward flight with the coupled
     Jacobian M of :func:`_coupled_jacobian`, updated in place by Broyden's rank-one step
@@ -1039,7 +1045,7 @@ def _coupled_step(st, prm, rot, Jinv, F_cmd, R_dyn, M, A, b, x, ws, hist):
     return big, dv, d_ctrl
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_STAGE)
 def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws, M, A, b, x,
           flight, hist):
     """One iteration of a sample: returns (step size, flow not finite). A non-empty M (forward
@@ -1072,7 +1078,7 @@ def _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws, M,
     return size, bad
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_STAGE)
 def _hover_step(st, prm, rot, Jinv, J0, J1, k_v, qa, ws, R_dyn, Mz1):
     """The motion and inflow step of hover (block diagonal in the harmonics); returns the
     step size before relaxation."""
@@ -1149,7 +1155,7 @@ def _hover_step(st, prm, rot, Jinv, J0, J1, k_v, qa, ws, R_dyn, Mz1):
     return _nanmax(big, _nanmax(dv, dv1)) / relax
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_STAGE)
 def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out, flight):
     """Loads and the equation residual re-evaluated at the final state. Writes out[:] =
     thrust [N], torque [N m], equation residual [-], stalled fraction [-], min cd [-], static
@@ -1301,7 +1307,7 @@ def _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, out, flight):
 # one sample, and the batch
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_STAGE)
 def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_out,
                   scalars_out, status_out, loads_out, M_root_out, flight):
     """Iterate one sample to convergence and evaluate its loads at the final state.
@@ -1397,7 +1403,7 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_ou
             M_root_out[k] = M_root[k]
 
 
-@numba.njit(**_JIT)
+@numba.njit(**_STAGE)
 def _workspace(rot):
     """The scratch arrays of one solve (one per calling thread, reused sample after sample)."""
     K = rot.cos_k.shape[0]

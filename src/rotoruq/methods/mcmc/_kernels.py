@@ -34,6 +34,11 @@ import numpy as np
 from .._gp_mean import gp_mean_into, gp_mean_var_into
 
 _jit = nb.njit(cache=True, nogil=True)
+# called only from compiled code: no CPython wrapper, which each compiled function's library
+# would optimise and compile to machine code on its own (issue 34: 29.6 -> 24.6 CPU-s of a
+# cold compile of the chain kernels, with _gp_mean's). Such a function cannot be called from
+# Python (its entry point is null).
+_inner = nb.njit(cache=True, nogil=True, no_cpython_wrapper=True)
 NEG_INF = -np.inf
 
 # st / ipar / counter indices
@@ -42,7 +47,7 @@ DR, ADAPTIVE, ADAPT_START, INTERVAL, POOLED, BURN_IN, THIN = range(7)
 N_EVALS, N_OUTSIDE, N_NAN, N_EXTRAP, MAX_EXTRAP = range(5)
 
 
-@_jit
+@_inner
 def cholesky_into(a, out) -> bool:
     """Lower Cholesky factor of the symmetric matrix a (d, d) into out; False (out partly
     written) when a is not positive definite."""
@@ -65,7 +70,7 @@ def cholesky_into(a, out) -> bool:
     return True
 
 
-@_jit
+@_inner
 def _log1mexp(a: float) -> float:
     """log(1 - exp(a)) for a <= 0 (-inf at a = 0)."""
     if a >= 0.0:
@@ -73,7 +78,7 @@ def _log1mexp(a: float) -> float:
     return math.log(-math.expm1(a))
 
 
-@_jit
+@_inner
 def _propose_node(centre, L, Z1, Z2, tt, inv_s, Y, node, k) -> None:
     """Y[node, 0, k] = centre + L[k] Z1[tt, k]; Y[node, 1, k] = centre + L[k] Z2[tt, k] / s."""
     d = centre.shape[0]
@@ -111,7 +116,7 @@ def propose_tree(x, L, Z1, Z2, t, inv_s, Y) -> None:
         _propose_node(Y[0, stage, 0], L, Z1, Z2, t + 1, inv_s, Y, 2 + stage, 0)
 
 
-@_jit
+@_inner
 def _adapt(L, mean, m2, n, fpar, pooled) -> None:
     """Adaptive Metropolis (eq. A.10): L <- chol(sd (cov + eps I)) of the history covariance,
     pooled over the chains or per chain; a factor that fails keeps the previous one."""
@@ -142,7 +147,7 @@ def _adapt(L, mean, m2, n, fpar, pooled) -> None:
             L[k] = Lnew
 
 
-@_jit
+@_inner
 def _after_step(x, lp, L, mean, m2, st, fpar, ipar, out, out_lp, delta) -> None:
     c, d = x.shape
     st[STEPS] += 1
@@ -166,7 +171,7 @@ def _after_step(x, lp, L, mean, m2, st, fpar, ipar, out, out_lp, delta) -> None:
         _adapt(L, mean, m2, n, fpar, ipar[POOLED])
 
 
-@_jit
+@_inner
 def _step(x, lp, Y, LPY, node, Z1, Z2, LU1, LU2, tt, st, inv_s) -> int:
     """One step of every chain from the evaluated proposals Y[node] (S, c, d) with log
     posteriors LPY[node] (S, c). Stage-2 entries are read only for chains whose stage 1 was
@@ -234,7 +239,7 @@ def advance(x, lp, L, Y, LPY, Z1, Z2, LU1, LU2, t, K, tree, mean, m2, st, fpar, 
 
 # --- log prior and likelihood ------------------------------------------------------------------
 
-@_jit
+@_inner
 def _piece_index(edges, e0, n, x) -> int:
     """Bin k in 0..n-1 of x among the n + 1 sorted edges ``edges[e0:e0 + n + 1]``: the last
     edge <= x (numpy's ``searchsorted(side="right") - 1``), clipped to the bins."""
@@ -249,7 +254,7 @@ def _piece_index(edges, e0, n, x) -> int:
     return min(max(a - 1, 0), n - 1)
 
 
-@_jit
+@_inner
 def logprior_point(theta, prior) -> float:
     """Log density of independent uniform / normal / piecewise-constant marginals at theta
     (d,); -inf outside the support [lo, hi] or where it is NaN. prior = (lo, hi, const,
@@ -277,7 +282,7 @@ def logprior_rows(theta, prior, out) -> None:
         out[k] = logprior_point(theta[k], prior)
 
 
-@_jit
+@_inner
 def misfit_point(q, lik) -> float:
     """``1/2 (q^T P q - 2 q^T b + c0)`` for responses q (m,); lik = (P, b, c0, const, diag,
     P^-1, P^-1 b, c0 - b^T P^-1 b, log det P) (:class:`.likelihood.GaussianLikelihood`)."""
@@ -298,7 +303,7 @@ def misfit_point(q, lik) -> float:
     return 0.5 * (quad - 2.0 * lin + c0)
 
 
-@_jit
+@_inner
 def loglik_var_point(q, v, lik) -> float:
     """Log-likelihood of responses q (m,) whose emulator error has variance v (m,), shared by
     every experiment and integrated out (:meth:`.likelihood.GaussianLikelihood.__call__`)."""
@@ -341,7 +346,7 @@ def misfit_rows(Q, lik, out) -> None:
         out[k] = misfit_point(Q[k], lik)
 
 
-@_jit
+@_inner
 def _with_loglik(lpr, q, lik, cnt) -> float:
     """Log prior lpr plus the log-likelihood of responses q (m,); -inf (counted) when the
     likelihood is not finite."""
@@ -378,7 +383,7 @@ def add_loglik_rows(Q, lik, lp, cnt) -> None:
 
 # --- the log posterior on an emulator, and a chain block that never leaves compiled code -----
 
-@_jit
+@_inner
 def _emulator_work(Z, post):
     """Scratch for :func:`emulator_logpost`: rows theta, xs, q, variance (d or m wide),
     correlations or squared distances r (n), trend basis g and its residual u (p); row 2
@@ -388,7 +393,7 @@ def _emulator_work(Z, post):
     return np.empty((8, w))
 
 
-@_jit
+@_inner
 def emulator_logpost(z, post, work, cnt) -> float:
     """Log posterior at scaled point z (d,): theta = center + scale z, uniform / normal prior,
     GP mean (and, with ``use_var``, the GP's Kriging variance added to the noise, shared by

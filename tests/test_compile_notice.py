@@ -284,3 +284,54 @@ def test_an_open_compile_phase_reports_its_elapsed_time(monkeypatch):
     elapsed = [s.elapsed for s in states]
     assert elapsed == sorted(elapsed) and elapsed[-2] > 0.2, elapsed
     assert [s.closed for s in states] == [False] * (len(states) - 1) + [True]
+
+
+VARIANT_SCRIPT = textwrap.dedent("""
+    import logging, sys
+    sys.path.insert(0, sys.argv[1])
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
+    from rotoruq._compile import compiling, is_cached
+    import tiny_kernel as tk
+    log = logging.getLogger("t")
+    floats = lambda types: types[-1] == "float64"
+    ints = lambda types: types[-1] == "int64"
+    print("before", is_cached(tk.twice), is_cached(tk.twice, floats), is_cached(tk.twice, ints))
+    with compiling("float kernels", [tk.twice], log, variant=floats, lock="tiny") as cold:
+        tk.twice(1.5)
+    print("float announced", cold)
+    print("after", is_cached(tk.twice), is_cached(tk.twice, floats), is_cached(tk.twice, ints))
+    with compiling("int kernels", [tk.twice], log, variant=ints, lock="tiny") as cold:
+        tk.twice(3)
+    print("int announced", cold)
+""")
+
+
+def test_a_specialisation_not_cached_is_announced_although_another_is(tmp_path):
+    """The rotor kernel has a hover and a forward-flight build (one dispatcher, two
+    signatures); with only the first cached the second compiles for tens of seconds, so it
+    is announced and locked on its own (found in CI: it compiled unannounced, twice)."""
+    (tmp_path / "tiny_kernel.py").write_text(
+        "import numba\n\n@numba.njit(cache=True)\ndef twice(x):\n    return 2 * x\n")
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
+    run = subprocess.run([sys.executable, "-c", VARIANT_SCRIPT, str(tmp_path)], env=env,
+                         cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.splitlines() == [
+        "before False False False", "float announced True", "after True True False",
+        "int announced True"]
+    assert "compiling float kernels" in run.stderr and "compiling int kernels" in run.stderr
+    again = subprocess.run([sys.executable, "-c", VARIANT_SCRIPT, str(tmp_path)], env=env,
+                           cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert again.stdout.splitlines() == [
+        "before True True True", "float announced False", "after True True True",
+        "int announced False"]
+    assert "compiling" not in again.stderr
+
+
+def test_the_rotors_hover_and_forward_flight_builds_are_told_apart():
+    from rotoruq.rotor.hover import _is_build
+
+    hover = ("array(float64, 2d, C)", "none")
+    flight = ("array(float64, 2d, C)", "bool")
+    assert _is_build(False)(hover) and not _is_build(False)(flight)
+    assert _is_build(True)(flight) and not _is_build(True)(hover)

@@ -21,12 +21,15 @@ import logging
 import os
 import re
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
 from ._progress import Phase
 
 __all__ = ["compile_lock", "compiling", "is_cached", "notice_if_cold"]
+
+#: A test on a cached signature's argument type names (see :func:`is_cached`).
+Variant = Callable[[tuple[str, ...]], bool]
 
 #: Seconds a process waits for another one's compile before it compiles itself; None: as
 #: long as the other holds the lock (it is released when that process ends, however it
@@ -34,10 +37,10 @@ __all__ = ["compile_lock", "compiling", "is_cached", "notice_if_cold"]
 LOCK_WAIT: float | None = None
 
 _noticed: set[str] = set()  # families announced in this process
-_checked: set[int] = set()  # ids of the dispatchers already looked up in the cache
+_checked: set[tuple[str, int]] = set()  # (family, dispatcher id) already looked up
 
 
-def is_cached(dispatcher: Any) -> bool:
+def is_cached(dispatcher: Any, variant: Variant | None = None) -> bool:
     """Whether numba's on-disk cache holds compiled code of ``dispatcher`` (a function
     decorated with ``numba.njit(cache=True)``) for its current source.
 
@@ -48,6 +51,12 @@ def is_cached(dispatcher: Any) -> bool:
     ----------
     dispatcher : numba dispatcher
         The compiled function.
+    variant : callable, optional
+        Which specialisation counts: called with the names of a cached signature's argument
+        types (``("array(float64, 2d, C)", ..., "none")``), true for the one about to be
+        called. None: any cached specialisation counts. A kernel compiled once per argument
+        type (the rotor's hover and forward-flight builds) is cold for the one its cache
+        does not hold, although the other one is there.
 
     Returns
     -------
@@ -60,13 +69,16 @@ def is_cached(dispatcher: Any) -> bool:
     True
     """
     try:
-        return bool(dispatcher._cache._cache_file._load_index())
+        index = dispatcher._cache._cache_file._load_index()
+        if variant is None:
+            return bool(index)
+        return any(variant(tuple(str(t) for t in key[0])) for key in index)
     except Exception:  # noqa: BLE001 - a numba without this layout: say nothing
         return True
 
 
 def notice_if_cold(family: str, dispatchers: Iterable[Any], logger: logging.Logger,
-                   seconds: str = "10-60") -> bool:
+                   seconds: str = "10-60", variant: Variant | None = None) -> bool:
     """Log once per process, at INFO, that the kernels of ``family`` are being compiled,
     when one of ``dispatchers`` is not in numba's cache.
 
@@ -85,6 +97,9 @@ def notice_if_cold(family: str, dispatchers: Iterable[Any], logger: logging.Logg
         Where the line goes.
     seconds : str, optional
         The usual compile time on two cores, for the line.
+    variant : callable, optional
+        The specialisation about to be called (see :func:`is_cached`); a family per
+        specialisation.
 
     Returns
     -------
@@ -98,11 +113,11 @@ def notice_if_cold(family: str, dispatchers: Iterable[Any], logger: logging.Logg
     """
     if family in _noticed:
         return False
-    fresh = [d for d in dispatchers if id(d) not in _checked]
+    fresh = [d for d in dispatchers if (family, id(d)) not in _checked]
     if not fresh:
         return False
-    _checked.update(id(d) for d in fresh)
-    if all(is_cached(d) for d in fresh):
+    _checked.update((family, id(d)) for d in fresh)
+    if all(is_cached(d, variant) for d in fresh):
         return False
     _noticed.add(family)
     # "now": printed as it comes, before the compile, even where a step gathers messages
@@ -113,10 +128,13 @@ def notice_if_cold(family: str, dispatchers: Iterable[Any], logger: logging.Logg
 
 @contextlib.contextmanager
 def compiling(family: str, dispatchers: Iterable[Any], logger: logging.Logger,
-              seconds: str = "10-60") -> Iterator[bool]:
+              seconds: str = "10-60", variant: Variant | None = None,
+              lock: str | None = None) -> Iterator[bool]:
     """Around the first call of ``dispatchers``: :func:`notice_if_cold`, and while the body
     runs, when it logged, an uncounted progress phase ``"compiling <family>"`` (the step's
-    status line and the terminal's bar name it).
+    status line and the terminal's bar name it) and :func:`compile_lock` of ``lock``
+    (default: ``family``; the specialisations of one dispatcher share one lock, as they
+    share numba's cache index).
 
     Yields
     ------
@@ -132,10 +150,11 @@ def compiling(family: str, dispatchers: Iterable[Any], logger: logging.Logger,
     False
     """
     dispatchers = list(dispatchers)
-    if not notice_if_cold(family, dispatchers, logger, seconds):
+    if not notice_if_cold(family, dispatchers, logger, seconds, variant):
         yield False
         return
-    with Phase(f"compiling {family}", None), compile_lock(family, dispatchers, logger):
+    with Phase(f"compiling {family}", None), compile_lock(lock or family, dispatchers,
+                                                          logger):
         yield True
 
 

@@ -25,6 +25,7 @@ over the disk, torsional divergence, negative drag, negative power).
 
 from __future__ import annotations
 
+import logging
 import os
 import queue
 import threading
@@ -43,6 +44,8 @@ from .airfoil import Airfoil
 from .geometry import CANTILEVER_SPRING_FACTOR, BladeGrid
 from .ground_effect import ground_effect_factor
 from .presets import RotorPreset
+
+log = logging.getLogger(__name__)
 
 __all__ = ["HoverSolution", "solve_hover", "check_airfoil", "STALL_AREA_LIMIT",
            "MAX_BLADE_MOTION", "PARALLEL_MIN_BATCH"]
@@ -461,9 +464,56 @@ def _solve(preset, grid, prm, rot, table, fits, linear, n, K, tolerance, max_ite
 def _solve_spread(prm, rot, table, fits, linear, tolerance, max_iterations, *out) -> None:
     """The compiled solve of every row, on numba.get_num_threads() threads for a large batch
     (contiguous slices; each row's numbers do not depend on the slice)."""
+    flight = kern.needs_flight(prm)  # a hover batch runs (and compiles) the hover build
+    with compiling_kernels(flight is not None):
+        _solve_threads(prm, rot, table, fits, linear, tolerance, max_iterations, flight, *out)
+
+
+def _is_build(forward_flight: bool):
+    """The test of a cached signature of ``solve_samples`` for the hover (``flight`` typed
+    none) or the forward-flight build."""
+    return lambda types: (types[-1] != "none") == forward_flight
+
+
+def kernels_cached(forward_flight: bool = False) -> bool:
+    """Whether numba's on-disk cache holds the rotor kernel's hover (or forward-flight)
+    build for this source file.
+
+    Reads the cache's small index (no compilation): False when the index is absent, was
+    written for another version of ``_kernel.py`` (numba would recompile then), or holds
+    the other build only.
+
+    Returns
+    -------
+    bool
+        True when the first evaluation will load compiled code instead of compiling.
+
+    Examples
+    --------
+    >>> isinstance(kernels_cached(), bool)
+    True
+    """
+    from .._compile import is_cached
+
+    return is_cached(kern.solve_samples, _is_build(forward_flight))
+
+
+def compiling_kernels(forward_flight: bool):
+    """Around a solve: say once per process and build, before the first, that the rotor
+    kernels are being compiled (and keep a "compiling ..." phase open while they are). The
+    hover and forward-flight builds are announced each when its own code is not cached,
+    and share one compile lock (one cache index)."""
+    from .._compile import compiling
+
+    family = "forward-flight rotor kernels" if forward_flight else "rotor kernels"
+    return compiling(family, [kern.solve_samples], log, "30-90",
+                     variant=_is_build(forward_flight), lock="rotor kernels")
+
+
+def _solve_threads(prm, rot, table, fits, linear, tolerance, max_iterations, flight,
+                   *out) -> None:
     n = prm.shape[0]
     n_threads = numba.get_num_threads()
-    flight = kern.needs_flight(prm)  # a hover batch runs (and compiles) the hover build
     if n < PARALLEL_MIN_BATCH or n_threads < 2:
         kern.solve_samples(prm, rot, table, fits, linear, tolerance, max_iterations, *out,
                            flight)

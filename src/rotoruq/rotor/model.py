@@ -8,7 +8,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import logging
 from collections.abc import Mapping, Sequence
 from dataclasses import fields
@@ -23,7 +22,13 @@ from ..model import EvalBatch
 from .airfoil import Airfoil
 from .geometry import blade_grid
 from .ground_effect import MIN_HEIGHT_OVER_RADIUS, min_height_over_radius
-from .hover import HoverSolution, check_airfoil, default_check_tolerance, solve_hover
+from .hover import (  # noqa: F401  (kernels_cached: its public home stays here too)
+    HoverSolution,
+    check_airfoil,
+    default_check_tolerance,
+    kernels_cached,
+    solve_hover,
+)
 from .presets import RotorPreset, get_preset
 
 __all__ = ["RotorModel", "ROTOR_INPUTS", "RESPONSES", "load_airfoil"]
@@ -64,37 +69,6 @@ _NONNEGATIVE = ("k_flap", "c_flap", "k_lag", "c_lag", "k_pitch_link", "c_pitch_l
 #: rotor operating state (the blade would face backwards).
 MAX_PITCH_DEG = 90.0
 _POSITIVE = ("omega", "rho")
-
-
-def kernels_cached() -> bool:
-    """Whether numba's on-disk cache holds the rotor kernel for this source file.
-
-    Reads the cache's small index (no compilation): False when the index is absent or was
-    written for another version of ``_kernel.py`` (numba would recompile then).
-
-    Returns
-    -------
-    bool
-        True when the first evaluation will load compiled code instead of compiling.
-
-    Examples
-    --------
-    >>> isinstance(kernels_cached(), bool)
-    True
-    """
-    from .._compile import is_cached
-    from . import _kernel
-
-    return is_cached(_kernel.solve_samples)
-
-
-def _compiling() -> contextlib.AbstractContextManager[bool]:
-    """Around a solve: say once per process, before the first, that the kernels are being
-    compiled (and keep a "compiling rotor kernels" phase open while they are)."""
-    from .._compile import compiling
-    from . import _kernel
-
-    return compiling("rotor kernels", [_kernel.solve_samples], log, "30-90")
 
 
 def load_airfoil(preset: RotorPreset) -> Airfoil:
@@ -277,8 +251,7 @@ class RotorModel:
             if failures:
                 params = {k: v[rows] for k, v in params.items()}
                 overrides = {k: v[rows] for k, v in overrides.items()}
-            with _compiling():
-                sol = self._solve_rows(params, overrides)
+            sol = self._solve_rows(params, overrides)
             sols.append(sol)
             vals = np.column_stack([sol.response(r) for r in self.names_out])
             bad = ~sol.converged | ~np.all(np.isfinite(vals), axis=1)

@@ -116,6 +116,21 @@ def propose_tree(x, L, Z1, Z2, t, inv_s, Y) -> None:
         _propose_node(Y[0, stage, 0], L, Z1, Z2, t + 1, inv_s, Y, 2 + stage, 0)
 
 
+# Element loops, not ``dst[k] = src``: an array assigned to a slice compiles numba's
+# shape-mismatch error message (string formatting), a few CPU-seconds of every cold compile.
+@_inner
+def _copy1(src, dst) -> None:
+    for a in range(src.shape[0]):
+        dst[a] = src[a]
+
+
+@_inner
+def _copy2(src, dst) -> None:
+    for a in range(src.shape[0]):
+        for b in range(src.shape[1]):
+            dst[a, b] = src[a, b]
+
+
 @_inner
 def _adapt(L, mean, m2, n, fpar, pooled) -> None:
     """Adaptive Metropolis (eq. A.10): L <- chol(sd (cov + eps I)) of the history covariance,
@@ -137,14 +152,14 @@ def _adapt(L, mean, m2, n, fpar, pooled) -> None:
                 cov[a, b] = sd * (s / (c * n - 1.0) + (eps if a == b else 0.0))
         if cholesky_into(cov, Lnew):
             for k in range(c):
-                L[k] = Lnew
+                _copy2(Lnew, L[k])
         return
     for k in range(c):
         for a in range(d):
             for b in range(d):
                 cov[a, b] = sd * (m2[k, a, b] / (n - 1.0) + (eps if a == b else 0.0))
         if cholesky_into(cov, Lnew):
-            L[k] = Lnew
+            _copy2(Lnew, L[k])
 
 
 @_inner
@@ -164,8 +179,8 @@ def _after_step(x, lp, L, mean, m2, st, fpar, ipar, out, out_lp, delta) -> None:
     r = st[RUN_STEP]
     st[RUN_STEP] += 1
     if r >= ipar[BURN_IN] and (r - ipar[BURN_IN]) % ipar[THIN] == 0:
-        out[st[KEPT]] = x
-        out_lp[st[KEPT]] = lp
+        _copy2(x, out[st[KEPT]])
+        _copy1(lp, out_lp[st[KEPT]])
         st[KEPT] += 1
     if ipar[ADAPTIVE] and n % ipar[INTERVAL] == 0 and n >= max(ipar[ADAPT_START], 2):
         _adapt(L, mean, m2, n, fpar, ipar[POOLED])
@@ -185,7 +200,7 @@ def _step(x, lp, Y, LPY, node, Z1, Z2, LU1, LU2, tt, st, inv_s) -> int:
         st[PROP1] += 1
         lp1 = LPY[node, 0, k]
         if LU1[tt, k] < lp1 - lp[k]:
-            x[k] = Y[node, 0, k]
+            _copy1(Y[node, 0, k], x[k])
             lp[k] = lp1
             st[ACC1] += 1
             outcome = 1
@@ -206,7 +221,7 @@ def _step(x, lp, Y, LPY, node, Z1, Z2, LU1, LU2, tt, st, inv_s) -> int:
         num = lp2 - 0.5 * dz2 + _log1mexp(min(lp1 - lp2, 0.0))
         den = lp[k] - 0.5 * z12 + _log1mexp(min(lp1 - lp[k], 0.0))
         if LU2[tt, k] < num - den:
-            x[k] = Y[node, 1, k]
+            _copy1(Y[node, 1, k], x[k])
             lp[k] = lp2
             st[ACC2] += 1
             outcome = 2

@@ -353,7 +353,8 @@ def test_sqexp_likelihood_gradient_matches_finite_differences(design):
 
 def test_scaled_distances_and_triangular_solves_keep_the_bits():
     """The in-place distances equal ``sqrt(_scaled_sqdist)`` and the direct ``dtrtrs`` call
-    equals ``solve_triangular`` (also for an empty right-hand side) bit for bit."""
+    equals ``solve_triangular`` (also for an empty right-hand side) bit for bit; a zero
+    pivot raises ``LinAlgError`` (which the objective turns into a rejected step)."""
     from scipy import linalg
     from scipy.linalg import lapack
 
@@ -369,5 +370,9 @@ def test_scaled_distances_and_triangular_solves_keep_the_bits():
     for b in (rng.normal(size=n), rng.normal(size=(n, 3)), np.empty((n, 0))):
         for trans in (0, 1):
             ref = linalg.solve_triangular(L, b, lower=True, trans=trans, check_finite=False)
-            got, info = _trtrs(L, b, lower=1, trans=trans)
-            assert info == 0 and got.shape == ref.shape and got.tobytes() == ref.tobytes()
+            got = _trtrs(L, b, lower=1, trans=trans)
+            assert got.shape == ref.shape and got.tobytes() == ref.tobytes()
+    singular = L.copy(order="F")
+    singular[5, 5] = 0.0
+    with pytest.raises(np.linalg.LinAlgError, match="info=6"):
+        _trtrs(singular, np.ones(n), lower=1)

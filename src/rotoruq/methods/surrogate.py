@@ -129,14 +129,16 @@ class _Workspace:
         self.c = np.empty((n, n))
 
 
-def _trtrs(L: np.ndarray, b: np.ndarray, lower: int, trans: int = 0
-           ) -> tuple[np.ndarray, int]:
+def _trtrs(L: np.ndarray, b: np.ndarray, lower: int, trans: int = 0) -> np.ndarray:
     """``linalg.solve_triangular(L, b, check_finite=False)`` for a Fortran-ordered ``L``
     (a ``dpotrf`` factor): the same LAPACK call without its wrappers' checks, which cost
-    more than the solve at n = 150."""
+    more than the solve at n = 150; a zero on the diagonal raises ``LinAlgError`` as there."""
     if b.size == 0:
-        return np.empty_like(b), 0
-    return lapack.dtrtrs(L, b, lower=lower, trans=trans)
+        return np.empty_like(b)
+    x, info = lapack.dtrtrs(L, b, lower=lower, trans=trans)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"triangular solve failed (info={info})")
+    return x
 
 
 # --- trend bases -----------------------------------------------------------------------------
@@ -512,8 +514,8 @@ class GaussianProcess:
             np.copyto(M, R)
         M.flat[::n + 1] += eta + dn
         L, jitter = _robust_cholesky(M, base_jitter(n) * s2, ys)
-        Lf, info = _trtrs(L, F, lower=1)
-        Ly, info = _trtrs(L, ys, lower=1)
+        Lf = _trtrs(L, F, lower=1)
+        Ly = _trtrs(L, ys, lower=1)
         if F.shape[1]:
             beta, *_ = np.linalg.lstsq(Lf, Ly, rcond=None)
             rt = Ly - Lf @ beta
@@ -539,7 +541,7 @@ class GaussianProcess:
             sig2 = s2
             ll = -0.5 * q - 0.5 * logdet
             scale = 1.0
-        alpha, info = _trtrs(L, rt, lower=1, trans=1)
+        alpha = _trtrs(L, rt, lower=1, trans=1)
         out = dict(L=L, beta=beta, alpha=alpha, sig2=sig2, jitter=jitter, Lf=Lf, ll=ll,
                    inv_ell=inv_ell, eta=eta, s2=s2, dn=dn, conc=conc)
         if not want_grad:
@@ -547,7 +549,7 @@ class GaussianProcess:
         qf = None
         if conc and reml:
             qf = linalg.solve_triangular(
-                c_f, _trtrs(L, Lf, lower=1, trans=1)[0].T, lower=True, check_finite=False)
+                c_f, _trtrs(L, Lf, lower=1, trans=1).T, lower=True, check_finite=False)
         # L is not returned from here on: its memory takes M^-1 (lower triangle; the upper
         # stays L's zeros, clean=1)
         Minv, info = lapack.dpotri(L, lower=1, overwrite_c=1)

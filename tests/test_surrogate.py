@@ -261,3 +261,118 @@ def test_length_scale_shape_checked_at_fit(design):
     x, y = design
     with pytest.raises(ParameterError, match="length_scales must have shape"):
         GaussianProcess(length_scales=[1.0, 2.0], optimize=False).fit(x, y)
+
+
+def _plain_likelihood(gp, ys, theta, noise):
+    """The concentrated / fixed-nugget likelihood and gradient of ``GaussianProcess._solve``
+    written plainly (fresh temporaries, scipy's wrappers, the symmetric inverse by a loop), as
+    before its work arrays: the reference its bits must equal."""
+    from scipy import linalg
+    from scipy.linalg import lapack
+
+    from rotoruq.methods.surrogate import _corr, _robust_cholesky, _scaled_sqdist
+
+    Xs, F = gp._Xs, gp._F
+    n, d = Xs.shape
+    inv_ell, eta, s2, dn, conc = gp._unpack(theta, noise)
+    R, G = _corr(np.sqrt(_scaled_sqdist(Xs, Xs, inv_ell)), gp.kernel)
+    M = s2 * R if s2 != 1.0 else R.copy()
+    M[np.diag_indices(n)] += eta + dn
+    L, _ = _robust_cholesky(M, base_jitter(n) * s2, ys)
+    Lf = linalg.solve_triangular(L, F, lower=True, check_finite=False)
+    Ly = linalg.solve_triangular(L, ys, lower=True, check_finite=False)
+    beta = np.linalg.lstsq(Lf, Ly, rcond=None)[0]
+    rt = Ly - Lf @ beta
+    q = float(rt @ rt)
+    logdet = 2.0 * np.log(np.diag(L)).sum()
+    sig2 = max(q / n, 1e-300) if conc else s2
+    ll = -0.5 * n * np.log(sig2) - 0.5 * logdet if conc else -0.5 * q - 0.5 * logdet
+    scale = 1.0 / sig2 if conc else 1.0
+    alpha = linalg.solve_triangular(L, rt, lower=True, trans=1, check_finite=False)
+    Minv = lapack.dpotri(L, lower=1)[0]
+    for i in range(1, n):
+        Minv[i - 1, i:] = Minv[i:, i - 1]
+    Minv = Minv + 0.0
+    W = np.multiply.outer(alpha * scale, alpha) - Minv
+    g = np.empty_like(theta)
+    if not conc:
+        g[d] = 0.5 * s2 * float((W * R).sum())
+    elif gp.nugget == "estimate":
+        g[d] = 0.5 * eta * float(np.trace(W))
+    P = W * G
+    if s2 != 1.0:
+        P = P * s2
+    Xe = Xs * inv_ell
+    g[:d] = (Xe * Xe * P.sum(1)[:, None]).sum(0) - (Xe * (P @ Xe)).sum(0)
+    return ll, g
+
+
+@pytest.mark.parametrize("kernel", ["sqexp", "matern32", "matern52"])
+@pytest.mark.parametrize("nugget", [None, "estimate", 1e-3])
+def test_likelihood_work_arrays_keep_the_plain_bits(design, kernel, nugget):
+    """The objective's reused work arrays, in-place arithmetic and direct LAPACK calls give
+    the plain formulation's likelihood and gradient bit for bit, call after call (the fitted
+    hyperparameters follow the optimizer's path, which these bits decide)."""
+    from rotoruq.methods.surrogate import _Workspace
+
+    x, y = design
+    gp = GaussianProcess(trend="reduced_quadratic", kernel=kernel, nugget=nugget,
+                         likelihood="ml", n_restarts=0, seed=0).fit(x, y)
+    ys = (y[:, 1] - gp._y_mean[1]) / gp._y_std[1]
+    noise = nugget / gp._y_std[1] ** 2 if isinstance(nugget, float) else None
+    work = _Workspace(len(ys))
+    rng = np.random.default_rng(3)
+    for _ in range(4):
+        theta = rng.uniform(np.log(0.05), np.log(3.0), 3 + (nugget is not None))
+        ll, g, _ = gp._solve(ys, theta, noise, True, work=work)
+        ll_ref, g_ref = _plain_likelihood(gp, ys, theta, noise)
+        assert ll == ll_ref
+        assert g.tobytes() == g_ref.tobytes()
+        fresh = gp._solve(ys, theta, noise, True)  # its own work arrays
+        assert fresh[0] == ll and fresh[1].tobytes() == g.tobytes()
+
+
+def test_sqexp_likelihood_gradient_matches_finite_differences(design):
+    """The in-place squared-exponential path's gradient (the study's kernel), with work
+    arrays reused between the calls, against central differences of the likelihood."""
+    from rotoruq.methods.surrogate import _Workspace
+
+    x, y = design
+    gp = GaussianProcess(trend="reduced_quadratic", kernel="sqexp", n_restarts=0,
+                         seed=0).fit(x, y)
+    ys = (y[:, 0] - gp._y_mean[0]) / gp._y_std[0]
+    work = _Workspace(len(ys))
+    theta = np.log([0.4, 0.7, 1.5])
+    _, g, _ = gp._solve(ys, theta, None, True, work=work)
+    h = 1e-6
+    fd = [(gp._solve(ys, theta + h * e, None, False, work=work)[0]
+           - gp._solve(ys, theta - h * e, None, False, work=work)[0]) / (2 * h)
+          for e in np.eye(3)]
+    np.testing.assert_allclose(g, fd, rtol=1e-5, atol=1e-5)
+
+
+def test_scaled_distances_and_triangular_solves_keep_the_bits():
+    """The in-place distances equal ``sqrt(_scaled_sqdist)`` and the direct ``dtrtrs`` call
+    equals ``solve_triangular`` (also for an empty right-hand side) bit for bit; a zero
+    pivot raises ``LinAlgError`` (which the objective turns into a rejected step)."""
+    from scipy import linalg
+    from scipy.linalg import lapack
+
+    from rotoruq.methods.surrogate import _scaled_dist, _scaled_sqdist, _trtrs
+
+    rng = np.random.default_rng(0)
+    x = rng.random((37, 4))
+    inv_ell = 1.0 / rng.uniform(0.1, 2.0, 4)
+    n = len(x)
+    h = _scaled_dist(x * inv_ell, np.empty((n, n)), np.empty((n, n)))
+    assert h.tobytes() == np.sqrt(_scaled_sqdist(x, x, inv_ell)).tobytes()
+    L = lapack.dpotrf(np.exp(-0.5 * h * h) + 1e-3 * np.eye(n), lower=1, clean=1)[0]
+    for b in (rng.normal(size=n), rng.normal(size=(n, 3)), np.empty((n, 0))):
+        for trans in (0, 1):
+            ref = linalg.solve_triangular(L, b, lower=True, trans=trans, check_finite=False)
+            got = _trtrs(L, b, lower=1, trans=trans)
+            assert got.shape == ref.shape and got.tobytes() == ref.tobytes()
+    singular = L.copy(order="F")
+    singular[5, 5] = 0.0
+    with pytest.raises(np.linalg.LinAlgError, match="info=6"):
+        _trtrs(singular, np.ones(n), lower=1)

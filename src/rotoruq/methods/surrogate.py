@@ -107,6 +107,40 @@ def _scaled_sqdist(a: np.ndarray, b: np.ndarray, inv_ell: np.ndarray) -> np.ndar
     return np.maximum(d2, 0.0)
 
 
+def _scaled_dist(xe: np.ndarray, out: np.ndarray, tmp: np.ndarray) -> np.ndarray:
+    """``sqrt(_scaled_sqdist(x, x, inv_ell))`` of the scaled points ``xe = x * inv_ell``
+    (n, d), written into ``out`` (n, n) with ``tmp`` (n, n) as scratch: the same operations
+    in the same order, the same bits, without the four n x n temporaries."""
+    s = (xe * xe).sum(1)
+    ab = np.matmul(2.0 * xe, xe.T, out=tmp)
+    d2 = np.add.outer(s, s, out=out)
+    d2 -= ab
+    np.maximum(d2, 0.0, out=d2)
+    return np.sqrt(d2, out=d2)
+
+
+class _Workspace:
+    """The n x n arrays one likelihood objective writes into at every call (allocating
+    them afresh cost as much as the arithmetic on them at n = 500)."""
+
+    def __init__(self, n: int) -> None:
+        self.a = np.empty((n, n))
+        self.b = np.empty((n, n))
+        self.c = np.empty((n, n))
+
+
+def _trtrs(L: np.ndarray, b: np.ndarray, lower: int, trans: int = 0) -> np.ndarray:
+    """``linalg.solve_triangular(L, b, check_finite=False)`` for a Fortran-ordered ``L``
+    (a ``dpotrf`` factor): the same LAPACK call without its wrappers' checks, which cost
+    more than the solve at n = 150; a zero on the diagonal raises ``LinAlgError`` as there."""
+    if b.size == 0:
+        return np.empty_like(b)
+    x, info = lapack.dtrtrs(L, b, lower=lower, trans=trans)
+    if info != 0:
+        raise np.linalg.LinAlgError(f"triangular solve failed (info={info})")
+    return x
+
+
 # --- trend bases -----------------------------------------------------------------------------
 def _basis(z: np.ndarray, trend: str | None) -> np.ndarray:
     n, d = z.shape
@@ -158,7 +192,7 @@ def _robust_cholesky(a: np.ndarray, jitter: float,
         if info == 0:
             if rhs is None:
                 return c, jitter
-            z = linalg.cho_solve((c, True), rhs, check_finite=False)
+            z, _ = lapack.dpotrs(c, rhs, lower=1)  # cho_solve's call, without its checks
             if np.linalg.norm(a @ z - rhs) <= _SOLVE_TOL * np.linalg.norm(rhs):
                 return c, jitter
         if jitter >= _MAX_JITTER:
@@ -452,19 +486,36 @@ class GaussianProcess:
         return inv_ell, eta, 1.0, 0.0, True
 
     def _solve(self, ys: np.ndarray, theta: np.ndarray, noise: float | None, want_grad: bool,
-               Xs: np.ndarray | None = None, F: np.ndarray | None = None):
-        """Log-likelihood (concentrated when possible), its gradient and the solved systems."""
+               Xs: np.ndarray | None = None, F: np.ndarray | None = None,
+               work: _Workspace | None = None):
+        """Log-likelihood (concentrated when possible), its gradient and the solved systems.
+
+        ``work`` holds the n x n arrays of an optimizer's calls (one per objective); every
+        step writes into them in the order of the arithmetic it replaces, so the bits do not
+        depend on it."""
         if Xs is None or F is None:
             Xs, F = self._Xs, self._F
         n, d = Xs.shape
+        if work is None:
+            work = _Workspace(n)
         inv_ell, eta, s2, dn, conc = self._unpack(theta, noise)
-        h = np.sqrt(_scaled_sqdist(Xs, Xs, inv_ell))
-        R, G = _corr(h, self.kernel)
-        M = s2 * R if s2 != 1.0 else R.copy()
-        M[np.diag_indices(n)] += eta + dn
+        Xe = Xs * inv_ell
+        h = _scaled_dist(Xe, work.b, work.c)
+        if self.kernel == "sqexp":  # exp(-0.5 h h) in place: h's buffer is free after
+            R = np.multiply(h, -0.5, out=work.a)
+            R *= h
+            G = R = np.exp(R, out=R)
+        else:
+            R, G = _corr(h, self.kernel)
+        M = work.b
+        if s2 != 1.0:
+            np.multiply(R, s2, out=M)
+        else:
+            np.copyto(M, R)
+        M.flat[::n + 1] += eta + dn
         L, jitter = _robust_cholesky(M, base_jitter(n) * s2, ys)
-        Lf = linalg.solve_triangular(L, F, lower=True, check_finite=False)
-        Ly = linalg.solve_triangular(L, ys, lower=True, check_finite=False)
+        Lf = _trtrs(L, F, lower=1)
+        Ly = _trtrs(L, ys, lower=1)
         if F.shape[1]:
             beta, *_ = np.linalg.lstsq(Lf, Ly, rcond=None)
             rt = Ly - Lf @ beta
@@ -490,25 +541,27 @@ class GaussianProcess:
             sig2 = s2
             ll = -0.5 * q - 0.5 * logdet
             scale = 1.0
-        alpha = linalg.solve_triangular(L, rt, lower=True, trans=1, check_finite=False)
+        alpha = _trtrs(L, rt, lower=1, trans=1)
         out = dict(L=L, beta=beta, alpha=alpha, sig2=sig2, jitter=jitter, Lf=Lf, ll=ll,
                    inv_ell=inv_ell, eta=eta, s2=s2, dn=dn, conc=conc)
         if not want_grad:
             return ll, None, out
-        Minv, info = lapack.dpotri(L, lower=1)  # lower triangle; L's upper is zero (clean=1)
-        # the upper triangle from the lower, row by row (the n^2 copies, not tril's mask and
-        # temporaries); + 0.0 as the sum ``Minv + tril(Minv, -1).T`` it replaces (-0 -> +0)
-        for i in range(1, n):
-            Minv[i - 1, i:] = Minv[i:, i - 1]
-        Minv += 0.0
-        if conc and reml:  # M^-1 -> the projection M^-1 - M^-1 F (F^T M^-1 F)^-1 F^T M^-1
+        qf = None
+        if conc and reml:
             qf = linalg.solve_triangular(
-                c_f, linalg.solve_triangular(L, Lf, lower=True, trans=1, check_finite=False).T,
-                lower=True, check_finite=False)
-            Minv -= qf.T @ qf
+                c_f, _trtrs(L, Lf, lower=1, trans=1).T, lower=True, check_finite=False)
+        # L is not returned from here on: its memory takes M^-1 (lower triangle; the upper
+        # stays L's zeros, clean=1)
+        Minv, info = lapack.dpotri(L, lower=1, overwrite_c=1)
+        # the upper triangle from the lower as Minv + tril(Minv, -1).T: off the diagonal a
+        # value plus L's +0.0 (-0 -> +0), the diagonal its value + 0.0
+        S = np.add(Minv, Minv.T, out=work.b)
+        S.flat[::n + 1] = Minv.diagonal() + 0.0
+        if qf is not None:  # M^-1 -> the projection M^-1 - M^-1 F (F^T M^-1 F)^-1 F^T M^-1
+            S -= qf.T @ qf
         # W = scale * alpha alpha^T - M^-1, formed in place
-        W = np.multiply.outer(alpha * scale, alpha, out=np.empty((n, n)))
-        W -= Minv
+        W = np.multiply.outer(alpha * scale, alpha, out=work.c)
+        W -= S
         g = np.empty_like(theta)
         if not conc:
             g[d] = 0.5 * s2 * float((W * R).sum())
@@ -518,7 +571,6 @@ class GaussianProcess:
         if s2 != 1.0:
             P *= s2
         rows = P.sum(1)
-        Xe = Xs * inv_ell
         g[:d] = (Xe * Xe * rows[:, None]).sum(0) - (Xe * (P @ Xe)).sum(0)
         return ll, g, out
 
@@ -541,9 +593,11 @@ class GaussianProcess:
                       for k, s in enumerate(starts)]
 
         def make_objective(Xs, F, yv):
+            work = _Workspace(Xs.shape[0])
+
             def objective(theta):
                 try:
-                    ll, g, _ = self._solve(yv, theta, noise, True, Xs, F)
+                    ll, g, _ = self._solve(yv, theta, noise, True, Xs, F, work)
                 except np.linalg.LinAlgError:
                     return 1e30, np.zeros_like(theta)
                 return -ll, -g

@@ -117,9 +117,8 @@ def _png(fig) -> bytes:
 
     import matplotlib as mpl
     import numpy as np
-    from PIL import Image, PngImagePlugin
-
     from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from PIL import Image, PngImagePlugin
 
     canvas = fig.canvas if isinstance(fig.canvas, FigureCanvasAgg) else FigureCanvasAgg(fig)
     buf = io.BytesIO()
@@ -188,7 +187,6 @@ def _fix_ticks(fig) -> None:
     its locator gives and draws those inside the view alone, so the others cost artists
     that are never drawn."""
     from matplotlib.ticker import FixedFormatter, FixedLocator
-    from matplotlib.transforms import _interval_contains_close
 
     for ax in fig.axes:
         for axis in (ax.xaxis, ax.yaxis):
@@ -199,9 +197,11 @@ def _fix_ticks(fig) -> None:
             locs = axis.get_majorticklocs()
             formatter = axis.get_major_formatter()
             labels = formatter.format_ticks(locs)
-            # the test a drawing applies to each tick (linear scale: no transform)
-            view = sorted(axis.get_view_interval())
-            shown = [k for k, loc in enumerate(locs) if _interval_contains_close(view, loc)]
+            # the test a drawing applies to each tick (linear scale: no transform): inside
+            # the view to 1e-10 of its span
+            lo, hi = sorted(axis.get_view_interval())
+            tol = (hi - lo) * 1e-10
+            shown = [k for k, loc in enumerate(locs) if lo - tol <= loc <= hi + tol]
             fixed = FixedFormatter([labels[k] for k in shown])
             fixed.set_offset_string(formatter.get_offset())
             axis.set_major_locator(FixedLocator([locs[k] for k in shown]))

@@ -66,7 +66,6 @@ from pathlib import Path
 
 from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 from _summary import print_and_save, print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
-from _test_cpu import read as read_test_cpu  # noqa: E402  (benchmarks/ is on sys.path)
 
 ROOT = Path(__file__).resolve().parents[1]
 SRC = ROOT / "src" / "rotoruq"
@@ -177,6 +176,9 @@ def measure(extra: list[str], per_test_path: str | None = None, warm: str = "aut
         warm_up = {"wall_s": round(wwall, 1), "cpu_s": round(wcpu, 1), "exit_code": wrc,
                    "numba_cold_after": numba_cold()}
         load0 = [round(v, 2) for v in os.getloadavg()]
+    # imported here: importing the plugin in a process watches its imports for numba's
+    from _test_cpu import read as read_test_cpu
+
     per_test = tempfile.mkdtemp(prefix="lane-cpu-")
     try:
         os.environ["ROTORUQ_TEST_CPU"] = per_test

@@ -145,6 +145,12 @@ def numba_cold() -> list[str]:
     return json.loads(done.stdout)
 
 
+def failures(output: str) -> list[str]:
+    """The tests pytest's short summary (``-ra``, pyproject.toml) names as failed or in
+    error."""
+    return re.findall(r"^(?:FAILED|ERROR) (.+?)(?: - .*)?$", output, re.M)
+
+
 def by_file(tests: list[dict]) -> dict[str, float]:
     """CPU seconds of the tests of each test file (their own, subprocesses included), the
     ``SLOWEST`` costliest files, the most first."""
@@ -193,6 +199,7 @@ def measure(extra: list[str], per_test_path: str | None = None, warm: str = "aut
     counts = _counts(out)
     failed = counts.get("failed", 0) + counts.get("error", 0)
     return {"command": "pytest " + " ".join(LANE + extra), "exit_code": rc,
+            "failed_tests": failures(out),
             "wall_s": round(wall, 1), "cpu_s": round(cpu, 1),
             "collect_wall_s": round(cwall, 1), "collect_cpu_s": round(ccpu, 1),
             "passed": counts.get("passed", 0), "skipped": counts.get("skipped", 0),

@@ -18,6 +18,7 @@ ROOT = Path(__file__).resolve().parents[1]
 BENCHMARKS = ROOT / "benchmarks"
 sys.path.insert(0, str(BENCHMARKS))
 
+import lane_schedule  # noqa: E402
 import test_lanes  # noqa: E402
 
 
@@ -88,3 +89,15 @@ def test_the_cold_check_names_the_functions_of_a_changed_source(tmp_path):
     assert {"rotoruq.methods._gp_mean._mean_rows", "rotoruq.methods._gp_mean._mean_var_rows",
             "rotoruq.methods._gp_mean.gp_mean_into"} <= set(cold)
     assert "rotoruq.methods._gp_mean._sq_distances" not in cold  # inline="always"
+
+
+def test_worksteal_shares_the_long_tests_that_load_leaves_on_one_worker():
+    """Eight 10 s tests first, then 64 of 0.1 s: ``load``'s first chunks (9 tests each) put
+    all eight long tests on the first worker, which runs them alone (80 s); with
+    ``worksteal`` the second worker takes half of the first one's queue when it runs dry.
+    Each scheduler runs every test once."""
+    d = [10.0] * 8 + [0.1] * 64
+    loaded, stolen = lane_schedule.load(d), lane_schedule.worksteal(d)
+    assert sum(loaded) == pytest.approx(sum(d)) and sum(stolen) == pytest.approx(sum(d))
+    assert max(loaded) >= 80.0
+    assert max(stolen) <= sum(d) / 2 + 10.0

@@ -262,7 +262,21 @@ def summary(res: dict) -> str:
             f"{res['load_before'][0]:g} (1-min average at the start; collecting the tests "
             f"alone takes {res['collect_cpu_s']:.0f} CPU-s); measured "
             f"{res['provenance']['date'][:10]} at {res['provenance']['commit'][:10]}."
-            + _slowest_sentence(res))
+            + _slowest_sentence(res) + _compile_sentence(res))
+
+
+def _compile_sentence(res: dict) -> str:
+    """Whether numba compiled during the lane (results saved before it was recorded: an
+    empty string)."""
+    if "compile_cpu_s" not in res:
+        return ""
+    if res["compile_cpu_s"] > 0:
+        return (f" Numba compiled for {res['compile_cpu_s']:.0f} CPU-s in the tests' processes "
+                "(a cold cache).")
+    first = res.get("warm_up")
+    after = (f"; the first run after the checkout, which compiled, took "
+             f"{first['wall_s'] / 60:.1f} min wall)." if first else ").")
+    return " Numba compiled nothing in the tests' processes (a warm cache" + after
 
 
 def _slowest_sentence(res: dict) -> str:

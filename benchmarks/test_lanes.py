@@ -19,6 +19,21 @@ bytecode cache is on in the children even when ``PYTHONDONTWRITEBYTECODE`` is se
 (without it every run rewrites the assertions of every test file again: ~15 CPU-s per
 worker).
 
+The lane is timed as a developer's repeated run: on a warm numba cache. A checkout that
+changed a kernel's source leaves numba's cache stale, and the first tests to call each kernel
+then compile it (tens of CPU-s each, in whichever test comes first: a lane measured so
+charged 35 CPU-s to an example that costs 2). Before the lane the script asks numba's cache
+index whether rotoruq's compiled functions are cached for their current source
+(``numba_cold_before``); when some are not (``--warm auto``, the default), it runs the lane
+once unmeasured first (``warm_up``: its wall and CPU seconds, the first run after such a
+checkout). ``compile_cpu_s`` adds up the seconds the tests' own processes spent compiling
+during the measured lane (``compile_s`` of each test: ``_test_cpu.py``); a compile in a
+subprocess is not counted there.
+
+``--marker EXPR`` times another lane instead: ``--marker "not fast"`` runs the ``slow``,
+``mbdyn``, ``browser`` and ``dakota`` tests (the rest of the full suite) with the same plugin,
+and ``--slowest N`` lists N tests (``benchmarks/results/test_lanes_slow.json`` lists them all).
+
 ``--modules`` runs the lane instead under ``coverage`` (``pip install coverage``), started in
 each worker after collection: a module counts when a fast test ran a line of it (its
 functions, or its body when a test's code imported it first), not for being imported by a
@@ -31,6 +46,8 @@ it) is not seen, so a module listed may still be tested that way: read the list.
     python benchmarks/test_lanes.py --modules [-- tests/test_params.py]   # pytest arguments
     python benchmarks/test_lanes.py --summary benchmarks/results/test_lanes.json  # README's line
     python benchmarks/test_lanes.py --per-test /tmp/lane.jsonl   # and every test's seconds
+    python benchmarks/test_lanes.py --marker "not fast" --slowest 1000 \
+        --json benchmarks/results/test_lanes_slow.json              # the full suite's rest
 """
 
 from __future__ import annotations
@@ -49,12 +66,12 @@ from pathlib import Path
 
 from _provenance import provenance  # noqa: E402  (benchmarks/ is on sys.path)
 from _summary import print_and_save, print_saved_summary  # noqa: E402  (benchmarks/ is on sys.path)
-from _test_cpu import read as read_test_cpu  # noqa: E402  (benchmarks/ is on sys.path)
 
 ROOT = Path(__file__).resolve().parents[1]
 SRC = ROOT / "src" / "rotoruq"
-LANE = ["-q", "-n", "2", "-m", "fast"]
-SLOWEST = 30  # the tests listed by their CPU seconds
+MARKER = "fast"
+LANE = ["-q", "-n", "2", "-m", MARKER]
+SLOWEST = 30  # the tests listed by their CPU seconds (--slowest)
 SLOW_CPU_S = 10.0  # README: a test above this gets @pytest.mark.slow
 COUNTS = re.compile(r"(\d+) (passed|failed|skipped|deselected|errors?|xfailed|xpassed)")
 
@@ -90,6 +107,50 @@ def _counts(output: str) -> dict[str, int]:
             for n, k in COUNTS.findall(last[-1])}
 
 
+# run in a fresh interpreter (the script imports no rotoruq): the compiled functions called
+# from Python or from other compiled functions (not those inlined into their callers) whose
+# code numba's cache index does not hold for their current source, and the rotor kernel's
+# forward-flight build, cached apart from the hover build
+COLD_CHECK = r"""
+import importlib, json, pathlib, sys
+from numba.core.dispatcher import Dispatcher
+from rotoruq._compile import is_cached
+from rotoruq.rotor.hover import kernels_cached
+src = pathlib.Path(sys.argv[1])
+cold = []
+for path in sorted(src.rglob("*.py")):
+    text = path.read_text(encoding="utf-8")
+    if "cache=True" not in text and '"cache": True' not in text:
+        continue
+    name = ".".join(path.relative_to(src.parent).with_suffix("").parts)
+    module = importlib.import_module(name)
+    for key, fn in vars(module).items():
+        if (isinstance(fn, Dispatcher) and fn.__module__ == name
+                and fn.targetoptions.get("inline", "never") != "always"
+                and not is_cached(fn)):
+            cold.append(name + "." + key)
+if not kernels_cached(True):
+    cold.append("rotoruq.rotor._kernel.solve_samples (forward-flight build)")
+print(json.dumps(cold))
+"""
+
+
+def numba_cold() -> list[str]:
+    """rotoruq's compiled functions that numba's on-disk cache does not hold for their
+    current source (``COLD_CHECK``): the lane's first calls of them would compile."""
+    done = subprocess.run([sys.executable, "-c", COLD_CHECK, str(SRC)], cwd=ROOT, env=_env(),
+                          capture_output=True, text=True)
+    if done.returncode != 0:
+        raise RuntimeError("the numba cache check failed:\n" + done.stderr[-3000:])
+    return json.loads(done.stdout)
+
+
+def failures(output: str) -> list[str]:
+    """The tests pytest's short summary (``-ra``, pyproject.toml) names as failed or in
+    error."""
+    return re.findall(r"^(?:FAILED|ERROR) (.+?)(?: - .*)?$", output, re.M)
+
+
 def by_file(tests: list[dict]) -> dict[str, float]:
     """CPU seconds of the tests of each test file (their own, subprocesses included), the
     ``SLOWEST`` costliest files, the most first."""
@@ -101,9 +162,12 @@ def by_file(tests: list[dict]) -> dict[str, float]:
     return {path: round(cpu, 1) for path, cpu in top}
 
 
-def measure(extra: list[str], per_test_path: str | None = None) -> dict:
-    """Collect once (bytecode caches written, collection timed), then run the lane; with
-    ``per_test_path``, every test's record (``_test_cpu.py``) saved there as JSON lines."""
+def measure(extra: list[str], per_test_path: str | None = None, warm: str = "auto",
+            slowest: int = SLOWEST) -> dict:
+    """Collect once (bytecode caches written, collection timed), warm numba's cache when
+    ``warm`` says so (``"auto"``: when it is cold, ``"always"``, ``"never"``), then run the
+    lane; with ``per_test_path``, every test's record (``_test_cpu.py``) saved there as JSON
+    lines."""
     load0 = [round(v, 2) for v in os.getloadavg()]
     # the commit, date and sources at the start (a commit made while the lane runs is not
     # what it ran); the load average at the end, as before
@@ -111,6 +175,16 @@ def measure(extra: list[str], per_test_path: str | None = None) -> dict:
     cwall, ccpu, cout, crc = _pytest(["--collect-only", *LANE, *extra])
     if crc != 0:
         raise RuntimeError(f"pytest --collect-only exited with {crc}:\n{cout[-3000:]}")
+    cold = numba_cold()
+    warm_up = None
+    if warm == "always" or (warm == "auto" and cold):
+        wwall, wcpu, wout, wrc = _pytest([*LANE, *extra])
+        warm_up = {"wall_s": round(wwall, 1), "cpu_s": round(wcpu, 1), "exit_code": wrc,
+                   "numba_cold_after": numba_cold()}
+        load0 = [round(v, 2) for v in os.getloadavg()]
+    # imported here: importing the plugin in a process watches its imports for numba's
+    from _test_cpu import read as read_test_cpu
+
     per_test = tempfile.mkdtemp(prefix="lane-cpu-")
     try:
         os.environ["ROTORUQ_TEST_CPU"] = per_test
@@ -125,6 +199,7 @@ def measure(extra: list[str], per_test_path: str | None = None) -> dict:
     counts = _counts(out)
     failed = counts.get("failed", 0) + counts.get("error", 0)
     return {"command": "pytest " + " ".join(LANE + extra), "exit_code": rc,
+            "failed_tests": failures(out),
             "wall_s": round(wall, 1), "cpu_s": round(cpu, 1),
             "collect_wall_s": round(cwall, 1), "collect_cpu_s": round(ccpu, 1),
             "passed": counts.get("passed", 0), "skipped": counts.get("skipped", 0),
@@ -132,7 +207,9 @@ def measure(extra: list[str], per_test_path: str | None = None) -> dict:
             "cores": os.cpu_count(), "load_before": load0,
             "load_after": [round(v, 2) for v in os.getloadavg()],
             "tests_cpu_s": round(sum(t["cpu_s"] for t in tests), 1),
-            "slowest": tests[:SLOWEST], "files_cpu_s": by_file(tests),
+            "numba_cold_before": cold, "warm_up": warm_up,
+            "compile_cpu_s": round(sum(t.get("compile_s", 0.0) for t in tests), 1),
+            "slowest": tests[:slowest], "files_cpu_s": by_file(tests),
             "over_10_cpu_s": [t["nodeid"] for t in tests if t["cpu_s"] > SLOW_CPU_S],
             "provenance": {**prov, "load": [round(v, 2) for v in os.getloadavg()]}}
 
@@ -185,7 +262,21 @@ def summary(res: dict) -> str:
             f"{res['load_before'][0]:g} (1-min average at the start; collecting the tests "
             f"alone takes {res['collect_cpu_s']:.0f} CPU-s); measured "
             f"{res['provenance']['date'][:10]} at {res['provenance']['commit'][:10]}."
-            + _slowest_sentence(res))
+            + _slowest_sentence(res) + _compile_sentence(res))
+
+
+def _compile_sentence(res: dict) -> str:
+    """Whether numba compiled during the lane (results saved before it was recorded: an
+    empty string)."""
+    if "compile_cpu_s" not in res:
+        return ""
+    if res["compile_cpu_s"] > 0:
+        return (f" Numba compiled for {res['compile_cpu_s']:.0f} CPU-s in the tests' processes "
+                "(a cold cache).")
+    first = res.get("warm_up")
+    after = (f"; the first run after the checkout, which compiled, took "
+             f"{first['wall_s'] / 60:.1f} min wall)." if first else ").")
+    return " Numba compiled nothing in the tests' processes (a warm cache" + after
 
 
 def _slowest_sentence(res: dict) -> str:
@@ -208,15 +299,23 @@ def main() -> None:
     ap.add_argument("--summary", metavar="JSON", help="print README's line from a saved result")
     ap.add_argument("--per-test", metavar="JSONL",
                     help="also save every test's CPU and wall seconds here, one JSON line each")
+    ap.add_argument("--warm", choices=("auto", "always", "never"), default="auto",
+                    help="run the lane once unmeasured first: when numba's cache is cold "
+                         "(auto), always or never")
+    ap.add_argument("--marker", default=MARKER,
+                    help='the lane\'s -m expression ("not fast": the rest of the full suite)')
+    ap.add_argument("--slowest", type=int, default=SLOWEST,
+                    help="how many tests to list by their CPU seconds")
     ap.add_argument("pytest_args", nargs="*", help="more pytest arguments (after --)")
     args = ap.parse_args()
+    LANE[-1] = args.marker
     if print_saved_summary(args.summary, summary):
         return
     if args.modules:
         res = untested_modules(args.pytest_args)
         print_and_save(res, args.json)
         raise SystemExit(1 if res["untested"] or res["exit_code"] else 0)
-    print_and_save(measure(args.pytest_args, args.per_test), args.json)
+    print_and_save(measure(args.pytest_args, args.per_test, args.warm, args.slowest), args.json)
 
 
 if __name__ == "__main__":

@@ -85,7 +85,10 @@ def pytest_collection_modifyitems(config, items):
 
     The test files holding ``slow`` or ``mbdyn`` tests run first, each file's tests in their
     own order: with ``-n auto`` (pytest-xdist) the minutes-long tests start at once instead
-    of leaving one worker alone with them at the end."""
+    of leaving one worker alone with them at the end. That needs ``--dist worksteal``
+    (pyproject.toml's addopts): xdist's default hands each worker a fixed first chunk of the
+    queue, and the worker whose chunk held these tests ran them alone while the other one
+    ran out of work."""
     for item in items:
         for mark in item.iter_markers("skipif"):
             if "'dakota' executable" in str(mark.kwargs.get("reason", "")):

@@ -63,8 +63,10 @@ def _evidence(seed):
         "a": rq.Interval([(0.0, 1.0), (1.0, 3.0)], [0.4, 0.6]),
         "b": rq.Interval([(-1.0, 1.0), (0.5, 2.0)], [0.5, 0.5])})
     model = rq.FunctionModel(lambda x: np.sin(3 * x[:, 0]) * x[:, 1], ["a", "b"], ["g"])
+    # EGO's stopping tolerance 1e-2 (default 1e-4): 19 refinements instead of 39, each
+    # seeded the same way (0.6 instead of 1.6 CPU-s a call)
     return rq.evidence(model, space, n_samples=20, n_starts=2, response_levels=[[0.0, 0.5]],
-                       seed=seed)
+                       tolerance=1e-2, seed=seed)
 
 
 def _sample(seed):

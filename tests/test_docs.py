@@ -183,9 +183,11 @@ LINTED = ["scripts", "benchmarks", "examples", "docs/_ext", "docs/conf.py"]
 # figure_cpu.py has no --quick of its own: it runs `rotoruq reproduce all --quick` for the
 # results it redraws, then alternates the redraws (tests/test_report_imports.py checks the
 # import claim it measures; its --summary runs in test_generated_block_is_current).
+# scripts/mbdyn_verification.py --quick (9 MBDyn runs, 30 CPU-s) is run by
+# tests/test_mbdyn_verification.py, which checks its JSON and that it prints.
 NOT_SMOKE_RUN = {"reproduce_time.py", "aero_center_calibration.py", "reproduce_cpu.py",
                  "terminal_lines.py", "thread_determinism.py", "compile_time.py",
-                 "reproduce_cold.py", "figure_cpu.py"}
+                 "reproduce_cold.py", "figure_cpu.py", "mbdyn_verification.py"}
 
 
 # smoke-run only with pytest --extended: minutes of MBDyn runs even at --quick

@@ -10,6 +10,7 @@ import sys
 import numpy as np
 import pytest
 
+from _inproc import rotoruq
 from rotoruq.study.runner import _why_serial
 from rotoruq.study.schema import load_study
 
@@ -51,15 +52,19 @@ n_samples = 64
 """
 
 
-def _run(folder, *extra):
-    return subprocess.run([*CLI, "run", str(folder / "parallel.toml"), "--no-report",
-                           "--out", str(folder / f"out{''.join(extra)}"), *extra],
-                          capture_output=True, text=True, timeout=600)
+def _run(folder, *extra, fresh=True):
+    """``rotoruq run`` of the study in ``folder``: a fresh process, or this one
+    (tests/_inproc.py) for a serial run, whose process is not what is checked."""
+    args = ["run", str(folder / "parallel.toml"), "--no-report",
+            "--out", str(folder / f"out{''.join(extra)}"), *extra]
+    if not fresh:
+        return rotoruq(*args)
+    return subprocess.run([*CLI, *args], capture_output=True, text=True, timeout=600)
 
 
 def test_independent_steps_in_two_processes_give_the_bits_of_one(tmp_path):
     (tmp_path / "parallel.toml").write_text(STUDY)
-    one, two = _run(tmp_path), _run(tmp_path, "--jobs", "2")
+    one, two = _run(tmp_path, fresh=False), _run(tmp_path, "--jobs", "2")
     assert one.returncode == 0 and two.returncode == 0, two.stderr[-3000:]
     for step in ("lhs", "mv", "random"):
         assert f"{step}: done" in two.stderr  # each step's lines, from its worker
@@ -75,7 +80,7 @@ def test_independent_steps_in_two_processes_give_the_bits_of_one(tmp_path):
 
 def test_a_bad_job_count_is_a_usage_error(tmp_path):
     (tmp_path / "parallel.toml").write_text(STUDY)
-    bad = _run(tmp_path, "--jobs", "0")
+    bad = _run(tmp_path, "--jobs", "0", fresh=False)
     assert bad.returncode == 2 and "--jobs: an integer >= 1, got '0'" in bad.stderr
 
 

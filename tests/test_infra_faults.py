@@ -322,9 +322,18 @@ def test_cli_run_survives_a_sigkilled_pool_worker_bitwise(tmp_path):
                              "--no-report"], env={**env, "DRIVER_LOG": str(log)},
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        _wait_for(lambda: log.exists() and len(log.read_text().split()) >= 2
-                  and _driver_workers(proc.pid), 120, "two finished evaluations")
-        victim = _driver_workers(proc.pid)[0]
+        # the workers seen while a driver runs: read again later, the list can be empty
+        # between one evaluation's driver and the next (a 0.3 s driver)
+        seen: list[int] = []
+
+        def ready() -> bool:
+            if not (log.exists() and len(log.read_text().split()) >= 2):
+                return False
+            seen[:] = _driver_workers(proc.pid)
+            return bool(seen)
+
+        _wait_for(ready, 120, "two finished evaluations")
+        victim = seen[0]
         os.kill(victim, signal.SIGKILL)
         _, err = proc.communicate(timeout=120)
     finally:

@@ -119,10 +119,10 @@ def measure(commit: str, repeats: int) -> dict:
                      for mod in (old, new)]
             X = np.random.default_rng(seed + 1).random((4000, d)) * 1.2 - 0.1
             if variance:
-                calls = [lambda mod=mod, g=g: mod.gp_mean_var_batch(X, g)[0]
+                calls = [lambda mod=mod, g=g, X=X: mod.gp_mean_var_batch(X, g)[0]
                          for mod, g in zip((old, new), packs, strict=True)]
             else:
-                calls = [lambda mod=mod, g=g: mod.gp_mean_batch(X, g)
+                calls = [lambda mod=mod, g=g, X=X: mod.gp_mean_batch(X, g)
                          for mod, g in zip((old, new), packs, strict=True)]
             t = [0.0, 0.0]
             got = [None, None]

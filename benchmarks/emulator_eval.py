@@ -145,12 +145,17 @@ def measure(commit: str, repeats: int) -> dict:
 
 def summary(result: dict) -> str:
     p = result["pieces"]
-    e = p["exp of 512 squared-exponential arguments"]
-    means = [v for k, v in p.items() if k.startswith("mean")]
-    return (f"The emulator's exponential takes {e['after_ns_per_value']} ns a value "
-            f"({e['before_ns_per_value']} ns with math.exp); an emulator evaluation is "
-            + ", ".join(f"{v['ratio']}x" for v in means)
-            + f" as fast as at {result['before']} (benchmarks/emulator_eval.py).")
+    e = p.pop("exp of 512 squared-exponential arguments")
+    load = result.get("provenance", {}).get("load", ["?"])[0]
+    cases = "; ".join(
+        f"{k}: {v['before_us_per_eval']:.2f} -> {v['after_us_per_eval']:.2f} us "
+        f"({v['ratio']}x, largest difference {v['largest_difference_per_sum_abs_weights']:.1e}"
+        " of the sum of |terms|)" for k, v in p.items())
+    return (f"`python benchmarks/emulator_eval.py --before {result['before']}` (CPU, "
+            f"alternated in one process, load {load}): the exponential "
+            f"{e['before_ns_per_value']:.2f} -> {e['after_ns_per_value']:.2f} ns a value; "
+            f"an evaluation, {cases}. With the variance, its n^2/2 multiply-adds a response "
+            "take most of the time.")
 
 
 def main() -> None:

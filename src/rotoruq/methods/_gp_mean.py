@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from .. import _numba_cache  # noqa: F401  (the cache keyed by what the kernels compile in)
 from .._compile import compiling
 from ._vexp import exp1
 

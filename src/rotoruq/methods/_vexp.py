@@ -25,6 +25,8 @@ from llvmlite import ir
 from numba.core import types
 from numba.extending import intrinsic
 
+from .. import _numba_cache  # noqa: F401  (the cache keyed by what the kernels compile in)
+
 __all__ = ["exp1", "exp_into"]
 
 _LOG2E = 1.4426950408889634

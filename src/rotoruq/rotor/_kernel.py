@@ -47,6 +47,8 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
+from .. import _numba_cache  # noqa: F401  (the cache keyed by what the kernels compile in)
+
 _JIT = {"cache": True, "error_model": "numpy", "nogil": True}
 # small functions of scalars called per blade element: inlined into their caller (no call
 # overhead). Per-element code that reads arrays is written out in its loop instead: numba

@@ -12,6 +12,8 @@ import math
 import numba as nb
 import numpy as np
 
+from ... import _numba_cache  # noqa: F401  (the cache keyed by what the kernels compile in)
+
 _LOG_2PI = math.log(2.0 * math.pi)
 SQUARED_EXPONENTIAL, MATERN52 = 0, 1
 

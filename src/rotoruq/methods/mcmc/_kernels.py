@@ -31,6 +31,7 @@ import math
 import numba as nb
 import numpy as np
 
+from ... import _numba_cache  # noqa: F401  (the cache keyed by what the kernels compile in)
 from .._gp_mean import gp_mean_into, gp_mean_var_into
 
 _jit = nb.njit(cache=True, nogil=True)

@@ -1359,9 +1359,14 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_ou
         if singular:
             reason = TRIM_SINGULAR
             max_iterations = 0
+    # the iteration's arrays borrowed (see _borrowed): referenced here until _keep_alive
+    st_, Z_, Jinv_, J0_, J1_, F_cmd_ = (_borrowed(st), _borrowed(Z), _borrowed(Jinv),
+                                        _borrowed(J0), _borrowed(J1), _borrowed(F_cmd))
+    M_, A_, b_, x_, hist_ = _borrowed(M), _borrowed(A), _borrowed(b), _borrowed(x), _borrowed(
+        hist)
     for _ in range(max_iterations):
-        size, bad = _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws,
-                          M, A, b, x, flight, hist)
+        size, bad = _step(st_, prm, rot, af, fit, linear, Z_, Jinv_, J0_, J1_, F_cmd_, k_v, qa,
+                          ws, M_, A_, b_, x_, flight, hist_)
         iterations += 1
         if trim:
             if (abs(prm[COLLECTIVE]) + abs(prm[LATERAL]) + abs(prm[LONGITUDINAL])
@@ -1403,6 +1408,7 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_ou
         M_root = _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, loads_out, flight)
         for k in range(K):
             M_root_out[k] = M_root[k]
+    _keep_alive((st, Z, Jinv, J0, J1, F_cmd, M, A, b, x, hist))
 
 
 @numba.njit(**_STAGE)

@@ -1448,7 +1448,8 @@ def _borrowed(typingctx, value):
     atomic operation per array; the stages take the Rotor, Table and Work tuples (about 50
     arrays) and are called some 20 times per iteration: these atomic updates were 15 % of
     the solve (issue 34). NRT_incref and NRT_decref skip a null owner. The caller keeps
-    ``value`` itself alive (and referenced) while the borrowed views are in use."""
+    ``value`` itself alive (and referenced) while the borrowed views are in use, and no view
+    outlives it: none is stored in a longer-lived object or returned to Python."""
     def codegen(context, builder, sig, args):
         return _without_meminfo(context, builder, sig.args[0], args[0])
     return value(value), codegen

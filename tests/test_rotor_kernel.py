@@ -18,6 +18,8 @@ from dataclasses import fields
 import numba
 import numpy as np
 import pytest
+from numba.core import types
+from numba.core.extending import intrinsic
 
 from rotoruq.errors import ParameterError
 from rotoruq.rotor import _kernel as kern
@@ -393,3 +395,35 @@ def test_hover_batches_run_the_hover_build_and_forward_rows_at_mu_0_equal_it():
     prm[1, kern.MU] = 0.0
     prm[0, kern.TRIM] = kern.WIND_TUNNEL
     assert kern.needs_flight(prm) is True
+
+
+@intrinsic
+def _meminfo_address(typingctx, ary):
+    """The address of an array's memory owner (0: none)."""
+    def codegen(context, builder, sig, args):
+        meminfo = context.make_array(sig.args[0])(context, builder, value=args[0]).meminfo
+        return builder.ptrtoint(meminfo, context.get_value_type(types.intp))
+    return types.intp(ary), codegen
+
+
+@numba.njit
+def _borrow_and_write(a, pair):
+    b, (c, d) = kern._borrowed(a), kern._borrowed(pair)
+    b[1] = 5.0
+    c[0, 1] = 6.0
+    d[2] = 7
+    owners = np.array([_meminfo_address(a), _meminfo_address(b), _meminfo_address(c),
+                       _meminfo_address(d), _meminfo_address(b[1:])])
+    kern._keep_alive(pair)
+    return owners
+
+
+def test_borrowed_views_share_the_memory_without_a_memory_owner():
+    """kern._borrowed (the solve's arrays handed to its stages without reference counting,
+    issue 34): an array, or the arrays in a tuple, as views of the same memory, shape and
+    strides whose (and whose slices') memory owner is null."""
+    a, c, d = np.zeros(3), np.zeros((2, 3))[:, ::2], np.zeros(4, dtype=np.int64)
+    owners = _borrow_and_write(a, (c, d))
+    assert owners[0] != 0 and np.all(owners[1:] == 0)
+    assert a[1] == 5.0 and c[0, 1] == 6.0 and d[2] == 7
+    assert np.count_nonzero(a) == 1 and np.count_nonzero(c) == 1 and np.count_nonzero(d) == 1

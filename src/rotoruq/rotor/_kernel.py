@@ -46,6 +46,8 @@ from typing import NamedTuple
 
 import numba
 import numpy as np
+from numba.core import cgutils, types
+from numba.core.extending import intrinsic
 
 from .. import _numba_cache  # noqa: F401  (the cache keyed by what the kernels compile in)
 
@@ -1359,9 +1361,14 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_ou
         if singular:
             reason = TRIM_SINGULAR
             max_iterations = 0
+    # the iteration's arrays borrowed (see _borrowed): referenced here until _keep_alive
+    st_, Z_, Jinv_, J0_, J1_, F_cmd_ = (_borrowed(st), _borrowed(Z), _borrowed(Jinv),
+                                        _borrowed(J0), _borrowed(J1), _borrowed(F_cmd))
+    M_, A_, b_, x_, hist_ = _borrowed(M), _borrowed(A), _borrowed(b), _borrowed(x), _borrowed(
+        hist)
     for _ in range(max_iterations):
-        size, bad = _step(st, prm, rot, af, fit, linear, Z, Jinv, J0, J1, F_cmd, k_v, qa, ws,
-                          M, A, b, x, flight, hist)
+        size, bad = _step(st_, prm, rot, af, fit, linear, Z_, Jinv_, J0_, J1_, F_cmd_, k_v, qa,
+                          ws, M_, A_, b_, x_, flight, hist_)
         iterations += 1
         if trim:
             if (abs(prm[COLLECTIVE]) + abs(prm[LATERAL]) + abs(prm[LONGITUDINAL])
@@ -1403,6 +1410,7 @@ def _solve_sample(prm, rot, af, fit, linear, tolerance, max_iterations, ws, Q_ou
         M_root = _hub_loads(st, prm, rot, af, fit, linear, Z, F_cmd, ws, loads_out, flight)
         for k in range(K):
             M_root_out[k] = M_root[k]
+    _keep_alive((st, Z, Jinv, J0, J1, F_cmd, M, A, b, x, hist))
 
 
 @numba.njit(**_STAGE)
@@ -1420,6 +1428,41 @@ def _workspace(rot):
                 np.zeros((npsi, nr), dtype=np.int64), np.zeros((npsi, nr)))
 
 
+def _without_meminfo(context, builder, ty, value):
+    """``value`` of type ``ty`` with the meminfo of every array in it (in tuples) null."""
+    if isinstance(ty, types.Array):
+        ary = context.make_array(ty)(context, builder, value=value)
+        ary.meminfo = cgutils.get_null_value(ary.meminfo.type)
+        return ary._getvalue()
+    if isinstance(ty, types.BaseTuple):
+        for i, item_ty in enumerate(ty):
+            item = _without_meminfo(context, builder, item_ty, builder.extract_value(value, i))
+            value = builder.insert_value(value, item, i)
+    return value
+
+
+@intrinsic
+def _borrowed(typingctx, value):
+    """``value`` (an array or a tuple holding arrays) with its arrays' memory owners left out:
+    views of the same memory that numba does not reference-count.
+
+    Every array a compiled function receives is reference-counted on entry and exit, an
+    atomic operation per array; the stages take the Rotor, Table and Work tuples (about 50
+    arrays) and are called some 20 times per iteration: these atomic updates were 15 % of
+    the solve (issue 34). NRT_incref and NRT_decref skip a null owner. The caller keeps
+    ``value`` itself alive (and referenced) while the borrowed views are in use, and no view
+    outlives it: none is stored in a longer-lived object or returned to Python."""
+    def codegen(context, builder, sig, args):
+        return _without_meminfo(context, builder, sig.args[0], args[0])
+    return value(value), codegen
+
+
+@numba.njit(**_STAGE)
+def _keep_alive(value):
+    """A use of ``value``: its reference is dropped after this call (not inlined: an inlined
+    body would leave no use)."""
+
+
 @numba.njit(**_JIT)
 def solve_samples(prm, rot, af, fits, linear, tolerance, max_iterations, Q, scalars, status,
                   loads, M_root, flight):
@@ -1432,9 +1475,16 @@ def solve_samples(prm, rot, af, fits, linear, tolerance, max_iterations, Q, scal
     flight and trim code on a cold cache (issue 34); True for the forward-flight build
     (:func:`needs_flight`), where mu = 0 rows take the hover paths."""
     ws = _workspace(rot)
+    # borrowed views for the loop: rot, af and the outputs are held by the caller, ws is
+    # referenced until _keep_alive
+    rot_, af_, ws_ = _borrowed(rot), _borrowed(af), _borrowed(ws)
+    prm_, fits_, linear_ = _borrowed(prm), _borrowed(fits), _borrowed(linear)
+    Q_, scalars_, status_ = _borrowed(Q), _borrowed(scalars), _borrowed(status)
+    loads_, M_root_ = _borrowed(loads), _borrowed(M_root)
     for s in range(prm.shape[0]):
-        _solve_sample(prm[s], rot, af, fits[s], linear[s], tolerance, max_iterations, ws,
-                      Q[s], scalars[s], status[s], loads[s], M_root[s], flight)
+        _solve_sample(prm_[s], rot_, af_, fits_[s], linear_[s], tolerance, max_iterations,
+                      ws_, Q_[s], scalars_[s], status_[s], loads_[s], M_root_[s], flight)
+    _keep_alive(ws)
 
 
 def needs_flight(prm: np.ndarray) -> bool | None:

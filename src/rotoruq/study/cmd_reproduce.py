@@ -25,11 +25,11 @@ __all__ = ["CHAPTERS", "reproduce", "studies_dir"]
 
 #: The modules a chapter's worker imports, for its steps (numpy, scipy.stats and .optimize,
 #: numba with the rotor's and the chains' kernels) and for the figures drawn ahead
-#: (matplotlib): about 2 CPU-s of imports, paid once by the pool's fork server instead of
-#: once per worker (:func:`rotoruq.study.workers.worker_context`). Every worker of a run of
-#: all the chapters runs at least one chapter and draws figures, so it imports all of them;
-#: those left out cost ~0.1 s (benchmarks/import_time.py ``--chapter-workers``).
-#: h5netcdf (optional) writes the chains' netCDF export.
+#: (matplotlib): about 2 CPU-s of imports (benchmarks/import_time.py, ``chapter_workers``),
+#: paid once by the pool's fork server instead of once per worker
+#: (:func:`rotoruq.study.workers.worker_context`). Every worker of a run of all the chapters
+#: runs at least one chapter and draws figures, so it needs each of them; what a chapter
+#: imports beyond them costs ~0.1 s. h5netcdf (optional) writes the chains' netCDF export.
 CHAPTER_MODULES = (
     "rotoruq.study.runner",
     "rotoruq.methods.sampling",

@@ -64,6 +64,10 @@ def worker_context(preload: Sequence[str]) -> Iterator[BaseContext]:
     ours = getattr(server, "_forkserver_pid", 0) is None and hasattr(server, "_stop")
     before = getattr(server, "_preload_modules", ["__main__"])
     ctx.set_forkserver_preload(list(preload))
+    if ours:
+        # started now, not at the pool's first task: it imports while the caller goes on
+        # (reproduce checks numba's cache, importing numba, before it submits a chapter)
+        forkserver.ensure_running()
     try:
         yield ctx
     finally:

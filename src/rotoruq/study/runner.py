@@ -835,7 +835,7 @@ def _run_parallel(study: Study, out: Path, quick: bool, to_run: list[tuple[str, 
     waiting = list(to_run)
     running: dict[Any, tuple[str, StepSpec]] = {}
     # not forked from this process (a fork would copy its BLAS and numba locks): from a
-    # fork server that imported this module, and with it numpy, scipy and the step types
+    # fork server that imported this module, and with it numpy and the step types
     with worker_context((__name__,)) as ctx, ProcessPoolExecutor(
             min(jobs, len(to_run)), mp_context=ctx, initializer=_worker_logging,
             initargs=(printing_level(),)) as pool:

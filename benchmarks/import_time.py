@@ -8,6 +8,9 @@ who needs one layer saves). Cases:
 - ``params``: ``import rotoruq`` then ``rotoruq.ParameterSpace`` (scipy.stats comes in)
 - ``hover``: ``import rotoruq.rotor.hover`` (the rotor layer alone)
 - ``eager``: ``import rotoruq`` then every name of ``rotoruq.__all__`` (what 0.1 did on import)
+- ``chapter_workers``: the modules of ``rotoruq reproduce``'s chapter workers
+  (``rotoruq.study.cmd_reproduce.CHAPTER_MODULES``): what each spawned worker imported before
+  it ran a chapter, and what the workers' fork server now imports once per run (issue 34)
 
     python benchmarks/import_time.py [--repeat 5]
 """
@@ -24,6 +27,8 @@ CASES = {
     "params": "import rotoruq; rotoruq.ParameterSpace",
     "hover": "import rotoruq.rotor.hover",
     "eager": "import rotoruq; [getattr(rotoruq, n) for n in rotoruq.__all__]",
+    "chapter_workers": "import importlib; from rotoruq.study.cmd_reproduce import CHAPTER_MODULES;"
+                       " [importlib.import_module(m) for m in CHAPTER_MODULES]",
 }
 
 PROBE = """

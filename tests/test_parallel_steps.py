@@ -1,16 +1,21 @@
 """Independent steps of one study run at once in worker processes (``rotoruq run --jobs N``,
-issue 34): the same bits as one after the other, and the studies whose steps cannot leave
+issue 34): the same bits as one after the other, the workers forked by a fork server that
+imported their modules once (rotoruq.study.workers), and the studies whose steps cannot leave
 the run's process say why."""
 
 from __future__ import annotations
 
+import contextlib
+import os
 import subprocess
 import sys
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 import pytest
 
 from _inproc import rotoruq
+from rotoruq.study import workers
 from rotoruq.study.runner import _why_serial
 from rotoruq.study.schema import load_study
 
@@ -76,6 +81,39 @@ def test_independent_steps_in_two_processes_give_the_bits_of_one(tmp_path):
     # the summary lists the steps in the study's order, whatever order they ended in
     assert one.stdout.index("lhs") < one.stdout.index("random")
     assert two.stdout.index("lhs") < two.stdout.index("random")
+
+
+#: What a worker reports: its parent and whether it holds the module the fork server preloaded.
+PROBE = "__import__('os').getppid(), 'rotoruq.study.spec' in __import__('sys').modules"
+
+
+@pytest.mark.skipif(workers.start_method() != "forkserver",
+                    reason="no fork server here: the workers are spawned")
+def test_workers_come_from_a_fork_server_that_imported_their_modules_and_stops():
+    with workers.worker_context(["rotoruq.study.spec"]) as ctx, ProcessPoolExecutor(
+            2, mp_context=ctx) as pool:
+        got = [pool.submit(eval, PROBE).result() for _ in range(2)]
+    assert ctx.get_start_method() == "forkserver"
+    (server, preloaded), *_ = got
+    assert preloaded and server != os.getpid()  # forked by the server, which imported it
+    with pytest.raises(ProcessLookupError):  # the block stopped the server it started
+        os.kill(server, 0)
+
+
+def test_the_steps_workers_come_from_a_server_that_imported_the_runner(tmp_path, monkeypatch):
+    started = []
+    real = workers.worker_context
+
+    @contextlib.contextmanager
+    def recorded(preload):
+        with real(preload) as ctx:
+            started.append((ctx.get_start_method(), tuple(preload)))
+            yield ctx
+
+    monkeypatch.setattr(workers, "worker_context", recorded)
+    (tmp_path / "parallel.toml").write_text(STUDY)
+    assert _run(tmp_path, "--jobs", "2", fresh=False).returncode == 0
+    assert started == [(workers.start_method(), ("rotoruq.study.runner",))]
 
 
 def test_a_bad_job_count_is_a_usage_error(tmp_path):

@@ -678,9 +678,24 @@ def test_report_cli_rejects_empty_folder(tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_reproduce_quick(tmp_path, capsys):
+def test_reproduce_quick(tmp_path, capsys, monkeypatch):
     """The bundled reference study, reduced (`rotoruq reproduce --quick`), end to end."""
-    assert main(["reproduce", "all", "--quick", "--out", str(tmp_path)]) == 0
+    import contextlib
+
+    from rotoruq.study import cmd_reproduce, workers
+
+    started = []
+
+    @contextlib.contextmanager
+    def recorded(preload):
+        with workers.worker_context(preload) as ctx:
+            started.append((ctx.get_start_method(), preload))
+            yield ctx
+
+    monkeypatch.setattr(cmd_reproduce, "worker_context", recorded)
+    assert main(["reproduce", "all", "--quick", "--out", str(tmp_path), "--jobs", "2"]) == 0
+    # the chapters' workers were forked by a fork server that imported their modules
+    assert started == [(workers.start_method(), cmd_reproduce.CHAPTER_MODULES)]
     out = capsys.readouterr().out  # the same summary as `run`, per chapter
     assert "summary of validation" in out and "summary of experiment" in out
     assert "summary of heldout" in out  # the held-out ground-effect validation (issue 22)

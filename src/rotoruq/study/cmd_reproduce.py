@@ -7,7 +7,6 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import multiprocessing
 import os
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -16,11 +15,36 @@ from typing import Any
 
 from ..errors import InputFileError
 from ..reference.studies import CHAPTERS, START_ORDER
+from .workers import worker_context
 
 HELP = ("reproduce the reference study (thesis chapters 3 and 4, and a held-out validation of "
         "the ground effect) and write the report")
 
 __all__ = ["CHAPTERS", "reproduce", "studies_dir"]
+
+
+#: The modules a chapter's worker imports, for its steps (numpy, scipy.stats and .optimize,
+#: numba with the rotor's and the chains' kernels) and for the figures drawn ahead
+#: (matplotlib): about 2 CPU-s of imports (benchmarks/import_time.py, ``chapter_workers``),
+#: paid once by the pool's fork server instead of once per worker
+#: (:func:`rotoruq.study.workers.worker_context`). Every worker of a run of all the chapters
+#: runs at least one chapter and draws figures, so it needs each of them; what a chapter
+#: imports beyond them costs ~0.1 s. h5netcdf (optional) writes the chains' netCDF export.
+CHAPTER_MODULES = (
+    "rotoruq.study.runner",
+    "rotoruq.methods.sampling",
+    "rotoruq.methods.mcmc.bayes",
+    "rotoruq.methods.mcmc.discrepancy",
+    "rotoruq.methods.mcmc.sbc",
+    "rotoruq.methods.cuu",
+    "rotoruq.rotor.model",
+    "rotoruq.study.cmd_report",
+    "rotoruq.report.html",
+    "rotoruq.reference.report",
+    "rotoruq.reference.claims",
+    "matplotlib.figure",
+    "h5netcdf",
+)
 
 
 def studies_dir() -> Path:
@@ -177,10 +201,11 @@ def _reproduce(which: str, out: Path, quick: bool, jobs: int | None) -> dict:
         for name in names:
             runs[name], seconds[name] = _chapter(name, out, quick)
     else:
-        # spawned, not forked: a fork would copy this process's threads' locks (BLAS, numba)
-        ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_child_logging,
-                                 initargs=(_console_level(),)) as pool:
+        # not forked from this process: a fork would copy its threads' locks (BLAS, numba);
+        # forked by a fork server that imported the chapters' modules once (issue 34)
+        with worker_context(CHAPTER_MODULES) as ctx, ProcessPoolExecutor(
+                jobs, mp_context=ctx, initializer=_child_logging,
+                initargs=(_console_level(),)) as pool:
             # on an empty numba cache, one worker compiles the chain kernels while the first
             # chapter compiles the rotor's (the chapters then load both from the cache; a
             # family is compiled by one process at a time: rotoruq._compile.compile_lock)

@@ -565,11 +565,11 @@ def run_study(
     only : run only these steps; the others are loaded from an earlier run where saved
         (whatever their fingerprint), else skipped (:attr:`StudyRun.skipped`). A step one of
         them takes from must be saved or named too.
-    jobs : steps run at once, each in a worker process (spawned) as soon as the steps it
-        takes from are done; the numbers are the same bits as one after the other (each
-        step's seed is the study's seed and its position). Default 1. The steps of a study
-        with a ``model_factory``, an external model or a parallel ``[executor]`` run one
-        after the other whatever ``jobs`` says (logged).
+    jobs : steps run at once, each in a worker process (not forked from this one) as soon
+        as the steps it takes from are done; the numbers are the same bits as one after the
+        other (each step's seed is the study's seed and its position). Default 1. The steps
+        of a study with a ``model_factory``, an external model or a parallel ``[executor]``
+        run one after the other whatever ``jobs`` says (logged).
 
     Notes
     -----
@@ -822,22 +822,23 @@ def _worker_logging(level: int | None) -> None:
 def _run_parallel(study: Study, out: Path, quick: bool, to_run: list[tuple[str, StepSpec]],
                   jobs: int, planned: Callable, finished: Callable,
                   results: dict[str, StepResult]) -> None:
-    """Run the steps ``to_run`` on ``jobs`` worker processes (spawned), each as soon as the
-    steps it takes from (:func:`step_references`) are done, in the study's order among
-    those ready. Each step's numbers are a function of its inputs and its own seed (the
-    study's seed and the step's position), so they are the same bits as one after the
-    other."""
-    import multiprocessing
+    """Run the steps ``to_run`` on ``jobs`` worker processes (forked by a fork server,
+    :func:`~rotoruq.study.workers.worker_context`), each as soon as the steps it takes from
+    (:func:`step_references`) are done, in the study's order among those ready. Each
+    step's numbers are a function of its inputs and its own seed (the study's seed and the
+    step's position), so they are the same bits as one after the other."""
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
     from .console import printing_level
+    from .workers import worker_context
 
     waiting = list(to_run)
     running: dict[Any, tuple[str, StepSpec]] = {}
-    ctx = multiprocessing.get_context("spawn")  # a fork would copy BLAS and numba locks
-    with ProcessPoolExecutor(min(jobs, len(to_run)), mp_context=ctx,
-                             initializer=_worker_logging,
-                             initargs=(printing_level(),)) as pool:
+    # not forked from this process (a fork would copy its BLAS and numba locks): from a
+    # fork server that imported this module, and with it numpy and the step types
+    with worker_context((__name__,)) as ctx, ProcessPoolExecutor(
+            min(jobs, len(to_run)), mp_context=ctx, initializer=_worker_logging,
+            initargs=(printing_level(),)) as pool:
         try:
             while waiting or running:
                 for item in list(waiting):

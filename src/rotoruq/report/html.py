@@ -182,7 +182,7 @@ def _png_file(pixels, dpi: float) -> bytes:
                                         2 if channels == 3 else 6, 0, 0, 0)),
         _png_chunk(b"tEXt", b"Software\0" + software.encode("latin-1")),
         _png_chunk(b"pHYs", struct.pack(">IIB", per_metre, per_metre, 1)),
-        _png_chunk(b"IDAT", zlib.compress(rows, PNG_COMPRESS_LEVEL)),
+        _png_chunk(b"IDAT", zlib.compress(rows.data, PNG_COMPRESS_LEVEL)),
         _png_chunk(b"IEND", b""),
     ])
 

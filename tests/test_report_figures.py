@@ -402,3 +402,77 @@ def test_every_text_lies_inside_the_figure():
                 assert (ext.x0 >= box.x0 - 0.5 and ext.y0 >= box.y0 - 0.5
                         and ext.x1 <= box.x1 + 0.5 and ext.y1 <= box.y1 + 0.5), (
                     f.name, t.get_text(), ext.bounds, box.bounds)
+
+
+def test_the_png_file_holds_the_pixels_the_resolution_and_matplotlibs_name():
+    """The PNG the report writes itself (unfiltered rows through zlib): RGB and RGBA pixels
+    read back the same, with the resolution and the ``Software`` text of savefig's."""
+    from PIL import Image
+
+    from rotoruq.report.html import PNG_DPI, _png_file
+
+    rng = np.random.default_rng(6)
+    rgba = rng.integers(0, 256, size=(37, 53, 4), dtype=np.uint8)
+    for pixels, mode in ((rgba, "RGBA"), (rgba[..., :3], "RGB")):
+        image = Image.open(io.BytesIO(_png_file(pixels, PNG_DPI)))
+        assert image.mode == mode and image.size == (53, 37)
+        np.testing.assert_array_equal(np.asarray(image), pixels)
+        assert image.info["Software"] == (f"Matplotlib version{matplotlib.__version__}, "
+                                          "https://matplotlib.org/")
+        assert tuple(round(v) for v in image.info["dpi"]) == (PNG_DPI, PNG_DPI)
+
+
+def _draw_tracked(res: StepResult) -> tuple[list, list[bool]]:
+    """``draw_step`` of a prior/posterior figure: weak references to the figures it drew,
+    and whether the cyclic collector ran automatically while they were built."""
+    import weakref
+
+    from rotoruq.report.html import draw_step
+
+    refs, enabled = [], []
+
+    def hook(r, ctx):
+        figs = prior_posterior(r, {}, None)
+        refs.extend(weakref.ref(f.figure) for f in figs)
+        enabled.append(__import__("gc").isenabled())
+        return figs
+
+    drawn = draw_step(hook, {res.name: res}, res.name, "study", {}, {}, None, {})
+    assert [f.name for f in drawn.figures] == ["bayes_densities"]
+    return refs, enabled
+
+
+def test_a_steps_figures_are_drawn_with_the_collector_paused_and_freed_after():
+    """Figures are built and drawn with the cyclic collector paused (its full collections
+    walked every object of the process while the figures' many objects lived), and their
+    reference cycles are collected when the step is drawn: nothing of them is left for a
+    later collection, and the collector is as the caller had it."""
+    import gc
+
+    refs, enabled = _draw_tracked(_bayes())
+    assert enabled == [False]
+    assert refs and all(r() is None for r in refs)  # freed without a collection of ours
+    assert gc.isenabled() and gc.get_freeze_count() == 0
+
+
+def test_a_collector_the_caller_paused_or_froze_is_left_so():
+    """A caller that paused the collector keeps it paused; one that froze objects keeps them
+    frozen, and the step's figures are still freed."""
+    import gc
+
+    gc.disable()
+    try:
+        _, enabled = _draw_tracked(_bayes())
+        assert enabled == [False] and not gc.isenabled()
+    finally:
+        gc.enable()
+    gc.freeze()
+    try:
+        frozen = gc.get_freeze_count()
+        refs, enabled = _draw_tracked(_bayes())
+        assert enabled == [False] and gc.isenabled()
+        # still frozen (less the few frozen objects freed since: they leave the count)
+        assert frozen // 2 < gc.get_freeze_count() <= frozen
+        assert all(r() is None for r in refs)
+    finally:
+        gc.unfreeze()

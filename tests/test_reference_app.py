@@ -191,10 +191,11 @@ def assert_same_claims(got: list[dict]) -> None:
     an emulator took other draws (CHANGELOG.md, "the emulator's exponential"), and the quick
     run's gvpm_vv20_4R judges one load instead of three, the other two's u_input now within
     Monte Carlo error of u_D). The floats are pinned to 1e-9 and the chains' accept decisions
-    depend on last bits, so the file is of one kind of machine: the Kriging variance's sum
-    (``_gp_mean._tri_sumsq``) is vectorized at the machine's vector width, and on an AVX-512
-    Xeon (glibc 2.36, where this file was re-pinned) the file pinned before differed at its
-    own commit in the two held-out claims, whose chains use that variance."""
+    depend on last bits, so the file is of one kind of machine: on an AVX-512 Xeon (glibc
+    2.36, where this file was re-pinned) the file pinned before differed at its own commit in
+    the two held-out claims alone, whose chains use the Kriging variance, a sum the compiler
+    may reassociate and vectorize at the machine's vector width (``_gp_mean._tri_sumsq``: the
+    likely cause, not shown)."""
     want = json.loads(EXPECTED_CLAIMS.read_text())
     assert [c["key"] for c in got] == [c["key"] for c in want]
     assert [c["status"] for c in got] == [c["status"] for c in want]

@@ -13,6 +13,7 @@ import json
 import math
 import re
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -27,6 +28,8 @@ from rotoruq.steps.validation import JOINT
 from rotoruq.study.schema import parse_study
 
 EXPECTED_CLAIMS = Path(__file__).parent / "data" / "reference_quick_claims.json"
+# the kind of machine EXPECTED_CLAIMS was pinned on (:func:`machine_kind`)
+EXPECTED_MACHINE = Path(__file__).parent / "data" / "reference_quick_claims.machine.json"
 
 from test_security import DRIVER, STUDY  # noqa: E402 (one external study for both)
 
@@ -195,9 +198,42 @@ def assert_same_claims(got: list[dict]) -> None:
     2.36, where this file was re-pinned) the file pinned before differed at its own commit in
     the two held-out claims alone, whose chains use the Kriging variance, a sum the compiler
     may reassociate and vectorize at the machine's vector width (``_gp_mean._tri_sumsq``: the
-    likely cause, not shown)."""
+    likely cause, not shown). So the numbers are compared only on the kind of machine the file
+    was pinned on (``reference_quick_claims.machine.json``, :func:`machine_kind`); elsewhere the
+    claims' keys and verdicts are, with a warning that says so."""
     want = json.loads(EXPECTED_CLAIMS.read_text())
     assert [c["key"] for c in got] == [c["key"] for c in want]
     assert [c["status"] for c in got] == [c["status"] for c in want]
+    pinned = json.loads(EXPECTED_MACHINE.read_text())
+    here = machine_kind()
+    if here != pinned:
+        # another kind of machine: the chains took other draws there, so only the verdicts
+        # above are comparable (issue 34)
+        warnings.warn(f"the quick claims' numbers were pinned on {pinned['cpu']} "
+                      f"({pinned['libc']}, numba {pinned['numba']}); on {here['cpu']} "
+                      f"({here['libc']}, numba {here['numba']}) only their verdicts are "
+                      "compared", stacklevel=2)
+        return
     diffs = _close(got, want)
     assert not diffs, "\n".join(diffs[:20])
+
+
+def machine_kind() -> dict:
+    """What the last bits of a chain depend on besides the code: the CPU the kernels are
+    compiled for (its name and features), the C library, numba and llvmlite."""
+    import platform
+
+    import llvmlite
+    import llvmlite.binding as llvm
+    import numba
+
+    return {"cpu": llvm.get_host_cpu_name(), "features": llvm.get_host_cpu_features().flatten(),
+            "libc": "-".join(platform.libc_ver()), "numba": numba.__version__,
+            "llvmlite": llvmlite.__version__}
+
+
+def test_the_pinned_claims_say_which_machine_they_were_pinned_on():
+    """The sidecar of the pinned claims names a machine kind in :func:`machine_kind`'s form,
+    so that the full comparison runs where the pin is valid."""
+    pinned = json.loads(EXPECTED_MACHINE.read_text())
+    assert pinned.keys() == machine_kind().keys()
